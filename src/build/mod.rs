@@ -1,0 +1,6 @@
+//! The preprocessor (paper §5).
+
+pub mod image_ops;
+pub mod pack;
+pub mod sizing;
+pub mod tree;

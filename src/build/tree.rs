@@ -1,0 +1,193 @@
+//! The in-memory atlas tree: what `build` produces and `store` writes (paper §3, Fig. 3).
+//!
+//! Pixel data is not held here: every atlas and every group of original textures is a *block* whose bytes
+//! are produced by the rasteriser and streamed into the paging file at an offset fixed in advance, so a
+//! build never holds more than a few atlases per thread.
+
+use crate::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NodeId};
+use crate::scene::UpAxis;
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+use serde::Serialize;
+
+/// Parameters of a build (paper §5.2.1). Stored in the paging file so the runtime can rescale.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BuildParams {
+    /// d_min in world units (metres): leaves' atlases are sharp enough for any camera at least this far.
+    pub d_min: f64,
+    /// Screen width in pixels the guarantee is computed for (runtime rescales min_distance linearly).
+    pub screen_width: u32,
+    /// Horizontal field of view, degrees.
+    pub fov_deg: f64,
+    /// Texels per pixel required at d_min (1.0 = the paper's 1:1).
+    pub texel_ratio: f64,
+    /// Width = height of every atlas, texels (power of two).
+    pub atlas_size: u32,
+    /// Border around every packed texture area, texels (paper: 8).
+    pub border: u32,
+    /// Depth cap; a region that would need to go deeper is an error naming it.
+    pub max_depth: u8,
+    pub up: UpAxis,
+}
+
+impl BuildParams {
+    /// `f_proj = w_screen / (2 d_min tan(fov/2))` (paper §5.2.1): pixels per world unit at distance d_min,
+    /// multiplied by the texel ratio, i.e. required texels per world unit.
+    pub fn f_proj(&self) -> f64 {
+        let half = (self.fov_deg.to_radians() * 0.5).tan();
+        self.texel_ratio * self.screen_width as f64 / (2.0 * self.d_min * half)
+    }
+}
+
+/// Which tree of a file: the opaque tree (RGB in RGBA8 storage), or the alpha tree (RGBA), built only
+/// when the scene has MASK/BLEND materials.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+pub enum TreeKind {
+    Opaque,
+    Alpha,
+}
+
+/// One node of the quadtree.
+#[derive(Clone, Debug, Serialize)]
+pub struct Node {
+    /// World-space bounds of the node's triangles (f64).
+    pub bounds_min: DVec3,
+    pub bounds_max: DVec3,
+    pub level: Level,
+    /// Cell at `level`: where this node's atlas sits in the root atlas (paper Fig. 4).
+    pub cell: Cell,
+    pub parent: Option<NodeId>,
+    /// Children by quadrant (bit 0: +x, bit 1: +y of the parent's atlas); `None` where the split left a
+    /// quadrant empty (incomplete quadtree, paper §5.1).
+    pub children: [Option<NodeId>; 4],
+    /// Minimum camera distance at which this node's atlas suffices (leaf: d_min / clamp; inner: 2·max of
+    /// children).
+    pub min_distance: f64,
+    /// Range in the tree's index buffer: all leaves of the subtree, contiguous (leaves in tree order).
+    pub first_index: u32,
+    pub index_count: u32,
+    pub atlas_block: BlockId,
+    pub leaf: Option<LeafId>,
+}
+
+impl Node {
+    pub fn is_leaf(&self) -> bool {
+        self.leaf.is_some()
+    }
+}
+
+/// Where one material's texture area sits in a leaf atlas (paper §5.2.2–5.2.3).
+#[derive(Clone, Debug, Serialize)]
+pub struct AtlasRect {
+    pub material: MaterialId,
+    /// Outer rectangle incl. border, texels, 4-aligned: `[x, y, w, h]`.
+    pub outer: [u32; 4],
+    /// Inner rectangle (the UV bounding area A_tex maps onto exactly this), texels: `[x, y, w, h]`.
+    pub inner: [u32; 4],
+    /// A_tex in the material's UV space: `inner` shows `[uv_min, uv_max]`.
+    pub uv_min: [f64; 2],
+    pub uv_max: [f64; 2],
+}
+
+/// One original texture a leaf uses near the camera (d < d_min), resampled to a square power-of-two
+/// class size and stored in one of the leaf's original-texture blocks.
+#[derive(Clone, Debug, Serialize)]
+pub struct OriginalRef {
+    pub material: MaterialId,
+    pub image: ImageId,
+    /// Width = height after resampling, texels (power of two).
+    pub class_size: u32,
+    pub block: BlockId,
+    /// Index of this image within its block (images of one block are stored back to back, each with its
+    /// full mip chain).
+    pub slot: u32,
+}
+
+/// A leaf: its triangles, atlas layout and original textures.
+#[derive(Clone, Debug, Serialize)]
+pub struct Leaf {
+    pub node: NodeId,
+    /// Positions of this leaf's vertices are stored relative to this point (f64), see DESIGN "Precision".
+    pub origin: DVec3,
+    pub first_vertex: u32,
+    pub vertex_count: u32,
+    pub first_index: u32,
+    pub index_count: u32,
+    pub rects: Vec<AtlasRect>,
+    pub originals: Vec<OriginalRef>,
+    /// 1.0 normally; < 1 when a triangle alone needed more than the atlas and the leaf's resolution was
+    /// scaled down (then `min_distance = d_min / clamp_scale`).
+    pub clamp_scale: f64,
+}
+
+/// A vertex as stored and drawn. WGSL twin: `TreeVertex` in `shaders/tree.wgsl`.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable, Serialize)]
+#[repr(C)]
+pub struct TreeVertex {
+    /// Position relative to the leaf origin (f32 is exact enough: leaves are small).
+    pub pos: [f32; 3],
+    /// Leaf-local atlas UV in [0, 1] of the leaf's atlas.
+    pub atlas_uv: [f32; 2],
+    /// Original UV, shifted per triangle by a whole period so it stays small (exact for repeat/mirror).
+    pub orig_uv: [f32; 2],
+    /// The leaf this vertex belongs to.
+    pub leaf: u32,
+    /// Index into the leaf's `originals` (TAB's texture-array mapping for original-texture draws).
+    pub original: u32,
+}
+
+/// What a block holds.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+pub enum BlockKind {
+    /// A node's atlas: `atlas_size²` RGBA8 sRGB, full mip chain, level 0 first.
+    Atlas { node: NodeId },
+    /// Part `part` of a leaf's original textures: its images back to back, each a full RGBA8 sRGB mip chain.
+    Originals { leaf: LeafId, part: u32 },
+}
+
+/// A block: kind and exact byte length (known before any pixel is produced).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct BlockDesc {
+    /// Index of the tree in [`AtlasForest::trees`] the block belongs to.
+    pub tree: u32,
+    pub kind: BlockKind,
+    pub bytes: u64,
+}
+
+/// One complete atlas tree.
+#[derive(Clone, Debug, Serialize)]
+pub struct AtlasTree {
+    pub kind: TreeKind,
+    /// `nodes[0]` is the root; parents precede children (pre-order).
+    pub nodes: Vec<Node>,
+    /// In tree order (pre-order of their nodes).
+    pub leaves: Vec<Leaf>,
+    pub vertices: Vec<TreeVertex>,
+    /// Absolute indices into `vertices`; each leaf's range is contiguous and leaves are in tree order.
+    pub indices: Vec<u32>,
+    /// For each triangle of `indices` (in order), the scene triangle it came from.
+    pub source_triangles: Vec<u32>,
+}
+
+/// Bytes of an RGBA8 square image of side `size` with its full mip chain down to 1×1.
+pub fn mip_chain_bytes(size: u32) -> u64 {
+    let mut s = size.max(1) as u64;
+    let mut total = 0;
+    loop {
+        total += s * s * 4;
+        if s == 1 {
+            return total;
+        }
+        s /= 2;
+    }
+}
+
+/// Everything one paging file holds: the build parameters, the scene's materials, one or two trees
+/// (opaque; alpha only if the scene has alpha materials) and the table of blocks of all trees.
+#[derive(Clone, Debug, Serialize)]
+pub struct AtlasForest {
+    pub params: BuildParams,
+    pub materials: Vec<crate::scene::Material>,
+    pub trees: Vec<AtlasTree>,
+    pub blocks: Vec<BlockDesc>,
+}

@@ -1,0 +1,32 @@
+//! # atlastree
+//!
+//! Texture-atlas trees (Buchholz & Döllner 2005) for massively textured, planar-distributed scenes,
+//! rendered with texture-array batching (Trapp & Döllner 2015).
+//!
+//! ## Data flow
+//!
+//! ```text
+//! glTF ──scene::import──▶ Scene ──build::*──▶ AtlasForest (in memory) ──store::write──▶ .atlastree file
+//!                                                                                         │ memmap2
+//!  camera path ──▶ select (per frame cut) ──▶ paging (ideal block set, queue) ──▶ residency ─┤
+//!                         │                                                                 ▼
+//!                         └────────────▶ render::batch (indirect records, plain data) ──▶ render (wgpu)
+//!  sim: the same select + paging driven by a camera path and an I/O model, no GPU
+//! ```
+//!
+//! - [`scene`]: glTF 2.0 import into a world-space triangle soup with f64 positions, materials, wrap modes,
+//!   alpha modes and lazily decoded images.
+//! - [`build`]: the preprocessor. Sizing (§5.2.1), required areas (§5.2.2), MaxRects packing (§5.2.3),
+//!   splitting (§5.3), leaf atlas rasterisation in linear light, inner atlases by 2×2 combine and halve
+//!   (§5.1), per-node texture transforms in the exact form of DESIGN.md "Precision".
+//! - [`store`]: the paging file. Pod records read in place from a memory map, 4 KiB-aligned checksummed
+//!   blocks, atomic writes.
+//! - [`gpu`]: wgpu device setup shared by the renderer and the GPU tests.
+//!
+//! Stages still to come (see the issues): `select`, `paging`, `render`, `sim`.
+
+pub mod build;
+pub mod gpu;
+pub mod ids;
+pub mod scene;
+pub mod store;

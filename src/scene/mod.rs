@@ -1,0 +1,165 @@
+//! Scene import: glTF 2.0 (`.gltf` with external files or data URIs, `.glb`) into a flat, world-space
+//! triangle soup with f64 positions, one UV set per vertex, materials and lazily decoded images.
+//!
+//! Everything the later stages need is here and nothing more: node transforms and instancing are applied
+//! (every instance becomes distinct triangles), `KHR_texture_transform` is baked into the UVs, and the
+//! distribution plane (paper §3) is fixed by [`UpAxis`].
+
+pub mod image_source;
+pub mod import;
+pub mod info;
+
+pub use image_source::{DecodedImage, ImageSource};
+pub use import::{ImportOptions, SceneError, import};
+
+use crate::ids::{ImageId, MaterialId};
+use glam::{DVec2, DVec3};
+use serde::Serialize;
+
+/// Texture addressing per axis (glTF sampler `wrapS` / `wrapT`).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+pub enum Wrap {
+    #[default]
+    Repeat,
+    MirroredRepeat,
+    ClampToEdge,
+}
+
+/// glTF `alphaMode`.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub enum AlphaMode {
+    #[default]
+    Opaque,
+    /// Alpha-tested: fragments with alpha < `cutoff` are discarded.
+    Mask { cutoff: f32 },
+    Blend,
+}
+
+impl AlphaMode {
+    /// True for MASK and BLEND: such materials go to the alpha tree (paper §7, Chemnitz).
+    pub fn uses_alpha(self) -> bool {
+        !matches!(self, AlphaMode::Opaque)
+    }
+}
+
+/// The axis that points up; the other two span the distribution plane.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum UpAxis {
+    X,
+    #[default]
+    Y,
+    Z,
+}
+
+impl UpAxis {
+    /// Coordinates of `p` in the distribution plane: y-up → (x, z), z-up → (x, y), x-up → (y, z).
+    #[inline]
+    pub fn plane(self, p: DVec3) -> DVec2 {
+        match self {
+            UpAxis::X => DVec2::new(p.y, p.z),
+            UpAxis::Y => DVec2::new(p.x, p.z),
+            UpAxis::Z => DVec2::new(p.x, p.y),
+        }
+    }
+    /// The height of `p` above the distribution plane.
+    #[inline]
+    pub fn height(self, p: DVec3) -> f64 {
+        match self {
+            UpAxis::X => p.x,
+            UpAxis::Y => p.y,
+            UpAxis::Z => p.z,
+        }
+    }
+    /// Unit up vector.
+    pub fn vector(self) -> DVec3 {
+        match self {
+            UpAxis::X => DVec3::X,
+            UpAxis::Y => DVec3::Y,
+            UpAxis::Z => DVec3::Z,
+        }
+    }
+}
+
+/// A material as the atlas tree needs it: one base-colour image, its wrap modes and its alpha mode.
+/// Untextured materials get a 1×1 [`ImageSource`] of their `base_color_factor`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Material {
+    pub name: String,
+    pub image: ImageId,
+    /// glTF `texCoord` set the UVs were read from (informational; the chosen set is in [`Vertex::uv`]).
+    pub tex_coord: u32,
+    /// `[wrap_s, wrap_t]`.
+    pub wrap: [Wrap; 2],
+    pub alpha: AlphaMode,
+    /// Linear RGBA multiplier (glTF `baseColorFactor`); already applied into 1×1 images of untextured
+    /// materials, which then carry `[1,1,1,1]` here.
+    pub base_color_factor: [f32; 4],
+    /// Whether `KHR_texture_transform` was baked into this material's UVs.
+    pub texture_transform: bool,
+}
+
+/// One vertex: world-space position in f64 (after all node transforms) and the base-colour UV (after
+/// `KHR_texture_transform`), both in f64 so huge coordinates and UVs survive import.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct Vertex {
+    pub pos: DVec3,
+    pub uv: DVec2,
+}
+
+/// One triangle: three vertex indices and its material.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Triangle {
+    pub v: [u32; 3],
+    pub material: MaterialId,
+}
+
+/// What the importer skipped or replaced, counted (never silently).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ImportReport {
+    /// Human-readable warnings, each naming file, mesh, primitive and accessor where it applies.
+    pub warnings: Vec<String>,
+    pub skipped_primitives: u64,
+    pub skipped_triangles: u64,
+    pub missing_images: u64,
+    pub instances: u64,
+    pub nodes: u64,
+}
+
+/// An imported scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The file it was imported from.
+    pub source: std::path::PathBuf,
+    pub up: UpAxis,
+    pub vertices: Vec<Vertex>,
+    pub triangles: Vec<Triangle>,
+    pub materials: Vec<Material>,
+    pub images: Vec<ImageSource>,
+    pub report: ImportReport,
+}
+
+impl Scene {
+    /// World-space axis-aligned bounds `(min, max)` of all vertices; `None` for an empty scene.
+    pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        let mut it = self.vertices.iter();
+        let first = it.next()?.pos;
+        Some(it.fold((first, first), |(lo, hi), v| (lo.min(v.pos), hi.max(v.pos))))
+    }
+
+    /// True if any material uses alpha (MASK or BLEND): only then is an alpha tree built.
+    pub fn has_alpha(&self) -> bool {
+        self.materials.iter().any(|m| m.alpha.uses_alpha())
+    }
+
+    /// The three world positions of triangle `t`.
+    #[inline]
+    pub fn tri_positions(&self, t: &Triangle) -> [DVec3; 3] {
+        t.v.map(|i| self.vertices[i as usize].pos)
+    }
+
+    /// The three UVs of triangle `t`.
+    #[inline]
+    pub fn tri_uvs(&self, t: &Triangle) -> [DVec2; 3] {
+        t.v.map(|i| self.vertices[i as usize].uv)
+    }
+}
