@@ -28,5 +28,7 @@
 pub mod build;
 pub mod gpu;
 pub mod ids;
+pub mod inspect;
 pub mod scene;
 pub mod store;
+pub mod util;

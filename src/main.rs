@@ -1,1 +1,14 @@
-fn main() {}
+//! `atlastree`: the command-line front end. clap arguments → validated options → library call → report.
+
+mod cli;
+
+fn main() -> std::process::ExitCode {
+    cli::init_tracing();
+    match cli::run() {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::from(2)
+        }
+    }
+}

@@ -1,6 +1,325 @@
-//! The preprocessor (paper §5).
+//! The preprocessor (paper §5): scene → texture-atlas tree(s) → one paging file.
+//!
+//! Stages, each a module with one job:
+//! 1. [`prepare`]: per-triangle sizing (§5.2.1), UV period shift, area and midpoint.
+//! 2. [`layout`]: try an atlas per node (§5.2.2 areas via [`area`], §5.2.3 packing via [`pack`]); split on
+//!    failure (§5.3). Sizes only, no pixels.
+//! 3. [`assemble`]: nodes in pre-order, leaves in tree order, geometry in the exact single-UV-set form
+//!    ([`transform`]), original-texture classes, the block table with every block's byte size.
+//! 4. [`raster`]: the pixel pass ([`image_ops`]), streamed into [`crate::store::FileWriter`] at offsets fixed
+//!    in stage 3, then the file is finished atomically.
 
+pub mod area;
+pub mod assemble;
 pub mod image_ops;
+pub mod layout;
 pub mod pack;
+pub mod prepare;
+pub mod raster;
 pub mod sizing;
+pub mod transform;
 pub mod tree;
+
+use crate::scene::Scene;
+use crate::store::{FileWriter, StoreError};
+use serde::Serialize;
+use std::path::Path;
+use std::sync::atomic::AtomicU64;
+use std::time::Instant;
+use tree::{AtlasForest, BuildParams, TreeKind};
+
+/// How d_min is given.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub enum DMin {
+    /// Metres (world units).
+    Metres(f64),
+    /// `d_min = scene diagonal / R` (the paper used R = 151 for Berlin and 62 for Chemnitz).
+    Ratio(f64),
+}
+
+/// Options of a build. Defaults follow the paper (800 px, ratio 1, border 8) and the issue (atlas 1024,
+/// depth cap 24).
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildOptions {
+    pub d_min: DMin,
+    pub screen_width: u32,
+    pub fov_deg: f64,
+    pub texel_ratio: f64,
+    pub atlas_size: u32,
+    pub border: u32,
+    pub max_depth: u8,
+    /// Never store more texels per texture repetition than the source has.
+    pub cap_to_source: bool,
+    /// Bound on decoded images held at once, bytes.
+    pub image_cache_bytes: u64,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions {
+            d_min: DMin::Ratio(151.0),
+            screen_width: 800,
+            fov_deg: 60.0,
+            texel_ratio: 1.0,
+            atlas_size: 1024,
+            border: 8,
+            max_depth: 24,
+            cap_to_source: true,
+            image_cache_bytes: 2 << 30,
+        }
+    }
+}
+
+/// Receives progress of the long stages (the CLI draws indicatif bars; tests pass [`NoProgress`]).
+pub trait Progress: Sync {
+    /// A stage begins; `total` is known for bar-like stages.
+    fn stage(&self, name: &str, total: Option<u64>);
+    /// Position within the current stage.
+    fn set(&self, pos: u64);
+    /// The current stage ended.
+    fn finish_stage(&self);
+}
+
+/// Progress sink that ignores everything.
+pub struct NoProgress;
+impl Progress for NoProgress {
+    fn stage(&self, _: &str, _: Option<u64>) {}
+    fn set(&self, _: u64) {}
+    fn finish_stage(&self) {}
+}
+
+/// Errors of a build; every variant names what and where.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    #[error("invalid build parameter --{name} {value}: {why}")]
+    InvalidParam { name: &'static str, value: String, why: &'static str },
+    #[error("the scene {path} has no triangles to build a tree from")]
+    EmptyScene { path: String },
+    #[error("layout of the {kind:?} tree: {source}")]
+    Layout {
+        kind: TreeKind,
+        #[source]
+        source: layout::LayoutError,
+    },
+    #[error(transparent)]
+    Store(#[from] StoreError),
+}
+
+/// Per-tree numbers of a build report.
+#[derive(Clone, Debug, Serialize)]
+pub struct TreeReport {
+    pub kind: TreeKind,
+    pub triangles: u64,
+    pub nodes: u64,
+    pub leaves: u64,
+    pub depth: u8,
+    pub vertices: u64,
+    pub clamped_leaves: u64,
+    pub capped_rects: u64,
+    pub occupancy_mean: f64,
+    pub occupancy_min: f64,
+    pub occupancy_max: f64,
+    pub root_min_distance: f64,
+    pub sizing: prepare::PrepareReport,
+}
+
+/// What a build did, with the numbers (printed by `atlastree build`, JSON with `--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildReport {
+    pub params: BuildParams,
+    pub scene_diagonal: f64,
+    pub trees: Vec<TreeReport>,
+    pub blocks: u64,
+    pub atlas_blocks: u64,
+    pub original_blocks: u64,
+    pub file_bytes: u64,
+    /// (stage, seconds).
+    pub timings: Vec<(String, f64)>,
+    pub images_decoded: u64,
+    pub image_fallbacks: u64,
+    pub peak_rss_bytes: Option<u64>,
+    pub warnings: Vec<String>,
+}
+
+/// Validates `opts` against `scene` and derives the stored [`BuildParams`].
+pub fn resolve_params(scene: &Scene, opts: &BuildOptions) -> Result<(BuildParams, f64), BuildError> {
+    let bad = |name, value: String, why| Err(BuildError::InvalidParam { name, value, why });
+    if !opts.atlas_size.is_power_of_two() || !(64..=16384).contains(&opts.atlas_size) {
+        return bad("atlas-size", opts.atlas_size.to_string(), "must be a power of two from 64 to 16384");
+    }
+    if opts.border * 4 >= opts.atlas_size {
+        return bad("border", opts.border.to_string(), "must be less than a quarter of the atlas size");
+    }
+    if !(opts.fov_deg > 0.0 && opts.fov_deg < 180.0) {
+        return bad("fov", opts.fov_deg.to_string(), "must be between 0 and 180 degrees");
+    }
+    if !(opts.texel_ratio.is_finite() && opts.texel_ratio > 0.0) {
+        return bad("texel-ratio", opts.texel_ratio.to_string(), "must be a positive number");
+    }
+    if opts.screen_width == 0 {
+        return bad("screen-width", "0".into(), "must be positive");
+    }
+    if opts.max_depth == 0 || opts.max_depth > 30 {
+        return bad("max-depth", opts.max_depth.to_string(), "must be from 1 to 30");
+    }
+    let (lo, hi) = scene.bounds().ok_or_else(|| BuildError::EmptyScene { path: scene.source.display().to_string() })?;
+    let diagonal = (hi - lo).length();
+    let d_min = match opts.d_min {
+        DMin::Metres(m) => m,
+        DMin::Ratio(r) => {
+            if !(r.is_finite() && r > 0.0) {
+                return bad("d-min-ratio", r.to_string(), "must be a positive number");
+            }
+            diagonal / r
+        }
+    };
+    if !(d_min.is_finite() && d_min > 0.0) {
+        return bad("d-min", d_min.to_string(), "must be a positive distance (is the scene a single point?)");
+    }
+    let params = BuildParams {
+        d_min,
+        screen_width: opts.screen_width,
+        fov_deg: opts.fov_deg,
+        texel_ratio: opts.texel_ratio,
+        atlas_size: opts.atlas_size,
+        border: opts.border,
+        max_depth: opts.max_depth,
+        up: scene.up,
+    };
+    Ok((params, diagonal))
+}
+
+/// The triangles of each tree: opaque materials, and (only if the scene has any) alpha materials.
+pub fn partition_triangles(scene: &Scene) -> Vec<(TreeKind, Vec<u32>)> {
+    let mut opaque = Vec::new();
+    let mut alpha = Vec::new();
+    for (i, t) in scene.triangles.iter().enumerate() {
+        if scene.materials[t.material.idx()].alpha.uses_alpha() {
+            alpha.push(i as u32);
+        } else {
+            opaque.push(i as u32);
+        }
+    }
+    [(TreeKind::Opaque, opaque), (TreeKind::Alpha, alpha)].into_iter().filter(|(_, t)| !t.is_empty()).collect()
+}
+
+/// Builds the atlas tree(s) of `scene` and writes them atomically to `out`.
+pub fn build(
+    scene: &Scene,
+    opts: &BuildOptions,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<BuildReport, BuildError> {
+    let t_all = Instant::now();
+    let (params, diagonal) = resolve_params(scene, opts)?;
+    let parts = partition_triangles(scene);
+    if parts.is_empty() {
+        return Err(BuildError::EmptyScene { path: scene.source.display().to_string() });
+    }
+    let f_proj = params.f_proj();
+    let mut timings: Vec<(String, f64)> = Vec::new();
+    let mut time = |name: &str, t: Instant| timings.push((name.to_string(), t.elapsed().as_secs_f64()));
+
+    let mut forest = AtlasForest { params: params.clone(), materials: scene.materials.clone(), trees: vec![], blocks: vec![] };
+    let mut reports = Vec::new();
+    for (kind, tris) in &parts {
+        let t = Instant::now();
+        progress.stage(&format!("sizing {kind:?}"), None);
+        let infos = prepare::prepare(scene, tris, f_proj, params.up);
+        let sizing = prepare::analyze(&infos);
+        progress.finish_stage();
+        time(&format!("sizing {kind:?}"), t);
+
+        let t = Instant::now();
+        progress.stage(&format!("layout {kind:?} (nodes)"), None);
+        let lopts = layout::LayoutOptions {
+            atlas_size: params.atlas_size,
+            border: params.border,
+            max_depth: params.max_depth,
+            cap_to_source: opts.cap_to_source,
+        };
+        let lay = layout::layout(scene, &infos, &lopts, &|n| progress.set(n))
+            .map_err(|source| BuildError::Layout { kind: *kind, source })?;
+        progress.finish_stage();
+        time(&format!("layout {kind:?}"), t);
+
+        let t = Instant::now();
+        let asm = assemble::assemble(
+            scene,
+            &infos,
+            &lay.order,
+            &lay.root,
+            &params,
+            *kind,
+            forest.trees.len() as u32,
+            forest.blocks.len() as u32,
+        );
+        time(&format!("assemble {kind:?}"), t);
+        let occ = &asm.occupancy;
+        reports.push(TreeReport {
+            kind: *kind,
+            triangles: tris.len() as u64,
+            nodes: asm.tree.nodes.len() as u64,
+            leaves: asm.tree.leaves.len() as u64,
+            depth: asm.tree.nodes.iter().map(|n| n.level.0).max().unwrap_or(0),
+            vertices: asm.tree.vertices.len() as u64,
+            clamped_leaves: lay.clamped_leaves as u64,
+            capped_rects: asm.capped.iter().flatten().filter(|c| **c).count() as u64,
+            occupancy_mean: occ.iter().sum::<f64>() / occ.len().max(1) as f64,
+            occupancy_min: occ.iter().copied().fold(f64::INFINITY, f64::min),
+            occupancy_max: occ.iter().copied().fold(0.0, f64::max),
+            root_min_distance: asm.tree.nodes.first().map_or(0.0, |n| n.min_distance),
+            sizing,
+        });
+        forest.trees.push(asm.tree);
+        forest.blocks.extend(asm.blocks);
+    }
+
+    let t = Instant::now();
+    let writer = FileWriter::create(out, &forest)?;
+    let cache = raster::ImageCache::new(scene, opts.image_cache_bytes);
+    let total_nodes: u64 = forest.trees.iter().map(|t| t.nodes.len() as u64).sum();
+    progress.stage("rasterise atlases", Some(total_nodes));
+    let done = AtomicU64::new(0);
+    let set = |n: u64| progress.set(n);
+    let ctx = raster::RasterCtx { scene, params: &params, writer: &writer, cache: &cache, progress: &set, done };
+    for tree in &forest.trees {
+        raster::raster_tree(&ctx, tree)?;
+    }
+    progress.finish_stage();
+    time("rasterise", t);
+
+    let t = Instant::now();
+    progress.stage("write", None);
+    let summary = writer.finish()?;
+    progress.finish_stage();
+    time("write", t);
+    time("total", t_all);
+
+    let atlas_blocks =
+        forest.blocks.iter().filter(|b| matches!(b.kind, tree::BlockKind::Atlas { .. })).count() as u64;
+    let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
+    for r in &reports {
+        if r.clamped_leaves > 0 {
+            warnings.push(format!(
+                "{:?} tree: {} leaves hold a triangle that alone needs more than one atlas; their resolution was \
+                 scaled down and their min_distance raised accordingly",
+                r.kind, r.clamped_leaves
+            ));
+        }
+    }
+    Ok(BuildReport {
+        params,
+        scene_diagonal: diagonal,
+        trees: reports,
+        blocks: forest.blocks.len() as u64,
+        atlas_blocks,
+        original_blocks: forest.blocks.len() as u64 - atlas_blocks,
+        file_bytes: summary.total_bytes,
+        timings,
+        images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
+        image_fallbacks: cache.fallbacks.load(std::sync::atomic::Ordering::Relaxed),
+        peak_rss_bytes: crate::util::peak_rss_bytes(),
+        warnings,
+    })
+}

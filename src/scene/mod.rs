@@ -8,6 +8,7 @@
 pub mod image_source;
 pub mod import;
 pub mod info;
+pub mod synthetic;
 
 pub use image_source::{DecodedImage, ImageSource};
 pub use import::{ImportOptions, SceneError, import};

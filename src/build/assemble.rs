@@ -1,0 +1,300 @@
+//! Flattening a layout into the stored tree (paper §3, §5.1): nodes in pre-order, leaves in tree order,
+//! per-leaf geometry in the exact single-UV-set form of DESIGN.md "Precision", original-texture classes,
+//! and the block table (one block per atlas; a leaf's original textures in blocks of about an atlas' size).
+
+use super::layout::{LayoutKind, LayoutNode, LeafLayout};
+use super::prepare::TriInfo;
+use super::tree::{
+    AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind, TreeVertex,
+    mip_chain_bytes,
+};
+use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
+use crate::scene::Scene;
+use glam::{DVec2, DVec3};
+use std::collections::HashMap;
+
+/// Largest class size for stored original textures (texels per side).
+pub const MAX_ORIGINAL_CLASS: u32 = 2048;
+/// Smallest class size (one BC block).
+pub const MIN_ORIGINAL_CLASS: u32 = 4;
+
+/// The square power-of-two class an original image of `w × h` is stored at.
+pub fn original_class(w: u32, h: u32) -> u32 {
+    w.max(h).max(1).next_power_of_two().clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
+}
+
+/// Output of [`assemble`].
+pub struct Assembled {
+    pub tree: AtlasTree,
+    pub blocks: Vec<BlockDesc>,
+    /// Occupancy per leaf atlas (0..1), in leaf order.
+    pub occupancy: Vec<f64>,
+    /// Whether each leaf's rect was capped to its source (parallel to `tree.leaves[i].rects`).
+    pub capped: Vec<Vec<bool>>,
+}
+
+struct Asm<'a> {
+    scene: &'a Scene,
+    infos: &'a [TriInfo],
+    order: &'a [u32],
+    params: &'a BuildParams,
+    tree_index: u32,
+    out: Assembled,
+    next_block: u32,
+}
+
+/// Flattens `root` (a layout over `infos`, permutation `order`) into tree `tree_index` of a forest whose
+/// blocks so far number `first_block`.
+pub fn assemble(
+    scene: &Scene,
+    infos: &[TriInfo],
+    order: &[u32],
+    root: &LayoutNode,
+    params: &BuildParams,
+    kind: TreeKind,
+    tree_index: u32,
+    first_block: u32,
+) -> Assembled {
+    let mut a = Asm {
+        scene,
+        infos,
+        order,
+        params,
+        tree_index,
+        out: Assembled {
+            tree: AtlasTree {
+                kind,
+                nodes: Vec::new(),
+                leaves: Vec::new(),
+                vertices: Vec::new(),
+                indices: Vec::new(),
+                source_triangles: Vec::new(),
+            },
+            blocks: Vec::new(),
+            occupancy: Vec::new(),
+            capped: Vec::new(),
+        },
+        next_block: first_block,
+    };
+    a.node(root, None);
+    a.out
+}
+
+impl Asm<'_> {
+    fn block(&mut self, kind: BlockKind, bytes: u64) -> BlockId {
+        let id = BlockId(self.next_block);
+        self.next_block += 1;
+        self.out.blocks.push(BlockDesc { tree: self.tree_index, kind, bytes });
+        id
+    }
+
+    fn node(&mut self, n: &LayoutNode, parent: Option<NodeId>) -> NodeId {
+        let id = NodeId(self.out.tree.nodes.len() as u32);
+        let atlas_block = self.block(BlockKind::Atlas { node: id }, mip_chain_bytes(self.params.atlas_size));
+        let first_index = self.out.tree.indices.len() as u32;
+        self.out.tree.nodes.push(Node {
+            bounds_min: n.lo,
+            bounds_max: n.hi,
+            level: n.level,
+            cell: n.cell,
+            parent,
+            children: [None; 4],
+            min_distance: 0.0,
+            first_index,
+            index_count: 0,
+            atlas_block,
+            leaf: None,
+        });
+        let min_distance = match &n.kind {
+            LayoutKind::Leaf(l) => {
+                let leaf = self.leaf(n, l, id);
+                self.out.tree.nodes[id.idx()].leaf = Some(leaf);
+                self.params.d_min / l.clamp_scale
+            }
+            LayoutKind::Inner { children, order } => {
+                let mut md: f64 = 0.0;
+                for &q in order {
+                    if let Some(c) = &children[q as usize] {
+                        let cid = self.node(c, Some(id));
+                        self.out.tree.nodes[id.idx()].children[q as usize] = Some(cid);
+                        md = md.max(self.out.tree.nodes[cid.idx()].min_distance);
+                    }
+                }
+                2.0 * md
+            }
+        };
+        let end = self.out.tree.indices.len() as u32;
+        let node = &mut self.out.tree.nodes[id.idx()];
+        node.min_distance = min_distance;
+        node.index_count = end - first_index;
+        id
+    }
+
+    fn leaf(&mut self, n: &LayoutNode, l: &LeafLayout, node: NodeId) -> LeafId {
+        let leaf_id = LeafId(self.out.tree.leaves.len() as u32);
+        let origin = (n.lo + n.hi) * 0.5;
+        let origin = if origin.is_finite() { origin } else { DVec3::ZERO };
+        let size = self.params.atlas_size as f64;
+
+        // Original textures: one entry per material, grouped greedily into blocks of about an atlas' size
+        // (an image larger than that is a block of its own).
+        let budget = mip_chain_bytes(self.params.atlas_size);
+        let classes: Vec<(MaterialId, crate::ids::ImageId, u32)> = l
+            .rects
+            .iter()
+            .map(|r| {
+                let mat = &self.scene.materials[r.material.idx()];
+                let img = &self.scene.images[mat.image.idx()];
+                (r.material, mat.image, original_class(img.width, img.height))
+            })
+            .collect();
+        let parts = group_into_blocks(classes.iter().map(|c| mip_chain_bytes(c.2)), budget);
+        let mut originals: Vec<OriginalRef> = Vec::with_capacity(classes.len());
+        let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
+        let mut block_ids: Vec<BlockId> = Vec::new();
+        for (part, bytes) in parts.sizes.iter().enumerate() {
+            block_ids.push(self.block(BlockKind::Originals { leaf: leaf_id, part: part as u32 }, *bytes));
+        }
+        for (i, &(material, image, class_size)) in classes.iter().enumerate() {
+            let (part, slot) = parts.place[i];
+            slot_of.insert(material, originals.len() as u32);
+            originals.push(OriginalRef { material, image, class_size, block: block_ids[part], slot });
+        }
+
+        // Geometry: deduplicated vertices, positions relative to the origin, leaf-local atlas UVs.
+        let rect_of: HashMap<MaterialId, usize> = l.rects.iter().enumerate().map(|(i, r)| (r.material, i)).collect();
+        let first_vertex = self.out.tree.vertices.len() as u32;
+        let first_index = self.out.tree.indices.len() as u32;
+        let mut dedup: HashMap<[u32; 9], u32> = HashMap::new();
+        for &ti in &self.order[n.range.clone()] {
+            let t = &self.infos[ti as usize];
+            let tri = &self.scene.triangles[t.scene_tri as usize];
+            let pos = self.scene.tri_positions(tri);
+            let r = &l.rects[rect_of[&t.material]];
+            for (k, p) in pos.iter().enumerate() {
+                let v = TreeVertex {
+                    pos: finite3((*p - origin).as_vec3().to_array()),
+                    atlas_uv: finite2(atlas_uv(t.uv[k], r.uv_min, r.uv_max, r.inner, size)),
+                    orig_uv: finite2(t.uv[k].as_vec2().to_array()),
+                    leaf: leaf_id.0,
+                    original: slot_of[&t.material],
+                };
+                let key: [u32; 9] = bytemuck::cast(v);
+                let vi = *dedup.entry(key).or_insert_with(|| {
+                    self.out.tree.vertices.push(v);
+                    self.out.tree.vertices.len() as u32 - 1
+                });
+                self.out.tree.indices.push(vi);
+            }
+            self.out.tree.source_triangles.push(t.scene_tri);
+        }
+        let vertex_count = self.out.tree.vertices.len() as u32 - first_vertex;
+        let index_count = self.out.tree.indices.len() as u32 - first_index;
+        self.out.occupancy.push(l.occupancy);
+        self.out.capped.push(l.rects.iter().map(|r| r.capped).collect());
+        self.out.tree.leaves.push(Leaf {
+            node,
+            origin,
+            first_vertex,
+            vertex_count,
+            first_index,
+            index_count,
+            rects: l
+                .rects
+                .iter()
+                .map(|r| AtlasRect {
+                    material: r.material,
+                    outer: r.outer,
+                    inner: r.inner,
+                    uv_min: r.uv_min.to_array(),
+                    uv_max: r.uv_max.to_array(),
+                })
+                .collect(),
+            originals,
+            clamp_scale: l.clamp_scale,
+        });
+        leaf_id
+    }
+}
+
+/// Leaf-local atlas UV of a (period-shifted) texture UV: the affine map taking `[uv_min, uv_max]` onto the
+/// inner rectangle (§5.2.2), divided by the atlas size. A texture area of zero width maps to the centre
+/// of its inner rectangle.
+pub fn atlas_uv(uv: DVec2, uv_min: DVec2, uv_max: DVec2, inner: [u32; 4], atlas_size: f64) -> [f32; 2] {
+    let axis = |u: f64, lo: f64, hi: f64, x: u32, w: u32| -> f64 {
+        let span = hi - lo;
+        let t = if span > 0.0 { ((u - lo) / span).clamp(0.0, 1.0) } else { 0.5 };
+        (x as f64 + t * w as f64) / atlas_size
+    };
+    [
+        axis(uv.x, uv_min.x, uv_max.x, inner[0], inner[2]) as f32,
+        axis(uv.y, uv_min.y, uv_max.y, inner[1], inner[3]) as f32,
+    ]
+}
+
+fn finite2(a: [f32; 2]) -> [f32; 2] {
+    a.map(|x| if x.is_finite() { x } else { 0.0 })
+}
+fn finite3(a: [f32; 3]) -> [f32; 3] {
+    a.map(|x| if x.is_finite() { x } else { 0.0 })
+}
+
+/// Greedy grouping of byte sizes into blocks of at most `budget` bytes (items larger than the budget get a
+/// block of their own), in order.
+pub struct BlockGrouping {
+    /// Bytes of each block.
+    pub sizes: Vec<u64>,
+    /// For each item: (block index, slot within the block).
+    pub place: Vec<(usize, u32)>,
+}
+
+pub fn group_into_blocks(items: impl IntoIterator<Item = u64>, budget: u64) -> BlockGrouping {
+    let mut g = BlockGrouping { sizes: Vec::new(), place: Vec::new() };
+    let mut slot = 0u32;
+    for bytes in items {
+        match g.sizes.last_mut() {
+            Some(last) if *last + bytes <= budget => {
+                *last += bytes;
+                slot += 1;
+            }
+            _ => {
+                g.sizes.push(bytes);
+                slot = 0;
+            }
+        }
+        g.place.push((g.sizes.len() - 1, slot));
+    }
+    g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grouping_respects_budget_and_order() {
+        let g = group_into_blocks([40, 50, 20, 200, 10, 90], 100);
+        assert_eq!(g.sizes, vec![90, 20, 200, 100]);
+        assert_eq!(g.place, vec![(0, 0), (0, 1), (1, 0), (2, 0), (3, 0), (3, 1)]);
+    }
+
+    #[test]
+    fn classes_are_powers_of_two_within_limits() {
+        assert_eq!(original_class(1, 1), 4);
+        assert_eq!(original_class(300, 200), 512);
+        assert_eq!(original_class(512, 512), 512);
+        assert_eq!(original_class(8192, 16), 2048);
+    }
+
+    #[test]
+    fn atlas_uv_maps_area_onto_inner_rect() {
+        let inner = [8, 16, 64, 32];
+        let a = atlas_uv(DVec2::new(0.0, 2.0), DVec2::new(0.0, 2.0), DVec2::new(4.0, 3.0), inner, 256.0);
+        assert_eq!(a, [8.0 / 256.0, 16.0 / 256.0]);
+        let b = atlas_uv(DVec2::new(4.0, 3.0), DVec2::new(0.0, 2.0), DVec2::new(4.0, 3.0), inner, 256.0);
+        assert_eq!(b, [72.0 / 256.0, 48.0 / 256.0]);
+        // Zero-width area: the centre of the inner rect.
+        let c = atlas_uv(DVec2::new(1.0, 1.0), DVec2::new(1.0, 1.0), DVec2::new(1.0, 1.0), inner, 256.0);
+        assert_eq!(c, [40.0 / 256.0, 32.0 / 256.0]);
+    }
+}

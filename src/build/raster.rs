@@ -1,0 +1,205 @@
+//! The pixel pass: leaf atlases rasterised on the CPU in linear light, inner atlases as the 2×2 combination
+//! of their children halved (paper §5.1), original textures resampled to their class size, every block
+//! encoded with its full mip chain and streamed into the paging file at its pre-assigned offset.
+//!
+//! Post-order and parallel over subtrees (rayon); each call returns its atlas halved, which is all the
+//! parent needs, so memory stays at a few atlases per tree level and thread.
+
+use super::image_ops::{
+    LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, halve, mip_chain_rgba8, resample_square,
+};
+use super::tree::{AtlasTree, BuildParams, Leaf, TreeKind};
+use crate::ids::{ImageId, NodeId};
+use crate::scene::{DecodedImage, Scene};
+use crate::store::{FileWriter, StoreError};
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// A decoded image and its linear-light mip chain, shared between leaves.
+pub struct CachedImage {
+    pub decoded: DecodedImage,
+    pub chain: MipChain,
+}
+
+impl CachedImage {
+    fn bytes(&self) -> u64 {
+        let chain: u64 = self.chain.levels.iter().map(|l| l.data.len() as u64 * 16).sum();
+        chain + self.decoded.pixels.len() as u64 * 4
+    }
+}
+
+/// A bounded cache of decoded images (least recently used evicted beyond `cap_bytes`), so a scene with
+/// hundreds of textures never holds them all decoded (issue: lazy decoding).
+pub struct ImageCache<'a> {
+    scene: &'a Scene,
+    cap_bytes: u64,
+    state: Mutex<CacheState>,
+    /// Images that failed to decode and were replaced by the visible fallback (counted, reported).
+    pub fallbacks: AtomicU64,
+    pub decodes: AtomicU64,
+    pub warnings: Mutex<Vec<String>>,
+}
+
+#[derive(Default)]
+struct CacheState {
+    map: HashMap<ImageId, (Arc<CachedImage>, u64)>,
+    bytes: u64,
+    tick: u64,
+}
+
+impl<'a> ImageCache<'a> {
+    pub fn new(scene: &'a Scene, cap_bytes: u64) -> Self {
+        ImageCache {
+            scene,
+            cap_bytes,
+            state: Mutex::new(CacheState::default()),
+            fallbacks: AtomicU64::new(0),
+            decodes: AtomicU64::new(0),
+            warnings: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The decoded image `id`, decoding it if needed. A decode failure yields a magenta/black checker
+    /// (visible, never silently wrong), counted in `fallbacks` with a warning naming the image.
+    pub fn get(&self, id: ImageId) -> Arc<CachedImage> {
+        {
+            let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+            st.tick += 1;
+            let tick = st.tick;
+            if let Some(e) = st.map.get_mut(&id) {
+                e.1 = tick;
+                return e.0.clone();
+            }
+        }
+        self.decodes.fetch_add(1, Ordering::Relaxed);
+        let src = &self.scene.images[id.idx()];
+        let decoded = match src.decode() {
+            Ok(d) => d,
+            Err(e) => {
+                self.fallbacks.fetch_add(1, Ordering::Relaxed);
+                let mut w = self.warnings.lock().unwrap_or_else(|e| e.into_inner());
+                if w.len() < 100 {
+                    w.push(format!("image {} ({}): {e}; used the magenta fallback", id.0, src.name));
+                }
+                fallback_checker()
+            }
+        };
+        let chain = MipChain::build(LinearImage::from_decoded(&decoded));
+        let entry = Arc::new(CachedImage { decoded, chain });
+        let size = entry.bytes();
+        let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        st.tick += 1;
+        let tick = st.tick;
+        st.bytes += size;
+        st.map.insert(id, (entry.clone(), tick));
+        while st.bytes > self.cap_bytes && st.map.len() > 1 {
+            let Some((&victim, _)) = st.map.iter().filter(|(k, _)| **k != id).min_by_key(|(_, v)| v.1) else {
+                break;
+            };
+            if let Some((e, _)) = st.map.remove(&victim) {
+                st.bytes -= e.bytes();
+            }
+        }
+        entry
+    }
+}
+
+/// The 8×8 magenta/black checker used for images that cannot be decoded.
+pub fn fallback_checker() -> DecodedImage {
+    let pixels = (0..64)
+        .map(|i| if ((i % 8) + (i / 8)) % 2 == 0 { [255, 0, 255, 255] } else { [0, 0, 0, 255] })
+        .collect();
+    DecodedImage { width: 8, height: 8, pixels }
+}
+
+/// What the pixel pass needs.
+pub struct RasterCtx<'a> {
+    pub scene: &'a Scene,
+    pub params: &'a BuildParams,
+    pub writer: &'a FileWriter,
+    pub cache: &'a ImageCache<'a>,
+    /// Called with the number of nodes finished so far.
+    pub progress: &'a (dyn Fn(u64) + Sync),
+    pub done: AtomicU64,
+}
+
+/// Rasterises every atlas and original-texture block of `tree` into the writer.
+pub fn raster_tree(ctx: &RasterCtx<'_>, tree: &AtlasTree) -> Result<(), StoreError> {
+    raster_node(ctx, tree, NodeId(0)).map(|_| ())
+}
+
+fn fill_for(kind: TreeKind) -> [f32; 4] {
+    match kind {
+        // Mid grey, opaque: unused atlas space is never sampled at the levels borders protect.
+        TreeKind::Opaque => [0.2140, 0.2140, 0.2140, 1.0],
+        TreeKind::Alpha => [0.0; 4],
+    }
+}
+
+fn raster_node(ctx: &RasterCtx<'_>, tree: &AtlasTree, id: NodeId) -> Result<LinearImage, StoreError> {
+    let node = &tree.nodes[id.idx()];
+    let size = ctx.params.atlas_size;
+    let atlas = if let Some(leaf) = node.leaf {
+        let leaf = &tree.leaves[leaf.idx()];
+        write_originals(ctx, leaf)?;
+        leaf_atlas(ctx, leaf, size, fill_for(tree.kind))
+    } else {
+        let kids: Vec<(usize, NodeId)> =
+            node.children.iter().enumerate().filter_map(|(q, c)| c.map(|c| (q, c))).collect();
+        use rayon::prelude::*;
+        let halves: Vec<(usize, LinearImage)> = kids
+            .par_iter()
+            .map(|&(q, c)| raster_node(ctx, tree, c).map(|img| (q, img)))
+            .collect::<Result<_, _>>()?;
+        let mut quads: [Option<&LinearImage>; 4] = [None; 4];
+        for (q, img) in &halves {
+            quads[*q] = Some(img);
+        }
+        combine_quadrants(quads, size)
+    };
+    ctx.writer.write_block(node.atlas_block, &mip_chain_rgba8(&atlas))?;
+    let n = ctx.done.fetch_add(1, Ordering::Relaxed) + 1;
+    (ctx.progress)(n);
+    Ok(halve(&atlas))
+}
+
+/// A leaf atlas: every material's area drawn from its source (§5.2.3; the paper renders textured quads on
+/// the GPU, we filter on the CPU in linear light with correct minification).
+pub fn leaf_atlas(ctx: &RasterCtx<'_>, leaf: &Leaf, size: u32, fill: [f32; 4]) -> LinearImage {
+    let mut atlas = LinearImage::new_filled(size, size, fill);
+    for r in &leaf.rects {
+        let mat = &ctx.scene.materials[r.material.idx()];
+        let img = ctx.cache.get(mat.image);
+        let job = RectJob {
+            outer: r.outer,
+            inner: r.inner,
+            uv_min: r.uv_min,
+            uv_max: r.uv_max,
+            wrap: mat.wrap,
+            factor: mat.base_color_factor,
+        };
+        draw_rect(&mut atlas, &job, &img.chain);
+    }
+    atlas
+}
+
+/// A leaf's original textures, each resampled to its class size with a full mip chain, back to back per
+/// block (layout of `OriginalRef::slot`).
+fn write_originals(ctx: &RasterCtx<'_>, leaf: &Leaf) -> Result<(), StoreError> {
+    let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>)> = Vec::new();
+    for o in &leaf.originals {
+        let mat = &ctx.scene.materials[o.material.idx()];
+        let img = ctx.cache.get(o.image);
+        let lin = resample_square(&img.decoded, o.class_size, mat.wrap);
+        let bytes = mip_chain_rgba8(&lin);
+        match blocks.last_mut() {
+            Some((b, buf)) if *b == o.block => buf.extend_from_slice(&bytes),
+            _ => blocks.push((o.block, bytes)),
+        }
+    }
+    for (b, buf) in blocks {
+        ctx.writer.write_block(b, &buf)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,81 @@
+//! Per-node texture transforms (paper §5.1, Fig. 4) in the exact form of DESIGN.md "Precision".
+//!
+//! The paper stores root-atlas UVs and draws a node at level k with `fract(uv_root · 2^k)`. In f32 that
+//! leaves `24 − k − log2(atlas_size)` bits below a texel. We store each vertex's *leaf-local* atlas UV and
+//! each leaf's integer cell `(ix, iy)` at its level K; drawn with the atlas of an ancestor at level j ≤ K:
+//!
+//! `uv_j = uv_leaf · 2^(j−K) + ((ix, iy) mod 2^(K−j)) / 2^(K−j)`
+//!
+//! a power-of-two scale (exact in floating point) plus an offset that is an integer divided by a power of
+//! two (exact), so the only rounding is one final addition. The shader (`shaders/tree.wgsl`) does exactly
+//! the f32 arithmetic of [`atlas_uv_at_f32`].
+
+use crate::ids::{Cell, Level};
+use glam::{DVec2, Vec2};
+
+/// The cell offset of a level-K cell inside its level-j ancestor, in units of the ancestor's atlas:
+/// `(cell mod 2^(K−j)) / 2^(K−j)`. `j ≤ K ≤ 31`.
+#[inline]
+pub fn cell_offset(cell: Cell, leaf_level: Level, level: Level) -> (u32, u32, u32) {
+    let d = u32::from(leaf_level.0.saturating_sub(level.0)).min(31);
+    let mask = (1u32 << d) - 1;
+    (cell.ix & mask, cell.iy & mask, d)
+}
+
+/// Reference in f64: the UV in the atlas of the ancestor at `level` (paper Fig. 4).
+pub fn atlas_uv_at(uv_leaf: DVec2, leaf_cell: Cell, leaf_level: Level, level: Level) -> DVec2 {
+    let (ox, oy, d) = cell_offset(leaf_cell, leaf_level, level);
+    let s = (-(d as f64)).exp2();
+    uv_leaf * s + DVec2::new(ox as f64, oy as f64) * s
+}
+
+/// The shader's arithmetic in f32 (what `tree.wgsl` computes per vertex).
+pub fn atlas_uv_at_f32(uv_leaf: Vec2, leaf_cell: Cell, leaf_level: Level, level: Level) -> Vec2 {
+    let (ox, oy, d) = cell_offset(leaf_cell, leaf_level, level);
+    let s = (-(d as f32)).exp2();
+    uv_leaf * s + Vec2::new(ox as f32, oy as f32) * s
+}
+
+/// The paper's form, for comparison: root-atlas UV in f32, then `fract(uv_root · 2^j)`.
+pub fn atlas_uv_naive_f32(uv_leaf: Vec2, leaf_cell: Cell, leaf_level: Level, level: Level) -> Vec2 {
+    let k = leaf_level.0 as i32;
+    let root = (uv_leaf + Vec2::new(leaf_cell.ix as f32, leaf_cell.iy as f32)) * (-(k as f32)).exp2();
+    let scaled = root * (level.0 as f32).exp2();
+    scaled - scaled.floor()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exact_form_matches_f64_at_depth_24() {
+        let leaf_level = Level(24);
+        let cell = Cell { ix: 0xABCDE1, iy: 0x123457 };
+        let uv = Vec2::new(0.3711, 0.8125);
+        for j in 0..=24u8 {
+            let want = atlas_uv_at(uv.as_dvec2(), cell, leaf_level, Level(j));
+            let got = atlas_uv_at_f32(uv, cell, leaf_level, Level(j)).as_dvec2();
+            // One f32 rounding of a value in [0, 1): ≤ 2^-24.
+            assert!((want - got).abs().max_element() <= 2f64.powi(-24), "level {j}: {want} vs {got}");
+        }
+    }
+
+    #[test]
+    fn leaf_level_is_identity_and_root_contains_cell() {
+        let cell = Cell { ix: 5, iy: 2 };
+        let uv = DVec2::new(0.25, 0.75);
+        assert_eq!(atlas_uv_at(uv, cell, Level(3), Level(3)), uv);
+        let r = atlas_uv_at(uv, cell, Level(3), Level(0));
+        assert_eq!(r, DVec2::new((5.0 + 0.25) / 8.0, (2.0 + 0.75) / 8.0));
+    }
+
+    #[test]
+    fn naive_form_loses_precision_deep() {
+        let cell = Cell { ix: (1 << 20) - 3, iy: 7 };
+        let uv = Vec2::new(0.3711, 0.8125);
+        let err = (atlas_uv_naive_f32(uv, cell, Level(20), Level(20)) - uv).abs().max_element();
+        // At depth 20 the naive root UV keeps only ~4 bits below a leaf-atlas unit.
+        assert!(err > 1e-3, "naive error {err}");
+    }
+}

@@ -1,0 +1,135 @@
+use super::{UpArg, load_scene, progress::Bars};
+use anyhow::Context;
+use atlastree::build::{BuildOptions, BuildReport, DMin, build};
+use atlastree::util::human_bytes;
+use clap::Args;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Texel-per-pixel control (paper §5.2.1): the atlas of a leaf is sized so that a camera at least d_min
+/// away sees at least `texel-ratio` texels per screen pixel (screen `screen-width` pixels wide, horizontal
+/// field of view `fov`). Smaller d_min: deeper tree, bigger file, original textures needed less often.
+#[derive(Args, Debug)]
+pub struct BuildArgs {
+    /// The glTF scene (.gltf or .glb).
+    pub scene: PathBuf,
+    /// Output paging file (written atomically: an interrupted build leaves no partial file).
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// d_min in metres (world units). Conflicts with --d-min-ratio.
+    #[arg(long, conflicts_with = "d_min_ratio")]
+    pub d_min: Option<f64>,
+    /// d_min = scene diagonal / R (the paper: 151 for Berlin, 62 for Chemnitz). Default 151.
+    #[arg(long)]
+    pub d_min_ratio: Option<f64>,
+    /// Screen width in pixels the guarantee is computed for (rescaled at run time without rebuild).
+    #[arg(long, default_value_t = 800)]
+    pub screen_width: u32,
+    /// Horizontal field of view, degrees.
+    #[arg(long, default_value_t = 60.0)]
+    pub fov: f64,
+    /// Texels per pixel required at d_min.
+    #[arg(long, default_value_t = 1.0)]
+    pub texel_ratio: f64,
+    /// Side of every atlas in texels (power of two).
+    #[arg(long, default_value_t = 1024)]
+    pub atlas_size: u32,
+    /// Border around each packed texture area, texels (paper: 8; protects 3 mip levels).
+    #[arg(long, default_value_t = 8)]
+    pub border: u32,
+    /// Maximum tree depth; a region that needs more is an error naming it.
+    #[arg(long, default_value_t = 24)]
+    pub max_depth: u8,
+    /// Allow more texels per texture repetition than the source image has (by default capped).
+    #[arg(long)]
+    pub no_source_cap: bool,
+    /// Bound on decoded source images held in memory at once, MiB.
+    #[arg(long, default_value_t = 2048)]
+    pub image_cache_mib: u64,
+    /// Up axis; `auto` takes the axis of least extent.
+    #[arg(long, value_enum, default_value_t = UpArg::Auto)]
+    pub up: UpArg,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bars.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+impl BuildArgs {
+    pub fn options(&self) -> BuildOptions {
+        BuildOptions {
+            d_min: match (self.d_min, self.d_min_ratio) {
+                (Some(m), _) => DMin::Metres(m),
+                (None, Some(r)) => DMin::Ratio(r),
+                (None, None) => DMin::Ratio(151.0),
+            },
+            screen_width: self.screen_width,
+            fov_deg: self.fov,
+            texel_ratio: self.texel_ratio,
+            atlas_size: self.atlas_size,
+            border: self.border,
+            max_depth: self.max_depth,
+            cap_to_source: !self.no_source_cap,
+            image_cache_bytes: self.image_cache_mib << 20,
+        }
+    }
+}
+
+pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
+    let t = std::time::Instant::now();
+    let scene = load_scene(&a.scene, a.up)?;
+    let import_s = t.elapsed().as_secs_f64();
+    let bars = Bars::new(a.quiet || a.json);
+    let mut report = build(&scene, &a.options(), &a.out, &bars)
+        .with_context(|| format!("building {} into {}", a.scene.display(), a.out.display()))?;
+    report.timings.insert(0, ("import".into(), import_s));
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_report(&report, &a.out);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+pub fn print_report(r: &BuildReport, out: &std::path::Path) {
+    let p = &r.params;
+    println!("wrote {} ({})", out.display(), human_bytes(r.file_bytes));
+    println!(
+        "  d_min {:.3} m (scene diagonal {:.1} m), screen {} px, fov {}°, texel ratio {}, atlas {}², border {}",
+        p.d_min, r.scene_diagonal, p.screen_width, p.fov_deg, p.texel_ratio, p.atlas_size, p.border
+    );
+    for t in &r.trees {
+        println!(
+            "  {:?} tree: {} triangles → {} nodes, {} leaves, depth {}, {} vertices; occupancy mean {:.0}% (min {:.0}%, max {:.0}%); root min_distance {:.1} m",
+            t.kind,
+            t.triangles,
+            t.nodes,
+            t.leaves,
+            t.depth,
+            t.vertices,
+            100.0 * t.occupancy_mean,
+            100.0 * t.occupancy_min,
+            100.0 * t.occupancy_max,
+            t.root_min_distance
+        );
+        let s = &t.sizing;
+        println!(
+            "    sizing: {} exact, {} edge fallback, {} all-UV-equal, {} world-degenerate; {} rects capped to source; {} clamped leaves",
+            s.exact, s.edge_fallback, s.all_uv_equal, s.world_degenerate, t.capped_rects, t.clamped_leaves
+        );
+    }
+    println!("  blocks: {} ({} atlases, {} original-texture blocks)", r.blocks, r.atlas_blocks, r.original_blocks);
+    let times: Vec<String> = r.timings.iter().map(|(n, s)| format!("{n} {s:.2}s")).collect();
+    println!("  time: {}", times.join(", "));
+    println!(
+        "  images decoded {} ({} fallbacks), peak memory {}",
+        r.images_decoded,
+        r.image_fallbacks,
+        r.peak_rss_bytes.map_or("?".into(), human_bytes)
+    );
+    for w in &r.warnings {
+        println!("  warning: {w}");
+    }
+}

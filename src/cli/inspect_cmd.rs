@@ -1,0 +1,83 @@
+use anyhow::Context;
+use atlastree::inspect::{InspectReport, VerifyReport, open_and_inspect};
+use atlastree::util::human_bytes;
+use clap::Args;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Args, Debug)]
+pub struct InspectArgs {
+    /// A paging file written by `atlastree build`.
+    pub file: PathBuf,
+    /// Check every block checksum and every tree invariant; exit with status 1 on any violation.
+    #[arg(long)]
+    pub verify: bool,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
+    let (rep, ver) = open_and_inspect(&a.file, a.verify).with_context(|| format!("opening {}", a.file.display()))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&serde_json::json!({ "inspect": rep, "verify": ver }))?);
+    } else {
+        print_inspect(&rep);
+        if let Some(v) = &ver {
+            print_verify(v);
+        }
+    }
+    Ok(match ver {
+        Some(v) if !v.ok() => ExitCode::from(1),
+        _ => ExitCode::SUCCESS,
+    })
+}
+
+pub fn print_inspect(r: &InspectReport) {
+    let p = &r.params;
+    println!("{} — {}", r.path, human_bytes(r.file_bytes));
+    println!(
+        "  built with d_min {:.3} m, screen {} px, fov {}°, texel ratio {}, atlas {}², border {}, up {:?}",
+        p.d_min, p.screen_width, p.fov_deg, p.texel_ratio, p.atlas_size, p.border, p.up
+    );
+    println!("  {} materials, {} blocks ({})", r.materials, r.blocks, human_bytes(r.block_bytes_total));
+    for t in &r.trees {
+        println!(
+            "  {:?} tree: {} nodes, {} leaves, depth {}, {} triangles, {} vertices, {} atlas + {} original blocks ({}), {} clamped leaves",
+            t.kind,
+            t.nodes,
+            t.leaves,
+            t.depth,
+            t.triangles,
+            t.vertices,
+            t.atlas_blocks,
+            t.original_blocks,
+            human_bytes(t.block_bytes),
+            t.clamped_leaves
+        );
+        println!("    level  nodes  leaves  triangles-in-leaves  min_distance (m)");
+        for l in &t.levels {
+            println!(
+                "    {:>5}  {:>5}  {:>6}  {:>19}  {:.2} .. {:.2}",
+                l.level, l.nodes, l.leaves, l.triangles_in_leaves, l.min_distance_min, l.min_distance_max
+            );
+        }
+    }
+    for e in &r.enabled {
+        println!("  {e}");
+    }
+}
+
+pub fn print_verify(v: &VerifyReport) {
+    println!(
+        "verify: {} blocks, {} nodes, {} triangles, {} vertices checked: {}",
+        v.blocks_checked,
+        v.nodes_checked,
+        v.triangles_checked,
+        v.vertices_checked,
+        if v.ok() { "all invariants hold".to_string() } else { format!("{} VIOLATIONS", v.violation_count) }
+    );
+    for m in &v.violations {
+        println!("  violation: {m}");
+    }
+}

@@ -1,0 +1,385 @@
+//! `inspect`: what a paging file holds, per tree and level, what the build enabled and why; and `verify`:
+//! every checksum and every structural invariant of the tree (paper §3, §5.1), each violation named.
+
+use crate::build::tree::{BuildParams, TreeKind};
+use crate::ids::NONE;
+use crate::scene::{AlphaMode, Wrap};
+use crate::store::{StoreError, TreeFile};
+use serde::Serialize;
+use std::collections::BTreeSet;
+
+/// Per-level numbers of one tree.
+#[derive(Clone, Debug, Serialize)]
+pub struct LevelStats {
+    pub level: u8,
+    pub nodes: u64,
+    pub leaves: u64,
+    pub min_distance_min: f64,
+    pub min_distance_max: f64,
+    pub triangles_in_leaves: u64,
+}
+
+/// One tree of the file.
+#[derive(Clone, Debug, Serialize)]
+pub struct TreeInfo {
+    pub kind: TreeKind,
+    pub nodes: u64,
+    pub leaves: u64,
+    pub depth: u8,
+    pub triangles: u64,
+    pub vertices: u64,
+    pub clamped_leaves: u64,
+    pub atlas_blocks: u64,
+    pub original_blocks: u64,
+    pub original_textures: u64,
+    pub block_bytes: u64,
+    pub levels: Vec<LevelStats>,
+}
+
+/// What `atlastree inspect` prints.
+#[derive(Clone, Debug, Serialize)]
+pub struct InspectReport {
+    pub path: String,
+    pub file_bytes: u64,
+    pub params: BuildParams,
+    pub materials: u64,
+    pub trees: Vec<TreeInfo>,
+    pub blocks: u64,
+    pub block_bytes_total: u64,
+    /// Effects the scene called for, each with the reason (DESIGN: "Effects only where the scene calls").
+    pub enabled: Vec<String>,
+}
+
+/// Builds the report of an opened file.
+pub fn inspect(file: &TreeFile) -> InspectReport {
+    let params = file.params();
+    let mut trees = Vec::new();
+    for ti in 0..file.trees() {
+        let t = file.tree(ti);
+        let mut levels: Vec<LevelStats> = Vec::new();
+        for n in t.nodes {
+            let l = n.level as usize;
+            while levels.len() <= l {
+                levels.push(LevelStats {
+                    level: levels.len() as u8,
+                    nodes: 0,
+                    leaves: 0,
+                    min_distance_min: f64::INFINITY,
+                    min_distance_max: 0.0,
+                    triangles_in_leaves: 0,
+                });
+            }
+            let s = &mut levels[l];
+            s.nodes += 1;
+            s.min_distance_min = s.min_distance_min.min(n.min_distance);
+            s.min_distance_max = s.min_distance_max.max(n.min_distance);
+            if n.leaf != NONE {
+                s.leaves += 1;
+                s.triangles_in_leaves += u64::from(n.index_count / 3);
+            }
+        }
+        let (mut atlas_blocks, mut original_blocks, mut block_bytes) = (0, 0, 0);
+        for b in file.blocks().iter().filter(|b| b.tree as usize == ti) {
+            block_bytes += b.length;
+            if b.kind == crate::store::format::BLOCK_KIND_ATLAS {
+                atlas_blocks += 1;
+            } else {
+                original_blocks += 1;
+            }
+        }
+        trees.push(TreeInfo {
+            kind: t.kind,
+            nodes: t.nodes.len() as u64,
+            leaves: t.leaves.len() as u64,
+            depth: levels.len().saturating_sub(1) as u8,
+            triangles: t.indices.len() as u64 / 3,
+            vertices: t.vertices.len() as u64,
+            clamped_leaves: t.leaves.iter().filter(|l| l.clamp_scale < 1.0).count() as u64,
+            atlas_blocks,
+            original_blocks,
+            original_textures: t.originals.len() as u64,
+            block_bytes,
+            levels,
+        });
+    }
+    let mats: Vec<_> = (0..file.materials().len()).filter_map(|i| file.material(i)).collect();
+    let mut enabled = Vec::new();
+    let alpha: Vec<_> = mats.iter().filter(|m| m.alpha.uses_alpha()).collect();
+    if alpha.is_empty() {
+        enabled.push("alpha tree and alpha pipelines: off (no MASK or BLEND material)".to_string());
+    } else {
+        let masks = alpha.iter().filter(|m| matches!(m.alpha, AlphaMode::Mask { .. })).count();
+        enabled.push(format!(
+            "alpha tree: on ({} alpha materials: {} MASK, {} BLEND)",
+            alpha.len(),
+            masks,
+            alpha.len() - masks
+        ));
+    }
+    let wraps: BTreeSet<String> = mats
+        .iter()
+        .flat_map(|m| m.wrap)
+        .filter(|w| *w != Wrap::Repeat)
+        .map(|w| format!("{w:?}"))
+        .collect();
+    if wraps.is_empty() {
+        enabled.push("wrap modes: repeat only (samplers handle it; no shader wrap code needed)".into());
+    } else {
+        let n = mats.iter().filter(|m| m.wrap.iter().any(|w| *w != Wrap::Repeat)).count();
+        enabled.push(format!("wrap modes beyond repeat: {} ({n} materials)", wraps.into_iter().collect::<Vec<_>>().join(", ")));
+    }
+    let clamped: u64 = trees.iter().map(|t| t.clamped_leaves).sum();
+    if clamped > 0 {
+        enabled.push(format!("clamped leaves: {clamped} (a triangle alone needed more than one atlas)"));
+    }
+    InspectReport {
+        path: file.path().display().to_string(),
+        file_bytes: file.len(),
+        params,
+        materials: mats.len() as u64,
+        block_bytes_total: file.blocks().iter().map(|b| b.length).sum(),
+        blocks: file.blocks().len() as u64,
+        trees,
+        enabled,
+    }
+}
+
+/// The result of `verify`: what was checked and every violation found.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct VerifyReport {
+    pub blocks_checked: u64,
+    pub nodes_checked: u64,
+    pub triangles_checked: u64,
+    pub vertices_checked: u64,
+    /// Up to 100 violations, each naming the tree, node/leaf/vertex and the numbers.
+    pub violations: Vec<String>,
+    pub violation_count: u64,
+}
+
+impl VerifyReport {
+    fn fail(&mut self, msg: String) {
+        self.violation_count += 1;
+        if self.violations.len() < 100 {
+            self.violations.push(msg);
+        }
+    }
+    pub fn ok(&self) -> bool {
+        self.violation_count == 0
+    }
+}
+
+/// Checks every block checksum and the invariants: children inside parent bounds, levels and cells
+/// consistent, min_distance of inner nodes = 2 · max(children), leaves contiguous in tree order and every
+/// node's index range the union of its children's, every triangle in exactly one leaf, every vertex's atlas
+/// UV inside its texture's area of the leaf atlas.
+pub fn verify(file: &TreeFile) -> VerifyReport {
+    let mut r = VerifyReport::default();
+    for (i, _) in file.blocks().iter().enumerate() {
+        r.blocks_checked += 1;
+        if let Err(e) = file.block(crate::ids::BlockId(i as u32)) {
+            r.fail(format!("block {i}: {e}"));
+        }
+    }
+    let params = file.params();
+    let size = f64::from(params.atlas_size);
+    let mut seen: Vec<u32> = Vec::new();
+    for ti in 0..file.trees() {
+        let t = file.tree(ti);
+        let eps = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0);
+        for (ni, n) in t.nodes.iter().enumerate() {
+            r.nodes_checked += 1;
+            let is_leaf = n.leaf != NONE;
+            let mut kids_md: f64 = 0.0;
+            let mut kids_idx: u64 = 0;
+            let mut has_kids = false;
+            for (q, &c) in n.children.iter().enumerate() {
+                if c == NONE {
+                    continue;
+                }
+                has_kids = true;
+                let Some(ch) = t.nodes.get(c as usize) else {
+                    r.fail(format!("tree {ti} node {ni}: child {q} = {c} out of range"));
+                    continue;
+                };
+                if ch.parent as usize != ni {
+                    r.fail(format!("tree {ti} node {c}: parent {} but listed as child {q} of {ni}", ch.parent));
+                }
+                if ch.level != n.level + 1 || ch.cell != n.cell.child(q as u32) {
+                    r.fail(format!(
+                        "tree {ti} node {c}: level {} cell ({}, {}) but child {q} of node {ni} at level {} cell ({}, {})",
+                        ch.level, ch.cell.ix, ch.cell.iy, n.level, n.cell.ix, n.cell.iy
+                    ));
+                }
+                for a in 0..3 {
+                    if ch.bounds_min[a] < n.bounds_min[a] || ch.bounds_max[a] > n.bounds_max[a] {
+                        r.fail(format!("tree {ti} node {c}: bounds not inside parent {ni} on axis {a}"));
+                        break;
+                    }
+                }
+                if ch.first_index < n.first_index || ch.first_index + ch.index_count > n.first_index + n.index_count {
+                    r.fail(format!("tree {ti} node {c}: index range outside parent {ni}"));
+                }
+                kids_md = kids_md.max(ch.min_distance);
+                kids_idx += u64::from(ch.index_count);
+            }
+            if is_leaf == has_kids {
+                r.fail(format!("tree {ti} node {ni}: leaf={is_leaf} but has children={has_kids}"));
+            }
+            if has_kids {
+                if !eps(n.min_distance, 2.0 * kids_md) {
+                    r.fail(format!(
+                        "tree {ti} node {ni}: min_distance {} ≠ 2 · max(children) = {}",
+                        n.min_distance,
+                        2.0 * kids_md
+                    ));
+                }
+                if kids_idx != u64::from(n.index_count) {
+                    r.fail(format!("tree {ti} node {ni}: children cover {kids_idx} indices of {}", n.index_count));
+                }
+            } else if is_leaf {
+                let Some(l) = t.leaves.get(n.leaf as usize) else {
+                    r.fail(format!("tree {ti} node {ni}: leaf {} out of range", n.leaf));
+                    continue;
+                };
+                if !eps(n.min_distance, params.d_min / l.clamp_scale) {
+                    r.fail(format!(
+                        "tree {ti} leaf node {ni}: min_distance {} ≠ d_min / clamp = {}",
+                        n.min_distance,
+                        params.d_min / l.clamp_scale
+                    ));
+                }
+                if l.first_index != n.first_index || l.index_count != n.index_count {
+                    r.fail(format!("tree {ti} leaf node {ni}: leaf and node index ranges differ"));
+                }
+            }
+        }
+        // Leaves: contiguous in order; every vertex inside its leaf's range and its texture's inner rect.
+        let mut next_index = 0u32;
+        for (li, l) in t.leaves.iter().enumerate() {
+            if l.first_index != next_index {
+                r.fail(format!("tree {ti} leaf {li}: first index {} but previous leaf ended at {next_index}", l.first_index));
+            }
+            next_index = l.first_index + l.index_count;
+            let rects = &t.rects[l.first_rect as usize..(l.first_rect + l.rect_count) as usize];
+            let originals = &t.originals[l.first_original as usize..(l.first_original + l.original_count) as usize];
+            let Some(idx) = t.indices.get(l.first_index as usize..next_index as usize) else {
+                r.fail(format!("tree {ti} leaf {li}: index range out of bounds"));
+                continue;
+            };
+            for &vi in idx {
+                if vi < l.first_vertex || vi >= l.first_vertex + l.vertex_count {
+                    r.fail(format!("tree {ti} leaf {li}: index {vi} outside its vertices"));
+                    continue;
+                }
+                let v = &t.vertices[vi as usize];
+                r.vertices_checked += 1;
+                if v.leaf as usize != li {
+                    r.fail(format!("tree {ti} vertex {vi}: leaf {} but used by leaf {li}", v.leaf));
+                }
+                let Some(o) = originals.get(v.original as usize) else {
+                    r.fail(format!("tree {ti} vertex {vi}: original {} of {}", v.original, originals.len()));
+                    continue;
+                };
+                let Some(rect) = rects.iter().find(|x| x.material == o.material) else {
+                    r.fail(format!("tree {ti} leaf {li}: no atlas area for material {}", o.material));
+                    continue;
+                };
+                let (x, y) = (f64::from(v.atlas_uv[0]) * size, f64::from(v.atlas_uv[1]) * size);
+                let tol = 1e-3;
+                let inside = x >= f64::from(rect.inner[0]) - tol
+                    && x <= f64::from(rect.inner[0] + rect.inner[2]) + tol
+                    && y >= f64::from(rect.inner[1]) - tol
+                    && y <= f64::from(rect.inner[1] + rect.inner[3]) + tol;
+                if !inside || !v.pos.iter().all(|c| c.is_finite()) || !v.orig_uv.iter().all(|c| c.is_finite()) {
+                    r.fail(format!(
+                        "tree {ti} leaf {li} vertex {vi}: atlas texel ({x:.3}, {y:.3}) outside its area {:?} or not finite",
+                        rect.inner
+                    ));
+                }
+            }
+        }
+        if next_index as usize != t.indices.len() {
+            r.fail(format!("tree {ti}: leaves cover {next_index} of {} indices", t.indices.len()));
+        }
+        if t.indices.len() != t.source_triangles.len() * 3 {
+            r.fail(format!("tree {ti}: {} indices for {} triangles", t.indices.len(), t.source_triangles.len()));
+        }
+        seen.extend_from_slice(t.source_triangles);
+        r.triangles_checked += t.source_triangles.len() as u64;
+    }
+    seen.sort_unstable();
+    for (i, &s) in seen.iter().enumerate() {
+        if s as usize != i {
+            r.fail(format!(
+                "scene triangles are not each in exactly one leaf: position {i} holds triangle {s} (duplicate or gap)"
+            ));
+            break;
+        }
+    }
+    r
+}
+
+/// Opens, inspects and (optionally) verifies a file in one call (the CLI's job).
+pub fn open_and_inspect(path: &std::path::Path, verify_all: bool) -> Result<(InspectReport, Option<VerifyReport>), StoreError> {
+    let file = TreeFile::open(path)?;
+    let rep = inspect(&file);
+    let ver = verify_all.then(|| verify(&file));
+    Ok((rep, ver))
+}
+
+/// Level 0 of a node's atlas as an RGBA8 image (reads and checksums its block).
+pub fn atlas_image(file: &TreeFile, tree: usize, node: usize) -> Result<image::RgbaImage, StoreError> {
+    let t = file.tree(tree);
+    let size = file.params().atlas_size;
+    let n = t.nodes.get(node).ok_or(StoreError::BadReference {
+        table: "nodes",
+        index: node as u64,
+        field: "index",
+        value: node as u64,
+        limit: t.nodes.len() as u64,
+    })?;
+    let bytes = file.block(crate::ids::BlockId(n.atlas_block))?;
+    let level0 = (size as usize) * (size as usize) * 4;
+    let img = bytes.get(..level0).and_then(|b| image::RgbaImage::from_raw(size, size, b.to_vec()));
+    img.ok_or(StoreError::BlockLength {
+        block: crate::ids::BlockId(n.atlas_block),
+        expected: level0 as u64,
+        got: bytes.len() as u64,
+    })
+}
+
+/// A top-down map of a tree's leaves over the distribution plane, `px` pixels on the long side: each leaf's
+/// plane bounds filled with a colour for its depth (blue = shallow … red = deep) and outlined.
+pub fn leaf_map_image(file: &TreeFile, tree: usize, px: u32) -> image::RgbaImage {
+    let t = file.tree(tree);
+    let up = file.params().up;
+    let plane = |p: [f64; 3]| up.plane(glam::DVec3::from_array(p));
+    let (Some(root), px) = (t.nodes.first(), px.max(16)) else {
+        return image::RgbaImage::new(1, 1);
+    };
+    let (lo, hi) = (plane(root.bounds_min), plane(root.bounds_max));
+    let ext = (hi - lo).max(glam::DVec2::splat(1e-9));
+    let s = f64::from(px - 8) / ext.x.max(ext.y);
+    let (w, h) = ((ext.x * s) as u32 + 8, (ext.y * s) as u32 + 8);
+    let mut img = image::RgbaImage::from_pixel(w, h, image::Rgba([255, 255, 255, 255]));
+    let depth = t.nodes.iter().map(|n| n.level).max().unwrap_or(0).max(1) as f32;
+    let to_px = |p: glam::DVec2| ((p.x - lo.x) * s + 4.0, (p.y - lo.y) * s + 4.0);
+    for n in t.nodes.iter().filter(|n| n.leaf != NONE) {
+        let (a, b) = (to_px(plane(n.bounds_min)), to_px(plane(n.bounds_max)));
+        let f = n.level as f32 / depth;
+        let col = [(60.0 + 195.0 * f) as u8, (90.0 + 80.0 * (1.0 - (2.0 * f - 1.0).abs())) as u8, (255.0 - 195.0 * f) as u8];
+        let (x0, x1) = (a.0.min(b.0) as u32, (a.0.max(b.0) as u32).min(w - 1));
+        let (y0, y1) = (a.1.min(b.1) as u32, (a.1.max(b.1) as u32).min(h - 1));
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let edge = x == x0 || x == x1 || y == y0 || y == y1;
+                let p = img.get_pixel_mut(x, y);
+                for c in 0..3 {
+                    let target = if edge { col[c] / 2 } else { col[c] };
+                    p.0[c] = ((u16::from(p.0[c]) + u16::from(target) * 3) / 4) as u8;
+                }
+            }
+        }
+    }
+    img
+}
