@@ -100,13 +100,20 @@ pub struct TreeFile {
 #[derive(Copy, Clone, Debug)]
 pub struct TreeView<'a> {
     pub kind: TreeKind,
+    /// The tree's record (its ranges in the file's sections).
     pub record: &'a TreeRecord,
+    /// `nodes[0]` is the root; parents precede children.
     pub nodes: &'a [NodeRecord],
+    /// In tree order.
     pub leaves: &'a [LeafRecord],
+    /// All leaves' rects; a leaf's are [`TreeView::leaf_rects`].
     pub rects: &'a [RectRecord],
+    /// All leaves' originals; a leaf's are [`TreeView::leaf_originals`].
     pub originals: &'a [OriginalRecord],
     pub vertices: &'a [TreeVertex],
+    /// Indices into `vertices` (validated in range).
     pub indices: &'a [u32],
+    /// Scene triangle of each triangle of `indices`.
     pub source_triangles: &'a [u32],
 }
 
@@ -420,6 +427,7 @@ impl TreeFile {
     fn check_tables(&self) -> Result<(), StoreError> {
         validate::check_params(self.params())?;
         validate::check_materials(self.materials(), self.records(Section::Strings))?;
+        validate::check_tree_count(self.trees())?;
         let mut counts = Vec::with_capacity(self.trees());
         for i in 0..self.trees() {
             let t = self.tree_checked(i)?;

@@ -142,6 +142,15 @@ pub(crate) fn check_materials(
     Ok(())
 }
 
+/// A file holds one or two trees (opaque; alpha only if the scene has alpha materials).
+pub(crate) fn check_tree_count(trees: usize) -> Result<(), StoreError> {
+    if (1..=2).contains(&trees) {
+        Ok(())
+    } else {
+        Err(bad_value("trees", 0, "count", trees as u64))
+    }
+}
+
 /// Node and leaf counts of every tree, for [`check_block_meta`].
 pub(crate) struct TreeCounts {
     pub nodes: u64,

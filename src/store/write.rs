@@ -238,6 +238,7 @@ fn validate_encoded(
 ) -> Result<(), StoreError> {
     validate::check_params(&e.params)?;
     validate::check_materials(&e.materials, &e.strings)?;
+    validate::check_tree_count(e.trees.len())?;
     let counts: Vec<TreeCounts> = e
         .trees
         .iter()
