@@ -1,1 +1,137 @@
-//! The paging file.
+//! The paging file (DESIGN.md `store/`, paper §6): one file holds an [`AtlasForest`] — build parameters,
+//! materials, one or two trees as fixed-size Pod tables read in place from a memory map, and the texture
+//! blocks (atlases and leaves' original textures), each 4 KiB aligned and checksummed so the paging read
+//! ([`TreeFile::block`]) verifies what it loads.
+//!
+//! - [`format`]: the records and the header (little-endian, versioned).
+//! - [`FileWriter`]: computes the layout up front from the block sizes, accepts blocks from many threads,
+//!   and publishes the file atomically (temp file in the same directory, fsync, rename).
+//! - [`TreeFile`]: maps (or reads) and validates a file, then hands out slices in place.
+//!
+//! [`AtlasForest`]: crate::build::tree::AtlasForest
+
+pub mod format;
+mod read;
+mod validate;
+mod write;
+
+pub use read::{LoadMode, TreeFile, TreeView};
+pub use write::{FileWriter, WriteSummary};
+
+use crate::ids::BlockId;
+use std::path::PathBuf;
+
+/// Everything that can go wrong writing or reading a paging file. Variants carry the numbers involved.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    #[error("{path}: not an atlastree file (magic {found:02x?})")]
+    BadMagic { path: PathBuf, found: Vec<u8> },
+    #[error("unsupported format version {found} (this build reads version {supported})")]
+    UnsupportedVersion { found: u32, supported: u32 },
+    #[error("{path}: file is {len} bytes, {needed} needed")]
+    Truncated {
+        path: PathBuf,
+        len: u64,
+        needed: u64,
+    },
+    #[error("{path}: file is {len} bytes, header says {expected}")]
+    TrailingBytes {
+        path: PathBuf,
+        len: u64,
+        expected: u64,
+    },
+    #[error("section {section}: bytes {offset}..+{len} outside the file of {file_len} bytes")]
+    SectionOutOfBounds {
+        section: &'static str,
+        offset: u64,
+        len: u64,
+        file_len: u64,
+    },
+    #[error("section {section}: {field} is {found}, expected {expected}")]
+    SectionLayout {
+        section: &'static str,
+        field: &'static str,
+        found: u64,
+        expected: u64,
+    },
+    #[error("{what} at offset {offset} is not {align}-byte aligned")]
+    Misaligned {
+        what: String,
+        offset: u64,
+        align: u64,
+    },
+    #[error("non-zero padding byte at offset {offset}")]
+    NonZeroPadding { offset: u64 },
+    #[error("checksum mismatch in {what}: expected {expected:#018x}, found {found:#018x}")]
+    ChecksumMismatch {
+        what: String,
+        expected: u64,
+        found: u64,
+    },
+    #[error("{table}[{index}].{field} = {value} is out of range (limit {limit})")]
+    BadReference {
+        table: &'static str,
+        index: u64,
+        field: &'static str,
+        value: u64,
+        limit: u64,
+    },
+    #[error("{table}[{index}].{field} has invalid value {value}")]
+    BadValue {
+        table: &'static str,
+        index: u64,
+        field: &'static str,
+        value: u64,
+    },
+    #[error("{block}: bytes {offset}..+{len} outside the file of {file_len} bytes")]
+    BlockOutOfBounds {
+        block: BlockId,
+        offset: u64,
+        len: u64,
+        file_len: u64,
+    },
+    #[error("{block} starts at {offset}, before the end {previous_end} of what precedes it")]
+    BlockOverlap {
+        block: BlockId,
+        offset: u64,
+        previous_end: u64,
+    },
+    #[error("{block}: expected {expected} bytes, got {got}")]
+    BlockLength {
+        block: BlockId,
+        expected: u64,
+        got: u64,
+    },
+    #[error("{block} written twice")]
+    BlockWrittenTwice { block: BlockId },
+    #[error("{block} was never written")]
+    BlockMissing { block: BlockId },
+    #[error("layout overflows 64 bits at {what}")]
+    LayoutOverflow { what: &'static str },
+    #[error("the paging file is little-endian; this target is big-endian")]
+    BigEndian,
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl StoreError {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        StoreError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}
+
+/// Refuses big-endian targets (the format is little-endian and read in place).
+pub(crate) fn check_endian() -> Result<(), StoreError> {
+    if cfg!(target_endian = "big") {
+        Err(StoreError::BigEndian)
+    } else {
+        Ok(())
+    }
+}

@@ -1,0 +1,641 @@
+//! Reading a paging file: map (or read) it once, validate everything that is cheap to validate, then hand out
+//! the tables in place as typed slices and the blocks as checksum-verified byte slices.
+
+use super::format::{
+    BLOCK_ALIGN, BlockRecord, FORMAT_VERSION, HEADER_SIZE, Header, KNOWN_FLAGS, LeafRecord, MAGIC,
+    MaterialRecord, NodeRecord, OriginalRecord, ParamsRecord, Range64, RectRecord, SECTION_ALIGN,
+    SECTION_COUNT, Section, TreeRecord,
+};
+use super::validate::{self, TreeCounts, TreeTables};
+use super::{StoreError, check_endian};
+use crate::build::tree::{AtlasForest, AtlasTree, BuildParams, TreeKind, TreeVertex};
+use crate::ids::BlockId;
+use crate::scene::Material;
+use bytemuck::Pod;
+use rayon::prelude::*;
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// How [`TreeFile::open_with`] gets the bytes.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum LoadMode {
+    /// Memory-map; read the whole file instead if mapping fails or `ATLASTREE_NO_MMAP=1`.
+    #[default]
+    Auto,
+    /// Memory-map or fail.
+    Mmap,
+    /// Read the whole file into an 8-byte-aligned buffer.
+    Read,
+}
+
+/// The bytes of an open file.
+enum Backing {
+    Mmap(memmap2::Mmap),
+    /// `words` holds `len` bytes; `u64` storage guarantees the 8-byte alignment the records need.
+    Owned {
+        words: Vec<u64>,
+        len: usize,
+    },
+}
+
+impl Backing {
+    fn bytes(&self) -> &[u8] {
+        match self {
+            Backing::Mmap(m) => m,
+            Backing::Owned { words, len } => bytemuck::cast_slice::<u64, u8>(words)
+                .get(..*len)
+                .unwrap_or(&[]),
+        }
+    }
+
+    /// An aligned copy of `bytes`.
+    fn copy_of(bytes: &[u8]) -> Backing {
+        let mut words = vec![0u64; bytes.len().div_ceil(8)];
+        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
+        Backing::Owned {
+            words,
+            len: bytes.len(),
+        }
+    }
+
+    fn read(file: &mut File, path: &Path) -> Result<Backing, StoreError> {
+        let len = file.metadata().map_err(|e| StoreError::io(path, e))?.len();
+        let len = usize::try_from(len).map_err(|_| StoreError::LayoutOverflow { what: "file" })?;
+        let mut words = vec![0u64; len.div_ceil(8)];
+        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
+        file.read_exact(buf).map_err(|e| StoreError::io(path, e))?;
+        Ok(Backing::Owned { words, len })
+    }
+
+    /// Maps `file` read-only.
+    fn map(file: &File, path: &Path) -> Result<Backing, StoreError> {
+        // SAFETY: see the contract on `TreeFile`: the file is treated as immutable while mapped; the map is
+        // read-only and every byte we interpret is validated (bounds, checksums) before use.
+        let map = unsafe { memmap2::Mmap::map(file) }.map_err(|e| StoreError::io(path, e))?;
+        Ok(Backing::Mmap(map))
+    }
+}
+
+/// An open, validated paging file.
+///
+/// # Safety contract of the memory map
+/// With [`LoadMode::Auto`] or [`LoadMode::Mmap`] the file is memory-mapped and its tables are read in place.
+/// The file **must not be modified or truncated while a `TreeFile` maps it**: another process writing it
+/// would change bytes behind validated slices (Rust's aliasing rules), and truncating it makes reads fault
+/// (SIGBUS). The writer never does this — it replaces files by atomic rename, which leaves an existing map
+/// on the old inode intact. We treat the mapping as read-only and never write through it. Where that
+/// contract cannot be guaranteed (network file systems, files shared with other writers), use
+/// [`LoadMode::Read`] or set `ATLASTREE_NO_MMAP=1`.
+///
+/// Everything is validated at open (see [`TreeFile::open_with`]) except block contents, which are verified
+/// on each [`TreeFile::block`] load.
+pub struct TreeFile {
+    path: PathBuf,
+    backing: Backing,
+    header: Header,
+}
+
+/// One tree of a file: its tables as slices into the file. Ids are tree-local.
+#[derive(Copy, Clone, Debug)]
+pub struct TreeView<'a> {
+    pub kind: TreeKind,
+    /// The tree's record (its ranges in the file's sections).
+    pub record: &'a TreeRecord,
+    /// `nodes[0]` is the root; parents precede children.
+    pub nodes: &'a [NodeRecord],
+    /// In tree order.
+    pub leaves: &'a [LeafRecord],
+    /// All leaves' rects; a leaf's are [`TreeView::leaf_rects`].
+    pub rects: &'a [RectRecord],
+    /// All leaves' originals; a leaf's are [`TreeView::leaf_originals`].
+    pub originals: &'a [OriginalRecord],
+    pub vertices: &'a [TreeVertex],
+    /// Indices into `vertices` (validated in range).
+    pub indices: &'a [u32],
+    /// Scene triangle of each triangle of `indices`.
+    pub source_triangles: &'a [u32],
+}
+
+impl TreeView<'_> {
+    /// The rects of `leaf`, empty for an out-of-range leaf.
+    pub fn leaf_rects(&self, leaf: &LeafRecord) -> &[RectRecord] {
+        sub(self.rects, leaf.first_rect, leaf.rect_count)
+    }
+
+    /// The originals of `leaf`, empty for an out-of-range leaf.
+    pub fn leaf_originals(&self, leaf: &LeafRecord) -> &[OriginalRecord] {
+        sub(self.originals, leaf.first_original, leaf.original_count)
+    }
+
+    /// Decodes the tree into its in-memory form.
+    pub fn to_tree(&self) -> Option<AtlasTree> {
+        Some(AtlasTree {
+            kind: self.kind,
+            nodes: self
+                .nodes
+                .iter()
+                .map(NodeRecord::decode)
+                .collect::<Option<Vec<_>>>()?,
+            leaves: self
+                .leaves
+                .iter()
+                .map(|l| l.decode(self.leaf_rects(l), self.leaf_originals(l)))
+                .collect(),
+            vertices: self.vertices.to_vec(),
+            indices: self.indices.to_vec(),
+            source_triangles: self.source_triangles.to_vec(),
+        })
+    }
+}
+
+fn sub<T>(items: &[T], first: u32, count: u32) -> &[T] {
+    let first = first as usize;
+    items
+        .get(first..first.saturating_add(count as usize))
+        .unwrap_or(&[])
+}
+
+fn range<'a, T>(items: &'a [T], r: &Range64) -> Option<&'a [T]> {
+    let first = usize::try_from(r.first).ok()?;
+    let end = usize::try_from(r.end()?).ok()?;
+    items.get(first..end)
+}
+
+/// `bytes[offset..offset + len]`, `None` if outside.
+fn slice_at(bytes: &[u8], offset: u64, len: u64) -> Option<&[u8]> {
+    let start = usize::try_from(offset).ok()?;
+    let end = usize::try_from(offset.checked_add(len)?).ok()?;
+    bytes.get(start..end)
+}
+
+/// Fails on the first non-zero byte in `bytes[from..to]`.
+fn check_zero(bytes: &[u8], from: u64, to: u64) -> Result<(), StoreError> {
+    let gap = slice_at(bytes, from, to.saturating_sub(from)).unwrap_or(&[]);
+    match gap.iter().position(|&b| b != 0) {
+        Some(p) => Err(StoreError::NonZeroPadding {
+            offset: from + p as u64,
+        }),
+        None => Ok(()),
+    }
+}
+
+fn checksum(what: String, expected: u64, bytes: &[u8]) -> Result<(), StoreError> {
+    let found = xxhash_rust::xxh3::xxh3_64(bytes);
+    if found == expected {
+        Ok(())
+    } else {
+        Err(StoreError::ChecksumMismatch {
+            what,
+            expected,
+            found,
+        })
+    }
+}
+
+/// Magic, version, header checksum, constants, file length.
+fn check_header(path: &Path, bytes: &[u8]) -> Result<Header, StoreError> {
+    let len = bytes.len() as u64;
+    if let Some(magic) = bytes.get(..MAGIC.len())
+        && magic != MAGIC
+    {
+        return Err(StoreError::BadMagic {
+            path: path.to_path_buf(),
+            found: magic.to_vec(),
+        });
+    }
+    let Some(head) = bytes.get(..HEADER_SIZE) else {
+        return Err(StoreError::Truncated {
+            path: path.to_path_buf(),
+            len,
+            needed: HEADER_SIZE as u64,
+        });
+    };
+    let header: Header = bytemuck::pod_read_unaligned(head);
+    if header.version != FORMAT_VERSION {
+        return Err(StoreError::UnsupportedVersion {
+            found: header.version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    let expected = header.compute_checksum();
+    if header.checksum != expected {
+        let found = header.checksum;
+        return Err(StoreError::ChecksumMismatch {
+            what: "header".into(),
+            expected,
+            found,
+        });
+    }
+    let constants = [
+        ("flags", header.flags, KNOWN_FLAGS),
+        ("header_size", header.header_size, HEADER_SIZE as u32),
+        ("section_count", header.section_count, SECTION_COUNT as u32),
+        ("block_align", header.block_align, BLOCK_ALIGN as u32),
+        ("section_align", header.section_align, SECTION_ALIGN as u32),
+    ];
+    for (field, found, want) in constants {
+        if found != want {
+            return Err(StoreError::BadValue {
+                table: "header",
+                index: 0,
+                field,
+                value: found.into(),
+            });
+        }
+    }
+    if len < header.file_len {
+        return Err(StoreError::Truncated {
+            path: path.to_path_buf(),
+            len,
+            needed: header.file_len,
+        });
+    }
+    if len > header.file_len {
+        let expected = header.file_len;
+        return Err(StoreError::TrailingBytes {
+            path: path.to_path_buf(),
+            len,
+            expected,
+        });
+    }
+    Ok(header)
+}
+
+/// Each section: kind, record size, alignment, length = count × record size, order, bounds, zero gaps,
+/// checksum. Returns the end of the tables.
+fn check_sections(header: &Header, bytes: &[u8]) -> Result<u64, StoreError> {
+    let file_len = header.file_len;
+    let mut prev_end = HEADER_SIZE as u64;
+    for (i, s) in Section::ALL.iter().enumerate() {
+        let e = header.section(*s);
+        let section = s.name();
+        let layout = |field, found: u64, expected: u64| StoreError::SectionLayout {
+            section,
+            field,
+            found,
+            expected,
+        };
+        if e.kind != i as u32 {
+            return Err(layout("kind", e.kind.into(), i as u64));
+        }
+        if e.record_size != s.record_size() {
+            return Err(layout(
+                "record_size",
+                e.record_size.into(),
+                s.record_size().into(),
+            ));
+        }
+        if e.offset % SECTION_ALIGN != 0 {
+            let what = format!("section {section}");
+            return Err(StoreError::Misaligned {
+                what,
+                offset: e.offset,
+                align: SECTION_ALIGN,
+            });
+        }
+        let expected_len = e.count.checked_mul(u64::from(e.record_size));
+        if expected_len != Some(e.length) {
+            return Err(layout("length", e.length, expected_len.unwrap_or(u64::MAX)));
+        }
+        if e.offset < prev_end {
+            return Err(layout("offset", e.offset, prev_end));
+        }
+        let data = slice_at(bytes, e.offset, e.length).ok_or(StoreError::SectionOutOfBounds {
+            section,
+            offset: e.offset,
+            len: e.length,
+            file_len,
+        })?;
+        check_zero(bytes, prev_end, e.offset)?;
+        checksum(format!("section {section}"), e.checksum, data)?;
+        prev_end = e.offset + e.length;
+    }
+    if header.section(Section::Params).count != 1 {
+        let count = header.section(Section::Params).count;
+        return Err(StoreError::SectionLayout {
+            section: "params",
+            field: "count",
+            found: count,
+            expected: 1,
+        });
+    }
+    Ok(prev_end)
+}
+
+/// Block placement: after the tables, 4 KiB aligned, in id order without overlap, inside the file, and the
+/// file ends where the last block ends. The gap from the tables to the first block must be zero.
+fn check_block_layout(
+    blocks: &[BlockRecord],
+    tables_end: u64,
+    bytes: &[u8],
+) -> Result<(), StoreError> {
+    let file_len = bytes.len() as u64;
+    let mut prev_end = tables_end;
+    for (i, b) in blocks.iter().enumerate() {
+        let block = BlockId(i as u32);
+        if b.offset % BLOCK_ALIGN != 0 {
+            let what = format!("{block}");
+            return Err(StoreError::Misaligned {
+                what,
+                offset: b.offset,
+                align: BLOCK_ALIGN,
+            });
+        }
+        if b.offset < prev_end {
+            return Err(StoreError::BlockOverlap {
+                block,
+                offset: b.offset,
+                previous_end: prev_end,
+            });
+        }
+        let end = b
+            .offset
+            .checked_add(b.length)
+            .filter(|&e| e <= file_len)
+            .ok_or(StoreError::BlockOutOfBounds {
+                block,
+                offset: b.offset,
+                len: b.length,
+                file_len,
+            })?;
+        if i == 0 {
+            check_zero(bytes, tables_end, b.offset)?;
+        }
+        prev_end = end;
+    }
+    if blocks.is_empty() {
+        check_zero(bytes, tables_end, file_len)?;
+    }
+    if prev_end != file_len {
+        return Err(StoreError::SectionLayout {
+            section: "blocks",
+            field: "file_len",
+            found: file_len,
+            expected: prev_end,
+        });
+    }
+    Ok(())
+}
+
+impl TreeFile {
+    /// Opens `path` with [`LoadMode::Auto`].
+    pub fn open(path: &Path) -> Result<TreeFile, StoreError> {
+        Self::open_with(path, LoadMode::Auto)
+    }
+
+    /// Opens and validates `path`: magic, version, header checksum, file length; every section's kind,
+    /// record size, alignment, length, order, bounds and checksum, zero gaps; block placement; and the
+    /// cross-references between tables (node links, ranges, material and block ids, vertex leaf ids, index
+    /// values). Block contents are checked later, per load.
+    pub fn open_with(path: &Path, mode: LoadMode) -> Result<TreeFile, StoreError> {
+        check_endian()?;
+        let mut file = File::open(path).map_err(|e| StoreError::io(path, e))?;
+        let no_mmap = std::env::var_os("ATLASTREE_NO_MMAP").is_some_and(|v| v == "1");
+        let backing = match mode {
+            LoadMode::Mmap => Backing::map(&file, path)?,
+            LoadMode::Read => Backing::read(&mut file, path)?,
+            LoadMode::Auto if no_mmap => Backing::read(&mut file, path)?,
+            LoadMode::Auto => match Backing::map(&file, path) {
+                Ok(m) => m,
+                Err(_) => Backing::read(&mut file, path)?,
+            },
+        };
+        Self::from_backing(path.to_path_buf(), backing)
+    }
+
+    /// Validates a file held in memory (tests, HTTP). The bytes are copied into an aligned buffer.
+    pub fn from_bytes(bytes: &[u8]) -> Result<TreeFile, StoreError> {
+        check_endian()?;
+        Self::from_backing(PathBuf::from("<memory>"), Backing::copy_of(bytes))
+    }
+
+    fn from_backing(path: PathBuf, backing: Backing) -> Result<TreeFile, StoreError> {
+        let bytes = backing.bytes();
+        let header = check_header(&path, bytes)?;
+        let tables_end = check_sections(&header, bytes)?;
+        let file = TreeFile {
+            path,
+            backing,
+            header,
+        };
+        check_block_layout(file.blocks(), tables_end, file.bytes())?;
+        file.check_tables()?;
+        Ok(file)
+    }
+
+    fn check_tables(&self) -> Result<(), StoreError> {
+        validate::check_params(self.params())?;
+        validate::check_materials(self.materials(), self.records(Section::Strings))?;
+        validate::check_tree_count(self.trees())?;
+        let mut counts = Vec::with_capacity(self.trees());
+        for i in 0..self.trees() {
+            let t = self.tree_checked(i)?;
+            counts.push(TreeCounts {
+                nodes: t.nodes.len() as u64,
+                leaves: t.leaves.len() as u64,
+            });
+        }
+        validate::check_block_meta(self.blocks(), &counts)?;
+        for i in 0..self.trees() {
+            let t = self.tree_checked(i)?;
+            let tables = TreeTables {
+                tree: i as u32,
+                record: t.record,
+                nodes: t.nodes,
+                leaves: t.leaves,
+                rects: t.rects,
+                originals: t.originals,
+                vertices: t.vertices,
+                indices: t.indices,
+                source_triangles: t.source_triangles,
+            };
+            validate::check_tree(&tables, self.materials().len(), self.blocks())?;
+        }
+        Ok(())
+    }
+
+    /// The tree's view, or the error naming the first range outside its section.
+    fn tree_checked(&self, i: usize) -> Result<TreeView<'_>, StoreError> {
+        let trees: &[TreeRecord] = self.records(Section::Trees);
+        let limit = trees.len() as u64;
+        let record = trees.get(i).ok_or(StoreError::BadReference {
+            table: "trees",
+            index: i as u64,
+            field: "id",
+            value: i as u64,
+            limit,
+        })?;
+        let kind = record.tree_kind().ok_or(StoreError::BadValue {
+            table: "trees",
+            index: i as u64,
+            field: "kind",
+            value: record.kind.into(),
+        })?;
+        fn pick<'a, T: Pod>(
+            file: &'a TreeFile,
+            i: usize,
+            s: Section,
+            r: &Range64,
+        ) -> Result<&'a [T], StoreError> {
+            let all: &[T] = file.records(s);
+            range(all, r).ok_or(StoreError::BadReference {
+                table: "trees",
+                index: i as u64,
+                field: s.name(),
+                value: r.first.saturating_add(r.count),
+                limit: all.len() as u64,
+            })
+        }
+        Ok(TreeView {
+            kind,
+            record,
+            nodes: pick(self, i, Section::Nodes, &record.nodes)?,
+            leaves: pick(self, i, Section::Leaves, &record.leaves)?,
+            rects: pick(self, i, Section::Rects, &record.rects)?,
+            originals: pick(self, i, Section::Originals, &record.originals)?,
+            vertices: pick(self, i, Section::Vertices, &record.vertices)?,
+            indices: pick(self, i, Section::Indices, &record.indices)?,
+            source_triangles: pick(self, i, Section::SourceTriangles, &record.source_triangles)?,
+        })
+    }
+
+    fn bytes(&self) -> &[u8] {
+        self.backing.bytes()
+    }
+
+    /// The records of `section` in place (validated at open: aligned, in bounds, whole records).
+    fn records<T: Pod>(&self, section: Section) -> &[T] {
+        let e = self.header.section(section);
+        let bytes = slice_at(self.bytes(), e.offset, e.length).unwrap_or(&[]);
+        bytemuck::try_cast_slice(bytes).unwrap_or(&[])
+    }
+
+    /// The path the file was opened from (`<memory>` for [`TreeFile::from_bytes`]).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// True if the file is memory-mapped (false: read into memory).
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.backing, Backing::Mmap(_))
+    }
+
+    /// The validated header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// File length, bytes.
+    pub fn file_len(&self) -> u64 {
+        self.header.file_len
+    }
+
+    /// The build parameters record.
+    pub fn params(&self) -> &ParamsRecord {
+        static DEFAULT: ParamsRecord = ParamsRecord {
+            d_min: 0.0,
+            fov_deg: 0.0,
+            texel_ratio: 0.0,
+            screen_width: 0,
+            atlas_size: 0,
+            border: 0,
+            max_depth: 0,
+            up: 0,
+            _pad: 0,
+        };
+        self.records::<ParamsRecord>(Section::Params)
+            .first()
+            .unwrap_or(&DEFAULT)
+    }
+
+    /// The build parameters (validated at open).
+    pub fn to_params(&self) -> BuildParams {
+        let p = self.params();
+        p.decode().unwrap_or(BuildParams {
+            d_min: p.d_min,
+            screen_width: p.screen_width,
+            fov_deg: p.fov_deg,
+            texel_ratio: p.texel_ratio,
+            atlas_size: p.atlas_size,
+            border: p.border,
+            max_depth: 0,
+            up: Default::default(),
+        })
+    }
+
+    /// The material records.
+    pub fn materials(&self) -> &[MaterialRecord] {
+        self.records(Section::Materials)
+    }
+
+    /// The name of material `i` (validated UTF-8); `None` if there is no material `i`.
+    pub fn material_name(&self, i: usize) -> Option<&str> {
+        let m = self.materials().get(i)?;
+        let strings: &[u8] = self.records(Section::Strings);
+        let name = slice_at(strings, m.name_offset.into(), m.name_len.into())?;
+        std::str::from_utf8(name).ok()
+    }
+
+    /// Number of trees (1 or 2).
+    pub fn trees(&self) -> usize {
+        self.records::<TreeRecord>(Section::Trees).len()
+    }
+
+    /// Tree `i`; `None` if there is no tree `i`.
+    pub fn tree(&self, i: usize) -> Option<TreeView<'_>> {
+        self.tree_checked(i).ok()
+    }
+
+    /// The block table.
+    pub fn blocks(&self) -> &[BlockRecord] {
+        self.records(Section::Blocks)
+    }
+
+    /// The bytes of block `id`, after checking them against the block's checksum (the paging read).
+    pub fn block(&self, id: BlockId) -> Result<&[u8], StoreError> {
+        let blocks = self.blocks();
+        let b = blocks.get(id.idx()).ok_or(StoreError::BadReference {
+            table: "blocks",
+            index: id.0.into(),
+            field: "id",
+            value: id.0.into(),
+            limit: blocks.len() as u64,
+        })?;
+        let bytes =
+            slice_at(self.bytes(), b.offset, b.length).ok_or(StoreError::BlockOutOfBounds {
+                block: id,
+                offset: b.offset,
+                len: b.length,
+                file_len: self.file_len(),
+            })?;
+        checksum(format!("{id}"), b.checksum, bytes)?;
+        Ok(bytes)
+    }
+
+    /// Verifies every block's checksum (in parallel); fails naming a bad block.
+    pub fn verify_blocks(&self) -> Result<(), StoreError> {
+        (0..self.blocks().len())
+            .into_par_iter()
+            .try_for_each(|i| self.block(BlockId(i as u32)).map(|_| ()))
+    }
+
+    /// Decodes the whole file back into an [`AtlasForest`] (tables only; blocks stay in the file).
+    pub fn to_forest(&self) -> AtlasForest {
+        let materials: Vec<Material> = (self.materials().iter().enumerate())
+            .filter_map(|(i, m)| m.decode(self.material_name(i).unwrap_or("")))
+            .collect();
+        AtlasForest {
+            params: self.to_params(),
+            materials,
+            trees: (0..self.trees())
+                .filter_map(|i| self.tree(i)?.to_tree())
+                .collect(),
+            blocks: self
+                .blocks()
+                .iter()
+                .filter_map(BlockRecord::decode)
+                .collect(),
+        }
+    }
+}

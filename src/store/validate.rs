@@ -1,0 +1,424 @@
+//! Cross-reference checks on decoded tables, shared by the writer (refuse to write a file the reader would
+//! reject) and the reader (refuse to hand out tables that index out of range).
+//!
+//! Every check is a linear pass over a table (no sorting, no hashing), so validating a file of 10k nodes and
+//! 1M vertices costs a few milliseconds. Indices reported in errors are positions in the file's section
+//! (tree base + tree-local index), so they name the exact record.
+
+use super::StoreError;
+use super::format::{
+    BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, LeafRecord, MaterialRecord, NodeRecord,
+    OriginalRecord, ParamsRecord, RectRecord, TreeRecord,
+};
+use crate::build::tree::TreeVertex;
+use crate::ids::NONE;
+
+/// The tables of one tree, as tree-local slices, plus where they start in the file's sections.
+pub(crate) struct TreeTables<'a> {
+    /// Index of the tree.
+    pub tree: u32,
+    /// The tree's record (ranges give the section bases used in error messages).
+    pub record: &'a TreeRecord,
+    pub nodes: &'a [NodeRecord],
+    pub leaves: &'a [LeafRecord],
+    pub rects: &'a [RectRecord],
+    pub originals: &'a [OriginalRecord],
+    pub vertices: &'a [TreeVertex],
+    pub indices: &'a [u32],
+    pub source_triangles: &'a [u32],
+}
+
+fn bad_ref(
+    table: &'static str,
+    index: u64,
+    field: &'static str,
+    value: u64,
+    limit: u64,
+) -> StoreError {
+    StoreError::BadReference {
+        table,
+        index,
+        field,
+        value,
+        limit,
+    }
+}
+
+fn bad_value(table: &'static str, index: u64, field: &'static str, value: u64) -> StoreError {
+    StoreError::BadValue {
+        table,
+        index,
+        field,
+        value,
+    }
+}
+
+/// Checks `value < limit`.
+fn in_range(
+    table: &'static str,
+    index: u64,
+    field: &'static str,
+    value: u64,
+    limit: u64,
+) -> Result<(), StoreError> {
+    if value < limit {
+        Ok(())
+    } else {
+        Err(bad_ref(table, index, field, value, limit))
+    }
+}
+
+/// Checks that `[first, first + count)` lies in `[0, limit)`, without overflow.
+fn range_in(
+    table: &'static str,
+    index: u64,
+    field: &'static str,
+    first: u64,
+    count: u64,
+    limit: u64,
+) -> Result<(), StoreError> {
+    match first.checked_add(count) {
+        Some(end) if end <= limit => Ok(()),
+        _ => Err(bad_ref(
+            table,
+            index,
+            field,
+            first.saturating_add(count),
+            limit,
+        )),
+    }
+}
+
+/// The build parameters decode (known up axis, depth fits a byte).
+pub(crate) fn check_params(p: &ParamsRecord) -> Result<(), StoreError> {
+    if p.decode().is_none() {
+        let (field, value) = if p.up > 2 {
+            ("up", p.up)
+        } else {
+            ("max_depth", p.max_depth)
+        };
+        return Err(bad_value("params", 0, field, u64::from(value)));
+    }
+    Ok(())
+}
+
+/// Every material has known wrap and alpha codes and a UTF-8 name inside the Strings section.
+pub(crate) fn check_materials(
+    materials: &[MaterialRecord],
+    strings: &[u8],
+) -> Result<(), StoreError> {
+    for (i, m) in materials.iter().enumerate() {
+        let i = i as u64;
+        if m.alpha().is_none() {
+            return Err(bad_value(
+                "materials",
+                i,
+                "alpha_mode",
+                u64::from(m.alpha_mode),
+            ));
+        }
+        if m.wraps().is_none() {
+            return Err(bad_value(
+                "materials",
+                i,
+                "wrap",
+                u64::from(m.wrap[0].max(m.wrap[1])),
+            ));
+        }
+        let first = u64::from(m.name_offset);
+        range_in(
+            "materials",
+            i,
+            "name",
+            first,
+            u64::from(m.name_len),
+            strings.len() as u64,
+        )?;
+        let name = strings.get(m.name_offset as usize..(first + u64::from(m.name_len)) as usize);
+        if name.and_then(|n| std::str::from_utf8(n).ok()).is_none() {
+            return Err(bad_value("materials", i, "name", first));
+        }
+    }
+    Ok(())
+}
+
+/// A file holds one or two trees (opaque; alpha only if the scene has alpha materials).
+pub(crate) fn check_tree_count(trees: usize) -> Result<(), StoreError> {
+    if (1..=2).contains(&trees) {
+        Ok(())
+    } else {
+        Err(bad_value("trees", 0, "count", trees as u64))
+    }
+}
+
+/// Node and leaf counts of every tree, for [`check_block_meta`].
+pub(crate) struct TreeCounts {
+    pub nodes: u64,
+    pub leaves: u64,
+}
+
+/// Every block names an existing tree and an existing node (atlas) or leaf (originals) of it.
+pub(crate) fn check_block_meta(
+    blocks: &[BlockRecord],
+    trees: &[TreeCounts],
+) -> Result<(), StoreError> {
+    for (i, b) in blocks.iter().enumerate() {
+        let i = i as u64;
+        in_range("blocks", i, "tree", u64::from(b.tree), trees.len() as u64)?;
+        let counts = &trees[b.tree as usize];
+        match b.kind {
+            BLOCK_ATLAS => {
+                in_range("blocks", i, "item", u64::from(b.item), counts.nodes)?;
+                if b.part != 0 {
+                    return Err(bad_value("blocks", i, "part", u64::from(b.part)));
+                }
+            }
+            BLOCK_ORIGINALS => in_range("blocks", i, "item", u64::from(b.item), counts.leaves)?,
+            other => return Err(bad_value("blocks", i, "kind", u64::from(other))),
+        }
+    }
+    Ok(())
+}
+
+/// All cross-references of one tree: node links (parent before child, child cells and levels, leaf ↔ node),
+/// index/vertex/rect/original ranges, material and block ids, vertex leaf ids and index values.
+pub(crate) fn check_tree(
+    t: &TreeTables<'_>,
+    materials: usize,
+    blocks: &[BlockRecord],
+) -> Result<(), StoreError> {
+    if t.record.tree_kind().is_none() {
+        return Err(bad_value(
+            "trees",
+            u64::from(t.tree),
+            "kind",
+            u64::from(t.record.kind),
+        ));
+    }
+    if t.nodes.is_empty() {
+        return Err(bad_value("trees", u64::from(t.tree), "nodes.count", 0));
+    }
+    let tris = t.indices.len() / 3;
+    if t.indices.len() % 3 != 0 || t.source_triangles.len() != tris {
+        let value = t.source_triangles.len() as u64;
+        return Err(bad_value(
+            "trees",
+            u64::from(t.tree),
+            "source_triangles.count",
+            value,
+        ));
+    }
+    check_nodes(t, blocks)?;
+    check_leaves(t, blocks)?;
+    check_rects_originals(t, materials, blocks)?;
+    check_vertices_indices(t)
+}
+
+fn check_nodes(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreError> {
+    let base = t.record.nodes.first;
+    let count = t.nodes.len() as u64;
+    for (i, n) in t.nodes.iter().enumerate() {
+        let gi = base + i as u64;
+        if n.level >= 32 || (n.cell.ix >> n.level) != 0 || (n.cell.iy >> n.level) != 0 {
+            return Err(bad_value(
+                "nodes",
+                gi,
+                "cell",
+                u64::from(n.cell.ix.max(n.cell.iy)),
+            ));
+        }
+        if i == 0 {
+            if n.parent != NONE || n.level != 0 {
+                return Err(bad_value("nodes", gi, "parent", u64::from(n.parent)));
+            }
+        } else {
+            // Pre-order: a parent precedes its children.
+            in_range("nodes", gi, "parent", u64::from(n.parent), i as u64)?;
+        }
+        for (q, &c) in n.children.iter().enumerate() {
+            if c == NONE {
+                continue;
+            }
+            in_range("nodes", gi, "children", u64::from(c), count)?;
+            let child = &t.nodes[c as usize];
+            let cell = n.cell.child(q as u32);
+            let consistent = c as usize > i
+                && child.parent == i as u32
+                && child.level == n.level + 1
+                && child.cell == cell;
+            if !consistent {
+                return Err(bad_value("nodes", gi, "children", u64::from(c)));
+            }
+        }
+        range_in(
+            "nodes",
+            gi,
+            "index_range",
+            u64::from(n.first_index),
+            u64::from(n.index_count),
+            t.indices.len() as u64,
+        )?;
+        if n.first_index % 3 != 0 || n.index_count % 3 != 0 {
+            return Err(bad_value(
+                "nodes",
+                gi,
+                "index_range",
+                u64::from(n.first_index),
+            ));
+        }
+        in_range(
+            "nodes",
+            gi,
+            "atlas_block",
+            u64::from(n.atlas_block),
+            blocks.len() as u64,
+        )?;
+        let b = &blocks[n.atlas_block as usize];
+        if b.tree != t.tree || b.kind != BLOCK_ATLAS || b.item != i as u32 {
+            return Err(bad_value(
+                "nodes",
+                gi,
+                "atlas_block",
+                u64::from(n.atlas_block),
+            ));
+        }
+        if n.leaf != NONE {
+            in_range(
+                "nodes",
+                gi,
+                "leaf",
+                u64::from(n.leaf),
+                t.leaves.len() as u64,
+            )?;
+            if t.leaves[n.leaf as usize].node != i as u32 {
+                return Err(bad_value("nodes", gi, "leaf", u64::from(n.leaf)));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_leaves(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreError> {
+    let base = t.record.leaves.first;
+    for (l, leaf) in t.leaves.iter().enumerate() {
+        let gl = base + l as u64;
+        in_range(
+            "leaves",
+            gl,
+            "node",
+            u64::from(leaf.node),
+            t.nodes.len() as u64,
+        )?;
+        if t.nodes[leaf.node as usize].leaf != l as u32 {
+            return Err(bad_value("leaves", gl, "node", u64::from(leaf.node)));
+        }
+        let ranges = [
+            (
+                "vertex_range",
+                leaf.first_vertex,
+                leaf.vertex_count,
+                t.vertices.len(),
+            ),
+            (
+                "index_range",
+                leaf.first_index,
+                leaf.index_count,
+                t.indices.len(),
+            ),
+            (
+                "rect_range",
+                leaf.first_rect,
+                leaf.rect_count,
+                t.rects.len(),
+            ),
+            (
+                "original_range",
+                leaf.first_original,
+                leaf.original_count,
+                t.originals.len(),
+            ),
+        ];
+        for (field, first, count, limit) in ranges {
+            range_in(
+                "leaves",
+                gl,
+                field,
+                u64::from(first),
+                u64::from(count),
+                limit as u64,
+            )?;
+        }
+        let first = leaf.first_original as usize;
+        let originals = &t.originals[first..first + leaf.original_count as usize];
+        for (k, o) in originals.iter().enumerate() {
+            let go = t.record.originals.first + (first + k) as u64;
+            in_range(
+                "originals",
+                go,
+                "block",
+                u64::from(o.block),
+                blocks.len() as u64,
+            )?;
+            let b = &blocks[o.block as usize];
+            if b.tree != t.tree || b.kind != BLOCK_ORIGINALS || b.item != l as u32 {
+                return Err(bad_value("originals", go, "block", u64::from(o.block)));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_rects_originals(
+    t: &TreeTables<'_>,
+    materials: usize,
+    blocks: &[BlockRecord],
+) -> Result<(), StoreError> {
+    let m = materials as u64;
+    for (i, r) in t.rects.iter().enumerate() {
+        in_range(
+            "rects",
+            t.record.rects.first + i as u64,
+            "material",
+            u64::from(r.material),
+            m,
+        )?;
+    }
+    for (i, o) in t.originals.iter().enumerate() {
+        let gi = t.record.originals.first + i as u64;
+        in_range("originals", gi, "material", u64::from(o.material), m)?;
+        in_range(
+            "originals",
+            gi,
+            "block",
+            u64::from(o.block),
+            blocks.len() as u64,
+        )?;
+    }
+    Ok(())
+}
+
+fn check_vertices_indices(t: &TreeTables<'_>) -> Result<(), StoreError> {
+    let leaves = t.leaves.len() as u32;
+    if let Some(i) = t.vertices.iter().position(|v| v.leaf >= leaves) {
+        let value = u64::from(t.vertices[i].leaf);
+        return Err(bad_ref(
+            "vertices",
+            t.record.vertices.first + i as u64,
+            "leaf",
+            value,
+            leaves.into(),
+        ));
+    }
+    let limit = t.vertices.len() as u64;
+    if let Some(i) = t.indices.iter().position(|&x| u64::from(x) >= limit) {
+        let value = u64::from(t.indices[i]);
+        return Err(bad_ref(
+            "indices",
+            t.record.indices.first + i as u64,
+            "value",
+            value,
+            limit,
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,552 @@
+//! Writing a paging file: the whole layout is fixed up front from the forest (block sizes are known before any
+//! pixel exists), blocks arrive from many threads in any order, and the file appears at its path atomically.
+
+use super::format::{
+    BLOCK_ALIGN, BlockRecord, FORMAT_VERSION, HEADER_SIZE, Header, KNOWN_FLAGS, LeafRecord, MAGIC,
+    MaterialRecord, NodeRecord, OriginalRecord, ParamsRecord, Range64, RectRecord, SECTION_ALIGN,
+    SECTION_COUNT, Section, SectionEntry, TreeRecord, align_up,
+};
+use super::validate::{self, TreeCounts, TreeTables};
+use super::{StoreError, check_endian};
+use crate::build::tree::{AtlasForest, AtlasTree};
+use crate::ids::BlockId;
+use bytemuck::Zeroable;
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
+use tempfile::NamedTempFile;
+
+/// Bytes of a written file, by part.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct WriteSummary {
+    /// The header, bytes.
+    pub header_bytes: u64,
+    /// Each section's length, bytes, indexed by `Section as usize`.
+    pub section_bytes: [u64; SECTION_COUNT],
+    /// End of the last section (header + tables + alignment gaps), bytes.
+    pub tables_end: u64,
+    /// Number of blocks.
+    pub blocks: u64,
+    /// Sum of all blocks' lengths, bytes.
+    pub block_bytes: u64,
+    /// Alignment gaps (between sections and before/between blocks), bytes.
+    pub padding_bytes: u64,
+    /// The file length, bytes.
+    pub total: u64,
+}
+
+impl WriteSummary {
+    /// Length of `section`, bytes.
+    pub fn bytes(&self, section: Section) -> u64 {
+        self.section_bytes[section as usize]
+    }
+}
+
+const UNWRITTEN: u8 = 0;
+const WRITING: u8 = 1;
+const WRITTEN: u8 = 2;
+
+/// A paging file being written. Create it from the forest, hand `&FileWriter` to the rasteriser threads
+/// ([`FileWriter::write_block`] is `&self` and thread-safe), then [`FileWriter::finish`].
+///
+/// Until `finish` succeeds the data lives in a temp file next to the target; dropping the writer deletes it
+/// and leaves any existing file at the target untouched.
+pub struct FileWriter {
+    target: PathBuf,
+    temp: NamedTempFile,
+    header: Header,
+    /// Block table with checksums still 0.
+    blocks: Vec<BlockRecord>,
+    state: Vec<AtomicU8>,
+    checksums: Vec<AtomicU64>,
+    summary: WriteSummary,
+    /// Serialises seek + write where positional writes are not available (non-unix).
+    lock: Mutex<()>,
+}
+
+/// The encoded tables of one tree (its big arrays stay borrowed from the forest).
+struct EncodedTree {
+    record: TreeRecord,
+    nodes: Vec<NodeRecord>,
+    leaves: Vec<LeafRecord>,
+    rects: Vec<RectRecord>,
+    originals: Vec<OriginalRecord>,
+}
+
+/// Everything the tables hold, encoded.
+struct Encoded {
+    params: ParamsRecord,
+    materials: Vec<MaterialRecord>,
+    strings: Vec<u8>,
+    trees: Vec<EncodedTree>,
+}
+
+fn overflow(what: &'static str) -> StoreError {
+    StoreError::LayoutOverflow { what }
+}
+
+fn to_u32(value: usize, what: &'static str) -> Result<u32, StoreError> {
+    u32::try_from(value).map_err(|_| overflow(what))
+}
+
+fn encode_materials(forest: &AtlasForest) -> Result<(Vec<MaterialRecord>, Vec<u8>), StoreError> {
+    let mut strings = Vec::new();
+    let mut records = Vec::with_capacity(forest.materials.len());
+    for m in &forest.materials {
+        let offset = to_u32(strings.len(), "material names")?;
+        let len = to_u32(m.name.len(), "material name")?;
+        strings.extend_from_slice(m.name.as_bytes());
+        records.push(MaterialRecord::encode(m, offset, len));
+    }
+    to_u32(strings.len(), "material names")?;
+    Ok((records, strings))
+}
+
+/// Running position of each section while trees are appended.
+#[derive(Default)]
+struct Bases {
+    nodes: u64,
+    leaves: u64,
+    rects: u64,
+    originals: u64,
+    vertices: u64,
+    indices: u64,
+    source_triangles: u64,
+}
+
+fn take(base: &mut u64, count: usize) -> Result<Range64, StoreError> {
+    let r = Range64 {
+        first: *base,
+        count: count as u64,
+    };
+    *base = r.end().ok_or(overflow("tree ranges"))?;
+    Ok(r)
+}
+
+fn encode_tree(tree: &AtlasTree, bases: &mut Bases) -> Result<EncodedTree, StoreError> {
+    let nodes: Vec<NodeRecord> = tree.nodes.iter().map(NodeRecord::encode).collect();
+    let mut leaves = Vec::with_capacity(tree.leaves.len());
+    let mut rects = Vec::new();
+    let mut originals = Vec::new();
+    for leaf in &tree.leaves {
+        let first_rect = to_u32(rects.len(), "rects")?;
+        let first_original = to_u32(originals.len(), "originals")?;
+        rects.extend(leaf.rects.iter().map(RectRecord::encode));
+        originals.extend(leaf.originals.iter().map(OriginalRecord::encode));
+        let record =
+            LeafRecord::encode(leaf, first_rect, first_original).ok_or(overflow("leaf ranges"))?;
+        leaves.push(record);
+    }
+    to_u32(rects.len(), "rects")?;
+    to_u32(originals.len(), "originals")?;
+    let record = TreeRecord {
+        kind: TreeRecord::encode_kind(tree.kind),
+        _pad: 0,
+        nodes: take(&mut bases.nodes, nodes.len())?,
+        leaves: take(&mut bases.leaves, leaves.len())?,
+        rects: take(&mut bases.rects, rects.len())?,
+        originals: take(&mut bases.originals, originals.len())?,
+        vertices: take(&mut bases.vertices, tree.vertices.len())?,
+        indices: take(&mut bases.indices, tree.indices.len())?,
+        source_triangles: take(&mut bases.source_triangles, tree.source_triangles.len())?,
+    };
+    Ok(EncodedTree {
+        record,
+        nodes,
+        leaves,
+        rects,
+        originals,
+    })
+}
+
+fn encode(forest: &AtlasForest) -> Result<Encoded, StoreError> {
+    let (materials, strings) = encode_materials(forest)?;
+    let mut bases = Bases::default();
+    let trees = forest
+        .trees
+        .iter()
+        .map(|t| encode_tree(t, &mut bases))
+        .collect::<Result<Vec<_>, _>>()?;
+    to_u32(forest.trees.len(), "trees")?;
+    to_u32(forest.blocks.len(), "blocks")?;
+    Ok(Encoded {
+        params: ParamsRecord::encode(&forest.params),
+        materials,
+        strings,
+        trees,
+    })
+}
+
+/// Record counts of every section, in [`Section::ALL`] order.
+fn section_counts(e: &Encoded, blocks: usize) -> [u64; SECTION_COUNT] {
+    let sum = |f: &dyn Fn(&TreeRecord) -> u64| e.trees.iter().map(|t| f(&t.record)).sum::<u64>();
+    [
+        1,
+        e.materials.len() as u64,
+        e.strings.len() as u64,
+        e.trees.len() as u64,
+        sum(&|r| r.nodes.count),
+        sum(&|r| r.leaves.count),
+        sum(&|r| r.rects.count),
+        sum(&|r| r.originals.count),
+        sum(&|r| r.vertices.count),
+        sum(&|r| r.indices.count),
+        sum(&|r| r.source_triangles.count),
+        blocks as u64,
+    ]
+}
+
+/// Places the sections after the header (16-byte aligned) and the blocks after the tables (4 KiB aligned,
+/// in block-id order). Returns the section entries (checksums 0), the tables' end and the block offsets.
+fn layout(
+    counts: &[u64; SECTION_COUNT],
+    block_lengths: impl Iterator<Item = u64>,
+) -> Result<([SectionEntry; SECTION_COUNT], u64, Vec<u64>, u64), StoreError> {
+    let mut sections = [SectionEntry::zeroed(); SECTION_COUNT];
+    let mut end = HEADER_SIZE as u64;
+    for (i, s) in Section::ALL.iter().enumerate() {
+        let record_size = s.record_size();
+        let offset = align_up(end, SECTION_ALIGN).ok_or(overflow(s.name()))?;
+        let length = counts[i]
+            .checked_mul(u64::from(record_size))
+            .ok_or(overflow(s.name()))?;
+        end = offset.checked_add(length).ok_or(overflow(s.name()))?;
+        sections[i] = SectionEntry {
+            offset,
+            length,
+            count: counts[i],
+            checksum: 0,
+            record_size,
+            kind: *s as u32,
+        };
+    }
+    let tables_end = end;
+    let mut offsets = Vec::new();
+    for len in block_lengths {
+        let offset = align_up(end, BLOCK_ALIGN).ok_or(overflow("blocks"))?;
+        end = offset.checked_add(len).ok_or(overflow("blocks"))?;
+        offsets.push(offset);
+    }
+    Ok((sections, tables_end, offsets, end))
+}
+
+fn validate_encoded(
+    forest: &AtlasForest,
+    e: &Encoded,
+    blocks: &[BlockRecord],
+) -> Result<(), StoreError> {
+    validate::check_params(&e.params)?;
+    validate::check_materials(&e.materials, &e.strings)?;
+    validate::check_tree_count(e.trees.len())?;
+    let counts: Vec<TreeCounts> = e
+        .trees
+        .iter()
+        .map(|t| TreeCounts {
+            nodes: t.nodes.len() as u64,
+            leaves: t.leaves.len() as u64,
+        })
+        .collect();
+    validate::check_block_meta(blocks, &counts)?;
+    for (i, (t, src)) in e.trees.iter().zip(&forest.trees).enumerate() {
+        let tables = TreeTables {
+            tree: i as u32,
+            record: &t.record,
+            nodes: &t.nodes,
+            leaves: &t.leaves,
+            rects: &t.rects,
+            originals: &t.originals,
+            vertices: &src.vertices,
+            indices: &src.indices,
+            source_triangles: &src.source_triangles,
+        };
+        validate::check_tree(&tables, e.materials.len(), blocks)?;
+    }
+    Ok(())
+}
+
+/// Writes `bytes` at `offset`: positional on unix (concurrent writers need no lock), seek + write under
+/// `lock` elsewhere.
+fn write_all_at(file: &File, lock: &Mutex<()>, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        let _ = lock;
+        std::os::unix::fs::FileExt::write_all_at(file, bytes, offset)
+    }
+    #[cfg(not(unix))]
+    {
+        use std::io::{Seek, SeekFrom, Write};
+        let _guard = lock.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let mut f = file;
+        f.seek(SeekFrom::Start(offset))?;
+        f.write_all(bytes)
+    }
+}
+
+impl FileWriter {
+    /// Lays out the file for `forest`, creates a temp file next to `path`, sizes it and writes every table
+    /// but the block table (whose checksums come with the blocks).
+    ///
+    /// Fails before touching the disk if the forest's tables are inconsistent (the same checks the reader
+    /// applies), so a file that `finish`es always opens.
+    pub fn create(path: &Path, forest: &AtlasForest) -> Result<FileWriter, StoreError> {
+        check_endian()?;
+        let encoded = encode(forest)?;
+        let counts = section_counts(&encoded, forest.blocks.len());
+        let (sections, tables_end, offsets, file_len) =
+            layout(&counts, forest.blocks.iter().map(|b| b.bytes))?;
+        let blocks: Vec<BlockRecord> = forest
+            .blocks
+            .iter()
+            .zip(&offsets)
+            .map(|(d, &o)| BlockRecord::encode(d, o))
+            .collect();
+        validate_encoded(forest, &encoded, &blocks)?;
+
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let temp = NamedTempFile::new_in(dir).map_err(|e| StoreError::io(dir, e))?;
+        let mut writer = FileWriter {
+            target: path.to_path_buf(),
+            header: Header {
+                magic: MAGIC,
+                version: FORMAT_VERSION,
+                flags: KNOWN_FLAGS,
+                file_len,
+                header_size: HEADER_SIZE as u32,
+                section_count: SECTION_COUNT as u32,
+                block_align: BLOCK_ALIGN as u32,
+                section_align: SECTION_ALIGN as u32,
+                sections,
+                checksum: 0,
+            },
+            state: blocks.iter().map(|_| AtomicU8::new(UNWRITTEN)).collect(),
+            checksums: blocks.iter().map(|_| AtomicU64::new(0)).collect(),
+            summary: summarize(&sections, tables_end, &blocks, file_len),
+            blocks,
+            temp,
+            lock: Mutex::new(()),
+        };
+        writer
+            .temp
+            .as_file()
+            .set_len(file_len)
+            .map_err(|e| writer.temp_err(e))?;
+        writer.write_tables(forest, &encoded)?;
+        Ok(writer)
+    }
+
+    fn temp_err(&self, e: std::io::Error) -> StoreError {
+        StoreError::io(self.temp.path(), e)
+    }
+
+    /// Writes `parts` back to back at `section`'s offset and records their checksum in the header.
+    fn write_section(&mut self, section: Section, parts: &[&[u8]]) -> Result<(), StoreError> {
+        let mut offset = self.header.section(section).offset;
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        for part in parts {
+            write_all_at(self.temp.as_file(), &self.lock, offset, part)
+                .map_err(|e| self.temp_err(e))?;
+            hasher.update(part);
+            offset += part.len() as u64;
+        }
+        self.header.sections[section as usize].checksum = hasher.digest();
+        Ok(())
+    }
+
+    fn write_tables(&mut self, forest: &AtlasForest, e: &Encoded) -> Result<(), StoreError> {
+        use bytemuck::{bytes_of, cast_slice};
+        let trees: Vec<TreeRecord> = e.trees.iter().map(|t| t.record).collect();
+        self.write_section(Section::Params, &[bytes_of(&e.params)])?;
+        self.write_section(Section::Materials, &[cast_slice(&e.materials)])?;
+        self.write_section(Section::Strings, &[&e.strings])?;
+        self.write_section(Section::Trees, &[cast_slice(&trees)])?;
+        let per_tree = |f: &dyn for<'a> Fn(&'a EncodedTree) -> &'a [u8]| -> Vec<&[u8]> {
+            e.trees.iter().map(f).collect()
+        };
+        self.write_section(Section::Nodes, &per_tree(&|t| cast_slice(&t.nodes)))?;
+        self.write_section(Section::Leaves, &per_tree(&|t| cast_slice(&t.leaves)))?;
+        self.write_section(Section::Rects, &per_tree(&|t| cast_slice(&t.rects)))?;
+        self.write_section(Section::Originals, &per_tree(&|t| cast_slice(&t.originals)))?;
+        let vertices: Vec<&[u8]> = forest
+            .trees
+            .iter()
+            .map(|t| cast_slice(&t.vertices))
+            .collect();
+        let indices: Vec<&[u8]> = forest
+            .trees
+            .iter()
+            .map(|t| cast_slice(&t.indices))
+            .collect();
+        let sources: Vec<&[u8]> = forest
+            .trees
+            .iter()
+            .map(|t| cast_slice(&t.source_triangles))
+            .collect();
+        self.write_section(Section::Vertices, &vertices)?;
+        self.write_section(Section::Indices, &indices)?;
+        self.write_section(Section::SourceTriangles, &sources)
+    }
+
+    /// The path the file will appear at.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Number of blocks the file holds.
+    pub fn block_count(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// Writes block `id`: exactly `forest.blocks[id].bytes` bytes, once. Thread-safe; blocks may arrive in
+    /// any order. On an I/O error the block stays unwritten and may be retried.
+    pub fn write_block(&self, id: BlockId, bytes: &[u8]) -> Result<(), StoreError> {
+        let limit = self.blocks.len() as u64;
+        let bad_id = || StoreError::BadReference {
+            table: "blocks",
+            index: u64::from(id.0),
+            field: "id",
+            value: u64::from(id.0),
+            limit,
+        };
+        let record = self.blocks.get(id.idx()).ok_or_else(bad_id)?;
+        let (state, checksum) = self
+            .state
+            .get(id.idx())
+            .zip(self.checksums.get(id.idx()))
+            .ok_or_else(bad_id)?;
+        if bytes.len() as u64 != record.length {
+            let got = bytes.len() as u64;
+            return Err(StoreError::BlockLength {
+                block: id,
+                expected: record.length,
+                got,
+            });
+        }
+        if state
+            .compare_exchange(UNWRITTEN, WRITING, Ordering::AcqRel, Ordering::Acquire)
+            .is_err()
+        {
+            return Err(StoreError::BlockWrittenTwice { block: id });
+        }
+        let sum = xxhash_rust::xxh3::xxh3_64(bytes);
+        if let Err(e) = write_all_at(self.temp.as_file(), &self.lock, record.offset, bytes) {
+            state.store(UNWRITTEN, Ordering::Release);
+            return Err(self.temp_err(e));
+        }
+        checksum.store(sum, Ordering::Relaxed);
+        state.store(WRITTEN, Ordering::Release);
+        Ok(())
+    }
+
+    /// Writes the block table (with the blocks' checksums) and the header, fsyncs, and renames the temp file
+    /// onto the target (replacing any file there). Fails naming the first block never written; then
+    /// nothing appears at the target.
+    pub fn finish(mut self) -> Result<WriteSummary, StoreError> {
+        for (i, state) in self.state.iter().enumerate() {
+            if state.load(Ordering::Acquire) != WRITTEN {
+                return Err(StoreError::BlockMissing {
+                    block: BlockId(i as u32),
+                });
+            }
+        }
+        let mut blocks = std::mem::take(&mut self.blocks);
+        for (b, sum) in blocks.iter_mut().zip(&self.checksums) {
+            b.checksum = sum.load(Ordering::Relaxed);
+        }
+        self.write_section(Section::Blocks, &[bytemuck::cast_slice(&blocks)])?;
+        self.header.checksum = self.header.compute_checksum();
+        let header = self.header;
+        write_all_at(
+            self.temp.as_file(),
+            &self.lock,
+            0,
+            bytemuck::bytes_of(&header),
+        )
+        .map_err(|e| self.temp_err(e))?;
+        self.temp
+            .as_file()
+            .sync_all()
+            .map_err(|e| self.temp_err(e))?;
+        let target = self.target.clone();
+        self.temp
+            .persist(&target)
+            .map_err(|e| StoreError::io(&target, e.error))?;
+        sync_parent_dir(&target)?;
+        Ok(self.summary)
+    }
+}
+
+/// Makes the rename durable (unix: fsync the directory). A no-op elsewhere.
+fn sync_parent_dir(path: &Path) -> Result<(), StoreError> {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        File::open(dir)
+            .and_then(|d| d.sync_all())
+            .map_err(|e| StoreError::io(dir, e))?;
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+    Ok(())
+}
+
+fn summarize(
+    sections: &[SectionEntry; SECTION_COUNT],
+    tables_end: u64,
+    blocks: &[BlockRecord],
+    file_len: u64,
+) -> WriteSummary {
+    let section_bytes = sections.map(|s| s.length);
+    let block_bytes: u64 = blocks.iter().map(|b| b.length).sum();
+    let used = HEADER_SIZE as u64 + section_bytes.iter().sum::<u64>() + block_bytes;
+    WriteSummary {
+        header_bytes: HEADER_SIZE as u64,
+        section_bytes,
+        tables_end,
+        blocks: blocks.len() as u64,
+        block_bytes,
+        padding_bytes: file_len - used,
+        total: file_len,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layout_aligns_sections_and_blocks() {
+        let counts = [1, 2, 5, 1, 3, 1, 1, 1, 7, 9, 3, 2];
+        let (s, tables_end, offsets, end) = layout(&counts, [5000u64, 0, 10].into_iter()).unwrap();
+        assert_eq!(s[0].offset, HEADER_SIZE as u64);
+        for w in s.windows(2) {
+            assert_eq!(w[1].offset % SECTION_ALIGN, 0);
+            assert!(w[1].offset >= w[0].offset + w[0].length);
+            assert!(w[1].offset < w[0].offset + w[0].length + SECTION_ALIGN);
+        }
+        assert_eq!(tables_end, s[11].offset + s[11].length);
+        assert_eq!(offsets, vec![4096, 12288, 12288]);
+        assert_eq!(end, 12298);
+    }
+
+    #[test]
+    fn layout_reports_overflow() {
+        let mut counts = [0; SECTION_COUNT];
+        counts[Section::Nodes as usize] = u64::MAX / 50;
+        assert!(matches!(
+            layout(&counts, std::iter::empty()),
+            Err(StoreError::LayoutOverflow { what: "nodes" })
+        ));
+        let counts = [0; SECTION_COUNT];
+        assert!(matches!(
+            layout(&counts, [u64::MAX - 10].into_iter()),
+            Err(StoreError::LayoutOverflow { what: "blocks" })
+        ));
+    }
+}
