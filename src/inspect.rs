@@ -52,10 +52,10 @@ pub struct InspectReport {
 
 /// Builds the report of an opened file.
 pub fn inspect(file: &TreeFile) -> InspectReport {
-    let params = file.params();
+    let params = file.to_params();
     let mut trees = Vec::new();
     for ti in 0..file.trees() {
-        let t = file.tree(ti);
+        let Some(t) = file.tree(ti) else { continue };
         let mut levels: Vec<LevelStats> = Vec::new();
         for n in t.nodes {
             let l = n.level as usize;
@@ -81,7 +81,7 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
         let (mut atlas_blocks, mut original_blocks, mut block_bytes) = (0, 0, 0);
         for b in file.blocks().iter().filter(|b| b.tree as usize == ti) {
             block_bytes += b.length;
-            if b.kind == crate::store::format::BLOCK_KIND_ATLAS {
+            if b.kind == crate::store::format::BLOCK_ATLAS {
                 atlas_blocks += 1;
             } else {
                 original_blocks += 1;
@@ -102,7 +102,12 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             levels,
         });
     }
-    let mats: Vec<_> = (0..file.materials().len()).filter_map(|i| file.material(i)).collect();
+    let mats: Vec<_> = file
+        .materials()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| m.decode(file.material_name(i).unwrap_or("")))
+        .collect();
     let mut enabled = Vec::new();
     let alpha: Vec<_> = mats.iter().filter(|m| m.alpha.uses_alpha()).collect();
     if alpha.is_empty() {
@@ -134,7 +139,7 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
     }
     InspectReport {
         path: file.path().display().to_string(),
-        file_bytes: file.len(),
+        file_bytes: file.file_len(),
         params,
         materials: mats.len() as u64,
         block_bytes_total: file.blocks().iter().map(|b| b.length).sum(),
@@ -180,11 +185,11 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
             r.fail(format!("block {i}: {e}"));
         }
     }
-    let params = file.params();
+    let params = file.to_params();
     let size = f64::from(params.atlas_size);
     let mut seen: Vec<u32> = Vec::new();
     for ti in 0..file.trees() {
-        let t = file.tree(ti);
+        let Some(t) = file.tree(ti) else { continue };
         let eps = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0);
         for (ni, n) in t.nodes.iter().enumerate() {
             r.nodes_checked += 1;
@@ -260,8 +265,8 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
                 r.fail(format!("tree {ti} leaf {li}: first index {} but previous leaf ended at {next_index}", l.first_index));
             }
             next_index = l.first_index + l.index_count;
-            let rects = &t.rects[l.first_rect as usize..(l.first_rect + l.rect_count) as usize];
-            let originals = &t.originals[l.first_original as usize..(l.first_original + l.original_count) as usize];
+            let rects = t.leaf_rects(l);
+            let originals = t.leaf_originals(l);
             let Some(idx) = t.indices.get(l.first_index as usize..next_index as usize) else {
                 r.fail(format!("tree {ti} leaf {li}: index range out of bounds"));
                 continue;
@@ -329,7 +334,13 @@ pub fn open_and_inspect(path: &std::path::Path, verify_all: bool) -> Result<(Ins
 
 /// Level 0 of a node's atlas as an RGBA8 image (reads and checksums its block).
 pub fn atlas_image(file: &TreeFile, tree: usize, node: usize) -> Result<image::RgbaImage, StoreError> {
-    let t = file.tree(tree);
+    let t = file.tree(tree).ok_or(StoreError::BadReference {
+        table: "trees",
+        index: tree as u64,
+        field: "index",
+        value: tree as u64,
+        limit: file.trees() as u64,
+    })?;
     let size = file.params().atlas_size;
     let n = t.nodes.get(node).ok_or(StoreError::BadReference {
         table: "nodes",
@@ -351,8 +362,10 @@ pub fn atlas_image(file: &TreeFile, tree: usize, node: usize) -> Result<image::R
 /// A top-down map of a tree's leaves over the distribution plane, `px` pixels on the long side: each leaf's
 /// plane bounds filled with a colour for its depth (blue = shallow … red = deep) and outlined.
 pub fn leaf_map_image(file: &TreeFile, tree: usize, px: u32) -> image::RgbaImage {
-    let t = file.tree(tree);
-    let up = file.params().up;
+    let Some(t) = file.tree(tree) else {
+        return image::RgbaImage::new(1, 1);
+    };
+    let up = file.to_params().up;
     let plane = |p: [f64; 3]| up.plane(glam::DVec3::from_array(p));
     let (Some(root), px) = (t.nodes.first(), px.max(16)) else {
         return image::RgbaImage::new(1, 1);

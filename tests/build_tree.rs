@@ -56,8 +56,8 @@ fn d_min_guarantee_holds_at_leaves_and_every_ancestor() {
     let out = dir.path().join("g.atlastree");
     build(&scene, &opts(256), &out, &NoProgress).unwrap();
     let file = TreeFile::open(&out).unwrap();
-    let p = file.params();
-    let t = file.tree(0);
+    let p = file.to_params();
+    let t = file.tree(0).unwrap();
     let size = p.atlas_size as f64;
     let mut checked = 0;
     let mut worst: f64 = 0.0;

@@ -52,7 +52,7 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
 
     let mut pictures = Vec::new();
     for ti in 0..tf.trees() {
-        let kind = format!("{:?}", tf.tree(ti).kind).to_lowercase();
+        let kind = tf.tree(ti).map_or("tree".to_string(), |t| format!("{:?}", t.kind).to_lowercase());
         let atlas = a.out.join(format!("{kind}-root-atlas.png"));
         atlastree::inspect::atlas_image(&tf, ti, 0)?.save(&atlas).with_context(|| format!("writing {}", atlas.display()))?;
         let map = a.out.join(format!("{kind}-leaves.png"));
