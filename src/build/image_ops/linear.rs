@@ -1,0 +1,268 @@
+//! [`LinearImage`]: the working format of every filter, linear RGB premultiplied by linear alpha.
+
+use super::ImageOpsError;
+use super::srgb::{linear_to_srgb8, srgb8_to_linear};
+use crate::scene::DecodedImage;
+use rayon::prelude::*;
+use std::collections::VecDeque;
+
+/// Texel count above which per-texel passes run on the rayon pool.
+const PAR_TEXELS: usize = 1 << 16;
+
+/// An image in linear light: `data[y · width + x] = [r·a, g·a, b·a, a]` with `r, g, b, a` linear in
+/// `[0, 1]` (colour PREMULTIPLIED by alpha), rows top first.
+///
+/// The fields are public; an image whose `data.len()` disagrees with `width · height` is never indexed
+/// out of bounds: missing texels read as transparent black (see [`LinearImage::check`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearImage {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<[f32; 4]>,
+}
+
+impl LinearImage {
+    /// A `width × height` image with every texel `value` (premultiplied linear RGBA).
+    pub fn new_filled(width: u32, height: u32, value: [f32; 4]) -> Self {
+        let n = (width as usize).saturating_mul(height as usize);
+        Self {
+            width,
+            height,
+            data: vec![value; n],
+        }
+    }
+
+    /// `width · height` as usize.
+    #[inline]
+    pub fn texel_count(&self) -> usize {
+        (self.width as usize).saturating_mul(self.height as usize)
+    }
+
+    /// Error unless `data.len() == width · height`.
+    pub fn check(&self) -> Result<(), ImageOpsError> {
+        if self.data.len() == self.texel_count() {
+            Ok(())
+        } else {
+            Err(ImageOpsError::TexelCount {
+                width: self.width,
+                height: self.height,
+                texels: self.data.len(),
+            })
+        }
+    }
+
+    /// Decode sRGB8 straight alpha into linear premultiplied. Errors if the pixel count is not
+    /// `width · height`.
+    pub fn from_decoded(img: &DecodedImage) -> Result<Self, ImageOpsError> {
+        let n = (img.width as usize).checked_mul(img.height as usize);
+        if n != Some(img.pixels.len()) {
+            return Err(ImageOpsError::PixelCount {
+                width: img.width,
+                height: img.height,
+                pixels: img.pixels.len(),
+            });
+        }
+        let data = if img.pixels.len() >= PAR_TEXELS {
+            img.pixels.par_iter().map(|&p| decode_texel(p)).collect()
+        } else {
+            img.pixels.iter().map(|&p| decode_texel(p)).collect()
+        };
+        Ok(Self {
+            width: img.width,
+            height: img.height,
+            data,
+        })
+    }
+
+    /// The texel at `(x, y)`, `None` outside the image.
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> Option<[f32; 4]> {
+        if x >= self.width || y >= self.height {
+            return None;
+        }
+        self.data
+            .get(y as usize * self.width as usize + x as usize)
+            .copied()
+    }
+
+    /// Set the texel at `(x, y)`; errors outside the image.
+    pub fn set(&mut self, x: u32, y: u32, value: [f32; 4]) -> Result<(), ImageOpsError> {
+        let oob = ImageOpsError::OutOfBounds {
+            x,
+            y,
+            width: self.width,
+            height: self.height,
+        };
+        if x >= self.width || y >= self.height {
+            return Err(oob);
+        }
+        let i = y as usize * self.width as usize + x as usize;
+        let t = self.data.get_mut(i).ok_or(oob)?;
+        *t = value;
+        Ok(())
+    }
+
+    /// Mean of every channel over all texels (premultiplied values), in f64.
+    pub fn mean(&self) -> [f64; 4] {
+        let mut s = [0.0f64; 4];
+        for t in &self.data {
+            for c in 0..4 {
+                s[c] += t[c] as f64;
+            }
+        }
+        let n = self.data.len().max(1) as f64;
+        s.map(|v| v / n)
+    }
+
+    /// Encode as RGBA8 bytes: sRGB colour, straight (un-premultiplied) alpha, rows top first,
+    /// `4 · width · height` bytes.
+    ///
+    /// Texels whose 8-bit alpha is 0 carry no colour of their own; they get the colour of a nearest
+    /// (4-connected breadth-first) texel with alpha > 0 ("colour bleeding"), so GPU bilinear filtering of
+    /// the stored straight-alpha texture does not pull black into alpha-tested edges. A fully transparent
+    /// image stays transparent black.
+    pub fn to_rgba8(&self) -> Vec<u8> {
+        let n = self.texel_count();
+        let mut out = vec![0u8; n.saturating_mul(4)];
+        if n >= PAR_TEXELS {
+            out.par_chunks_exact_mut(4)
+                .zip(self.data.par_iter())
+                .for_each(|(px, &t)| {
+                    px.copy_from_slice(&encode_texel(t));
+                });
+        } else {
+            out.chunks_exact_mut(4)
+                .zip(self.data.iter())
+                .for_each(|(px, &t)| {
+                    px.copy_from_slice(&encode_texel(t));
+                });
+        }
+        if out.chunks_exact(4).any(|px| px[3] == 0) {
+            bleed_into_transparent(&mut out, self.width as usize, self.height as usize);
+        }
+        out
+    }
+}
+
+/// sRGB8 straight → linear premultiplied.
+#[inline]
+fn decode_texel(p: [u8; 4]) -> [f32; 4] {
+    let a = p[3] as f32 / 255.0;
+    [
+        srgb8_to_linear(p[0]) * a,
+        srgb8_to_linear(p[1]) * a,
+        srgb8_to_linear(p[2]) * a,
+        a,
+    ]
+}
+
+/// Linear premultiplied → sRGB8 straight; alpha is clamped to `[0, 1]`, 8-bit alpha 0 → `[0, 0, 0, 0]`.
+#[inline]
+fn encode_texel(t: [f32; 4]) -> [u8; 4] {
+    let a = if t[3] > 0.0 { t[3].min(1.0) } else { 0.0 };
+    let a8 = (a * 255.0).round() as u8;
+    if a8 == 0 {
+        return [0; 4];
+    }
+    let inv = 1.0 / a;
+    [
+        linear_to_srgb8(t[0] * inv),
+        linear_to_srgb8(t[1] * inv),
+        linear_to_srgb8(t[2] * inv),
+        a8,
+    ]
+}
+
+/// Give every alpha-0 texel of `rgba` the colour of a nearest texel with alpha > 0 (breadth-first over
+/// 4-neighbours from all such texels); alpha stays 0. O(texels).
+fn bleed_into_transparent(rgba: &mut [u8], w: usize, h: usize) {
+    let n = w.saturating_mul(h);
+    if rgba.len() < n * 4 {
+        return;
+    }
+    let mut done: Vec<bool> = rgba.chunks_exact(4).take(n).map(|px| px[3] != 0).collect();
+    let mut queue: VecDeque<usize> = (0..n).filter(|&i| done[i]).collect();
+    while let Some(i) = queue.pop_front() {
+        let (x, y) = (i % w, i / w);
+        let colour = [rgba[i * 4], rgba[i * 4 + 1], rgba[i * 4 + 2]];
+        let mut visit = |j: usize| {
+            if !done[j] {
+                done[j] = true;
+                rgba[j * 4..j * 4 + 3].copy_from_slice(&colour);
+                queue.push_back(j);
+            }
+        };
+        if x > 0 {
+            visit(i - 1);
+        }
+        if x + 1 < w {
+            visit(i + 1);
+        }
+        if y > 0 {
+            visit(i - w);
+        }
+        if y + 1 < h {
+            visit(i + w);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decode_encode_round_trip_with_alpha() {
+        let img = DecodedImage {
+            width: 2,
+            height: 2,
+            pixels: vec![
+                [255, 0, 0, 255],
+                [10, 200, 30, 128],
+                [7, 7, 7, 1],
+                [1, 2, 3, 0],
+            ],
+        };
+        let lin = LinearImage::from_decoded(&img).unwrap();
+        let out = lin.to_rgba8();
+        assert_eq!(&out[0..4], &[255, 0, 0, 255]);
+        assert_eq!(&out[4..8], &[10, 200, 30, 128]);
+        assert_eq!(&out[8..12], &[7, 7, 7, 1]);
+        // Alpha 0: colour bled from the 4-neighbour found first (texel 1 above it, breadth-first order).
+        assert_eq!(out[15], 0);
+        assert_eq!(&out[12..15], &[10, 200, 30]);
+    }
+
+    #[test]
+    fn pixel_count_mismatch_is_an_error() {
+        let img = DecodedImage {
+            width: 3,
+            height: 2,
+            pixels: vec![[0; 4]; 5],
+        };
+        assert_eq!(
+            LinearImage::from_decoded(&img),
+            Err(ImageOpsError::PixelCount {
+                width: 3,
+                height: 2,
+                pixels: 5
+            })
+        );
+    }
+
+    #[test]
+    fn get_set_bounds() {
+        let mut img = LinearImage::new_filled(3, 2, [0.0; 4]);
+        img.set(2, 1, [1.0, 0.5, 0.25, 1.0]).unwrap();
+        assert_eq!(img.get(2, 1), Some([1.0, 0.5, 0.25, 1.0]));
+        assert_eq!(img.data[5], [1.0, 0.5, 0.25, 1.0]);
+        assert_eq!(img.get(3, 0), None);
+        assert!(img.set(0, 2, [0.0; 4]).is_err());
+    }
+
+    #[test]
+    fn fully_transparent_stays_black() {
+        let img = LinearImage::new_filled(4, 4, [0.0; 4]);
+        assert!(img.to_rgba8().iter().all(|&b| b == 0));
+    }
+}

@@ -1,0 +1,84 @@
+//! CPU image operations for atlas rasterisation, all in linear light (paper §5.1, §5.2.3).
+//!
+//! The paper renders textured quads into a P-buffer and notes that "more sophisticated filtering algorithms
+//! could be used" (§5.2.3); this module is that alternative, on the CPU:
+//!
+//! - [`srgb`]: exact sRGB8 ↔ linear conversion (the round trip u8 → linear → u8 is the identity).
+//! - [`LinearImage`]: linear RGB premultiplied by linear alpha, `f32` per channel. Every filter below works
+//!   on premultiplied values, so transparent texels never darken their neighbours (no dark fringes on
+//!   alpha-tested edges after halving).
+//! - [`halve`], [`downsample`], [`MipChain`], [`mip_chain_rgba8`]: mip generation with a box (default) or a
+//!   Kaiser-windowed sinc kernel ([`MipFilter`]); odd and non-square sizes use exact footprint weights.
+//! - [`sample_footprint`]: minification-correct sampling of a mip chain with per-axis wrap modes, in f64 UV
+//!   maths (UVs of ±1e5 are reduced by their period first).
+//! - [`draw_rect`]: fill one packed texture area of a leaf atlas, border included (§5.2.2, §5.2.3).
+//! - [`combine_quadrants`]: the inner-node atlas from four children's level-1 mips (§5.1).
+//! - [`resample_square`]: original textures at a square power-of-two class size, seamless under wrap.
+//!
+//! Conventions: texel `(x, y)` has `y` = row from the top; UV `(0, 0)` is the top-left corner of the image,
+//! `u` runs along `x` and `v` along `y` (glTF); texel centres are at `(x + 0.5) / width`.
+
+mod linear;
+mod mip;
+mod raster;
+mod sample;
+pub mod srgb;
+
+pub use linear::LinearImage;
+pub use mip::{
+    MipChain, MipFilter, MipOptions, downsample, halve, mip_chain_rgba8, mip_chain_rgba8_with,
+};
+pub use raster::{RectJob, combine_quadrants, draw_rect, neutral_fill, resample_square};
+pub use sample::{FootprintPlan, MAX_ANISOTROPY, sample_footprint, sample_planned, wrap_index};
+pub use srgb::{linear_to_srgb8, srgb8_to_linear};
+
+/// Errors of the image operations; every variant names the sizes and coordinates involved.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ImageOpsError {
+    #[error("decoded image is {width}×{height} but has {pixels} pixels (expected width·height)")]
+    PixelCount {
+        width: u32,
+        height: u32,
+        pixels: usize,
+    },
+    #[error("linear image is {width}×{height} but has {texels} texels (expected width·height)")]
+    TexelCount {
+        width: u32,
+        height: u32,
+        texels: usize,
+    },
+    #[error("texel ({x}, {y}) is outside the {width}×{height} image")]
+    OutOfBounds {
+        x: u32,
+        y: u32,
+        width: u32,
+        height: u32,
+    },
+    #[error("rect {what} [{x}, {y}, {w}, {h}] does not fit the {width}×{height} destination")]
+    RectOutside {
+        what: &'static str,
+        x: u32,
+        y: u32,
+        w: u32,
+        h: u32,
+        width: u32,
+        height: u32,
+    },
+    #[error("rect inner [{x}, {y}, {w}, {h}] is empty: the UV mapping is undefined")]
+    EmptyInner { x: u32, y: u32, w: u32, h: u32 },
+    #[error("rect UV range [{u0}, {v0}]–[{u1}, {v1}] is not finite")]
+    NonFiniteUv { u0: f64, v0: f64, u1: f64, v1: f64 },
+    #[error("source mip chain is empty or has a zero-size base level")]
+    EmptySource,
+    #[error("atlas size {size} must be even and at least 2 to hold four quadrants")]
+    QuadrantSize { size: u32 },
+    #[error("quadrant {quadrant}: child image is {width}×{height}, expected {half}×{half}")]
+    ChildSize {
+        quadrant: usize,
+        width: u32,
+        height: u32,
+        half: u32,
+    },
+    #[error("resample size {size} must be at least 1")]
+    ZeroSize { size: u32 },
+}

@@ -1,0 +1,241 @@
+//! Leaf-atlas rasterisation (paper §5.2.2–5.2.3), the inner-node 2×2 combine (§5.1) and square
+//! resampling of original textures.
+
+use super::ImageOpsError;
+use super::linear::LinearImage;
+use super::mip::{MipChain, MipFilter, MipOptions};
+use super::sample::{AxisTaps, FootprintPlan, apply_taps, period_shift};
+use super::srgb::srgb8_to_linear;
+use crate::build::tree::AtlasRect;
+use crate::scene::{DecodedImage, Wrap};
+use glam::DVec2;
+use rayon::prelude::*;
+
+/// Destination texels above which [`draw_rect`] fills rows on the rayon pool.
+const PAR_TEXELS: usize = 1 << 14;
+
+/// One texture area to rasterise into a leaf atlas.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RectJob {
+    /// Rectangle incl. border, destination texels `[x, y, w, h]`: every texel of it is written.
+    pub outer: [u32; 4],
+    /// Rectangle that shows exactly `[uv_min, uv_max]` (A_tex), texels `[x, y, w, h]`; its left/top edge
+    /// maps to `uv_min`, its right/bottom edge to `uv_max`.
+    pub inner: [u32; 4],
+    pub uv_min: [f64; 2],
+    pub uv_max: [f64; 2],
+    /// `[wrap_u, wrap_v]` of the material's sampler.
+    pub wrap: [Wrap; 2],
+    /// Linear RGBA multiplier on the straight colour (glTF `baseColorFactor`).
+    pub factor: [f32; 4],
+}
+
+impl RectJob {
+    /// The job for a packed [`AtlasRect`] with its material's wrap modes and colour factor.
+    pub fn from_atlas_rect(r: &AtlasRect, wrap: [Wrap; 2], factor: [f32; 4]) -> Self {
+        Self {
+            outer: r.outer,
+            inner: r.inner,
+            uv_min: r.uv_min,
+            uv_max: r.uv_max,
+            wrap,
+            factor,
+        }
+    }
+}
+
+/// Error unless `[x, y, w, h]` lies inside a `width × height` image (checked arithmetic).
+fn check_rect(
+    what: &'static str,
+    r: [u32; 4],
+    width: u32,
+    height: u32,
+) -> Result<(), ImageOpsError> {
+    let [x, y, w, h] = r;
+    let fits = x.checked_add(w).is_some_and(|e| e <= width)
+        && y.checked_add(h).is_some_and(|e| e <= height);
+    if fits {
+        Ok(())
+    } else {
+        Err(ImageOpsError::RectOutside {
+            what,
+            x,
+            y,
+            w,
+            h,
+            width,
+            height,
+        })
+    }
+}
+
+/// Rasterise one texture area (paper §5.2.3, with the §5.2.2 border): every destination texel of
+/// `r.outer` gets `src` sampled at its centre's UV by [`super::sample_footprint`]'s filter, times
+/// `r.factor`. The UV map is the linear map taking `r.inner` exactly onto `[uv_min, uv_max]`, continued
+/// beyond it into the border (the paper's "scale A_tex around its centre"), so the border shows the
+/// texture as it continues past A_tex under the wrap modes. The footprint is one destination texel:
+/// `|uv_max − uv_min| / inner size` per axis. UV ranges are first shifted by whole periods (repeat: 1,
+/// mirror: 2) so huge UVs lose no precision. Rows run on rayon for rects of ≥ 16384 texels.
+pub fn draw_rect(dst: &mut LinearImage, r: &RectJob, src: &MipChain) -> Result<(), ImageOpsError> {
+    dst.check()?;
+    check_rect("outer", r.outer, dst.width, dst.height)?;
+    let [ix, iy, iw, ih] = r.inner;
+    if iw == 0 || ih == 0 {
+        return Err(ImageOpsError::EmptyInner {
+            x: ix,
+            y: iy,
+            w: iw,
+            h: ih,
+        });
+    }
+    let (mn, mx) = (r.uv_min, r.uv_max);
+    if !(mn.iter().chain(&mx).all(|v| v.is_finite())) {
+        return Err(ImageOpsError::NonFiniteUv {
+            u0: mn[0],
+            v0: mn[1],
+            u1: mx[0],
+            v1: mx[1],
+        });
+    }
+    if !src
+        .levels
+        .first()
+        .is_some_and(|l| l.width > 0 && l.height > 0)
+    {
+        return Err(ImageOpsError::EmptySource);
+    }
+    let shift = [
+        period_shift(mn[0], r.wrap[0]),
+        period_shift(mn[1], r.wrap[1]),
+    ];
+    let lo = DVec2::new(mn[0] - shift[0], mn[1] - shift[1]);
+    let span = DVec2::new(mx[0] - shift[0], mx[1] - shift[1]) - lo;
+    let size = DVec2::new(iw as f64, ih as f64);
+    let plan = FootprintPlan::new(src, span.abs() / size);
+    let Some(level) = src.levels.get(plan.level) else {
+        return Err(ImageOpsError::EmptySource);
+    };
+
+    let [ox, oy, ow, oh] = r.outer.map(|v| v as usize);
+    // Per-column taps, computed once: the UV of column x depends on x only.
+    let col_taps: Vec<AxisTaps> = (ox..ox + ow)
+        .map(|x| {
+            let u = lo.x + ((x as f64 + 0.5 - ix as f64) / size.x) * span.x;
+            AxisTaps::new(u, plan.footprint.x, plan.taps[0], level.width, r.wrap[0])
+        })
+        .collect();
+    let f = r.factor;
+    let scale = [f[0] * f[3], f[1] * f[3], f[2] * f[3], f[3]];
+    let row_len = dst.width as usize;
+    let fill_row = |(ry, row): (usize, &mut [[f32; 4]])| {
+        let y = oy + ry;
+        let v = lo.y + ((y as f64 + 0.5 - iy as f64) / size.y) * span.y;
+        let ys = AxisTaps::new(v, plan.footprint.y, plan.taps[1], level.height, r.wrap[1]);
+        let Some(seg) = row.get_mut(ox..ox + ow) else {
+            return;
+        };
+        for (d, xs) in seg.iter_mut().zip(&col_taps) {
+            let s = apply_taps(level, xs.as_slice(), ys.as_slice());
+            *d = [
+                s[0] * scale[0],
+                s[1] * scale[1],
+                s[2] * scale[2],
+                s[3] * scale[3],
+            ];
+        }
+    };
+    let Some(rows) = dst.data.get_mut(oy * row_len..(oy + oh) * row_len) else {
+        return Err(ImageOpsError::TexelCount {
+            width: dst.width,
+            height: dst.height,
+            texels: dst.data.len(),
+        });
+    };
+    if row_len == 0 {
+        return Ok(());
+    }
+    if ow * oh >= PAR_TEXELS {
+        rows.par_chunks_mut(row_len).enumerate().for_each(fill_row);
+    } else {
+        rows.chunks_mut(row_len).enumerate().for_each(fill_row);
+    }
+    Ok(())
+}
+
+/// The fill of quadrants without a child: opaque mid-grey, sRGB 128 (linear ≈ 0.2159), so an empty
+/// quadrant looks neutral if filtering ever reaches it.
+pub fn neutral_fill() -> [f32; 4] {
+    let g = srgb8_to_linear(128);
+    [g, g, g, 1.0]
+}
+
+/// The inner-node atlas of side `size` (paper §5.1): child `q`'s image, already at `size / 2` (its mip
+/// level 1), goes to quadrant `q` (bit 0: right half, +x; bit 1: lower half, +y); missing children leave
+/// [`neutral_fill`]. Errors if `size` is odd or < 2, or a child is not `size/2 × size/2`.
+pub fn combine_quadrants(
+    children: [Option<&LinearImage>; 4],
+    size: u32,
+) -> Result<LinearImage, ImageOpsError> {
+    if size < 2 || size % 2 != 0 {
+        return Err(ImageOpsError::QuadrantSize { size });
+    }
+    let half = size / 2;
+    for (q, c) in children.iter().enumerate() {
+        if let Some(c) = c {
+            if c.width != half || c.height != half {
+                return Err(ImageOpsError::ChildSize {
+                    quadrant: q,
+                    width: c.width,
+                    height: c.height,
+                    half,
+                });
+            }
+            c.check()?;
+        }
+    }
+    let mut out = LinearImage::new_filled(size, size, neutral_fill());
+    let (n, h) = (size as usize, half as usize);
+    for (q, c) in children.iter().enumerate() {
+        let Some(c) = c else { continue };
+        let (qx, qy) = ((q & 1) * h, (q >> 1) * h);
+        for (y, src_row) in c.data.chunks_exact(h).enumerate() {
+            let start = (qy + y) * n + qx;
+            if let Some(dst_row) = out.data.get_mut(start..start + h) {
+                dst_row.copy_from_slice(src_row);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// `img` resampled to `size × size` (an original texture at its power-of-two class size), filtered like
+/// [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the edges follow `wrap`,
+/// so a repeat or mirror texture tiles as seamlessly after resampling as before.
+pub fn resample_square(
+    img: &DecodedImage,
+    size: u32,
+    wrap: [Wrap; 2],
+) -> Result<LinearImage, ImageOpsError> {
+    if size == 0 {
+        return Err(ImageOpsError::ZeroSize { size });
+    }
+    let base = LinearImage::from_decoded(img)?;
+    let chain = MipChain::build_with(
+        base,
+        &MipOptions {
+            filter: MipFilter::Box,
+            wrap,
+        },
+    );
+    let mut out = LinearImage::new_filled(size, size, [0.0; 4]);
+    let job = RectJob {
+        outer: [0, 0, size, size],
+        inner: [0, 0, size, size],
+        uv_min: [0.0; 2],
+        uv_max: [1.0; 2],
+        wrap,
+        factor: [1.0; 4],
+    };
+    draw_rect(&mut out, &job, &chain)?;
+    Ok(out)
+}
