@@ -103,6 +103,12 @@ pub enum BuildError {
     },
     #[error(transparent)]
     Store(#[from] StoreError),
+    #[error("rasterising the {what}: {source}")]
+    Image {
+        what: String,
+        #[source]
+        source: image_ops::ImageOpsError,
+    },
 }
 
 /// Per-tree numbers of a build report.

@@ -11,7 +11,9 @@ use super::image_ops::{
 use super::tree::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::ids::{ImageId, NodeId};
 use crate::scene::{DecodedImage, Scene};
-use crate::store::{FileWriter, StoreError};
+use super::BuildError;
+use super::image_ops::ImageOpsError;
+use crate::store::FileWriter;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -74,18 +76,22 @@ impl<'a> ImageCache<'a> {
         }
         self.decodes.fetch_add(1, Ordering::Relaxed);
         let src = &self.scene.images[id.idx()];
-        let decoded = match src.decode() {
-            Ok(d) => d,
+        let decoded = src.decode().map_err(|e| e.to_string());
+        let linear = decoded.and_then(|d| LinearImage::from_decoded(&d).map(|l| (d, l)).map_err(|e| e.to_string()));
+        let (decoded, linear) = match linear {
+            Ok(x) => x,
             Err(e) => {
                 self.fallbacks.fetch_add(1, Ordering::Relaxed);
                 let mut w = self.warnings.lock().unwrap_or_else(|e| e.into_inner());
                 if w.len() < 100 {
                     w.push(format!("image {} ({}): {e}; used the magenta fallback", id.0, src.name));
                 }
-                fallback_checker()
+                let d = fallback_checker();
+                let l = LinearImage::from_decoded(&d).unwrap_or_else(|_| LinearImage::new_filled(1, 1, [1.0, 0.0, 1.0, 1.0]));
+                (d, l)
             }
         };
-        let chain = MipChain::build(LinearImage::from_decoded(&decoded));
+        let chain = MipChain::build(linear);
         let entry = Arc::new(CachedImage { decoded, chain });
         let size = entry.bytes();
         let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
@@ -125,7 +131,7 @@ pub struct RasterCtx<'a> {
 }
 
 /// Rasterises every atlas and original-texture block of `tree` into the writer.
-pub fn raster_tree(ctx: &RasterCtx<'_>, tree: &AtlasTree) -> Result<(), StoreError> {
+pub fn raster_tree(ctx: &RasterCtx<'_>, tree: &AtlasTree) -> Result<(), BuildError> {
     raster_node(ctx, tree, NodeId(0)).map(|_| ())
 }
 
@@ -137,13 +143,13 @@ fn fill_for(kind: TreeKind) -> [f32; 4] {
     }
 }
 
-fn raster_node(ctx: &RasterCtx<'_>, tree: &AtlasTree, id: NodeId) -> Result<LinearImage, StoreError> {
+fn raster_node(ctx: &RasterCtx<'_>, tree: &AtlasTree, id: NodeId) -> Result<LinearImage, BuildError> {
     let node = &tree.nodes[id.idx()];
     let size = ctx.params.atlas_size;
     let atlas = if let Some(leaf) = node.leaf {
         let leaf = &tree.leaves[leaf.idx()];
         write_originals(ctx, leaf)?;
-        leaf_atlas(ctx, leaf, size, fill_for(tree.kind))
+        leaf_atlas(ctx, leaf, size, fill_for(tree.kind)).map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
     } else {
         let kids: Vec<(usize, NodeId)> =
             node.children.iter().enumerate().filter_map(|(q, c)| c.map(|c| (q, c))).collect();
@@ -156,7 +162,7 @@ fn raster_node(ctx: &RasterCtx<'_>, tree: &AtlasTree, id: NodeId) -> Result<Line
         for (q, img) in &halves {
             quads[*q] = Some(img);
         }
-        combine_quadrants(quads, size)
+        combine_quadrants(quads, size).map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))?
     };
     ctx.writer.write_block(node.atlas_block, &mip_chain_rgba8(&atlas))?;
     let n = ctx.done.fetch_add(1, Ordering::Relaxed) + 1;
@@ -166,7 +172,7 @@ fn raster_node(ctx: &RasterCtx<'_>, tree: &AtlasTree, id: NodeId) -> Result<Line
 
 /// A leaf atlas: every material's area drawn from its source (§5.2.3; the paper renders textured quads on
 /// the GPU, we filter on the CPU in linear light with correct minification).
-pub fn leaf_atlas(ctx: &RasterCtx<'_>, leaf: &Leaf, size: u32, fill: [f32; 4]) -> LinearImage {
+pub fn leaf_atlas(ctx: &RasterCtx<'_>, leaf: &Leaf, size: u32, fill: [f32; 4]) -> Result<LinearImage, ImageOpsError> {
     let mut atlas = LinearImage::new_filled(size, size, fill);
     for r in &leaf.rects {
         let mat = &ctx.scene.materials[r.material.idx()];
@@ -179,19 +185,24 @@ pub fn leaf_atlas(ctx: &RasterCtx<'_>, leaf: &Leaf, size: u32, fill: [f32; 4]) -
             wrap: mat.wrap,
             factor: mat.base_color_factor,
         };
-        draw_rect(&mut atlas, &job, &img.chain);
+        draw_rect(&mut atlas, &job, &img.chain)?;
     }
-    atlas
+    Ok(atlas)
+}
+
+fn image_err(what: String, source: ImageOpsError) -> BuildError {
+    BuildError::Image { what, source }
 }
 
 /// A leaf's original textures, each resampled to its class size with a full mip chain, back to back per
 /// block (layout of `OriginalRef::slot`).
-fn write_originals(ctx: &RasterCtx<'_>, leaf: &Leaf) -> Result<(), StoreError> {
+fn write_originals(ctx: &RasterCtx<'_>, leaf: &Leaf) -> Result<(), BuildError> {
     let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>)> = Vec::new();
     for o in &leaf.originals {
         let mat = &ctx.scene.materials[o.material.idx()];
         let img = ctx.cache.get(o.image);
-        let lin = resample_square(&img.decoded, o.class_size, mat.wrap);
+        let lin = resample_square(&img.decoded, o.class_size, mat.wrap)
+            .map_err(|e| image_err(format!("original texture {} of leaf {}", o.image.0, o.block.0), e))?;
         let bytes = mip_chain_rgba8(&lin);
         match blocks.last_mut() {
             Some((b, buf)) if *b == o.block => buf.extend_from_slice(&bytes),
