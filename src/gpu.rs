@@ -292,7 +292,8 @@ fn device_type_rank(device_type: wgpu::DeviceType, preference: wgpu::PowerPrefer
     }
 }
 
-/// Why `adapter` cannot serve the renderer, or `None` when it can.
+/// Why `adapter` cannot serve the renderer, or `None` when it can: the reason, and whether it is a missing
+/// required feature (reported as [`GpuError::MissingFeature`] when it is the only adapter).
 fn rejection(adapter: &wgpu::Adapter, opts: &GpuOptions) -> Option<(&'static str, bool)> {
     let info = adapter.get_info();
     if info.device_type == wgpu::DeviceType::Cpu && !opts.allow_software {

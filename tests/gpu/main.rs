@@ -2,12 +2,16 @@
 //!
 //! To add tests: create a module under `tests/gpu/` with `pub fn tests() -> Vec<GpuTest>` and list it below.
 
+mod device;
 mod harness;
 mod smoke;
 
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    let registry: Vec<harness::GpuTest> = [smoke::tests()].into_iter().flatten().collect();
+    let registry: Vec<harness::GpuTest> = [smoke::tests(), device::tests()]
+        .into_iter()
+        .flatten()
+        .collect();
     harness::run_main(&registry)
 }
