@@ -1,0 +1,17 @@
+//! All GPU tests, in one `harness = false` binary that opens the device once (see `harness.rs` for the policy).
+//!
+//! To add tests: create a module under `tests/gpu/` with `pub fn tests() -> Vec<GpuTest>` and list it below.
+
+mod device;
+mod harness;
+mod smoke;
+
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let registry: Vec<harness::GpuTest> = [smoke::tests(), device::tests()]
+        .into_iter()
+        .flatten()
+        .collect();
+    harness::run_main(&registry)
+}
