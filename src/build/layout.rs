@@ -239,7 +239,6 @@ struct MatNeed {
     h: f64,
     uv_min: DVec2,
     uv_max: DVec2,
-    any_sized: bool,
 }
 
 fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<MaterialId, MatNeed> {
@@ -251,7 +250,6 @@ fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<MaterialId, MatN
             h: 0.0,
             uv_min: DVec2::splat(f64::INFINITY),
             uv_max: DVec2::splat(f64::NEG_INFINITY),
-            any_sized: false,
         });
         for uv in t.uv {
             if uv.is_finite() {
@@ -262,7 +260,6 @@ fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<MaterialId, MatN
         if matches!(t.size.method, SizeMethod::Exact | SizeMethod::EdgeFallback) {
             e.w = e.w.max(t.size.w);
             e.h = e.h.max(t.size.h);
-            e.any_sized = true;
         }
     }
     for e in m.values_mut() {
@@ -277,7 +274,12 @@ fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<MaterialId, MatN
 /// Tries to lay out one atlas for `items` at resolution `scale` (§5.2.2, §5.2.3).
 fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
     let needs = material_needs(ctx.infos, items);
-    let aopts = AreaOptions { border: ctx.opts.border, cap_to_source: ctx.opts.cap_to_source, max_side: ctx.opts.atlas_size };
+    let aopts = AreaOptions {
+        border: ctx.opts.border,
+        scale,
+        cap_to_source: ctx.opts.cap_to_source,
+        max_side: ctx.opts.atlas_size,
+    };
     let mut mats = Vec::with_capacity(needs.len());
     let mut sizes = Vec::with_capacity(needs.len());
     let mut summed: u64 = 0;
@@ -287,35 +289,30 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
         let input = AreaInput {
             w: need.w,
             h: need.h,
-            uv_min: need.uv_min,
-            uv_max: need.uv_max,
+            uv_min: need.uv_min.to_array(),
+            uv_max: need.uv_max.to_array(),
             source: [img.width, img.height],
-            scale,
-            sized: need.any_sized,
         };
         let area = required_area(&input, &aopts).ok()?;
+        let capped = ctx.opts.cap_to_source && (need.w > f64::from(img.width) || need.h > f64::from(img.height));
         summed += u64::from(area.outer_w) * u64::from(area.outer_h);
         if summed > cap {
             return None;
         }
         sizes.push([area.outer_w, area.outer_h]);
-        mats.push((mat, area, need.uv_min, need.uv_max));
+        mats.push((mat, area, need.uv_min, need.uv_max, capped));
     }
     let packing = pack(&sizes, &PackOptions { atlas_size: ctx.opts.atlas_size, ..PackOptions::default() }).ok()?;
     let rects = mats
         .into_iter()
         .zip(packing.positions.iter())
-        .map(|((material, a, uv_min, uv_max), p)| {
-            let bx = (a.outer_w - a.inner_w) / 2;
-            let by = (a.outer_h - a.inner_h) / 2;
-            PlannedRect {
-                material,
-                outer: [p[0], p[1], a.outer_w, a.outer_h],
-                inner: [p[0] + bx, p[1] + by, a.inner_w, a.inner_h],
-                uv_min,
-                uv_max,
-                capped: a.capped,
-            }
+        .map(|((material, a, uv_min, uv_max, capped), p)| PlannedRect {
+            material,
+            outer: [p[0], p[1], a.outer_w, a.outer_h],
+            inner: [p[0] + a.border[0], p[1] + a.border[1], a.inner_w, a.inner_h],
+            uv_min,
+            uv_max,
+            capped,
         })
         .collect();
     Some(LeafLayout { rects, occupancy: packing.occupancy, clamp_scale: scale })
