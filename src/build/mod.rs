@@ -1,5 +1,6 @@
 //! The preprocessor (paper §5).
 
+pub mod area;
 pub mod image_ops;
 pub mod pack;
 pub mod sizing;
