@@ -613,4 +613,31 @@ mod tests {
         assert_eq!(r.max_outer_side, 528);
         assert!((r.border_fraction() - (1.0 - 5121.0 / 15184.0)).abs() < 1e-12);
     }
+
+    proptest::proptest! {
+        #[test]
+        fn area_invariants(
+            w in 0.0f64..2000.0, h in 0.0f64..2000.0,
+            u0 in -1e5f64..1e5, v0 in -1e5f64..1e5, du in 0.0f64..8.0, dv in 0.0f64..8.0,
+            border in 0u32..20, scale in 0.01f64..1.0, cap in proptest::bool::ANY,
+        ) {
+            let i = AreaInput { w, h, uv_min: [u0, v0], uv_max: [u0 + du, v0 + dv], source: [1024, 256] };
+            let o = AreaOptions { border, scale, cap_to_source: cap, max_side: 1 << 16 };
+            let a = required_area(&i, &o).unwrap();
+            for (inner, outer, b, per_uv, src, ext) in [
+                (a.inner_w, a.outer_w, a.border[0], w, 1024.0, i.uv_max[0] - i.uv_min[0]),
+                (a.inner_h, a.outer_h, a.border[1], h, 256.0, i.uv_max[1] - i.uv_min[1]),
+            ] {
+                proptest::prop_assert!(inner >= 1);
+                proptest::prop_assert_eq!(outer % 4, 0);
+                let slack = outer - inner - 2 * border;
+                proptest::prop_assert!(slack < 4, "{:?}", a);
+                proptest::prop_assert!(b >= border && b - border <= slack, "{:?}", a);
+                let need = if cap { per_uv.min(src) } else { per_uv } * scale * ext;
+                // No magnification (to 1e-9) and no wasted texel column.
+                proptest::prop_assert!(f64::from(inner) >= need * (1.0 - 1e-9), "{} < {}", inner, need);
+                proptest::prop_assert!(f64::from(inner) < need.max(1.0) + 1.0, "{} vs {}", inner, need);
+            }
+        }
+    }
 }
