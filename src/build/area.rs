@@ -1,0 +1,643 @@
+//! Required atlas area of one material in one node (paper §5.2.2).
+//!
+//! Input: the per-repetition size `(w, h)` (texels per unit of UV, the maximum over the material's
+//! triangles from [`crate::build::sizing`]), the UV bounding box `A_tex = [uv_min, uv_max]` of those
+//! triangles and the source image size. Output: the inner rectangle that `A_tex` maps onto, and the outer
+//! rectangle with the border that the packer places.
+//!
+//! - **Inner**: `ceil(w · scale · |A_w|) × ceil(h · scale · |A_h|)`, at least 1×1. With
+//!   [`SizeMethod::AllUvEqual`](crate::build::sizing::SizeMethod::AllUvEqual) triangles only, `w = h = 0`
+//!   and the inner area is the paper's fixed 1×1. Repetition counts cost nothing by themselves: `w · |A_w|`
+//!   is the world length of the textured surface times `f_proj` (paper: "depends only on the triangle area
+//!   in world space").
+//! - **Source cap** ([`AreaOptions::cap_to_source`], default on): `w` is capped at the source width `sw`
+//!   (and `h` at `sh`). More texels per repetition than the source has would only store a magnified copy
+//!   of the original texture: the screen would show the same (magnified) source texels either way, so the
+//!   no-magnification guarantee of the *atlas* holds at `sw` already.
+//! - **Border**: `border` texels on every side (paper: 8), then the outer size is rounded *up* to a
+//!   multiple of 4 so BC blocks never straddle two textures; the extra 0–3 texels go into the border
+//!   (half before, the rest after). The rasteriser fills the border by continuing the linear UV mapping
+//!   `inner ↔ A_tex` beyond `A_tex`, which is exactly the paper's "scale `A_tex` around its centre";
+//!   [`RequiredArea::outer_uv`] gives that scaled UV box.
+//! - **Rounding**: a product within 1e-9 (relative) above an integer is rounded down to it: f64 noise of
+//!   the sizing must not add a texel column; the guarantee is kept to a factor `1 + 1e-9`.
+
+use serde::Serialize;
+
+/// What [`required_area`] needs for one material in one node.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct AreaInput {
+    /// Texels per unit of U / V (max over the triangles, [`crate::build::sizing::SizeMax`]).
+    pub w: f64,
+    pub h: f64,
+    /// `A_tex`: UV bounding box of the triangles (`uv_min ≤ uv_max` per axis).
+    pub uv_min: [f64; 2],
+    pub uv_max: [f64; 2],
+    /// Source image size, texels `[width, height]`.
+    pub source: [u32; 2],
+}
+
+/// Parameters of [`required_area`].
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct AreaOptions {
+    /// Border on each side, texels (paper: 8).
+    pub border: u32,
+    /// Resolution scale: 1.0 normally, `< 1` when a leaf is clamped (finite, `> 0`).
+    pub scale: f64,
+    /// Never more texels per repetition than the source image has (see module docs).
+    pub cap_to_source: bool,
+    /// Largest allowed outer side, texels (normally the atlas size).
+    pub max_side: u32,
+}
+
+impl Default for AreaOptions {
+    fn default() -> Self {
+        Self {
+            border: 8,
+            scale: 1.0,
+            cap_to_source: true,
+            max_side: 1 << 16,
+        }
+    }
+}
+
+/// The area one material needs in an atlas, texels. Outer sides are multiples of 4.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct RequiredArea {
+    /// Rectangle `A_tex` maps onto.
+    pub inner_w: u32,
+    pub inner_h: u32,
+    /// Inner plus borders, rounded up to a multiple of 4.
+    pub outer_w: u32,
+    pub outer_h: u32,
+    /// Offset of the inner rectangle inside the outer one (left, top border), texels. The right / bottom
+    /// borders are `outer − inner − border`.
+    pub border: [u32; 2],
+}
+
+impl RequiredArea {
+    /// The UV box the *outer* rectangle shows when the linear mapping `inner ↔ [uv_min, uv_max]` is
+    /// continued into the border (the paper's `A_tex` scaled around its centre, exact for uneven borders).
+    pub fn outer_uv(&self, uv_min: [f64; 2], uv_max: [f64; 2]) -> ([f64; 2], [f64; 2]) {
+        let axis = |lo: f64, hi: f64, inner: u32, outer: u32, before: u32| {
+            let per_texel = (hi - lo) / f64::from(inner.max(1));
+            let after = outer.saturating_sub(inner).saturating_sub(before);
+            (
+                lo - per_texel * f64::from(before),
+                hi + per_texel * f64::from(after),
+            )
+        };
+        let (u0, u1) = axis(
+            uv_min[0],
+            uv_max[0],
+            self.inner_w,
+            self.outer_w,
+            self.border[0],
+        );
+        let (v0, v1) = axis(
+            uv_min[1],
+            uv_max[1],
+            self.inner_h,
+            self.outer_h,
+            self.border[1],
+        );
+        ([u0, v0], [u1, v1])
+    }
+
+    /// Outer area in texels².
+    pub fn outer_texels(&self) -> u64 {
+        u64::from(self.outer_w) * u64::from(self.outer_h)
+    }
+}
+
+/// Why an area cannot be computed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum AreaError {
+    #[error(
+        "required {axis} side {texels:.1} texels (incl. 2×{border} border) exceeds the limit {limit}: \
+         {per_uv:.4} texels per UV × scale {scale} × UV extent {extent}"
+    )]
+    TooLarge {
+        axis: char,
+        texels: f64,
+        limit: u32,
+        border: u32,
+        per_uv: f64,
+        scale: f64,
+        extent: f64,
+    },
+    #[error("invalid area input: {what} = {value}")]
+    Invalid { what: &'static str, value: f64 },
+}
+
+/// Relative tolerance below which a product just above an integer is rounded down to it.
+const CEIL_TOLERANCE: f64 = 1e-9;
+
+/// Required inner/outer area of one material (paper §5.2.2). See the module docs.
+pub fn required_area(input: &AreaInput, opts: &AreaOptions) -> Result<RequiredArea, AreaError> {
+    validate(input, opts)?;
+    let (inner_w, outer_w, bx) = axis_size(
+        'w',
+        input.w,
+        input.source[0],
+        input.uv_min[0],
+        input.uv_max[0],
+        opts,
+    )?;
+    let (inner_h, outer_h, by) = axis_size(
+        'h',
+        input.h,
+        input.source[1],
+        input.uv_min[1],
+        input.uv_max[1],
+        opts,
+    )?;
+    Ok(RequiredArea {
+        inner_w,
+        inner_h,
+        outer_w,
+        outer_h,
+        border: [bx, by],
+    })
+}
+
+fn validate(input: &AreaInput, opts: &AreaOptions) -> Result<(), AreaError> {
+    let checks = [
+        ("w", input.w, input.w.is_finite() && input.w >= 0.0),
+        ("h", input.h, input.h.is_finite() && input.h >= 0.0),
+        (
+            "scale",
+            opts.scale,
+            opts.scale.is_finite() && opts.scale > 0.0,
+        ),
+        ("uv_min.u", input.uv_min[0], input.uv_min[0].is_finite()),
+        ("uv_min.v", input.uv_min[1], input.uv_min[1].is_finite()),
+        (
+            "uv_max.u",
+            input.uv_max[0],
+            input.uv_max[0].is_finite() && input.uv_max[0] >= input.uv_min[0],
+        ),
+        (
+            "uv_max.v",
+            input.uv_max[1],
+            input.uv_max[1].is_finite() && input.uv_max[1] >= input.uv_min[1],
+        ),
+    ];
+    match checks.into_iter().find(|c| !c.2) {
+        Some((what, value, _)) => Err(AreaError::Invalid { what, value }),
+        None => Ok(()),
+    }
+}
+
+/// `(inner, outer, border_before)` along one axis.
+fn axis_size(
+    axis: char,
+    per_uv: f64,
+    source: u32,
+    lo: f64,
+    hi: f64,
+    opts: &AreaOptions,
+) -> Result<(u32, u32, u32), AreaError> {
+    let per_uv = if opts.cap_to_source {
+        per_uv.min(f64::from(source.max(1)))
+    } else {
+        per_uv
+    };
+    let extent = hi - lo;
+    let exact = per_uv * opts.scale * extent;
+    let inner = ceil_tolerant(exact).max(1.0);
+    let raw = inner + 2.0 * f64::from(opts.border);
+    let outer = (raw / 4.0).ceil() * 4.0;
+    if !outer.is_finite() || outer > f64::from(opts.max_side) {
+        return Err(AreaError::TooLarge {
+            axis,
+            texels: outer,
+            limit: opts.max_side,
+            border: opts.border,
+            per_uv,
+            scale: opts.scale,
+            extent,
+        });
+    }
+    // 1 ≤ inner ≤ outer ≤ max_side ≤ u32::MAX: integral f64 values, so the conversions are exact.
+    let (inner_u, outer_u) = (inner as u32, outer as u32);
+    let extra = outer_u - inner_u - 2 * opts.border;
+    Ok((inner_u, outer_u, opts.border + extra / 2))
+}
+
+/// `ceil(x)`, except that `x` within `CEIL_TOLERANCE` (relative) above an integer gives that integer.
+fn ceil_tolerant(x: f64) -> f64 {
+    let down = x.floor();
+    if x - down <= CEIL_TOLERANCE * x.abs() {
+        down
+    } else {
+        x.ceil()
+    }
+}
+
+/// Sum of the outer areas, texels² (saturating). Early rejection: a node whose sum exceeds
+/// `atlas_size²` cannot be packed (paper §5.2.3 "all or fail").
+pub fn summed_area(areas: &[RequiredArea]) -> u64 {
+    areas
+        .iter()
+        .fold(0u64, |s, a| s.saturating_add(a.outer_texels()))
+}
+
+/// True when the areas might fit an `atlas_size²` atlas: summed area and every side within bounds.
+/// (Necessary, not sufficient: the packer decides.)
+pub fn may_fit(areas: &[RequiredArea], atlas_size: u32) -> bool {
+    let capacity = u64::from(atlas_size) * u64::from(atlas_size);
+    summed_area(areas) <= capacity
+        && areas
+            .iter()
+            .all(|a| a.outer_w <= atlas_size && a.outer_h <= atlas_size)
+}
+
+/// The largest scale `≤ opts.scale` at which `input` fits a `max_outer` square side (the leaf clamp:
+/// a single texture needs more than the atlas), or `None` when even the 1×1 inner area does not fit.
+pub fn scale_to_fit(input: &AreaInput, opts: &AreaOptions, max_outer: u32) -> Option<f64> {
+    let avail = (max_outer / 4 * 4).checked_sub(opts.border.checked_mul(2)?)?;
+    if avail == 0 {
+        return None;
+    }
+    let mut o = AreaOptions {
+        max_side: max_outer,
+        ..*opts
+    };
+    if required_area(input, &o).is_ok() {
+        return Some(opts.scale);
+    }
+    let cap = |per_uv: f64, src: u32| {
+        if opts.cap_to_source {
+            per_uv.min(f64::from(src.max(1)))
+        } else {
+            per_uv
+        }
+    };
+    let need_w = cap(input.w, input.source[0]) * (input.uv_max[0] - input.uv_min[0]);
+    let need_h = cap(input.h, input.source[1]) * (input.uv_max[1] - input.uv_min[1]);
+    let need = need_w.max(need_h);
+    if !(need.is_finite() && need > 0.0) {
+        return None;
+    }
+    let mut s = (f64::from(avail) / need).min(opts.scale);
+    // Floating noise may leave the ceil one texel over: shrink by a few ulps-worth until it fits.
+    for _ in 0..8 {
+        o.scale = s;
+        if required_area(input, &o).is_ok() {
+            return Some(s);
+        }
+        s *= 1.0 - 1e-12;
+    }
+    None
+}
+
+/// Analysis twin of [`required_area`] over many materials: what the areas cost and why.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct AreaReport {
+    pub materials: u64,
+    pub too_large: u64,
+    pub invalid: u64,
+    /// Materials whose `w` (resp. `h`) was capped at the source size.
+    pub capped_w: u64,
+    pub capped_h: u64,
+    /// Materials whose inner area is 1×1.
+    pub one_by_one: u64,
+    /// Sums over the materials that succeeded, texels².
+    pub inner_texels: u64,
+    pub outer_texels: u64,
+    /// Largest outer side, texels.
+    pub max_outer_side: u32,
+}
+
+impl AreaReport {
+    /// Fraction of the outer area spent on borders and 4-alignment (0 when empty).
+    pub fn border_fraction(&self) -> f64 {
+        if self.outer_texels == 0 {
+            return 0.0;
+        }
+        1.0 - self.inner_texels as f64 / self.outer_texels as f64
+    }
+}
+
+/// Compute every area and report counts and sums.
+pub fn analyze_areas(inputs: &[AreaInput], opts: &AreaOptions) -> AreaReport {
+    let mut r = AreaReport::default();
+    for i in inputs {
+        r.materials += 1;
+        if opts.cap_to_source {
+            r.capped_w += u64::from(i.w > f64::from(i.source[0].max(1)));
+            r.capped_h += u64::from(i.h > f64::from(i.source[1].max(1)));
+        }
+        match required_area(i, opts) {
+            Ok(a) => {
+                r.one_by_one += u64::from(a.inner_w == 1 && a.inner_h == 1);
+                r.inner_texels = r
+                    .inner_texels
+                    .saturating_add(u64::from(a.inner_w) * u64::from(a.inner_h));
+                r.outer_texels = r.outer_texels.saturating_add(a.outer_texels());
+                r.max_outer_side = r.max_outer_side.max(a.outer_w).max(a.outer_h);
+            }
+            Err(AreaError::TooLarge { .. }) => r.too_large += 1,
+            Err(AreaError::Invalid { .. }) => r.invalid += 1,
+        }
+    }
+    r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn input(w: f64, h: f64, uv_min: [f64; 2], uv_max: [f64; 2]) -> AreaInput {
+        AreaInput {
+            w,
+            h,
+            uv_min,
+            uv_max,
+            source: [512, 512],
+        }
+    }
+
+    #[test]
+    fn single_repetition_with_border_and_alignment() {
+        // 100.3 × 37 texels per UV over one repetition: inner 101 × 37, +16 → 117 × 53 → 120 × 56.
+        let a = required_area(
+            &input(100.3, 37.0, [0.0, 0.0], [1.0, 1.0]),
+            &AreaOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(
+            (a.inner_w, a.inner_h, a.outer_w, a.outer_h),
+            (101, 37, 120, 56)
+        );
+        // Extra 3 (resp. 3) texels: 1 before, 2 after.
+        assert_eq!(a.border, [9, 9]);
+        assert_eq!(a.outer_w % 4, 0);
+        assert_eq!(a.outer_h % 4, 0);
+    }
+
+    #[test]
+    fn partial_and_repeated_areas_scale_with_extent() {
+        let o = AreaOptions::default();
+        // Half a repetition in U, 3.5 in V.
+        let a = required_area(&input(64.0, 10.0, [0.25, -1.0], [0.75, 2.5]), &o).unwrap();
+        assert_eq!((a.inner_w, a.inner_h), (32, 35));
+        // 1e4 repetitions at 0.01 texel per repetition: 100 texels (depends on world size only).
+        let a = required_area(&input(0.01, 0.01, [0.0, 5e3], [1e4, 1.5e4]), &o).unwrap();
+        assert_eq!((a.inner_w, a.inner_h, a.outer_w), (100, 100, 116));
+        // Huge offset of A_tex changes nothing.
+        let a2 = required_area(
+            &input(0.01, 0.01, [-2.9e9, -2.9e9], [-2.9e9 + 1e4, -2.9e9 + 1e4]),
+            &o,
+        )
+        .unwrap();
+        assert_eq!(a, a2);
+    }
+
+    #[test]
+    fn float_noise_does_not_add_a_column() {
+        // 1.1 m at 110 texels/m in f64 is 121.00000000000001.
+        let w = 1.1 * 1.1 * 100.0;
+        assert!(w > 121.0);
+        let a = required_area(
+            &input(w, 1.0, [0.0, 0.0], [1.0, 1.0]),
+            &AreaOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(a.inner_w, 121);
+        let a = required_area(
+            &input(121.001, 1.0, [0.0, 0.0], [1.0, 1.0]),
+            &AreaOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(a.inner_w, 122);
+    }
+
+    #[test]
+    fn all_uv_equal_gives_one_by_one() {
+        let a = required_area(
+            &input(0.0, 0.0, [0.3, 0.3], [0.3, 0.3]),
+            &AreaOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(
+            (a.inner_w, a.inner_h, a.outer_w, a.outer_h, a.border),
+            (1, 1, 20, 20, [9, 9])
+        );
+        let (lo, hi) = a.outer_uv([0.3, 0.3], [0.3, 0.3]);
+        assert_eq!((lo, hi), ([0.3, 0.3], [0.3, 0.3]));
+    }
+
+    #[test]
+    fn source_cap_and_scale() {
+        let i = AreaInput {
+            w: 4000.0,
+            h: 100.0,
+            uv_min: [0.0, 0.0],
+            uv_max: [2.0, 1.0],
+            source: [256, 64],
+        };
+        let a = required_area(&i, &AreaOptions::default()).unwrap();
+        assert_eq!((a.inner_w, a.inner_h), (512, 64));
+        let a = required_area(
+            &i,
+            &AreaOptions {
+                cap_to_source: false,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!((a.inner_w, a.inner_h), (8000, 100));
+        let a = required_area(
+            &i,
+            &AreaOptions {
+                scale: 0.5,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!((a.inner_w, a.inner_h), (256, 32));
+    }
+
+    #[test]
+    fn border_zero_and_outer_uv_continue_the_mapping() {
+        let o = AreaOptions {
+            border: 0,
+            ..Default::default()
+        };
+        let a = required_area(&input(10.0, 8.0, [0.0, 0.0], [1.0, 1.0]), &o).unwrap();
+        assert_eq!((a.outer_w, a.outer_h, a.border), (12, 8, [1, 0]));
+        // 1 texel before, 1 after on U, each 0.1 UV.
+        let (lo, hi) = a.outer_uv([0.0, 0.0], [1.0, 1.0]);
+        assert!(
+            (lo[0] + 0.1).abs() < 1e-15 && (hi[0] - 1.1).abs() < 1e-15,
+            "{lo:?} {hi:?}"
+        );
+        assert_eq!((lo[1], hi[1]), (0.0, 1.0));
+        // Paper border 8 on a 16-texel inner over one repetition: A_tex scaled ×2 around its centre.
+        let a = required_area(
+            &input(16.0, 16.0, [0.0, 0.0], [1.0, 1.0]),
+            &AreaOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(
+            a.outer_uv([0.0, 0.0], [1.0, 1.0]),
+            ([-0.5, -0.5], [1.5, 1.5])
+        );
+    }
+
+    #[test]
+    fn too_large_and_invalid_are_errors_with_numbers() {
+        let o = AreaOptions {
+            max_side: 1024,
+            cap_to_source: false,
+            ..Default::default()
+        };
+        let e = required_area(&input(1e6, 1.0, [0.0, 0.0], [1e3, 1.0]), &o).unwrap_err();
+        match e {
+            AreaError::TooLarge {
+                axis,
+                texels,
+                limit,
+                ..
+            } => {
+                assert_eq!((axis, limit), ('w', 1024));
+                assert_eq!(texels, 1e9 + 16.0);
+            }
+            other => panic!("{other:?}"),
+        }
+        // 1012 + 16 = 1028 > 1024 after rounding; 1008 + 16 = 1024 fits.
+        assert!(required_area(&input(1009.0, 1.0, [0.0, 0.0], [1.0, 1.0]), &o).is_err());
+        assert_eq!(
+            required_area(&input(1008.0, 1.0, [0.0, 0.0], [1.0, 1.0]), &o)
+                .unwrap()
+                .outer_w,
+            1024
+        );
+        let e = required_area(&input(f64::MAX, 1.0, [0.0, 0.0], [1e300, 1.0]), &o).unwrap_err();
+        assert!(matches!(e, AreaError::TooLarge { axis: 'w', .. }), "{e}");
+        for (i, what) in [
+            (input(f64::NAN, 1.0, [0.0, 0.0], [1.0, 1.0]), "w"),
+            (input(1.0, -1.0, [0.0, 0.0], [1.0, 1.0]), "h"),
+            (input(1.0, 1.0, [0.0, 2.0], [1.0, 1.0]), "uv_max.v"),
+        ] {
+            match required_area(&i, &o) {
+                Err(AreaError::Invalid { what: w, value }) => {
+                    assert_eq!(w, what);
+                    assert_eq!(value.to_bits(), f(&i, what).to_bits());
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        let bad_scale = AreaOptions { scale: 0.0, ..o };
+        assert!(matches!(
+            required_area(&input(1.0, 1.0, [0.0, 0.0], [1.0, 1.0]), &bad_scale),
+            Err(AreaError::Invalid { what: "scale", .. })
+        ));
+    }
+
+    fn f(i: &AreaInput, what: &str) -> f64 {
+        match what {
+            "w" => i.w,
+            "h" => i.h,
+            _ => i.uv_max[1],
+        }
+    }
+
+    #[test]
+    fn summed_area_and_may_fit() {
+        let o = AreaOptions::default();
+        let a = required_area(&input(240.0, 240.0, [0.0, 0.0], [1.0, 1.0]), &o).unwrap();
+        assert_eq!((a.outer_w, a.outer_h), (256, 256));
+        assert_eq!(summed_area(&[a; 4]), 4 * 65536);
+        assert!(may_fit(&[a; 4], 512));
+        assert!(!may_fit(&[a; 5], 512));
+        assert!(!may_fit(&[a], 128));
+        assert_eq!(summed_area(&[]), 0);
+    }
+
+    #[test]
+    fn scale_to_fit_finds_the_leaf_clamp() {
+        let o = AreaOptions {
+            cap_to_source: false,
+            ..Default::default()
+        };
+        let i = input(3000.0, 100.0, [0.0, 0.0], [1.0, 1.0]);
+        let s = scale_to_fit(&i, &o, 512).unwrap();
+        // avail = 512 − 16 = 496 texels for 3000 needed.
+        assert!((s - 496.0 / 3000.0).abs() < 1e-9, "{s}");
+        let a = required_area(
+            &i,
+            &AreaOptions {
+                scale: s,
+                max_side: 512,
+                ..o
+            },
+        )
+        .unwrap();
+        assert_eq!(a.outer_w, 512);
+        assert_eq!(
+            scale_to_fit(&input(10.0, 10.0, [0.0, 0.0], [1.0, 1.0]), &o, 512),
+            Some(1.0)
+        );
+        assert_eq!(scale_to_fit(&i, &o, 16), None);
+    }
+
+    #[test]
+    fn report_counts() {
+        let o = AreaOptions {
+            max_side: 1024,
+            ..Default::default()
+        };
+        let inputs = [
+            input(0.0, 0.0, [0.0, 0.0], [0.0, 0.0]),
+            input(1e4, 10.0, [0.0, 0.0], [1.0, 1.0]), // capped at 512
+            input(100.0, 100.0, [0.0, 0.0], [100.0, 1.0]),
+            input(f64::NAN, 1.0, [0.0, 0.0], [1.0, 1.0]),
+        ];
+        let r = analyze_areas(&inputs, &o);
+        assert_eq!(
+            (
+                r.materials,
+                r.too_large,
+                r.invalid,
+                r.capped_w,
+                r.capped_h,
+                r.one_by_one
+            ),
+            (4, 1, 1, 1, 0, 1)
+        );
+        assert_eq!(r.inner_texels, 1 + 512 * 10);
+        assert_eq!(r.outer_texels, 20 * 20 + 528 * 28);
+        assert_eq!(r.max_outer_side, 528);
+        assert!((r.border_fraction() - (1.0 - 5121.0 / 15184.0)).abs() < 1e-12);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn area_invariants(
+            w in 0.0f64..2000.0, h in 0.0f64..2000.0,
+            u0 in -1e5f64..1e5, v0 in -1e5f64..1e5, du in 0.0f64..8.0, dv in 0.0f64..8.0,
+            border in 0u32..20, scale in 0.01f64..1.0, cap in proptest::bool::ANY,
+        ) {
+            let i = AreaInput { w, h, uv_min: [u0, v0], uv_max: [u0 + du, v0 + dv], source: [1024, 256] };
+            let o = AreaOptions { border, scale, cap_to_source: cap, max_side: 1 << 16 };
+            let a = required_area(&i, &o).unwrap();
+            for (inner, outer, b, per_uv, src, ext) in [
+                (a.inner_w, a.outer_w, a.border[0], w, 1024.0, i.uv_max[0] - i.uv_min[0]),
+                (a.inner_h, a.outer_h, a.border[1], h, 256.0, i.uv_max[1] - i.uv_min[1]),
+            ] {
+                proptest::prop_assert!(inner >= 1);
+                proptest::prop_assert_eq!(outer % 4, 0);
+                let slack = outer - inner - 2 * border;
+                proptest::prop_assert!(slack < 4, "{:?}", a);
+                proptest::prop_assert!(b >= border && b - border <= slack, "{:?}", a);
+                let need = if cap { per_uv.min(src) } else { per_uv } * scale * ext;
+                // No magnification (to 1e-9) and no wasted texel column.
+                proptest::prop_assert!(f64::from(inner) >= need * (1.0 - 1e-9), "{} < {}", inner, need);
+                proptest::prop_assert!(f64::from(inner) < need.max(1.0) + 1.0, "{} vs {}", inner, need);
+            }
+        }
+    }
+}
