@@ -239,6 +239,7 @@ struct MatNeed {
     h: f64,
     uv_min: DVec2,
     uv_max: DVec2,
+    point_uvs: bool,
 }
 
 fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<MaterialId, MatNeed> {
@@ -250,6 +251,7 @@ fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<MaterialId, MatN
             h: 0.0,
             uv_min: DVec2::splat(f64::INFINITY),
             uv_max: DVec2::splat(f64::NEG_INFINITY),
+            point_uvs: false,
         });
         for uv in t.uv {
             if uv.is_finite() {
@@ -257,9 +259,16 @@ fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<MaterialId, MatN
                 e.uv_max = e.uv_max.max(uv);
             }
         }
-        if matches!(t.size.method, SizeMethod::Exact | SizeMethod::EdgeFallback) {
-            e.w = e.w.max(t.size.w);
-            e.h = e.h.max(t.size.h);
+        match t.size.method {
+            SizeMethod::Exact | SizeMethod::EdgeFallback => {
+                e.w = e.w.max(t.size.w);
+                e.h = e.h.max(t.size.h);
+            }
+            // A triangle with one constant UV shows one texel (paper: 1×1). Several such triangles at
+            // different UVs (palette textures, common in game levels) must still land on their own texels, so
+            // the texture keeps its source resolution over its used area.
+            SizeMethod::AllUvEqual => e.point_uvs = true,
+            SizeMethod::WorldDegenerate => {}
         }
     }
     for e in m.values_mut() {
@@ -286,9 +295,14 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
     let cap = u64::from(ctx.opts.atlas_size) * u64::from(ctx.opts.atlas_size);
     for (&mat, need) in &needs {
         let img = &ctx.scene.images[ctx.scene.materials[mat.idx()].image.idx()];
+        let (mut w, mut h) = (need.w, need.h);
+        if need.point_uvs && need.uv_max != need.uv_min {
+            w = w.max(f64::from(img.width));
+            h = h.max(f64::from(img.height));
+        }
         let input = AreaInput {
-            w: need.w,
-            h: need.h,
+            w,
+            h,
             uv_min: need.uv_min.to_array(),
             uv_max: need.uv_max.to_array(),
             source: [img.width, img.height],

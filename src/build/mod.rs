@@ -321,7 +321,7 @@ pub fn build(
         blocks: forest.blocks.len() as u64,
         atlas_blocks,
         original_blocks: forest.blocks.len() as u64 - atlas_blocks,
-        file_bytes: summary.total_bytes,
+        file_bytes: summary.total,
         timings,
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
         image_fallbacks: cache.fallbacks.load(std::sync::atomic::Ordering::Relaxed),
