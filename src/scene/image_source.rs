@@ -1,15 +1,352 @@
 //! Lazily decoded images.
+//!
+//! The importer reads only an image's header (dimensions, colour type, alpha) and keeps either the
+//! encoded bytes (embedded / data-URI images) or the file path; the pixels are decoded on demand by
+//! [`ImageSource::decode`], so a scene with hundreds of large textures never holds them all decoded.
+
+use super::import::SceneError;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// Side of the fallback checkerboard that replaces missing or undecodable images, in texels.
+pub const FALLBACK_SIZE: u32 = 8;
+/// The two colours of the fallback checkerboard (sRGB RGBA8): magenta and black, visibly wrong.
+pub const FALLBACK_COLORS: [[u8; 4]; 2] = [[255, 0, 255, 255], [0, 0, 0, 255]];
+
+/// Where an image's pixels come from.
+#[derive(Clone, Debug)]
+pub enum ImageData {
+    /// An external file, read and decoded on demand.
+    File(PathBuf),
+    /// Encoded bytes (PNG/JPEG) of an embedded, GLB or data-URI image.
+    Bytes(Arc<[u8]>),
+    /// A 1×1 image of one sRGB RGBA8 colour (untextured materials).
+    Solid([u8; 4]),
+    /// The 8×8 magenta/black checker standing in for a missing or undecodable image.
+    Fallback,
+}
+
+/// An image of the scene, known by its header; pixels are decoded by [`ImageSource::decode`].
 #[derive(Clone, Debug)]
 pub struct ImageSource {
+    /// Human-readable name: the glTF image name, its file name, or a description ("solid #rrggbbaa").
     pub name: String,
+    /// Width in texels.
     pub width: u32,
+    /// Height in texels.
     pub height: u32,
+    /// True if the image has an alpha channel (colour type with alpha, or a PNG `tRNS` chunk), or for a
+    /// solid colour whose alpha is below 255.
     pub has_alpha: bool,
+    /// The stored colour format, e.g. "Rgb8", "Rgba16", "Palette8", "L8", "La16", "Solid", "Fallback".
+    pub color: String,
+    /// Where the pixels come from.
+    pub data: ImageData,
 }
+
 /// A decoded image: RGBA8, sRGB colour, straight alpha, row-major, top row first.
 #[derive(Clone, Debug)]
 pub struct DecodedImage {
     pub width: u32,
     pub height: u32,
     pub pixels: Vec<[u8; 4]>,
+}
+
+/// What the header of an encoded image says.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ImageHeader {
+    pub width: u32,
+    pub height: u32,
+    pub has_alpha: bool,
+    pub color: String,
+}
+
+impl ImageSource {
+    /// A 1×1 image of one sRGB RGBA8 colour.
+    pub fn solid(rgba: [u8; 4]) -> Self {
+        let [r, g, b, a] = rgba;
+        ImageSource {
+            name: format!("solid #{r:02x}{g:02x}{b:02x}{a:02x}"),
+            width: 1,
+            height: 1,
+            has_alpha: a < 255,
+            color: "Solid".into(),
+            data: ImageData::Solid(rgba),
+        }
+    }
+
+    /// The fallback checkerboard for the image called `name` (missing or undecodable).
+    pub fn fallback(name: &str) -> Self {
+        ImageSource {
+            name: format!("{name} (missing: fallback checker)"),
+            width: FALLBACK_SIZE,
+            height: FALLBACK_SIZE,
+            has_alpha: false,
+            color: "Fallback".into(),
+            data: ImageData::Fallback,
+        }
+    }
+
+    /// Number of texels (`width * height`).
+    pub fn texels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
+    /// True for the fallback checkerboard.
+    pub fn is_fallback(&self) -> bool {
+        matches!(self.data, ImageData::Fallback)
+    }
+
+    /// Decodes the image to RGBA8 (sRGB, straight alpha, top row first). 16-bit channels are rounded to
+    /// 8 bits (`(v + 128) / 257`); palette and grey images are expanded. Errors name the image. The
+    /// decoded size must match the header read at import.
+    pub fn decode(&self) -> Result<DecodedImage, SceneError> {
+        let decoded = match &self.data {
+            ImageData::Solid(rgba) => DecodedImage {
+                width: 1,
+                height: 1,
+                pixels: vec![*rgba],
+            },
+            ImageData::Fallback => fallback_checker(),
+            ImageData::Bytes(bytes) => {
+                decode_encoded(std::io::Cursor::new(&bytes[..]), &self.name)?
+            }
+            ImageData::File(path) => {
+                let file = std::fs::File::open(path).map_err(|e| SceneError::ImageDecode {
+                    image: self.name.clone(),
+                    reason: format!("{}: {e}", path.display()),
+                })?;
+                decode_encoded(std::io::BufReader::new(file), &self.name)?
+            }
+        };
+        if decoded.width != self.width || decoded.height != self.height {
+            return Err(SceneError::ImageDecode {
+                image: self.name.clone(),
+                reason: format!(
+                    "decoded size {}x{} differs from header size {}x{}",
+                    decoded.width, decoded.height, self.width, self.height
+                ),
+            });
+        }
+        Ok(decoded)
+    }
+}
+
+/// The 8×8 magenta/black checkerboard.
+fn fallback_checker() -> DecodedImage {
+    let n = FALLBACK_SIZE;
+    let pixels = (0..n * n)
+        .map(|i| FALLBACK_COLORS[(((i % n) + (i / n)) % 2) as usize])
+        .collect();
+    DecodedImage {
+        width: n,
+        height: n,
+        pixels,
+    }
+}
+
+/// Decodes a PNG/JPEG stream to RGBA8.
+fn decode_encoded<R: Read + Seek + std::io::BufRead>(
+    reader: R,
+    name: &str,
+) -> Result<DecodedImage, SceneError> {
+    let err = |reason: String| SceneError::ImageDecode {
+        image: name.to_string(),
+        reason,
+    };
+    let img = image::ImageReader::new(reader)
+        .with_guessed_format()
+        .map_err(|e| err(e.to_string()))?
+        .decode()
+        .map_err(|e| err(e.to_string()))?;
+    let rgba = img.into_rgba8();
+    let (width, height) = rgba.dimensions();
+    let pixels: Vec<[u8; 4]> = bytemuck::cast_vec(rgba.into_raw());
+    Ok(DecodedImage {
+        width,
+        height,
+        pixels,
+    })
+}
+
+/// Reads the header of an encoded PNG or JPEG image: dimensions, colour format and alpha, without
+/// decoding pixels. PNG headers are parsed directly (to report palette and bit depth and to see a
+/// `tRNS` chunk); other formats go through `image`'s decoder header.
+pub fn read_header<R: Read + Seek + std::io::BufRead>(
+    mut reader: R,
+) -> Result<ImageHeader, String> {
+    let mut sig = [0u8; 8];
+    let n = read_up_to(&mut reader, &mut sig).map_err(|e| e.to_string())?;
+    reader.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
+    if n == 8 && sig == PNG_SIGNATURE {
+        return read_png_header(reader);
+    }
+    use image::ImageDecoder;
+    let decoder = image::ImageReader::new(reader)
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?
+        .into_decoder()
+        .map_err(|e| e.to_string())?;
+    let (width, height) = decoder.dimensions();
+    let ct = decoder.color_type();
+    if width == 0 || height == 0 {
+        return Err(format!("empty image {width}x{height}"));
+    }
+    Ok(ImageHeader {
+        width,
+        height,
+        has_alpha: ct.has_alpha(),
+        color: format!("{ct:?}"),
+    })
+}
+
+const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+
+/// Reads as many bytes as are available up to `buf.len()`.
+fn read_up_to<R: Read>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..])? {
+            0 => break,
+            k => n += k,
+        }
+    }
+    Ok(n)
+}
+
+/// Parses the PNG signature, `IHDR` and the chunks up to the first `IDAT` (looking for `tRNS`).
+fn read_png_header<R: Read + Seek>(mut r: R) -> Result<ImageHeader, String> {
+    let mut sig = [0u8; 8];
+    r.read_exact(&mut sig)
+        .map_err(|e| format!("PNG signature: {e}"))?;
+    let mut ihdr: Option<(u32, u32, u8, u8)> = None;
+    let mut trns = false;
+    loop {
+        let mut head = [0u8; 8];
+        r.read_exact(&mut head)
+            .map_err(|e| format!("PNG chunk header: {e}"))?;
+        let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]);
+        let kind = [head[4], head[5], head[6], head[7]];
+        if len > 0x7fff_ffff {
+            return Err(format!("PNG chunk length {len} too large"));
+        }
+        match &kind {
+            b"IHDR" => {
+                if len != 13 {
+                    return Err(format!("PNG IHDR length {len}, expected 13"));
+                }
+                let mut d = [0u8; 13];
+                r.read_exact(&mut d).map_err(|e| format!("PNG IHDR: {e}"))?;
+                let w = u32::from_be_bytes([d[0], d[1], d[2], d[3]]);
+                let h = u32::from_be_bytes([d[4], d[5], d[6], d[7]]);
+                ihdr = Some((w, h, d[8], d[9]));
+                r.seek(SeekFrom::Current(4)).map_err(|e| e.to_string())?; // CRC
+                continue;
+            }
+            b"tRNS" => trns = true,
+            b"IDAT" | b"IEND" => break,
+            _ => {}
+        }
+        if ihdr.is_none() {
+            return Err("PNG: first chunk is not IHDR".into());
+        }
+        r.seek(SeekFrom::Current(i64::from(len) + 4))
+            .map_err(|e| e.to_string())?;
+    }
+    let (width, height, depth, ctype) = ihdr.ok_or("PNG without IHDR")?;
+    if width == 0 || height == 0 {
+        return Err(format!("empty PNG {width}x{height}"));
+    }
+    let (base, alpha_channel) = match ctype {
+        0 => ("L", false),
+        2 => ("Rgb", false),
+        3 => ("Palette", false),
+        4 => ("La", true),
+        6 => ("Rgba", true),
+        other => return Err(format!("PNG colour type {other} invalid")),
+    };
+    let valid_depth = match ctype {
+        0 => matches!(depth, 1 | 2 | 4 | 8 | 16),
+        3 => matches!(depth, 1 | 2 | 4 | 8),
+        _ => matches!(depth, 8 | 16),
+    };
+    if !valid_depth {
+        return Err(format!(
+            "PNG bit depth {depth} invalid for colour type {ctype}"
+        ));
+    }
+    Ok(ImageHeader {
+        width,
+        height,
+        has_alpha: alpha_channel || trns,
+        color: format!("{base}{depth}"),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fallback_is_checker() {
+        let img = ImageSource::fallback("x.png").decode().unwrap();
+        assert_eq!((img.width, img.height), (8, 8));
+        assert_eq!(img.pixels[0], FALLBACK_COLORS[0]);
+        assert_eq!(img.pixels[1], FALLBACK_COLORS[1]);
+        assert_eq!(img.pixels[8], FALLBACK_COLORS[1]);
+        assert_eq!(img.pixels[9], FALLBACK_COLORS[0]);
+    }
+
+    #[test]
+    fn solid_decodes_to_its_colour() {
+        let s = ImageSource::solid([1, 2, 3, 4]);
+        assert!(s.has_alpha);
+        assert_eq!(s.decode().unwrap().pixels, vec![[1, 2, 3, 4]]);
+    }
+
+    fn png_bytes(img: image::DynamicImage) -> Vec<u8> {
+        let mut out = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+        out.into_inner()
+    }
+
+    #[test]
+    fn png_header_and_16_bit_rounding() {
+        let mut img = image::ImageBuffer::<image::Rgb<u16>, _>::new(3, 2);
+        img.put_pixel(0, 0, image::Rgb([0, 128, 65535]));
+        img.put_pixel(1, 0, image::Rgb([257 * 7 + 129, 257 * 7 + 128, 256]));
+        let bytes = png_bytes(image::DynamicImage::ImageRgb16(img));
+        let h = read_header(std::io::Cursor::new(&bytes[..])).unwrap();
+        assert_eq!(
+            h,
+            ImageHeader {
+                width: 3,
+                height: 2,
+                has_alpha: false,
+                color: "Rgb16".into()
+            }
+        );
+        let src = ImageSource {
+            name: "t".into(),
+            width: 3,
+            height: 2,
+            has_alpha: false,
+            color: h.color,
+            data: ImageData::Bytes(bytes.into()),
+        };
+        let d = src.decode().unwrap();
+        // (v + 128) / 257 = round(v / 257): 0 → 0, 128 → 0, 65535 → 255, 257·7+129 → 8, 257·7+128 → 7,
+        // 256 → 1.
+        assert_eq!(d.pixels[0], [0, 0, 255, 255]);
+        assert_eq!(d.pixels[1], [8, 7, 1, 255]);
+    }
+
+    #[test]
+    fn header_of_garbage_is_an_error() {
+        assert!(read_header(std::io::Cursor::new(&b"not an image at all"[..])).is_err());
+        let mut trunc = PNG_SIGNATURE.to_vec();
+        trunc.extend_from_slice(&[0, 0, 0, 13, b'I', b'H']);
+        assert!(read_header(std::io::Cursor::new(&trunc[..])).is_err());
+    }
 }

@@ -1,1 +1,343 @@
-//! scene-info
+//! `scene-info`: a summary of an imported [`Scene`] — sizes, textures, per-material UV ranges and repeat
+//! counts, wrap and alpha modes, bounds and planarity — as a readable report ([`std::fmt::Display`]) and
+//! as JSON (`Serialize`).
+
+use super::image_source::ImageData;
+use super::{AlphaMode, ImportReport, Scene, UpAxis, Wrap};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// Summary of a scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneInfo {
+    pub source: String,
+    pub triangles: u64,
+    pub vertices: u64,
+    pub instances: u64,
+    pub nodes: u64,
+    pub materials: Vec<MaterialInfo>,
+    pub textures: Vec<TextureInfo>,
+    /// Materials per alpha mode.
+    pub alpha: AlphaCounts,
+    /// Materials per `(wrap_s, wrap_t)` pair, e.g. `"Repeat/ClampToEdge"`.
+    pub wrap_modes: BTreeMap<String, u64>,
+    /// World bounds; `None` for an empty scene.
+    pub bounds: Option<Bounds>,
+    pub up: UpAxis,
+    /// Height extent / largest extent in the distribution plane (0 = perfectly planar); `None` when the
+    /// plane extent is zero.
+    pub planarity: Option<f64>,
+    /// Σ width·height over all images (solid and fallback images included).
+    pub texture_texels: u64,
+    /// Images per kind: "file", "embedded", "solid", "fallback".
+    pub image_kinds: BTreeMap<String, u64>,
+    pub report: ImportReport,
+}
+
+/// Per-material statistics.
+#[derive(Clone, Debug, Serialize)]
+pub struct MaterialInfo {
+    pub id: u32,
+    pub name: String,
+    pub image: u32,
+    pub wrap: [Wrap; 2],
+    pub alpha: AlphaMode,
+    pub texture_transform: bool,
+    pub triangles: u64,
+    /// Smallest / largest UV over the material's triangles (`None` without triangles).
+    pub uv_min: Option<[f64; 2]>,
+    pub uv_max: Option<[f64; 2]>,
+    /// `uv_max - uv_min` per axis: how many times the texture repeats across the whole material.
+    pub uv_bbox_span: Option<[f64; 2]>,
+    /// Max over triangles of the triangle's own UV span per axis: the largest repetition within one
+    /// triangle (what an atlas must reserve for a single triangle).
+    pub max_triangle_uv_span: Option<[f64; 2]>,
+}
+
+/// Per-image statistics.
+#[derive(Clone, Debug, Serialize)]
+pub struct TextureInfo {
+    pub id: u32,
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    pub color: String,
+    pub has_alpha: bool,
+    /// "file", "embedded", "solid" or "fallback".
+    pub kind: String,
+    /// Materials using this image.
+    pub materials: u64,
+    /// Triangles whose material uses this image.
+    pub triangles: u64,
+}
+
+/// Material counts per alpha mode.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct AlphaCounts {
+    pub opaque: u64,
+    pub mask: u64,
+    pub blend: u64,
+}
+
+/// Axis-aligned world bounds.
+#[derive(Clone, Debug, Serialize)]
+pub struct Bounds {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    pub size: [f64; 3],
+}
+
+/// Per-material UV accumulator.
+#[derive(Clone, Copy)]
+struct UvAcc {
+    tris: u64,
+    min: [f64; 2],
+    max: [f64; 2],
+    tri_span: [f64; 2],
+}
+
+impl Default for UvAcc {
+    fn default() -> Self {
+        UvAcc {
+            tris: 0,
+            min: [f64::INFINITY; 2],
+            max: [f64::NEG_INFINITY; 2],
+            tri_span: [0.0; 2],
+        }
+    }
+}
+
+/// Analyses `scene` in one pass over its triangles.
+pub fn analyze(scene: &Scene) -> SceneInfo {
+    let mut acc = vec![UvAcc::default(); scene.materials.len()];
+    for t in &scene.triangles {
+        let Some(a) = acc.get_mut(t.material.idx()) else {
+            continue;
+        };
+        let uvs = t.v.map(|i| {
+            scene
+                .vertices
+                .get(i as usize)
+                .map_or(glam::DVec2::ZERO, |v| v.uv)
+        });
+        a.tris += 1;
+        for axis in 0..2 {
+            let (lo, hi) = uvs
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), uv| {
+                    (lo.min(uv[axis]), hi.max(uv[axis]))
+                });
+            a.min[axis] = a.min[axis].min(lo);
+            a.max[axis] = a.max[axis].max(hi);
+            a.tri_span[axis] = a.tri_span[axis].max(hi - lo);
+        }
+    }
+    let mut alpha = AlphaCounts::default();
+    let mut wrap_modes = BTreeMap::new();
+    let mut img_use = vec![(0u64, 0u64); scene.images.len()];
+    let materials: Vec<MaterialInfo> = scene
+        .materials
+        .iter()
+        .zip(&acc)
+        .enumerate()
+        .map(|(i, (m, a))| {
+            match m.alpha {
+                AlphaMode::Opaque => alpha.opaque += 1,
+                AlphaMode::Mask { .. } => alpha.mask += 1,
+                AlphaMode::Blend => alpha.blend += 1,
+            }
+            *wrap_modes
+                .entry(format!("{:?}/{:?}", m.wrap[0], m.wrap[1]))
+                .or_insert(0) += 1;
+            if let Some(u) = img_use.get_mut(m.image.idx()) {
+                u.0 += 1;
+                u.1 += a.tris;
+            }
+            let has = a.tris > 0;
+            MaterialInfo {
+                id: i as u32,
+                name: m.name.clone(),
+                image: m.image.0,
+                wrap: m.wrap,
+                alpha: m.alpha,
+                texture_transform: m.texture_transform,
+                triangles: a.tris,
+                uv_min: has.then_some(a.min),
+                uv_max: has.then_some(a.max),
+                uv_bbox_span: has.then_some([a.max[0] - a.min[0], a.max[1] - a.min[1]]),
+                max_triangle_uv_span: has.then_some(a.tri_span),
+            }
+        })
+        .collect();
+    let mut image_kinds = BTreeMap::new();
+    let textures: Vec<TextureInfo> = scene
+        .images
+        .iter()
+        .zip(&img_use)
+        .enumerate()
+        .map(|(i, (img, u))| {
+            let kind = match img.data {
+                ImageData::File(_) => "file",
+                ImageData::Bytes(_) => "embedded",
+                ImageData::Solid(_) => "solid",
+                ImageData::Fallback => "fallback",
+            };
+            *image_kinds.entry(kind.to_string()).or_insert(0) += 1;
+            TextureInfo {
+                id: i as u32,
+                name: img.name.clone(),
+                width: img.width,
+                height: img.height,
+                color: img.color.clone(),
+                has_alpha: img.has_alpha,
+                kind: kind.to_string(),
+                materials: u.0,
+                triangles: u.1,
+            }
+        })
+        .collect();
+    let bounds = scene.bounds();
+    let planarity = bounds.and_then(|(lo, hi)| {
+        let e = hi - lo;
+        let plane = scene.up.plane(e);
+        let horizontal = plane.x.max(plane.y);
+        (horizontal > 0.0).then(|| scene.up.height(e) / horizontal)
+    });
+    SceneInfo {
+        source: scene.source.display().to_string(),
+        triangles: scene.triangles.len() as u64,
+        vertices: scene.vertices.len() as u64,
+        instances: scene.report.instances,
+        nodes: scene.report.nodes,
+        materials,
+        textures,
+        alpha,
+        wrap_modes,
+        bounds: bounds.map(|(lo, hi)| Bounds {
+            min: lo.to_array(),
+            max: hi.to_array(),
+            size: (hi - lo).to_array(),
+        }),
+        up: scene.up,
+        planarity,
+        texture_texels: scene.images.iter().map(|i| i.texels()).sum(),
+        image_kinds,
+        report: scene.report.clone(),
+    }
+}
+
+fn opt2(v: Option<[f64; 2]>) -> String {
+    v.map_or("-".to_string(), |[a, b]| format!("({a:.4}, {b:.4})"))
+}
+
+impl fmt::Display for SceneInfo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "scene: {}", self.source)?;
+        writeln!(
+            f,
+            "  triangles {}, vertices {}, mesh instances {}, node visits {}",
+            self.triangles, self.vertices, self.instances, self.nodes
+        )?;
+        match &self.bounds {
+            Some(b) => writeln!(
+                f,
+                "  bounds min [{:.3}, {:.3}, {:.3}] max [{:.3}, {:.3}, {:.3}] size [{:.3}, {:.3}, {:.3}]",
+                b.min[0],
+                b.min[1],
+                b.min[2],
+                b.max[0],
+                b.max[1],
+                b.max[2],
+                b.size[0],
+                b.size[1],
+                b.size[2]
+            )?,
+            None => writeln!(f, "  bounds: empty scene")?,
+        }
+        let planarity = self
+            .planarity
+            .map_or("-".to_string(), |p| format!("{p:.4}"));
+        writeln!(
+            f,
+            "  up axis {:?}, planarity (height / plane extent) {planarity}",
+            self.up
+        )?;
+        writeln!(
+            f,
+            "  alpha materials: {} opaque, {} mask, {} blend",
+            self.alpha.opaque, self.alpha.mask, self.alpha.blend
+        )?;
+        let wraps: Vec<String> = self
+            .wrap_modes
+            .iter()
+            .map(|(k, v)| format!("{k} ×{v}"))
+            .collect();
+        writeln!(f, "  wrap modes: {}", wraps.join(", "))?;
+        let kinds: Vec<String> = self
+            .image_kinds
+            .iter()
+            .map(|(k, v)| format!("{v} {k}"))
+            .collect();
+        writeln!(
+            f,
+            "  images: {} ({}), {} texels in total",
+            self.textures.len(),
+            kinds.join(", "),
+            self.texture_texels
+        )?;
+        for t in &self.textures {
+            writeln!(
+                f,
+                "    #{:<4} {:>5}x{:<5} {:<9} alpha={:<5} {:<8} mats {:<3} tris {:<8} {}",
+                t.id,
+                t.width,
+                t.height,
+                t.color,
+                t.has_alpha,
+                t.kind,
+                t.materials,
+                t.triangles,
+                t.name
+            )?;
+        }
+        writeln!(f, "  materials: {}", self.materials.len())?;
+        for m in &self.materials {
+            writeln!(
+                f,
+                "    #{:<4} {:?} image #{} wrap {:?}/{:?} {}tris {} uv {}..{} bbox span {} max tri span {}",
+                m.id,
+                m.name,
+                m.image,
+                m.wrap[0],
+                m.wrap[1],
+                match m.alpha {
+                    AlphaMode::Opaque => String::new(),
+                    AlphaMode::Mask { cutoff } => format!("MASK<{cutoff} "),
+                    AlphaMode::Blend => "BLEND ".into(),
+                } + if m.texture_transform { "xform " } else { "" },
+                m.triangles,
+                opt2(m.uv_min),
+                opt2(m.uv_max),
+                opt2(m.uv_bbox_span),
+                opt2(m.max_triangle_uv_span),
+            )?;
+        }
+        let r = &self.report;
+        writeln!(
+            f,
+            "  import: {} warnings, {} skipped primitives, {} skipped triangles, {} missing images, {} primitives \
+             without their TEXCOORD, {} triangles with huge UVs",
+            r.warnings_total,
+            r.skipped_primitives,
+            r.skipped_triangles,
+            r.missing_images,
+            r.missing_texcoords,
+            r.large_uv_triangles
+        )?;
+        for w in &r.warnings {
+            writeln!(f, "    warning: {w}")?;
+        }
+        Ok(())
+    }
+}

@@ -118,10 +118,18 @@ pub struct Triangle {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct ImportReport {
     /// Human-readable warnings, each naming file, mesh, primitive and accessor where it applies.
+    /// At most [`import::MAX_WARNINGS`] entries plus a final "... and N more".
     pub warnings: Vec<String>,
+    /// Exact number of warnings (including those not kept in `warnings`).
+    pub warnings_total: u64,
     pub skipped_primitives: u64,
     pub skipped_triangles: u64,
     pub missing_images: u64,
+    /// Primitives whose material has a base colour texture on a `TEXCOORD_n` the primitive lacks (drawn
+    /// with a solid image of the material's factor instead).
+    pub missing_texcoords: u64,
+    /// Kept triangles with a UV component beyond ±[`import::LARGE_UV`].
+    pub large_uv_triangles: u64,
     pub instances: u64,
     pub nodes: u64,
 }
