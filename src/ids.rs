@@ -63,7 +63,9 @@ id_type!(
 );
 
 /// Depth in the tree: the root is level 0, its children level 1, and so on.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[derive(
+    Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize,
+)]
 pub struct Level(pub u8);
 
 impl Level {
@@ -76,7 +78,9 @@ impl Level {
 
 /// Integer cell of a node at its level: the node's atlas is the square `[ix, ix+1) × [iy, iy+1)` of the
 /// root atlas scaled by `2^level` (paper §5.1, Fig. 4). `ix, iy < 2^level`.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Pod, Zeroable, Serialize, Deserialize)]
+#[derive(
+    Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Pod, Zeroable, Serialize, Deserialize,
+)]
 #[repr(C)]
 pub struct Cell {
     pub ix: u32,
@@ -87,6 +91,9 @@ impl Cell {
     /// The cell of child `quadrant` (0..4: bit 0 = +x half, bit 1 = +y half of the parent's atlas).
     #[inline]
     pub fn child(self, quadrant: u32) -> Cell {
-        Cell { ix: self.ix * 2 + (quadrant & 1), iy: self.iy * 2 + (quadrant >> 1) }
+        Cell {
+            ix: self.ix * 2 + (quadrant & 1),
+            iy: self.iy * 2 + (quadrant >> 1),
+        }
     }
 }

@@ -113,7 +113,10 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
     if alpha.is_empty() {
         enabled.push("alpha tree and alpha pipelines: off (no MASK or BLEND material)".to_string());
     } else {
-        let masks = alpha.iter().filter(|m| matches!(m.alpha, AlphaMode::Mask { .. })).count();
+        let masks = alpha
+            .iter()
+            .filter(|m| matches!(m.alpha, AlphaMode::Mask { .. }))
+            .count();
         enabled.push(format!(
             "alpha tree: on ({} alpha materials: {} MASK, {} BLEND)",
             alpha.len(),
@@ -128,14 +131,24 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
         .map(|w| format!("{w:?}"))
         .collect();
     if wraps.is_empty() {
-        enabled.push("wrap modes: repeat only (samplers handle it; no shader wrap code needed)".into());
+        enabled.push(
+            "wrap modes: repeat only (samplers handle it; no shader wrap code needed)".into(),
+        );
     } else {
-        let n = mats.iter().filter(|m| m.wrap.iter().any(|w| *w != Wrap::Repeat)).count();
-        enabled.push(format!("wrap modes beyond repeat: {} ({n} materials)", wraps.into_iter().collect::<Vec<_>>().join(", ")));
+        let n = mats
+            .iter()
+            .filter(|m| m.wrap.iter().any(|w| *w != Wrap::Repeat))
+            .count();
+        enabled.push(format!(
+            "wrap modes beyond repeat: {} ({n} materials)",
+            wraps.into_iter().collect::<Vec<_>>().join(", ")
+        ));
     }
     let clamped: u64 = trees.iter().map(|t| t.clamped_leaves).sum();
     if clamped > 0 {
-        enabled.push(format!("clamped leaves: {clamped} (a triangle alone needed more than one atlas)"));
+        enabled.push(format!(
+            "clamped leaves: {clamped} (a triangle alone needed more than one atlas)"
+        ));
     }
     InspectReport {
         path: file.path().display().to_string(),
@@ -207,7 +220,10 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
                     continue;
                 };
                 if ch.parent as usize != ni {
-                    r.fail(format!("tree {ti} node {c}: parent {} but listed as child {q} of {ni}", ch.parent));
+                    r.fail(format!(
+                        "tree {ti} node {c}: parent {} but listed as child {q} of {ni}",
+                        ch.parent
+                    ));
                 }
                 if ch.level != n.level + 1 || ch.cell != n.cell.child(q as u32) {
                     r.fail(format!(
@@ -217,18 +233,26 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
                 }
                 for a in 0..3 {
                     if ch.bounds_min[a] < n.bounds_min[a] || ch.bounds_max[a] > n.bounds_max[a] {
-                        r.fail(format!("tree {ti} node {c}: bounds not inside parent {ni} on axis {a}"));
+                        r.fail(format!(
+                            "tree {ti} node {c}: bounds not inside parent {ni} on axis {a}"
+                        ));
                         break;
                     }
                 }
-                if ch.first_index < n.first_index || ch.first_index + ch.index_count > n.first_index + n.index_count {
-                    r.fail(format!("tree {ti} node {c}: index range outside parent {ni}"));
+                if ch.first_index < n.first_index
+                    || ch.first_index + ch.index_count > n.first_index + n.index_count
+                {
+                    r.fail(format!(
+                        "tree {ti} node {c}: index range outside parent {ni}"
+                    ));
                 }
                 kids_md = kids_md.max(ch.min_distance);
                 kids_idx += u64::from(ch.index_count);
             }
             if is_leaf == has_kids {
-                r.fail(format!("tree {ti} node {ni}: leaf={is_leaf} but has children={has_kids}"));
+                r.fail(format!(
+                    "tree {ti} node {ni}: leaf={is_leaf} but has children={has_kids}"
+                ));
             }
             if has_kids {
                 if !eps(n.min_distance, 2.0 * kids_md) {
@@ -239,7 +263,10 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
                     ));
                 }
                 if kids_idx != u64::from(n.index_count) {
-                    r.fail(format!("tree {ti} node {ni}: children cover {kids_idx} indices of {}", n.index_count));
+                    r.fail(format!(
+                        "tree {ti} node {ni}: children cover {kids_idx} indices of {}",
+                        n.index_count
+                    ));
                 }
             } else if is_leaf {
                 let Some(l) = t.leaves.get(n.leaf as usize) else {
@@ -254,7 +281,9 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
                     ));
                 }
                 if l.first_index != n.first_index || l.index_count != n.index_count {
-                    r.fail(format!("tree {ti} leaf node {ni}: leaf and node index ranges differ"));
+                    r.fail(format!(
+                        "tree {ti} leaf node {ni}: leaf and node index ranges differ"
+                    ));
                 }
             }
         }
@@ -262,7 +291,10 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
         let mut next_index = 0u32;
         for (li, l) in t.leaves.iter().enumerate() {
             if l.first_index != next_index {
-                r.fail(format!("tree {ti} leaf {li}: first index {} but previous leaf ended at {next_index}", l.first_index));
+                r.fail(format!(
+                    "tree {ti} leaf {li}: first index {} but previous leaf ended at {next_index}",
+                    l.first_index
+                ));
             }
             next_index = l.first_index + l.index_count;
             let rects = t.leaf_rects(l);
@@ -273,29 +305,47 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
             };
             for &vi in idx {
                 if vi < l.first_vertex || vi >= l.first_vertex + l.vertex_count {
-                    r.fail(format!("tree {ti} leaf {li}: index {vi} outside its vertices"));
+                    r.fail(format!(
+                        "tree {ti} leaf {li}: index {vi} outside its vertices"
+                    ));
                     continue;
                 }
                 let v = &t.vertices[vi as usize];
                 r.vertices_checked += 1;
                 if v.leaf as usize != li {
-                    r.fail(format!("tree {ti} vertex {vi}: leaf {} but used by leaf {li}", v.leaf));
+                    r.fail(format!(
+                        "tree {ti} vertex {vi}: leaf {} but used by leaf {li}",
+                        v.leaf
+                    ));
                 }
                 let Some(o) = originals.get(v.original as usize) else {
-                    r.fail(format!("tree {ti} vertex {vi}: original {} of {}", v.original, originals.len()));
+                    r.fail(format!(
+                        "tree {ti} vertex {vi}: original {} of {}",
+                        v.original,
+                        originals.len()
+                    ));
                     continue;
                 };
                 let Some(rect) = rects.iter().find(|x| x.material == o.material) else {
-                    r.fail(format!("tree {ti} leaf {li}: no atlas area for material {}", o.material));
+                    r.fail(format!(
+                        "tree {ti} leaf {li}: no atlas area for material {}",
+                        o.material
+                    ));
                     continue;
                 };
-                let (x, y) = (f64::from(v.atlas_uv[0]) * size, f64::from(v.atlas_uv[1]) * size);
+                let (x, y) = (
+                    f64::from(v.atlas_uv[0]) * size,
+                    f64::from(v.atlas_uv[1]) * size,
+                );
                 let tol = 1e-3;
                 let inside = x >= f64::from(rect.inner[0]) - tol
                     && x <= f64::from(rect.inner[0] + rect.inner[2]) + tol
                     && y >= f64::from(rect.inner[1]) - tol
                     && y <= f64::from(rect.inner[1] + rect.inner[3]) + tol;
-                if !inside || !v.pos.iter().all(|c| c.is_finite()) || !v.orig_uv.iter().all(|c| c.is_finite()) {
+                if !inside
+                    || !v.pos.iter().all(|c| c.is_finite())
+                    || !v.orig_uv.iter().all(|c| c.is_finite())
+                {
                     r.fail(format!(
                         "tree {ti} leaf {li} vertex {vi}: atlas texel ({x:.3}, {y:.3}) outside its area {:?} or not finite",
                         rect.inner
@@ -304,10 +354,17 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
             }
         }
         if next_index as usize != t.indices.len() {
-            r.fail(format!("tree {ti}: leaves cover {next_index} of {} indices", t.indices.len()));
+            r.fail(format!(
+                "tree {ti}: leaves cover {next_index} of {} indices",
+                t.indices.len()
+            ));
         }
         if t.indices.len() != t.source_triangles.len() * 3 {
-            r.fail(format!("tree {ti}: {} indices for {} triangles", t.indices.len(), t.source_triangles.len()));
+            r.fail(format!(
+                "tree {ti}: {} indices for {} triangles",
+                t.indices.len(),
+                t.source_triangles.len()
+            ));
         }
         seen.extend_from_slice(t.source_triangles);
         r.triangles_checked += t.source_triangles.len() as u64;
@@ -325,7 +382,10 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
 }
 
 /// Opens, inspects and (optionally) verifies a file in one call (the CLI's job).
-pub fn open_and_inspect(path: &std::path::Path, verify_all: bool) -> Result<(InspectReport, Option<VerifyReport>), StoreError> {
+pub fn open_and_inspect(
+    path: &std::path::Path,
+    verify_all: bool,
+) -> Result<(InspectReport, Option<VerifyReport>), StoreError> {
     let file = TreeFile::open(path)?;
     let rep = inspect(&file);
     let ver = verify_all.then(|| verify(&file));
@@ -333,7 +393,11 @@ pub fn open_and_inspect(path: &std::path::Path, verify_all: bool) -> Result<(Ins
 }
 
 /// Level 0 of a node's atlas as an RGBA8 image (reads and checksums its block).
-pub fn atlas_image(file: &TreeFile, tree: usize, node: usize) -> Result<image::RgbaImage, StoreError> {
+pub fn atlas_image(
+    file: &TreeFile,
+    tree: usize,
+    node: usize,
+) -> Result<image::RgbaImage, StoreError> {
     let t = file.tree(tree).ok_or(StoreError::BadReference {
         table: "trees",
         index: tree as u64,
@@ -351,7 +415,9 @@ pub fn atlas_image(file: &TreeFile, tree: usize, node: usize) -> Result<image::R
     })?;
     let bytes = file.block(crate::ids::BlockId(n.atlas_block))?;
     let level0 = (size as usize) * (size as usize) * 4;
-    let img = bytes.get(..level0).and_then(|b| image::RgbaImage::from_raw(size, size, b.to_vec()));
+    let img = bytes
+        .get(..level0)
+        .and_then(|b| image::RgbaImage::from_raw(size, size, b.to_vec()));
     img.ok_or(StoreError::BlockLength {
         block: crate::ids::BlockId(n.atlas_block),
         expected: level0 as u64,
@@ -380,7 +446,11 @@ pub fn leaf_map_image(file: &TreeFile, tree: usize, px: u32) -> image::RgbaImage
     for n in t.nodes.iter().filter(|n| n.leaf != NONE) {
         let (a, b) = (to_px(plane(n.bounds_min)), to_px(plane(n.bounds_max)));
         let f = n.level as f32 / depth;
-        let col = [(60.0 + 195.0 * f) as u8, (90.0 + 80.0 * (1.0 - (2.0 * f - 1.0).abs())) as u8, (255.0 - 195.0 * f) as u8];
+        let col = [
+            (60.0 + 195.0 * f) as u8,
+            (90.0 + 80.0 * (1.0 - (2.0 * f - 1.0).abs())) as u8,
+            (255.0 - 195.0 * f) as u8,
+        ];
         let (x0, x1) = (a.0.min(b.0) as u32, (a.0.max(b.0) as u32).min(w - 1));
         let (y0, y1) = (a.1.min(b.1) as u32, (a.1.max(b.1) as u32).min(h - 1));
         for y in y0..=y1 {

@@ -9,7 +9,12 @@ use atlastree::store::TreeFile;
 use glam::{DVec2, DVec3};
 
 fn opts(atlas: u32) -> BuildOptions {
-    BuildOptions { d_min: DMin::Ratio(60.0), atlas_size: atlas, cap_to_source: false, ..BuildOptions::default() }
+    BuildOptions {
+        d_min: DMin::Ratio(60.0),
+        atlas_size: atlas,
+        cap_to_source: false,
+        ..BuildOptions::default()
+    }
 }
 
 #[test]
@@ -19,7 +24,11 @@ fn small_city_builds_a_multilevel_tree_that_verifies() {
     let out = dir.path().join("city.atlastree");
     let report = build(&scene, &opts(256), &out, &NoProgress).unwrap();
     let t = &report.trees[0];
-    assert!(t.depth >= 2, "expected a multi-level tree, got depth {}", t.depth);
+    assert!(
+        t.depth >= 2,
+        "expected a multi-level tree, got depth {}",
+        t.depth
+    );
     assert_eq!(t.triangles as usize, scene.triangles.len());
     let file = TreeFile::open(&out).unwrap();
     let v = atlastree::inspect::verify(&file);
@@ -63,9 +72,10 @@ fn d_min_guarantee_holds_at_leaves_and_every_ancestor() {
     let mut worst: f64 = 0.0;
     for leaf in t.leaves {
         let node = &t.nodes[leaf.node as usize];
-        let idx = &t.indices[leaf.first_index as usize..(leaf.first_index + leaf.index_count) as usize];
+        let idx =
+            &t.indices[leaf.first_index as usize..(leaf.first_index + leaf.index_count) as usize];
         for tri in idx.chunks(3) {
-            let v = tri.map(|i| t.vertices[i as usize]);
+            let v = [tri[0], tri[1], tri[2]].map(|i| t.vertices[i as usize]);
             let pos = v.map(|v| DVec3::from_array(v.pos.map(f64::from)));
             let uv = v.map(|v| DVec2::new(v.atlas_uv[0] as f64, v.atlas_uv[1] as f64) * size);
             // Walk up: at level j the texel is 2^(K-j) leaf texels wide, seen from that node's min_distance.
@@ -75,7 +85,12 @@ fn d_min_guarantee_holds_at_leaves_and_every_ancestor() {
                 let uv_j = uv.map(|u| u / scale);
                 if let Some(r) = pixels_per_texel(pos, uv_j, f_proj_at(&p, n.min_distance)) {
                     worst = worst.max(r);
-                    assert!(r <= 1.01, "level {}: {r} pixels per texel at min_distance {}", n.level, n.min_distance);
+                    assert!(
+                        r <= 1.01,
+                        "level {}: {r} pixels per texel at min_distance {}",
+                        n.level,
+                        n.min_distance
+                    );
                     checked += 1;
                 }
                 if n.parent == NONE {
@@ -87,7 +102,9 @@ fn d_min_guarantee_holds_at_leaves_and_every_ancestor() {
         }
     }
     assert!(checked > 100, "checked only {checked}");
-    eprintln!("d_min guarantee: {checked} (triangle, level) pairs, worst {worst:.4} pixels per texel");
+    eprintln!(
+        "d_min guarantee: {checked} (triangle, level) pairs, worst {worst:.4} pixels per texel"
+    );
 }
 
 #[test]
@@ -98,7 +115,10 @@ fn builds_are_deterministic_byte_for_byte() {
     let b = dir.path().join("b.atlastree");
     build(&scene, &opts(128), &a, &NoProgress).unwrap();
     build(&scene, &opts(128), &b, &NoProgress).unwrap();
-    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(), "two builds differ");
+    assert!(
+        std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(),
+        "two builds differ"
+    );
 }
 
 #[test]
@@ -107,11 +127,18 @@ fn failed_build_leaves_no_file() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("never.atlastree");
     // Depth 1 cannot hold this city in 64² atlases: the build must fail and write nothing.
-    let o = BuildOptions { max_depth: 1, ..opts(64) };
+    let o = BuildOptions {
+        max_depth: 1,
+        ..opts(64)
+    };
     let err = build(&scene, &o, &out, &NoProgress).unwrap_err();
     assert!(err.to_string().contains("max-depth"), "{err}");
     assert!(!out.exists());
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "temp files left behind");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "temp files left behind"
+    );
 }
 
 #[test]
@@ -120,11 +147,31 @@ fn invalid_parameters_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x.atlastree");
     for (o, name) in [
-        (BuildOptions { atlas_size: 1000, ..opts(256) }, "atlas-size"),
-        (BuildOptions { d_min: DMin::Metres(-1.0), ..opts(256) }, "d-min"),
-        (BuildOptions { fov_deg: 180.0, ..opts(256) }, "fov"),
+        (
+            BuildOptions {
+                atlas_size: 1000,
+                ..opts(256)
+            },
+            "atlas-size",
+        ),
+        (
+            BuildOptions {
+                d_min: DMin::Metres(-1.0),
+                ..opts(256)
+            },
+            "d-min",
+        ),
+        (
+            BuildOptions {
+                fov_deg: 180.0,
+                ..opts(256)
+            },
+            "fov",
+        ),
     ] {
-        let e = build(&scene, &o, &out, &NoProgress).unwrap_err().to_string();
+        let e = build(&scene, &o, &out, &NoProgress)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(name), "{e}");
     }
 }

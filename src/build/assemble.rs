@@ -5,8 +5,8 @@
 use super::layout::{LayoutKind, LayoutNode, LeafLayout};
 use super::prepare::TriInfo;
 use super::tree::{
-    AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind, TreeVertex,
-    mip_chain_bytes,
+    AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind,
+    TreeVertex, mip_chain_bytes,
 };
 use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
 use crate::scene::Scene;
@@ -20,7 +20,10 @@ pub const MIN_ORIGINAL_CLASS: u32 = 4;
 
 /// The square power-of-two class an original image of `w × h` is stored at.
 pub fn original_class(w: u32, h: u32) -> u32 {
-    w.max(h).max(1).next_power_of_two().clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
+    w.max(h)
+        .max(1)
+        .next_power_of_two()
+        .clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
 }
 
 /// Output of [`assemble`].
@@ -84,13 +87,20 @@ impl Asm<'_> {
     fn block(&mut self, kind: BlockKind, bytes: u64) -> BlockId {
         let id = BlockId(self.next_block);
         self.next_block += 1;
-        self.out.blocks.push(BlockDesc { tree: self.tree_index, kind, bytes });
+        self.out.blocks.push(BlockDesc {
+            tree: self.tree_index,
+            kind,
+            bytes,
+        });
         id
     }
 
     fn node(&mut self, n: &LayoutNode, parent: Option<NodeId>) -> NodeId {
         let id = NodeId(self.out.tree.nodes.len() as u32);
-        let atlas_block = self.block(BlockKind::Atlas { node: id }, mip_chain_bytes(self.params.atlas_size));
+        let atlas_block = self.block(
+            BlockKind::Atlas { node: id },
+            mip_chain_bytes(self.params.atlas_size),
+        );
         let first_index = self.out.tree.indices.len() as u32;
         self.out.tree.nodes.push(Node {
             bounds_min: n.lo,
@@ -133,7 +143,11 @@ impl Asm<'_> {
     fn leaf(&mut self, n: &LayoutNode, l: &LeafLayout, node: NodeId) -> LeafId {
         let leaf_id = LeafId(self.out.tree.leaves.len() as u32);
         let origin = (n.lo + n.hi) * 0.5;
-        let origin = if origin.is_finite() { origin } else { DVec3::ZERO };
+        let origin = if origin.is_finite() {
+            origin
+        } else {
+            DVec3::ZERO
+        };
         let size = self.params.atlas_size as f64;
 
         // Original textures: one entry per material, grouped greedily into blocks of about an atlas' size
@@ -153,16 +167,33 @@ impl Asm<'_> {
         let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
         let mut block_ids: Vec<BlockId> = Vec::new();
         for (part, bytes) in parts.sizes.iter().enumerate() {
-            block_ids.push(self.block(BlockKind::Originals { leaf: leaf_id, part: part as u32 }, *bytes));
+            block_ids.push(self.block(
+                BlockKind::Originals {
+                    leaf: leaf_id,
+                    part: part as u32,
+                },
+                *bytes,
+            ));
         }
         for (i, &(material, image, class_size)) in classes.iter().enumerate() {
             let (part, slot) = parts.place[i];
             slot_of.insert(material, originals.len() as u32);
-            originals.push(OriginalRef { material, image, class_size, block: block_ids[part], slot });
+            originals.push(OriginalRef {
+                material,
+                image,
+                class_size,
+                block: block_ids[part],
+                slot,
+            });
         }
 
         // Geometry: deduplicated vertices, positions relative to the origin, leaf-local atlas UVs.
-        let rect_of: HashMap<MaterialId, usize> = l.rects.iter().enumerate().map(|(i, r)| (r.material, i)).collect();
+        let rect_of: HashMap<MaterialId, usize> = l
+            .rects
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (r.material, i))
+            .collect();
         let first_vertex = self.out.tree.vertices.len() as u32;
         let first_index = self.out.tree.indices.len() as u32;
         let mut dedup: HashMap<[u32; 9], u32> = HashMap::new();
@@ -191,7 +222,9 @@ impl Asm<'_> {
         let vertex_count = self.out.tree.vertices.len() as u32 - first_vertex;
         let index_count = self.out.tree.indices.len() as u32 - first_index;
         self.out.occupancy.push(l.occupancy);
-        self.out.capped.push(l.rects.iter().map(|r| r.capped).collect());
+        self.out
+            .capped
+            .push(l.rects.iter().map(|r| r.capped).collect());
         self.out.tree.leaves.push(Leaf {
             node,
             origin,
@@ -220,10 +253,20 @@ impl Asm<'_> {
 /// Leaf-local atlas UV of a (period-shifted) texture UV: the affine map taking `[uv_min, uv_max]` onto the
 /// inner rectangle (§5.2.2), divided by the atlas size. A texture area of zero width maps to the centre
 /// of its inner rectangle.
-pub fn atlas_uv(uv: DVec2, uv_min: DVec2, uv_max: DVec2, inner: [u32; 4], atlas_size: f64) -> [f32; 2] {
+pub fn atlas_uv(
+    uv: DVec2,
+    uv_min: DVec2,
+    uv_max: DVec2,
+    inner: [u32; 4],
+    atlas_size: f64,
+) -> [f32; 2] {
     let axis = |u: f64, lo: f64, hi: f64, x: u32, w: u32| -> f64 {
         let span = hi - lo;
-        let t = if span > 0.0 { ((u - lo) / span).clamp(0.0, 1.0) } else { 0.5 };
+        let t = if span > 0.0 {
+            ((u - lo) / span).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
         (x as f64 + t * w as f64) / atlas_size
     };
     [
@@ -249,7 +292,10 @@ pub struct BlockGrouping {
 }
 
 pub fn group_into_blocks(items: impl IntoIterator<Item = u64>, budget: u64) -> BlockGrouping {
-    let mut g = BlockGrouping { sizes: Vec::new(), place: Vec::new() };
+    let mut g = BlockGrouping {
+        sizes: Vec::new(),
+        place: Vec::new(),
+    };
     let mut slot = 0u32;
     for bytes in items {
         match g.sizes.last_mut() {
@@ -275,7 +321,10 @@ mod tests {
     fn grouping_respects_budget_and_order() {
         let g = group_into_blocks([40, 50, 20, 200, 10, 90], 100);
         assert_eq!(g.sizes, vec![90, 20, 200, 100]);
-        assert_eq!(g.place, vec![(0, 0), (0, 1), (1, 0), (2, 0), (3, 0), (3, 1)]);
+        assert_eq!(
+            g.place,
+            vec![(0, 0), (0, 1), (1, 0), (2, 0), (3, 0), (3, 1)]
+        );
     }
 
     #[test]
@@ -289,12 +338,30 @@ mod tests {
     #[test]
     fn atlas_uv_maps_area_onto_inner_rect() {
         let inner = [8, 16, 64, 32];
-        let a = atlas_uv(DVec2::new(0.0, 2.0), DVec2::new(0.0, 2.0), DVec2::new(4.0, 3.0), inner, 256.0);
+        let a = atlas_uv(
+            DVec2::new(0.0, 2.0),
+            DVec2::new(0.0, 2.0),
+            DVec2::new(4.0, 3.0),
+            inner,
+            256.0,
+        );
         assert_eq!(a, [8.0 / 256.0, 16.0 / 256.0]);
-        let b = atlas_uv(DVec2::new(4.0, 3.0), DVec2::new(0.0, 2.0), DVec2::new(4.0, 3.0), inner, 256.0);
+        let b = atlas_uv(
+            DVec2::new(4.0, 3.0),
+            DVec2::new(0.0, 2.0),
+            DVec2::new(4.0, 3.0),
+            inner,
+            256.0,
+        );
         assert_eq!(b, [72.0 / 256.0, 48.0 / 256.0]);
         // Zero-width area: the centre of the inner rect.
-        let c = atlas_uv(DVec2::new(1.0, 1.0), DVec2::new(1.0, 1.0), DVec2::new(1.0, 1.0), inner, 256.0);
+        let c = atlas_uv(
+            DVec2::new(1.0, 1.0),
+            DVec2::new(1.0, 1.0),
+            DVec2::new(1.0, 1.0),
+            inner,
+            256.0,
+        );
         assert_eq!(c, [40.0 / 256.0, 32.0 / 256.0]);
     }
 }

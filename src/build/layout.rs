@@ -69,7 +69,10 @@ pub struct LayoutNode {
 pub enum LayoutKind {
     Leaf(LeafLayout),
     /// Children by quadrant; visiting them in `order` walks the permutation array front to back.
-    Inner { children: [Option<Box<LayoutNode>>; 4], order: [u8; 4] },
+    Inner {
+        children: [Option<Box<LayoutNode>>; 4],
+        order: [u8; 4],
+    },
 }
 
 /// Why a layout failed.
@@ -80,12 +83,23 @@ pub enum LayoutError {
          one {atlas}² atlas at depth {depth} (--max-depth {depth}); raise --max-depth, --atlas-size or --d-min",
         lo.x, hi.x, lo.y, hi.y, lo.z, hi.z
     )]
-    DepthExceeded { lo: DVec3, hi: DVec3, triangles: usize, depth: u8, atlas: u32 },
+    DepthExceeded {
+        lo: DVec3,
+        hi: DVec3,
+        triangles: usize,
+        depth: u8,
+        atlas: u32,
+    },
     #[error(
         "triangle {scene_triangle} (material {material}) cannot be fitted into a {atlas}² atlas even at 1/{inv_scale:.0} \
          of its required resolution: its texture area is absurd (check its UVs)"
     )]
-    Unfittable { scene_triangle: u32, material: u32, atlas: u32, inv_scale: f64 },
+    Unfittable {
+        scene_triangle: u32,
+        material: u32,
+        atlas: u32,
+        inv_scale: f64,
+    },
 }
 
 /// The whole layout plus counters for the report.
@@ -114,16 +128,28 @@ pub fn layout(
 ) -> Result<Layout, LayoutError> {
     let mut order: Vec<u32> = (0..infos.len() as u32).collect();
     let nodes = std::sync::atomic::AtomicU64::new(0);
-    let ctx = Ctx { scene, infos, opts, nodes: &nodes, progress };
+    let ctx = Ctx {
+        scene,
+        infos,
+        opts,
+        nodes: &nodes,
+        progress,
+    };
     let root = build_node(&ctx, &mut order, 0, Level(0), Cell::default())?;
     let clamped_leaves = count_clamped(&root);
-    Ok(Layout { root, order, clamped_leaves })
+    Ok(Layout {
+        root,
+        order,
+        clamped_leaves,
+    })
 }
 
 fn count_clamped(n: &LayoutNode) -> usize {
     match &n.kind {
         LayoutKind::Leaf(l) => usize::from(l.clamp_scale < 1.0),
-        LayoutKind::Inner { children, .. } => children.iter().flatten().map(|c| count_clamped(c)).sum(),
+        LayoutKind::Inner { children, .. } => {
+            children.iter().flatten().map(|c| count_clamped(c)).sum()
+        }
     }
 }
 
@@ -154,11 +180,25 @@ fn build_node(
     let n = ctx.nodes.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     (ctx.progress)(n + 1);
     if let Some(leaf) = try_leaf(ctx, items, 1.0) {
-        return Ok(LayoutNode { range, level, cell, lo, hi, kind: LayoutKind::Leaf(leaf) });
+        return Ok(LayoutNode {
+            range,
+            level,
+            cell,
+            lo,
+            hi,
+            kind: LayoutKind::Leaf(leaf),
+        });
     }
     if items.len() == 1 {
         let leaf = clamp_leaf(ctx, items)?;
-        return Ok(LayoutNode { range, level, cell, lo, hi, kind: LayoutKind::Leaf(leaf) });
+        return Ok(LayoutNode {
+            range,
+            level,
+            cell,
+            lo,
+            hi,
+            kind: LayoutKind::Leaf(leaf),
+        });
     }
     if level.0 >= ctx.opts.max_depth {
         return Err(LayoutError::DepthExceeded {
@@ -175,21 +215,36 @@ fn build_node(
     let (b, rest) = rest.split_at_mut(groups[1]);
     let (c, d) = rest.split_at_mut(groups[2]);
     let order = [0u8, 2, 1, 3];
-    let offs = [offset, offset + groups[0], offset + groups[0] + groups[1], offset + groups[0] + groups[1] + groups[2]];
+    let offs = [
+        offset,
+        offset + groups[0],
+        offset + groups[0] + groups[1],
+        offset + groups[0] + groups[1] + groups[2],
+    ];
     let child = |slice: &mut [u32], i: usize| -> Result<Option<Box<LayoutNode>>, LayoutError> {
         if slice.is_empty() {
             return Ok(None);
         }
         let q = order[i] as u32;
-        build_node(ctx, slice, offs[i], Level(level.0 + 1), cell.child(q)).map(|n| Some(Box::new(n)))
+        build_node(ctx, slice, offs[i], Level(level.0 + 1), cell.child(q))
+            .map(|n| Some(Box::new(n)))
     };
-    let ((ra, rb), (rc, rd)) =
-        rayon::join(|| rayon::join(|| child(a, 0), || child(b, 1)), || rayon::join(|| child(c, 2), || child(d, 3)));
+    let ((ra, rb), (rc, rd)) = rayon::join(
+        || rayon::join(|| child(a, 0), || child(b, 1)),
+        || rayon::join(|| child(c, 2), || child(d, 3)),
+    );
     let mut children: [Option<Box<LayoutNode>>; 4] = Default::default();
     for (i, r) in [ra, rb, rc, rd].into_iter().enumerate() {
         children[order[i] as usize] = r?;
     }
-    Ok(LayoutNode { range, level, cell, lo, hi, kind: LayoutKind::Inner { children, order } })
+    Ok(LayoutNode {
+        range,
+        level,
+        cell,
+        lo,
+        hi,
+        kind: LayoutKind::Inner { children, order },
+    })
 }
 
 /// Splits `items` in place into four groups (paper §5.3): sort by plane-midpoint x and cut where the summed
@@ -212,7 +267,9 @@ fn cut_sorted(infos: &[TriInfo], items: &mut [u32], key: impl Fn(&TriInfo) -> f6
         return n;
     }
     items.sort_unstable_by(|&a, &b| {
-        key(&infos[a as usize]).total_cmp(&key(&infos[b as usize])).then(a.cmp(&b))
+        key(&infos[a as usize])
+            .total_cmp(&key(&infos[b as usize]))
+            .then(a.cmp(&b))
     });
     let total: f64 = items.iter().map(|&i| infos[i as usize].area).sum();
     if total <= 0.0 || !total.is_finite() {
@@ -308,7 +365,8 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
             source: [img.width, img.height],
         };
         let area = required_area(&input, &aopts).ok()?;
-        let capped = ctx.opts.cap_to_source && (need.w > f64::from(img.width) || need.h > f64::from(img.height));
+        let capped = ctx.opts.cap_to_source
+            && (need.w > f64::from(img.width) || need.h > f64::from(img.height));
         summed += u64::from(area.outer_w) * u64::from(area.outer_h);
         if summed > cap {
             return None;
@@ -316,7 +374,14 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
         sizes.push([area.outer_w, area.outer_h]);
         mats.push((mat, area, need.uv_min, need.uv_max, capped));
     }
-    let packing = pack(&sizes, &PackOptions { atlas_size: ctx.opts.atlas_size, ..PackOptions::default() }).ok()?;
+    let packing = pack(
+        &sizes,
+        &PackOptions {
+            atlas_size: ctx.opts.atlas_size,
+            ..PackOptions::default()
+        },
+    )
+    .ok()?;
     let rects = mats
         .into_iter()
         .zip(packing.positions.iter())
@@ -329,7 +394,11 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
             capped,
         })
         .collect();
-    Some(LeafLayout { rects, occupancy: packing.occupancy, clamp_scale: scale })
+    Some(LeafLayout {
+        rects,
+        occupancy: packing.occupancy,
+        clamp_scale: scale,
+    })
 }
 
 /// A single triangle that alone needs more than the atlas: the largest scale (to 1/64 precision in

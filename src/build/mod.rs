@@ -92,7 +92,11 @@ impl Progress for NoProgress {
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
     #[error("invalid build parameter --{name} {value}: {why}")]
-    InvalidParam { name: &'static str, value: String, why: &'static str },
+    InvalidParam {
+        name: &'static str,
+        value: String,
+        why: &'static str,
+    },
     #[error("the scene {path} has no triangles to build a tree from")]
     EmptyScene { path: String },
     #[error("layout of the {kind:?} tree: {source}")]
@@ -148,27 +152,52 @@ pub struct BuildReport {
 }
 
 /// Validates `opts` against `scene` and derives the stored [`BuildParams`].
-pub fn resolve_params(scene: &Scene, opts: &BuildOptions) -> Result<(BuildParams, f64), BuildError> {
+pub fn resolve_params(
+    scene: &Scene,
+    opts: &BuildOptions,
+) -> Result<(BuildParams, f64), BuildError> {
     let bad = |name, value: String, why| Err(BuildError::InvalidParam { name, value, why });
     if !opts.atlas_size.is_power_of_two() || !(64..=16384).contains(&opts.atlas_size) {
-        return bad("atlas-size", opts.atlas_size.to_string(), "must be a power of two from 64 to 16384");
+        return bad(
+            "atlas-size",
+            opts.atlas_size.to_string(),
+            "must be a power of two from 64 to 16384",
+        );
     }
     if opts.border * 4 >= opts.atlas_size {
-        return bad("border", opts.border.to_string(), "must be less than a quarter of the atlas size");
+        return bad(
+            "border",
+            opts.border.to_string(),
+            "must be less than a quarter of the atlas size",
+        );
     }
     if !(opts.fov_deg > 0.0 && opts.fov_deg < 180.0) {
-        return bad("fov", opts.fov_deg.to_string(), "must be between 0 and 180 degrees");
+        return bad(
+            "fov",
+            opts.fov_deg.to_string(),
+            "must be between 0 and 180 degrees",
+        );
     }
     if !(opts.texel_ratio.is_finite() && opts.texel_ratio > 0.0) {
-        return bad("texel-ratio", opts.texel_ratio.to_string(), "must be a positive number");
+        return bad(
+            "texel-ratio",
+            opts.texel_ratio.to_string(),
+            "must be a positive number",
+        );
     }
     if opts.screen_width == 0 {
         return bad("screen-width", "0".into(), "must be positive");
     }
     if opts.max_depth == 0 || opts.max_depth > 30 {
-        return bad("max-depth", opts.max_depth.to_string(), "must be from 1 to 30");
+        return bad(
+            "max-depth",
+            opts.max_depth.to_string(),
+            "must be from 1 to 30",
+        );
     }
-    let (lo, hi) = scene.bounds().ok_or_else(|| BuildError::EmptyScene { path: scene.source.display().to_string() })?;
+    let (lo, hi) = scene.bounds().ok_or_else(|| BuildError::EmptyScene {
+        path: scene.source.display().to_string(),
+    })?;
     let diagonal = (hi - lo).length();
     let d_min = match opts.d_min {
         DMin::Metres(m) => m,
@@ -180,7 +209,11 @@ pub fn resolve_params(scene: &Scene, opts: &BuildOptions) -> Result<(BuildParams
         }
     };
     if !(d_min.is_finite() && d_min > 0.0) {
-        return bad("d-min", d_min.to_string(), "must be a positive distance (is the scene a single point?)");
+        return bad(
+            "d-min",
+            d_min.to_string(),
+            "must be a positive distance (is the scene a single point?)",
+        );
     }
     let params = BuildParams {
         d_min,
@@ -206,7 +239,10 @@ pub fn partition_triangles(scene: &Scene) -> Vec<(TreeKind, Vec<u32>)> {
             opaque.push(i as u32);
         }
     }
-    [(TreeKind::Opaque, opaque), (TreeKind::Alpha, alpha)].into_iter().filter(|(_, t)| !t.is_empty()).collect()
+    [(TreeKind::Opaque, opaque), (TreeKind::Alpha, alpha)]
+        .into_iter()
+        .filter(|(_, t)| !t.is_empty())
+        .collect()
 }
 
 /// Builds the atlas tree(s) of `scene` and writes them atomically to `out`.
@@ -220,13 +256,21 @@ pub fn build(
     let (params, diagonal) = resolve_params(scene, opts)?;
     let parts = partition_triangles(scene);
     if parts.is_empty() {
-        return Err(BuildError::EmptyScene { path: scene.source.display().to_string() });
+        return Err(BuildError::EmptyScene {
+            path: scene.source.display().to_string(),
+        });
     }
     let f_proj = params.f_proj();
     let mut timings: Vec<(String, f64)> = Vec::new();
-    let mut time = |name: &str, t: Instant| timings.push((name.to_string(), t.elapsed().as_secs_f64()));
+    let mut time =
+        |name: &str, t: Instant| timings.push((name.to_string(), t.elapsed().as_secs_f64()));
 
-    let mut forest = AtlasForest { params: params.clone(), materials: scene.materials.clone(), trees: vec![], blocks: vec![] };
+    let mut forest = AtlasForest {
+        params: params.clone(),
+        materials: scene.materials.clone(),
+        trees: vec![],
+        blocks: vec![],
+    };
     let mut reports = Vec::new();
     for (kind, tris) in &parts {
         let t = Instant::now();
@@ -244,8 +288,13 @@ pub fn build(
             max_depth: params.max_depth,
             cap_to_source: opts.cap_to_source,
         };
-        let lay = layout::layout(scene, &infos, &lopts, &|n| progress.set(n))
-            .map_err(|source| BuildError::Layout { kind: *kind, source })?;
+        let lay =
+            layout::layout(scene, &infos, &lopts, &|n| progress.set(n)).map_err(|source| {
+                BuildError::Layout {
+                    kind: *kind,
+                    source,
+                }
+            })?;
         progress.finish_stage();
         time(&format!("layout {kind:?}"), t);
 
@@ -288,7 +337,14 @@ pub fn build(
     progress.stage("rasterise atlases", Some(total_nodes));
     let done = AtomicU64::new(0);
     let set = |n: u64| progress.set(n);
-    let ctx = raster::RasterCtx { scene, params: &params, writer: &writer, cache: &cache, progress: &set, done };
+    let ctx = raster::RasterCtx {
+        scene,
+        params: &params,
+        writer: &writer,
+        cache: &cache,
+        progress: &set,
+        done,
+    };
     for tree in &forest.trees {
         raster::raster_tree(&ctx, tree)?;
     }
@@ -302,8 +358,11 @@ pub fn build(
     time("write", t);
     time("total", t_all);
 
-    let atlas_blocks =
-        forest.blocks.iter().filter(|b| matches!(b.kind, tree::BlockKind::Atlas { .. })).count() as u64;
+    let atlas_blocks = forest
+        .blocks
+        .iter()
+        .filter(|b| matches!(b.kind, tree::BlockKind::Atlas { .. }))
+        .count() as u64;
     let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
     for r in &reports {
         if r.clamped_leaves > 0 {

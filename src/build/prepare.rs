@@ -86,7 +86,10 @@ pub struct PrepareReport {
 }
 
 pub fn analyze(infos: &[TriInfo]) -> PrepareReport {
-    let mut r = PrepareReport { triangles: infos.len() as u64, ..Default::default() };
+    let mut r = PrepareReport {
+        triangles: infos.len() as u64,
+        ..Default::default()
+    };
     for t in infos {
         match t.size.method {
             SizeMethod::Exact => r.exact += 1,
@@ -104,7 +107,11 @@ mod tests {
 
     #[test]
     fn period_shift_per_wrap_mode() {
-        let uv = [DVec2::new(1e5 + 0.25, -3.5), DVec2::new(1e5 + 1.5, -2.0), DVec2::new(1e5 + 0.75, -3.0)];
+        let uv = [
+            DVec2::new(1e5 + 0.25, -3.5),
+            DVec2::new(1e5 + 1.5, -2.0),
+            DVec2::new(1e5 + 0.75, -3.0),
+        ];
         let s = period_shift(uv, [Wrap::Repeat, Wrap::MirroredRepeat]);
         assert_eq!(s, DVec2::new(1e5, -4.0));
         let s = period_shift(uv, [Wrap::ClampToEdge, Wrap::ClampToEdge]);

@@ -5,14 +5,15 @@
 //! Post-order and parallel over subtrees (rayon); each call returns its atlas halved, which is all the
 //! parent needs, so memory stays at a few atlases per tree level and thread.
 
+use super::BuildError;
+use super::image_ops::ImageOpsError;
 use super::image_ops::{
-    LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, halve, mip_chain_rgba8, resample_square,
+    LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, halve, mip_chain_rgba8,
+    resample_square,
 };
 use super::tree::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::ids::{ImageId, NodeId};
 use crate::scene::{DecodedImage, Scene};
-use super::BuildError;
-use super::image_ops::ImageOpsError;
 use crate::store::FileWriter;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -26,7 +27,12 @@ pub struct CachedImage {
 
 impl CachedImage {
     fn bytes(&self) -> u64 {
-        let chain: u64 = self.chain.levels.iter().map(|l| l.data.len() as u64 * 16).sum();
+        let chain: u64 = self
+            .chain
+            .levels
+            .iter()
+            .map(|l| l.data.len() as u64 * 16)
+            .sum();
         chain + self.decoded.pixels.len() as u64 * 4
     }
 }
@@ -77,17 +83,25 @@ impl<'a> ImageCache<'a> {
         self.decodes.fetch_add(1, Ordering::Relaxed);
         let src = &self.scene.images[id.idx()];
         let decoded = src.decode().map_err(|e| e.to_string());
-        let linear = decoded.and_then(|d| LinearImage::from_decoded(&d).map(|l| (d, l)).map_err(|e| e.to_string()));
+        let linear = decoded.and_then(|d| {
+            LinearImage::from_decoded(&d)
+                .map(|l| (d, l))
+                .map_err(|e| e.to_string())
+        });
         let (decoded, linear) = match linear {
             Ok(x) => x,
             Err(e) => {
                 self.fallbacks.fetch_add(1, Ordering::Relaxed);
                 let mut w = self.warnings.lock().unwrap_or_else(|e| e.into_inner());
                 if w.len() < 100 {
-                    w.push(format!("image {} ({}): {e}; used the magenta fallback", id.0, src.name));
+                    w.push(format!(
+                        "image {} ({}): {e}; used the magenta fallback",
+                        id.0, src.name
+                    ));
                 }
                 let d = fallback_checker();
-                let l = LinearImage::from_decoded(&d).unwrap_or_else(|_| LinearImage::new_filled(1, 1, [1.0, 0.0, 1.0, 1.0]));
+                let l = LinearImage::from_decoded(&d)
+                    .unwrap_or_else(|_| LinearImage::new_filled(1, 1, [1.0, 0.0, 1.0, 1.0]));
                 (d, l)
             }
         };
@@ -100,7 +114,12 @@ impl<'a> ImageCache<'a> {
         st.bytes += size;
         st.map.insert(id, (entry.clone(), tick));
         while st.bytes > self.cap_bytes && st.map.len() > 1 {
-            let Some((&victim, _)) = st.map.iter().filter(|(k, _)| **k != id).min_by_key(|(_, v)| v.1) else {
+            let Some((&victim, _)) = st
+                .map
+                .iter()
+                .filter(|(k, _)| **k != id)
+                .min_by_key(|(_, v)| v.1)
+            else {
                 break;
             };
             if let Some((e, _)) = st.map.remove(&victim) {
@@ -114,9 +133,19 @@ impl<'a> ImageCache<'a> {
 /// The 8×8 magenta/black checker used for images that cannot be decoded.
 pub fn fallback_checker() -> DecodedImage {
     let pixels = (0..64)
-        .map(|i| if ((i % 8) + (i / 8)) % 2 == 0 { [255, 0, 255, 255] } else { [0, 0, 0, 255] })
+        .map(|i| {
+            if ((i % 8) + (i / 8)) % 2 == 0 {
+                [255, 0, 255, 255]
+            } else {
+                [0, 0, 0, 255]
+            }
+        })
         .collect();
-    DecodedImage { width: 8, height: 8, pixels }
+    DecodedImage {
+        width: 8,
+        height: 8,
+        pixels,
+    }
 }
 
 /// What the pixel pass needs.
@@ -143,16 +172,25 @@ fn fill_for(kind: TreeKind) -> [f32; 4] {
     }
 }
 
-fn raster_node(ctx: &RasterCtx<'_>, tree: &AtlasTree, id: NodeId) -> Result<LinearImage, BuildError> {
+fn raster_node(
+    ctx: &RasterCtx<'_>,
+    tree: &AtlasTree,
+    id: NodeId,
+) -> Result<LinearImage, BuildError> {
     let node = &tree.nodes[id.idx()];
     let size = ctx.params.atlas_size;
     let atlas = if let Some(leaf) = node.leaf {
         let leaf = &tree.leaves[leaf.idx()];
         write_originals(ctx, leaf)?;
-        leaf_atlas(ctx, leaf, size, fill_for(tree.kind)).map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
+        leaf_atlas(ctx, leaf, size, fill_for(tree.kind))
+            .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
     } else {
-        let kids: Vec<(usize, NodeId)> =
-            node.children.iter().enumerate().filter_map(|(q, c)| c.map(|c| (q, c))).collect();
+        let kids: Vec<(usize, NodeId)> = node
+            .children
+            .iter()
+            .enumerate()
+            .filter_map(|(q, c)| c.map(|c| (q, c)))
+            .collect();
         use rayon::prelude::*;
         let halves: Vec<(usize, LinearImage)> = kids
             .par_iter()
@@ -162,9 +200,11 @@ fn raster_node(ctx: &RasterCtx<'_>, tree: &AtlasTree, id: NodeId) -> Result<Line
         for (q, img) in &halves {
             quads[*q] = Some(img);
         }
-        combine_quadrants(quads, size).map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))?
+        combine_quadrants(quads, size)
+            .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))?
     };
-    ctx.writer.write_block(node.atlas_block, &mip_chain_rgba8(&atlas))?;
+    ctx.writer
+        .write_block(node.atlas_block, &mip_chain_rgba8(&atlas))?;
     let n = ctx.done.fetch_add(1, Ordering::Relaxed) + 1;
     (ctx.progress)(n);
     Ok(halve(&atlas))
@@ -172,7 +212,12 @@ fn raster_node(ctx: &RasterCtx<'_>, tree: &AtlasTree, id: NodeId) -> Result<Line
 
 /// A leaf atlas: every material's area drawn from its source (§5.2.3; the paper renders textured quads on
 /// the GPU, we filter on the CPU in linear light with correct minification).
-pub fn leaf_atlas(ctx: &RasterCtx<'_>, leaf: &Leaf, size: u32, fill: [f32; 4]) -> Result<LinearImage, ImageOpsError> {
+pub fn leaf_atlas(
+    ctx: &RasterCtx<'_>,
+    leaf: &Leaf,
+    size: u32,
+    fill: [f32; 4],
+) -> Result<LinearImage, ImageOpsError> {
     let mut atlas = LinearImage::new_filled(size, size, fill);
     for r in &leaf.rects {
         let mat = &ctx.scene.materials[r.material.idx()];
@@ -201,8 +246,12 @@ fn write_originals(ctx: &RasterCtx<'_>, leaf: &Leaf) -> Result<(), BuildError> {
     for o in &leaf.originals {
         let mat = &ctx.scene.materials[o.material.idx()];
         let img = ctx.cache.get(o.image);
-        let lin = resample_square(&img.decoded, o.class_size, mat.wrap)
-            .map_err(|e| image_err(format!("original texture {} of leaf {}", o.image.0, o.block.0), e))?;
+        let lin = resample_square(&img.decoded, o.class_size, mat.wrap).map_err(|e| {
+            image_err(
+                format!("original texture {} of leaf {}", o.image.0, o.block.0),
+                e,
+            )
+        })?;
         let bytes = mip_chain_rgba8(&lin);
         match blocks.last_mut() {
             Some((b, buf)) if *b == o.block => buf.extend_from_slice(&bytes),

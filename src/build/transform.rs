@@ -39,7 +39,8 @@ pub fn atlas_uv_at_f32(uv_leaf: Vec2, leaf_cell: Cell, leaf_level: Level, level:
 /// The paper's form, for comparison: root-atlas UV in f32, then `fract(uv_root · 2^j)`.
 pub fn atlas_uv_naive_f32(uv_leaf: Vec2, leaf_cell: Cell, leaf_level: Level, level: Level) -> Vec2 {
     let k = leaf_level.0 as i32;
-    let root = (uv_leaf + Vec2::new(leaf_cell.ix as f32, leaf_cell.iy as f32)) * (-(k as f32)).exp2();
+    let root =
+        (uv_leaf + Vec2::new(leaf_cell.ix as f32, leaf_cell.iy as f32)) * (-(k as f32)).exp2();
     let scaled = root * (level.0 as f32).exp2();
     scaled - scaled.floor()
 }
@@ -51,13 +52,19 @@ mod tests {
     #[test]
     fn exact_form_matches_f64_at_depth_24() {
         let leaf_level = Level(24);
-        let cell = Cell { ix: 0xABCDE1, iy: 0x123457 };
+        let cell = Cell {
+            ix: 0xABCDE1,
+            iy: 0x123457,
+        };
         let uv = Vec2::new(0.3711, 0.8125);
         for j in 0..=24u8 {
             let want = atlas_uv_at(uv.as_dvec2(), cell, leaf_level, Level(j));
             let got = atlas_uv_at_f32(uv, cell, leaf_level, Level(j)).as_dvec2();
             // One f32 rounding of a value in [0, 1): ≤ 2^-24.
-            assert!((want - got).abs().max_element() <= 2f64.powi(-24), "level {j}: {want} vs {got}");
+            assert!(
+                (want - got).abs().max_element() <= 2f64.powi(-24),
+                "level {j}: {want} vs {got}"
+            );
         }
     }
 
@@ -72,9 +79,14 @@ mod tests {
 
     #[test]
     fn naive_form_loses_precision_deep() {
-        let cell = Cell { ix: (1 << 20) - 3, iy: 7 };
+        let cell = Cell {
+            ix: (1 << 20) - 3,
+            iy: 7,
+        };
         let uv = Vec2::new(0.3711, 0.8125);
-        let err = (atlas_uv_naive_f32(uv, cell, Level(20), Level(20)) - uv).abs().max_element();
+        let err = (atlas_uv_naive_f32(uv, cell, Level(20), Level(20)) - uv)
+            .abs()
+            .max_element();
         // At depth 20 the naive root UV keeps only ~4 bits below a leaf-atlas unit.
         assert!(err > 1e-3, "naive error {err}");
     }

@@ -117,11 +117,23 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
         let s = &t.sizing;
         println!(
             "    sizing: {} exact, {} edge fallback, {} all-UV-equal, {} world-degenerate; {} rects capped to source; {} clamped leaves",
-            s.exact, s.edge_fallback, s.all_uv_equal, s.world_degenerate, t.capped_rects, t.clamped_leaves
+            s.exact,
+            s.edge_fallback,
+            s.all_uv_equal,
+            s.world_degenerate,
+            t.capped_rects,
+            t.clamped_leaves
         );
     }
-    println!("  blocks: {} ({} atlases, {} original-texture blocks)", r.blocks, r.atlas_blocks, r.original_blocks);
-    let times: Vec<String> = r.timings.iter().map(|(n, s)| format!("{n} {s:.2}s")).collect();
+    println!(
+        "  blocks: {} ({} atlases, {} original-texture blocks)",
+        r.blocks, r.atlas_blocks, r.original_blocks
+    );
+    let times: Vec<String> = r
+        .timings
+        .iter()
+        .map(|(n, s)| format!("{n} {s:.2}s"))
+        .collect();
     println!("  time: {}", times.join(", "));
     println!(
         "  images decoded {} ({} fallbacks), peak memory {}",

@@ -34,17 +34,23 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     println!("== 1. scene import: {}", scene_path.display());
     let scene = load_scene(&scene_path, UpArg::Auto)?;
-    let info = atlastree::scene::info::SceneInfo::analyze(&scene);
+    let info = atlastree::scene::info::analyze(&scene);
     println!("{info}");
 
     println!("\n== 2. build the texture-atlas tree (Buchholz & Döllner 2005, §5)");
     let file = a.out.join("city.atlastree");
-    let opts = BuildOptions { d_min: DMin::Ratio(a.d_min_ratio), atlas_size: a.atlas_size, ..BuildOptions::default() };
-    let report = build(&scene, &opts, &file, &Bars::new(a.quiet)).context("building the demo tree")?;
+    let opts = BuildOptions {
+        d_min: DMin::Ratio(a.d_min_ratio),
+        atlas_size: a.atlas_size,
+        ..BuildOptions::default()
+    };
+    let report =
+        build(&scene, &opts, &file, &Bars::new(a.quiet)).context("building the demo tree")?;
     build_cmd::print_report(&report, &file);
 
     println!("\n== 3. inspect and verify the paging file");
-    let tf = atlastree::store::TreeFile::open(&file).with_context(|| format!("opening {}", file.display()))?;
+    let tf = atlastree::store::TreeFile::open(&file)
+        .with_context(|| format!("opening {}", file.display()))?;
     let rep = atlastree::inspect::inspect(&tf);
     inspect_cmd::print_inspect(&rep);
     let ver = atlastree::inspect::verify(&tf);
@@ -52,11 +58,17 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
 
     let mut pictures = Vec::new();
     for ti in 0..tf.trees() {
-        let kind = tf.tree(ti).map_or("tree".to_string(), |t| format!("{:?}", t.kind).to_lowercase());
+        let kind = tf.tree(ti).map_or("tree".to_string(), |t| {
+            format!("{:?}", t.kind).to_lowercase()
+        });
         let atlas = a.out.join(format!("{kind}-root-atlas.png"));
-        atlastree::inspect::atlas_image(&tf, ti, 0)?.save(&atlas).with_context(|| format!("writing {}", atlas.display()))?;
+        atlastree::inspect::atlas_image(&tf, ti, 0)?
+            .save(&atlas)
+            .with_context(|| format!("writing {}", atlas.display()))?;
         let map = a.out.join(format!("{kind}-leaves.png"));
-        atlastree::inspect::leaf_map_image(&tf, ti, 512).save(&map).with_context(|| format!("writing {}", map.display()))?;
+        atlastree::inspect::leaf_map_image(&tf, ti, 512)
+            .save(&map)
+            .with_context(|| format!("writing {}", map.display()))?;
         pictures.push(atlas);
         pictures.push(map);
     }
@@ -69,5 +81,9 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
          prioritised block paging under a capacity k (`render --capacity`), paging-budget experiments (`simulate`),\n\
          and the accuracy/time report (`sweep`)."
     );
-    Ok(if ver.ok() { ExitCode::SUCCESS } else { ExitCode::from(1) })
+    Ok(if ver.ok() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
 }

@@ -18,9 +18,13 @@ pub struct InspectArgs {
 }
 
 pub fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
-    let (rep, ver) = open_and_inspect(&a.file, a.verify).with_context(|| format!("opening {}", a.file.display()))?;
+    let (rep, ver) = open_and_inspect(&a.file, a.verify)
+        .with_context(|| format!("opening {}", a.file.display()))?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&serde_json::json!({ "inspect": rep, "verify": ver }))?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({ "inspect": rep, "verify": ver }))?
+        );
     } else {
         print_inspect(&rep);
         if let Some(v) = &ver {
@@ -40,7 +44,12 @@ pub fn print_inspect(r: &InspectReport) {
         "  built with d_min {:.3} m, screen {} px, fov {}°, texel ratio {}, atlas {}², border {}, up {:?}",
         p.d_min, p.screen_width, p.fov_deg, p.texel_ratio, p.atlas_size, p.border, p.up
     );
-    println!("  {} materials, {} blocks ({})", r.materials, r.blocks, human_bytes(r.block_bytes_total));
+    println!(
+        "  {} materials, {} blocks ({})",
+        r.materials,
+        r.blocks,
+        human_bytes(r.block_bytes_total)
+    );
     for t in &r.trees {
         println!(
             "  {:?} tree: {} nodes, {} leaves, depth {}, {} triangles, {} vertices, {} atlas + {} original blocks ({}), {} clamped leaves",
@@ -59,7 +68,12 @@ pub fn print_inspect(r: &InspectReport) {
         for l in &t.levels {
             println!(
                 "    {:>5}  {:>5}  {:>6}  {:>19}  {:.2} .. {:.2}",
-                l.level, l.nodes, l.leaves, l.triangles_in_leaves, l.min_distance_min, l.min_distance_max
+                l.level,
+                l.nodes,
+                l.leaves,
+                l.triangles_in_leaves,
+                l.min_distance_min,
+                l.min_distance_max
             );
         }
     }
@@ -75,7 +89,11 @@ pub fn print_verify(v: &VerifyReport) {
         v.nodes_checked,
         v.triangles_checked,
         v.vertices_checked,
-        if v.ok() { "all invariants hold".to_string() } else { format!("{} VIOLATIONS", v.violation_count) }
+        if v.ok() {
+            "all invariants hold".to_string()
+        } else {
+            format!("{} VIOLATIONS", v.violation_count)
+        }
     );
     for m in &v.violations {
         println!("  violation: {m}");

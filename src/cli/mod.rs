@@ -16,7 +16,13 @@ use std::process::ExitCode;
 /// Start with `atlastree demo`; then `atlastree scene-info SCENE`, `atlastree build SCENE -o OUT.atlastree`,
 /// `atlastree inspect OUT.atlastree --verify`.
 #[derive(Parser, Debug)]
-#[command(name = "atlastree", version, about, long_about, propagate_version = true)]
+#[command(
+    name = "atlastree",
+    version,
+    about,
+    long_about,
+    propagate_version = true
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -61,7 +67,10 @@ impl UpArg {
 pub fn init_tracing() {
     let filter = tracing_subscriber::EnvFilter::try_from_env("ATLASTREE_LOG")
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
-    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
 }
 
 pub fn run() -> anyhow::Result<ExitCode> {
@@ -77,6 +86,9 @@ pub fn run() -> anyhow::Result<ExitCode> {
 /// Imports a scene with a clear error naming the file.
 pub fn load_scene(path: &std::path::Path, up: UpArg) -> anyhow::Result<atlastree::scene::Scene> {
     use anyhow::Context;
-    let opts = atlastree::scene::ImportOptions { up: up.to_option(), ..Default::default() };
+    let opts = atlastree::scene::ImportOptions {
+        up: up.to_option(),
+        ..Default::default()
+    };
     atlastree::scene::import(path, &opts).with_context(|| format!("importing {}", path.display()))
 }

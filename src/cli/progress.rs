@@ -12,7 +12,10 @@ pub struct Bars {
 
 impl Bars {
     pub fn new(quiet: bool) -> Self {
-        Bars { bar: Mutex::new(None), quiet }
+        Bars {
+            bar: Mutex::new(None),
+            quiet,
+        }
     }
 }
 
@@ -20,9 +23,11 @@ impl atlastree::build::Progress for Bars {
     fn stage(&self, name: &str, total: Option<u64>) {
         let pb = match total {
             Some(t) => ProgressBar::new(t).with_style(
-                ProgressStyle::with_template("{prefix:>24} [{bar:40}] {pos}/{len} {per_sec} eta {eta}")
-                    .unwrap_or_else(|_| ProgressStyle::default_bar())
-                    .progress_chars("=> "),
+                ProgressStyle::with_template(
+                    "{prefix:>24} [{bar:40}] {pos}/{len} {per_sec} eta {eta}",
+                )
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> "),
             ),
             None => ProgressBar::new_spinner().with_style(
                 ProgressStyle::with_template("{prefix:>24} {spinner} {pos} {elapsed}")

@@ -19,12 +19,15 @@ pub fn run(a: SceneInfoArgs) -> anyhow::Result<ExitCode> {
     let t = std::time::Instant::now();
     let scene = load_scene(&a.scene, a.up)?;
     let import_s = t.elapsed().as_secs_f64();
-    let info = atlastree::scene::info::SceneInfo::analyze(&scene);
+    let info = atlastree::scene::info::analyze(&scene);
     if a.json {
         let mut v = serde_json::to_value(&info)?;
         if let Some(o) = v.as_object_mut() {
             o.insert("import_seconds".into(), import_s.into());
-            o.insert("peak_rss_bytes".into(), atlastree::util::peak_rss_bytes().into());
+            o.insert(
+                "peak_rss_bytes".into(),
+                atlastree::util::peak_rss_bytes().into(),
+            );
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {

@@ -32,7 +32,9 @@ pub enum AlphaMode {
     #[default]
     Opaque,
     /// Alpha-tested: fragments with alpha < `cutoff` are discarded.
-    Mask { cutoff: f32 },
+    Mask {
+        cutoff: f32,
+    },
     Blend,
 }
 

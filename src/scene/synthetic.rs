@@ -2,7 +2,9 @@
 //! memory (so the real lazy-decode path runs).
 
 use super::image_source::ImageData;
-use super::{AlphaMode, ImageSource, ImportReport, Material, Scene, Triangle, UpAxis, Vertex, Wrap};
+use super::{
+    AlphaMode, ImageSource, ImportReport, Material, Scene, Triangle, UpAxis, Vertex, Wrap,
+};
 use crate::ids::{ImageId, MaterialId};
 use glam::{DVec2, DVec3};
 use std::sync::Arc;
@@ -28,12 +30,24 @@ impl SceneBuilder {
     }
 
     /// Adds an RGBA8 image given by `texel(x, y) -> [r, g, b, a]` (sRGB, straight alpha), PNG-encoded.
-    pub fn image(&mut self, name: &str, w: u32, h: u32, texel: impl Fn(u32, u32) -> [u8; 4]) -> ImageId {
+    pub fn image(
+        &mut self,
+        name: &str,
+        w: u32,
+        h: u32,
+        texel: impl Fn(u32, u32) -> [u8; 4],
+    ) -> ImageId {
         let img = image::RgbaImage::from_fn(w, h, |x, y| image::Rgba(texel(x, y)));
         let mut bytes = Vec::new();
         let has_alpha = img.pixels().any(|p| p.0[3] < 255);
         // Encoding an in-memory RGBA8 buffer cannot fail except on allocation.
-        if img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png).is_err() {
+        if img
+            .write_to(
+                &mut std::io::Cursor::new(&mut bytes),
+                image::ImageFormat::Png,
+            )
+            .is_err()
+        {
             bytes.clear();
         }
         self.scene.images.push(ImageSource {
@@ -77,9 +91,15 @@ impl SceneBuilder {
     pub fn triangle(&mut self, pos: [DVec3; 3], uv: [DVec2; 3], material: MaterialId) {
         let base = self.scene.vertices.len() as u32;
         for k in 0..3 {
-            self.scene.vertices.push(Vertex { pos: pos[k], uv: uv[k] });
+            self.scene.vertices.push(Vertex {
+                pos: pos[k],
+                uv: uv[k],
+            });
         }
-        self.scene.triangles.push(Triangle { v: [base, base + 1, base + 2], material });
+        self.scene.triangles.push(Triangle {
+            v: [base, base + 1, base + 2],
+            material,
+        });
     }
 
     /// A quad `a b c d` (counter-clockwise) with UVs spanning `[uv0, uv1]` (a → uv0, c → uv1).
@@ -90,7 +110,14 @@ impl SceneBuilder {
     }
 
     /// A y-up box building: four walls with `facade` repeated every `repeat_m` metres, and a roof.
-    pub fn building(&mut self, min: DVec3, max: DVec3, facade: MaterialId, roof: MaterialId, repeat_m: f64) {
+    pub fn building(
+        &mut self,
+        min: DVec3,
+        max: DVec3,
+        facade: MaterialId,
+        roof: MaterialId,
+        repeat_m: f64,
+    ) {
         let (x0, y0, z0) = (min.x, min.y, min.z);
         let (x1, y1, z1) = (max.x, max.y, max.z);
         let h = (y1 - y0) / repeat_m;
@@ -103,10 +130,20 @@ impl SceneBuilder {
         for (a, b) in walls {
             let len = (b - a).length() / repeat_m;
             let up = DVec3::new(0.0, y1 - y0, 0.0);
-            self.quad([a, b, b + up, a + up], DVec2::new(0.0, h), DVec2::new(len, 0.0), facade);
+            self.quad(
+                [a, b, b + up, a + up],
+                DVec2::new(0.0, h),
+                DVec2::new(len, 0.0),
+                facade,
+            );
         }
         self.quad(
-            [DVec3::new(x0, y1, z0), DVec3::new(x1, y1, z0), DVec3::new(x1, y1, z1), DVec3::new(x0, y1, z1)],
+            [
+                DVec3::new(x0, y1, z0),
+                DVec3::new(x1, y1, z0),
+                DVec3::new(x1, y1, z1),
+                DVec3::new(x0, y1, z1),
+            ],
             DVec2::ZERO,
             DVec2::ONE,
             roof,
@@ -135,7 +172,12 @@ pub fn small_city(n: u32, facade: u32) -> Scene {
     let roof = b.material(roof_img, [Wrap::Repeat; 2], AlphaMode::Opaque);
     let span = 40.0 * n as f64;
     b.quad(
-        [DVec3::new(0.0, 0.0, 0.0), DVec3::new(span, 0.0, 0.0), DVec3::new(span, 0.0, span), DVec3::new(0.0, 0.0, span)],
+        [
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(span, 0.0, 0.0),
+            DVec3::new(span, 0.0, span),
+            DVec3::new(0.0, 0.0, span),
+        ],
         DVec2::ZERO,
         DVec2::splat(span / 10.0),
         ground,
@@ -148,7 +190,13 @@ pub fn small_city(n: u32, facade: u32) -> Scene {
             let x = 40.0 * i as f64 + 8.0;
             let z = 40.0 * j as f64 + 8.0;
             let hgt = 10.0 + ((id * 7) % 5) as f64 * 6.0;
-            b.building(DVec3::new(x, 0.0, z), DVec3::new(x + 20.0 + (id % 3) as f64 * 4.0, hgt, z + 22.0), m, roof, 10.0);
+            b.building(
+                DVec3::new(x, 0.0, z),
+                DVec3::new(x + 20.0 + (id % 3) as f64 * 4.0, hgt, z + 22.0),
+                m,
+                roof,
+                10.0,
+            );
         }
     }
     b.build()
