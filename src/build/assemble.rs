@@ -199,8 +199,7 @@ impl Asm<'_> {
         let mut dedup: HashMap<[u32; 9], u32> = HashMap::new();
         for &ti in &self.order[n.range.clone()] {
             let t = &self.infos[ti as usize];
-            let tri = &self.scene.triangles[t.scene_tri as usize];
-            let pos = self.scene.tri_positions(tri);
+            let pos = t.pos;
             let r = &l.rects[rect_of[&t.material]];
             for (k, p) in pos.iter().enumerate() {
                 let v = TreeVertex {

@@ -52,6 +52,9 @@ pub struct BuildOptions {
     pub cap_to_source: bool,
     /// Bound on decoded images held at once, bytes.
     pub image_cache_bytes: u64,
+    /// At most this many pieces per scene triangle when splitting triangles too big for one atlas
+    /// (1 = never split: such triangles are clamped instead).
+    pub max_pieces: u32,
 }
 
 impl Default for BuildOptions {
@@ -66,6 +69,7 @@ impl Default for BuildOptions {
             max_depth: 24,
             cap_to_source: true,
             image_cache_bytes: 2 << 30,
+            max_pieces: 4096,
         }
     }
 }
@@ -119,7 +123,10 @@ pub enum BuildError {
 #[derive(Clone, Debug, Serialize)]
 pub struct TreeReport {
     pub kind: TreeKind,
+    /// Scene triangles in this tree.
     pub triangles: u64,
+    /// Triangles after splitting those too big for one atlas.
+    pub pieces: u64,
     pub nodes: u64,
     pub leaves: u64,
     pub depth: u8,
@@ -275,7 +282,14 @@ pub fn build(
     for (kind, tris) in &parts {
         let t = Instant::now();
         progress.stage(&format!("sizing {kind:?}"), None);
-        let infos = prepare::prepare(scene, tris, f_proj, params.up);
+        let popts = prepare::PrepareOptions {
+            f_proj,
+            up: params.up,
+            cap_to_source: opts.cap_to_source,
+            split_limit: f64::from(params.atlas_size / 4),
+            max_pieces: opts.max_pieces,
+        };
+        let infos = prepare::prepare(scene, tris, &popts);
         let sizing = prepare::analyze(&infos);
         progress.finish_stage();
         time(&format!("sizing {kind:?}"), t);
@@ -314,6 +328,7 @@ pub fn build(
         reports.push(TreeReport {
             kind: *kind,
             triangles: tris.len() as u64,
+            pieces: infos.len() as u64,
             nodes: asm.tree.nodes.len() as u64,
             leaves: asm.tree.leaves.len() as u64,
             depth: asm.tree.nodes.iter().map(|n| n.level.0).max().unwrap_or(0),

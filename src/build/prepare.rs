@@ -6,11 +6,13 @@ use crate::ids::MaterialId;
 use crate::scene::{Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3};
 
-/// What the builder knows about one triangle.
+/// What the builder knows about one triangle (or one piece of a tessellated scene triangle).
 #[derive(Copy, Clone, Debug)]
 pub struct TriInfo {
-    /// Index of the triangle in `Scene::triangles`.
+    /// Index of the triangle in `Scene::triangles` this triangle is (a piece of).
     pub scene_tri: u32,
+    /// World positions (a piece's own corners).
+    pub pos: [DVec3; 3],
     pub material: MaterialId,
     /// Midpoint in the distribution plane (the split sorts on it, §5.3).
     pub mid: DVec2,
@@ -46,33 +48,105 @@ pub fn period_shift(uv: [DVec2; 3], wrap: [Wrap; 2]) -> DVec2 {
     DVec2::new(axis(lo.x, wrap[0]), axis(lo.y, wrap[1]))
 }
 
-/// Prepares the triangles `tris` (indices into `scene.triangles`) for a build with projection factor
-/// `f_proj` (texels per world unit at d_min). Parallel over triangles.
-pub fn prepare(scene: &Scene, tris: &[u32], f_proj: f64, up: UpAxis) -> Vec<TriInfo> {
+/// Options of [`prepare`].
+#[derive(Clone, Debug)]
+pub struct PrepareOptions {
+    /// Texels per world unit at d_min.
+    pub f_proj: f64,
+    pub up: UpAxis,
+    /// Cap texels per repetition at the source resolution (as the area stage does).
+    pub cap_to_source: bool,
+    /// A triangle whose texel footprint exceeds this on either texture axis is split (texels).
+    pub split_limit: f64,
+    /// At most this many pieces per scene triangle; beyond, the layout clamps the piece's resolution.
+    pub max_pieces: u32,
+}
+
+/// Prepares the triangles `tris` (indices into `scene.triangles`) for a build. Parallel over triangles.
+///
+/// Triangles whose texture footprint at d_min is larger than `split_limit` texels on a texture axis (a
+/// ground quad with a tile repeated hundreds of times, a long wall) are split at the midpoint of their
+/// longest edge, measured in texels, until every piece fits (bounded by `max_pieces`). Splitting is exact
+/// (positions and UVs are affine on a triangle), keeps `min_distance = d_min` for their leaves, and lets the
+/// pieces spread over several leaves. Without it the paper loops forever, and plain clamping would coarsen
+/// every ancestor of that leaf (`min_distance` doubles upwards from the clamped value).
+pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInfo> {
     use rayon::prelude::*;
     tris.par_iter()
-        .map(|&ti| {
+        .flat_map_iter(|&ti| {
             let t = &scene.triangles[ti as usize];
             let p = scene.tri_positions(t);
-            let uv0 = scene.tri_uvs(t);
-            let wrap = scene.materials[t.material.idx()].wrap;
-            let shift = period_shift(uv0, wrap);
-            let uv = uv0.map(|u| u - shift);
-            let size = texels_per_uv(p, uv, f_proj);
-            let area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
-            let mid = up.plane((p[0] + p[1] + p[2]) / 3.0);
-            TriInfo {
-                scene_tri: ti,
-                material: t.material,
-                mid: if mid.is_finite() { mid } else { DVec2::ZERO },
-                area: if area.is_finite() { area } else { 0.0 },
-                size,
-                uv,
-                lo: p[0].min(p[1]).min(p[2]),
-                hi: p[0].max(p[1]).max(p[2]),
+            let uv = scene.tri_uvs(t);
+            let mat = &scene.materials[t.material.idx()];
+            let img = &scene.images[mat.image.idx()];
+            let size = texels_per_uv(p, uv, opts.f_proj);
+            let (mut w, mut h) = (size.w, size.h);
+            if opts.cap_to_source {
+                w = w.min(f64::from(img.width));
+                h = h.min(f64::from(img.height));
             }
+            let pieces = tessellate(p, uv, w, h, opts.split_limit, opts.max_pieces);
+            pieces.into_iter().map(move |(p, uv0)| {
+                let shift = period_shift(uv0, mat.wrap);
+                let uv = uv0.map(|u| u - shift);
+                let area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
+                let mid = opts.up.plane((p[0] + p[1] + p[2]) / 3.0);
+                TriInfo {
+                    scene_tri: ti,
+                    pos: p,
+                    material: t.material,
+                    mid: if mid.is_finite() { mid } else { DVec2::ZERO },
+                    area: if area.is_finite() { area } else { 0.0 },
+                    size,
+                    uv,
+                    lo: p[0].min(p[1]).min(p[2]),
+                    hi: p[0].max(p[1]).max(p[2]),
+                }
+            })
         })
         .collect()
+}
+
+/// Texel length of a UV edge at `w × h` texels per UV unit.
+fn texel_len(d: DVec2, w: f64, h: f64) -> f64 {
+    ((d.x * w).powi(2) + (d.y * h).powi(2)).sqrt()
+}
+
+/// Splits a triangle at the midpoint of its longest edge (in texels) until each piece's UV bounding box
+/// spans at most `limit` texels on both axes, or `max_pieces` pieces exist. Pieces tile the triangle
+/// exactly (same plane, same affine UV map). Non-finite inputs are returned unsplit.
+pub fn tessellate(
+    p: [DVec3; 3],
+    uv: [DVec2; 3],
+    w: f64,
+    h: f64,
+    limit: f64,
+    max_pieces: u32,
+) -> Vec<([DVec3; 3], [DVec2; 3])> {
+    let too_big = |uv: &[DVec2; 3]| {
+        let lo = uv[0].min(uv[1]).min(uv[2]);
+        let hi = uv[0].max(uv[1]).max(uv[2]);
+        (hi.x - lo.x) * w > limit || (hi.y - lo.y) * h > limit
+    };
+    if !(w.is_finite() && h.is_finite() && limit > 0.0) || !uv.iter().all(|u| u.is_finite()) || !too_big(&uv) {
+        return vec![(p, uv)];
+    }
+    let mut done = Vec::new();
+    let mut todo = vec![(p, uv)];
+    while let Some((p, uv)) = todo.pop() {
+        if !too_big(&uv) || done.len() + todo.len() + 2 > max_pieces as usize {
+            done.push((p, uv));
+            continue;
+        }
+        let len = |i: usize| texel_len(uv[(i + 1) % 3] - uv[i], w, h);
+        let e = (0..3).max_by(|&a, &b| len(a).total_cmp(&len(b))).unwrap_or(0);
+        let (a, b, c) = (e, (e + 1) % 3, (e + 2) % 3);
+        let pm = (p[a] + p[b]) * 0.5;
+        let um = (uv[a] + uv[b]) * 0.5;
+        todo.push(([p[a], pm, p[c]], [uv[a], um, uv[c]]));
+        todo.push(([pm, p[b], p[c]], [um, uv[b], uv[c]]));
+    }
+    done
 }
 
 /// Counts of sizing methods over prepared triangles (the report twin of [`prepare`]).
@@ -104,6 +178,31 @@ pub fn analyze(infos: &[TriInfo]) -> PrepareReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tessellation_tiles_the_triangle_and_bounds_pieces() {
+        let p = [DVec3::ZERO, DVec3::new(400.0, 0.0, 0.0), DVec3::new(0.0, 0.0, 300.0)];
+        let uv = [DVec2::ZERO, DVec2::new(95.0, 0.0), DVec2::new(0.0, 55.0)];
+        let pieces = tessellate(p, uv, 48.0, 48.0, 256.0, 4096);
+        assert!(pieces.len() > 100, "{}", pieces.len());
+        let area = |p: &[DVec3; 3]| 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
+        let total: f64 = pieces.iter().map(|(p, _)| area(p)).sum();
+        assert!((total - area(&p)).abs() < 1e-9 * area(&p));
+        for (q, u) in &pieces {
+            let lo = u[0].min(u[1]).min(u[2]);
+            let hi = u[0].max(u[1]).max(u[2]);
+            assert!((hi - lo).max_element() * 48.0 <= 256.0);
+            // The affine map is preserved: UV/position pairs lie on the original map u = 95·x/400.
+            for k in 0..3 {
+                assert!((u[k].x - 95.0 * q[k].x / 400.0).abs() < 1e-9);
+            }
+        }
+        // The budget bounds the count.
+        assert!(tessellate(p, uv, 48.0, 48.0, 256.0, 16).len() <= 16);
+        // Small triangles are untouched; NaN is returned as is.
+        assert_eq!(tessellate(p, uv, 1.0, 1.0, 256.0, 4096).len(), 1);
+        assert_eq!(tessellate(p, [DVec2::NAN; 3], 48.0, 48.0, 256.0, 4096).len(), 1);
+    }
 
     #[test]
     fn period_shift_per_wrap_mode() {

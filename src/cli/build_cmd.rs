@@ -46,6 +46,10 @@ pub struct BuildArgs {
     /// Bound on decoded source images held in memory at once, MiB.
     #[arg(long, default_value_t = 2048)]
     pub image_cache_mib: u64,
+    /// Split a triangle too big for one atlas (a ground quad with a tile repeated hundreds of times) into at
+    /// most this many pieces; beyond that its leaf's resolution is clamped. 1 disables splitting.
+    #[arg(long, default_value_t = 4096)]
+    pub max_pieces: u32,
     /// Up axis; `auto` takes the axis of least extent.
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
@@ -73,6 +77,7 @@ impl BuildArgs {
             max_depth: self.max_depth,
             cap_to_source: !self.no_source_cap,
             image_cache_bytes: self.image_cache_mib << 20,
+            max_pieces: self.max_pieces,
         }
     }
 }
