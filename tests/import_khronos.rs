@@ -201,7 +201,7 @@ fn texture_transform_sample_is_baked() {
     assert_eq!(m.wrap, [Wrap::ClampToEdge, Wrap::ClampToEdge]);
     // Quad vertex 1: local (0.5, 0.5, 0), UV (1, 0). "Rotation" node at (-1.1, -0.55, 0), rotation π/8:
     // u' = cos r, v' = -sin r.
-    let r = 0.39269908169872414_f64;
+    let r = std::f64::consts::FRAC_PI_8; // 0.39269908169872414 in the file
     let uv = uv_at(&s, "Rotation", DVec3::new(-0.6, -0.05, 0.0));
     assert!(
         (uv - DVec2::new(r.cos(), -r.sin())).length() < 1e-12,
@@ -299,4 +299,35 @@ fn broken_samples_give_specific_errors() {
     ));
     let s = load("issue_3269/texcoord_crash.gltf").unwrap();
     assert_eq!(s.report.missing_texcoords, 1);
+}
+
+/// UV at world point `p` (in the x-y plane) by the affine map of one triangle of material `name`.
+fn uv_affine(s: &Scene, name: &str, p: DVec2) -> DVec2 {
+    let mid = s.materials.iter().position(|m| m.name == name).unwrap();
+    let t = s
+        .triangles
+        .iter()
+        .find(|t| t.material.idx() == mid)
+        .unwrap();
+    let [a, b, c] = s.tri_positions(t).map(|q| q.truncate());
+    let [ua, ub, uc] = s.tri_uvs(t);
+    let (e1, e2, d) = (b - a, c - a, p - a);
+    let det = e1.perp_dot(e2);
+    let (l1, l2) = (d.perp_dot(e2) / det, e1.perp_dot(d) / det);
+    ua + (ub - ua) * l1 + (uc - ua) * l2
+}
+
+/// The sample's markers fix the rotation direction: the arrow tip of the unrotated texture is at UV
+/// (0.5 + 0.27781…, 0.5 + 0.27781…) (the "Not Supported" marker); with the rotation baked, the
+/// "Correct" marker's position must map onto that tip, and the "Error" marker's must not.
+#[test]
+fn texture_transform_rotation_direction_matches_sample_markers() {
+    let s = load("textureTransform/TextureTransformTest.gltf").unwrap();
+    let tip = DVec2::splat(0.5 + 0.2778174593052023);
+    let parent = DVec2::new(-1.1, -0.55);
+    let correct = parent + DVec2::new(-0.07904822439840126, -0.5162674857624154);
+    let error = parent + DVec2::new(0.5162674857624154, 0.07904822439840126);
+    let at_correct = uv_affine(&s, "Rotation", correct);
+    assert!((at_correct - tip).length() < 1e-9, "{at_correct} vs {tip}");
+    assert!((uv_affine(&s, "Rotation", error) - tip).length() > 0.1);
 }

@@ -62,14 +62,15 @@ pub enum SceneError {
         reason: String,
     },
     #[error(
-        "{file}: mesh {mesh} ({mesh_name}) primitive {primitive}: {semantic} accessor {accessor}: {reason}"
+        "{file}: mesh {mesh} ({mesh_name}) primitive {primitive}: accessor {accessor}: {reason}"
     )]
+    /// A bad accessor; `reason` starts with the attribute it was read as ("POSITION", "TEXCOORD_1",
+    /// "indices").
     Accessor {
         file: String,
         mesh: usize,
         mesh_name: String,
         primitive: usize,
-        semantic: String,
         accessor: usize,
         reason: String,
     },
@@ -86,21 +87,6 @@ pub enum SceneError {
         position: usize,
         index: u32,
         vertex_count: usize,
-    },
-    #[error(
-        "{file}: mesh {mesh} ({mesh_name}) primitive {primitive}: POSITION accessor {position_accessor} has \
-         {positions} elements but {semantic} accessor {accessor} has {count}"
-    )]
-    AttributeCountMismatch {
-        file: String,
-        mesh: usize,
-        mesh_name: String,
-        primitive: usize,
-        position_accessor: usize,
-        positions: usize,
-        semantic: String,
-        accessor: usize,
-        count: usize,
     },
     #[error("{file}: node {node} ({node_name}) is its own ancestor (recursive node graph)")]
     RecursiveNodes {
@@ -932,9 +918,8 @@ impl<'a> Importer<'a> {
             mesh: ctx.mesh,
             mesh_name: ctx.mesh_name.clone(),
             primitive: ctx.primitive,
-            semantic: semantic.to_string(),
             accessor: e.accessor,
-            reason: e.reason,
+            reason: format!("{semantic}: {}", e.reason),
         }
     }
 
@@ -998,16 +983,17 @@ impl<'a> Importer<'a> {
                 )));
             };
             if uv_acc.count() != n {
-                return Err(SceneError::AttributeCountMismatch {
+                return Err(SceneError::Accessor {
                     file: self.file.clone(),
                     mesh: ctx.mesh,
                     mesh_name: ctx.mesh_name.clone(),
                     primitive: ctx.primitive,
-                    position_accessor: pos_acc.index(),
-                    positions: n,
-                    semantic,
                     accessor: uv_acc.index(),
-                    count: uv_acc.count(),
+                    reason: format!(
+                        "{semantic} has {} elements but POSITION (accessor {}) has {n}",
+                        uv_acc.count(),
+                        pos_acc.index()
+                    ),
                 });
             }
             self.load_accessor_buffers(uv_acc.index())?;
@@ -1648,6 +1634,16 @@ mod tests {
             UpAxis::X
         );
         assert_eq!(auto_up(Some((DVec3::ZERO, DVec3::ONE))), UpAxis::Y);
+    }
+
+    #[test]
+    fn error_stays_small() {
+        // clippy::result_large_err: keep `Result<_, SceneError>` cheap to return.
+        assert!(
+            std::mem::size_of::<SceneError>() < 128,
+            "{}",
+            std::mem::size_of::<SceneError>()
+        );
     }
 
     #[test]
