@@ -236,6 +236,35 @@ fn clear_coat_imports_and_reports_materials() {
     assert_eq!(info.materials.len(), 19);
     assert_eq!(s.report.warnings_total, 0);
     assert!(info.materials.iter().all(|m| m.triangles > 0));
+    assert_eq!(
+        (info.alpha.opaque, info.alpha.mask, info.alpha.blend),
+        (18, 0, 1)
+    );
+    assert_eq!(info.instances, 27);
+    // One textured material (PartialCoating_Alpha.png, BLEND); the others are solid colours (3 distinct).
+    assert_eq!(info.image_kinds.get("file"), Some(&1));
+    assert_eq!(info.image_kinds.get("solid"), Some(&3));
+    let t = info.textures.iter().find(|t| t.kind == "file").unwrap();
+    assert_eq!(
+        (
+            t.width,
+            t.height,
+            t.color.as_str(),
+            t.has_alpha,
+            t.triangles
+        ),
+        (256, 256, "Rgba8", true, 2060)
+    );
+    let m = info
+        .materials
+        .iter()
+        .find(|m| m.name == "Partial_Coating")
+        .unwrap();
+    assert_eq!(
+        (m.alpha, m.uv_bbox_span),
+        (AlphaMode::Blend, Some([1.0, 1.0]))
+    );
+    assert_eq!(info.up, UpAxis::Z);
     let json = serde_json::to_string(&info).unwrap();
     assert!(json.contains("\"triangles\":37116"));
 }
@@ -330,4 +359,48 @@ fn texture_transform_rotation_direction_matches_sample_markers() {
     let at_correct = uv_affine(&s, "Rotation", correct);
     assert!((at_correct - tip).length() < 1e-9, "{at_correct} vs {tip}");
     assert!((uv_affine(&s, "Rotation", error) - tip).length() > 0.1);
+}
+
+/// Truncations and byte corruptions of a GLB and of a .gltf (with its .bin) never panic.
+#[test]
+fn corrupted_files_never_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = std::fs::read(root().join("BoxTextured-glTF-Binary/BoxTextured.glb")).unwrap();
+    let gltf = std::fs::read(root().join("BoxTextured-glTF/BoxTextured.gltf")).unwrap();
+    let bin = std::fs::read(root().join("BoxTextured-glTF/BoxTextured0.bin")).unwrap();
+    std::fs::copy(
+        root().join("BoxTextured-glTF/CesiumLogoFlat.png"),
+        dir.path().join("CesiumLogoFlat.png"),
+    )
+    .unwrap();
+    let mut cases: Vec<(&str, Vec<u8>, Vec<u8>)> = Vec::new();
+    for cut in (0..glb.len()).step_by(37) {
+        cases.push(("x.glb", glb[..cut].to_vec(), bin.clone()));
+    }
+    for (k, pos) in (0..glb.len()).step_by(11).enumerate() {
+        let mut g = glb.clone();
+        g[pos] ^= [0xff, 0x01, 0x80][k % 3];
+        cases.push(("x.glb", g, bin.clone()));
+    }
+    for cut in (0..bin.len()).step_by(29) {
+        cases.push(("x.gltf", gltf.clone(), bin[..cut].to_vec()));
+    }
+    for pos in (0..bin.len()).step_by(3) {
+        let mut b = bin.clone();
+        b[pos] = 0xff; // indices up to 0xffxx, NaN-pattern floats
+        cases.push(("x.gltf", gltf.clone(), b));
+    }
+    let (mut ok, mut err) = (0, 0);
+    for (name, file, bin) in &cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, file).unwrap();
+        std::fs::write(dir.path().join("BoxTextured0.bin"), bin).unwrap();
+        match std::panic::catch_unwind(|| import(&path, &ImportOptions::default())) {
+            Ok(Ok(_)) => ok += 1,
+            Ok(Err(_)) => err += 1,
+            Err(_) => panic!("panic on a corrupted {name} ({} bytes)", file.len()),
+        }
+    }
+    println!("{} cases: {ok} imported, {err} errors", cases.len());
+    assert!(ok > 0 && err > 0);
 }

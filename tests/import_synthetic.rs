@@ -718,3 +718,36 @@ fn auto_and_forced_up_axis() {
     .unwrap();
     assert_eq!(forced.up, UpAxis::X);
 }
+
+/// A PNG whose header is intact but whose pixel data is cut imports (header only) and fails at decode
+/// time with an error naming the image.
+#[test]
+fn corrupt_pixel_data_fails_at_decode_naming_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut png = std::io::Cursor::new(Vec::new());
+    image::DynamicImage::ImageRgb8(image::RgbImage::from_fn(64, 64, |x, y| {
+        image::Rgb([x as u8, y as u8, 7])
+    }))
+    .write_to(&mut png, image::ImageFormat::Png)
+    .unwrap();
+    let bytes = png.into_inner();
+    let idat = bytes.windows(4).position(|w| w == b"IDAT").unwrap();
+    std::fs::write(dir.path().join("cut.png"), &bytes[..idat + 40]).unwrap();
+    let mut b = Bin::default();
+    let pos = b.f32s(&TRI_POS, "VEC3");
+    let uv = b.f32s(&TRI_UV, "VEC2");
+    let doc = json!({
+        "scenes": [{"nodes": [0]}], "scene": 0, "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "material": 0}]}],
+        "images": [{"uri": "cut.png", "name": "the cut one"}], "textures": [{"source": 0}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]
+    });
+    let s = imp(&b.write(dir.path(), doc));
+    assert_eq!(s.report.missing_images, 0);
+    assert_eq!((s.images[0].width, s.images[0].height), (64, 64));
+    let e = s.images[0].decode().unwrap_err();
+    assert!(
+        matches!(e, SceneError::ImageDecode { .. }) && e.to_string().contains("the cut one"),
+        "{e}"
+    );
+}

@@ -127,8 +127,7 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
         file: file.clone(),
         source,
     })?;
-    let (json_bytes, blob) = split_glb(&bytes, &file)?;
-    drop(bytes);
+    let (json_bytes, blob) = split_glb(bytes, &file)?;
     let (doc, tolerated) = parse_document(&json_bytes, &file)?;
     let raw: RawRoot = serde_json::from_slice(&json_bytes).map_err(|e| SceneError::Parse {
         file: file.clone(),
@@ -148,11 +147,11 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
 }
 
 /// Splits a GLB into (JSON chunk, BIN chunk); a `.gltf` is all JSON.
-fn split_glb(bytes: &[u8], file: &str) -> Result<(Vec<u8>, Option<Vec<u8>>), SceneError> {
+fn split_glb(bytes: Vec<u8>, file: &str) -> Result<(Vec<u8>, Option<Vec<u8>>), SceneError> {
     if !bytes.starts_with(b"glTF") {
-        return Ok((bytes.to_vec(), None));
+        return Ok((bytes, None));
     }
-    let glb = gltf::Glb::from_slice(bytes).map_err(|e| SceneError::Parse {
+    let glb = gltf::Glb::from_slice(&bytes).map_err(|e| SceneError::Parse {
         file: file.to_string(),
         reason: format!("GLB: {e}"),
     })?;
@@ -850,8 +849,25 @@ impl<'a> Importer<'a> {
 
     /// Reads an image's header and keeps its path (external file) or encoded bytes.
     fn load_image(&mut self, img: &gltf::Image<'a>) -> (String, Result<ImageSource, String>) {
-        match img.source() {
-            gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+        // `gltf::Image::source` unwraps `mimeType`/`uri`, which validation does not guarantee: read
+        // the JSON fields directly.
+        let json = self.doc.as_json().images.get(img.index());
+        let view = json
+            .and_then(|j| j.buffer_view)
+            .and_then(|v| self.doc.views().nth(v.value()));
+        let uri = json.and_then(|j| j.uri.as_deref());
+        let source = match (view, uri) {
+            (Some(view), _) => ImgSrc::View(view),
+            (None, Some(uri)) => ImgSrc::Uri(uri),
+            (None, None) => {
+                let name = img
+                    .name()
+                    .map_or_else(|| format!("image {}", img.index()), str::to_string);
+                return (name, Err("neither uri nor bufferView".to_string()));
+            }
+        };
+        match source {
+            ImgSrc::Uri(uri) if uri.starts_with("data:") => {
                 let name = img.name().map_or_else(
                     || format!("image {} (data URI)", img.index()),
                     str::to_string,
@@ -859,7 +875,7 @@ impl<'a> Importer<'a> {
                 let res = decode_data_uri(uri).and_then(|b| from_bytes(&name, b.into()));
                 (name, res)
             }
-            gltf::image::Source::Uri { uri, .. } => {
+            ImgSrc::Uri(uri) => {
                 let rel = percent_decode(uri);
                 let path = self.base_dir.join(&rel);
                 let name = img.name().map_or_else(|| rel.clone(), str::to_string);
@@ -879,7 +895,7 @@ impl<'a> Importer<'a> {
                     });
                 (name, res)
             }
-            gltf::image::Source::View { view, .. } => {
+            ImgSrc::View(view) => {
                 let name = img.name().map_or_else(
                     || format!("image {} (buffer view {})", img.index(), view.index()),
                     str::to_string,
@@ -1189,6 +1205,12 @@ impl<'a> Importer<'a> {
             ));
         }
     }
+}
+
+/// Where an image's bytes are.
+enum ImgSrc<'a> {
+    View(gltf::buffer::View<'a>),
+    Uri(&'a str),
 }
 
 /// Per-primitive triangle counts.
