@@ -201,7 +201,7 @@ fn texture_transform_sample_is_baked() {
     assert_eq!(m.wrap, [Wrap::ClampToEdge, Wrap::ClampToEdge]);
     // Quad vertex 1: local (0.5, 0.5, 0), UV (1, 0). "Rotation" node at (-1.1, -0.55, 0), rotation π/8:
     // u' = cos r, v' = -sin r.
-    let r = 0.39269908169872414_f64;
+    let r = std::f64::consts::FRAC_PI_8; // 0.39269908169872414 in the file
     let uv = uv_at(&s, "Rotation", DVec3::new(-0.6, -0.05, 0.0));
     assert!(
         (uv - DVec2::new(r.cos(), -r.sin())).length() < 1e-12,
@@ -236,6 +236,35 @@ fn clear_coat_imports_and_reports_materials() {
     assert_eq!(info.materials.len(), 19);
     assert_eq!(s.report.warnings_total, 0);
     assert!(info.materials.iter().all(|m| m.triangles > 0));
+    assert_eq!(
+        (info.alpha.opaque, info.alpha.mask, info.alpha.blend),
+        (18, 0, 1)
+    );
+    assert_eq!(info.instances, 27);
+    // One textured material (PartialCoating_Alpha.png, BLEND); the others are solid colours (3 distinct).
+    assert_eq!(info.image_kinds.get("file"), Some(&1));
+    assert_eq!(info.image_kinds.get("solid"), Some(&3));
+    let t = info.textures.iter().find(|t| t.kind == "file").unwrap();
+    assert_eq!(
+        (
+            t.width,
+            t.height,
+            t.color.as_str(),
+            t.has_alpha,
+            t.triangles
+        ),
+        (256, 256, "Rgba8", true, 2060)
+    );
+    let m = info
+        .materials
+        .iter()
+        .find(|m| m.name == "Partial_Coating")
+        .unwrap();
+    assert_eq!(
+        (m.alpha, m.uv_bbox_span),
+        (AlphaMode::Blend, Some([1.0, 1.0]))
+    );
+    assert_eq!(info.up, UpAxis::Z);
     let json = serde_json::to_string(&info).unwrap();
     assert!(json.contains("\"triangles\":37116"));
 }
@@ -299,4 +328,79 @@ fn broken_samples_give_specific_errors() {
     ));
     let s = load("issue_3269/texcoord_crash.gltf").unwrap();
     assert_eq!(s.report.missing_texcoords, 1);
+}
+
+/// UV at world point `p` (in the x-y plane) by the affine map of one triangle of material `name`.
+fn uv_affine(s: &Scene, name: &str, p: DVec2) -> DVec2 {
+    let mid = s.materials.iter().position(|m| m.name == name).unwrap();
+    let t = s
+        .triangles
+        .iter()
+        .find(|t| t.material.idx() == mid)
+        .unwrap();
+    let [a, b, c] = s.tri_positions(t).map(|q| q.truncate());
+    let [ua, ub, uc] = s.tri_uvs(t);
+    let (e1, e2, d) = (b - a, c - a, p - a);
+    let det = e1.perp_dot(e2);
+    let (l1, l2) = (d.perp_dot(e2) / det, e1.perp_dot(d) / det);
+    ua + (ub - ua) * l1 + (uc - ua) * l2
+}
+
+/// The sample's markers fix the rotation direction: the arrow tip of the unrotated texture is at UV
+/// (0.5 + 0.27781…, 0.5 + 0.27781…) (the "Not Supported" marker); with the rotation baked, the
+/// "Correct" marker's position must map onto that tip, and the "Error" marker's must not.
+#[test]
+fn texture_transform_rotation_direction_matches_sample_markers() {
+    let s = load("textureTransform/TextureTransformTest.gltf").unwrap();
+    let tip = DVec2::splat(0.5 + 0.2778174593052023);
+    let parent = DVec2::new(-1.1, -0.55);
+    let correct = parent + DVec2::new(-0.07904822439840126, -0.5162674857624154);
+    let error = parent + DVec2::new(0.5162674857624154, 0.07904822439840126);
+    let at_correct = uv_affine(&s, "Rotation", correct);
+    assert!((at_correct - tip).length() < 1e-9, "{at_correct} vs {tip}");
+    assert!((uv_affine(&s, "Rotation", error) - tip).length() > 0.1);
+}
+
+/// Truncations and byte corruptions of a GLB and of a .gltf (with its .bin) never panic.
+#[test]
+fn corrupted_files_never_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = std::fs::read(root().join("BoxTextured-glTF-Binary/BoxTextured.glb")).unwrap();
+    let gltf = std::fs::read(root().join("BoxTextured-glTF/BoxTextured.gltf")).unwrap();
+    let bin = std::fs::read(root().join("BoxTextured-glTF/BoxTextured0.bin")).unwrap();
+    std::fs::copy(
+        root().join("BoxTextured-glTF/CesiumLogoFlat.png"),
+        dir.path().join("CesiumLogoFlat.png"),
+    )
+    .unwrap();
+    let mut cases: Vec<(&str, Vec<u8>, Vec<u8>)> = Vec::new();
+    for cut in (0..glb.len()).step_by(37) {
+        cases.push(("x.glb", glb[..cut].to_vec(), bin.clone()));
+    }
+    for (k, pos) in (0..glb.len()).step_by(11).enumerate() {
+        let mut g = glb.clone();
+        g[pos] ^= [0xff, 0x01, 0x80][k % 3];
+        cases.push(("x.glb", g, bin.clone()));
+    }
+    for cut in (0..bin.len()).step_by(29) {
+        cases.push(("x.gltf", gltf.clone(), bin[..cut].to_vec()));
+    }
+    for pos in (0..bin.len()).step_by(3) {
+        let mut b = bin.clone();
+        b[pos] = 0xff; // indices up to 0xffxx, NaN-pattern floats
+        cases.push(("x.gltf", gltf.clone(), b));
+    }
+    let (mut ok, mut err) = (0, 0);
+    for (name, file, bin) in &cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, file).unwrap();
+        std::fs::write(dir.path().join("BoxTextured0.bin"), bin).unwrap();
+        match std::panic::catch_unwind(|| import(&path, &ImportOptions::default())) {
+            Ok(Ok(_)) => ok += 1,
+            Ok(Err(_)) => err += 1,
+            Err(_) => panic!("panic on a corrupted {name} ({} bytes)", file.len()),
+        }
+    }
+    println!("{} cases: {ok} imported, {err} errors", cases.len());
+    assert!(ok > 0 && err > 0);
 }

@@ -62,14 +62,15 @@ pub enum SceneError {
         reason: String,
     },
     #[error(
-        "{file}: mesh {mesh} ({mesh_name}) primitive {primitive}: {semantic} accessor {accessor}: {reason}"
+        "{file}: mesh {mesh} ({mesh_name}) primitive {primitive}: accessor {accessor}: {reason}"
     )]
+    /// A bad accessor; `reason` starts with the attribute it was read as ("POSITION", "TEXCOORD_1",
+    /// "indices").
     Accessor {
         file: String,
         mesh: usize,
         mesh_name: String,
         primitive: usize,
-        semantic: String,
         accessor: usize,
         reason: String,
     },
@@ -86,21 +87,6 @@ pub enum SceneError {
         position: usize,
         index: u32,
         vertex_count: usize,
-    },
-    #[error(
-        "{file}: mesh {mesh} ({mesh_name}) primitive {primitive}: POSITION accessor {position_accessor} has \
-         {positions} elements but {semantic} accessor {accessor} has {count}"
-    )]
-    AttributeCountMismatch {
-        file: String,
-        mesh: usize,
-        mesh_name: String,
-        primitive: usize,
-        position_accessor: usize,
-        positions: usize,
-        semantic: String,
-        accessor: usize,
-        count: usize,
     },
     #[error("{file}: node {node} ({node_name}) is its own ancestor (recursive node graph)")]
     RecursiveNodes {
@@ -141,8 +127,7 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
         file: file.clone(),
         source,
     })?;
-    let (json_bytes, blob) = split_glb(&bytes, &file)?;
-    drop(bytes);
+    let (json_bytes, blob) = split_glb(bytes, &file)?;
     let (doc, tolerated) = parse_document(&json_bytes, &file)?;
     let raw: RawRoot = serde_json::from_slice(&json_bytes).map_err(|e| SceneError::Parse {
         file: file.clone(),
@@ -162,11 +147,11 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
 }
 
 /// Splits a GLB into (JSON chunk, BIN chunk); a `.gltf` is all JSON.
-fn split_glb(bytes: &[u8], file: &str) -> Result<(Vec<u8>, Option<Vec<u8>>), SceneError> {
+fn split_glb(bytes: Vec<u8>, file: &str) -> Result<(Vec<u8>, Option<Vec<u8>>), SceneError> {
     if !bytes.starts_with(b"glTF") {
-        return Ok((bytes.to_vec(), None));
+        return Ok((bytes, None));
     }
-    let glb = gltf::Glb::from_slice(bytes).map_err(|e| SceneError::Parse {
+    let glb = gltf::Glb::from_slice(&bytes).map_err(|e| SceneError::Parse {
         file: file.to_string(),
         reason: format!("GLB: {e}"),
     })?;
@@ -864,8 +849,25 @@ impl<'a> Importer<'a> {
 
     /// Reads an image's header and keeps its path (external file) or encoded bytes.
     fn load_image(&mut self, img: &gltf::Image<'a>) -> (String, Result<ImageSource, String>) {
-        match img.source() {
-            gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+        // `gltf::Image::source` unwraps `mimeType`/`uri`, which validation does not guarantee: read
+        // the JSON fields directly.
+        let json = self.doc.as_json().images.get(img.index());
+        let view = json
+            .and_then(|j| j.buffer_view)
+            .and_then(|v| self.doc.views().nth(v.value()));
+        let uri = json.and_then(|j| j.uri.as_deref());
+        let source = match (view, uri) {
+            (Some(view), _) => ImgSrc::View(view),
+            (None, Some(uri)) => ImgSrc::Uri(uri),
+            (None, None) => {
+                let name = img
+                    .name()
+                    .map_or_else(|| format!("image {}", img.index()), str::to_string);
+                return (name, Err("neither uri nor bufferView".to_string()));
+            }
+        };
+        match source {
+            ImgSrc::Uri(uri) if uri.starts_with("data:") => {
                 let name = img.name().map_or_else(
                     || format!("image {} (data URI)", img.index()),
                     str::to_string,
@@ -873,7 +875,7 @@ impl<'a> Importer<'a> {
                 let res = decode_data_uri(uri).and_then(|b| from_bytes(&name, b.into()));
                 (name, res)
             }
-            gltf::image::Source::Uri { uri, .. } => {
+            ImgSrc::Uri(uri) => {
                 let rel = percent_decode(uri);
                 let path = self.base_dir.join(&rel);
                 let name = img.name().map_or_else(|| rel.clone(), str::to_string);
@@ -893,7 +895,7 @@ impl<'a> Importer<'a> {
                     });
                 (name, res)
             }
-            gltf::image::Source::View { view, .. } => {
+            ImgSrc::View(view) => {
                 let name = img.name().map_or_else(
                     || format!("image {} (buffer view {})", img.index(), view.index()),
                     str::to_string,
@@ -932,9 +934,8 @@ impl<'a> Importer<'a> {
             mesh: ctx.mesh,
             mesh_name: ctx.mesh_name.clone(),
             primitive: ctx.primitive,
-            semantic: semantic.to_string(),
             accessor: e.accessor,
-            reason: e.reason,
+            reason: format!("{semantic}: {}", e.reason),
         }
     }
 
@@ -998,16 +999,17 @@ impl<'a> Importer<'a> {
                 )));
             };
             if uv_acc.count() != n {
-                return Err(SceneError::AttributeCountMismatch {
+                return Err(SceneError::Accessor {
                     file: self.file.clone(),
                     mesh: ctx.mesh,
                     mesh_name: ctx.mesh_name.clone(),
                     primitive: ctx.primitive,
-                    position_accessor: pos_acc.index(),
-                    positions: n,
-                    semantic,
                     accessor: uv_acc.index(),
-                    count: uv_acc.count(),
+                    reason: format!(
+                        "{semantic} has {} elements but POSITION (accessor {}) has {n}",
+                        uv_acc.count(),
+                        pos_acc.index()
+                    ),
                 });
             }
             self.load_accessor_buffers(uv_acc.index())?;
@@ -1203,6 +1205,12 @@ impl<'a> Importer<'a> {
             ));
         }
     }
+}
+
+/// Where an image's bytes are.
+enum ImgSrc<'a> {
+    View(gltf::buffer::View<'a>),
+    Uri(&'a str),
 }
 
 /// Per-primitive triangle counts.
@@ -1648,6 +1656,16 @@ mod tests {
             UpAxis::X
         );
         assert_eq!(auto_up(Some((DVec3::ZERO, DVec3::ONE))), UpAxis::Y);
+    }
+
+    #[test]
+    fn error_stays_small() {
+        // clippy::result_large_err: keep `Result<_, SceneError>` cheap to return.
+        assert!(
+            std::mem::size_of::<SceneError>() < 128,
+            "{}",
+            std::mem::size_of::<SceneError>()
+        );
     }
 
     #[test]
