@@ -48,7 +48,9 @@ impl Camera {
     /// `-Z`, and an `up` (nearly) parallel to the view direction is replaced by the world axis least
     /// aligned with it (so looking straight down works with `up = +Y`).
     pub fn basis(&self) -> Basis {
-        let forward = (self.target - self.eye).try_normalize().unwrap_or(DVec3::NEG_Z);
+        let forward = (self.target - self.eye)
+            .try_normalize()
+            .unwrap_or(DVec3::NEG_Z);
         let up_hint = self.up.try_normalize().unwrap_or(DVec3::Y);
         let right = forward
             .cross(up_hint)
@@ -72,7 +74,11 @@ impl Camera {
     /// View matrix of the camera **at the origin** (rotation only; right-handed, looking down `-Z` in
     /// view space). Apply it to `p - eye`.
     pub fn view_relative(&self) -> DMat4 {
-        let Basis { forward: f, right: r, up: u } = self.basis();
+        let Basis {
+            forward: f,
+            right: r,
+            up: u,
+        } = self.basis();
         DMat4::from_cols(
             DVec4::new(r.x, u.x, -f.x, 0.0),
             DVec4::new(r.y, u.y, -f.y, 0.0),
@@ -104,7 +110,11 @@ impl Camera {
 
     /// The six planes of the view volume; see [`Frustum`].
     pub fn frustum(&self) -> Frustum {
-        let Basis { forward: f, right: r, up: u } = self.basis();
+        let Basis {
+            forward: f,
+            right: r,
+            up: u,
+        } = self.basis();
         let tx = self.tan_half_fov_x();
         let ty = self.tan_half_fov_y();
         // A relative point p has x = p·r, y = p·u, depth z = p·f; inside iff |x| ≤ tx z, |y| ≤ ty z,
@@ -118,7 +128,10 @@ impl Camera {
             f.extend(-self.near),
             (-f).extend(self.far),
         ];
-        Frustum { origin: self.eye, planes }
+        Frustum {
+            origin: self.eye,
+            planes,
+        }
     }
 }
 
@@ -188,7 +201,12 @@ impl Frustum {
     /// Classifies `[lo, hi]` against the planes in `mask` only (the others are known to hold for the
     /// box), returning the class and the planes the box still straddles (for its children). Per plane the
     /// box corner furthest along the normal decides "outside", the nearest one "inside".
-    pub fn classify_aabb_masked(&self, lo: DVec3, hi: DVec3, mask: PlaneMask) -> (Visibility, PlaneMask) {
+    pub fn classify_aabb_masked(
+        &self,
+        lo: DVec3,
+        hi: DVec3,
+        mask: PlaneMask,
+    ) -> (Visibility, PlaneMask) {
         if mask.0 == 0 {
             return (Visibility::Inside, PlaneMask::NONE);
         }
@@ -203,8 +221,9 @@ impl Frustum {
             let n = plane.truncate();
             let far_corner = DVec3::select(n.cmpge(DVec3::ZERO), hi, lo);
             let near_corner = DVec3::select(n.cmpge(DVec3::ZERO), lo, hi);
-            // `!(x >= 0)` so a NaN box counts as outside rather than visible.
-            if !(n.dot(far_corner) + plane.w >= 0.0) {
+            let furthest = n.dot(far_corner) + plane.w;
+            // A NaN box counts as outside rather than visible.
+            if furthest < 0.0 || furthest.is_nan() {
                 return (Visibility::Outside, PlaneMask::NONE);
             }
             if n.dot(near_corner) + plane.w < 0.0 {
@@ -221,7 +240,9 @@ impl Frustum {
     /// True if the world point `p` is inside or on all planes.
     pub fn contains_point(&self, p: DVec3) -> bool {
         let q = p - self.origin;
-        self.planes.iter().all(|pl| pl.truncate().dot(q) + pl.w >= 0.0)
+        self.planes
+            .iter()
+            .all(|pl| pl.truncate().dot(q) + pl.w >= 0.0)
     }
 }
 
@@ -275,8 +296,14 @@ pub enum CameraError {
         previous_time: f64,
     },
     #[error("{path}: keyframe {keyframe}: field of view {fov}° is outside (0°, 180°)")]
-    BadFov { path: PathBuf, keyframe: usize, fov: f64 },
-    #[error("{path}: keyframe {keyframe}: eye and target coincide, the view direction is undefined")]
+    BadFov {
+        path: PathBuf,
+        keyframe: usize,
+        fov: f64,
+    },
+    #[error(
+        "{path}: keyframe {keyframe}: eye and target coincide, the view direction is undefined"
+    )]
     DegenerateView { path: PathBuf, keyframe: usize },
     #[error("{path}: {field} is {value}, it must be finite and > 0 (and near < far)")]
     BadLens {
@@ -286,7 +313,9 @@ pub enum CameraError {
     },
     #[error("{path}: up vector {up:?} must be finite and non-zero")]
     BadUp { path: PathBuf, up: [f64; 3] },
-    #[error("scene bounds {lo:?}..{hi:?} are not finite or not ordered; cannot generate a {kind} path")]
+    #[error(
+        "scene bounds {lo:?}..{hi:?} are not finite or not ordered; cannot generate a {kind} path"
+    )]
     BadBounds {
         kind: &'static str,
         lo: [f64; 3],
@@ -367,12 +396,13 @@ impl CameraPath {
 
     /// Parses and validates JSON text; `origin` names the source in errors.
     pub fn from_json(text: &str, origin: &Path) -> Result<CameraPath, CameraError> {
-        let parsed: CameraPath = serde_json::from_str(text).map_err(|source| CameraError::Json {
-            path: origin.to_owned(),
-            line: source.line(),
-            column: source.column(),
-            source,
-        })?;
+        let parsed: CameraPath =
+            serde_json::from_str(text).map_err(|source| CameraError::Json {
+                path: origin.to_owned(),
+                line: source.line(),
+                column: source.column(),
+                source,
+            })?;
         parsed.validate(origin)?;
         Ok(parsed)
     }
@@ -400,15 +430,30 @@ impl CameraPath {
         }
         let up = DVec3::from_array(self.up);
         if !up.is_finite() || up.length_squared() == 0.0 {
-            return Err(CameraError::BadUp { path: path(), up: self.up });
+            return Err(CameraError::BadUp {
+                path: path(),
+                up: self.up,
+            });
         }
-        for (field, value) in [("aspect", self.aspect), ("near", self.near), ("far", self.far)] {
+        for (field, value) in [
+            ("aspect", self.aspect),
+            ("near", self.near),
+            ("far", self.far),
+        ] {
             if !(value.is_finite() && value > 0.0) {
-                return Err(CameraError::BadLens { path: path(), field, value });
+                return Err(CameraError::BadLens {
+                    path: path(),
+                    field,
+                    value,
+                });
             }
         }
         if self.near >= self.far {
-            return Err(CameraError::BadLens { path: path(), field: "near", value: self.near });
+            return Err(CameraError::BadLens {
+                path: path(),
+                field: "near",
+                value: self.near,
+            });
         }
         for (i, k) in self.keyframes.iter().enumerate() {
             let fields = [
@@ -422,16 +467,28 @@ impl CameraPath {
                 ("fov", k.fov),
             ];
             if let Some(&(field, value)) = fields.iter().find(|(_, v)| !v.is_finite()) {
-                return Err(CameraError::NonFinite { path: path(), keyframe: i, field, value });
+                return Err(CameraError::NonFinite {
+                    path: path(),
+                    keyframe: i,
+                    field,
+                    value,
+                });
             }
             if !(k.fov > 0.0 && k.fov < 180.0) {
-                return Err(CameraError::BadFov { path: path(), keyframe: i, fov: k.fov });
+                return Err(CameraError::BadFov {
+                    path: path(),
+                    keyframe: i,
+                    fov: k.fov,
+                });
             }
             if k.eye == k.target {
-                return Err(CameraError::DegenerateView { path: path(), keyframe: i });
+                return Err(CameraError::DegenerateView {
+                    path: path(),
+                    keyframe: i,
+                });
             }
             if let Some(prev) = i.checked_sub(1).and_then(|p| self.keyframes.get(p))
-                && !(k.time > prev.time)
+                && k.time <= prev.time
             {
                 return Err(CameraError::Unsorted {
                     path: path(),
@@ -506,10 +563,21 @@ impl CameraPath {
         let h = time(i + 1) - time(i);
         let delta = (p1 - p0) / h;
         // Secant slopes of the neighbouring segments (None at the ends).
-        let before = i.checked_sub(1).and_then(|j| Some(((p0 - pos(j)?) / (time(i) - time(j)), time(i) - time(j))));
-        let after = pos(i + 2).map(|p2| ((p2 - p1) / (time(i + 2) - time(i + 1)), time(i + 2) - time(i + 1)));
-        let m0 = before.map_or(delta, |(d_prev, h_prev)| pchip_slope(d_prev, h_prev, delta, h));
-        let m1 = after.map_or(delta, |(d_next, h_next)| pchip_slope(delta, h, d_next, h_next));
+        let before = i
+            .checked_sub(1)
+            .and_then(|j| Some(((p0 - pos(j)?) / (time(i) - time(j)), time(i) - time(j))));
+        let after = pos(i + 2).map(|p2| {
+            (
+                (p2 - p1) / (time(i + 2) - time(i + 1)),
+                time(i + 2) - time(i + 1),
+            )
+        });
+        let m0 = before.map_or(delta, |(d_prev, h_prev)| {
+            pchip_slope(d_prev, h_prev, delta, h)
+        });
+        let m1 = after.map_or(delta, |(d_next, h_next)| {
+            pchip_slope(delta, h, d_next, h_next)
+        });
         let s2 = s * s;
         let s3 = s2 * s;
         let h10 = s3 - 2.0 * s2 + s;
@@ -533,7 +601,11 @@ impl CameraPath {
         make: impl FnOnce(&Frame) -> (Vec<Keyframe>, f64),
     ) -> Result<CameraPath, CameraError> {
         if !(lo.is_finite() && hi.is_finite() && lo.cmple(hi).all()) {
-            return Err(CameraError::BadBounds { kind, lo: lo.to_array(), hi: hi.to_array() });
+            return Err(CameraError::BadBounds {
+                kind,
+                lo: lo.to_array(),
+                hi: hi.to_array(),
+            });
         }
         let frame = Frame::new(lo, hi, up);
         let (keyframes, far) = make(&frame);
@@ -559,7 +631,9 @@ impl CameraPath {
             let centre = f.at(0.5, 0.5);
             // A building away from the quadtree's first split lines.
             let building = f.at(0.62, 0.37);
-            let street_off = (f.size * 0.02).max(DVec2::splat(1.0)).min(DVec2::splat(25.0));
+            let street_off = (f.size * 0.02)
+                .max(DVec2::splat(1.0))
+                .min(DVec2::splat(25.0));
             let street = f.clamp_plane(building - street_off);
             let overview = (f.top + 0.9 * f.diag).max(f.ground + 20.0);
             let low = f.ground + (0.02 * f.diag).clamp(1.7, 80.0);
@@ -567,14 +641,49 @@ impl CameraPath {
             let near_eye = f.clamp_plane(building - street_off * 4.0);
             let look = f.ground + (f.top - f.ground).min(10.0);
             let ks = vec![
-                f.key(0.0, centre - f.size * 0.01, overview, centre, f.ground, 60.0),
-                f.key(4.0, f.lerp_plane(centre, building, 0.6), mid, building, f.ground, 60.0),
+                f.key(
+                    0.0,
+                    centre - f.size * 0.01,
+                    overview,
+                    centre,
+                    f.ground,
+                    60.0,
+                ),
+                f.key(
+                    4.0,
+                    f.lerp_plane(centre, building, 0.6),
+                    mid,
+                    building,
+                    f.ground,
+                    60.0,
+                ),
                 f.key(7.0, near_eye, low, building, f.ground, 60.0),
                 f.key(9.0, street, f.ground + 1.7, building, look, 75.0),
-                f.key(11.0, f.lerp_plane(street, building, 0.5), f.ground + 1.7, building, look, 75.0),
+                f.key(
+                    11.0,
+                    f.lerp_plane(street, building, 0.5),
+                    f.ground + 1.7,
+                    building,
+                    look,
+                    75.0,
+                ),
                 f.key(13.0, near_eye, low, building, f.ground, 60.0),
-                f.key(16.0, f.lerp_plane(centre, building, 0.6), mid, building, f.ground, 60.0),
-                f.key(20.0, centre + f.size * 0.01, overview, centre, f.ground, 60.0),
+                f.key(
+                    16.0,
+                    f.lerp_plane(centre, building, 0.6),
+                    mid,
+                    building,
+                    f.ground,
+                    60.0,
+                ),
+                f.key(
+                    20.0,
+                    centre + f.size * 0.01,
+                    overview,
+                    centre,
+                    f.ground,
+                    60.0,
+                ),
             ];
             (ks, f.far(overview))
         })
@@ -601,7 +710,14 @@ impl CameraPath {
                     let s = i as f64 / n as f64;
                     let eye = a.lerp(b, s);
                     let target = eye + dir * 50.0;
-                    f.key(duration * s, eye, f.ground + h, target, f.ground + h * 0.5, 70.0)
+                    f.key(
+                        duration * s,
+                        eye,
+                        f.ground + h,
+                        target,
+                        f.ground + h * 0.5,
+                        70.0,
+                    )
                 })
                 .collect();
             (ks, f.far(f.ground + 10.0))
@@ -624,7 +740,14 @@ impl CameraPath {
                 .map(|i| {
                     let a = std::f64::consts::TAU * i as f64 / steps as f64;
                     let eye = centre + DVec2::new(a.cos(), a.sin()) * radius;
-                    f.key_unclamped(30.0 * i as f64 / steps as f64, eye, height, centre, f.ground, 60.0)
+                    f.key_unclamped(
+                        30.0 * i as f64 / steps as f64,
+                        eye,
+                        height,
+                        centre,
+                        f.ground,
+                        60.0,
+                    )
                 })
                 .collect();
             (ks, f.far(height))
@@ -696,11 +819,34 @@ impl Frame {
     }
 
     /// A keyframe with eye and target clamped to the footprint.
-    fn key(&self, time: f64, eye: DVec2, eye_h: f64, target: DVec2, target_h: f64, fov: f64) -> Keyframe {
-        self.key_unclamped(time, self.clamp_plane(eye), eye_h, self.clamp_plane(target), target_h, fov)
+    fn key(
+        &self,
+        time: f64,
+        eye: DVec2,
+        eye_h: f64,
+        target: DVec2,
+        target_h: f64,
+        fov: f64,
+    ) -> Keyframe {
+        self.key_unclamped(
+            time,
+            self.clamp_plane(eye),
+            eye_h,
+            self.clamp_plane(target),
+            target_h,
+            fov,
+        )
     }
 
-    fn key_unclamped(&self, time: f64, eye: DVec2, eye_h: f64, target: DVec2, target_h: f64, fov: f64) -> Keyframe {
+    fn key_unclamped(
+        &self,
+        time: f64,
+        eye: DVec2,
+        eye_h: f64,
+        target: DVec2,
+        target_h: f64,
+        fov: f64,
+    ) -> Keyframe {
         Keyframe {
             time,
             eye: self.point(eye, eye_h).to_array(),
@@ -733,7 +879,9 @@ impl std::str::FromStr for PathKind {
             "street" => Ok(PathKind::Street),
             "orbit" => Ok(PathKind::Orbit),
             _ if s.to_ascii_lowercase().ends_with(".json") => Ok(PathKind::File(PathBuf::from(s))),
-            _ => Err(CameraError::UnknownKind { given: s.to_owned() }),
+            _ => Err(CameraError::UnknownKind {
+                given: s.to_owned(),
+            }),
         }
     }
 }
@@ -779,13 +927,20 @@ mod tests {
 
     #[test]
     fn basis_is_orthonormal_and_right_handed_even_looking_straight_down() {
-        for target in [DVec3::new(0.0, 0.0, -5.0), DVec3::new(0.0, -5.0, 0.0), DVec3::new(0.0, 5.0, 0.0)] {
+        for target in [
+            DVec3::new(0.0, 0.0, -5.0),
+            DVec3::new(0.0, -5.0, 0.0),
+            DVec3::new(0.0, 5.0, 0.0),
+        ] {
             let b = cam(DVec3::ZERO, target).basis();
             assert!((b.forward.length() - 1.0).abs() < 1e-12);
             assert!((b.right.length() - 1.0).abs() < 1e-12);
             assert!((b.up.length() - 1.0).abs() < 1e-12);
             assert!(b.forward.dot(b.right).abs() < 1e-12 && b.forward.dot(b.up).abs() < 1e-12);
-            assert!((b.right.cross(b.up) + b.forward).length() < 1e-12, "right × up = -forward");
+            assert!(
+                (b.right.cross(b.up) + b.forward).length() < 1e-12,
+                "right × up = -forward"
+            );
         }
         // Looking down -Z with up +Y: right is +X.
         let b = cam(DVec3::ZERO, DVec3::NEG_Z).basis();
@@ -794,25 +949,41 @@ mod tests {
 
     #[test]
     fn projection_agrees_with_frustum_planes() {
-        let c = Camera { eye: DVec3::new(4.5e6, 120.0, 5.5e6), ..cam(DVec3::ZERO, DVec3::ZERO) };
-        let c = Camera { target: c.eye + DVec3::new(1.0, -0.3, -2.0), ..c };
+        let c = Camera {
+            eye: DVec3::new(4.5e6, 120.0, 5.5e6),
+            ..cam(DVec3::ZERO, DVec3::ZERO)
+        };
+        let c = Camera {
+            target: c.eye + DVec3::new(1.0, -0.3, -2.0),
+            ..c
+        };
         let vp = c.view_proj_relative();
         let f = c.frustum();
         let b = c.basis();
         // Points at the frustum corners (slightly inside / outside) land inside / outside clip space.
         for depth in [1.0 + 1e-6, 50.0, 100.0 - 1e-6] {
-            for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (0.3, -0.2)] {
+            for (sx, sy) in [
+                (-1.0, -1.0),
+                (1.0, -1.0),
+                (-1.0, 1.0),
+                (1.0, 1.0),
+                (0.3, -0.2),
+            ] {
                 for (k, inside) in [(0.999, true), (1.001, false)] {
                     let x = sx * k * c.tan_half_fov_x() * depth;
                     let y = sy * k * c.tan_half_fov_y() * depth;
                     let rel = b.forward * depth + b.right * x + b.up * y;
                     let clip = vp * rel.extend(1.0);
                     let ndc = clip.truncate() / clip.w;
-                    let in_clip = ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0 && (0.0..=1.0).contains(&ndc.z);
+                    let in_clip =
+                        ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0 && (0.0..=1.0).contains(&ndc.z);
                     let in_frustum = f.contains_point(c.eye + rel);
                     let expect = inside || (sx.abs() < 1.0 && sy.abs() < 1.0);
                     assert_eq!(in_clip, expect, "clip depth {depth} ({sx},{sy}) k {k}");
-                    assert_eq!(in_frustum, expect, "frustum depth {depth} ({sx},{sy}) k {k}");
+                    assert_eq!(
+                        in_frustum, expect,
+                        "frustum depth {depth} ({sx},{sy}) k {k}"
+                    );
                 }
             }
         }
@@ -827,7 +998,11 @@ mod tests {
     fn view_proj_relative_is_translation_invariant() {
         let a = cam(DVec3::new(1.0, 2.0, 3.0), DVec3::new(4.0, 0.0, -7.0));
         let t = DVec3::new(4.5e6, 120.0, 5.5e6);
-        let b = Camera { eye: a.eye + t, target: a.target + t, ..a };
+        let b = Camera {
+            eye: a.eye + t,
+            target: a.target + t,
+            ..a
+        };
         let (ma, mb) = (a.view_proj_relative(), b.view_proj_relative());
         assert!(ma.abs_diff_eq(mb, 1e-9), "{ma:?} vs {mb:?}");
     }
@@ -837,16 +1012,51 @@ mod tests {
         let c = cam(DVec3::ZERO, DVec3::NEG_Z);
         let f = c.frustum();
         let v = |lo: [f64; 3], hi: [f64; 3]| f.classify_aabb(lo.into(), hi.into());
-        assert_eq!(v([-1.0, -1.0, -20.0], [1.0, 1.0, -10.0]), Visibility::Inside);
-        assert_eq!(v([-1.0, -1.0, 5.0], [1.0, 1.0, 10.0]), Visibility::Outside, "behind");
-        assert_eq!(v([-1.0, -1.0, -0.5], [1.0, 1.0, 0.5]), Visibility::Outside, "before near");
-        assert_eq!(v([-1.0, -1.0, -2.0], [1.0, 1.0, 0.5]), Visibility::Intersects, "through near");
-        assert_eq!(v([-1.0, -1.0, -150.0], [1.0, 1.0, -120.0]), Visibility::Outside, "beyond far");
-        assert_eq!(v([-1.0, -1.0, -150.0], [1.0, 1.0, -90.0]), Visibility::Intersects, "through far");
+        assert_eq!(
+            v([-1.0, -1.0, -20.0], [1.0, 1.0, -10.0]),
+            Visibility::Inside
+        );
+        assert_eq!(
+            v([-1.0, -1.0, 5.0], [1.0, 1.0, 10.0]),
+            Visibility::Outside,
+            "behind"
+        );
+        assert_eq!(
+            v([-1.0, -1.0, -0.5], [1.0, 1.0, 0.5]),
+            Visibility::Outside,
+            "before near"
+        );
+        assert_eq!(
+            v([-1.0, -1.0, -2.0], [1.0, 1.0, 0.5]),
+            Visibility::Intersects,
+            "through near"
+        );
+        assert_eq!(
+            v([-1.0, -1.0, -150.0], [1.0, 1.0, -120.0]),
+            Visibility::Outside,
+            "beyond far"
+        );
+        assert_eq!(
+            v([-1.0, -1.0, -150.0], [1.0, 1.0, -90.0]),
+            Visibility::Intersects,
+            "through far"
+        );
         // fov 90°: at depth 10 the half width is 10; aspect 2 → half height 5.
-        assert_eq!(v([10.5, -1.0, -10.0], [12.0, 1.0, -10.0]), Visibility::Outside, "right");
-        assert_eq!(v([-1.0, 5.5, -10.0], [1.0, 6.0, -10.0]), Visibility::Outside, "top");
-        assert_eq!(v([-1.0, 4.5, -10.0], [1.0, 6.0, -10.0]), Visibility::Intersects, "top edge");
+        assert_eq!(
+            v([10.5, -1.0, -10.0], [12.0, 1.0, -10.0]),
+            Visibility::Outside,
+            "right"
+        );
+        assert_eq!(
+            v([-1.0, 5.5, -10.0], [1.0, 6.0, -10.0]),
+            Visibility::Outside,
+            "top"
+        );
+        assert_eq!(
+            v([-1.0, 4.5, -10.0], [1.0, 6.0, -10.0]),
+            Visibility::Intersects,
+            "top edge"
+        );
         // Masked: a box known inside all planes is not tested at all.
         assert_eq!(
             f.classify_aabb_masked(DVec3::splat(1e9), DVec3::splat(1e9), PlaneMask::NONE),
@@ -857,14 +1067,21 @@ mod tests {
             DVec3::new(1.0, 1.0, -90.0),
             PlaneMask::ALL,
         );
-        assert_eq!((cls, mask), (Visibility::Intersects, PlaneMask(1 << 5)), "straddles far only");
+        assert_eq!(
+            (cls, mask),
+            (Visibility::Intersects, PlaneMask(1 << 5)),
+            "straddles far only"
+        );
         let nan = DVec3::splat(f64::NAN);
         assert_eq!(f.classify_aabb(nan, nan), Visibility::Outside);
     }
 
     #[test]
     fn world_planes_match_relative_planes() {
-        let c = cam(DVec3::new(100.0, 20.0, -30.0), DVec3::new(120.0, 10.0, -60.0));
+        let c = cam(
+            DVec3::new(100.0, 20.0, -30.0),
+            DVec3::new(120.0, 10.0, -60.0),
+        );
         let f = c.frustum();
         let p = DVec3::new(110.0, 15.0, -50.0);
         for (w, r) in f.world_planes().iter().zip(f.planes.iter()) {
@@ -878,20 +1095,38 @@ mod tests {
     fn distance_to_boxes() {
         let (lo, hi) = (DVec3::new(0.0, 0.0, 0.0), DVec3::new(10.0, 5.0, 10.0));
         assert_eq!(distance_to_aabb(DVec3::new(5.0, 2.0, 5.0), lo, hi), 0.0);
-        assert_eq!(distance_to_aabb(DVec3::new(10.0, 5.0, 10.0), lo, hi), 0.0, "on a corner");
+        assert_eq!(
+            distance_to_aabb(DVec3::new(10.0, 5.0, 10.0), lo, hi),
+            0.0,
+            "on a corner"
+        );
         assert_eq!(distance_to_aabb(DVec3::new(13.0, 2.0, 14.0), lo, hi), 5.0);
         assert_eq!(distance_to_aabb(DVec3::new(5.0, -7.0, 5.0), lo, hi), 7.0);
         let t = DVec3::new(4.5e6, 120.0, 5.5e6);
-        assert_eq!(distance_to_aabb(DVec3::new(13.0, 2.0, 14.0) + t, lo + t, hi + t), 5.0);
+        assert_eq!(
+            distance_to_aabb(DVec3::new(13.0, 2.0, 14.0) + t, lo + t, hi + t),
+            5.0
+        );
     }
 
     #[test]
     fn pchip_never_overshoots_keyframes() {
         let path = CameraPath {
-            keyframes: [(0.0, 100.0), (1.0, 10.0), (1.5, 1.7), (4.0, 1.7), (5.0, 300.0)]
-                .iter()
-                .map(|&(t, h)| Keyframe { time: t, eye: [t * 3.0, h, 0.0], target: [0.0, 0.0, -1.0], fov: 60.0 })
-                .collect(),
+            keyframes: [
+                (0.0, 100.0),
+                (1.0, 10.0),
+                (1.5, 1.7),
+                (4.0, 1.7),
+                (5.0, 300.0),
+            ]
+            .iter()
+            .map(|&(t, h)| Keyframe {
+                time: t,
+                eye: [t * 3.0, h, 0.0],
+                target: [0.0, 0.0, -1.0],
+                fov: 60.0,
+            })
+            .collect(),
             up: [0.0, 1.0, 0.0],
             aspect: 1.0,
             near: 0.1,
@@ -901,7 +1136,7 @@ mod tests {
         for i in 0..=1000 {
             let t = i as f64 * 0.005;
             let y = path.sample(t).eye.y;
-            assert!(y >= 1.7 - 1e-12 && y <= 300.0, "t {t}: {y}");
+            assert!((1.7 - 1e-12..=300.0).contains(&y), "t {t}: {y}");
             if t <= 1.5 {
                 assert!(y <= prev + 1e-12, "monotone decreasing at t {t}");
             }

@@ -57,7 +57,12 @@ pub enum SelectError {
     BadBuildParams { field: &'static str, value: f64 },
 }
 
-fn check(field: &'static str, value: f64, max: f64, err: fn(&'static str, f64) -> SelectError) -> Result<f64, SelectError> {
+fn check(
+    field: &'static str,
+    value: f64,
+    max: f64,
+    err: fn(&'static str, f64) -> SelectError,
+) -> Result<f64, SelectError> {
     if value.is_finite() && value > 0.0 && value < max {
         Ok(value)
     } else {
@@ -80,10 +85,20 @@ fn check(field: &'static str, value: f64, max: f64, err: fn(&'static str, f64) -
 pub fn min_distance_scale(built: &BuildParams, opts: &SelectOptions) -> Result<f64, SelectError> {
     let b = |f, v| SelectError::BadBuildParams { field: f, value: v };
     let o = |f, v| SelectError::BadOption { field: f, value: v };
-    let w0 = check("screen_width", f64::from(built.screen_width), f64::INFINITY, b)?;
+    let w0 = check(
+        "screen_width",
+        f64::from(built.screen_width),
+        f64::INFINITY,
+        b,
+    )?;
     let r0 = check("texel_ratio", built.texel_ratio, f64::INFINITY, b)?;
     let c0 = check("fov_deg", built.fov_deg, 180.0, b)?;
-    let w = check("screen_width", f64::from(opts.screen_width), f64::INFINITY, o)?;
+    let w = check(
+        "screen_width",
+        f64::from(opts.screen_width),
+        f64::INFINITY,
+        o,
+    )?;
     let r = check("texel_ratio", opts.texel_ratio, f64::INFINITY, o)?;
     let c = check("fov_x_deg", opts.fov_x_deg, 180.0, o)?;
     let tan_half = |deg: f64| (deg.to_radians() * 0.5).tan();
@@ -160,7 +175,13 @@ pub fn atlas_suffices(distance: f64, min_distance: f64, scale: f64) -> bool {
 /// [`PlaneMask::ALL`] for a root, the parent's [`NodeEval::planes`] below it), distance and the
 /// atlas-sufficiency test.
 #[inline]
-pub fn evaluate(node: &NodeRecord, frustum: &Frustum, eye: DVec3, planes: PlaneMask, scale: f64) -> NodeEval {
+pub fn evaluate(
+    node: &NodeRecord,
+    frustum: &Frustum,
+    eye: DVec3,
+    planes: PlaneMask,
+    scale: f64,
+) -> NodeEval {
     let lo = DVec3::from_array(node.bounds_min);
     let hi = DVec3::from_array(node.bounds_max);
     let (visibility, planes) = frustum.classify_aabb_masked(lo, hi, planes);
@@ -218,9 +239,15 @@ pub fn traverse(
     if nodes.is_empty() {
         return;
     }
-    pending.push(Pending { node: 0, planes: PlaneMask::ALL, outside: false });
+    pending.push(Pending {
+        node: 0,
+        planes: PlaneMask::ALL,
+        outside: false,
+    });
     while let Some(p) = pending.pop() {
-        let Some(node) = nodes.get(p.node as usize) else { continue };
+        let Some(node) = nodes.get(p.node as usize) else {
+            continue;
+        };
         let eval = if p.outside {
             let lo = DVec3::from_array(node.bounds_min);
             let hi = DVec3::from_array(node.bounds_max);
@@ -241,7 +268,11 @@ pub fn traverse(
         // Reverse quadrant order on the stack → quadrant order when popped.
         for &c in node.children.iter().rev() {
             if c != NONE && c > p.node && (c as usize) < nodes.len() {
-                pending.push(Pending { node: c, planes: eval.planes, outside });
+                pending.push(Pending {
+                    node: c,
+                    planes: eval.planes,
+                    outside,
+                });
             }
         }
     }
@@ -254,33 +285,45 @@ pub fn traverse(
 /// A leaf is a node with a leaf record (`leaf != NONE`). Every triangle of a leaf that is not outside the
 /// frustum is drawn by exactly one item, and no item is an ancestor of another.
 pub fn select(nodes: &[NodeRecord], camera: &Camera, frustum: &Frustum, scale: f64, out: &mut Cut) {
-    let Cut { items, visited, culled, stack } = out;
+    let Cut {
+        items,
+        visited,
+        culled,
+        stack,
+    } = out;
     items.clear();
     *visited = 0;
     *culled = 0;
-    traverse(nodes, frustum, camera.eye, scale, stack, |id, node, eval| {
-        *visited += 1;
-        if eval.visibility == Visibility::Outside {
-            *culled += 1;
-            return Step::Stop;
-        }
-        let source = if eval.atlas_suffices {
-            Source::Atlas
-        } else if node.leaf != NONE {
-            Source::Original
-        } else {
-            return Step::Descend;
-        };
-        items.push(CutItem {
-            node: id,
-            source,
-            level: u8::try_from(node.level).unwrap_or(u8::MAX),
-            first_index: node.first_index,
-            index_count: node.index_count,
-            distance: eval.distance,
-        });
-        Step::Stop
-    });
+    traverse(
+        nodes,
+        frustum,
+        camera.eye,
+        scale,
+        stack,
+        |id, node, eval| {
+            *visited += 1;
+            if eval.visibility == Visibility::Outside {
+                *culled += 1;
+                return Step::Stop;
+            }
+            let source = if eval.atlas_suffices {
+                Source::Atlas
+            } else if node.leaf != NONE {
+                Source::Original
+            } else {
+                return Step::Descend;
+            };
+            items.push(CutItem {
+                node: id,
+                source,
+                level: u8::try_from(node.level).unwrap_or(u8::MAX),
+                first_index: node.first_index,
+                index_count: node.index_count,
+                distance: eval.distance,
+            });
+            Step::Stop
+        },
+    );
 }
 
 /// Summary of a cut, for reports and the simulator (the analysis twin of [`Cut`]).
@@ -359,7 +402,16 @@ mod tests {
     #[test]
     fn scale_is_linear_in_width_and_ratio_and_follows_fov() {
         let p = params();
-        let at = |w, r, c| min_distance_scale(&p, &SelectOptions { screen_width: w, texel_ratio: r, fov_x_deg: c });
+        let at = |w, r, c| {
+            min_distance_scale(
+                &p,
+                &SelectOptions {
+                    screen_width: w,
+                    texel_ratio: r,
+                    fov_x_deg: c,
+                },
+            )
+        };
         assert_eq!(at(1920, 1.0, 60.0), Ok(1.0));
         assert_eq!(at(960, 1.0, 60.0), Ok(0.5));
         assert_eq!(at(3840, 2.0, 60.0), Ok(4.0));
@@ -368,21 +420,59 @@ mod tests {
         let s = at(1920, 1.0, c).unwrap_or(f64::NAN);
         assert!((s - 2.0).abs() < 1e-12, "{s}");
         // Consistent with f_proj: the distance where the run-time f_proj equals the built one.
-        let scaled = BuildParams { screen_width: 2560, texel_ratio: 1.5, fov_deg: 45.0, ..p.clone() };
+        let scaled = BuildParams {
+            screen_width: 2560,
+            texel_ratio: 1.5,
+            fov_deg: 45.0,
+            ..p.clone()
+        };
         let s = at(2560, 1.5, 45.0).unwrap_or(f64::NAN);
-        let moved = BuildParams { d_min: p.d_min * s, ..scaled };
+        let moved = BuildParams {
+            d_min: p.d_min * s,
+            ..scaled
+        };
         assert!((moved.f_proj() - p.f_proj()).abs() < 1e-12 * p.f_proj());
-        assert_eq!(at(0, 1.0, 60.0), Err(SelectError::BadOption { field: "screen_width", value: 0.0 }));
-        assert!(matches!(at(1920, f64::NAN, 60.0), Err(SelectError::BadOption { field: "texel_ratio", .. })));
-        assert!(matches!(at(1920, 1.0, 180.0), Err(SelectError::BadOption { field: "fov_x_deg", .. })));
-        let bad = BuildParams { fov_deg: 0.0, ..p.clone() };
+        assert_eq!(
+            at(0, 1.0, 60.0),
+            Err(SelectError::BadOption {
+                field: "screen_width",
+                value: 0.0
+            })
+        );
+        assert!(matches!(
+            at(1920, f64::NAN, 60.0),
+            Err(SelectError::BadOption {
+                field: "texel_ratio",
+                ..
+            })
+        ));
+        assert!(matches!(
+            at(1920, 1.0, 180.0),
+            Err(SelectError::BadOption {
+                field: "fov_x_deg",
+                ..
+            })
+        ));
+        let bad = BuildParams {
+            fov_deg: 0.0,
+            ..p.clone()
+        };
         assert!(matches!(
             min_distance_scale(&bad, &SelectOptions::built_for(&p)),
-            Err(SelectError::BadBuildParams { field: "fov_deg", .. })
+            Err(SelectError::BadBuildParams {
+                field: "fov_deg",
+                ..
+            })
         ));
     }
 
-    fn node(lo: [f64; 3], hi: [f64; 3], min_distance: f64, children: [u32; 4], leaf: u32) -> NodeRecord {
+    fn node(
+        lo: [f64; 3],
+        hi: [f64; 3],
+        min_distance: f64,
+        children: [u32; 4],
+        leaf: u32,
+    ) -> NodeRecord {
         NodeRecord {
             bounds_min: lo,
             bounds_max: hi,
@@ -399,19 +489,37 @@ mod tests {
     }
 
     fn camera(eye: DVec3, target: DVec3) -> Camera {
-        Camera { eye, target, up: DVec3::Y, fov_x_deg: 60.0, aspect: 1.5, near: 0.1, far: 1e4 }
+        Camera {
+            eye,
+            target,
+            up: DVec3::Y,
+            fov_x_deg: 60.0,
+            aspect: 1.5,
+            near: 0.1,
+            far: 1e4,
+        }
     }
 
     #[test]
     fn equality_descends_and_is_stable() {
         // A single leaf at distance exactly 100 from the eye, min_distance 100.
-        let nodes = [node([0.0, 0.0, -110.0], [10.0, 10.0, -100.0], 100.0, [NONE; 4], 0)];
+        let nodes = [node(
+            [0.0, 0.0, -110.0],
+            [10.0, 10.0, -100.0],
+            100.0,
+            [NONE; 4],
+            0,
+        )];
         let c = camera(DVec3::new(5.0, 5.0, 0.0), DVec3::new(5.0, 5.0, -1.0));
         let mut cut = Cut::new();
         select(&nodes, &c, &c.frustum(), 1.0, &mut cut);
         assert_eq!(cut.items.len(), 1);
         assert_eq!(cut.items[0].distance, 100.0);
-        assert_eq!(cut.items[0].source, Source::Original, "d == min_distance descends");
+        assert_eq!(
+            cut.items[0].source,
+            Source::Original,
+            "d == min_distance descends"
+        );
         select(&nodes, &c, &c.frustum(), 1.0 - 1e-12, &mut cut);
         assert_eq!(cut.items[0].source, Source::Atlas, "just beyond: atlas");
     }
@@ -427,7 +535,10 @@ mod tests {
         let mut cut = Cut::new();
         select(&nodes, &c, &c.frustum(), 1.0, &mut cut);
         assert_eq!(cut.visited, 2);
-        assert!(cut.items.is_empty(), "inner nodes without valid children draw nothing");
+        assert!(
+            cut.items.is_empty(),
+            "inner nodes without valid children draw nothing"
+        );
         select(&[], &c, &c.frustum(), 1.0, &mut cut);
         assert_eq!((cut.visited, cut.items.len()), (0, 0));
     }
@@ -443,7 +554,11 @@ mod tests {
             distance: 0.0,
         };
         let cut = Cut {
-            items: vec![item(0, Source::Atlas, 30), item(2, Source::Original, 9), item(2, Source::Atlas, 3)],
+            items: vec![
+                item(0, Source::Atlas, 30),
+                item(2, Source::Original, 9),
+                item(2, Source::Atlas, 3),
+            ],
             visited: 7,
             culled: 2,
             ..Cut::default()
@@ -452,6 +567,9 @@ mod tests {
         assert_eq!((s.atlas_nodes, s.original_nodes), (2, 1));
         assert_eq!((s.atlas_triangles, s.original_triangles), (11, 3));
         assert_eq!(s.levels, vec![1, 0, 2]);
-        assert_eq!((s.nodes(), s.triangles(), s.visited, s.culled), (3, 14, 7, 2));
+        assert_eq!(
+            (s.nodes(), s.triangles(), s.visited, s.culled),
+            (3, 14, 7, 2)
+        );
     }
 }

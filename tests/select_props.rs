@@ -11,19 +11,39 @@ use proptest::prelude::*;
 use select_util::*;
 
 fn shape() -> impl Strategy<Value = Shape> {
-    let leaf = (1u32..12, 0.5f64..60.0, prop_oneof![3 => Just(1.0), 1 => Just(0.5)])
-        .prop_map(|(tris, height, clamp)| Shape::Leaf { tris, height, clamp });
+    let leaf = (
+        1u32..12,
+        0.5f64..60.0,
+        prop_oneof![3 => Just(1.0), 1 => Just(0.5)],
+    )
+        .prop_map(|(tris, height, clamp)| Shape::Leaf {
+            tris,
+            height,
+            clamp,
+        });
     leaf.prop_recursive(6, 300, 4, |inner| {
         proptest::array::uniform4(proptest::option::weighted(0.75, inner))
-            .prop_filter("an inner node has a child", |c| c.iter().any(Option::is_some))
+            .prop_filter("an inner node has a child", |c| {
+                c.iter().any(Option::is_some)
+            })
             .prop_map(Shape::inner)
     })
 }
 
 fn placement() -> impl Strategy<Value = Placement> {
-    (-500.0f64..500.0, -20.0f64..20.0, 50.0f64..2000.0, 5.0f64..120.0, 0.0f64..0.2).prop_map(
-        |(c, ground, size, d_min, inset)| Placement { corner: DVec3::new(c, ground, -c), size, d_min, inset },
+    (
+        -500.0f64..500.0,
+        -20.0f64..20.0,
+        50.0f64..2000.0,
+        5.0f64..120.0,
+        0.0f64..0.2,
     )
+        .prop_map(|(c, ground, size, d_min, inset)| Placement {
+            corner: DVec3::new(c, ground, -c),
+            size,
+            d_min,
+            inset,
+        })
 }
 
 fn camera() -> impl Strategy<Value = Camera> {
@@ -34,7 +54,9 @@ fn camera() -> impl Strategy<Value = Camera> {
         10.0f64..150.0,
         0.3f64..3.0,
     )
-        .prop_filter("a view direction", |(_, _, dir, ..)| DVec3::from(*dir).length() > 1e-3)
+        .prop_filter("a view direction", |(_, _, dir, ..)| {
+            DVec3::from(*dir).length() > 1e-3
+        })
         .prop_map(|(e, h, dir, fov, aspect)| Camera {
             // Fractions of the footprint; mapped onto the placement in `place`.
             eye: DVec3::new(e[0], h, e[2]),
@@ -51,7 +73,11 @@ fn camera() -> impl Strategy<Value = Camera> {
 fn place(c: &Camera, at: &Placement) -> Camera {
     let map = |p: DVec3| at.corner + DVec3::new(p.x * at.size, p.y * 1.5 * at.size, p.z * at.size);
     let eye = map(c.eye);
-    Camera { eye, target: eye + (c.target - c.eye) * at.size, ..*c }
+    Camera {
+        eye,
+        target: eye + (c.target - c.eye) * at.size,
+        ..*c
+    }
 }
 
 proptest! {

@@ -7,24 +7,40 @@
 
 mod select_util;
 
+use Source::{Atlas as A, Original as O};
 use atlastree::camera::{Camera, CameraPath, Visibility};
 use atlastree::select::{Cut, CutStats, Source, select};
 use atlastree::store::format::NodeRecord;
 use glam::DVec3;
 use select_util::*;
-use Source::{Atlas as A, Original as O};
 
 fn tree_a() -> Vec<NodeRecord> {
     let gc = || Some(Shape::leaf(10, 20.0));
     let c = || Some(Shape::leaf(20, 40.0));
     let shape = Shape::inner([Some(Shape::inner([gc(), gc(), gc(), gc()])), c(), c(), c()]);
-    build_tree(&shape, Placement { corner: DVec3::ZERO, size: 400.0, d_min: 50.0, inset: 0.0 })
+    build_tree(
+        &shape,
+        Placement {
+            corner: DVec3::ZERO,
+            size: 400.0,
+            d_min: 50.0,
+            inset: 0.0,
+        },
+    )
 }
 
 fn tree_b() -> Vec<NodeRecord> {
     let l = || Some(Shape::leaf(7, 30.0));
     let shape = Shape::inner([l(), None, None, Some(Shape::inner([None, l(), l(), None]))]);
-    build_tree(&shape, Placement { corner: DVec3::ZERO, size: 400.0, d_min: 50.0, inset: 0.0 })
+    build_tree(
+        &shape,
+        Placement {
+            corner: DVec3::ZERO,
+            size: 400.0,
+            d_min: 50.0,
+            inset: 0.0,
+        },
+    )
 }
 
 fn cam(eye: [f64; 3], target: [f64; 3]) -> Camera {
@@ -45,7 +61,11 @@ fn cut_of(nodes: &[NodeRecord], c: &Camera, scale: f64) -> Cut {
     let f = c.frustum();
     select(nodes, c, &f, scale, &mut cut);
     check_cut(nodes, &f, &cut).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(pairs(&cut), reference(nodes, c, &f, scale), "hierarchical vs full culling");
+    assert_eq!(
+        pairs(&cut),
+        reference(nodes, c, &f, scale),
+        "hierarchical vs full culling"
+    );
     cut
 }
 
@@ -56,17 +76,30 @@ fn trees_are_built_as_described() {
     let md: Vec<f64> = a.iter().map(|n| n.min_distance).collect();
     assert_eq!(md, [200.0, 100.0, 50.0, 50.0, 50.0, 50.0, 50.0, 50.0, 50.0]);
     assert_eq!(a[0].index_count, (4 * 10 + 3 * 20) * 3);
-    assert_eq!((a[6].bounds_min, a[6].bounds_max), ([200.0, 0.0, 0.0], [400.0, 40.0, 200.0]));
+    assert_eq!(
+        (a[6].bounds_min, a[6].bounds_max),
+        ([200.0, 0.0, 0.0], [400.0, 40.0, 200.0])
+    );
     let b = tree_b();
     assert_eq!(b.len(), 5);
-    assert_eq!(b[2].children, [atlastree::ids::NONE, 3, 4, atlastree::ids::NONE]);
-    assert_eq!((b[2].bounds_min, b[2].bounds_max), ([200.0, 0.0, 200.0], [400.0, 30.0, 400.0]));
+    assert_eq!(
+        b[2].children,
+        [atlastree::ids::NONE, 3, 4, atlastree::ids::NONE]
+    );
+    assert_eq!(
+        (b[2].bounds_min, b[2].bounds_max),
+        ([200.0, 0.0, 200.0], [400.0, 30.0, 400.0])
+    );
     assert_eq!(b[0].min_distance, 200.0);
 }
 
 #[test]
 fn far_camera_draws_the_root_only() {
-    let cut = cut_of(&tree_a(), &cam([200.0, 1000.0, 900.0], [200.0, 0.0, 200.0]), 1.0);
+    let cut = cut_of(
+        &tree_a(),
+        &cam([200.0, 1000.0, 900.0], [200.0, 0.0, 200.0]),
+        1.0,
+    );
     assert_eq!(pairs(&cut), [(0, A)]);
     assert_eq!((cut.visited, cut.culled), (1, 0));
     assert_eq!(cut.items[0].level, 0);
@@ -75,9 +108,16 @@ fn far_camera_draws_the_root_only() {
 
 #[test]
 fn near_one_corner_that_region_descends_and_far_regions_stay_coarse() {
-    let cut = cut_of(&tree_a(), &cam([-20.0, 30.0, -20.0], [200.0, 0.0, 200.0]), 1.0);
+    let cut = cut_of(
+        &tree_a(),
+        &cam([-20.0, 30.0, -20.0], [200.0, 0.0, 200.0]),
+        1.0,
+    );
     // gc0 at sqrt(20² + 10² + 20²) = 30 < 50: originals; its siblings and the far children: atlases.
-    assert_eq!(pairs(&cut), [(2, O), (3, A), (4, A), (5, A), (6, A), (7, A), (8, A)]);
+    assert_eq!(
+        pairs(&cut),
+        [(2, O), (3, A), (4, A), (5, A), (6, A), (7, A), (8, A)]
+    );
     assert_eq!(cut.items[0].distance, 30.0);
     assert_eq!(cut.culled, 0);
     let s = CutStats::of(&cut);
@@ -89,7 +129,10 @@ fn near_one_corner_that_region_descends_and_far_regions_stay_coarse() {
 fn eye_inside_bounds_gives_distance_zero_and_originals() {
     // Inside gc0 (node 2). gc1 and gc2 are exactly 50 = min_distance away: they descend, i.e. originals.
     let cut = cut_of(&tree_a(), &cam([50.0, 5.0, 50.0], [150.0, 5.0, 150.0]), 1.0);
-    assert_eq!(pairs(&cut), [(2, O), (3, O), (4, O), (5, A), (6, A), (7, A), (8, A)]);
+    assert_eq!(
+        pairs(&cut),
+        [(2, O), (3, O), (4, O), (5, A), (6, A), (7, A), (8, A)]
+    );
     assert_eq!(cut.items[0].distance, 0.0);
     assert_eq!(cut.items[1].distance, 50.0);
 }
@@ -98,11 +141,19 @@ fn eye_inside_bounds_gives_distance_zero_and_originals() {
 fn culling_drops_nodes_behind_the_camera() {
     // Eye inside node 6 looking +x: nodes 1 and 7 are behind, node 8 is beside the view (outside the
     // right plane by 10 m at its nearest corner).
-    let cut = cut_of(&tree_a(), &cam([300.0, 30.0, 90.0], [1000.0, 30.0, 90.0]), 1.0);
+    let cut = cut_of(
+        &tree_a(),
+        &cam([300.0, 30.0, 90.0], [1000.0, 30.0, 90.0]),
+        1.0,
+    );
     assert_eq!(pairs(&cut), [(6, O)]);
     assert_eq!((cut.visited, cut.culled), (5, 3));
     // Looking away from the whole scene: the root is culled and nothing else is visited.
-    let cut = cut_of(&tree_a(), &cam([-100.0, 10.0, 200.0], [-200.0, 10.0, 200.0]), 1.0);
+    let cut = cut_of(
+        &tree_a(),
+        &cam([-100.0, 10.0, 200.0], [-200.0, 10.0, 200.0]),
+        1.0,
+    );
     assert_eq!((cut.items.len(), cut.visited, cut.culled), (0, 1, 1));
 }
 
@@ -111,7 +162,10 @@ fn camera_exactly_at_min_distance_descends() {
     // Node 1 (min_distance 100) is exactly 100 away: it descends; slightly smaller scale: its atlas.
     let c = cam([200.0, 10.0, -100.0], [200.0, 10.0, 0.0]);
     let cut = cut_of(&tree_a(), &c, 1.0);
-    assert_eq!(pairs(&cut), [(2, A), (3, A), (4, A), (5, A), (6, A), (7, A), (8, A)]);
+    assert_eq!(
+        pairs(&cut),
+        [(2, A), (3, A), (4, A), (5, A), (6, A), (7, A), (8, A)]
+    );
     assert_eq!(cut.items[1].distance, 100.0);
     let cut = cut_of(&tree_a(), &c, 0.99);
     assert_eq!(pairs(&cut), [(1, A), (6, A), (7, A), (8, A)]);
@@ -120,9 +174,21 @@ fn camera_exactly_at_min_distance_descends() {
 #[test]
 fn far_plane_touching_is_visible_beyond_is_culled() {
     // Nodes 7 and 8 start at depth exactly 300.
-    let at_far = |far| cut_of(&tree_a(), &Camera { far, ..cam([200.0, 10.0, -100.0], [200.0, 10.0, 0.0]) }, 1.0);
+    let at_far = |far| {
+        cut_of(
+            &tree_a(),
+            &Camera {
+                far,
+                ..cam([200.0, 10.0, -100.0], [200.0, 10.0, 0.0])
+            },
+            1.0,
+        )
+    };
     let cut = at_far(300.0);
-    assert_eq!(pairs(&cut), [(2, A), (3, A), (4, A), (5, A), (6, A), (7, A), (8, A)]);
+    assert_eq!(
+        pairs(&cut),
+        [(2, A), (3, A), (4, A), (5, A), (6, A), (7, A), (8, A)]
+    );
     assert_eq!(cut.culled, 0);
     let cut = at_far(299.5);
     assert_eq!(pairs(&cut), [(2, A), (3, A), (4, A), (5, A), (6, A)]);
@@ -135,7 +201,10 @@ fn looking_straight_down() {
     // z ∈ [-10, 110] (horizontal fov 90°) × x ∈ [16.25, 83.75] (aspect 16:9).
     let c = cam([50.0, 60.0, 50.0], [50.0, 0.0, 50.0]);
     let f = c.frustum();
-    assert_eq!(f.classify_aabb(DVec3::new(0.0, 0.0, 100.0), DVec3::new(100.0, 20.0, 200.0)), Visibility::Intersects);
+    assert_eq!(
+        f.classify_aabb(DVec3::new(0.0, 0.0, 100.0), DVec3::new(100.0, 20.0, 200.0)),
+        Visibility::Intersects
+    );
     let cut = cut_of(&tree_a(), &c, 1.0);
     assert_eq!(pairs(&cut), [(2, O), (4, A)]);
     assert_eq!(cut.items[0].distance, 40.0);
@@ -144,36 +213,68 @@ fn looking_straight_down() {
 
 #[test]
 fn looking_along_the_plane_at_eye_height() {
-    let cut = cut_of(&tree_a(), &cam([-50.0, 1.7, 150.0], [1000.0, 1.7, 150.0]), 1.0);
+    let cut = cut_of(
+        &tree_a(),
+        &cam([-50.0, 1.7, 150.0], [1000.0, 1.7, 150.0]),
+        1.0,
+    );
     // gc2 is exactly 50 away along x: originals; gc0 at 70.7: atlas.
-    assert_eq!(pairs(&cut), [(2, A), (3, A), (4, O), (5, A), (6, A), (7, A), (8, A)]);
+    assert_eq!(
+        pairs(&cut),
+        [(2, A), (3, A), (4, O), (5, A), (6, A), (7, A), (8, A)]
+    );
 }
 
 #[test]
 fn incomplete_quadtree() {
     // Inside leaf 3 looking towards leaf 4; leaf 1 is beside/behind the view.
-    let cut = cut_of(&tree_b(), &cam([350.0, 5.0, 250.0], [250.0, 0.0, 350.0]), 1.0);
+    let cut = cut_of(
+        &tree_b(),
+        &cam([350.0, 5.0, 250.0], [250.0, 0.0, 350.0]),
+        1.0,
+    );
     assert_eq!(pairs(&cut), [(3, O), (4, A)]);
     assert_eq!((cut.visited, cut.culled), (5, 1));
     // Far away: root; mid distance: the two children of the root.
-    assert_eq!(pairs(&cut_of(&tree_b(), &cam([200.0, 600.0, 200.0], [200.0, 0.0, 199.0]), 1.0)), [(0, A)]);
-    let cut = cut_of(&tree_b(), &cam([200.0, 150.0, 200.0], [200.0, 0.0, 199.0]), 1.0);
+    assert_eq!(
+        pairs(&cut_of(
+            &tree_b(),
+            &cam([200.0, 600.0, 200.0], [200.0, 0.0, 199.0]),
+            1.0
+        )),
+        [(0, A)]
+    );
+    let cut = cut_of(
+        &tree_b(),
+        &cam([200.0, 150.0, 200.0], [200.0, 0.0, 199.0]),
+        1.0,
+    );
     assert_eq!(pairs(&cut), [(1, A), (2, A)]);
 }
 
 #[test]
 fn identical_frames_give_identical_cuts() {
     let nodes = berlin(7);
-    let path = CameraPath::overview_dive(bounds(&nodes).0, bounds(&nodes).1, atlastree::scene::UpAxis::Y)
-        .unwrap_or_else(|e| panic!("{e}"));
+    let path = CameraPath::overview_dive(
+        bounds(&nodes).0,
+        bounds(&nodes).1,
+        atlastree::scene::UpAxis::Y,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     let mut reused = Cut::new();
     for c in path.frames(10.0, 200) {
         let f = c.frustum();
         select(&nodes, &c, &f, 1.0, &mut reused);
         let mut fresh = Cut::new();
         select(&nodes, &c, &f, 1.0, &mut fresh);
-        assert_eq!(reused.items, fresh.items, "bit-identical items incl. distances");
-        assert_eq!((reused.visited, reused.culled), (fresh.visited, fresh.culled));
+        assert_eq!(
+            reused.items, fresh.items,
+            "bit-identical items incl. distances"
+        );
+        assert_eq!(
+            (reused.visited, reused.culled),
+            (fresh.visited, fresh.culled)
+        );
         check_cut(&nodes, &f, &reused).unwrap_or_else(|e| panic!("{e}"));
     }
 }
@@ -200,10 +301,19 @@ fn check_translation(nodes: &[NodeRecord], path: &CameraPath, t: DVec3) -> (usiz
     for (c, mc) in path.frames(10.0, 200).zip(moved_path.frames(10.0, 200)) {
         select(nodes, &c, &c.frustum(), 1.0, &mut a);
         select(&moved, &mc, &mc.frustum(), 1.0, &mut b);
-        assert_eq!(pairs(&a), pairs(&b), "translation {t}: eye {} vs {}", c.eye, mc.eye);
+        assert_eq!(
+            pairs(&a),
+            pairs(&b),
+            "translation {t}: eye {} vs {}",
+            c.eye,
+            mc.eye
+        );
         assert_eq!((a.visited, a.culled), (b.visited, b.culled));
         for (x, y) in a.items.iter().zip(&b.items) {
-            assert!((x.distance - y.distance).abs() <= 1e-6 * (1.0 + x.distance), "{x:?} vs {y:?}");
+            assert!(
+                (x.distance - y.distance).abs() <= 1e-6 * (1.0 + x.distance),
+                "{x:?} vs {y:?}"
+            );
         }
         max_items = max_items.max(a.items.len());
         originals += a.items.iter().filter(|i| i.source == O).count();
@@ -223,7 +333,10 @@ fn huge_coordinates_give_identical_cuts() {
             for t in [DVec3::new(4.5e6, 120.0, 5.5e6), DVec3::splat(1e7)] {
                 let (max_items, originals) = check_translation(&nodes, &path, t);
                 // The comparison is not vacuous: the paths reach fine cuts and original textures.
-                assert!(max_items >= 4 && originals > 0, "{max_items} items, {originals} originals");
+                assert!(
+                    max_items >= 4 && originals > 0,
+                    "{max_items} items, {originals} originals"
+                );
             }
         }
     }
@@ -234,7 +347,11 @@ fn berlin_tree_has_the_intended_size() {
     for seed in [1, 3, 7] {
         let nodes = berlin(seed);
         let depth = nodes.iter().map(|n| n.level).max().unwrap_or(0);
-        assert!((3000..=5000).contains(&nodes.len()), "seed {seed}: {} nodes", nodes.len());
+        assert!(
+            (3000..=5000).contains(&nodes.len()),
+            "seed {seed}: {} nodes",
+            nodes.len()
+        );
         assert!((6..=7).contains(&depth), "seed {seed}: depth {depth}");
     }
 }

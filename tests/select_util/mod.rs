@@ -19,7 +19,11 @@ pub enum Shape {
 
 impl Shape {
     pub fn leaf(tris: u32, height: f64) -> Shape {
-        Shape::Leaf { tris, height, clamp: 1.0 }
+        Shape::Leaf {
+            tris,
+            height,
+            clamp: 1.0,
+        }
     }
     pub fn inner(children: [Option<Shape>; 4]) -> Shape {
         Shape::Inner(Box::new(children))
@@ -39,8 +43,21 @@ pub struct Placement {
 /// Node records of `shape` in pre-order, with index ranges (leaves in tree order), cells, parents,
 /// leaf ids and `min_distance` as the paper defines it (leaf: d_min / clamp; inner: 2 · max of children).
 pub fn build_tree(shape: &Shape, at: Placement) -> Vec<NodeRecord> {
-    let mut b = Builder { nodes: Vec::new(), indices: 0, leaves: 0, at };
-    b.add(shape, NONE, 0, Cell::default(), at.corner.x, at.corner.z, at.size);
+    let mut b = Builder {
+        nodes: Vec::new(),
+        indices: 0,
+        leaves: 0,
+        at,
+    };
+    b.add(
+        shape,
+        NONE,
+        0,
+        Cell::default(),
+        at.corner.x,
+        at.corner.z,
+        at.size,
+    );
     b.nodes
 }
 
@@ -53,7 +70,16 @@ struct Builder {
 
 impl Builder {
     #[allow(clippy::too_many_arguments)]
-    fn add(&mut self, shape: &Shape, parent: u32, level: u32, cell: Cell, x: f64, z: f64, s: f64) -> u32 {
+    fn add(
+        &mut self,
+        shape: &Shape,
+        parent: u32,
+        level: u32,
+        cell: Cell,
+        x: f64,
+        z: f64,
+        s: f64,
+    ) -> u32 {
         let id = self.nodes.len() as u32;
         self.nodes.push(NodeRecord {
             bounds_min: [0.0; 3],
@@ -70,7 +96,11 @@ impl Builder {
         });
         let ground = self.at.corner.y;
         match shape {
-            Shape::Leaf { tris, height, clamp } => {
+            Shape::Leaf {
+                tris,
+                height,
+                clamp,
+            } => {
                 let i = s * self.at.inset;
                 let n = &mut self.nodes[id as usize];
                 n.bounds_min = [x + i, ground, z + i];
@@ -130,8 +160,20 @@ pub fn pairs(cut: &Cut) -> Vec<(u32, Source)> {
 }
 
 /// Paper §4 written as plainly as possible: recursion, full six-plane test at every node.
-pub fn reference(nodes: &[NodeRecord], camera: &Camera, frustum: &Frustum, scale: f64) -> Vec<(u32, Source)> {
-    fn go(nodes: &[NodeRecord], i: u32, c: &Camera, f: &Frustum, scale: f64, out: &mut Vec<(u32, Source)>) {
+pub fn reference(
+    nodes: &[NodeRecord],
+    camera: &Camera,
+    frustum: &Frustum,
+    scale: f64,
+) -> Vec<(u32, Source)> {
+    fn go(
+        nodes: &[NodeRecord],
+        i: u32,
+        c: &Camera,
+        f: &Frustum,
+        scale: f64,
+        out: &mut Vec<(u32, Source)>,
+    ) {
         let n = &nodes[i as usize];
         let (lo, hi) = (DVec3::from(n.bounds_min), DVec3::from(n.bounds_max));
         if f.classify_aabb(lo, hi) == Visibility::Outside {
@@ -175,20 +217,31 @@ pub fn is_ancestor(nodes: &[NodeRecord], a: u32, b: u32) -> bool {
 pub fn check_cut(nodes: &[NodeRecord], frustum: &Frustum, cut: &Cut) -> Result<(), String> {
     for w in cut.items.windows(2) {
         if w[0].first_index + w[0].index_count > w[1].first_index {
-            return Err(format!("items out of index order or overlapping: {:?} then {:?}", w[0], w[1]));
+            return Err(format!(
+                "items out of index order or overlapping: {:?} then {:?}",
+                w[0], w[1]
+            ));
         }
     }
     for a in &cut.items {
         for b in &cut.items {
             if is_ancestor(nodes, a.node.0, b.node.0) {
-                return Err(format!("{} is an ancestor of {} and both are drawn", a.node, b.node));
+                return Err(format!(
+                    "{} is an ancestor of {} and both are drawn",
+                    a.node, b.node
+                ));
             }
         }
         let n = &nodes[a.node.idx()];
         if a.source == Source::Original && n.leaf == NONE {
-            return Err(format!("{} is drawn with original textures but is not a leaf", a.node));
+            return Err(format!(
+                "{} is drawn with original textures but is not a leaf",
+                a.node
+            ));
         }
-        if (a.first_index, a.index_count, u32::from(a.level)) != (n.first_index, n.index_count, n.level) {
+        if (a.first_index, a.index_count, u32::from(a.level))
+            != (n.first_index, n.index_count, n.level)
+        {
             return Err(format!("{} item does not match its record", a.node));
         }
     }
@@ -203,11 +256,14 @@ pub fn check_cut(nodes: &[NodeRecord], frustum: &Frustum, cut: &Cut) -> Result<(
         if n.leaf == NONE {
             continue;
         }
-        let visible = frustum.classify_aabb(n.bounds_min.into(), n.bounds_max.into()) != Visibility::Outside;
+        let visible =
+            frustum.classify_aabb(n.bounds_min.into(), n.bounds_max.into()) != Visibility::Outside;
         for t in n.first_index / 3..(n.first_index + n.index_count) / 3 {
             let c = drawn[t as usize];
             if c > 1 || (visible && c != 1) {
-                return Err(format!("triangle {t} of leaf node {i} (visible: {visible}) drawn {c} times"));
+                return Err(format!(
+                    "triangle {t} of leaf node {i} (visible: {visible}) drawn {c} times"
+                ));
             }
         }
     }
@@ -219,7 +275,11 @@ pub fn fineness(nodes: &[NodeRecord], cut: &Cut) -> Vec<Option<(u32, bool, u32)>
     let mut out = vec![None; (total_indices(nodes) / 3) as usize];
     for item in &cut.items {
         for t in item.first_index / 3..(item.first_index + item.index_count) / 3 {
-            out[t as usize] = Some((u32::from(item.level), item.source == Source::Original, item.node.0));
+            out[t as usize] = Some((
+                u32::from(item.level),
+                item.source == Source::Original,
+                item.node.0,
+            ));
         }
     }
     out
@@ -252,28 +312,44 @@ pub fn berlin(seed: u64) -> Vec<NodeRecord> {
     fn grow(rng: &mut Rng, depth: u32, cx: f64, cz: f64) -> Shape {
         // Distance of the cell centre from the city centre, 0 at the centre, ~1 at the corners.
         let r = ((cx - 0.5).powi(2) + (cz - 0.5).powi(2)).sqrt() / 0.707;
-        let p_split = if depth <= 1 { 1.0 } else { 1.6 - 0.14 * depth as f64 - 0.55 * r };
+        let p_split = if depth <= 1 {
+            1.0
+        } else {
+            1.6 - 0.14 * depth as f64 - 0.55 * r
+        };
         if depth < 7 && rng.unit() < p_split {
             let h = 0.5f64.powi(depth as i32 + 2);
             let mut children: [Option<Shape>; 4] = Default::default();
             let keep = (rng.next_u64() % 4) as usize;
             for (q, c) in children.iter_mut().enumerate() {
                 if q == keep || rng.unit() > 0.08 {
-                    let (qx, qz) = (cx + if q & 1 == 1 { h } else { -h }, cz + if q >> 1 == 1 { h } else { -h });
+                    let (qx, qz) = (
+                        cx + if q & 1 == 1 { h } else { -h },
+                        cz + if q >> 1 == 1 { h } else { -h },
+                    );
                     *c = Some(grow(rng, depth + 1, qx, qz));
                 }
             }
             Shape::inner(children)
         } else {
             let clamp = if rng.unit() < 0.1 { 0.5 } else { 1.0 };
-            Shape::Leaf { tris: 200 + (rng.next_u64() % 3800) as u32, height: rng.range(8.0, 150.0), clamp }
+            Shape::Leaf {
+                tris: 200 + (rng.next_u64() % 3800) as u32,
+                height: rng.range(8.0, 150.0),
+                clamp,
+            }
         }
     }
     let mut rng = Rng(seed);
     let shape = grow(&mut rng, 0, 0.5, 0.5);
     build_tree(
         &shape,
-        Placement { corner: DVec3::new(0.0, 34.0, 0.0), size: 10_000.0, d_min: 100.0, inset: 0.03 },
+        Placement {
+            corner: DVec3::new(0.0, 34.0, 0.0),
+            size: 10_000.0,
+            d_min: 100.0,
+            inset: 0.03,
+        },
     )
 }
 
