@@ -22,13 +22,17 @@
 //! - [`store`]: the paging file. Pod records read in place from a memory map, 4 KiB-aligned checksummed
 //!   blocks, atomic writes.
 //! - [`gpu`]: wgpu device setup shared by the renderer and the GPU tests.
+//! - [`camera`]: cameras, frusta, distance to bounds, keyframed and generated camera paths (f64).
+//! - [`select`]: the per-frame cut (§4): hierarchical culling, distance test, atlas or original textures.
 //!
-//! Stages still to come (see the issues): `select`, `paging`, `render`, `sim`.
+//! Stages still to come (see the issues): `paging`, `render`, `sim`.
 
 pub mod build;
+pub mod camera;
 pub mod gpu;
 pub mod ids;
 pub mod inspect;
 pub mod scene;
+pub mod select;
 pub mod store;
 pub mod util;
