@@ -378,7 +378,9 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
     r.split_pieces = r.triangles_checked - seen.len() as u64;
     for (i, &s) in seen.iter().enumerate() {
         if s as usize != i {
-            r.fail(format!("scene triangle {i} is in no leaf (the next present is {s})"));
+            r.fail(format!(
+                "scene triangle {i} is in no leaf (the next present is {s})"
+            ));
             break;
         }
     }

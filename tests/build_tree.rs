@@ -10,9 +10,9 @@ use glam::{DVec2, DVec3};
 
 fn opts(atlas: u32) -> BuildOptions {
     BuildOptions {
-        d_min: DMin::Ratio(60.0),
+        d_min: DMin::Ratio(20.0),
         atlas_size: atlas,
-        cap_to_source: false,
+        max_file_bytes: 1 << 30,
         ..BuildOptions::default()
     }
 }
@@ -33,7 +33,10 @@ fn small_city_builds_a_multilevel_tree_that_verifies() {
     let file = TreeFile::open(&out).unwrap();
     let v = atlastree::inspect::verify(&file);
     assert!(v.ok(), "violations: {:#?}", v.violations);
-    assert_eq!(v.triangles_checked as usize - v.split_pieces as usize, scene.triangles.len());
+    assert_eq!(
+        v.triangles_checked as usize - v.split_pieces as usize,
+        scene.triangles.len()
+    );
     assert_eq!(v.blocks_checked, report.blocks);
 }
 
@@ -63,7 +66,15 @@ fn d_min_guarantee_holds_at_leaves_and_every_ancestor() {
     let scene = small_city(3, 128);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("g.atlastree");
-    build(&scene, &opts(256), &out, &NoProgress).unwrap();
+    // Without the source cap (the paper's setting) the guarantee must hold for every texture.
+    let o = BuildOptions {
+        d_min: DMin::Metres(150.0),
+        cap_to_source: false,
+        ..opts(128)
+    };
+    let rep = build(&scene, &o, &out, &NoProgress).unwrap();
+    assert_eq!(rep.trees[0].capped_rects, 0);
+    assert!(rep.trees[0].depth >= 2, "depth {}", rep.trees[0].depth);
     let file = TreeFile::open(&out).unwrap();
     let p = file.to_params();
     let t = file.tree(0).unwrap();
@@ -139,6 +150,14 @@ fn failed_build_leaves_no_file() {
         0,
         "temp files left behind"
     );
+    // A build that would be absurdly large is refused before anything is written.
+    let o = BuildOptions {
+        max_file_bytes: 1 << 20,
+        ..opts(128)
+    };
+    let err = build(&scene, &o, &out, &NoProgress).unwrap_err();
+    assert!(err.to_string().contains("--max-file-gib"), "{err}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
 #[test]
@@ -185,7 +204,10 @@ fn every_triangle_is_covered_exactly_once_even_when_split() {
     let out = dir.path().join("s.atlastree");
     // A small atlas forces the ground quad (and long walls) to be split.
     let report = build(&scene, &opts(128), &out, &NoProgress).unwrap();
-    assert!(report.trees[0].pieces > report.trees[0].triangles, "nothing was split");
+    assert!(
+        report.trees[0].pieces > report.trees[0].triangles,
+        "nothing was split"
+    );
     let file = TreeFile::open(&out).unwrap();
     let t = file.tree(0).unwrap();
     let mut covered = vec![0.0f64; scene.triangles.len()];
@@ -194,13 +216,19 @@ fn every_triangle_is_covered_exactly_once_even_when_split() {
         let first_tri = leaf.first_index as usize / 3;
         for k in 0..(leaf.index_count as usize / 3) {
             let idx = &t.indices[(first_tri + k) * 3..(first_tri + k) * 3 + 3];
-            let p = [idx[0], idx[1], idx[2]].map(|i| o + DVec3::from_array(t.vertices[i as usize].pos.map(f64::from)));
-            covered[t.source_triangles[first_tri + k] as usize] += 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
+            let p = [idx[0], idx[1], idx[2]]
+                .map(|i| o + DVec3::from_array(t.vertices[i as usize].pos.map(f64::from)));
+            covered[t.source_triangles[first_tri + k] as usize] +=
+                0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
         }
     }
     for (i, tri) in scene.triangles.iter().enumerate() {
         let p = scene.tri_positions(tri);
         let want = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
-        assert!((covered[i] - want).abs() <= 1e-4 * want.max(1.0), "triangle {i}: pieces cover {} of {want}", covered[i]);
+        assert!(
+            (covered[i] - want).abs() <= 1e-4 * want.max(1.0),
+            "triangle {i}: pieces cover {} of {want}",
+            covered[i]
+        );
     }
 }

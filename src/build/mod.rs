@@ -55,6 +55,8 @@ pub struct BuildOptions {
     /// At most this many pieces per scene triangle when splitting triangles too big for one atlas
     /// (1 = never split: such triangles are clamped instead).
     pub max_pieces: u32,
+    /// Refuse (before writing anything) a build whose paging file would exceed this many bytes.
+    pub max_file_bytes: u64,
 }
 
 impl Default for BuildOptions {
@@ -70,6 +72,7 @@ impl Default for BuildOptions {
             cap_to_source: true,
             image_cache_bytes: 2 << 30,
             max_pieces: 4096,
+            max_file_bytes: 64 << 30,
         }
     }
 }
@@ -108,6 +111,15 @@ pub enum BuildError {
         kind: TreeKind,
         #[source]
         source: layout::LayoutError,
+    },
+    #[error(
+        "the tree would need {blocks} blocks and {predicted} bytes of texture data, over the limit of {limit} bytes \
+         (--max-file-gib): raise --d-min (or lower --d-min-ratio), lower --texel-ratio, or keep the source cap"
+    )]
+    TooLarge {
+        blocks: u64,
+        predicted: u64,
+        limit: u64,
     },
     #[error(transparent)]
     Store(#[from] StoreError),
@@ -345,6 +357,14 @@ pub fn build(
         forest.blocks.extend(asm.blocks);
     }
 
+    let predicted: u64 = forest.blocks.iter().map(|b| b.bytes).sum();
+    if predicted > opts.max_file_bytes {
+        return Err(BuildError::TooLarge {
+            blocks: forest.blocks.len() as u64,
+            predicted,
+            limit: opts.max_file_bytes,
+        });
+    }
     let t = Instant::now();
     let writer = FileWriter::create(out, &forest)?;
     let cache = raster::ImageCache::new(scene, opts.image_cache_bytes);

@@ -128,7 +128,10 @@ pub fn tessellate(
         let hi = uv[0].max(uv[1]).max(uv[2]);
         (hi.x - lo.x) * w > limit || (hi.y - lo.y) * h > limit
     };
-    if !(w.is_finite() && h.is_finite() && limit > 0.0) || !uv.iter().all(|u| u.is_finite()) || !too_big(&uv) {
+    if !(w.is_finite() && h.is_finite() && limit > 0.0)
+        || !uv.iter().all(|u| u.is_finite())
+        || !too_big(&uv)
+    {
         return vec![(p, uv)];
     }
     let mut done = Vec::new();
@@ -139,7 +142,9 @@ pub fn tessellate(
             continue;
         }
         let len = |i: usize| texel_len(uv[(i + 1) % 3] - uv[i], w, h);
-        let e = (0..3).max_by(|&a, &b| len(a).total_cmp(&len(b))).unwrap_or(0);
+        let e = (0..3)
+            .max_by(|&a, &b| len(a).total_cmp(&len(b)))
+            .unwrap_or(0);
         let (a, b, c) = (e, (e + 1) % 3, (e + 2) % 3);
         let pm = (p[a] + p[b]) * 0.5;
         let um = (uv[a] + uv[b]) * 0.5;
@@ -181,7 +186,11 @@ mod tests {
 
     #[test]
     fn tessellation_tiles_the_triangle_and_bounds_pieces() {
-        let p = [DVec3::ZERO, DVec3::new(400.0, 0.0, 0.0), DVec3::new(0.0, 0.0, 300.0)];
+        let p = [
+            DVec3::ZERO,
+            DVec3::new(400.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 300.0),
+        ];
         let uv = [DVec2::ZERO, DVec2::new(95.0, 0.0), DVec2::new(0.0, 55.0)];
         let pieces = tessellate(p, uv, 48.0, 48.0, 256.0, 4096);
         assert!(pieces.len() > 100, "{}", pieces.len());
@@ -201,7 +210,10 @@ mod tests {
         assert!(tessellate(p, uv, 48.0, 48.0, 256.0, 16).len() <= 16);
         // Small triangles are untouched; NaN is returned as is.
         assert_eq!(tessellate(p, uv, 1.0, 1.0, 256.0, 4096).len(), 1);
-        assert_eq!(tessellate(p, [DVec2::NAN; 3], 48.0, 48.0, 256.0, 4096).len(), 1);
+        assert_eq!(
+            tessellate(p, [DVec2::NAN; 3], 48.0, 48.0, 256.0, 4096).len(),
+            1
+        );
     }
 
     #[test]

@@ -50,6 +50,9 @@ pub struct BuildArgs {
     /// most this many pieces; beyond that its leaf's resolution is clamped. 1 disables splitting.
     #[arg(long, default_value_t = 4096)]
     pub max_pieces: u32,
+    /// Refuse, before writing anything, a build whose paging file would exceed this size (GiB).
+    #[arg(long, default_value_t = 64)]
+    pub max_file_gib: u64,
     /// Up axis; `auto` takes the axis of least extent.
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
@@ -78,6 +81,7 @@ impl BuildArgs {
             cap_to_source: !self.no_source_cap,
             image_cache_bytes: self.image_cache_mib << 20,
             max_pieces: self.max_pieces,
+            max_file_bytes: self.max_file_gib << 30,
         }
     }
 }
