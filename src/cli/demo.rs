@@ -21,8 +21,9 @@ pub struct DemoArgs {
     /// Atlas size for the demo build (small, so the default scene makes a multi-level tree).
     #[arg(long, default_value_t = 512)]
     pub atlas_size: u32,
-    /// d_min = scene diagonal / R.
-    #[arg(long, default_value_t = 151.0)]
+    /// d_min = scene diagonal / R. The default scene is a 600 m district, not a 10 km city, so its d_min is
+    /// D/10 (61 m) rather than the paper's D/151 for Berlin.
+    #[arg(long, default_value_t = 10.0)]
     pub d_min_ratio: f64,
     /// No progress bars.
     #[arg(short, long)]
