@@ -463,9 +463,9 @@ pub fn leaf_map_image(file: &TreeFile, tree: usize, px: u32) -> image::RgbaImage
             for x in x0..=x1 {
                 let edge = x == x0 || x == x1 || y == y0 || y == y1;
                 let p = img.get_pixel_mut(x, y);
-                for c in 0..3 {
-                    let target = if edge { col[c] / 2 } else { col[c] };
-                    p.0[c] = ((u16::from(p.0[c]) + u16::from(target) * 3) / 4) as u8;
+                for (ch, &c) in p.0.iter_mut().zip(col.iter()) {
+                    let target = if edge { c / 2 } else { c };
+                    *ch = ((u16::from(*ch) + u16::from(target) * 3) / 4) as u8;
                 }
             }
         }

@@ -26,6 +26,16 @@ pub fn original_class(w: u32, h: u32) -> u32 {
         .clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
 }
 
+/// Where a tree goes in its forest.
+#[derive(Copy, Clone, Debug)]
+pub struct TreeSlot {
+    pub kind: TreeKind,
+    /// Index of the tree in the forest.
+    pub tree_index: u32,
+    /// Number of blocks of the forest's earlier trees (this tree's first block id).
+    pub first_block: u32,
+}
+
 /// Output of [`assemble`].
 pub struct Assembled {
     pub tree: AtlasTree,
@@ -54,10 +64,13 @@ pub fn assemble(
     order: &[u32],
     root: &LayoutNode,
     params: &BuildParams,
-    kind: TreeKind,
-    tree_index: u32,
-    first_block: u32,
+    slot: TreeSlot,
 ) -> Assembled {
+    let TreeSlot {
+        kind,
+        tree_index,
+        first_block,
+    } = slot;
     let mut a = Asm {
         scene,
         infos,

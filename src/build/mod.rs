@@ -331,9 +331,11 @@ pub fn build(
             &lay.order,
             &lay.root,
             &params,
-            *kind,
-            forest.trees.len() as u32,
-            forest.blocks.len() as u32,
+            assemble::TreeSlot {
+                kind: *kind,
+                tree_index: forest.trees.len() as u32,
+                first_block: forest.blocks.len() as u32,
+            },
         );
         time(&format!("assemble {kind:?}"), t);
         let occ = &asm.occupancy;

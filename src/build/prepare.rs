@@ -128,10 +128,8 @@ pub fn tessellate(
         let hi = uv[0].max(uv[1]).max(uv[2]);
         (hi.x - lo.x) * w > limit || (hi.y - lo.y) * h > limit
     };
-    if !(w.is_finite() && h.is_finite() && limit > 0.0)
-        || !uv.iter().all(|u| u.is_finite())
-        || !too_big(&uv)
-    {
+    let finite = w.is_finite() && h.is_finite() && limit > 0.0 && uv.iter().all(|u| u.is_finite());
+    if !finite || !too_big(&uv) {
         return vec![(p, uv)];
     }
     let mut done = Vec::new();

@@ -86,9 +86,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
 /// Imports a scene with a clear error naming the file.
 pub fn load_scene(path: &std::path::Path, up: UpArg) -> anyhow::Result<atlastree::scene::Scene> {
     use anyhow::Context;
-    let opts = atlastree::scene::ImportOptions {
-        up: up.to_option(),
-        ..Default::default()
-    };
+    let opts = atlastree::scene::ImportOptions { up: up.to_option() };
     atlastree::scene::import(path, &opts).with_context(|| format!("importing {}", path.display()))
 }
