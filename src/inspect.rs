@@ -472,3 +472,15 @@ pub fn leaf_map_image(file: &TreeFile, tree: usize, px: u32) -> image::RgbaImage
     }
     img
 }
+
+/// Two images side by side on white, `b` scaled (nearest) to `a`'s height, with a `gap` in pixels.
+pub fn side_by_side(a: &image::RgbaImage, b: &image::RgbaImage, gap: u32) -> image::RgbaImage {
+    let h = a.height().max(1);
+    let bw = (u64::from(b.width()) * u64::from(h) / u64::from(b.height().max(1))).max(1) as u32;
+    let b = image::imageops::resize(b, bw, h, image::imageops::FilterType::Triangle);
+    let mut out =
+        image::RgbaImage::from_pixel(a.width() + gap + bw, h, image::Rgba([255, 255, 255, 255]));
+    image::imageops::overlay(&mut out, a, 0, 0);
+    image::imageops::overlay(&mut out, &b, i64::from(a.width() + gap), 0);
+    out
+}

@@ -20,7 +20,12 @@ fn run(cmd: &mut Command) -> Output {
 }
 
 fn json(out: &Output) -> serde_json::Value {
-    assert!(out.status.success(), "exit {:?}: {}", out.status, String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
     serde_json::from_slice(&out.stdout).expect("JSON on stdout")
 }
 
@@ -32,7 +37,10 @@ fn scene_info_reports_the_default_scene() {
     assert_eq!(v["up"], "Y");
     let text = run(bin().arg("scene-info").arg(scene()));
     let s = String::from_utf8_lossy(&text.stdout);
-    assert!(s.contains("triangles 1322") && s.contains("planarity"), "{s}");
+    assert!(
+        s.contains("triangles 1322") && s.contains("planarity"),
+        "{s}"
+    );
 }
 
 #[test]
@@ -40,15 +48,29 @@ fn build_then_inspect_verify() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
     let b = json(&run(bin()
-        .args(["build", "--d-min-ratio", "10", "--atlas-size", "512", "--json", "-o"])
+        .args([
+            "build",
+            "--d-min-ratio",
+            "10",
+            "--atlas-size",
+            "512",
+            "--json",
+            "-o",
+        ])
         .arg(&out)
         .arg(scene())));
     let trees = b["trees"].as_array().unwrap();
-    assert_eq!(trees.len(), 2, "opaque + alpha tree (the scene has MASK and BLEND materials)");
+    assert_eq!(
+        trees.len(),
+        2,
+        "opaque + alpha tree (the scene has MASK and BLEND materials)"
+    );
     let scene_tris: u64 = trees.iter().map(|t| t["triangles"].as_u64().unwrap()).sum();
     assert_eq!(scene_tris, 1322);
     assert!(trees[0]["depth"].as_u64().unwrap() >= 2, "{b}");
-    let v = json(&run(bin().args(["inspect", "--verify", "--json"]).arg(&out)));
+    let v = json(&run(bin()
+        .args(["inspect", "--verify", "--json"])
+        .arg(&out)));
     assert_eq!(v["verify"]["violation_count"], 0, "{v}");
     assert_eq!(v["inspect"]["blocks"], b["blocks"]);
     let enabled = v["inspect"]["enabled"].to_string();
@@ -78,13 +100,20 @@ fn bad_input_is_a_clear_error() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("nope.gltf"));
     let broken = dir.path().join("broken.gltf");
-    std::fs::write(&broken, b"{ \"asset\": { \"version\": \"2.0\" }, \"meshes\": [ {").unwrap();
+    std::fs::write(
+        &broken,
+        b"{ \"asset\": { \"version\": \"2.0\" }, \"meshes\": [ {",
+    )
+    .unwrap();
     let out = dir.path().join("x.atlastree");
     let o = run(bin().arg("build").arg(&broken).arg("-o").arg(&out));
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("broken.gltf"));
     assert!(!out.exists());
-    let o = run(bin().args(["build", "--atlas-size", "1000", "-o"]).arg(&out).arg(scene()));
+    let o = run(bin()
+        .args(["build", "--atlas-size", "1000", "-o"])
+        .arg(&out)
+        .arg(scene()));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--atlas-size 1000"));
 }
 
@@ -93,9 +122,17 @@ fn demo_runs_and_writes_pictures() {
     let dir = tempfile::tempdir().unwrap();
     let o = run(bin().args(["demo", "-q", "--out"]).arg(dir.path()));
     let s = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{s}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{s}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert!(s.contains("all invariants hold"), "{s}");
-    for f in ["opaque-root-atlas.png", "opaque-leaves.png", "alpha-root-atlas.png"] {
+    for f in [
+        "opaque-root-atlas.png",
+        "opaque-leaves.png",
+        "alpha-root-atlas.png",
+    ] {
         let img = image::open(dir.path().join(f)).unwrap();
         assert!(img.width() >= 64, "{f}");
     }

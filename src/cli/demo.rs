@@ -58,6 +58,16 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
     inspect_cmd::print_verify(&ver);
 
     let mut pictures = Vec::new();
+    let overview = atlastree::inspect::side_by_side(
+        &atlastree::inspect::atlas_image(&tf, 0, 0)?,
+        &atlastree::inspect::leaf_map_image(&tf, 0, 512),
+        16,
+    );
+    let path = a.out.join("overview.png");
+    overview
+        .save(&path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    pictures.push(path);
     for ti in 0..tf.trees() {
         let kind = tf.tree(ti).map_or("tree".to_string(), |t| {
             format!("{:?}", t.kind).to_lowercase()
