@@ -427,3 +427,86 @@ fn clamp_leaf(ctx: &Ctx<'_>, items: &[u32]) -> Result<LeafLayout, LayoutError> {
     }
     Ok(best)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::sizing::{SizeEstimate, SizeMethod};
+
+    fn tri(mid: DVec2, area: f64) -> TriInfo {
+        TriInfo {
+            scene_tri: 0,
+            pos: [DVec3::ZERO; 3],
+            material: MaterialId(0),
+            mid,
+            area,
+            size: SizeEstimate {
+                w: 1.0,
+                h: 1.0,
+                method: SizeMethod::Exact,
+            },
+            uv: [DVec2::ZERO; 3],
+            lo: DVec3::ZERO,
+            hi: DVec3::ZERO,
+        }
+    }
+
+    #[test]
+    fn split_balances_area_in_x_then_y() {
+        // A 4×4 grid of unit-area triangles: the split must give four 2×2 quadrants.
+        let infos: Vec<TriInfo> = (0..16)
+            .map(|i| tri(DVec2::new((i % 4) as f64, (i / 4) as f64), 1.0))
+            .collect();
+        let mut items: Vec<u32> = (0..16).rev().collect();
+        let g = split4(&infos, &mut items);
+        assert_eq!(g, [4, 4, 4, 4]);
+        let groups: Vec<&[u32]> = {
+            let (a, r) = items.split_at(4);
+            let (b, r) = r.split_at(4);
+            let (c, d) = r.split_at(4);
+            vec![a, b, c, d]
+        };
+        // Array order: low-x/low-y, low-x/high-y, high-x/low-y, high-x/high-y.
+        let want = [(false, false), (false, true), (true, false), (true, true)];
+        for (grp, (hx, hy)) in groups.iter().zip(want) {
+            for &i in *grp {
+                let m = infos[i as usize].mid;
+                assert_eq!((m.x >= 2.0, m.y >= 2.0), (hx, hy), "triangle {i} at {m}");
+            }
+        }
+    }
+
+    #[test]
+    fn split_cuts_at_half_the_area_not_half_the_count() {
+        // One big triangle on the left outweighs ten small ones on the right.
+        let mut infos = vec![tri(DVec2::new(0.0, 0.0), 10.0)];
+        infos.extend((1..=10).map(|i| tri(DVec2::new(i as f64, 0.0), 1.0)));
+        let mut items: Vec<u32> = (0..11).collect();
+        let g = split4(&infos, &mut items);
+        assert_eq!(
+            g[0] + g[1],
+            1,
+            "the heavy triangle alone forms the low-x half: {g:?}"
+        );
+    }
+
+    #[test]
+    fn split_terminates_on_identical_midpoints_and_zero_areas() {
+        let infos: Vec<TriInfo> = (0..1000).map(|_| tri(DVec2::new(5.0, 5.0), 0.0)).collect();
+        let mut items: Vec<u32> = (0..1000).collect();
+        let g = split4(&infos, &mut items);
+        assert_eq!(g.iter().sum::<usize>(), 1000);
+        assert!(
+            g.iter().all(|&n| n < 1000),
+            "every child must shrink: {g:?}"
+        );
+        // Two triangles: each goes to its own child; one triangle: everything in the first group.
+        let mut two = vec![0u32, 1];
+        assert_eq!(
+            split4(&infos, &mut two).iter().filter(|&&n| n == 1).count(),
+            2
+        );
+        let mut one = vec![0u32];
+        assert_eq!(split4(&infos, &mut one), [1, 0, 0, 0]);
+    }
+}
