@@ -179,25 +179,20 @@ fn build_node(
     let range = offset..offset + items.len();
     let n = ctx.nodes.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     (ctx.progress)(n + 1);
-    if let Some(leaf) = try_leaf(ctx, items, 1.0) {
+    let leaf = match try_leaf(ctx, items, 1.0) {
+        Some(leaf) => Some(leaf),
+        None if items.len() == 1 => Some(clamp_leaf(ctx, items)?),
+        None => None,
+    };
+    if let Some(leaf) = leaf {
+        let kind = LayoutKind::Leaf(leaf);
         return Ok(LayoutNode {
             range,
             level,
             cell,
             lo,
             hi,
-            kind: LayoutKind::Leaf(leaf),
-        });
-    }
-    if items.len() == 1 {
-        let leaf = clamp_leaf(ctx, items)?;
-        return Ok(LayoutNode {
-            range,
-            level,
-            cell,
-            lo,
-            hi,
-            kind: LayoutKind::Leaf(leaf),
+            kind,
         });
     }
     if level.0 >= ctx.opts.max_depth {
