@@ -68,9 +68,19 @@ fn depth_22_builds_verifies_and_the_depth_cap_is_enforced() {
         .iter()
         .find(|n| n.level == 22 && n.index_count == 27)
         .unwrap();
-    assert_eq!(deep.cell, Cell { ix: (1 << 22) - 1, iy: (1 << 22) - 1 });
+    assert_eq!(
+        deep.cell,
+        Cell {
+            ix: (1 << 22) - 1,
+            iy: (1 << 22) - 1
+        }
+    );
     assert_eq!(deep.index_count, 27);
-    assert!(built.report.file_bytes < 4 << 20, "{}", built.report.file_bytes);
+    assert!(
+        built.report.file_bytes < 4 << 20,
+        "{}",
+        built.report.file_bytes
+    );
 
     // --max-depth is respected: the same scene with a cap of 21 is refused, naming the region and cap.
     let o = atlastree::build::BuildOptions {
@@ -82,18 +92,35 @@ fn depth_22_builds_verifies_and_the_depth_cap_is_enforced() {
     };
     match &e {
         BuildError::Layout {
-            source: LayoutError::DepthExceeded { depth, triangles, lo, hi, .. },
+            source:
+                LayoutError::DepthExceeded {
+                    depth,
+                    triangles,
+                    lo,
+                    hi,
+                    ..
+                },
             ..
         } => {
             assert_eq!(*depth, 21);
-            assert_eq!(*triangles, 11, "the region that does not fit: 2 + 9 triangles");
+            assert_eq!(
+                *triangles, 11,
+                "the region that does not fit: 2 + 9 triangles"
+            );
             assert!(lo.x > 0.0 && hi.x > lo.x, "{lo} {hi}");
         }
         other => panic!("expected DepthExceeded, got {other}"),
     }
     let msg = e.to_string();
-    assert!(msg.contains("--max-depth 21") && msg.contains("region x∈["), "{msg}");
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "nothing written");
+    assert!(
+        msg.contains("--max-depth 21") && msg.contains("region x∈["),
+        "{msg}"
+    );
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "nothing written"
+    );
 
     // The default cap is 24: a scene that needs depth 25 is refused by default, 24 builds.
     let Err((_, e)) = try_build(&peel_strip(25), &tiny_opts(64, D_MIN)) else {
@@ -148,14 +175,21 @@ fn deep_leaves_sample_the_same_texel_as_f64_at_every_level() {
                 let level = Level(j);
                 // The vertices, and the centroid as the rasteriser interpolates the per-vertex results.
                 let per_vertex = uvs.map(|uv| texel_coords(uv, node.cell, k, level, size));
-                let centroid = |i: usize| {
-                    (per_vertex[0][i] + per_vertex[1][i] + per_vertex[2][i]) / 3.0
-                };
-                for c in per_vertex.iter().copied().chain([[centroid(0), centroid(1), centroid(2)]]) {
+                let centroid =
+                    |i: usize| (per_vertex[0][i] + per_vertex[1][i] + per_vertex[2][i]) / 3.0;
+                for c in per_vertex
+                    .iter()
+                    .copied()
+                    .chain([[centroid(0), centroid(1), centroid(2)]])
+                {
                     let [exact, f32form, naive] = c;
                     let err = (f32form - exact).abs().max_element();
                     worst_exact = worst_exact.max(err);
-                    assert!(err <= tol * 1.5, "level {j} of a level-{} leaf: {err} texels", k.0);
+                    assert!(
+                        err <= tol * 1.5,
+                        "level {j} of a level-{} leaf: {err} texels",
+                        k.0
+                    );
                     assert!(
                         same_texel(exact, f32form, tol * 1.5),
                         "level {j}: {exact} vs {f32form}"
@@ -192,7 +226,11 @@ fn children_tile_their_parent_exactly_at_every_level() {
             for corner in [Vec2::ZERO, Vec2::ONE, Vec2::X, Vec2::Y] {
                 let want = atlas_uv_at(corner.as_dvec2(), n.cell, level, Level(j));
                 let got = atlas_uv_at_f32(corner, n.cell, level, Level(j));
-                assert_eq!(got.as_dvec2(), want, "node {ni} corner {corner} at level {j}");
+                assert_eq!(
+                    got.as_dvec2(),
+                    want,
+                    "node {ni} corner {corner} at level {j}"
+                );
             }
             squares += 1;
         }
@@ -206,7 +244,11 @@ fn children_tile_their_parent_exactly_at_every_level() {
             let lo = atlas_uv_at_f32(Vec2::ZERO, ch.cell, Level(ch.level as u8), level);
             let hi = atlas_uv_at_f32(Vec2::ONE, ch.cell, Level(ch.level as u8), level);
             let q_lo = Vec2::new((q & 1) as f32, (q >> 1) as f32) * 0.5;
-            assert_eq!((lo, hi), (q_lo, q_lo + Vec2::splat(0.5)), "node {ni} child {q}");
+            assert_eq!(
+                (lo, hi),
+                (q_lo, q_lo + Vec2::splat(0.5)),
+                "node {ni} child {q}"
+            );
         }
     }
     assert!(squares > 900, "{squares}");
@@ -225,7 +267,10 @@ fn measure(k: u8) -> (f64, u32, f64) {
             iy: n - 1 - (c * 13) % n.max(1),
         };
         for s in 0..64 {
-            let uv = Vec2::new((s as f32 + 0.37) / 64.0, ((s * 29 % 64) as f32 + 0.61) / 64.0);
+            let uv = Vec2::new(
+                (s as f32 + 0.37) / 64.0,
+                ((s * 29 % 64) as f32 + 0.61) / 64.0,
+            );
             let want = atlas_uv_at(uv.as_dvec2(), cell, Level(k), Level(k));
             let e = |got: Vec2| (got.as_dvec2() - want).abs().max_element() * 1024.0;
             // fract() of a root UV rounded up to the next cell gives 0 instead of ~1: a wrap.
@@ -246,8 +291,14 @@ fn naive_fract_error_at_depth_16_20_24_in_texels_of_a_1024_atlas() {
         rows.push((k, naive, wraps, exact));
         // Expected: half an ulp of the root UV times 2^k: 2^(k−24) atlas widths = 2^(k−14) texels.
         let predicted = 2f64.powi(i32::from(k) - 14);
-        assert!(naive >= 0.25 * predicted && naive <= predicted, "depth {k}: naive {naive}");
-        assert_eq!(exact, 0.0, "depth {k}: the leaf's own level is the identity");
+        assert!(
+            naive >= 0.25 * predicted && naive <= predicted,
+            "depth {k}: naive {naive}"
+        );
+        assert_eq!(
+            exact, 0.0,
+            "depth {k}: the leaf's own level is the identity"
+        );
     }
     for (k, naive, wraps, exact) in rows {
         eprintln!(
@@ -262,6 +313,8 @@ mod props {
     use proptest::prelude::*;
 
     proptest! {
+        #![proptest_config(ProptestConfig { cases: 512, failure_persistence: None, ..ProptestConfig::default() })]
+
         /// The shader's f32 form is within one f32 rounding (2^-24) of the f64 reference at every
         /// (leaf level ≤ 30, ancestor level, cell, uv); the identity at the leaf's own level.
         #[test]

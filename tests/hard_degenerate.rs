@@ -112,7 +112,9 @@ fn sizing_takes_the_guarded_path_and_stays_bounded() {
         assert!(e.w.is_finite() && e.h.is_finite(), "{name}: {e:?}");
         // Never more texels per repetition than the longest world edge over the shortest non-zero UV
         // edge, times f (the edge estimate's bound).
-        let longest = (0..3).map(|i| (pos[(i + 1) % 3] - pos[i]).length()).fold(0.0, f64::max);
+        let longest = (0..3)
+            .map(|i| (pos[(i + 1) % 3] - pos[i]).length())
+            .fold(0.0, f64::max);
         assert!(e.w.max(e.h) <= 2.0 * longest * f / 1e-6, "{name}: {e:?}");
         rows.push((name, e, naive_size(pos, uv, f)));
     }
@@ -120,7 +122,11 @@ fn sizing_takes_the_guarded_path_and_stays_bounded() {
     assert_eq!(ours.w, 10.0 * f, "edge estimate: 10 m over 1 UV");
     assert!(naive > 1e12, "naive inverse: {naive}");
     for (name, e, naive) in rows {
-        eprintln!("{name:42} ours {:>12.4e} ({:?}), naive inverse {naive:.3e}", e.w.max(e.h), e.method);
+        eprintln!(
+            "{name:42} ours {:>12.4e} ({:?}), naive inverse {naive:.3e}",
+            e.w.max(e.h),
+            e.method
+        );
     }
 }
 
@@ -150,7 +156,10 @@ fn degenerate_scene_builds_and_verifies() {
             for r in t.leaf_rects(leaf) {
                 // The largest honest need: a 100 m edge at f texels per metre (+ ceil).
                 let limit = (100.0 * f).ceil() as u32 + 1;
-                assert!(r.inner[2] <= limit && r.inner[3] <= limit, "d_min {d_min}: {r:?} > {limit}");
+                assert!(
+                    r.inner[2] <= limit && r.inner[3] <= limit,
+                    "d_min {d_min}: {r:?} > {limit}"
+                );
             }
         }
         eprintln!(

@@ -64,10 +64,31 @@ fn scene(non_finite: bool) -> Case {
         rep4,
     );
     // One texture at +1e5 and at −1e5, side by side.
-    quad_at(&mut b, 220.0, 20.0, DVec2::splat(1e5), DVec2::splat(1e5 + 2.0), offsets);
-    quad_at(&mut b, 245.0, 20.0, DVec2::splat(-1e5 - 2.0), DVec2::splat(-1e5), offsets);
+    quad_at(
+        &mut b,
+        220.0,
+        20.0,
+        DVec2::splat(1e5),
+        DVec2::splat(1e5 + 2.0),
+        offsets,
+    );
+    quad_at(
+        &mut b,
+        245.0,
+        20.0,
+        DVec2::splat(-1e5 - 2.0),
+        DVec2::splat(-1e5),
+        offsets,
+    );
     // −2.9e9 with repeat and with mirrored repeat (phase 0.25).
-    quad_at(&mut b, 270.0, 20.0, DVec2::splat(-2.9e9), DVec2::splat(-2.9e9 + 1.0), far);
+    quad_at(
+        &mut b,
+        270.0,
+        20.0,
+        DVec2::splat(-2.9e9),
+        DVec2::splat(-2.9e9 + 1.0),
+        far,
+    );
     quad_at(
         &mut b,
         295.0,
@@ -83,11 +104,18 @@ fn scene(non_finite: bool) -> Case {
             DVec3::new(340.0, 0.0, 0.0),
             DVec3::new(340.0, 0.0, 20.0),
         ],
-        [DVec2::new(-2.9e9, 0.0), DVec2::new(1.0, 0.0), DVec2::new(1.0, 1.0)],
+        [
+            DVec2::new(-2.9e9, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(1.0, 1.0),
+        ],
         clamp,
     );
     if non_finite {
-        for (k, bad) in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY].into_iter().enumerate() {
+        for (k, bad) in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY]
+            .into_iter()
+            .enumerate()
+        {
             let x = 350.0 + 10.0 * k as f64;
             b.triangle(
                 [
@@ -118,12 +146,23 @@ fn sizing_stays_finite_and_uses_the_expected_method() {
         .0;
     let f = p.f_proj();
     let s = &c.scene;
-    let tris = s.triangles.iter().map(|t| (s.tri_positions(t), s.tri_uvs(t)));
+    let tris = s
+        .triangles
+        .iter()
+        .map(|t| (s.tri_positions(t), s.tri_uvs(t)));
     let r = analyze_sizing(tris, f);
     assert!(r.max_w.is_finite() && r.max_h.is_finite(), "{r:?}");
     // The largest need: the quad at −2.9e9, 20 m per repetition (exact although its UVs are at −2.9e9).
-    assert!((r.max_w - 20.0 * f).abs() < 1e-6 * f, "{} vs {}", r.max_w, 20.0 * f);
-    assert_eq!(r.world_degenerate, 3, "NaN/±inf UVs are ignored for sizing: {r:?}");
+    assert!(
+        (r.max_w - 20.0 * f).abs() < 1e-6 * f,
+        "{} vs {}",
+        r.max_w,
+        20.0 * f
+    );
+    assert_eq!(
+        r.world_degenerate, 3,
+        "NaN/±inf UVs are ignored for sizing: {r:?}"
+    );
     assert_eq!(r.edge_fallback, 1, "the clamped 2.9e9-wide triangle: {r:?}");
     assert_eq!(r.exact, r.triangles - 4, "{r:?}");
     let e = texels_per_uv(
@@ -147,7 +186,10 @@ fn extreme_uvs_build_bounded_finite_and_verified() {
     for leaf in t.leaves {
         for r in t.leaf_rects(leaf) {
             assert!(r.inner[2] <= size && r.inner[3] <= size, "{r:?}");
-            assert!(r.uv_min.iter().chain(&r.uv_max).all(|x| x.is_finite()), "{r:?}");
+            assert!(
+                r.uv_min.iter().chain(&r.uv_max).all(|x| x.is_finite()),
+                "{r:?}"
+            );
             let extent = (r.uv_max[0] - r.uv_min[0]).max(r.uv_max[1] - r.uv_min[1]);
             let wrap = c.scene.materials[r.material as usize].wrap[0];
             if wrap != Wrap::ClampToEdge {
@@ -162,7 +204,10 @@ fn extreme_uvs_build_bounded_finite_and_verified() {
     }
     assert!(widest <= 1e4 + 1.0, "{widest}");
     // The ±1e5 quads share their texture: each leaf's area spans at most 2 repetitions.
-    assert!(offsets_extent > 0.0 && offsets_extent <= 2.0, "{offsets_extent}");
+    assert!(
+        offsets_extent > 0.0 && offsets_extent <= 2.0,
+        "{offsets_extent}"
+    );
     let f = built.file.to_params().f_proj();
     let w = 20.0 / 2.0 * f; // texels per repetition of the offsets texture
     eprintln!(
@@ -179,7 +224,9 @@ fn extreme_uvs_build_bounded_finite_and_verified() {
     let mut far_max = 0f32;
     for leaf in t.leaves {
         let originals = t.leaf_originals(leaf);
-        for v in &t.vertices[leaf.first_vertex as usize..(leaf.first_vertex + leaf.vertex_count) as usize] {
+        for v in &t.vertices
+            [leaf.first_vertex as usize..(leaf.first_vertex + leaf.vertex_count) as usize]
+        {
             let m = originals[v.original as usize].material;
             if m == c.mirror.0 {
                 mirror_u.push(v.orig_uv[0]);
@@ -190,7 +237,10 @@ fn extreme_uvs_build_bounded_finite_and_verified() {
         }
     }
     assert!(far_max <= 1.0, "{far_max}");
-    assert!(mirror_u.contains(&0.25) && mirror_u.contains(&1.75), "{mirror_u:?}");
+    assert!(
+        mirror_u.contains(&0.25) && mirror_u.contains(&1.75),
+        "{mirror_u:?}"
+    );
     assert!(mirror_u.iter().all(|u| (0.25..=1.75).contains(u)));
     // Naive: the source UVs rounded to f32.
     let naive_phase = |u: f64| {
@@ -214,8 +264,16 @@ fn repeats_cost_texels_by_world_size_only() {
     let img = b.pattern_image("t", 64, 1);
     let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
     b.triangle(
-        [DVec3::ZERO, DVec3::new(100.0, 0.0, 0.0), DVec3::new(0.0, 0.0, 100.0)],
-        [DVec2::splat(5e4), DVec2::new(5e4 + 1e4, 5e4), DVec2::new(5e4, 5e4 + 1e4)],
+        [
+            DVec3::ZERO,
+            DVec3::new(100.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 100.0),
+        ],
+        [
+            DVec2::splat(5e4),
+            DVec2::new(5e4 + 1e4, 5e4),
+            DVec2::new(5e4, 5e4 + 1e4),
+        ],
         m,
     );
     let built = build_ok(&b.build(), &tiny_opts(256, 2000.0));

@@ -70,17 +70,45 @@ fn compare_files(a: &TreeFile, b: &TreeFile, by: DVec3) {
             (y.level, y.cell, y.parent, y.children, y.leaf, y.atlas_block),
             "node {i}"
         );
-        assert_eq!((x.first_index, x.index_count), (y.first_index, y.index_count));
-        assert_eq!(x.min_distance.to_bits(), y.min_distance.to_bits(), "node {i}");
-        assert_eq!(DVec3::from_array(x.bounds_min) + by, DVec3::from_array(y.bounds_min));
-        assert_eq!(DVec3::from_array(x.bounds_max) + by, DVec3::from_array(y.bounds_max));
+        assert_eq!(
+            (x.first_index, x.index_count),
+            (y.first_index, y.index_count)
+        );
+        assert_eq!(
+            x.min_distance.to_bits(),
+            y.min_distance.to_bits(),
+            "node {i}"
+        );
+        assert_eq!(
+            DVec3::from_array(x.bounds_min) + by,
+            DVec3::from_array(y.bounds_min)
+        );
+        assert_eq!(
+            DVec3::from_array(x.bounds_max) + by,
+            DVec3::from_array(y.bounds_max)
+        );
     }
     assert_eq!(ta.leaves.len(), tb.leaves.len());
     for (x, y) in ta.leaves.iter().zip(tb.leaves) {
-        assert_eq!(DVec3::from_array(x.origin) + by, DVec3::from_array(y.origin));
         assert_eq!(
-            (x.node, x.first_vertex, x.vertex_count, x.first_index, x.index_count),
-            (y.node, y.first_vertex, y.vertex_count, y.first_index, y.index_count)
+            DVec3::from_array(x.origin) + by,
+            DVec3::from_array(y.origin)
+        );
+        assert_eq!(
+            (
+                x.node,
+                x.first_vertex,
+                x.vertex_count,
+                x.first_index,
+                x.index_count
+            ),
+            (
+                y.node,
+                y.first_vertex,
+                y.vertex_count,
+                y.first_index,
+                y.index_count
+            )
         );
         assert_eq!(x.clamp_scale.to_bits(), y.clamp_scale.to_bits());
         assert_eq!(ta.leaf_rects(x), tb.leaf_rects(y));
@@ -127,7 +155,10 @@ fn translation_changes_nothing_but_bounds_and_origins() {
     };
     let base_cuts = cuts(&base.file, DVec3::ZERO);
     let drawn: usize = base_cuts.iter().map(|c| c.items.len()).sum();
-    assert!(drawn > cams.len(), "the path must select something: {drawn}");
+    assert!(
+        drawn > cams.len(),
+        "the path must select something: {drawn}"
+    );
     for by in SHIFTS {
         let moved = build_ok(&translated(&scene, by), &opts());
         assert_sound(&moved.file);
@@ -147,7 +178,13 @@ fn f32_absolute_positions_lose_half_a_metre_at_1e7() {
     // Half-metre offset: scene coordinates are then no longer integers, as in real data.
     let scene = translated(&small_city(2, 32), DVec3::splat(1e7 + 0.5));
     // Larger atlases: fewer split triangles, so most stored corners are scene corners.
-    let built = build_ok(&scene, &atlastree::build::BuildOptions { atlas_size: 512, ..opts() });
+    let built = build_ok(
+        &scene,
+        &atlastree::build::BuildOptions {
+            atlas_size: 512,
+            ..opts()
+        },
+    );
     let t = built.file.tree(0).unwrap();
     let mut pieces = vec![0u32; scene.triangles.len()];
     for &s in t.source_triangles {
@@ -167,7 +204,10 @@ fn f32_absolute_positions_lose_half_a_metre_at_1e7() {
                 unsplit += 1;
                 let tri = scene.tri_positions(&scene.triangles[src]);
                 for w in &world {
-                    let d = tri.iter().map(|p| (*p - *w).length()).fold(f64::INFINITY, f64::min);
+                    let d = tri
+                        .iter()
+                        .map(|p| (*p - *w).length())
+                        .fold(f64::INFINITY, f64::min);
                     ours = ours.max(d);
                 }
             }

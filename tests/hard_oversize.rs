@@ -11,8 +11,8 @@
 
 mod hard_util;
 
-use atlastree::build::BuildOptions;
 use atlastree::build::BuildError;
+use atlastree::build::BuildOptions;
 use atlastree::build::prepare::{PrepareOptions, prepare};
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
@@ -25,7 +25,11 @@ fn one_big_triangle() -> Scene {
     let img = b.pattern_image("big", 256, 3);
     let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
     b.triangle(
-        [DVec3::ZERO, DVec3::new(100.0, 0.0, 0.0), DVec3::new(0.0, 0.0, 100.0)],
+        [
+            DVec3::ZERO,
+            DVec3::new(100.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 100.0),
+        ],
         [DVec2::ZERO, DVec2::new(10.0, 0.0), DVec2::new(0.0, 10.0)],
         m,
     );
@@ -53,7 +57,13 @@ fn oversize_triangle_is_clamped_with_one_piece_and_split_by_default() {
     assert_sound(&clamped.file);
     let r = &clamped.report.trees[0];
     assert_eq!((r.pieces, r.leaves, r.clamped_leaves), (1, 1, 1), "{r:?}");
-    assert!(clamped.report.warnings.iter().any(|w| w.contains("scaled down")));
+    assert!(
+        clamped
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("scaled down"))
+    );
     let p = clamped.file.to_params();
     let t = clamped.file.tree(0).unwrap();
     let leaf = t.leaves[0];
@@ -65,7 +75,10 @@ fn oversize_triangle_is_clamped_with_one_piece_and_split_by_default() {
     let inner_max = f64::from(p.atlas_size - 2 * p.border);
     // The clamp is the largest that fits, to the bisection's precision (2^(40/4096) ≈ 0.7 %).
     assert!(need * leaf.clamp_scale <= inner_max, "{rect:?}");
-    assert!(f64::from(rect.inner[2]) >= 0.95 * (inner_max - 4.0), "{rect:?}");
+    assert!(
+        f64::from(rect.inner[2]) >= 0.95 * (inner_max - 4.0),
+        "{rect:?}"
+    );
 
     // Default: split into pieces that tile the triangle, nothing clamped, every leaf at d_min.
     let split = build_ok(&scene, &big_opts(BuildOptions::default().max_pieces));
@@ -84,14 +97,19 @@ fn oversize_triangle_is_clamped_with_one_piece_and_split_by_default() {
             let (pos, v) = leaf_triangle(&t, leaf.origin, first + k);
             covered += tri_area(pos);
             // The d_min guarantee holds for every piece at its own leaf.
-            let uv = v.map(|v| DVec2::new(v.atlas_uv[0].into(), v.atlas_uv[1].into()) * f64::from(p.atlas_size));
+            let uv = v.map(|v| {
+                DVec2::new(v.atlas_uv[0].into(), v.atlas_uv[1].into()) * f64::from(p.atlas_size)
+            });
             if let Some(ppt) = pixels_per_texel(pos, uv, f_proj_params(&p, p.d_min)) {
                 worst = worst.max(ppt);
             }
         }
     }
     let want = tri_area(scene.tri_positions(&scene.triangles[0]));
-    assert!((covered - want).abs() <= 1e-6 * want, "pieces cover {covered} of {want}");
+    assert!(
+        (covered - want).abs() <= 1e-6 * want,
+        "pieces cover {covered} of {want}"
+    );
     assert!(worst <= 1.01, "{worst} pixels per texel at d_min");
     let root_split = t.nodes[0].min_distance;
     let root_clamp = clamped.file.tree(0).unwrap().nodes[0].min_distance;
@@ -109,12 +127,18 @@ fn same_midpoint(n: u32) -> Scene {
     let mut b = SceneBuilder::new(UpAxis::Y);
     let c = DVec3::new(500.0, 0.0, 500.0);
     for i in 0..n {
-        let img = b.image(&format!("m{i}"), 4, 4, move |_, _| [(i % 251) as u8, (i / 251) as u8, 99, 255]);
+        let img = b.image(&format!("m{i}"), 4, 4, move |_, _| {
+            [(i % 251) as u8, (i / 251) as u8, 99, 255]
+        });
         let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
         // Sheared copies of one triangle: equal areas (1.5 · 20 · 20), different shapes, one centroid.
         let d = DVec3::new(20.0, 0.0, 0.0);
         let e = DVec3::new(f64::from(i) - f64::from(n / 2), 0.0, 20.0);
-        b.triangle([c + d, c + e, c - d - e], [DVec2::ZERO, DVec2::X, DVec2::Y], m);
+        b.triangle(
+            [c + d, c + e, c - d - e],
+            [DVec2::ZERO, DVec2::X, DVec2::Y],
+            m,
+        );
     }
     b.build()
 }
@@ -132,7 +156,10 @@ fn thousands_of_triangles_with_one_midpoint_terminate() {
     };
     let infos = prepare(&scene, &(0..n).collect::<Vec<_>>(), &popts);
     let mid = infos[0].mid;
-    assert!(infos.iter().all(|t| t.mid == mid), "midpoints must coincide exactly");
+    assert!(
+        infos.iter().all(|t| t.mid == mid),
+        "midpoints must coincide exactly"
+    );
     // Naive: a spatial split at the mean midpoint puts every triangle on one side — no progress, forever.
     let below = infos.iter().filter(|t| t.mid.x < mid.x).count();
     assert_eq!(below, 0);
@@ -153,13 +180,19 @@ fn thousands_of_triangles_with_one_midpoint_terminate() {
 fn vertical_at_one_spot(n: u32, eps: f64) -> Scene {
     let mut b = SceneBuilder::new(UpAxis::Y);
     for i in 0..n {
-        let img = b.image(&format!("v{i}"), 4, 4, move |_, _| [(i % 256) as u8, 50, 50, 255]);
+        let img = b.image(&format!("v{i}"), 4, 4, move |_, _| {
+            [(i % 256) as u8, 50, 50, 255]
+        });
         let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
         let h = 10.0 + f64::from(i % 7);
         let a = f64::from(i) * 0.1;
         let off = DVec3::new(a.cos(), 0.0, a.sin()) * eps;
         b.triangle(
-            [DVec3::new(7.0, 0.0, 7.0), DVec3::new(7.0, h, 7.0) + off, DVec3::new(7.0, h * 0.5, 7.0) - off],
+            [
+                DVec3::new(7.0, 0.0, 7.0),
+                DVec3::new(7.0, h, 7.0) + off,
+                DVec3::new(7.0, h * 0.5, 7.0) - off,
+            ],
             [DVec2::ZERO, DVec2::X, DVec2::Y],
             m,
         );
@@ -184,7 +217,10 @@ fn a_point_footprint_terminates_and_a_point_scene_is_refused() {
         } else {
             assert_eq!(r.sizing.exact, 300);
         }
-        eprintln!("300 vertical triangles at one spot, ε = {eps}: depth {}, {} leaves", r.depth, r.leaves);
+        eprintln!(
+            "300 vertical triangles at one spot, ε = {eps}: depth {}, {} leaves",
+            r.depth, r.leaves
+        );
     }
     // Every vertex at one point: d_min = diagonal / R = 0 is refused, naming the parameter.
     let mut b = SceneBuilder::new(UpAxis::Y);
@@ -201,7 +237,10 @@ fn a_point_footprint_terminates_and_a_point_scene_is_refused() {
     let Err((_, e)) = try_build(&point, &o) else {
         panic!("a point scene built with a d_min derived from its size")
     };
-    assert!(matches!(e, BuildError::InvalidParam { name: "d-min", .. }), "{e}");
+    assert!(
+        matches!(e, BuildError::InvalidParam { name: "d-min", .. }),
+        "{e}"
+    );
     assert!(e.to_string().contains("single point"), "{e}");
     // With d_min given in metres it builds: one leaf, the paper's 1×1 area.
     let built = build_ok(&point, &tiny_opts(64, 10.0));

@@ -73,7 +73,10 @@ fn special_cameras_on_a_built_city() {
     let t = b.file.tree(0).unwrap();
     let (nodes, n_idx) = (t.nodes, t.indices.len());
     let root = &nodes[0];
-    let (lo, hi) = (DVec3::from_array(root.bounds_min), DVec3::from_array(root.bounds_max));
+    let (lo, hi) = (
+        DVec3::from_array(root.bounds_min),
+        DVec3::from_array(root.bounds_max),
+    );
     let mid = centre(root);
     let mut cut = Cut::new();
 
@@ -85,11 +88,22 @@ fn special_cameras_on_a_built_city() {
         .unwrap();
     let eye = centre(leaf);
     assert_eq!(distance_to_aabb(eye, lo, hi), 0.0);
-    let c = select_checked(nodes, n_idx, &cam(eye, eye + DVec3::new(1.0, 0.0, 0.3)), &mut cut);
-    assert!(c.items.iter().all(|i| i.node != NodeId(0)), "root atlas at distance 0");
+    let c = select_checked(
+        nodes,
+        n_idx,
+        &cam(eye, eye + DVec3::new(1.0, 0.0, 0.3)),
+        &mut cut,
+    );
+    assert!(
+        c.items.iter().all(|i| i.node != NodeId(0)),
+        "root atlas at distance 0"
+    );
     let own = c.items.iter().find(|i| i.node.idx() == li);
     // The leaf the eye is in is drawn with its original textures (it straddles the near plane).
-    assert_eq!(own.map(|i| (i.source, i.distance)), Some((Source::Original, 0.0)));
+    assert_eq!(
+        own.map(|i| (i.source, i.distance)),
+        Some((Source::Original, 0.0))
+    );
 
     // Exactly at min_distance of an inner node: from below its ground face, so the distance is exact.
     let (ni, inner) = nodes
@@ -119,10 +133,17 @@ fn special_cameras_on_a_built_city() {
     let inside = |i: &atlastree::select::CutItem| {
         inner.first_index <= i.first_index && i.first_index < inner.first_index + inner.index_count
     };
-    assert!(c.items.iter().any(inside), "its descendants are drawn instead");
+    assert!(
+        c.items.iter().any(inside),
+        "its descendants are drawn instead"
+    );
     let c = select_checked(nodes, n_idx, &at(md.next_up()), &mut cut);
     let item = c.items.iter().find(|i| i.node.idx() == ni);
-    assert_eq!(item.map(|i| i.source), Some(Source::Atlas), "just beyond: its atlas");
+    assert_eq!(
+        item.map(|i| i.source),
+        Some(Source::Atlas),
+        "just beyond: its atlas"
+    );
 
     // The scene's far face exactly on the far plane: leaves touching it are drawn, everything else is
     // beyond the far plane and culled.
@@ -147,18 +168,35 @@ fn special_cameras_on_a_built_city() {
             "leaf node {i} touches the far plane but is not drawn"
         );
     }
-    let c_beyond = Camera { far: far.next_down(), ..c };
+    let c_beyond = Camera {
+        far: far.next_down(),
+        ..c
+    };
     let none = select_checked(nodes, n_idx, &c_beyond, &mut cut);
-    assert!(none.items.is_empty(), "everything lies beyond the far plane: {:?}", none.items);
+    assert!(
+        none.items.is_empty(),
+        "everything lies beyond the far plane: {:?}",
+        none.items
+    );
 
     // Straight down with up = +Y (parallel to the view direction), from high and from low.
     for h in [2.0 * (hi - lo).length(), hi.y + 1.0] {
-        let c = select_checked(nodes, n_idx, &cam(DVec3::new(mid.x, h, mid.z), DVec3::new(mid.x, 0.0, mid.z)), &mut cut);
+        let c = select_checked(
+            nodes,
+            n_idx,
+            &cam(DVec3::new(mid.x, h, mid.z), DVec3::new(mid.x, 0.0, mid.z)),
+            &mut cut,
+        );
         assert!(!c.items.is_empty(), "straight down from {h}");
     }
     // Along the plane at ground height, across the whole city, both ways.
     for (a, z) in [(lo.x - 5.0, lo.x + 1.0), (hi.x + 5.0, hi.x - 1.0)] {
-        let c = select_checked(nodes, n_idx, &cam(DVec3::new(a, 0.0, mid.z), DVec3::new(z, 0.0, mid.z)), &mut cut);
+        let c = select_checked(
+            nodes,
+            n_idx,
+            &cam(DVec3::new(a, 0.0, mid.z), DVec3::new(z, 0.0, mid.z)),
+            &mut cut,
+        );
         assert!(!c.items.is_empty());
     }
 }
@@ -169,7 +207,10 @@ fn random_cameras_on_a_built_city_draw_every_visible_triangle_once() {
     let t = b.file.tree(0).unwrap();
     let (nodes, n_idx) = (t.nodes, t.indices.len());
     let root = &nodes[0];
-    let (lo, hi) = (DVec3::from_array(root.bounds_min), DVec3::from_array(root.bounds_max));
+    let (lo, hi) = (
+        DVec3::from_array(root.bounds_min),
+        DVec3::from_array(root.bounds_max),
+    );
     let span = hi - lo;
     let pt = |s: [f64; 3]| lo - span * 0.5 + span * 2.0 * DVec3::from_array(s);
     let mut runner = TestRunner::new(Config {

@@ -375,6 +375,9 @@ mod tests {
         let (lo, hi) = (DVec2::new(0.0, 2.0), DVec2::new(4.0, 3.0));
         let at = |u: f64, v: f64| atlas_uv(DVec2::new(u, v), lo, hi, inner, 256.0);
         assert_eq!(at(f64::NAN, f64::NAN), [40.0 / 256.0, 32.0 / 256.0]);
-        assert_eq!(at(f64::INFINITY, f64::NEG_INFINITY), [72.0 / 256.0, 16.0 / 256.0]);
+        assert_eq!(
+            at(f64::INFINITY, f64::NEG_INFINITY),
+            [72.0 / 256.0, 16.0 / 256.0]
+        );
     }
 }

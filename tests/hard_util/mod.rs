@@ -34,7 +34,10 @@ pub fn tiny_opts(atlas: u32, d_min: f64) -> BuildOptions {
 }
 
 /// Builds `scene` into a fresh temp dir.
-pub fn try_build(scene: &Scene, opts: &BuildOptions) -> Result<Built, (tempfile::TempDir, BuildError)> {
+pub fn try_build(
+    scene: &Scene,
+    opts: &BuildOptions,
+) -> Result<Built, (tempfile::TempDir, BuildError)> {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("hard.atlastree");
     match build(scene, opts, &path, &NoProgress) {
@@ -74,7 +77,12 @@ pub fn assert_sound(file: &TreeFile) {
                 "min_distance {}",
                 n.min_distance
             );
-            assert!(n.bounds_min.iter().chain(&n.bounds_max).all(|c| c.is_finite()));
+            assert!(
+                n.bounds_min
+                    .iter()
+                    .chain(&n.bounds_max)
+                    .all(|c| c.is_finite())
+            );
         }
         for l in t.leaves {
             assert!(l.origin.iter().all(|c| c.is_finite()) && l.clamp_scale.is_finite());
@@ -83,7 +91,11 @@ pub fn assert_sound(file: &TreeFile) {
 }
 
 pub fn vertex_finite(v: &TreeVertex) -> bool {
-    v.pos.iter().chain(&v.atlas_uv).chain(&v.orig_uv).all(|c| c.is_finite())
+    v.pos
+        .iter()
+        .chain(&v.atlas_uv)
+        .chain(&v.orig_uv)
+        .all(|c| c.is_finite())
 }
 
 /// Max over the two texture axes of (world units per atlas texel) · f_proj(d): ≤ 1 means at least
@@ -126,7 +138,12 @@ pub fn leaf_triangle(
 /// The cut invariants on a real tree: every index of the tree is drawn at most once, every triangle of a
 /// leaf whose bounds are not outside the frustum is drawn exactly once, and no item is an ancestor of
 /// another. Returns the number of indices drawn.
-pub fn assert_cut_covers(nodes: &[NodeRecord], index_len: usize, camera: &Camera, cut: &Cut) -> usize {
+pub fn assert_cut_covers(
+    nodes: &[NodeRecord],
+    index_len: usize,
+    camera: &Camera,
+    cut: &Cut,
+) -> usize {
     let frustum = camera.frustum();
     let mut drawn = vec![0u8; index_len];
     for item in &cut.items {
