@@ -218,7 +218,9 @@ pub struct TraversalStack {
 }
 
 /// Top-down traversal of `nodes` (root `nodes[0]`, children after their parent) with an explicit
-/// stack, in pre-order with children in quadrant order. Every visited node is [`evaluate`]d and handed
+/// stack, in the stored pre-order: children by increasing node id, which is index-buffer order (the builder
+/// stores a node's quadrants in the order 0, 2, 1, 3, so quadrant order would not be; hand-made trees in
+/// quadrant order are visited in quadrant order). Every visited node is [`evaluate`]d and handed
 /// to `visit`, which decides whether to descend. Below a node that is outside the frustum, descendants
 /// are reported `Outside` without testing (only a visitor that descends into culled nodes sees them,
 /// e.g. the paging traversal).
@@ -265,8 +267,10 @@ pub fn traverse(
             continue;
         }
         let outside = eval.visibility == Visibility::Outside;
-        // Reverse quadrant order on the stack → quadrant order when popped.
-        for &c in node.children.iter().rev() {
+        // Decreasing ids on the stack → increasing ids (index order) when popped. `NONE` sorts last.
+        let mut children = node.children;
+        children.sort_unstable();
+        for &c in children.iter().rev() {
             if c != NONE && c > p.node && (c as usize) < nodes.len() {
                 pending.push(Pending {
                     node: c,
@@ -522,6 +526,24 @@ mod tests {
         );
         select(&nodes, &c, &c.frustum(), 1.0 - 1e-12, &mut cut);
         assert_eq!(cut.items[0].source, Source::Atlas, "just beyond: atlas");
+    }
+
+    #[test]
+    fn items_follow_the_stored_order_not_quadrant_order() {
+        // Regression (issue 8, tests/hard_select_real.rs): the builder stores quadrants in the order
+        // 0, 2, 1, 3 (node ids and index ranges); the cut must still come out in index order.
+        let leaf = |first_index: u32, leaf: u32| NodeRecord {
+            first_index,
+            ..node([0.0; 3], [1.0; 3], 1e9, [NONE; 4], leaf)
+        };
+        let mut root = node([0.0; 3], [1.0; 3], 1e9, [1, 3, 2, 4], NONE);
+        root.index_count = 12;
+        let nodes = [root, leaf(0, 0), leaf(3, 1), leaf(6, 2), leaf(9, 3)];
+        let c = camera(DVec3::new(0.5, 0.5, 3.0), DVec3::new(0.5, 0.5, 0.0));
+        let mut cut = Cut::new();
+        select(&nodes, &c, &c.frustum(), 1.0, &mut cut);
+        let firsts: Vec<u32> = cut.items.iter().map(|i| i.first_index).collect();
+        assert_eq!(firsts, [0, 3, 6, 9]);
     }
 
     #[test]

@@ -263,8 +263,9 @@ impl Asm<'_> {
 }
 
 /// Leaf-local atlas UV of a (period-shifted) texture UV: the affine map taking `[uv_min, uv_max]` onto the
-/// inner rectangle (§5.2.2), divided by the atlas size. A texture area of zero width maps to the centre
-/// of its inner rectangle.
+/// inner rectangle (§5.2.2), divided by the atlas size. A texture area of zero width, and a NaN UV (a
+/// triangle with a non-finite UV is kept but its texture is undefined), map to the centre of the inner
+/// rectangle; ±∞ clamp to its edges. The result is always inside the inner rectangle.
 pub fn atlas_uv(
     uv: DVec2,
     uv_min: DVec2,
@@ -279,6 +280,8 @@ pub fn atlas_uv(
         } else {
             0.5
         };
+        // NaN survives the clamp; it must not become 0 (outside the rect) in `finite2`.
+        let t = if t.is_nan() { 0.5 } else { t };
         (x as f64 + t * w as f64) / atlas_size
     };
     [
@@ -375,5 +378,19 @@ mod tests {
             256.0,
         );
         assert_eq!(c, [40.0 / 256.0, 32.0 / 256.0]);
+    }
+
+    #[test]
+    fn non_finite_uvs_map_inside_the_inner_rect() {
+        // Regression (issue 8, hard_extreme_uvs): a NaN UV used to become atlas UV 0 via `finite2`, outside
+        // the texture's area (verify failed); ±∞ clamp to the edges.
+        let inner = [8, 16, 64, 32];
+        let (lo, hi) = (DVec2::new(0.0, 2.0), DVec2::new(4.0, 3.0));
+        let at = |u: f64, v: f64| atlas_uv(DVec2::new(u, v), lo, hi, inner, 256.0);
+        assert_eq!(at(f64::NAN, f64::NAN), [40.0 / 256.0, 32.0 / 256.0]);
+        assert_eq!(
+            at(f64::INFINITY, f64::NEG_INFINITY),
+            [72.0 / 256.0, 16.0 / 256.0]
+        );
     }
 }
