@@ -328,29 +328,33 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
                     ));
                     continue;
                 };
-                let Some(rect) = rects.iter().find(|x| x.material == o.material) else {
-                    r.fail(format!(
-                        "tree {ti} leaf {li}: no atlas area for material {}",
-                        o.material
-                    ));
-                    continue;
-                };
+                // A material may have several areas (one per density class): the vertex must lie in one.
                 let (x, y) = (
                     f64::from(v.atlas_uv[0]) * size,
                     f64::from(v.atlas_uv[1]) * size,
                 );
                 let tol = 1e-3;
-                let inside = x >= f64::from(rect.inner[0]) - tol
-                    && x <= f64::from(rect.inner[0] + rect.inner[2]) + tol
-                    && y >= f64::from(rect.inner[1]) - tol
-                    && y <= f64::from(rect.inner[1] + rect.inner[3]) + tol;
+                let mut areas = rects.iter().filter(|x| x.material == o.material).peekable();
+                if areas.peek().is_none() {
+                    r.fail(format!(
+                        "tree {ti} leaf {li}: no atlas area for material {}",
+                        o.material
+                    ));
+                    continue;
+                }
+                let inside = areas.any(|rect| {
+                    x >= f64::from(rect.inner[0]) - tol
+                        && x <= f64::from(rect.inner[0] + rect.inner[2]) + tol
+                        && y >= f64::from(rect.inner[1]) - tol
+                        && y <= f64::from(rect.inner[1] + rect.inner[3]) + tol
+                });
                 if !inside
                     || !v.pos.iter().all(|c| c.is_finite())
                     || !v.orig_uv.iter().all(|c| c.is_finite())
                 {
                     r.fail(format!(
-                        "tree {ti} leaf {li} vertex {vi}: atlas texel ({x:.3}, {y:.3}) outside its area {:?} or not finite",
-                        rect.inner
+                        "tree {ti} leaf {li} vertex {vi}: atlas texel ({x:.3}, {y:.3}) outside every area of material {} or not finite",
+                        o.material
                     ));
                 }
             }

@@ -166,9 +166,11 @@ impl Asm<'_> {
         // Original textures: one entry per material, grouped greedily into blocks of about an atlas' size
         // (an image larger than that is a block of its own).
         let budget = mip_chain_bytes(self.params.atlas_size);
+        let mut seen_materials = std::collections::HashSet::new();
         let classes: Vec<(MaterialId, crate::ids::ImageId, u32)> = l
             .rects
             .iter()
+            .filter(|r| seen_materials.insert(r.material))
             .map(|r| {
                 let mat = &self.scene.materials[r.material.idx()];
                 let img = &self.scene.images[mat.image.idx()];
@@ -201,11 +203,11 @@ impl Asm<'_> {
         }
 
         // Geometry: deduplicated vertices, positions relative to the origin, leaf-local atlas UVs.
-        let rect_of: HashMap<MaterialId, usize> = l
+        let rect_of: HashMap<(MaterialId, i32), usize> = l
             .rects
             .iter()
             .enumerate()
-            .map(|(i, r)| (r.material, i))
+            .map(|(i, r)| ((r.material, r.class), i))
             .collect();
         let first_vertex = self.out.tree.vertices.len() as u32;
         let first_index = self.out.tree.indices.len() as u32;
@@ -213,7 +215,7 @@ impl Asm<'_> {
         for &ti in &self.order[n.range.clone()] {
             let t = &self.infos[ti as usize];
             let pos = t.pos;
-            let r = &l.rects[rect_of[&t.material]];
+            let r = &l.rects[rect_of[&(t.material, t.class)]];
             for (k, p) in pos.iter().enumerate() {
                 let v = TreeVertex {
                     pos: finite3((*p - origin).as_vec3().to_array()),

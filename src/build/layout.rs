@@ -30,10 +30,12 @@ pub struct LayoutOptions {
     pub cap_to_source: bool,
 }
 
-/// One material's area in a node atlas, before pixels exist.
+/// One material's area in a node atlas (for one density class of its triangles), before pixels exist.
 #[derive(Clone, Debug)]
 pub struct PlannedRect {
     pub material: MaterialId,
+    /// Density class of the triangles mapped into this area ([`super::prepare::TriInfo::class`]).
+    pub class: i32,
     /// `[x, y, w, h]`, texels.
     pub outer: [u32; 4],
     pub inner: [u32; 4],
@@ -285,7 +287,7 @@ fn cut_sorted(infos: &[TriInfo], items: &mut [u32], key: impl Fn(&TriInfo) -> f6
     best.clamp(1, n - 1)
 }
 
-/// Per-material requirements of a node (the maxima of §5.2.1 and the UV bounding area of §5.2.2).
+/// Per-(material, density class) requirements of a node (the maxima of §5.2.1 and the UV bounding area of §5.2.2).
 struct MatNeed {
     w: f64,
     h: f64,
@@ -294,11 +296,11 @@ struct MatNeed {
     point_uvs: bool,
 }
 
-fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<MaterialId, MatNeed> {
-    let mut m: BTreeMap<MaterialId, MatNeed> = BTreeMap::new();
+fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<(MaterialId, i32), MatNeed> {
+    let mut m: BTreeMap<(MaterialId, i32), MatNeed> = BTreeMap::new();
     for &i in items {
         let t = &infos[i as usize];
-        let e = m.entry(t.material).or_insert(MatNeed {
+        let e = m.entry((t.material, t.class)).or_insert(MatNeed {
             w: 0.0,
             h: 0.0,
             uv_min: DVec2::splat(f64::INFINITY),
@@ -345,7 +347,7 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
     let mut sizes = Vec::with_capacity(needs.len());
     let mut summed: u64 = 0;
     let cap = u64::from(ctx.opts.atlas_size) * u64::from(ctx.opts.atlas_size);
-    for (&mat, need) in &needs {
+    for (&(mat, class), need) in &needs {
         let img = &ctx.scene.images[ctx.scene.materials[mat.idx()].image.idx()];
         let (mut w, mut h) = (need.w, need.h);
         if need.point_uvs && need.uv_max != need.uv_min {
@@ -367,7 +369,7 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
             return None;
         }
         sizes.push([area.outer_w, area.outer_h]);
-        mats.push((mat, area, need.uv_min, need.uv_max, capped));
+        mats.push((mat, class, area, need.uv_min, need.uv_max, capped));
     }
     let packing = pack(
         &sizes,
@@ -380,14 +382,17 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
     let rects = mats
         .into_iter()
         .zip(packing.positions.iter())
-        .map(|((material, a, uv_min, uv_max, capped), p)| PlannedRect {
-            material,
-            outer: [p[0], p[1], a.outer_w, a.outer_h],
-            inner: [p[0] + a.border[0], p[1] + a.border[1], a.inner_w, a.inner_h],
-            uv_min,
-            uv_max,
-            capped,
-        })
+        .map(
+            |((material, class, a, uv_min, uv_max, capped), p)| PlannedRect {
+                material,
+                class,
+                outer: [p[0], p[1], a.outer_w, a.outer_h],
+                inner: [p[0] + a.border[0], p[1] + a.border[1], a.inner_w, a.inner_h],
+                uv_min,
+                uv_max,
+                capped,
+            },
+        )
         .collect();
     Some(LeafLayout {
         rects,
@@ -440,6 +445,7 @@ mod tests {
                 h: 1.0,
                 method: SizeMethod::Exact,
             },
+            class: 0,
             uv: [DVec2::ZERO; 3],
             lo: DVec3::ZERO,
             hi: DVec3::ZERO,

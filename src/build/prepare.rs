@@ -16,6 +16,10 @@ pub struct TriInfo {
     pub material: MaterialId,
     /// Midpoint in the distribution plane (the split sorts on it, §5.3).
     pub mid: DVec2,
+    /// Density class: `floor(log2(texels per repetition))` after the source cap, [`POINT_CLASS`] for
+    /// triangles with no density (constant UVs, world-degenerate). A node atlas gets one area per
+    /// (material, class), so a few dense triangles cannot inflate the area of a material's many sparse ones.
+    pub class: i32,
     /// World-space area (the split balances it, §5.3).
     pub area: f64,
     /// Required texels per UV unit at d_min (already multiplied by f_proj).
@@ -25,6 +29,20 @@ pub struct TriInfo {
     /// World bounds of the triangle.
     pub lo: DVec3,
     pub hi: DVec3,
+}
+
+/// Density class of triangles without a density (constant UVs, world-degenerate).
+pub const POINT_CLASS: i32 = i32::MIN;
+
+/// The density class of a triangle needing `w × h` texels per repetition (already capped).
+pub fn density_class(w: f64, h: f64, method: SizeMethod) -> i32 {
+    let d = w.max(h);
+    match method {
+        SizeMethod::Exact | SizeMethod::EdgeFallback if d.is_finite() && d > 0.0 => {
+            d.log2().floor() as i32
+        }
+        _ => POINT_CLASS,
+    }
 }
 
 /// The whole-period shift that moves a triangle's UVs next to the origin without changing what it shows:
@@ -98,6 +116,7 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInf
                     mid: if mid.is_finite() { mid } else { DVec2::ZERO },
                     area: if area.is_finite() { area } else { 0.0 },
                     size,
+                    class: density_class(w, h, size.method),
                     uv,
                     lo: p[0].min(p[1]).min(p[2]),
                     hi: p[0].max(p[1]).max(p[2]),

@@ -47,7 +47,13 @@ pub struct ImageCache<'a> {
     pub fallbacks: AtomicU64,
     pub decodes: AtomicU64,
     pub warnings: Mutex<Vec<String>>,
+    /// Encoded original textures (class size, full mip chain) shared by the leaves that use them.
+    originals: Mutex<(HashMap<OriginalKey, Arc<Vec<u8>>>, u64)>,
+    pub original_hits: AtomicU64,
 }
+
+/// An original texture as stored: image, class size and wrap modes (resampling depends on them).
+type OriginalKey = (ImageId, u32, [crate::scene::Wrap; 2]);
 
 #[derive(Default)]
 struct CacheState {
@@ -65,6 +71,8 @@ impl<'a> ImageCache<'a> {
             fallbacks: AtomicU64::new(0),
             decodes: AtomicU64::new(0),
             warnings: Mutex::new(Vec::new()),
+            originals: Mutex::new((HashMap::new(), 0)),
+            original_hits: AtomicU64::new(0),
         }
     }
 
@@ -127,6 +135,34 @@ impl<'a> ImageCache<'a> {
             }
         }
         entry
+    }
+}
+
+impl ImageCache<'_> {
+    /// The stored bytes of original texture `key`, resampled and encoded once and then shared (bounded
+    /// by a quarter of the cache budget; beyond it the map is cleared, which costs only recomputation).
+    pub fn original(&self, key: OriginalKey) -> Result<Arc<Vec<u8>>, ImageOpsError> {
+        if let Some(b) = self
+            .originals
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .0
+            .get(&key)
+        {
+            self.original_hits.fetch_add(1, Ordering::Relaxed);
+            return Ok(b.clone());
+        }
+        let img = self.get(key.0);
+        let lin = resample_square(&img.decoded, key.1, key.2)?;
+        let bytes = Arc::new(mip_chain_rgba8(&lin));
+        let mut st = self.originals.lock().unwrap_or_else(|e| e.into_inner());
+        if st.1 + bytes.len() as u64 > self.cap_bytes / 4 {
+            st.0.clear();
+            st.1 = 0;
+        }
+        st.1 += bytes.len() as u64;
+        st.0.insert(key, bytes.clone());
+        Ok(bytes)
     }
 }
 
@@ -245,17 +281,18 @@ fn write_originals(ctx: &RasterCtx<'_>, leaf: &Leaf) -> Result<(), BuildError> {
     let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>)> = Vec::new();
     for o in &leaf.originals {
         let mat = &ctx.scene.materials[o.material.idx()];
-        let img = ctx.cache.get(o.image);
-        let lin = resample_square(&img.decoded, o.class_size, mat.wrap).map_err(|e| {
-            image_err(
-                format!("original texture {} of leaf {}", o.image.0, o.block.0),
-                e,
-            )
-        })?;
-        let bytes = mip_chain_rgba8(&lin);
+        let bytes = ctx
+            .cache
+            .original((o.image, o.class_size, mat.wrap))
+            .map_err(|e| {
+                image_err(
+                    format!("original texture {} (block {})", o.image.0, o.block.0),
+                    e,
+                )
+            })?;
         match blocks.last_mut() {
             Some((b, buf)) if *b == o.block => buf.extend_from_slice(&bytes),
-            _ => blocks.push((o.block, bytes)),
+            _ => blocks.push((o.block, bytes.to_vec())),
         }
     }
     for (b, buf) in blocks {
