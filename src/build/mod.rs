@@ -113,10 +113,13 @@ pub enum BuildError {
         source: layout::LayoutError,
     },
     #[error(
-        "the tree would need {blocks} blocks and {predicted} bytes of texture data, over the limit of {limit} bytes \
+        "the tree would need {nodes} nodes (depth {depth}), {blocks} blocks and {predicted} bytes of texture data, \
+         over the limit of {limit} bytes \
          (--max-file-gib): raise --d-min (or lower --d-min-ratio), lower --texel-ratio, or keep the source cap"
     )]
     TooLarge {
+        nodes: u64,
+        depth: u8,
         blocks: u64,
         predicted: u64,
         limit: u64,
@@ -362,6 +365,8 @@ pub fn build(
     let predicted: u64 = forest.blocks.iter().map(|b| b.bytes).sum();
     if predicted > opts.max_file_bytes {
         return Err(BuildError::TooLarge {
+            nodes: reports.iter().map(|r| r.nodes).sum(),
+            depth: reports.iter().map(|r| r.depth).max().unwrap_or(0),
             blocks: forest.blocks.len() as u64,
             predicted,
             limit: opts.max_file_bytes,
