@@ -42,6 +42,9 @@ pub struct RenderArgs {
     /// Path sampling rate, frames per second of path time.
     #[arg(long, default_value_t = 30.0)]
     pub fps: f64,
+    /// Unrecorded frames rendered per mode before measuring (shader compilation, first uploads).
+    #[arg(long, default_value_t = 3)]
+    pub warmup: usize,
     /// Skip GPU timestamp queries.
     #[arg(long)]
     pub no_gpu_timing: bool,
@@ -156,6 +159,21 @@ fn run_mode(
 ) -> anyhow::Result<Vec<FrameStats>> {
     let mut stats = Vec::with_capacity(cameras.len());
     let mut thumbs = Vec::new();
+    // Warm up on frames spread over the path, so every pipeline the path needs is compiled.
+    for k in 0..a.warmup {
+        let i = k * cameras.len() / a.warmup.max(1);
+        if let Some(cam) = cameras.get(i) {
+            let scale = min_distance_scale(
+                params,
+                &SelectOptions {
+                    screen_width: a.width,
+                    texel_ratio: a.texel_ratio,
+                    fov_x_deg: cam.fov_x_deg,
+                },
+            )?;
+            renderer.render(cam, scale, mode)?;
+        }
+    }
     for (i, cam) in cameras.iter().enumerate() {
         let scale = min_distance_scale(
             params,

@@ -179,7 +179,7 @@ impl<'f> Renderer<'f> {
             device,
             "atlas sampler",
             [wgpu::AddressMode::ClampToEdge; 2],
-            aniso,
+            aniso && std::env::var_os("ATLASTREE_NO_ATLAS_ANISO").is_none(),
         );
         let original_sampler = sampler(
             device,

@@ -165,19 +165,22 @@ fn buffer(
         })
 }
 
-/// Geometry, leaves and the original-texture mapping of all trees, gathered on the CPU.
+/// Geometry, leaves and the original-texture mapping of all trees, gathered on the CPU ([`plan`]): what
+/// [`Resident::load`] uploads. Atlas slots are still `None` and TAM layers 0 (assigned at upload).
 #[derive(Default)]
-struct Gathered {
-    infos: Vec<TreeBatchInfo>,
-    vertices: Vec<TreeVertex>,
-    indices: Vec<u32>,
-    leaves: Vec<LeafGpu>,
-    origins: Vec<DVec3>,
-    tam: Vec<TamEntry>,
-    tam_unique: Vec<u32>,
-    uniques: Vec<UniqueOriginal>,
-    atlas_blocks: Vec<(u32, u32, BlockId)>,
-    has_alpha: bool,
+pub struct Plan {
+    pub infos: Vec<TreeBatchInfo>,
+    pub vertices: Vec<TreeVertex>,
+    pub indices: Vec<u32>,
+    pub leaves: Vec<LeafGpu>,
+    /// Leaf origins, f64, global leaf numbering.
+    pub origins: Vec<DVec3>,
+    pub tam: Vec<TamEntry>,
+    pub tam_unique: Vec<u32>,
+    pub uniques: Vec<UniqueOriginal>,
+    /// `(tree, node, block)` of every atlas, in upload order.
+    pub atlas_blocks: Vec<(u32, u32, BlockId)>,
+    pub has_alpha: bool,
 }
 
 impl Resident {
@@ -186,7 +189,7 @@ impl Resident {
         let params = file.to_params();
         let materials = file.materials().to_vec();
         let max_layers = ctx.features.max_texture_array_layers.max(1);
-        let g = gather(file, &materials)?;
+        let g = plan(file)?;
 
         // Atlas arrays: layers assigned in node order, split at the device limit.
         let atlas_count = g.atlas_blocks.len() as u32;
@@ -357,8 +360,9 @@ impl Resident {
 }
 
 /// Reads all trees' tables into the shared CPU arrays; checks what the shader will index.
-fn gather(file: &TreeFile, materials: &[MaterialRecord]) -> Result<Gathered, RenderError> {
-    let mut g = Gathered::default();
+pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
+    let materials = file.materials();
+    let mut g = Plan::default();
     let mut unique_of: HashMap<(u32, u32), u32> = HashMap::new();
     for t in 0..file.trees() {
         let view = file.tree(t).ok_or(RenderError::MissingTree { tree: t })?;
