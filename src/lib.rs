@@ -32,6 +32,7 @@ pub mod camera;
 pub mod gpu;
 pub mod ids;
 pub mod inspect;
+pub mod render;
 pub mod scene;
 pub mod select;
 pub mod store;

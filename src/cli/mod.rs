@@ -4,6 +4,7 @@ mod build_cmd;
 mod demo;
 mod inspect_cmd;
 mod progress;
+mod render_cmd;
 mod scene_info;
 
 use clap::{Parser, Subcommand, ValueEnum};
@@ -39,6 +40,8 @@ pub enum Command {
     /// Show a paging file's tree shape and per-level statistics; `--verify` checks every checksum and
     /// invariant and exits non-zero on any violation.
     Inspect(inspect_cmd::InspectArgs),
+    /// Render a camera path offscreen with the texture-array-batched renderer; PNGs, contact sheet, stats.csv.
+    Render(render_cmd::RenderArgs),
 }
 
 /// Which axis points up (the other two span the distribution plane).
@@ -80,6 +83,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::SceneInfo(a) => scene_info::run(a),
         Command::Build(a) => build_cmd::run(a),
         Command::Inspect(a) => inspect_cmd::run(a),
+        Command::Render(a) => render_cmd::run(a),
     }
 }
 

@@ -4,12 +4,13 @@
 
 mod device;
 mod harness;
+mod render;
 mod smoke;
 
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    let registry: Vec<harness::GpuTest> = [smoke::tests(), device::tests()]
+    let registry: Vec<harness::GpuTest> = [smoke::tests(), device::tests(), render::tests()]
         .into_iter()
         .flatten()
         .collect();

@@ -1,0 +1,67 @@
+// The naive baseline (`render --mode original`): every original texture is an ordinary texture_2d with its own
+// bind group (texture, sampler with the material's hardware wrap modes, material parameters), and every
+// (leaf, original texture) pair is its own draw call. Same positions as tree.wgsl: leaf-relative vertices
+// plus per-frame camera-relative leaf offsets; the draw's first instance is the tree's leaf base.
+
+override PASS: u32 = 0u;
+
+struct Globals {
+    view_proj: mat4x4<f32>,
+    mode: u32,
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
+}
+
+struct Material {
+    factor: vec4<f32>,
+    alpha_mode: u32,
+    cutoff: f32,
+    _p0: u32,
+    _p1: u32,
+}
+
+@group(0) @binding(0) var<uniform> globals: Globals;
+@group(0) @binding(1) var<storage, read> offsets: array<vec4<f32>>;
+@group(1) @binding(0) var tex: texture_2d<f32>;
+@group(1) @binding(1) var tex_sampler: sampler;
+@group(1) @binding(2) var<uniform> material: Material;
+
+struct VertexIn {
+    @builtin(instance_index) leaf_base: u32,
+    @location(0) pos: vec3<f32>,
+    @location(2) orig_uv: vec2<f32>,
+    @location(3) leaf: u32,
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+}
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    let rel = offsets[v.leaf_base + v.leaf].xyz + v.pos;
+    var out: VertexOut;
+    out.clip = globals.view_proj * vec4<f32>(rel, 1.0);
+    out.uv = v.orig_uv;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    let colour = textureSample(tex, tex_sampler, in.uv) * material.factor;
+    if PASS == 0u || material.alpha_mode == 0u {
+        return vec4<f32>(colour.rgb, 1.0);
+    }
+    if material.alpha_mode == 1u {
+        if colour.a < material.cutoff {
+            discard;
+        }
+        return vec4<f32>(colour.rgb, 1.0);
+    }
+    if colour.a < 0.5 / 255.0 {
+        discard;
+    }
+    return colour;
+}

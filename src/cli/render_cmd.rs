@@ -1,0 +1,284 @@
+use anyhow::{Context, bail};
+use atlastree::camera::{Camera, PathKind};
+use atlastree::gpu::{GpuContext, GpuOptions};
+use atlastree::render::{FrameStats, Mode, Renderer, RendererOptions};
+use atlastree::select::{SelectOptions, min_distance_scale};
+use atlastree::store::TreeFile;
+use clap::Args;
+use glam::DVec3;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Render a camera path through a paging file offscreen (all blocks resident) and measure every frame.
+/// Writes PNG frames (every k-th), a contact sheet and `stats.csv` per mode.
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// The paging file.
+    pub file: PathBuf,
+    /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
+    #[arg(long, default_value = "overview-dive")]
+    pub path: String,
+    /// Output directory (one subdirectory per mode when several modes are given).
+    #[arg(long, default_value = "out/render")]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 800)]
+    pub width: u32,
+    #[arg(long, default_value_t = 600)]
+    pub height: u32,
+    /// tree (the product), original (naive per-texture draws), dummy (one 1×1 texture), tree-levels (colour
+    /// by level). Comma-separated to measure several modes in one run on the same frames.
+    #[arg(long, default_value = "tree", value_delimiter = ',')]
+    pub mode: Vec<Mode>,
+    /// Texels per pixel required (min_distance scales linearly with it and with the width).
+    #[arg(long, default_value_t = 1.0)]
+    pub texel_ratio: f64,
+    /// Number of frames.
+    #[arg(long, default_value_t = 120)]
+    pub frames: usize,
+    /// Save every k-th frame as PNG (0: none).
+    #[arg(long, default_value_t = 10)]
+    pub every: usize,
+    /// Path sampling rate, frames per second of path time.
+    #[arg(long, default_value_t = 30.0)]
+    pub fps: f64,
+    /// Unrecorded frames rendered per mode before measuring (shader compilation, first uploads).
+    #[arg(long, default_value_t = 3)]
+    pub warmup: usize,
+    /// Skip GPU timestamp queries.
+    #[arg(long)]
+    pub no_gpu_timing: bool,
+}
+
+fn scene_bounds(file: &TreeFile) -> Option<(DVec3, DVec3)> {
+    let mut b: Option<(DVec3, DVec3)> = None;
+    for t in 0..file.trees() {
+        let root = file.tree(t)?.nodes.first().copied()?;
+        let (lo, hi) = (
+            DVec3::from_array(root.bounds_min),
+            DVec3::from_array(root.bounds_max),
+        );
+        b = Some(match b {
+            Some((a, c)) => (a.min(lo), c.max(hi)),
+            None => (lo, hi),
+        });
+    }
+    b
+}
+
+/// Mean and max of a column.
+fn mean_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut n, mut sum, mut max) = (0usize, 0.0, f64::NEG_INFINITY);
+    for v in values {
+        n += 1;
+        sum += v;
+        max = max.max(v);
+    }
+    if n == 0 {
+        (0.0, 0.0)
+    } else {
+        (sum / n as f64, max)
+    }
+}
+
+pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
+    if a.frames == 0 || !(a.fps.is_finite() && a.fps > 0.0) {
+        bail!("--frames must be > 0 and --fps finite and > 0");
+    }
+    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let params = file.to_params();
+    let (lo, hi) = scene_bounds(&file).context("the file has no nodes")?;
+    let kind: PathKind = a.path.parse()?;
+    let path = kind.resolve(lo, hi, params.up)?;
+    let aspect = f64::from(a.width) / f64::from(a.height.max(1));
+    let cameras: Vec<Camera> = path
+        .frames(a.fps, a.frames)
+        .map(|mut c| {
+            c.aspect = aspect;
+            c
+        })
+        .collect();
+
+    let ctx = GpuContext::new_headless(&GpuOptions::default())?;
+    println!("adapter: {}", ctx.adapter_summary());
+    let t = std::time::Instant::now();
+    let mut renderer = Renderer::new(
+        &ctx,
+        &file,
+        RendererOptions {
+            width: a.width,
+            height: a.height,
+            gpu_timing: !a.no_gpu_timing,
+        },
+    )?;
+    let s = &renderer.resident.stats;
+    println!(
+        "resident: {} trees, {} nodes, {} leaves, {} vertices; {} atlas layers in {} array(s), {} original layers in {} class arrays, {:.1} MiB of textures ({:.2} s)",
+        s.trees,
+        s.nodes,
+        s.leaves,
+        s.vertices,
+        s.atlas_layers,
+        s.atlas_arrays,
+        s.original_layers,
+        s.class_arrays,
+        s.texture_bytes as f64 / (1 << 20) as f64,
+        t.elapsed().as_secs_f64()
+    );
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let mut means = Vec::new();
+    for &mode in &a.mode {
+        let dir = if a.mode.len() > 1 {
+            a.out.join(mode.name())
+        } else {
+            a.out.clone()
+        };
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        let stats = run_mode(&mut renderer, &a, &params, &cameras, mode, &dir)?;
+        let frame = mean_max(stats.iter().map(|s| s.frame_ms));
+        means.push((mode, frame.0));
+        print_summary(mode, &stats, &dir);
+    }
+    let mean_of = |m: Mode| means.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
+    if let (Some(t), Some(d)) = (mean_of(Mode::Tree), mean_of(Mode::Dummy)) {
+        println!("frame time tree / dummy: {:.3}", t / d);
+    }
+    if let (Some(t), Some(o)) = (mean_of(Mode::Tree), mean_of(Mode::Original)) {
+        println!("frame time original / tree: {:.3}", o / t);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_mode(
+    renderer: &mut Renderer<'_>,
+    a: &RenderArgs,
+    params: &atlastree::build::tree::BuildParams,
+    cameras: &[Camera],
+    mode: Mode,
+    dir: &Path,
+) -> anyhow::Result<Vec<FrameStats>> {
+    let mut stats = Vec::with_capacity(cameras.len());
+    let mut thumbs = Vec::new();
+    // Warm up on frames spread over the path, so every pipeline the path needs is compiled.
+    for k in 0..a.warmup {
+        let i = k * cameras.len() / a.warmup.max(1);
+        if let Some(cam) = cameras.get(i) {
+            let scale = min_distance_scale(
+                params,
+                &SelectOptions {
+                    screen_width: a.width,
+                    texel_ratio: a.texel_ratio,
+                    fov_x_deg: cam.fov_x_deg,
+                },
+            )?;
+            renderer.render(cam, scale, mode)?;
+        }
+    }
+    for (i, cam) in cameras.iter().enumerate() {
+        let scale = min_distance_scale(
+            params,
+            &SelectOptions {
+                screen_width: a.width,
+                texel_ratio: a.texel_ratio,
+                fov_x_deg: cam.fov_x_deg,
+            },
+        )?;
+        let s = renderer.render(cam, scale, mode)?;
+        stats.push(s);
+        if a.every > 0 && i % a.every == 0 {
+            let rgba = renderer.read_frame()?;
+            let img = image::RgbaImage::from_raw(a.width, a.height, rgba)
+                .context("frame readback has the wrong size")?;
+            let png = dir.join(format!("frame_{i:04}.png"));
+            img.save(&png)
+                .with_context(|| format!("writing {}", png.display()))?;
+            let tw = (a.width / 4).max(1);
+            let th = (a.height / 4).max(1);
+            thumbs.push(image::imageops::resize(
+                &img,
+                tw,
+                th,
+                image::imageops::FilterType::Triangle,
+            ));
+        }
+    }
+    write_csv(&dir.join("stats.csv"), &stats)?;
+    if !thumbs.is_empty() {
+        contact_sheet(&thumbs)
+            .save(dir.join("contact_sheet.png"))
+            .context("writing the contact sheet")?;
+    }
+    Ok(stats)
+}
+
+fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
+    let cols = (thumbs.len() as f64).sqrt().ceil().max(1.0) as u32;
+    let rows = (thumbs.len() as u32).div_ceil(cols);
+    let (tw, th) = thumbs.first().map_or((1, 1), |t| t.dimensions());
+    let mut sheet = image::RgbaImage::from_pixel(cols * tw, rows * th, image::Rgba([0, 0, 0, 255]));
+    for (i, t) in thumbs.iter().enumerate() {
+        let (x, y) = ((i as u32 % cols) * tw, (i as u32 / cols) * th);
+        image::imageops::replace(&mut sheet, t, i64::from(x), i64::from(y));
+    }
+    sheet
+}
+
+fn write_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
+    let mut f = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+    );
+    writeln!(
+        f,
+        "frame,nodes_visited,nodes_drawn,indirect_records,draw_calls,bind_group_changes,triangles,select_us,encode_us,gpu_ms,frame_ms"
+    )?;
+    for (i, s) in stats.iter().enumerate() {
+        writeln!(
+            f,
+            "{i},{},{},{},{},{},{},{:.1},{:.1},{},{:.3}",
+            s.nodes_visited,
+            s.nodes_drawn,
+            s.indirect_records,
+            s.draw_calls,
+            s.bind_group_changes,
+            s.triangles,
+            s.select_us,
+            s.encode_us,
+            s.gpu_ms.map_or(String::new(), |g| format!("{g:.3}")),
+            s.frame_ms
+        )?;
+    }
+    f.flush()?;
+    Ok(())
+}
+
+fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
+    let col = |f: &dyn Fn(&FrameStats) -> f64| mean_max(stats.iter().map(f));
+    let rows: [(&str, (f64, f64)); 9] = [
+        ("nodes visited", col(&|s| f64::from(s.nodes_visited))),
+        ("nodes drawn", col(&|s| f64::from(s.nodes_drawn))),
+        ("indirect records", col(&|s| f64::from(s.indirect_records))),
+        ("draw calls", col(&|s| f64::from(s.draw_calls))),
+        (
+            "bind-group changes",
+            col(&|s| f64::from(s.bind_group_changes)),
+        ),
+        ("triangles", col(&|s| s.triangles as f64)),
+        ("select µs", col(&|s| s.select_us)),
+        ("encode µs", col(&|s| s.encode_us)),
+        ("frame ms", col(&|s| s.frame_ms)),
+    ];
+    println!(
+        "mode {} ({} frames, {}):",
+        mode.name(),
+        stats.len(),
+        dir.display()
+    );
+    for (name, (mean, max)) in rows {
+        println!("  {name:<20} mean {mean:>10.2}  max {max:>10.2}");
+    }
+    let gpu: Vec<f64> = stats.iter().filter_map(|s| s.gpu_ms).collect();
+    if !gpu.is_empty() {
+        let (mean, max) = mean_max(gpu.iter().copied());
+        println!("  {:<20} mean {mean:>10.2}  max {max:>10.2}", "GPU ms");
+    }
+}

@@ -1,0 +1,325 @@
+//! Per-frame draw data, as plain data (no wgpu types): from the cut of each tree ([`crate::select::Cut`]),
+//! one indirect record per selected node and one [`NodeRecordGpu`] per record, grouped by pipeline pass
+//! (texture-array batching, Trapp & Döllner 2015: one multi-draw-indirect call per pipeline).
+//!
+//! Layout of the GPU data (all trees of a file share one set of buffers):
+//!
+//! - vertices: every tree's [`TreeVertex`] back to back; tree `t` starts at vertex `vertex_base[t]`, which
+//!   is the record's `base_vertex` (tree indices are tree-local absolute vertex numbers);
+//! - indices: every tree's indices back to back; tree `t` starts at `index_base[t]`, added to the node's
+//!   `first_index`;
+//! - leaves: every tree's leaves back to back; tree `t` starts at `leaf_base[t]`, stored in the node record so
+//!   the shader finds leaf `leaf_base + vertex.leaf`;
+//! - per-frame leaf offsets `leaf.origin − eye` (f64 on the CPU, then f32; DESIGN.md "Precision"): only the
+//!   leaves of drawn nodes are updated ([`LeafOffsets::update`]).
+//!
+//! Record `i` of the indirect buffer has `first_instance = i`: the vertex shader reads `records[i]` through
+//! `instance_index`.
+
+use crate::build::tree::TreeVertex;
+use crate::ids::NONE;
+use crate::select::{Cut, Source};
+use crate::store::format::NodeRecord;
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+
+/// `DrawIndexedIndirectArgs` as stored in the indirect buffer (20 bytes, wgpu's layout).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+#[repr(C)]
+pub struct DrawIndexedIndirect {
+    pub index_count: u32,
+    pub instance_count: u32,
+    pub first_index: u32,
+    pub base_vertex: i32,
+    pub first_instance: u32,
+}
+const _: () = assert!(size_of::<DrawIndexedIndirect>() == 20);
+
+/// Per-draw data, indexed by `instance_index` (= the record's `first_instance`).
+/// WGSL twin: `NodeDraw` in `shaders/tree.wgsl`.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct NodeRecordGpu {
+    /// Layer of the node's atlas in atlas array `atlas_array`; [`NONE`] for an original-texture draw.
+    pub atlas_layer: u32,
+    /// Which atlas array (0 unless the layers exceed the device limit, see `render::textures`).
+    pub atlas_array: u32,
+    /// The node's level j: vertices map their leaf-local atlas UV into this ancestor's atlas.
+    pub level: u32,
+    /// Index of the tree's leaf 0 in the leaves and leaf-offset buffers.
+    pub leaf_base: u32,
+    /// Alpha cutoff of atlas draws in the mask pass (originals use their material's).
+    pub alpha_cutoff: f32,
+    /// Tree-local node id (diagnostics).
+    pub node: u32,
+    /// Tree index.
+    pub tree: u32,
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<NodeRecordGpu>() == 32);
+
+/// Static per-leaf data. WGSL twin: `LeafInfo` in `shaders/tree.wgsl`.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+#[repr(C)]
+pub struct LeafGpu {
+    /// The leaf's cell at its level (paper Fig. 4).
+    pub cell_ix: u32,
+    pub cell_iy: u32,
+    /// The leaf's level K.
+    pub level: u32,
+    /// First entry of the leaf's texture-array mapping in the TAM buffer (global index).
+    pub first_tam: u32,
+}
+const _: () = assert!(size_of::<LeafGpu>() == 16);
+
+/// Wrap codes of [`TamEntry::wrap`] (per axis; `wrap = s | t << 2`), as in the paging file.
+pub const WRAP_REPEAT: u32 = 0;
+pub const WRAP_MIRROR: u32 = 1;
+pub const WRAP_CLAMP: u32 = 2;
+
+/// One entry of TAB's texture-array mapping (TAM): where an original texture lives and how it is sampled.
+/// WGSL twin: `TamEntry` in `shaders/tree.wgsl`.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct TamEntry {
+    /// Class array index: `log2(class_size) − 2` (class 4 → 0 … class 2048 → 9).
+    pub class: u32,
+    /// Layer in the class array.
+    pub layer: u32,
+    /// `wrap_s | wrap_t << 2` ([`WRAP_REPEAT`], [`WRAP_MIRROR`], [`WRAP_CLAMP`]).
+    pub wrap: u32,
+    /// 0 opaque, 1 mask, 2 blend (the paging file's codes).
+    pub alpha_mode: u32,
+    /// Linear RGBA multiplier (the atlas has it baked in; originals are stored without it).
+    pub factor: [f32; 4],
+    /// MASK cutoff.
+    pub cutoff: f32,
+    /// Side of the class, texels.
+    pub class_size: f32,
+    pub _pad: [u32; 2],
+}
+const _: () = assert!(size_of::<TamEntry>() == 48);
+
+/// The pipeline a record is drawn with.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Pass {
+    /// Opaque tree: depth write, no blending.
+    Opaque = 0,
+    /// Alpha tree, subtree without BLEND materials: discard below the cutoff, depth write.
+    Mask = 1,
+    /// Alpha tree, subtree with a BLEND material: blending, no depth write, after the others.
+    Blend = 2,
+}
+
+impl Pass {
+    pub const ALL: [Pass; 3] = [Pass::Opaque, Pass::Mask, Pass::Blend];
+}
+
+/// Where a node's atlas is resident.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct AtlasSlot {
+    pub array: u32,
+    pub layer: u32,
+}
+
+/// Everything batching needs to know about one tree (static for the life of a renderer).
+#[derive(Clone, Debug, Default)]
+pub struct TreeBatchInfo {
+    /// Tree index in the file.
+    pub tree: u32,
+    pub leaf_base: u32,
+    pub index_base: u32,
+    pub vertex_base: i32,
+    /// Per node: its subtree's leaves `[first, first + count)` (tree-local; leaves are in tree order).
+    pub leaf_ranges: Vec<(u32, u32)>,
+    /// Per node: the pass its records go to.
+    pub passes: Vec<Pass>,
+    /// Per node: the alpha cutoff of its atlas draws in the mask pass.
+    pub cutoffs: Vec<f32>,
+    /// Per node: where its atlas is resident (`None`: not resident; such nodes are drawn with originals if
+    /// they are leaves and skipped otherwise — with all blocks resident this does not happen).
+    pub atlas_slots: Vec<Option<AtlasSlot>>,
+}
+
+/// Per node, the range of leaves of its subtree: `(first leaf, count)`. Leaves are numbered in tree order and
+/// parents precede children, so a reverse sweep unions the children's ranges. Out-of-range child links are
+/// ignored (validated files have none).
+pub fn leaf_ranges(nodes: &[NodeRecord]) -> Vec<(u32, u32)> {
+    let mut lo = vec![u32::MAX; nodes.len()];
+    let mut hi = vec![0u32; nodes.len()];
+    for (i, n) in nodes.iter().enumerate().rev() {
+        if n.leaf != NONE {
+            lo[i] = lo[i].min(n.leaf);
+            hi[i] = hi[i].max(n.leaf.saturating_add(1));
+        }
+        for &c in &n.children {
+            let c = c as usize;
+            if c > i && c < nodes.len() {
+                lo[i] = lo[i].min(lo[c]);
+                hi[i] = hi[i].max(hi[c]);
+            }
+        }
+    }
+    lo.iter()
+        .zip(&hi)
+        .map(|(&l, &h)| if h > l { (l, h - l) } else { (0, 0) })
+        .collect()
+}
+
+/// How records are made.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub struct BatchOptions {
+    /// Dummy mode: every record is an atlas draw of layer 0 (one 1×1 texture bound for everything).
+    pub dummy: bool,
+}
+
+/// One frame's draw data for all trees.
+#[derive(Clone, Debug, Default)]
+pub struct FrameBatch {
+    /// Indirect records, grouped by pass (`pass_ranges`); `indirect[i].first_instance == i`.
+    pub indirect: Vec<DrawIndexedIndirect>,
+    /// `records[i]` belongs to `indirect[i]`.
+    pub records: Vec<NodeRecordGpu>,
+    /// Per [`Pass`] (by discriminant): the range of `indirect` drawn by that pass's multi-draw call.
+    pub pass_ranges: [(u32, u32); 3],
+    /// Triangles drawn.
+    pub triangles: u64,
+    /// Records drawn with original textures.
+    pub original_records: u32,
+    pending: [Vec<(DrawIndexedIndirect, NodeRecordGpu)>; 3],
+}
+
+impl FrameBatch {
+    pub fn new() -> FrameBatch {
+        FrameBatch::default()
+    }
+
+    /// Starts a frame (keeps allocations).
+    pub fn clear(&mut self) {
+        self.indirect.clear();
+        self.records.clear();
+        self.pass_ranges = [(0, 0); 3];
+        self.triangles = 0;
+        self.original_records = 0;
+        for p in &mut self.pending {
+            p.clear();
+        }
+    }
+
+    /// Adds the records of one tree's cut. Items whose node is out of range, or atlas items whose atlas is
+    /// not resident, are skipped; returns how many items were skipped.
+    pub fn add_cut(
+        &mut self,
+        info: &TreeBatchInfo,
+        nodes: &[NodeRecord],
+        cut: &Cut,
+        opts: BatchOptions,
+    ) -> u32 {
+        let mut skipped = 0;
+        for item in &cut.items {
+            let n = item.node.idx();
+            let (Some(node), Some(&pass)) = (nodes.get(n), info.passes.get(n)) else {
+                skipped += 1;
+                continue;
+            };
+            let atlas_layer = match (item.source, opts.dummy) {
+                (_, true) => Some(AtlasSlot { array: 0, layer: 0 }),
+                (Source::Atlas, false) => match info.atlas_slots.get(n).copied().flatten() {
+                    Some(s) => Some(s),
+                    None => {
+                        skipped += 1;
+                        continue;
+                    }
+                },
+                (Source::Original, false) => None,
+            };
+            let record = NodeRecordGpu {
+                atlas_layer: atlas_layer.map_or(NONE, |s| s.layer),
+                atlas_array: atlas_layer.map_or(0, |s| s.array),
+                level: node.level,
+                leaf_base: info.leaf_base,
+                alpha_cutoff: info.cutoffs.get(n).copied().unwrap_or(0.5),
+                node: item.node.0,
+                tree: info.tree,
+                _pad: 0,
+            };
+            let draw = DrawIndexedIndirect {
+                index_count: item.index_count,
+                instance_count: 1,
+                first_index: info.index_base.saturating_add(item.first_index),
+                base_vertex: info.vertex_base,
+                first_instance: 0,
+            };
+            if atlas_layer.is_none() {
+                self.original_records += 1;
+            }
+            self.triangles += u64::from(item.index_count / 3);
+            self.pending[pass as usize].push((draw, record));
+        }
+        skipped
+    }
+
+    /// Concatenates the passes into `indirect`/`records` and numbers `first_instance`. Call once after all
+    /// [`FrameBatch::add_cut`]s of the frame.
+    pub fn finish(&mut self) {
+        self.indirect.clear();
+        self.records.clear();
+        for p in Pass::ALL {
+            let start = self.indirect.len() as u32;
+            for (mut draw, record) in self.pending[p as usize].drain(..) {
+                draw.first_instance = self.indirect.len() as u32;
+                self.indirect.push(draw);
+                self.records.push(record);
+            }
+            self.pass_ranges[p as usize] = (start, self.indirect.len() as u32 - start);
+        }
+    }
+
+    /// Number of indirect records.
+    pub fn len(&self) -> usize {
+        self.indirect.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.indirect.is_empty()
+    }
+}
+
+/// The per-frame, camera-relative leaf origins `leaf.origin − eye`, computed in f64 and stored as f32
+/// (DESIGN.md "Precision"). WGSL: `array<vec4<f32>>` indexed by `leaf_base + vertex.leaf`.
+#[derive(Clone, Debug, Default)]
+pub struct LeafOffsets {
+    /// All trees' leaf origins back to back (same numbering as the leaves buffer).
+    pub origins: Vec<DVec3>,
+    /// `xyz` = origin − eye, `w` = 0.
+    pub offsets: Vec<[f32; 4]>,
+}
+
+impl LeafOffsets {
+    pub fn new(origins: Vec<DVec3>) -> LeafOffsets {
+        let offsets = vec![[0.0; 4]; origins.len()];
+        LeafOffsets { origins, offsets }
+    }
+
+    /// Updates the offsets of the leaves under every item of `cut` (tree with leaves from `leaf_base`);
+    /// returns the number of leaves updated.
+    pub fn update(&mut self, info: &TreeBatchInfo, cut: &Cut, eye: DVec3) -> u32 {
+        let mut updated = 0;
+        for item in &cut.items {
+            let Some(&(first, count)) = info.leaf_ranges.get(item.node.idx()) else {
+                continue;
+            };
+            let start = info.leaf_base.saturating_add(first) as usize;
+            let end = start.saturating_add(count as usize).min(self.origins.len());
+            for i in start.min(end)..end {
+                let d = self.origins[i] - eye;
+                self.offsets[i] = [d.x as f32, d.y as f32, d.z as f32, 0.0];
+                updated += 1;
+            }
+        }
+        updated
+    }
+}
+
+/// The vertex attribute layout of [`TreeVertex`] (locations 0–4: pos, atlas_uv, orig_uv, leaf, original).
+pub const VERTEX_STRIDE: u64 = size_of::<TreeVertex>() as u64;

@@ -1,0 +1,686 @@
+//! The renderer: per frame, select (paper §4) → batch → upload → one render pass, and its counters.
+
+use super::batch::{BatchOptions, DrawIndexedIndirect, FrameBatch, NodeRecordGpu, Pass};
+use super::naive::Naive;
+use super::pipeline::{
+    B_ATLAS_SAMPLER, B_ATLAS0, B_CLASS0, B_DRAWS, B_GLOBALS, B_LEAVES, B_OFFSETS,
+    B_ORIGINAL_SAMPLER, B_TAM, COLOR_FORMAT, DEPTH_FORMAT, PassPipelines, sampler,
+    tree_bind_group_layout, vertex_layout,
+};
+use super::resident::Resident;
+use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
+use super::{Mode, RenderError};
+use crate::camera::Camera;
+use crate::gpu::{GpuContext, readback_rgba8};
+use crate::select::{Cut, select};
+use crate::store::TreeFile;
+use bytemuck::{Pod, Zeroable};
+use glam::{DMat4, DVec4};
+use std::time::Instant;
+
+/// The uniform block of both shaders. WGSL twin: `Globals`.
+#[derive(Copy, Clone, Debug, Pod, Zeroable)]
+#[repr(C)]
+struct Globals {
+    view_proj: [[f32; 4]; 4],
+    mode: u32,
+    _pad: [u32; 3],
+}
+
+/// Counters and timings of one frame (the columns of `stats.csv`).
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Nodes evaluated by the traversals (all trees), culled ones included.
+    pub nodes_visited: u32,
+    /// Cut items (selected nodes) of all trees.
+    pub nodes_drawn: u32,
+    /// Indirect records submitted (tree modes) — 0 in original mode.
+    pub indirect_records: u32,
+    /// Records drawn with original textures (tree modes).
+    pub original_records: u32,
+    /// API draw calls (`multi_draw_indexed_indirect` counts once).
+    pub draw_calls: u32,
+    /// `set_bind_group` calls.
+    pub bind_group_changes: u32,
+    /// `set_pipeline` calls.
+    pub pipeline_changes: u32,
+    pub triangles: u64,
+    /// CPU time of the traversal (select), µs.
+    pub select_us: f64,
+    /// CPU time of batching, uploads and command encoding, µs.
+    pub encode_us: f64,
+    /// GPU time of the render pass from timestamp queries, ms (`None` without timestamp support).
+    pub gpu_ms: Option<f64>,
+    /// Wall time from the start of select to the GPU having finished the frame, ms.
+    pub frame_ms: f64,
+}
+
+/// Options of a [`Renderer`].
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct RendererOptions {
+    pub width: u32,
+    pub height: u32,
+    /// Measure GPU time with timestamp queries where supported (adds a readback per frame).
+    pub gpu_timing: bool,
+}
+
+/// A GPU-side growable buffer.
+struct Growable {
+    buffer: wgpu::Buffer,
+    capacity: u64,
+    usage: wgpu::BufferUsages,
+    label: &'static str,
+}
+
+impl Growable {
+    fn new(device: &wgpu::Device, label: &'static str, usage: wgpu::BufferUsages) -> Growable {
+        let capacity = 4096;
+        Growable {
+            buffer: make_buffer(device, label, capacity, usage),
+            capacity,
+            usage,
+            label,
+        }
+    }
+
+    /// Writes `data`, growing (power of two) first if needed; returns true when the buffer was replaced.
+    fn write(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, data: &[u8]) -> bool {
+        let mut grew = false;
+        if data.len() as u64 > self.capacity {
+            self.capacity = (data.len() as u64).next_power_of_two();
+            self.buffer = make_buffer(device, self.label, self.capacity, self.usage);
+            grew = true;
+        }
+        if !data.is_empty() {
+            queue.write_buffer(&self.buffer, 0, data);
+        }
+        grew
+    }
+}
+
+fn make_buffer(
+    device: &wgpu::Device,
+    label: &str,
+    size: u64,
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: usage | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+struct Timestamps {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    read: wgpu::Buffer,
+    period_ns: f64,
+}
+
+/// Renders frames of one paging file into an offscreen target.
+pub struct Renderer<'f> {
+    ctx: &'f GpuContext,
+    file: &'f TreeFile,
+    pub resident: Resident,
+    opts: RendererOptions,
+    layout: wgpu::BindGroupLayout,
+    pipelines: PassPipelines,
+    globals: wgpu::Buffer,
+    records: Growable,
+    indirect: Growable,
+    bind_group: wgpu::BindGroup,
+    dummy_bind_group: wgpu::BindGroup,
+    atlas_sampler: wgpu::Sampler,
+    original_sampler: wgpu::Sampler,
+    naive: Option<Naive>,
+    pub color: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    cuts: Vec<Cut>,
+    batch: FrameBatch,
+    timestamps: Option<Timestamps>,
+}
+
+impl<'f> Renderer<'f> {
+    /// Uploads the whole file (all blocks resident) and creates the opaque pipeline.
+    pub fn new(
+        ctx: &'f GpuContext,
+        file: &'f TreeFile,
+        opts: RendererOptions,
+    ) -> Result<Renderer<'f>, RenderError> {
+        if opts.width == 0 || opts.height == 0 {
+            return Err(RenderError::BadSize {
+                width: opts.width,
+                height: opts.height,
+            });
+        }
+        let device = &ctx.device;
+        let resident = Resident::load(ctx, file)?;
+        let layout = tree_bind_group_layout(device);
+        let pipelines = PassPipelines::new(
+            device,
+            "tree",
+            include_str!("../../shaders/tree.wgsl"),
+            &[&layout],
+            vertex_layout(),
+        );
+        let globals = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("globals"),
+            size: size_of::<Globals>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let records = Growable::new(device, "node records", wgpu::BufferUsages::STORAGE);
+        let indirect = Growable::new(device, "indirect", wgpu::BufferUsages::INDIRECT);
+        let aniso = ctx.features.anisotropic_filtering;
+        let atlas_sampler = sampler(
+            device,
+            "atlas sampler",
+            [wgpu::AddressMode::ClampToEdge; 2],
+            aniso && std::env::var_os("ATLASTREE_NO_ATLAS_ANISO").is_none(),
+        );
+        let original_sampler = sampler(
+            device,
+            "original sampler",
+            [wgpu::AddressMode::Repeat; 2],
+            aniso,
+        );
+        let (color, color_view, depth_view) = targets(device, opts.width, opts.height);
+        let make = |dummy: bool| {
+            tree_bind_group(
+                device,
+                &layout,
+                &resident,
+                &globals,
+                &records.buffer,
+                [&atlas_sampler, &original_sampler],
+                dummy,
+            )
+        };
+        let bind_group = make(false);
+        let dummy_bind_group = make(true);
+        let timestamps = (opts.gpu_timing && ctx.features.timestamp_query).then(|| Timestamps {
+            set: device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("frame timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            }),
+            resolve: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp resolve"),
+                size: 16,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            read: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp read"),
+                size: 16,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            period_ns: f64::from(ctx.features.timestamp_period_ns),
+        });
+        let trees = resident.infos.len();
+        Ok(Renderer {
+            ctx,
+            file,
+            resident,
+            opts,
+            layout,
+            pipelines,
+            globals,
+            records,
+            indirect,
+            bind_group,
+            dummy_bind_group,
+            atlas_sampler,
+            original_sampler,
+            naive: None,
+            color,
+            color_view,
+            depth_view,
+            cuts: vec![Cut::new(); trees],
+            batch: FrameBatch::new(),
+            timestamps,
+        })
+    }
+
+    /// Number of render pipelines created so far (the alpha ones only once needed).
+    pub fn pipelines_created(&self) -> usize {
+        self.pipelines.created()
+    }
+
+    /// The cuts of the last frame, one per tree.
+    pub fn cuts(&self) -> &[Cut] {
+        &self.cuts
+    }
+
+    /// The batch of the last tree-mode frame.
+    pub fn batch(&self) -> &FrameBatch {
+        &self.batch
+    }
+
+    /// Renders one frame of `camera` (its aspect should be width/height) with node `min_distance`s scaled by
+    /// `scale` ([`crate::select::min_distance_scale`]), and waits for the GPU.
+    pub fn render(
+        &mut self,
+        camera: &Camera,
+        scale: f64,
+        mode: Mode,
+    ) -> Result<FrameStats, RenderError> {
+        let t0 = Instant::now();
+        let mut stats = FrameStats::default();
+        let frustum = camera.frustum();
+        for (t, cut) in self.cuts.iter_mut().enumerate() {
+            let view = self
+                .file
+                .tree(t)
+                .ok_or(RenderError::MissingTree { tree: t })?;
+            select(view.nodes, camera, &frustum, scale, cut);
+            stats.nodes_visited += cut.visited;
+            stats.nodes_drawn += cut.items.len() as u32;
+        }
+        let t1 = Instant::now();
+        stats.select_us = (t1 - t0).as_secs_f64() * 1e6;
+
+        for (info, cut) in self.resident.infos.iter().zip(&self.cuts) {
+            self.resident.leaf_offsets.update(info, cut, camera.eye);
+        }
+        self.resident.write_offsets(&self.ctx.queue);
+        let globals = Globals {
+            view_proj: view_proj_reverse_z(camera),
+            mode: u32::from(mode == Mode::TreeLevels),
+            _pad: [0; 3],
+        };
+        self.ctx
+            .queue
+            .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
+
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
+        if mode == Mode::Original {
+            self.encode_naive(&mut encoder, &mut stats)?;
+        } else {
+            self.encode_tree(&mut encoder, mode, &mut stats);
+        }
+        if let Some(ts) = &self.timestamps {
+            encoder.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
+            encoder.copy_buffer_to_buffer(&ts.resolve, 0, &ts.read, 0, 16);
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        stats.encode_us = t1.elapsed().as_secs_f64() * 1e6;
+        stats.gpu_ms = self.read_timestamps()?;
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| RenderError::Gpu(e.into()))?;
+        stats.frame_ms = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(stats)
+    }
+
+    fn read_timestamps(&self) -> Result<Option<f64>, RenderError> {
+        let Some(ts) = &self.timestamps else {
+            return Ok(None);
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        ts.read.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
+        });
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| RenderError::Gpu(e.into()))?;
+        let ok = matches!(rx.recv(), Ok(Ok(())));
+        if !ok {
+            return Ok(None);
+        }
+        let ticks: [u64; 2] = {
+            let view = ts
+                .read
+                .get_mapped_range(..)
+                .map_err(|e| RenderError::Gpu(e.into()))?;
+            bytemuck::pod_read_unaligned(&view[..16])
+        };
+        ts.read.unmap();
+        Ok(Some(
+            ticks[1].saturating_sub(ticks[0]) as f64 * ts.period_ns * 1e-6,
+        ))
+    }
+
+    fn pass<'e>(&'e self, encoder: &'e mut wgpu::CommandEncoder) -> wgpu::RenderPass<'e> {
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("frame"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(SKY),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: self
+                .timestamps
+                .as_ref()
+                .map(|ts| wgpu::RenderPassTimestampWrites {
+                    query_set: &ts.set,
+                    beginning_of_pass_write_index: Some(0),
+                    end_of_pass_write_index: Some(1),
+                }),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+
+    /// TAB: one bind group, one `multi_draw_indexed_indirect` per non-empty pass.
+    fn encode_tree(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        mode: Mode,
+        stats: &mut FrameStats,
+    ) {
+        let ctx = self.ctx;
+        let device = &ctx.device;
+        let queue = &ctx.queue;
+        self.batch.clear();
+        let opts = BatchOptions {
+            dummy: mode == Mode::Dummy,
+        };
+        for (t, (info, cut)) in self.resident.infos.iter().zip(&self.cuts).enumerate() {
+            if let Some(view) = self.file.tree(t) {
+                self.batch.add_cut(info, view.nodes, cut, opts);
+            }
+        }
+        self.batch.finish();
+        stats.indirect_records = self.batch.len() as u32;
+        stats.original_records = self.batch.original_records;
+        stats.triangles = self.batch.triangles;
+        let grew = self.records.write(
+            device,
+            queue,
+            bytemuck::cast_slice::<NodeRecordGpu, u8>(&self.batch.records),
+        );
+        self.indirect.write(
+            device,
+            queue,
+            bytemuck::cast_slice::<DrawIndexedIndirect, u8>(&self.batch.indirect),
+        );
+        if grew {
+            let make = |dummy| {
+                tree_bind_group(
+                    device,
+                    &self.layout,
+                    &self.resident,
+                    &self.globals,
+                    &self.records.buffer,
+                    [&self.atlas_sampler, &self.original_sampler],
+                    dummy,
+                )
+            };
+            self.bind_group = make(false);
+            self.dummy_bind_group = make(true);
+        }
+        let passes: Vec<(Pass, u32, u32)> = Pass::ALL
+            .iter()
+            .map(|&p| {
+                let (start, count) = self.batch.pass_ranges[p as usize];
+                (p, start, count)
+            })
+            .filter(|&(_, _, count)| count > 0)
+            .collect();
+        for &(p, _, _) in &passes {
+            self.pipelines.get(device, p);
+        }
+        let group = if mode == Mode::Dummy {
+            &self.dummy_bind_group
+        } else {
+            &self.bind_group
+        };
+        let mut rp = self.pass(encoder);
+        rp.set_bind_group(0, group, &[]);
+        stats.bind_group_changes += 1;
+        rp.set_vertex_buffer(0, self.resident.vertex_buffer.slice(..));
+        rp.set_index_buffer(
+            self.resident.index_buffer.slice(..),
+            wgpu::IndexFormat::Uint32,
+        );
+        for (p, start, count) in passes {
+            let Some(pipeline) = self.pipelines.existing(p) else {
+                continue;
+            };
+            rp.set_pipeline(pipeline);
+            stats.pipeline_changes += 1;
+            let offset = u64::from(start) * size_of::<DrawIndexedIndirect>() as u64;
+            rp.multi_draw_indexed_indirect(&self.indirect.buffer, offset, count);
+            stats.draw_calls += 1;
+        }
+    }
+
+    /// The naive baseline: per visible leaf and original texture, one bind group and one draw.
+    fn encode_naive(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        stats: &mut FrameStats,
+    ) -> Result<(), RenderError> {
+        if self.naive.is_none() {
+            self.naive = Some(Naive::new(
+                self.ctx,
+                self.file,
+                &self.resident,
+                &self.globals,
+            )?);
+        }
+        let Some(naive) = self.naive.as_mut() else {
+            return Ok(());
+        };
+        // Visible leaves: every leaf below a cut item (same culling as the tree modes).
+        let mut lists: [Vec<u32>; 3] = Default::default();
+        for (info, cut) in self.resident.infos.iter().zip(&self.cuts) {
+            for item in &cut.items {
+                let Some(&(first, count)) = info.leaf_ranges.get(item.node.idx()) else {
+                    continue;
+                };
+                for l in first..first.saturating_add(count) {
+                    let gl = info.leaf_base.saturating_add(l) as usize;
+                    let Some(&(d0, dn)) = naive.leaf_draws.get(gl) else {
+                        continue;
+                    };
+                    for d in d0..d0 + dn {
+                        if let Some(draw) = naive.draws.get(d as usize) {
+                            lists[draw.pass as usize].push(d);
+                        }
+                    }
+                }
+            }
+        }
+        for p in Pass::ALL {
+            if !lists[p as usize].is_empty() {
+                naive.pipelines.get(&self.ctx.device, p);
+            }
+        }
+        let Some(naive) = self.naive.as_ref() else {
+            return Ok(());
+        };
+        let mut rp = self.pass(encoder);
+        rp.set_bind_group(0, &naive.group0, &[]);
+        stats.bind_group_changes += 1;
+        rp.set_vertex_buffer(0, self.resident.vertex_buffer.slice(..));
+        rp.set_index_buffer(naive.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+        for p in Pass::ALL {
+            let list = &lists[p as usize];
+            let Some(pipeline) = naive.pipelines.existing(p).filter(|_| !list.is_empty()) else {
+                continue;
+            };
+            rp.set_pipeline(pipeline);
+            stats.pipeline_changes += 1;
+            for &d in list {
+                let Some(draw) = naive.draws.get(d as usize) else {
+                    continue;
+                };
+                let Some(group) = naive.groups.get(draw.texture as usize) else {
+                    continue;
+                };
+                rp.set_bind_group(1, group, &[]);
+                stats.bind_group_changes += 1;
+                rp.draw_indexed(
+                    draw.first_index..draw.first_index + draw.index_count,
+                    draw.base_vertex,
+                    draw.leaf_base..draw.leaf_base + 1,
+                );
+                stats.draw_calls += 1;
+                stats.triangles += u64::from(draw.index_count / 3);
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads the last frame back: `width · height · 4` sRGB RGBA bytes, rows top to bottom.
+    pub fn read_frame(&self) -> Result<Vec<u8>, RenderError> {
+        Ok(readback_rgba8(self.ctx, &self.color)?)
+    }
+
+    pub fn options(&self) -> RendererOptions {
+        self.opts
+    }
+}
+
+/// Background colour (linear).
+const SKY: wgpu::Color = wgpu::Color {
+    r: 0.30,
+    g: 0.45,
+    b: 0.70,
+    a: 1.0,
+};
+
+/// `Camera::view_proj_relative` with depth mapped to reverse Z (`z' = w − z`: near → 1, far → 0), as f32.
+fn view_proj_reverse_z(camera: &Camera) -> [[f32; 4]; 4] {
+    let flip = DMat4::from_cols(
+        DVec4::new(1.0, 0.0, 0.0, 0.0),
+        DVec4::new(0.0, 1.0, 0.0, 0.0),
+        DVec4::new(0.0, 0.0, -1.0, 0.0),
+        DVec4::new(0.0, 0.0, 1.0, 1.0),
+    );
+    (flip * camera.view_proj_relative())
+        .as_mat4()
+        .to_cols_array_2d()
+}
+
+fn targets(
+    device: &wgpu::Device,
+    width: u32,
+    height: u32,
+) -> (wgpu::Texture, wgpu::TextureView, wgpu::TextureView) {
+    let size = wgpu::Extent3d {
+        width,
+        height,
+        depth_or_array_layers: 1,
+    };
+    let color = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("frame colour"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: COLOR_FORMAT,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let depth = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("frame depth"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: DEPTH_FORMAT,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let cv = color.create_view(&wgpu::TextureViewDescriptor::default());
+    let dv = depth.create_view(&wgpu::TextureViewDescriptor::default());
+    (color, cv, dv)
+}
+
+/// The frame's one bind group: buffers, samplers, the atlas arrays and the class arrays (missing arrays
+/// bound to the 1×1 dummy). `dummy`: every texture binding is the dummy (dummy mode).
+fn tree_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    res: &Resident,
+    globals: &wgpu::Buffer,
+    records: &wgpu::Buffer,
+    samplers: [&wgpu::Sampler; 2],
+    dummy: bool,
+) -> wgpu::BindGroup {
+    let mut entries = vec![
+        wgpu::BindGroupEntry {
+            binding: B_GLOBALS,
+            resource: globals.as_entire_binding(),
+        },
+        wgpu::BindGroupEntry {
+            binding: B_DRAWS,
+            resource: records.as_entire_binding(),
+        },
+        wgpu::BindGroupEntry {
+            binding: B_LEAVES,
+            resource: res.leaves_buffer.as_entire_binding(),
+        },
+        wgpu::BindGroupEntry {
+            binding: B_OFFSETS,
+            resource: res.offsets_buffer.as_entire_binding(),
+        },
+        wgpu::BindGroupEntry {
+            binding: B_TAM,
+            resource: res.tam_buffer.as_entire_binding(),
+        },
+        wgpu::BindGroupEntry {
+            binding: B_ATLAS_SAMPLER,
+            resource: wgpu::BindingResource::Sampler(samplers[0]),
+        },
+        wgpu::BindGroupEntry {
+            binding: B_ORIGINAL_SAMPLER,
+            resource: wgpu::BindingResource::Sampler(samplers[1]),
+        },
+    ];
+    for i in 0..MAX_ATLAS_ARRAYS {
+        let view = match res.atlas_arrays.get(i) {
+            Some(a) if !dummy => &a.view,
+            _ => &res.dummy.view,
+        };
+        entries.push(wgpu::BindGroupEntry {
+            binding: B_ATLAS0 + i as u32,
+            resource: wgpu::BindingResource::TextureView(view),
+        });
+    }
+    for k in 0..CLASS_COUNT {
+        let view = match res.class_arrays.get(k).and_then(|a| a.as_ref()) {
+            Some(a) if !dummy => &a.view,
+            _ => &res.dummy.view,
+        };
+        entries.push(wgpu::BindGroupEntry {
+            binding: B_CLASS0 + k as u32,
+            resource: wgpu::BindingResource::TextureView(view),
+        });
+    }
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(if dummy {
+            "tree frame (dummy)"
+        } else {
+            "tree frame"
+        }),
+        layout,
+        entries: &entries,
+    })
+}

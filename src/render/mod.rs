@@ -1,0 +1,101 @@
+//! The texture-atlas tree renderer (paper §4) with texture-array batching (Trapp & Döllner 2015), wgpu.
+//!
+//! All blocks of a paging file are resident (paging is a later stage). Per frame: the cut of every tree
+//! ([`crate::select::select`]) becomes one indirect record per selected node ([`batch`]); all atlases are
+//! layers of one texture array and original textures layers of one array per class size ([`textures`]);
+//! one bind group and one `multi_draw_indexed_indirect` per pipeline (opaque; alpha mask and alpha blend
+//! only for files with an alpha tree, created on first use) draw the frame ([`Renderer`]).
+//!
+//! Modes ([`Mode`]) on the same cut: the product (`Tree`), the naive per-texture baseline (`Original`), the
+//! upper bound with one 1×1 texture (`Dummy`), and colour-by-level (`TreeLevels`).
+//!
+//! Shaders: `shaders/tree.wgsl` (tree, dummy, levels), `shaders/naive.wgsl` (original).
+
+pub mod batch;
+mod frame;
+mod naive;
+pub mod pipeline;
+pub mod resident;
+pub mod textures;
+
+pub use frame::{FrameStats, Renderer, RendererOptions};
+
+use crate::gpu::GpuError;
+use crate::ids::BlockId;
+use crate::store::StoreError;
+
+/// What a frame is drawn with.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Mode {
+    /// Atlases and original textures through texture arrays, one multi-draw per pipeline (the product).
+    Tree,
+    /// Naive: every (leaf, original texture) its own bind group and draw call; no atlases.
+    Original,
+    /// The tree's draws with one 1×1 texture bound for everything (upper bound on speed).
+    Dummy,
+    /// The tree's draws coloured by the level of the atlas used (white: original textures).
+    TreeLevels,
+}
+
+impl Mode {
+    pub const ALL: [Mode; 4] = [Mode::Tree, Mode::Original, Mode::Dummy, Mode::TreeLevels];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Tree => "tree",
+            Mode::Original => "original",
+            Mode::Dummy => "dummy",
+            Mode::TreeLevels => "tree-levels",
+        }
+    }
+}
+
+impl std::str::FromStr for Mode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Mode, String> {
+        Mode::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("unknown mode {s:?} (tree, original, dummy, tree-levels)"))
+    }
+}
+
+/// Errors of loading a file onto the GPU and rendering it.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error("{what}: {layers} texture-array layers needed, the device allows {limit}")]
+    TooManyLayers {
+        what: String,
+        layers: u64,
+        limit: u64,
+    },
+    #[error("{block} is shorter than the mip chain(s) it must hold")]
+    ShortBlock { block: BlockId },
+    #[error("the file has no tree {tree}")]
+    MissingTree { tree: usize },
+    #[error("too many {what} for 32-bit GPU indices")]
+    TooLarge { what: &'static str },
+    #[error(
+        "tree {tree} leaf {leaf}: original class size {class_size} is not a power of two in 4..=2048"
+    )]
+    BadClass {
+        tree: usize,
+        leaf: u32,
+        class_size: u32,
+    },
+    #[error(
+        "tree {tree} leaf {leaf}: a vertex names original {original} (or another leaf); the leaf has {originals}"
+    )]
+    BadVertex {
+        tree: usize,
+        leaf: u32,
+        original: u32,
+        originals: u32,
+    },
+    #[error("frame size {width}x{height} is empty")]
+    BadSize { width: u32, height: u32 },
+}

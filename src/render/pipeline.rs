@@ -1,0 +1,267 @@
+//! Bind group layouts, samplers and render pipelines of the tree renderer (`shaders/tree.wgsl`) and of the
+//! naive baseline (`shaders/naive.wgsl`). The opaque pipeline always exists; the alpha-mask and alpha-blend
+//! pipelines are created on first use (only files with an alpha tree need them).
+
+use super::batch::{Pass, VERTEX_STRIDE};
+use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
+
+/// Colour target format: sRGB, so the shaders work in linear light and the PNGs hold sRGB bytes.
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// Depth format; reverse Z (clear 0, compare Greater) for precision at large depth ranges.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Binding numbers of `tree.wgsl` group 0.
+pub const B_GLOBALS: u32 = 0;
+pub const B_DRAWS: u32 = 1;
+pub const B_LEAVES: u32 = 2;
+pub const B_OFFSETS: u32 = 3;
+pub const B_TAM: u32 = 4;
+pub const B_ATLAS_SAMPLER: u32 = 5;
+pub const B_ORIGINAL_SAMPLER: u32 = 6;
+pub const B_ATLAS0: u32 = 7;
+pub const B_CLASS0: u32 = B_ATLAS0 + MAX_ATLAS_ARRAYS as u32;
+
+const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 5] = wgpu::vertex_attr_array![
+    0 => Float32x3, 1 => Float32x2, 2 => Float32x2, 3 => Uint32, 4 => Uint32
+];
+
+/// Vertex buffer layout of `TreeVertex`.
+pub fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
+    wgpu::VertexBufferLayout {
+        array_stride: VERTEX_STRIDE,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &VERTEX_ATTRIBUTES,
+    }
+}
+
+fn entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+    ty: wgpu::BindingType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty,
+        count: None,
+    }
+}
+
+fn storage() -> wgpu::BindingType {
+    wgpu::BindingType::Buffer {
+        ty: wgpu::BufferBindingType::Storage { read_only: true },
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    }
+}
+
+fn uniform() -> wgpu::BindingType {
+    wgpu::BindingType::Buffer {
+        ty: wgpu::BufferBindingType::Uniform,
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    }
+}
+
+fn texture(dim: wgpu::TextureViewDimension) -> wgpu::BindingType {
+    wgpu::BindingType::Texture {
+        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+        view_dimension: dim,
+        multisampled: false,
+    }
+}
+
+const VF: wgpu::ShaderStages = wgpu::ShaderStages::VERTEX_FRAGMENT;
+const V: wgpu::ShaderStages = wgpu::ShaderStages::VERTEX;
+const F: wgpu::ShaderStages = wgpu::ShaderStages::FRAGMENT;
+
+/// Group 0 of `tree.wgsl`.
+pub fn tree_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    let mut entries = vec![
+        entry(B_GLOBALS, VF, uniform()),
+        entry(B_DRAWS, V, storage()),
+        entry(B_LEAVES, V, storage()),
+        entry(B_OFFSETS, V, storage()),
+        entry(B_TAM, F, storage()),
+        entry(
+            B_ATLAS_SAMPLER,
+            F,
+            wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        ),
+        entry(
+            B_ORIGINAL_SAMPLER,
+            F,
+            wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        ),
+    ];
+    for i in 0..(MAX_ATLAS_ARRAYS + CLASS_COUNT) as u32 {
+        entries.push(entry(
+            B_ATLAS0 + i,
+            F,
+            texture(wgpu::TextureViewDimension::D2Array),
+        ));
+    }
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("tree group 0"),
+        entries: &entries,
+    })
+}
+
+/// Group 0 (globals, leaf offsets) and group 1 (texture, sampler, material) of `naive.wgsl`.
+pub fn naive_bind_group_layouts(device: &wgpu::Device) -> [wgpu::BindGroupLayout; 2] {
+    let g0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("naive group 0"),
+        entries: &[entry(0, VF, uniform()), entry(1, V, storage())],
+    });
+    let g1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("naive group 1"),
+        entries: &[
+            entry(0, F, texture(wgpu::TextureViewDimension::D2)),
+            entry(
+                1,
+                F,
+                wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+            ),
+            entry(2, F, uniform()),
+        ],
+    });
+    [g0, g1]
+}
+
+/// A trilinear sampler with the given address modes; anisotropic (16×) where the device filters so.
+pub fn sampler(
+    device: &wgpu::Device,
+    label: &str,
+    address: [wgpu::AddressMode; 2],
+    anisotropic: bool,
+) -> wgpu::Sampler {
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some(label),
+        address_mode_u: address[0],
+        address_mode_v: address[1],
+        address_mode_w: wgpu::AddressMode::ClampToEdge,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        anisotropy_clamp: if anisotropic { 16 } else { 1 },
+        ..Default::default()
+    })
+}
+
+/// The three pipelines of one shader (opaque created eagerly, mask/blend lazily).
+pub struct PassPipelines {
+    label: &'static str,
+    module: wgpu::ShaderModule,
+    layout: wgpu::PipelineLayout,
+    vertex: wgpu::VertexBufferLayout<'static>,
+    pipelines: [Option<wgpu::RenderPipeline>; 3],
+}
+
+impl PassPipelines {
+    /// Compiles `source` and creates the opaque pipeline.
+    pub fn new(
+        device: &wgpu::Device,
+        label: &'static str,
+        source: &'static str,
+        groups: &[&wgpu::BindGroupLayout],
+        vertex: wgpu::VertexBufferLayout<'static>,
+    ) -> PassPipelines {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let groups: Vec<Option<&wgpu::BindGroupLayout>> = groups.iter().map(|g| Some(*g)).collect();
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &groups,
+            immediate_size: 0,
+        });
+        let mut p = PassPipelines {
+            label,
+            module,
+            layout,
+            vertex,
+            pipelines: [None, None, None],
+        };
+        p.get(device, Pass::Opaque);
+        p
+    }
+
+    /// Number of pipelines created so far.
+    pub fn created(&self) -> usize {
+        self.pipelines.iter().filter(|p| p.is_some()).count()
+    }
+
+    /// The pipeline of `pass` if it was created.
+    pub fn existing(&self, pass: Pass) -> Option<&wgpu::RenderPipeline> {
+        self.pipelines[pass as usize].as_ref()
+    }
+
+    /// The pipeline of `pass`, created on first use.
+    pub fn get(&mut self, device: &wgpu::Device, pass: Pass) -> &wgpu::RenderPipeline {
+        let slot = &mut self.pipelines[pass as usize];
+        slot.get_or_insert_with(|| {
+            create_pipeline(
+                device,
+                self.label,
+                &self.module,
+                &self.layout,
+                &self.vertex,
+                pass,
+            )
+        })
+    }
+}
+
+fn create_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+    vertex: &wgpu::VertexBufferLayout<'static>,
+    pass: Pass,
+) -> wgpu::RenderPipeline {
+    let constants = [("PASS", f64::from(pass as u32))];
+    let blend = (pass == Pass::Blend).then_some(wgpu::BlendState::ALPHA_BLENDING);
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                ..Default::default()
+            },
+            buffers: &[Some(vertex.clone())],
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(pass != Pass::Blend),
+            depth_compare: Some(wgpu::CompareFunction::Greater),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        }),
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                ..Default::default()
+            },
+            targets: &[Some(wgpu::ColorTargetState {
+                format: COLOR_FORMAT,
+                blend,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}

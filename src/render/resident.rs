@@ -1,0 +1,463 @@
+//! Everything of a paging file on the GPU, all blocks resident (paging is a later stage): geometry of all
+//! trees in shared buffers, all atlases as layers of the atlas array(s), every distinct original texture as a
+//! layer of its class array, the static leaf table and the texture-array mapping (TAM).
+//!
+//! Original textures are deduplicated by `(material, class size)`: the paging file stores a copy per leaf
+//! (for paging locality), but the copies are byte-identical (same image, wrap and class size), so one layer
+//! serves every leaf.
+
+use super::RenderError;
+use super::batch::{
+    AtlasSlot, LeafGpu, LeafOffsets, Pass, TamEntry, TreeBatchInfo, WRAP_CLAMP, WRAP_MIRROR,
+    WRAP_REPEAT, leaf_ranges,
+};
+use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index};
+use crate::build::tree::{TreeVertex, mip_chain_bytes};
+use crate::gpu::GpuContext;
+use crate::ids::{BlockId, NONE};
+use crate::scene::{AlphaMode, Wrap};
+use crate::store::format::{MaterialRecord, OriginalRecord};
+use crate::store::{TreeFile, TreeView};
+use glam::DVec3;
+use std::collections::HashMap;
+use wgpu::util::DeviceExt;
+
+/// One distinct original texture: where its pixels are in the file and where they live on the GPU.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct UniqueOriginal {
+    pub material: u32,
+    pub class_size: u32,
+    pub class: u32,
+    pub layer: u32,
+    /// Block and byte offset of its mip chain inside the block.
+    pub block: BlockId,
+    pub offset: u64,
+}
+
+/// Numbers of a load.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LoadStats {
+    pub trees: u32,
+    pub nodes: u64,
+    pub leaves: u64,
+    pub vertices: u64,
+    pub indices: u64,
+    pub atlas_layers: u32,
+    pub atlas_arrays: u32,
+    pub original_layers: u32,
+    pub class_arrays: u32,
+    pub texture_bytes: u64,
+}
+
+/// The GPU-resident file.
+pub struct Resident {
+    pub infos: Vec<TreeBatchInfo>,
+    pub vertex_buffer: wgpu::Buffer,
+    pub index_buffer: wgpu::Buffer,
+    pub leaves_buffer: wgpu::Buffer,
+    pub offsets_buffer: wgpu::Buffer,
+    pub tam_buffer: wgpu::Buffer,
+    pub leaf_offsets: LeafOffsets,
+    pub atlas_arrays: Vec<TextureArray>,
+    /// One per class (`None`: no original of that class).
+    pub class_arrays: Vec<Option<TextureArray>>,
+    /// A 1×1, 1-layer array: bound where no array exists, and the only texture in dummy mode.
+    pub dummy: TextureArray,
+    pub tam: Vec<TamEntry>,
+    /// All trees' leaves (global numbering).
+    pub leaves: Vec<LeafGpu>,
+    pub uniques: Vec<UniqueOriginal>,
+    /// Per TAM entry, its index in `uniques`.
+    pub tam_unique: Vec<u32>,
+    pub materials: Vec<MaterialRecord>,
+    pub has_alpha: bool,
+    pub stats: LoadStats,
+}
+
+fn wrap_code(w: Wrap) -> u32 {
+    match w {
+        Wrap::Repeat => WRAP_REPEAT,
+        Wrap::MirroredRepeat => WRAP_MIRROR,
+        Wrap::ClampToEdge => WRAP_CLAMP,
+    }
+}
+
+/// Per node of an alpha tree: Blend if any leaf below uses a BLEND material, else Mask; cutoff = smallest
+/// MASK cutoff below (0.5 without one). Opaque trees: all Opaque.
+fn passes_and_cutoffs(
+    view: &TreeView<'_>,
+    materials: &[MaterialRecord],
+    ranges: &[(u32, u32)],
+) -> (Vec<Pass>, Vec<f32>) {
+    let n = view.nodes.len();
+    if view.kind == crate::build::tree::TreeKind::Opaque {
+        return (vec![Pass::Opaque; n], vec![0.5; n]);
+    }
+    let per_leaf: Vec<(bool, f32)> = view
+        .leaves
+        .iter()
+        .map(|l| {
+            let mut blend = false;
+            let mut cutoff = f32::INFINITY;
+            for r in view.leaf_rects(l) {
+                match materials.get(r.material as usize).and_then(|m| m.alpha()) {
+                    Some(AlphaMode::Blend) => blend = true,
+                    Some(AlphaMode::Mask { cutoff: c }) => cutoff = cutoff.min(c),
+                    _ => {}
+                }
+            }
+            (blend, cutoff)
+        })
+        .collect();
+    let mut passes = Vec::with_capacity(n);
+    let mut cutoffs = Vec::with_capacity(n);
+    for &(first, count) in ranges {
+        let below = per_leaf
+            .get(first as usize..(first as usize).saturating_add(count as usize))
+            .unwrap_or(&[]);
+        let blend = below.iter().any(|l| l.0);
+        let cutoff = below.iter().map(|l| l.1).fold(f32::INFINITY, f32::min);
+        passes.push(if blend { Pass::Blend } else { Pass::Mask });
+        cutoffs.push(if cutoff.is_finite() { cutoff } else { 0.5 });
+    }
+    (passes, cutoffs)
+}
+
+/// Byte offset of each original of a leaf inside its block: images of one block are back to back in slot
+/// order, each a full mip chain of its class size.
+fn slot_offsets(originals: &[OriginalRecord]) -> Vec<u64> {
+    let mut out = vec![0u64; originals.len()];
+    let mut by_block: HashMap<u32, Vec<usize>> = HashMap::new();
+    for (i, o) in originals.iter().enumerate() {
+        by_block.entry(o.block).or_default().push(i);
+    }
+    for idx in by_block.values_mut() {
+        idx.sort_by_key(|&i| originals[i].slot);
+        let mut off = 0u64;
+        for &i in idx.iter() {
+            out[i] = off;
+            off += mip_chain_bytes(originals[i].class_size);
+        }
+    }
+    out
+}
+
+fn buffer(
+    ctx: &GpuContext,
+    label: &str,
+    contents: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    // wgpu rejects zero-sized bindings: keep at least 16 bytes.
+    let mut owned;
+    let contents = if contents.len() < 16 {
+        owned = contents.to_vec();
+        owned.resize(16, 0);
+        &owned[..]
+    } else {
+        contents
+    };
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents,
+            usage,
+        })
+}
+
+/// Geometry, leaves and the original-texture mapping of all trees, gathered on the CPU ([`plan`]): what
+/// [`Resident::load`] uploads. Atlas slots are still `None` and TAM layers 0 (assigned at upload).
+#[derive(Default)]
+pub struct Plan {
+    pub infos: Vec<TreeBatchInfo>,
+    pub vertices: Vec<TreeVertex>,
+    pub indices: Vec<u32>,
+    pub leaves: Vec<LeafGpu>,
+    /// Leaf origins, f64, global leaf numbering.
+    pub origins: Vec<DVec3>,
+    pub tam: Vec<TamEntry>,
+    pub tam_unique: Vec<u32>,
+    pub uniques: Vec<UniqueOriginal>,
+    /// `(tree, node, block)` of every atlas, in upload order.
+    pub atlas_blocks: Vec<(u32, u32, BlockId)>,
+    pub has_alpha: bool,
+}
+
+impl Resident {
+    /// Loads every tree of `file` and uploads all its blocks. `max_layers` is the device's array-layer limit.
+    pub fn load(ctx: &GpuContext, file: &TreeFile) -> Result<Resident, RenderError> {
+        let params = file.to_params();
+        let materials = file.materials().to_vec();
+        let max_layers = ctx.features.max_texture_array_layers.max(1);
+        let g = plan(file)?;
+
+        // Atlas arrays: layers assigned in node order, split at the device limit.
+        let atlas_count = g.atlas_blocks.len() as u32;
+        let arrays_needed = atlas_count.div_ceil(max_layers).max(1) as usize;
+        if arrays_needed > MAX_ATLAS_ARRAYS {
+            return Err(RenderError::TooManyLayers {
+                what: "atlases".into(),
+                layers: u64::from(atlas_count),
+                limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
+            });
+        }
+        let mut infos = g.infos;
+        let mut atlas_arrays = Vec::new();
+        let mut remaining = atlas_count;
+        for a in 0..arrays_needed {
+            let n = remaining.min(max_layers);
+            remaining -= n;
+            atlas_arrays.push(TextureArray::new(
+                &ctx.device,
+                &format!("atlas array {a}"),
+                params.atlas_size,
+                n,
+            ));
+        }
+        let mut texture_bytes = 0u64;
+        for &(tree, node, block) in &g.atlas_blocks {
+            let array = atlas_arrays
+                .iter_mut()
+                .enumerate()
+                .find(|(_, a)| a.layers.in_use() < a.layers.capacity());
+            let Some((ai, arr)) = array else {
+                return Err(RenderError::TooManyLayers {
+                    what: "atlases".into(),
+                    layers: u64::from(atlas_count),
+                    limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
+                });
+            };
+            let layer = arr.layers.alloc().unwrap_or(0);
+            let bytes = file.block(block)?;
+            texture_bytes += arr
+                .upload_chain(&ctx.queue, layer, bytes)
+                .ok_or(RenderError::ShortBlock { block })?;
+            if let Some(slot) = infos
+                .get_mut(tree as usize)
+                .and_then(|i| i.atlas_slots.get_mut(node as usize))
+            {
+                *slot = Some(AtlasSlot {
+                    array: ai as u32,
+                    layer,
+                });
+            }
+        }
+
+        // Class arrays.
+        let mut per_class = [0u32; CLASS_COUNT];
+        for u in &g.uniques {
+            per_class[u.class as usize] += 1;
+        }
+        let mut class_arrays: Vec<Option<TextureArray>> = Vec::with_capacity(CLASS_COUNT);
+        for (k, &n) in per_class.iter().enumerate() {
+            if n > max_layers {
+                return Err(RenderError::TooManyLayers {
+                    what: format!("original textures of class {}", 4u32 << k),
+                    layers: u64::from(n),
+                    limit: u64::from(max_layers),
+                });
+            }
+            class_arrays.push((n > 0).then(|| {
+                TextureArray::new(&ctx.device, &format!("class {}", 4u32 << k), 4 << k, n)
+            }));
+        }
+        let mut uniques = g.uniques;
+        let mut block_cache: Option<(BlockId, &[u8])> = None;
+        for u in &mut uniques {
+            let Some(arr) = class_arrays
+                .get_mut(u.class as usize)
+                .and_then(|a| a.as_mut())
+            else {
+                continue;
+            };
+            u.layer = arr.layers.alloc().unwrap_or(0);
+            let bytes = match block_cache {
+                Some((b, bytes)) if b == u.block => bytes,
+                _ => {
+                    let bytes = file.block(u.block)?;
+                    block_cache = Some((u.block, bytes));
+                    bytes
+                }
+            };
+            let chain = usize::try_from(u.offset)
+                .ok()
+                .and_then(|o| bytes.get(o..))
+                .ok_or(RenderError::ShortBlock { block: u.block })?;
+            texture_bytes += arr
+                .upload_chain(&ctx.queue, u.layer, chain)
+                .ok_or(RenderError::ShortBlock { block: u.block })?;
+        }
+        let mut tam = g.tam;
+        for (e, &ui) in tam.iter_mut().zip(&g.tam_unique) {
+            if let Some(u) = uniques.get(ui as usize) {
+                e.layer = u.layer;
+            }
+        }
+
+        let dummy = TextureArray::new(&ctx.device, "dummy 1x1", 1, 1);
+        dummy.upload_chain(&ctx.queue, 0, &[200, 200, 200, 255]);
+
+        let stats = LoadStats {
+            trees: infos.len() as u32,
+            nodes: infos.iter().map(|i| i.passes.len() as u64).sum(),
+            leaves: g.leaves.len() as u64,
+            vertices: g.vertices.len() as u64,
+            indices: g.indices.len() as u64,
+            atlas_layers: atlas_count,
+            atlas_arrays: atlas_arrays.len() as u32,
+            original_layers: uniques.len() as u32,
+            class_arrays: class_arrays.iter().filter(|a| a.is_some()).count() as u32,
+            texture_bytes,
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let leaf_offsets = LeafOffsets::new(g.origins);
+        Ok(Resident {
+            vertex_buffer: buffer(
+                ctx,
+                "tree vertices",
+                bytemuck::cast_slice(&g.vertices),
+                wgpu::BufferUsages::VERTEX,
+            ),
+            index_buffer: buffer(
+                ctx,
+                "tree indices",
+                bytemuck::cast_slice(&g.indices),
+                wgpu::BufferUsages::INDEX,
+            ),
+            leaves_buffer: buffer(ctx, "leaves", bytemuck::cast_slice(&g.leaves), storage),
+            offsets_buffer: buffer(
+                ctx,
+                "leaf offsets",
+                bytemuck::cast_slice(&leaf_offsets.offsets),
+                storage | wgpu::BufferUsages::COPY_DST,
+            ),
+            tam_buffer: buffer(ctx, "tam", bytemuck::cast_slice(&tam), storage),
+            leaf_offsets,
+            infos,
+            atlas_arrays,
+            class_arrays,
+            dummy,
+            tam,
+            leaves: g.leaves,
+            uniques,
+            tam_unique: g.tam_unique,
+            materials,
+            has_alpha: g.has_alpha,
+            stats,
+        })
+    }
+
+    /// Uploads the leaf offsets (after [`LeafOffsets::update`]).
+    pub fn write_offsets(&self, queue: &wgpu::Queue) {
+        if !self.leaf_offsets.offsets.is_empty() {
+            queue.write_buffer(
+                &self.offsets_buffer,
+                0,
+                bytemuck::cast_slice(&self.leaf_offsets.offsets),
+            );
+        }
+    }
+}
+
+/// Reads all trees' tables into the shared CPU arrays; checks what the shader will index.
+pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
+    let materials = file.materials();
+    let mut g = Plan::default();
+    let mut unique_of: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in 0..file.trees() {
+        let view = file.tree(t).ok_or(RenderError::MissingTree { tree: t })?;
+        if view.kind == crate::build::tree::TreeKind::Alpha {
+            g.has_alpha = true;
+        }
+        let count_u32 = |what: &'static str, n: usize| {
+            u32::try_from(n).map_err(|_| RenderError::TooLarge { what })
+        };
+        let leaf_base = count_u32("leaves", g.leaves.len())?;
+        let index_base = count_u32("indices", g.indices.len())?;
+        let vertex_base = i32::try_from(g.vertices.len())
+            .map_err(|_| RenderError::TooLarge { what: "vertices" })?;
+        for (li, leaf) in view.leaves.iter().enumerate() {
+            let node = view.nodes.get(leaf.node as usize);
+            let originals = view.leaf_originals(leaf);
+            let offsets = slot_offsets(originals);
+            let first_tam = count_u32("tam", g.tam.len())?;
+            g.leaves.push(LeafGpu {
+                cell_ix: node.map_or(0, |n| n.cell.ix),
+                cell_iy: node.map_or(0, |n| n.cell.iy),
+                level: node.map_or(0, |n| n.level),
+                first_tam,
+            });
+            g.origins.push(DVec3::from_array(leaf.origin));
+            for (o, &offset) in originals.iter().zip(&offsets) {
+                let m = materials.get(o.material as usize).copied();
+                let class = class_index(o.class_size).ok_or(RenderError::BadClass {
+                    tree: t,
+                    leaf: li as u32,
+                    class_size: o.class_size,
+                })?;
+                let next = g.uniques.len() as u32;
+                let ui = *unique_of.entry((o.material, o.class_size)).or_insert(next);
+                if ui == next {
+                    g.uniques.push(UniqueOriginal {
+                        material: o.material,
+                        class_size: o.class_size,
+                        class,
+                        layer: 0,
+                        block: BlockId(o.block),
+                        offset,
+                    });
+                }
+                g.tam_unique.push(ui);
+                let wrap = m.and_then(|m| m.wraps()).unwrap_or([Wrap::Repeat; 2]);
+                g.tam.push(TamEntry {
+                    class,
+                    layer: 0,
+                    wrap: wrap_code(wrap[0]) | wrap_code(wrap[1]) << 2,
+                    alpha_mode: m.map_or(0, |m| m.alpha_mode),
+                    factor: m.map_or([1.0; 4], |m| m.base_color_factor),
+                    cutoff: m.map_or(0.5, |m| m.alpha_cutoff),
+                    class_size: o.class_size as f32,
+                    _pad: [0; 2],
+                });
+            }
+            // Every vertex's `original` must index the leaf's TAM range (the shader does not check).
+            let first = leaf.first_vertex as usize;
+            let verts = view
+                .vertices
+                .get(first..first.saturating_add(leaf.vertex_count as usize))
+                .unwrap_or(&[]);
+            if let Some(v) = verts
+                .iter()
+                .find(|v| v.original >= leaf.original_count || v.leaf != li as u32)
+            {
+                return Err(RenderError::BadVertex {
+                    tree: t,
+                    leaf: li as u32,
+                    original: v.original,
+                    originals: leaf.original_count,
+                });
+            }
+        }
+        let ranges = leaf_ranges(view.nodes);
+        let (passes, cutoffs) = passes_and_cutoffs(&view, materials, &ranges);
+        for (ni, n) in view.nodes.iter().enumerate() {
+            if n.atlas_block != NONE {
+                g.atlas_blocks
+                    .push((t as u32, ni as u32, BlockId(n.atlas_block)));
+            }
+        }
+        g.infos.push(TreeBatchInfo {
+            tree: t as u32,
+            leaf_base,
+            index_base,
+            vertex_base,
+            leaf_ranges: ranges,
+            passes,
+            cutoffs,
+            atlas_slots: vec![None; view.nodes.len()],
+        });
+        g.vertices.extend_from_slice(view.vertices);
+        g.indices.extend_from_slice(view.indices);
+    }
+    Ok(g)
+}

@@ -1,0 +1,212 @@
+//! Texture arrays (TAB): every atlas of a file is a layer of one `texture_2d_array` (Rgba8UnormSrgb, full
+//! mip chain); original textures are layers of one array per class size (4² … 2048²).
+//!
+//! **Layer limit.** A device allows `max_texture_array_layers` layers per array (2048 on lavapipe, 2048 on
+//! most desktop GPUs). When a file has more atlases than that, they are split over up to
+//! [`MAX_ATLAS_ARRAYS`] arrays and each record names its array; beyond that (or for a class with more
+//! originals than the limit) loading fails with [`super::RenderError::TooManyLayers`] — with all blocks
+//! resident that is ≥ 2048 × 1 MiB+ of textures, past what the all-resident renderer is for; paging keeps
+//! residency under a capacity instead.
+//!
+//! [`LayerAllocator`] hands out layers (paging slots) from a free list; the paging issue reuses it.
+
+use crate::build::tree::mip_chain_bytes;
+
+/// Atlas arrays bound at once (the shader switches over this many bindings).
+pub const MAX_ATLAS_ARRAYS: usize = 4;
+/// Class arrays: sizes `4 << k` for k in 0..CLASS_COUNT (4 … 2048).
+pub const CLASS_COUNT: usize = 10;
+/// Smallest class size.
+pub const MIN_CLASS_SIZE: u32 = 4;
+
+/// Class index of a power-of-two class size, `None` outside 4..=2048 or not a power of two.
+pub fn class_index(size: u32) -> Option<u32> {
+    if !size.is_power_of_two() || size < MIN_CLASS_SIZE {
+        return None;
+    }
+    let k = size.trailing_zeros() - MIN_CLASS_SIZE.trailing_zeros();
+    ((k as usize) < CLASS_COUNT).then_some(k)
+}
+
+/// Number of mip levels of a `size²` texture down to 1×1.
+pub fn mip_levels(size: u32) -> u32 {
+    32 - size.max(1).leading_zeros()
+}
+
+/// A free list of layers `0..capacity`: lowest free layer first, O(1) free.
+#[derive(Clone, Debug)]
+pub struct LayerAllocator {
+    capacity: u32,
+    /// Freed layers (popped last-in first-out).
+    free: Vec<u32>,
+    /// Layers never handed out are `next..capacity`.
+    next: u32,
+    in_use: u32,
+}
+
+impl LayerAllocator {
+    pub fn new(capacity: u32) -> LayerAllocator {
+        LayerAllocator {
+            capacity,
+            free: Vec::new(),
+            next: 0,
+            in_use: 0,
+        }
+    }
+
+    /// A free layer, `None` when all `capacity` layers are in use.
+    pub fn alloc(&mut self) -> Option<u32> {
+        let layer = match self.free.pop() {
+            Some(l) => l,
+            None if self.next < self.capacity => {
+                self.next += 1;
+                self.next - 1
+            }
+            None => return None,
+        };
+        self.in_use += 1;
+        Some(layer)
+    }
+
+    /// Returns `layer` to the free list; `false` (and no change) if it was not allocated.
+    pub fn free(&mut self, layer: u32) -> bool {
+        if layer >= self.next || self.free.contains(&layer) {
+            return false;
+        }
+        self.free.push(layer);
+        self.in_use -= 1;
+        true
+    }
+
+    pub fn capacity(&self) -> u32 {
+        self.capacity
+    }
+
+    pub fn in_use(&self) -> u32 {
+        self.in_use
+    }
+}
+
+/// One texture array with its allocator.
+pub struct TextureArray {
+    pub texture: wgpu::Texture,
+    pub view: wgpu::TextureView,
+    pub size: u32,
+    pub layers: LayerAllocator,
+}
+
+impl TextureArray {
+    /// An Rgba8UnormSrgb `size² × layers` array with a full mip chain (at least one layer).
+    pub fn new(device: &wgpu::Device, label: &str, size: u32, layers: u32) -> TextureArray {
+        let layers = layers.max(1);
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: mip_levels(size),
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some(label),
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        TextureArray {
+            texture,
+            view,
+            size,
+            layers: LayerAllocator::new(layers),
+        }
+    }
+
+    /// Uploads a full mip chain (`size²` RGBA8, level 0 first, as in the paging file's blocks) into `layer`.
+    /// Returns the bytes consumed; fails (returning `None`) if `chain` is shorter than a full chain.
+    pub fn upload_chain(&self, queue: &wgpu::Queue, layer: u32, chain: &[u8]) -> Option<u64> {
+        upload_mip_chain(queue, &self.texture, self.size, layer, chain)
+    }
+}
+
+/// Writes a full mip chain of a `size²` RGBA8 image into `layer` of `texture` with one
+/// `queue.write_texture` per level. `None` if `chain` is shorter than [`mip_chain_bytes`]`(size)`.
+pub fn upload_mip_chain(
+    queue: &wgpu::Queue,
+    texture: &wgpu::Texture,
+    size: u32,
+    layer: u32,
+    chain: &[u8],
+) -> Option<u64> {
+    let total = mip_chain_bytes(size);
+    if (chain.len() as u64) < total {
+        return None;
+    }
+    let mut offset = 0usize;
+    for level in 0..mip_levels(size) {
+        let s = (size >> level).max(1);
+        let bytes = (s as usize) * (s as usize) * 4;
+        let data = chain.get(offset..offset + bytes)?;
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: level,
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: 0,
+                    z: layer,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            data,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(s * 4),
+                rows_per_image: Some(s),
+            },
+            wgpu::Extent3d {
+                width: s,
+                height: s,
+                depth_or_array_layers: 1,
+            },
+        );
+        offset += bytes;
+    }
+    Some(total)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn class_indices_cover_4_to_2048() {
+        assert_eq!(class_index(4), Some(0));
+        assert_eq!(class_index(2048), Some(9));
+        assert_eq!(class_index(2), None);
+        assert_eq!(class_index(4096), None);
+        assert_eq!(class_index(12), None);
+        assert_eq!(mip_levels(512), 10);
+        assert_eq!(mip_levels(1), 1);
+    }
+
+    #[test]
+    fn allocator_reuses_freed_layers_and_stops_at_capacity() {
+        let mut a = LayerAllocator::new(3);
+        assert_eq!(
+            (a.alloc(), a.alloc(), a.alloc()),
+            (Some(0), Some(1), Some(2))
+        );
+        assert_eq!(a.alloc(), None);
+        assert!(a.free(1));
+        assert!(!a.free(1), "double free");
+        assert!(!a.free(7), "never allocated");
+        assert_eq!(a.in_use(), 2);
+        assert_eq!(a.alloc(), Some(1));
+        assert_eq!(a.alloc(), None);
+    }
+}
