@@ -48,12 +48,14 @@ pub struct ImageCache<'a> {
     pub decodes: AtomicU64,
     pub warnings: Mutex<Vec<String>>,
     /// Encoded original textures (class size, full mip chain) shared by the leaves that use them.
-    originals: Mutex<(HashMap<OriginalKey, Arc<Vec<u8>>>, u64)>,
+    originals: Mutex<OriginalCache>,
     pub original_hits: AtomicU64,
 }
 
 /// An original texture as stored: image, class size and wrap modes (resampling depends on them).
 type OriginalKey = (ImageId, u32, [crate::scene::Wrap; 2]);
+/// Encoded original textures by key, and their total bytes.
+type OriginalCache = (HashMap<OriginalKey, Arc<Vec<u8>>>, u64);
 
 #[derive(Default)]
 struct CacheState {
