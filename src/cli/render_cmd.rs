@@ -126,7 +126,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         t.elapsed().as_secs_f64()
     );
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let mut means = Vec::new();
+    let mut runs = Vec::new();
     for &mode in &a.mode {
         let dir = if a.mode.len() > 1 {
             a.out.join(mode.name())
@@ -134,10 +134,43 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
             a.out.clone()
         };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        let stats = run_mode(&mut renderer, &a, &params, &cameras, mode, &dir)?;
-        let frame = mean_max(stats.iter().map(|s| s.frame_ms));
-        means.push((mode, frame.0));
-        print_summary(mode, &stats, &dir);
+        runs.push(ModeRun {
+            mode,
+            dir,
+            stats: Vec::with_capacity(cameras.len()),
+            thumbs: Vec::new(),
+        });
+    }
+    // Warm up every mode on frames spread over the path (shader compilation, first uploads), then render
+    // each frame in all modes back to back, so load changes on the machine hit every mode alike.
+    for run in &runs {
+        for k in 0..a.warmup {
+            if let Some(cam) = cameras.get(k * cameras.len() / a.warmup.max(1)) {
+                renderer.render(cam, scale_of(&a, &params, cam)?, run.mode)?;
+            }
+        }
+    }
+    for (i, cam) in cameras.iter().enumerate() {
+        let scale = scale_of(&a, &params, cam)?;
+        for run in &mut runs {
+            let s = renderer.render(cam, scale, run.mode)?;
+            run.stats.push(s);
+            if a.every > 0 && i % a.every == 0 {
+                run.save_frame(&renderer, &a, i)?;
+            }
+        }
+    }
+    let mut means = Vec::new();
+    for run in &runs {
+        write_csv(&run.dir.join("stats.csv"), &run.stats)?;
+        if !run.thumbs.is_empty() {
+            contact_sheet(&run.thumbs)
+                .save(run.dir.join("contact_sheet.png"))
+                .context("writing the contact sheet")?;
+        }
+        let frame = mean_max(run.stats.iter().map(|s| s.frame_ms));
+        means.push((run.mode, frame.0));
+        print_summary(run.mode, &run.stats, &run.dir);
     }
     let mean_of = |m: Mode| means.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
     if let (Some(t), Some(d)) = (mean_of(Mode::Tree), mean_of(Mode::Dummy)) {
@@ -149,66 +182,52 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn run_mode(
-    renderer: &mut Renderer<'_>,
+/// One mode's outputs.
+struct ModeRun {
+    mode: Mode,
+    dir: PathBuf,
+    stats: Vec<FrameStats>,
+    thumbs: Vec<image::RgbaImage>,
+}
+
+impl ModeRun {
+    /// Writes the last frame as `frame_NNNN.png` and keeps a quarter-size thumbnail for the contact sheet.
+    fn save_frame(
+        &mut self,
+        renderer: &Renderer<'_>,
+        a: &RenderArgs,
+        i: usize,
+    ) -> anyhow::Result<()> {
+        let rgba = renderer.read_frame()?;
+        let img = image::RgbaImage::from_raw(a.width, a.height, rgba)
+            .context("frame readback has the wrong size")?;
+        let png = self.dir.join(format!("frame_{i:04}.png"));
+        img.save(&png)
+            .with_context(|| format!("writing {}", png.display()))?;
+        self.thumbs.push(image::imageops::resize(
+            &img,
+            (a.width / 4).max(1),
+            (a.height / 4).max(1),
+            image::imageops::FilterType::Triangle,
+        ));
+        Ok(())
+    }
+}
+
+/// `min_distance` scale for the run-time width, texel ratio and the camera's field of view.
+fn scale_of(
     a: &RenderArgs,
     params: &atlastree::build::tree::BuildParams,
-    cameras: &[Camera],
-    mode: Mode,
-    dir: &Path,
-) -> anyhow::Result<Vec<FrameStats>> {
-    let mut stats = Vec::with_capacity(cameras.len());
-    let mut thumbs = Vec::new();
-    // Warm up on frames spread over the path, so every pipeline the path needs is compiled.
-    for k in 0..a.warmup {
-        let i = k * cameras.len() / a.warmup.max(1);
-        if let Some(cam) = cameras.get(i) {
-            let scale = min_distance_scale(
-                params,
-                &SelectOptions {
-                    screen_width: a.width,
-                    texel_ratio: a.texel_ratio,
-                    fov_x_deg: cam.fov_x_deg,
-                },
-            )?;
-            renderer.render(cam, scale, mode)?;
-        }
-    }
-    for (i, cam) in cameras.iter().enumerate() {
-        let scale = min_distance_scale(
-            params,
-            &SelectOptions {
-                screen_width: a.width,
-                texel_ratio: a.texel_ratio,
-                fov_x_deg: cam.fov_x_deg,
-            },
-        )?;
-        let s = renderer.render(cam, scale, mode)?;
-        stats.push(s);
-        if a.every > 0 && i % a.every == 0 {
-            let rgba = renderer.read_frame()?;
-            let img = image::RgbaImage::from_raw(a.width, a.height, rgba)
-                .context("frame readback has the wrong size")?;
-            let png = dir.join(format!("frame_{i:04}.png"));
-            img.save(&png)
-                .with_context(|| format!("writing {}", png.display()))?;
-            let tw = (a.width / 4).max(1);
-            let th = (a.height / 4).max(1);
-            thumbs.push(image::imageops::resize(
-                &img,
-                tw,
-                th,
-                image::imageops::FilterType::Triangle,
-            ));
-        }
-    }
-    write_csv(&dir.join("stats.csv"), &stats)?;
-    if !thumbs.is_empty() {
-        contact_sheet(&thumbs)
-            .save(dir.join("contact_sheet.png"))
-            .context("writing the contact sheet")?;
-    }
-    Ok(stats)
+    cam: &Camera,
+) -> anyhow::Result<f64> {
+    Ok(min_distance_scale(
+        params,
+        &SelectOptions {
+            screen_width: a.width,
+            texel_ratio: a.texel_ratio,
+            fov_x_deg: cam.fov_x_deg,
+        },
+    )?)
 }
 
 fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
