@@ -224,7 +224,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     var colour: vec4<f32>;
     var cutoff = in.cutoff;
     var alpha_mode = 2u;
-    if SOURCE == 0u {
+    if SOURCE == 0u && ATLAS_ARRAYS == 1u {
+        // Uniform control flow: implicit derivatives (per quad; explicit gradients cost a per-pixel LOD on
+        // software rasterisers).
+        colour = textureSample(atlas0, atlas_sampler, in.uv, in.layer);
+    } else if SOURCE == 0u {
         colour = sample_atlas(in.which, in.uv, in.layer, ddx, ddy);
     } else {
         let e = tam[in.which];
