@@ -168,18 +168,28 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
                 .save(run.dir.join("contact_sheet.png"))
                 .context("writing the contact sheet")?;
         }
-        let frame = mean_max(run.stats.iter().map(|s| s.frame_ms));
-        means.push((run.mode, frame.0));
+        let frame = median(run.stats.iter().map(|s| s.frame_ms).collect());
+        means.push((run.mode, frame));
         print_summary(run.mode, &run.stats, &run.dir);
     }
     let mean_of = |m: Mode| means.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
     if let (Some(t), Some(d)) = (mean_of(Mode::Tree), mean_of(Mode::Dummy)) {
-        println!("frame time tree / dummy: {:.3}", t / d);
+        println!("median frame time tree / dummy: {:.3}", t / d);
     }
     if let (Some(t), Some(o)) = (mean_of(Mode::Tree), mean_of(Mode::Original)) {
-        println!("frame time original / tree: {:.3}", o / t);
+        println!("median frame time original / tree: {:.3}", o / t);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Median of `v` (0 when empty).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
 }
 
 /// One mode's outputs.
@@ -300,4 +310,12 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         let (mean, max) = mean_max(gpu.iter().copied());
         println!("  {:<20} mean {mean:>10.2}  max {max:>10.2}", "GPU ms");
     }
+    // Medians: robust against one-off stalls (a software rasteriser compiles shader variants on first use).
+    let frame: Vec<f64> = stats.iter().map(|s| s.frame_ms).collect();
+    println!(
+        "  {:<20} median {:>8.2}  GPU median {:>8.2}",
+        "frame ms",
+        median(frame),
+        median(gpu)
+    );
 }
