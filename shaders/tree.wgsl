@@ -15,6 +15,13 @@ const NONE: u32 = 0xffffffffu;
 
 // Pipeline pass: 0 opaque, 1 alpha mask, 2 alpha blend.
 override PASS: u32 = 0u;
+// Texture source of the pipeline's records: 0 atlases, 1 original textures. Atlas and original draws are
+// separate pipelines (render::batch::Group): software rasterisers run every texture fetch of a shader
+// under an execution mask, so one shader able to sample every array would pay for all on every pixel.
+override SOURCE: u32 = 0u;
+// Atlas arrays in use (1..4) and the class arrays present (bit k: class 4 << k); the rest is compiled out.
+override ATLAS_ARRAYS: u32 = 4u;
+override CLASS_MASK: u32 = 0x3ffu;
 
 struct Globals {
     view_proj: mat4x4<f32>,
@@ -137,28 +144,38 @@ fn vs_main(v: VertexIn) -> VertexOut {
 }
 
 fn sample_atlas(array: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
-    switch array {
-        case 1u: { return textureSampleGrad(atlas1, atlas_sampler, uv, layer, ddx, ddy); }
-        case 2u: { return textureSampleGrad(atlas2, atlas_sampler, uv, layer, ddx, ddy); }
-        case 3u: { return textureSampleGrad(atlas3, atlas_sampler, uv, layer, ddx, ddy); }
-        default: { return textureSampleGrad(atlas0, atlas_sampler, uv, layer, ddx, ddy); }
+    var c = textureSampleGrad(atlas0, atlas_sampler, uv, layer, ddx, ddy);
+    if ATLAS_ARRAYS > 1u && array == 1u {
+        c = textureSampleGrad(atlas1, atlas_sampler, uv, layer, ddx, ddy);
     }
+    if ATLAS_ARRAYS > 2u && array == 2u {
+        c = textureSampleGrad(atlas2, atlas_sampler, uv, layer, ddx, ddy);
+    }
+    if ATLAS_ARRAYS > 3u && array == 3u {
+        c = textureSampleGrad(atlas3, atlas_sampler, uv, layer, ddx, ddy);
+    }
+    return c;
+}
+
+// Bit k of CLASS_MASK is set and the entry's class is k.
+fn is_class(class_index: u32, k: u32) -> bool {
+    return (CLASS_MASK & (1u << k)) != 0u && class_index == k;
 }
 
 fn sample_class(class_index: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
     let s = original_sampler;
-    switch class_index {
-        case 1u: { return textureSampleGrad(class1, s, uv, layer, ddx, ddy); }
-        case 2u: { return textureSampleGrad(class2, s, uv, layer, ddx, ddy); }
-        case 3u: { return textureSampleGrad(class3, s, uv, layer, ddx, ddy); }
-        case 4u: { return textureSampleGrad(class4, s, uv, layer, ddx, ddy); }
-        case 5u: { return textureSampleGrad(class5, s, uv, layer, ddx, ddy); }
-        case 6u: { return textureSampleGrad(class6, s, uv, layer, ddx, ddy); }
-        case 7u: { return textureSampleGrad(class7, s, uv, layer, ddx, ddy); }
-        case 8u: { return textureSampleGrad(class8, s, uv, layer, ddx, ddy); }
-        case 9u: { return textureSampleGrad(class9, s, uv, layer, ddx, ddy); }
-        default: { return textureSampleGrad(class0, s, uv, layer, ddx, ddy); }
-    }
+    var c = vec4<f32>(0.0);
+    if is_class(class_index, 0u) { c = textureSampleGrad(class0, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 1u) { c = textureSampleGrad(class1, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 2u) { c = textureSampleGrad(class2, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 3u) { c = textureSampleGrad(class3, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 4u) { c = textureSampleGrad(class4, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 5u) { c = textureSampleGrad(class5, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 6u) { c = textureSampleGrad(class6, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 7u) { c = textureSampleGrad(class7, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 8u) { c = textureSampleGrad(class8, s, uv, layer, ddx, ddy); }
+    if is_class(class_index, 9u) { c = textureSampleGrad(class9, s, uv, layer, ddx, ddy); }
+    return c;
 }
 
 // One axis of a wrap mode, into [0, 1] for a sampler that repeats. Repeat: fract (the repeating sampler
@@ -207,7 +224,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     var colour: vec4<f32>;
     var cutoff = in.cutoff;
     var alpha_mode = 2u;
-    if in.layer != NONE {
+    if SOURCE == 0u && ATLAS_ARRAYS == 1u {
+        // Uniform control flow: implicit derivatives (per quad; explicit gradients cost a per-pixel LOD on
+        // software rasterisers).
+        colour = textureSample(atlas0, atlas_sampler, in.uv, in.layer);
+    } else if SOURCE == 0u {
         colour = sample_atlas(in.which, in.uv, in.layer, ddx, ddy);
     } else {
         let e = tam[in.which];

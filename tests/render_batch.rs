@@ -7,7 +7,7 @@ use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::camera::CameraPath;
 use atlastree::ids::NONE;
 use atlastree::render::batch::{
-    AtlasSlot, BatchOptions, FrameBatch, LeafOffsets, Pass, leaf_ranges,
+    AtlasSlot, BatchOptions, FrameBatch, Group, LeafOffsets, Pass, leaf_ranges,
 };
 use atlastree::render::resident::plan;
 use atlastree::select::{Cut, Source, select};
@@ -103,15 +103,28 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
         assert_eq!(batch.len(), cut.items.len());
         assert_eq!(batch.records.len(), batch.indirect.len());
         sizes.push(cut.items.len());
-        // Opaque tree only: one pass holds everything.
+        // Opaque tree only: the opaque atlas group, then the opaque originals group, hold everything.
+        let atlas = cut
+            .items
+            .iter()
+            .filter(|i| i.source == Source::Atlas)
+            .count() as u32;
+        let r = batch.group_ranges;
+        assert_eq!(r[Group::new(Pass::Opaque, false).index()], (0, atlas));
         assert_eq!(
-            batch.pass_ranges[Pass::Opaque as usize],
-            (0, batch.len() as u32)
+            r[Group::new(Pass::Opaque, true).index()],
+            (atlas, batch.len() as u32 - atlas)
         );
+        assert!(r[2..].iter().all(|&(_, n)| n == 0));
         let mut triangles = 0u64;
         let mut originals = 0;
+        // Records are the cut's items, atlas items first (each group keeps tree order).
+        let order: Vec<usize> = (0..cut.items.len())
+            .filter(|&i| cut.items[i].source == Source::Atlas)
+            .chain((0..cut.items.len()).filter(|&i| cut.items[i].source == Source::Original))
+            .collect();
         for (k, (d, r)) in batch.indirect.iter().zip(&batch.records).enumerate() {
-            let item = &cut.items[k];
+            let item = &cut.items[order[k]];
             assert_eq!(
                 d.first_instance, k as u32,
                 "first_instance numbers the records"

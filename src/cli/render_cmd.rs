@@ -126,7 +126,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         t.elapsed().as_secs_f64()
     );
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let mut means = Vec::new();
+    let mut runs = Vec::new();
     for &mode in &a.mode {
         let dir = if a.mode.len() > 1 {
             a.out.join(mode.name())
@@ -134,81 +134,110 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
             a.out.clone()
         };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        let stats = run_mode(&mut renderer, &a, &params, &cameras, mode, &dir)?;
-        let frame = mean_max(stats.iter().map(|s| s.frame_ms));
-        means.push((mode, frame.0));
-        print_summary(mode, &stats, &dir);
+        runs.push(ModeRun {
+            mode,
+            dir,
+            stats: Vec::with_capacity(cameras.len()),
+            thumbs: Vec::new(),
+        });
+    }
+    // Warm up every mode on frames spread over the path (shader compilation, first uploads), then render
+    // each frame in all modes back to back, so load changes on the machine hit every mode alike.
+    for run in &runs {
+        for k in 0..a.warmup {
+            if let Some(cam) = cameras.get(k * cameras.len() / a.warmup.max(1)) {
+                renderer.render(cam, scale_of(&a, &params, cam)?, run.mode)?;
+            }
+        }
+    }
+    for (i, cam) in cameras.iter().enumerate() {
+        let scale = scale_of(&a, &params, cam)?;
+        for run in &mut runs {
+            let s = renderer.render(cam, scale, run.mode)?;
+            run.stats.push(s);
+            if a.every > 0 && i % a.every == 0 {
+                run.save_frame(&renderer, &a, i)?;
+            }
+        }
+    }
+    let mut means = Vec::new();
+    for run in &runs {
+        write_csv(&run.dir.join("stats.csv"), &run.stats)?;
+        if !run.thumbs.is_empty() {
+            contact_sheet(&run.thumbs)
+                .save(run.dir.join("contact_sheet.png"))
+                .context("writing the contact sheet")?;
+        }
+        let frame = median(run.stats.iter().map(|s| s.frame_ms).collect());
+        means.push((run.mode, frame));
+        print_summary(run.mode, &run.stats, &run.dir);
     }
     let mean_of = |m: Mode| means.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
     if let (Some(t), Some(d)) = (mean_of(Mode::Tree), mean_of(Mode::Dummy)) {
-        println!("frame time tree / dummy: {:.3}", t / d);
+        println!("median frame time tree / dummy: {:.3}", t / d);
     }
     if let (Some(t), Some(o)) = (mean_of(Mode::Tree), mean_of(Mode::Original)) {
-        println!("frame time original / tree: {:.3}", o / t);
+        println!("median frame time original / tree: {:.3}", o / t);
     }
     Ok(ExitCode::SUCCESS)
 }
 
-fn run_mode(
-    renderer: &mut Renderer<'_>,
+/// Median of `v` (0 when empty).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}
+
+/// One mode's outputs.
+struct ModeRun {
+    mode: Mode,
+    dir: PathBuf,
+    stats: Vec<FrameStats>,
+    thumbs: Vec<image::RgbaImage>,
+}
+
+impl ModeRun {
+    /// Writes the last frame as `frame_NNNN.png` and keeps a quarter-size thumbnail for the contact sheet.
+    fn save_frame(
+        &mut self,
+        renderer: &Renderer<'_>,
+        a: &RenderArgs,
+        i: usize,
+    ) -> anyhow::Result<()> {
+        let rgba = renderer.read_frame()?;
+        let img = image::RgbaImage::from_raw(a.width, a.height, rgba)
+            .context("frame readback has the wrong size")?;
+        let png = self.dir.join(format!("frame_{i:04}.png"));
+        img.save(&png)
+            .with_context(|| format!("writing {}", png.display()))?;
+        self.thumbs.push(image::imageops::resize(
+            &img,
+            (a.width / 4).max(1),
+            (a.height / 4).max(1),
+            image::imageops::FilterType::Triangle,
+        ));
+        Ok(())
+    }
+}
+
+/// `min_distance` scale for the run-time width, texel ratio and the camera's field of view.
+fn scale_of(
     a: &RenderArgs,
     params: &atlastree::build::tree::BuildParams,
-    cameras: &[Camera],
-    mode: Mode,
-    dir: &Path,
-) -> anyhow::Result<Vec<FrameStats>> {
-    let mut stats = Vec::with_capacity(cameras.len());
-    let mut thumbs = Vec::new();
-    // Warm up on frames spread over the path, so every pipeline the path needs is compiled.
-    for k in 0..a.warmup {
-        let i = k * cameras.len() / a.warmup.max(1);
-        if let Some(cam) = cameras.get(i) {
-            let scale = min_distance_scale(
-                params,
-                &SelectOptions {
-                    screen_width: a.width,
-                    texel_ratio: a.texel_ratio,
-                    fov_x_deg: cam.fov_x_deg,
-                },
-            )?;
-            renderer.render(cam, scale, mode)?;
-        }
-    }
-    for (i, cam) in cameras.iter().enumerate() {
-        let scale = min_distance_scale(
-            params,
-            &SelectOptions {
-                screen_width: a.width,
-                texel_ratio: a.texel_ratio,
-                fov_x_deg: cam.fov_x_deg,
-            },
-        )?;
-        let s = renderer.render(cam, scale, mode)?;
-        stats.push(s);
-        if a.every > 0 && i % a.every == 0 {
-            let rgba = renderer.read_frame()?;
-            let img = image::RgbaImage::from_raw(a.width, a.height, rgba)
-                .context("frame readback has the wrong size")?;
-            let png = dir.join(format!("frame_{i:04}.png"));
-            img.save(&png)
-                .with_context(|| format!("writing {}", png.display()))?;
-            let tw = (a.width / 4).max(1);
-            let th = (a.height / 4).max(1);
-            thumbs.push(image::imageops::resize(
-                &img,
-                tw,
-                th,
-                image::imageops::FilterType::Triangle,
-            ));
-        }
-    }
-    write_csv(&dir.join("stats.csv"), &stats)?;
-    if !thumbs.is_empty() {
-        contact_sheet(&thumbs)
-            .save(dir.join("contact_sheet.png"))
-            .context("writing the contact sheet")?;
-    }
-    Ok(stats)
+    cam: &Camera,
+) -> anyhow::Result<f64> {
+    Ok(min_distance_scale(
+        params,
+        &SelectOptions {
+            screen_width: a.width,
+            texel_ratio: a.texel_ratio,
+            fov_x_deg: cam.fov_x_deg,
+        },
+    )?)
 }
 
 fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
@@ -281,4 +310,12 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         let (mean, max) = mean_max(gpu.iter().copied());
         println!("  {:<20} mean {mean:>10.2}  max {max:>10.2}", "GPU ms");
     }
+    // Medians: robust against one-off stalls (a software rasteriser compiles shader variants on first use).
+    let frame: Vec<f64> = stats.iter().map(|s| s.frame_ms).collect();
+    println!(
+        "  {:<20} median {:>8.2}  GPU median {:>8.2}",
+        "frame ms",
+        median(frame),
+        median(gpu)
+    );
 }

@@ -115,6 +115,41 @@ impl Pass {
     pub const ALL: [Pass; 3] = [Pass::Opaque, Pass::Mask, Pass::Blend];
 }
 
+/// A pipeline of the tree renderer: pass × texture source. Atlas and original-texture records are drawn
+/// by separate pipelines (each one `multi_draw_indexed_indirect`): a software rasteriser such as lavapipe
+/// executes every texture fetch of a shader under an execution mask, so a fragment shader that can sample
+/// both the atlas arrays and every class array pays for all of them on every pixel.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct Group {
+    pub pass: Pass,
+    /// Original textures (else atlases).
+    pub original: bool,
+}
+
+/// Number of [`Group`]s.
+pub const GROUPS: usize = 6;
+
+impl Group {
+    /// All groups in draw order: opaque atlas, opaque originals, mask atlas, mask originals, blend …
+    pub const ALL: [Group; GROUPS] = [
+        Group::new(Pass::Opaque, false),
+        Group::new(Pass::Opaque, true),
+        Group::new(Pass::Mask, false),
+        Group::new(Pass::Mask, true),
+        Group::new(Pass::Blend, false),
+        Group::new(Pass::Blend, true),
+    ];
+
+    pub const fn new(pass: Pass, original: bool) -> Group {
+        Group { pass, original }
+    }
+
+    /// Position in [`Group::ALL`].
+    pub fn index(self) -> usize {
+        self.pass as usize * 2 + usize::from(self.original)
+    }
+}
+
 /// Where a node's atlas is resident.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct AtlasSlot {
@@ -176,17 +211,18 @@ pub struct BatchOptions {
 /// One frame's draw data for all trees.
 #[derive(Clone, Debug, Default)]
 pub struct FrameBatch {
-    /// Indirect records, grouped by pass (`pass_ranges`); `indirect[i].first_instance == i`.
+    /// Indirect records, grouped by [`Group`] (`group_ranges`); `indirect[i].first_instance == i`.
     pub indirect: Vec<DrawIndexedIndirect>,
     /// `records[i]` belongs to `indirect[i]`.
     pub records: Vec<NodeRecordGpu>,
-    /// Per [`Pass`] (by discriminant): the range of `indirect` drawn by that pass's multi-draw call.
-    pub pass_ranges: [(u32, u32); 3],
+    /// Per [`Group`] (by [`Group::index`]): `(first, count)` of `indirect` drawn by that group's multi-draw
+    /// call.
+    pub group_ranges: [(u32, u32); GROUPS],
     /// Triangles drawn.
     pub triangles: u64,
     /// Records drawn with original textures.
     pub original_records: u32,
-    pending: [Vec<(DrawIndexedIndirect, NodeRecordGpu)>; 3],
+    pending: [Vec<(DrawIndexedIndirect, NodeRecordGpu)>; GROUPS],
 }
 
 impl FrameBatch {
@@ -198,7 +234,7 @@ impl FrameBatch {
     pub fn clear(&mut self) {
         self.indirect.clear();
         self.records.clear();
-        self.pass_ranges = [(0, 0); 3];
+        self.group_ranges = [(0, 0); GROUPS];
         self.triangles = 0;
         self.original_records = 0;
         for p in &mut self.pending {
@@ -254,7 +290,7 @@ impl FrameBatch {
                 self.original_records += 1;
             }
             self.triangles += u64::from(item.index_count / 3);
-            self.pending[pass as usize].push((draw, record));
+            self.pending[Group::new(pass, atlas_layer.is_none()).index()].push((draw, record));
         }
         skipped
     }
@@ -264,14 +300,14 @@ impl FrameBatch {
     pub fn finish(&mut self) {
         self.indirect.clear();
         self.records.clear();
-        for p in Pass::ALL {
+        for g in Group::ALL {
             let start = self.indirect.len() as u32;
-            for (mut draw, record) in self.pending[p as usize].drain(..) {
+            for (mut draw, record) in self.pending[g.index()].drain(..) {
                 draw.first_instance = self.indirect.len() as u32;
                 self.indirect.push(draw);
                 self.records.push(record);
             }
-            self.pass_ranges[p as usize] = (start, self.indirect.len() as u32 - start);
+            self.group_ranges[g.index()] = (start, self.indirect.len() as u32 - start);
         }
     }
 

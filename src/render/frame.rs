@@ -1,10 +1,10 @@
 //! The renderer: per frame, select (paper §4) → batch → upload → one render pass, and its counters.
 
-use super::batch::{BatchOptions, DrawIndexedIndirect, FrameBatch, NodeRecordGpu, Pass};
+use super::batch::{BatchOptions, DrawIndexedIndirect, FrameBatch, Group, NodeRecordGpu, Pass};
 use super::naive::Naive;
 use super::pipeline::{
     B_ATLAS_SAMPLER, B_ATLAS0, B_CLASS0, B_DRAWS, B_GLOBALS, B_LEAVES, B_OFFSETS,
-    B_ORIGINAL_SAMPLER, B_TAM, COLOR_FORMAT, DEPTH_FORMAT, PassPipelines, sampler,
+    B_ORIGINAL_SAMPLER, B_TAM, COLOR_FORMAT, DEPTH_FORMAT, PassPipelines, Specialisation, sampler,
     tree_bind_group_layout, vertex_layout,
 };
 use super::resident::Resident;
@@ -165,6 +165,7 @@ impl<'f> Renderer<'f> {
             include_str!("../../shaders/tree.wgsl"),
             &[&layout],
             vertex_layout(),
+            tree_specialisation(&resident),
         );
         let globals = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("globals"),
@@ -179,7 +180,7 @@ impl<'f> Renderer<'f> {
             device,
             "atlas sampler",
             [wgpu::AddressMode::ClampToEdge; 2],
-            aniso && std::env::var_os("ATLASTREE_NO_ATLAS_ANISO").is_none(),
+            aniso,
         );
         let original_sampler = sampler(
             device,
@@ -433,11 +434,11 @@ impl<'f> Renderer<'f> {
             self.bind_group = make(false);
             self.dummy_bind_group = make(true);
         }
-        let passes: Vec<(Pass, u32, u32)> = Pass::ALL
+        let passes: Vec<(Group, u32, u32)> = Group::ALL
             .iter()
-            .map(|&p| {
-                let (start, count) = self.batch.pass_ranges[p as usize];
-                (p, start, count)
+            .map(|&g| {
+                let (start, count) = self.batch.group_ranges[g.index()];
+                (g, start, count)
             })
             .filter(|&(_, _, count)| count > 0)
             .collect();
@@ -508,7 +509,7 @@ impl<'f> Renderer<'f> {
         }
         for p in Pass::ALL {
             if !lists[p as usize].is_empty() {
-                naive.pipelines.get(&self.ctx.device, p);
+                naive.pipelines.get(&self.ctx.device, Group::new(p, false));
             }
         }
         let Some(naive) = self.naive.as_ref() else {
@@ -521,7 +522,11 @@ impl<'f> Renderer<'f> {
         rp.set_index_buffer(naive.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
         for p in Pass::ALL {
             let list = &lists[p as usize];
-            let Some(pipeline) = naive.pipelines.existing(p).filter(|_| !list.is_empty()) else {
+            let Some(pipeline) = naive
+                .pipelines
+                .existing(Group::new(p, false))
+                .filter(|_| !list.is_empty())
+            else {
                 continue;
             };
             rp.set_pipeline(pipeline);
@@ -554,6 +559,27 @@ impl<'f> Renderer<'f> {
 
     pub fn options(&self) -> RendererOptions {
         self.opts
+    }
+}
+
+/// Specialisation of `tree.wgsl` to what the file has: the number of atlas arrays and the class arrays
+/// present (absent ones are compiled out, see [`Group`]).
+fn tree_specialisation(res: &Resident) -> Specialisation {
+    let class_mask = res
+        .class_arrays
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| a.is_some())
+        .fold(0u32, |m, (k, _)| m | 1 << k);
+    Specialisation {
+        constants: vec![
+            (
+                "ATLAS_ARRAYS",
+                f64::from(res.atlas_arrays.len().max(1) as u32),
+            ),
+            ("CLASS_MASK", f64::from(class_mask)),
+        ],
+        source: true,
     }
 }
 

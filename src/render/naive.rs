@@ -4,7 +4,9 @@
 
 use super::RenderError;
 use super::batch::Pass;
-use super::pipeline::{PassPipelines, naive_bind_group_layouts, sampler, vertex_layout};
+use super::pipeline::{
+    PassPipelines, Specialisation, naive_bind_group_layouts, sampler, vertex_layout,
+};
 use super::resident::Resident;
 use super::textures::{mip_levels, upload_mip_chain};
 use crate::gpu::GpuContext;
@@ -71,6 +73,7 @@ impl Naive {
             include_str!("../../shaders/naive.wgsl"),
             &[&l0, &l1],
             vertex_layout(),
+            Specialisation::default(),
         );
         let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("naive group 0"),

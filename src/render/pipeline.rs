@@ -2,7 +2,7 @@
 //! naive baseline (`shaders/naive.wgsl`). The opaque pipeline always exists; the alpha-mask and alpha-blend
 //! pipelines are created on first use (only files with an alpha tree need them).
 
-use super::batch::{Pass, VERTEX_STRIDE};
+use super::batch::{GROUPS, Group, Pass, VERTEX_STRIDE};
 use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
 
 /// Colour target format: sRGB, so the shaders work in linear light and the PNGs hold sRGB bytes.
@@ -148,13 +148,23 @@ pub fn sampler(
     })
 }
 
-/// The three pipelines of one shader (opaque created eagerly, mask/blend lazily).
+/// How a shader is specialised per [`Group`] (WGSL `override` constants).
+#[derive(Clone, Debug, Default)]
+pub struct Specialisation {
+    /// Constants every pipeline gets (besides `PASS`).
+    pub constants: Vec<(&'static str, f64)>,
+    /// The shader has `override SOURCE` (0 atlas, 1 originals).
+    pub source: bool,
+}
+
+/// The pipelines of one shader, one per [`Group`], each created on first use (opaque atlas eagerly).
 pub struct PassPipelines {
     label: &'static str,
     module: wgpu::ShaderModule,
     layout: wgpu::PipelineLayout,
     vertex: wgpu::VertexBufferLayout<'static>,
-    pipelines: [Option<wgpu::RenderPipeline>; 3],
+    spec: Specialisation,
+    pipelines: [Option<wgpu::RenderPipeline>; GROUPS],
 }
 
 impl PassPipelines {
@@ -165,6 +175,7 @@ impl PassPipelines {
         source: &'static str,
         groups: &[&wgpu::BindGroupLayout],
         vertex: wgpu::VertexBufferLayout<'static>,
+        spec: Specialisation,
     ) -> PassPipelines {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(label),
@@ -181,9 +192,10 @@ impl PassPipelines {
             module,
             layout,
             vertex,
-            pipelines: [None, None, None],
+            spec,
+            pipelines: Default::default(),
         };
-        p.get(device, Pass::Opaque);
+        p.get(device, Group::new(Pass::Opaque, false));
         p
     }
 
@@ -192,14 +204,19 @@ impl PassPipelines {
         self.pipelines.iter().filter(|p| p.is_some()).count()
     }
 
-    /// The pipeline of `pass` if it was created.
-    pub fn existing(&self, pass: Pass) -> Option<&wgpu::RenderPipeline> {
-        self.pipelines[pass as usize].as_ref()
+    /// The pipeline of `group` if it was created.
+    pub fn existing(&self, group: Group) -> Option<&wgpu::RenderPipeline> {
+        self.pipelines[group.index()].as_ref()
     }
 
-    /// The pipeline of `pass`, created on first use.
-    pub fn get(&mut self, device: &wgpu::Device, pass: Pass) -> &wgpu::RenderPipeline {
-        let slot = &mut self.pipelines[pass as usize];
+    /// The pipeline of `group`, created on first use.
+    pub fn get(&mut self, device: &wgpu::Device, group: Group) -> &wgpu::RenderPipeline {
+        let mut constants = self.spec.constants.clone();
+        constants.push(("PASS", f64::from(group.pass as u32)));
+        if self.spec.source {
+            constants.push(("SOURCE", f64::from(u32::from(group.original))));
+        }
+        let slot = &mut self.pipelines[group.index()];
         slot.get_or_insert_with(|| {
             create_pipeline(
                 device,
@@ -207,7 +224,8 @@ impl PassPipelines {
                 &self.module,
                 &self.layout,
                 &self.vertex,
-                pass,
+                group.pass,
+                &constants,
             )
         })
     }
@@ -220,8 +238,8 @@ fn create_pipeline(
     layout: &wgpu::PipelineLayout,
     vertex: &wgpu::VertexBufferLayout<'static>,
     pass: Pass,
+    constants: &[(&str, f64)],
 ) -> wgpu::RenderPipeline {
-    let constants = [("PASS", f64::from(pass as u32))];
     let blend = (pass == Pass::Blend).then_some(wgpu::BlendState::ALPHA_BLENDING);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
@@ -230,7 +248,7 @@ fn create_pipeline(
             module,
             entry_point: Some("vs_main"),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &constants,
+                constants,
                 ..Default::default()
             },
             buffers: &[Some(vertex.clone())],
@@ -252,7 +270,7 @@ fn create_pipeline(
             module,
             entry_point: Some("fs_main"),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &constants,
+                constants,
                 ..Default::default()
             },
             targets: &[Some(wgpu::ColorTargetState {

@@ -181,7 +181,8 @@ fn psnr_covered(a: &[u8], b: &[u8]) -> (f64, usize) {
 /// Views drawn with the **root** atlas (the overview) are held to ≥ 30 dB only: there the camera is far
 /// beyond the root's min_distance, the sampler picks coarser mips of the root atlas, and the 8-texel
 /// borders (one texel at the root of this depth-3 tree) no longer keep neighbouring areas apart — the
-/// paper's border protects three mip levels counted from the leaves. Measured: 32.5 and 34.1 dB.
+/// paper's border protects three mip levels counted from the leaves. Measured: 33.1 and 35.4 dB
+/// (below the root: 37.9–53.1 dB).
 fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
     let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
@@ -230,8 +231,9 @@ fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
     Ok(())
 }
 
-/// Tree mode: one bind group and one multi-draw call per non-empty pipeline, for cuts of very different
-/// sizes; one indirect record per selected node; the alpha tree adds at most the two alpha pipelines.
+/// Tree mode: one bind group and one multi-draw call per non-empty pipeline (pass × atlas/originals, at most
+/// 6), for cuts of very different sizes; one indirect record per selected node. Original mode: one bind
+/// group and one draw per (leaf, original texture).
 fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
     let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
@@ -245,10 +247,15 @@ fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String>
     for (cam, ratio) in views {
         let scale = scale_for(&file, &cam)? * ratio;
         let s = r.render(&cam, scale, Mode::Tree).map_err(e)?;
-        let passes = r.batch().pass_ranges.iter().filter(|(_, n)| *n > 0).count() as u32;
-        if s.bind_group_changes != 1 || s.draw_calls != passes || passes == 0 || passes > 3 {
+        let passes = r
+            .batch()
+            .group_ranges
+            .iter()
+            .filter(|(_, n)| *n > 0)
+            .count() as u32;
+        if s.bind_group_changes != 1 || s.draw_calls != passes || passes == 0 || passes > 6 {
             return Err(format!(
-                "{} nodes drawn: {} bind groups, {} draw calls for {passes} non-empty passes",
+                "{} nodes drawn: {} bind groups, {} draw calls for {passes} non-empty pipeline groups",
                 s.nodes_drawn, s.bind_group_changes, s.draw_calls
             ));
         }
