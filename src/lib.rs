@@ -25,7 +25,12 @@
 //! - [`camera`]: cameras, frusta, distance to bounds, keyframed and generated camera paths (f64).
 //! - [`select`]: the per-frame cut (§4): hierarchical culling, distance test, atlas or original textures.
 //!
-//! Stages still to come (see the issues): `paging`, `render`, `sim`.
+//! - [`render`]: the wgpu renderer. All atlases are layers of one texture array, original textures layers of
+//!   one array per class size; [`render::batch`] turns a cut into indirect records (plain data), and a frame is
+//!   one bind group and one multi-draw-indirect call per pipeline (texture-array batching).
+//! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
+//!
+//! Stages still to come (see the issues): `paging` (blocks under a capacity k), `sim`.
 
 pub mod build;
 pub mod camera;
