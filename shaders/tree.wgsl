@@ -22,6 +22,9 @@ override SOURCE: u32 = 0u;
 // Atlas arrays in use (1..4) and the class arrays present (bit k: class 4 << k); the rest is compiled out.
 override ATLAS_ARRAYS: u32 = 4u;
 override CLASS_MASK: u32 = 0x3ffu;
+// 1: the texel-density debug pipeline (render::density): instead of the colour, write the texels of mip 0
+// per screen pixel of the sampled texture (Rgba32Float target, no blending).
+override DENSITY: u32 = 0u;
 
 struct Globals {
     view_proj: mat4x4<f32>,
@@ -212,6 +215,27 @@ fn level_colour(level: u32) -> vec3<f32> {
     return palette[level % 8u];
 }
 
+// Size in texels of mip 0 of the texture an atlas draw samples (array `array`).
+fn atlas_size(array: u32) -> f32 {
+    var d = textureDimensions(atlas0).x;
+    if ATLAS_ARRAYS > 1u && array == 1u { d = textureDimensions(atlas1).x; }
+    if ATLAS_ARRAYS > 2u && array == 2u { d = textureDimensions(atlas2).x; }
+    if ATLAS_ARRAYS > 3u && array == 3u { d = textureDimensions(atlas3).x; }
+    return f32(d);
+}
+
+// Texel density of one pixel: the singular values of the Jacobian d(texel)/d(pixel) of mip 0 of the
+// sampled texture (`ddx`, `ddy`: UV derivatives; `size`: texels per unit UV). x: the smaller singular
+// value = texels per pixel along the least-sampled screen direction (< 1: magnified); y: the larger.
+fn singular_values(ddx: vec2<f32>, ddy: vec2<f32>, size: f32) -> vec2<f32> {
+    let a = ddx * size;
+    let b = ddy * size;
+    let e = dot(a, a) + dot(b, b);
+    let det = abs(a.x * b.y - a.y * b.x);
+    let r = sqrt(max(e * e - 4.0 * det * det, 0.0));
+    return vec2<f32>(sqrt(max(0.5 * (e - r), 0.0)), sqrt(0.5 * (e + r)));
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // Gradients of the unwrapped UV, taken in uniform control flow: mip selection stays right across
@@ -221,6 +245,23 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if globals.mode == 1u {
         return vec4<f32>(level_colour(in.level), 1.0);
     }
+    let colour = shade(in, ddx, ddy);
+    if DENSITY == 1u {
+        // (texels/pixel min, max, source 0 atlas / 1 original, level; 255 for originals).
+        var size = 0.0;
+        if SOURCE == 0u {
+            size = atlas_size(in.which);
+        } else {
+            size = tam[in.which].class_size;
+        }
+        let sv = singular_values(ddx, ddy, size);
+        return vec4<f32>(sv.x, sv.y, f32(SOURCE), f32(in.level));
+    }
+    return colour;
+}
+
+// The colour of a textured fragment (tree and dummy modes), or discard (alpha mask and blend).
+fn shade(in: VertexOut, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
     var colour: vec4<f32>;
     var cutoff = in.cutoff;
     var alpha_mode = 2u;

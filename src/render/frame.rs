@@ -1,6 +1,7 @@
 //! The renderer: per frame, select (paper §4) → batch → upload → one render pass, and its counters.
 
 use super::batch::{BatchOptions, DrawIndexedIndirect, FrameBatch, Group, NodeRecordGpu, Pass};
+use super::density::{DensityFrame, DensityTarget};
 use super::naive::Naive;
 use super::pipeline::{
     B_ATLAS_SAMPLER, B_ATLAS0, B_CLASS0, B_DRAWS, B_GLOBALS, B_LEAVES, B_OFFSETS,
@@ -141,6 +142,8 @@ pub struct Renderer<'f> {
     cuts: Vec<Cut>,
     batch: FrameBatch,
     timestamps: Option<Timestamps>,
+    /// Texel-density pipelines and target, created on the first [`Renderer::render_density`].
+    density: Option<DensityTarget>,
 }
 
 impl<'f> Renderer<'f> {
@@ -244,6 +247,7 @@ impl<'f> Renderer<'f> {
             cuts: vec![Cut::new(); trees],
             batch: FrameBatch::new(),
             timestamps,
+            density: None,
         })
     }
 
@@ -269,6 +273,44 @@ impl<'f> Renderer<'f> {
         camera: &Camera,
         scale: f64,
         mode: Mode,
+    ) -> Result<FrameStats, RenderError> {
+        self.render_to(camera, scale, mode, false)
+    }
+
+    /// Texel-density debug frame: the cut and draws of [`Mode::Tree`] for `camera` at `scale`, each pixel
+    /// holding the texels (of mip 0 of the atlas or original texture it samples) per screen pixel
+    /// instead of a colour; read back to the CPU. See [`super::density`].
+    pub fn render_density(
+        &mut self,
+        camera: &Camera,
+        scale: f64,
+    ) -> Result<(FrameStats, DensityFrame), RenderError> {
+        if self.density.is_none() {
+            self.density = Some(DensityTarget::new(
+                &self.ctx.device,
+                &self.layout,
+                tree_specialisation(&self.resident),
+                self.opts.width,
+                self.opts.height,
+            ));
+        }
+        let stats = self.render_to(camera, scale, Mode::Tree, true)?;
+        let Some(d) = &self.density else {
+            return Err(RenderError::BadSize {
+                width: self.opts.width,
+                height: self.opts.height,
+            });
+        };
+        Ok((stats, d.read(self.ctx)?))
+    }
+
+    /// One frame into the colour target, or (`density`) into the density target.
+    fn render_to(
+        &mut self,
+        camera: &Camera,
+        scale: f64,
+        mode: Mode,
+        density: bool,
     ) -> Result<FrameStats, RenderError> {
         let t0 = Instant::now();
         let mut stats = FrameStats::default();
@@ -307,7 +349,7 @@ impl<'f> Renderer<'f> {
         if mode == Mode::Original {
             self.encode_naive(&mut encoder, &mut stats)?;
         } else {
-            self.encode_tree(&mut encoder, mode, &mut stats);
+            self.encode_tree(&mut encoder, mode, density, &mut stats);
         }
         if let Some(ts) = &self.timestamps {
             encoder.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
@@ -353,15 +395,24 @@ impl<'f> Renderer<'f> {
         ))
     }
 
-    fn pass<'e>(&'e self, encoder: &'e mut wgpu::CommandEncoder) -> wgpu::RenderPass<'e> {
+    /// The frame's render pass into the colour target, or (`density`) the density target.
+    fn pass<'e>(
+        &'e self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        density: bool,
+    ) -> wgpu::RenderPass<'e> {
+        let (view, clear) = match (&self.density, density) {
+            (Some(d), true) => (&d.view, super::density::CLEAR),
+            _ => (&self.color_view, SKY),
+        };
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("frame"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &self.color_view,
+                view,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(SKY),
+                    load: wgpu::LoadOp::Clear(clear),
                     store: wgpu::StoreOp::Store,
                 },
             })],
@@ -391,6 +442,7 @@ impl<'f> Renderer<'f> {
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         mode: Mode,
+        density: bool,
         stats: &mut FrameStats,
     ) {
         let ctx = self.ctx;
@@ -442,15 +494,23 @@ impl<'f> Renderer<'f> {
             })
             .filter(|&(_, _, count)| count > 0)
             .collect();
+        let pipelines = match (&mut self.density, density) {
+            (Some(d), true) => &mut d.pipelines,
+            _ => &mut self.pipelines,
+        };
         for &(p, _, _) in &passes {
-            self.pipelines.get(device, p);
+            pipelines.get(device, p);
         }
         let group = if mode == Mode::Dummy {
             &self.dummy_bind_group
         } else {
             &self.bind_group
         };
-        let mut rp = self.pass(encoder);
+        let pipelines = match (&self.density, density) {
+            (Some(d), true) => &d.pipelines,
+            _ => &self.pipelines,
+        };
+        let mut rp = self.pass(encoder, density);
         rp.set_bind_group(0, group, &[]);
         stats.bind_group_changes += 1;
         rp.set_vertex_buffer(0, self.resident.vertex_buffer.slice(..));
@@ -459,7 +519,7 @@ impl<'f> Renderer<'f> {
             wgpu::IndexFormat::Uint32,
         );
         for (p, start, count) in passes {
-            let Some(pipeline) = self.pipelines.existing(p) else {
+            let Some(pipeline) = pipelines.existing(p) else {
                 continue;
             };
             rp.set_pipeline(pipeline);
@@ -515,7 +575,7 @@ impl<'f> Renderer<'f> {
         let Some(naive) = self.naive.as_ref() else {
             return Ok(());
         };
-        let mut rp = self.pass(encoder);
+        let mut rp = self.pass(encoder, false);
         rp.set_bind_group(0, &naive.group0, &[]);
         stats.bind_group_changes += 1;
         rp.set_vertex_buffer(0, self.resident.vertex_buffer.slice(..));
@@ -564,7 +624,7 @@ impl<'f> Renderer<'f> {
 
 /// Specialisation of `tree.wgsl` to what the file has: the number of atlas arrays and the class arrays
 /// present (absent ones are compiled out, see [`Group`]).
-fn tree_specialisation(res: &Resident) -> Specialisation {
+pub(super) fn tree_specialisation(res: &Resident) -> Specialisation {
     let class_mask = res
         .class_arrays
         .iter()
@@ -580,6 +640,7 @@ fn tree_specialisation(res: &Resident) -> Specialisation {
             ("CLASS_MASK", f64::from(class_mask)),
         ],
         source: true,
+        density: false,
     }
 }
 

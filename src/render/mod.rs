@@ -9,9 +9,12 @@
 //! Modes ([`Mode`]) on the same cut: the product (`Tree`), the naive per-texture baseline (`Original`), the
 //! upper bound with one 1×1 texture (`Dummy`), and colour-by-level (`TreeLevels`).
 //!
-//! Shaders: `shaders/tree.wgsl` (tree, dummy, levels), `shaders/naive.wgsl` (original).
+//! Debug: [`Renderer::render_density`] writes texels per pixel instead of colours ([`density`]).
+//!
+//! Shaders: `shaders/tree.wgsl` (tree, dummy, levels, density), `shaders/naive.wgsl` (original).
 
 pub mod batch;
+pub mod density;
 mod frame;
 mod naive;
 pub mod pipeline;

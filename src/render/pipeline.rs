@@ -7,6 +7,9 @@ use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
 
 /// Colour target format: sRGB, so the shaders work in linear light and the PNGs hold sRGB bytes.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// Target format of the texel-density debug pipelines (`DENSITY = 1`, see [`super::density`]): not
+/// blendable, and those pipelines do not blend.
+pub const DENSITY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// Depth format; reverse Z (clear 0, compare Greater) for precision at large depth ranges.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
@@ -155,6 +158,8 @@ pub struct Specialisation {
     pub constants: Vec<(&'static str, f64)>,
     /// The shader has `override SOURCE` (0 atlas, 1 originals).
     pub source: bool,
+    /// The texel-density variant: `DENSITY = 1`, target [`DENSITY_FORMAT`], no blending.
+    pub density: bool,
 }
 
 /// The pipelines of one shader, one per [`Group`], each created on first use (opaque atlas eagerly).
@@ -216,6 +221,9 @@ impl PassPipelines {
         if self.spec.source {
             constants.push(("SOURCE", f64::from(u32::from(group.original))));
         }
+        if self.spec.density {
+            constants.push(("DENSITY", 1.0));
+        }
         let slot = &mut self.pipelines[group.index()];
         slot.get_or_insert_with(|| {
             create_pipeline(
@@ -240,7 +248,13 @@ fn create_pipeline(
     pass: Pass,
     constants: &[(&str, f64)],
 ) -> wgpu::RenderPipeline {
-    let blend = (pass == Pass::Blend).then_some(wgpu::BlendState::ALPHA_BLENDING);
+    let density = constants.contains(&("DENSITY", 1.0));
+    let blend = (pass == Pass::Blend && !density).then_some(wgpu::BlendState::ALPHA_BLENDING);
+    let format = if density {
+        DENSITY_FORMAT
+    } else {
+        COLOR_FORMAT
+    };
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(layout),
@@ -274,7 +288,7 @@ fn create_pipeline(
                 ..Default::default()
             },
             targets: &[Some(wgpu::ColorTargetState {
-                format: COLOR_FORMAT,
+                format,
                 blend,
                 write_mask: wgpu::ColorWrites::ALL,
             })],

@@ -3,6 +3,7 @@
 //! To add tests: create a module under `tests/gpu/` with `pub fn tests() -> Vec<GpuTest>` and list it below.
 
 mod device;
+mod golden;
 mod harness;
 mod render;
 mod smoke;
@@ -10,9 +11,14 @@ mod smoke;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    let registry: Vec<harness::GpuTest> = [smoke::tests(), device::tests(), render::tests()]
-        .into_iter()
-        .flatten()
-        .collect();
+    let registry: Vec<harness::GpuTest> = [
+        smoke::tests(),
+        device::tests(),
+        render::tests(),
+        golden::tests(),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
     harness::run_main(&registry)
 }

@@ -48,7 +48,7 @@ fn e<E: std::fmt::Display>(x: E) -> String {
 }
 
 /// data/city (with alpha materials: both trees, all three pipelines) at atlas 512, d_min = diagonal / 10.
-fn build_city(dir: &Path) -> Result<PathBuf, String> {
+pub(crate) fn build_city(dir: &Path) -> Result<PathBuf, String> {
     let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
     let scene = atlastree::scene::import(&scene_path, &Default::default()).map_err(e)?;
     build_scene(&scene, dir, "city.atlastree", DMin::Ratio(10.0), 512)
@@ -72,7 +72,7 @@ fn build_scene(
     Ok(out)
 }
 
-fn bounds(file: &TreeFile) -> Result<(DVec3, DVec3), String> {
+pub(crate) fn bounds(file: &TreeFile) -> Result<(DVec3, DVec3), String> {
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
     for t in 0..file.trees() {
@@ -155,7 +155,7 @@ fn is_sky(px: &[u8]) -> bool {
 
 /// PSNR (dB) of the RGB channels over the pixels that are not background in at least one image, and the
 /// number of such pixels. Identical covered pixels give +∞.
-fn psnr_covered(a: &[u8], b: &[u8]) -> (f64, usize) {
+pub(crate) fn psnr_covered(a: &[u8], b: &[u8]) -> (f64, usize) {
     let (mut se, mut n) = (0.0f64, 0usize);
     for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
         if is_sky(pa) && is_sky(pb) {

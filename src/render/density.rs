@@ -1,0 +1,191 @@
+//! Texel-density debug pass: how many texels of the texture actually sampled reach each screen pixel.
+//!
+//! The pass draws the cut of [`super::Mode::Tree`] with the `DENSITY = 1` variant of `shaders/tree.wgsl`
+//! into an `Rgba32Float` target. Per pixel it writes the singular values of the Jacobian
+//! d(texel of mip 0)/d(screen pixel), from the quad derivatives of the UV times the texture size (atlas
+//! array size, or the class size of the original texture): the smaller one is the texel density along the
+//! least-sampled screen direction (< 1: the texture is magnified there), the larger one the density the
+//! isotropic mip selection sees. The paper's selection criterion (§3.3, `min_distance`) promises that an
+//! atlas delivers at least `texel_ratio` texels per pixel; original textures are the source resolution
+//! and may magnify.
+
+use super::pipeline::{DENSITY_FORMAT, PassPipelines, Specialisation, vertex_layout};
+use crate::gpu::{GpuContext, GpuError};
+use std::sync::mpsc;
+
+/// Clear value of the density target: source −1 marks a pixel nothing was drawn on.
+pub(super) const CLEAR: wgpu::Color = wgpu::Color {
+    r: 0.0,
+    g: 0.0,
+    b: -1.0,
+    a: 0.0,
+};
+
+/// Bytes per texel of [`DENSITY_FORMAT`].
+const TEXEL_BYTES: u32 = 16;
+
+/// The density of one drawn pixel.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct TexelDensity {
+    /// Texels (mip 0) per pixel along the least-sampled screen direction.
+    pub min: f32,
+    /// Texels (mip 0) per pixel along the most-sampled screen direction.
+    pub max: f32,
+    /// Drawn with an original texture (else an atlas).
+    pub original: bool,
+    /// Tree level of the atlas (255 for original textures).
+    pub level: u32,
+}
+
+/// A read-back density frame, rows top to bottom; `None` where nothing was drawn.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DensityFrame {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Option<TexelDensity>>,
+}
+
+/// Pixel counts of `values` by ⌊log2 v⌋ (keys ascending); values ≤ 0 or not finite are left out.
+pub fn log2_histogram(values: impl IntoIterator<Item = f32>) -> Vec<(i32, usize)> {
+    let mut bins = std::collections::BTreeMap::<i32, usize>::new();
+    for v in values {
+        if v.is_finite() && v > 0.0 {
+            *bins.entry(v.log2().floor() as i32).or_default() += 1;
+        }
+    }
+    bins.into_iter().collect()
+}
+
+/// The density pipelines (one per [`Group`], created on first use) and the `Rgba32Float` target.
+pub(super) struct DensityTarget {
+    pub pipelines: PassPipelines,
+    pub texture: wgpu::Texture,
+    pub view: wgpu::TextureView,
+}
+
+impl DensityTarget {
+    /// `spec`: the tree shader's specialisation for the file (the density flag is set here).
+    pub fn new(
+        device: &wgpu::Device,
+        layout: &wgpu::BindGroupLayout,
+        spec: Specialisation,
+        width: u32,
+        height: u32,
+    ) -> DensityTarget {
+        let pipelines = PassPipelines::new(
+            device,
+            "tree density",
+            include_str!("../../shaders/tree.wgsl"),
+            &[layout],
+            vertex_layout(),
+            Specialisation {
+                density: true,
+                ..spec
+            },
+        );
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("density target"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DENSITY_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        DensityTarget {
+            pipelines,
+            texture,
+            view,
+        }
+    }
+
+    /// Reads the target back (blocks until the GPU is done).
+    pub fn read(&self, ctx: &GpuContext) -> Result<DensityFrame, GpuError> {
+        let (width, height) = (self.texture.width(), self.texture.height());
+        let overflow = || GpuError::SizeOverflow { width, height };
+        let row = width.checked_mul(TEXEL_BYTES).ok_or_else(overflow)?;
+        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded = row.checked_add(align - 1).ok_or_else(overflow)? / align * align;
+        let size = u64::from(padded) * u64::from(height);
+        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("density readback"),
+            size,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("density readback"),
+            });
+        encoder.copy_texture_to_buffer(
+            self.texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(height),
+                },
+            },
+            self.texture.size(),
+        );
+        ctx.queue.submit([encoder.finish()]);
+        let (tx, rx) = mpsc::channel();
+        buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
+        });
+        ctx.device.poll(wgpu::PollType::wait_indefinitely())?;
+        rx.recv().map_err(|_| GpuError::MapCallbackLost)??;
+        let data = buffer.get_mapped_range(..)?;
+        let pixels = data
+            .chunks_exact(padded as usize)
+            .flat_map(|r| r[..row as usize].chunks_exact(TEXEL_BYTES as usize))
+            .map(|t| {
+                let v: [f32; 4] = bytemuck::pod_read_unaligned(t);
+                (v[2] >= 0.0).then_some(TexelDensity {
+                    min: v[0],
+                    max: v[1],
+                    original: v[2] > 0.5,
+                    level: v[3] as u32,
+                })
+            })
+            .collect();
+        drop(data);
+        buffer.unmap();
+        Ok(DensityFrame {
+            width,
+            height,
+            pixels,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::log2_histogram;
+
+    #[test]
+    fn log2_histogram_bins_by_floor_log2_and_skips_non_positive() {
+        let h = log2_histogram([
+            0.2,
+            0.25,
+            0.5,
+            0.99,
+            1.0,
+            1.99,
+            2.0,
+            0.0,
+            -1.0,
+            f32::NAN,
+            f32::INFINITY,
+        ]);
+        assert_eq!(h, vec![(-3, 1), (-2, 1), (-1, 2), (0, 2), (1, 1)]);
+    }
+}

@@ -1,0 +1,289 @@
+//! Golden images per mode and the texel-per-pixel debug pass (issue 4, "Show").
+//!
+//! - Golden images: one fixed dive view of data/city (d_min = diagonal / 10, atlas 512), 256×192, every
+//!   mode against `data/golden/<mode>.png`: PSNR ≥ 40 dB over the covered pixels (lavapipe is
+//!   deterministic; other GPUs filter slightly differently). A missing golden, or `ATLASTREE_BLESS=1`,
+//!   writes the PNG and FAILS, so the test never passes without a comparison.
+//! - Texel density: on dive views at texel ratio 1, atlas pixels get at least the tolerance below in
+//!   texels per pixel (original textures may magnify: they are the source resolution); at texel ratio
+//!   0.25 the same views get lower densities.
+
+use atlastree::camera::{Camera, CameraPath};
+use atlastree::gpu::GpuContext;
+use atlastree::render::density::{DensityFrame, log2_histogram};
+use atlastree::render::{Mode, Renderer, RendererOptions};
+use atlastree::select::{SelectOptions, min_distance_scale};
+use atlastree::store::TreeFile;
+use std::path::{Path, PathBuf};
+
+use crate::harness::GpuTest;
+use crate::render::{bounds, build_city, psnr_covered};
+
+pub fn tests() -> Vec<GpuTest> {
+    vec![
+        GpuTest {
+            name: "golden::modes_match_golden_images",
+            run: modes_match_golden_images,
+        },
+        GpuTest {
+            name: "golden::atlas_texels_per_pixel_meet_the_ratio",
+            run: atlas_texels_per_pixel_meet_the_ratio,
+        },
+    ]
+}
+
+const W: u32 = 256;
+const H: u32 = 192;
+/// PSNR floor (dB) of a frame against its golden image.
+const GOLDEN_PSNR: f64 = 40.0;
+/// Environment variable that rewrites the golden images.
+const BLESS_ENV: &str = "ATLASTREE_BLESS";
+
+fn e<E: std::fmt::Display>(x: E) -> String {
+    x.to_string()
+}
+
+fn golden_path(mode: Mode) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data/golden")
+        .join(format!("{}.png", mode.name()))
+}
+
+/// The camera at `fraction` of the overview-dive path, aspect W/H.
+fn dive_camera(file: &TreeFile, fraction: f64) -> Result<Camera, String> {
+    let (lo, hi) = bounds(file)?;
+    let path = CameraPath::overview_dive(lo, hi, file.to_params().up).map_err(e)?;
+    let mut c = path.sample(path.start() + path.duration() * fraction);
+    c.aspect = f64::from(W) / f64::from(H);
+    Ok(c)
+}
+
+/// `min_distance` scale for a W-pixel-wide screen at `texel_ratio`.
+fn scale_for(file: &TreeFile, cam: &Camera, texel_ratio: f64) -> Result<f64, String> {
+    min_distance_scale(
+        &file.to_params(),
+        &SelectOptions {
+            screen_width: W,
+            texel_ratio,
+            fov_x_deg: cam.fov_x_deg,
+        },
+    )
+    .map_err(e)
+}
+
+fn renderer<'f>(ctx: &'f GpuContext, file: &'f TreeFile) -> Result<Renderer<'f>, String> {
+    let opts = RendererOptions {
+        width: W,
+        height: H,
+        gpu_timing: false,
+    };
+    Renderer::new(ctx, file, opts).map_err(e)
+}
+
+/// RGBA frame → RGB (the frames are opaque).
+fn rgb(rgba: &[u8]) -> Vec<u8> {
+    rgba.chunks_exact(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect()
+}
+
+/// RGB → RGBA with alpha 255 (what `psnr_covered` reads).
+fn rgba(rgb: &[u8]) -> Vec<u8> {
+    rgb.chunks_exact(3)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect()
+}
+
+/// The fixed golden view, 0.33 of the overview dive: atlases of two levels and original textures.
+const GOLDEN_VIEW: f64 = 0.33;
+
+/// Every mode on the golden view against `data/golden/<mode>.png` (PSNR ≥ 40 dB over covered pixels;
+/// identical frames give +∞). Missing goldens or `ATLASTREE_BLESS=1`: writes them and fails.
+fn modes_match_golden_images(ctx: &GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let mut r = renderer(ctx, &file)?;
+    let cam = dive_camera(&file, GOLDEN_VIEW)?;
+    let scale = scale_for(&file, &cam, 1.0)?;
+    let bless = std::env::var(BLESS_ENV).is_ok_and(|v| v == "1");
+    let (mut report, mut written, mut failures) = (Vec::new(), Vec::new(), Vec::new());
+    let mut frames = Vec::new();
+    for mode in Mode::ALL {
+        r.render(&cam, scale, mode).map_err(e)?;
+        let frame = r.read_frame().map_err(e)?;
+        frames.push((mode, frame.clone()));
+        let path = golden_path(mode);
+        if bless || !path.exists() {
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent).map_err(e)?;
+            }
+            image::save_buffer(&path, &rgb(&frame), W, H, image::ExtendedColorType::Rgb8)
+                .map_err(|x| format!("{}: {x}", path.display()))?;
+            written.push(path.display().to_string());
+            continue;
+        }
+        let golden = image::open(&path)
+            .map_err(|x| format!("{}: {x}", path.display()))?
+            .to_rgb8();
+        if golden.dimensions() != (W, H) {
+            failures.push(format!(
+                "{}: golden is {:?}, frame {W}x{H}",
+                mode.name(),
+                golden.dimensions()
+            ));
+            continue;
+        }
+        let (psnr, covered) = psnr_covered(&frame, &rgba(golden.as_raw()));
+        report.push(format!("{} {psnr:.2} dB over {covered} px", mode.name()));
+        if psnr < GOLDEN_PSNR || covered < (W * H / 10) as usize {
+            failures.push(format!(
+                "{}: {psnr:.2} dB over {covered} px (need ≥ {GOLDEN_PSNR} dB over ≥ 10% of the frame)",
+                mode.name()
+            ));
+        }
+    }
+    println!("  golden PSNR: {}", report.join("; "));
+    if !written.is_empty() {
+        return Err(format!(
+            "wrote golden image(s) {written:?}: inspect and commit them, then rerun without {BLESS_ENV}=1 \
+             (rewrite all with {BLESS_ENV}=1 cargo test --test gpu -- golden)"
+        ));
+    }
+    if !failures.is_empty() {
+        return Err(format!("frames differ from the goldens: {failures:?}"));
+    }
+    floor_discriminates(&frames)
+}
+
+/// The floor tells the modes apart: the tree frame against the dummy and tree-levels frames (textures vs
+/// flat colours) is below [`GOLDEN_PSNR`], so a golden of the wrong kind would fail.
+fn floor_discriminates(frames: &[(Mode, Vec<u8>)]) -> Result<(), String> {
+    let get = |m: Mode| {
+        frames
+            .iter()
+            .find(|(k, _)| *k == m)
+            .map(|(_, f)| f.as_slice())
+            .ok_or(format!("no {} frame", m.name()))
+    };
+    let tree = get(Mode::Tree)?;
+    let mut report = Vec::new();
+    for other in [Mode::Original, Mode::Dummy, Mode::TreeLevels] {
+        let (psnr, _) = psnr_covered(tree, get(other)?);
+        report.push(format!("tree vs {} {psnr:.2} dB", other.name()));
+        if other != Mode::Original && psnr >= GOLDEN_PSNR {
+            return Err(format!(
+                "tree and {} frames agree to {psnr:.2} dB ≥ the {GOLDEN_PSNR} dB floor",
+                other.name()
+            ));
+        }
+    }
+    println!("  across modes: {}", report.join("; "));
+    Ok(())
+}
+
+/// Counts and densities of one density frame.
+#[derive(Debug, Default)]
+struct DensityCounts {
+    /// Least-direction texels per pixel of atlas pixels.
+    atlas: Vec<f32>,
+    /// Of original-texture pixels.
+    original: Vec<f32>,
+}
+
+fn split(frame: &DensityFrame) -> DensityCounts {
+    let mut c = DensityCounts::default();
+    for p in frame.pixels.iter().flatten() {
+        if p.original {
+            c.original.push(p.min);
+        } else {
+            c.atlas.push(p.min);
+        }
+    }
+    c
+}
+
+fn median(v: &[f32]) -> f32 {
+    let mut s = v.to_vec();
+    s.sort_by(f32::total_cmp);
+    s.get(s.len() / 2).copied().unwrap_or(f32::NAN)
+}
+
+/// Dive views of the density test.
+const DENSITY_VIEWS: [f64; 5] = [0.2, 0.3, 0.33, 0.35, 0.37];
+
+/// Least-direction texels per pixel below which an atlas pixel counts as magnified, at texel ratio 1.
+/// The densities come from quad derivatives (constant over 2×2 pixels, extrapolated across triangle
+/// edges), hence the 10% tolerance.
+const MIN_ATLAS_DENSITY: f32 = 0.9;
+
+/// Texel-density pass on dive views (see the module doc): at texel ratio 1, no atlas pixel below
+/// [`MIN_ATLAS_DENSITY`] texels per pixel; original-texture pixels are counted and may magnify. At texel
+/// ratio 0.25 no atlas pixel below 0.25 · [`MIN_ATLAS_DENSITY`], and the median density of the drawn
+/// pixels is lower than at ratio 1 (by ≥ 1.5× in at least two views, never higher): the knob works.
+/// Prints per view the counts and the log2 histograms (bin k: texels per pixel in [2^k, 2^(k+1))).
+fn atlas_texels_per_pixel_meet_the_ratio(ctx: &GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let mut r = renderer(ctx, &file)?;
+    let (mut failures, mut lowered) = (Vec::new(), 0);
+    let (mut atlas_px, mut original_px) = (0, 0);
+    for f in DENSITY_VIEWS {
+        let cam = dive_camera(&file, f)?;
+        let mut per_ratio = Vec::new();
+        for ratio in [1.0f32, 0.25] {
+            let (_, frame) = r
+                .render_density(&cam, scale_for(&file, &cam, f64::from(ratio))?)
+                .map_err(e)?;
+            let c = split(&frame);
+            let floor = ratio * MIN_ATLAS_DENSITY;
+            let low = c.atlas.iter().filter(|&&d| d < floor).count();
+            let min = c.atlas.iter().copied().fold(f32::INFINITY, f32::min);
+            let all: Vec<f32> = c.atlas.iter().chain(&c.original).copied().collect();
+            println!(
+                "  view {f} ratio {ratio}: atlas {} px (min {min:.3}, median {:.2}, {low} < {floor}) {:?}; \
+                 original {} px (median {:.2}, {} < 1) {:?}",
+                c.atlas.len(),
+                median(&c.atlas),
+                log2_histogram(c.atlas.iter().copied()),
+                c.original.len(),
+                median(&c.original),
+                c.original.iter().filter(|&&d| d < 1.0).count(),
+                log2_histogram(c.original.iter().copied()),
+            );
+            if low > 0 {
+                failures.push(format!(
+                    "view {f} ratio {ratio}: {low} atlas pixels below {floor} texels/pixel (min {min})"
+                ));
+            }
+            if ratio == 1.0 {
+                atlas_px += c.atlas.len();
+                original_px += c.original.len();
+            }
+            per_ratio.push(median(&all));
+        }
+        if let [m1, m4] = per_ratio[..] {
+            if m4 > m1 * 1.001 {
+                failures.push(format!(
+                    "view {f}: median density {m4} at ratio 0.25 > {m1} at ratio 1"
+                ));
+            }
+            if m4 * 1.5 <= m1 {
+                lowered += 1;
+            }
+        }
+    }
+    if atlas_px < (W * H) as usize || original_px < (W * H / 4) as usize {
+        failures.push(format!(
+            "views too empty to test: {atlas_px} atlas and {original_px} original pixels at ratio 1"
+        ));
+    }
+    if lowered < 2 {
+        failures.push(format!(
+            "ratio 0.25 lowered the median density by 1.5x in only {lowered} views"
+        ));
+    }
+    if !failures.is_empty() {
+        return Err(format!("{failures:?}"));
+    }
+    Ok(())
+}
