@@ -1,12 +1,14 @@
 //! The preprocessor end to end on scenes built in code: the file verifies, the d_min guarantee holds for
 //! every triangle at its leaf and at every ancestor, builds are deterministic and atomic.
 
-use atlastree::build::tree::BuildParams;
+mod hard_util;
+
 use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::ids::NONE;
 use atlastree::scene::synthetic::small_city;
 use atlastree::store::TreeFile;
 use glam::{DVec2, DVec3};
+use hard_util::{f_proj_params, pixels_per_texel};
 
 fn opts(atlas: u32) -> BuildOptions {
     BuildOptions {
@@ -38,27 +40,6 @@ fn small_city_builds_a_multilevel_tree_that_verifies() {
         scene.triangles.len()
     );
     assert_eq!(v.blocks_checked, report.blocks);
-}
-
-/// Max over the two texture axes of (world units per atlas texel) · f_proj(d): below 1 means at least
-/// one texel per pixel when seen from distance d (paper §5.2.1 estimate, applied to the atlas mapping).
-fn pixels_per_texel(pos: [DVec3; 3], uv_texels: [DVec2; 3], f_proj: f64) -> Option<f64> {
-    let e1 = pos[1] - pos[0];
-    let e2 = pos[2] - pos[0];
-    let d1 = uv_texels[1] - uv_texels[0];
-    let d2 = uv_texels[2] - uv_texels[0];
-    let det = d1.x * d2.y - d1.y * d2.x;
-    if det.abs() < 1e-9 || e1.cross(e2).length() < 1e-12 {
-        return None;
-    }
-    // Tex⁻¹((1,0)) and Tex⁻¹((0,1)).
-    let s = (e1 * d2.y - e2 * d1.y) / det;
-    let t = (e2 * d1.x - e1 * d2.x) / det;
-    Some(s.length().max(t.length()) * f_proj)
-}
-
-fn f_proj_at(p: &BuildParams, d: f64) -> f64 {
-    p.texel_ratio * p.screen_width as f64 / (2.0 * d * (p.fov_deg.to_radians() * 0.5).tan())
 }
 
 #[test]
@@ -94,7 +75,7 @@ fn d_min_guarantee_holds_at_leaves_and_every_ancestor() {
             let mut scale = 1.0;
             loop {
                 let uv_j = uv.map(|u| u / scale);
-                if let Some(r) = pixels_per_texel(pos, uv_j, f_proj_at(&p, n.min_distance)) {
+                if let Some(r) = pixels_per_texel(pos, uv_j, f_proj_params(&p, n.min_distance)) {
                     worst = worst.max(r);
                     assert!(
                         r <= 1.01,
