@@ -8,8 +8,7 @@
 use super::BuildError;
 use super::image_ops::ImageOpsError;
 use super::image_ops::{
-    LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, halve, mip_chain_rgba8,
-    resample_square,
+    LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, mip_chain_rgba8, resample_square,
 };
 use super::tree::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::ids::{ImageId, NodeId};
@@ -241,11 +240,18 @@ fn raster_node(
         combine_quadrants(quads, size)
             .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))?
     };
+    // One mip chain serves both the stored block and the parent, which needs exactly level 1.
+    let chain = MipChain::build(atlas);
     ctx.writer
-        .write_block(node.atlas_block, &mip_chain_rgba8(&atlas))?;
+        .write_block(node.atlas_block, &chain.to_rgba8())?;
     let n = ctx.done.fetch_add(1, Ordering::Relaxed) + 1;
     (ctx.progress)(n);
-    Ok(halve(&atlas))
+    let mut levels = chain.levels.into_iter();
+    let level0 = levels.next();
+    Ok(levels
+        .next()
+        .or(level0)
+        .unwrap_or_else(|| LinearImage::new_filled(1, 1, [0.0; 4])))
 }
 
 /// A leaf atlas: every material's area drawn from its source (§5.2.3; the paper renders textured quads on
