@@ -421,9 +421,9 @@ impl GpuFeatures {
     }
 }
 
-/// Row pitch of a texel copy: `width · 4` rounded up to `COPY_BYTES_PER_ROW_ALIGNMENT` (256 bytes).
-fn padded_row_bytes(width: u32) -> Option<u32> {
-    let unpadded = width.checked_mul(RGBA8_BYTES_PER_TEXEL)?;
+/// Row pitch of a texel copy: `width · bytes_per_texel` rounded up to `COPY_BYTES_PER_ROW_ALIGNMENT` (256).
+fn padded_row_bytes(width: u32, bytes_per_texel: u32) -> Option<u32> {
+    let unpadded = width.checked_mul(bytes_per_texel)?;
     let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
     unpadded.checked_add(align - 1).map(|v| v / align * align)
 }
@@ -441,15 +441,34 @@ pub fn readback_rgba8_layer(
     texture: &wgpu::Texture,
     layer: u32,
 ) -> Result<Vec<u8>, GpuError> {
+    let format = texture.format();
+    if !matches!(
+        format,
+        wgpu::TextureFormat::Rgba8Unorm | wgpu::TextureFormat::Rgba8UnormSrgb
+    ) {
+        return Err(GpuError::UnsupportedReadbackFormat { format });
+    }
+    readback_texels(ctx, texture, layer, RGBA8_BYTES_PER_TEXEL)
+}
+
+/// Reads mip 0 of array layer `layer` of a `COPY_SRC` texture whose texels are `bytes_per_texel` bytes
+/// (the caller vouches for the format): `width · height · bytes_per_texel` bytes, rows top to bottom, no
+/// padding. Blocks until the GPU is done.
+pub fn readback_texels(
+    ctx: &GpuContext,
+    texture: &wgpu::Texture,
+    layer: u32,
+    bytes_per_texel: u32,
+) -> Result<Vec<u8>, GpuError> {
     let (width, height) = (texture.width(), texture.height());
     check_readable(texture, layer)?;
     let overflow = || GpuError::SizeOverflow { width, height };
-    let padded = padded_row_bytes(width).ok_or_else(overflow)?;
+    let padded = padded_row_bytes(width, bytes_per_texel).ok_or_else(overflow)?;
     let buffer_size = u64::from(padded)
         .checked_mul(u64::from(height))
         .ok_or_else(overflow)?;
     let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback_rgba8"),
+        label: Some("readback"),
         size: buffer_size,
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
@@ -457,7 +476,7 @@ pub fn readback_rgba8_layer(
     let mut encoder = ctx
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("readback_rgba8"),
+            label: Some("readback"),
         });
     encoder.copy_texture_to_buffer(
         wgpu::TexelCopyTextureInfo {
@@ -489,7 +508,7 @@ pub fn readback_rgba8_layer(
     let view = buffer.get_mapped_range(..)?;
     let row_bytes = usize::try_from(width)
         .ok()
-        .and_then(|w| w.checked_mul(RGBA8_BYTES_PER_TEXEL as usize))
+        .and_then(|w| w.checked_mul(bytes_per_texel as usize))
         .ok_or_else(overflow)?;
     let padded_usize = usize::try_from(padded).map_err(|_| overflow())?;
     let pixels = unpad_rows(&view, padded_usize, row_bytes);
@@ -498,15 +517,8 @@ pub fn readback_rgba8_layer(
     Ok(pixels)
 }
 
-/// Checks format, usage and layer before a readback.
+/// Checks usage and layer before a readback.
 fn check_readable(texture: &wgpu::Texture, layer: u32) -> Result<(), GpuError> {
-    let format = texture.format();
-    if !matches!(
-        format,
-        wgpu::TextureFormat::Rgba8Unorm | wgpu::TextureFormat::Rgba8UnormSrgb
-    ) {
-        return Err(GpuError::UnsupportedReadbackFormat { format });
-    }
     if !texture.usage().contains(wgpu::TextureUsages::COPY_SRC) {
         return Err(GpuError::NotCopySource {
             width: texture.width(),
@@ -548,11 +560,12 @@ mod tests {
 
     #[test]
     fn padded_rows_are_multiples_of_256() {
-        assert_eq!(padded_row_bytes(1), Some(256));
-        assert_eq!(padded_row_bytes(64), Some(256));
-        assert_eq!(padded_row_bytes(65), Some(512));
-        assert_eq!(padded_row_bytes(100), Some(512));
-        assert_eq!(padded_row_bytes(u32::MAX), None);
+        assert_eq!(padded_row_bytes(1, 4), Some(256));
+        assert_eq!(padded_row_bytes(64, 4), Some(256));
+        assert_eq!(padded_row_bytes(65, 4), Some(512));
+        assert_eq!(padded_row_bytes(100, 4), Some(512));
+        assert_eq!(padded_row_bytes(u32::MAX, 4), None);
+        assert_eq!(padded_row_bytes(17, 16), Some(512));
     }
 
     #[test]

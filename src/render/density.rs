@@ -11,7 +11,6 @@
 
 use super::pipeline::{DENSITY_FORMAT, PassPipelines, Specialisation, vertex_layout};
 use crate::gpu::{GpuContext, GpuError};
-use std::sync::mpsc;
 
 /// Clear value of the density target: source −1 marks a pixel nothing was drawn on.
 pub(super) const CLEAR: wgpu::Color = wgpu::Color {
@@ -108,45 +107,9 @@ impl DensityTarget {
     /// Reads the target back (blocks until the GPU is done).
     pub fn read(&self, ctx: &GpuContext) -> Result<DensityFrame, GpuError> {
         let (width, height) = (self.texture.width(), self.texture.height());
-        let overflow = || GpuError::SizeOverflow { width, height };
-        let row = width.checked_mul(TEXEL_BYTES).ok_or_else(overflow)?;
-        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let padded = row.checked_add(align - 1).ok_or_else(overflow)? / align * align;
-        let size = u64::from(padded) * u64::from(height);
-        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("density readback"),
-            size,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("density readback"),
-            });
-        encoder.copy_texture_to_buffer(
-            self.texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded),
-                    rows_per_image: Some(height),
-                },
-            },
-            self.texture.size(),
-        );
-        ctx.queue.submit([encoder.finish()]);
-        let (tx, rx) = mpsc::channel();
-        buffer.map_async(wgpu::MapMode::Read, .., move |r| {
-            let _ = tx.send(r);
-        });
-        ctx.device.poll(wgpu::PollType::wait_indefinitely())?;
-        rx.recv().map_err(|_| GpuError::MapCallbackLost)??;
-        let data = buffer.get_mapped_range(..)?;
+        let data = crate::gpu::readback_texels(ctx, &self.texture, 0, TEXEL_BYTES)?;
         let pixels = data
-            .chunks_exact(padded as usize)
-            .flat_map(|r| r[..row as usize].chunks_exact(TEXEL_BYTES as usize))
+            .chunks_exact(TEXEL_BYTES as usize)
             .map(|t| {
                 let v: [f32; 4] = bytemuck::pod_read_unaligned(t);
                 (v[2] >= 0.0).then_some(TexelDensity {
@@ -157,8 +120,6 @@ impl DensityTarget {
                 })
             })
             .collect();
-        drop(data);
-        buffer.unmap();
         Ok(DensityFrame {
             width,
             height,
