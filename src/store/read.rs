@@ -441,14 +441,7 @@ impl TreeFile {
             let t = self.tree_checked(i)?;
             let tables = TreeTables {
                 tree: i as u32,
-                record: t.record,
-                nodes: t.nodes,
-                leaves: t.leaves,
-                rects: t.rects,
-                originals: t.originals,
-                vertices: t.vertices,
-                indices: t.indices,
-                source_triangles: t.source_triangles,
+                view: t,
             };
             validate::check_tree(&tables, self.materials().len(), self.blocks())?;
         }

@@ -5,27 +5,22 @@
 //! 1M vertices costs a few milliseconds. Indices reported in errors are positions in the file's section
 //! (tree base + tree-local index), so they name the exact record.
 
-use super::StoreError;
-use super::format::{
-    BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, LeafRecord, MaterialRecord, NodeRecord,
-    OriginalRecord, ParamsRecord, RectRecord, TreeRecord,
-};
-use crate::build::tree::TreeVertex;
+use super::format::{BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, MaterialRecord, ParamsRecord};
+use super::{StoreError, TreeView};
 use crate::ids::NONE;
 
-/// The tables of one tree, as tree-local slices, plus where they start in the file's sections.
+/// The tables of one tree ([`TreeView`]) and the tree's index, which error messages and block checks need.
 pub(crate) struct TreeTables<'a> {
     /// Index of the tree.
     pub tree: u32,
-    /// The tree's record (ranges give the section bases used in error messages).
-    pub record: &'a TreeRecord,
-    pub nodes: &'a [NodeRecord],
-    pub leaves: &'a [LeafRecord],
-    pub rects: &'a [RectRecord],
-    pub originals: &'a [OriginalRecord],
-    pub vertices: &'a [TreeVertex],
-    pub indices: &'a [u32],
-    pub source_triangles: &'a [u32],
+    pub view: TreeView<'a>,
+}
+
+impl<'a> std::ops::Deref for TreeTables<'a> {
+    type Target = TreeView<'a>;
+    fn deref(&self) -> &TreeView<'a> {
+        &self.view
+    }
 }
 
 fn bad_ref(

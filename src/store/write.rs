@@ -251,14 +251,17 @@ fn validate_encoded(
     for (i, (t, src)) in e.trees.iter().zip(&forest.trees).enumerate() {
         let tables = TreeTables {
             tree: i as u32,
-            record: &t.record,
-            nodes: &t.nodes,
-            leaves: &t.leaves,
-            rects: &t.rects,
-            originals: &t.originals,
-            vertices: &src.vertices,
-            indices: &src.indices,
-            source_triangles: &src.source_triangles,
+            view: super::TreeView {
+                kind: src.kind,
+                record: &t.record,
+                nodes: &t.nodes,
+                leaves: &t.leaves,
+                rects: &t.rects,
+                originals: &t.originals,
+                vertices: &src.vertices,
+                indices: &src.indices,
+                source_triangles: &src.source_triangles,
+            },
         };
         validate::check_tree(&tables, e.materials.len(), blocks)?;
     }
