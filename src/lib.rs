@@ -37,6 +37,7 @@ pub mod camera;
 pub mod gpu;
 pub mod ids;
 pub mod inspect;
+pub mod paging;
 pub mod render;
 pub mod scene;
 pub mod select;
