@@ -1,0 +1,278 @@
+//! The block table the pager works on (paper §6: "memory blocks of approximately equal size. Each block
+//! represents either an atlas texture or a set of original textures of a leaf node").
+//!
+//! Besides what the file's block records say, the table knows each block's **closure parent**: the block
+//! that must be resident before it may be. For an atlas that is the atlas of the parent node (the paper:
+//! "if the atlas of a node N is in memory, the atlases for all nodes on the path to N should also be in
+//! memory"); for a part of a leaf's original textures it is the leaf's own atlas ("if the original textures
+//! of a leaf node are in memory, the atlas of N should be in memory as well"). The resident set is kept
+//! closed under this relation, so a resident set is always a union of root paths.
+
+use crate::ids::{BlockId, LeafId, NONE, NodeId};
+use crate::store::TreeFile;
+use crate::store::format::{BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, NodeRecord};
+
+/// What a block holds.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum BlockItem {
+    /// The atlas (full mip chain) of `node`.
+    Atlas { node: NodeId },
+    /// Part `part` of the original textures of leaf `leaf`, whose node is `node`.
+    Originals {
+        leaf: LeafId,
+        node: NodeId,
+        part: u32,
+    },
+}
+
+impl BlockItem {
+    /// The node the block belongs to (its atlas node, or the leaf's node).
+    pub fn node(self) -> NodeId {
+        match self {
+            BlockItem::Atlas { node } | BlockItem::Originals { node, .. } => node,
+        }
+    }
+
+    pub fn is_atlas(self) -> bool {
+        matches!(self, BlockItem::Atlas { .. })
+    }
+}
+
+/// One block as the pager sees it.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct BlockMeta {
+    /// Index of the tree (0 opaque, 1 alpha).
+    pub tree: u32,
+    pub item: BlockItem,
+    /// Size in bytes (what a load transfers).
+    pub bytes: u64,
+    /// Hierarchy level used for priorities: the node's level for an atlas, the leaf's level + 1 for its
+    /// original textures (they refine the leaf atlas).
+    pub level: u32,
+    /// The block that must be resident first (see the module docs); `None` for a root atlas.
+    pub parent: Option<BlockId>,
+}
+
+/// Per tree, the blocks of each node.
+#[derive(Clone, Debug, Default)]
+pub struct TreeBlocks {
+    /// Atlas block per node (`None` for a node without an atlas, which validated files do not have).
+    pub atlas: Vec<Option<BlockId>>,
+    /// Range in [`BlockTable::original_blocks`] per node (empty for inner nodes).
+    pub originals: Vec<(u32, u32)>,
+}
+
+/// The pager's view of all blocks of a file.
+#[derive(Clone, Debug, Default)]
+pub struct BlockTable {
+    pub blocks: Vec<BlockMeta>,
+    pub trees: Vec<TreeBlocks>,
+    /// Original-texture blocks grouped by leaf node (see [`TreeBlocks::originals`]).
+    pub original_blocks: Vec<BlockId>,
+}
+
+/// Why a block table could not be made (only from unvalidated, hand-made inputs).
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum BlockTableError {
+    #[error("block {block}: tree {tree} does not exist ({trees} trees)")]
+    NoTree { block: u32, tree: u32, trees: usize },
+    #[error("block {block}: tree {tree} has no {what} {item}")]
+    NoItem {
+        block: u32,
+        tree: u32,
+        what: &'static str,
+        item: u32,
+    },
+    #[error("block {block}: unknown kind {kind}")]
+    BadKind { block: u32, kind: u32 },
+    #[error("tree {tree}: node {node} has no atlas block")]
+    NoAtlas { tree: u32, node: u32 },
+}
+
+impl BlockTable {
+    /// The table of an open file.
+    pub fn from_file(file: &TreeFile) -> Result<BlockTable, BlockTableError> {
+        let trees: Vec<&[NodeRecord]> = (0..file.trees())
+            .filter_map(|t| file.tree(t).map(|v| v.nodes))
+            .collect();
+        BlockTable::new(&trees, file.blocks())
+    }
+
+    /// The table of `trees` (node tables, tree-local ids) and the global `blocks` records. Every node must
+    /// have an atlas block (the closure parents are atlases).
+    pub fn new(
+        trees: &[&[NodeRecord]],
+        blocks: &[BlockRecord],
+    ) -> Result<BlockTable, BlockTableError> {
+        let mut table = BlockTable {
+            blocks: Vec::with_capacity(blocks.len()),
+            trees: trees
+                .iter()
+                .map(|n| TreeBlocks {
+                    atlas: vec![None; n.len()],
+                    originals: vec![(0, 0); n.len()],
+                })
+                .collect(),
+            original_blocks: Vec::new(),
+        };
+        // Leaf id → node id per tree.
+        let leaf_nodes: Vec<Vec<u32>> = trees
+            .iter()
+            .map(|nodes| {
+                let leaves = nodes.iter().filter(|n| n.leaf != NONE).count();
+                let mut map = vec![NONE; leaves];
+                for (i, n) in nodes.iter().enumerate() {
+                    if let Some(slot) = map.get_mut(n.leaf as usize) {
+                        *slot = i as u32;
+                    }
+                }
+                map
+            })
+            .collect();
+        // First pass: items and atlas ids.
+        let mut items = Vec::with_capacity(blocks.len());
+        for (b, r) in blocks.iter().enumerate() {
+            let b = b as u32;
+            let nodes = trees.get(r.tree as usize).ok_or(BlockTableError::NoTree {
+                block: b,
+                tree: r.tree,
+                trees: trees.len(),
+            })?;
+            let item = match r.kind {
+                BLOCK_ATLAS => {
+                    if r.item as usize >= nodes.len() {
+                        return Err(BlockTableError::NoItem {
+                            block: b,
+                            tree: r.tree,
+                            what: "node",
+                            item: r.item,
+                        });
+                    }
+                    table.trees[r.tree as usize].atlas[r.item as usize] = Some(BlockId(b));
+                    BlockItem::Atlas {
+                        node: NodeId(r.item),
+                    }
+                }
+                BLOCK_ORIGINALS => {
+                    let node = leaf_nodes[r.tree as usize]
+                        .get(r.item as usize)
+                        .copied()
+                        .filter(|&n| n != NONE)
+                        .ok_or(BlockTableError::NoItem {
+                            block: b,
+                            tree: r.tree,
+                            what: "leaf",
+                            item: r.item,
+                        })?;
+                    BlockItem::Originals {
+                        leaf: LeafId(r.item),
+                        node: NodeId(node),
+                        part: r.part,
+                    }
+                }
+                kind => return Err(BlockTableError::BadKind { block: b, kind }),
+            };
+            items.push((r.tree, item, r.length));
+        }
+        // Second pass: levels and closure parents.
+        for (tree, item, bytes) in items {
+            let nodes = trees[tree as usize];
+            let tb = &table.trees[tree as usize];
+            let node = &nodes[item.node().idx()];
+            let (level, parent_node) = match item {
+                BlockItem::Atlas { .. } => {
+                    (node.level, (node.parent != NONE).then_some(node.parent))
+                }
+                BlockItem::Originals { node: n, .. } => (node.level + 1, Some(n.0)),
+            };
+            let parent = match parent_node {
+                None => None,
+                Some(p) => Some(
+                    tb.atlas
+                        .get(p as usize)
+                        .copied()
+                        .flatten()
+                        .ok_or(BlockTableError::NoAtlas { tree, node: p })?,
+                ),
+            };
+            table.blocks.push(BlockMeta {
+                tree,
+                item,
+                bytes,
+                level,
+                parent,
+            });
+        }
+        // Originals grouped by leaf node, parts in order.
+        let mut by_node: Vec<(u32, u32, u32, BlockId)> = table
+            .blocks
+            .iter()
+            .enumerate()
+            .filter_map(|(b, m)| match m.item {
+                BlockItem::Originals { node, part, .. } => {
+                    Some((m.tree, node.0, part, BlockId(b as u32)))
+                }
+                BlockItem::Atlas { .. } => None,
+            })
+            .collect();
+        by_node.sort_unstable();
+        for (tree, node, _, b) in by_node {
+            let range = &mut table.trees[tree as usize].originals[node as usize];
+            if range.1 == 0 {
+                range.0 = table.original_blocks.len() as u32;
+            }
+            range.1 += 1;
+            table.original_blocks.push(b);
+        }
+        Ok(table)
+    }
+
+    /// Number of blocks.
+    pub fn len(&self) -> usize {
+        self.blocks.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.blocks.is_empty()
+    }
+
+    /// The atlas block of `node` in `tree`.
+    pub fn atlas(&self, tree: usize, node: NodeId) -> Option<BlockId> {
+        self.trees
+            .get(tree)?
+            .atlas
+            .get(node.idx())
+            .copied()
+            .flatten()
+    }
+
+    /// The original-texture blocks of leaf node `node` in `tree` (empty for inner nodes).
+    pub fn originals(&self, tree: usize, node: NodeId) -> &[BlockId] {
+        let Some(&(first, count)) = self
+            .trees
+            .get(tree)
+            .and_then(|t| t.originals.get(node.idx()))
+        else {
+            return &[];
+        };
+        self.original_blocks
+            .get(first as usize..(first + count) as usize)
+            .unwrap_or(&[])
+    }
+
+    /// The root atlas of every tree.
+    pub fn roots(&self) -> impl Iterator<Item = BlockId> + '_ {
+        self.trees
+            .iter()
+            .filter_map(|t| t.atlas.first().copied().flatten())
+    }
+
+    pub fn meta(&self, b: BlockId) -> &BlockMeta {
+        &self.blocks[b.idx()]
+    }
+
+    /// Total bytes of all blocks.
+    pub fn total_bytes(&self) -> u64 {
+        self.blocks.iter().map(|b| b.bytes).sum()
+    }
+}

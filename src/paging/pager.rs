@@ -1,0 +1,637 @@
+//! The pager (paper §6): the ideal block set under a capacity `k`, the request queue re-ranked every frame,
+//! and residency with eviction. Pure CPU and deterministic; the renderer and the simulator drive the same
+//! code, the renderer with real loaders and uploads, the simulator with an I/O model.
+//!
+//! Per frame:
+//! 1. [`Pager::plan`]: usage traversal ([`super::usage::classify`]), ranking by the [`Policy`], the ideal
+//!    set (the first `k` admitted candidates, closed under parents), cancellation of requests that left it,
+//!    and the wanted requests in priority order (bounded by `max_queue`) for the loader;
+//! 2. the loader runs and returns [`Arrival`]s;
+//! 3. [`Pager::accept`]: arrivals are staged, then made resident in rank order within the upload budget,
+//!    evicting the least important resident block outside the ideal set when the capacity is reached.
+//!
+//! Invariants (checked by [`Pager::check_invariants`] and the tests): never more than `k` resident blocks;
+//! every tree's root atlas always resident; the resident set is closed under parents (an atlas's ancestors'
+//! atlases, a leaf's originals' leaf atlas); a block of the ideal set is never evicted, and a victim always
+//! ranks below the block that replaces it.
+
+use super::blocks::BlockTable;
+use super::policy::Policy;
+use super::usage::{Candidate, UsageCounts, UsageScratch, ViewInput, classify};
+use crate::ids::BlockId;
+use crate::store::format::NodeRecord;
+use serde::Serialize;
+use std::time::Instant;
+
+/// How much may become resident per frame.
+#[derive(Copy, Clone, Debug, PartialEq, Default, Serialize)]
+pub enum UploadBudget {
+    /// Everything that arrived.
+    #[default]
+    Unlimited,
+    /// Bytes per frame (at least one block per frame is always accepted, so a block larger than the
+    /// budget still loads).
+    Bytes(u64),
+    /// Milliseconds of upload work per frame, measured around the upload callback (same minimum).
+    Millis(f64),
+}
+
+/// Options of a [`Pager`].
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct PagerOptions {
+    /// Maximum number of resident blocks `k` (≥ the number of trees: the roots are always resident).
+    pub capacity: u32,
+    /// Maximum outstanding requests (requested or arrived-but-not-yet-resident blocks).
+    pub max_queue: u32,
+    pub budget: UploadBudget,
+    pub policy: Policy,
+    /// Frames to wait before re-requesting a block whose load failed; doubles per consecutive failure
+    /// (up to 64×).
+    pub retry_frames: u32,
+}
+
+impl Default for PagerOptions {
+    fn default() -> Self {
+        PagerOptions {
+            capacity: 160,
+            max_queue: 8,
+            budget: UploadBudget::Unlimited,
+            policy: Policy::Paper,
+            retry_frames: 8,
+        }
+    }
+}
+
+/// Why a pager could not be made.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum PagerError {
+    #[error(
+        "capacity k = {capacity} is below the {roots} root atlases that must always be resident"
+    )]
+    CapacityBelowRoots { capacity: u32, roots: u32 },
+    #[error("queue length must be at least 1 (got {max_queue})")]
+    EmptyQueue { max_queue: u32 },
+    #[error("loading root atlas {block} failed: {message}")]
+    RootLoad { block: BlockId, message: String },
+}
+
+/// A request for the loader: one block, with its size.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct Request {
+    pub block: BlockId,
+    pub bytes: u64,
+}
+
+/// What a loader returns: the block's bytes (`None` when simulated), or why it failed.
+#[derive(Debug)]
+pub struct Arrival {
+    pub block: BlockId,
+    pub result: Result<Option<Vec<u8>>, String>,
+}
+
+/// A residency change the renderer must apply (upload into / free a layer).
+#[derive(Debug)]
+pub enum Event {
+    Loaded {
+        block: BlockId,
+        data: Option<Vec<u8>>,
+    },
+    Evicted {
+        block: BlockId,
+    },
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+enum State {
+    Absent,
+    Requested,
+    /// Arrived, waiting for the upload budget or for its parent.
+    Staged,
+    Resident,
+}
+
+/// Per-frame counters of the pager (columns of `stats.csv` and `frames.csv`).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct PagerFrameStats {
+    pub usage: UsageCounts,
+    /// Size of the ideal set (≤ k).
+    pub ideal: u32,
+    /// Blocks resident after this frame.
+    pub resident: u32,
+    /// Ideal blocks resident after this frame.
+    pub ideal_resident: u32,
+    /// Outstanding requests (requested, not arrived).
+    pub requested: u32,
+    /// Arrived, not yet resident.
+    pub staged: u32,
+    /// Blocks made resident this frame, and their bytes.
+    pub loaded: u32,
+    pub bytes_loaded: u64,
+    pub evictions: u32,
+    /// Requests cancelled because they left the ideal set (queued or in flight).
+    pub cancelled: u32,
+    /// Arrivals discarded (cancelled meanwhile, or no longer ideal when their turn came), and their bytes.
+    pub discarded: u32,
+    pub discarded_bytes: u64,
+    /// Loads that failed this frame (source errors).
+    pub failures: u32,
+    /// Evictions of a block that ranked above the one replacing it (must stay 0).
+    pub priority_violations: u32,
+}
+
+impl PagerFrameStats {
+    /// Share of the ideal set that is resident (1 when the ideal set is empty).
+    pub fn ideal_fraction(&self) -> f64 {
+        if self.ideal == 0 {
+            1.0
+        } else {
+            f64::from(self.ideal_resident) / f64::from(self.ideal)
+        }
+    }
+}
+
+/// Totals over a pager's life.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct PagerTotals {
+    pub frames: u64,
+    pub loaded: u64,
+    pub bytes_loaded: u64,
+    pub evictions: u64,
+    pub cancelled: u64,
+    pub discarded: u64,
+    pub failures: u64,
+    pub peak_resident: u32,
+    pub priority_violations: u64,
+}
+
+/// The block pager. See the module docs.
+pub struct Pager {
+    table: BlockTable,
+    opts: PagerOptions,
+    state: Vec<State>,
+    /// Resident blocks whose parent is this block.
+    resident_children: Vec<u32>,
+    /// Last frame the block was in the ideal set (LRU recency).
+    last_used: Vec<u64>,
+    /// Rank in this frame's ideal order; `u32::MAX` outside the ideal set.
+    rank: Vec<u32>,
+    /// Position in this frame's full candidate order; `u32::MAX` for blocks that are not candidates.
+    order: Vec<u32>,
+    /// Frame at which the block was requested (LRU's FIFO order).
+    requested_at: Vec<u64>,
+    failed_until: Vec<u64>,
+    fail_count: Vec<u8>,
+    is_root: Vec<bool>,
+    resident: Vec<BlockId>,
+    staged: Vec<(BlockId, Option<Vec<u8>>)>,
+    candidates: Vec<Candidate>,
+    ideal: Vec<BlockId>,
+    wanted: Vec<Request>,
+    scratch: UsageScratch,
+    frame: u64,
+    stats: PagerFrameStats,
+    totals: PagerTotals,
+}
+
+impl Pager {
+    /// A pager over `table` with nothing resident yet; call [`Pager::bootstrap`] next.
+    pub fn new(table: BlockTable, opts: PagerOptions) -> Result<Pager, PagerError> {
+        let roots: Vec<BlockId> = table.roots().collect();
+        if opts.capacity < roots.len() as u32 {
+            return Err(PagerError::CapacityBelowRoots {
+                capacity: opts.capacity,
+                roots: roots.len() as u32,
+            });
+        }
+        if opts.max_queue == 0 {
+            return Err(PagerError::EmptyQueue {
+                max_queue: opts.max_queue,
+            });
+        }
+        let n = table.len();
+        let mut is_root = vec![false; n];
+        for r in &roots {
+            is_root[r.idx()] = true;
+        }
+        Ok(Pager {
+            table,
+            opts,
+            state: vec![State::Absent; n],
+            resident_children: vec![0; n],
+            last_used: vec![0; n],
+            rank: vec![u32::MAX; n],
+            order: vec![u32::MAX; n],
+            requested_at: vec![0; n],
+            failed_until: vec![0; n],
+            fail_count: vec![0; n],
+            is_root,
+            resident: Vec::new(),
+            staged: Vec::new(),
+            candidates: Vec::new(),
+            ideal: Vec::new(),
+            wanted: Vec::new(),
+            scratch: UsageScratch::default(),
+            frame: 0,
+            stats: PagerFrameStats::default(),
+            totals: PagerTotals::default(),
+        })
+    }
+
+    /// Loads every tree's root atlas synchronously with `fetch` (the roots are always resident) and
+    /// returns their `Loaded` events.
+    pub fn bootstrap(
+        &mut self,
+        mut fetch: impl FnMut(BlockId) -> Result<Option<Vec<u8>>, String>,
+    ) -> Result<Vec<Event>, PagerError> {
+        let roots: Vec<BlockId> = self.table.roots().collect();
+        let mut events = Vec::new();
+        for block in roots {
+            if self.state[block.idx()] == State::Resident {
+                continue;
+            }
+            let data = fetch(block).map_err(|message| PagerError::RootLoad { block, message })?;
+            self.make_resident(block);
+            self.totals.loaded += 1;
+            self.totals.bytes_loaded += self.table.meta(block).bytes;
+            events.push(Event::Loaded { block, data });
+        }
+        self.totals.peak_resident = self.totals.peak_resident.max(self.resident.len() as u32);
+        Ok(events)
+    }
+
+    pub fn table(&self) -> &BlockTable {
+        &self.table
+    }
+
+    pub fn options(&self) -> &PagerOptions {
+        &self.opts
+    }
+
+    /// Changes the capacity (live, e.g. a viewer slider). Never below the roots; excess resident blocks
+    /// are evicted as new ones arrive (and by [`Pager::shrink`]).
+    pub fn set_capacity(&mut self, capacity: u32) {
+        let roots = self.is_root.iter().filter(|&&r| r).count() as u32;
+        self.opts.capacity = capacity.max(roots);
+    }
+
+    pub fn is_resident(&self, b: BlockId) -> bool {
+        self.state.get(b.idx()) == Some(&State::Resident)
+    }
+
+    /// The resident blocks (unordered).
+    pub fn resident(&self) -> &[BlockId] {
+        &self.resident
+    }
+
+    /// This frame's ideal set, most important first.
+    pub fn ideal(&self) -> &[BlockId] {
+        &self.ideal
+    }
+
+    /// The requests of the last [`Pager::plan`], most important first.
+    pub fn wanted(&self) -> &[Request] {
+        &self.wanted
+    }
+
+    pub fn frame_stats(&self) -> &PagerFrameStats {
+        &self.stats
+    }
+
+    pub fn totals(&self) -> &PagerTotals {
+        &self.totals
+    }
+
+    /// Frames planned so far.
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// Step 1 of a frame: usage, ranking, the ideal set, cancellations and the wanted requests (returned,
+    /// most important first; hand them to the loader).
+    pub fn plan(&mut self, trees: &[&[NodeRecord]], view: &ViewInput) -> &[Request] {
+        self.frame += 1;
+        self.stats = PagerFrameStats::default();
+        let mut view = *view;
+        if !self.opts.policy.uses_lookahead() {
+            view.lookahead = None;
+        }
+        for c in &self.candidates {
+            self.order[c.block.idx()] = u32::MAX;
+        }
+        let mut candidates = std::mem::take(&mut self.candidates);
+        classify(
+            &self.table,
+            trees,
+            &view,
+            &mut self.scratch,
+            &mut candidates,
+        );
+        self.stats.usage = self.scratch.counts();
+        let policy = self.opts.policy;
+        candidates.retain(|c| policy.admits(c.usage) || self.is_root[c.block.idx()]);
+        {
+            let state = &self.state;
+            let is_root = &self.is_root;
+            candidates.sort_unstable_by(|a, b| {
+                // Roots first, always.
+                is_root[b.block.idx()]
+                    .cmp(&is_root[a.block.idx()])
+                    .then_with(|| policy.compare(a, b, |c| state[c.block.idx()] == State::Resident))
+            });
+        }
+        // The ideal set: first k, closed under parents.
+        for (pos, c) in candidates.iter().enumerate() {
+            self.order[c.block.idx()] = pos as u32;
+        }
+        for &b in &self.ideal {
+            self.rank[b.idx()] = u32::MAX;
+        }
+        self.ideal.clear();
+        let k = self.opts.capacity as usize;
+        for c in &candidates {
+            if self.ideal.len() >= k {
+                break;
+            }
+            let parent_ok = self
+                .table
+                .meta(c.block)
+                .parent
+                .is_none_or(|p| self.rank[p.idx()] != u32::MAX);
+            if parent_ok {
+                self.rank[c.block.idx()] = self.ideal.len() as u32;
+                self.ideal.push(c.block);
+            }
+        }
+        self.candidates = candidates;
+        for &b in &self.ideal {
+            self.last_used[b.idx()] = self.frame;
+        }
+        self.stats.ideal = self.ideal.len() as u32;
+
+        // Cancel requests that left the ideal set (not in flight under LRU: it never cancels).
+        let mut outstanding = 0u32;
+        for (i, s) in self.state.iter_mut().enumerate() {
+            if *s == State::Requested {
+                if self.rank[i] == u32::MAX && policy.cancels_in_flight() {
+                    *s = State::Absent;
+                    self.stats.cancelled += 1;
+                } else {
+                    outstanding += 1;
+                }
+            }
+        }
+        outstanding += self.staged.len() as u32;
+        // New requests in ideal order.
+        for &b in &self.ideal {
+            if outstanding >= self.opts.max_queue {
+                break;
+            }
+            let i = b.idx();
+            if self.state[i] != State::Absent || self.failed_until[i] > self.frame {
+                continue;
+            }
+            let parent_ok = self.table.meta(b).parent.is_none_or(|p| {
+                matches!(
+                    self.state[p.idx()],
+                    State::Resident | State::Requested | State::Staged
+                )
+            });
+            if parent_ok {
+                self.state[i] = State::Requested;
+                self.requested_at[i] = self.frame;
+                outstanding += 1;
+            }
+        }
+        // The wanted list: requested blocks, by rank (LRU: by request frame, then rank).
+        self.wanted.clear();
+        for (i, s) in self.state.iter().enumerate() {
+            if *s == State::Requested {
+                self.wanted.push(Request {
+                    block: BlockId(i as u32),
+                    bytes: self.table.blocks[i].bytes,
+                });
+            }
+        }
+        let rank = &self.rank;
+        let at = &self.requested_at;
+        if policy.evicts_lru() {
+            self.wanted
+                .sort_by_key(|r| (at[r.block.idx()], rank[r.block.idx()], r.block));
+        } else {
+            self.wanted.sort_by_key(|r| (rank[r.block.idx()], r.block));
+        }
+        self.totals.cancelled += u64::from(self.stats.cancelled);
+        &self.wanted
+    }
+
+    /// Step 3 of a frame: takes the loader's arrivals, makes blocks resident in rank order within the
+    /// upload budget (evicting as needed), and reports each residency change to `apply` (which uploads or
+    /// frees GPU layers). Returns this frame's statistics.
+    pub fn accept(
+        &mut self,
+        arrivals: impl IntoIterator<Item = Arrival>,
+        mut apply: impl FnMut(Event),
+    ) -> PagerFrameStats {
+        for a in arrivals {
+            let i = a.block.idx();
+            if i >= self.state.len() {
+                continue;
+            }
+            if self.state[i] != State::Requested {
+                // Cancelled meanwhile (or a duplicate): the bytes were wasted.
+                self.stats.discarded += 1;
+                self.stats.discarded_bytes += self.table.blocks[i].bytes;
+                continue;
+            }
+            match a.result {
+                Ok(data) => {
+                    self.state[i] = State::Staged;
+                    self.fail_count[i] = 0;
+                    self.staged.push((a.block, data));
+                }
+                Err(_) => {
+                    self.state[i] = State::Absent;
+                    self.stats.failures += 1;
+                    let n = self.fail_count[i].min(6);
+                    self.fail_count[i] = self.fail_count[i].saturating_add(1);
+                    self.failed_until[i] =
+                        self.frame + u64::from(self.opts.retry_frames.max(1)) * (1u64 << n);
+                }
+            }
+        }
+        // Most important first; parents before children (their rank is lower).
+        let rank = &self.rank;
+        self.staged
+            .sort_by_key(|(b, _)| (rank[b.idx()], self.table.blocks[b.idx()].level, *b));
+        let start = Instant::now();
+        let mut accepted_bytes = 0u64;
+        let mut staged = std::mem::take(&mut self.staged);
+        let mut keep = Vec::new();
+        for (block, data) in staged.drain(..) {
+            let i = block.idx();
+            if self.rank[i] == u32::MAX {
+                self.state[i] = State::Absent;
+                self.stats.discarded += 1;
+                self.stats.discarded_bytes += self.table.blocks[i].bytes;
+                continue;
+            }
+            let over_budget = self.stats.loaded > 0
+                && match self.opts.budget {
+                    UploadBudget::Unlimited => false,
+                    UploadBudget::Bytes(b) => accepted_bytes >= b,
+                    UploadBudget::Millis(ms) => start.elapsed().as_secs_f64() * 1e3 >= ms,
+                };
+            let parent_ok = self
+                .table
+                .meta(block)
+                .parent
+                .is_none_or(|p| self.state[p.idx()] == State::Resident);
+            if over_budget || !parent_ok {
+                keep.push((block, data));
+                continue;
+            }
+            if self.resident.len() as u32 >= self.opts.capacity {
+                let Some(victim) = self.victim() else {
+                    keep.push((block, data));
+                    continue;
+                };
+                if self.order[victim.idx()] < self.order[i] {
+                    self.stats.priority_violations += 1;
+                }
+                self.evict(victim);
+                apply(Event::Evicted { block: victim });
+            }
+            self.make_resident(block);
+            let bytes = self.table.blocks[i].bytes;
+            accepted_bytes += bytes;
+            self.stats.loaded += 1;
+            self.stats.bytes_loaded += bytes;
+            apply(Event::Loaded { block, data });
+        }
+        // Over capacity after a capacity decrease: shed the least important non-ideal blocks.
+        while self.resident.len() as u32 > self.opts.capacity {
+            let Some(victim) = self.victim() else { break };
+            self.evict(victim);
+            apply(Event::Evicted { block: victim });
+        }
+        self.staged = keep;
+        self.finish_stats();
+        self.stats
+    }
+
+    fn finish_stats(&mut self) {
+        let s = &mut self.stats;
+        s.resident = self.resident.len() as u32;
+        s.ideal_resident = self
+            .ideal
+            .iter()
+            .filter(|b| self.state[b.idx()] == State::Resident)
+            .count() as u32;
+        s.requested = self
+            .state
+            .iter()
+            .filter(|&&st| st == State::Requested)
+            .count() as u32;
+        s.staged = self.staged.len() as u32;
+        let t = &mut self.totals;
+        t.frames += 1;
+        t.loaded += u64::from(s.loaded);
+        t.bytes_loaded += s.bytes_loaded;
+        t.evictions += u64::from(s.evictions);
+        t.discarded += u64::from(s.discarded);
+        t.failures += u64::from(s.failures);
+        t.peak_resident = t.peak_resident.max(s.resident);
+        t.priority_violations += u64::from(s.priority_violations);
+    }
+
+    /// The resident block to evict: outside the ideal set, not a root, without resident children; the
+    /// lowest-ranked (blocks that are not candidates at all first, then the worst candidate; ties: least
+    /// recently used, deepest, highest id), or under LRU the least recently used.
+    fn victim(&self) -> Option<BlockId> {
+        let lru = self.opts.policy.evicts_lru();
+        self.resident
+            .iter()
+            .copied()
+            .filter(|b| {
+                let i = b.idx();
+                self.rank[i] == u32::MAX && !self.is_root[i] && self.resident_children[i] == 0
+            })
+            .min_by_key(|b| {
+                let i = b.idx();
+                let deeper_first = u32::MAX - self.table.blocks[i].level;
+                let recency = self.last_used[i];
+                if lru {
+                    (0, recency, deeper_first, u32::MAX - b.0)
+                } else {
+                    // Non-candidates (order MAX) first, then the worst-ranked candidate.
+                    (
+                        u32::MAX - self.order[i],
+                        recency,
+                        deeper_first,
+                        u32::MAX - b.0,
+                    )
+                }
+            })
+    }
+
+    fn make_resident(&mut self, b: BlockId) {
+        self.state[b.idx()] = State::Resident;
+        self.resident.push(b);
+        if let Some(p) = self.table.meta(b).parent {
+            self.resident_children[p.idx()] += 1;
+        }
+    }
+
+    fn evict(&mut self, b: BlockId) {
+        self.state[b.idx()] = State::Absent;
+        if let Some(pos) = self.resident.iter().position(|&r| r == b) {
+            self.resident.swap_remove(pos);
+        }
+        if let Some(p) = self.table.meta(b).parent {
+            self.resident_children[p.idx()] -= 1;
+        }
+        self.stats.evictions += 1;
+    }
+
+    /// Checks the invariants of the module docs; returns the first violation.
+    pub fn check_invariants(&self) -> Result<(), String> {
+        let k = self.opts.capacity as usize;
+        if self.resident.len() > k {
+            return Err(format!("{} resident blocks > k = {k}", self.resident.len()));
+        }
+        let resident_states = self.state.iter().filter(|&&s| s == State::Resident).count();
+        if resident_states != self.resident.len() {
+            return Err(format!(
+                "{resident_states} blocks in state resident, {} in the resident list",
+                self.resident.len()
+            ));
+        }
+        for r in self.table.roots() {
+            if !self.is_resident(r) {
+                return Err(format!("root atlas {r} is not resident"));
+            }
+        }
+        let mut children = vec![0u32; self.state.len()];
+        for &b in &self.resident {
+            if let Some(p) = self.table.meta(b).parent {
+                if !self.is_resident(p) {
+                    return Err(format!("{b} is resident but its parent {p} is not"));
+                }
+                children[p.idx()] += 1;
+            }
+        }
+        if children != self.resident_children {
+            return Err("resident-children counts are out of date".into());
+        }
+        if self.ideal.len() > k {
+            return Err(format!("ideal set of {} > k = {k}", self.ideal.len()));
+        }
+        if self.stats.priority_violations > 0 {
+            return Err(format!(
+                "{} evictions of a more important block",
+                self.stats.priority_violations
+            ));
+        }
+        Ok(())
+    }
+}
