@@ -97,7 +97,7 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
         let scale = [0.5, 1.0, 4.0][i % 3];
         select(view.nodes, &cam, &cam.frustum(), scale, &mut cut);
         batch.clear();
-        let skipped = batch.add_cut(info, view.nodes, &cut, BatchOptions::default());
+        let skipped = batch.add_cut(info, view.nodes, &cut, None, BatchOptions::default());
         batch.finish();
         assert_eq!(skipped, 0);
         assert_eq!(batch.len(), cut.items.len());
@@ -179,7 +179,7 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
 
     // Dummy mode: every record an atlas draw of layer 0; a missing atlas skips the item.
     batch.clear();
-    batch.add_cut(info, view.nodes, &cut, BatchOptions { dummy: true });
+    batch.add_cut(info, view.nodes, &cut, None, BatchOptions { dummy: true });
     batch.finish();
     assert!(
         batch
@@ -194,7 +194,7 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
         .iter()
         .filter(|i| i.source == Source::Atlas)
         .count();
-    let skipped = batch.add_cut(&p.infos[0], view.nodes, &cut, BatchOptions::default());
+    let skipped = batch.add_cut(&p.infos[0], view.nodes, &cut, None, BatchOptions::default());
     batch.finish();
     assert_eq!(skipped as usize, atlas_items);
     assert_eq!(batch.len(), cut.items.len() - atlas_items);

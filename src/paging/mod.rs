@@ -18,6 +18,7 @@ pub mod loader;
 pub mod pager;
 pub mod policy;
 pub mod resolve;
+pub mod session;
 pub mod source;
 pub mod usage;
 
@@ -29,5 +30,6 @@ pub use pager::{
 };
 pub use policy::Policy;
 pub use resolve::{Coarseness, Resolved, resolve, resolve_cut, screen_fraction};
+pub use session::{PagingSession, SessionFrame, resolve_frame};
 pub use source::{BlockSource, FileSource, SourceError};
 pub use usage::{Candidate, Usage, UsageCounts, ViewInput};

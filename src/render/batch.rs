@@ -18,6 +18,7 @@
 
 use crate::build::tree::TreeVertex;
 use crate::ids::NONE;
+use crate::paging::Resolved;
 use crate::select::{Cut, Source};
 use crate::store::format::NodeRecord;
 use bytemuck::{Pod, Zeroable};
@@ -174,6 +175,9 @@ pub struct TreeBatchInfo {
     /// Per node: where its atlas is resident (`None`: not resident; such nodes are drawn with originals if
     /// they are leaves and skipped otherwise — with all blocks resident this does not happen).
     pub atlas_slots: Vec<Option<AtlasSlot>>,
+    /// Per node: original-texture blocks of the leaf not yet resident (0 = its originals can be drawn;
+    /// always 0 when everything is resident, and for inner nodes).
+    pub originals_missing: Vec<u32>,
 }
 
 /// Per node, the range of leaves of its subtree: `(first leaf, count)`. Leaves are numbered in tree order and
@@ -242,37 +246,47 @@ impl FrameBatch {
         }
     }
 
-    /// Adds the records of one tree's cut. Items whose node is out of range, or atlas items whose atlas is
-    /// not resident, are skipped; returns how many items were skipped.
+    /// Adds the records of one tree's cut. `resolved[i]` says how item `i` is drawn this frame (its own
+    /// atlas, an ancestor's atlas because blocks are missing, or the leaf's originals; see
+    /// [`crate::paging::resolve`]); pass `None` when everything is resident (every item as selected). Items
+    /// whose node is out of range, or whose atlas is not resident, are skipped; returns how many were.
     pub fn add_cut(
         &mut self,
         info: &TreeBatchInfo,
         nodes: &[NodeRecord],
         cut: &Cut,
+        resolved: Option<&[Resolved]>,
         opts: BatchOptions,
     ) -> u32 {
         let mut skipped = 0;
-        for item in &cut.items {
+        for (i, item) in cut.items.iter().enumerate() {
             let n = item.node.idx();
             let (Some(node), Some(&pass)) = (nodes.get(n), info.passes.get(n)) else {
                 skipped += 1;
                 continue;
             };
-            let atlas_layer = match (item.source, opts.dummy) {
-                (_, true) => Some(AtlasSlot { array: 0, layer: 0 }),
-                (Source::Atlas, false) => match info.atlas_slots.get(n).copied().flatten() {
-                    Some(s) => Some(s),
-                    None => {
-                        skipped += 1;
-                        continue;
+            let draw_with = match resolved.and_then(|r| r.get(i)) {
+                Some(r) => r.atlas_node,
+                None => (item.source == Source::Atlas).then_some(item.node),
+            };
+            let atlas = match (draw_with, opts.dummy) {
+                (_, true) => Some((AtlasSlot { array: 0, layer: 0 }, node.level)),
+                (Some(a), false) => {
+                    let slot = info.atlas_slots.get(a.idx()).copied().flatten();
+                    match (slot, nodes.get(a.idx())) {
+                        (Some(s), Some(an)) => Some((s, an.level)),
+                        _ => {
+                            skipped += 1;
+                            continue;
+                        }
                     }
-                },
-                (Source::Original, false) => None,
+                }
+                (None, false) => None,
             };
             let record = NodeRecordGpu {
-                atlas_layer: atlas_layer.map_or(NONE, |s| s.layer),
-                atlas_array: atlas_layer.map_or(0, |s| s.array),
-                level: node.level,
+                atlas_layer: atlas.map_or(NONE, |(s, _)| s.layer),
+                atlas_array: atlas.map_or(0, |(s, _)| s.array),
+                level: atlas.map_or(node.level, |(_, l)| l),
                 leaf_base: info.leaf_base,
                 alpha_cutoff: info.cutoffs.get(n).copied().unwrap_or(0.5),
                 node: item.node.0,
@@ -286,11 +300,11 @@ impl FrameBatch {
                 base_vertex: info.vertex_base,
                 first_instance: 0,
             };
-            if atlas_layer.is_none() {
+            if atlas.is_none() {
                 self.original_records += 1;
             }
             self.triangles += u64::from(item.index_count / 3);
-            self.pending[Group::new(pass, atlas_layer.is_none()).index()].push((draw, record));
+            self.pending[Group::new(pass, atlas.is_none()).index()].push((draw, record));
         }
         skipped
     }

@@ -13,8 +13,15 @@ use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
 use super::{Mode, RenderError};
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, readback_rgba8};
+use crate::ids::BlockId;
+use crate::paging::{
+    BlockSource, BlockTable, Coarseness, ImmediateLoader, Loader, Pager, PagerOptions,
+    PagingSession, Resolved, SessionFrame, ThreadedLoader, resolve_frame,
+};
 use crate::select::{Cut, select};
 use crate::store::TreeFile;
+use crate::store::format::NodeRecord;
+use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use glam::{DMat4, DVec4};
 use std::time::Instant;
@@ -54,6 +61,51 @@ pub struct FrameStats {
     pub gpu_ms: Option<f64>,
     /// Wall time from the start of select to the GPU having finished the frame, ms.
     pub frame_ms: f64,
+    /// Paging counters (`None` when all blocks are resident).
+    pub paging: Option<PagingFrame>,
+}
+
+/// Paging counters of one frame (the paging columns of `stats.csv`).
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct PagingFrame {
+    pub session: SessionFrame,
+    /// Screen accounting of the draws: share rendered coarser than the selection asked for.
+    pub coarse: Coarseness,
+    /// Time spent in residency changes (uploads), ms, and bytes uploaded to the GPU.
+    pub upload_ms: f64,
+    pub uploaded_bytes: u64,
+    /// `xxh3_64` of the sorted resident block ids (compared with the simulator's log).
+    pub resident_hash: u64,
+    /// Residency changes the GPU side could not apply (drawn coarser instead), this frame.
+    pub apply_errors: u32,
+    /// Layers in use in the atlas arrays and the original-texture arrays.
+    pub atlas_layers_used: u32,
+    pub original_layers_used: u32,
+}
+
+/// How a paged renderer gets its blocks.
+pub struct PagingSetup {
+    pub pager: PagerOptions,
+    pub source: Arc<dyn BlockSource>,
+    /// Loader threads; 0 loads synchronously inside the frame (deterministic, for tests and comparisons).
+    pub loader_threads: usize,
+}
+
+struct PagingRuntime {
+    session: PagingSession,
+    loader: Box<dyn Loader>,
+    table: BlockTable,
+    resolved: Vec<Vec<Resolved>>,
+    clock: f64,
+    clock_set: bool,
+    last_error: Option<String>,
+}
+
+/// `xxh3_64` of the sorted block ids: a compact fingerprint of a resident set.
+pub fn resident_fingerprint(blocks: &[BlockId]) -> u64 {
+    let mut ids: Vec<u32> = blocks.iter().map(|b| b.0).collect();
+    ids.sort_unstable();
+    xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(&ids))
 }
 
 /// Options of a [`Renderer`].
@@ -144,6 +196,8 @@ pub struct Renderer<'f> {
     timestamps: Option<Timestamps>,
     /// Texel-density pipelines and target, created on the first [`Renderer::render_density`].
     density: Option<DensityTarget>,
+    /// Block paging (`None`: everything resident).
+    paging: Option<PagingRuntime>,
 }
 
 impl<'f> Renderer<'f> {
@@ -159,8 +213,65 @@ impl<'f> Renderer<'f> {
                 height: opts.height,
             });
         }
-        let device = &ctx.device;
         let resident = Resident::load(ctx, file)?;
+        Self::with_resident(ctx, file, opts, resident, None)
+    }
+
+    /// A renderer that pages blocks (paper §6): texture arrays sized for `setup.pager.capacity` blocks,
+    /// the root atlases loaded now, everything else on demand through `setup.source`.
+    pub fn new_paged(
+        ctx: &'f GpuContext,
+        file: &'f TreeFile,
+        opts: RendererOptions,
+        setup: PagingSetup,
+    ) -> Result<Renderer<'f>, RenderError> {
+        if opts.width == 0 || opts.height == 0 {
+            return Err(RenderError::BadSize {
+                width: opts.width,
+                height: opts.height,
+            });
+        }
+        let table = BlockTable::from_file(file)?;
+        let mut resident =
+            Resident::load_paged(ctx, file, &table, setup.pager.capacity)?;
+        let mut pager = Pager::new(table.clone(), setup.pager)?;
+        let records = file.blocks().to_vec();
+        let source = setup.source;
+        let events = pager.bootstrap(|b| {
+            let r = records.get(b.idx()).ok_or_else(|| format!("{b} not in the table"))?;
+            source.fetch(b, r).map(Some).map_err(|e| e.to_string())
+        })?;
+        for e in &events {
+            resident.apply(&ctx.queue, &table, e)?;
+        }
+        let loader: Box<dyn Loader> = if setup.loader_threads == 0 {
+            Box::new(ImmediateLoader::new(source, records))
+        } else {
+            Box::new(
+                ThreadedLoader::new(source, records, setup.loader_threads)
+                    .map_err(RenderError::Loader)?,
+            )
+        };
+        let runtime = PagingRuntime {
+            session: PagingSession::new(pager),
+            loader,
+            table,
+            resolved: Vec::new(),
+            clock: 0.0,
+            clock_set: false,
+            last_error: None,
+        };
+        Self::with_resident(ctx, file, opts, resident, Some(runtime))
+    }
+
+    fn with_resident(
+        ctx: &'f GpuContext,
+        file: &'f TreeFile,
+        opts: RendererOptions,
+        resident: Resident,
+        paging: Option<PagingRuntime>,
+    ) -> Result<Renderer<'f>, RenderError> {
+        let device = &ctx.device;
         let layout = tree_bind_group_layout(device);
         let pipelines = PassPipelines::new(
             device,
@@ -248,6 +359,93 @@ impl<'f> Renderer<'f> {
             batch: FrameBatch::new(),
             timestamps,
             density: None,
+            paging,
+        })
+    }
+
+    /// Sets the paging clock (seconds) for the next frame; without it the clock advances 1/60 s per frame.
+    pub fn set_clock(&mut self, seconds: f64) {
+        if let Some(p) = &mut self.paging {
+            p.clock = seconds;
+            p.clock_set = true;
+        }
+    }
+
+    /// The pager (`None` when all blocks are resident).
+    pub fn pager(&self) -> Option<&Pager> {
+        self.paging.as_ref().map(|p| &p.session.pager)
+    }
+
+    /// Changes the paging capacity live (clamped to the GPU layers allocated at creation).
+    pub fn set_capacity(&mut self, capacity: u32) {
+        if let Some(p) = &mut self.paging {
+            p.session.pager.set_capacity(capacity.min(self.resident.stats.atlas_layers.max(1)));
+        }
+    }
+
+    /// The last residency error the GPU side reported, if any.
+    pub fn last_paging_error(&self) -> Option<&str> {
+        self.paging.as_ref().and_then(|p| p.last_error.as_deref())
+    }
+
+    /// One paging step after select: plan, load, apply residency changes, resolve the cuts.
+    fn page(&mut self, camera: &Camera, frustum: &crate::camera::Frustum, scale: f64) -> Option<PagingFrame> {
+        let rt = self.paging.as_mut()?;
+        let file = self.file;
+        let trees: Vec<&[NodeRecord]> = (0..file.trees())
+            .filter_map(|t| file.tree(t).map(|v| v.nodes))
+            .collect();
+        if !rt.clock_set {
+            rt.clock += 1.0 / 60.0;
+        }
+        rt.clock_set = false;
+        let resident = &mut self.resident;
+        let queue = &self.ctx.queue;
+        let table = &rt.table;
+        let (mut bytes, mut errors, mut last_error) = (0u64, 0u32, None);
+        let t = Instant::now();
+        let session = rt.session.frame(&trees, camera, frustum, scale, rt.clock, &mut *rt.loader, |ev| {
+            match resident.apply(queue, table, &ev) {
+                Ok(b) => bytes += b,
+                Err(e) => {
+                    errors += 1;
+                    last_error = Some(e.to_string());
+                }
+            }
+        });
+        let upload_ms = t.elapsed().as_secs_f64() * 1e3;
+        if last_error.is_some() {
+            rt.last_error = last_error;
+        }
+        let infos = &self.resident.infos;
+        let coarse = resolve_frame(
+            &trees,
+            &self.cuts,
+            camera,
+            |t, n| {
+                infos
+                    .get(t)
+                    .and_then(|i| i.atlas_slots.get(n.idx()).copied().flatten())
+                    .is_some()
+            },
+            |t, n| {
+                infos
+                    .get(t)
+                    .and_then(|i| i.originals_missing.get(n.idx()))
+                    .is_some_and(|&m| m == 0)
+            },
+            &mut rt.resolved,
+        );
+        let p = self.resident.paged.as_ref();
+        Some(PagingFrame {
+            session,
+            coarse,
+            upload_ms,
+            uploaded_bytes: bytes,
+            resident_hash: resident_fingerprint(rt.session.pager.resident()),
+            apply_errors: errors,
+            atlas_layers_used: p.map_or(0, |p| p.atlas_layers_used),
+            original_layers_used: p.map_or(0, |p| p.original_layers_used),
         })
     }
 
@@ -326,6 +524,13 @@ impl<'f> Renderer<'f> {
         }
         let t1 = Instant::now();
         stats.select_us = (t1 - t0).as_secs_f64() * 1e6;
+        if self.paging.is_some() && mode == Mode::Original {
+            return Err(RenderError::NotWhenPaged {
+                what: "the naive original-texture mode",
+            });
+        }
+        stats.paging = self.page(camera, &frustum, scale);
+        let t1 = Instant::now();
 
         for (info, cut) in self.resident.infos.iter().zip(&self.cuts) {
             self.resident.leaf_offsets.update(info, cut, camera.eye);
@@ -454,7 +659,12 @@ impl<'f> Renderer<'f> {
         };
         for (t, (info, cut)) in self.resident.infos.iter().zip(&self.cuts).enumerate() {
             if let Some(view) = self.file.tree(t) {
-                self.batch.add_cut(info, view.nodes, cut, opts);
+                let resolved = self
+                    .paging
+                    .as_ref()
+                    .and_then(|p| p.resolved.get(t))
+                    .map(Vec::as_slice);
+                self.batch.add_cut(info, view.nodes, cut, resolved, opts);
             }
         }
         self.batch.finish();

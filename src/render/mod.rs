@@ -21,7 +21,7 @@ pub mod pipeline;
 pub mod resident;
 pub mod textures;
 
-pub use frame::{FrameStats, Renderer, RendererOptions};
+pub use frame::{FrameStats, PagingFrame, PagingSetup, Renderer, RendererOptions};
 
 use crate::gpu::GpuError;
 use crate::ids::BlockId;
@@ -101,4 +101,12 @@ pub enum RenderError {
     },
     #[error("frame size {width}x{height} is empty")]
     BadSize { width: u32, height: u32 },
+    #[error("{what} is not available when blocks are paged (use a capacity of all blocks or omit it)")]
+    NotWhenPaged { what: &'static str },
+    #[error(transparent)]
+    Paging(#[from] crate::paging::PagerError),
+    #[error(transparent)]
+    Blocks(#[from] crate::paging::BlockTableError),
+    #[error("starting loader threads: {0}")]
+    Loader(std::io::Error),
 }

@@ -14,7 +14,8 @@ use super::batch::{
 use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index};
 use crate::build::tree::{TreeVertex, mip_chain_bytes};
 use crate::gpu::GpuContext;
-use crate::ids::{BlockId, NONE};
+use crate::ids::{BlockId, NONE, NodeId};
+use crate::paging::{BlockTable, Event};
 use crate::scene::{AlphaMode, Wrap};
 use crate::store::format::{MaterialRecord, OriginalRecord};
 use crate::store::{TreeFile, TreeView};
@@ -72,6 +73,24 @@ pub struct Resident {
     pub materials: Vec<MaterialRecord>,
     pub has_alpha: bool,
     pub stats: LoadStats,
+    /// Bookkeeping of on-demand residency (`None`: everything was uploaded at load).
+    pub paged: Option<PagedResidency>,
+}
+
+/// What [`Resident::apply`] needs to page blocks in and out of the texture arrays.
+#[derive(Debug, Default)]
+pub struct PagedResidency {
+    /// Per unique original texture: resident blocks holding a copy (a layer is held while > 0).
+    pub unique_refs: Vec<u32>,
+    /// Per block: `(unique, offset)` of the original textures it holds (empty for atlases).
+    pub block_uniques: Vec<Vec<(u32, u64)>>,
+    /// Per unique: the TAM entries that name it.
+    pub tam_users: Vec<Vec<u32>>,
+    /// Per block: `(tree, node)` of an atlas block, or of the leaf node of an originals block.
+    pub block_node: Vec<(u32, u32)>,
+    /// Atlas layers in use, original-texture layers in use (residency statistics).
+    pub atlas_layers_used: u32,
+    pub original_layers_used: u32,
 }
 
 fn wrap_code(w: Wrap) -> u32 {
@@ -180,6 +199,8 @@ pub struct Plan {
     pub uniques: Vec<UniqueOriginal>,
     /// `(tree, node, block)` of every atlas, in upload order.
     pub atlas_blocks: Vec<(u32, u32, BlockId)>,
+    /// `(block, unique, offset in the block)` of every original texture copy (one per leaf that uses it).
+    pub block_uniques: Vec<(BlockId, u32, u64)>,
     pub has_alpha: bool,
 }
 
@@ -189,7 +210,7 @@ impl Resident {
         let params = file.to_params();
         let materials = file.materials().to_vec();
         let max_layers = ctx.features.max_texture_array_layers.max(1);
-        let g = plan(file)?;
+        let mut g = plan(file)?;
 
         // Atlas arrays: layers assigned in node order, split at the device limit.
         let atlas_count = g.atlas_blocks.len() as u32;
@@ -201,7 +222,7 @@ impl Resident {
                 limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
             });
         }
-        let mut infos = g.infos;
+        let mut infos = std::mem::take(&mut g.infos);
         let mut atlas_arrays = Vec::new();
         let mut remaining = atlas_count;
         for a in 0..arrays_needed {
@@ -261,7 +282,7 @@ impl Resident {
                 TextureArray::new(&ctx.device, &format!("class {}", 4u32 << k), 4 << k, n)
             }));
         }
-        let mut uniques = g.uniques;
+        let mut uniques = std::mem::take(&mut g.uniques);
         let mut block_cache: Option<(BlockId, &[u8])> = None;
         for u in &mut uniques {
             let Some(arr) = class_arrays
@@ -287,15 +308,12 @@ impl Resident {
                 .upload_chain(&ctx.queue, u.layer, chain)
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
         }
-        let mut tam = g.tam;
+        let mut tam = std::mem::take(&mut g.tam);
         for (e, &ui) in tam.iter_mut().zip(&g.tam_unique) {
             if let Some(u) = uniques.get(ui as usize) {
                 e.layer = u.layer;
             }
         }
-
-        let dummy = TextureArray::new(&ctx.device, "dummy 1x1", 1, 1);
-        dummy.upload_chain(&ctx.queue, 0, &[200, 200, 200, 255]);
 
         let stats = LoadStats {
             trees: infos.len() as u32,
@@ -309,9 +327,28 @@ impl Resident {
             class_arrays: class_arrays.iter().filter(|a| a.is_some()).count() as u32,
             texture_bytes,
         };
+        let leaf_offsets = LeafOffsets::new(std::mem::take(&mut g.origins));
+        Ok(Self::assemble(ctx, g, infos, atlas_arrays, class_arrays, uniques, tam, materials, stats, leaf_offsets, None))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        ctx: &GpuContext,
+        g: Plan,
+        infos: Vec<TreeBatchInfo>,
+        atlas_arrays: Vec<TextureArray>,
+        class_arrays: Vec<Option<TextureArray>>,
+        uniques: Vec<UniqueOriginal>,
+        tam: Vec<TamEntry>,
+        materials: Vec<MaterialRecord>,
+        stats: LoadStats,
+        leaf_offsets: LeafOffsets,
+        paged: Option<PagedResidency>,
+    ) -> Resident {
         let storage = wgpu::BufferUsages::STORAGE;
-        let leaf_offsets = LeafOffsets::new(g.origins);
-        Ok(Resident {
+        let dummy = TextureArray::new(&ctx.device, "dummy 1x1", 1, 1);
+        dummy.upload_chain(&ctx.queue, 0, &[200, 200, 200, 255]);
+        Resident {
             vertex_buffer: buffer(
                 ctx,
                 "tree vertices",
@@ -331,7 +368,12 @@ impl Resident {
                 bytemuck::cast_slice(&leaf_offsets.offsets),
                 storage | wgpu::BufferUsages::COPY_DST,
             ),
-            tam_buffer: buffer(ctx, "tam", bytemuck::cast_slice(&tam), storage),
+            tam_buffer: buffer(
+                ctx,
+                "tam",
+                bytemuck::cast_slice(&tam),
+                storage | wgpu::BufferUsages::COPY_DST,
+            ),
             leaf_offsets,
             infos,
             atlas_arrays,
@@ -344,7 +386,8 @@ impl Resident {
             materials,
             has_alpha: g.has_alpha,
             stats,
-        })
+            paged,
+        }
     }
 
     /// Uploads the leaf offsets (after [`LeafOffsets::update`]).
@@ -408,6 +451,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                     });
                 }
                 g.tam_unique.push(ui);
+                g.block_uniques.push((BlockId(o.block), ui, offset));
                 let wrap = m.and_then(|m| m.wraps()).unwrap_or([Wrap::Repeat; 2]);
                 g.tam.push(TamEntry {
                     class,
@@ -455,9 +499,271 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
             passes,
             cutoffs,
             atlas_slots: vec![None; view.nodes.len()],
+            originals_missing: vec![0; view.nodes.len()],
         });
         g.vertices.extend_from_slice(view.vertices);
         g.indices.extend_from_slice(view.indices);
     }
     Ok(g)
+}
+
+impl Resident {
+    /// Tables and geometry of `file` on the GPU, texture arrays sized for at most `capacity` resident
+    /// blocks, and **no** texture uploaded: blocks arrive through [`Resident::apply`] as the pager makes
+    /// them resident (paper §6). Atlas layers: `min(capacity, atlases)`; original-texture layers per class:
+    /// the most that `capacity` blocks can hold (the sum of the `capacity` largest per-block counts), so the
+    /// GPU memory is bounded by the capacity, not by the file.
+    pub fn load_paged(
+        ctx: &GpuContext,
+        file: &TreeFile,
+        table: &BlockTable,
+        capacity: u32,
+    ) -> Result<Resident, RenderError> {
+        let materials = file.materials().to_vec();
+        let params = file.to_params();
+        let max_layers = ctx.features.max_texture_array_layers.max(1);
+        let mut g = plan(file)?;
+        let mut infos = std::mem::take(&mut g.infos);
+        for (t, info) in infos.iter_mut().enumerate() {
+            for (n, missing) in info.originals_missing.iter_mut().enumerate() {
+                *missing = table.originals(t, NodeId(n as u32)).len() as u32;
+            }
+        }
+        // Atlas arrays.
+        let atlas_layers = (g.atlas_blocks.len() as u32).min(capacity).max(1);
+        let arrays_needed = atlas_layers.div_ceil(max_layers) as usize;
+        if arrays_needed > MAX_ATLAS_ARRAYS {
+            return Err(RenderError::TooManyLayers {
+                what: "atlases".into(),
+                layers: u64::from(atlas_layers),
+                limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
+            });
+        }
+        let mut remaining = atlas_layers;
+        let atlas_arrays: Vec<TextureArray> = (0..arrays_needed)
+            .map(|a| {
+                let n = remaining.min(max_layers);
+                remaining -= n;
+                TextureArray::new(&ctx.device, &format!("atlas array {a}"), params.atlas_size, n)
+            })
+            .collect();
+        // Original-texture classes: per block the uniques it holds.
+        let mut block_uniques: Vec<Vec<(u32, u64)>> = vec![Vec::new(); table.len()];
+        for &(b, ui, offset) in &g.block_uniques {
+            if let Some(v) = block_uniques.get_mut(b.idx()) {
+                if !v.iter().any(|&(u, _)| u == ui) {
+                    v.push((ui, offset));
+                }
+            }
+        }
+        let mut class_arrays: Vec<Option<TextureArray>> = Vec::with_capacity(CLASS_COUNT);
+        for k in 0..CLASS_COUNT {
+            let total = g.uniques.iter().filter(|u| u.class as usize == k).count() as u32;
+            let mut per_block: Vec<u32> = block_uniques
+                .iter()
+                .map(|v| {
+                    v.iter()
+                        .filter(|&&(u, _)| g.uniques[u as usize].class as usize == k)
+                        .count() as u32
+                })
+                .filter(|&c| c > 0)
+                .collect();
+            per_block.sort_unstable_by(|a, b| b.cmp(a));
+            let bound: u32 = per_block.iter().take(capacity as usize).sum();
+            let layers = total.min(bound);
+            if layers > max_layers {
+                return Err(RenderError::TooManyLayers {
+                    what: format!("original textures of class {}", 4u32 << k),
+                    layers: u64::from(layers),
+                    limit: u64::from(max_layers),
+                });
+            }
+            class_arrays.push((layers > 0).then(|| {
+                TextureArray::new(&ctx.device, &format!("class {}", 4u32 << k), 4 << k, layers)
+            }));
+        }
+        let mut tam_users: Vec<Vec<u32>> = vec![Vec::new(); g.uniques.len()];
+        for (e, &ui) in g.tam_unique.iter().enumerate() {
+            if let Some(v) = tam_users.get_mut(ui as usize) {
+                v.push(e as u32);
+            }
+        }
+        let block_node = table
+            .blocks
+            .iter()
+            .map(|m| (m.tree, m.item.node().0))
+            .collect();
+        let uniques = std::mem::take(&mut g.uniques);
+        let tam = std::mem::take(&mut g.tam);
+        let stats = LoadStats {
+            trees: infos.len() as u32,
+            nodes: infos.iter().map(|i| i.passes.len() as u64).sum(),
+            leaves: g.leaves.len() as u64,
+            vertices: g.vertices.len() as u64,
+            indices: g.indices.len() as u64,
+            atlas_layers,
+            atlas_arrays: atlas_arrays.len() as u32,
+            original_layers: class_arrays
+                .iter()
+                .flatten()
+                .map(|a| a.layers.capacity())
+                .sum(),
+            class_arrays: class_arrays.iter().filter(|a| a.is_some()).count() as u32,
+            texture_bytes: 0,
+        };
+        let paged = PagedResidency {
+            unique_refs: vec![0; uniques.len()],
+            block_uniques,
+            tam_users,
+            block_node,
+            atlas_layers_used: 0,
+            original_layers_used: 0,
+        };
+        let leaf_offsets = LeafOffsets::new(std::mem::take(&mut g.origins));
+        Ok(Self::assemble(
+            ctx,
+            g,
+            infos,
+            atlas_arrays,
+            class_arrays,
+            uniques,
+            tam,
+            materials,
+            stats,
+            leaf_offsets,
+            Some(paged),
+        ))
+    }
+
+    /// Applies one residency change of the pager: uploads a loaded block's texture(s) into free layers, or
+    /// frees an evicted block's layers. Returns the bytes uploaded. Without paging this does nothing.
+    pub fn apply(
+        &mut self,
+        queue: &wgpu::Queue,
+        table: &BlockTable,
+        event: &Event,
+    ) -> Result<u64, RenderError> {
+        let Some(p) = self.paged.as_mut() else {
+            return Ok(0);
+        };
+        let (block, data) = match event {
+            Event::Loaded { block, data } => (*block, Some(data.as_deref())),
+            Event::Evicted { block } => (*block, None),
+        };
+        let (tree, node) = p.block_node.get(block.idx()).copied().ok_or(RenderError::ShortBlock { block })?;
+        let info = self
+            .infos
+            .get_mut(tree as usize)
+            .ok_or(RenderError::MissingTree { tree: tree as usize })?;
+        let is_atlas = table.meta(block).item.is_atlas();
+        match (is_atlas, data) {
+            (true, Some(bytes)) => {
+                let bytes = bytes.ok_or(RenderError::ShortBlock { block })?;
+                let (ai, arr) = self
+                    .atlas_arrays
+                    .iter_mut()
+                    .enumerate()
+                    .find(|(_, a)| a.layers.in_use() < a.layers.capacity())
+                    .ok_or(RenderError::TooManyLayers {
+                        what: "resident atlases".into(),
+                        layers: u64::from(p.atlas_layers_used) + 1,
+                        limit: u64::from(p.atlas_layers_used),
+                    })?;
+                let layer = arr.layers.alloc().ok_or(RenderError::ShortBlock { block })?;
+                let Some(n) = arr.upload_chain(queue, layer, bytes) else {
+                    arr.layers.free(layer);
+                    return Err(RenderError::ShortBlock { block });
+                };
+                if let Some(slot) = info.atlas_slots.get_mut(node as usize) {
+                    *slot = Some(AtlasSlot {
+                        array: ai as u32,
+                        layer,
+                    });
+                }
+                p.atlas_layers_used += 1;
+                Ok(n)
+            }
+            (true, None) => {
+                if let Some(s) = info.atlas_slots.get_mut(node as usize).and_then(Option::take) {
+                    if let Some(a) = self.atlas_arrays.get_mut(s.array as usize) {
+                        a.layers.free(s.layer);
+                    }
+                    p.atlas_layers_used -= 1;
+                }
+                Ok(0)
+            }
+            (false, Some(bytes)) => {
+                let bytes = bytes.ok_or(RenderError::ShortBlock { block })?;
+                let mut uploaded = 0;
+                let held = p.block_uniques.get(block.idx()).cloned().unwrap_or_default();
+                // Check every chain first, so a short block changes no reference count.
+                for &(ui, offset) in &held {
+                    let need = mip_chain_bytes(self.uniques[ui as usize].class_size);
+                    if offset.saturating_add(need) > bytes.len() as u64 {
+                        return Err(RenderError::ShortBlock { block });
+                    }
+                }
+                for (ui, offset) in held {
+                    let u = ui as usize;
+                    p.unique_refs[u] += 1;
+                    if p.unique_refs[u] > 1 {
+                        continue;
+                    }
+                    let class = self.uniques[u].class as usize;
+                    let Some(arr) = self.class_arrays.get_mut(class).and_then(|a| a.as_mut()) else {
+                        continue;
+                    };
+                    let layer = arr.layers.alloc().ok_or(RenderError::TooManyLayers {
+                        what: format!("resident original textures of class {}", 4u32 << class),
+                        layers: u64::from(arr.layers.capacity()) + 1,
+                        limit: u64::from(arr.layers.capacity()),
+                    })?;
+                    let chain = usize::try_from(offset)
+                        .ok()
+                        .and_then(|o| bytes.get(o..))
+                        .ok_or(RenderError::ShortBlock { block })?;
+                    uploaded += arr
+                        .upload_chain(queue, layer, chain)
+                        .ok_or(RenderError::ShortBlock { block })?;
+                    self.uniques[u].layer = layer;
+                    p.original_layers_used += 1;
+                    for &e in &p.tam_users[u] {
+                        if let Some(entry) = self.tam.get_mut(e as usize) {
+                            entry.layer = layer;
+                            queue.write_buffer(
+                                &self.tam_buffer,
+                                u64::from(e) * size_of::<TamEntry>() as u64,
+                                bytemuck::bytes_of(entry),
+                            );
+                        }
+                    }
+                }
+                if let Some(m) = info.originals_missing.get_mut(node as usize) {
+                    *m = m.saturating_sub(1);
+                }
+                Ok(uploaded)
+            }
+            (false, None) => {
+                let held = p.block_uniques.get(block.idx()).cloned().unwrap_or_default();
+                for (ui, _) in held {
+                    let u = ui as usize;
+                    if p.unique_refs[u] == 0 {
+                        continue;
+                    }
+                    p.unique_refs[u] -= 1;
+                    if p.unique_refs[u] == 0 {
+                        let class = self.uniques[u].class as usize;
+                        if let Some(arr) = self.class_arrays.get_mut(class).and_then(|a| a.as_mut()) {
+                            arr.layers.free(self.uniques[u].layer);
+                            p.original_layers_used -= 1;
+                        }
+                    }
+                }
+                if let Some(m) = info.originals_missing.get_mut(node as usize) {
+                    *m += 1;
+                }
+                Ok(0)
+            }
+        }
+    }
 }
