@@ -23,3 +23,78 @@ pub fn human_bytes(b: u64) -> String {
         format!("{v:.2} {}", U[i])
     }
 }
+
+/// Parses a byte size: a number with an optional unit `B`, `KB`, `MB`, `GB` (powers of 1000) or `KiB`,
+/// `MiB`, `GiB` (powers of 1024), case-insensitive, e.g. `8MB`, `512KiB`, `1e6`. `None` if malformed,
+/// negative or not finite.
+pub fn parse_bytes(s: &str) -> Option<u64> {
+    let t = s.trim();
+    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
+    // `1e6` has an alphabetic `e`: treat a number that parses whole as unitless.
+    let (num, unit) = match t.parse::<f64>() {
+        Ok(_) => (t, ""),
+        Err(_) => (&t[..split], t[split..].trim()),
+    };
+    let v: f64 = num.trim().parse().ok()?;
+    let mul = match unit.to_ascii_lowercase().as_str() {
+        "" | "b" => 1.0,
+        "kb" | "k" => 1e3,
+        "mb" | "m" => 1e6,
+        "gb" | "g" => 1e9,
+        "kib" => 1024.0,
+        "mib" => 1024.0 * 1024.0,
+        "gib" => 1024.0 * 1024.0 * 1024.0,
+        _ => return None,
+    };
+    let b = v * mul;
+    (b.is_finite() && b >= 0.0 && b < 1.8e19).then_some(b.round() as u64)
+}
+
+/// Parses a rate in bytes per second: a [`parse_bytes`] size followed by `/s`, e.g. `5MB/s`.
+pub fn parse_rate(s: &str) -> Option<f64> {
+    let t = s.trim();
+    let t = t
+        .strip_suffix("/s")
+        .or_else(|| t.strip_suffix("ps"))
+        .unwrap_or(t);
+    parse_bytes(t).map(|b| b as f64).filter(|&b| b > 0.0)
+}
+
+/// Parses a duration into seconds: a number with unit `ms`, `s` or `us`/`µs` (default seconds), e.g.
+/// `80ms`, `0.5s`.
+pub fn parse_seconds(s: &str) -> Option<f64> {
+    let t = s.trim();
+    let (num, mul) = if let Some(n) = t.strip_suffix("ms") {
+        (n, 1e-3)
+    } else if let Some(n) = t.strip_suffix("us").or_else(|| t.strip_suffix("µs")) {
+        (n, 1e-6)
+    } else if let Some(n) = t.strip_suffix('s') {
+        (n, 1.0)
+    } else {
+        (t, 1.0)
+    };
+    let v: f64 = num.trim().parse().ok()?;
+    let secs = v * mul;
+    (secs.is_finite() && secs >= 0.0).then_some(secs)
+}
+
+#[cfg(test)]
+mod parse_tests {
+    use super::*;
+
+    #[test]
+    fn sizes_rates_and_durations() {
+        assert_eq!(parse_bytes("8MB"), Some(8_000_000));
+        assert_eq!(parse_bytes("512KiB"), Some(524_288));
+        assert_eq!(parse_bytes("1e6"), Some(1_000_000));
+        assert_eq!(parse_bytes("12"), Some(12));
+        assert_eq!(parse_bytes("-1MB"), None);
+        assert_eq!(parse_bytes("5XB"), None);
+        assert_eq!(parse_rate("5MB/s"), Some(5e6));
+        assert_eq!(parse_rate("0MB/s"), None);
+        assert_eq!(parse_seconds("80ms"), Some(0.08));
+        assert_eq!(parse_seconds("0ms"), Some(0.0));
+        assert_eq!(parse_seconds("2"), Some(2.0));
+        assert_eq!(parse_seconds("x"), None);
+    }
+}

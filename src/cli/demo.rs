@@ -109,6 +109,12 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
                 fps: 30.0,
                 warmup: 2,
                 no_gpu_timing: false,
+                capacity: None,
+                source: "file".into(),
+                upload_budget: atlastree::paging::UploadBudget::Unlimited,
+                max_queue: 8,
+                policy: atlastree::paging::Policy::Paper,
+                loader_threads: 2,
             })?;
             pictures.push(out.join("tree").join("contact_sheet.png"));
         }

@@ -1,7 +1,8 @@
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
-use atlastree::render::{FrameStats, Mode, Renderer, RendererOptions};
+use atlastree::paging::{BlockSource, FileSource, PagerOptions};
+use atlastree::render::{FrameStats, Mode, PagingSetup, Renderer, RendererOptions};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::store::TreeFile;
 use clap::Args;
@@ -9,9 +10,15 @@ use glam::DVec3;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 
-/// Render a camera path through a paging file offscreen (all blocks resident) and measure every frame.
-/// Writes PNG frames (every k-th), a contact sheet and `stats.csv` per mode.
+/// Render a camera path through a paging file offscreen and measure every frame. Writes PNG frames (every
+/// k-th), a contact sheet and `stats.csv` per mode.
+///
+/// Without `--capacity` every block is uploaded at start. With `--capacity k` blocks are paged (paper §6):
+/// at most k blocks resident, loaded by priority from `--source`, missing ones drawn with the nearest
+/// resident ancestor atlas; `stats.csv` then gains the paging columns (blocks needed / ideal / resident /
+/// queued / in flight, bytes loaded, ideal fraction resident, coarser screen share, evictions).
 #[derive(Args, Debug)]
 pub struct RenderArgs {
     /// The paging file.
@@ -48,6 +55,35 @@ pub struct RenderArgs {
     /// Skip GPU timestamp queries.
     #[arg(long)]
     pub no_gpu_timing: bool,
+    /// Page blocks with at most this many resident (the paper used 160). Omit to load everything.
+    #[arg(long)]
+    pub capacity: Option<u32>,
+    /// Where blocks come from when paging: `file` (the paging file, memory-mapped) or an http(s) URL of
+    /// the same file on any static server that supports range requests (see `atlastree serve`).
+    #[arg(long, default_value = "file")]
+    pub source: String,
+    /// Upload budget per frame when paging: `unlimited`, bytes (`8MB`, `512KiB`) or time (`2ms`).
+    #[arg(long, default_value = "unlimited")]
+    pub upload_budget: atlastree::paging::UploadBudget,
+    /// Maximum outstanding block requests when paging.
+    #[arg(long, default_value_t = 8)]
+    pub max_queue: u32,
+    /// Paging policy: paper (§6), distance, lru, ours (paper + hysteresis + lookahead).
+    #[arg(long, default_value = "paper")]
+    pub policy: atlastree::paging::Policy,
+    /// Loader threads when paging; 0 loads synchronously within the frame (deterministic).
+    #[arg(long, default_value_t = 2)]
+    pub loader_threads: usize,
+}
+
+/// The block source named by `--source`.
+fn block_source(source: &str, file: &TreeFile) -> anyhow::Result<Arc<dyn BlockSource>> {
+    if source == "file" {
+        let reopened = TreeFile::open(file.path())
+            .with_context(|| format!("reopening {}", file.path().display()))?;
+        return Ok(Arc::new(FileSource::new(Arc::new(reopened))));
+    }
+    bail!("unknown --source {source:?}: expected `file` or an http:// URL")
 }
 
 fn scene_bounds(file: &TreeFile) -> Option<(DVec3, DVec3)> {
@@ -102,15 +138,38 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
     println!("adapter: {}", ctx.adapter_summary());
     let t = std::time::Instant::now();
-    let mut renderer = Renderer::new(
-        &ctx,
-        &file,
-        RendererOptions {
-            width: a.width,
-            height: a.height,
-            gpu_timing: !a.no_gpu_timing,
-        },
-    )?;
+    let ropts = RendererOptions {
+        width: a.width,
+        height: a.height,
+        gpu_timing: !a.no_gpu_timing,
+    };
+    let mut renderer = match a.capacity {
+        None => Renderer::new(&ctx, &file, ropts)?,
+        Some(k) => {
+            let source = block_source(&a.source, &file)?;
+            println!(
+                "paging: k = {k}, source {}, policy {}",
+                source.name(),
+                a.policy.name()
+            );
+            Renderer::new_paged(
+                &ctx,
+                &file,
+                ropts,
+                PagingSetup {
+                    pager: PagerOptions {
+                        capacity: k,
+                        max_queue: a.max_queue,
+                        budget: a.upload_budget,
+                        policy: a.policy,
+                        ..PagerOptions::default()
+                    },
+                    source,
+                    loader_threads: a.loader_threads,
+                },
+            )?
+        }
+    };
     let s = &renderer.resident.stats;
     println!(
         "resident: {} trees, {} nodes, {} leaves, {} vertices; {} atlas layers in {} array(s), {} original layers in {} class arrays, {:.1} MiB of textures ({:.2} s)",
@@ -153,6 +212,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     for (i, cam) in cameras.iter().enumerate() {
         let scale = scale_of(&a, &params, cam)?;
         for run in &mut runs {
+            renderer.set_clock(i as f64 / a.fps);
             let s = renderer.render(cam, scale, run.mode)?;
             run.stats.push(s);
             if a.every > 0 && i % a.every == 0 {
@@ -256,12 +316,17 @@ fn write_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
     let mut f = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
     );
-    writeln!(
+    let paged = stats.iter().any(|s| s.paging.is_some());
+    write!(
         f,
         "frame,nodes_visited,nodes_drawn,indirect_records,draw_calls,bind_group_changes,triangles,select_us,encode_us,gpu_ms,frame_ms"
     )?;
+    if paged {
+        write!(f, ",{PAGING_HEADER}")?;
+    }
+    writeln!(f)?;
     for (i, s) in stats.iter().enumerate() {
-        writeln!(
+        write!(
             f,
             "{i},{},{},{},{},{},{},{:.1},{:.1},{},{:.3}",
             s.nodes_visited,
@@ -275,6 +340,10 @@ fn write_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
             s.gpu_ms.map_or(String::new(), |g| format!("{g:.3}")),
             s.frame_ms
         )?;
+        if let Some(p) = &s.paging {
+            write!(f, ",{}", paging_row(p))?;
+        }
+        writeln!(f)?;
     }
     f.flush()?;
     Ok(())
@@ -310,6 +379,25 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         let (mean, max) = mean_max(gpu.iter().copied());
         println!("  {:<20} mean {mean:>10.2}  max {max:>10.2}", "GPU ms");
     }
+    let paged: Vec<&atlastree::render::PagingFrame> =
+        stats.iter().filter_map(|s| s.paging.as_ref()).collect();
+    if !paged.is_empty() {
+        let peak = paged
+            .iter()
+            .map(|p| p.session.pager.resident)
+            .max()
+            .unwrap_or(0);
+        let bytes: u64 = paged.iter().map(|p| p.session.pager.bytes_loaded).sum();
+        let (share, max_share) = mean_max(paged.iter().map(|p| p.coarse.share()));
+        let failures: u32 = paged.iter().map(|p| p.session.pager.failures).sum();
+        println!(
+            "  paging: peak resident {peak}, {} loaded, coarser share mean {:.3} max {:.3}, {} load failures",
+            atlastree::util::human_bytes(bytes),
+            share,
+            max_share,
+            failures
+        );
+    }
     // Medians: robust against one-off stalls (a software rasteriser compiles shader variants on first use).
     let frame: Vec<f64> = stats.iter().map(|s| s.frame_ms).collect();
     println!(
@@ -318,4 +406,35 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         median(frame),
         median(gpu)
     );
+}
+
+/// The paging columns of `stats.csv`.
+const PAGING_HEADER: &str = "blocks_needed,blocks_culled,blocks_parent_needed,ideal,resident,queued,in_flight,loaded,bytes_loaded,ideal_fraction,coarser_share,coarser_items,evictions,cancelled,discarded,failures,upload_ms,atlas_layers_used,original_layers_used,apply_errors,resident_hash";
+
+fn paging_row(p: &atlastree::render::PagingFrame) -> String {
+    let s = &p.session.pager;
+    format!(
+        "{},{},{},{},{},{},{},{},{},{:.4},{:.4},{},{},{},{},{},{:.3},{},{},{},{:016x}",
+        s.usage.needed,
+        s.usage.culled,
+        s.usage.parent_needed,
+        s.ideal,
+        s.resident,
+        p.session.queued,
+        p.session.in_flight,
+        s.loaded,
+        s.bytes_loaded,
+        s.ideal_fraction(),
+        p.coarse.share(),
+        p.coarse.coarser_items,
+        s.evictions,
+        s.cancelled,
+        s.discarded,
+        s.failures,
+        p.upload_ms,
+        p.atlas_layers_used,
+        p.original_layers_used,
+        p.apply_errors,
+        p.resident_hash
+    )
 }

@@ -36,6 +36,29 @@ pub enum UploadBudget {
     Millis(f64),
 }
 
+impl std::str::FromStr for UploadBudget {
+    type Err = String;
+    /// `unlimited`, a byte size per frame (`8MB`, `512KiB`), or a time per frame (`2ms`).
+    fn from_str(s: &str) -> Result<UploadBudget, String> {
+        let t = s.trim();
+        if t.eq_ignore_ascii_case("unlimited") || t == "0" {
+            return Ok(UploadBudget::Unlimited);
+        }
+        if t.ends_with("ms") || t.ends_with("us") || t.ends_with("µs") {
+            return crate::util::parse_seconds(t)
+                .filter(|&v| v > 0.0)
+                .map(|v| UploadBudget::Millis(v * 1e3))
+                .ok_or_else(|| format!("bad upload budget {s:?}: expected e.g. 2ms"));
+        }
+        crate::util::parse_bytes(t)
+            .filter(|&b| b > 0)
+            .map(UploadBudget::Bytes)
+            .ok_or_else(|| {
+                format!("bad upload budget {s:?}: expected unlimited, 8MB, 512KiB or 2ms")
+            })
+    }
+}
+
 /// Options of a [`Pager`].
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct PagerOptions {

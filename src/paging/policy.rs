@@ -48,6 +48,8 @@ impl Policy {
     }
 
     /// Whether the policy takes `usage` into the ideal set at all.
+    ///
+    /// (Parsing: see the `FromStr` impl.)
     pub fn admits(self, usage: Usage) -> bool {
         match self {
             Policy::Lru => usage == Usage::Needed,
@@ -93,5 +95,13 @@ impl Policy {
             .then_with(|| dist(a).total_cmp(&dist(b)))
             .then_with(|| a.level.cmp(&b.level))
             .then_with(|| a.block.cmp(&b.block))
+    }
+}
+
+impl std::str::FromStr for Policy {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Policy, String> {
+        Policy::parse(s)
+            .ok_or_else(|| format!("unknown policy {s:?}: expected paper, distance, lru or ours"))
     }
 }

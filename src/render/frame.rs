@@ -21,9 +21,9 @@ use crate::paging::{
 use crate::select::{Cut, select};
 use crate::store::TreeFile;
 use crate::store::format::NodeRecord;
-use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use glam::{DMat4, DVec4};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// The uniform block of both shaders. WGSL twin: `Globals`.
@@ -232,13 +232,14 @@ impl<'f> Renderer<'f> {
             });
         }
         let table = BlockTable::from_file(file)?;
-        let mut resident =
-            Resident::load_paged(ctx, file, &table, setup.pager.capacity)?;
+        let mut resident = Resident::load_paged(ctx, file, &table, setup.pager.capacity)?;
         let mut pager = Pager::new(table.clone(), setup.pager)?;
         let records = file.blocks().to_vec();
         let source = setup.source;
         let events = pager.bootstrap(|b| {
-            let r = records.get(b.idx()).ok_or_else(|| format!("{b} not in the table"))?;
+            let r = records
+                .get(b.idx())
+                .ok_or_else(|| format!("{b} not in the table"))?;
             source.fetch(b, r).map(Some).map_err(|e| e.to_string())
         })?;
         for e in &events {
@@ -379,7 +380,9 @@ impl<'f> Renderer<'f> {
     /// Changes the paging capacity live (clamped to the GPU layers allocated at creation).
     pub fn set_capacity(&mut self, capacity: u32) {
         if let Some(p) = &mut self.paging {
-            p.session.pager.set_capacity(capacity.min(self.resident.stats.atlas_layers.max(1)));
+            p.session
+                .pager
+                .set_capacity(capacity.min(self.resident.stats.atlas_layers.max(1)));
         }
     }
 
@@ -389,7 +392,12 @@ impl<'f> Renderer<'f> {
     }
 
     /// One paging step after select: plan, load, apply residency changes, resolve the cuts.
-    fn page(&mut self, camera: &Camera, frustum: &crate::camera::Frustum, scale: f64) -> Option<PagingFrame> {
+    fn page(
+        &mut self,
+        camera: &Camera,
+        frustum: &crate::camera::Frustum,
+        scale: f64,
+    ) -> Option<PagingFrame> {
         let rt = self.paging.as_mut()?;
         let file = self.file;
         let trees: Vec<&[NodeRecord]> = (0..file.trees())
@@ -404,15 +412,21 @@ impl<'f> Renderer<'f> {
         let table = &rt.table;
         let (mut bytes, mut errors, mut last_error) = (0u64, 0u32, None);
         let t = Instant::now();
-        let session = rt.session.frame(&trees, camera, frustum, scale, rt.clock, &mut *rt.loader, |ev| {
-            match resident.apply(queue, table, &ev) {
+        let session = rt.session.frame(
+            &trees,
+            camera,
+            frustum,
+            scale,
+            rt.clock,
+            &mut *rt.loader,
+            |ev| match resident.apply(queue, table, &ev) {
                 Ok(b) => bytes += b,
                 Err(e) => {
                     errors += 1;
                     last_error = Some(e.to_string());
                 }
-            }
-        });
+            },
+        );
         let upload_ms = t.elapsed().as_secs_f64() * 1e3;
         if last_error.is_some() {
             rt.last_error = last_error;

@@ -101,7 +101,9 @@ pub enum RenderError {
     },
     #[error("frame size {width}x{height} is empty")]
     BadSize { width: u32, height: u32 },
-    #[error("{what} is not available when blocks are paged (use a capacity of all blocks or omit it)")]
+    #[error(
+        "{what} is not available when blocks are paged (use a capacity of all blocks or omit it)"
+    )]
     NotWhenPaged { what: &'static str },
     #[error(transparent)]
     Paging(#[from] crate::paging::PagerError),

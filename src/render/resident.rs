@@ -328,7 +328,19 @@ impl Resident {
             texture_bytes,
         };
         let leaf_offsets = LeafOffsets::new(std::mem::take(&mut g.origins));
-        Ok(Self::assemble(ctx, g, infos, atlas_arrays, class_arrays, uniques, tam, materials, stats, leaf_offsets, None))
+        Ok(Self::assemble(
+            ctx,
+            g,
+            infos,
+            atlas_arrays,
+            class_arrays,
+            uniques,
+            tam,
+            materials,
+            stats,
+            leaf_offsets,
+            None,
+        ))
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -544,7 +556,12 @@ impl Resident {
             .map(|a| {
                 let n = remaining.min(max_layers);
                 remaining -= n;
-                TextureArray::new(&ctx.device, &format!("atlas array {a}"), params.atlas_size, n)
+                TextureArray::new(
+                    &ctx.device,
+                    &format!("atlas array {a}"),
+                    params.atlas_size,
+                    n,
+                )
             })
             .collect();
         // Original-texture classes: per block the uniques it holds.
@@ -650,11 +667,17 @@ impl Resident {
             Event::Loaded { block, data } => (*block, Some(data.as_deref())),
             Event::Evicted { block } => (*block, None),
         };
-        let (tree, node) = p.block_node.get(block.idx()).copied().ok_or(RenderError::ShortBlock { block })?;
+        let (tree, node) = p
+            .block_node
+            .get(block.idx())
+            .copied()
+            .ok_or(RenderError::ShortBlock { block })?;
         let info = self
             .infos
             .get_mut(tree as usize)
-            .ok_or(RenderError::MissingTree { tree: tree as usize })?;
+            .ok_or(RenderError::MissingTree {
+                tree: tree as usize,
+            })?;
         let is_atlas = table.meta(block).item.is_atlas();
         match (is_atlas, data) {
             (true, Some(bytes)) => {
@@ -669,7 +692,10 @@ impl Resident {
                         layers: u64::from(p.atlas_layers_used) + 1,
                         limit: u64::from(p.atlas_layers_used),
                     })?;
-                let layer = arr.layers.alloc().ok_or(RenderError::ShortBlock { block })?;
+                let layer = arr
+                    .layers
+                    .alloc()
+                    .ok_or(RenderError::ShortBlock { block })?;
                 let Some(n) = arr.upload_chain(queue, layer, bytes) else {
                     arr.layers.free(layer);
                     return Err(RenderError::ShortBlock { block });
@@ -684,7 +710,11 @@ impl Resident {
                 Ok(n)
             }
             (true, None) => {
-                if let Some(s) = info.atlas_slots.get_mut(node as usize).and_then(Option::take) {
+                if let Some(s) = info
+                    .atlas_slots
+                    .get_mut(node as usize)
+                    .and_then(Option::take)
+                {
                     if let Some(a) = self.atlas_arrays.get_mut(s.array as usize) {
                         a.layers.free(s.layer);
                     }
@@ -695,7 +725,11 @@ impl Resident {
             (false, Some(bytes)) => {
                 let bytes = bytes.ok_or(RenderError::ShortBlock { block })?;
                 let mut uploaded = 0;
-                let held = p.block_uniques.get(block.idx()).cloned().unwrap_or_default();
+                let held = p
+                    .block_uniques
+                    .get(block.idx())
+                    .cloned()
+                    .unwrap_or_default();
                 // Check every chain first, so a short block changes no reference count.
                 for &(ui, offset) in &held {
                     let need = mip_chain_bytes(self.uniques[ui as usize].class_size);
@@ -710,7 +744,8 @@ impl Resident {
                         continue;
                     }
                     let class = self.uniques[u].class as usize;
-                    let Some(arr) = self.class_arrays.get_mut(class).and_then(|a| a.as_mut()) else {
+                    let Some(arr) = self.class_arrays.get_mut(class).and_then(|a| a.as_mut())
+                    else {
                         continue;
                     };
                     let layer = arr.layers.alloc().ok_or(RenderError::TooManyLayers {
@@ -744,7 +779,11 @@ impl Resident {
                 Ok(uploaded)
             }
             (false, None) => {
-                let held = p.block_uniques.get(block.idx()).cloned().unwrap_or_default();
+                let held = p
+                    .block_uniques
+                    .get(block.idx())
+                    .cloned()
+                    .unwrap_or_default();
                 for (ui, _) in held {
                     let u = ui as usize;
                     if p.unique_refs[u] == 0 {
@@ -753,7 +792,8 @@ impl Resident {
                     p.unique_refs[u] -= 1;
                     if p.unique_refs[u] == 0 {
                         let class = self.uniques[u].class as usize;
-                        if let Some(arr) = self.class_arrays.get_mut(class).and_then(|a| a.as_mut()) {
+                        if let Some(arr) = self.class_arrays.get_mut(class).and_then(|a| a.as_mut())
+                        {
                             arr.layers.free(self.uniques[u].layer);
                             p.original_layers_used -= 1;
                         }

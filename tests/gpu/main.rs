@@ -5,6 +5,7 @@
 mod device;
 mod golden;
 mod harness;
+mod paging;
 mod render;
 mod smoke;
 
@@ -16,6 +17,7 @@ fn main() -> ExitCode {
         device::tests(),
         render::tests(),
         golden::tests(),
+        paging::tests(),
     ]
     .into_iter()
     .flatten()

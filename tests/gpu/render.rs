@@ -40,10 +40,10 @@ pub fn tests() -> Vec<GpuTest> {
     ]
 }
 
-const W: u32 = 320;
-const H: u32 = 240;
+pub(crate) const W: u32 = 320;
+pub(crate) const H: u32 = 240;
 
-fn e<E: std::fmt::Display>(x: E) -> String {
+pub(crate) fn e<E: std::fmt::Display>(x: E) -> String {
     x.to_string()
 }
 
@@ -86,7 +86,7 @@ pub(crate) fn bounds(file: &TreeFile) -> Result<(DVec3, DVec3), String> {
     Ok((lo, hi))
 }
 
-fn scale_for(file: &TreeFile, cam: &Camera) -> Result<f64, String> {
+pub(crate) fn scale_for(file: &TreeFile, cam: &Camera) -> Result<f64, String> {
     min_distance_scale(
         &file.to_params(),
         &SelectOptions {
@@ -98,7 +98,10 @@ fn scale_for(file: &TreeFile, cam: &Camera) -> Result<f64, String> {
     .map_err(e)
 }
 
-fn renderer<'f>(ctx: &'f GpuContext, file: &'f TreeFile) -> Result<Renderer<'f>, String> {
+pub(crate) fn renderer<'f>(
+    ctx: &'f GpuContext,
+    file: &'f TreeFile,
+) -> Result<Renderer<'f>, String> {
     Renderer::new(
         ctx,
         file,
@@ -111,7 +114,7 @@ fn renderer<'f>(ctx: &'f GpuContext, file: &'f TreeFile) -> Result<Renderer<'f>,
     .map_err(e)
 }
 
-fn frame(
+pub(crate) fn frame(
     r: &mut Renderer<'_>,
     file: &TreeFile,
     cam: &Camera,
@@ -122,7 +125,7 @@ fn frame(
 }
 
 /// The overview-dive path sampled at `n` times, aspect W/H.
-fn dive_cameras(file: &TreeFile, n: usize) -> Result<Vec<Camera>, String> {
+pub(crate) fn dive_cameras(file: &TreeFile, n: usize) -> Result<Vec<Camera>, String> {
     let (lo, hi) = bounds(file)?;
     let path = CameraPath::overview_dive(lo, hi, file.to_params().up).map_err(e)?;
     let (t0, d) = (path.start(), path.duration());
@@ -148,7 +151,7 @@ fn sky() -> [u8; 3] {
     [enc(0.30), enc(0.45), enc(0.70)]
 }
 
-fn is_sky(px: &[u8]) -> bool {
+pub(crate) fn is_sky(px: &[u8]) -> bool {
     let s = sky();
     (0..3).all(|c| px[c].abs_diff(s[c]) <= 1)
 }
