@@ -20,7 +20,11 @@ fn texture(w: u32, h: u32) -> Vec<u8> {
             let noise = (state % 41) as f64 - 20.0;
             let (fx, fy) = (x as f64, y as f64);
             let wave = 60.0 * (fx * 0.21).sin() * (fy * 0.13).cos();
-            let check = if (x / 8 + y / 8) % 2 == 0 { 30.0 } else { -30.0 };
+            let check = if (x / 8 + y / 8) % 2 == 0 {
+                30.0
+            } else {
+                -30.0
+            };
             let base = (110.0 + wave + check + noise).clamp(10.0, 210.0);
             v.push(base as u8);
             v.push((base * 0.8 + 20.0) as u8);
@@ -84,17 +88,17 @@ fn reference_ssim(a: &[u8], b: &[u8], w: usize, h: usize) -> f64 {
     for y0 in 0..=h - 11 {
         for x0 in 0..=w - 11 {
             let (mut mx, mut my) = (0.0, 0.0);
-            for j in 0..11 {
-                for i in 0..11 {
-                    let wgt = weights[j][i] / total;
+            for (j, row) in weights.iter().enumerate() {
+                for (i, wgt) in row.iter().enumerate() {
+                    let wgt = wgt / total;
                     mx += wgt * luma(a, x0 + i, y0 + j);
                     my += wgt * luma(b, x0 + i, y0 + j);
                 }
             }
             let (mut vx, mut vy, mut cxy) = (0.0, 0.0, 0.0);
-            for j in 0..11 {
-                for i in 0..11 {
-                    let wgt = weights[j][i] / total;
+            for (j, row) in weights.iter().enumerate() {
+                for (i, wgt) in row.iter().enumerate() {
+                    let wgt = wgt / total;
                     let (dx, dy) = (luma(a, x0 + i, y0 + j) - mx, luma(b, x0 + i, y0 + j) - my);
                     vx += wgt * dx * dx;
                     vy += wgt * dy * dy;
@@ -115,7 +119,10 @@ fn psnr_of_identical_frames_is_the_cap() {
     assert_eq!(psnr(&a, &a, 37, 23).unwrap(), PSNR_CAP_DB);
     // Alpha is ignored: different alpha, same RGB.
     let mut b = a.clone();
-    b.iter_mut().skip(3).step_by(4).for_each(|x| *x = x.wrapping_add(99));
+    b.iter_mut()
+        .skip(3)
+        .step_by(4)
+        .for_each(|x| *x = x.wrapping_add(99));
     assert_eq!(psnr(&a, &b, 37, 23).unwrap(), PSNR_CAP_DB);
 }
 
@@ -155,7 +162,11 @@ fn psnr_masked_counts_only_masked_pixels() {
     assert_eq!(n, 2);
     assert!(matches!(
         psnr_masked(&a, &b, 2, 1, &[true]),
-        Err(ReportError::Length { len: 1, expected: 2, .. })
+        Err(ReportError::Length {
+            len: 1,
+            expected: 2,
+            ..
+        })
     ));
 }
 
@@ -164,7 +175,11 @@ fn metrics_reject_buffers_of_the_wrong_size() {
     let a = texture(16, 16);
     assert!(matches!(
         psnr(&a, &a[..a.len() - 4], 16, 16),
-        Err(ReportError::FrameSize { len: 1020, expected: 1024, .. })
+        Err(ReportError::FrameSize {
+            len: 1020,
+            expected: 1024,
+            ..
+        })
     ));
     assert!(matches!(
         ssim(&a, &a, 16, 15),
@@ -173,7 +188,11 @@ fn metrics_reject_buffers_of_the_wrong_size() {
     let small = texture(10, 30);
     assert!(matches!(
         ssim(&small, &small, 10, 30),
-        Err(ReportError::FrameTooSmall { width: 10, height: 30, window: 11 })
+        Err(ReportError::FrameTooSmall {
+            width: 10,
+            height: 30,
+            window: 11
+        })
     ));
 }
 
@@ -239,7 +258,22 @@ fn magnified_share_counts_drawn_pixels_below_the_target() {
 
 #[test]
 fn log2_histogram_has_fixed_power_of_two_edges() {
-    let d = [0.0f32, 0.1, 0.25, 0.3, 0.5, 1.0, 1.99, 2.0, 3.9, 4.0, 100.0, f32::INFINITY, f32::NAN, -2.0];
+    let d = [
+        0.0f32,
+        0.1,
+        0.25,
+        0.3,
+        0.5,
+        1.0,
+        1.99,
+        2.0,
+        3.9,
+        4.0,
+        100.0,
+        f32::INFINITY,
+        f32::NAN,
+        -2.0,
+    ];
     let h = Histogram::log2(&d, -2, 2);
     assert_eq!(h.edges, vec![0.25, 0.5, 1.0, 2.0, 4.0]);
     // [¼,½): 0.25 0.3; [½,1): 0.5; [1,2): 1.0 1.99; [2,4): 2.0 3.9.

@@ -128,8 +128,7 @@ pub struct CsvWriter {
 impl CsvWriter {
     /// Starts a table with the given header. The parent directory of `path` must exist.
     pub fn create(path: &Path, header: &[&str]) -> Result<CsvWriter, ReportError> {
-        let temp = tempfile::NamedTempFile::new_in(super::parent_dir(path))
-            .map_err(|e| ReportError::io(path, e))?;
+        let temp = super::temp_beside(path)?;
         let mut w = CsvWriter {
             path: path.to_path_buf(),
             columns: header.len(),
@@ -316,7 +315,10 @@ mod tests {
         ]);
         assert_eq!(row, "plain,\"a,b\",\"say \"\"hi\"\"\nbye\",-3,7\n");
         let t = parse_csv(&format!("h1,h2,h3,h4,h5\n{row}")).unwrap();
-        assert_eq!(t.rows, vec![vec!["plain", "a,b", "say \"hi\"\nbye", "-3", "7"]]);
+        assert_eq!(
+            t.rows,
+            vec![vec!["plain", "a,b", "say \"hi\"\nbye", "-3", "7"]]
+        );
     }
 
     #[test]

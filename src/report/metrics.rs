@@ -52,7 +52,11 @@ pub fn psnr(a: &[u8], b: &[u8], width: u32, height: u32) -> Result<f64, ReportEr
     let sse: u64 = a
         .chunks_exact(4)
         .zip(b.chunks_exact(4))
-        .map(|(p, q)| (0..3).map(|c| (p[c].abs_diff(q[c]) as u64).pow(2)).sum::<u64>())
+        .map(|(p, q)| {
+            (0..3)
+                .map(|c| (p[c].abs_diff(q[c]) as u64).pow(2))
+                .sum::<u64>()
+        })
         .sum();
     let n = 3 * width as u64 * height as u64;
     Ok(if n == 0 {
@@ -158,7 +162,12 @@ pub fn ssim(a: &[u8], b: &[u8], width: u32, height: u32) -> Result<f64, ReportEr
             window: SSIM_WINDOW as u32,
         });
     }
-    Ok(ssim_luma(&luma_bt601(a), &luma_bt601(b), width as usize, height as usize))
+    Ok(ssim_luma(
+        &luma_bt601(a),
+        &luma_bt601(b),
+        width as usize,
+        height as usize,
+    ))
 }
 
 /// Mean SSIM of two luma planes (`w × h`, both ≥ [`SSIM_WINDOW`]); see [`ssim`].
@@ -279,9 +288,7 @@ impl Histogram {
     /// 2^max_exp`. `max_exp ≤ min_exp` gives no bins (everything drawn lands in `below` or `above`).
     pub fn log2(values: &[f32], min_exp: i32, max_exp: i32) -> Histogram {
         let bins = (max_exp - min_exp).max(0) as usize;
-        let edges = (0..=bins)
-            .map(|i| 2f64.powi(min_exp + i as i32))
-            .collect();
+        let edges = (0..=bins).map(|i| 2f64.powi(min_exp + i as i32)).collect();
         let mut h = Histogram {
             edges,
             counts: vec![0; bins],

@@ -37,7 +37,11 @@ pub enum ReportError {
     },
     /// A frame is smaller than the SSIM window in one dimension.
     #[error("SSIM needs frames of at least {window}×{window} pixels, got {width}×{height}")]
-    FrameTooSmall { width: u32, height: u32, window: u32 },
+    FrameTooSmall {
+        width: u32,
+        height: u32,
+        window: u32,
+    },
     /// A mask or density buffer has the wrong length.
     #[error("{what}: {len} entries, expected {expected}")]
     Length {
@@ -72,14 +76,28 @@ impl ReportError {
 /// Writes `bytes` to `path` atomically: a temp file in the same directory, flushed, then renamed over
 /// `path`. The parent directory must exist.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ReportError> {
-    let dir = parent_dir(path);
-    let mut temp = tempfile::NamedTempFile::new_in(dir).map_err(|e| ReportError::io(path, e))?;
+    let mut temp = temp_beside(path)?;
     temp.write_all(bytes)
         .and_then(|()| temp.as_file().sync_all())
         .map_err(|e| ReportError::io(path, e))?;
     temp.persist(path)
         .map_err(|e| ReportError::io(path, e.error))?;
     Ok(())
+}
+
+/// A temp file in `path`'s directory, created readable by all (0o644 less the umask, like a plain
+/// `File::create`; tempfile's default 0o600 would make published reports private).
+pub(crate) fn temp_beside(path: &Path) -> Result<tempfile::NamedTempFile, ReportError> {
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".tmp-report");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    builder
+        .tempfile_in(parent_dir(path))
+        .map_err(|e| ReportError::io(path, e))
 }
 
 /// The directory a file at `path` lives in (`.` for a bare file name).

@@ -17,7 +17,7 @@
 use super::metrics::{Histogram, pareto_front};
 use super::{ReportError, write_atomic};
 use plotters::coord::Shift;
-use plotters::coord::ranged1d::{AsRangedCoord, Ranged, SegmentValue, ValueFormatter};
+use plotters::coord::ranged1d::{AsRangedCoord, Ranged, ValueFormatter};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::ops::Range;
@@ -242,7 +242,7 @@ pub fn line_chart(
         opts,
         xr,
         yr,
-        legend: legend(series.iter().map(|s| s.name.as_str())),
+        legend: legend(series.iter().map(|s| s.name.as_str()), Swatch::Line),
         content: LineContent {
             series,
             log_x: opts.log_x,
@@ -317,11 +317,15 @@ pub fn scatter_pareto(
         opts,
         xr,
         yr,
-        legend: legend(groups.iter().map(|s| s.name.as_str())),
+        legend: legend(groups.iter().map(|s| s.name.as_str()), Swatch::Dot)
+            .into_iter()
+            .chain([("Pareto front".to_string(), BLACK, Swatch::Ring)])
+            .collect(),
         content: ScatterContent {
             groups,
             front: &front,
             labels,
+            better,
             visible: &visible,
         },
     };
@@ -337,7 +341,10 @@ pub fn bar_chart(
     series: &[BarSeries],
 ) -> Result<PlotFiles, ReportError> {
     if categories.is_empty() || series.is_empty() {
-        return Err(input_err(out, "bar chart without categories or series".into()));
+        return Err(input_err(
+            out,
+            "bar chart without categories or series".into(),
+        ));
     }
     if let Some(s) = series.iter().find(|s| s.values.len() != categories.len()) {
         return Err(input_err(
@@ -437,7 +444,7 @@ fn draw_err<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> ReportError + '_
 /// Draws `fig` into an SVG string and an RGB buffer and writes both files atomically.
 fn render(out: &Path, opts: &PlotOptions, fig: &impl Figure) -> Result<PlotFiles, ReportError> {
     let (svg_path, png_path) = (with_ext(out, "svg"), with_ext(out, "png"));
-    if !font_ready() {
+    if !font_ready() || glyph_font().is_none() {
         return Err(draw_err(&svg_path)("the embedded font does not parse"));
     }
     let (w, h) = (opts.width.max(64), opts.height.max(64));
@@ -449,7 +456,8 @@ fn render(out: &Path, opts: &PlotOptions, fig: &impl Figure) -> Result<PlotFiles
     }
     let mut rgb = vec![0u8; w as usize * h as usize * 3];
     {
-        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        let backend = GlyphBitmap(BitMapBackend::with_buffer(&mut rgb, (w, h)));
+        let root = backend.into_drawing_area();
         fig.draw(&root).map_err(draw_err(&png_path))?;
         root.present().map_err(draw_err(&png_path))?;
     }
@@ -476,6 +484,163 @@ fn encode_png(rgb: &[u8], w: u32, h: u32) -> std::io::Result<Vec<u8>> {
 }
 
 // ---------------------------------------------------------------------------------------------------
+// Bitmap text
+// ---------------------------------------------------------------------------------------------------
+
+/// plotters' bitmap backend with its own text rasteriser. plotters 0.3.7's `ab_glyph` text drops each
+/// glyph's left side bearing and rounds the pen position per glyph, which scatters letters ("texe l");
+/// this one places every glyph at its exact outline bounds (same font, same advances and kerning as the
+/// layout estimate, so label areas still fit). Everything else is delegated.
+struct GlyphBitmap<'a>(BitMapBackend<'a>);
+
+type BackendResult<E> = Result<(), plotters_backend::DrawingErrorKind<E>>;
+
+impl<'a> DrawingBackend for GlyphBitmap<'a> {
+    type ErrorType = <BitMapBackend<'a> as DrawingBackend>::ErrorType;
+
+    fn get_size(&self) -> (u32, u32) {
+        self.0.get_size()
+    }
+    fn ensure_prepared(&mut self) -> BackendResult<Self::ErrorType> {
+        self.0.ensure_prepared()
+    }
+    fn present(&mut self) -> BackendResult<Self::ErrorType> {
+        self.0.present()
+    }
+    fn draw_pixel(
+        &mut self,
+        point: plotters_backend::BackendCoord,
+        color: plotters_backend::BackendColor,
+    ) -> BackendResult<Self::ErrorType> {
+        self.0.draw_pixel(point, color)
+    }
+    fn draw_line<S: plotters_backend::BackendStyle>(
+        &mut self,
+        from: plotters_backend::BackendCoord,
+        to: plotters_backend::BackendCoord,
+        style: &S,
+    ) -> BackendResult<Self::ErrorType> {
+        self.0.draw_line(from, to, style)
+    }
+    fn draw_rect<S: plotters_backend::BackendStyle>(
+        &mut self,
+        upper_left: plotters_backend::BackendCoord,
+        bottom_right: plotters_backend::BackendCoord,
+        style: &S,
+        fill: bool,
+    ) -> BackendResult<Self::ErrorType> {
+        self.0.draw_rect(upper_left, bottom_right, style, fill)
+    }
+    fn draw_path<
+        S: plotters_backend::BackendStyle,
+        I: IntoIterator<Item = plotters_backend::BackendCoord>,
+    >(
+        &mut self,
+        path: I,
+        style: &S,
+    ) -> BackendResult<Self::ErrorType> {
+        self.0.draw_path(path, style)
+    }
+    fn draw_circle<S: plotters_backend::BackendStyle>(
+        &mut self,
+        center: plotters_backend::BackendCoord,
+        radius: u32,
+        style: &S,
+        fill: bool,
+    ) -> BackendResult<Self::ErrorType> {
+        self.0.draw_circle(center, radius, style, fill)
+    }
+    fn fill_polygon<
+        S: plotters_backend::BackendStyle,
+        I: IntoIterator<Item = plotters_backend::BackendCoord>,
+    >(
+        &mut self,
+        vert: I,
+        style: &S,
+    ) -> BackendResult<Self::ErrorType> {
+        self.0.fill_polygon(vert, style)
+    }
+    fn blit_bitmap(
+        &mut self,
+        pos: plotters_backend::BackendCoord,
+        size: (u32, u32),
+        src: &[u8],
+    ) -> BackendResult<Self::ErrorType> {
+        self.0.blit_bitmap(pos, size, src)
+    }
+
+    /// Lays out `text` on a baseline (advances + kerning of [`FONT`] at the style's pixel size), anchors
+    /// the box (width = advance sum, height = ascent − descent) at `pos`, rotates it by the style's
+    /// transform and blends each glyph's coverage.
+    fn draw_text<TStyle: plotters_backend::BackendTextStyle>(
+        &mut self,
+        text: &str,
+        style: &TStyle,
+        pos: plotters_backend::BackendCoord,
+    ) -> BackendResult<Self::ErrorType> {
+        use ab_glyph::{Font, ScaleFont};
+        use plotters_backend::text_anchor::{HPos, VPos};
+        let colour = style.color();
+        let Some(font) = glyph_font() else {
+            return Ok(());
+        };
+        if colour.alpha == 0.0 || text.is_empty() {
+            return Ok(());
+        }
+        let scale = ab_glyph::PxScale::from(style.size() as f32);
+        let sf = font.as_scaled(scale);
+        let mut coverage: Vec<(i32, i32, f32)> = Vec::new();
+        let (mut caret, mut prev) = (0f32, None);
+        for c in text.chars() {
+            let id = sf.glyph_id(c);
+            if let Some(p) = prev {
+                caret += sf.kern(p, id);
+            }
+            let glyph = id.with_scale_and_position(scale, ab_glyph::point(caret, sf.ascent()));
+            caret += sf.h_advance(id);
+            prev = Some(id);
+            if let Some(outline) = font.outline_glyph(glyph) {
+                let b = outline.px_bounds();
+                let (bx, by) = (b.min.x as i32, b.min.y as i32);
+                outline.draw(|x, y, v| coverage.push((bx + x as i32, by + y as i32, v)));
+            }
+        }
+        let (width, height) = (caret.round() as i32, sf.height().round() as i32);
+        let dx = match style.anchor().h_pos {
+            HPos::Left => 0,
+            HPos::Center => -width / 2,
+            HPos::Right => -width,
+        };
+        let dy = match style.anchor().v_pos {
+            VPos::Top => 0,
+            VPos::Center => -height / 2,
+            VPos::Bottom => -height,
+        };
+        let trans = style.transform();
+        let (w, h) = self.get_size();
+        for (x, y, v) in coverage {
+            let (x, y) = trans.transform(x + dx, y + dy);
+            let (x, y) = (pos.0 + x, pos.1 + y);
+            if v > 0.0 && x >= 0 && y >= 0 && x < w as i32 && y < h as i32 {
+                let c = plotters_backend::BackendColor {
+                    alpha: colour.alpha * f64::from(v.min(1.0)),
+                    rgb: colour.rgb,
+                };
+                self.0.draw_pixel((x, y), c)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// [`FONT`] parsed for [`GlyphBitmap`] (`None` if it does not parse; [`render`] checks it first).
+fn glyph_font() -> Option<&'static ab_glyph::FontRef<'static>> {
+    static F: std::sync::OnceLock<Option<ab_glyph::FontRef<'static>>> = std::sync::OnceLock::new();
+    F.get_or_init(|| ab_glyph::FontRef::try_from_slice(FONT).ok())
+        .as_ref()
+}
+
+// ---------------------------------------------------------------------------------------------------
 // Layout helpers
 // ---------------------------------------------------------------------------------------------------
 
@@ -487,7 +652,7 @@ struct Fonts {
 impl Fonts {
     fn new(opts: &PlotOptions) -> Fonts {
         Fonts {
-            scale: (opts.height as f64 / 600.0).clamp(0.6, 3.0),
+            scale: (opts.height as f64 / 600.0).clamp(0.85, 3.0),
         }
     }
     fn px(&self, size: f64) -> f64 {
@@ -524,21 +689,23 @@ fn titled<DB: DrawingBackend>(
     }
 }
 
-/// Legend entries (name, colour) of named series; empty names are skipped.
-fn legend<'a>(names: impl Iterator<Item = &'a str>) -> Vec<(String, RGBColor)> {
+/// A legend line: name, colour, swatch.
+type LegendEntry = (String, RGBColor, Swatch);
+
+/// Legend entries of named series (colour by position); empty names are skipped.
+fn legend<'a>(names: impl Iterator<Item = &'a str>, swatch: Swatch) -> Vec<LegendEntry> {
     names
         .enumerate()
         .filter(|(_, n)| !n.is_empty())
-        .map(|(i, n)| (n.to_string(), series_colour(i)))
+        .map(|(i, n)| (n.to_string(), series_colour(i), swatch))
         .collect()
 }
 
 /// Splits off a legend panel on the right wide enough for the longest name; draws the entries.
 fn with_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
-    entries: &[(String, RGBColor)],
+    entries: &[LegendEntry],
     fonts: &Fonts,
-    swatch: Swatch,
 ) -> Result<DrawingArea<DB, Shift>, DrawingAreaErrorKind<DB::ErrorType>> {
     if entries.is_empty() {
         return Ok(area.clone());
@@ -546,7 +713,7 @@ fn with_legend<DB: DrawingBackend>(
     let style = fonts.tick();
     let text_w = entries
         .iter()
-        .map(|(n, _)| area.estimate_text_size(n, &style).map(|s| s.0))
+        .map(|(n, _, _)| area.estimate_text_size(n, &style).map(|s| s.0))
         .try_fold(0u32, |m, w| w.map(|w| m.max(w)))?;
     let (w, _) = area.dim_in_pixel();
     let sw = fonts.px(28.0) as u32;
@@ -554,7 +721,7 @@ fn with_legend<DB: DrawingBackend>(
     let (plot, legend) = area.split_horizontally(w - panel);
     let line_h = fonts.px(22.0) as i32;
     let top = fonts.px(20.0) as i32;
-    for (i, (name, colour)) in entries.iter().enumerate() {
+    for (i, (name, colour, swatch)) in entries.iter().enumerate() {
         let y = top + i as i32 * line_h;
         let x0 = fonts.px(4.0) as i32;
         match swatch {
@@ -565,12 +732,23 @@ fn with_legend<DB: DrawingBackend>(
                 ))?;
             }
             Swatch::Dot => {
-                legend.draw(&Circle::new((x0 + sw as i32 / 2 - 3, y), 5, colour.filled()))?;
+                legend.draw(&Circle::new(
+                    (x0 + sw as i32 / 2 - 3, y),
+                    5,
+                    colour.filled(),
+                ))?;
             }
             Swatch::Box => {
                 legend.draw(&Rectangle::new(
                     [(x0 + 4, y - 6), (x0 + sw as i32 - 10, y + 6)],
                     colour.filled(),
+                ))?;
+            }
+            Swatch::Ring => {
+                legend.draw(&Circle::new(
+                    (x0 + sw as i32 / 2 - 3, y),
+                    8,
+                    colour.stroke_width(2),
                 ))?;
             }
         }
@@ -588,6 +766,8 @@ enum Swatch {
     Line,
     Dot,
     Box,
+    /// The ring that marks Pareto-front points.
+    Ring,
 }
 
 fn min_max(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
@@ -629,22 +809,22 @@ fn data_ranges(
 ) -> Result<(Range<f64>, Range<f64>), ReportError> {
     let pts: Vec<(f64, f64)> = pts
         .filter(|(x, y)| {
-            x.is_finite()
-                && y.is_finite()
-                && (!opts.log_x || *x > 0.0)
-                && (!opts.log_y || *y > 0.0)
+            x.is_finite() && y.is_finite() && (!opts.log_x || *x > 0.0) && (!opts.log_y || *y > 0.0)
         })
         .collect();
     let axis = |fixed: Option<(f64, f64)>, log: bool, vals: &mut dyn Iterator<Item = f64>| {
         if let Some((lo, hi)) = fixed {
             if log && (lo <= 0.0 || hi <= 0.0) {
-                return Err(input_err(out, format!("log axis range {lo}..{hi} is not positive")));
+                return Err(input_err(
+                    out,
+                    format!("log axis range {lo}..{hi} is not positive"),
+                ));
             }
             let (lo, hi) = widen((lo, hi));
             return Ok(lo..hi);
         }
-        let (lo, hi) = min_max(vals)
-            .ok_or_else(|| input_err(out, "no finite point to plot".to_string()))?;
+        let (lo, hi) =
+            min_max(vals).ok_or_else(|| input_err(out, "no finite point to plot".to_string()))?;
         let (lo, hi) = if log {
             log_pad(lo, hi)
         } else {
@@ -665,7 +845,6 @@ fn data_ranges(
 
 /// What is drawn inside an x–y chart, for any coordinate type of f64 axes.
 trait XyContent {
-    const SWATCH: Swatch;
     fn draw_content<DB: DrawingBackend, X, Y>(
         &self,
         chart: &mut ChartContext<'_, DB, Cartesian2d<X, Y>>,
@@ -680,7 +859,7 @@ struct XyFigure<'a, C> {
     opts: &'a PlotOptions,
     xr: Range<f64>,
     yr: Range<f64>,
-    legend: Vec<(String, RGBColor)>,
+    legend: Vec<LegendEntry>,
     content: C,
 }
 
@@ -688,7 +867,7 @@ impl<C: XyContent> Figure for XyFigure<'_, C> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
         let fonts = Fonts::new(self.opts);
         let area = titled(root, self.opts, &fonts)?;
-        let area = with_legend(&area, &self.legend, &fonts, C::SWATCH)?;
+        let area = with_legend(&area, &self.legend, &fonts)?;
         let (xr, yr) = (self.xr.clone(), self.yr.clone());
         match (self.opts.log_x, self.opts.log_y) {
             (false, false) => self.chart(&area, &fonts, xr, yr),
@@ -733,6 +912,7 @@ impl<C: XyContent> XyFigure<'_, C> {
             .axis_desc_style(fonts.axis())
             .bold_line_style(BLACK.mix(0.12))
             .light_line_style(BLACK.mix(0.04))
+            .max_light_lines(4)
             .x_labels(10)
             .y_labels(8)
             .draw()?;
@@ -747,7 +927,6 @@ struct LineContent<'a> {
 }
 
 impl XyContent for LineContent<'_> {
-    const SWATCH: Swatch = Swatch::Line;
     fn draw_content<DB: DrawingBackend, X, Y>(
         &self,
         chart: &mut ChartContext<'_, DB, Cartesian2d<X, Y>>,
@@ -784,11 +963,11 @@ struct ScatterContent<'a, V> {
     groups: &'a [ScatterSeries],
     front: &'a [(usize, usize)],
     labels: PointLabels,
+    better: Better,
     visible: &'a V,
 }
 
 impl<V: Fn(&LabelledPoint) -> bool> XyContent for ScatterContent<'_, V> {
-    const SWATCH: Swatch = Swatch::Dot;
     fn draw_content<DB: DrawingBackend, X, Y>(
         &self,
         chart: &mut ChartContext<'_, DB, Cartesian2d<X, Y>>,
@@ -820,8 +999,14 @@ impl<V: Fn(&LabelledPoint) -> bool> XyContent for ScatterContent<'_, V> {
                 .iter()
                 .map(|gp| Circle::new(at(gp), 9, BLACK.stroke_width(2))),
         )?;
-        let style = fonts.small();
+        // Labels on the side away from the front line: it rises to the right when higher y is
+        // better (labels below-right), falls otherwise (labels above-right).
         let dx = fonts.px(9.0) as i32;
+        let (dy, v_pos) = match self.better {
+            Better::HigherY => (dx / 2, VPos::Top),
+            Better::LowerY => (-dx / 2, VPos::Bottom),
+        };
+        let style = fonts.small().pos(Pos::new(HPos::Left, v_pos));
         for (g, s) in self.groups.iter().enumerate() {
             for (p, pt) in s.points.iter().enumerate() {
                 let on_front = self.front.contains(&(g, p));
@@ -833,11 +1018,7 @@ impl<V: Fn(&LabelledPoint) -> bool> XyContent for ScatterContent<'_, V> {
                 if show && !pt.label.is_empty() && (self.visible)(pt) {
                     chart.draw_series(std::iter::once(
                         EmptyElement::at((pt.x, pt.y))
-                            + Text::new(
-                                pt.label.clone(),
-                                (dx, -dx),
-                                style.pos(Pos::new(HPos::Left, VPos::Bottom)),
-                            ),
+                            + Text::new(pt.label.clone(), (dx, dy), style.clone()),
                     ))?;
                 }
             }
@@ -885,26 +1066,14 @@ impl Figure for HeatFigure<'_> {
             .margin(margin)
             .x_label_area_size(x_area)
             .y_label_area_size(y_area)
-            .build_cartesian_2d(
-                (0..cols as i32).into_segmented(),
-                (0..rows as i32).into_segmented(),
-            )?;
-        let label = |labels: &[String], v: &SegmentValue<i32>| match v {
-            SegmentValue::CenterOf(i) => labels.get(*i as usize).cloned().unwrap_or_default(),
-            _ => String::new(),
-        };
-        let col_label = |v: &SegmentValue<i32>| label(&self.map.col_labels, v);
-        let row_label = |v: &SegmentValue<i32>| label(&self.map.row_labels, v);
+            .build_cartesian_2d(0f64..cols as f64, 0f64..rows as f64)?;
         chart
             .configure_mesh()
             .disable_mesh()
+            .x_labels(0)
+            .y_labels(0)
             .x_desc(self.opts.x_label.as_str())
             .y_desc(self.opts.y_label.as_str())
-            .x_labels(cols)
-            .y_labels(rows)
-            .x_label_formatter(&col_label)
-            .y_label_formatter(&row_label)
-            .label_style(fonts.tick())
             .axis_desc_style(fonts.axis())
             .draw()?;
         let (pw, ph) = chart.plotting_area().dim_in_pixel();
@@ -921,25 +1090,31 @@ impl Figure for HeatFigure<'_> {
                 } else {
                     (RGBColor(0xdd, 0xdd, 0xdd), "–".to_string())
                 };
-                let (ci, ri) = (c as i32, r as i32);
+                let (x, y) = (c as f64, r as f64);
                 chart.draw_series(std::iter::once(Rectangle::new(
-                    [
-                        (SegmentValue::Exact(ci), SegmentValue::Exact(ri)),
-                        (SegmentValue::Exact(ci + 1), SegmentValue::Exact(ri + 1)),
-                    ],
+                    [(x, y), (x + 1.0, y + 1.0)],
                     fill.filled(),
                 )))?;
-                let luminance = 0.299 * fill.0 as f64 + 0.587 * fill.1 as f64 + 0.114 * fill.2 as f64;
+                let luminance =
+                    0.299 * fill.0 as f64 + 0.587 * fill.1 as f64 + 0.114 * fill.2 as f64;
                 let ink = if luminance > 140.0 { BLACK } else { WHITE };
                 let style = TextStyle::from((FAMILY, size).into_font())
                     .color(&ink)
                     .pos(Pos::new(HPos::Center, VPos::Center));
-                chart.draw_series(std::iter::once(Text::new(
-                    text,
-                    (SegmentValue::CenterOf(ci), SegmentValue::CenterOf(ri)),
-                    style,
-                )))?;
+                chart.draw_series(std::iter::once(Text::new(text, (x + 0.5, y + 0.5), style)))?;
             }
+        }
+        // Row and column labels beside the cells (absolute pixels on the root).
+        let gap = fonts.px(8.0) as i32;
+        let x_style = fonts.tick().pos(Pos::new(HPos::Center, VPos::Top));
+        for (c, label) in self.map.col_labels.iter().enumerate() {
+            let (x, y) = chart.backend_coord(&(c as f64 + 0.5, 0.0));
+            root.draw(&Text::new(label.clone(), (x, y + gap), x_style.clone()))?;
+        }
+        let y_style = fonts.tick().pos(Pos::new(HPos::Right, VPos::Center));
+        for (r, label) in self.map.row_labels.iter().enumerate() {
+            let (x, y) = chart.backend_coord(&(0.0, r as f64 + 0.5));
+            root.draw(&Text::new(label.clone(), (x - gap, y), y_style.clone()))?;
         }
         self.colour_bar(&bar, &fonts, margin, x_area)
     }
@@ -960,7 +1135,7 @@ impl HeatFigure<'_> {
             .margin_bottom(margin + x_area)
             .margin_left(fonts.px(10.0) as u32)
             .margin_right(fonts.px(4.0) as u32)
-            .right_y_label_area_size(fonts.px(90.0) as u32)
+            .right_y_label_area_size(fonts.px(80.0) as u32)
             .build_cartesian_2d(0f64..1f64, lo..hi)?;
         chart
             .configure_mesh()
@@ -1001,12 +1176,8 @@ impl Figure for BarFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
         let fonts = Fonts::new(self.opts);
         let area = titled(root, self.opts, &fonts)?;
-        let area = with_legend(
-            &area,
-            &legend(self.series.iter().map(|s| s.name.as_str())),
-            &fonts,
-            Swatch::Box,
-        )?;
+        let entries = legend(self.series.iter().map(|s| s.name.as_str()), Swatch::Box);
+        let area = with_legend(&area, &entries, &fonts)?;
         let yr = self.yr.clone();
         if self.opts.log_y {
             self.chart(root, &area, &fonts, yr.log_scale().base(2.0))
@@ -1046,8 +1217,13 @@ impl BarFigure<'_> {
             .axis_desc_style(fonts.axis())
             .bold_line_style(BLACK.mix(0.12))
             .light_line_style(BLACK.mix(0.04))
+            .max_light_lines(4)
             .draw()?;
-        let base = chart.y_range().start.max(if self.opts.log_y { f64::MIN_POSITIVE } else { 0.0 });
+        let base = chart.y_range().start.max(if self.opts.log_y {
+            f64::MIN_POSITIVE
+        } else {
+            0.0
+        });
         let k = self.series.len() as f64;
         let (pad, gap) = (0.12, 0.02);
         let bw = (1.0 - 2.0 * pad) / k;
@@ -1061,7 +1237,10 @@ impl BarFigure<'_> {
                     .filter(|(_, v)| v.is_finite() && (!self.opts.log_y || **v > 0.0))
                     .map(|(c, &v)| {
                         let x0 = c as f64 + pad + s as f64 * bw;
-                        Rectangle::new([(x0 + gap / 2.0, base), (x0 + bw - gap / 2.0, v)], colour.filled())
+                        Rectangle::new(
+                            [(x0 + gap / 2.0, base), (x0 + bw - gap / 2.0, v)],
+                            colour.filled(),
+                        )
                     }),
             )?;
         }
@@ -1070,7 +1249,11 @@ impl BarFigure<'_> {
         let style = fonts.tick().pos(Pos::new(HPos::Center, VPos::Top));
         for (c, label) in self.categories.iter().enumerate() {
             let (x, y) = chart.backend_coord(&(c as f64 + 0.5, y_min));
-            root.draw(&Text::new(label.clone(), (x, y + fonts.px(8.0) as i32), style.clone()))?;
+            root.draw(&Text::new(
+                label.clone(),
+                (x, y + fonts.px(8.0) as i32),
+                style.clone(),
+            ))?;
         }
         Ok(())
     }
