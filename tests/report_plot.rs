@@ -302,6 +302,32 @@ fn histogram_and_bar_charts() {
 }
 
 #[test]
+fn long_legends_are_cut_with_a_count() {
+    let (dir, _guard) = out_dir();
+    let series: Vec<Series> = (0..40)
+        .map(|i| {
+            Series::new(
+                format!("run {i}"),
+                vec![(0.0, i as f64), (1.0, i as f64 + 1.0)],
+            )
+        })
+        .collect();
+    let mut opts = PlotOptions::new("Forty runs", "t", "v");
+    opts.height = 400;
+    let files = line_chart(&dir.join("legend"), &opts, &series).unwrap();
+    let svg = check_files(&files, &opts, &["run 0", "more"]);
+    // 400 px leaves room for about 14 lines at this size: the last entries are counted, not drawn.
+    assert!(!svg.contains("run 39"));
+    let shown = (0..40)
+        .filter(|i| svg.contains(&format!("\nrun {i}\n")))
+        .count();
+    assert!(
+        svg.contains(&format!("… {} more", 40 - shown)),
+        "{shown} shown"
+    );
+}
+
+#[test]
 fn line_chart_without_finite_points_is_an_error() {
     let (dir, _guard) = out_dir();
     let opts = PlotOptions::new("empty", "x", "y");

@@ -721,7 +721,22 @@ fn with_legend<DB: DrawingBackend>(
     let (plot, legend) = area.split_horizontally(w - panel);
     let line_h = fonts.px(22.0) as i32;
     let top = fonts.px(20.0) as i32;
-    for (i, (name, colour, swatch)) in entries.iter().enumerate() {
+    // As many entries as fit; the rest are counted on a last line.
+    let (_, h) = legend.dim_in_pixel();
+    let fit = ((h as i32 - top) / line_h).max(1) as usize;
+    let shown = if entries.len() > fit {
+        fit - 1
+    } else {
+        entries.len()
+    };
+    if shown < entries.len() {
+        legend.draw(&Text::new(
+            format!("… {} more", entries.len() - shown),
+            (fonts.px(4.0) as i32, top + shown as i32 * line_h),
+            style.pos(Pos::new(HPos::Left, VPos::Center)),
+        ))?;
+    }
+    for (i, (name, colour, swatch)) in entries.iter().take(shown).enumerate() {
         let y = top + i as i32 * line_h;
         let x0 = fonts.px(4.0) as i32;
         match swatch {
