@@ -29,6 +29,8 @@
 //!   one array per class size; [`render::batch`] turns a cut into indirect records (plain data), and a frame is
 //!   one bind group and one multi-draw-indirect call per pipeline (texture-array batching).
 //! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
+//! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
+//!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
 //!
 //! Stages still to come (see the issues): `paging` (blocks under a capacity k), `sim`.
 
@@ -39,6 +41,7 @@ pub mod ids;
 pub mod inspect;
 pub mod paging;
 pub mod render;
+pub mod report;
 pub mod scene;
 pub mod select;
 pub mod store;
