@@ -32,7 +32,10 @@
 //! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
 //!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
 //!
-//! Stages still to come (see the issues): `paging` (blocks under a capacity k), `sim`.
+//! - [`paging`]: prioritised block paging (§6): usage categories, the ideal set under a capacity k, the
+//!   re-ranked request queue, loaders (synchronous, threads, HTTP), residency, drawing with missing blocks.
+//! - [`sim`]: paging-budget experiments without a GPU: the same paging session on a frame clock with an I/O
+//!   model; grids over capacity × bandwidth × latency × policy.
 
 pub mod build;
 pub mod camera;
@@ -44,5 +47,6 @@ pub mod render;
 pub mod report;
 pub mod scene;
 pub mod select;
+pub mod sim;
 pub mod store;
 pub mod util;

@@ -6,6 +6,7 @@ mod inspect_cmd;
 mod progress;
 mod render_cmd;
 mod scene_info;
+mod simulate_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::process::ExitCode;
@@ -42,6 +43,8 @@ pub enum Command {
     Inspect(inspect_cmd::InspectArgs),
     /// Render a camera path offscreen with the texture-array-batched renderer; PNGs, contact sheet, stats.csv.
     Render(render_cmd::RenderArgs),
+    /// Paging-budget experiments without a GPU: capacity × bandwidth × latency × policy over a camera path.
+    Simulate(simulate_cmd::SimulateArgs),
 }
 
 /// Which axis points up (the other two span the distribution plane).
@@ -84,6 +87,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Build(a) => build_cmd::run(a),
         Command::Inspect(a) => inspect_cmd::run(a),
         Command::Render(a) => render_cmd::run(a),
+        Command::Simulate(a) => simulate_cmd::run(a),
     }
 }
 

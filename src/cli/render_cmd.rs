@@ -86,7 +86,7 @@ fn block_source(source: &str, file: &TreeFile) -> anyhow::Result<Arc<dyn BlockSo
     bail!("unknown --source {source:?}: expected `file` or an http:// URL")
 }
 
-fn scene_bounds(file: &TreeFile) -> Option<(DVec3, DVec3)> {
+pub(crate) fn scene_bounds(file: &TreeFile) -> Option<(DVec3, DVec3)> {
     let mut b: Option<(DVec3, DVec3)> = None;
     for t in 0..file.trees() {
         let root = file.tree(t)?.nodes.first().copied()?;

@@ -26,7 +26,7 @@ pub use blocks::{BlockItem, BlockMeta, BlockTable, BlockTableError};
 pub use loader::{ImmediateLoader, Loader, ThreadedLoader};
 pub use pager::{
     Arrival, Event, Pager, PagerError, PagerFrameStats, PagerOptions, PagerTotals, Request,
-    UploadBudget,
+    UploadBudget, resident_fingerprint,
 };
 pub use policy::Policy;
 pub use resolve::{Coarseness, Resolved, resolve, resolve_cut, screen_fraction};

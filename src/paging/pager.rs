@@ -23,6 +23,14 @@ use crate::store::format::NodeRecord;
 use serde::Serialize;
 use std::time::Instant;
 
+/// `xxh3_64` of the sorted block ids: a compact fingerprint of a resident set (logged per frame by the
+/// renderer and the simulator, so their resident sets can be compared).
+pub fn resident_fingerprint(blocks: &[BlockId]) -> u64 {
+    let mut ids: Vec<u32> = blocks.iter().map(|b| b.0).collect();
+    ids.sort_unstable();
+    xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(&ids))
+}
+
 /// How much may become resident per frame.
 #[derive(Copy, Clone, Debug, PartialEq, Default, Serialize)]
 pub enum UploadBudget {

@@ -13,7 +13,6 @@ use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
 use super::{Mode, RenderError};
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, readback_rgba8};
-use crate::ids::BlockId;
 use crate::paging::{
     BlockSource, BlockTable, Coarseness, ImmediateLoader, Loader, Pager, PagerOptions,
     PagingSession, Resolved, SessionFrame, ThreadedLoader, resolve_frame,
@@ -99,13 +98,6 @@ struct PagingRuntime {
     clock: f64,
     clock_set: bool,
     last_error: Option<String>,
-}
-
-/// `xxh3_64` of the sorted block ids: a compact fingerprint of a resident set.
-pub fn resident_fingerprint(blocks: &[BlockId]) -> u64 {
-    let mut ids: Vec<u32> = blocks.iter().map(|b| b.0).collect();
-    ids.sort_unstable();
-    xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(&ids))
 }
 
 /// Options of a [`Renderer`].
@@ -456,7 +448,7 @@ impl<'f> Renderer<'f> {
             coarse,
             upload_ms,
             uploaded_bytes: bytes,
-            resident_hash: resident_fingerprint(rt.session.pager.resident()),
+            resident_hash: crate::paging::resident_fingerprint(rt.session.pager.resident()),
             apply_errors: errors,
             atlas_layers_used: p.map_or(0, |p| p.atlas_layers_used),
             original_layers_used: p.map_or(0, |p| p.original_layers_used),

@@ -1,0 +1,356 @@
+//! The experiment grid of `atlastree simulate`: capacity × bandwidth × latency × policy, each cell one
+//! deterministic [`simulate`] run (cells in parallel), written as `frames.csv`, `summary.csv` and plots.
+
+use super::{FrameRow, IoModel, RunSummary, SimInput, SimOptions, simulate};
+use crate::camera::Camera;
+use crate::paging::{PagerError, PagerOptions, Policy, UploadBudget};
+use crate::report::ReportError;
+use crate::report::csv::{Cell, CsvWriter};
+use crate::report::plot::{HeatMap, PlotOptions, Series, heat_map, line_chart};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// The axes of a grid and the settings shared by all cells.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GridSpec {
+    /// Capacities k; `None` = no budget (every block may stay resident).
+    pub capacities: Vec<Option<u32>>,
+    /// Bandwidths in bytes/s; `None` = no I/O model (blocks arrive in the frame they are requested).
+    pub bandwidths: Vec<Option<f64>>,
+    /// Latencies in seconds (only modelled with a bandwidth).
+    pub latencies: Vec<f64>,
+    pub policies: Vec<Policy>,
+    pub fps: f64,
+    pub max_queue: u32,
+    pub budget: UploadBudget,
+    pub max_in_flight: u32,
+    /// Per-request overhead, seconds (HTTP).
+    pub overhead: f64,
+}
+
+/// One cell of the grid.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct RunKey {
+    pub capacity: Option<u32>,
+    pub bandwidth: Option<f64>,
+    pub latency: f64,
+    pub policy: Policy,
+}
+
+impl RunKey {
+    /// A short, file-name-safe label, e.g. `k160_50MBps_80ms_paper`.
+    pub fn label(&self) -> String {
+        format!(
+            "k{}_{}_{}ms_{}",
+            self.capacity.map_or("all".to_string(), |k| k.to_string()),
+            self.bandwidth.map_or("instant".to_string(), |b| format!(
+                "{}MBps",
+                fmt_num(b / 1e6)
+            )),
+            fmt_num(self.latency * 1e3),
+            self.policy.name()
+        )
+    }
+}
+
+fn fmt_num(v: f64) -> String {
+    if (v - v.round()).abs() < 1e-9 {
+        format!("{}", v.round() as i64)
+    } else {
+        format!("{v:.3}").trim_end_matches('0').to_string()
+    }
+}
+
+impl GridSpec {
+    /// The cells in a fixed order (capacity, bandwidth, latency, policy; each in the order given).
+    pub fn cells(&self) -> Vec<RunKey> {
+        let mut out = Vec::new();
+        for &capacity in &self.capacities {
+            for &bandwidth in &self.bandwidths {
+                for &latency in &self.latencies {
+                    for &policy in &self.policies {
+                        out.push(RunKey {
+                            capacity,
+                            bandwidth,
+                            latency,
+                            policy,
+                        });
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The simulator options of one cell.
+    pub fn options(&self, key: &RunKey) -> SimOptions {
+        SimOptions {
+            fps: self.fps,
+            pager: PagerOptions {
+                capacity: key.capacity.unwrap_or(u32::MAX),
+                max_queue: self.max_queue,
+                budget: self.budget,
+                policy: key.policy,
+                ..PagerOptions::default()
+            },
+            io: key.bandwidth.map(|bandwidth| IoModel {
+                bandwidth,
+                latency: key.latency,
+                overhead: self.overhead,
+                max_in_flight: self.max_in_flight,
+            }),
+        }
+    }
+}
+
+/// One finished cell.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    pub key: RunKey,
+    pub rows: Vec<FrameRow>,
+    pub summary: RunSummary,
+    /// Wall time of the run, seconds (not part of any CSV: the CSVs stay deterministic).
+    pub seconds: f64,
+}
+
+/// Runs every cell (in parallel); `tick` is called after each cell. Results are in [`GridSpec::cells`]
+/// order.
+pub fn run_grid(
+    input: &SimInput,
+    cameras: &[Camera],
+    scale: f64,
+    spec: &GridSpec,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Vec<RunResult>, PagerError> {
+    spec.cells()
+        .into_par_iter()
+        .map(|key| {
+            let t = std::time::Instant::now();
+            let (rows, summary) = simulate(input, cameras, scale, &spec.options(&key))?;
+            tick();
+            Ok(RunResult {
+                key,
+                rows,
+                summary,
+                seconds: t.elapsed().as_secs_f64(),
+            })
+        })
+        .collect()
+}
+
+fn key_cells(k: &RunKey) -> Vec<Cell> {
+    vec![
+        Cell::Text(k.label()),
+        Cell::Text(k.capacity.map_or("all".into(), |c| c.to_string())),
+        Cell::Text(k.bandwidth.map_or("instant".into(), |b| format!("{b}"))),
+        Cell::Float(k.latency * 1e3),
+        Cell::Text(k.policy.name().into()),
+    ]
+}
+
+const KEY_HEADER: [&str; 5] = ["run", "capacity", "bandwidth_bps", "latency_ms", "policy"];
+
+/// Writes `frames.csv` and `summary.csv` into `dir`; returns their paths.
+pub fn write_csvs(dir: &Path, results: &[RunResult]) -> Result<Vec<PathBuf>, ReportError> {
+    let mut header: Vec<&str> = KEY_HEADER.to_vec();
+    header.extend([
+        "frame",
+        "time_s",
+        "needed",
+        "ideal",
+        "resident",
+        "queued",
+        "in_flight",
+        "loaded",
+        "bytes",
+        "evictions",
+        "ideal_fraction",
+        "coarser_share",
+        "coarser_levels",
+        "time_to_ideal",
+        "resident_hash",
+    ]);
+    let mut frames = CsvWriter::create(&dir.join("frames.csv"), &header)?;
+    for r in results {
+        for f in &r.rows {
+            let mut row = key_cells(&r.key);
+            row.extend([
+                Cell::UInt(f.frame.into()),
+                Cell::Float(f.time),
+                Cell::UInt(f.needed.into()),
+                Cell::UInt(f.ideal.into()),
+                Cell::UInt(f.resident.into()),
+                Cell::UInt(f.queued.into()),
+                Cell::UInt(f.in_flight.into()),
+                Cell::UInt(f.loaded.into()),
+                Cell::UInt(f.bytes),
+                Cell::UInt(f.evictions.into()),
+                Cell::Float(f.ideal_fraction),
+                Cell::Float(f.coarser_share),
+                Cell::Float(f.coarser_gap),
+                Cell::Int(f.time_to_ideal.into()),
+                Cell::Text(format!("{:016x}", f.resident_hash)),
+            ]);
+            frames.row(&row)?;
+        }
+    }
+    let mut header: Vec<&str> = KEY_HEADER.to_vec();
+    header.extend([
+        "frames",
+        "mean_coarser",
+        "p95_coarser",
+        "max_coarser",
+        "bytes_total",
+        "loads",
+        "peak_resident",
+        "jumps",
+        "converge_frames",
+        "stalls",
+        "cancelled",
+        "discarded",
+    ]);
+    let mut summary = CsvWriter::create(&dir.join("summary.csv"), &header)?;
+    for r in results {
+        let s = &r.summary;
+        let mut row = key_cells(&r.key);
+        row.extend([
+            Cell::UInt(s.frames.into()),
+            Cell::Float(s.mean_coarser),
+            Cell::Float(s.p95_coarser),
+            Cell::Float(s.max_coarser),
+            Cell::UInt(s.bytes_total),
+            Cell::UInt(s.loads),
+            Cell::UInt(s.peak_resident.into()),
+            Cell::UInt(s.jumps.into()),
+            Cell::Text(
+                s.converge_frames
+                    .iter()
+                    .map(|c| c.to_string())
+                    .collect::<Vec<_>>()
+                    .join(" "),
+            ),
+            Cell::UInt(s.stalls.into()),
+            Cell::UInt(s.cancelled),
+            Cell::UInt(s.discarded),
+        ]);
+        summary.row(&row)?;
+    }
+    Ok(vec![frames.finish()?, summary.finish()?])
+}
+
+/// Writes the plots: coarser share over time per k and bytes per frame (for the first bandwidth, latency
+/// and policy), and per (latency, policy) a heat map of the mean coarser share over capacity × bandwidth.
+pub fn write_plots(
+    dir: &Path,
+    spec: &GridSpec,
+    results: &[RunResult],
+) -> Result<Vec<PathBuf>, ReportError> {
+    let mut out = Vec::new();
+    let (Some(&bw), Some(&lat), Some(&pol)) = (
+        spec.bandwidths.first(),
+        spec.latencies.first(),
+        spec.policies.first(),
+    ) else {
+        return Ok(out);
+    };
+    let first: Vec<&RunResult> = results
+        .iter()
+        .filter(|r| r.key.bandwidth == bw && r.key.latency == lat && r.key.policy == pol)
+        .collect();
+    let cond = RunKey {
+        capacity: None,
+        bandwidth: bw,
+        latency: lat,
+        policy: pol,
+    }
+    .label();
+    let cond = cond.trim_start_matches("kall_");
+    let series = |f: &dyn Fn(&FrameRow) -> f64| -> Vec<Series> {
+        first
+            .iter()
+            .map(|r| {
+                Series::new(
+                    format!(
+                        "k = {}",
+                        r.key.capacity.map_or("all".into(), |k| k.to_string())
+                    ),
+                    r.rows.iter().map(|x| (x.time, f(x))).collect(),
+                )
+            })
+            .collect()
+    };
+    if !first.is_empty() {
+        let p = line_chart(
+            &dir.join("coarser_over_time"),
+            &PlotOptions::new(
+                &format!("Screen share coarser than target ({cond})"),
+                "time (s)",
+                "coarser share of drawn area",
+            ),
+            &series(&|x| x.coarser_share),
+        )?;
+        out.extend([p.svg, p.png]);
+        let p = line_chart(
+            &dir.join("bytes_per_frame"),
+            &PlotOptions::new(
+                &format!("Bytes loaded per frame ({cond})"),
+                "time (s)",
+                "MB per frame",
+            ),
+            &series(&|x| x.bytes as f64 / 1e6),
+        )?;
+        out.extend([p.svg, p.png]);
+    }
+    for &lat in &spec.latencies {
+        for &pol in &spec.policies {
+            let mut values = Vec::new();
+            for &k in &spec.capacities {
+                for &b in &spec.bandwidths {
+                    let v = results
+                        .iter()
+                        .find(|r| {
+                            r.key.capacity == k
+                                && r.key.bandwidth == b
+                                && r.key.latency == lat
+                                && r.key.policy == pol
+                        })
+                        .map_or(f64::NAN, |r| r.summary.mean_coarser);
+                    values.push(v);
+                }
+            }
+            let map = HeatMap {
+                row_labels: spec
+                    .capacities
+                    .iter()
+                    .map(|k| k.map_or("all".into(), |k| k.to_string()))
+                    .collect(),
+                col_labels: spec
+                    .bandwidths
+                    .iter()
+                    .map(|b| b.map_or("instant".into(), |b| format!("{} MB/s", fmt_num(b / 1e6))))
+                    .collect(),
+                values,
+                decimals: 3,
+                value_range: Some((0.0, 1.0)),
+                value_label: "mean coarser share".into(),
+            };
+            let name = format!("heatmap_{}ms_{}", fmt_num(lat * 1e3), pol.name());
+            let p = heat_map(
+                &dir.join(&name),
+                &PlotOptions::new(
+                    &format!(
+                        "Mean screen share coarser than target ({} ms latency, {} policy)",
+                        fmt_num(lat * 1e3),
+                        pol.name()
+                    ),
+                    "bandwidth",
+                    "capacity k (blocks)",
+                ),
+                &map,
+            )?;
+            out.extend([p.svg, p.png]);
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,332 @@
+//! Paging-budget experiments without a GPU (issue "Paging-budget experiments"): the renderer's very
+//! [`PagingSession`] (select, usage, ideal set, queue, residency) driven by a camera path on a frame clock,
+//! with an optional I/O model in place of the loader threads, and the renderer's screen accounting
+//! ([`resolve_frame`]) in place of the GPU.
+//!
+//! Only the effects a run asks for are modelled: without an [`IoModel`] a block arrives in the frame it is
+//! requested (the local file "as it would deliver"), without a capacity nothing is ever evicted (`k` = all
+//! blocks), without an upload budget everything that arrived becomes resident at once.
+//!
+//! Deterministic: no threads inside a run, no clocks but the frame clock, so the same inputs give the same
+//! rows byte for byte (runs of a grid execute in parallel, each on its own).
+
+use crate::camera::Camera;
+use crate::ids::{BlockId, NodeId};
+use crate::paging::{
+    Arrival, BlockTable, Loader, Pager, PagerOptions, PagingSession, Request, resolve_frame,
+};
+use crate::select::{Cut, select};
+use crate::store::format::NodeRecord;
+use serde::Serialize;
+
+pub mod grid;
+
+/// A transfer model: one pipe of `bandwidth` bytes/s shared by all requests (transfers are serialised in
+/// start order), a fixed `latency` per request (overlapping: requests in flight wait in parallel), an extra
+/// `overhead` per request (HTTP request/response cost), and at most `max_in_flight` requests at once.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct IoModel {
+    /// Bytes per second.
+    pub bandwidth: f64,
+    /// Seconds from request to first byte.
+    pub latency: f64,
+    /// Seconds added per request (e.g. HTTP headers and connection handling).
+    pub overhead: f64,
+    pub max_in_flight: u32,
+}
+
+/// The simulated loader of an [`IoModel`].
+#[derive(Clone, Debug)]
+pub struct ModelLoader {
+    model: IoModel,
+    wanted: Vec<Request>,
+    /// `(block, finish time)` in start order.
+    in_flight: Vec<(BlockId, f64)>,
+    pipe_free_at: f64,
+}
+
+impl ModelLoader {
+    pub fn new(model: IoModel) -> ModelLoader {
+        ModelLoader {
+            model,
+            wanted: Vec::new(),
+            in_flight: Vec::new(),
+            pipe_free_at: 0.0,
+        }
+    }
+}
+
+impl Loader for ModelLoader {
+    fn set_requests(&mut self, wanted: &[Request]) {
+        // Requests in flight that are no longer wanted are cancelled; their pipe time is not returned
+        // (the bytes were on their way).
+        self.in_flight
+            .retain(|(b, _)| wanted.iter().any(|r| r.block == *b));
+        self.wanted.clear();
+        self.wanted.extend(
+            wanted
+                .iter()
+                .filter(|r| !self.in_flight.iter().any(|(b, _)| *b == r.block)),
+        );
+    }
+
+    fn poll(&mut self, now: f64, out: &mut Vec<Arrival>) {
+        let m = self.model;
+        let slots = (m.max_in_flight.max(1) as usize).saturating_sub(self.in_flight.len());
+        for r in self.wanted.drain(..).take(slots) {
+            let start_transfer = (now + m.latency + m.overhead).max(self.pipe_free_at);
+            let finish = start_transfer + r.bytes as f64 / m.bandwidth;
+            self.pipe_free_at = finish;
+            self.in_flight.push((r.block, finish));
+        }
+        self.wanted.clear();
+        let mut i = 0;
+        while i < self.in_flight.len() {
+            if self.in_flight[i].1 <= now + 1e-12 {
+                let (block, _) = self.in_flight.remove(i);
+                out.push(Arrival {
+                    block,
+                    result: Ok(None),
+                });
+            } else {
+                i += 1;
+            }
+        }
+    }
+
+    fn queued(&self) -> u32 {
+        self.wanted.len() as u32
+    }
+
+    fn in_flight(&self) -> u32 {
+        self.in_flight.len() as u32
+    }
+}
+
+/// Without an I/O model: every wanted block arrives in the frame it is requested.
+#[derive(Clone, Debug, Default)]
+pub struct InstantLoader {
+    wanted: Vec<Request>,
+}
+
+impl Loader for InstantLoader {
+    fn set_requests(&mut self, wanted: &[Request]) {
+        self.wanted.clear();
+        self.wanted.extend_from_slice(wanted);
+    }
+
+    fn poll(&mut self, _now: f64, out: &mut Vec<Arrival>) {
+        out.extend(self.wanted.drain(..).map(|r| Arrival {
+            block: r.block,
+            result: Ok(None),
+        }));
+    }
+
+    fn queued(&self) -> u32 {
+        self.wanted.len() as u32
+    }
+
+    fn in_flight(&self) -> u32 {
+        0
+    }
+}
+
+/// One simulated run's settings.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct SimOptions {
+    /// Frame clock, frames per second (the camera path is sampled at `i / fps`).
+    pub fps: f64,
+    /// Pager settings; `capacity` = `u32::MAX` means "no budget" (all blocks may be resident).
+    pub pager: PagerOptions,
+    pub io: Option<IoModel>,
+}
+
+/// One frame of a run (a row of `frames.csv`).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct FrameRow {
+    pub frame: u32,
+    /// Clock, seconds.
+    pub time: f64,
+    pub needed: u32,
+    pub ideal: u32,
+    pub resident: u32,
+    pub queued: u32,
+    pub in_flight: u32,
+    pub loaded: u32,
+    pub bytes: u64,
+    pub evictions: u32,
+    pub ideal_fraction: f64,
+    /// Share of the drawn screen area rendered coarser than the target (see `paging::resolve`).
+    pub coarser_share: f64,
+    /// Mean level gap over the coarser area: the delivered texel-per-pixel ratio there is the target
+    /// divided by 2^gap.
+    pub coarser_gap: f64,
+    /// Frames from this one until the ideal set is next fully resident (−1: never within the run).
+    pub time_to_ideal: i32,
+    pub resident_hash: u64,
+}
+
+/// One run's summary (a row of `summary.csv`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RunSummary {
+    pub frames: u32,
+    pub mean_coarser: f64,
+    pub p95_coarser: f64,
+    pub max_coarser: f64,
+    pub bytes_total: u64,
+    pub loads: u64,
+    pub peak_resident: u32,
+    /// Frames where the ideal set suddenly lost residency (the path "jumped"): the ideal fraction fell by
+    /// at least 0.25 from the previous frame.
+    pub jumps: u32,
+    /// Frames to reach the ideal set again after each jump (−1: not within the run).
+    pub converge_frames: Vec<i32>,
+    /// Frames with at least half of the drawn area coarser than the target.
+    pub stalls: u32,
+    pub cancelled: u64,
+    pub discarded: u64,
+}
+
+/// The tables a simulation needs (from an open file, or hand-made in tests).
+pub struct SimInput<'a> {
+    pub trees: Vec<&'a [NodeRecord]>,
+    pub table: BlockTable,
+}
+
+impl<'a> SimInput<'a> {
+    pub fn from_file(
+        file: &'a crate::store::TreeFile,
+    ) -> Result<SimInput<'a>, crate::paging::BlockTableError> {
+        Ok(SimInput {
+            trees: (0..file.trees())
+                .filter_map(|t| file.tree(t).map(|v| v.nodes))
+                .collect(),
+            table: BlockTable::from_file(file)?,
+        })
+    }
+}
+
+/// Runs `cameras` (one per frame, clock `i / fps`) with the min-distance `scale`; returns one row per
+/// frame and the summary.
+pub fn simulate(
+    input: &SimInput,
+    cameras: &[Camera],
+    scale: f64,
+    opts: &SimOptions,
+) -> Result<(Vec<FrameRow>, RunSummary), crate::paging::PagerError> {
+    simulate_with(input, cameras, scale, opts, &mut |_, _| {})
+}
+
+/// [`simulate`], reporting every residency change (`frame`, event) to `events` — the log the renderer
+/// would apply to the GPU.
+pub fn simulate_with(
+    input: &SimInput,
+    cameras: &[Camera],
+    scale: f64,
+    opts: &SimOptions,
+    events: &mut dyn FnMut(u32, &crate::paging::Event),
+) -> Result<(Vec<FrameRow>, RunSummary), crate::paging::PagerError> {
+    let mut pager_opts = opts.pager;
+    pager_opts.capacity = pager_opts.capacity.min(input.table.len().max(1) as u32);
+    let mut pager = Pager::new(input.table.clone(), pager_opts)?;
+    pager.bootstrap(|_| Ok(None))?;
+    let mut session = PagingSession::new(pager);
+    let mut loader: Box<dyn Loader> = match opts.io {
+        Some(m) => Box::new(ModelLoader::new(m)),
+        None => Box::new(InstantLoader::default()),
+    };
+    let mut cuts = vec![Cut::new(); input.trees.len()];
+    let mut resolved = Vec::new();
+    let mut rows = Vec::with_capacity(cameras.len());
+    for (i, cam) in cameras.iter().enumerate() {
+        let now = i as f64 / opts.fps;
+        let frustum = cam.frustum();
+        for (nodes, cut) in input.trees.iter().zip(cuts.iter_mut()) {
+            select(nodes, cam, &frustum, scale, cut);
+        }
+        let frame = i as u32;
+        let f = session.frame(&input.trees, cam, &frustum, scale, now, &mut *loader, |e| {
+            events(frame, &e)
+        });
+        let pager = &session.pager;
+        let table = pager.table();
+        let coarse = resolve_frame(
+            &input.trees,
+            &cuts,
+            cam,
+            |t, n| table.atlas(t, n).is_some_and(|b| pager.is_resident(b)),
+            |t, n: NodeId| table.originals(t, n).iter().all(|&b| pager.is_resident(b)),
+            &mut resolved,
+        );
+        let s = f.pager;
+        rows.push(FrameRow {
+            frame: i as u32,
+            time: now,
+            needed: s.usage.needed,
+            ideal: s.ideal,
+            resident: s.resident,
+            queued: f.queued,
+            in_flight: f.in_flight,
+            loaded: s.loaded,
+            bytes: s.bytes_loaded,
+            evictions: s.evictions,
+            ideal_fraction: s.ideal_fraction(),
+            coarser_share: coarse.share(),
+            coarser_gap: coarse.mean_gap(),
+            time_to_ideal: -1,
+            resident_hash: crate::paging::resident_fingerprint(pager.resident()),
+        });
+    }
+    fill_time_to_ideal(&mut rows);
+    let t = session.pager.totals();
+    let summary = summarise(&rows, t.cancelled, t.discarded);
+    Ok((rows, summary))
+}
+
+fn fill_time_to_ideal(rows: &mut [FrameRow]) {
+    let mut next_full: Option<usize> = None;
+    for i in (0..rows.len()).rev() {
+        if rows[i].ideal_fraction >= 1.0 {
+            next_full = Some(i);
+        }
+        rows[i].time_to_ideal = next_full.map_or(-1, |j| (j - i) as i32);
+    }
+}
+
+/// Summary statistics of a run's rows (see [`RunSummary`] for the definitions).
+pub fn summarise(rows: &[FrameRow], cancelled: u64, discarded: u64) -> RunSummary {
+    let n = rows.len();
+    let mut shares: Vec<f64> = rows.iter().map(|r| r.coarser_share).collect();
+    shares.sort_by(f64::total_cmp);
+    let p95 = if n == 0 {
+        0.0
+    } else {
+        shares[((n as f64 * 0.95).ceil() as usize).clamp(1, n) - 1]
+    };
+    let mut jumps = 0;
+    let mut converge = Vec::new();
+    for i in 1..n {
+        if rows[i - 1].ideal_fraction - rows[i].ideal_fraction >= 0.25 {
+            jumps += 1;
+            converge.push(rows[i].time_to_ideal);
+        }
+    }
+    RunSummary {
+        frames: n as u32,
+        mean_coarser: if n == 0 {
+            0.0
+        } else {
+            shares.iter().sum::<f64>() / n as f64
+        },
+        p95_coarser: p95,
+        max_coarser: shares.last().copied().unwrap_or(0.0),
+        bytes_total: rows.iter().map(|r| r.bytes).sum(),
+        loads: rows.iter().map(|r| u64::from(r.loaded)).sum(),
+        peak_resident: rows.iter().map(|r| r.resident).max().unwrap_or(0),
+        jumps,
+        converge_frames: converge,
+        stalls: rows.iter().filter(|r| r.coarser_share >= 0.5).count() as u32,
+        cancelled,
+        discarded,
+    }
+}

@@ -1,0 +1,227 @@
+//! The paging simulator on data/city's tree along the overview-dive: determinism (byte-identical CSVs),
+//! conservation (bytes loaded = sizes of the blocks made resident), capacity respected every frame,
+//! monotonicity of the mean coarser share in capacity and bandwidth under the paper's policy, and the
+//! I/O model's timing on a hand-computed case.
+
+use atlastree::build::{BuildOptions, DMin, NoProgress, build};
+use atlastree::camera::{Camera, CameraPath};
+use atlastree::paging::{Event, Policy, UploadBudget};
+use atlastree::select::{SelectOptions, min_distance_scale};
+use atlastree::sim::grid::{GridSpec, run_grid, write_csvs};
+use atlastree::sim::{SimInput, simulate_with};
+use atlastree::store::TreeFile;
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+
+fn city(dir: &Path) -> PathBuf {
+    let scene = atlastree::scene::import(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf"),
+        &Default::default(),
+    )
+    .unwrap();
+    let out = dir.join("city.atlastree");
+    let opts = BuildOptions {
+        d_min: DMin::Ratio(10.0),
+        atlas_size: 512,
+        ..BuildOptions::default()
+    };
+    build(&scene, &opts, &out, &NoProgress).unwrap();
+    out
+}
+
+fn cameras(file: &TreeFile, fps: f64, n: usize) -> Vec<Camera> {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for t in 0..file.trees() {
+        let r = file.tree(t).unwrap().nodes[0];
+        lo = lo.min(r.bounds_min.into());
+        hi = hi.max(r.bounds_max.into());
+    }
+    let path = CameraPath::overview_dive(lo, hi, file.to_params().up).unwrap();
+    path.frames(fps, n)
+        .map(|mut c| {
+            c.aspect = 4.0 / 3.0;
+            c
+        })
+        .collect()
+}
+
+fn scale(file: &TreeFile, cam: &Camera) -> f64 {
+    min_distance_scale(
+        &file.to_params(),
+        &SelectOptions {
+            screen_width: 800,
+            texel_ratio: 1.0,
+            fov_x_deg: cam.fov_x_deg,
+        },
+    )
+    .unwrap()
+}
+
+fn spec(capacities: Vec<Option<u32>>, bandwidths: Vec<Option<f64>>, policy: Policy) -> GridSpec {
+    GridSpec {
+        capacities,
+        bandwidths,
+        latencies: vec![0.0, 0.08],
+        policies: vec![policy],
+        fps: 60.0,
+        max_queue: 8,
+        budget: UploadBudget::Unlimited,
+        max_in_flight: 4,
+        overhead: 0.0,
+    }
+}
+
+#[test]
+fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = city(dir.path());
+    let file = TreeFile::open(&path).unwrap();
+    let cams = cameras(&file, 60.0, 600);
+    let s = scale(&file, &cams[0]);
+    let input = SimInput::from_file(&file).unwrap();
+    let grid = spec(
+        vec![Some(8), Some(24), None],
+        vec![None, Some(5e6), Some(50e6)],
+        Policy::Paper,
+    );
+    let a = run_grid(&input, &cams, s, &grid, &|| {}).unwrap();
+    let b = run_grid(&input, &cams, s, &grid, &|| {}).unwrap();
+    let (da, db) = (dir.path().join("a"), dir.path().join("b"));
+    std::fs::create_dir_all(&da).unwrap();
+    std::fs::create_dir_all(&db).unwrap();
+    write_csvs(&da, &a).unwrap();
+    write_csvs(&db, &b).unwrap();
+    for name in ["frames.csv", "summary.csv"] {
+        let (x, y) = (
+            std::fs::read(da.join(name)).unwrap(),
+            std::fs::read(db.join(name)).unwrap(),
+        );
+        assert!(x.len() > 1000, "{name} is nearly empty");
+        assert!(x == y, "{name} differs between two identical runs");
+    }
+    for r in &a {
+        let k = r.key.capacity.unwrap_or(u32::MAX);
+        for row in &r.rows {
+            assert!(
+                row.resident <= k,
+                "{}: frame {} has {} > k",
+                r.key.label(),
+                row.frame,
+                row.resident
+            );
+        }
+        // Conservation: replay the run with the event log; loaded bytes = sizes of the loaded blocks.
+        let mut loaded = 0u64;
+        let mut resident = std::collections::HashSet::new();
+        let (rows, _) = simulate_with(
+            &input,
+            &cams,
+            s,
+            &grid.options(&r.key),
+            &mut |_, e| match e {
+                Event::Loaded { block, .. } => {
+                    assert!(
+                        resident.insert(*block),
+                        "{block} loaded twice without eviction"
+                    );
+                    loaded += input.table.meta(*block).bytes;
+                }
+                Event::Evicted { block } => {
+                    assert!(resident.remove(block), "{block} evicted but not resident");
+                }
+            },
+        )
+        .unwrap();
+        let bytes: u64 = rows.iter().map(|x| x.bytes).sum();
+        assert_eq!(bytes, loaded, "{}", r.key.label());
+        assert_eq!(rows, r.rows, "{}: replay differs", r.key.label());
+    }
+    // The I/O model costs: at 5 MB/s the same flight is never better than instant arrival.
+    let mean = |cap: Option<u32>, bw: Option<f64>| {
+        a.iter()
+            .find(|r| r.key.capacity == cap && r.key.bandwidth == bw && r.key.latency == 0.0)
+            .unwrap()
+            .summary
+            .mean_coarser
+    };
+    assert!(mean(Some(24), Some(5e6)) >= mean(Some(24), None));
+    assert_eq!(
+        mean(None, None),
+        0.0,
+        "with every block allowed and instant loads nothing is coarser"
+    );
+}
+
+/// More capacity or more bandwidth never gives a *materially* larger mean coarser share under the paper's
+/// policy on this path: tolerance 0.025 (absolute share).
+///
+/// Documented counterexamples (exact runs, printed by this test): at 2 MB/s, k 6 → 12 raises the mean from
+/// 0.805 to 0.822 — with more room, the paper's "culled" and "parent needed" prefetch requests are issued
+/// while nothing needed is missing, and on a slow pipe a needed block requested after a jump waits behind
+/// them (a transfer in flight cannot be taken back, only discarded); at 80 ms latency, 20 → 200 MB/s at
+/// k = 48 goes from 0 to 0.005 — arrivals in a different order change which blocks are evicted.
+#[test]
+fn paper_policy_is_monotone_in_capacity_and_bandwidth() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = city(dir.path());
+    let file = TreeFile::open(&path).unwrap();
+    let cams = cameras(&file, 60.0, 900);
+    let s = scale(&file, &cams[0]);
+    let input = SimInput::from_file(&file).unwrap();
+    let caps = vec![Some(6), Some(12), Some(24), Some(48), None];
+    let bws = vec![Some(2e6), Some(20e6), Some(200e6), None];
+    let grid = spec(caps.clone(), bws.clone(), Policy::Paper);
+    let res = run_grid(&input, &cams, s, &grid, &|| {}).unwrap();
+    let mean = |c: Option<u32>, b: Option<f64>, l: f64| {
+        res.iter()
+            .find(|r| r.key.capacity == c && r.key.bandwidth == b && r.key.latency == l)
+            .unwrap()
+            .summary
+            .mean_coarser
+    };
+    let mut violations = Vec::new();
+    for &l in &grid.latencies {
+        for w in caps.windows(2) {
+            for &b in &bws {
+                if mean(w[1], b, l) > mean(w[0], b, l) + 1e-9 {
+                    violations.push(format!(
+                        "k {:?} → {:?} at {b:?} B/s, {l} s: {} → {}",
+                        w[0],
+                        w[1],
+                        mean(w[0], b, l),
+                        mean(w[1], b, l)
+                    ));
+                }
+            }
+        }
+        for w in bws.windows(2) {
+            for &c in &caps {
+                if mean(c, w[1], l) > mean(c, w[0], l) + 1e-9 {
+                    violations.push(format!(
+                        "bandwidth {:?} → {:?} at k {c:?}, {l} s: {} → {}",
+                        w[0],
+                        w[1],
+                        mean(c, w[0], l),
+                        mean(c, w[1], l)
+                    ));
+                }
+            }
+        }
+    }
+    let material: Vec<&String> = violations
+        .iter()
+        .filter(|v| {
+            let (a, b) = v.rsplit_once(": ").unwrap().1.split_once(" → ").unwrap();
+            b.parse::<f64>().unwrap() - a.parse::<f64>().unwrap() > 0.025
+        })
+        .collect();
+    println!(
+        "exact counterexamples (within tolerance):\n{}",
+        violations.join("\n")
+    );
+    assert!(
+        material.is_empty(),
+        "not monotone beyond 0.025:\n{material:?}"
+    );
+}
