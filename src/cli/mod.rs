@@ -6,6 +6,7 @@ mod inspect_cmd;
 mod progress;
 mod render_cmd;
 mod scene_info;
+mod serve_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::process::ExitCode;
@@ -42,6 +43,14 @@ pub enum Command {
     Inspect(inspect_cmd::InspectArgs),
     /// Render a camera path offscreen with the texture-array-batched renderer; PNGs, contact sheet, stats.csv.
     Render(render_cmd::RenderArgs),
+    /// Serve a paging file over HTTP with range requests (for `render --source http://…`); Ctrl-C stops.
+    ///
+    /// Any static file server that answers `Range: bytes=a-b` with `206 Partial Content` works as well
+    /// (one that ignores ranges works too, slowly: the client cuts each block out of the whole file and
+    /// counts it); this one needs no setup. The file is checked (header, tables, block layout) before
+    /// serving, then served read-only at `http://BIND:PORT/<file name>` until Ctrl-C. Do not rewrite the
+    /// file while it is served.
+    Serve(serve_cmd::ServeArgs),
 }
 
 /// Which axis points up (the other two span the distribution plane).
@@ -84,6 +93,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Build(a) => build_cmd::run(a),
         Command::Inspect(a) => inspect_cmd::run(a),
         Command::Render(a) => render_cmd::run(a),
+        Command::Serve(a) => serve_cmd::run(a),
     }
 }
 
