@@ -16,7 +16,7 @@ use atlastree::store::{StoreError, TreeFile};
 use http_util::{FaultServer, Faults};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 /// A built tree file in a temporary directory.
@@ -27,17 +27,31 @@ struct Fixture {
     file: TreeFile,
 }
 
+/// The bytes of a small built tree (16 blocks, about 1 MB, depth 2), built once per test binary; each
+/// test gets its own copy on disk.
+fn tree_bytes() -> Arc<Vec<u8>> {
+    static BYTES: OnceLock<Arc<Vec<u8>>> = OnceLock::new();
+    BYTES
+        .get_or_init(|| {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("city.atlastree");
+            let opts = BuildOptions {
+                d_min: DMin::Ratio(20.0),
+                atlas_size: 128,
+                max_file_bytes: 1 << 30,
+                ..BuildOptions::default()
+            };
+            build(&small_city(2, 16), &opts, &path, &NoProgress).unwrap();
+            Arc::new(std::fs::read(&path).unwrap())
+        })
+        .clone()
+}
+
 fn fixture() -> Fixture {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("city.atlastree");
-    let opts = BuildOptions {
-        d_min: DMin::Ratio(20.0),
-        atlas_size: 128,
-        max_file_bytes: 1 << 30,
-        ..BuildOptions::default()
-    };
-    build(&small_city(3, 32), &opts, &path, &NoProgress).unwrap();
-    let bytes = Arc::new(std::fs::read(&path).unwrap());
+    let bytes = tree_bytes();
+    std::fs::write(&path, bytes.as_slice()).unwrap();
     let file = TreeFile::open(&path).unwrap();
     assert!(file.blocks().len() >= 8, "{} blocks", file.blocks().len());
     Fixture {
@@ -241,6 +255,11 @@ fn a_server_that_ignores_range_works_and_is_counted() {
     assert_eq!(s.full_responses, s.requests);
     assert_eq!((s.retries, s.failures), (0, 0));
     assert_eq!(server.seen().partial, 0);
+    eprintln!(
+        "{} blocks, {} bytes; {s:?}",
+        fx.file.blocks().len(),
+        fx.bytes.len()
+    );
 }
 
 #[test]

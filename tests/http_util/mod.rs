@@ -123,6 +123,7 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>) {
         match listener.accept() {
             Ok((stream, _)) => {
                 let _ = stream.set_nonblocking(false);
+                let _ = stream.set_nodelay(true);
                 if let Ok(c) = stream.try_clone() {
                     shared.conns.lock().unwrap().push(c);
                 }
