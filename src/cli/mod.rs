@@ -6,6 +6,7 @@ mod inspect_cmd;
 mod progress;
 mod render_cmd;
 mod scene_info;
+mod serve_cmd;
 mod simulate_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
@@ -45,6 +46,14 @@ pub enum Command {
     Render(render_cmd::RenderArgs),
     /// Paging-budget experiments without a GPU: capacity × bandwidth × latency × policy over a camera path.
     Simulate(simulate_cmd::SimulateArgs),
+    /// Serve a paging file over HTTP with range requests (for `render --source http://…`); Ctrl-C stops.
+    ///
+    /// Any static file server that answers `Range: bytes=a-b` with `206 Partial Content` works as well
+    /// (one that ignores ranges works too, slowly: the client cuts each block out of the whole file and
+    /// counts it); this one needs no setup. The file is checked (header, tables, block layout) before
+    /// serving, then served read-only at `http://BIND:PORT/<file name>` until Ctrl-C. Do not rewrite the
+    /// file while it is served.
+    Serve(serve_cmd::ServeArgs),
 }
 
 /// Which axis points up (the other two span the distribution plane).
@@ -88,6 +97,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Inspect(a) => inspect_cmd::run(a),
         Command::Render(a) => render_cmd::run(a),
         Command::Simulate(a) => simulate_cmd::run(a),
+        Command::Serve(a) => serve_cmd::run(a),
     }
 }
 

@@ -1,7 +1,7 @@
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
-use atlastree::paging::{BlockSource, FileSource, PagerOptions};
+use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource, PagerOptions};
 use atlastree::render::{FrameStats, Mode, PagingSetup, Renderer, RendererOptions};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::store::TreeFile;
@@ -21,7 +21,8 @@ use std::sync::Arc;
 /// queued / in flight, bytes loaded, ideal fraction resident, coarser screen share, evictions).
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// The paging file.
+    /// The paging file, or an http(s) URL of one (then blocks are paged over HTTP; `--capacity` defaults
+    /// to all blocks).
     pub file: PathBuf,
     /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
     #[arg(long, default_value = "overview-dive")]
@@ -83,7 +84,22 @@ fn block_source(source: &str, file: &TreeFile) -> anyhow::Result<Arc<dyn BlockSo
             .with_context(|| format!("reopening {}", file.path().display()))?;
         return Ok(Arc::new(FileSource::new(Arc::new(reopened))));
     }
+    if is_url(source) {
+        let (tables, http) = HttpSource::open(source, HttpOptions::default())
+            .with_context(|| format!("opening {source}"))?;
+        if tables.header().file_len != file.header().file_len || tables.blocks() != file.blocks() {
+            bail!(
+                "{source} is not the same paging file as {} (block tables differ)",
+                file.path().display()
+            );
+        }
+        return Ok(Arc::new(http));
+    }
     bail!("unknown --source {source:?}: expected `file` or an http:// URL")
+}
+
+fn is_url(s: &str) -> bool {
+    s.starts_with("http://") || s.starts_with("https://")
 }
 
 pub(crate) fn scene_bounds(file: &TreeFile) -> Option<(DVec3, DVec3)> {
@@ -121,7 +137,21 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     if a.frames == 0 || !(a.fps.is_finite() && a.fps > 0.0) {
         bail!("--frames must be > 0 and --fps finite and > 0");
     }
-    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let name = a.file.to_string_lossy().to_string();
+    let remote = is_url(&name);
+    let (file, http) = if remote {
+        let (tables, source) = HttpSource::open(&name, HttpOptions::default())
+            .with_context(|| format!("opening {name}"))?;
+        (tables, Some(Arc::new(source)))
+    } else {
+        let f = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+        (f, None)
+    };
+    let capacity = match (a.capacity, remote) {
+        (Some(k), _) => Some(k),
+        (None, true) => Some(file.blocks().len() as u32),
+        (None, false) => None,
+    };
     let params = file.to_params();
     let (lo, hi) = scene_bounds(&file).context("the file has no nodes")?;
     let kind: PathKind = a.path.parse()?;
@@ -143,10 +173,13 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         height: a.height,
         gpu_timing: !a.no_gpu_timing,
     };
-    let mut renderer = match a.capacity {
+    let mut renderer = match capacity {
         None => Renderer::new(&ctx, &file, ropts)?,
         Some(k) => {
-            let source = block_source(&a.source, &file)?;
+            let source: Arc<dyn BlockSource> = match &http {
+                Some(h) => h.clone(),
+                None => block_source(&a.source, &file)?,
+            };
             println!(
                 "paging: k = {k}, source {}, policy {}",
                 source.name(),

@@ -14,6 +14,7 @@
 //! drive the same [`Pager`].
 
 pub mod blocks;
+pub mod http;
 pub mod loader;
 pub mod pager;
 pub mod policy;
@@ -23,6 +24,7 @@ pub mod source;
 pub mod usage;
 
 pub use blocks::{BlockItem, BlockMeta, BlockTable, BlockTableError};
+pub use http::{HttpOptions, HttpSource, HttpStats};
 pub use loader::{ImmediateLoader, Loader, ThreadedLoader};
 pub use pager::{
     Arrival, Event, Pager, PagerError, PagerFrameStats, PagerOptions, PagerTotals, Request,

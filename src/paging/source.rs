@@ -35,6 +35,17 @@ pub enum SourceError {
         attempts: u32,
         message: String,
     },
+    /// Opening a remote file: its header or tables could not be fetched (after all retries).
+    #[error(
+        "{url}: reading the tables (bytes {offset}..+{len}) failed after {attempts} attempts: {message}"
+    )]
+    Tables {
+        url: String,
+        offset: u64,
+        len: u64,
+        attempts: u32,
+        message: String,
+    },
     /// The bytes arrived but are too short or too long.
     #[error("{source_name}: {block}: expected {expected} bytes, got {got}")]
     Length {

@@ -102,6 +102,10 @@ pub enum StoreError {
         expected: u64,
         got: u64,
     },
+    #[error(
+        "{path}: {block} is not held: this file was opened from its tables only; blocks come from a block source"
+    )]
+    BlocksNotHeld { path: PathBuf, block: BlockId },
     #[error("{block} written twice")]
     BlockWrittenTwice { block: BlockId },
     #[error("{block} was never written")]

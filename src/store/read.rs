@@ -4,7 +4,7 @@
 use super::format::{
     BLOCK_ALIGN, BlockRecord, FORMAT_VERSION, HEADER_SIZE, Header, KNOWN_FLAGS, LeafRecord, MAGIC,
     MaterialRecord, NodeRecord, OriginalRecord, ParamsRecord, Range64, RectRecord, SECTION_ALIGN,
-    SECTION_COUNT, Section, TreeRecord,
+    SECTION_COUNT, Section, TreeRecord, align_up,
 };
 use super::validate::{self, TreeCounts, TreeTables};
 use super::{StoreError, check_endian};
@@ -94,6 +94,8 @@ pub struct TreeFile {
     path: PathBuf,
     backing: Backing,
     header: Header,
+    /// False for a table prefix ([`TreeFile::from_prefix`]): blocks come from a `BlockSource`.
+    holds_blocks: bool,
 }
 
 /// One tree of a file: its tables as slices into the file. Ids are tree-local.
@@ -193,8 +195,8 @@ fn checksum(what: String, expected: u64, bytes: &[u8]) -> Result<(), StoreError>
     }
 }
 
-/// Magic, version, header checksum, constants, file length.
-fn check_header(path: &Path, bytes: &[u8]) -> Result<Header, StoreError> {
+/// Magic, version, header checksum, constants (not the file length: see [`check_file_len`]).
+fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, StoreError> {
     let len = bytes.len() as u64;
     if let Some(magic) = bytes.get(..MAGIC.len())
         && magic != MAGIC
@@ -244,6 +246,12 @@ fn check_header(path: &Path, bytes: &[u8]) -> Result<Header, StoreError> {
             });
         }
     }
+    Ok(header)
+}
+
+/// The file is exactly as long as the header says (`len` is the whole file's length, also when only a
+/// prefix of it is in memory).
+fn check_file_len(path: &Path, header: &Header, len: u64) -> Result<(), StoreError> {
     if len < header.file_len {
         return Err(StoreError::Truncated {
             path: path.to_path_buf(),
@@ -259,12 +267,20 @@ fn check_header(path: &Path, bytes: &[u8]) -> Result<Header, StoreError> {
             expected,
         });
     }
-    Ok(header)
+    Ok(())
+}
+
+/// End of the last section (the tables), from the header alone; `None` on overflow.
+fn sections_end(header: &Header) -> Option<u64> {
+    (header.sections.iter()).try_fold(HEADER_SIZE as u64, |end, e| {
+        Some(end.max(e.offset.checked_add(e.length)?))
+    })
 }
 
 /// Each section: kind, record size, alignment, length = count × record size, order, bounds, zero gaps,
-/// checksum. Returns the end of the tables.
-fn check_sections(header: &Header, bytes: &[u8]) -> Result<u64, StoreError> {
+/// checksum. Returns the end of the tables. `bytes` may be a prefix of the file (see
+/// [`TreeFile::from_prefix`]); a section inside the file but past the prefix is reported as truncation.
+fn check_sections(path: &Path, header: &Header, bytes: &[u8]) -> Result<u64, StoreError> {
     let file_len = header.file_len;
     let mut prev_end = HEADER_SIZE as u64;
     for (i, s) in Section::ALL.iter().enumerate() {
@@ -301,12 +317,28 @@ fn check_sections(header: &Header, bytes: &[u8]) -> Result<u64, StoreError> {
         if e.offset < prev_end {
             return Err(layout("offset", e.offset, prev_end));
         }
-        let data = slice_at(bytes, e.offset, e.length).ok_or(StoreError::SectionOutOfBounds {
-            section,
-            offset: e.offset,
-            len: e.length,
-            file_len,
-        })?;
+        let end = e
+            .offset
+            .checked_add(e.length)
+            .filter(|&end| end <= file_len);
+        let data = match (slice_at(bytes, e.offset, e.length), end) {
+            (Some(data), _) => data,
+            (None, Some(end)) => {
+                return Err(StoreError::Truncated {
+                    path: path.to_path_buf(),
+                    len: bytes.len() as u64,
+                    needed: end,
+                });
+            }
+            (None, None) => {
+                return Err(StoreError::SectionOutOfBounds {
+                    section,
+                    offset: e.offset,
+                    len: e.length,
+                    file_len,
+                });
+            }
+        };
         check_zero(bytes, prev_end, e.offset)?;
         checksum(format!("section {section}"), e.checksum, data)?;
         prev_end = e.offset + e.length;
@@ -324,13 +356,14 @@ fn check_sections(header: &Header, bytes: &[u8]) -> Result<u64, StoreError> {
 }
 
 /// Block placement: after the tables, 4 KiB aligned, in id order without overlap, inside the file, and the
-/// file ends where the last block ends. The gap from the tables to the first block must be zero.
+/// file ends where the last block ends. The gap from the tables to the first block must be zero (checked as
+/// far as `bytes` reaches: all of it for a whole file, up to the prefix's end for a table prefix).
 fn check_block_layout(
     blocks: &[BlockRecord],
     tables_end: u64,
     bytes: &[u8],
+    file_len: u64,
 ) -> Result<(), StoreError> {
-    let file_len = bytes.len() as u64;
     let mut prev_end = tables_end;
     for (i, b) in blocks.iter().enumerate() {
         let block = BlockId(i as u32);
@@ -410,16 +443,61 @@ impl TreeFile {
         Self::from_backing(PathBuf::from("<memory>"), Backing::copy_of(bytes))
     }
 
+    /// Validates the tables of a file whose blocks are elsewhere (a server): `bytes` is the file's prefix
+    /// (at least [`TreeFile::prefix_len`] bytes: header and every section), `file_len` the whole file's
+    /// length, `name` what errors and [`TreeFile::path`] call it (a URL). Validation is exactly
+    /// [`TreeFile::open_with`]'s, except that bytes past the prefix (the blocks, and any zero gap beyond
+    /// it) are not checked; [`TreeFile::block`] then fails with [`StoreError::BlocksNotHeld`] — blocks
+    /// come from a `paging::BlockSource`, which verifies each on arrival.
+    pub fn from_prefix(bytes: &[u8], file_len: u64, name: &str) -> Result<TreeFile, StoreError> {
+        check_endian()?;
+        let path = PathBuf::from(name);
+        if bytes.len() as u64 > file_len {
+            return Err(StoreError::TrailingBytes {
+                path,
+                len: bytes.len() as u64,
+                expected: file_len,
+            });
+        }
+        Self::validate(path, Backing::copy_of(bytes), file_len, false)
+    }
+
+    /// How many leading bytes of a file [`TreeFile::from_prefix`] needs, from its first [`HEADER_SIZE`]
+    /// bytes (checked: magic, version, checksum, constants): the end of the tables rounded up to
+    /// [`BLOCK_ALIGN`] (where the writer puts the first block, so the zero gap is checked too), at most the
+    /// file length.
+    pub fn prefix_len(header_bytes: &[u8]) -> Result<u64, StoreError> {
+        check_endian()?;
+        let header = parse_header(Path::new("<header>"), header_bytes)?;
+        let end = sections_end(&header)
+            .and_then(|end| align_up(end, BLOCK_ALIGN))
+            .ok_or(StoreError::LayoutOverflow { what: "sections" })?;
+        Ok(end.min(header.file_len))
+    }
+
     fn from_backing(path: PathBuf, backing: Backing) -> Result<TreeFile, StoreError> {
+        let len = backing.bytes().len() as u64;
+        Self::validate(path, backing, len, true)
+    }
+
+    /// The validation shared by whole files and table prefixes; `file_len` is the whole file's length.
+    fn validate(
+        path: PathBuf,
+        backing: Backing,
+        file_len: u64,
+        holds_blocks: bool,
+    ) -> Result<TreeFile, StoreError> {
         let bytes = backing.bytes();
-        let header = check_header(&path, bytes)?;
-        let tables_end = check_sections(&header, bytes)?;
+        let header = parse_header(&path, bytes)?;
+        check_file_len(&path, &header, file_len)?;
+        let tables_end = check_sections(&path, &header, bytes)?;
         let file = TreeFile {
             path,
             backing,
             header,
+            holds_blocks,
         };
-        check_block_layout(file.blocks(), tables_end, file.bytes())?;
+        check_block_layout(file.blocks(), tables_end, file.bytes(), file_len)?;
         file.check_tables()?;
         Ok(file)
     }
@@ -504,9 +582,15 @@ impl TreeFile {
         bytemuck::try_cast_slice(bytes).unwrap_or(&[])
     }
 
-    /// The path the file was opened from (`<memory>` for [`TreeFile::from_bytes`]).
+    /// The path the file was opened from (`<memory>` for [`TreeFile::from_bytes`], the name given to
+    /// [`TreeFile::from_prefix`], e.g. a URL).
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// False for a file opened from its tables only ([`TreeFile::from_prefix`]).
+    pub fn holds_blocks(&self) -> bool {
+        self.holds_blocks
     }
 
     /// True if the file is memory-mapped (false: read into memory).
@@ -586,6 +670,7 @@ impl TreeFile {
     }
 
     /// The bytes of block `id`, after checking them against the block's checksum (the paging read).
+    /// Fails with [`StoreError::BlocksNotHeld`] on a table prefix ([`TreeFile::from_prefix`]).
     pub fn block(&self, id: BlockId) -> Result<&[u8], StoreError> {
         let blocks = self.blocks();
         let b = blocks.get(id.idx()).ok_or(StoreError::BadReference {
@@ -595,6 +680,12 @@ impl TreeFile {
             value: id.0.into(),
             limit: blocks.len() as u64,
         })?;
+        if !self.holds_blocks {
+            return Err(StoreError::BlocksNotHeld {
+                path: self.path.clone(),
+                block: id,
+            });
+        }
         let bytes =
             slice_at(self.bytes(), b.offset, b.length).ok_or(StoreError::BlockOutOfBounds {
                 block: id,

@@ -28,6 +28,10 @@ pub fn tests() -> Vec<GpuTest> {
             name: "paging::simulator_resident_sets_match_the_renderer",
             run: simulator_resident_sets_match_the_renderer,
         },
+        GpuTest {
+            name: "paging::over_http_with_the_server_stopped_and_restarted",
+            run: over_http_with_the_server_stopped_and_restarted,
+        },
     ]
 }
 
@@ -228,5 +232,93 @@ fn simulator_resident_sets_match_the_renderer(ctx: &GpuContext) -> Result<(), St
             ));
         }
     }
+    Ok(())
+}
+
+/// The same flight with blocks over HTTP from `atlastree serve`'s server on 127.0.0.1 (two loader
+/// threads): frames stay under k and fully drawn; the server is stopped mid-path — frames keep coming,
+/// loads fail and are counted, nothing panics, residency stays bounded — and restarted, after which the
+/// stopped camera's frame converges to the all-resident image.
+fn over_http_with_the_server_stopped_and_restarted(ctx: &GpuContext) -> Result<(), String> {
+    use atlastree::paging::http::serve;
+    use atlastree::paging::{HttpOptions, HttpSource};
+    use std::time::Duration;
+    let dir = tempfile::tempdir().map_err(e)?;
+    let path = build_city(dir.path())?;
+    let file = TreeFile::open(&path).map_err(e)?;
+    let server = serve::spawn(&path, "127.0.0.1:0".parse().map_err(e)?).map_err(e)?;
+    let addr = server.addr();
+    let url = server.url().to_string();
+    let opts = HttpOptions {
+        connect_timeout: Duration::from_millis(300),
+        timeout: Duration::from_secs(5),
+        retries: 1,
+        backoff_initial: Duration::from_millis(10),
+        backoff_max: Duration::from_millis(40),
+    };
+    let (tables, http) = HttpSource::open(&url, opts).map_err(e)?;
+    if tables.blocks() != file.blocks() {
+        return Err("the served file's block table differs".into());
+    }
+    let http = Arc::new(http);
+    let k = 12;
+    let mut p = paged(&ctx, &tables, k, UploadBudget::Unlimited, http.clone(), 2)?;
+    let mut full = renderer(ctx, &file)?;
+    let cams = dive_cameras(&file, 24)?;
+    let mut failures = 0u32;
+    let mut server = Some(server);
+    let mut coarser_while_down = 0;
+    for (i, cam) in cams.iter().enumerate() {
+        if i == 8 {
+            if let Some(s) = server.take() {
+                s.shutdown();
+            }
+        }
+        p.set_clock(i as f64 / 30.0);
+        let (coarser, _, _) = check_frame(&mut p, &mut full, &tables, cam, k, i)?;
+        let stats = p.pager().map(|pg| *pg.frame_stats()).ok_or("no pager")?;
+        failures += stats.failures;
+        if stats.staged > 4 {
+            return Err(format!(
+                "frame {i}: {} blocks staged > max_queue",
+                stats.staged
+            ));
+        }
+        if server.is_none() && coarser {
+            coarser_while_down += 1;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    if failures == 0 || !http.stats().is_failing() && http.stats().failures == 0 {
+        return Err(format!(
+            "no load failed while the server was down: {:?}",
+            http.stats()
+        ));
+    }
+    // Restart on the same address; stop the camera; the frame must converge to the all-resident one.
+    let server = serve::spawn(&path, addr).map_err(e)?;
+    let last = cams.last().ok_or("no cameras")?;
+    let mut converged = None;
+    for j in 0..200 {
+        let (coarser, img, full_img) =
+            check_frame(&mut p, &mut full, &tables, last, k, cams.len() + j)?;
+        if !coarser && img == full_img {
+            converged = Some(j);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    server.shutdown();
+    let Some(j) = converged else {
+        return Err(format!(
+            "no convergence after the restart: {:?}, http {:?}",
+            p.pager().map(|pg| *pg.frame_stats()),
+            http.stats()
+        ));
+    };
+    println!(
+        "    server down from frame 8: {failures} failed loads, {coarser_while_down} coarser frames while down; converged {j} frames after restart; http {:?}",
+        http.stats()
+    );
     Ok(())
 }

@@ -1,0 +1,68 @@
+use anyhow::Context;
+use atlastree::paging::http::serve;
+use atlastree::store::TreeFile;
+use atlastree::util::human_bytes;
+use clap::Args;
+use std::io::Write;
+use std::net::{IpAddr, SocketAddr};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+// The command's help text is the doc comment of `Command::Serve` (src/cli/mod.rs).
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    /// A paging file written by `atlastree build`.
+    pub file: PathBuf,
+    /// TCP port; 0 picks a free one (printed).
+    #[arg(long, default_value_t = 8077)]
+    pub port: u16,
+    /// Address to listen on. The default serves this machine only; `0.0.0.0` serves the network.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub bind: IpAddr,
+    /// Print one JSON line `{"url", "addr", "blocks", "file_bytes"}` instead of text (for scripts: read
+    /// the first line of stdout to get the URL).
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
+    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let (blocks, file_bytes) = (file.blocks().len(), file.file_len());
+    drop(file);
+    let server = serve::spawn(&a.file, SocketAddr::new(a.bind, a.port))?;
+    if a.json {
+        let line = serde_json::json!({
+            "url": server.url(),
+            "addr": server.addr().to_string(),
+            "blocks": blocks,
+            "file_bytes": file_bytes,
+        });
+        println!("{line}");
+    } else {
+        println!(
+            "serving {} ({blocks} blocks, {}) at {}",
+            a.file.display(),
+            human_bytes(file_bytes),
+            server.url()
+        );
+        println!("press Ctrl-C to stop");
+    }
+    std::io::stdout().flush()?;
+    wait_for_ctrl_c()?;
+    server.shutdown();
+    if !a.json {
+        println!("stopped");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Blocks until SIGINT (Ctrl-C).
+fn wait_for_ctrl_c() -> anyhow::Result<()> {
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_io()
+        .build()
+        .context("starting the signal handler")?;
+    runtime
+        .block_on(tokio::signal::ctrl_c())
+        .context("waiting for Ctrl-C")
+}

@@ -1,0 +1,492 @@
+//! [`HttpSource`]: the paging file's blocks from any HTTP/1.1 static file server, by range requests.
+//!
+//! Policy, per fetch (one block, or the tables at open):
+//! - one `GET` with `Range: bytes=a-b`; a `206` must carry `Content-Range: bytes a-b/…` and exactly
+//!   `b - a + 1` body bytes;
+//! - a `200` (a server that ignores `Range`) is accepted: the body is streamed, the bytes before `a` are
+//!   skipped, the range is kept, the rest is not read (the connection is dropped). Counted in
+//!   [`HttpStats::full_responses`] so a misconfigured server shows up in the stats;
+//! - retried, up to [`HttpOptions::retries`] times with exponential backoff (deterministic jitter):
+//!   connection and timeout errors, `5xx`, short or broken bodies;
+//! - not retried: `4xx` and other statuses, a `206` for another range, a checksum mismatch (the server
+//!   holds other bytes than the tables describe: asking again gives the same bytes; the pager may ask again
+//!   later).
+//!
+//! Every attempt is bounded by [`HttpOptions::connect_timeout`] and [`HttpOptions::timeout`], so a fetch
+//! ends within about `(retries + 1) × timeout + Σ backoff`; against a stopped server (connection refused)
+//! within `Σ backoff`.
+
+use super::super::source::{BlockSource, SourceError, verify};
+use crate::ids::BlockId;
+use crate::store::TreeFile;
+use crate::store::format::{BlockRecord, HEADER_SIZE, Header};
+use std::io::Read;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+/// Timeouts and retry policy of an [`HttpSource`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct HttpOptions {
+    /// Limit on establishing a connection (a dead host fails this fast).
+    pub connect_timeout: Duration,
+    /// Limit on one whole request: connect, send, receive headers and body.
+    pub timeout: Duration,
+    /// Attempts after the first for a retryable failure (0: no retry).
+    pub retries: u32,
+    /// Wait before the first retry; doubled per retry, times a jitter factor in [0.5, 1].
+    pub backoff_initial: Duration,
+    /// Upper bound on one wait.
+    pub backoff_max: Duration,
+}
+
+impl Default for HttpOptions {
+    /// 2 s to connect, 30 s per request, 3 retries, backoff 100 ms doubling up to 2 s.
+    fn default() -> Self {
+        HttpOptions {
+            connect_timeout: Duration::from_secs(2),
+            timeout: Duration::from_secs(30),
+            retries: 3,
+            backoff_initial: Duration::from_millis(100),
+            backoff_max: Duration::from_secs(2),
+        }
+    }
+}
+
+/// What an [`HttpSource`] has done so far (a snapshot of its atomic counters).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct HttpStats {
+    /// HTTP requests sent: every attempt, the tables' included.
+    pub requests: u64,
+    /// Attempts repeated after a retryable failure.
+    pub retries: u64,
+    /// Fetches (a block, or the tables at open) that failed after all their attempts.
+    pub failures: u64,
+    /// Body bytes received over all attempts (skipped bytes of `200` answers included).
+    pub bytes: u64,
+    /// Blocks delivered and verified.
+    pub blocks: u64,
+    /// `200` answers to a range request (the server ignores `Range`; the range was cut from the stream).
+    pub full_responses: u64,
+    /// Blocks whose bytes did not match their checksum (not retried).
+    pub checksum_failures: u64,
+    /// Failed fetches since the last successful one: non-zero means "source failing, drawing coarser".
+    pub consecutive_failures: u64,
+}
+
+impl HttpStats {
+    /// True while the latest fetch failed.
+    pub fn is_failing(&self) -> bool {
+        self.consecutive_failures > 0
+    }
+}
+
+/// The live counters behind [`HttpStats`].
+#[derive(Default)]
+struct Counters {
+    requests: AtomicU64,
+    retries: AtomicU64,
+    failures: AtomicU64,
+    bytes: AtomicU64,
+    blocks: AtomicU64,
+    full_responses: AtomicU64,
+    checksum_failures: AtomicU64,
+    consecutive_failures: AtomicU64,
+}
+
+fn bump(counter: &AtomicU64, by: u64) {
+    counter.fetch_add(by, Ordering::Relaxed);
+}
+
+impl Counters {
+    fn snapshot(&self) -> HttpStats {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        HttpStats {
+            requests: get(&self.requests),
+            retries: get(&self.retries),
+            failures: get(&self.failures),
+            bytes: get(&self.bytes),
+            blocks: get(&self.blocks),
+            full_responses: get(&self.full_responses),
+            checksum_failures: get(&self.checksum_failures),
+            consecutive_failures: get(&self.consecutive_failures),
+        }
+    }
+
+    fn outcome(&self, ok: bool) {
+        if ok {
+            self.consecutive_failures.store(0, Ordering::Relaxed);
+        } else {
+            bump(&self.failures, 1);
+            bump(&self.consecutive_failures, 1);
+        }
+    }
+}
+
+/// Why one attempt failed.
+#[derive(Debug)]
+enum Failure {
+    /// Connection, timeout, protocol or body read error.
+    Transport(String),
+    /// A request that cannot succeed as built (bad URL, too many redirects, TLS setup).
+    Request(String),
+    /// An unexpected status.
+    Status(u16),
+    /// The body ended early (or the file is shorter than the range).
+    Short { got: u64 },
+    /// A `206` for another range than asked for.
+    WrongRange(String),
+}
+
+impl Failure {
+    fn retryable(&self) -> bool {
+        match self {
+            Failure::Transport(_) | Failure::Short { .. } => true,
+            Failure::Status(status) => *status >= 500,
+            Failure::Request(_) | Failure::WrongRange(_) => false,
+        }
+    }
+
+    fn from_ureq(e: ureq::Error) -> Failure {
+        use ureq::Error as E;
+        match e {
+            E::Http(_)
+            | E::BadUri(_)
+            | E::InvalidProxyUrl
+            | E::TooManyRedirects
+            | E::RedirectFailed
+            | E::RequireHttpsOnly(_) => Failure::Request(e.to_string()),
+            _ => Failure::Transport(e.to_string()),
+        }
+    }
+
+    fn message(&self, expected: u64) -> String {
+        match self {
+            Failure::Transport(m) | Failure::Request(m) => m.clone(),
+            Failure::Status(s) => format!("HTTP status {s}"),
+            Failure::Short { got } => format!("got {got} of {expected} bytes"),
+            Failure::WrongRange(m) => m.clone(),
+        }
+    }
+}
+
+/// The bytes of one successful range request.
+struct Ranged {
+    bytes: Vec<u8>,
+    /// The file's length as the server reports it (`Content-Range` total, or a `200`'s length).
+    total: Option<u64>,
+}
+
+/// A [`BlockSource`] reading blocks from `url` with HTTP range requests. Cheap to share between loader
+/// threads (`Arc<HttpSource>`); connections are pooled.
+pub struct HttpSource {
+    url: String,
+    agent: ureq::Agent,
+    options: HttpOptions,
+    file_len: u64,
+    counters: Counters,
+}
+
+impl HttpSource {
+    /// Opens the paging file at `url` (`http://host:port/path`): fetches its header, then its tables
+    /// (everything before the first block) with range requests, and validates them exactly as a local open
+    /// does. Returns the table-only file (its [`TreeFile::block`] fails: blocks come from the source) and
+    /// the source. Errors: [`SourceError::Tables`] when the server cannot deliver the bytes,
+    /// [`SourceError::Store`] when they are not a valid paging file (or the server's length differs from
+    /// the header's).
+    pub fn open(url: &str, options: HttpOptions) -> Result<(TreeFile, HttpSource), SourceError> {
+        let mut source = HttpSource::new(url, options);
+        let head = source.get_tables(0, HEADER_SIZE as u64)?;
+        let store_err = |error| SourceError::Store {
+            source_name: url.to_string(),
+            error,
+        };
+        let prefix_len = TreeFile::prefix_len(&head.bytes).map_err(store_err)?;
+        let header: Header = bytemuck::pod_read_unaligned(&head.bytes[..HEADER_SIZE]);
+        let prefix = source.get_tables(0, prefix_len)?;
+        let file_len = prefix.total.or(head.total).unwrap_or(header.file_len);
+        let file = TreeFile::from_prefix(&prefix.bytes, file_len, url).map_err(store_err)?;
+        source.file_len = file_len;
+        Ok((file, source))
+    }
+
+    fn new(url: &str, options: HttpOptions) -> HttpSource {
+        let config = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_connect(Some(options.connect_timeout))
+            .timeout_global(Some(options.timeout))
+            .max_idle_connections_per_host(16)
+            .user_agent(concat!("atlastree/", env!("CARGO_PKG_VERSION")))
+            .build();
+        HttpSource {
+            url: url.to_string(),
+            agent: config.into(),
+            options,
+            file_len: 0,
+            counters: Counters::default(),
+        }
+    }
+
+    /// The URL blocks are read from.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+
+    /// Length of the remote file, bytes.
+    pub fn file_len(&self) -> u64 {
+        self.file_len
+    }
+
+    /// The options in force.
+    pub fn options(&self) -> &HttpOptions {
+        &self.options
+    }
+
+    /// A snapshot of the counters (relaxed loads: fields may be from slightly different instants).
+    pub fn stats(&self) -> HttpStats {
+        self.counters.snapshot()
+    }
+
+    /// `len` bytes at `offset` for the tables, with retries; failures become [`SourceError::Tables`].
+    fn get_tables(&self, offset: u64, len: u64) -> Result<Ranged, SourceError> {
+        let result = self.get_with_retries(offset, len, u64::MAX);
+        self.counters.outcome(result.is_ok());
+        result.map_err(|(failure, attempts)| SourceError::Tables {
+            url: self.url.clone(),
+            offset,
+            len,
+            attempts,
+            message: failure.message(len),
+        })
+    }
+
+    /// One range with retries. `seed` varies the backoff jitter (the block id), so loader threads that
+    /// fail together do not retry in lockstep. Errors carry the number of attempts made.
+    fn get_with_retries(&self, offset: u64, len: u64, seed: u64) -> Result<Ranged, (Failure, u32)> {
+        let mut attempt = 0u32;
+        loop {
+            match self.get_range(offset, len) {
+                Ok(r) => return Ok(r),
+                Err(f) if f.retryable() && attempt < self.options.retries => {
+                    bump(&self.counters.retries, 1);
+                    std::thread::sleep(backoff(&self.options, attempt, seed));
+                    attempt += 1;
+                }
+                Err(f) => return Err((f, attempt + 1)),
+            }
+        }
+    }
+
+    /// One `GET` of bytes `offset..offset + len` (`len > 0`).
+    fn get_range(&self, offset: u64, len: u64) -> Result<Ranged, Failure> {
+        bump(&self.counters.requests, 1);
+        let last = offset + len - 1;
+        let response = (self.agent.get(&self.url))
+            .header("Range", format!("bytes={offset}-{last}"))
+            .call()
+            .map_err(Failure::from_ureq)?;
+        let status = response.status().as_u16();
+        let content_range = (response.headers().get("content-range"))
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_owned);
+        let content_length = response.body().content_length();
+        let mut body = response.into_body().into_reader();
+        match status {
+            206 => {
+                let total = check_content_range(content_range.as_deref(), offset, last)?;
+                let bytes = self.read_len(&mut body, len)?;
+                Ok(Ranged { bytes, total })
+            }
+            200 => {
+                bump(&self.counters.full_responses, 1);
+                self.skip(&mut body, offset)?;
+                let bytes = self.read_len(&mut body, len)?;
+                Ok(Ranged {
+                    bytes,
+                    total: content_length,
+                })
+            }
+            s => Err(Failure::Status(s)),
+        }
+    }
+
+    /// Exactly `len` bytes of `body` (a longer body is cut: its extra bytes are never read).
+    fn read_len(&self, body: &mut impl Read, len: u64) -> Result<Vec<u8>, Failure> {
+        let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
+        let read = body.take(len).read_to_end(&mut bytes);
+        bump(&self.counters.bytes, bytes.len() as u64);
+        read.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
+        match bytes.len() as u64 {
+            got if got == len => Ok(bytes),
+            got => Err(Failure::Short { got }),
+        }
+    }
+
+    /// Discards the first `n` bytes of a `200` body.
+    fn skip(&self, body: &mut impl Read, n: u64) -> Result<(), Failure> {
+        let skipped = std::io::copy(&mut body.take(n), &mut std::io::sink());
+        let skipped = skipped.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
+        bump(&self.counters.bytes, skipped);
+        if skipped < n {
+            return Err(Failure::Short { got: 0 });
+        }
+        Ok(())
+    }
+
+    fn block_error(
+        &self,
+        id: BlockId,
+        record: &BlockRecord,
+        f: Failure,
+        attempts: u32,
+    ) -> SourceError {
+        let (url, offset, len) = (self.url.clone(), record.offset, record.length);
+        match f {
+            Failure::Status(status) => SourceError::Status {
+                url,
+                block: id,
+                status,
+                offset,
+                len,
+            },
+            Failure::Short { got } => SourceError::Length {
+                source_name: url,
+                block: id,
+                expected: len,
+                got,
+            },
+            f => SourceError::Transport {
+                message: f.message(len),
+                url,
+                block: id,
+                attempts,
+            },
+        }
+    }
+
+    fn fetch_verified(&self, id: BlockId, record: &BlockRecord) -> Result<Vec<u8>, SourceError> {
+        if record.length == 0 {
+            verify(&self.url, id, record, &[])?;
+            return Ok(Vec::new());
+        }
+        let ranged = self
+            .get_with_retries(record.offset, record.length, id.0.into())
+            .map_err(|(f, attempts)| self.block_error(id, record, f, attempts))?;
+        let verified = verify(&self.url, id, record, &ranged.bytes);
+        if let Err(SourceError::Checksum { .. }) = verified {
+            bump(&self.counters.checksum_failures, 1);
+        }
+        verified.map(|()| ranged.bytes)
+    }
+}
+
+impl BlockSource for HttpSource {
+    fn name(&self) -> String {
+        self.url.clone()
+    }
+
+    /// Fetches and verifies block `id` (see the module docs for the retry policy). Blocking; call it from
+    /// a loader thread.
+    fn fetch(&self, id: BlockId, record: &BlockRecord) -> Result<Vec<u8>, SourceError> {
+        let result = self.fetch_verified(id, record);
+        self.counters.outcome(result.is_ok());
+        if result.is_ok() {
+            bump(&self.counters.blocks, 1);
+        }
+        result
+    }
+}
+
+/// Checks `Content-Range: bytes first-last/total` against the range asked for; returns the total (`None`
+/// for `*`).
+fn check_content_range(
+    header: Option<&str>,
+    first: u64,
+    last: u64,
+) -> Result<Option<u64>, Failure> {
+    let wrong = || {
+        Failure::WrongRange(format!(
+            "206 with Content-Range {header:?}, expected bytes {first}-{last}/…"
+        ))
+    };
+    let spec = header
+        .and_then(|h| h.trim().strip_prefix("bytes "))
+        .ok_or_else(wrong)?;
+    let (range, total) = spec.split_once('/').ok_or_else(wrong)?;
+    let (a, b) = range.split_once('-').ok_or_else(wrong)?;
+    let parse = |s: &str| s.trim().parse::<u64>().ok();
+    if parse(a) != Some(first) || parse(b) != Some(last) {
+        return Err(wrong());
+    }
+    match total.trim() {
+        "*" => Ok(None),
+        t => parse(t).map(Some).ok_or_else(wrong),
+    }
+}
+
+/// The wait before retry `attempt` (0-based): `backoff_initial × 2^attempt`, at most `backoff_max`, times
+/// a jitter factor in [0.5, 1] that is a hash of `(seed, attempt)` (deterministic, different per block).
+fn backoff(options: &HttpOptions, attempt: u32, seed: u64) -> Duration {
+    let doubled = options
+        .backoff_initial
+        .saturating_mul(1u32 << attempt.min(20));
+    let base = doubled.min(options.backoff_max);
+    let hash = splitmix64(seed ^ u64::from(attempt).rotate_left(32));
+    let jitter = 0.5 + 0.5 * (hash >> 11) as f64 / (1u64 << 53) as f64;
+    base.mul_f64(jitter)
+}
+
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn content_range_must_match_the_request() {
+        assert_eq!(
+            check_content_range(Some("bytes 10-19/100"), 10, 19).unwrap(),
+            Some(100)
+        );
+        assert_eq!(
+            check_content_range(Some("bytes 10-19/*"), 10, 19).unwrap(),
+            None
+        );
+        for bad in [
+            "bytes 10-18/100",
+            "bytes 0-19/100",
+            "10-19/100",
+            "bytes 10-19",
+            "bytes 10-19/x",
+        ] {
+            assert!(check_content_range(Some(bad), 10, 19).is_err(), "{bad}");
+        }
+        assert!(check_content_range(None, 10, 19).is_err());
+    }
+
+    #[test]
+    fn backoff_doubles_is_capped_and_jitters_within_half() {
+        let o = HttpOptions {
+            backoff_initial: Duration::from_millis(100),
+            backoff_max: Duration::from_millis(350),
+            ..HttpOptions::default()
+        };
+        let bases = [100u64, 200, 350, 350, 350];
+        for (attempt, base) in bases.iter().enumerate() {
+            for seed in 0..50 {
+                let d = backoff(&o, attempt as u32, seed).as_secs_f64() * 1000.0;
+                assert!(
+                    d >= *base as f64 * 0.5 - 1e-6 && d <= *base as f64 + 1e-6,
+                    "{attempt} {d}"
+                );
+            }
+        }
+        assert_eq!(backoff(&o, 1, 7), backoff(&o, 1, 7));
+        assert_ne!(backoff(&o, 1, 7), backoff(&o, 1, 8));
+        assert!(backoff(&o, u32::MAX, 1) <= o.backoff_max);
+    }
+}
