@@ -1,4 +1,4 @@
-use super::{UpArg, build_cmd, inspect_cmd, load_scene, progress::Bars, render_cmd};
+use super::{UpArg, build_cmd, inspect_cmd, load_scene, progress::Bars, render_cmd, simulate_cmd};
 use anyhow::Context;
 use atlastree::build::{BuildOptions, DMin, build};
 use clap::Args;
@@ -117,6 +117,34 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
                 loader_threads: 2,
             })?;
             pictures.push(out.join("tree").join("contact_sheet.png"));
+            let blocks = atlastree::store::TreeFile::open(&file)
+                .map(|f| f.blocks().len())
+                .unwrap_or(0);
+            println!(
+                "\n== 5. the same flight paged (paper §6): at most k = 24 of {blocks} blocks resident, one block per frame"
+            );
+            let paged = a.out.join("paged");
+            render_cmd::run(render_cmd::RenderArgs {
+                file: file.clone(),
+                path: "overview-dive".into(),
+                out: paged.clone(),
+                width: 640,
+                height: 480,
+                mode: vec![atlastree::render::Mode::Tree],
+                texel_ratio: 1.0,
+                frames: a.frames,
+                every: 10,
+                fps: 30.0,
+                warmup: 0,
+                no_gpu_timing: false,
+                capacity: Some(24),
+                source: "file".into(),
+                upload_budget: atlastree::paging::UploadBudget::Bytes(1),
+                max_queue: 4,
+                policy: atlastree::paging::Policy::Paper,
+                loader_threads: 0,
+            })?;
+            pictures.push(paged.join("contact_sheet.png"));
         }
         Err(e) => println!(
             "SKIPPED (no GPU adapter): {e}. Any wgpu adapter works; on a headless Linux box \
@@ -124,14 +152,36 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
         ),
     }
 
+    println!(
+        "\n== 6. paging-budget experiment without a GPU: capacity × bandwidth × latency on the same path"
+    );
+    let sim = a.out.join("simulate");
+    simulate_cmd::run(simulate_cmd::SimulateArgs {
+        file: file.clone(),
+        path: "overview-dive".into(),
+        capacity: vec!["12".into(), "24".into(), "48".into(), "all".into()],
+        bandwidth: vec!["5MB/s".into(), "50MB/s".into(), "500MB/s".into()],
+        latency: vec!["0ms".into(), "80ms".into()],
+        policy: vec![atlastree::paging::Policy::Paper, atlastree::paging::Policy::Ours],
+        fps: 60.0,
+        frames: None,
+        upload_budget: atlastree::paging::UploadBudget::Unlimited,
+        max_queue: 8,
+        in_flight: 4,
+        overhead: "0ms".into(),
+        width: 800,
+        height: 600,
+        texel_ratio: 1.0,
+        out: sim.clone(),
+        json: false,
+    })?;
+    pictures.push(sim.join("heatmap_0ms_paper.png"));
+    pictures.push(sim.join("coarser_over_time.png"));
+
     println!("\npictures:");
     for p in &pictures {
         println!("  {}", p.display());
     }
-    println!(
-        "\nnext stages (see the issues): prioritised block paging under a capacity k (`render --capacity`),\n\
-         paging-budget experiments (`simulate`), the accuracy/time report (`sweep`), block compression, `view`."
-    );
     Ok(if ver.ok() {
         ExitCode::SUCCESS
     } else {
