@@ -29,6 +29,7 @@
 //!   one array per class size; [`render::batch`] turns a cut into indirect records (plain data), and a frame is
 //!   one bind group and one multi-draw-indirect call per pipeline (texture-array batching).
 //! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
+//! - [`view`]: the interactive window (winit + egui inspector) over the same renderer.
 //!
 //! Stages still to come (see the issues): `paging` (blocks under a capacity k), `sim`.
 
@@ -43,3 +44,4 @@ pub mod scene;
 pub mod select;
 pub mod store;
 pub mod util;
+pub mod view;

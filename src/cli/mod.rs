@@ -6,6 +6,7 @@ mod inspect_cmd;
 mod progress;
 mod render_cmd;
 mod scene_info;
+mod view_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::process::ExitCode;
@@ -42,6 +43,9 @@ pub enum Command {
     Inspect(inspect_cmd::InspectArgs),
     /// Render a camera path offscreen with the texture-array-batched renderer; PNGs, contact sheet, stats.csv.
     Render(render_cmd::RenderArgs),
+    /// Fly through a paging file in a window with a live inspector (egui): fps, counters, knobs, node
+    /// bounds, frozen selection, screenshots, path recording.
+    View(view_cmd::ViewArgs),
 }
 
 /// Which axis points up (the other two span the distribution plane).
@@ -84,6 +88,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Build(a) => build_cmd::run(a),
         Command::Inspect(a) => inspect_cmd::run(a),
         Command::Render(a) => render_cmd::run(a),
+        Command::View(a) => view_cmd::run(a),
     }
 }
 

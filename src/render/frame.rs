@@ -144,6 +144,8 @@ pub struct Renderer<'f> {
     timestamps: Option<Timestamps>,
     /// Texel-density pipelines and target, created on the first [`Renderer::render_density`].
     density: Option<DensityTarget>,
+    /// Camera the cut is selected for instead of the frame's camera ([`Renderer::freeze_selection`]).
+    frozen: Option<Camera>,
 }
 
 impl<'f> Renderer<'f> {
@@ -248,12 +250,36 @@ impl<'f> Renderer<'f> {
             batch: FrameBatch::new(),
             timestamps,
             density: None,
+            frozen: None,
         })
     }
 
     /// Number of render pipelines created so far (the alpha ones only once needed).
     pub fn pipelines_created(&self) -> usize {
         self.pipelines.created()
+    }
+
+    /// Selects every following frame's cut for `camera` instead of the frame's own camera (`None`: the
+    /// frame's camera again), so the cut of one view can be looked at from elsewhere (the viewer's "freeze
+    /// selection"). Draws still use the frame's camera.
+    pub fn freeze_selection(&mut self, camera: Option<Camera>) {
+        self.frozen = camera;
+    }
+
+    /// Replaces the colour and depth targets by ones of `width`×`height` pixels (a resized window); the
+    /// resident data and pipelines are kept. Errors: [`RenderError::BadSize`] for an empty size.
+    pub fn resize(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+        if width == 0 || height == 0 {
+            return Err(RenderError::BadSize { width, height });
+        }
+        if (width, height) == (self.opts.width, self.opts.height) {
+            return Ok(());
+        }
+        (self.color, self.color_view, self.depth_view) = targets(&self.ctx.device, width, height);
+        self.opts.width = width;
+        self.opts.height = height;
+        self.density = None;
+        Ok(())
     }
 
     /// The cuts of the last frame, one per tree.
@@ -314,13 +340,14 @@ impl<'f> Renderer<'f> {
     ) -> Result<FrameStats, RenderError> {
         let t0 = Instant::now();
         let mut stats = FrameStats::default();
-        let frustum = camera.frustum();
+        let selector = self.frozen.as_ref().unwrap_or(camera);
+        let frustum = selector.frustum();
         for (t, cut) in self.cuts.iter_mut().enumerate() {
             let view = self
                 .file
                 .tree(t)
                 .ok_or(RenderError::MissingTree { tree: t })?;
-            select(view.nodes, camera, &frustum, scale, cut);
+            select(view.nodes, selector, &frustum, scale, cut);
             stats.nodes_visited += cut.visited;
             stats.nodes_drawn += cut.items.len() as u32;
         }
