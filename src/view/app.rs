@@ -543,12 +543,15 @@ impl<'a> Running<'a> {
         &mut self,
         event_loop: &ActiveEventLoop,
         primitives: Vec<egui::ClippedPrimitive>,
-        textures: egui::TexturesDelta,
+        mut textures: egui::TexturesDelta,
         report: &mut ViewReport,
     ) -> Result<(), ViewError> {
+        // Taken out so that no early return drops undelivered deltas.
+        let set = std::mem::take(&mut textures.set);
+        let free = std::mem::take(&mut textures.free);
         let device = &self.ctx.device;
         let queue = &self.ctx.queue;
-        for (id, deltas) in &textures.set {
+        for (id, deltas) in &set {
             for delta in deltas {
                 self.egui_renderer.update_texture(device, queue, *id, delta);
             }
@@ -590,7 +593,7 @@ impl<'a> Running<'a> {
             self.presenter.blit(&mut encoder, &st.texture);
         }
         queue.submit(extra.into_iter().chain([encoder.finish()]));
-        for id in &textures.free {
+        for id in &free {
             self.egui_renderer.free_texture(id);
         }
         let frame_number = self.frames + 1;

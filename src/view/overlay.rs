@@ -148,6 +148,7 @@ pub fn inspector(ctx: &egui::Context, s: &mut Settings, r: &Readout<'_>) -> Requ
         .default_pos([8.0, 8.0])
         .default_width(250.0)
         .resizable(false)
+        .vscroll(true)
         .show(ctx, |ui| {
             performance(ui, r);
             ui.separator();
@@ -173,22 +174,31 @@ fn performance(ui: &mut egui::Ui, r: &Readout<'_>) {
         r.size.1
     ));
     frame_graph(ui, r.times);
-    egui::Grid::new("counters").num_columns(2).show(ui, |ui| {
-        let rows: [(&str, String); 7] = [
+    let gpu = s.gpu_ms.map_or("n/a".to_owned(), |g| format!("{g:.2} ms"));
+    pairs(
+        ui,
+        "counters",
+        &[
             ("nodes drawn", s.nodes_drawn.to_string()),
-            ("nodes visited", s.nodes_visited.to_string()),
+            ("visited", s.nodes_visited.to_string()),
             ("draw calls", s.draw_calls.to_string()),
             ("binds", s.bind_group_changes.to_string()),
             ("triangles", s.triangles.to_string()),
             ("select", format!("{:.0} µs", s.select_us)),
-            (
-                "GPU",
-                s.gpu_ms.map_or("n/a".to_owned(), |g| format!("{g:.2} ms")),
-            ),
-        ];
-        for (k, v) in rows {
-            ui.label(k);
-            ui.label(v);
+            ("GPU", gpu),
+            ("frame", format!("{:.1} ms", s.frame_ms)),
+        ],
+    );
+}
+
+/// A grid of `(name, value)` pairs, two pairs per row.
+fn pairs(ui: &mut egui::Ui, id: &str, items: &[(&str, String)]) {
+    egui::Grid::new(id).num_columns(4).show(ui, |ui| {
+        for row in items.chunks(2) {
+            for (k, v) in row {
+                ui.weak(*k);
+                ui.monospace(v);
+            }
             ui.end_row();
         }
     });
@@ -197,7 +207,7 @@ fn performance(ui: &mut egui::Ui, r: &Readout<'_>) {
 /// The frame-time graph: one bar per frame of the history, with the 16.7 ms and 33.3 ms marks.
 fn frame_graph(ui: &mut egui::Ui, times: &FrameTimes) {
     let (rect, _) =
-        ui.allocate_exact_size(egui::vec2(ui.available_width(), 48.0), egui::Sense::hover());
+        ui.allocate_exact_size(egui::vec2(ui.available_width(), 32.0), egui::Sense::hover());
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 2.0, Color32::from_black_alpha(120));
     let top_ms = (times.max() * 1e3).max(40.0);
@@ -224,37 +234,28 @@ fn frame_graph(ui: &mut egui::Ui, times: &FrameTimes) {
 
 fn paging(ui: &mut egui::Ui, s: &mut Settings, p: Option<PagingStats>) {
     let na = || "n/a".to_owned();
-    let rows: [(&str, String); 5] = [
-        (
-            "blocks needed",
-            p.map_or_else(na, |p| p.needed.to_string()),
-        ),
-        (
-            "blocks resident",
-            p.map_or_else(na, |p| p.resident.to_string()),
-        ),
-        ("in flight", p.map_or_else(na, |p| p.in_flight.to_string())),
-        (
-            "bytes/s",
-            p.map_or_else(na, |p| format!("{:.1} MiB/s", p.bytes_per_second / 1048576.0)),
-        ),
-        (
-            "coarser share",
-            p.map_or_else(na, |p| format!("{:.1} %", p.coarser_share * 100.0)),
-        ),
-    ];
     ui.label(if p.is_some() {
         "paging"
     } else {
-        "paging (all blocks resident)"
+        "paging: n/a (all blocks resident)"
     });
-    egui::Grid::new("paging").num_columns(2).show(ui, |ui| {
-        for (k, v) in rows {
-            ui.label(k);
-            ui.label(v);
-            ui.end_row();
-        }
-    });
+    pairs(
+        ui,
+        "paging",
+        &[
+            ("needed", p.map_or_else(na, |p| p.needed.to_string())),
+            ("resident", p.map_or_else(na, |p| p.resident.to_string())),
+            ("in flight", p.map_or_else(na, |p| p.in_flight.to_string())),
+            (
+                "MiB/s",
+                p.map_or_else(na, |p| format!("{:.1}", p.bytes_per_second / 1048576.0)),
+            ),
+            (
+                "coarser",
+                p.map_or_else(na, |p| format!("{:.1} %", p.coarser_share * 100.0)),
+            ),
+        ],
+    );
     ui.add_enabled(
         p.is_some(),
         egui::Slider::new(&mut s.capacity, CAPACITY_RANGE)
