@@ -64,7 +64,9 @@ fn main() -> ExitCode {
             Err(missing) => {
                 let n = tests.len();
                 if std::env::var(REQUIRE_GPU_ENV).is_ok_and(|v| v == "1") {
-                    println!("==== FAILED ({REQUIRE_GPU_ENV}=1): {n} view tests cannot run: {missing} ====");
+                    println!(
+                        "==== FAILED ({REQUIRE_GPU_ENV}=1): {n} view tests cannot run: {missing} ===="
+                    );
                     for (name, _) in &tests {
                         println!("test {name} ... FAILED ({missing})");
                     }
@@ -95,7 +97,9 @@ fn main() -> ExitCode {
                         }
                         Err(m) => {
                             failed += 1;
-                            println!("test {name} ... FAILED ({secs:.1} s)\n---- {name} ----\n{m}\n");
+                            println!(
+                                "test {name} ... FAILED ({secs:.1} s)\n---- {name} ----\n{m}\n"
+                            );
                         }
                     }
                 }
@@ -134,7 +138,15 @@ struct Xvfb {
 impl Xvfb {
     fn start() -> Result<Xvfb, String> {
         let mut child = Command::new("Xvfb")
-            .args(["-displayfd", "1", "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
+            .args([
+                "-displayfd",
+                "1",
+                "-screen",
+                "0",
+                "1024x768x24",
+                "-nolisten",
+                "tcp",
+            ])
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
@@ -210,7 +222,13 @@ impl Fixture {
             .arg("--path")
             .arg(&s.camera)
             .args(["--width", &W.to_string(), "--height", &H.to_string()])
-            .args(["--screenshot-after", "5", "--exit", "--json", "--no-gpu-timing"])
+            .args([
+                "--screenshot-after",
+                "5",
+                "--exit",
+                "--json",
+                "--no-gpu-timing",
+            ])
             .arg("--screenshot")
             .arg(&shot)
             .arg("--out")
@@ -270,7 +288,9 @@ fn run(cmd: &mut Command, dir: &Path, name: &str) -> Result<String, String> {
     let stdout = std::fs::read_to_string(&out_path).unwrap_or_default();
     let stderr = std::fs::read_to_string(&err_path).unwrap_or_default();
     if !status.success() || stderr.contains("panicked") {
-        return Err(format!("{name} exited with {status}\nstdout:\n{stdout}\nstderr:\n{stderr}"));
+        return Err(format!(
+            "{name} exited with {status}\nstdout:\n{stdout}\nstderr:\n{stderr}"
+        ));
     }
     Ok(stdout)
 }
@@ -353,7 +373,15 @@ fn matches_headless_render(f: &Fixture) -> Result<(), String> {
         .arg("--path")
         .arg(&s.camera)
         .args(["--width", &W.to_string(), "--height", &H.to_string()])
-        .args(["--frames", "1", "--every", "1", "--warmup", "0", "--no-gpu-timing"])
+        .args([
+            "--frames",
+            "1",
+            "--every",
+            "1",
+            "--warmup",
+            "0",
+            "--no-gpu-timing",
+        ])
         .arg("--out")
         .arg(&out);
     run(&mut cmd, f.dir.path(), "render")?;
@@ -364,7 +392,9 @@ fn matches_headless_render(f: &Fixture) -> Result<(), String> {
     let sky = reference.get_pixel(0, 0);
     let scene_pixels = reference.pixels().filter(|p| p != &sky).count();
     if scene_pixels < (W * H / 10) as usize {
-        return Err(format!("the reference view shows almost no scene ({scene_pixels} pixels)"));
+        return Err(format!(
+            "the reference view shows almost no scene ({scene_pixels} pixels)"
+        ));
     }
     if psnr < SAME_PSNR_DB {
         return Err(format!("PSNR {psnr:.2} dB < {SAME_PSNR_DB} dB"));
@@ -380,7 +410,9 @@ fn overlay_appears(f: &Fixture) -> Result<(), String> {
     for y in y0..y1 {
         for x in x0..x1 {
             let (p, q) = (hidden.get_pixel(x, y), shown.get_pixel(x, y));
-            let d: Vec<f64> = (0..3).map(|c| (f64::from(p[c]) - f64::from(q[c])).abs()).collect();
+            let d: Vec<f64> = (0..3)
+                .map(|c| (f64::from(p[c]) - f64::from(q[c])).abs())
+                .collect();
             abs_sum += d.iter().sum::<f64>() / 3.0;
             changed += u64::from(d.iter().any(|&v| v > 8.0));
             total += 1;

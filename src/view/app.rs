@@ -71,10 +71,7 @@ impl<'a> App<'a> {
     /// Creates the window, the device that presents to it, the renderer and the overlay.
     fn start(&mut self, event_loop: &ActiveEventLoop) -> Result<(), ViewError> {
         let attrs = Window::default_attributes()
-            .with_title(format!(
-                "atlastree view — {}",
-                self.file.path().display()
-            ))
+            .with_title(format!("atlastree view — {}", self.file.path().display()))
             .with_inner_size(PhysicalSize::new(
                 self.opts.width.max(1),
                 self.opts.height.max(1),
@@ -271,14 +268,10 @@ impl<'a> Running<'a> {
 
     /// Routes a window event to egui and, when egui does not want it, to the controls.
     fn input(&mut self, event_loop: &ActiveEventLoop, event: &WindowEvent) {
-        let consumed = self
-            .egui_state
-            .on_window_event(self.window, event)
-            .consumed;
+        let consumed = self.egui_state.on_window_event(self.window, event).consumed;
         match event {
             WindowEvent::Resized(size) => {
-                self.presenter
-                    .resize(self.ctx, size.width, size.height);
+                self.presenter.resize(self.ctx, size.width, size.height);
             }
             WindowEvent::Focused(false) => {
                 self.controller.release_all();
@@ -467,10 +460,7 @@ impl<'a> Running<'a> {
     }
 
     /// Runs the egui pass: bounds lines and the inspector; applies the inspector's requests.
-    fn overlay(
-        &mut self,
-        camera: &Camera,
-    ) -> (Vec<egui::ClippedPrimitive>, egui::TexturesDelta) {
+    fn overlay(&mut self, camera: &Camera) -> (Vec<egui::ClippedPrimitive>, egui::TexturesDelta) {
         let raw = self.egui_state.take_egui_input(self.window);
         let boxes = if self.settings.bounds {
             self.node_boxes()
@@ -512,9 +502,7 @@ impl<'a> Running<'a> {
         if requests.toggle_recording {
             self.toggle_recording();
         }
-        let primitives = self
-            .egui_ctx
-            .tessellate(full.shapes, full.pixels_per_point);
+        let primitives = self.egui_ctx.tessellate(full.shapes, full.pixels_per_point);
         (primitives, full.textures_delta)
     }
 
@@ -565,7 +553,8 @@ impl<'a> Running<'a> {
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("view frame"),
         });
-        self.presenter.copy_frame(&mut encoder, &self.renderer.color);
+        self.presenter
+            .copy_frame(&mut encoder, &self.renderer.color);
         let extra =
             self.egui_renderer
                 .update_buffers(device, queue, &mut encoder, &primitives, &screen);

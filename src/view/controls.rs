@@ -415,10 +415,18 @@ mod tests {
         ctl.speed = 2.0;
         ctl.set_key(Key::Forward, true);
         ctl.update(0.5);
-        assert!(close(ctl.eye, DVec3::new(0.0, 0.0, -1.0), 1e-12), "{}", ctl.eye);
+        assert!(
+            close(ctl.eye, DVec3::new(0.0, 0.0, -1.0), 1e-12),
+            "{}",
+            ctl.eye
+        );
         ctl.set_key(Key::Fast, true);
         ctl.update(0.5);
-        assert!(close(ctl.eye, DVec3::new(0.0, 0.0, -5.0), 1e-12), "{}", ctl.eye);
+        assert!(
+            close(ctl.eye, DVec3::new(0.0, 0.0, -5.0), 1e-12),
+            "{}",
+            ctl.eye
+        );
         // W and S together cancel; D strafes right (+X when looking down −Z with +Y up); E goes up.
         ctl.set_key(Key::Fast, false);
         ctl.set_key(Key::Back, true);
@@ -427,11 +435,19 @@ mod tests {
         ctl.release_all();
         ctl.set_key(Key::Right, true);
         ctl.update(1.0);
-        assert!(close(ctl.eye, DVec3::new(2.0, 0.0, -5.0), 1e-12), "{}", ctl.eye);
+        assert!(
+            close(ctl.eye, DVec3::new(2.0, 0.0, -5.0), 1e-12),
+            "{}",
+            ctl.eye
+        );
         ctl.set_key(Key::Right, false);
         ctl.set_key(Key::Up, true);
         ctl.update(1.0);
-        assert!(close(ctl.eye, DVec3::new(2.0, 2.0, -5.0), 1e-12), "{}", ctl.eye);
+        assert!(
+            close(ctl.eye, DVec3::new(2.0, 2.0, -5.0), 1e-12),
+            "{}",
+            ctl.eye
+        );
         // Diagonal movement is not faster.
         ctl.set_key(Key::Up, false);
         ctl.set_key(Key::Forward, true);
@@ -448,7 +464,11 @@ mod tests {
         let mut ctl = Controller::from_camera(&c, DVec3::Y);
         // 90° to the right: 450 px at 0.2°/px.
         ctl.drag(450.0, 0.0);
-        assert!(close(ctl.direction(), DVec3::X, 1e-12), "{}", ctl.direction());
+        assert!(
+            close(ctl.direction(), DVec3::X, 1e-12),
+            "{}",
+            ctl.direction()
+        );
         ctl.drag(0.0, 1.0e6);
         let (_, pitch) = ctl.heading();
         assert!((pitch + MAX_PITCH_DEG.to_radians()).abs() < 1e-12);
@@ -533,7 +553,10 @@ mod tests {
         let mut kept = Vec::new();
         for i in 0..25 {
             let t = 100.0 + f64::from(i) * 0.04;
-            let c = cam(DVec3::new(f64::from(i), 5.0, 0.0), DVec3::new(0.0, 0.0, -10.0));
+            let c = cam(
+                DVec3::new(f64::from(i), 5.0, 0.0),
+                DVec3::new(0.0, 0.0, -10.0),
+            );
             if rec.push(t, &c) {
                 kept.push((t - 100.0, c));
             }

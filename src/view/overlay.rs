@@ -63,6 +63,14 @@ impl FrameTimes {
         }
     }
 
+    /// The `q`-quantile (0..=1, nearest rank) of the history, seconds (0 when empty).
+    pub fn percentile(&self, q: f64) -> f64 {
+        let mut v: Vec<f32> = self.times.iter().copied().collect();
+        v.sort_by(f32::total_cmp);
+        let rank = ((v.len() as f64 - 1.0) * q.clamp(0.0, 1.0)).round() as usize;
+        v.get(rank).map_or(0.0, |&t| f64::from(t))
+    }
+
     /// The longest frame in the history, seconds.
     pub fn max(&self) -> f64 {
         self.times.iter().fold(0.0, |m, &t| m.max(f64::from(t)))
@@ -210,15 +218,13 @@ fn frame_graph(ui: &mut egui::Ui, times: &FrameTimes) {
         ui.allocate_exact_size(egui::vec2(ui.available_width(), 32.0), egui::Sense::hover());
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 2.0, Color32::from_black_alpha(120));
-    let top_ms = (times.max() * 1e3).max(40.0);
+    // Scale to 1.5 × the 90th percentile (at least 40 ms): one shader-compile stall does not flatten the
+    // rest; taller bars are clipped.
+    let top_ms = (times.percentile(0.9) * 1.5e3).max(40.0);
     let y_of = |ms: f64| rect.bottom() - (ms / top_ms) as f32 * rect.height();
     for mark in [1000.0 / 60.0, 1000.0 / 30.0] {
         let y = y_of(mark);
-        painter.hline(
-            rect.x_range(),
-            y,
-            Stroke::new(1.0, Color32::from_gray(90)),
-        );
+        painter.hline(rect.x_range(), y, Stroke::new(1.0, Color32::from_gray(90)));
     }
     let step = rect.width() / HISTORY as f32;
     let start = HISTORY.saturating_sub(times.len());
@@ -434,6 +440,9 @@ mod tests {
         assert!((t.fps() - 50.0).abs() < 1e-3);
         t.push(0.1);
         assert!((t.max() - 0.1).abs() < 1e-6);
+        assert!((t.percentile(0.9) - 0.02).abs() < 1e-6);
+        assert!((t.percentile(1.0) - 0.1).abs() < 1e-6);
+        assert_eq!(FrameTimes::default().percentile(0.5), 0.0);
     }
 
     #[test]
@@ -468,13 +477,23 @@ mod tests {
         assert_eq!(lines.len(), 12);
         let xs: Vec<f32> = lines.iter().flat_map(|l| [l[0].x, l[1].x]).collect();
         let ys: Vec<f32> = lines.iter().flat_map(|l| [l[0].y, l[1].y]).collect();
-        let (min_x, max_x) = xs.iter().fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
-        let (min_y, max_y) = ys.iter().fold((f32::MAX, f32::MIN), |(a, b), &y| (a.min(y), b.max(y)));
+        let (min_x, max_x) = xs
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        let (min_y, max_y) = ys
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(a, b), &y| (a.min(y), b.max(y)));
         assert!((min_x - (400.0 - 400.0 / 9.0)).abs() < 1e-3, "{min_x}");
         assert!((max_x - (400.0 + 400.0 / 9.0)).abs() < 1e-3, "{max_x}");
         // Vertical: tan(fov_y/2) = 1/2, so one unit at depth 9 is (1/9)/(1/2) of the half height.
-        assert!((min_y - (200.0 - 200.0 * 2.0 / 9.0)).abs() < 1e-3, "{min_y}");
-        assert!((max_y - (200.0 + 200.0 * 2.0 / 9.0)).abs() < 1e-3, "{max_y}");
+        assert!(
+            (min_y - (200.0 - 200.0 * 2.0 / 9.0)).abs() < 1e-3,
+            "{min_y}"
+        );
+        assert!(
+            (max_y - (200.0 + 200.0 * 2.0 / 9.0)).abs() < 1e-3,
+            "{max_y}"
+        );
     }
 
     #[test]
@@ -488,7 +507,12 @@ mod tests {
         let lines = box_lines(&c, lo, hi, 800.0, 400.0);
         // Edges along z straddle (4), x/y edges of the far face are ahead (4), of the near face behind (4).
         assert_eq!(lines.len(), 8);
-        assert!(lines.iter().flatten().all(|p| p.x.is_finite() && p.y.is_finite()));
+        assert!(
+            lines
+                .iter()
+                .flatten()
+                .all(|p| p.x.is_finite() && p.y.is_finite())
+        );
     }
 
     #[test]

@@ -129,7 +129,12 @@ impl<'w> Presenter<'w> {
         });
         let pipeline = blit_pipeline(device, &layout, target_format);
         let composite = Composite::new(device, &layout, config.width, config.height);
-        tracing::info!(?format, ?present_mode, readable_surface, "surface configured");
+        tracing::info!(
+            ?format,
+            ?present_mode,
+            readable_surface,
+            "surface configured"
+        );
         Ok(Presenter {
             surface,
             config,

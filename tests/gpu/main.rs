@@ -7,6 +7,7 @@ mod golden;
 mod harness;
 mod render;
 mod smoke;
+mod view;
 
 use std::process::ExitCode;
 
@@ -16,6 +17,7 @@ fn main() -> ExitCode {
         device::tests(),
         render::tests(),
         golden::tests(),
+        view::tests(),
     ]
     .into_iter()
     .flatten()
