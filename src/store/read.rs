@@ -286,7 +286,7 @@ fn check_sections(header: &Header, bytes: &[u8]) -> Result<u64, StoreError> {
                 s.record_size().into(),
             ));
         }
-        if e.offset % SECTION_ALIGN != 0 {
+        if !e.offset.is_multiple_of(SECTION_ALIGN) {
             let what = format!("section {section}");
             return Err(StoreError::Misaligned {
                 what,
