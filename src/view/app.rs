@@ -178,6 +178,8 @@ struct Running<'a> {
     exit_after_screenshot: bool,
     screenshot_file: PathBuf,
     out_dir: PathBuf,
+    /// Camera paths written by `R` so far.
+    recordings: Vec<PathBuf>,
     message: String,
 }
 
@@ -262,6 +264,7 @@ impl<'a> Running<'a> {
             exit_after_screenshot: opts.exit_after_screenshot,
             screenshot_file: opts.screenshot.clone(),
             out_dir: opts.out_dir.clone(),
+            recordings: Vec::new(),
             message: String::new(),
         })
     }
@@ -369,7 +372,10 @@ impl<'a> Running<'a> {
                 self.message = "recording the camera path (R stops)".to_owned();
             }
             Some(rec) => match self.save_recording(&rec) {
-                Ok(Some(p)) => self.message = format!("path written: {}", p.display()),
+                Ok(Some(p)) => {
+                    self.message = format!("path written: {}", p.display());
+                    self.recordings.push(p);
+                }
                 Ok(None) => self.message = "recording was empty".to_owned(),
                 Err(e) => self.message = e.to_string(),
             },
@@ -656,8 +662,9 @@ impl<'a> Running<'a> {
         if let Some(rec) = self.recorder.take()
             && let Some(p) = self.save_recording(&rec)?
         {
-            report.recordings.push(p);
+            self.recordings.push(p);
         }
+        report.recordings = std::mem::take(&mut self.recordings);
         report.adapter = self.ctx.adapter_summary();
         report.size = self.presenter.size();
         let secs = self.started.elapsed().as_secs_f64();
@@ -733,6 +740,14 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ViewError> {
     std::fs::create_dir_all(dir).map_err(|e| err(e.to_string()))?;
     let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| err(e.to_string()))?;
     tmp.write_all(bytes).map_err(|e| err(e.to_string()))?;
+    // Temporary files are private (0600); outputs get the usual 0644.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| err(e.to_string()))?;
+    }
     tmp.persist(path).map_err(|e| err(e.error.to_string()))?;
     Ok(())
 }
