@@ -147,6 +147,8 @@ impl ApplicationHandler for App<'_> {
 struct Running<'a> {
     window: &'a Window,
     ctx: &'a GpuContext,
+    /// `ctx.adapter_summary()`, shown in the inspector.
+    adapter: String,
     file: &'a TreeFile,
     bounds: (DVec3, DVec3),
     presenter: Presenter<'a>,
@@ -237,6 +239,7 @@ impl<'a> Running<'a> {
         Ok(Running {
             window,
             ctx,
+            adapter: ctx.adapter_summary(),
             file,
             bounds,
             presenter,
@@ -474,7 +477,6 @@ impl<'a> Running<'a> {
             Vec::new()
         };
         let size = self.presenter.size();
-        let adapter = self.ctx.adapter_summary();
         let mut settings = self.settings.clone();
         let mut requests = Requests::default();
         let readout = Readout {
@@ -484,7 +486,7 @@ impl<'a> Running<'a> {
             size,
             camera,
             speed: self.controller.speed,
-            adapter: &adapter,
+            adapter: &self.adapter,
             recording: self.recorder.as_ref().map(Recorder::len),
             has_path: self.path.is_some(),
             message: &self.message,

@@ -86,9 +86,9 @@ pub struct ViewReport {
 #[derive(Debug, thiserror::Error)]
 pub enum ViewError {
     /// No window system: no `DISPLAY`/`WAYLAND_DISPLAY`, or the connection failed.
-    #[error("cannot open the window system (is DISPLAY or WAYLAND_DISPLAY set?): {0}")]
+    #[error("cannot open the window system (is DISPLAY or WAYLAND_DISPLAY set?)")]
     EventLoop(#[from] winit::error::EventLoopError),
-    #[error("cannot create the window: {0}")]
+    #[error("cannot create the window")]
     Window(#[from] winit::error::OsError),
     #[error(transparent)]
     Gpu(#[from] GpuError),
