@@ -1,6 +1,6 @@
 //! wgpu device setup shared by the renderer and the GPU tests.
 //!
-//! [`GpuContext::new_headless`] picks an adapter on the primary backends (Vulkan, Metal, DX12; `WGPU_BACKEND`
+//! [`GpuContext::new_headless`] (and [`GpuContext::new_for_surface`] for a window) picks an adapter on the primary backends (Vulkan, Metal, DX12; `WGPU_BACKEND`
 //! overrides), preferring a discrete GPU but accepting a software (CPU) adapter such as Mesa's lavapipe, and
 //! opens a device with the features the texture-array batching renderer (TAB, Trapp & Döllner 2015) relies on:
 //!
@@ -71,6 +71,9 @@ pub enum GpuError {
     /// The map callback was dropped without being called (device lost).
     #[error("the readback map callback never ran (device lost?)")]
     MapCallbackLost,
+    /// [`GpuContext::new_for_surface`] could not create a surface for the window.
+    #[error("creating a surface for the window failed: {0}")]
+    CreateSurface(#[from] wgpu::CreateSurfaceError),
     /// A wgpu validation or out-of-memory error captured by [`GpuContext::scoped`].
     #[error("wgpu error in {what}: {message}")]
     Wgpu { what: String, message: String },
@@ -232,15 +235,41 @@ impl GpuContext {
     /// Errors: [`GpuError::NoAdapter`] when the backends expose no adapter, [`GpuError::MissingFeature`] /
     /// [`GpuError::NoSuitableAdapter`] when none has the required features, [`GpuError::RequestDevice`].
     pub fn new_headless(opts: &GpuOptions) -> Result<GpuContext, GpuError> {
-        let backends = opts
-            .backends
-            .unwrap_or_else(|| wgpu::Backends::PRIMARY.with_env());
-        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
-        desc.backends = backends;
-        desc.flags = wgpu::InstanceFlags::from_build_config().with_env();
-        let instance = wgpu::Instance::new(desc);
+        let (desc, backends) = instance_descriptor(opts);
+        GpuContext::open(wgpu::Instance::new(desc), backends, opts, None)
+    }
+
+    /// Opens a device that can present to a window: the instance is created with the window system's
+    /// `display` connection (required by GL and Wayland, ignored by Vulkan, Metal and DX12), a surface for
+    /// `target` (a window), and only adapters that can present to that surface qualify; the features and
+    /// limits are those of [`GpuContext::new_headless`].
+    ///
+    /// Errors: those of [`GpuContext::new_headless`] (an adapter that cannot present is rejected with that
+    /// reason), and [`GpuError::CreateSurface`].
+    pub fn new_for_surface<'w, D>(
+        opts: &GpuOptions,
+        display: D,
+        target: impl Into<wgpu::SurfaceTarget<'w>>,
+    ) -> Result<(GpuContext, wgpu::Surface<'w>), GpuError>
+    where
+        D: wgpu::rwh::HasDisplayHandle + fmt::Debug + Send + Sync + 'static,
+    {
+        let (desc, backends) = instance_descriptor(opts);
+        let instance = wgpu::Instance::new(desc.with_display_handle(Box::new(display)));
+        let surface = instance.create_surface(target)?;
+        let ctx = GpuContext::open(instance, backends, opts, Some(&surface))?;
+        Ok((ctx, surface))
+    }
+
+    /// Picks the adapter (able to present to `surface` when given) and opens the device.
+    fn open(
+        instance: wgpu::Instance,
+        backends: wgpu::Backends,
+        opts: &GpuOptions,
+        surface: Option<&wgpu::Surface<'_>>,
+    ) -> Result<GpuContext, GpuError> {
         let adapters = pollster::block_on(instance.enumerate_adapters(backends));
-        let adapter = choose_adapter(adapters, opts, backends)?;
+        let adapter = choose_adapter(adapters, opts, backends, surface)?;
         let info = AdapterInfoSummary::from_info(&adapter.get_info());
         let (device, queue) = open_device(&adapter, &info, opts.label)?;
         let features = GpuFeatures::of_device(&adapter, &device, &queue);
@@ -278,6 +307,18 @@ impl GpuContext {
     }
 }
 
+/// The instance descriptor of `opts` (backends, with `WGPU_BACKEND` and the debug flags from the
+/// environment) and the backends to search.
+fn instance_descriptor(opts: &GpuOptions) -> (wgpu::InstanceDescriptor, wgpu::Backends) {
+    let backends = opts
+        .backends
+        .unwrap_or_else(|| wgpu::Backends::PRIMARY.with_env());
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+    desc.backends = backends;
+    desc.flags = wgpu::InstanceFlags::from_build_config().with_env();
+    (desc, backends)
+}
+
 /// Preference rank of a device type (lower is better); software is last regardless of preference.
 fn device_type_rank(device_type: wgpu::DeviceType, preference: wgpu::PowerPreference) -> u8 {
     use wgpu::DeviceType as D;
@@ -294,8 +335,15 @@ fn device_type_rank(device_type: wgpu::DeviceType, preference: wgpu::PowerPrefer
 
 /// Why `adapter` cannot serve the renderer, or `None` when it can: the reason, and whether it is a missing
 /// required feature (reported as [`GpuError::MissingFeature`] when it is the only adapter).
-fn rejection(adapter: &wgpu::Adapter, opts: &GpuOptions) -> Option<(&'static str, bool)> {
+fn rejection(
+    adapter: &wgpu::Adapter,
+    opts: &GpuOptions,
+    surface: Option<&wgpu::Surface<'_>>,
+) -> Option<(&'static str, bool)> {
     let info = adapter.get_info();
+    if surface.is_some_and(|s| !adapter.is_surface_supported(s)) {
+        return Some(("cannot present to the window's surface", false));
+    }
     if info.device_type == wgpu::DeviceType::Cpu && !opts.allow_software {
         return Some((
             "software adapter not allowed (GpuOptions::allow_software = false)",
@@ -315,11 +363,12 @@ fn rejection(adapter: &wgpu::Adapter, opts: &GpuOptions) -> Option<(&'static str
         .map(|(_, name)| (*name, true))
 }
 
-/// Picks the best-ranked adapter that has every required feature.
+/// Picks the best-ranked adapter that has every required feature (and can present to `surface`).
 fn choose_adapter(
     adapters: Vec<wgpu::Adapter>,
     opts: &GpuOptions,
     backends: wgpu::Backends,
+    surface: Option<&wgpu::Surface<'_>>,
 ) -> Result<wgpu::Adapter, GpuError> {
     if adapters.is_empty() {
         return Err(GpuError::NoAdapter {
@@ -331,7 +380,7 @@ fn choose_adapter(
     let mut suitable = Vec::new();
     for adapter in adapters {
         let info = AdapterInfoSummary::from_info(&adapter.get_info());
-        match rejection(&adapter, opts) {
+        match rejection(&adapter, opts, surface) {
             None => suitable.push((
                 device_type_rank(info.device_type, opts.power_preference),
                 adapter,

@@ -31,6 +31,7 @@
 //! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
 //! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
 //!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
+//! - [`view`]: the interactive window (winit + egui inspector) over the same renderer.
 //!
 //! - [`paging`]: prioritised block paging (§6): usage categories, the ideal set under a capacity k, the
 //!   re-ranked request queue, loaders (synchronous, threads, HTTP), residency, drawing with missing blocks.
@@ -50,3 +51,4 @@ pub mod select;
 pub mod sim;
 pub mod store;
 pub mod util;
+pub mod view;

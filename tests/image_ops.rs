@@ -38,7 +38,7 @@ fn checker(w: u32, h: u32, cell: u32) -> DecodedImage {
     let pixels = (0..h)
         .flat_map(|y| {
             (0..w).map(move |x| {
-                if ((x / cell) + (y / cell)) % 2 == 0 {
+                if ((x / cell) + (y / cell)).is_multiple_of(2) {
                     [0, 0, 0, 255]
                 } else {
                     [255; 4]

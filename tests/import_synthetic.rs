@@ -27,7 +27,7 @@ fn n_of(ty: &str) -> usize {
 
 impl Bin {
     fn view(&mut self, data: &[u8]) -> usize {
-        while self.bytes.len() % 4 != 0 {
+        while !self.bytes.len().is_multiple_of(4) {
             self.bytes.push(0);
         }
         let off = self.bytes.len();
@@ -660,7 +660,7 @@ fn glb_with_embedded_png_and_data_uri_buffer() {
         "buffers": [{"byteLength": b.bytes.len()}], "bufferViews": b.views, "accessors": b.accessors
     });
     let mut json_bytes = serde_json::to_vec(&doc).unwrap();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let total = 12 + 8 + json_bytes.len() + 8 + b.bytes.len();

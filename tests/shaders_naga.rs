@@ -85,7 +85,7 @@ fn the_smoke_shaders_are_found() {
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .collect();
-    for expected in ["smoke.wgsl", "smoke_tab.wgsl"] {
+    for expected in ["smoke.wgsl", "smoke_tab.wgsl", "blit.wgsl"] {
         assert!(
             names.iter().any(|n| n == expected),
             "{expected} missing from {names:?}"

@@ -280,10 +280,10 @@ impl FreeSet {
 fn best_in(rects: &[Free], w: u32, h: u32) -> Option<(Score, u32, u32, u32)> {
     let mut best: Option<(Score, u32, u32, u32)> = None;
     for f in rects {
-        if let Some(s) = score(f.r, w, h) {
-            if best.is_none_or(|b| s < b.0) {
-                best = Some((s, f.id, f.r.x, f.r.y));
-            }
+        if let Some(s) = score(f.r, w, h)
+            && best.is_none_or(|b| s < b.0)
+        {
+            best = Some((s, f.id, f.r.x, f.r.y));
         }
     }
     best

@@ -162,7 +162,10 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
         capacity: vec!["12".into(), "24".into(), "48".into(), "all".into()],
         bandwidth: vec!["5MB/s".into(), "50MB/s".into(), "500MB/s".into()],
         latency: vec!["0ms".into(), "80ms".into()],
-        policy: vec![atlastree::paging::Policy::Paper, atlastree::paging::Policy::Ours],
+        policy: vec![
+            atlastree::paging::Policy::Paper,
+            atlastree::paging::Policy::Ours,
+        ],
         fps: 60.0,
         frames: None,
         upload_budget: atlastree::paging::UploadBudget::Unlimited,

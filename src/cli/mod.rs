@@ -8,6 +8,7 @@ mod render_cmd;
 mod scene_info;
 mod serve_cmd;
 mod simulate_cmd;
+mod view_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::process::ExitCode;
@@ -54,6 +55,9 @@ pub enum Command {
     /// serving, then served read-only at `http://BIND:PORT/<file name>` until Ctrl-C. Do not rewrite the
     /// file while it is served.
     Serve(serve_cmd::ServeArgs),
+    /// Fly through a paging file in a window with a live inspector (egui): fps, counters, knobs, node
+    /// bounds, frozen selection, screenshots, path recording.
+    View(view_cmd::ViewArgs),
 }
 
 /// Which axis points up (the other two span the distribution plane).
@@ -98,6 +102,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Render(a) => render_cmd::run(a),
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Serve(a) => serve_cmd::run(a),
+        Command::View(a) => view_cmd::run(a),
     }
 }
 

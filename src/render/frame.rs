@@ -190,6 +190,8 @@ pub struct Renderer<'f> {
     density: Option<DensityTarget>,
     /// Block paging (`None`: everything resident).
     paging: Option<PagingRuntime>,
+    /// Camera the cut is selected for instead of the frame's camera ([`Renderer::freeze_selection`]).
+    frozen: Option<Camera>,
 }
 
 impl<'f> Renderer<'f> {
@@ -353,6 +355,7 @@ impl<'f> Renderer<'f> {
             timestamps,
             density: None,
             paging,
+            frozen: None,
         })
     }
 
@@ -460,6 +463,29 @@ impl<'f> Renderer<'f> {
         self.pipelines.created()
     }
 
+    /// Selects every following frame's cut for `camera` instead of the frame's own camera (`None`: the
+    /// frame's camera again), so the cut of one view can be looked at from elsewhere (the viewer's "freeze
+    /// selection"). Draws still use the frame's camera.
+    pub fn freeze_selection(&mut self, camera: Option<Camera>) {
+        self.frozen = camera;
+    }
+
+    /// Replaces the colour and depth targets by ones of `width`×`height` pixels (a resized window); the
+    /// resident data and pipelines are kept. Errors: [`RenderError::BadSize`] for an empty size.
+    pub fn resize(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
+        if width == 0 || height == 0 {
+            return Err(RenderError::BadSize { width, height });
+        }
+        if (width, height) == (self.opts.width, self.opts.height) {
+            return Ok(());
+        }
+        (self.color, self.color_view, self.depth_view) = targets(&self.ctx.device, width, height);
+        self.opts.width = width;
+        self.opts.height = height;
+        self.density = None;
+        Ok(())
+    }
+
     /// The cuts of the last frame, one per tree.
     pub fn cuts(&self) -> &[Cut] {
         &self.cuts
@@ -518,13 +544,14 @@ impl<'f> Renderer<'f> {
     ) -> Result<FrameStats, RenderError> {
         let t0 = Instant::now();
         let mut stats = FrameStats::default();
-        let frustum = camera.frustum();
+        let selector = *self.frozen.as_ref().unwrap_or(camera);
+        let frustum = selector.frustum();
         for (t, cut) in self.cuts.iter_mut().enumerate() {
             let view = self
                 .file
                 .tree(t)
                 .ok_or(RenderError::MissingTree { tree: t })?;
-            select(view.nodes, camera, &frustum, scale, cut);
+            select(view.nodes, &selector, &frustum, scale, cut);
             stats.nodes_visited += cut.visited;
             stats.nodes_drawn += cut.items.len() as u32;
         }
@@ -535,7 +562,7 @@ impl<'f> Renderer<'f> {
                 what: "the naive original-texture mode",
             });
         }
-        stats.paging = self.page(camera, &frustum, scale);
+        stats.paging = self.page(&selector, &frustum, scale);
         let t1 = Instant::now();
 
         for (info, cut) in self.resident.infos.iter().zip(&self.cuts) {

@@ -302,7 +302,7 @@ fn check_sections(path: &Path, header: &Header, bytes: &[u8]) -> Result<u64, Sto
                 s.record_size().into(),
             ));
         }
-        if e.offset % SECTION_ALIGN != 0 {
+        if !e.offset.is_multiple_of(SECTION_ALIGN) {
             let what = format!("section {section}");
             return Err(StoreError::Misaligned {
                 what,

@@ -194,7 +194,7 @@ pub(crate) fn check_tree(
         return Err(bad_value("trees", u64::from(t.tree), "nodes.count", 0));
     }
     let tris = t.indices.len() / 3;
-    if t.indices.len() % 3 != 0 || t.source_triangles.len() != tris {
+    if !t.indices.len().is_multiple_of(3) || t.source_triangles.len() != tris {
         let value = t.source_triangles.len() as u64;
         return Err(bad_value(
             "trees",

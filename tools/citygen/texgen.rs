@@ -301,7 +301,11 @@ fn roof(kind: u8, w: u32, h: u32, s: u64) -> Pixels {
         _ => {
             let rows = 16.0;
             let ry = (v * rows).fract();
-            let stagger = if (v * rows) as u32 % 2 == 0 { 0.0 } else { 0.5 };
+            let stagger = if ((v * rows) as u32).is_multiple_of(2) {
+                0.0
+            } else {
+                0.5
+            };
             let rx = (u * 12.0 + stagger).fract();
             let n = fbm(s, u, v, 8, 2);
             let f = 0.6 + 0.4 * ry + 0.15 * n - if rx < 0.05 { 0.2 } else { 0.0 };

@@ -176,7 +176,7 @@ pub fn combine_quadrants(
     children: [Option<&LinearImage>; 4],
     size: u32,
 ) -> Result<LinearImage, ImageOpsError> {
-    if size < 2 || size % 2 != 0 {
+    if size < 2 || !size.is_multiple_of(2) {
         return Err(ImageOpsError::QuadrantSize { size });
     }
     let half = size / 2;

@@ -1,0 +1,195 @@
+use anyhow::{Context, bail};
+use atlastree::camera::{Camera, PathKind};
+use atlastree::render::Mode;
+use atlastree::store::TreeFile;
+use atlastree::view::{ViewOptions, ViewReport, scene_bounds};
+use clap::Args;
+use glam::DVec3;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Fly through a paging file in a window, with a live inspector (egui) of what the renderer does.
+///
+/// Keys: W A S D move, Q E down/up, Shift fast, drag the mouse to look, wheel for speed (orbit: distance);
+/// O fly/orbit; F frame the scene; 1 2 3 tree/original/dummy; L level colours; B node bounds; G freeze the
+/// selection (fly away and look at the cut from outside); H hide the inspector; P screenshot (PNG in
+/// --out); R start/stop recording the flown path (JSON camera path in --out, replay with --path or
+/// `render --path`); Esc quit.
+///
+/// Scripted: `--screenshot-after N --exit` writes the N-th frame to --screenshot and quits, e.g. under
+/// `xvfb-run -a` on a machine without a display (any wgpu backend; lavapipe works).
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// The paging file.
+    pub file: PathBuf,
+    /// Initial window width, pixels.
+    #[arg(long, default_value_t = 1280)]
+    pub width: u32,
+    /// Initial window height, pixels.
+    #[arg(long, default_value_t = 720)]
+    pub height: u32,
+    /// Start mode: tree (the product), original (naive per-texture draws), dummy (one 1×1 texture),
+    /// tree-levels (tree with level colouring).
+    #[arg(long, default_value = "tree")]
+    pub mode: Mode,
+    /// Texels per pixel required at start (the inspector's slider changes it live).
+    #[arg(long, default_value_t = 1.0)]
+    pub texel_ratio: f64,
+    /// Page blocks (paper §6) with at most k resident, loaded from the file by two loader threads; the
+    /// inspector shows the paging counters and its capacity slider changes k live (up to this k). Without
+    /// it every block is uploaded at start and the paging rows read n/a.
+    #[arg(long)]
+    pub capacity: Option<u32>,
+    /// Follow a camera path (overview-dive, street, orbit, or a keyframe JSON file, e.g. one recorded
+    /// with R). Moving the camera leaves follow mode; the inspector's "follow" resumes it.
+    #[arg(long)]
+    pub path: Option<String>,
+    /// Follow the path in fixed steps: frame i shows path time start + i / FPS (as `render --fps`),
+    /// instead of in real time.
+    #[arg(long, requires = "path")]
+    pub path_fps: Option<f64>,
+    /// Start camera `EX,EY,EZ,TX,TY,TZ[,FOV]`: eye, target (world units) and horizontal field of view
+    /// (degrees, default 60). Default: frame the whole scene.
+    #[arg(long, conflicts_with = "path", allow_hyphen_values = true)]
+    pub camera: Option<String>,
+    /// Write a screenshot of the N-th frame (1 = the first) to --screenshot.
+    #[arg(long, value_name = "N")]
+    pub screenshot_after: Option<u64>,
+    /// Quit after the --screenshot-after screenshot.
+    #[arg(long, requires = "screenshot_after")]
+    pub exit: bool,
+    /// File of the --screenshot-after screenshot [default: OUT/screenshot.png].
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Directory for P screenshots and recorded paths.
+    #[arg(long, default_value = "out/view")]
+    pub out: PathBuf,
+    /// Start with the inspector hidden (H toggles it).
+    #[arg(long)]
+    pub hide_overlay: bool,
+    /// Start with the node bounds of the cut drawn (B toggles them).
+    #[arg(long)]
+    pub bounds: bool,
+    /// Present as fast as possible instead of waiting for vertical sync.
+    #[arg(long)]
+    pub no_vsync: bool,
+    /// Skip GPU timestamp queries.
+    #[arg(long)]
+    pub no_gpu_timing: bool,
+    /// Print the session report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Parses `EX,EY,EZ,TX,TY,TZ[,FOV]`.
+fn parse_camera(s: &str, up: DVec3) -> anyhow::Result<Camera> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("--camera {s:?}: expected numbers EX,EY,EZ,TX,TY,TZ[,FOV]"))?;
+    let (eye, target, fov) = match v.as_slice() {
+        [ex, ey, ez, tx, ty, tz] => (DVec3::new(*ex, *ey, *ez), DVec3::new(*tx, *ty, *tz), 60.0),
+        [ex, ey, ez, tx, ty, tz, fov] => {
+            (DVec3::new(*ex, *ey, *ez), DVec3::new(*tx, *ty, *tz), *fov)
+        }
+        _ => bail!(
+            "--camera {s:?}: expected 6 or 7 numbers (EX,EY,EZ,TX,TY,TZ[,FOV]), got {}",
+            v.len()
+        ),
+    };
+    if !(eye.is_finite() && target.is_finite()) || eye == target {
+        bail!("--camera {s:?}: eye and target must be finite and different");
+    }
+    if !(fov > 0.0 && fov < 180.0) {
+        bail!("--camera {s:?}: field of view {fov}° is outside (0°, 180°)");
+    }
+    Ok(Camera {
+        eye,
+        target,
+        up,
+        fov_x_deg: fov,
+        aspect: 1.0,
+        near: 0.25,
+        far: 1.0e5,
+    })
+}
+
+pub fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
+    if a.width == 0 || a.height == 0 {
+        bail!("--width and --height must be > 0");
+    }
+    if !(a.texel_ratio.is_finite() && a.texel_ratio > 0.0) {
+        bail!("--texel-ratio must be finite and > 0");
+    }
+    if a.path_fps.is_some_and(|f| !(f.is_finite() && f > 0.0)) {
+        bail!("--path-fps must be finite and > 0");
+    }
+    if a.screenshot_after == Some(0) {
+        bail!("--screenshot-after counts frames from 1");
+    }
+    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let params = file.to_params();
+    let (lo, hi) = scene_bounds(&file).context("the file has no nodes")?;
+    let path = match &a.path {
+        Some(p) => Some(p.parse::<PathKind>()?.resolve(lo, hi, params.up)?),
+        None => None,
+    };
+    let camera = a
+        .camera
+        .as_deref()
+        .map(|s| parse_camera(s, params.up.vector()))
+        .transpose()?;
+    let opts = ViewOptions {
+        width: a.width,
+        height: a.height,
+        mode: a.mode,
+        texel_ratio: a.texel_ratio,
+        capacity: a.capacity,
+        camera,
+        path,
+        path_fps: a.path_fps,
+        screenshot_after: a.screenshot_after,
+        exit_after_screenshot: a.exit,
+        screenshot: a
+            .screenshot
+            .clone()
+            .unwrap_or_else(|| a.out.join("screenshot.png")),
+        out_dir: a.out.clone(),
+        hide_overlay: a.hide_overlay,
+        bounds: a.bounds,
+        vsync: !a.no_vsync,
+        gpu_timing: !a.no_gpu_timing,
+    };
+    let report = atlastree::view::run(&file, opts)?;
+    print_report(&report, a.json);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_report(r: &ViewReport, json: bool) {
+    if json {
+        let v = serde_json::json!({
+            "adapter": r.adapter,
+            "frames": r.frames,
+            "size": [r.size.0, r.size.1],
+            "fps": r.fps,
+            "screenshots": r.screenshots.iter().map(|(p, s)| serde_json::json!({
+                "file": p.display().to_string(),
+                "source": s.name(),
+            })).collect::<Vec<_>>(),
+            "recordings": r.recordings.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        });
+        println!("{v}");
+        return;
+    }
+    println!(
+        "view: {} frames at {:.1} fps, {}x{}, adapter {}",
+        r.frames, r.fps, r.size.0, r.size.1, r.adapter
+    );
+    for (p, source) in &r.screenshots {
+        println!("screenshot: {} (from the {})", p.display(), source.name());
+    }
+    for p in &r.recordings {
+        println!("recorded path: {}", p.display());
+    }
+}
