@@ -31,6 +31,9 @@
 //! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
 //! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
 //!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
+//! - [`sweep`]: what accuracy costs in time: builds and renders a grid of knob values (d_min, atlas size,
+//!   border, filter, texel ratio, capacity), compares every frame with the original-texture reference and
+//!   writes CSV tables, plots with the Pareto front and a report with recommended defaults.
 //!
 //! Stages still to come (see the issues): `paging` (blocks under a capacity k), `sim`.
 
@@ -45,4 +48,5 @@ pub mod report;
 pub mod scene;
 pub mod select;
 pub mod store;
+pub mod sweep;
 pub mod util;

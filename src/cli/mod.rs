@@ -6,6 +6,7 @@ mod inspect_cmd;
 mod progress;
 mod render_cmd;
 mod scene_info;
+mod sweep_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::process::ExitCode;
@@ -42,6 +43,9 @@ pub enum Command {
     Inspect(inspect_cmd::InspectArgs),
     /// Render a camera path offscreen with the texture-array-batched renderer; PNGs, contact sheet, stats.csv.
     Render(render_cmd::RenderArgs),
+    /// What accuracy costs in time: build and render a grid of knob values on one scene and path, compare
+    /// every frame with the original textures; sweep.csv, frames.csv, report.md and Pareto plots.
+    Sweep(sweep_cmd::SweepArgs),
 }
 
 /// Which axis points up (the other two span the distribution plane).
@@ -84,6 +88,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Build(a) => build_cmd::run(a),
         Command::Inspect(a) => inspect_cmd::run(a),
         Command::Render(a) => render_cmd::run(a),
+        Command::Sweep(a) => sweep_cmd::run(a),
     }
 }
 
