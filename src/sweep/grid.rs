@@ -186,15 +186,15 @@ pub fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
 pub const PRESETS: [&str; 2] = ["small", "full"];
 
 impl Grid {
-    /// `small`: data/city in CI time (3 builds at atlas 512/1024 and box/Kaiser, 4 texel ratios, one
-    /// capacity, 4 frames of 320×240). `full`: 7 builds (d_min ratio 10/30/60, atlas 512/1024/2048,
+    /// `small`: data/city in CI time (d_min = diagonal / 15; 3 builds at atlas 512/1024 and box/Kaiser,
+    /// 4 texel ratios, one capacity, 6 frames of 320×240). `full`: 7 builds (d_min ratio 10/30/60, atlas 512/1024/2048,
     /// border 2/8, box/Kaiser), 4 texel ratios, capacities 32 and 128, 12 frames of 640×480.
     pub fn preset(name: &str) -> Option<Grid> {
         let ratios = vec![0.25, 0.5, 1.0, 2.0];
         match name {
             "small" => Some(Grid {
                 base: Base {
-                    d_min_ratio: 10.0,
+                    d_min_ratio: 15.0,
                     atlas_size: 512,
                     border: 8,
                     filter: MipFilter::Box,
@@ -208,7 +208,7 @@ impl Grid {
                 texel_ratio: ratios,
                 capacity: vec![24],
                 texel_ratio_on_every_build: true,
-                frames: 4,
+                frames: 6,
                 width: 320,
                 height: 240,
             }),

@@ -8,6 +8,7 @@ mod harness;
 mod paging;
 mod render;
 mod smoke;
+mod sweep;
 
 use std::process::ExitCode;
 
@@ -18,6 +19,7 @@ fn main() -> ExitCode {
         render::tests(),
         golden::tests(),
         paging::tests(),
+        sweep::tests(),
     ]
     .into_iter()
     .flatten()
