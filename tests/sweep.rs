@@ -4,10 +4,10 @@
 
 use atlastree::build::image_ops::MipFilter;
 use atlastree::build::{BuildOptions, DMin, NoProgress, build};
+use atlastree::report::metrics::Histogram;
 use atlastree::sweep::grid::{BuildKnobs, Grid, RuntimeKnobs};
 use atlastree::sweep::run::{BuildRow, FrameRow, merge_histogram};
 use atlastree::sweep::summary::{frame_time_front, mean, median, recommend, summarise};
-use atlastree::report::metrics::Histogram;
 use std::path::Path;
 
 #[test]
@@ -26,7 +26,10 @@ fn small_preset_is_a_star_of_three_builds_and_thirteen_variants() {
     assert_eq!(counts, [5, 4, 4]);
     assert_eq!(p.variants(), 13);
     let base: Vec<String> = p.builds[0].runtimes.iter().map(|r| r.id()).collect();
-    assert_eq!(base, ["t0.25_all", "t0.5_all", "t1_all", "t2_all", "t1_k24"]);
+    assert_eq!(
+        base,
+        ["t0.25_all", "t0.5_all", "t1_all", "t2_all", "t1_k24"]
+    );
     assert_eq!((p.frames, p.width, p.height), (6, 320, 240));
 }
 
@@ -72,7 +75,9 @@ fn json_grid_round_trips_and_bad_values_name_the_file() {
     assert!(bad_filter.to_string().contains("gauss"));
     let mut g2 = g.clone();
     g2.atlas_size.push(500);
-    let e = g2.validate("g.json").expect_err("500 is not a power of two");
+    let e = g2
+        .validate("g.json")
+        .expect_err("500 is not a power of two");
     assert!(e.to_string().contains("atlas_size 500"), "{e}");
     let mut g3 = g;
     g3.texel_ratio.push(-1.0);
@@ -153,8 +158,8 @@ fn summary_means_front_and_recommendation() {
     assert!((rows[1].psnr_covered_db - 40.2).abs() < 1e-12);
     assert_eq!(rows[1].frame_ms_median, 60.0);
     assert_eq!((rows[2].file_bytes, rows[2].build_s), (100, 5.0));
-    // Front over (median ms, PSNR): a/0.5 (20 ms, 32 dB), b/1 (20 ms, 40 dB) dominates it… b is at 20 ms
-    // and 40.0 dB; a/1 is 60 ms at 40.2 dB: both on the front, a/0.5 dominated.
+    // Front over (median ms, PSNR): a/0.5 is 20 ms at 32 dB, b/1 20 ms at 40.0 dB (dominates a/0.5),
+    // a/1 60 ms at 40.2 dB (slower but more accurate): the front is b/1 then a/1.
     assert_eq!(frame_time_front(&rows), vec![2, 1]);
     let rec = recommend(&rows, 0.5).expect("some rows");
     assert_eq!(rec.best, 1);

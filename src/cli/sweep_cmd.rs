@@ -144,15 +144,11 @@ pub fn run(a: SweepArgs) -> anyhow::Result<ExitCode> {
     if !a.keep_builds {
         let _ = std::fs::remove_dir(&opts.builds_dir);
     }
-    let (rows, written) = write_outputs(
-        &a.out,
-        &data,
-        &a.scene.display().to_string(),
-        &a.path,
-    )?;
+    let (rows, written) = write_outputs(&a.out, &data, &a.scene.display().to_string(), &a.path)?;
     let rec = recommend(&rows, PSNR_TOLERANCE_DB);
     if a.json {
-        let out = serde_json::json!({ "variants": rows, "builds": data.builds, "recommendation": rec });
+        let out =
+            serde_json::json!({ "variants": rows, "builds": data.builds, "recommendation": rec });
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(ExitCode::SUCCESS);
     }

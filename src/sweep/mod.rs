@@ -44,7 +44,7 @@ pub enum SweepError {
     Build {
         build: String,
         #[source]
-        source: BuildError,
+        source: Box<BuildError>,
     },
     #[error("opening build {path}: {source}")]
     Open {
@@ -57,7 +57,7 @@ pub enum SweepError {
         variant: String,
         frame: usize,
         #[source]
-        source: RenderError,
+        source: Box<RenderError>,
     },
     #[error("variant {variant}: {source}")]
     Scale {

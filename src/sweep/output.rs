@@ -1,9 +1,9 @@
 //! The sweep's files: `sweep.csv` (one row per variant, means), `frames.csv` (per variant and frame),
 //! `builds.csv` (per build, stage times), `report.md`, and the plots (SVG + PNG, each written atomically).
 
+use super::SweepError;
 use super::run::{BuildRow, FrameRow, SweepData};
 use super::summary::{ReportContext, VariantRow, markdown, summarise};
-use super::SweepError;
 use crate::report::csv::{Cell, write_csv};
 use crate::report::plot::{
     Better, LabelledPoint, PlotOptions, PointLabels, ScatterSeries, Series, histogram_chart,
@@ -92,7 +92,8 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
         Cell::UInt(r.bytes_paged),
         Cell::UInt(r.file_bytes),
         Cell::Float(r.build_s),
-        r.peak_rss_bytes.map_or(Cell::Text(String::new()), Cell::UInt),
+        r.peak_rss_bytes
+            .map_or(Cell::Text(String::new()), Cell::UInt),
         Cell::Text(r.build.id()),
     ]
 }
@@ -166,7 +167,8 @@ fn write_builds(path: &Path, builds: &[BuildRow]) -> Result<(), SweepError> {
                 Cell::UInt(u64::from(b.depth)),
                 Cell::UInt(b.blocks),
                 Cell::Float(b.build_s),
-                b.peak_rss_bytes.map_or(Cell::Text(String::new()), Cell::UInt),
+                b.peak_rss_bytes
+                    .map_or(Cell::Text(String::new()), Cell::UInt),
             ];
             for s in &stages {
                 let v = b.stage_s.iter().find(|(n, _)| n == s).map(|(_, v)| *v);
@@ -278,11 +280,21 @@ fn write_plots(
             .histograms
             .iter()
             .filter(|(id, _)| id.starts_with(&base.knobs.id()))
-            .map(|(id, h)| (id.trim_start_matches(&base.knobs.id()).trim_start_matches('_').to_string(), h))
+            .map(|(id, h)| {
+                (
+                    id.trim_start_matches(&base.knobs.id())
+                        .trim_start_matches('_')
+                        .to_string(),
+                    h,
+                )
+            })
             .collect();
         if !hists.is_empty() {
             let o = PlotOptions::new(
-                format!("Texels per pixel (least-sampled direction), build {}", base.knobs.id()),
+                format!(
+                    "Texels per pixel (least-sampled direction), build {}",
+                    base.knobs.id()
+                ),
                 "texels per pixel (log2 bins)",
                 "share of drawn pixels",
             );

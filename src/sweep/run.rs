@@ -231,12 +231,11 @@ pub fn run_sweep(
 fn build_one(scene: &Scene, knobs: &BuildKnobs, out: &Path) -> Result<BuildRow, SweepError> {
     let reset = reset_peak_rss();
     let t = std::time::Instant::now();
-    let r = build(scene, &knobs.options(), out, &NoProgress).map_err(|source| {
-        SweepError::Build {
+    let r =
+        build(scene, &knobs.options(), out, &NoProgress).map_err(|source| SweepError::Build {
             build: knobs.id(),
-            source,
-        }
-    })?;
+            source: Box::new(source),
+        })?;
     let build_s = t.elapsed().as_secs_f64();
     Ok(BuildRow {
         knobs: *knobs,
@@ -245,7 +244,11 @@ fn build_one(scene: &Scene, knobs: &BuildKnobs, out: &Path) -> Result<BuildRow, 
         leaves: r.trees.iter().map(|t| t.leaves).sum(),
         depth: r.trees.iter().map(|t| t.depth).max().unwrap_or(0),
         blocks: r.blocks,
-        stage_s: r.timings.into_iter().filter(|(n, _)| n != "total").collect(),
+        stage_s: r
+            .timings
+            .into_iter()
+            .filter(|(n, _)| n != "total")
+            .collect(),
         build_s,
         peak_rss_bytes: r.peak_rss_bytes,
         peak_rss_reset: reset,
@@ -290,7 +293,7 @@ fn run_build(
         move |source| SweepError::Render {
             variant,
             frame,
-            source,
+            source: Box::new(source),
         }
     };
     let mut full = Renderer::new(ctx, file, ropts).map_err(render_err(pb.knobs.id(), 0))?;
@@ -380,7 +383,7 @@ fn reference_frames(
         move |source| SweepError::Render {
             variant: "reference".into(),
             frame,
-            source,
+            source: Box::new(source),
         }
     };
     if opts.warmup > 0
@@ -427,7 +430,7 @@ impl VariantCtx<'_> {
         let render_err = |source| SweepError::Render {
             variant: self.id.to_string(),
             frame: i,
-            source,
+            source: Box::new(source),
         };
         let metric_err = |source| SweepError::Metric {
             variant: self.id.to_string(),

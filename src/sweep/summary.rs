@@ -247,16 +247,16 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
             let _ = writeln!(md, "No variant has a finite PSNR.\n");
         }
     }
-    let _ = writeln!(
-        md,
-        "## Pareto front (median frame ms ↓, covered PSNR ↑)\n"
-    );
+    let _ = writeln!(md, "## Pareto front (median frame ms ↓, covered PSNR ↑)\n");
     for i in frame_time_front(rows) {
         let _ = writeln!(md, "- {}", describe(&rows[i]));
     }
     let _ = writeln!(md);
     for (file, caption) in &cx.plots {
-        let _ = writeln!(md, "![{caption}]({file}.png)  \n*{caption}* ([SVG]({file}.svg))\n");
+        let _ = writeln!(
+            md,
+            "![{caption}]({file}.png)  \n*{caption}* ([SVG]({file}.svg))\n"
+        );
     }
     builds_table(&mut md, &data.builds);
     variants_table(&mut md, rows);

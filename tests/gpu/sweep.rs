@@ -63,7 +63,9 @@ fn small_grid_on_city_csv_is_sane(ctx: &atlastree::gpu::GpuContext) -> Result<()
         .map(|d| d.count())
         .unwrap_or(0);
     if left != 0 {
-        return Err(format!("{left} build files left behind without --keep-builds"));
+        return Err(format!(
+            "{left} build files left behind without --keep-builds"
+        ));
     }
     let sweep = read_csv(&dir.path().join("sweep.csv")).map_err(e)?;
     let frames = read_csv(&dir.path().join("frames.csv")).map_err(e)?;
@@ -121,7 +123,10 @@ fn check_complete(
     for name in ["magnified_share", "below_target_share"] {
         for (i, v) in num(sweep, name)?.iter().enumerate() {
             if paged[i] != v.is_nan() || !(v.is_nan() || (0.0..=1.0).contains(v)) {
-                return Err(format!("sweep.csv row {i}: {name} = {v} (paged: {})", paged[i]));
+                return Err(format!(
+                    "sweep.csv row {i}: {name} = {v} (paged: {})",
+                    paged[i]
+                ));
             }
         }
     }

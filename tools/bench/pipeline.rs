@@ -11,7 +11,6 @@
 //!   the same tree with one atlas block per node and one original block per leaf, nodes/s.
 
 #[path = "../../tests/select_util/mod.rs"]
-#[allow(dead_code)]
 mod select_util;
 
 use atlastree::build::image_ops::{
