@@ -32,6 +32,9 @@
 //! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
 //!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
 //! - [`view`]: the interactive window (winit + egui inspector) over the same renderer.
+//! - [`sweep`]: what accuracy costs in time: builds and renders a grid of knob values (d_min, atlas size,
+//!   border, filter, texel ratio, capacity), compares every frame with the original-texture reference and
+//!   writes CSV tables, plots with the Pareto front and a report with recommended defaults.
 //!
 //! - [`paging`]: prioritised block paging (§6): usage categories, the ideal set under a capacity k, the
 //!   re-ranked request queue, loaders (synchronous, threads, HTTP), residency, drawing with missing blocks.
@@ -50,5 +53,6 @@ pub mod scene;
 pub mod select;
 pub mod sim;
 pub mod store;
+pub mod sweep;
 pub mod util;
 pub mod view;

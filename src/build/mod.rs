@@ -57,6 +57,10 @@ pub struct BuildOptions {
     pub max_pieces: u32,
     /// Refuse (before writing anything) a build whose paging file would exceed this many bytes.
     pub max_file_bytes: u64,
+    /// Down-sampling kernel of the atlas mip chains, and hence of every inner atlas (the 2×2 combination
+    /// of its children's level 1, §5.1). Original-texture blocks and the source images sampled into leaf
+    /// atlases keep the box filter, so `--mode original` stays the same reference for every build.
+    pub mip_filter: image_ops::MipFilter,
 }
 
 impl Default for BuildOptions {
@@ -73,6 +77,7 @@ impl Default for BuildOptions {
             image_cache_bytes: 2 << 30,
             max_pieces: 4096,
             max_file_bytes: 64 << 30,
+            mip_filter: image_ops::MipFilter::Box,
         }
     }
 }
@@ -386,6 +391,7 @@ pub fn build(
         cache: &cache,
         progress: &set,
         done,
+        mip_filter: opts.mip_filter,
     };
     for tree in &forest.trees {
         raster::raster_tree(&ctx, tree)?;

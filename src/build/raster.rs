@@ -8,7 +8,8 @@
 use super::BuildError;
 use super::image_ops::ImageOpsError;
 use super::image_ops::{
-    LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, mip_chain_rgba8, resample_square,
+    LinearImage, MipChain, MipFilter, MipOptions, RectJob, combine_quadrants, draw_rect,
+    mip_chain_rgba8, resample_square,
 };
 use super::tree::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::ids::{ImageId, NodeId};
@@ -194,6 +195,8 @@ pub struct RasterCtx<'a> {
     /// Called with the number of nodes finished so far.
     pub progress: &'a (dyn Fn(u64) + Sync),
     pub done: AtomicU64,
+    /// Kernel of the atlas mip chains (the level 1 handed to the parent included).
+    pub mip_filter: MipFilter,
 }
 
 /// Rasterises every atlas and original-texture block of `tree` into the writer.
@@ -241,7 +244,13 @@ fn raster_node(
             .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))?
     };
     // One mip chain serves both the stored block and the parent, which needs exactly level 1.
-    let chain = MipChain::build(atlas);
+    let chain = MipChain::build_with(
+        atlas,
+        &MipOptions {
+            filter: ctx.mip_filter,
+            ..MipOptions::default()
+        },
+    );
     ctx.writer
         .write_block(node.atlas_block, &chain.to_rgba8())?;
     let n = ctx.done.fetch_add(1, Ordering::Relaxed) + 1;

@@ -37,6 +37,10 @@ pub struct BuildArgs {
     /// Border around each packed texture area, texels (paper: 8; protects 3 mip levels).
     #[arg(long, default_value_t = 8)]
     pub border: u32,
+    /// Down-sampling kernel of the atlas mip chains and inner atlases: `box` (2×2 mean) or `kaiser`
+    /// (Kaiser-windowed sinc, sharper, slight clamped ringing). Original textures always use `box`.
+    #[arg(long, default_value = "box")]
+    pub filter: atlastree::build::image_ops::MipFilter,
     /// Maximum tree depth; a region that needs more is an error naming it.
     #[arg(long, default_value_t = 24)]
     pub max_depth: u8,
@@ -82,6 +86,7 @@ impl BuildArgs {
             image_cache_bytes: self.image_cache_mib << 20,
             max_pieces: self.max_pieces,
             max_file_bytes: self.max_file_gib << 30,
+            mip_filter: self.filter,
         }
     }
 }

@@ -8,6 +8,7 @@ mod render_cmd;
 mod scene_info;
 mod serve_cmd;
 mod simulate_cmd;
+mod sweep_cmd;
 mod view_cmd;
 
 use clap::{Parser, Subcommand, ValueEnum};
@@ -58,6 +59,9 @@ pub enum Command {
     /// Fly through a paging file in a window with a live inspector (egui): fps, counters, knobs, node
     /// bounds, frozen selection, screenshots, path recording.
     View(view_cmd::ViewArgs),
+    /// What accuracy costs in time: build and render a grid of knob values on one scene and path, compare
+    /// every frame with the original textures; sweep.csv, frames.csv, report.md and Pareto plots.
+    Sweep(sweep_cmd::SweepArgs),
 }
 
 /// Which axis points up (the other two span the distribution plane).
@@ -103,6 +107,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Serve(a) => serve_cmd::run(a),
         Command::View(a) => view_cmd::run(a),
+        Command::Sweep(a) => sweep_cmd::run(a),
     }
 }
 

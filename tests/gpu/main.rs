@@ -8,6 +8,7 @@ mod harness;
 mod paging;
 mod render;
 mod smoke;
+mod sweep;
 mod view;
 
 use std::process::ExitCode;
@@ -20,6 +21,7 @@ fn main() -> ExitCode {
         golden::tests(),
         paging::tests(),
         view::tests(),
+        sweep::tests(),
     ]
     .into_iter()
     .flatten()

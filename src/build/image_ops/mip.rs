@@ -30,6 +30,28 @@ pub enum MipFilter {
     Kaiser,
 }
 
+impl MipFilter {
+    pub const ALL: [MipFilter; 2] = [MipFilter::Box, MipFilter::Kaiser];
+
+    /// The lower-case name used on the command line and in sweep grids.
+    pub fn name(self) -> &'static str {
+        match self {
+            MipFilter::Box => "box",
+            MipFilter::Kaiser => "kaiser",
+        }
+    }
+}
+
+impl std::str::FromStr for MipFilter {
+    type Err = String;
+    fn from_str(s: &str) -> Result<MipFilter, String> {
+        MipFilter::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| format!("unknown mip filter {s:?} (box, kaiser)"))
+    }
+}
+
 /// How a mip chain is built.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct MipOptions {

@@ -1,0 +1,176 @@
+use super::{UpArg, load_scene};
+use anyhow::{Context, bail};
+use atlastree::camera::PathKind;
+use atlastree::gpu::{GpuContext, GpuOptions};
+use atlastree::sweep::output::write_outputs;
+use atlastree::sweep::run::sample_path;
+use atlastree::sweep::summary::{PSNR_TOLERANCE_DB, recommend};
+use atlastree::sweep::{Grid, SweepOptions, SweepProgress, run_sweep};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// Measure what accuracy costs in time. Builds every build-time variant of the grid once (d_min ratio,
+/// atlas size, border, down-sampling filter), renders every runtime variant (texel ratio, paging
+/// capacity k) over the same frames of the path, and compares each frame with the reference: the same
+/// view drawn with the original textures at full resolution (`render --mode original`).
+///
+/// The grid is a star around a base variant: the base plus each listed value of one knob at a time.
+/// `--grid small` (3 builds, 13 variants, 4 frames of 320×240; CI time on data/city), `--grid full`
+/// (7 builds, about 30 variants, 12 frames of 640×480), or a JSON file, e.g.
+/// `{"base": {"d_min_ratio": 8, "atlas_size": 1024, "border": 8, "filter": "box", "texel_ratio": 1},
+///   "atlas_size": [512, 1024, 2048], "texel_ratio": [0.25, 0.5, 1, 2], "capacity": [64], "frames": 8}`.
+///
+/// Writes into `--out`: sweep.csv (one row per variant, means), frames.csv (per variant and frame),
+/// builds.csv (stage times), report.md (tables, recommended defaults, plots) and the plots as SVG + PNG:
+/// accuracy vs frame time with the Pareto front, vs file size, vs build time, vs texel ratio, and the
+/// texel-per-pixel histograms.
+#[derive(Args, Debug)]
+pub struct SweepArgs {
+    /// The glTF scene (.gltf or .glb).
+    pub scene: PathBuf,
+    /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
+    #[arg(long, default_value = "overview-dive")]
+    pub path: String,
+    /// Output directory.
+    #[arg(long, default_value = "out/sweep")]
+    pub out: PathBuf,
+    /// Grid: `small`, `full`, or a JSON file.
+    #[arg(long, default_value = "small")]
+    pub grid: String,
+    /// Frames spread evenly over the path (overrides the grid's).
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Frame width in pixels (overrides the grid's).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Frame height in pixels (overrides the grid's).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Keep the paging files in OUT/builds (by default each is deleted once its variants are measured).
+    #[arg(long)]
+    pub keep_builds: bool,
+    /// Up axis; `auto` takes the axis of least extent.
+    #[arg(long, value_enum, default_value_t = UpArg::Auto)]
+    pub up: UpArg,
+    /// Print the variant rows and the recommendation as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// An indicatif bar with ETA for the sweep.
+struct Bar(ProgressBar);
+
+impl SweepProgress for Bar {
+    fn begin(&self, total: u64) {
+        self.0.set_length(total);
+    }
+    fn message(&self, msg: &str) {
+        self.0.set_message(msg.to_string());
+    }
+    fn advance(&self, units: u64) {
+        self.0.inc(units);
+    }
+    fn finish(&self) {
+        self.0.finish_and_clear();
+    }
+}
+
+fn load_grid(spec: &str) -> anyhow::Result<Grid> {
+    if let Some(g) = Grid::preset(spec) {
+        return Ok(g);
+    }
+    if !spec.to_ascii_lowercase().ends_with(".json") {
+        bail!("unknown --grid {spec:?}: expected small, full or a .json file");
+    }
+    let text = std::fs::read_to_string(spec).with_context(|| format!("reading grid {spec}"))?;
+    Ok(Grid::from_json(&text, spec)?)
+}
+
+pub fn run(a: SweepArgs) -> anyhow::Result<ExitCode> {
+    let mut grid = load_grid(&a.grid)?;
+    if let Some(f) = a.frames {
+        grid.frames = f;
+    }
+    if let Some(w) = a.width {
+        grid.width = w;
+    }
+    if let Some(h) = a.height {
+        grid.height = h;
+    }
+    grid.validate(&a.grid)?;
+    let plan = grid.plan();
+    let scene = load_scene(&a.scene, a.up)?;
+    let (lo, hi) = scene.bounds().context("the scene has no vertices")?;
+    let kind: PathKind = a.path.parse()?;
+    let path = kind.resolve(lo, hi, scene.up)?;
+    let aspect = f64::from(plan.width) / f64::from(plan.height);
+    let cameras = sample_path(&path, plan.frames, aspect);
+
+    let ctx = GpuContext::new_headless(&GpuOptions::default())?;
+    if !a.json {
+        println!(
+            "adapter: {}\nsweep: {} builds, {} variants, {} frames of {}×{}",
+            ctx.adapter_summary(),
+            plan.builds.len(),
+            plan.variants(),
+            plan.frames,
+            plan.width,
+            plan.height
+        );
+    }
+    let pb = ProgressBar::new(0).with_style(
+        ProgressStyle::with_template("{wide_msg} [{bar:30}] {pos}/{len} {elapsed} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    if a.quiet || a.json {
+        pb.set_draw_target(ProgressDrawTarget::hidden());
+    } else {
+        pb.enable_steady_tick(Duration::from_millis(200));
+    }
+    let opts = SweepOptions {
+        builds_dir: a.out.join("builds"),
+        keep_builds: a.keep_builds,
+        ..SweepOptions::default()
+    };
+    let t = std::time::Instant::now();
+    let data = run_sweep(&ctx, &scene, &plan, &cameras, &opts, &Bar(pb))?;
+    if !a.keep_builds {
+        let _ = std::fs::remove_dir(&opts.builds_dir);
+    }
+    let (rows, written) = write_outputs(&a.out, &data, &a.scene.display().to_string(), &a.path)?;
+    let rec = recommend(&rows, PSNR_TOLERANCE_DB);
+    if a.json {
+        let out =
+            serde_json::json!({ "variants": rows, "builds": data.builds, "recommendation": rec });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("done in {:.1} s", t.elapsed().as_secs_f64());
+    for r in &rows {
+        println!(
+            "  {:<32} covered PSNR {:>6.2} dB  SSIM {:.4}  frame {:>7.2} ms  file {}",
+            r.id,
+            r.psnr_covered_db,
+            r.ssim,
+            r.frame_ms_median,
+            atlastree::util::human_bytes(r.file_bytes)
+        );
+    }
+    if let Some(rec) = rec {
+        println!(
+            "recommended (fastest frames within {} dB of the best {:.2} dB): {}",
+            rec.tolerance_db, rows[rec.best].psnr_covered_db, rows[rec.fastest_frames].id
+        );
+    }
+    for w in written {
+        println!("wrote {}", w.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}

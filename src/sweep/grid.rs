@@ -1,0 +1,392 @@
+//! The sweep grid: which knob values are measured, and how they combine into builds and runtime variants.
+//!
+//! A grid is a *star* around a base variant: the base, plus every listed value of one knob with all other
+//! knobs at their base value. A full Cartesian product of five build knobs would need dozens of builds;
+//! the star needs `1 + Σ (values − 1)` and still shows each knob's effect in isolation.
+//!
+//! - Build knobs (one paging file per combination): d_min ratio (`d_min = diagonal / R`, paper §5.2.1),
+//!   atlas size, border width (§5.2.2), the atlas down-sampling filter (§5.1, box or Kaiser).
+//! - Runtime knobs (same file, other frames): texel-per-pixel ratio (scales every `min_distance`, §4) and
+//!   paging capacity k (§6; `None`: everything resident).
+//! - Texel ratios run on every build when `texel_ratio_on_every_build` (so each build has its own
+//!   accuracy-vs-ratio curve); capacities run on the base build only.
+//!
+//! Block compression (BC1/BC3/BC7) is not a knob yet: [`BuildKnobs`] has no compression field because
+//! `BuildOptions` had none when the sweep was written. The hook: add `compression` to [`BuildKnobs`], to
+//! [`Grid`] and to [`BuildKnobs::options`], and to [`BuildKnobs::id`]; everything downstream is generic.
+
+use super::SweepError;
+use crate::build::image_ops::MipFilter;
+use crate::build::{BuildOptions, DMin};
+use serde::{Deserialize, Serialize};
+
+/// Values of the build-time knobs of one paging file.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BuildKnobs {
+    /// `d_min = scene diagonal / d_min_ratio` (larger: smaller d_min, deeper tree, bigger file).
+    pub d_min_ratio: f64,
+    /// Atlas side, texels (power of two).
+    pub atlas_size: u32,
+    /// Border around each packed area, texels.
+    pub border: u32,
+    /// Atlas mip / inner-atlas down-sampling kernel.
+    #[serde(with = "filter_name")]
+    pub filter: MipFilter,
+}
+
+/// Values of the runtime knobs of one variant.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RuntimeKnobs {
+    /// Texels per pixel required at run time (1: the build's guarantee).
+    pub texel_ratio: f64,
+    /// Paging capacity k in blocks; `None`: every block resident.
+    pub capacity: Option<u32>,
+}
+
+/// The base variant of a grid (all knobs; JSON: one flat object).
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Base {
+    pub d_min_ratio: f64,
+    pub atlas_size: u32,
+    pub border: u32,
+    #[serde(with = "filter_name")]
+    pub filter: MipFilter,
+    pub texel_ratio: f64,
+    #[serde(default)]
+    pub capacity: Option<u32>,
+}
+
+impl Base {
+    pub fn build(&self) -> BuildKnobs {
+        BuildKnobs {
+            d_min_ratio: self.d_min_ratio,
+            atlas_size: self.atlas_size,
+            border: self.border,
+            filter: self.filter,
+        }
+    }
+    pub fn runtime(&self) -> RuntimeKnobs {
+        RuntimeKnobs {
+            texel_ratio: self.texel_ratio,
+            capacity: self.capacity,
+        }
+    }
+}
+
+/// A sweep grid, read from JSON (`--grid FILE`) or a preset ([`Grid::preset`]). Lists may be empty (the
+/// knob stays at its base value); a list need not contain the base value.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Grid {
+    pub base: Base,
+    #[serde(default)]
+    pub d_min_ratio: Vec<f64>,
+    #[serde(default)]
+    pub atlas_size: Vec<u32>,
+    #[serde(default)]
+    pub border: Vec<u32>,
+    #[serde(default, with = "filter_names")]
+    pub filter: Vec<MipFilter>,
+    #[serde(default)]
+    pub texel_ratio: Vec<f64>,
+    #[serde(default)]
+    pub capacity: Vec<u32>,
+    /// Run every texel ratio on every build (else on the base build only).
+    #[serde(default = "yes")]
+    pub texel_ratio_on_every_build: bool,
+    /// Frames over the path (the CLI's `--frames` overrides).
+    #[serde(default = "default_frames")]
+    pub frames: usize,
+    /// Frame size in pixels (the CLI's `--width` / `--height` override).
+    #[serde(default = "default_width")]
+    pub width: u32,
+    #[serde(default = "default_height")]
+    pub height: u32,
+}
+
+fn yes() -> bool {
+    true
+}
+fn default_frames() -> usize {
+    6
+}
+fn default_width() -> u32 {
+    320
+}
+fn default_height() -> u32 {
+    240
+}
+
+/// One build of a [`Plan`] and the runtime variants rendered from it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlannedBuild {
+    pub knobs: BuildKnobs,
+    /// The grid's base build (renders the reference frames; always first in a plan).
+    pub is_base: bool,
+    pub runtimes: Vec<RuntimeKnobs>,
+}
+
+/// The expanded grid: builds in order, the base first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    pub builds: Vec<PlannedBuild>,
+    pub frames: usize,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Plan {
+    /// Number of (build, runtime) variants.
+    pub fn variants(&self) -> usize {
+        self.builds.iter().map(|b| b.runtimes.len()).sum()
+    }
+}
+
+impl BuildKnobs {
+    /// Stable short name, e.g. `r10_a512_b8_box`.
+    pub fn id(&self) -> String {
+        format!(
+            "r{}_a{}_b{}_{}",
+            self.d_min_ratio,
+            self.atlas_size,
+            self.border,
+            self.filter.name()
+        )
+    }
+
+    /// Build options with these knobs (the rest default; the paging file may be up to 64 GiB).
+    pub fn options(&self) -> BuildOptions {
+        BuildOptions {
+            d_min: DMin::Ratio(self.d_min_ratio),
+            atlas_size: self.atlas_size,
+            border: self.border,
+            mip_filter: self.filter,
+            ..BuildOptions::default()
+        }
+    }
+}
+
+impl RuntimeKnobs {
+    /// Stable short name, e.g. `t0.5_all` or `t1_k32`.
+    pub fn id(&self) -> String {
+        match self.capacity {
+            None => format!("t{}_all", self.texel_ratio),
+            Some(k) => format!("t{}_k{k}", self.texel_ratio),
+        }
+    }
+}
+
+/// The id of a variant: build id and runtime id.
+pub fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
+    format!("{}_{}", b.id(), r.id())
+}
+
+/// Names of the presets.
+pub const PRESETS: [&str; 2] = ["small", "full"];
+
+impl Grid {
+    /// `small`: data/city in CI time (d_min = diagonal / 15; 3 builds at atlas 512/1024 and box/Kaiser,
+    /// 4 texel ratios, one capacity, 6 frames of 320×240). `full`: 7 builds (d_min ratio 10/30/60, atlas 512/1024/2048,
+    /// border 2/8, box/Kaiser), 4 texel ratios, capacities 32 and 128, 12 frames of 640×480.
+    pub fn preset(name: &str) -> Option<Grid> {
+        let ratios = vec![0.25, 0.5, 1.0, 2.0];
+        match name {
+            "small" => Some(Grid {
+                base: Base {
+                    d_min_ratio: 15.0,
+                    atlas_size: 512,
+                    border: 8,
+                    filter: MipFilter::Box,
+                    texel_ratio: 1.0,
+                    capacity: None,
+                },
+                d_min_ratio: vec![],
+                atlas_size: vec![512, 1024],
+                border: vec![],
+                filter: vec![MipFilter::Box, MipFilter::Kaiser],
+                texel_ratio: ratios,
+                capacity: vec![24],
+                texel_ratio_on_every_build: true,
+                frames: 6,
+                width: 320,
+                height: 240,
+            }),
+            "full" => Some(Grid {
+                base: Base {
+                    d_min_ratio: 30.0,
+                    atlas_size: 1024,
+                    border: 8,
+                    filter: MipFilter::Box,
+                    texel_ratio: 1.0,
+                    capacity: None,
+                },
+                d_min_ratio: vec![10.0, 30.0, 60.0],
+                atlas_size: vec![512, 1024, 2048],
+                border: vec![2, 8],
+                filter: vec![MipFilter::Box, MipFilter::Kaiser],
+                texel_ratio: ratios,
+                capacity: vec![32, 128],
+                texel_ratio_on_every_build: true,
+                frames: 12,
+                width: 640,
+                height: 480,
+            }),
+            _ => None,
+        }
+    }
+
+    /// Parses a JSON grid; `origin` names the file in errors.
+    pub fn from_json(text: &str, origin: &str) -> Result<Grid, SweepError> {
+        serde_json::from_str(text).map_err(|e| SweepError::Grid {
+            origin: origin.to_string(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Checks every value (positive, finite, atlas sizes powers of two, at least one frame).
+    pub fn validate(&self, origin: &str) -> Result<(), SweepError> {
+        let bad = |message: String| {
+            Err(SweepError::Grid {
+                origin: origin.to_string(),
+                message,
+            })
+        };
+        let b = &self.base;
+        let ratios = self.d_min_ratio.iter().chain([&b.d_min_ratio]);
+        if let Some(r) = ratios.into_iter().find(|r| !(r.is_finite() && **r > 0.0)) {
+            return bad(format!("d_min_ratio {r} must be a positive number"));
+        }
+        let sizes = self.atlas_size.iter().chain([&b.atlas_size]);
+        if let Some(s) = sizes
+            .into_iter()
+            .find(|s| !s.is_power_of_two() || !(64..=16384).contains(*s))
+        {
+            return bad(format!(
+                "atlas_size {s} must be a power of two from 64 to 16384"
+            ));
+        }
+        let texel = self.texel_ratio.iter().chain([&b.texel_ratio]);
+        if let Some(t) = texel.into_iter().find(|t| !(t.is_finite() && **t > 0.0)) {
+            return bad(format!("texel_ratio {t} must be a positive number"));
+        }
+        let caps = self.capacity.iter().chain(b.capacity.as_ref());
+        if caps.into_iter().any(|k| *k == 0) {
+            return bad("capacity 0: a paged renderer needs at least the root blocks".into());
+        }
+        if self.frames == 0 || self.width == 0 || self.height == 0 {
+            return bad(format!(
+                "frames {} and size {}×{} must be positive",
+                self.frames, self.width, self.height
+            ));
+        }
+        Ok(())
+    }
+
+    /// The builds of the star (base first, duplicates removed) and their runtime variants.
+    pub fn plan(&self) -> Plan {
+        let base = self.base.build();
+        let mut builds = vec![base];
+        let mut push = |k: BuildKnobs| {
+            if !builds.contains(&k) {
+                builds.push(k);
+            }
+        };
+        for &r in &self.d_min_ratio {
+            push(BuildKnobs {
+                d_min_ratio: r,
+                ..base
+            });
+        }
+        for &a in &self.atlas_size {
+            push(BuildKnobs {
+                atlas_size: a,
+                ..base
+            });
+        }
+        for &w in &self.border {
+            push(BuildKnobs { border: w, ..base });
+        }
+        for &f in &self.filter {
+            push(BuildKnobs { filter: f, ..base });
+        }
+        let builds = builds
+            .into_iter()
+            .enumerate()
+            .map(|(i, knobs)| PlannedBuild {
+                knobs,
+                is_base: i == 0,
+                runtimes: self.runtimes(i == 0),
+            })
+            .collect();
+        Plan {
+            builds,
+            frames: self.frames,
+            width: self.width,
+            height: self.height,
+        }
+    }
+
+    /// Runtime variants of the base build (`base`) or another build, duplicates removed.
+    fn runtimes(&self, base: bool) -> Vec<RuntimeKnobs> {
+        let rb = self.base.runtime();
+        let mut out = vec![rb];
+        let mut push = |k: RuntimeKnobs| {
+            if !out.contains(&k) {
+                out.push(k);
+            }
+        };
+        if base || self.texel_ratio_on_every_build {
+            for &t in &self.texel_ratio {
+                push(RuntimeKnobs {
+                    texel_ratio: t,
+                    ..rb
+                });
+            }
+        }
+        if base {
+            for &k in &self.capacity {
+                push(RuntimeKnobs {
+                    capacity: Some(k),
+                    ..rb
+                });
+            }
+        }
+        out.sort_by(|a, b| {
+            (a.capacity.is_some(), a.capacity, a.texel_ratio)
+                .partial_cmp(&(b.capacity.is_some(), b.capacity, b.texel_ratio))
+                .unwrap_or(std::cmp::Ordering::Equal)
+        });
+        out
+    }
+}
+
+/// serde of a [`MipFilter`] as its lower-case name.
+mod filter_name {
+    use crate::build::image_ops::MipFilter;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(f: &MipFilter, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(f.name())
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<MipFilter, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// serde of a list of [`MipFilter`]s as lower-case names.
+mod filter_names {
+    use crate::build::image_ops::MipFilter;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(f: &[MipFilter], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(f.iter().map(|f| f.name()))
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<MipFilter>, D::Error> {
+        let v = Vec::<String>::deserialize(d)?;
+        v.iter()
+            .map(|s| s.parse().map_err(serde::de::Error::custom))
+            .collect()
+    }
+}

@@ -1,0 +1,494 @@
+//! The sweep runner: build each build-time variant once, render each runtime variant over the same frames,
+//! measure every frame against the reference. Plain rows out; no files but the builds.
+
+use super::SweepError;
+use super::grid::{BuildKnobs, Plan, PlannedBuild, RuntimeKnobs, variant_id};
+use crate::build::{NoProgress, build};
+use crate::camera::{Camera, CameraPath};
+use crate::gpu::GpuContext;
+use crate::paging::{FileSource, PagerOptions};
+use crate::render::{FrameStats, Mode, PagingSetup, Renderer, RendererOptions};
+use crate::report::metrics::{Histogram, magnified_share, min_density, psnr, psnr_masked, ssim};
+use crate::scene::Scene;
+use crate::select::{SelectOptions, min_distance_scale};
+use crate::store::TreeFile;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Range of the texel-density histograms: bins `[2^e, 2^(e+1))` for `e` in `HIST_MIN_EXP..HIST_MAX_EXP`.
+pub const HIST_MIN_EXP: i32 = -4;
+pub const HIST_MAX_EXP: i32 = 5;
+
+/// How a sweep runs.
+#[derive(Clone, Debug)]
+pub struct SweepOptions {
+    /// Where the paging files go (created if missing).
+    pub builds_dir: PathBuf,
+    /// Keep the paging files (else each is deleted once its variants are rendered).
+    pub keep_builds: bool,
+    /// Untimed frames per renderer before measuring (shader compilation); paged renderers get none, so
+    /// paging starts cold from frame 0.
+    pub warmup: usize,
+    /// Outstanding block requests of paged variants (loads are synchronous: loader threads 0).
+    pub max_queue: u32,
+    /// GPU timestamp queries (when the device supports them).
+    pub gpu_timing: bool,
+}
+
+impl Default for SweepOptions {
+    fn default() -> Self {
+        SweepOptions {
+            builds_dir: PathBuf::from("builds"),
+            keep_builds: false,
+            warmup: 1,
+            max_queue: 8,
+            gpu_timing: true,
+        }
+    }
+}
+
+/// Receives the sweep's progress (the CLI draws an indicatif bar with ETA).
+pub trait SweepProgress {
+    /// Total work units: a build counts as `frames` units, each rendered frame (reference included) one.
+    fn begin(&self, total: u64);
+    /// What is being done now.
+    fn message(&self, msg: &str);
+    fn advance(&self, units: u64);
+    fn finish(&self);
+}
+
+/// Progress sink that ignores everything.
+pub struct NoSweepProgress;
+impl SweepProgress for NoSweepProgress {
+    fn begin(&self, _: u64) {}
+    fn message(&self, _: &str) {}
+    fn advance(&self, _: u64) {}
+    fn finish(&self) {}
+}
+
+/// One build of the sweep with its cost.
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildRow {
+    pub knobs: BuildKnobs,
+    pub file_bytes: u64,
+    pub nodes: u64,
+    pub leaves: u64,
+    pub depth: u8,
+    pub blocks: u64,
+    /// Seconds per stage (`sizing Opaque`, `layout Opaque`, `assemble Opaque`, …, `rasterise`, `write`),
+    /// as [`crate::build::BuildReport::timings`] without `total`.
+    pub stage_s: Vec<(String, f64)>,
+    /// Wall time of the whole build, seconds.
+    pub build_s: f64,
+    /// Peak resident memory of the process during the build, bytes (Linux `VmHWM`, reset before the
+    /// build when the kernel allows it: see `peak_rss_reset`).
+    pub peak_rss_bytes: Option<u64>,
+    /// The peak was reset before this build (else it is the process's peak so far).
+    pub peak_rss_reset: bool,
+}
+
+/// One variant on one frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameRow {
+    pub build: BuildKnobs,
+    pub runtime: RuntimeKnobs,
+    pub frame: usize,
+    /// Seconds along the camera path.
+    pub time_s: f64,
+    /// PSNR against the reference over the whole frame, dB (99 = identical).
+    pub psnr_db: f64,
+    /// PSNR over the covered pixels (drawn on the reference's density pass), dB.
+    pub psnr_covered_db: f64,
+    pub covered_pixels: u64,
+    /// SSIM of the luma (Gaussian 11×11 window), 1 = identical.
+    pub ssim: f64,
+    /// Share of drawn pixels with fewer than 1 texel per pixel along the least-sampled direction (NaN for
+    /// paged variants: the density pass would advance paging).
+    pub magnified_share: f64,
+    /// Share of drawn pixels with fewer texels per pixel than the variant's texel ratio (NaN when paged).
+    pub below_target_share: f64,
+    /// Screen share drawn coarser than selected because a block was not resident (0 when not paged).
+    pub coarser_share: f64,
+    pub select_us: f64,
+    pub encode_us: f64,
+    /// NaN without timestamp queries.
+    pub gpu_ms: f64,
+    pub frame_ms: f64,
+    /// Bytes loaded by the pager this frame (0 when not paged).
+    pub bytes_paged: u64,
+    pub nodes_drawn: u32,
+    pub draw_calls: u32,
+}
+
+impl FrameRow {
+    pub fn variant_id(&self) -> String {
+        variant_id(&self.build, &self.runtime)
+    }
+}
+
+/// Everything a sweep measured.
+#[derive(Clone, Debug)]
+pub struct SweepData {
+    pub plan: Plan,
+    pub builds: Vec<BuildRow>,
+    /// Per variant (in plan order) and frame.
+    pub frames: Vec<FrameRow>,
+    /// Texel-density histogram (least-sampled direction) per non-paged variant, over all its frames.
+    pub histograms: Vec<(String, Histogram)>,
+    /// Bytes of textures uploaded by the non-paged renderer of each build (everything resident).
+    pub resident_bytes: Vec<u64>,
+    pub adapter: String,
+}
+
+/// The reference of one frame: the original-texture render and the covered pixels.
+struct Reference {
+    rgba: Vec<u8>,
+    covered: Vec<bool>,
+}
+
+/// `count` cameras spread evenly over the whole path (first and last keyframe included when
+/// `count ≥ 2`; the middle when 1), with the given aspect, and their path times.
+pub fn sample_path(path: &CameraPath, count: usize, aspect: f64) -> Vec<(f64, Camera)> {
+    let (start, dur) = (path.start(), path.duration());
+    (0..count)
+        .map(|i| {
+            let f = if count <= 1 {
+                0.5
+            } else {
+                i as f64 / (count - 1) as f64
+            };
+            let t = start + dur * f;
+            let mut c = path.sample(t);
+            c.aspect = aspect;
+            (t, c)
+        })
+        .collect()
+}
+
+/// Resets the process's peak-RSS counter (Linux `clear_refs` 5); false where unsupported.
+fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+/// Runs the whole plan: for each build (base first), build it into `opts.builds_dir`, render its
+/// runtime variants on `cameras`, and (base build) render the reference frames first.
+pub fn run_sweep(
+    ctx: &GpuContext,
+    scene: &Scene,
+    plan: &Plan,
+    cameras: &[(f64, Camera)],
+    opts: &SweepOptions,
+    progress: &dyn SweepProgress,
+) -> Result<SweepData, SweepError> {
+    std::fs::create_dir_all(&opts.builds_dir).map_err(|e| SweepError::Io {
+        path: opts.builds_dir.clone(),
+        source: e,
+    })?;
+    let n = cameras.len() as u64;
+    let renders: u64 = plan.variants() as u64 * n + n;
+    progress.begin(plan.builds.len() as u64 * n + renders);
+    let mut data = SweepData {
+        plan: plan.clone(),
+        builds: Vec::new(),
+        frames: Vec::new(),
+        histograms: Vec::new(),
+        resident_bytes: Vec::new(),
+        adapter: ctx.adapter_summary(),
+    };
+    let mut reference: Vec<Reference> = Vec::new();
+    for pb in &plan.builds {
+        let path = opts.builds_dir.join(format!("{}.atlastree", pb.knobs.id()));
+        progress.message(&format!("build {}", pb.knobs.id()));
+        data.builds.push(build_one(scene, &pb.knobs, &path)?);
+        progress.advance(n);
+        let file = TreeFile::open(&path).map_err(|source| SweepError::Open {
+            path: path.clone(),
+            source,
+        })?;
+        let result = run_build(
+            ctx,
+            &file,
+            pb,
+            plan,
+            cameras,
+            opts,
+            progress,
+            &mut reference,
+            &mut data,
+        );
+        drop(file);
+        if !opts.keep_builds {
+            let _ = std::fs::remove_file(&path);
+        }
+        result?;
+    }
+    progress.finish();
+    Ok(data)
+}
+
+/// Builds one variant, timing it and its peak memory.
+fn build_one(scene: &Scene, knobs: &BuildKnobs, out: &Path) -> Result<BuildRow, SweepError> {
+    let reset = reset_peak_rss();
+    let t = std::time::Instant::now();
+    let r =
+        build(scene, &knobs.options(), out, &NoProgress).map_err(|source| SweepError::Build {
+            build: knobs.id(),
+            source: Box::new(source),
+        })?;
+    let build_s = t.elapsed().as_secs_f64();
+    Ok(BuildRow {
+        knobs: *knobs,
+        file_bytes: r.file_bytes,
+        nodes: r.trees.iter().map(|t| t.nodes).sum(),
+        leaves: r.trees.iter().map(|t| t.leaves).sum(),
+        depth: r.trees.iter().map(|t| t.depth).max().unwrap_or(0),
+        blocks: r.blocks,
+        stage_s: r
+            .timings
+            .into_iter()
+            .filter(|(n, _)| n != "total")
+            .collect(),
+        build_s,
+        peak_rss_bytes: r.peak_rss_bytes,
+        peak_rss_reset: reset,
+    })
+}
+
+/// `min_distance` scale of `texel_ratio` at the plan's width for `cam`.
+fn scale(file: &TreeFile, plan: &Plan, texel_ratio: f64, cam: &Camera) -> Result<f64, SweepError> {
+    min_distance_scale(
+        &file.to_params(),
+        &SelectOptions {
+            screen_width: plan.width,
+            texel_ratio,
+            fov_x_deg: cam.fov_x_deg,
+        },
+    )
+    .map_err(|source| SweepError::Scale {
+        variant: format!("texel ratio {texel_ratio}"),
+        source,
+    })
+}
+
+/// Renders the variants of one build (and, for the base build, the reference first).
+#[allow(clippy::too_many_arguments)]
+fn run_build(
+    ctx: &GpuContext,
+    file: &TreeFile,
+    pb: &PlannedBuild,
+    plan: &Plan,
+    cameras: &[(f64, Camera)],
+    opts: &SweepOptions,
+    progress: &dyn SweepProgress,
+    reference: &mut Vec<Reference>,
+    data: &mut SweepData,
+) -> Result<(), SweepError> {
+    let ropts = RendererOptions {
+        width: plan.width,
+        height: plan.height,
+        gpu_timing: opts.gpu_timing,
+    };
+    let render_err = |variant: String, frame: usize| {
+        move |source| SweepError::Render {
+            variant,
+            frame,
+            source: Box::new(source),
+        }
+    };
+    let mut full = Renderer::new(ctx, file, ropts).map_err(render_err(pb.knobs.id(), 0))?;
+    data.resident_bytes.push(full.resident.stats.texture_bytes);
+    if pb.is_base {
+        progress.message("reference frames (original textures)");
+        *reference = reference_frames(&mut full, file, plan, cameras, opts, progress)?;
+    }
+    for rt in &pb.runtimes {
+        let id = variant_id(&pb.knobs, rt);
+        progress.message(&id);
+        match rt.capacity {
+            None => {
+                let mut hist = Histogram::log2(&[], HIST_MIN_EXP, HIST_MAX_EXP);
+                let ctx = VariantCtx {
+                    file,
+                    plan,
+                    knobs: (pb.knobs, *rt),
+                    id: &id,
+                    reference,
+                };
+                for k in 0..opts.warmup.min(cameras.len()) {
+                    let (_, cam) = &cameras[k * cameras.len() / opts.warmup.max(1)];
+                    let s = scale(file, plan, rt.texel_ratio, cam)?;
+                    full.render(cam, s, Mode::Tree)
+                        .map_err(render_err(id.clone(), k))?;
+                }
+                for (i, (t, cam)) in cameras.iter().enumerate() {
+                    let row = ctx.measure(&mut full, i, *t, cam, Some(&mut hist))?;
+                    data.frames.push(row);
+                    progress.advance(1);
+                }
+                data.histograms.push((id.clone(), hist));
+            }
+            Some(k) => {
+                let source = Arc::new(FileSource::new(Arc::new(
+                    TreeFile::open(file.path()).map_err(|source| SweepError::Open {
+                        path: file.path().to_path_buf(),
+                        source,
+                    })?,
+                )));
+                let mut paged = Renderer::new_paged(
+                    ctx,
+                    file,
+                    ropts,
+                    PagingSetup {
+                        pager: PagerOptions {
+                            capacity: k,
+                            max_queue: opts.max_queue,
+                            ..PagerOptions::default()
+                        },
+                        source,
+                        loader_threads: 0,
+                    },
+                )
+                .map_err(render_err(id.clone(), 0))?;
+                let ctx = VariantCtx {
+                    file,
+                    plan,
+                    knobs: (pb.knobs, *rt),
+                    id: &id,
+                    reference,
+                };
+                for (i, (t, cam)) in cameras.iter().enumerate() {
+                    paged.set_clock(*t);
+                    let row = ctx.measure(&mut paged, i, *t, cam, None)?;
+                    data.frames.push(row);
+                    progress.advance(1);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The reference of every frame: [`Mode::Original`] (original textures, naive draws) and the pixels the
+/// density pass covers, at texel ratio 1 on the base build.
+fn reference_frames(
+    r: &mut Renderer<'_>,
+    file: &TreeFile,
+    plan: &Plan,
+    cameras: &[(f64, Camera)],
+    opts: &SweepOptions,
+    progress: &dyn SweepProgress,
+) -> Result<Vec<Reference>, SweepError> {
+    let err = |frame: usize| {
+        move |source| SweepError::Render {
+            variant: "reference".into(),
+            frame,
+            source: Box::new(source),
+        }
+    };
+    if opts.warmup > 0
+        && let Some((_, cam)) = cameras.first()
+    {
+        r.render(cam, scale(file, plan, 1.0, cam)?, Mode::Original)
+            .map_err(err(0))?;
+    }
+    let mut out = Vec::with_capacity(cameras.len());
+    for (i, (_, cam)) in cameras.iter().enumerate() {
+        let s = scale(file, plan, 1.0, cam)?;
+        r.render(cam, s, Mode::Original).map_err(err(i))?;
+        let rgba = r.read_frame().map_err(err(i))?;
+        let (_, density) = r.render_density(cam, s).map_err(err(i))?;
+        let covered = density.pixels.iter().map(Option::is_some).collect();
+        out.push(Reference { rgba, covered });
+        progress.advance(1);
+    }
+    Ok(out)
+}
+
+/// What measuring one frame of a variant needs.
+struct VariantCtx<'a> {
+    file: &'a TreeFile,
+    plan: &'a Plan,
+    knobs: (BuildKnobs, RuntimeKnobs),
+    id: &'a str,
+    reference: &'a [Reference],
+}
+
+impl VariantCtx<'_> {
+    /// Renders frame `i` in tree mode, compares it with the reference, and (when `hist` is given, i.e.
+    /// not paged) runs the density pass for the magnified shares and the histogram.
+    fn measure(
+        &self,
+        r: &mut Renderer<'_>,
+        i: usize,
+        time_s: f64,
+        cam: &Camera,
+        hist: Option<&mut Histogram>,
+    ) -> Result<FrameRow, SweepError> {
+        let (w, h) = (self.plan.width, self.plan.height);
+        let rt = self.knobs.1;
+        let render_err = |source| SweepError::Render {
+            variant: self.id.to_string(),
+            frame: i,
+            source: Box::new(source),
+        };
+        let metric_err = |source| SweepError::Metric {
+            variant: self.id.to_string(),
+            frame: i,
+            source,
+        };
+        let s = scale(self.file, self.plan, rt.texel_ratio, cam)?;
+        let stats: FrameStats = r.render(cam, s, Mode::Tree).map_err(render_err)?;
+        let rgba = r.read_frame().map_err(render_err)?;
+        let reference = self.reference.get(i).ok_or(SweepError::Grid {
+            origin: self.id.to_string(),
+            message: format!("no reference frame {i}"),
+        })?;
+        let full = psnr(&rgba, &reference.rgba, w, h).map_err(metric_err)?;
+        let (covered_db, covered) =
+            psnr_masked(&rgba, &reference.rgba, w, h, &reference.covered).map_err(metric_err)?;
+        let ssim = ssim(&rgba, &reference.rgba, w, h).map_err(metric_err)?;
+        let (mut magnified, mut below) = (f64::NAN, f64::NAN);
+        if let Some(hist) = hist {
+            let (_, density) = r.render_density(cam, s).map_err(render_err)?;
+            let d = min_density(&density);
+            magnified = magnified_share(&d, 1.0).fraction();
+            below = magnified_share(&d, rt.texel_ratio).fraction();
+            merge_histogram(hist, &Histogram::log2(&d, HIST_MIN_EXP, HIST_MAX_EXP));
+        }
+        let paging = stats.paging.as_ref();
+        Ok(FrameRow {
+            build: self.knobs.0,
+            runtime: rt,
+            frame: i,
+            time_s,
+            psnr_db: full,
+            psnr_covered_db: covered_db,
+            covered_pixels: covered as u64,
+            ssim,
+            magnified_share: magnified,
+            below_target_share: below,
+            coarser_share: paging.map_or(0.0, |p| p.coarse.share()),
+            select_us: stats.select_us,
+            encode_us: stats.encode_us,
+            gpu_ms: stats.gpu_ms.unwrap_or(f64::NAN),
+            frame_ms: stats.frame_ms,
+            bytes_paged: paging.map_or(0, |p| p.session.pager.bytes_loaded),
+            nodes_drawn: stats.nodes_drawn,
+            draw_calls: stats.draw_calls,
+        })
+    }
+}
+
+/// Adds `more`'s counts to `into` (same edges; different edges leave `into` unchanged).
+pub fn merge_histogram(into: &mut Histogram, more: &Histogram) {
+    if into.edges != more.edges {
+        return;
+    }
+    for (a, b) in into.counts.iter_mut().zip(&more.counts) {
+        *a += b;
+    }
+    into.below += more.below;
+    into.above += more.above;
+    into.skipped += more.skipped;
+}

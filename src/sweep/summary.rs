@@ -1,0 +1,326 @@
+//! Pure functions over the sweep's rows: per-variant means, the Pareto front, recommended defaults and
+//! the markdown report. No I/O, no GPU.
+
+use super::grid::{BuildKnobs, RuntimeKnobs, variant_id};
+use super::run::{BuildRow, FrameRow, SweepData};
+use crate::report::metrics::pareto_front;
+use crate::util::human_bytes;
+use std::fmt::Write as _;
+
+/// PSNR tolerance of the recommendations: a variant within this many dB of the best counts as "as
+/// accurate" (about the frame-to-frame noise of the measure on a path).
+pub const PSNR_TOLERANCE_DB: f64 = 0.5;
+
+/// One variant: its knobs, build cost and the means of its frames.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct VariantRow {
+    pub id: String,
+    pub build: BuildKnobs,
+    pub runtime: RuntimeKnobs,
+    pub frames: usize,
+    /// Means over the frames (NaN values are left out of a mean; all NaN gives NaN).
+    pub psnr_db: f64,
+    pub psnr_covered_db: f64,
+    pub ssim: f64,
+    pub magnified_share: f64,
+    pub below_target_share: f64,
+    pub coarser_share: f64,
+    pub select_us: f64,
+    pub encode_us: f64,
+    pub gpu_ms: f64,
+    pub frame_ms: f64,
+    /// Median frame time (robust to one-off stalls such as first-use shader compiles).
+    pub frame_ms_median: f64,
+    /// Bytes paged over all frames (0 when everything is resident).
+    pub bytes_paged: u64,
+    pub file_bytes: u64,
+    pub build_s: f64,
+    pub peak_rss_bytes: Option<u64>,
+}
+
+/// Mean of the finite values (NaN when there are none).
+pub fn mean(values: impl IntoIterator<Item = f64>) -> f64 {
+    let (mut n, mut sum) = (0usize, 0.0);
+    for v in values.into_iter().filter(|v| v.is_finite()) {
+        n += 1;
+        sum += v;
+    }
+    if n == 0 { f64::NAN } else { sum / n as f64 }
+}
+
+/// Median of the finite values (NaN when there are none).
+pub fn median(values: impl IntoIterator<Item = f64>) -> f64 {
+    let mut v: Vec<f64> = values.into_iter().filter(|v| v.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}
+
+/// One row per variant, in the order the variants first appear in `frames`; build cost from the
+/// matching [`BuildRow`] (zero / `None` when the build is missing).
+pub fn summarise(builds: &[BuildRow], frames: &[FrameRow]) -> Vec<VariantRow> {
+    let mut order: Vec<(BuildKnobs, RuntimeKnobs)> = Vec::new();
+    for f in frames {
+        if !order.contains(&(f.build, f.runtime)) {
+            order.push((f.build, f.runtime));
+        }
+    }
+    order
+        .into_iter()
+        .map(|(b, r)| {
+            let rows: Vec<&FrameRow> = frames
+                .iter()
+                .filter(|f| f.build == b && f.runtime == r)
+                .collect();
+            let col = |f: &dyn Fn(&FrameRow) -> f64| mean(rows.iter().map(|r| f(r)));
+            let build = builds.iter().find(|x| x.knobs == b);
+            VariantRow {
+                id: variant_id(&b, &r),
+                build: b,
+                runtime: r,
+                frames: rows.len(),
+                psnr_db: col(&|f| f.psnr_db),
+                psnr_covered_db: col(&|f| f.psnr_covered_db),
+                ssim: col(&|f| f.ssim),
+                magnified_share: col(&|f| f.magnified_share),
+                below_target_share: col(&|f| f.below_target_share),
+                coarser_share: col(&|f| f.coarser_share),
+                select_us: col(&|f| f.select_us),
+                encode_us: col(&|f| f.encode_us),
+                gpu_ms: col(&|f| f.gpu_ms),
+                frame_ms: col(&|f| f.frame_ms),
+                frame_ms_median: median(rows.iter().map(|f| f.frame_ms)),
+                bytes_paged: rows.iter().map(|f| f.bytes_paged).sum(),
+                file_bytes: build.map_or(0, |x| x.file_bytes),
+                build_s: build.map_or(0.0, |x| x.build_s),
+                peak_rss_bytes: build.and_then(|x| x.peak_rss_bytes),
+            }
+        })
+        .collect()
+}
+
+/// Indices of the variants on the Pareto front of (median frame ms ↓, covered PSNR ↑), ascending cost.
+pub fn frame_time_front(rows: &[VariantRow]) -> Vec<usize> {
+    let pts: Vec<(f64, f64)> = rows
+        .iter()
+        .map(|r| (r.frame_ms_median, r.psnr_covered_db))
+        .collect();
+    pareto_front(&pts)
+}
+
+/// Recommended defaults: among the variants within [`PSNR_TOLERANCE_DB`] of the best covered PSNR, the
+/// cheapest by each cost.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Recommendation {
+    /// The most accurate variant (index into the rows).
+    pub best: usize,
+    pub tolerance_db: f64,
+    /// Lowest median frame time within the tolerance.
+    pub fastest_frames: usize,
+    /// Smallest file within the tolerance.
+    pub smallest_file: usize,
+    /// Shortest build within the tolerance.
+    pub fastest_build: usize,
+}
+
+/// [`Recommendation`] of `rows`; `None` when no row has a finite covered PSNR.
+pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendation> {
+    let best = (0..rows.len())
+        .filter(|&i| rows[i].psnr_covered_db.is_finite())
+        .max_by(|&a, &b| rows[a].psnr_covered_db.total_cmp(&rows[b].psnr_covered_db))?;
+    let floor = rows[best].psnr_covered_db - tolerance_db;
+    let ok: Vec<usize> = (0..rows.len())
+        .filter(|&i| rows[i].psnr_covered_db >= floor)
+        .collect();
+    let cheapest = |cost: &dyn Fn(&VariantRow) -> f64| {
+        ok.iter()
+            .copied()
+            .filter(|&i| cost(&rows[i]).is_finite())
+            .min_by(|&a, &b| {
+                cost(&rows[a])
+                    .total_cmp(&cost(&rows[b]))
+                    .then(rows[b].psnr_covered_db.total_cmp(&rows[a].psnr_covered_db))
+            })
+            .unwrap_or(best)
+    };
+    Some(Recommendation {
+        best,
+        tolerance_db,
+        fastest_frames: cheapest(&|r| r.frame_ms_median),
+        smallest_file: cheapest(&|r| r.file_bytes as f64),
+        fastest_build: cheapest(&|r| r.build_s),
+    })
+}
+
+/// Formats a float cell for markdown (`–` for NaN).
+fn f(v: f64, decimals: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.decimals$}")
+    } else {
+        "–".into()
+    }
+}
+
+/// One line describing a variant's knobs and its headline numbers.
+fn describe(r: &VariantRow) -> String {
+    format!(
+        "`{}`: d_min ratio {}, atlas {}², border {}, filter {}, texel ratio {}, {} — covered PSNR {:.2} dB, \
+         SSIM {:.4}, median frame {:.2} ms, file {}, build {:.2} s",
+        r.id,
+        r.build.d_min_ratio,
+        r.build.atlas_size,
+        r.build.border,
+        r.build.filter.name(),
+        r.runtime.texel_ratio,
+        r.runtime
+            .capacity
+            .map_or("all blocks resident".to_string(), |k| format!(
+                "k = {k} paged"
+            )),
+        r.psnr_covered_db,
+        r.ssim,
+        r.frame_ms_median,
+        human_bytes(r.file_bytes),
+        r.build_s
+    )
+}
+
+/// What the report needs beyond the rows: the inputs' names.
+#[derive(Clone, Debug)]
+pub struct ReportContext {
+    pub scene: String,
+    pub path: String,
+    /// Plot files (without extension) written next to the report, with captions.
+    pub plots: Vec<(String, String)>,
+}
+
+/// The markdown report: setup, recommendations, the Pareto front, the builds and the variants.
+pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> String {
+    let mut md = String::new();
+    let p = &data.plan;
+    let _ = writeln!(md, "# Accuracy vs cost sweep\n");
+    let _ = writeln!(
+        md,
+        "Scene `{}`, path `{}`, {} frames of {}×{}, {} builds, {} variants. Adapter: {}.\n",
+        cx.scene,
+        cx.path,
+        p.frames,
+        p.width,
+        p.height,
+        data.builds.len(),
+        rows.len(),
+        data.adapter
+    );
+    let _ = writeln!(
+        md,
+        "Reference: every frame drawn with the original textures (stored at full class resolution, \
+         mip-mapped) by the naive renderer (`--mode original`) on the base build. Covered PSNR is over \
+         the pixels the reference draws on. Means are over frames; frame time is the median.\n"
+    );
+    let _ = writeln!(md, "## Recommended defaults\n");
+    match recommend(rows, PSNR_TOLERANCE_DB) {
+        Some(rec) => {
+            let _ = writeln!(md, "- Most accurate: {}", describe(&rows[rec.best]));
+            let _ = writeln!(
+                md,
+                "- **Fastest frames within {} dB of it** (the recommended runtime default): {}",
+                rec.tolerance_db,
+                describe(&rows[rec.fastest_frames])
+            );
+            let _ = writeln!(
+                md,
+                "- Smallest file within {} dB: {}",
+                rec.tolerance_db,
+                describe(&rows[rec.smallest_file])
+            );
+            let _ = writeln!(
+                md,
+                "- Fastest build within {} dB: {}\n",
+                rec.tolerance_db,
+                describe(&rows[rec.fastest_build])
+            );
+        }
+        None => {
+            let _ = writeln!(md, "No variant has a finite PSNR.\n");
+        }
+    }
+    let _ = writeln!(md, "## Pareto front (median frame ms ↓, covered PSNR ↑)\n");
+    for i in frame_time_front(rows) {
+        let _ = writeln!(md, "- {}", describe(&rows[i]));
+    }
+    let _ = writeln!(md);
+    for (file, caption) in &cx.plots {
+        let _ = writeln!(
+            md,
+            "![{caption}]({file}.png)  \n*{caption}* ([SVG]({file}.svg))\n"
+        );
+    }
+    builds_table(&mut md, &data.builds);
+    variants_table(&mut md, rows);
+    md
+}
+
+fn builds_table(md: &mut String, builds: &[BuildRow]) {
+    let _ = writeln!(md, "## Builds\n");
+    let _ = writeln!(
+        md,
+        "| build | file | nodes | leaves | depth | blocks | build s | stages (s) | peak RSS |"
+    );
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---|---:|");
+    for b in builds {
+        let stages: Vec<String> = b
+            .stage_s
+            .iter()
+            .map(|(n, s)| format!("{n} {s:.2}"))
+            .collect();
+        let _ = writeln!(
+            md,
+            "| `{}` | {} | {} | {} | {} | {} | {:.2} | {} | {}{} |",
+            b.knobs.id(),
+            human_bytes(b.file_bytes),
+            b.nodes,
+            b.leaves,
+            b.depth,
+            b.blocks,
+            b.build_s,
+            stages.join(", "),
+            b.peak_rss_bytes.map_or("?".into(), human_bytes),
+            if b.peak_rss_reset { "" } else { " (process)" }
+        );
+    }
+    let _ = writeln!(md);
+}
+
+fn variants_table(md: &mut String, rows: &[VariantRow]) {
+    let _ = writeln!(md, "## Variants (means over frames)\n");
+    let _ = writeln!(
+        md,
+        "| variant | PSNR dB | covered PSNR dB | SSIM | magnified | below target | coarser | select µs | encode µs | GPU ms | frame ms (median) | paged |"
+    );
+    let _ = writeln!(
+        md,
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| `{}` | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.id,
+            f(r.psnr_db, 2),
+            f(r.psnr_covered_db, 2),
+            f(r.ssim, 4),
+            f(r.magnified_share, 3),
+            f(r.below_target_share, 3),
+            f(r.coarser_share, 3),
+            f(r.select_us, 1),
+            f(r.encode_us, 1),
+            f(r.gpu_ms, 2),
+            f(r.frame_ms_median, 2),
+            human_bytes(r.bytes_paged)
+        );
+    }
+    let _ = writeln!(md);
+}

@@ -1,0 +1,255 @@
+//! `atlastree sweep --grid small` on data/city end to end (3 builds, 13 variants, 6 frames of 320×240), and
+//! its CSV checked for sanity:
+//!
+//! - every row complete: `sweep.csv` has one row per planned variant, `frames.csv` one per variant and
+//!   frame, every cell parses, accuracy and cost cells are finite (NaN only where documented: the density
+//!   shares of paged variants, GPU ms without timestamp queries);
+//! - PSNR rises with the texel ratio on every static view: per frame and build, the covered PSNR at the
+//!   next larger ratio is at least the smaller ratio's minus 0.1 dB (the frames are deterministic; 0.1 dB
+//!   allows for a different but equally fine cut, measured differences of such cuts are ≤ 0.02 dB), and
+//!   on the base build the mean over frames rises by ≥ 0.5 dB from ratio 0.25 to 2;
+//! - bigger atlases hold more: the 1024² build has fewer leaves than the 512² build (same d_min). The
+//!   file does *not* grow with the atlas size on this scene (each leaf stores its original textures and
+//!   every node a full atlas, so fewer, bigger nodes are smaller in total: 276 → 120 MiB); the test checks
+//!   that the file sizes are positive and that the two filter builds (same layout) have equal size;
+//! - the paged variant: coarser share in [0, 1], some bytes paged;
+//! - the report and every plot (SVG + PNG) exist.
+
+use atlastree::report::csv::{CsvTable, read_csv};
+use atlastree::sweep::output::write_outputs;
+use atlastree::sweep::run::{NoSweepProgress, sample_path};
+use atlastree::sweep::{Grid, SweepOptions, run_sweep};
+use std::path::Path;
+
+use crate::harness::GpuTest;
+use crate::render::e;
+
+pub fn tests() -> Vec<GpuTest> {
+    vec![GpuTest {
+        name: "sweep::small_grid_on_city_csv_is_sane",
+        run: small_grid_on_city_csv_is_sane,
+    }]
+}
+
+/// Tolerance of the per-frame monotonicity of PSNR in the texel ratio, dB.
+const MONOTONE_TOL_DB: f64 = 0.1;
+
+fn small_grid_on_city_csv_is_sane(ctx: &atlastree::gpu::GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+    let scene = atlastree::scene::import(&scene_path, &Default::default()).map_err(e)?;
+    let grid = Grid::preset("small").ok_or("no small preset")?;
+    grid.validate("small").map_err(e)?;
+    let plan = grid.plan();
+    let (lo, hi) = scene.bounds().ok_or("empty scene")?;
+    let path = atlastree::camera::CameraPath::overview_dive(lo, hi, scene.up).map_err(e)?;
+    let cameras = sample_path(
+        &path,
+        plan.frames,
+        f64::from(plan.width) / f64::from(plan.height),
+    );
+    let opts = SweepOptions {
+        builds_dir: dir.path().join("builds"),
+        ..SweepOptions::default()
+    };
+    let data = run_sweep(ctx, &scene, &plan, &cameras, &opts, &NoSweepProgress).map_err(e)?;
+    let (_, written) = write_outputs(dir.path(), &data, "data/city", "overview-dive").map_err(e)?;
+    for w in &written {
+        if !w.is_file() {
+            return Err(format!("{} was not written", w.display()));
+        }
+    }
+    let left = std::fs::read_dir(dir.path().join("builds"))
+        .map(|d| d.count())
+        .unwrap_or(0);
+    if left != 0 {
+        return Err(format!(
+            "{left} build files left behind without --keep-builds"
+        ));
+    }
+    let sweep = read_csv(&dir.path().join("sweep.csv")).map_err(e)?;
+    let frames = read_csv(&dir.path().join("frames.csv")).map_err(e)?;
+    let builds = read_csv(&dir.path().join("builds.csv")).map_err(e)?;
+    check_complete(&sweep, &frames, plan.variants(), plan.frames)?;
+    check_monotone(&frames)?;
+    check_base_rise(&sweep)?;
+    check_builds(&builds)?;
+    check_paged(&sweep)
+}
+
+fn col<'a>(t: &'a CsvTable, name: &str) -> Result<Vec<&'a str>, String> {
+    t.column(name).ok_or(format!("missing column {name}"))
+}
+
+fn num(t: &CsvTable, name: &str) -> Result<Vec<f64>, String> {
+    t.column_f64(name)
+        .ok_or(format!("column {name} missing or not numeric"))
+}
+
+fn check_complete(
+    sweep: &CsvTable,
+    frames: &CsvTable,
+    variants: usize,
+    n: usize,
+) -> Result<(), String> {
+    if sweep.rows.len() != variants || frames.rows.len() != variants * n {
+        return Err(format!(
+            "{} variant rows and {} frame rows, expected {variants} and {}",
+            sweep.rows.len(),
+            frames.rows.len(),
+            variants * n
+        ));
+    }
+    let paged: Vec<bool> = col(sweep, "capacity")?
+        .iter()
+        .map(|c| *c != "all")
+        .collect();
+    for name in [
+        "psnr_db",
+        "psnr_covered_db",
+        "ssim",
+        "coarser_share",
+        "select_us",
+        "encode_us",
+        "frame_ms",
+        "frame_ms_median",
+        "file_bytes",
+        "build_s",
+    ] {
+        if let Some(i) = num(sweep, name)?.iter().position(|v| !v.is_finite()) {
+            return Err(format!("sweep.csv row {i}: {name} is not finite"));
+        }
+    }
+    for name in ["magnified_share", "below_target_share"] {
+        for (i, v) in num(sweep, name)?.iter().enumerate() {
+            if paged[i] != v.is_nan() || !(v.is_nan() || (0.0..=1.0).contains(v)) {
+                return Err(format!(
+                    "sweep.csv row {i}: {name} = {v} (paged: {})",
+                    paged[i]
+                ));
+            }
+        }
+    }
+    for (i, s) in num(sweep, "ssim")?.iter().enumerate() {
+        if !(0.0..=1.0).contains(s) {
+            return Err(format!("sweep.csv row {i}: SSIM {s} outside [0, 1]"));
+        }
+    }
+    if let Some((i, _)) = frames
+        .rows
+        .iter()
+        .enumerate()
+        .find(|(_, r)| r.iter().any(|c| c.is_empty()))
+    {
+        return Err(format!("frames.csv row {i} has an empty cell"));
+    }
+    Ok(())
+}
+
+/// Per build and frame (everything resident), covered PSNR non-decreasing in the texel ratio.
+fn check_monotone(frames: &CsvTable) -> Result<(), String> {
+    let build = col(frames, "build")?;
+    let cap = col(frames, "capacity")?;
+    let frame = num(frames, "frame")?;
+    let ratio = num(frames, "texel_ratio")?;
+    let psnr = num(frames, "psnr_covered_db")?;
+    let mut keys: Vec<(&str, u64)> = Vec::new();
+    for i in 0..frames.rows.len() {
+        if cap[i] == "all" && !keys.contains(&(build[i], frame[i] as u64)) {
+            keys.push((build[i], frame[i] as u64));
+        }
+    }
+    for (b, f) in keys {
+        let mut pts: Vec<(f64, f64)> = (0..frames.rows.len())
+            .filter(|&i| build[i] == b && frame[i] as u64 == f && cap[i] == "all")
+            .map(|i| (ratio[i], psnr[i]))
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if pts.len() < 4 {
+            return Err(format!("build {b} frame {f}: only {} ratios", pts.len()));
+        }
+        for w in pts.windows(2) {
+            if w[1].1 < w[0].1 - MONOTONE_TOL_DB {
+                return Err(format!(
+                    "build {b} frame {f}: PSNR falls from {:.3} dB at ratio {} to {:.3} dB at ratio {}",
+                    w[0].1, w[0].0, w[1].1, w[1].0
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// On the base build (first row), the mean PSNR rises by ≥ 0.5 dB from the smallest to the largest ratio.
+fn check_base_rise(sweep: &CsvTable) -> Result<(), String> {
+    let build = col(sweep, "build")?;
+    let cap = col(sweep, "capacity")?;
+    let ratio = num(sweep, "texel_ratio")?;
+    let psnr = num(sweep, "psnr_covered_db")?;
+    let base = build.first().ok_or("empty sweep.csv")?;
+    let at = |r: f64| {
+        (0..ratio.len())
+            .find(|&i| build[i] == *base && cap[i] == "all" && ratio[i] == r)
+            .map(|i| psnr[i])
+            .ok_or(format!("base build has no ratio {r}"))
+    };
+    let (lo, hi) = (at(0.25)?, at(2.0)?);
+    if hi - lo < 0.5 {
+        return Err(format!(
+            "base build: PSNR {lo:.3} dB at ratio 0.25, {hi:.3} dB at 2 (expected ≥ 0.5 dB rise)"
+        ));
+    }
+    Ok(())
+}
+
+fn check_builds(builds: &CsvTable) -> Result<(), String> {
+    let atlas = num(builds, "atlas_size")?;
+    let filter = col(builds, "filter")?;
+    let leaves = num(builds, "leaves")?;
+    let bytes = num(builds, "file_bytes")?;
+    if bytes.iter().any(|b| *b <= 0.0) {
+        return Err("a build has no bytes".into());
+    }
+    let find = |a: f64, f: &str| {
+        (0..atlas.len())
+            .find(|&i| atlas[i] == a && filter[i] == f)
+            .ok_or(format!("no build with atlas {a} and filter {f}"))
+    };
+    let (small, big, kaiser) = (
+        find(512.0, "box")?,
+        find(1024.0, "box")?,
+        find(512.0, "kaiser")?,
+    );
+    if leaves[big] >= leaves[small] {
+        return Err(format!(
+            "atlas 1024 has {} leaves, atlas 512 {}: bigger atlases should need fewer",
+            leaves[big], leaves[small]
+        ));
+    }
+    if bytes[kaiser] != bytes[small] {
+        return Err(format!(
+            "the filter changed the file size ({} vs {} bytes): it must only change texels",
+            bytes[kaiser], bytes[small]
+        ));
+    }
+    Ok(())
+}
+
+fn check_paged(sweep: &CsvTable) -> Result<(), String> {
+    let cap = col(sweep, "capacity")?;
+    let coarser = num(sweep, "coarser_share")?;
+    let paged = num(sweep, "bytes_paged")?;
+    let rows: Vec<usize> = (0..cap.len()).filter(|&i| cap[i] != "all").collect();
+    if rows.is_empty() {
+        return Err("no paged variant".into());
+    }
+    for i in rows {
+        if !(0.0..=1.0).contains(&coarser[i]) || paged[i] <= 0.0 {
+            return Err(format!(
+                "paged row {i}: coarser share {}, {} bytes paged",
+                coarser[i], paged[i]
+            ));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,223 @@
+//! The sweep's CPU parts: grid presets and JSON, the star expansion, the per-variant means, the Pareto
+//! front and the recommendation (pure functions on hand-made rows), and the build's `mip_filter` knob
+//! (Kaiser changes texels, never the layout). The GPU run of the small grid is `tests/gpu/sweep.rs`.
+
+use atlastree::build::image_ops::MipFilter;
+use atlastree::build::{BuildOptions, DMin, NoProgress, build};
+use atlastree::report::metrics::Histogram;
+use atlastree::sweep::grid::{BuildKnobs, Grid, RuntimeKnobs};
+use atlastree::sweep::run::{BuildRow, FrameRow, merge_histogram};
+use atlastree::sweep::summary::{frame_time_front, mean, median, recommend, summarise};
+use std::path::Path;
+
+#[test]
+fn small_preset_is_a_star_of_three_builds_and_thirteen_variants() {
+    let g = Grid::preset("small").expect("preset");
+    g.validate("small").expect("valid");
+    let p = g.plan();
+    let ids: Vec<String> = p.builds.iter().map(|b| b.knobs.id()).collect();
+    assert_eq!(
+        ids,
+        ["r15_a512_b8_box", "r15_a1024_b8_box", "r15_a512_b8_kaiser"]
+    );
+    assert!(p.builds[0].is_base && !p.builds[1].is_base);
+    // Base: 4 texel ratios + 1 capacity; the others 4 ratios each.
+    let counts: Vec<usize> = p.builds.iter().map(|b| b.runtimes.len()).collect();
+    assert_eq!(counts, [5, 4, 4]);
+    assert_eq!(p.variants(), 13);
+    let base: Vec<String> = p.builds[0].runtimes.iter().map(|r| r.id()).collect();
+    assert_eq!(
+        base,
+        ["t0.25_all", "t0.5_all", "t1_all", "t2_all", "t1_k24"]
+    );
+    assert_eq!((p.frames, p.width, p.height), (6, 320, 240));
+}
+
+#[test]
+fn full_preset_has_seven_builds() {
+    let p = Grid::preset("full").expect("preset").plan();
+    // base + d_min 10, 60 + atlas 512, 2048 + border 2 + kaiser.
+    assert_eq!(p.builds.len(), 7);
+    assert_eq!(p.builds[0].runtimes.len(), 6);
+    assert_eq!(p.variants(), 6 + 6 * 4);
+    assert!(Grid::preset("nope").is_none());
+}
+
+#[test]
+fn json_grid_round_trips_and_bad_values_name_the_file() {
+    let text = r#"{"base": {"d_min_ratio": 8, "atlas_size": 1024, "border": 8, "filter": "kaiser",
+        "texel_ratio": 1, "capacity": 64}, "atlas_size": [512, 1024], "frames": 3,
+        "texel_ratio_on_every_build": false, "texel_ratio": [0.5, 1]}"#;
+    let g = Grid::from_json(text, "g.json").expect("parses");
+    g.validate("g.json").expect("valid");
+    assert_eq!(g.base.filter, MipFilter::Kaiser);
+    let p = g.plan();
+    assert_eq!(p.builds.len(), 2);
+    // Non-base builds run only the base runtime (ratio 1, k 64) when ratios are not on every build.
+    assert_eq!(p.builds[1].runtimes.len(), 1);
+    assert_eq!(p.builds[0].runtimes.len(), 2);
+    let again = Grid::from_json(&serde_json::to_string(&g).expect("json"), "x").expect("again");
+    assert_eq!(again, g);
+
+    let unknown = Grid::from_json(
+        r#"{"base": {"d_min_ratio": 8, "atlas_size": 1024, "border": 8, "filter": "box",
+            "texel_ratio": 1, "colour": 3}}"#,
+        "u.json",
+    )
+    .expect_err("unknown field");
+    assert!(unknown.to_string().contains("u.json") && unknown.to_string().contains("colour"));
+    let bad_filter = Grid::from_json(
+        r#"{"base": {"d_min_ratio": 8, "atlas_size": 1024, "border": 8, "filter": "gauss",
+            "texel_ratio": 1}}"#,
+        "f.json",
+    )
+    .expect_err("bad filter");
+    assert!(bad_filter.to_string().contains("gauss"));
+    let mut g2 = g.clone();
+    g2.atlas_size.push(500);
+    let e = g2
+        .validate("g.json")
+        .expect_err("500 is not a power of two");
+    assert!(e.to_string().contains("atlas_size 500"), "{e}");
+    let mut g3 = g;
+    g3.texel_ratio.push(-1.0);
+    assert!(g3.validate("g.json").is_err());
+}
+
+fn knobs(atlas: u32) -> BuildKnobs {
+    BuildKnobs {
+        d_min_ratio: 10.0,
+        atlas_size: atlas,
+        border: 8,
+        filter: MipFilter::Box,
+    }
+}
+
+fn frame(b: BuildKnobs, t: f64, i: usize, psnr: f64, ms: f64) -> FrameRow {
+    FrameRow {
+        build: b,
+        runtime: RuntimeKnobs {
+            texel_ratio: t,
+            capacity: None,
+        },
+        frame: i,
+        time_s: i as f64,
+        psnr_db: psnr,
+        psnr_covered_db: psnr,
+        covered_pixels: 100,
+        ssim: 0.9,
+        magnified_share: 0.1,
+        below_target_share: 0.2,
+        coarser_share: 0.0,
+        select_us: 10.0,
+        encode_us: 20.0,
+        gpu_ms: f64::NAN,
+        frame_ms: ms,
+        bytes_paged: 0,
+        nodes_drawn: 3,
+        draw_calls: 1,
+    }
+}
+
+fn build_row(b: BuildKnobs, bytes: u64, secs: f64) -> BuildRow {
+    BuildRow {
+        knobs: b,
+        file_bytes: bytes,
+        nodes: 1,
+        leaves: 1,
+        depth: 0,
+        blocks: 1,
+        stage_s: vec![("rasterise".into(), secs)],
+        build_s: secs,
+        peak_rss_bytes: Some(1),
+        peak_rss_reset: true,
+    }
+}
+
+#[test]
+fn summary_means_front_and_recommendation() {
+    let (a, b) = (knobs(512), knobs(1024));
+    let frames = vec![
+        frame(a, 0.5, 0, 30.0, 10.0),
+        frame(a, 0.5, 1, 32.0, 30.0),
+        frame(a, 0.5, 2, 34.0, 20.0),
+        frame(a, 1.0, 0, 40.0, 50.0),
+        frame(a, 1.0, 1, 40.4, 70.0),
+        frame(b, 1.0, 0, 39.9, 15.0),
+        frame(b, 1.0, 1, 40.1, 25.0),
+    ];
+    let builds = vec![build_row(a, 300, 2.0), build_row(b, 100, 5.0)];
+    let rows = summarise(&builds, &frames);
+    assert_eq!(rows.len(), 3);
+    assert_eq!(rows[0].id, "r10_a512_b8_box_t0.5_all");
+    assert_eq!(rows[0].frames, 3);
+    assert_eq!(rows[0].psnr_db, 32.0);
+    assert_eq!(rows[0].frame_ms, 20.0);
+    assert_eq!(rows[0].frame_ms_median, 20.0);
+    assert!(rows[0].gpu_ms.is_nan(), "all-NaN column stays NaN");
+    assert!((rows[1].psnr_covered_db - 40.2).abs() < 1e-12);
+    assert_eq!(rows[1].frame_ms_median, 60.0);
+    assert_eq!((rows[2].file_bytes, rows[2].build_s), (100, 5.0));
+    // Front over (median ms, PSNR): a/0.5 is 20 ms at 32 dB, b/1 20 ms at 40.0 dB (dominates a/0.5),
+    // a/1 60 ms at 40.2 dB (slower but more accurate): the front is b/1 then a/1.
+    assert_eq!(frame_time_front(&rows), vec![2, 1]);
+    let rec = recommend(&rows, 0.5).expect("some rows");
+    assert_eq!(rec.best, 1);
+    assert_eq!(rec.fastest_frames, 2);
+    assert_eq!(rec.smallest_file, 2);
+    assert_eq!(rec.fastest_build, 1);
+    // A tight tolerance leaves only the best.
+    let tight = recommend(&rows, 0.1).expect("rows");
+    assert_eq!((tight.fastest_frames, tight.smallest_file), (1, 1));
+    assert!(recommend(&[], 0.5).is_none());
+}
+
+#[test]
+fn mean_median_skip_nan_and_histograms_merge() {
+    assert_eq!(mean([1.0, f64::NAN, 3.0]), 2.0);
+    assert!(mean([f64::NAN]).is_nan());
+    assert_eq!(median([5.0, 1.0, f64::NAN, 3.0, 100.0]), 4.0);
+    let mut h = Histogram::log2(&[0.5, 1.0, 2.0], -2, 2);
+    merge_histogram(&mut h, &Histogram::log2(&[1.5, 8.0, f32::NAN], -2, 2));
+    assert_eq!(h.counts, vec![0, 1, 2, 1]);
+    assert_eq!((h.above, h.skipped), (1, 1));
+    let before = h.clone();
+    merge_histogram(&mut h, &Histogram::log2(&[1.0], -1, 2));
+    assert_eq!(h, before, "different edges are not merged");
+}
+
+/// The filter changes only texels: same blocks, same file size; different atlas bytes.
+#[test]
+fn kaiser_filter_changes_texels_not_layout() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+    let scene = atlastree::scene::import(&path, &Default::default()).expect("data/city");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |f: MipFilter| {
+        let out = dir.path().join(format!("{}.atlastree", f.name()));
+        let r = build(
+            &scene,
+            &BuildOptions {
+                d_min: DMin::Ratio(4.0),
+                atlas_size: 256,
+                mip_filter: f,
+                ..BuildOptions::default()
+            },
+            &out,
+            &NoProgress,
+        )
+        .expect("build");
+        (r, std::fs::read(&out).expect("read"))
+    };
+    let (rb, bb) = run(MipFilter::Box);
+    let (rk, bk) = run(MipFilter::Kaiser);
+    assert_eq!(rb.blocks, rk.blocks);
+    assert_eq!(rb.file_bytes, rk.file_bytes);
+    assert_eq!(bb.len(), bk.len());
+    let differing = bb.iter().zip(&bk).filter(|(a, b)| a != b).count();
+    assert!(
+        differing > 1000,
+        "only {differing} bytes differ between box and Kaiser builds"
+    );
+    assert_eq!("kaiser".parse::<MipFilter>(), Ok(MipFilter::Kaiser));
+    assert!("lanczos".parse::<MipFilter>().is_err());
+}
