@@ -47,7 +47,7 @@ pub fn parse_bytes(s: &str) -> Option<u64> {
         _ => return None,
     };
     let b = v * mul;
-    (b.is_finite() && b >= 0.0 && b < 1.8e19).then_some(b.round() as u64)
+    (0.0..1.8e19).contains(&b).then_some(b.round() as u64)
 }
 
 /// Parses a rate in bytes per second: a [`parse_bytes`] size followed by `/s`, e.g. `5MB/s`.

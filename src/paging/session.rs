@@ -51,6 +51,7 @@ impl PagingSession {
 
     /// One frame at clock time `now` (seconds): usage and ideal set for `camera`, requests handed to
     /// `loader`, arrivals accepted, residency changes reported to `apply`.
+    #[allow(clippy::too_many_arguments)]
     pub fn frame(
         &mut self,
         trees: &[&[NodeRecord]],

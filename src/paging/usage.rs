@@ -166,14 +166,10 @@ pub fn classify(
                     if visible {
                         // Prefetch one step finer: children's atlases, or the leaf's originals.
                         for &c in &node.children {
-                            if let (true, Some(child)) = (c != NONE, nodes.get(c as usize)) {
-                                if let Some(a) = table.atlas(t, NodeId(c)) {
-                                    scratch.mark(
-                                        a,
-                                        Usage::ParentNeeded,
-                                        node_distance(child, view),
-                                    );
-                                }
+                            if let (true, Some(child), Some(a)) =
+                                (c != NONE, nodes.get(c as usize), table.atlas(t, NodeId(c)))
+                            {
+                                scratch.mark(a, Usage::ParentNeeded, node_distance(child, view));
                             }
                         }
                         for &b in table.originals(t, id) {

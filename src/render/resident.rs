@@ -567,10 +567,10 @@ impl Resident {
         // Original-texture classes: per block the uniques it holds.
         let mut block_uniques: Vec<Vec<(u32, u64)>> = vec![Vec::new(); table.len()];
         for &(b, ui, offset) in &g.block_uniques {
-            if let Some(v) = block_uniques.get_mut(b.idx()) {
-                if !v.iter().any(|&(u, _)| u == ui) {
-                    v.push((ui, offset));
-                }
+            if let Some(v) = block_uniques.get_mut(b.idx())
+                && !v.iter().any(|&(u, _)| u == ui)
+            {
+                v.push((ui, offset));
             }
         }
         let mut class_arrays: Vec<Option<TextureArray>> = Vec::with_capacity(CLASS_COUNT);

@@ -284,7 +284,7 @@ pub fn write_plots(
         let p = line_chart(
             &dir.join("coarser_over_time"),
             &PlotOptions::new(
-                &format!("Screen share coarser than target ({cond})"),
+                format!("Screen share coarser than target ({cond})"),
                 "time (s)",
                 "coarser share of drawn area",
             ),
@@ -294,7 +294,7 @@ pub fn write_plots(
         let p = line_chart(
             &dir.join("bytes_per_frame"),
             &PlotOptions::new(
-                &format!("Bytes loaded per frame ({cond})"),
+                format!("Bytes loaded per frame ({cond})"),
                 "time (s)",
                 "MB per frame",
             ),
@@ -339,7 +339,7 @@ pub fn write_plots(
             let p = heat_map(
                 &dir.join(&name),
                 &PlotOptions::new(
-                    &format!(
+                    format!(
                         "Mean screen share coarser than target ({} ms latency, {} policy)",
                         fmt_num(lat * 1e3),
                         pol.name()

@@ -476,10 +476,10 @@ impl<'a> Running<'a> {
         // The pager: a paged renderer updates its residency inside `render` on the wall clock; the capacity
         // slider applies live.
         let clock = self.started.elapsed().as_secs_f64();
-        if let Some(pager) = self.renderer.pager() {
-            if pager.options().capacity != self.settings.capacity {
-                self.renderer.set_capacity(self.settings.capacity);
-            }
+        if let Some(pager) = self.renderer.pager()
+            && pager.options().capacity != self.settings.capacity
+        {
+            self.renderer.set_capacity(self.settings.capacity);
         }
         self.renderer.set_clock(clock);
         self.stats = self

@@ -262,17 +262,17 @@ fn over_http_with_the_server_stopped_and_restarted(ctx: &GpuContext) -> Result<(
     }
     let http = Arc::new(http);
     let k = 12;
-    let mut p = paged(&ctx, &tables, k, UploadBudget::Unlimited, http.clone(), 2)?;
+    let mut p = paged(ctx, &tables, k, UploadBudget::Unlimited, http.clone(), 2)?;
     let mut full = renderer(ctx, &file)?;
     let cams = dive_cameras(&file, 24)?;
     let mut failures = 0u32;
     let mut server = Some(server);
     let mut coarser_while_down = 0;
     for (i, cam) in cams.iter().enumerate() {
-        if i == 8 {
-            if let Some(s) = server.take() {
-                s.shutdown();
-            }
+        if i == 8
+            && let Some(s) = server.take()
+        {
+            s.shutdown();
         }
         p.set_clock(i as f64 / 30.0);
         let (coarser, _, _) = check_frame(&mut p, &mut full, &tables, cam, k, i)?;
