@@ -11,8 +11,11 @@ use super::batch::{
     AtlasSlot, LeafGpu, LeafOffsets, Pass, TamEntry, TreeBatchInfo, WRAP_CLAMP, WRAP_MIRROR,
     WRAP_REPEAT, leaf_ranges,
 };
-use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index};
-use crate::build::tree::{TreeVertex, mip_chain_bytes};
+use super::textures::{
+    CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index, gpu_format, texels_for_upload,
+};
+use crate::build::tree::TreeVertex;
+use crate::texfmt::TexFormat;
 use crate::gpu::GpuContext;
 use crate::ids::{BlockId, NONE};
 use crate::scene::{AlphaMode, Wrap};
@@ -32,6 +35,8 @@ pub struct UniqueOriginal {
     /// Block and byte offset of its mip chain inside the block.
     pub block: BlockId,
     pub offset: u64,
+    /// Storage format of the block (its tree's format).
+    pub format: TexFormat,
 }
 
 /// Numbers of a load.
@@ -47,6 +52,9 @@ pub struct LoadStats {
     pub original_layers: u32,
     pub class_arrays: u32,
     pub texture_bytes: u64,
+    /// Compressed mip chains decoded to RGBA8 on the CPU at upload (adapter without
+    /// `TEXTURE_COMPRESSION_BC`, or a class array shared by trees of different formats).
+    pub decoded_on_load: u64,
 }
 
 /// The GPU-resident file.
@@ -124,8 +132,8 @@ fn passes_and_cutoffs(
 }
 
 /// Byte offset of each original of a leaf inside its block: images of one block are back to back in slot
-/// order, each a full mip chain of its class size.
-fn slot_offsets(originals: &[OriginalRecord]) -> Vec<u64> {
+/// order, each a full mip chain of its class size in the tree's `format`.
+fn slot_offsets(originals: &[OriginalRecord], format: TexFormat) -> Vec<u64> {
     let mut out = vec![0u64; originals.len()];
     let mut by_block: HashMap<u32, Vec<usize>> = HashMap::new();
     for (i, o) in originals.iter().enumerate() {
@@ -136,7 +144,7 @@ fn slot_offsets(originals: &[OriginalRecord]) -> Vec<u64> {
         let mut off = 0u64;
         for &i in idx.iter() {
             out[i] = off;
-            off += mip_chain_bytes(originals[i].class_size);
+            off += format.chain_bytes(originals[i].class_size);
         }
     }
     out
@@ -180,6 +188,8 @@ pub struct Plan {
     pub uniques: Vec<UniqueOriginal>,
     /// `(tree, node, block)` of every atlas, in upload order.
     pub atlas_blocks: Vec<(u32, u32, BlockId)>,
+    /// Storage format of each tree's blocks.
+    pub formats: Vec<TexFormat>,
     pub has_alpha: bool,
 }
 
@@ -191,9 +201,26 @@ impl Resident {
         let max_layers = ctx.features.max_texture_array_layers.max(1);
         let g = plan(file)?;
 
-        // Atlas arrays: layers assigned in node order, split at the device limit.
+        // Atlas arrays: one format each (trees of different formats get different arrays), layers assigned
+        // in node order, split at the device limit.
+        let bc = ctx.features.texture_compression_bc;
+        let tree_gpu: Vec<TexFormat> = g.formats.iter().map(|&f| gpu_format(f, bc)).collect();
         let atlas_count = g.atlas_blocks.len() as u32;
-        let arrays_needed = atlas_count.div_ceil(max_layers).max(1) as usize;
+        let mut per_format: Vec<(TexFormat, u32)> = Vec::new();
+        for &(tree, _, _) in &g.atlas_blocks {
+            let f = tree_gpu.get(tree as usize).copied().unwrap_or_default();
+            match per_format.iter_mut().find(|(pf, _)| *pf == f) {
+                Some((_, n)) => *n += 1,
+                None => per_format.push((f, 1)),
+            }
+        }
+        if per_format.is_empty() {
+            per_format.push((TexFormat::Rgba8, 0));
+        }
+        let arrays_needed: usize = per_format
+            .iter()
+            .map(|&(_, n)| n.div_ceil(max_layers).max(1) as usize)
+            .sum();
         if arrays_needed > MAX_ATLAS_ARRAYS {
             return Err(RenderError::TooManyLayers {
                 what: "atlases".into(),
@@ -203,23 +230,33 @@ impl Resident {
         }
         let mut infos = g.infos;
         let mut atlas_arrays = Vec::new();
-        let mut remaining = atlas_count;
-        for a in 0..arrays_needed {
-            let n = remaining.min(max_layers);
-            remaining -= n;
-            atlas_arrays.push(TextureArray::new(
-                &ctx.device,
-                &format!("atlas array {a}"),
-                params.atlas_size,
-                n,
-            ));
+        for &(format, count) in &per_format {
+            let mut remaining = count;
+            loop {
+                let n = remaining.min(max_layers);
+                remaining -= n;
+                let label = format!("atlas array {} ({})", atlas_arrays.len(), format.name());
+                atlas_arrays.push(TextureArray::new(
+                    &ctx.device,
+                    &label,
+                    params.atlas_size,
+                    n,
+                    format,
+                ));
+                if remaining == 0 {
+                    break;
+                }
+            }
         }
         let mut texture_bytes = 0u64;
+        let mut decoded_on_load = 0u64;
         for &(tree, node, block) in &g.atlas_blocks {
+            let stored = g.formats.get(tree as usize).copied().unwrap_or_default();
+            let target = gpu_format(stored, bc);
             let array = atlas_arrays
                 .iter_mut()
                 .enumerate()
-                .find(|(_, a)| a.layers.in_use() < a.layers.capacity());
+                .find(|(_, a)| a.format == target && a.layers.in_use() < a.layers.capacity());
             let Some((ai, arr)) = array else {
                 return Err(RenderError::TooManyLayers {
                     what: "atlases".into(),
@@ -229,8 +266,11 @@ impl Resident {
             };
             let layer = arr.layers.alloc().unwrap_or(0);
             let bytes = file.block(block)?;
+            let texels = texels_for_upload(stored, bytes, params.atlas_size, target)
+                .ok_or(RenderError::ShortBlock { block })?;
+            decoded_on_load += u64::from(stored != target);
             texture_bytes += arr
-                .upload_chain(&ctx.queue, layer, bytes)
+                .upload_chain(&ctx.queue, layer, &texels)
                 .ok_or(RenderError::ShortBlock { block })?;
             if let Some(slot) = infos
                 .get_mut(tree as usize)
@@ -243,10 +283,18 @@ impl Resident {
             }
         }
 
-        // Class arrays.
+        // Class arrays: the stored format of their originals when all agree (and the device samples it),
+        // else RGBA8 with decoding on load.
         let mut per_class = [0u32; CLASS_COUNT];
+        let mut class_format: [Option<TexFormat>; CLASS_COUNT] = [None; CLASS_COUNT];
         for u in &g.uniques {
             per_class[u.class as usize] += 1;
+            let f = gpu_format(u.format, bc);
+            let cf = &mut class_format[u.class as usize];
+            *cf = match *cf {
+                Some(c) if c != f => Some(TexFormat::Rgba8),
+                _ => Some(f),
+            };
         }
         let mut class_arrays: Vec<Option<TextureArray>> = Vec::with_capacity(CLASS_COUNT);
         for (k, &n) in per_class.iter().enumerate() {
@@ -257,8 +305,10 @@ impl Resident {
                     limit: u64::from(max_layers),
                 });
             }
+            let format = class_format[k].unwrap_or_default();
             class_arrays.push((n > 0).then(|| {
-                TextureArray::new(&ctx.device, &format!("class {}", 4u32 << k), 4 << k, n)
+                let label = format!("class {} ({})", 4u32 << k, format.name());
+                TextureArray::new(&ctx.device, &label, 4 << k, n, format)
             }));
         }
         let mut uniques = g.uniques;
@@ -283,8 +333,11 @@ impl Resident {
                 .ok()
                 .and_then(|o| bytes.get(o..))
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
+            let texels = texels_for_upload(u.format, chain, u.class_size, arr.format)
+                .ok_or(RenderError::ShortBlock { block: u.block })?;
+            decoded_on_load += u64::from(u.format != arr.format);
             texture_bytes += arr
-                .upload_chain(&ctx.queue, u.layer, chain)
+                .upload_chain(&ctx.queue, u.layer, &texels)
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
         }
         let mut tam = g.tam;
@@ -294,7 +347,12 @@ impl Resident {
             }
         }
 
-        let dummy = TextureArray::new(&ctx.device, "dummy 1x1", 1, 1);
+        if decoded_on_load > 0 {
+            tracing::warn!(
+                "{decoded_on_load} compressed mip chains decoded to RGBA8 on load (adapter BC support: {bc})"
+            );
+        }
+        let dummy = TextureArray::new(&ctx.device, "dummy 1x1", 1, 1, TexFormat::Rgba8);
         dummy.upload_chain(&ctx.queue, 0, &[200, 200, 200, 255]);
 
         let stats = LoadStats {
@@ -308,6 +366,7 @@ impl Resident {
             original_layers: uniques.len() as u32,
             class_arrays: class_arrays.iter().filter(|a| a.is_some()).count() as u32,
             texture_bytes,
+            decoded_on_load,
         };
         let storage = wgpu::BufferUsages::STORAGE;
         let leaf_offsets = LeafOffsets::new(g.origins);
@@ -379,7 +438,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
         for (li, leaf) in view.leaves.iter().enumerate() {
             let node = view.nodes.get(leaf.node as usize);
             let originals = view.leaf_originals(leaf);
-            let offsets = slot_offsets(originals);
+            let offsets = slot_offsets(originals, view.format());
             let first_tam = count_u32("tam", g.tam.len())?;
             g.leaves.push(LeafGpu {
                 cell_ix: node.map_or(0, |n| n.cell.ix),
@@ -405,6 +464,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                         layer: 0,
                         block: BlockId(o.block),
                         offset,
+                        format: view.format(),
                     });
                 }
                 g.tam_unique.push(ui);
@@ -446,6 +506,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                     .push((t as u32, ni as u32, BlockId(n.atlas_block)));
             }
         }
+        g.formats.push(view.format());
         g.infos.push(TreeBatchInfo {
             tree: t as u32,
             leaf_base,
