@@ -2,6 +2,7 @@
 //!
 //! To add tests: create a module under `tests/gpu/` with `pub fn tests() -> Vec<GpuTest>` and list it below.
 
+mod compressed;
 mod device;
 mod golden;
 mod harness;
@@ -16,6 +17,7 @@ fn main() -> ExitCode {
         device::tests(),
         render::tests(),
         golden::tests(),
+        compressed::tests(),
     ]
     .into_iter()
     .flatten()
