@@ -244,7 +244,9 @@ fn encode_band(format: TexFormat, rgba: &[u8], width: u32, alpha: bool, out: &mu
         TexFormat::Bc7 if alpha => {
             bc7::compress_blocks_into(&bc7::alpha_very_fast_settings(), &surface, out)
         }
-        TexFormat::Bc7 => bc7::compress_blocks_into(&bc7::opaque_very_fast_settings(), &surface, out),
+        TexFormat::Bc7 => {
+            bc7::compress_blocks_into(&bc7::opaque_very_fast_settings(), &surface, out)
+        }
     }
 }
 
@@ -343,6 +345,35 @@ pub fn encode_chain(
     Ok(out)
 }
 
+/// Widens BC1 blocks to BC3 (each 8-byte colour block gets an opaque 8-byte alpha block in front), so
+/// BC1-stored textures can share a BC3 texture array. Exact for the blocks our encoder writes (4-colour
+/// mode, `c0 > c1`, or equal endpoints without index 3); any other block (3-colour mode, which BC3's colour
+/// block cannot express) is decoded and re-encoded as BC3. Works on whole chains: a BC1 chain is its
+/// levels' blocks back to back, and the BC3 chain has the same blocks in the same order.
+pub fn bc1_to_bc3(bytes: &[u8]) -> Vec<u8> {
+    let mut out = vec![0u8; bytes.len() / 8 * 16];
+    out.par_chunks_mut(16)
+        .zip(bytes.par_chunks_exact(8))
+        .for_each(|(dst, block)| {
+            let c0 = u16::from_le_bytes([block[0], block[1]]);
+            let c1 = u16::from_le_bytes([block[2], block[3]]);
+            let idx = u32::from_le_bytes([block[4], block[5], block[6], block[7]]);
+            let uses_3 = (0..16).any(|i| (idx >> (2 * i)) & 3 == 3);
+            if c0 > c1 || (c0 == c1 && !uses_3) {
+                dst[..8].copy_from_slice(&[255, 255, 0, 0, 0, 0, 0, 0]);
+                dst[8..].copy_from_slice(block);
+            } else {
+                let mut rgba = [0u8; 64];
+                bcdec_rs::bc1(block, &mut rgba, 16);
+                for p in rgba.chunks_exact_mut(4) {
+                    p[3] = 255;
+                }
+                encode_band(TexFormat::Bc3, &rgba, 4, false, dst);
+            }
+        });
+    out
+}
+
 /// Decodes a full mip chain of a `size²` image stored in `format` (the first `format.chain_bytes(size)`
 /// bytes of `bytes`) to RGBA8, level 0 first.
 pub fn decode_chain(format: TexFormat, bytes: &[u8], size: u32) -> Result<Vec<u8>, TexFormatError> {
@@ -399,6 +430,44 @@ mod tests {
         assert!((psnr(12, 12) - 48.1308).abs() < 1e-3);
         assert_eq!(sse_rgba8(&[0, 0, 0, 0], &[1, 2, 3, 4], 3), 1 + 4 + 9);
         assert_eq!(sse_rgba8(&[0, 0, 0, 0], &[1, 2, 3, 4], 4), 1 + 4 + 9 + 16);
+    }
+
+    #[test]
+    fn bc1_widens_to_bc3_exactly() {
+        // A gradient level plus a flat level (equal endpoints) and a hand-made 3-colour-mode block.
+        let mut rgba: Vec<u8> = (0..16 * 16)
+            .flat_map(|i| [(i % 16 * 16) as u8, (i / 16 * 16) as u8, 90, 255])
+            .collect();
+        let mut bc1 = encode_level(TexFormat::Bc1, &rgba, 16, false);
+        rgba = vec![77; 16 * 16 * 4];
+        bc1.extend(encode_level(TexFormat::Bc1, &rgba, 16, false));
+        // c0 < c1: 3-colour mode, indices 0..3 (3 = black).
+        bc1.extend([
+            0x00,
+            0x10,
+            0x00,
+            0xF8,
+            0b1110_0100,
+            0b1110_0100,
+            0b1110_0100,
+            0b1110_0100,
+        ]);
+        let bc3 = bc1_to_bc3(&bc1);
+        assert_eq!(bc3.len(), bc1.len() * 2);
+        let n = bc1.len() / 8;
+        for k in 0..n {
+            let mut x = [0u8; 64];
+            let mut y = [0u8; 64];
+            bcdec_rs::bc1(&bc1[k * 8..k * 8 + 8], &mut x, 16);
+            bcdec_rs::bc3(&bc3[k * 16..k * 16 + 16], &mut y, 16);
+            if k < n - 1 {
+                assert_eq!(x, y, "block {k} widened exactly");
+            } else {
+                // The 3-colour block is re-encoded: close, opaque.
+                assert!(y.chunks_exact(4).all(|p| p[3] == 255));
+                assert!(psnr(sse_rgba8(&x, &y, 3), 48) > 20.0);
+            }
+        }
     }
 
     #[test]

@@ -245,8 +245,16 @@ fn compressed_atlas_levels_0_and_1_never_mix_textures() {
         let mut report = Vec::new();
         for keep in [0usize, 5, 10, 15] {
             let (_, inner) = rects[keep];
-            let a = levels(format, &MipChain::build(atlas(&rects, keep, false)).to_rgba8(), size);
-            let b = levels(format, &MipChain::build(atlas(&rects, keep, true)).to_rgba8(), size);
+            let a = levels(
+                format,
+                &MipChain::build(atlas(&rects, keep, false)).to_rgba8(),
+                size,
+            );
+            let b = levels(
+                format,
+                &MipChain::build(atlas(&rects, keep, true)).to_rgba8(),
+                size,
+            );
             for l in 0..4u32 {
                 let s = size >> l;
                 let (mut changed, mut max_diff, mut max_dist) = (0u32, 0u8, 0u32);

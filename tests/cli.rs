@@ -112,11 +112,21 @@ fn build_compress_bc1_then_inspect_verify_reference() {
     let (bc1, cb) = build("bc1.atlastree", "bc1");
     assert_eq!(pb["blocks"], cb["blocks"], "same tree, same blocks");
     let (pt, ct) = (&pb["trees"], &cb["trees"]);
-    assert_eq!((ct[0]["format"].as_str(), ct[1]["format"].as_str()), (Some("Bc1"), Some("Bc3")));
-    assert_eq!(pt[0]["atlas_psnr_db"], serde_json::Value::Null, "lossless is null (∞)");
+    assert_eq!(
+        (ct[0]["format"].as_str(), ct[1]["format"].as_str()),
+        (Some("Bc1"), Some("Bc3"))
+    );
+    assert_eq!(
+        pt[0]["atlas_psnr_db"],
+        serde_json::Value::Null,
+        "lossless is null (∞)"
+    );
     let psnr0 = ct[0]["atlas_psnr_db"].as_f64().unwrap();
     assert!((30.0..60.0).contains(&psnr0), "{psnr0}");
-    let (ps, cs) = (pb["file_bytes"].as_u64().unwrap(), cb["file_bytes"].as_u64().unwrap());
+    let (ps, cs) = (
+        pb["file_bytes"].as_u64().unwrap(),
+        cb["file_bytes"].as_u64().unwrap(),
+    );
     // BC1 is 1/8 and BC3 1/4 of RGBA8 per texel (small mips round up to a block, blocks to 4 KiB).
     assert!(cs * 4 < ps && cs * 9 > ps, "{cs} vs {ps}");
 
@@ -139,14 +149,21 @@ fn build_compress_bc1_then_inspect_verify_reference() {
     // Text output names the format and the per-atlas PSNR.
     let o = run(bin().args(["inspect", "--verify"]).arg(&bc1));
     let s = String::from_utf8_lossy(&o.stdout);
-    assert!(s.contains("format bc1 (8 bytes per 4×4 texels)") && s.contains("atlas PSNR ("), "{s}");
+    assert!(
+        s.contains("format bc1 (8 bytes per 4×4 texels)") && s.contains("atlas PSNR ("),
+        "{s}"
+    );
     // The reference must be uncompressed and of the same tree: the compressed file itself is refused.
     let o = run(bin()
         .args(["inspect", "--verify", "--reference"])
         .arg(&bc1)
         .arg(&bc1));
     assert_eq!(o.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&o.stdout).contains("need"), "{}", String::from_utf8_lossy(&o.stdout));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("need"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
 }
 
 #[test]

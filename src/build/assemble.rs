@@ -8,9 +8,9 @@ use super::tree::{
     AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind,
     TreeVertex,
 };
-use crate::texfmt::TexFormat;
 use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
 use crate::scene::Scene;
+use crate::texfmt::TexFormat;
 use glam::{DVec2, DVec3};
 use std::collections::HashMap;
 

@@ -409,7 +409,9 @@ pub fn build(
     for (tree, report) in forest.trees.iter().zip(&mut reports) {
         raster::raster_tree(&ctx, tree)?;
         let sse = ctx.atlas_sse.swap(0, std::sync::atomic::Ordering::Relaxed);
-        let samples = ctx.atlas_samples.swap(0, std::sync::atomic::Ordering::Relaxed);
+        let samples = ctx
+            .atlas_samples
+            .swap(0, std::sync::atomic::Ordering::Relaxed);
         report.atlas_psnr_db = crate::texfmt::psnr(sse, samples);
     }
     progress.finish_stage();

@@ -256,11 +256,16 @@ fn raster_node(
     };
     // One mip chain serves both the stored block and the parent, which needs exactly level 1.
     let chain = MipChain::build(atlas);
-    let enc = encode_chain(tree.format, &chain.to_rgba8(), size, channels_for(tree.kind))
-        .map_err(|source| BuildError::Encode {
-            what: format!("atlas of node {}", id.0),
-            source,
-        })?;
+    let enc = encode_chain(
+        tree.format,
+        &chain.to_rgba8(),
+        size,
+        channels_for(tree.kind),
+    )
+    .map_err(|source| BuildError::Encode {
+        what: format!("atlas of node {}", id.0),
+        source,
+    })?;
     ctx.writer
         .write_block_measured(node.atlas_block, &enc.bytes, enc.sse)?;
     ctx.atlas_sse.fetch_add(enc.sse, Ordering::Relaxed);
@@ -311,13 +316,9 @@ fn write_originals(ctx: &RasterCtx<'_>, tree: &AtlasTree, leaf: &Leaf) -> Result
     let channels = channels_for(tree.kind);
     for o in &leaf.originals {
         let mat = &ctx.scene.materials[o.material.idx()];
-        let enc = ctx.cache.original((
-            o.image,
-            o.class_size,
-            mat.wrap,
-            tree.format,
-            channels,
-        ))?;
+        let enc = ctx
+            .cache
+            .original((o.image, o.class_size, mat.wrap, tree.format, channels))?;
         match blocks.last_mut() {
             Some((b, buf, sse)) if *b == o.block => {
                 buf.extend_from_slice(&enc.bytes);

@@ -1,6 +1,6 @@
+use super::build_cmd::fmt_psnr;
 use anyhow::Context;
 use atlastree::inspect::{InspectReport, VerifyReport, open_and_inspect};
-use super::build_cmd::fmt_psnr;
 use atlastree::util::human_bytes;
 use clap::Args;
 use std::path::PathBuf;

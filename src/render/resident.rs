@@ -12,15 +12,16 @@ use super::batch::{
     WRAP_REPEAT, leaf_ranges,
 };
 use super::textures::{
-    CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index, gpu_format, texels_for_upload,
+    CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index, common_format, gpu_format,
+    texels_for_upload,
 };
 use crate::build::tree::TreeVertex;
-use crate::texfmt::TexFormat;
 use crate::gpu::GpuContext;
 use crate::ids::{BlockId, NONE};
 use crate::scene::{AlphaMode, Wrap};
 use crate::store::format::{MaterialRecord, OriginalRecord};
 use crate::store::{TreeFile, TreeView};
+use crate::texfmt::TexFormat;
 use glam::DVec3;
 use std::collections::HashMap;
 use wgpu::util::DeviceExt;
@@ -53,8 +54,10 @@ pub struct LoadStats {
     pub class_arrays: u32,
     pub texture_bytes: u64,
     /// Compressed mip chains decoded to RGBA8 on the CPU at upload (adapter without
-    /// `TEXTURE_COMPRESSION_BC`, or a class array shared by trees of different formats).
+    /// `TEXTURE_COMPRESSION_BC`, or a class array shared by trees of formats that do not mix).
     pub decoded_on_load: u64,
+    /// BC1 chains widened to BC3 at upload (a class array shared with a BC3 tree).
+    pub widened_on_load: u64,
 }
 
 /// The GPU-resident file.
@@ -250,6 +253,7 @@ impl Resident {
         }
         let mut texture_bytes = 0u64;
         let mut decoded_on_load = 0u64;
+        let mut widened_on_load = 0u64;
         for &(tree, node, block) in &g.atlas_blocks {
             let stored = g.formats.get(tree as usize).copied().unwrap_or_default();
             let target = gpu_format(stored, bc);
@@ -283,18 +287,12 @@ impl Resident {
             }
         }
 
-        // Class arrays: the stored format of their originals when all agree (and the device samples it),
-        // else RGBA8 with decoding on load.
+        // Class arrays: the common format of their originals ([`common_format`]).
         let mut per_class = [0u32; CLASS_COUNT];
-        let mut class_format: [Option<TexFormat>; CLASS_COUNT] = [None; CLASS_COUNT];
+        let mut class_formats: [Vec<TexFormat>; CLASS_COUNT] = Default::default();
         for u in &g.uniques {
             per_class[u.class as usize] += 1;
-            let f = gpu_format(u.format, bc);
-            let cf = &mut class_format[u.class as usize];
-            *cf = match *cf {
-                Some(c) if c != f => Some(TexFormat::Rgba8),
-                _ => Some(f),
-            };
+            class_formats[u.class as usize].push(gpu_format(u.format, bc));
         }
         let mut class_arrays: Vec<Option<TextureArray>> = Vec::with_capacity(CLASS_COUNT);
         for (k, &n) in per_class.iter().enumerate() {
@@ -305,7 +303,7 @@ impl Resident {
                     limit: u64::from(max_layers),
                 });
             }
-            let format = class_format[k].unwrap_or_default();
+            let format = common_format(class_formats[k].iter().copied());
             class_arrays.push((n > 0).then(|| {
                 let label = format!("class {} ({})", 4u32 << k, format.name());
                 TextureArray::new(&ctx.device, &label, 4 << k, n, format)
@@ -335,7 +333,8 @@ impl Resident {
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
             let texels = texels_for_upload(u.format, chain, u.class_size, arr.format)
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
-            decoded_on_load += u64::from(u.format != arr.format);
+            decoded_on_load += u64::from(u.format != arr.format && arr.format == TexFormat::Rgba8);
+            widened_on_load += u64::from(u.format != arr.format && arr.format == TexFormat::Bc3);
             texture_bytes += arr
                 .upload_chain(&ctx.queue, u.layer, &texels)
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
@@ -367,6 +366,7 @@ impl Resident {
             class_arrays: class_arrays.iter().filter(|a| a.is_some()).count() as u32,
             texture_bytes,
             decoded_on_load,
+            widened_on_load,
         };
         let storage = wgpu::BufferUsages::STORAGE;
         let leaf_offsets = LeafOffsets::new(g.origins);

@@ -92,6 +92,23 @@ impl LayerAllocator {
     }
 }
 
+/// The format of an array holding chains stored in each of `formats` (already mapped by [`gpu_format`]):
+/// their common format; BC3 for a mix of BC1 and BC3 (BC1 widens losslessly); else RGBA8 (decoded).
+pub fn common_format(formats: impl IntoIterator<Item = TexFormat>) -> TexFormat {
+    let mut common: Option<TexFormat> = None;
+    for f in formats {
+        common = Some(match (common, f) {
+            (None, f) => f,
+            (Some(c), f) if c == f => c,
+            (Some(TexFormat::Bc1), TexFormat::Bc3) | (Some(TexFormat::Bc3), TexFormat::Bc1) => {
+                TexFormat::Bc3
+            }
+            _ => TexFormat::Rgba8,
+        });
+    }
+    common.unwrap_or_default()
+}
+
 /// The format a texture holding blocks stored as `stored` gets on the GPU: `stored` itself if it is RGBA8
 /// or the device samples BC textures (`bc_supported`: `GpuFeatures::texture_compression_bc`), else RGBA8.
 pub fn gpu_format(stored: TexFormat, bc_supported: bool) -> TexFormat {
@@ -104,17 +121,23 @@ pub fn gpu_format(stored: TexFormat, bc_supported: bool) -> TexFormat {
 
 /// The texels of a `size²` mip chain stored as `stored` (the start of `bytes`), as a texture of format
 /// `target` takes them: borrowed when the formats agree, decoded on the CPU to RGBA8 when `target` is
-/// RGBA8 (the fallback for adapters without BC). `None` if `bytes` is shorter than the chain or `target`
-/// is another compressed format (no transcoding).
+/// RGBA8 (the fallback for adapters without BC), BC1 widened to BC3 (a class array shared by a BC1 and a
+/// BC3 tree; see [`crate::texfmt::bc1_to_bc3`]). `None` if `bytes` is shorter than the chain or for any
+/// other pair (no transcoding).
 pub fn texels_for_upload(
     stored: TexFormat,
     bytes: &[u8],
     size: u32,
     target: TexFormat,
 ) -> Option<Cow<'_, [u8]>> {
+    let len = usize::try_from(stored.chain_bytes(size)).ok()?;
     if stored == target {
-        let len = usize::try_from(stored.chain_bytes(size)).ok()?;
         return bytes.get(..len).map(Cow::Borrowed);
+    }
+    if (stored, target) == (TexFormat::Bc1, TexFormat::Bc3) {
+        return bytes
+            .get(..len)
+            .map(|b| Cow::Owned(crate::texfmt::bc1_to_bc3(b)));
     }
     if target != TexFormat::Rgba8 {
         return None;
@@ -267,10 +290,22 @@ mod tests {
             "decode on load gives what the build measured"
         );
         assert!(texels_for_upload(TexFormat::Bc1, &enc.bytes, 8, TexFormat::Bc7).is_none());
+        let wide = texels_for_upload(TexFormat::Bc1, &enc.bytes, 8, TexFormat::Bc3).unwrap();
+        assert_eq!(wide.len() as u64, TexFormat::Bc3.chain_bytes(8));
+        let wide_dec = crate::texfmt::decode_chain(TexFormat::Bc3, &wide, 8).unwrap();
+        assert_eq!(
+            wide_dec, *dec,
+            "BC1 widened to BC3 decodes to the same texels"
+        );
         assert!(texels_for_upload(TexFormat::Bc1, &enc.bytes[..10], 8, TexFormat::Rgba8).is_none());
         assert_eq!(gpu_format(TexFormat::Bc7, false), TexFormat::Rgba8);
         assert_eq!(gpu_format(TexFormat::Bc7, true), TexFormat::Bc7);
         assert_eq!(gpu_format(TexFormat::Rgba8, true), TexFormat::Rgba8);
+        use TexFormat::*;
+        assert_eq!(common_format([Bc1, Bc1]), Bc1);
+        assert_eq!(common_format([Bc1, Bc3, Bc1]), Bc3);
+        assert_eq!(common_format([Bc1, Bc7]), Rgba8);
+        assert_eq!(common_format([]), Rgba8);
     }
 
     #[test]
