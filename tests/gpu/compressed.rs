@@ -53,12 +53,11 @@ fn build_city(dir: &Path, compress: Compression) -> Result<PathBuf, String> {
     Ok(out)
 }
 
-/// Tree-mode frames of the dive views, with the number of chains decoded on load and the atlas arrays'
-/// formats.
-fn frames(
-    ctx: &GpuContext,
-    file: &TreeFile,
-) -> Result<(Vec<Vec<u8>>, u64, Vec<TexFormat>), String> {
+/// Tree-mode frames of the dive views (RGBA8 each), chains decoded on load, the atlas arrays' formats.
+type Frames = (Vec<Vec<u8>>, u64, Vec<TexFormat>);
+
+/// The [`Frames`] of `file` along the dive.
+fn frames(ctx: &GpuContext, file: &TreeFile) -> Result<Frames, String> {
     let mut r = Renderer::new(
         ctx,
         file,
