@@ -472,18 +472,18 @@ mod tests {
 
     #[test]
     fn small_levels_replicate_edges() {
-        // A 2×2 level of four colours: padded to 4×4, decoded back, cropped.
+        // A 2×2 level of four colours evenly spaced on one line through RGB (what a 4-entry BC1 palette holds): padded
+        // to 4×4, decoded back, cropped.
         let rgba = [
-            255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 255, 255, 255, 255, 255,
+            10, 20, 30, 255, 70, 80, 90, 255, 130, 140, 150, 255, 190, 200, 210, 255,
         ];
         for f in [TexFormat::Bc1, TexFormat::Bc3, TexFormat::Bc7] {
             let enc = encode_level(f, &rgba, 2, false);
             assert_eq!(enc.len() as u64, f.level_bytes(2));
             let dec = decode_level(f, &enc, 2);
             assert_eq!(dec.len(), 16);
-            // Four pure colours in one block: BC1 cannot hold them exactly, but each stays nearest its own.
             let err = sse_rgba8(&rgba, &dec, 3);
-            assert!(psnr(err, 12) > 10.0, "{f:?}: {dec:?}");
+            assert!(psnr(err, 12) > 30.0, "{f:?}: {dec:?}");
         }
     }
 }
