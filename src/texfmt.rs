@@ -15,6 +15,18 @@
 //! independent of the encoder, so round-trip tests check one against the other; the renderer uses it to
 //! decode blocks on load when the adapter lacks `TEXTURE_COMPRESSION_BC`.
 //!
+//! **Bleeding.** Packing aligns outer rectangles to 4 texels and the border is 8 texels ([`crate::build`]).
+//! At mip level L a rectangle's origin is aligned to `4/2^L` texels and its border is `8/2^L` wide, so:
+//! at levels 0 and 1 every 4×4 block that touches a texture's inner rectangle holds only that texture's
+//! texels (inner or border) — compressed texels there are exactly independent of the neighbours; from
+//! level 2 on a block can reach 1 (L2) to 3 (L3+) texels into the neighbour, and the texels within 3 of
+//! the inner edge can shift (tests/bc_compress.rs measures ≤ 25/255 for BC1, ≤ 16 for BC7 at L2–L3 on
+//! contrasting textures). An inner atlas at height h shows leaf level `h + L` at its level L, so the
+//! guarantee covers leaf atlases' levels 0–1 and their parents' level 0: the levels sampled when a node is
+//! drawn near its min_distance. Uncompressed, levels 0–3 are independent (the box filter stays in the
+//! border), so compression costs one to two protected levels; a 16-texel alignment would restore them at
+//! a packing cost (not done).
+//!
 //! Errors are measured in the stored 8-bit sRGB values (the values the GPU filters after sRGB decode):
 //! `sse` sums squared differences over R, G, B (and A for trees with alpha) of every texel of every level.
 

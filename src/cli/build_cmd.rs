@@ -35,7 +35,8 @@ pub struct BuildArgs {
     /// Side of every atlas in texels (power of two).
     #[arg(long, default_value_t = 1024)]
     pub atlas_size: u32,
-    /// Border around each packed texture area, texels (paper: 8; protects 3 mip levels).
+    /// Border around each packed texture area, texels (paper: 8; protects 3 mip levels; with --compress a
+    /// 4×4 block never mixes two textures at levels 0–1, and reaches ≤ 3 texels into a texture from level 2).
     #[arg(long, default_value_t = 8)]
     pub border: u32,
     /// Maximum tree depth; a region that needs more is an error naming it.
