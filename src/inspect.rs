@@ -5,6 +5,7 @@ use crate::build::tree::{BuildParams, TreeKind};
 use crate::ids::NONE;
 use crate::scene::{AlphaMode, Wrap};
 use crate::store::{StoreError, TreeFile};
+use crate::texfmt::{TexFormat, channels_for, psnr};
 use serde::Serialize;
 use std::collections::BTreeSet;
 
@@ -33,7 +34,25 @@ pub struct TreeInfo {
     pub original_blocks: u64,
     pub original_textures: u64,
     pub block_bytes: u64,
+    /// Storage format of the tree's blocks.
+    pub format: TexFormat,
+    /// Bytes per 4×4 texels in that format (64 RGBA8, 8 BC1, 16 BC3/BC7).
+    pub bytes_per_block: u32,
+    /// PSNR (dB) of all stored atlases against the uncompressed atlases they were encoded from, as
+    /// recorded at build time (per-block squared errors, 8-bit sRGB, all mip levels, RGB or RGBA); infinite
+    /// (JSON null) for RGBA8.
+    pub atlas_psnr_db: f64,
+    /// The worst single atlas.
+    pub atlas_psnr_min_db: f64,
+    /// The same for the original-texture blocks.
+    pub originals_psnr_db: f64,
     pub levels: Vec<LevelStats>,
+}
+
+/// Values compared per stored atlas of a tree of `kind` (texels of the full chain × channels): the
+/// denominator of its recorded error ([`crate::store::format::BlockRecord::sse`]).
+pub fn atlas_samples(kind: TreeKind, atlas_size: u32) -> u64 {
+    TexFormat::Rgba8.chain_bytes(atlas_size) / 4 * channels_for(kind) as u64
 }
 
 /// What `atlastree inspect` prints.
@@ -79,14 +98,24 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             }
         }
         let (mut atlas_blocks, mut original_blocks, mut block_bytes) = (0, 0, 0);
+        let per_atlas = atlas_samples(t.kind, params.atlas_size);
+        let (mut atlas_sse, mut originals_sse, mut atlas_min) = (0u64, 0u64, f64::INFINITY);
         for b in file.blocks().iter().filter(|b| b.tree as usize == ti) {
             block_bytes += b.length;
             if b.kind == crate::store::format::BLOCK_ATLAS {
                 atlas_blocks += 1;
+                atlas_sse += b.sse;
+                atlas_min = atlas_min.min(psnr(b.sse, per_atlas));
             } else {
                 original_blocks += 1;
+                originals_sse += b.sse;
             }
         }
+        let original_samples: u64 = t
+            .originals
+            .iter()
+            .map(|o| TexFormat::Rgba8.chain_bytes(o.class_size) / 4 * channels_for(t.kind) as u64)
+            .sum();
         trees.push(TreeInfo {
             kind: t.kind,
             nodes: t.nodes.len() as u64,
@@ -99,6 +128,11 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             original_blocks,
             original_textures: t.originals.len() as u64,
             block_bytes,
+            format: t.format(),
+            bytes_per_block: t.format().bytes_per_block(),
+            atlas_psnr_db: psnr(atlas_sse, per_atlas * atlas_blocks),
+            atlas_psnr_min_db: atlas_min,
+            originals_psnr_db: psnr(originals_sse, original_samples),
             levels,
         });
     }
@@ -174,6 +208,26 @@ pub struct VerifyReport {
     /// Up to 100 violations, each naming the tree, node/leaf/vertex and the numbers.
     pub violations: Vec<String>,
     pub violation_count: u64,
+    /// Every stored atlas's PSNR against its uncompressed version (compressed trees only).
+    pub atlas_psnr: Vec<AtlasPsnr>,
+    /// Path of the uncompressed reference file the PSNRs were re-measured against, if one was given.
+    pub reference: Option<String>,
+}
+
+/// The PSNR of one stored atlas against its uncompressed version.
+///
+/// The paging file holds only the compressed texels, so the uncompressed atlas is not in it. `recorded_db`
+/// is what the build measured (it had the exact RGBA8 atlas and stored the squared error per block);
+/// `measured_db` re-measures it independently when `verify` is given a reference file built from the same
+/// scene and parameters with `--compress none`: the stored blocks are decoded on the CPU and compared with
+/// the reference's atlas. The two must agree (the rasteriser is deterministic), else it is a violation.
+#[derive(Clone, Debug, Serialize)]
+pub struct AtlasPsnr {
+    pub tree: u32,
+    pub node: u32,
+    pub block: u32,
+    pub recorded_db: f64,
+    pub measured_db: Option<f64>,
 }
 
 impl VerifyReport {
@@ -193,6 +247,111 @@ impl VerifyReport {
 /// node's index range the union of its children's, every triangle in exactly one leaf, every vertex's atlas
 /// UV inside its texture's area of the leaf atlas.
 pub fn verify(file: &TreeFile) -> VerifyReport {
+    verify_with(file, None)
+}
+
+/// [`verify`], plus each compressed atlas's PSNR: recorded, and re-measured against `reference` (a file of
+/// the same scene and parameters built with `--compress none`) when given. See [`AtlasPsnr`].
+pub fn verify_with(file: &TreeFile, reference: Option<&TreeFile>) -> VerifyReport {
+    let mut r = verify_structure(file);
+    verify_psnr(file, reference, &mut r);
+    r
+}
+
+/// Block lengths of compressed atlases, the recorded PSNR of each, and (with `reference`) its re-measured
+/// PSNR.
+fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyReport) {
+    let size = file.params().atlas_size;
+    r.reference = reference.map(|f| f.path().display().to_string());
+    if let Some(rf) = reference {
+        let (a, b) = (file.params(), rf.params());
+        if rf.trees() != file.trees() || rf.blocks().len() != file.blocks().len() || a != b {
+            r.fail(format!(
+                "reference {}: {} trees, {} blocks, atlas {}² do not match this file's {} trees, {} blocks, atlas {}²",
+                rf.path().display(),
+                rf.trees(),
+                rf.blocks().len(),
+                b.atlas_size,
+                file.trees(),
+                file.blocks().len(),
+                size
+            ));
+            return;
+        }
+    }
+    for ti in 0..file.trees() {
+        let Some(t) = file.tree(ti) else { continue };
+        let format = t.format();
+        let reference_tree = reference.and_then(|rf| rf.tree(ti));
+        if let Some(rt) = reference_tree
+            && (rt.format() != TexFormat::Rgba8 || rt.nodes.len() != t.nodes.len())
+        {
+            r.fail(format!(
+                "reference tree {ti}: {} nodes stored as {}; need {} nodes stored as rgba8",
+                rt.nodes.len(),
+                rt.format().name(),
+                t.nodes.len()
+            ));
+            continue;
+        }
+        let samples = atlas_samples(t.kind, size);
+        let channels = channels_for(t.kind);
+        for (ni, n) in t.nodes.iter().enumerate() {
+            let Some(b) = file.blocks().get(n.atlas_block as usize) else {
+                continue;
+            };
+            if b.length != format.chain_bytes(size) {
+                r.fail(format!(
+                    "tree {ti} node {ni}: atlas block {} is {} bytes, a {size}² {} chain is {}",
+                    n.atlas_block,
+                    b.length,
+                    format.name(),
+                    format.chain_bytes(size)
+                ));
+                continue;
+            }
+            if !format.is_compressed() {
+                if b.sse != 0 {
+                    r.fail(format!(
+                        "tree {ti} node {ni}: rgba8 atlas records error {}",
+                        b.sse
+                    ));
+                }
+                continue;
+            }
+            let measured = reference_tree.and_then(|rt| {
+                let id = crate::ids::BlockId(rt.nodes.get(ni)?.atlas_block);
+                let stored = file.block(crate::ids::BlockId(n.atlas_block)).ok()?;
+                let exact = reference?.block(id).ok()?;
+                let decoded = crate::texfmt::decode_chain(format, stored, size).ok()?;
+                (exact.len() == decoded.len())
+                    .then(|| crate::texfmt::sse_rgba8(exact, &decoded, channels))
+            });
+            if reference_tree.is_some() {
+                match measured {
+                    Some(sse) if sse == b.sse => {}
+                    Some(sse) => r.fail(format!(
+                        "tree {ti} node {ni}: recorded error {} but {sse} measured against the reference",
+                        b.sse
+                    )),
+                    None => r.fail(format!(
+                        "tree {ti} node {ni}: atlas not comparable with the reference"
+                    )),
+                }
+            }
+            r.atlas_psnr.push(AtlasPsnr {
+                tree: ti as u32,
+                node: ni as u32,
+                block: n.atlas_block,
+                recorded_db: psnr(b.sse, samples),
+                measured_db: measured.map(|sse| psnr(sse, samples)),
+            });
+        }
+    }
+}
+
+/// Checksums and tree invariants (see [`verify`]).
+fn verify_structure(file: &TreeFile) -> VerifyReport {
     let mut r = VerifyReport::default();
     for (i, _) in file.blocks().iter().enumerate() {
         r.blocks_checked += 1;
@@ -392,17 +551,24 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
 }
 
 /// Opens, inspects and (optionally) verifies a file in one call (the CLI's job).
+///
+/// `reference` (with `verify_all`): an uncompressed build of the same scene to re-measure PSNRs against.
 pub fn open_and_inspect(
     path: &std::path::Path,
     verify_all: bool,
+    reference: Option<&std::path::Path>,
 ) -> Result<(InspectReport, Option<VerifyReport>), StoreError> {
     let file = TreeFile::open(path)?;
     let rep = inspect(&file);
-    let ver = verify_all.then(|| verify(&file));
+    let reference = match reference {
+        Some(p) if verify_all => Some(TreeFile::open(p)?),
+        _ => None,
+    };
+    let ver = verify_all.then(|| verify_with(&file, reference.as_ref()));
     Ok((rep, ver))
 }
 
-/// Level 0 of a node's atlas as an RGBA8 image (reads and checksums its block).
+/// Level 0 of a node's atlas as an RGBA8 image (reads and checksums its block, decodes BC formats).
 pub fn atlas_image(
     file: &TreeFile,
     tree: usize,
@@ -424,10 +590,11 @@ pub fn atlas_image(
         limit: t.nodes.len() as u64,
     })?;
     let bytes = file.block(crate::ids::BlockId(n.atlas_block))?;
-    let level0 = (size as usize) * (size as usize) * 4;
-    let img = bytes
-        .get(..level0)
-        .and_then(|b| image::RgbaImage::from_raw(size, size, b.to_vec()));
+    let format = t.format();
+    let level0 = format.level_bytes(size) as usize;
+    let img = bytes.get(..level0).and_then(|b| {
+        image::RgbaImage::from_raw(size, size, crate::texfmt::decode_level(format, b, size))
+    });
     img.ok_or(StoreError::BlockLength {
         block: crate::ids::BlockId(n.atlas_block),
         expected: level0 as u64,

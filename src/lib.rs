@@ -28,6 +28,7 @@
 //! - [`render`]: the wgpu renderer. All atlases are layers of one texture array, original textures layers of
 //!   one array per class size; [`render::batch`] turns a cut into indirect records (plain data), and a frame is
 //!   one bind group and one multi-draw-indirect call per pipeline (texture-array batching).
+//! - [`texfmt`]: block formats of the paging file (RGBA8, BC1/BC3/BC7): sizes, CPU encode and decode.
 //! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
 //! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
 //!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
@@ -54,5 +55,6 @@ pub mod select;
 pub mod sim;
 pub mod store;
 pub mod sweep;
+pub mod texfmt;
 pub mod util;
 pub mod view;

@@ -92,6 +92,80 @@ fn build_then_inspect_verify() {
     assert!(e.contains("city.atlastree") && e.contains("bytes"), "{e}");
 }
 
+/// `build --compress bc1` next to an uncompressed build of the same scene: the compressed file is smaller by
+/// the format's ratio, `inspect` names the formats (BC1 opaque, BC3 alpha) and bytes per block, and
+/// `inspect --verify --reference` re-measures every atlas's PSNR against the uncompressed file and finds
+/// it equal to the recorded one.
+#[test]
+fn build_compress_bc1_then_inspect_verify_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let build = |name: &str, compress: &str| {
+        let out = dir.path().join(name);
+        let b = json(&run(bin()
+            .args(["build", "--d-min-ratio", "10", "--atlas-size", "256"])
+            .args(["--compress", compress, "--json", "-o"])
+            .arg(&out)
+            .arg(scene())));
+        (out, b)
+    };
+    let (plain, pb) = build("none.atlastree", "none");
+    let (bc1, cb) = build("bc1.atlastree", "bc1");
+    assert_eq!(pb["blocks"], cb["blocks"], "same tree, same blocks");
+    let (pt, ct) = (&pb["trees"], &cb["trees"]);
+    assert_eq!(
+        (ct[0]["format"].as_str(), ct[1]["format"].as_str()),
+        (Some("Bc1"), Some("Bc3"))
+    );
+    assert_eq!(
+        pt[0]["atlas_psnr_db"],
+        serde_json::Value::Null,
+        "lossless is null (∞)"
+    );
+    let psnr0 = ct[0]["atlas_psnr_db"].as_f64().unwrap();
+    assert!((30.0..60.0).contains(&psnr0), "{psnr0}");
+    let (ps, cs) = (
+        pb["file_bytes"].as_u64().unwrap(),
+        cb["file_bytes"].as_u64().unwrap(),
+    );
+    // BC1 is 1/8 and BC3 1/4 of RGBA8 per texel (small mips round up to a block, blocks to 4 KiB).
+    assert!(cs * 4 < ps && cs * 9 > ps, "{cs} vs {ps}");
+
+    let v = json(&run(bin()
+        .args(["inspect", "--verify", "--json", "--reference"])
+        .arg(&plain)
+        .arg(&bc1)));
+    assert_eq!(v["verify"]["violation_count"], 0, "{v}");
+    let trees = v["inspect"]["trees"].as_array().unwrap();
+    assert_eq!(trees[0]["bytes_per_block"], 8);
+    assert_eq!(trees[1]["bytes_per_block"], 16);
+    assert_eq!(trees[0]["atlas_psnr_db"].as_f64().unwrap(), psnr0);
+    let atlases = v["verify"]["atlas_psnr"].as_array().unwrap();
+    let nodes: u64 = trees.iter().map(|t| t["nodes"].as_u64().unwrap()).sum();
+    assert_eq!(atlases.len() as u64, nodes, "one PSNR per stored atlas");
+    for a in atlases {
+        let (r, m) = (a["recorded_db"].as_f64(), a["measured_db"].as_f64());
+        assert!(r.is_some() && r == m, "{a}");
+    }
+    // Text output names the format and the per-atlas PSNR.
+    let o = run(bin().args(["inspect", "--verify"]).arg(&bc1));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.contains("format bc1 (8 bytes per 4×4 texels)") && s.contains("atlas PSNR ("),
+        "{s}"
+    );
+    // The reference must be uncompressed and of the same tree: the compressed file itself is refused.
+    let o = run(bin()
+        .args(["inspect", "--verify", "--reference"])
+        .arg(&bc1)
+        .arg(&bc1));
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("need"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+}
+
 #[test]
 fn bad_input_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();

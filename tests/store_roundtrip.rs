@@ -9,6 +9,7 @@ use atlastree::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NodeId};
 use atlastree::scene::{AlphaMode, Material, UpAxis, Wrap};
 use atlastree::store::format::{HEADER_SIZE, Header, NodeRecord, Section};
 use atlastree::store::{FileWriter, LoadMode, StoreError, TreeFile};
+use atlastree::texfmt::TexFormat;
 use glam::DVec3;
 use proptest::prelude::*;
 use rayon::prelude::*;
@@ -50,6 +51,8 @@ struct TreeSpec {
     block_bytes: (u64, u64),
     /// Up to this many original-texture blocks per leaf.
     max_original_blocks: u32,
+    /// Storage format recorded for the tree.
+    format: TexFormat,
 }
 
 struct Builder<'a> {
@@ -205,6 +208,7 @@ fn synth_forest(seed: u64, specs: &[TreeSpec]) -> AtlasForest {
             tree_index: t as u32,
             tree: AtlasTree {
                 kind: spec.kind,
+                format: spec.format,
                 nodes: vec![],
                 leaves: vec![],
                 vertices: vec![],
@@ -243,6 +247,7 @@ fn small_specs() -> [TreeSpec; 2] {
         tris_per_leaf: 5,
         block_bytes: (1, 12 * 1024),
         max_original_blocks: 2,
+        format: TexFormat::Bc1,
     };
     [
         base,
@@ -250,6 +255,7 @@ fn small_specs() -> [TreeSpec; 2] {
             kind: TreeKind::Alpha,
             depth: 2,
             full: true,
+            format: TexFormat::Bc7,
             ..base
         },
     ]
@@ -265,10 +271,19 @@ fn block_bytes(seed: u64, i: usize, len: u64) -> Vec<u8> {
 fn write_forest(path: &Path, forest: &AtlasForest, seed: u64) -> atlastree::store::WriteSummary {
     let w = FileWriter::create(path, forest).unwrap();
     forest.blocks.par_iter().enumerate().for_each(|(i, b)| {
-        w.write_block(BlockId(i as u32), &block_bytes(seed, i, b.bytes))
-            .unwrap();
+        w.write_block_measured(
+            BlockId(i as u32),
+            &block_bytes(seed, i, b.bytes),
+            block_sse(seed, i),
+        )
+        .unwrap();
     });
     w.finish().unwrap()
+}
+
+/// The compression error recorded with block `i` (deterministic, large enough to need 64 bits).
+fn block_sse(seed: u64, i: usize) -> u64 {
+    (seed << 40) ^ (i as u64 * 1_000_003)
 }
 
 fn json<T: serde::Serialize>(v: &T) -> String {
@@ -287,6 +302,8 @@ fn assert_same(file: &TreeFile, forest: &AtlasForest, seed: u64) {
     for (i, t) in forest.trees.iter().enumerate() {
         let v = file.tree(i).unwrap();
         assert_eq!(v.kind, t.kind);
+        assert_eq!(v.format(), t.format);
+        assert_eq!(v.record.format, t.format.code());
         let nodes: Vec<NodeRecord> = t.nodes.iter().map(NodeRecord::encode).collect();
         assert_eq!(v.nodes, &nodes[..]);
         assert_eq!(v.leaves.len(), t.leaves.len());
@@ -303,6 +320,7 @@ fn assert_same(file: &TreeFile, forest: &AtlasForest, seed: u64) {
     for (i, b) in forest.blocks.iter().enumerate() {
         let got = file.block(BlockId(i as u32)).unwrap();
         assert_eq!(got, &block_bytes(seed, i, b.bytes)[..], "block {i}");
+        assert_eq!(file.blocks()[i].sse, block_sse(seed, i), "block {i} error");
         assert_eq!(file.blocks()[i].offset % 4096, 0);
     }
     file.verify_blocks().unwrap();
@@ -358,6 +376,7 @@ fn empty_blocks_and_single_tree_roundtrip() {
         tris_per_leaf: 1,
         block_bytes: (0, 0),
         max_original_blocks: 3,
+        format: TexFormat::Rgba8,
     };
     let forest = synth_forest(3, &[spec]);
     let dir = tempfile::tempdir().unwrap();
@@ -574,15 +593,31 @@ fn resealed_bad_references_are_named() {
     assert!(
         matches!(TreeFile::from_bytes(&b), Err(StoreError::Misaligned { offset, .. }) if offset == off + 16)
     );
-    // A future version.
+    // A future version, and version 1 (RGBA8 only, 40-byte block records): both refused by number.
+    for found in [3u32, 1] {
+        let mut b = bytes.clone();
+        b[8..12].copy_from_slice(&found.to_le_bytes());
+        reseal(&mut b);
+        match TreeFile::from_bytes(&b) {
+            Err(StoreError::UnsupportedVersion {
+                found: f,
+                supported: 2,
+            }) => assert_eq!(f, found),
+            other => panic!("version {found}: {:?}", other.err()),
+        }
+    }
+    // An unknown block format code in tree 1 (TreeRecord::format at byte 4).
     let mut b = bytes.clone();
-    b[8..12].copy_from_slice(&2u32.to_le_bytes());
+    let at = record_at(&b, Section::Trees, 1) + 4;
+    b[at..at + 4].copy_from_slice(&4u32.to_le_bytes());
     reseal(&mut b);
     assert!(matches!(
         TreeFile::from_bytes(&b),
-        Err(StoreError::UnsupportedVersion {
-            found: 2,
-            supported: 1
+        Err(StoreError::BadValue {
+            table: "trees",
+            index: 1,
+            field: "format",
+            value: 4
         })
     ));
     // Not our file.
@@ -727,6 +762,7 @@ fn bench_open_10k_nodes_1m_vertices() {
         tris_per_leaf: 128,
         block_bytes: (64, 64),
         max_original_blocks: 0,
+        format: TexFormat::Bc3,
     };
     let forest = synth_forest(
         31,

@@ -6,10 +6,11 @@ use super::layout::{LayoutKind, LayoutNode, LeafLayout};
 use super::prepare::TriInfo;
 use super::tree::{
     AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind,
-    TreeVertex, mip_chain_bytes,
+    TreeVertex,
 };
 use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
 use crate::scene::Scene;
+use crate::texfmt::TexFormat;
 use glam::{DVec2, DVec3};
 use std::collections::HashMap;
 
@@ -34,6 +35,8 @@ pub struct TreeSlot {
     pub tree_index: u32,
     /// Number of blocks of the forest's earlier trees (this tree's first block id).
     pub first_block: u32,
+    /// Storage format of the tree's blocks (fixes every block's byte size).
+    pub format: TexFormat,
 }
 
 /// Output of [`assemble`].
@@ -52,6 +55,7 @@ struct Asm<'a> {
     order: &'a [u32],
     params: &'a BuildParams,
     tree_index: u32,
+    format: TexFormat,
     out: Assembled,
     next_block: u32,
 }
@@ -70,6 +74,7 @@ pub fn assemble(
         kind,
         tree_index,
         first_block,
+        format,
     } = slot;
     let mut a = Asm {
         scene,
@@ -77,9 +82,11 @@ pub fn assemble(
         order,
         params,
         tree_index,
+        format,
         out: Assembled {
             tree: AtlasTree {
                 kind,
+                format,
                 nodes: Vec::new(),
                 leaves: Vec::new(),
                 vertices: Vec::new(),
@@ -112,7 +119,7 @@ impl Asm<'_> {
         let id = NodeId(self.out.tree.nodes.len() as u32);
         let atlas_block = self.block(
             BlockKind::Atlas { node: id },
-            mip_chain_bytes(self.params.atlas_size),
+            self.format.chain_bytes(self.params.atlas_size),
         );
         let first_index = self.out.tree.indices.len() as u32;
         self.out.tree.nodes.push(Node {
@@ -165,7 +172,7 @@ impl Asm<'_> {
 
         // Original textures: one entry per material, grouped greedily into blocks of about an atlas' size
         // (an image larger than that is a block of its own).
-        let budget = mip_chain_bytes(self.params.atlas_size);
+        let budget = self.format.chain_bytes(self.params.atlas_size);
         let mut seen_materials = std::collections::HashSet::new();
         let classes: Vec<(MaterialId, crate::ids::ImageId, u32)> = l
             .rects
@@ -177,7 +184,7 @@ impl Asm<'_> {
                 (r.material, mat.image, original_class(img.width, img.height))
             })
             .collect();
-        let parts = group_into_blocks(classes.iter().map(|c| mip_chain_bytes(c.2)), budget);
+        let parts = group_into_blocks(classes.iter().map(|c| self.format.chain_bytes(c.2)), budget);
         let mut originals: Vec<OriginalRef> = Vec::with_capacity(classes.len());
         let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
         let mut block_ids: Vec<BlockId> = Vec::new();

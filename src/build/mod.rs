@@ -61,6 +61,8 @@ pub struct BuildOptions {
     /// of its children's level 1, §5.1). Original-texture blocks and the source images sampled into leaf
     /// atlases keep the box filter, so `--mode original` stays the same reference for every build.
     pub mip_filter: image_ops::MipFilter,
+    /// Block compression of atlases and original textures (every mip level), per tree kind.
+    pub compress: crate::texfmt::Compression,
 }
 
 impl Default for BuildOptions {
@@ -78,6 +80,7 @@ impl Default for BuildOptions {
             max_pieces: 4096,
             max_file_bytes: 64 << 30,
             mip_filter: image_ops::MipFilter::Box,
+            compress: crate::texfmt::Compression::None,
         }
     }
 }
@@ -131,6 +134,12 @@ pub enum BuildError {
     },
     #[error(transparent)]
     Store(#[from] StoreError),
+    #[error("encoding the {what}: {source}")]
+    Encode {
+        what: String,
+        #[source]
+        source: crate::texfmt::TexFormatError,
+    },
     #[error("rasterising the {what}: {source}")]
     Image {
         what: String,
@@ -143,6 +152,11 @@ pub enum BuildError {
 #[derive(Clone, Debug, Serialize)]
 pub struct TreeReport {
     pub kind: TreeKind,
+    /// Storage format of the tree's blocks.
+    pub format: crate::texfmt::TexFormat,
+    /// PSNR (dB, 8-bit sRGB values, all levels) of the stored atlases against the uncompressed ones they
+    /// were encoded from; infinite for RGBA8.
+    pub atlas_psnr_db: f64,
     /// Scene triangles in this tree.
     pub triangles: u64,
     /// Triangles after splitting those too big for one atlas.
@@ -343,12 +357,15 @@ pub fn build(
                 kind: *kind,
                 tree_index: forest.trees.len() as u32,
                 first_block: forest.blocks.len() as u32,
+                format: opts.compress.format_for(*kind),
             },
         );
         time(&format!("assemble {kind:?}"), t);
         let occ = &asm.occupancy;
         reports.push(TreeReport {
             kind: *kind,
+            format: opts.compress.format_for(*kind),
+            atlas_psnr_db: f64::INFINITY,
             triangles: tris.len() as u64,
             pieces: infos.len() as u64,
             nodes: asm.tree.nodes.len() as u64,
@@ -392,9 +409,16 @@ pub fn build(
         progress: &set,
         done,
         mip_filter: opts.mip_filter,
+        atlas_sse: AtomicU64::new(0),
+        atlas_samples: AtomicU64::new(0),
     };
-    for tree in &forest.trees {
+    for (tree, report) in forest.trees.iter().zip(&mut reports) {
         raster::raster_tree(&ctx, tree)?;
+        let sse = ctx.atlas_sse.swap(0, std::sync::atomic::Ordering::Relaxed);
+        let samples = ctx
+            .atlas_samples
+            .swap(0, std::sync::atomic::Ordering::Relaxed);
+        report.atlas_psnr_db = crate::texfmt::psnr(sse, samples);
     }
     progress.finish_stage();
     time("rasterise", t);

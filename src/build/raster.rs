@@ -15,6 +15,7 @@ use super::tree::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::ids::{ImageId, NodeId};
 use crate::scene::{DecodedImage, Scene};
 use crate::store::FileWriter;
+use crate::texfmt::{Encoded, TexFormat, channels_for, encode_chain};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -52,10 +53,11 @@ pub struct ImageCache<'a> {
     pub original_hits: AtomicU64,
 }
 
-/// An original texture as stored: image, class size and wrap modes (resampling depends on them).
-type OriginalKey = (ImageId, u32, [crate::scene::Wrap; 2]);
+/// An original texture as stored: image, class size, wrap modes (resampling depends on them), storage
+/// format and compared channels (the encoding depends on them).
+pub type OriginalKey = (ImageId, u32, [crate::scene::Wrap; 2], TexFormat, usize);
 /// Encoded original textures by key, and their total bytes.
-type OriginalCache = (HashMap<OriginalKey, Arc<Vec<u8>>>, u64);
+type OriginalCache = (HashMap<OriginalKey, Arc<Encoded>>, u64);
 
 #[derive(Default)]
 struct CacheState {
@@ -141,9 +143,10 @@ impl<'a> ImageCache<'a> {
 }
 
 impl ImageCache<'_> {
-    /// The stored bytes of original texture `key`, resampled and encoded once and then shared (bounded
-    /// by a quarter of the cache budget; beyond it the map is cleared, which costs only recomputation).
-    pub fn original(&self, key: OriginalKey) -> Result<Arc<Vec<u8>>, ImageOpsError> {
+    /// The stored bytes (and compression error) of original texture `key`, resampled and encoded once and
+    /// then shared (bounded by a quarter of the cache budget; beyond it the map is cleared, which costs
+    /// only recomputation).
+    pub fn original(&self, key: OriginalKey) -> Result<Arc<Encoded>, BuildError> {
         if let Some(b) = self
             .originals
             .lock()
@@ -154,15 +157,22 @@ impl ImageCache<'_> {
             self.original_hits.fetch_add(1, Ordering::Relaxed);
             return Ok(b.clone());
         }
+        let what = || format!("original texture {} at class {}", key.0.0, key.1);
         let img = self.get(key.0);
-        let lin = resample_square(&img.decoded, key.1, key.2)?;
-        let bytes = Arc::new(mip_chain_rgba8(&lin));
+        let lin = resample_square(&img.decoded, key.1, key.2).map_err(|e| image_err(what(), e))?;
+        let enc = encode_chain(key.3, &mip_chain_rgba8(&lin), key.1, key.4).map_err(|source| {
+            BuildError::Encode {
+                what: what(),
+                source,
+            }
+        })?;
+        let bytes = Arc::new(enc);
         let mut st = self.originals.lock().unwrap_or_else(|e| e.into_inner());
-        if st.1 + bytes.len() as u64 > self.cap_bytes / 4 {
+        if st.1 + bytes.bytes.len() as u64 > self.cap_bytes / 4 {
             st.0.clear();
             st.1 = 0;
         }
-        st.1 += bytes.len() as u64;
+        st.1 += bytes.bytes.len() as u64;
         st.0.insert(key, bytes.clone());
         Ok(bytes)
     }
@@ -197,6 +207,10 @@ pub struct RasterCtx<'a> {
     pub done: AtomicU64,
     /// Kernel of the atlas mip chains (the level 1 handed to the parent included).
     pub mip_filter: MipFilter,
+    /// Compression error of the atlases rasterised so far: sum of squared errors and compared values
+    /// ([`crate::texfmt::Encoded`]); the caller reads and resets them per tree.
+    pub atlas_sse: AtomicU64,
+    pub atlas_samples: AtomicU64,
 }
 
 /// Rasterises every atlas and original-texture block of `tree` into the writer.
@@ -221,7 +235,7 @@ fn raster_node(
     let size = ctx.params.atlas_size;
     let atlas = if let Some(leaf) = node.leaf {
         let leaf = &tree.leaves[leaf.idx()];
-        write_originals(ctx, leaf)?;
+        write_originals(ctx, tree, leaf)?;
         leaf_atlas(ctx, leaf, size, fill_for(tree.kind))
             .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
     } else {
@@ -251,8 +265,20 @@ fn raster_node(
             ..MipOptions::default()
         },
     );
+    let enc = encode_chain(
+        tree.format,
+        &chain.to_rgba8(),
+        size,
+        channels_for(tree.kind),
+    )
+    .map_err(|source| BuildError::Encode {
+        what: format!("atlas of node {}", id.0),
+        source,
+    })?;
     ctx.writer
-        .write_block(node.atlas_block, &chain.to_rgba8())?;
+        .write_block_measured(node.atlas_block, &enc.bytes, enc.sse)?;
+    ctx.atlas_sse.fetch_add(enc.sse, Ordering::Relaxed);
+    ctx.atlas_samples.fetch_add(enc.samples, Ordering::Relaxed);
     let n = ctx.done.fetch_add(1, Ordering::Relaxed) + 1;
     (ctx.progress)(n);
     let mut levels = chain.levels.into_iter();
@@ -294,26 +320,24 @@ fn image_err(what: String, source: ImageOpsError) -> BuildError {
 
 /// A leaf's original textures, each resampled to its class size with a full mip chain, back to back per
 /// block (layout of `OriginalRef::slot`).
-fn write_originals(ctx: &RasterCtx<'_>, leaf: &Leaf) -> Result<(), BuildError> {
-    let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>)> = Vec::new();
+fn write_originals(ctx: &RasterCtx<'_>, tree: &AtlasTree, leaf: &Leaf) -> Result<(), BuildError> {
+    let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>, u64)> = Vec::new();
+    let channels = channels_for(tree.kind);
     for o in &leaf.originals {
         let mat = &ctx.scene.materials[o.material.idx()];
-        let bytes = ctx
+        let enc = ctx
             .cache
-            .original((o.image, o.class_size, mat.wrap))
-            .map_err(|e| {
-                image_err(
-                    format!("original texture {} (block {})", o.image.0, o.block.0),
-                    e,
-                )
-            })?;
+            .original((o.image, o.class_size, mat.wrap, tree.format, channels))?;
         match blocks.last_mut() {
-            Some((b, buf)) if *b == o.block => buf.extend_from_slice(&bytes),
-            _ => blocks.push((o.block, bytes.to_vec())),
+            Some((b, buf, sse)) if *b == o.block => {
+                buf.extend_from_slice(&enc.bytes);
+                *sse += enc.sse;
+            }
+            _ => blocks.push((o.block, enc.bytes.clone(), enc.sse)),
         }
     }
-    for (b, buf) in blocks {
-        ctx.writer.write_block(b, &buf)?;
+    for (b, buf, sse) in blocks {
+        ctx.writer.write_block_measured(b, &buf, sse)?;
     }
     Ok(())
 }

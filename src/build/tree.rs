@@ -139,9 +139,10 @@ pub struct TreeVertex {
 /// What a block holds.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
 pub enum BlockKind {
-    /// A node's atlas: `atlas_size²` RGBA8 sRGB, full mip chain, level 0 first.
+    /// A node's atlas: `atlas_size²` sRGB in the tree's format, full mip chain, level 0 first.
     Atlas { node: NodeId },
-    /// Part `part` of a leaf's original textures: its images back to back, each a full RGBA8 sRGB mip chain.
+    /// Part `part` of a leaf's original textures: its images back to back, each a full sRGB mip chain in
+    /// the tree's format.
     Originals { leaf: LeafId, part: u32 },
 }
 
@@ -158,6 +159,8 @@ pub struct BlockDesc {
 #[derive(Clone, Debug, Serialize)]
 pub struct AtlasTree {
     pub kind: TreeKind,
+    /// Storage format of all this tree's blocks (atlases and original textures).
+    pub format: crate::texfmt::TexFormat,
     /// `nodes[0]` is the root; parents precede children (pre-order).
     pub nodes: Vec<Node>,
     /// In tree order (pre-order of their nodes).

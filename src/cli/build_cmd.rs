@@ -1,6 +1,7 @@
 use super::{UpArg, load_scene, progress::Bars};
 use anyhow::Context;
 use atlastree::build::{BuildOptions, BuildReport, DMin, build};
+use atlastree::texfmt::Compression;
 use atlastree::util::human_bytes;
 use clap::Args;
 use std::path::PathBuf;
@@ -34,7 +35,8 @@ pub struct BuildArgs {
     /// Side of every atlas in texels (power of two).
     #[arg(long, default_value_t = 1024)]
     pub atlas_size: u32,
-    /// Border around each packed texture area, texels (paper: 8; protects 3 mip levels).
+    /// Border around each packed texture area, texels (paper: 8; protects 3 mip levels; with --compress a
+    /// 4×4 block never mixes two textures at levels 0–1, and reaches ≤ 3 texels into a texture from level 2).
     #[arg(long, default_value_t = 8)]
     pub border: u32,
     /// Down-sampling kernel of the atlas mip chains and inner atlases: `box` (2×2 mean) or `kaiser`
@@ -57,6 +59,12 @@ pub struct BuildArgs {
     /// Refuse, before writing anything, a build whose paging file would exceed this size (GiB).
     #[arg(long, default_value_t = 64)]
     pub max_file_gib: u64,
+    /// Block compression of every atlas and original texture, every mip level (paper §6: S3TC shrinks the
+    /// paging file and each page-in). `bc1`: BC1 (8 bytes per 4×4 texels, 1/8 of RGBA8) for the opaque tree,
+    /// BC3 (16 bytes) for the alpha tree; `bc7`: BC7 (16 bytes, better quality) for both. The report gives
+    /// each tree's PSNR against the uncompressed atlases.
+    #[arg(long, value_enum, default_value_t = CompressArg::None)]
+    pub compress: CompressArg,
     /// Up axis; `auto` takes the axis of least extent.
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
@@ -66,6 +74,27 @@ pub struct BuildArgs {
     /// No progress bars.
     #[arg(short, long)]
     pub quiet: bool,
+}
+
+/// `--compress` values.
+#[derive(clap::ValueEnum, Copy, Clone, Debug, PartialEq, Eq)]
+pub enum CompressArg {
+    /// RGBA8 (4 bytes per texel).
+    None,
+    /// BC1 opaque tree, BC3 alpha tree.
+    Bc1,
+    /// BC7 for both trees.
+    Bc7,
+}
+
+impl CompressArg {
+    pub fn compression(self) -> Compression {
+        match self {
+            CompressArg::None => Compression::None,
+            CompressArg::Bc1 => Compression::Bc1,
+            CompressArg::Bc7 => Compression::Bc7,
+        }
+    }
 }
 
 impl BuildArgs {
@@ -87,6 +116,7 @@ impl BuildArgs {
             max_pieces: self.max_pieces,
             max_file_bytes: self.max_file_gib << 30,
             mip_filter: self.filter,
+            compress: self.compress.compression(),
         }
     }
 }
@@ -138,6 +168,12 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
             t.capped_rects,
             t.clamped_leaves
         );
+        println!(
+            "    blocks stored as {} ({} bytes per 4×4 texels); atlas PSNR vs uncompressed {}",
+            t.format.name(),
+            t.format.bytes_per_block(),
+            fmt_psnr(t.atlas_psnr_db)
+        );
     }
     println!(
         "  blocks: {} ({} atlases, {} original-texture blocks)",
@@ -157,5 +193,14 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
     );
     for w in &r.warnings {
         println!("  warning: {w}");
+    }
+}
+
+/// A PSNR for humans: `lossless` when infinite.
+pub fn fmt_psnr(db: f64) -> String {
+    if db.is_infinite() {
+        "lossless".into()
+    } else {
+        format!("{db:.2} dB")
     }
 }

@@ -1,3 +1,4 @@
+use super::build_cmd::fmt_psnr;
 use anyhow::Context;
 use atlastree::inspect::{InspectReport, VerifyReport, open_and_inspect};
 use atlastree::util::human_bytes;
@@ -9,16 +10,22 @@ use std::process::ExitCode;
 pub struct InspectArgs {
     /// A paging file written by `atlastree build`.
     pub file: PathBuf,
-    /// Check every block checksum and every tree invariant; exit with status 1 on any violation.
+    /// Check every block checksum and every tree invariant; exit with status 1 on any violation. For
+    /// compressed trees also lists each atlas's PSNR against its uncompressed version (recorded at build
+    /// time; the file holds only the compressed texels).
     #[arg(long)]
     pub verify: bool,
+    /// With --verify: a file built from the same scene and parameters with `--compress none`; every
+    /// compressed atlas is decoded and its PSNR re-measured against it (must match the recorded value).
+    #[arg(long, requires = "verify")]
+    pub reference: Option<PathBuf>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
 }
 
 pub fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
-    let (rep, ver) = open_and_inspect(&a.file, a.verify)
+    let (rep, ver) = open_and_inspect(&a.file, a.verify, a.reference.as_deref())
         .with_context(|| format!("opening {}", a.file.display()))?;
     if a.json {
         println!(
@@ -64,6 +71,14 @@ pub fn print_inspect(r: &InspectReport) {
             human_bytes(t.block_bytes),
             t.clamped_leaves
         );
+        println!(
+            "    format {} ({} bytes per 4×4 texels); atlas PSNR vs uncompressed {} (worst atlas {}), originals {}",
+            t.format.name(),
+            t.bytes_per_block,
+            fmt_psnr(t.atlas_psnr_db),
+            fmt_psnr(t.atlas_psnr_min_db),
+            fmt_psnr(t.originals_psnr_db)
+        );
         println!("    level  nodes  leaves  triangles-in-leaves  min_distance (m)");
         for l in &t.levels {
             println!(
@@ -97,5 +112,27 @@ pub fn print_verify(v: &VerifyReport) {
     );
     for m in &v.violations {
         println!("  violation: {m}");
+    }
+    if !v.atlas_psnr.is_empty() {
+        let n = v.atlas_psnr.len();
+        let mut worst: Vec<_> = v.atlas_psnr.iter().collect();
+        worst.sort_by(|a, b| a.recorded_db.total_cmp(&b.recorded_db));
+        let mean = v.atlas_psnr.iter().map(|a| a.recorded_db).sum::<f64>() / n as f64;
+        let measured = match &v.reference {
+            Some(r) => format!("re-measured against {r}"),
+            None => "recorded at build time (--reference re-measures)".into(),
+        };
+        println!("  atlas PSNR ({n} compressed atlases, {measured}): mean {mean:.2} dB; worst:");
+        for a in worst.iter().take(5) {
+            println!(
+                "    tree {} node {} (block {}): recorded {}{}",
+                a.tree,
+                a.node,
+                a.block,
+                fmt_psnr(a.recorded_db),
+                a.measured_db
+                    .map_or(String::new(), |m| format!(", measured {}", fmt_psnr(m)))
+            );
+        }
     }
 }

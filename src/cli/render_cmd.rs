@@ -217,6 +217,19 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         s.texture_bytes as f64 / (1 << 20) as f64,
         t.elapsed().as_secs_f64()
     );
+    let formats: Vec<&str> = renderer
+        .resident
+        .atlas_arrays
+        .iter()
+        .map(|a| a.format.name())
+        .collect();
+    println!(
+        "  atlas array formats: {}; adapter BC support: {}; {} compressed mip chains decoded to RGBA8 on load, {} BC1 chains widened to BC3",
+        formats.join(", "),
+        ctx.features.texture_compression_bc,
+        s.decoded_on_load,
+        s.widened_on_load
+    );
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut runs = Vec::new();
     for &mode in &a.mode {

@@ -8,7 +8,7 @@ use super::pipeline::{
     PassPipelines, Specialisation, naive_bind_group_layouts, sampler, vertex_layout,
 };
 use super::resident::Resident;
-use super::textures::{mip_levels, upload_mip_chain};
+use super::textures::{gpu_format, mip_levels, texels_for_upload, upload_mip_chain};
 use crate::gpu::GpuContext;
 use crate::scene::Wrap;
 use crate::store::TreeFile;
@@ -98,6 +98,7 @@ impl Naive {
         let mut samplers: Vec<([Wrap; 2], wgpu::Sampler)> = Vec::new();
         for u in &res.uniques {
             let m = res.materials.get(u.material as usize).copied();
+            let target = gpu_format(u.format, ctx.features.texture_compression_bc);
             let wrap = m.and_then(|m| m.wraps()).unwrap_or([Wrap::Repeat; 2]);
             let tex = device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("naive original"),
@@ -109,7 +110,7 @@ impl Naive {
                 mip_level_count: mip_levels(u.class_size),
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba8UnormSrgb,
+                format: target.wgpu_format(),
                 usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
                 view_formats: &[],
             });
@@ -118,7 +119,9 @@ impl Naive {
                 .ok()
                 .and_then(|o| bytes.get(o..))
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
-            upload_mip_chain(&ctx.queue, &tex, u.class_size, 0, chain)
+            let texels = texels_for_upload(u.format, chain, u.class_size, target)
+                .ok_or(RenderError::ShortBlock { block: u.block })?;
+            upload_mip_chain(&ctx.queue, &tex, u.class_size, 0, &texels, target)
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
             let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
             if !samplers.iter().any(|(w, _)| *w == wrap) {

@@ -11,14 +11,18 @@ use super::batch::{
     AtlasSlot, LeafGpu, LeafOffsets, Pass, TamEntry, TreeBatchInfo, WRAP_CLAMP, WRAP_MIRROR,
     WRAP_REPEAT, leaf_ranges,
 };
-use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index};
-use crate::build::tree::{TreeVertex, mip_chain_bytes};
+use super::textures::{
+    CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index, common_format, gpu_format,
+    texels_for_upload,
+};
+use crate::build::tree::TreeVertex;
 use crate::gpu::GpuContext;
 use crate::ids::{BlockId, NONE, NodeId};
 use crate::paging::{BlockTable, Event};
 use crate::scene::{AlphaMode, Wrap};
 use crate::store::format::{MaterialRecord, OriginalRecord};
 use crate::store::{TreeFile, TreeView};
+use crate::texfmt::TexFormat;
 use glam::DVec3;
 use std::collections::HashMap;
 use wgpu::util::DeviceExt;
@@ -33,6 +37,8 @@ pub struct UniqueOriginal {
     /// Block and byte offset of its mip chain inside the block.
     pub block: BlockId,
     pub offset: u64,
+    /// Storage format of the block (its tree's format).
+    pub format: TexFormat,
 }
 
 /// Numbers of a load.
@@ -48,6 +54,11 @@ pub struct LoadStats {
     pub original_layers: u32,
     pub class_arrays: u32,
     pub texture_bytes: u64,
+    /// Compressed mip chains decoded to RGBA8 on the CPU at upload (adapter without
+    /// `TEXTURE_COMPRESSION_BC`, or a class array shared by trees of formats that do not mix).
+    pub decoded_on_load: u64,
+    /// BC1 chains widened to BC3 at upload (a class array shared with a BC3 tree).
+    pub widened_on_load: u64,
 }
 
 /// The GPU-resident file.
@@ -80,6 +91,13 @@ pub struct Resident {
 /// What [`Resident::apply`] needs to page blocks in and out of the texture arrays.
 #[derive(Debug, Default)]
 pub struct PagedResidency {
+    /// Stored format of each tree's blocks, the atlas side, and whether the GPU samples BC formats
+    /// (else compressed blocks are decoded on upload).
+    pub tree_formats: Vec<TexFormat>,
+    pub atlas_size: u32,
+    pub bc: bool,
+    /// Compressed chains decoded (or widened) on upload so far.
+    pub converted_on_load: u64,
     /// Per unique original texture: resident blocks holding a copy (a layer is held while > 0).
     pub unique_refs: Vec<u32>,
     /// Per block: `(unique, offset)` of the original textures it holds (empty for atlases).
@@ -143,8 +161,8 @@ fn passes_and_cutoffs(
 }
 
 /// Byte offset of each original of a leaf inside its block: images of one block are back to back in slot
-/// order, each a full mip chain of its class size.
-fn slot_offsets(originals: &[OriginalRecord]) -> Vec<u64> {
+/// order, each a full mip chain of its class size in the tree's `format`.
+fn slot_offsets(originals: &[OriginalRecord], format: TexFormat) -> Vec<u64> {
     let mut out = vec![0u64; originals.len()];
     let mut by_block: HashMap<u32, Vec<usize>> = HashMap::new();
     for (i, o) in originals.iter().enumerate() {
@@ -155,7 +173,7 @@ fn slot_offsets(originals: &[OriginalRecord]) -> Vec<u64> {
         let mut off = 0u64;
         for &i in idx.iter() {
             out[i] = off;
-            off += mip_chain_bytes(originals[i].class_size);
+            off += format.chain_bytes(originals[i].class_size);
         }
     }
     out
@@ -201,6 +219,8 @@ pub struct Plan {
     pub atlas_blocks: Vec<(u32, u32, BlockId)>,
     /// `(block, unique, offset in the block)` of every original texture copy (one per leaf that uses it).
     pub block_uniques: Vec<(BlockId, u32, u64)>,
+    /// Storage format of each tree's blocks.
+    pub formats: Vec<TexFormat>,
     pub has_alpha: bool,
 }
 
@@ -212,9 +232,26 @@ impl Resident {
         let max_layers = ctx.features.max_texture_array_layers.max(1);
         let mut g = plan(file)?;
 
-        // Atlas arrays: layers assigned in node order, split at the device limit.
+        // Atlas arrays: one format each (trees of different formats get different arrays), layers assigned
+        // in node order, split at the device limit.
+        let bc = ctx.features.texture_compression_bc;
+        let tree_gpu: Vec<TexFormat> = g.formats.iter().map(|&f| gpu_format(f, bc)).collect();
         let atlas_count = g.atlas_blocks.len() as u32;
-        let arrays_needed = atlas_count.div_ceil(max_layers).max(1) as usize;
+        let mut per_format: Vec<(TexFormat, u32)> = Vec::new();
+        for &(tree, _, _) in &g.atlas_blocks {
+            let f = tree_gpu.get(tree as usize).copied().unwrap_or_default();
+            match per_format.iter_mut().find(|(pf, _)| *pf == f) {
+                Some((_, n)) => *n += 1,
+                None => per_format.push((f, 1)),
+            }
+        }
+        if per_format.is_empty() {
+            per_format.push((TexFormat::Rgba8, 0));
+        }
+        let arrays_needed: usize = per_format
+            .iter()
+            .map(|&(_, n)| n.div_ceil(max_layers).max(1) as usize)
+            .sum();
         if arrays_needed > MAX_ATLAS_ARRAYS {
             return Err(RenderError::TooManyLayers {
                 what: "atlases".into(),
@@ -224,23 +261,34 @@ impl Resident {
         }
         let mut infos = std::mem::take(&mut g.infos);
         let mut atlas_arrays = Vec::new();
-        let mut remaining = atlas_count;
-        for a in 0..arrays_needed {
-            let n = remaining.min(max_layers);
-            remaining -= n;
-            atlas_arrays.push(TextureArray::new(
-                &ctx.device,
-                &format!("atlas array {a}"),
-                params.atlas_size,
-                n,
-            ));
+        for &(format, count) in &per_format {
+            let mut remaining = count;
+            loop {
+                let n = remaining.min(max_layers);
+                remaining -= n;
+                let label = format!("atlas array {} ({})", atlas_arrays.len(), format.name());
+                atlas_arrays.push(TextureArray::new(
+                    &ctx.device,
+                    &label,
+                    params.atlas_size,
+                    n,
+                    format,
+                ));
+                if remaining == 0 {
+                    break;
+                }
+            }
         }
         let mut texture_bytes = 0u64;
+        let mut decoded_on_load = 0u64;
+        let mut widened_on_load = 0u64;
         for &(tree, node, block) in &g.atlas_blocks {
+            let stored = g.formats.get(tree as usize).copied().unwrap_or_default();
+            let target = gpu_format(stored, bc);
             let array = atlas_arrays
                 .iter_mut()
                 .enumerate()
-                .find(|(_, a)| a.layers.in_use() < a.layers.capacity());
+                .find(|(_, a)| a.format == target && a.layers.in_use() < a.layers.capacity());
             let Some((ai, arr)) = array else {
                 return Err(RenderError::TooManyLayers {
                     what: "atlases".into(),
@@ -250,8 +298,11 @@ impl Resident {
             };
             let layer = arr.layers.alloc().unwrap_or(0);
             let bytes = file.block(block)?;
+            let texels = texels_for_upload(stored, bytes, params.atlas_size, target)
+                .ok_or(RenderError::ShortBlock { block })?;
+            decoded_on_load += u64::from(stored != target);
             texture_bytes += arr
-                .upload_chain(&ctx.queue, layer, bytes)
+                .upload_chain(&ctx.queue, layer, &texels)
                 .ok_or(RenderError::ShortBlock { block })?;
             if let Some(slot) = infos
                 .get_mut(tree as usize)
@@ -264,10 +315,12 @@ impl Resident {
             }
         }
 
-        // Class arrays.
+        // Class arrays: the common format of their originals ([`common_format`]).
         let mut per_class = [0u32; CLASS_COUNT];
+        let mut class_formats: [Vec<TexFormat>; CLASS_COUNT] = Default::default();
         for u in &g.uniques {
             per_class[u.class as usize] += 1;
+            class_formats[u.class as usize].push(gpu_format(u.format, bc));
         }
         let mut class_arrays: Vec<Option<TextureArray>> = Vec::with_capacity(CLASS_COUNT);
         for (k, &n) in per_class.iter().enumerate() {
@@ -278,8 +331,10 @@ impl Resident {
                     limit: u64::from(max_layers),
                 });
             }
+            let format = common_format(class_formats[k].iter().copied());
             class_arrays.push((n > 0).then(|| {
-                TextureArray::new(&ctx.device, &format!("class {}", 4u32 << k), 4 << k, n)
+                let label = format!("class {} ({})", 4u32 << k, format.name());
+                TextureArray::new(&ctx.device, &label, 4 << k, n, format)
             }));
         }
         let mut uniques = std::mem::take(&mut g.uniques);
@@ -304,8 +359,12 @@ impl Resident {
                 .ok()
                 .and_then(|o| bytes.get(o..))
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
+            let texels = texels_for_upload(u.format, chain, u.class_size, arr.format)
+                .ok_or(RenderError::ShortBlock { block: u.block })?;
+            decoded_on_load += u64::from(u.format != arr.format && arr.format == TexFormat::Rgba8);
+            widened_on_load += u64::from(u.format != arr.format && arr.format == TexFormat::Bc3);
             texture_bytes += arr
-                .upload_chain(&ctx.queue, u.layer, chain)
+                .upload_chain(&ctx.queue, u.layer, &texels)
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
         }
         let mut tam = std::mem::take(&mut g.tam);
@@ -315,6 +374,11 @@ impl Resident {
             }
         }
 
+        if decoded_on_load > 0 {
+            tracing::warn!(
+                "{decoded_on_load} compressed mip chains decoded to RGBA8 on load (adapter BC support: {bc})"
+            );
+        }
         let stats = LoadStats {
             trees: infos.len() as u32,
             nodes: infos.iter().map(|i| i.passes.len() as u64).sum(),
@@ -326,6 +390,8 @@ impl Resident {
             original_layers: uniques.len() as u32,
             class_arrays: class_arrays.iter().filter(|a| a.is_some()).count() as u32,
             texture_bytes,
+            decoded_on_load,
+            widened_on_load,
         };
         let leaf_offsets = LeafOffsets::new(std::mem::take(&mut g.origins));
         Ok(Self::assemble(
@@ -358,7 +424,7 @@ impl Resident {
         paged: Option<PagedResidency>,
     ) -> Resident {
         let storage = wgpu::BufferUsages::STORAGE;
-        let dummy = TextureArray::new(&ctx.device, "dummy 1x1", 1, 1);
+        let dummy = TextureArray::new(&ctx.device, "dummy 1x1", 1, 1, TexFormat::Rgba8);
         dummy.upload_chain(&ctx.queue, 0, &[200, 200, 200, 255]);
         Resident {
             vertex_buffer: buffer(
@@ -434,7 +500,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
         for (li, leaf) in view.leaves.iter().enumerate() {
             let node = view.nodes.get(leaf.node as usize);
             let originals = view.leaf_originals(leaf);
-            let offsets = slot_offsets(originals);
+            let offsets = slot_offsets(originals, view.format());
             let first_tam = count_u32("tam", g.tam.len())?;
             g.leaves.push(LeafGpu {
                 cell_ix: node.map_or(0, |n| n.cell.ix),
@@ -460,6 +526,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                         layer: 0,
                         block: BlockId(o.block),
                         offset,
+                        format: view.format(),
                     });
                 }
                 g.tam_unique.push(ui);
@@ -502,6 +569,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                     .push((t as u32, ni as u32, BlockId(n.atlas_block)));
             }
         }
+        g.formats.push(view.format());
         g.infos.push(TreeBatchInfo {
             tree: t as u32,
             leaf_base,
@@ -541,29 +609,46 @@ impl Resident {
                 *missing = table.originals(t, NodeId(n as u32)).len() as u32;
             }
         }
-        // Atlas arrays.
-        let atlas_layers = (g.atlas_blocks.len() as u32).min(capacity).max(1);
-        let arrays_needed = atlas_layers.div_ceil(max_layers) as usize;
-        if arrays_needed > MAX_ATLAS_ARRAYS {
+        // Atlas arrays: per GPU format (trees of different formats get different arrays), each with room
+        // for min(capacity, atlases of that format) layers.
+        let bc = ctx.features.texture_compression_bc;
+        let tree_gpu: Vec<TexFormat> = g.formats.iter().map(|&f| gpu_format(f, bc)).collect();
+        let mut per_format: Vec<(TexFormat, u32)> = Vec::new();
+        for &(tree, _, _) in &g.atlas_blocks {
+            let f = tree_gpu.get(tree as usize).copied().unwrap_or_default();
+            match per_format.iter_mut().find(|(pf, _)| *pf == f) {
+                Some((_, n)) => *n += 1,
+                None => per_format.push((f, 1)),
+            }
+        }
+        if per_format.is_empty() {
+            per_format.push((TexFormat::Rgba8, 0));
+        }
+        let mut atlas_arrays: Vec<TextureArray> = Vec::new();
+        let mut atlas_layers = 0u32;
+        for &(format, count) in &per_format {
+            let mut remaining = count.min(capacity).max(1);
+            atlas_layers += remaining;
+            while remaining > 0 {
+                let n = remaining.min(max_layers);
+                remaining -= n;
+                let label = format!("atlas array {} ({})", atlas_arrays.len(), format.name());
+                atlas_arrays.push(TextureArray::new(
+                    &ctx.device,
+                    &label,
+                    params.atlas_size,
+                    n,
+                    format,
+                ));
+            }
+        }
+        if atlas_arrays.len() > MAX_ATLAS_ARRAYS {
             return Err(RenderError::TooManyLayers {
                 what: "atlases".into(),
                 layers: u64::from(atlas_layers),
                 limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
             });
         }
-        let mut remaining = atlas_layers;
-        let atlas_arrays: Vec<TextureArray> = (0..arrays_needed)
-            .map(|a| {
-                let n = remaining.min(max_layers);
-                remaining -= n;
-                TextureArray::new(
-                    &ctx.device,
-                    &format!("atlas array {a}"),
-                    params.atlas_size,
-                    n,
-                )
-            })
-            .collect();
         // Original-texture classes: per block the uniques it holds.
         let mut block_uniques: Vec<Vec<(u32, u64)>> = vec![Vec::new(); table.len()];
         for &(b, ui, offset) in &g.block_uniques {
@@ -595,8 +680,15 @@ impl Resident {
                     limit: u64::from(max_layers),
                 });
             }
+            let format = common_format(
+                g.uniques
+                    .iter()
+                    .filter(|u| u.class as usize == k)
+                    .map(|u| gpu_format(u.format, bc)),
+            );
             class_arrays.push((layers > 0).then(|| {
-                TextureArray::new(&ctx.device, &format!("class {}", 4u32 << k), 4 << k, layers)
+                let label = format!("class {} ({})", 4u32 << k, format.name());
+                TextureArray::new(&ctx.device, &label, 4 << k, layers, format)
             }));
         }
         let mut tam_users: Vec<Vec<u32>> = vec![Vec::new(); g.uniques.len()];
@@ -627,8 +719,14 @@ impl Resident {
                 .sum(),
             class_arrays: class_arrays.iter().filter(|a| a.is_some()).count() as u32,
             texture_bytes: 0,
+            decoded_on_load: 0,
+            widened_on_load: 0,
         };
         let paged = PagedResidency {
+            tree_formats: g.formats.clone(),
+            atlas_size: params.atlas_size,
+            bc,
+            converted_on_load: 0,
             unique_refs: vec![0; uniques.len()],
             block_uniques,
             tam_users,
@@ -682,11 +780,20 @@ impl Resident {
         match (is_atlas, data) {
             (true, Some(bytes)) => {
                 let bytes = bytes.ok_or(RenderError::ShortBlock { block })?;
+                let stored = p
+                    .tree_formats
+                    .get(tree as usize)
+                    .copied()
+                    .unwrap_or_default();
+                let target = gpu_format(stored, p.bc);
+                let texels = texels_for_upload(stored, bytes, p.atlas_size, target)
+                    .ok_or(RenderError::ShortBlock { block })?;
+                p.converted_on_load += u64::from(stored != target);
                 let (ai, arr) = self
                     .atlas_arrays
                     .iter_mut()
                     .enumerate()
-                    .find(|(_, a)| a.layers.in_use() < a.layers.capacity())
+                    .find(|(_, a)| a.format == target && a.layers.in_use() < a.layers.capacity())
                     .ok_or(RenderError::TooManyLayers {
                         what: "resident atlases".into(),
                         layers: u64::from(p.atlas_layers_used) + 1,
@@ -696,7 +803,7 @@ impl Resident {
                     .layers
                     .alloc()
                     .ok_or(RenderError::ShortBlock { block })?;
-                let Some(n) = arr.upload_chain(queue, layer, bytes) else {
+                let Some(n) = arr.upload_chain(queue, layer, &texels) else {
                     arr.layers.free(layer);
                     return Err(RenderError::ShortBlock { block });
                 };
@@ -732,7 +839,8 @@ impl Resident {
                     .unwrap_or_default();
                 // Check every chain first, so a short block changes no reference count.
                 for &(ui, offset) in &held {
-                    let need = mip_chain_bytes(self.uniques[ui as usize].class_size);
+                    let u = &self.uniques[ui as usize];
+                    let need = u.format.chain_bytes(u.class_size);
                     if offset.saturating_add(need) > bytes.len() as u64 {
                         return Err(RenderError::ShortBlock { block });
                     }
@@ -757,8 +865,12 @@ impl Resident {
                         .ok()
                         .and_then(|o| bytes.get(o..))
                         .ok_or(RenderError::ShortBlock { block })?;
+                    let (stored, size) = (self.uniques[u].format, self.uniques[u].class_size);
+                    let texels = texels_for_upload(stored, chain, size, arr.format)
+                        .ok_or(RenderError::ShortBlock { block })?;
+                    p.converted_on_load += u64::from(stored != arr.format);
                     uploaded += arr
-                        .upload_chain(queue, layer, chain)
+                        .upload_chain(queue, layer, &texels)
                         .ok_or(RenderError::ShortBlock { block })?;
                     self.uniques[u].layer = layer;
                     p.original_layers_used += 1;

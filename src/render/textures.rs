@@ -1,5 +1,9 @@
-//! Texture arrays (TAB): every atlas of a file is a layer of one `texture_2d_array` (Rgba8UnormSrgb, full
-//! mip chain); original textures are layers of one array per class size (4² … 2048²).
+//! Texture arrays (TAB): every atlas of a file is a layer of one `texture_2d_array` (full mip chain);
+//! original textures are layers of one array per class size (4² … 2048²).
+//!
+//! **Formats.** An array has one [`TexFormat`]: the blocks' stored format (RGBA8 or BC1/BC3/BC7, all sRGB)
+//! when the device has `TEXTURE_COMPRESSION_BC` ([`gpu_format`]), else RGBA8, and then compressed blocks are
+//! decoded on the CPU as they are uploaded ([`texels_for_upload`]); loaders count and report those.
 //!
 //! **Layer limit.** A device allows `max_texture_array_layers` layers per array (2048 on lavapipe, 2048 on
 //! most desktop GPUs). When a file has more atlases than that, they are split over up to
@@ -10,7 +14,8 @@
 //!
 //! [`LayerAllocator`] hands out layers (paging slots) from a free list; the paging issue reuses it.
 
-use crate::build::tree::mip_chain_bytes;
+use crate::texfmt::{TexFormat, decode_chain};
+use std::borrow::Cow;
 
 /// Atlas arrays bound at once (the shader switches over this many bindings).
 pub const MAX_ATLAS_ARRAYS: usize = 4;
@@ -87,17 +92,79 @@ impl LayerAllocator {
     }
 }
 
+/// The format of an array holding chains stored in each of `formats` (already mapped by [`gpu_format`]):
+/// their common format; BC3 for a mix of BC1 and BC3 (BC1 widens losslessly); else RGBA8 (decoded).
+pub fn common_format(formats: impl IntoIterator<Item = TexFormat>) -> TexFormat {
+    let mut common: Option<TexFormat> = None;
+    for f in formats {
+        common = Some(match (common, f) {
+            (None, f) => f,
+            (Some(c), f) if c == f => c,
+            (Some(TexFormat::Bc1), TexFormat::Bc3) | (Some(TexFormat::Bc3), TexFormat::Bc1) => {
+                TexFormat::Bc3
+            }
+            _ => TexFormat::Rgba8,
+        });
+    }
+    common.unwrap_or_default()
+}
+
+/// The format a texture holding blocks stored as `stored` gets on the GPU: `stored` itself if it is RGBA8
+/// or the device samples BC textures (`bc_supported`: `GpuFeatures::texture_compression_bc`), else RGBA8.
+pub fn gpu_format(stored: TexFormat, bc_supported: bool) -> TexFormat {
+    if stored.is_compressed() && !bc_supported {
+        TexFormat::Rgba8
+    } else {
+        stored
+    }
+}
+
+/// The texels of a `size²` mip chain stored as `stored` (the start of `bytes`), as a texture of format
+/// `target` takes them: borrowed when the formats agree, decoded on the CPU to RGBA8 when `target` is
+/// RGBA8 (the fallback for adapters without BC), BC1 widened to BC3 (a class array shared by a BC1 and a
+/// BC3 tree; see [`crate::texfmt::bc1_to_bc3`]). `None` if `bytes` is shorter than the chain or for any
+/// other pair (no transcoding).
+pub fn texels_for_upload(
+    stored: TexFormat,
+    bytes: &[u8],
+    size: u32,
+    target: TexFormat,
+) -> Option<Cow<'_, [u8]>> {
+    let len = usize::try_from(stored.chain_bytes(size)).ok()?;
+    if stored == target {
+        return bytes.get(..len).map(Cow::Borrowed);
+    }
+    if (stored, target) == (TexFormat::Bc1, TexFormat::Bc3) {
+        return bytes
+            .get(..len)
+            .map(|b| Cow::Owned(crate::texfmt::bc1_to_bc3(b)));
+    }
+    if target != TexFormat::Rgba8 {
+        return None;
+    }
+    decode_chain(stored, bytes, size).ok().map(Cow::Owned)
+}
+
 /// One texture array with its allocator.
 pub struct TextureArray {
     pub texture: wgpu::Texture,
     pub view: wgpu::TextureView,
     pub size: u32,
+    /// The texture's format (what [`TextureArray::upload_chain`] expects).
+    pub format: TexFormat,
     pub layers: LayerAllocator,
 }
 
 impl TextureArray {
-    /// An Rgba8UnormSrgb `size² × layers` array with a full mip chain (at least one layer).
-    pub fn new(device: &wgpu::Device, label: &str, size: u32, layers: u32) -> TextureArray {
+    /// A `size² × layers` array of `format` with a full mip chain (at least one layer). BC formats need
+    /// `TEXTURE_COMPRESSION_BC` on the device (see [`gpu_format`]) and `size` a multiple of 4.
+    pub fn new(
+        device: &wgpu::Device,
+        label: &str,
+        size: u32,
+        layers: u32,
+        format: TexFormat,
+    ) -> TextureArray {
         let layers = layers.max(1);
         let texture = device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
@@ -109,7 +176,7 @@ impl TextureArray {
             mip_level_count: mip_levels(size),
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            format: format.wgpu_format(),
             usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             view_formats: &[],
         });
@@ -122,35 +189,46 @@ impl TextureArray {
             texture,
             view,
             size,
+            format,
             layers: LayerAllocator::new(layers),
         }
     }
 
-    /// Uploads a full mip chain (`size²` RGBA8, level 0 first, as in the paging file's blocks) into `layer`.
-    /// Returns the bytes consumed; fails (returning `None`) if `chain` is shorter than a full chain.
+    /// Uploads a full mip chain (`size²` in the array's format, level 0 first, as in the paging file's
+    /// blocks) into `layer`. Returns the bytes consumed; fails (returning `None`) if `chain` is shorter than
+    /// a full chain.
     pub fn upload_chain(&self, queue: &wgpu::Queue, layer: u32, chain: &[u8]) -> Option<u64> {
-        upload_mip_chain(queue, &self.texture, self.size, layer, chain)
+        upload_mip_chain(queue, &self.texture, self.size, layer, chain, self.format)
     }
 }
 
-/// Writes a full mip chain of a `size²` RGBA8 image into `layer` of `texture` with one
-/// `queue.write_texture` per level. `None` if `chain` is shorter than [`mip_chain_bytes`]`(size)`.
+/// Writes a full mip chain of a `size²` image stored as `format` into `layer` of `texture` (which must
+/// have that format) with one `queue.write_texture` per level. `None` if `chain` is shorter than
+/// `format.chain_bytes(size)`. BC levels smaller than 4×4 are copied as one whole block (their physical
+/// size).
 pub fn upload_mip_chain(
     queue: &wgpu::Queue,
     texture: &wgpu::Texture,
     size: u32,
     layer: u32,
     chain: &[u8],
+    format: TexFormat,
 ) -> Option<u64> {
-    let total = mip_chain_bytes(size);
+    let total = format.chain_bytes(size);
     if (chain.len() as u64) < total {
         return None;
     }
     let mut offset = 0usize;
     for level in 0..mip_levels(size) {
         let s = (size >> level).max(1);
-        let bytes = (s as usize) * (s as usize) * 4;
+        let bytes = format.level_bytes(s) as usize;
         let data = chain.get(offset..offset + bytes)?;
+        let (bytes_per_row, rows) = format.upload_layout(s);
+        let extent = if format.is_compressed() {
+            s.div_ceil(4) * 4
+        } else {
+            s
+        };
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
                 texture,
@@ -165,12 +243,12 @@ pub fn upload_mip_chain(
             data,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(s * 4),
-                rows_per_image: Some(s),
+                bytes_per_row: Some(bytes_per_row),
+                rows_per_image: Some(rows),
             },
             wgpu::Extent3d {
-                width: s,
-                height: s,
+                width: extent,
+                height: extent,
                 depth_or_array_layers: 1,
             },
         );
@@ -192,6 +270,42 @@ mod tests {
         assert_eq!(class_index(12), None);
         assert_eq!(mip_levels(512), 10);
         assert_eq!(mip_levels(1), 1);
+    }
+
+    #[test]
+    fn upload_texels_borrow_decode_or_refuse() {
+        let rgba: Vec<u8> = (0..TexFormat::Rgba8.chain_bytes(8))
+            .map(|i| (i * 7) as u8)
+            .collect();
+        let enc = crate::texfmt::encode_chain(TexFormat::Bc1, &rgba, 8, 3).unwrap();
+        let same = texels_for_upload(TexFormat::Bc1, &enc.bytes, 8, TexFormat::Bc1).unwrap();
+        assert!(matches!(same, Cow::Borrowed(_)));
+        assert_eq!(same.len() as u64, TexFormat::Bc1.chain_bytes(8));
+        let dec = texels_for_upload(TexFormat::Bc1, &enc.bytes, 8, TexFormat::Rgba8).unwrap();
+        assert!(matches!(dec, Cow::Owned(_)));
+        assert_eq!(dec.len() as u64, TexFormat::Rgba8.chain_bytes(8));
+        assert_eq!(
+            crate::texfmt::sse_rgba8(&rgba, &dec, 3),
+            enc.sse,
+            "decode on load gives what the build measured"
+        );
+        assert!(texels_for_upload(TexFormat::Bc1, &enc.bytes, 8, TexFormat::Bc7).is_none());
+        let wide = texels_for_upload(TexFormat::Bc1, &enc.bytes, 8, TexFormat::Bc3).unwrap();
+        assert_eq!(wide.len() as u64, TexFormat::Bc3.chain_bytes(8));
+        let wide_dec = crate::texfmt::decode_chain(TexFormat::Bc3, &wide, 8).unwrap();
+        assert_eq!(
+            wide_dec, *dec,
+            "BC1 widened to BC3 decodes to the same texels"
+        );
+        assert!(texels_for_upload(TexFormat::Bc1, &enc.bytes[..10], 8, TexFormat::Rgba8).is_none());
+        assert_eq!(gpu_format(TexFormat::Bc7, false), TexFormat::Rgba8);
+        assert_eq!(gpu_format(TexFormat::Bc7, true), TexFormat::Bc7);
+        assert_eq!(gpu_format(TexFormat::Rgba8, true), TexFormat::Rgba8);
+        use TexFormat::*;
+        assert_eq!(common_format([Bc1, Bc1]), Bc1);
+        assert_eq!(common_format([Bc1, Bc3, Bc1]), Bc3);
+        assert_eq!(common_format([Bc1, Bc7]), Rgba8);
+        assert_eq!(common_format([]), Rgba8);
     }
 
     #[test]

@@ -32,12 +32,16 @@ use crate::build::tree::{
 };
 use crate::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NONE, NodeId};
 use crate::scene::{AlphaMode, Material, UpAxis, Wrap};
+use crate::texfmt::TexFormat;
 use bytemuck::{Pod, Zeroable};
 
 /// First eight bytes of every paging file.
 pub const MAGIC: [u8; 8] = *b"ATLTREE\0";
 /// The format version this build reads and writes. Bump on any layout change.
-pub const FORMAT_VERSION: u32 = 1;
+///
+/// History: 1 = RGBA8 blocks only; 2 = per-tree block format ([`TreeRecord::format`]) and per-block
+/// compression error ([`BlockRecord::sse`]).
+pub const FORMAT_VERSION: u32 = 2;
 /// Alignment of every section's offset, bytes.
 pub const SECTION_ALIGN: u64 = 16;
 /// Alignment of every block's offset, bytes (one page: a block can be mapped or read with O_DIRECT alone).
@@ -384,7 +388,8 @@ pub const TREE_ALPHA: u32 = 1;
 pub struct TreeRecord {
     /// [`TREE_OPAQUE`] or [`TREE_ALPHA`].
     pub kind: u32,
-    pub _pad: u32,
+    /// Storage format of all the tree's blocks, a [`TexFormat`] code (0 RGBA8, 1 BC1, 2 BC3, 3 BC7).
+    pub format: u32,
     pub nodes: Range64,
     pub leaves: Range64,
     pub rects: Range64,
@@ -403,6 +408,11 @@ impl TreeRecord {
             TREE_ALPHA => Some(TreeKind::Alpha),
             _ => None,
         }
+    }
+
+    /// The block format; `None` for an unknown code.
+    pub fn tex_format(&self) -> Option<TexFormat> {
+        TexFormat::from_code(self.format)
     }
 
     pub fn encode_kind(kind: TreeKind) -> u32 {
@@ -628,6 +638,11 @@ pub struct BlockRecord {
     pub length: u64,
     /// `xxh3_64` of the block's bytes.
     pub checksum: u64,
+    /// Compression error measured at build time: sum of squared 8-bit differences between the stored
+    /// texels (decoded) and the uncompressed ones they were encoded from, over R, G, B (and A in alpha
+    /// trees) of every texel of every level (0 for RGBA8). PSNR follows with the texel count
+    /// ([`crate::texfmt::psnr`]).
+    pub sse: u64,
     /// Index of the tree.
     pub tree: u32,
     /// [`BLOCK_ATLAS`] or [`BLOCK_ORIGINALS`].
@@ -637,10 +652,10 @@ pub struct BlockRecord {
     /// Part of the leaf's originals (0 for atlases).
     pub part: u32,
 }
-const _: () = assert!(size_of::<BlockRecord>() == 40);
+const _: () = assert!(size_of::<BlockRecord>() == 48);
 
 impl BlockRecord {
-    /// Encodes `d` at `offset` with checksum 0 (filled in when the block is written).
+    /// Encodes `d` at `offset` with checksum and error 0 (filled in when the block is written).
     pub fn encode(d: &BlockDesc, offset: u64) -> Self {
         let (kind, item, part) = match d.kind {
             BlockKind::Atlas { node } => (BLOCK_ATLAS, node.0, 0),
@@ -650,6 +665,7 @@ impl BlockRecord {
             offset,
             length: d.bytes,
             checksum: 0,
+            sse: 0,
             tree: d.tree,
             kind,
             item,
@@ -689,7 +705,7 @@ mod tests {
     fn section_record_sizes_match_types() {
         assert_eq!(Section::Nodes.record_size(), 104);
         assert_eq!(Section::Vertices.record_size(), 36);
-        assert_eq!(Section::Blocks.record_size(), 40);
+        assert_eq!(Section::Blocks.record_size(), 48);
         for (i, s) in Section::ALL.iter().enumerate() {
             assert_eq!(*s as usize, i, "{}", s.name());
         }

@@ -120,6 +120,11 @@ pub struct TreeView<'a> {
 }
 
 impl TreeView<'_> {
+    /// The storage format of the tree's blocks (validated at open).
+    pub fn format(&self) -> crate::texfmt::TexFormat {
+        self.record.tex_format().unwrap_or_default()
+    }
+
     /// The rects of `leaf`, empty for an out-of-range leaf.
     pub fn leaf_rects(&self, leaf: &LeafRecord) -> &[RectRecord] {
         sub(self.rects, leaf.first_rect, leaf.rect_count)
@@ -134,6 +139,7 @@ impl TreeView<'_> {
     pub fn to_tree(&self) -> Option<AtlasTree> {
         Some(AtlasTree {
             kind: self.kind,
+            format: self.format(),
             nodes: self
                 .nodes
                 .iter()

@@ -190,6 +190,14 @@ pub(crate) fn check_tree(
             u64::from(t.record.kind),
         ));
     }
+    if t.record.tex_format().is_none() {
+        return Err(bad_value(
+            "trees",
+            u64::from(t.tree),
+            "format",
+            u64::from(t.record.format),
+        ));
+    }
     if t.nodes.is_empty() {
         return Err(bad_value("trees", u64::from(t.tree), "nodes.count", 0));
     }

@@ -60,6 +60,8 @@ pub struct FileWriter {
     blocks: Vec<BlockRecord>,
     state: Vec<AtomicU8>,
     checksums: Vec<AtomicU64>,
+    /// Compression error of each block ([`BlockRecord::sse`]).
+    errors: Vec<AtomicU64>,
     summary: WriteSummary,
     /// Serialises seek + write where positional writes are not available (non-unix).
     lock: Mutex<()>,
@@ -142,7 +144,7 @@ fn encode_tree(tree: &AtlasTree, bases: &mut Bases) -> Result<EncodedTree, Store
     to_u32(originals.len(), "originals")?;
     let record = TreeRecord {
         kind: TreeRecord::encode_kind(tree.kind),
-        _pad: 0,
+        format: tree.format.code(),
         nodes: take(&mut bases.nodes, nodes.len())?,
         leaves: take(&mut bases.leaves, leaves.len())?,
         rects: take(&mut bases.rects, rects.len())?,
@@ -327,6 +329,7 @@ impl FileWriter {
             },
             state: blocks.iter().map(|_| AtomicU8::new(UNWRITTEN)).collect(),
             checksums: blocks.iter().map(|_| AtomicU64::new(0)).collect(),
+            errors: blocks.iter().map(|_| AtomicU64::new(0)).collect(),
             summary: summarize(&sections, tables_end, &blocks, file_len),
             blocks,
             temp,
@@ -406,6 +409,16 @@ impl FileWriter {
     /// Writes block `id`: exactly `forest.blocks[id].bytes` bytes, once. Thread-safe; blocks may arrive in
     /// any order. On an I/O error the block stays unwritten and may be retried.
     pub fn write_block(&self, id: BlockId, bytes: &[u8]) -> Result<(), StoreError> {
+        self.write_block_measured(id, bytes, 0)
+    }
+
+    /// [`FileWriter::write_block`] recording the block's compression error `sse` ([`BlockRecord::sse`]).
+    pub fn write_block_measured(
+        &self,
+        id: BlockId,
+        bytes: &[u8],
+        sse: u64,
+    ) -> Result<(), StoreError> {
         let limit = self.blocks.len() as u64;
         let bad_id = || StoreError::BadReference {
             table: "blocks",
@@ -440,6 +453,9 @@ impl FileWriter {
             return Err(self.temp_err(e));
         }
         checksum.store(sum, Ordering::Relaxed);
+        if let Some(e) = self.errors.get(id.idx()) {
+            e.store(sse, Ordering::Relaxed);
+        }
         state.store(WRITTEN, Ordering::Release);
         Ok(())
     }
@@ -456,8 +472,9 @@ impl FileWriter {
             }
         }
         let mut blocks = std::mem::take(&mut self.blocks);
-        for (b, sum) in blocks.iter_mut().zip(&self.checksums) {
+        for ((b, sum), sse) in blocks.iter_mut().zip(&self.checksums).zip(&self.errors) {
             b.checksum = sum.load(Ordering::Relaxed);
+            b.sse = sse.load(Ordering::Relaxed);
         }
         self.write_section(Section::Blocks, &[bytemuck::cast_slice(&blocks)])?;
         self.header.checksum = self.header.compute_checksum();

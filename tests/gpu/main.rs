@@ -2,6 +2,7 @@
 //!
 //! To add tests: create a module under `tests/gpu/` with `pub fn tests() -> Vec<GpuTest>` and list it below.
 
+mod compressed;
 mod device;
 mod golden;
 mod harness;
@@ -22,6 +23,7 @@ fn main() -> ExitCode {
         paging::tests(),
         view::tests(),
         sweep::tests(),
+        compressed::tests(),
     ]
     .into_iter()
     .flatten()

@@ -1,0 +1,501 @@
+//! Texel formats of the paging file's blocks: RGBA8 sRGB, or block compression (BC1, BC3, BC7, all sRGB),
+//! the S3TC the paper (§6) used to shrink the paging file and the transfer per block.
+//!
+//! A block is one or more square power-of-two images, each with its full mip chain down to 1×1, level 0
+//! first, every level stored in the block's format. A compressed level of side `s` is `ceil(s/4)²` 4×4
+//! blocks in row-major order; levels smaller than 4 (2×2, 1×1) occupy one whole 4×4 block whose texels
+//! outside the level replicate its edge (what GPUs expect: the physical size of a BC mip is rounded up
+//! to the block size).
+//!
+//! Encoding uses `intel_tex_2`: Intel's ISPC texture compressor kernels, shipped as prebuilt SIMD static
+//! libraries in the crate (builds offline from crates.io; `build.rs` links libstdc++, which its C++ part
+//! needs), parallel over rows of 4×4 blocks on the rayon pool. A pure-Rust port of the same kernels
+//! (`block_compression`) was tried first: BC7 was ~40× slower than the whole uncompressed build of
+//! data/city (387 s vs 9.5 s), so the SIMD kernels it is. Decoding uses `bcdec_rs` (a port of bcdec), an implementation
+//! independent of the encoder, so round-trip tests check one against the other; the renderer uses it to
+//! decode blocks on load when the adapter lacks `TEXTURE_COMPRESSION_BC`.
+//!
+//! **Bleeding.** Packing aligns outer rectangles to 4 texels and the border is 8 texels ([`crate::build`]).
+//! At mip level L a rectangle's origin is aligned to `4/2^L` texels and its border is `8/2^L` wide, so:
+//! at levels 0 and 1 every 4×4 block that touches a texture's inner rectangle holds only that texture's
+//! texels (inner or border) — compressed texels there are exactly independent of the neighbours; from
+//! level 2 on a block can reach 1 (L2) to 3 (L3+) texels into the neighbour, and the texels within 3 of
+//! the inner edge can shift (tests/bc_compress.rs measures ≤ 25/255 for BC1, ≤ 16 for BC7 at L2–L3 on
+//! contrasting textures). An inner atlas at height h shows leaf level `h + L` at its level L, so the
+//! guarantee covers leaf atlases' levels 0–1 and their parents' level 0: the levels sampled when a node is
+//! drawn near its min_distance. Uncompressed, levels 0–3 are independent (the box filter stays in the
+//! border), so compression costs one to two protected levels; a 16-texel alignment would restore them at
+//! a packing cost (not done).
+//!
+//! Errors are measured in the stored 8-bit sRGB values (the values the GPU filters after sRGB decode):
+//! `sse` sums squared differences over R, G, B (and A for trees with alpha) of every texel of every level.
+
+use crate::build::tree::TreeKind;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Storage format of a tree's blocks (atlases and original textures alike). Codes are stored in
+/// [`crate::store::format::TreeRecord::format`].
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+pub enum TexFormat {
+    /// 4 bytes per texel, sRGB.
+    #[default]
+    Rgba8,
+    /// BC1 (DXT1): 8 bytes per 4×4 block, RGB (alpha always opaque here), sRGB.
+    Bc1,
+    /// BC3 (DXT5): 16 bytes per 4×4 block, RGB as BC1 plus an interpolated alpha block, sRGB.
+    Bc3,
+    /// BC7: 16 bytes per 4×4 block, RGB or RGBA with partitioned endpoints, sRGB.
+    Bc7,
+}
+
+/// What `build --compress` asks for; the format of each tree follows from its kind ([`Compression::format_for`]).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+pub enum Compression {
+    /// RGBA8 everywhere.
+    #[default]
+    None,
+    /// BC1 for the opaque tree; BC3 for the alpha tree (BC1's 1-bit alpha cannot hold BLEND materials).
+    Bc1,
+    /// BC7 for both trees.
+    Bc7,
+}
+
+impl Compression {
+    /// The storage format of a tree of `kind`.
+    pub fn format_for(self, kind: TreeKind) -> TexFormat {
+        match (self, kind) {
+            (Compression::None, _) => TexFormat::Rgba8,
+            (Compression::Bc1, TreeKind::Opaque) => TexFormat::Bc1,
+            (Compression::Bc1, TreeKind::Alpha) => TexFormat::Bc3,
+            (Compression::Bc7, _) => TexFormat::Bc7,
+        }
+    }
+}
+
+/// Errors of encoding or decoding a block.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum TexFormatError {
+    #[error(
+        "{format:?} mip chain of a {size}² image needs {expected} bytes, got {got} (images from offset {offset})"
+    )]
+    ChainLength {
+        format: TexFormat,
+        size: u32,
+        offset: u64,
+        expected: u64,
+        got: u64,
+    },
+}
+
+impl TexFormat {
+    /// All formats, in code order.
+    pub const ALL: [TexFormat; 4] = [
+        TexFormat::Rgba8,
+        TexFormat::Bc1,
+        TexFormat::Bc3,
+        TexFormat::Bc7,
+    ];
+
+    /// The stored code.
+    pub fn code(self) -> u32 {
+        match self {
+            TexFormat::Rgba8 => 0,
+            TexFormat::Bc1 => 1,
+            TexFormat::Bc3 => 2,
+            TexFormat::Bc7 => 3,
+        }
+    }
+
+    /// The format of a stored code, `None` for an unknown one.
+    pub fn from_code(code: u32) -> Option<TexFormat> {
+        TexFormat::ALL.into_iter().find(|f| f.code() == code)
+    }
+
+    /// Lower-case name (`rgba8`, `bc1`, `bc3`, `bc7`).
+    pub fn name(self) -> &'static str {
+        match self {
+            TexFormat::Rgba8 => "rgba8",
+            TexFormat::Bc1 => "bc1",
+            TexFormat::Bc3 => "bc3",
+            TexFormat::Bc7 => "bc7",
+        }
+    }
+
+    pub fn is_compressed(self) -> bool {
+        self != TexFormat::Rgba8
+    }
+
+    /// Bytes of one 4×4 block of texels (64 for RGBA8, 8 for BC1, 16 for BC3 and BC7).
+    pub fn bytes_per_block(self) -> u32 {
+        match self {
+            TexFormat::Rgba8 => 64,
+            TexFormat::Bc1 => 8,
+            TexFormat::Bc3 | TexFormat::Bc7 => 16,
+        }
+    }
+
+    /// Bytes of one mip level of side `s` texels.
+    pub fn level_bytes(self, s: u32) -> u64 {
+        let s = u64::from(s.max(1));
+        match self {
+            TexFormat::Rgba8 => s * s * 4,
+            _ => s.div_ceil(4).pow(2) * u64::from(self.bytes_per_block()),
+        }
+    }
+
+    /// Bytes of a `size²` image with its full mip chain down to 1×1.
+    pub fn chain_bytes(self, size: u32) -> u64 {
+        mip_sizes(size).map(|s| self.level_bytes(s)).sum()
+    }
+
+    /// `(bytes_per_row, rows)` of one level of side `s` as uploaded: texel rows for RGBA8, rows of 4×4
+    /// blocks for BC formats.
+    pub fn upload_layout(self, s: u32) -> (u32, u32) {
+        let s = s.max(1);
+        match self {
+            TexFormat::Rgba8 => (s * 4, s),
+            _ => (s.div_ceil(4) * self.bytes_per_block(), s.div_ceil(4)),
+        }
+    }
+
+    /// The wgpu texture format (all sRGB: the stored values are sRGB-encoded).
+    pub fn wgpu_format(self) -> wgpu::TextureFormat {
+        match self {
+            TexFormat::Rgba8 => wgpu::TextureFormat::Rgba8UnormSrgb,
+            TexFormat::Bc1 => wgpu::TextureFormat::Bc1RgbaUnormSrgb,
+            TexFormat::Bc3 => wgpu::TextureFormat::Bc3RgbaUnormSrgb,
+            TexFormat::Bc7 => wgpu::TextureFormat::Bc7RgbaUnormSrgb,
+        }
+    }
+}
+
+/// Sides of the mip levels of a `size²` image: `size, size/2, …, 1`.
+pub fn mip_sizes(size: u32) -> impl Iterator<Item = u32> {
+    let levels = 32 - size.max(1).leading_zeros();
+    (0..levels).map(move |l| (size.max(1) >> l).max(1))
+}
+
+/// An encoded image (or chain) and its error against the input.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Encoded {
+    pub bytes: Vec<u8>,
+    /// Sum of squared 8-bit differences over the compared channels of every texel.
+    pub sse: u64,
+    /// Number of compared values (texels × channels), the denominator of the MSE.
+    pub samples: u64,
+}
+
+/// Channels compared for errors: RGB for opaque trees (alpha is always 255), RGBA for alpha trees.
+pub fn channels_for(kind: TreeKind) -> usize {
+    match kind {
+        TreeKind::Opaque => 3,
+        TreeKind::Alpha => 4,
+    }
+}
+
+/// PSNR in dB of a mean squared error of 8-bit values: `10 log10(255² / (sse / samples))`; infinite for a
+/// lossless result (`sse == 0`), `NaN` when nothing was compared.
+pub fn psnr(sse: u64, samples: u64) -> f64 {
+    if samples == 0 {
+        return f64::NAN;
+    }
+    if sse == 0 {
+        return f64::INFINITY;
+    }
+    let mse = sse as f64 / samples as f64;
+    10.0 * (255.0f64 * 255.0 / mse).log10()
+}
+
+/// Sum of squared differences of the first `channels` channels of two RGBA8 buffers of equal length.
+pub fn sse_rgba8(a: &[u8], b: &[u8], channels: usize) -> u64 {
+    a.chunks_exact(4)
+        .zip(b.chunks_exact(4))
+        .map(|(p, q)| {
+            (0..channels.min(4))
+                .map(|c| {
+                    let d = i64::from(p[c]) - i64::from(q[c]);
+                    (d * d) as u64
+                })
+                .sum::<u64>()
+        })
+        .sum()
+}
+
+/// The `s×s` RGBA8 level `rgba` padded to `ceil4(s)²` by replicating its last column and row.
+fn pad_to_blocks(rgba: &[u8], s: u32) -> (Vec<u8>, u32) {
+    let p = s.div_ceil(4) * 4;
+    if p == s {
+        return (rgba.to_vec(), p);
+    }
+    let (s, pu) = (s as usize, p as usize);
+    let mut out = vec![0u8; pu * pu * 4];
+    for y in 0..pu {
+        let sy = y.min(s - 1);
+        for x in 0..pu {
+            let sx = x.min(s - 1);
+            out[(y * pu + x) * 4..][..4].copy_from_slice(&rgba[(sy * s + sx) * 4..][..4]);
+        }
+    }
+    (out, p)
+}
+
+/// Encodes one band of whole 4×4 block rows (`rgba` is `width × 4k` texels, tightly packed) into `out`.
+fn encode_band(format: TexFormat, rgba: &[u8], width: u32, alpha: bool, out: &mut [u8]) {
+    use intel_tex_2::{RgbaSurface, bc1, bc3, bc7};
+    let surface = RgbaSurface {
+        data: rgba,
+        width,
+        height: (rgba.len() / (width as usize * 4)) as u32,
+        stride: width * 4,
+    };
+    match format {
+        TexFormat::Rgba8 => out.copy_from_slice(rgba),
+        TexFormat::Bc1 => bc1::compress_blocks_into(&surface, out),
+        TexFormat::Bc3 => bc3::compress_blocks_into(&surface, out),
+        TexFormat::Bc7 if alpha => {
+            bc7::compress_blocks_into(&bc7::alpha_very_fast_settings(), &surface, out)
+        }
+        TexFormat::Bc7 => {
+            bc7::compress_blocks_into(&bc7::opaque_very_fast_settings(), &surface, out)
+        }
+    }
+}
+
+/// Encodes one `s×s` RGBA8 level (`rgba.len() == s²·4`) into `format`, rows of 4×4 blocks in parallel.
+/// `alpha`: whether alpha carries information (BC7 then uses its alpha modes; BC1/BC3 ignore it).
+/// RGBA8 is returned as is.
+pub fn encode_level(format: TexFormat, rgba: &[u8], s: u32, alpha: bool) -> Vec<u8> {
+    if format == TexFormat::Rgba8 {
+        return rgba.to_vec();
+    }
+    let (padded, p) = pad_to_blocks(rgba, s);
+    let row_in = p as usize * 4 * 4;
+    let row_out = (p / 4 * format.bytes_per_block()) as usize;
+    let mut out = vec![0u8; row_out * (p as usize / 4)];
+    out.par_chunks_mut(row_out)
+        .zip(padded.par_chunks(row_in))
+        .for_each(|(dst, src)| encode_band(format, src, p, alpha, dst));
+    out
+}
+
+/// Decodes one level of side `s` stored in `format` (`bytes.len() == format.level_bytes(s)`) to `s×s`
+/// RGBA8. RGBA8 is returned as is.
+pub fn decode_level(format: TexFormat, bytes: &[u8], s: u32) -> Vec<u8> {
+    if format == TexFormat::Rgba8 {
+        return bytes.to_vec();
+    }
+    let s = s.max(1);
+    let bw = s.div_ceil(4) as usize;
+    let p = bw * 4;
+    let bb = format.bytes_per_block() as usize;
+    let mut padded = vec![0u8; p * p * 4];
+    let pitch = p * 4;
+    padded
+        .par_chunks_mut(pitch * 4)
+        .zip(bytes.par_chunks(bw * bb))
+        .for_each(|(rows, blocks)| {
+            for (bx, block) in blocks.chunks_exact(bb).enumerate() {
+                let dst = &mut rows[bx * 16..];
+                match format {
+                    TexFormat::Bc1 => bcdec_rs::bc1(block, dst, pitch),
+                    TexFormat::Bc3 => bcdec_rs::bc3(block, dst, pitch),
+                    TexFormat::Bc7 => bcdec_rs::bc7(block, dst, pitch),
+                    TexFormat::Rgba8 => {}
+                }
+            }
+        });
+    let s = s as usize;
+    if s == p {
+        return padded;
+    }
+    let mut out = Vec::with_capacity(s * s * 4);
+    for y in 0..s {
+        out.extend_from_slice(&padded[y * pitch..][..s * 4]);
+    }
+    out
+}
+
+/// Encodes a full RGBA8 mip chain of a `size²` image (`chain.len() == TexFormat::Rgba8.chain_bytes(size)`)
+/// into `format`, measuring the error of every level by decoding it again with the CPU decoder over
+/// `channels` channels.
+pub fn encode_chain(
+    format: TexFormat,
+    chain: &[u8],
+    size: u32,
+    channels: usize,
+) -> Result<Encoded, TexFormatError> {
+    let expected = TexFormat::Rgba8.chain_bytes(size);
+    if chain.len() as u64 != expected {
+        return Err(TexFormatError::ChainLength {
+            format: TexFormat::Rgba8,
+            size,
+            offset: 0,
+            expected,
+            got: chain.len() as u64,
+        });
+    }
+    let mut out = Encoded {
+        bytes: Vec::with_capacity(format.chain_bytes(size) as usize),
+        ..Encoded::default()
+    };
+    let mut offset = 0usize;
+    for s in mip_sizes(size) {
+        let len = (s as usize).pow(2) * 4;
+        let level = &chain[offset..offset + len];
+        offset += len;
+        out.samples += (s as u64).pow(2) * channels as u64;
+        if format == TexFormat::Rgba8 {
+            out.bytes.extend_from_slice(level);
+            continue;
+        }
+        let enc = encode_level(format, level, s, channels == 4);
+        let dec = decode_level(format, &enc, s);
+        out.sse += sse_rgba8(level, &dec, channels);
+        out.bytes.extend_from_slice(&enc);
+    }
+    Ok(out)
+}
+
+/// Widens BC1 blocks to BC3 (each 8-byte colour block gets an opaque 8-byte alpha block in front), so
+/// BC1-stored textures can share a BC3 texture array. Exact for the blocks our encoder writes (4-colour
+/// mode, `c0 > c1`, or equal endpoints without index 3); any other block (3-colour mode, which BC3's colour
+/// block cannot express) is decoded and re-encoded as BC3. Works on whole chains: a BC1 chain is its
+/// levels' blocks back to back, and the BC3 chain has the same blocks in the same order.
+pub fn bc1_to_bc3(bytes: &[u8]) -> Vec<u8> {
+    let mut out = vec![0u8; bytes.len() / 8 * 16];
+    out.par_chunks_mut(16)
+        .zip(bytes.par_chunks_exact(8))
+        .for_each(|(dst, block)| {
+            let c0 = u16::from_le_bytes([block[0], block[1]]);
+            let c1 = u16::from_le_bytes([block[2], block[3]]);
+            let idx = u32::from_le_bytes([block[4], block[5], block[6], block[7]]);
+            let uses_3 = (0..16).any(|i| (idx >> (2 * i)) & 3 == 3);
+            if c0 > c1 || (c0 == c1 && !uses_3) {
+                dst[..8].copy_from_slice(&[255, 255, 0, 0, 0, 0, 0, 0]);
+                dst[8..].copy_from_slice(block);
+            } else {
+                let mut rgba = [0u8; 64];
+                bcdec_rs::bc1(block, &mut rgba, 16);
+                for p in rgba.chunks_exact_mut(4) {
+                    p[3] = 255;
+                }
+                encode_band(TexFormat::Bc3, &rgba, 4, false, dst);
+            }
+        });
+    out
+}
+
+/// Decodes a full mip chain of a `size²` image stored in `format` (the first `format.chain_bytes(size)`
+/// bytes of `bytes`) to RGBA8, level 0 first.
+pub fn decode_chain(format: TexFormat, bytes: &[u8], size: u32) -> Result<Vec<u8>, TexFormatError> {
+    let expected = format.chain_bytes(size);
+    if (bytes.len() as u64) < expected {
+        return Err(TexFormatError::ChainLength {
+            format,
+            size,
+            offset: 0,
+            expected,
+            got: bytes.len() as u64,
+        });
+    }
+    let mut out = Vec::with_capacity(TexFormat::Rgba8.chain_bytes(size) as usize);
+    let mut offset = 0usize;
+    for s in mip_sizes(size) {
+        let len = format.level_bytes(s) as usize;
+        out.extend_from_slice(&decode_level(format, &bytes[offset..offset + len], s));
+        offset += len;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_per_format() {
+        assert_eq!(TexFormat::Rgba8.chain_bytes(4), 64 + 16 + 4);
+        // 4×4: one block, 2×2 and 1×1 each a whole block.
+        assert_eq!(TexFormat::Bc1.chain_bytes(4), 3 * 8);
+        assert_eq!(TexFormat::Bc7.chain_bytes(8), (4 + 1 + 1 + 1) * 16);
+        assert_eq!(
+            TexFormat::Rgba8.chain_bytes(1024),
+            crate::build::tree::mip_chain_bytes(1024)
+        );
+        // Level 0 of BC1 is 1/8 of RGBA8, BC7 1/4.
+        assert_eq!(TexFormat::Bc1.level_bytes(1024) * 8, 1024 * 1024 * 4);
+        assert_eq!(TexFormat::Bc7.level_bytes(1024) * 4, 1024 * 1024 * 4);
+        assert_eq!(TexFormat::Bc1.upload_layout(2), (8, 1));
+        assert_eq!(TexFormat::Bc7.upload_layout(64), (16 * 16, 16));
+        for f in TexFormat::ALL {
+            assert_eq!(TexFormat::from_code(f.code()), Some(f));
+        }
+        assert_eq!(TexFormat::from_code(4), None);
+    }
+
+    #[test]
+    fn psnr_of_known_errors() {
+        assert_eq!(psnr(0, 10), f64::INFINITY);
+        assert!(psnr(1, 0).is_nan());
+        // MSE 1 → 48.13 dB.
+        assert!((psnr(12, 12) - 48.1308).abs() < 1e-3);
+        assert_eq!(sse_rgba8(&[0, 0, 0, 0], &[1, 2, 3, 4], 3), 1 + 4 + 9);
+        assert_eq!(sse_rgba8(&[0, 0, 0, 0], &[1, 2, 3, 4], 4), 1 + 4 + 9 + 16);
+    }
+
+    #[test]
+    fn bc1_widens_to_bc3_exactly() {
+        // A gradient level plus a flat level (equal endpoints) and a hand-made 3-colour-mode block.
+        let mut rgba: Vec<u8> = (0..16 * 16)
+            .flat_map(|i| [(i % 16 * 16) as u8, (i / 16 * 16) as u8, 90, 255])
+            .collect();
+        let mut bc1 = encode_level(TexFormat::Bc1, &rgba, 16, false);
+        rgba = vec![77; 16 * 16 * 4];
+        bc1.extend(encode_level(TexFormat::Bc1, &rgba, 16, false));
+        // c0 < c1: 3-colour mode, indices 0..3 (3 = black).
+        bc1.extend([
+            0x00,
+            0x10,
+            0x00,
+            0xF8,
+            0b1110_0100,
+            0b1110_0100,
+            0b1110_0100,
+            0b1110_0100,
+        ]);
+        let bc3 = bc1_to_bc3(&bc1);
+        assert_eq!(bc3.len(), bc1.len() * 2);
+        let n = bc1.len() / 8;
+        for k in 0..n {
+            let mut x = [0u8; 64];
+            let mut y = [0u8; 64];
+            bcdec_rs::bc1(&bc1[k * 8..k * 8 + 8], &mut x, 16);
+            bcdec_rs::bc3(&bc3[k * 16..k * 16 + 16], &mut y, 16);
+            if k < n - 1 {
+                assert_eq!(x, y, "block {k} widened exactly");
+            } else {
+                // The 3-colour block is re-encoded: close, opaque.
+                assert!(y.chunks_exact(4).all(|p| p[3] == 255));
+                assert!(psnr(sse_rgba8(&x, &y, 3), 48) > 20.0);
+            }
+        }
+    }
+
+    #[test]
+    fn small_levels_replicate_edges() {
+        // A 2×2 level of four colours evenly spaced on one line through RGB (what a 4-entry BC1 palette holds): padded
+        // to 4×4, decoded back, cropped.
+        let rgba = [
+            10, 20, 30, 255, 70, 80, 90, 255, 130, 140, 150, 255, 190, 200, 210, 255,
+        ];
+        for f in [TexFormat::Bc1, TexFormat::Bc3, TexFormat::Bc7] {
+            let enc = encode_level(f, &rgba, 2, false);
+            assert_eq!(enc.len() as u64, f.level_bytes(2));
+            let dec = decode_level(f, &enc, 2);
+            assert_eq!(dec.len(), 16);
+            let err = sse_rgba8(&rgba, &dec, 3);
+            assert!(psnr(err, 12) > 30.0, "{f:?}: {dec:?}");
+        }
+    }
+}
