@@ -15,6 +15,7 @@ use atlastree::paging::{
 };
 use atlastree::select::{Cut, Source, select};
 use atlastree::store::format::{BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, NodeRecord};
+use bytemuck::Zeroable;
 use glam::DVec3;
 use proptest::prelude::*;
 use select_util::*;
@@ -29,6 +30,7 @@ fn blocks_for(nodes: &[NodeRecord], parts: impl Fn(u32) -> u32) -> Vec<BlockReco
         kind,
         item,
         part,
+        ..BlockRecord::zeroed()
     };
     let mut v: Vec<BlockRecord> = (0..nodes.len() as u32)
         .map(|n| rec(BLOCK_ATLAS, n, 0, 1000))

@@ -143,6 +143,7 @@ fn blocks_for(nodes: &[NodeRecord]) -> Vec<BlockRecord> {
         kind,
         item,
         part: 0,
+        sse: 0,
     };
     let mut v: Vec<BlockRecord> = (0..nodes.len() as u32)
         .map(|n| rec(BLOCK_ATLAS, n, 1 << 20))
