@@ -160,6 +160,60 @@ fn passes_and_cutoffs(
     (passes, cutoffs)
 }
 
+/// The atlas arrays of a plan: per GPU format of the trees' atlases (BC formats only where the device samples
+/// them), room for `min(cap, atlases of that format)` layers, split at the device's layer limit; at most
+/// [`MAX_ATLAS_ARRAYS`] arrays.
+fn atlas_arrays_for(
+    ctx: &GpuContext,
+    g: &Plan,
+    atlas_size: u32,
+    cap: u32,
+) -> Result<Vec<TextureArray>, RenderError> {
+    let max_layers = ctx.features.max_texture_array_layers.max(1);
+    let bc = ctx.features.texture_compression_bc;
+    let tree_gpu: Vec<TexFormat> = g.formats.iter().map(|&f| gpu_format(f, bc)).collect();
+    let mut per_format: Vec<(TexFormat, u32)> = Vec::new();
+    for &(tree, _, _) in &g.atlas_blocks {
+        let f = tree_gpu.get(tree as usize).copied().unwrap_or_default();
+        match per_format.iter_mut().find(|(pf, _)| *pf == f) {
+            Some((_, n)) => *n += 1,
+            None => per_format.push((f, 1)),
+        }
+    }
+    if per_format.is_empty() {
+        per_format.push((TexFormat::Rgba8, 0));
+    }
+    let layers: u32 = per_format.iter().map(|&(_, n)| n.min(cap)).sum();
+    let arrays_needed: usize = per_format
+        .iter()
+        .map(|&(_, n)| n.min(cap).div_ceil(max_layers).max(1) as usize)
+        .sum();
+    if arrays_needed > MAX_ATLAS_ARRAYS {
+        return Err(RenderError::TooManyLayers {
+            what: "atlases".into(),
+            layers: u64::from(layers),
+            limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
+        });
+    }
+    let mut arrays = Vec::with_capacity(arrays_needed);
+    for &(format, count) in &per_format {
+        let mut remaining = count.min(cap).max(1);
+        while remaining > 0 {
+            let n = remaining.min(max_layers);
+            remaining -= n;
+            let label = format!("atlas array {} ({})", arrays.len(), format.name());
+            arrays.push(TextureArray::new(
+                &ctx.device,
+                &label,
+                atlas_size,
+                n,
+                format,
+            ));
+        }
+    }
+    Ok(arrays)
+}
+
 /// Byte offset of each original of a leaf inside its block: images of one block are back to back in slot
 /// order, each a full mip chain of its class size in the tree's `format`.
 fn slot_offsets(originals: &[OriginalRecord], format: TexFormat) -> Vec<u64> {
@@ -235,50 +289,9 @@ impl Resident {
         // Atlas arrays: one format each (trees of different formats get different arrays), layers assigned
         // in node order, split at the device limit.
         let bc = ctx.features.texture_compression_bc;
-        let tree_gpu: Vec<TexFormat> = g.formats.iter().map(|&f| gpu_format(f, bc)).collect();
         let atlas_count = g.atlas_blocks.len() as u32;
-        let mut per_format: Vec<(TexFormat, u32)> = Vec::new();
-        for &(tree, _, _) in &g.atlas_blocks {
-            let f = tree_gpu.get(tree as usize).copied().unwrap_or_default();
-            match per_format.iter_mut().find(|(pf, _)| *pf == f) {
-                Some((_, n)) => *n += 1,
-                None => per_format.push((f, 1)),
-            }
-        }
-        if per_format.is_empty() {
-            per_format.push((TexFormat::Rgba8, 0));
-        }
-        let arrays_needed: usize = per_format
-            .iter()
-            .map(|&(_, n)| n.div_ceil(max_layers).max(1) as usize)
-            .sum();
-        if arrays_needed > MAX_ATLAS_ARRAYS {
-            return Err(RenderError::TooManyLayers {
-                what: "atlases".into(),
-                layers: u64::from(atlas_count),
-                limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
-            });
-        }
         let mut infos = std::mem::take(&mut g.infos);
-        let mut atlas_arrays = Vec::new();
-        for &(format, count) in &per_format {
-            let mut remaining = count;
-            loop {
-                let n = remaining.min(max_layers);
-                remaining -= n;
-                let label = format!("atlas array {} ({})", atlas_arrays.len(), format.name());
-                atlas_arrays.push(TextureArray::new(
-                    &ctx.device,
-                    &label,
-                    params.atlas_size,
-                    n,
-                    format,
-                ));
-                if remaining == 0 {
-                    break;
-                }
-            }
-        }
+        let mut atlas_arrays = atlas_arrays_for(ctx, &g, params.atlas_size, u32::MAX)?;
         let mut texture_bytes = 0u64;
         let mut decoded_on_load = 0u64;
         let mut widened_on_load = 0u64;
@@ -609,46 +622,10 @@ impl Resident {
                 *missing = table.originals(t, NodeId(n as u32)).len() as u32;
             }
         }
-        // Atlas arrays: per GPU format (trees of different formats get different arrays), each with room
-        // for min(capacity, atlases of that format) layers.
+        // Atlas arrays: per GPU format, each with room for min(capacity, atlases of that format) layers.
         let bc = ctx.features.texture_compression_bc;
-        let tree_gpu: Vec<TexFormat> = g.formats.iter().map(|&f| gpu_format(f, bc)).collect();
-        let mut per_format: Vec<(TexFormat, u32)> = Vec::new();
-        for &(tree, _, _) in &g.atlas_blocks {
-            let f = tree_gpu.get(tree as usize).copied().unwrap_or_default();
-            match per_format.iter_mut().find(|(pf, _)| *pf == f) {
-                Some((_, n)) => *n += 1,
-                None => per_format.push((f, 1)),
-            }
-        }
-        if per_format.is_empty() {
-            per_format.push((TexFormat::Rgba8, 0));
-        }
-        let mut atlas_arrays: Vec<TextureArray> = Vec::new();
-        let mut atlas_layers = 0u32;
-        for &(format, count) in &per_format {
-            let mut remaining = count.min(capacity).max(1);
-            atlas_layers += remaining;
-            while remaining > 0 {
-                let n = remaining.min(max_layers);
-                remaining -= n;
-                let label = format!("atlas array {} ({})", atlas_arrays.len(), format.name());
-                atlas_arrays.push(TextureArray::new(
-                    &ctx.device,
-                    &label,
-                    params.atlas_size,
-                    n,
-                    format,
-                ));
-            }
-        }
-        if atlas_arrays.len() > MAX_ATLAS_ARRAYS {
-            return Err(RenderError::TooManyLayers {
-                what: "atlases".into(),
-                layers: u64::from(atlas_layers),
-                limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
-            });
-        }
+        let atlas_arrays = atlas_arrays_for(ctx, &g, params.atlas_size, capacity)?;
+        let atlas_layers: u32 = atlas_arrays.iter().map(|a| a.layers.capacity()).sum();
         // Original-texture classes: per block the uniques it holds.
         let mut block_uniques: Vec<Vec<(u32, u64)>> = vec![Vec::new(); table.len()];
         for &(b, ui, offset) in &g.block_uniques {
