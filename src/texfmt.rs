@@ -62,6 +62,17 @@ pub enum Compression {
 }
 
 impl Compression {
+    pub const ALL: [Compression; 3] = [Compression::None, Compression::Bc1, Compression::Bc7];
+
+    /// Lower-case name as on the command line (`none`, `bc1`, `bc7`).
+    pub fn label(self) -> &'static str {
+        match self {
+            Compression::None => "none",
+            Compression::Bc1 => "bc1",
+            Compression::Bc7 => "bc7",
+        }
+    }
+
     /// The storage format of a tree of `kind`.
     pub fn format_for(self, kind: TreeKind) -> TexFormat {
         match (self, kind) {
@@ -407,6 +418,16 @@ pub fn decode_chain(format: TexFormat, bytes: &[u8], size: u32) -> Result<Vec<u8
         offset += len;
     }
     Ok(out)
+}
+
+impl std::str::FromStr for Compression {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Compression, String> {
+        Compression::ALL
+            .into_iter()
+            .find(|c| c.label() == s)
+            .ok_or_else(|| format!("unknown compression {s:?}: expected none, bc1 or bc7"))
+    }
 }
 
 #[cfg(test)]

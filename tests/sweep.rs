@@ -34,12 +34,15 @@ fn small_preset_is_a_star_of_three_builds_and_thirteen_variants() {
 }
 
 #[test]
-fn full_preset_has_seven_builds() {
+fn full_preset_has_nine_builds() {
     let p = Grid::preset("full").expect("preset").plan();
-    // base + d_min 10, 60 + atlas 512, 2048 + border 2 + kaiser.
-    assert_eq!(p.builds.len(), 7);
+    // base + d_min 10, 60 + atlas 512, 2048 + border 2 + kaiser + bc1, bc7.
+    assert_eq!(p.builds.len(), 9);
     assert_eq!(p.builds[0].runtimes.len(), 6);
-    assert_eq!(p.variants(), 6 + 6 * 4);
+    assert_eq!(p.variants(), 6 + 8 * 4);
+    let ids: Vec<String> = p.builds.iter().map(|b| b.knobs.id()).collect();
+    assert!(ids.contains(&"r30_a1024_b8_box_bc1".to_string()), "{ids:?}");
+    assert_eq!(ids[0], "r30_a1024_b8_box");
     assert!(Grid::preset("nope").is_none());
 }
 
@@ -90,6 +93,7 @@ fn knobs(atlas: u32) -> BuildKnobs {
         atlas_size: atlas,
         border: 8,
         filter: MipFilter::Box,
+        compress: Default::default(),
     }
 }
 

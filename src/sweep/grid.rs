@@ -11,13 +11,13 @@
 //! - Texel ratios run on every build when `texel_ratio_on_every_build` (so each build has its own
 //!   accuracy-vs-ratio curve); capacities run on the base build only.
 //!
-//! Block compression (BC1/BC3/BC7) is not a knob yet: [`BuildKnobs`] has no compression field because
-//! `BuildOptions` had none when the sweep was written. The hook: add `compression` to [`BuildKnobs`], to
-//! [`Grid`] and to [`BuildKnobs::options`], and to [`BuildKnobs::id`]; everything downstream is generic.
+//! - Block compression (`none`, `bc1`, `bc7`) is a build knob like the others; ids carry it only when it is
+//!   not `none`, so uncompressed ids stay as they were.
 
 use super::SweepError;
 use crate::build::image_ops::MipFilter;
 use crate::build::{BuildOptions, DMin};
+use crate::texfmt::Compression;
 use serde::{Deserialize, Serialize};
 
 /// Values of the build-time knobs of one paging file.
@@ -32,6 +32,9 @@ pub struct BuildKnobs {
     /// Atlas mip / inner-atlas down-sampling kernel.
     #[serde(with = "filter_name")]
     pub filter: MipFilter,
+    /// Block compression of atlases and original textures.
+    #[serde(default, with = "compress_name")]
+    pub compress: Compression,
 }
 
 /// Values of the runtime knobs of one variant.
@@ -52,6 +55,8 @@ pub struct Base {
     pub border: u32,
     #[serde(with = "filter_name")]
     pub filter: MipFilter,
+    #[serde(default, with = "compress_name")]
+    pub compress: Compression,
     pub texel_ratio: f64,
     #[serde(default)]
     pub capacity: Option<u32>,
@@ -64,6 +69,7 @@ impl Base {
             atlas_size: self.atlas_size,
             border: self.border,
             filter: self.filter,
+            compress: self.compress,
         }
     }
     pub fn runtime(&self) -> RuntimeKnobs {
@@ -88,6 +94,8 @@ pub struct Grid {
     pub border: Vec<u32>,
     #[serde(default, with = "filter_names")]
     pub filter: Vec<MipFilter>,
+    #[serde(default, with = "compress_names")]
+    pub compress: Vec<Compression>,
     #[serde(default)]
     pub texel_ratio: Vec<f64>,
     #[serde(default)]
@@ -146,8 +154,12 @@ impl Plan {
 impl BuildKnobs {
     /// Stable short name, e.g. `r10_a512_b8_box`.
     pub fn id(&self) -> String {
+        let compress = match self.compress {
+            Compression::None => String::new(),
+            c => format!("_{}", c.label()),
+        };
         format!(
-            "r{}_a{}_b{}_{}",
+            "r{}_a{}_b{}_{}{compress}",
             self.d_min_ratio,
             self.atlas_size,
             self.border,
@@ -162,6 +174,7 @@ impl BuildKnobs {
             atlas_size: self.atlas_size,
             border: self.border,
             mip_filter: self.filter,
+            compress: self.compress,
             ..BuildOptions::default()
         }
     }
@@ -187,8 +200,8 @@ pub const PRESETS: [&str; 2] = ["small", "full"];
 
 impl Grid {
     /// `small`: data/city in CI time (d_min = diagonal / 15; 3 builds at atlas 512/1024 and box/Kaiser,
-    /// 4 texel ratios, one capacity, 6 frames of 320×240). `full`: 7 builds (d_min ratio 10/30/60, atlas 512/1024/2048,
-    /// border 2/8, box/Kaiser), 4 texel ratios, capacities 32 and 128, 12 frames of 640×480.
+    /// 4 texel ratios, one capacity, 6 frames of 320×240). `full`: 9 builds (d_min ratio 10/30/60, atlas 512/1024/2048,
+    /// border 2/8, box/Kaiser, compression none/bc1/bc7), 4 texel ratios, capacities 32 and 128, 12 frames of 640×480.
     pub fn preset(name: &str) -> Option<Grid> {
         let ratios = vec![0.25, 0.5, 1.0, 2.0];
         match name {
@@ -198,6 +211,7 @@ impl Grid {
                     atlas_size: 512,
                     border: 8,
                     filter: MipFilter::Box,
+                    compress: Compression::None,
                     texel_ratio: 1.0,
                     capacity: None,
                 },
@@ -205,6 +219,7 @@ impl Grid {
                 atlas_size: vec![512, 1024],
                 border: vec![],
                 filter: vec![MipFilter::Box, MipFilter::Kaiser],
+                compress: vec![],
                 texel_ratio: ratios,
                 capacity: vec![24],
                 texel_ratio_on_every_build: true,
@@ -218,6 +233,7 @@ impl Grid {
                     atlas_size: 1024,
                     border: 8,
                     filter: MipFilter::Box,
+                    compress: Compression::None,
                     texel_ratio: 1.0,
                     capacity: None,
                 },
@@ -225,6 +241,7 @@ impl Grid {
                 atlas_size: vec![512, 1024, 2048],
                 border: vec![2, 8],
                 filter: vec![MipFilter::Box, MipFilter::Kaiser],
+                compress: vec![Compression::Bc1, Compression::Bc7],
                 texel_ratio: ratios,
                 capacity: vec![32, 128],
                 texel_ratio_on_every_build: true,
@@ -310,6 +327,12 @@ impl Grid {
         for &f in &self.filter {
             push(BuildKnobs { filter: f, ..base });
         }
+        for &c in &self.compress {
+            push(BuildKnobs {
+                compress: c,
+                ..base
+            });
+        }
         let builds = builds
             .into_iter()
             .enumerate()
@@ -384,6 +407,36 @@ mod filter_names {
         s.collect_seq(f.iter().map(|f| f.name()))
     }
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<MipFilter>, D::Error> {
+        let v = Vec::<String>::deserialize(d)?;
+        v.iter()
+            .map(|s| s.parse().map_err(serde::de::Error::custom))
+            .collect()
+    }
+}
+
+/// serde of a [`Compression`] as its lower-case name.
+mod compress_name {
+    use crate::texfmt::Compression;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(c: &Compression, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(c.label())
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Compression, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// serde of a list of [`Compression`]s as lower-case names.
+mod compress_names {
+    use crate::texfmt::Compression;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(c: &[Compression], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(c.iter().map(|c| c.label()))
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Compression>, D::Error> {
         let v = Vec::<String>::deserialize(d)?;
         v.iter()
             .map(|s| s.parse().map_err(serde::de::Error::custom))

@@ -13,12 +13,13 @@ use crate::report::write_atomic;
 use std::path::{Path, PathBuf};
 
 /// Columns of `sweep.csv`.
-pub const SWEEP_HEADER: [&str; 24] = [
+pub const SWEEP_HEADER: [&str; 25] = [
     "variant",
     "d_min_ratio",
     "atlas_size",
     "border",
     "filter",
+    "compress",
     "texel_ratio",
     "capacity",
     "frames",
@@ -75,6 +76,7 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
         Cell::UInt(u64::from(r.build.atlas_size)),
         Cell::UInt(u64::from(r.build.border)),
         Cell::Text(r.build.filter.name().into()),
+        Cell::Text(r.build.compress.label().into()),
         Cell::Float(r.runtime.texel_ratio),
         capacity_cell(r.runtime.capacity),
         Cell::UInt(r.frames as u64),
@@ -143,6 +145,7 @@ fn write_builds(path: &Path, builds: &[BuildRow]) -> Result<(), SweepError> {
         "atlas_size",
         "border",
         "filter",
+        "compress",
         "file_bytes",
         "nodes",
         "leaves",
@@ -161,6 +164,7 @@ fn write_builds(path: &Path, builds: &[BuildRow]) -> Result<(), SweepError> {
                 Cell::UInt(u64::from(b.knobs.atlas_size)),
                 Cell::UInt(u64::from(b.knobs.border)),
                 Cell::Text(b.knobs.filter.name().into()),
+                Cell::Text(b.knobs.compress.label().into()),
                 Cell::UInt(b.file_bytes),
                 Cell::UInt(b.nodes),
                 Cell::UInt(b.leaves),

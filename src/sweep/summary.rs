@@ -167,13 +167,14 @@ fn f(v: f64, decimals: usize) -> String {
 /// One line describing a variant's knobs and its headline numbers.
 fn describe(r: &VariantRow) -> String {
     format!(
-        "`{}`: d_min ratio {}, atlas {}², border {}, filter {}, texel ratio {}, {} — covered PSNR {:.2} dB, \
+        "`{}`: d_min ratio {}, atlas {}², border {}, filter {}, compression {}, texel ratio {}, {} — covered PSNR {:.2} dB, \
          SSIM {:.4}, median frame {:.2} ms, file {}, build {:.2} s",
         r.id,
         r.build.d_min_ratio,
         r.build.atlas_size,
         r.build.border,
         r.build.filter.name(),
+        r.build.compress.label(),
         r.runtime.texel_ratio,
         r.runtime
             .capacity
