@@ -8,6 +8,31 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// Shell-style match of a whole name against `pattern`: `*` any run of characters (also none), `?` one
+/// character, everything else literally (case-sensitive). Linear-time two-pointer matcher with
+/// backtracking to the last `*` only.
+pub fn glob_match(pattern: &str, name: &str) -> bool {
+    let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
+    let (mut i, mut j) = (0, 0);
+    let mut star: Option<(usize, usize)> = None;
+    while j < n.len() {
+        if i < p.len() && (p[i] == '?' || (p[i] != '*' && p[i] == n[j])) {
+            i += 1;
+            j += 1;
+        } else if i < p.len() && p[i] == '*' {
+            star = Some((i, j));
+            i += 1;
+        } else if let Some((si, sj)) = star {
+            i = si + 1;
+            j = sj + 1;
+            star = Some((si, sj + 1));
+        } else {
+            return false;
+        }
+    }
+    p[i..].iter().all(|&c| c == '*')
+}
+
 /// Human-readable bytes (binary units).
 pub fn human_bytes(b: u64) -> String {
     const U: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
@@ -96,5 +121,21 @@ mod parse_tests {
         assert_eq!(parse_seconds("0ms"), Some(0.0));
         assert_eq!(parse_seconds("2"), Some(2.0));
         assert_eq!(parse_seconds("x"), None);
+    }
+
+    #[test]
+    fn glob_matches_whole_names() {
+        assert!(glob_match("facade_*", "facade_00012"));
+        assert!(!glob_match("facade_*", "roof_1"));
+        assert!(!glob_match("facade_*", "c00011_facade"));
+        assert!(glob_match("*facade*", "c00011_facade"));
+        assert!(glob_match("roof_?", "roof_2"));
+        assert!(!glob_match("roof_?", "roof_12"));
+        assert!(glob_match("*", ""));
+        assert!(!glob_match("?", ""));
+        assert!(glob_match("a*b*c", "a_x_b_y_b_c"));
+        assert!(!glob_match("a*b*c", "a_x_b_y_b_"));
+        assert!(glob_match("asphalt", "asphalt"));
+        assert!(!glob_match("asphalt", "asphalt2"));
     }
 }

@@ -14,6 +14,8 @@ fn opts(atlas: u32) -> BuildOptions {
     BuildOptions {
         d_min: DMin::Ratio(20.0),
         atlas_size: atlas,
+        // The paper's border: the 64² atlases of these tests were sized around it.
+        border: 8,
         max_file_bytes: 1 << 30,
         ..BuildOptions::default()
     }

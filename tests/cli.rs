@@ -92,6 +92,79 @@ fn build_then_inspect_verify() {
     assert!(e.contains("city.atlastree") && e.contains("bytes"), "{e}");
 }
 
+/// `--materials` keeps the triangles of matching materials only (the paper's facades-only Berlin test):
+/// scene-info counts them, `--decode` decodes exactly the images they use, `build` builds an opaque tree
+/// over them alone (data/city's facades are opaque, so no alpha tree), and a pattern matching nothing is a
+/// clear error naming the pattern, with no output file.
+#[test]
+fn materials_filter_and_decode_baseline() {
+    let all = json(&run(bin().arg("scene-info").arg(scene()).arg("--json")));
+    let mats = all["materials"].as_array().unwrap();
+    let facade_tris: u64 = mats
+        .iter()
+        .filter(|m| m["name"].as_str().unwrap().starts_with("facade_"))
+        .map(|m| m["triangles"].as_u64().unwrap())
+        .sum();
+    let facade_mats = mats
+        .iter()
+        .filter(|m| {
+            m["name"].as_str().unwrap().starts_with("facade_")
+                && m["triangles"].as_u64().unwrap() > 0
+        })
+        .count() as u64;
+    assert!(facade_tris > 0 && facade_tris < 1322, "{facade_tris}");
+    let v = json(&run(bin()
+        .args([
+            "scene-info",
+            "--json",
+            "--decode",
+            "--materials",
+            "facade_*",
+        ])
+        .arg(scene())));
+    assert_eq!(v["triangles"].as_u64(), Some(facade_tris), "{v}");
+    let d = &v["decode"];
+    assert_eq!(
+        d["images"].as_u64(),
+        Some(facade_mats),
+        "one facade image per facade material: {d}"
+    );
+    assert_eq!(d["failures"], 0);
+    assert!(
+        d["texels"].as_u64().unwrap() >= facade_mats * 64 * 64,
+        "{d}"
+    );
+    assert!(d["seconds"].as_f64().unwrap() > 0.0);
+
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("facades.atlastree");
+    let b = json(&run(bin()
+        .args([
+            "build",
+            "--d-min-ratio",
+            "10",
+            "--atlas-size",
+            "256",
+            "--json",
+        ])
+        .args(["--materials", "facade_*", "-o"])
+        .arg(&out)
+        .arg(scene())));
+    let trees = b["trees"].as_array().unwrap();
+    assert_eq!(trees.len(), 1, "facades are opaque: no alpha tree: {b}");
+    assert_eq!(trees[0]["triangles"].as_u64(), Some(facade_tris));
+
+    let none = dir.path().join("none.atlastree");
+    let o = run(bin()
+        .args(["build", "--materials", "nothing_*", "-o"])
+        .arg(&none)
+        .arg(scene()));
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("nothing_*") && e.contains("scene.gltf"), "{e}");
+    assert!(!none.exists());
+}
+
 /// `build --compress bc1` next to an uncompressed build of the same scene: the compressed file is smaller by
 /// the format's ratio, `inspect` names the formats (BC1 opaque, BC3 alpha) and bytes per block, and
 /// `inspect --verify --reference` re-measures every atlas's PSNR against the uncompressed file and finds

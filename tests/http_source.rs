@@ -39,6 +39,7 @@ fn tree_bytes() -> Arc<Vec<u8>> {
                 d_min: DMin::Ratio(20.0),
                 atlas_size: 128,
                 max_file_bytes: 1 << 30,
+                border: 8,
                 ..BuildOptions::default()
             };
             build(&small_city(2, 16), &opts, &path, &NoProgress).unwrap();

@@ -21,6 +21,7 @@ fn city_file(dir: &std::path::Path) -> TreeFile {
         d_min: DMin::Ratio(20.0),
         atlas_size: 128,
         max_file_bytes: 1 << 30,
+        border: 8,
         ..BuildOptions::default()
     };
     build(&scene, &opts, &out, &NoProgress).unwrap();

@@ -23,6 +23,7 @@ fn city(dir: &Path) -> PathBuf {
     let opts = BuildOptions {
         d_min: DMin::Ratio(10.0),
         atlas_size: 512,
+        border: 8,
         ..BuildOptions::default()
     };
     build(&scene, &opts, &out, &NoProgress).unwrap();

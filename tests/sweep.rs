@@ -7,7 +7,9 @@ use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::report::metrics::Histogram;
 use atlastree::sweep::grid::{BuildKnobs, Grid, RuntimeKnobs};
 use atlastree::sweep::run::{BuildRow, FrameRow, merge_histogram};
-use atlastree::sweep::summary::{frame_time_front, mean, median, recommend, summarise};
+use atlastree::sweep::summary::{
+    base_row, frame_time_front, knob_effects, mean, median, recommend, summarise,
+};
 use std::path::Path;
 
 #[test]
@@ -18,7 +20,11 @@ fn small_preset_is_a_star_of_three_builds_and_thirteen_variants() {
     let ids: Vec<String> = p.builds.iter().map(|b| b.knobs.id()).collect();
     assert_eq!(
         ids,
-        ["r15_a512_b8_box", "r15_a1024_b8_box", "r15_a512_b8_kaiser"]
+        [
+            "r15_a512_b16_box",
+            "r15_a1024_b16_box",
+            "r15_a512_b16_kaiser"
+        ]
     );
     assert!(p.builds[0].is_base && !p.builds[1].is_base);
     // Base: 4 texel ratios + 1 capacity; the others 4 ratios each.
@@ -34,15 +40,18 @@ fn small_preset_is_a_star_of_three_builds_and_thirteen_variants() {
 }
 
 #[test]
-fn full_preset_has_nine_builds() {
+fn full_preset_has_ten_builds() {
     let p = Grid::preset("full").expect("preset").plan();
-    // base + d_min 10, 60 + atlas 512, 2048 + border 2 + kaiser + bc1, bc7.
-    assert_eq!(p.builds.len(), 9);
+    // base + d_min 10, 60 + atlas 512, 2048 + border 2, 8 + kaiser + bc1, bc7.
+    assert_eq!(p.builds.len(), 10);
     assert_eq!(p.builds[0].runtimes.len(), 6);
-    assert_eq!(p.variants(), 6 + 8 * 4);
+    assert_eq!(p.variants(), 6 + 9 * 4);
     let ids: Vec<String> = p.builds.iter().map(|b| b.knobs.id()).collect();
-    assert!(ids.contains(&"r30_a1024_b8_box_bc1".to_string()), "{ids:?}");
-    assert_eq!(ids[0], "r30_a1024_b8_box");
+    assert!(
+        ids.contains(&"r30_a1024_b16_box_bc1".to_string()),
+        "{ids:?}"
+    );
+    assert_eq!(ids[0], "r30_a1024_b16_box");
     assert!(Grid::preset("nope").is_none());
 }
 
@@ -174,6 +183,44 @@ fn summary_means_front_and_recommendation() {
     let tight = recommend(&rows, 0.1).expect("rows");
     assert_eq!((tight.fastest_frames, tight.smallest_file), (1, 1));
     assert!(recommend(&[], 0.5).is_none());
+}
+
+/// Knob effects: every single-knob change from the base (texel ratio 1, all resident) with its PSNR
+/// delta and cost ratios; a row differing in two knobs is left out.
+#[test]
+fn knob_effects_against_the_base() {
+    let (a, b) = (knobs(512), knobs(1024));
+    let mut c = knobs(1024);
+    c.border = 16;
+    let frames = vec![
+        frame(a, 0.5, 0, 30.0, 10.0),
+        frame(a, 1.0, 0, 40.0, 50.0),
+        frame(b, 1.0, 0, 39.0, 25.0),
+        frame(c, 0.5, 0, 35.0, 5.0),
+    ];
+    let builds = vec![
+        build_row(a, 300, 2.0),
+        build_row(b, 100, 5.0),
+        build_row(c, 100, 5.0),
+    ];
+    let rows = summarise(&builds, &frames);
+    let base = base_row(&rows, &a).expect("base");
+    assert_eq!(rows[base].id, "r10_a512_b8_box_t1_all");
+    let e = knob_effects(&rows, base);
+    let got: Vec<(&str, &str, usize)> = e
+        .iter()
+        .map(|e| (e.knob, e.value.as_str(), e.row))
+        .collect();
+    assert_eq!(
+        got,
+        vec![("texel_ratio", "0.5", 0), ("atlas_size", "1024", 2)]
+    );
+    assert_eq!(e[0].psnr_delta_db, -10.0);
+    assert_eq!(e[0].frame_ratio, 0.2);
+    assert_eq!(e[1].psnr_delta_db, -1.0);
+    assert_eq!((e[1].frame_ratio, e[1].build_ratio), (0.5, 2.5));
+    assert!((e[1].file_ratio - 1.0 / 3.0).abs() < 1e-12);
+    assert_eq!(base_row(&rows, &knobs(2048)), None);
 }
 
 #[test]

@@ -37,8 +37,11 @@ pub enum DMin {
     Ratio(f64),
 }
 
-/// Options of a build. Defaults follow the paper (800 px, ratio 1, border 8) and the issue (atlas 1024,
-/// depth cap 24).
+/// Options of a build. Defaults follow the paper (800 px, ratio 1) and the issue (atlas 1024, depth cap 24),
+/// except the border: 16 texels, not the paper's 8. Every level up the tree halves it, and views drawn
+/// with an atlas beyond its min_distance sample coarser mips, where a thin border lets neighbouring areas
+/// bleed in: on data/city (depth 3) root-atlas views measure 33.1 dB against the original textures at
+/// border 8 and 38.3 dB at 16, for 18 % more texture data (`atlastree sweep`, border knob).
 #[derive(Clone, Debug, Serialize)]
 pub struct BuildOptions {
     pub d_min: DMin,
@@ -73,7 +76,7 @@ impl Default for BuildOptions {
             fov_deg: 60.0,
             texel_ratio: 1.0,
             atlas_size: 1024,
-            border: 8,
+            border: 16,
             max_depth: 24,
             cap_to_source: true,
             image_cache_bytes: 2 << 30,

@@ -35,9 +35,11 @@ pub struct BuildArgs {
     /// Side of every atlas in texels (power of two).
     #[arg(long, default_value_t = 1024)]
     pub atlas_size: u32,
-    /// Border around each packed texture area, texels (paper: 8; protects 3 mip levels; with --compress a
-    /// 4×4 block never mixes two textures at levels 0–1, and reaches ≤ 3 texels into a texture from level 2).
-    #[arg(long, default_value_t = 8)]
+    /// Border around each packed texture area, texels. It keeps log2(border) mip levels of a leaf atlas
+    /// free of neighbouring textures, one level fewer per tree level up. Default 16 (the paper used 8: on
+    /// data/city root-atlas views lose 5 dB against the original textures at 8); with --compress a 4×4 block
+    /// never mixes two textures at the two finest protected levels.
+    #[arg(long, default_value_t = 16)]
     pub border: u32,
     /// Down-sampling kernel of the atlas mip chains and inner atlases: `box` (2×2 mean) or `kaiser`
     /// (Kaiser-windowed sinc, sharper, slight clamped ringing). Original textures always use `box`.
@@ -65,6 +67,11 @@ pub struct BuildArgs {
     /// each tree's PSNR against the uncompressed atlases.
     #[arg(long, value_enum, default_value_t = CompressArg::None)]
     pub compress: CompressArg,
+    /// Build the tree over the triangles of these materials only (comma-separated glob patterns on glTF
+    /// material names, `*` and `?`), e.g. `--materials 'facade_*'` for the paper's Berlin test, whose atlas
+    /// tree held only the facades (§7). d_min ratios then refer to the kept geometry's diagonal.
+    #[arg(long, value_delimiter = ',', value_name = "GLOB")]
+    pub materials: Vec<String>,
     /// Up axis; `auto` takes the axis of least extent.
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
@@ -123,7 +130,18 @@ impl BuildArgs {
 
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let t = std::time::Instant::now();
-    let scene = load_scene(&a.scene, a.up)?;
+    let mut scene = load_scene(&a.scene, a.up)?;
+    if !a.materials.is_empty() {
+        let kept = super::retain_materials(&mut scene, &a.materials)?;
+        if !(a.quiet || a.json) {
+            println!(
+                "materials {}: kept {} materials, dropped {} triangles",
+                a.materials.join(","),
+                kept.materials_kept,
+                kept.triangles_dropped
+            );
+        }
+    }
     let import_s = t.elapsed().as_secs_f64();
     let bars = Bars::new(a.quiet || a.json);
     let mut report = build(&scene, &a.options(), &a.out, &bars)

@@ -111,6 +111,34 @@ pub fn run() -> anyhow::Result<ExitCode> {
     }
 }
 
+/// Keeps the triangles of the materials matching any of `globs` ([`atlastree::util::glob_match`]); an error
+/// naming the patterns and a few material names when nothing is left.
+pub fn retain_materials(
+    scene: &mut atlastree::scene::Scene,
+    globs: &[String],
+) -> anyhow::Result<atlastree::scene::RetainReport> {
+    let report = scene.retain_materials(|m| {
+        globs
+            .iter()
+            .any(|g| atlastree::util::glob_match(g, &m.name))
+    });
+    if scene.triangles.is_empty() {
+        let names: Vec<&str> = scene
+            .materials
+            .iter()
+            .take(8)
+            .map(|m| m.name.as_str())
+            .collect();
+        anyhow::bail!(
+            "{}: no triangle has a material matching {} (materials include: {})",
+            scene.source.display(),
+            globs.join(","),
+            names.join(", ")
+        );
+    }
+    Ok(report)
+}
+
 /// Imports a scene with a clear error naming the file.
 pub fn load_scene(path: &std::path::Path, up: UpArg) -> anyhow::Result<atlastree::scene::Scene> {
     use anyhow::Context;

@@ -93,6 +93,16 @@ impl ImageSource {
         u64::from(self.width) * u64::from(self.height)
     }
 
+    /// Encoded size in bytes: the file's length (0 if it cannot be read) or the embedded bytes; 0 for
+    /// solid and fallback images.
+    pub fn encoded_bytes(&self) -> u64 {
+        match &self.data {
+            ImageData::File(p) => std::fs::metadata(p).map_or(0, |m| m.len()),
+            ImageData::Bytes(b) => b.len() as u64,
+            ImageData::Solid(_) | ImageData::Fallback => 0,
+        }
+    }
+
     /// True for the fallback checkerboard.
     pub fn is_fallback(&self) -> bool {
         matches!(self.data, ImageData::Fallback)

@@ -341,3 +341,73 @@ impl fmt::Display for SceneInfo {
         Ok(())
     }
 }
+
+/// The cost of just reading a scene's textures: every image a triangle uses, decoded once to RGBA8 — the
+/// baseline of the preprocessor's throughput target (a build within 3× of it).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct DecodeReport {
+    /// Distinct images used by at least one triangle (solid 1×1 images included, they cost nothing).
+    pub images: usize,
+    /// Texels decoded (width × height summed).
+    pub texels: u64,
+    /// Encoded bytes read from image files and embedded buffers.
+    pub encoded_bytes: u64,
+    /// Images that failed to decode (each would become the fallback checker in a build).
+    pub failures: usize,
+    /// Wall-clock seconds over `threads` threads.
+    pub seconds: f64,
+    pub threads: usize,
+}
+
+/// Decodes every image a triangle of `scene` uses once, in parallel on the rayon pool (the build's pool),
+/// dropping each result at once. Units: seconds of wall time, texels.
+pub fn decode_all(scene: &Scene) -> DecodeReport {
+    use rayon::prelude::*;
+    let mut used = vec![false; scene.images.len()];
+    for t in &scene.triangles {
+        used[scene.materials[t.material.idx()].image.idx()] = true;
+    }
+    let images: Vec<_> = scene
+        .images
+        .iter()
+        .zip(&used)
+        .filter(|(_, u)| **u)
+        .map(|(i, _)| i)
+        .collect();
+    let start = std::time::Instant::now();
+    let (texels, failures) = images
+        .par_iter()
+        .map(|img| match img.decode() {
+            Ok(d) => (u64::from(d.width) * u64::from(d.height), 0),
+            Err(_) => (0, 1),
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    DecodeReport {
+        images: images.len(),
+        texels,
+        encoded_bytes: images.iter().map(|i| i.encoded_bytes()).sum(),
+        failures,
+        seconds: start.elapsed().as_secs_f64(),
+        threads: rayon::current_num_threads(),
+    }
+}
+
+impl fmt::Display for DecodeReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "decoded {} images ({:.1} Mtexels from {}) in {:.2} s on {} threads: {:.1} Mtexels/s{}",
+            self.images,
+            self.texels as f64 / 1e6,
+            crate::util::human_bytes(self.encoded_bytes),
+            self.seconds,
+            self.threads,
+            self.texels as f64 / 1e6 / self.seconds.max(1e-9),
+            if self.failures > 0 {
+                format!(", {} failed", self.failures)
+            } else {
+                String::new()
+            }
+        )
+    }
+}

@@ -173,4 +173,45 @@ impl Scene {
     pub fn tri_uvs(&self, t: &Triangle) -> [DVec2; 3] {
         t.v.map(|i| self.vertices[i as usize].uv)
     }
+
+    /// Keeps only the triangles whose material satisfies `keep` and the vertices they use (renumbered in
+    /// their first-use order, so [`Scene::bounds`] and the d_min ratio see the kept geometry only).
+    /// Materials and images stay (ids remain valid); unused ones cost nothing later.
+    ///
+    /// This is how a build covers part of a scene, as the paper's Berlin test did (§7: the atlas tree held
+    /// the facades; roofs and terrain were drawn from an aerial image).
+    pub fn retain_materials(&mut self, keep: impl Fn(&Material) -> bool) -> RetainReport {
+        let keep_mat: Vec<bool> = self.materials.iter().map(&keep).collect();
+        let before = (self.triangles.len(), self.vertices.len());
+        self.triangles.retain(|t| keep_mat[t.material.idx()]);
+        let mut remap = vec![u32::MAX; self.vertices.len()];
+        let mut vertices = Vec::new();
+        for t in &mut self.triangles {
+            for v in &mut t.v {
+                let r = &mut remap[*v as usize];
+                if *r == u32::MAX {
+                    *r = vertices.len() as u32;
+                    vertices.push(self.vertices[*v as usize]);
+                }
+                *v = *r;
+            }
+        }
+        self.vertices = vertices;
+        let used: std::collections::BTreeSet<_> =
+            self.triangles.iter().map(|t| t.material).collect();
+        RetainReport {
+            materials_kept: used.len(),
+            triangles_dropped: before.0 - self.triangles.len(),
+            vertices_dropped: before.1 - self.vertices.len(),
+        }
+    }
+}
+
+/// What [`Scene::retain_materials`] removed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct RetainReport {
+    /// Materials that still have triangles.
+    pub materials_kept: usize,
+    pub triangles_dropped: usize,
+    pub vertices_dropped: usize,
 }

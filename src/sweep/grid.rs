@@ -199,9 +199,10 @@ pub fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
 pub const PRESETS: [&str; 2] = ["small", "full"];
 
 impl Grid {
-    /// `small`: data/city in CI time (d_min = diagonal / 15; 3 builds at atlas 512/1024 and box/Kaiser,
-    /// 4 texel ratios, one capacity, 6 frames of 320×240). `full`: 9 builds (d_min ratio 10/30/60, atlas 512/1024/2048,
-    /// border 2/8, box/Kaiser, compression none/bc1/bc7), 4 texel ratios, capacities 32 and 128, 12 frames of 640×480.
+    /// Both around the build defaults (border 16). `small`: data/city in CI time (d_min = diagonal / 15;
+    /// 3 builds at atlas 512/1024 and box/Kaiser, 4 texel ratios, one capacity, 6 frames of 320×240).
+    /// `full`: 10 builds (d_min ratio 10/30/60, atlas 512/1024/2048, border 2/8/16 (the paper's 8),
+    /// box/Kaiser, compression none/bc1/bc7), 4 texel ratios, capacities 32 and 128, 12 frames of 640×480.
     pub fn preset(name: &str) -> Option<Grid> {
         let ratios = vec![0.25, 0.5, 1.0, 2.0];
         match name {
@@ -209,7 +210,7 @@ impl Grid {
                 base: Base {
                     d_min_ratio: 15.0,
                     atlas_size: 512,
-                    border: 8,
+                    border: 16,
                     filter: MipFilter::Box,
                     compress: Compression::None,
                     texel_ratio: 1.0,
@@ -231,7 +232,7 @@ impl Grid {
                 base: Base {
                     d_min_ratio: 30.0,
                     atlas_size: 1024,
-                    border: 8,
+                    border: 16,
                     filter: MipFilter::Box,
                     compress: Compression::None,
                     texel_ratio: 1.0,
@@ -239,7 +240,7 @@ impl Grid {
                 },
                 d_min_ratio: vec![10.0, 30.0, 60.0],
                 atlas_size: vec![512, 1024, 2048],
-                border: vec![2, 8],
+                border: vec![2, 8, 16],
                 filter: vec![MipFilter::Box, MipFilter::Kaiser],
                 compress: vec![Compression::Bc1, Compression::Bc7],
                 texel_ratio: ratios,

@@ -155,6 +155,95 @@ pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendatio
     })
 }
 
+/// What changing one knob away from the base variant does (the grid is a star: every other variant
+/// differs from the base in exactly one knob). Ratios are variant / base; `NaN` where the base value is 0.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct KnobEffect {
+    /// Knob name as in the grid JSON (`d_min_ratio`, `atlas_size`, `border`, `filter`, `compress`,
+    /// `texel_ratio`, `capacity`).
+    pub knob: &'static str,
+    /// The variant's value of it.
+    pub value: String,
+    /// Index of the variant in the rows.
+    pub row: usize,
+    /// Covered PSNR minus the base's, dB (positive: more accurate).
+    pub psnr_delta_db: f64,
+    pub ssim_delta: f64,
+    /// Median frame time ratio.
+    pub frame_ratio: f64,
+    pub file_ratio: f64,
+    pub build_ratio: f64,
+}
+
+/// The knobs in which two variants differ, with the second variant's value of each.
+fn differing(
+    a: (&BuildKnobs, &RuntimeKnobs),
+    b: (&BuildKnobs, &RuntimeKnobs),
+) -> Vec<(&'static str, String)> {
+    let mut d = Vec::new();
+    let (ab, ar) = a;
+    let (bb, br) = b;
+    if ab.d_min_ratio != bb.d_min_ratio {
+        d.push(("d_min_ratio", bb.d_min_ratio.to_string()));
+    }
+    if ab.atlas_size != bb.atlas_size {
+        d.push(("atlas_size", bb.atlas_size.to_string()));
+    }
+    if ab.border != bb.border {
+        d.push(("border", bb.border.to_string()));
+    }
+    if ab.filter != bb.filter {
+        d.push(("filter", bb.filter.name().to_string()));
+    }
+    if ab.compress != bb.compress {
+        d.push(("compress", bb.compress.label().to_string()));
+    }
+    if ar.texel_ratio != br.texel_ratio {
+        d.push(("texel_ratio", br.texel_ratio.to_string()));
+    }
+    if ar.capacity != br.capacity {
+        d.push((
+            "capacity",
+            br.capacity.map_or("all".into(), |k| k.to_string()),
+        ));
+    }
+    d
+}
+
+/// The effect of each single-knob change against the base variant `base` (an index into `rows`), in row
+/// order; rows that differ from the base in more than one knob (or none) are left out.
+pub fn knob_effects(rows: &[VariantRow], base: usize) -> Vec<KnobEffect> {
+    let b = &rows[base];
+    let ratio = |x: f64, y: f64| if y > 0.0 { x / y } else { f64::NAN };
+    rows.iter()
+        .enumerate()
+        .filter_map(|(i, r)| {
+            let d = differing((&b.build, &b.runtime), (&r.build, &r.runtime));
+            let [(knob, value)] = <[_; 1]>::try_from(d).ok()?;
+            Some(KnobEffect {
+                knob,
+                value,
+                row: i,
+                psnr_delta_db: r.psnr_covered_db - b.psnr_covered_db,
+                ssim_delta: r.ssim - b.ssim,
+                frame_ratio: ratio(r.frame_ms_median, b.frame_ms_median),
+                file_ratio: ratio(r.file_bytes as f64, b.file_bytes as f64),
+                build_ratio: ratio(r.build_s, b.build_s),
+            })
+        })
+        .collect()
+}
+
+/// Index of the grid's base variant in `rows`: the base build with texel ratio 1 and every block
+/// resident, else the first row of the base build.
+pub fn base_row(rows: &[VariantRow], base: &BuildKnobs) -> Option<usize> {
+    let of_base = || rows.iter().enumerate().filter(|(_, r)| r.build == *base);
+    of_base()
+        .find(|(_, r)| r.runtime.texel_ratio == 1.0 && r.runtime.capacity.is_none())
+        .or_else(|| of_base().next())
+        .map(|(i, _)| i)
+}
+
 /// Formats a float cell for markdown (`–` for NaN).
 fn f(v: f64, decimals: usize) -> String {
     if v.is_finite() {
@@ -224,25 +313,37 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
     let _ = writeln!(md, "## Recommended defaults\n");
     match recommend(rows, PSNR_TOLERANCE_DB) {
         Some(rec) => {
-            let _ = writeln!(md, "- Most accurate: {}", describe(&rows[rec.best]));
-            let _ = writeln!(
-                md,
-                "- **Fastest frames within {} dB of it** (the recommended runtime default): {}",
-                rec.tolerance_db,
-                describe(&rows[rec.fastest_frames])
-            );
-            let _ = writeln!(
-                md,
-                "- Smallest file within {} dB: {}",
-                rec.tolerance_db,
-                describe(&rows[rec.smallest_file])
-            );
-            let _ = writeln!(
-                md,
-                "- Fastest build within {} dB: {}\n",
-                rec.tolerance_db,
-                describe(&rows[rec.fastest_build])
-            );
+            // One line per distinct variant, naming every role it fills.
+            let tol = rec.tolerance_db;
+            let roles = [
+                (rec.best, "Most accurate".to_string()),
+                (
+                    rec.fastest_frames,
+                    format!(
+                        "**fastest frames within {tol} dB of it** (the recommended runtime default)"
+                    ),
+                ),
+                (rec.smallest_file, format!("smallest file within {tol} dB")),
+                (rec.fastest_build, format!("fastest build within {tol} dB")),
+            ];
+            let mut seen: Vec<usize> = Vec::new();
+            for &(i, _) in &roles {
+                if seen.contains(&i) {
+                    continue;
+                }
+                seen.push(i);
+                let names: Vec<&str> = roles
+                    .iter()
+                    .filter(|(j, _)| *j == i)
+                    .map(|(_, n)| n.as_str())
+                    .collect();
+                let mut label = names.join(", ");
+                if let Some(c) = label.get(..1) {
+                    label = c.to_uppercase() + &label[1..];
+                }
+                let _ = writeln!(md, "- {label}: {}", describe(&rows[i]));
+            }
+            let _ = writeln!(md);
         }
         None => {
             let _ = writeln!(md, "No variant has a finite PSNR.\n");
@@ -259,9 +360,58 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
             "![{caption}]({file}.png)  \n*{caption}* ([SVG]({file}.svg))\n"
         );
     }
+    if let Some(base) = data
+        .plan
+        .builds
+        .first()
+        .and_then(|b| base_row(rows, &b.knobs))
+    {
+        effects_table(&mut md, rows, base);
+    }
     builds_table(&mut md, &data.builds);
     variants_table(&mut md, rows);
     md
+}
+
+/// What each knob costs and buys, one row per single-knob change from the base.
+fn effects_table(md: &mut String, rows: &[VariantRow], base: usize) {
+    let effects = knob_effects(rows, base);
+    if effects.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "## What each knob costs (one knob changed from the base `{}`)\n",
+        rows[base].id
+    );
+    let _ = writeln!(
+        md,
+        "Base: covered PSNR {} dB, SSIM {}, median frame {} ms, file {}, build {} s. Ratios are variant / base.\n",
+        f(rows[base].psnr_covered_db, 2),
+        f(rows[base].ssim, 4),
+        f(rows[base].frame_ms_median, 2),
+        human_bytes(rows[base].file_bytes),
+        f(rows[base].build_s, 1)
+    );
+    let _ = writeln!(
+        md,
+        "| knob | value | Δ covered PSNR dB | Δ SSIM | frame time × | file × | build time × |"
+    );
+    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|");
+    for e in &effects {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:+.2} | {:+.4} | {} | {} | {} |",
+            e.knob,
+            e.value,
+            e.psnr_delta_db,
+            e.ssim_delta,
+            f(e.frame_ratio, 2),
+            f(e.file_ratio, 2),
+            f(e.build_ratio, 2)
+        );
+    }
+    let _ = writeln!(md);
 }
 
 fn builds_table(md: &mut String, builds: &[BuildRow]) {

@@ -209,7 +209,7 @@ fn median(v: &[f32]) -> f32 {
 }
 
 /// Dive views of the density test.
-const DENSITY_VIEWS: [f64; 5] = [0.2, 0.3, 0.33, 0.35, 0.37];
+const DENSITY_VIEWS: [f64; 8] = [0.2, 0.25, 0.28, 0.3, 0.32, 0.33, 0.35, 0.37];
 
 /// Least-direction texels per pixel below which an atlas pixel counts as magnified, at texel ratio 1.
 /// The densities come from quad derivatives (constant over 2×2 pixels, extrapolated across triangle

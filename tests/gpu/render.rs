@@ -1,6 +1,7 @@
 //! The texture-array-batched renderer end to end: build a small tree, render views in every mode, compare.
 //!
-//! - tree vs original textures (same view, texel ratio 1): PSNR ≥ 35 dB over the covered pixels;
+//! - tree vs original textures (same view, texel ratio 1): PSNR ≥ 35 dB over the covered pixels, root-atlas
+//!   views included;
 //! - tree mode: one multi-draw call per non-empty pipeline and one bind group, however many nodes are drawn;
 //! - a scene translated by (4.5e6, 0, 5.5e6) renders as at the origin: PSNR ≥ 50 dB;
 //! - tree-levels on a dive view shows ≥ 2 level colours.
@@ -179,18 +180,18 @@ pub(crate) fn psnr_covered(a: &[u8], b: &[u8]) -> (f64, usize) {
 
 /// Tree frame (atlases where they suffice) against the frame drawn with every original texture bound
 /// separately, on views along the dive. At texel ratio 1 the atlases hold the texture resolution the
-/// screen needs, so views that draw atlases below the root must agree to ≥ 35 dB over the covered pixels.
+/// screen needs, so every view that draws atlases must agree to ≥ 35 dB over the covered pixels — the
+/// overview drawn with the **root** atlas too.
 ///
-/// Views drawn with the **root** atlas (the overview) are held to ≥ 30 dB only: there the camera is far
-/// beyond the root's min_distance, the sampler picks coarser mips of the root atlas, and the 8-texel
-/// borders (one texel at the root of this depth-3 tree) no longer keep neighbouring areas apart — the
-/// paper's border protects three mip levels counted from the leaves. Measured: 33.1 and 35.4 dB
-/// (below the root: 37.9–53.1 dB).
+/// The root views are the hard ones: the camera is beyond the root's min_distance, the sampler picks
+/// coarser mips of the root atlas, and the border (halved at every level up) is what keeps neighbouring
+/// areas apart there. At the paper's border 8 (one texel at the root of this depth-3 tree) they measured
+/// 33.1 and 33.2 dB; at the default 16, 38.3 and 38.2 dB (below the root: 39–53 dB).
 fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
     let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
     let mut r = renderer(ctx, &file)?;
-    let (mut below_root, mut report) = (0, Vec::new());
+    let (mut below_root, mut root_views, mut report) = (0, 0, Vec::new());
     let mut failures = Vec::new();
     for cam in dive_cameras(&file, 8)? {
         let (ts, tree) = frame(&mut r, &file, &cam, Mode::Tree)?;
@@ -215,11 +216,12 @@ fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
             report.push(line);
             continue;
         }
-        let need = if root_atlas { 30.0 } else { 35.0 };
-        if psnr < need {
-            failures.push(format!("{line} < {need} dB"));
+        if psnr < 35.0 {
+            failures.push(format!("{line} < 35 dB"));
         }
-        if !root_atlas {
+        if root_atlas {
+            root_views += 1;
+        } else {
             below_root += 1;
         }
         report.push(line);
@@ -228,8 +230,10 @@ fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
     if !failures.is_empty() {
         return Err(format!("PSNR too low: {failures:?}; all views: {report:?}"));
     }
-    if below_root == 0 {
-        return Err(format!("no view drew atlases below the root: {report:?}"));
+    if below_root == 0 || root_views == 0 {
+        return Err(format!(
+            "need views with the root atlas and below it, got {root_views} and {below_root}: {report:?}"
+        ));
     }
     Ok(())
 }
@@ -358,7 +362,7 @@ fn tree_levels_shows_several_levels(ctx: &GpuContext) -> Result<(), String> {
         .collect();
     let mut best = 0;
     let mut seen_per_view = Vec::new();
-    for cam in dive_cameras(&file, 5)? {
+    for cam in dive_cameras(&file, 12)? {
         let (_, img) = frame(&mut r, &file, &cam, Mode::TreeLevels)?;
         let mut counts = [0usize; 9];
         let mut other = 0usize;

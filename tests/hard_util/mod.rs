@@ -27,6 +27,8 @@ pub fn tiny_opts(atlas: u32, d_min: f64) -> BuildOptions {
     BuildOptions {
         d_min: DMin::Metres(d_min),
         atlas_size: atlas,
+        // The paper's border: these tiny atlases (64²–128²) were sized around it.
+        border: 8,
         max_file_bytes: 256 << 20,
         image_cache_bytes: 64 << 20,
         ..BuildOptions::default()
