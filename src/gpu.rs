@@ -297,7 +297,8 @@ impl GpuContext {
         let value = f(&self.device);
         let validation_error = pollster::block_on(validation.pop());
         let oom_error = pollster::block_on(oom.pop());
-        match validation_error.or(oom_error) {
+        // Out of memory first: a texture that failed to allocate makes every later use a validation error.
+        match oom_error.or(validation_error) {
             Some(error) => Err(GpuError::Wgpu {
                 what: what.to_owned(),
                 message: error.to_string(),

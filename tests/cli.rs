@@ -29,6 +29,16 @@ fn json(out: &Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("JSON on stdout")
 }
 
+/// `atlastree build --d-min-ratio 10 --json ARGS -o OUT data/city`, its JSON report.
+fn build_json(out: &std::path::Path, args: &[&str]) -> serde_json::Value {
+    json(&run(bin()
+        .args(["build", "--d-min-ratio", "10", "--json"])
+        .args(args)
+        .arg("-o")
+        .arg(out)
+        .arg(scene())))
+}
+
 #[test]
 fn scene_info_reports_the_default_scene() {
     let v = json(&run(bin().arg("scene-info").arg(scene()).arg("--json")));
@@ -47,18 +57,7 @@ fn scene_info_reports_the_default_scene() {
 fn build_then_inspect_verify() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
-    let b = json(&run(bin()
-        .args([
-            "build",
-            "--d-min-ratio",
-            "10",
-            "--atlas-size",
-            "512",
-            "--json",
-            "-o",
-        ])
-        .arg(&out)
-        .arg(scene())));
+    let b = build_json(&out, &["--atlas-size", "512"]);
     let trees = b["trees"].as_array().unwrap();
     assert_eq!(
         trees.len(),
@@ -67,6 +66,16 @@ fn build_then_inspect_verify() {
     );
     let scene_tris: u64 = trees.iter().map(|t| t["triangles"].as_u64().unwrap()).sum();
     assert_eq!(scene_tris, 1322);
+    // The paging file gets the permissions of a plain `File::create` (0o644 less the umask), not the
+    // temp file's private 0o600.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let plain = dir.path().join("plain");
+        std::fs::File::create(&plain).unwrap();
+        let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&out), mode(&plain));
+    }
     assert!(trees[0]["depth"].as_u64().unwrap() >= 2, "{b}");
     let v = json(&run(bin()
         .args(["inspect", "--verify", "--json"])
@@ -123,6 +132,11 @@ fn materials_filter_and_decode_baseline() {
         ])
         .arg(scene())));
     assert_eq!(v["triangles"].as_u64(), Some(facade_tris), "{v}");
+    assert_eq!(
+        v["materials"].as_array().map(|m| m.len() as u64),
+        Some(facade_mats),
+        "only the kept materials remain"
+    );
     let d = &v["decode"];
     assert_eq!(
         d["images"].as_u64(),
@@ -138,21 +152,19 @@ fn materials_filter_and_decode_baseline() {
 
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("facades.atlastree");
-    let b = json(&run(bin()
-        .args([
-            "build",
-            "--d-min-ratio",
-            "10",
-            "--atlas-size",
-            "256",
-            "--json",
-        ])
-        .args(["--materials", "facade_*", "-o"])
-        .arg(&out)
-        .arg(scene())));
+    let b = build_json(&out, &["--atlas-size", "256", "--materials", "facade_*"]);
     let trees = b["trees"].as_array().unwrap();
     assert_eq!(trees.len(), 1, "facades are opaque: no alpha tree: {b}");
     assert_eq!(trees[0]["triangles"].as_u64(), Some(facade_tris));
+    let i = json(&run(bin()
+        .args(["inspect", "--verify", "--json"])
+        .arg(&out)));
+    assert_eq!(i["verify"]["violation_count"], 0, "{i}");
+    let enabled = i["inspect"]["enabled"].to_string();
+    assert!(
+        enabled.contains("alpha tree and alpha pipelines: off"),
+        "the dropped MASK/BLEND materials are not in the file: {enabled}"
+    );
 
     let none = dir.path().join("none.atlastree");
     let o = run(bin()

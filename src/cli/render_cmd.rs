@@ -56,6 +56,10 @@ pub struct RenderArgs {
     /// Skip GPU timestamp queries.
     #[arg(long)]
     pub no_gpu_timing: bool,
+    /// Anisotropy clamp of the samplers, 1 (isotropic trilinear) to 16, in every mode alike. A CPU
+    /// rasteriser (lavapipe) pays per tap, so lower values trade sharpness at grazing angles for time.
+    #[arg(long, default_value_t = RendererOptions::ANISOTROPY, value_parser = clap::value_parser!(u16).range(1..=16))]
+    pub anisotropy: u16,
     /// Page blocks with at most this many resident (the paper used 160). Omit to load everything.
     #[arg(long)]
     pub capacity: Option<u32>,
@@ -172,6 +176,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         width: a.width,
         height: a.height,
         gpu_timing: !a.no_gpu_timing,
+        anisotropy: a.anisotropy,
     };
     let mut renderer = match capacity {
         None => Renderer::new(&ctx, &file, ropts)?,

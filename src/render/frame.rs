@@ -107,6 +107,23 @@ pub struct RendererOptions {
     pub height: u32,
     /// Measure GPU time with timestamp queries where supported (adds a readback per frame).
     pub gpu_timing: bool,
+    /// Anisotropy clamp of every sampler, 1 (isotropic trilinear) to 16; 1 where the device lacks
+    /// anisotropic filtering. A software rasteriser pays per tap: an accuracy-for-time knob.
+    pub anisotropy: u16,
+}
+
+impl RendererOptions {
+    /// The default anisotropy clamp (the best every desktop GPU offers).
+    pub const ANISOTROPY: u16 = 16;
+
+    /// `anisotropy` as the device supports it.
+    pub(super) fn device_anisotropy(&self, ctx: &GpuContext) -> u16 {
+        if ctx.features.anisotropic_filtering {
+            self.anisotropy.clamp(1, 16)
+        } else {
+            1
+        }
+    }
 }
 
 /// A GPU-side growable buffer.
@@ -207,7 +224,11 @@ impl<'f> Renderer<'f> {
                 height: opts.height,
             });
         }
-        let resident = Resident::load(ctx, file)?;
+        // Every block at once: the texture arrays are the largest allocations, and a device out of memory
+        // (lavapipe's heap, a small GPU) is an error naming the load, not wgpu's uncaptured-error panic.
+        let resident = ctx.scoped("uploading every block (all resident)", |_| {
+            Resident::load(ctx, file)
+        })??;
         Self::with_resident(ctx, file, opts, resident, None)
     }
 
@@ -226,7 +247,9 @@ impl<'f> Renderer<'f> {
             });
         }
         let table = BlockTable::from_file(file)?;
-        let mut resident = Resident::load_paged(ctx, file, &table, setup.pager.capacity)?;
+        let mut resident = ctx.scoped("allocating the paged texture arrays", |_| {
+            Resident::load_paged(ctx, file, &table, setup.pager.capacity)
+        })??;
         let mut pager = Pager::new(table.clone(), setup.pager)?;
         let records = file.blocks().to_vec();
         let source = setup.source;
@@ -284,7 +307,7 @@ impl<'f> Renderer<'f> {
         });
         let records = Growable::new(device, "node records", wgpu::BufferUsages::STORAGE);
         let indirect = Growable::new(device, "indirect", wgpu::BufferUsages::INDIRECT);
-        let aniso = ctx.features.anisotropic_filtering;
+        let aniso = opts.device_anisotropy(ctx);
         let atlas_sampler = sampler(
             device,
             "atlas sampler",
@@ -785,6 +808,7 @@ impl<'f> Renderer<'f> {
                 self.file,
                 &self.resident,
                 &self.globals,
+                self.opts.device_anisotropy(self.ctx),
             )?);
         }
         let Some(naive) = self.naive.as_mut() else {

@@ -64,6 +64,7 @@ impl Naive {
         file: &TreeFile,
         res: &Resident,
         globals: &wgpu::Buffer,
+        anisotropy: u16,
     ) -> Result<Naive, RenderError> {
         let device = &ctx.device;
         let [l0, l1] = naive_bind_group_layouts(device);
@@ -91,7 +92,6 @@ impl Naive {
         });
 
         // One texture, sampler and bind group per distinct original.
-        let aniso = ctx.features.anisotropic_filtering;
         let mut textures = Vec::new();
         let mut uniforms = Vec::new();
         let mut groups = Vec::new();
@@ -129,7 +129,7 @@ impl Naive {
                     device,
                     "naive sampler",
                     [address(wrap[0]), address(wrap[1])],
-                    aniso,
+                    anisotropy,
                 );
                 samplers.push((wrap, s));
             }

@@ -131,12 +131,13 @@ pub fn naive_bind_group_layouts(device: &wgpu::Device) -> [wgpu::BindGroupLayout
     [g0, g1]
 }
 
-/// A trilinear sampler with the given address modes; anisotropic (16×) where the device filters so.
+/// A trilinear sampler with the given address modes and anisotropy clamp (1 = isotropic; see
+/// [`super::RendererOptions::anisotropy`]).
 pub fn sampler(
     device: &wgpu::Device,
     label: &str,
     address: [wgpu::AddressMode; 2],
-    anisotropic: bool,
+    anisotropy: u16,
 ) -> wgpu::Sampler {
     device.create_sampler(&wgpu::SamplerDescriptor {
         label: Some(label),
@@ -146,7 +147,7 @@ pub fn sampler(
         mag_filter: wgpu::FilterMode::Linear,
         min_filter: wgpu::FilterMode::Linear,
         mipmap_filter: wgpu::MipmapFilterMode::Linear,
-        anisotropy_clamp: if anisotropic { 16 } else { 1 },
+        anisotropy_clamp: anisotropy.clamp(1, 16),
         ..Default::default()
     })
 }

@@ -328,37 +328,42 @@ impl Resident {
             }
         }
 
-        // Class arrays: the common format of their originals ([`common_format`]).
+        // Class arrays: the common format of their originals ([`common_format`]), split into slots of at
+        // most `max_layers` layers ([`class_slots`]); each unique's `class` becomes its slot (binding).
         let mut per_class = [0u32; CLASS_COUNT];
         let mut class_formats: [Vec<TexFormat>; CLASS_COUNT] = Default::default();
         for u in &g.uniques {
             per_class[u.class as usize] += 1;
             class_formats[u.class as usize].push(gpu_format(u.format, bc));
         }
-        let mut class_arrays: Vec<Option<TextureArray>> = Vec::with_capacity(CLASS_COUNT);
-        for (k, &n) in per_class.iter().enumerate() {
-            if n > max_layers {
-                return Err(RenderError::TooManyLayers {
-                    what: format!("original textures of class {}", 4u32 << k),
-                    layers: u64::from(n),
-                    limit: u64::from(max_layers),
-                });
-            }
-            let format = common_format(class_formats[k].iter().copied());
-            class_arrays.push((n > 0).then(|| {
-                let label = format!("class {} ({})", 4u32 << k, format.name());
-                TextureArray::new(&ctx.device, &label, 4 << k, n, format)
-            }));
-        }
+        let slots = class_slots(&per_class, max_layers)?;
+        let mut class_arrays: Vec<Option<TextureArray>> = slots
+            .iter()
+            .map(|s| {
+                s.map(|(k, layers)| {
+                    let format = common_format(class_formats[k as usize].iter().copied());
+                    let label = format!("class {} ({})", 4u32 << k, format.name());
+                    TextureArray::new(&ctx.device, &label, 4 << k, layers, format)
+                })
+            })
+            .collect();
         let mut uniques = std::mem::take(&mut g.uniques);
         let mut block_cache: Option<(BlockId, &[u8])> = None;
         for u in &mut uniques {
-            let Some(arr) = class_arrays
-                .get_mut(u.class as usize)
-                .and_then(|a| a.as_mut())
+            // The first slot of this class with a free layer.
+            let Some((slot, arr)) = class_arrays
+                .iter_mut()
+                .enumerate()
+                .filter(|(i, _)| slots[*i].is_some_and(|(k, _)| k == u.class))
+                .find_map(|(i, a)| {
+                    a.as_mut()
+                        .filter(|a| a.layers.in_use() < a.layers.capacity())
+                        .map(|a| (i, a))
+                })
             else {
                 continue;
             };
+            u.class = slot as u32;
             u.layer = arr.layers.alloc().unwrap_or(0);
             let bytes = match block_cache {
                 Some((b, bytes)) if b == u.block => bytes,
@@ -384,6 +389,7 @@ impl Resident {
         for (e, &ui) in tam.iter_mut().zip(&g.tam_unique) {
             if let Some(u) = uniques.get(ui as usize) {
                 e.layer = u.layer;
+                e.class = u.class;
             }
         }
 
@@ -894,5 +900,67 @@ impl Resident {
                 Ok(0)
             }
         }
+    }
+}
+
+/// Texture-array slots (bindings `class0..`) for the all-resident load: slot `k` holds class `k`
+/// (`4 << k` texels), up to `max_layers` layers; a class with more originals than that continues in the
+/// lowest slots no class uses. `per_class[k]`: originals of class k. Each entry: `(class, layers)`.
+/// Errors when the free slots run out (more than `CLASS_COUNT × max_layers` originals in all).
+pub fn class_slots(
+    per_class: &[u32; CLASS_COUNT],
+    max_layers: u32,
+) -> Result<[Option<(u32, u32)>; CLASS_COUNT], RenderError> {
+    let max_layers = max_layers.max(1);
+    let mut slots: [Option<(u32, u32)>; CLASS_COUNT] = [None; CLASS_COUNT];
+    for (k, &n) in per_class.iter().enumerate() {
+        if n > 0 {
+            slots[k] = Some((k as u32, n.min(max_layers)));
+        }
+    }
+    for (k, &n) in per_class.iter().enumerate() {
+        let mut rest = n.saturating_sub(max_layers);
+        while rest > 0 {
+            let Some(free) = slots.iter().position(Option::is_none) else {
+                return Err(RenderError::TooManyLayers {
+                    what: format!(
+                        "original textures of class {} (every class binding is in use)",
+                        4u32 << k
+                    ),
+                    layers: u64::from(n),
+                    limit: u64::from(max_layers),
+                });
+            };
+            slots[free] = Some((k as u32, rest.min(max_layers)));
+            rest = rest.saturating_sub(max_layers);
+        }
+    }
+    Ok(slots)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn class_slots_split_a_full_class_into_unused_bindings() {
+        let mut per_class = [0u32; CLASS_COUNT];
+        per_class[6] = 4304; // class 256 (4 << 6)
+        per_class[2] = 10;
+        let s = class_slots(&per_class, 2048).expect("fits");
+        assert_eq!(s[6], Some((6, 2048)));
+        assert_eq!(s[2], Some((2, 10)));
+        // The rest, 2256, in the lowest unused slots: 0 (2048), 1 (208).
+        assert_eq!(s[0], Some((6, 2048)));
+        assert_eq!(s[1], Some((6, 208)));
+        assert_eq!(s.iter().flatten().map(|&(_, n)| n).sum::<u32>(), 4314);
+        assert!(s[3..6].iter().all(Option::is_none));
+        // Ten full slots at most.
+        let mut all = [0u32; CLASS_COUNT];
+        all[7] = 10 * 2048;
+        assert!(class_slots(&all, 2048).is_ok());
+        all[7] += 1;
+        let e = class_slots(&all, 2048).expect_err("one layer too many");
+        assert!(e.to_string().contains("class 512"), "{e}");
     }
 }

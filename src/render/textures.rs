@@ -7,10 +7,11 @@
 //!
 //! **Layer limit.** A device allows `max_texture_array_layers` layers per array (2048 on lavapipe, 2048 on
 //! most desktop GPUs). When a file has more atlases than that, they are split over up to
-//! [`MAX_ATLAS_ARRAYS`] arrays and each record names its array; beyond that (or for a class with more
-//! originals than the limit) loading fails with [`super::RenderError::TooManyLayers`] — with all blocks
-//! resident that is ≥ 2048 × 1 MiB+ of textures, past what the all-resident renderer is for; paging keeps
-//! residency under a capacity instead.
+//! [`MAX_ATLAS_ARRAYS`] arrays and each record names its array. A class with more originals than the limit
+//! continues in the class bindings no class uses (`resident::class_slots`: the 4,304 facades of a
+//! Berlin-like city take three 512² bindings). Beyond that loading fails with
+//! [`super::RenderError::TooManyLayers`] — with all blocks resident that is ≥ 8,192 atlases, past what the
+//! all-resident renderer is for; paging keeps residency under a capacity instead.
 //!
 //! [`LayerAllocator`] hands out layers (paging slots) from a free list; the paging issue reuses it.
 

@@ -174,44 +174,68 @@ impl Scene {
         t.v.map(|i| self.vertices[i as usize].uv)
     }
 
-    /// Keeps only the triangles whose material satisfies `keep` and the vertices they use (renumbered in
-    /// their first-use order, so [`Scene::bounds`] and the d_min ratio see the kept geometry only).
-    /// Materials and images stay (ids remain valid); unused ones cost nothing later.
+    /// Keeps only the triangles whose material satisfies `keep`, and of vertices, materials and images
+    /// only those the kept triangles use, renumbered in first-use order: [`Scene::bounds`], the d_min ratio,
+    /// the alpha decision and `inspect` all see the kept part alone.
     ///
     /// This is how a build covers part of a scene, as the paper's Berlin test did (§7: the atlas tree held
     /// the facades; roofs and terrain were drawn from an aerial image).
     pub fn retain_materials(&mut self, keep: impl Fn(&Material) -> bool) -> RetainReport {
         let keep_mat: Vec<bool> = self.materials.iter().map(&keep).collect();
-        let before = (self.triangles.len(), self.vertices.len());
+        let before = (
+            self.triangles.len(),
+            self.vertices.len(),
+            self.materials.len(),
+        );
         self.triangles.retain(|t| keep_mat[t.material.idx()]);
-        let mut remap = vec![u32::MAX; self.vertices.len()];
-        let mut vertices = Vec::new();
+        let (mut vmap, mut mmap, mut imap) = (
+            vec![u32::MAX; self.vertices.len()],
+            vec![u32::MAX; self.materials.len()],
+            vec![u32::MAX; self.images.len()],
+        );
+        let (mut vertices, mut materials, mut images) = (Vec::new(), Vec::new(), Vec::new());
         for t in &mut self.triangles {
             for v in &mut t.v {
-                let r = &mut remap[*v as usize];
-                if *r == u32::MAX {
-                    *r = vertices.len() as u32;
-                    vertices.push(self.vertices[*v as usize]);
-                }
-                *v = *r;
+                *v = first_use(&mut vmap, *v as usize, &mut vertices, &self.vertices);
             }
+            let m = first_use(&mut mmap, t.material.idx(), &mut materials, &self.materials);
+            t.material = MaterialId(m);
+        }
+        for m in &mut materials {
+            m.image = ImageId(first_use(
+                &mut imap,
+                m.image.idx(),
+                &mut images,
+                &self.images,
+            ));
         }
         self.vertices = vertices;
-        let used: std::collections::BTreeSet<_> =
-            self.triangles.iter().map(|t| t.material).collect();
+        self.materials = materials;
+        self.images = images;
         RetainReport {
-            materials_kept: used.len(),
+            materials_kept: self.materials.len(),
             triangles_dropped: before.0 - self.triangles.len(),
             vertices_dropped: before.1 - self.vertices.len(),
+            materials_dropped: before.2 - self.materials.len(),
         }
     }
+}
+
+/// The new index of `old` in `kept` (`map[old]`), appending `all[old]` to `kept` at its first use.
+fn first_use<T: Clone>(map: &mut [u32], old: usize, kept: &mut Vec<T>, all: &[T]) -> u32 {
+    if map[old] == u32::MAX {
+        map[old] = kept.len() as u32;
+        kept.push(all[old].clone());
+    }
+    map[old]
 }
 
 /// What [`Scene::retain_materials`] removed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct RetainReport {
-    /// Materials that still have triangles.
+    /// Materials that still have triangles (all that remain in the scene).
     pub materials_kept: usize,
     pub triangles_dropped: usize,
     pub vertices_dropped: usize,
+    pub materials_dropped: usize,
 }

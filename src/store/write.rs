@@ -312,7 +312,18 @@ impl FileWriter {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
-        let temp = NamedTempFile::new_in(dir).map_err(|e| StoreError::io(dir, e))?;
+        // Readable by all once renamed (0o644 less the umask, as `File::create`; tempfile's default 0o600
+        // would make a paging file private to its builder, e.g. unservable by another user's server).
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".tmp-atlastree");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            builder.permissions(std::fs::Permissions::from_mode(0o644));
+        }
+        let temp = builder
+            .tempfile_in(dir)
+            .map_err(|e| StoreError::io(dir, e))?;
         let mut writer = FileWriter {
             target: path.to_path_buf(),
             header: Header {

@@ -7,7 +7,7 @@ use crate::build::{NoProgress, build};
 use crate::camera::{Camera, CameraPath};
 use crate::gpu::GpuContext;
 use crate::paging::{FileSource, PagerOptions};
-use crate::render::{FrameStats, Mode, PagingSetup, Renderer, RendererOptions};
+use crate::render::{FrameStats, Mode, PagingSetup, RenderError, Renderer, RendererOptions};
 use crate::report::metrics::{Histogram, magnified_share, min_density, psnr, psnr_masked, ssim};
 use crate::scene::Scene;
 use crate::select::{SelectOptions, min_distance_scale};
@@ -139,6 +139,10 @@ pub struct SweepData {
     /// Bytes of textures uploaded by the non-paged renderer of each build (everything resident).
     pub resident_bytes: Vec<u64>,
     pub adapter: String,
+    /// Builds whose variants could not be rendered with every block resident (the device ran out of
+    /// memory or texture-array layers), with the error: built and measured as builds, not as variants.
+    /// The base build is never skipped (the reference needs it): its failure ends the sweep.
+    pub skipped: Vec<(String, String)>,
 }
 
 /// The reference of one frame: the original-texture render and the covered pixels.
@@ -195,6 +199,7 @@ pub fn run_sweep(
         histograms: Vec::new(),
         resident_bytes: Vec::new(),
         adapter: ctx.adapter_summary(),
+        skipped: Vec::new(),
     };
     let mut reference: Vec<Reference> = Vec::new();
     for pb in &plan.builds {
@@ -288,6 +293,7 @@ fn run_build(
         width: plan.width,
         height: plan.height,
         gpu_timing: opts.gpu_timing,
+        anisotropy: crate::render::RendererOptions::ANISOTROPY,
     };
     let render_err = |variant: String, frame: usize| {
         move |source| SweepError::Render {
@@ -296,7 +302,16 @@ fn run_build(
             source: Box::new(source),
         }
     };
-    let mut full = Renderer::new(ctx, file, ropts).map_err(render_err(pb.knobs.id(), 0))?;
+    let mut full = match Renderer::new(ctx, file, ropts) {
+        Ok(r) => r,
+        Err(e @ (RenderError::Gpu(_) | RenderError::TooManyLayers { .. })) if !pb.is_base => {
+            tracing::warn!("sweep: skipping the variants of {}: {e}", pb.knobs.id());
+            data.skipped.push((pb.knobs.id(), e.to_string()));
+            progress.advance((pb.runtimes.len() * cameras.len()) as u64);
+            return Ok(());
+        }
+        Err(e) => return Err(render_err(pb.knobs.id(), 0)(e)),
+    };
     data.resident_bytes.push(full.resident.stats.texture_bytes);
     if pb.is_base {
         progress.message("reference frames (original textures)");

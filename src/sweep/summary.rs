@@ -368,6 +368,17 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
     {
         effects_table(&mut md, rows, base);
     }
+    if !data.skipped.is_empty() {
+        let _ = writeln!(
+            md,
+            "## Builds not rendered\n\nBuilt and measured (see Builds), but their variants could not be \
+             drawn with every block resident on this device:\n"
+        );
+        for (id, why) in &data.skipped {
+            let _ = writeln!(md, "- `{id}`: {why}");
+        }
+        let _ = writeln!(md);
+    }
     builds_table(&mut md, &data.builds);
     variants_table(&mut md, rows);
     md

@@ -201,6 +201,7 @@ impl<'a> Running<'a> {
             width: w,
             height: h,
             gpu_timing: opts.gpu_timing,
+            anisotropy: crate::render::RendererOptions::ANISOTROPY,
         };
         let renderer = match opts.capacity {
             None => Renderer::new(ctx, file, ropts)?,

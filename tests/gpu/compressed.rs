@@ -65,6 +65,7 @@ fn frames(ctx: &GpuContext, file: &TreeFile) -> Result<Frames, String> {
             width: W,
             height: H,
             gpu_timing: false,
+            anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
         },
     )
     .map_err(e)?;

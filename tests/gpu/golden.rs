@@ -76,6 +76,7 @@ fn renderer<'f>(ctx: &'f GpuContext, file: &'f TreeFile) -> Result<Renderer<'f>,
         width: W,
         height: H,
         gpu_timing: false,
+        anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
     };
     Renderer::new(ctx, file, opts).map_err(e)
 }

@@ -62,6 +62,7 @@ pub(crate) fn paged_with<'f>(
             width: W,
             height: H,
             gpu_timing: false,
+            anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
         },
         PagingSetup {
             pager: PagerOptions {

@@ -91,6 +91,7 @@ fn renderer<'f>(
             width: w,
             height: h,
             gpu_timing: false,
+            anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
         },
     )
     .map_err(e)
