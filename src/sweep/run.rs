@@ -34,6 +34,8 @@ pub struct SweepOptions {
     pub max_queue: u32,
     /// GPU timestamp queries (when the device supports them).
     pub gpu_timing: bool,
+    /// Sampler anisotropy of every render, the reference included ([`RendererOptions::anisotropy`]).
+    pub anisotropy: u16,
 }
 
 impl Default for SweepOptions {
@@ -44,6 +46,7 @@ impl Default for SweepOptions {
             warmup: 1,
             max_queue: 8,
             gpu_timing: true,
+            anisotropy: RendererOptions::ANISOTROPY,
         }
     }
 }
@@ -139,6 +142,8 @@ pub struct SweepData {
     /// Bytes of textures uploaded by the non-paged renderer of each build (everything resident).
     pub resident_bytes: Vec<u64>,
     pub adapter: String,
+    /// Sampler anisotropy of every render.
+    pub anisotropy: u16,
     /// Builds whose variants could not be rendered with every block resident (the device ran out of
     /// memory or texture-array layers), with the error: built and measured as builds, not as variants.
     /// The base build is never skipped (the reference needs it): its failure ends the sweep.
@@ -199,6 +204,7 @@ pub fn run_sweep(
         histograms: Vec::new(),
         resident_bytes: Vec::new(),
         adapter: ctx.adapter_summary(),
+        anisotropy: opts.anisotropy,
         skipped: Vec::new(),
     };
     let mut reference: Vec<Reference> = Vec::new();
@@ -293,7 +299,7 @@ fn run_build(
         width: plan.width,
         height: plan.height,
         gpu_timing: opts.gpu_timing,
-        anisotropy: crate::render::RendererOptions::ANISOTROPY,
+        anisotropy: opts.anisotropy,
     };
     let render_err = |variant: String, frame: usize| {
         move |source| SweepError::Render {

@@ -294,7 +294,8 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
     let _ = writeln!(md, "# Accuracy vs cost sweep\n");
     let _ = writeln!(
         md,
-        "Scene `{}`, path `{}`, {} frames of {}×{}, {} builds, {} variants. Adapter: {}.\n",
+        "Scene `{}`, path `{}`, {} frames of {}×{}, {} builds, {} variants. Adapter: {}; sampler \
+         anisotropy {}×.\n",
         cx.scene,
         cx.path,
         p.frames,
@@ -302,7 +303,8 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
         p.height,
         data.builds.len(),
         rows.len(),
-        data.adapter
+        data.adapter,
+        data.anisotropy
     );
     let _ = writeln!(
         md,
