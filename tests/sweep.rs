@@ -6,9 +6,10 @@ use atlastree::build::image_ops::MipFilter;
 use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::report::metrics::Histogram;
 use atlastree::sweep::grid::{BuildKnobs, Grid, RuntimeKnobs};
-use atlastree::sweep::run::{BuildRow, FrameRow, merge_histogram};
+use atlastree::sweep::run::{BuildRow, FrameRow, SweepData, merge_histogram};
 use atlastree::sweep::summary::{
-    base_row, frame_time_front, knob_effects, mean, median, recommend, summarise,
+    ReportContext, base_row, frame_time_front, knob_effects, markdown, mean, median, recommend,
+    summarise,
 };
 use std::path::Path;
 
@@ -221,6 +222,63 @@ fn knob_effects_against_the_base() {
     assert_eq!((e[1].frame_ratio, e[1].build_ratio), (0.5, 2.5));
     assert!((e[1].file_ratio - 1.0 / 3.0).abs() < 1e-12);
     assert_eq!(base_row(&rows, &knobs(2048)), None);
+}
+
+/// The report: one line per distinct recommended variant naming all its roles, the knob-effects table
+/// against the base, and the builds that could not be drawn (with their error).
+#[test]
+fn report_names_roles_once_effects_and_skipped_builds() {
+    let (a, b) = (knobs(512), knobs(1024));
+    let frames = vec![
+        frame(a, 1.0, 0, 40.0, 50.0),
+        frame(a, 0.5, 0, 39.9, 10.0),
+        frame(b, 1.0, 0, 30.0, 5.0),
+    ];
+    let builds = vec![build_row(a, 100, 2.0), build_row(b, 300, 5.0)];
+    let rows = summarise(&builds, &frames);
+    let mut plan = Grid::preset("small").expect("preset").plan();
+    plan.builds.truncate(1);
+    plan.builds[0].knobs = a;
+    let data = SweepData {
+        plan,
+        builds,
+        frames,
+        histograms: vec![],
+        resident_bytes: vec![],
+        adapter: "test".into(),
+        anisotropy: 16,
+        skipped: vec![("r10_a2048_b8_box".into(), "out of memory".into())],
+    };
+    let cx = ReportContext {
+        scene: "s.gltf".into(),
+        path: "overview-dive".into(),
+        plots: vec![],
+    };
+    let md = markdown(&data, &rows, &cx);
+    // a/1 is the best and (same build, ties go to accuracy) also the smallest file and fastest build;
+    // a/0.5 is within 0.5 dB of it and the fastest frames. One line each, every role named.
+    let rec: Vec<&str> = md
+        .lines()
+        .filter(|l| l.starts_with("- ") && l.contains("covered PSNR"))
+        .take(2)
+        .collect();
+    assert!(
+        rec[0].starts_with(
+            "- Most accurate, smallest file within 0.5 dB, fastest build within 0.5 dB: `r10_a512_b8_box_t1_all`"
+        ),
+        "{md}"
+    );
+    assert!(
+        rec[1].starts_with("- **fastest frames within 0.5 dB of it** (the recommended runtime default): `r10_a512_b8_box_t0.5_all`"),
+        "{md}"
+    );
+    assert!(md.contains("sampler anisotropy 16×"), "{md}");
+    assert!(md.contains("| texel_ratio | 0.5 | -0.10 |"), "{md}");
+    assert!(md.contains("| atlas_size | 1024 | -10.00 |"), "{md}");
+    assert!(
+        md.contains("## Builds not rendered") && md.contains("- `r10_a2048_b8_box`: out of memory"),
+        "{md}"
+    );
 }
 
 #[test]
