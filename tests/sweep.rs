@@ -273,6 +273,15 @@ fn report_names_roles_once_effects_and_skipped_builds() {
         "{md}"
     );
     assert!(md.contains("sampler anisotropy 16×"), "{md}");
+    assert!(
+        !md.contains("software rasteriser"),
+        "adapter `test` is no CPU device: {md}"
+    );
+    let cpu = SweepData {
+        adapter: "llvmpipe (Vulkan, Cpu, …)".into(),
+        ..data.clone()
+    };
+    assert!(markdown(&cpu, &rows, &cx).contains("`--anisotropy 1` isolates"));
     assert!(md.contains("| texel_ratio | 0.5 | -0.10 |"), "{md}");
     assert!(md.contains("| atlas_size | 1024 | -10.00 |"), "{md}");
     assert!(
