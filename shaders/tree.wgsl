@@ -8,7 +8,8 @@
 // Atlas UVs: `uv_j = uv_leaf * 2^(j-K) + ((ix, iy) mod 2^(K-j)) * 2^(j-K)`, exactly the f32 arithmetic of
 // `build::transform::atlas_uv_at_f32`.
 // Originals: the per-vertex `original` indexes the leaf's range of the texture-array mapping (TAM), which
-// names the class array (one per class size; lavapipe has no binding arrays, so the arrays are separate
+// names the class array binding (one per class size, a class past the layer limit continuing in unused
+// bindings when everything is resident; lavapipe has no binding arrays, so the arrays are separate
 // bindings and the shader switches), the layer, the wrap modes and the material factor.
 
 const NONE: u32 = 0xffffffffu;

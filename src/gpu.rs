@@ -77,6 +77,10 @@ pub enum GpuError {
     /// A wgpu validation or out-of-memory error captured by [`GpuContext::scoped`].
     #[error("wgpu error in {what}: {message}")]
     Wgpu { what: String, message: String },
+    /// The device ran out of memory in [`GpuContext::scoped`] (reported before the validation errors
+    /// that the failed allocation causes later in the scope).
+    #[error("{what}: the device is out of memory ({message})")]
+    OutOfMemory { what: String, message: String },
 }
 
 /// How [`GpuContext::new_headless`] picks its adapter.
@@ -298,12 +302,16 @@ impl GpuContext {
         let validation_error = pollster::block_on(validation.pop());
         let oom_error = pollster::block_on(oom.pop());
         // Out of memory first: a texture that failed to allocate makes every later use a validation error.
-        match oom_error.or(validation_error) {
-            Some(error) => Err(GpuError::Wgpu {
+        match (oom_error, validation_error) {
+            (Some(error), _) => Err(GpuError::OutOfMemory {
                 what: what.to_owned(),
                 message: error.to_string(),
             }),
-            None => Ok(value),
+            (None, Some(error)) => Err(GpuError::Wgpu {
+                what: what.to_owned(),
+                message: error.to_string(),
+            }),
+            (None, None) => Ok(value),
         }
     }
 }

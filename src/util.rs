@@ -9,8 +9,8 @@ pub fn peak_rss_bytes() -> Option<u64> {
 }
 
 /// Shell-style match of a whole name against `pattern`: `*` any run of characters (also none), `?` one
-/// character, everything else literally (case-sensitive). Linear-time two-pointer matcher with
-/// backtracking to the last `*` only.
+/// character, everything else literally (case-sensitive). Two-pointer matcher that backtracks to the
+/// last `*` only: O(|pattern| · |name|) at worst, no recursion.
 pub fn glob_match(pattern: &str, name: &str) -> bool {
     let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
     let (mut i, mut j) = (0, 0);

@@ -117,18 +117,18 @@ pub fn retain_materials(
     scene: &mut atlastree::scene::Scene,
     globs: &[String],
 ) -> anyhow::Result<atlastree::scene::RetainReport> {
+    let names: Vec<String> = scene
+        .materials
+        .iter()
+        .take(8)
+        .map(|m| m.name.clone())
+        .collect();
     let report = scene.retain_materials(|m| {
         globs
             .iter()
             .any(|g| atlastree::util::glob_match(g, &m.name))
     });
     if scene.triangles.is_empty() {
-        let names: Vec<&str> = scene
-            .materials
-            .iter()
-            .take(8)
-            .map(|m| m.name.as_str())
-            .collect();
         anyhow::bail!(
             "{}: no triangle has a material matching {} (materials include: {})",
             scene.source.display(),

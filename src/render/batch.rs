@@ -83,7 +83,9 @@ pub const WRAP_CLAMP: u32 = 2;
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub struct TamEntry {
-    /// Class array index: `log2(class_size) − 2` (class 4 → 0 … class 2048 → 9).
+    /// Class array binding (`class0..class9` in the shader). Paged: `log2(class_size) − 2` (class 4 → 0 …
+    /// class 2048 → 9); all resident, a class past the layer limit continues in unused bindings
+    /// (`resident::class_slots`), so the binding's size is `class_size`, not derived from the index.
     pub class: u32,
     /// Layer in the class array.
     pub layer: u32,

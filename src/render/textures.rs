@@ -9,7 +9,9 @@
 //! most desktop GPUs). When a file has more atlases than that, they are split over up to
 //! [`MAX_ATLAS_ARRAYS`] arrays and each record names its array. A class with more originals than the limit
 //! continues in the class bindings no class uses (`resident::class_slots`: the 4,304 facades of a
-//! Berlin-like city take three 512² bindings). Beyond that loading fails with
+//! Berlin-like city take three 512² bindings; the paged load does not split: its class arrays hold at most
+//! the layers the capacity needs, and a class needing more than the limit is refused). Beyond that
+//! loading fails with
 //! [`super::RenderError::TooManyLayers`] — with all blocks resident that is ≥ 8,192 atlases, past what the
 //! all-resident renderer is for; paging keeps residency under a capacity instead.
 //!

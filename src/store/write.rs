@@ -312,14 +312,15 @@ impl FileWriter {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
-        // Readable by all once renamed (0o644 less the umask, as `File::create`; tempfile's default 0o600
-        // would make a paging file private to its builder, e.g. unservable by another user's server).
+        // The permissions of a plain `File::create` once renamed (0o666 less the umask); tempfile's
+        // default 0o600 would make a paging file private to its builder, e.g. unservable by another
+        // user's server.
         let mut builder = tempfile::Builder::new();
         builder.prefix(".tmp-atlastree");
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            builder.permissions(std::fs::Permissions::from_mode(0o644));
+            builder.permissions(std::fs::Permissions::from_mode(0o666));
         }
         let temp = builder
             .tempfile_in(dir)

@@ -5,7 +5,7 @@ use super::SweepError;
 use super::grid::{BuildKnobs, Plan, PlannedBuild, RuntimeKnobs, variant_id};
 use crate::build::{NoProgress, build};
 use crate::camera::{Camera, CameraPath};
-use crate::gpu::GpuContext;
+use crate::gpu::{GpuContext, GpuError};
 use crate::paging::{FileSource, PagerOptions};
 use crate::render::{FrameStats, Mode, PagingSetup, RenderError, Renderer, RendererOptions};
 use crate::report::metrics::{Histogram, magnified_share, min_density, psnr, psnr_masked, ssim};
@@ -142,10 +142,13 @@ pub struct SweepData {
     /// Bytes of textures uploaded by the non-paged renderer of each build (everything resident).
     pub resident_bytes: Vec<u64>,
     pub adapter: String,
-    /// Sampler anisotropy of every render.
+    /// Sampler anisotropy of every render, as the device applies it (1 without anisotropic filtering).
     pub anisotropy: u16,
+    /// The adapter is a software rasteriser (timings are CPU timings; see the report's note).
+    pub software: bool,
     /// Builds whose variants could not be rendered with every block resident (the device ran out of
-    /// memory or texture-array layers), with the error: built and measured as builds, not as variants.
+    /// memory or texture-array layers), with the error: built and measured as builds, not as variants
+    /// (their `resident_bytes` entry is 0).
     /// The base build is never skipped (the reference needs it): its failure ends the sweep.
     pub skipped: Vec<(String, String)>,
 }
@@ -204,7 +207,12 @@ pub fn run_sweep(
         histograms: Vec::new(),
         resident_bytes: Vec::new(),
         adapter: ctx.adapter_summary(),
-        anisotropy: opts.anisotropy,
+        anisotropy: if ctx.features.anisotropic_filtering {
+            opts.anisotropy.clamp(1, 16)
+        } else {
+            1
+        },
+        software: ctx.info.is_software(),
         skipped: Vec::new(),
     };
     let mut reference: Vec<Reference> = Vec::new();
@@ -310,9 +318,13 @@ fn run_build(
     };
     let mut full = match Renderer::new(ctx, file, ropts) {
         Ok(r) => r,
-        Err(e @ (RenderError::Gpu(_) | RenderError::TooManyLayers { .. })) if !pb.is_base => {
+        Err(
+            e
+            @ (RenderError::Gpu(GpuError::OutOfMemory { .. }) | RenderError::TooManyLayers { .. }),
+        ) if !pb.is_base => {
             tracing::warn!("sweep: skipping the variants of {}: {e}", pb.knobs.id());
             data.skipped.push((pb.knobs.id(), e.to_string()));
+            data.resident_bytes.push(0);
             progress.advance((pb.runtimes.len() * cameras.len()) as u64);
             return Ok(());
         }

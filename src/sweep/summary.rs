@@ -155,8 +155,9 @@ pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendatio
     })
 }
 
-/// What changing one knob away from the base variant does (the grid is a star: every other variant
-/// differs from the base in exactly one knob). Ratios are variant / base; `NaN` where the base value is 0.
+/// What changing one knob away from the base variant does (the grid is a star around the base; rows of
+/// non-base builds at other texel ratios differ in two knobs and are not effects). Ratios are variant /
+/// base; `NaN` where the base value is 0.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct KnobEffect {
     /// Knob name as in the grid JSON (`d_min_ratio`, `atlas_size`, `border`, `filter`, `compress`,
@@ -244,6 +245,15 @@ pub fn base_row(rows: &[VariantRow], base: &BuildKnobs) -> Option<usize> {
         .map(|(i, _)| i)
 }
 
+/// Formats a float cell with its sign for markdown (`–` for NaN).
+fn signed(v: f64, decimals: usize) -> String {
+    if v.is_finite() {
+        format!("{v:+.decimals$}")
+    } else {
+        "–".into()
+    }
+}
+
 /// Formats a float cell for markdown (`–` for NaN).
 fn f(v: f64, decimals: usize) -> String {
     if v.is_finite() {
@@ -312,7 +322,7 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
          mip-mapped) by the naive renderer (`--mode original`) on the base build. Covered PSNR is over \
          the pixels the reference draws on. Means are over frames; frame time is the median.\n"
     );
-    if data.anisotropy > 1 && data.adapter.contains("Cpu") {
+    if data.anisotropy > 1 && data.software {
         let _ = writeln!(
             md,
             "**Note:** a software rasteriser filters the tree's original-texture draws (explicit \
@@ -423,11 +433,11 @@ fn effects_table(md: &mut String, rows: &[VariantRow], base: usize) {
     for e in &effects {
         let _ = writeln!(
             md,
-            "| {} | {} | {:+.2} | {:+.4} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} |",
             e.knob,
             e.value,
-            e.psnr_delta_db,
-            e.ssim_delta,
+            signed(e.psnr_delta_db, 2),
+            signed(e.ssim_delta, 4),
             f(e.frame_ratio, 2),
             f(e.file_ratio, 2),
             f(e.build_ratio, 2)
