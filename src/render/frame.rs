@@ -116,8 +116,8 @@ impl RendererOptions {
     /// The default anisotropy clamp (the best every desktop GPU offers).
     pub const ANISOTROPY: u16 = 16;
 
-    /// `anisotropy` as the device supports it.
-    pub(super) fn device_anisotropy(&self, ctx: &GpuContext) -> u16 {
+    /// `anisotropy` as the device applies it: clamped to 1..=16, and 1 without anisotropic filtering.
+    pub fn device_anisotropy(&self, ctx: &GpuContext) -> u16 {
         if ctx.features.anisotropic_filtering {
             self.anisotropy.clamp(1, 16)
         } else {

@@ -38,6 +38,18 @@ pub struct SweepOptions {
     pub anisotropy: u16,
 }
 
+impl SweepOptions {
+    /// The renderer options of every render of `plan` (its frame size, these timing and sampler settings).
+    pub fn renderer(&self, plan: &Plan) -> RendererOptions {
+        RendererOptions {
+            width: plan.width,
+            height: plan.height,
+            gpu_timing: self.gpu_timing,
+            anisotropy: self.anisotropy,
+        }
+    }
+}
+
 impl Default for SweepOptions {
     fn default() -> Self {
         SweepOptions {
@@ -207,11 +219,7 @@ pub fn run_sweep(
         histograms: Vec::new(),
         resident_bytes: Vec::new(),
         adapter: ctx.adapter_summary(),
-        anisotropy: if ctx.features.anisotropic_filtering {
-            opts.anisotropy.clamp(1, 16)
-        } else {
-            1
-        },
+        anisotropy: opts.renderer(plan).device_anisotropy(ctx),
         software: ctx.info.is_software(),
         skipped: Vec::new(),
     };
@@ -303,12 +311,7 @@ fn run_build(
     reference: &mut Vec<Reference>,
     data: &mut SweepData,
 ) -> Result<(), SweepError> {
-    let ropts = RendererOptions {
-        width: plan.width,
-        height: plan.height,
-        gpu_timing: opts.gpu_timing,
-        anisotropy: opts.anisotropy,
-    };
+    let ropts = opts.renderer(plan);
     let render_err = |variant: String, frame: usize| {
         move |source| SweepError::Render {
             variant,
