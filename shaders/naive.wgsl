@@ -30,8 +30,8 @@ struct Material {
 struct VertexIn {
     @builtin(instance_index) leaf_base: u32,
     @location(0) pos: vec3<f32>,
-    @location(2) orig_uv: vec2<f32>,
-    @location(3) leaf: u32,
+    @location(1) orig_uv: vec2<f32>,
+    @location(2) leaf: u32,
 }
 
 struct VertexOut {

@@ -5,8 +5,12 @@
 // Positions: vertices are relative to their leaf origin (f32); `offsets[leaf]` is `leaf.origin - eye`,
 // computed per frame in f64 on the CPU, so the view-projection matrix has no translation (DESIGN.md
 // "Precision").
-// Atlas UVs: `uv_j = uv_leaf * 2^(j-K) + ((ix, iy) mod 2^(K-j)) * 2^(j-K)`, exactly the f32 arithmetic of
-// `build::transform::atlas_uv_at_f32`.
+// Atlas UVs (DESIGN.md "Repeats" and "Precision"): per fragment the original UV is wrapped into its rect of
+// the leaf atlas (`rect_texel`, twin of render::batch::RectMap::texel_f32: repeat, mirror or clamp per axis,
+// then onto the inner rectangle, kept a filter footprint inside the outer one), then taken to the atlas of
+// the drawn level j: `uv_j = uv_leaf * 2^(j-K) + ((ix, iy) mod 2^(K-j)) * 2^(j-K)`, exactly the f32
+// arithmetic of `build::transform::atlas_uv_at_f32`. Sampling uses the gradients of the unwrapped UV carried
+// through the same maps (`textureSampleGrad`), so mip selection and anisotropy are continuous across seams.
 // Originals: the per-vertex `original` indexes the leaf's range of the texture-array mapping (TAM), which
 // names the class array binding (one per class size, a class past the layer limit continuing in unused
 // bindings when everything is resident; lavapipe has no binding arrays, so the arrays are separate
@@ -31,7 +35,8 @@ struct Globals {
     view_proj: mat4x4<f32>,
     // 0 textured (tree, dummy), 1 colour by level.
     mode: u32,
-    _p0: u32,
+    // Side of every atlas, texels.
+    atlas_texels: f32,
     _p1: u32,
     _p2: u32,
 }
@@ -48,11 +53,30 @@ struct NodeDraw {
     _pad: u32,
 }
 
-// Twin of render::batch::LeafGpu (16 bytes).
+// Twin of render::batch::LeafGpu (32 bytes).
 struct LeafInfo {
     cell: vec2<u32>,
     level: u32,
     first_tam: u32,
+    first_rect: u32,
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
+}
+
+// Twin of render::batch::RectMap (64 bytes), leaf-atlas texels.
+struct RectMap {
+    uv_min: vec2<f32>,
+    texels_per_uv: vec2<f32>,
+    inner_lo: vec2<f32>,
+    half_gap: vec2<f32>,
+    outer_lo: vec2<f32>,
+    outer_hi: vec2<f32>,
+    // wrap_s | wrap_t << 2: 0 linear (baked), 1 repeat, 2 mirror, 3 clamp (build::tree::RectWrap codes).
+    wrap: u32,
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
 }
 
 // Twin of render::batch::TamEntry (48 bytes).
@@ -73,35 +97,40 @@ struct TamEntry {
 @group(0) @binding(2) var<storage, read> leaves: array<LeafInfo>;
 @group(0) @binding(3) var<storage, read> offsets: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> tam: array<TamEntry>;
-@group(0) @binding(5) var atlas_sampler: sampler;
-@group(0) @binding(6) var original_sampler: sampler;
-@group(0) @binding(7) var atlas0: texture_2d_array<f32>;
-@group(0) @binding(8) var atlas1: texture_2d_array<f32>;
-@group(0) @binding(9) var atlas2: texture_2d_array<f32>;
-@group(0) @binding(10) var atlas3: texture_2d_array<f32>;
-@group(0) @binding(11) var class0: texture_2d_array<f32>;
-@group(0) @binding(12) var class1: texture_2d_array<f32>;
-@group(0) @binding(13) var class2: texture_2d_array<f32>;
-@group(0) @binding(14) var class3: texture_2d_array<f32>;
-@group(0) @binding(15) var class4: texture_2d_array<f32>;
-@group(0) @binding(16) var class5: texture_2d_array<f32>;
-@group(0) @binding(17) var class6: texture_2d_array<f32>;
-@group(0) @binding(18) var class7: texture_2d_array<f32>;
-@group(0) @binding(19) var class8: texture_2d_array<f32>;
-@group(0) @binding(20) var class9: texture_2d_array<f32>;
+@group(0) @binding(5) var<storage, read> rects: array<RectMap>;
+@group(0) @binding(6) var atlas_sampler: sampler;
+// The same filter without anisotropy: used where a fragment's footprint is (nearly) isotropic, where the two
+// agree; a software rasteriser's anisotropic path costs per probe (lavapipe: ~50× on wrapped atlas UVs).
+@group(0) @binding(7) var atlas_sampler_iso: sampler;
+@group(0) @binding(8) var original_sampler: sampler;
+@group(0) @binding(9) var original_sampler_iso: sampler;
+@group(0) @binding(10) var atlas0: texture_2d_array<f32>;
+@group(0) @binding(11) var atlas1: texture_2d_array<f32>;
+@group(0) @binding(12) var atlas2: texture_2d_array<f32>;
+@group(0) @binding(13) var atlas3: texture_2d_array<f32>;
+@group(0) @binding(14) var class0: texture_2d_array<f32>;
+@group(0) @binding(15) var class1: texture_2d_array<f32>;
+@group(0) @binding(16) var class2: texture_2d_array<f32>;
+@group(0) @binding(17) var class3: texture_2d_array<f32>;
+@group(0) @binding(18) var class4: texture_2d_array<f32>;
+@group(0) @binding(19) var class5: texture_2d_array<f32>;
+@group(0) @binding(20) var class6: texture_2d_array<f32>;
+@group(0) @binding(21) var class7: texture_2d_array<f32>;
+@group(0) @binding(22) var class8: texture_2d_array<f32>;
+@group(0) @binding(23) var class9: texture_2d_array<f32>;
 
 struct VertexIn {
     @builtin(instance_index) instance: u32,
     @location(0) pos: vec3<f32>,
-    @location(1) atlas_uv: vec2<f32>,
-    @location(2) orig_uv: vec2<f32>,
-    @location(3) leaf: u32,
-    @location(4) original: u32,
+    @location(1) orig_uv: vec2<f32>,
+    @location(2) leaf: u32,
+    @location(3) original: u32,
+    @location(4) rect: u32,
 }
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
-    // Atlas UV at the node's level, or the original UV.
+    // The original UV (unbounded; atlas draws wrap it into the rect per fragment).
     @location(0) uv: vec2<f32>,
     // Atlas layer, or NONE for an original-texture draw.
     @location(1) @interpolate(flat) layer: u32,
@@ -109,6 +138,9 @@ struct VertexOut {
     @location(2) @interpolate(flat) which: u32,
     @location(3) @interpolate(flat) level: u32,
     @location(4) @interpolate(flat) cutoff: f32,
+    // Atlas draws: the rect (global index) and the level transform (2^(j-K), cell offset * 2^(j-K)).
+    @location(5) @interpolate(flat) rect: u32,
+    @location(6) @interpolate(flat) level_xf: vec3<f32>,
 }
 
 // 2^-d for 0 <= d <= 31, exactly (built from the exponent bits).
@@ -116,13 +148,58 @@ fn exp2_neg(d: u32) -> f32 {
     return bitcast<f32>((127u - d) << 23u);
 }
 
-// build::transform::atlas_uv_at_f32: the leaf-local UV in the atlas of the ancestor at `level`.
-fn atlas_uv_at(uv_leaf: vec2<f32>, cell: vec2<u32>, leaf_level: u32, level: u32) -> vec2<f32> {
+// The level transform of build::transform::atlas_uv_at_f32 as (2^(j-K), offset): the leaf-local UV in
+// the atlas of the ancestor at `level` is `uv_leaf * x + offset` (both factors exact).
+fn level_transform(cell: vec2<u32>, leaf_level: u32, level: u32) -> vec3<f32> {
     let d = min(leaf_level - min(level, leaf_level), 31u);
     let mask = (1u << d) - 1u;
     let o = vec2<f32>(f32(cell.x & mask), f32(cell.y & mask));
     let s = exp2_neg(d);
-    return uv_leaf * s + o * s;
+    return vec3<f32>(s, o * s);
+}
+
+// One axis of RectMap::axis_f32: (the rect coordinate of u, the sign of its derivative).
+fn rect_axis(u: f32, mode: u32, uv_min: f32, half_gap: f32) -> vec2<f32> {
+    if mode == 1u {
+        let x = u - uv_min;
+        return vec2<f32>(x - floor(x + half_gap), 1.0);
+    }
+    if mode == 2u {
+        let p = u - 2.0 * floor(u * 0.5);
+        if p > 1.0 {
+            return vec2<f32>(2.0 - p - uv_min, -1.0);
+        }
+        return vec2<f32>(p - uv_min, 1.0);
+    }
+    if mode == 3u {
+        return vec2<f32>(clamp(u, 0.0, 1.0) - uv_min, 1.0);
+    }
+    return vec2<f32>(u - uv_min, 1.0);
+}
+
+struct RectSample {
+    // Leaf-atlas texel coordinates.
+    texel: vec2<f32>,
+    // Their screen derivatives.
+    gx: vec2<f32>,
+    gy: vec2<f32>,
+}
+
+// RectMap::texel_f32: the fragment's texel in its leaf's atlas, kept half the footprint plus half a drawn
+// texel (`level_texels` leaf texels) inside the outer rectangle.
+fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32) -> RectSample {
+    let s = rect_axis(uv.x, r.wrap & 3u, r.uv_min.x, r.half_gap.x);
+    let t = rect_axis(uv.y, (r.wrap >> 2u) & 3u, r.uv_min.y, r.half_gap.y);
+    let tpu = r.texels_per_uv * vec2<f32>(s.y, t.y);
+    var out: RectSample;
+    out.gx = ddx * tpu;
+    out.gy = ddy * tpu;
+    let margin = 0.5 * (abs(out.gx) + abs(out.gy)) + vec2<f32>(0.5 * level_texels);
+    let lo = r.outer_lo + margin;
+    let hi = r.outer_hi - margin;
+    let p = r.inner_lo + vec2<f32>(s.x, t.x) * r.texels_per_uv;
+    out.texel = select(clamp(p, lo, hi), 0.5 * (lo + hi), lo > hi);
+    return out;
 }
 
 @vertex
@@ -136,15 +213,39 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.layer = d.atlas_layer;
     out.level = d.level;
     out.cutoff = d.alpha_cutoff;
+    out.uv = v.orig_uv;
     if d.atlas_layer != NONE {
-        out.uv = atlas_uv_at(v.atlas_uv, leaf.cell, leaf.level, d.level);
         out.which = d.atlas_array;
+        out.rect = leaf.first_rect + v.rect;
+        out.level_xf = level_transform(leaf.cell, leaf.level, d.level);
     } else {
-        out.uv = v.orig_uv;
         out.which = leaf.first_tam + v.original;
         out.level = 255u;
+        out.rect = 0u;
+        out.level_xf = vec3<f32>(1.0, 0.0, 0.0);
     }
     return out;
+}
+
+// The footprint's axes differ by more than ANISOTROPY_MIN (then the anisotropic sampler is used).
+const ANISOTROPY_MIN: f32 = 1.5;
+fn is_anisotropic(ddx: vec2<f32>, ddy: vec2<f32>) -> bool {
+    let sv = singular_values(ddx, ddy, 1.0);
+    return sv.y > ANISOTROPY_MIN * sv.x;
+}
+
+fn sample_atlas_iso(array: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
+    var c = textureSampleGrad(atlas0, atlas_sampler_iso, uv, layer, ddx, ddy);
+    if ATLAS_ARRAYS > 1u && array == 1u {
+        c = textureSampleGrad(atlas1, atlas_sampler_iso, uv, layer, ddx, ddy);
+    }
+    if ATLAS_ARRAYS > 2u && array == 2u {
+        c = textureSampleGrad(atlas2, atlas_sampler_iso, uv, layer, ddx, ddy);
+    }
+    if ATLAS_ARRAYS > 3u && array == 3u {
+        c = textureSampleGrad(atlas3, atlas_sampler_iso, uv, layer, ddx, ddy);
+    }
+    return c;
 }
 
 fn sample_atlas(array: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
@@ -167,7 +268,13 @@ fn is_class(class_index: u32, k: u32) -> bool {
 }
 
 fn sample_class(class_index: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
-    let s = original_sampler;
+    if is_anisotropic(ddx, ddy) {
+        return sample_class_with(original_sampler, class_index, uv, layer, ddx, ddy);
+    }
+    return sample_class_with(original_sampler_iso, class_index, uv, layer, ddx, ddy);
+}
+
+fn sample_class_with(s: sampler, class_index: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
     var c = vec4<f32>(0.0);
     if is_class(class_index, 0u) { c = textureSampleGrad(class0, s, uv, layer, ddx, ddy); }
     if is_class(class_index, 1u) { c = textureSampleGrad(class1, s, uv, layer, ddx, ddy); }
@@ -216,15 +323,6 @@ fn level_colour(level: u32) -> vec3<f32> {
     return palette[level % 8u];
 }
 
-// Size in texels of mip 0 of the texture an atlas draw samples (array `array`).
-fn atlas_size(array: u32) -> f32 {
-    var d = textureDimensions(atlas0).x;
-    if ATLAS_ARRAYS > 1u && array == 1u { d = textureDimensions(atlas1).x; }
-    if ATLAS_ARRAYS > 2u && array == 2u { d = textureDimensions(atlas2).x; }
-    if ATLAS_ARRAYS > 3u && array == 3u { d = textureDimensions(atlas3).x; }
-    return f32(d);
-}
-
 // Texel density of one pixel: the singular values of the Jacobian d(texel)/d(pixel) of mip 0 of the
 // sampled texture (`ddx`, `ddy`: UV derivatives; `size`: texels per unit UV). x: the smaller singular
 // value = texels per pixel along the least-sampled screen direction (< 1: magnified); y: the larger.
@@ -237,6 +335,24 @@ fn singular_values(ddx: vec2<f32>, ddy: vec2<f32>, size: f32) -> vec2<f32> {
     return vec2<f32>(sqrt(max(0.5 * (e - r), 0.0)), sqrt(0.5 * (e + r)));
 }
 
+// An atlas draw's sample position at the drawn level and its gradients (UV units of that atlas).
+struct AtlasSample {
+    uv: vec2<f32>,
+    ddx: vec2<f32>,
+    ddy: vec2<f32>,
+}
+
+fn atlas_sample(in: VertexOut, ddx: vec2<f32>, ddy: vec2<f32>) -> AtlasSample {
+    let x = in.level_xf;
+    let size = globals.atlas_texels;
+    let r = rect_texel(rects[in.rect], in.uv, ddx, ddy, 1.0 / x.x);
+    var out: AtlasSample;
+    out.uv = (r.texel / size) * x.x + x.yz;
+    out.ddx = r.gx * (x.x / size);
+    out.ddy = r.gy * (x.x / size);
+    return out;
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // Gradients of the unwrapped UV, taken in uniform control flow: mip selection stays right across
@@ -246,42 +362,37 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if globals.mode == 1u {
         return vec4<f32>(level_colour(in.level), 1.0);
     }
-    let colour = shade(in, ddx, ddy);
-    if DENSITY == 1u {
-        // (texels/pixel min, max, source 0 atlas / 1 original, level; 255 for originals).
-        var size = 0.0;
-        if SOURCE == 0u {
-            size = atlas_size(in.which);
-        } else {
-            size = tam[in.which].class_size;
+    if SOURCE == 0u {
+        let a = atlas_sample(in, ddx, ddy);
+        if DENSITY == 1u {
+            // (texels/pixel min, max, source 0 atlas / 1 original, level; 255 for originals).
+            let sv = singular_values(a.ddx, a.ddy, globals.atlas_texels);
+            return vec4<f32>(sv.x, sv.y, 0.0, f32(in.level));
         }
-        let sv = singular_values(ddx, ddy, size);
-        return vec4<f32>(sv.x, sv.y, f32(SOURCE), f32(in.level));
+        var c: vec4<f32>;
+        if is_anisotropic(a.ddx, a.ddy) {
+            c = sample_atlas(in.which, a.uv, in.layer, a.ddx, a.ddy);
+        } else {
+            c = sample_atlas_iso(in.which, a.uv, in.layer, a.ddx, a.ddy);
+        }
+        return finish(c, in.cutoff, 2u);
     }
-    return colour;
+    let e = tam[in.which];
+    if DENSITY == 1u {
+        let sv = singular_values(ddx, ddy, e.class_size);
+        return vec4<f32>(sv.x, sv.y, 1.0, f32(in.level));
+    }
+    let wrapped = vec2<f32>(
+        wrap_axis(in.uv.x, e.wrap & 3u, e.class_size),
+        wrap_axis(in.uv.y, (e.wrap >> 2u) & 3u, e.class_size),
+    );
+    let colour = sample_class(e.class_index, wrapped, e.layer, ddx, ddy) * e.factor;
+    return finish(colour, e.cutoff, e.alpha_mode);
 }
 
-// The colour of a textured fragment (tree and dummy modes), or discard (alpha mask and blend).
-fn shade(in: VertexOut, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
-    var colour: vec4<f32>;
-    var cutoff = in.cutoff;
-    var alpha_mode = 2u;
-    if SOURCE == 0u && ATLAS_ARRAYS == 1u {
-        // Uniform control flow: implicit derivatives (per quad; explicit gradients cost a per-pixel LOD on
-        // software rasterisers).
-        colour = textureSample(atlas0, atlas_sampler, in.uv, in.layer);
-    } else if SOURCE == 0u {
-        colour = sample_atlas(in.which, in.uv, in.layer, ddx, ddy);
-    } else {
-        let e = tam[in.which];
-        let wrapped = vec2<f32>(
-            wrap_axis(in.uv.x, e.wrap & 3u, e.class_size),
-            wrap_axis(in.uv.y, (e.wrap >> 2u) & 3u, e.class_size),
-        );
-        colour = sample_class(e.class_index, wrapped, e.layer, ddx, ddy) * e.factor;
-        cutoff = e.cutoff;
-        alpha_mode = e.alpha_mode;
-    }
+// The colour of a textured fragment (tree and dummy modes) in the pipeline's pass, or discard (alpha mask
+// and blend). `alpha_mode`: the material's (original draws) or 2 (atlas draws: the pass decides).
+fn finish(colour: vec4<f32>, cutoff: f32, alpha_mode: u32) -> vec4<f32> {
     if PASS == 0u {
         return vec4<f32>(colour.rgb, 1.0);
     }

@@ -45,8 +45,12 @@ pub struct Assembled {
     pub blocks: Vec<BlockDesc>,
     /// Occupancy per leaf atlas (0..1), in leaf order.
     pub occupancy: Vec<f64>,
-    /// Whether each leaf's rect was capped to its source (parallel to `tree.leaves[i].rects`).
+    /// Whether each leaf's rect was capped to its source on an axis (parallel to `tree.leaves[i].rects`).
     pub capped: Vec<Vec<bool>>,
+    /// Σ over rects of the UV area (periods) their inner rectangles show, and of the UV hull area of
+    /// their triangles (what baking would store).
+    pub periods_stored: f64,
+    pub periods_spanned: f64,
 }
 
 struct Asm<'a> {
@@ -96,6 +100,8 @@ pub fn assemble(
             blocks: Vec::new(),
             occupancy: Vec::new(),
             capped: Vec::new(),
+            periods_stored: 0.0,
+            periods_spanned: 0.0,
         },
         next_block: first_block,
     };
@@ -168,7 +174,6 @@ impl Asm<'_> {
         } else {
             DVec3::ZERO
         };
-        let size = self.params.atlas_size as f64;
 
         // Original textures: one entry per material, grouped greedily into blocks of about an atlas' size
         // (an image larger than that is a block of its own).
@@ -209,7 +214,7 @@ impl Asm<'_> {
             });
         }
 
-        // Geometry: deduplicated vertices, positions relative to the origin, leaf-local atlas UVs.
+        // Geometry: deduplicated vertices, positions relative to the origin, each naming its rect.
         let rect_of: HashMap<(MaterialId, i32), usize> = l
             .rects
             .iter()
@@ -218,20 +223,26 @@ impl Asm<'_> {
             .collect();
         let first_vertex = self.out.tree.vertices.len() as u32;
         let first_index = self.out.tree.indices.len() as u32;
-        let mut dedup: HashMap<[u32; 9], u32> = HashMap::new();
+        let mut dedup: HashMap<[u32; 8], u32> = HashMap::new();
+        let mut hulls =
+            vec![(DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)); l.rects.len()];
         for &ti in &self.order[n.range.clone()] {
             let t = &self.infos[ti as usize];
             let pos = t.pos;
-            let r = &l.rects[rect_of[&(t.material, t.class)]];
+            let ri = rect_of[&(t.material, t.class)];
+            for uv in t.uv.iter().filter(|uv| uv.is_finite()) {
+                hulls[ri].0 = hulls[ri].0.min(*uv);
+                hulls[ri].1 = hulls[ri].1.max(*uv);
+            }
             for (k, p) in pos.iter().enumerate() {
                 let v = TreeVertex {
                     pos: finite3((*p - origin).as_vec3().to_array()),
-                    atlas_uv: finite2(atlas_uv(t.uv[k], r.uv_min, r.uv_max, r.inner, size)),
                     orig_uv: finite2(t.uv[k].as_vec2().to_array()),
                     leaf: leaf_id.0,
                     original: slot_of[&t.material],
+                    rect: ri as u32,
                 };
-                let key: [u32; 9] = bytemuck::cast(v);
+                let key: [u32; 8] = bytemuck::cast(v);
                 let vi = *dedup.entry(key).or_insert_with(|| {
                     self.out.tree.vertices.push(v);
                     self.out.tree.vertices.len() as u32 - 1
@@ -245,7 +256,15 @@ impl Asm<'_> {
         self.out.occupancy.push(l.occupancy);
         self.out
             .capped
-            .push(l.rects.iter().map(|r| r.capped).collect());
+            .push(l.rects.iter().map(|r| r.capped[0] || r.capped[1]).collect());
+        for (r, (lo, hi)) in l.rects.iter().zip(&hulls) {
+            let stored = r.uv_max - r.uv_min;
+            self.out.periods_stored += stored.x * stored.y;
+            let spanned = (*hi - *lo).max(DVec2::ZERO);
+            if spanned.is_finite() {
+                self.out.periods_spanned += spanned.x * spanned.y;
+            }
+        }
         self.out.tree.leaves.push(Leaf {
             node,
             origin,
@@ -262,6 +281,8 @@ impl Asm<'_> {
                     inner: r.inner,
                     uv_min: r.uv_min.to_array(),
                     uv_max: r.uv_max.to_array(),
+                    wrap: r.wrap,
+                    capped: r.capped,
                 })
                 .collect(),
             originals,
@@ -269,34 +290,6 @@ impl Asm<'_> {
         });
         leaf_id
     }
-}
-
-/// Leaf-local atlas UV of a (period-shifted) texture UV: the affine map taking `[uv_min, uv_max]` onto the
-/// inner rectangle (§5.2.2), divided by the atlas size. A texture area of zero width, and a NaN UV (a
-/// triangle with a non-finite UV is kept but its texture is undefined), map to the centre of the inner
-/// rectangle; ±∞ clamp to its edges. The result is always inside the inner rectangle.
-pub fn atlas_uv(
-    uv: DVec2,
-    uv_min: DVec2,
-    uv_max: DVec2,
-    inner: [u32; 4],
-    atlas_size: f64,
-) -> [f32; 2] {
-    let axis = |u: f64, lo: f64, hi: f64, x: u32, w: u32| -> f64 {
-        let span = hi - lo;
-        let t = if span > 0.0 {
-            ((u - lo) / span).clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
-        // NaN survives the clamp; it must not become 0 (outside the rect) in `finite2`.
-        let t = if t.is_nan() { 0.5 } else { t };
-        (x as f64 + t * w as f64) / atlas_size
-    };
-    [
-        axis(uv.x, uv_min.x, uv_max.x, inner[0], inner[2]) as f32,
-        axis(uv.y, uv_min.y, uv_max.y, inner[1], inner[3]) as f32,
-    ]
 }
 
 fn finite2(a: [f32; 2]) -> [f32; 2] {
@@ -357,49 +350,5 @@ mod tests {
         assert_eq!(original_class(300, 200), 512);
         assert_eq!(original_class(512, 512), 512);
         assert_eq!(original_class(8192, 16), 2048);
-    }
-
-    #[test]
-    fn atlas_uv_maps_area_onto_inner_rect() {
-        let inner = [8, 16, 64, 32];
-        let a = atlas_uv(
-            DVec2::new(0.0, 2.0),
-            DVec2::new(0.0, 2.0),
-            DVec2::new(4.0, 3.0),
-            inner,
-            256.0,
-        );
-        assert_eq!(a, [8.0 / 256.0, 16.0 / 256.0]);
-        let b = atlas_uv(
-            DVec2::new(4.0, 3.0),
-            DVec2::new(0.0, 2.0),
-            DVec2::new(4.0, 3.0),
-            inner,
-            256.0,
-        );
-        assert_eq!(b, [72.0 / 256.0, 48.0 / 256.0]);
-        // Zero-width area: the centre of the inner rect.
-        let c = atlas_uv(
-            DVec2::new(1.0, 1.0),
-            DVec2::new(1.0, 1.0),
-            DVec2::new(1.0, 1.0),
-            inner,
-            256.0,
-        );
-        assert_eq!(c, [40.0 / 256.0, 32.0 / 256.0]);
-    }
-
-    #[test]
-    fn non_finite_uvs_map_inside_the_inner_rect() {
-        // Regression (issue 8, hard_extreme_uvs): a NaN UV used to become atlas UV 0 via `finite2`, outside
-        // the texture's area (verify failed); ±∞ clamp to the edges.
-        let inner = [8, 16, 64, 32];
-        let (lo, hi) = (DVec2::new(0.0, 2.0), DVec2::new(4.0, 3.0));
-        let at = |u: f64, v: f64| atlas_uv(DVec2::new(u, v), lo, hi, inner, 256.0);
-        assert_eq!(at(f64::NAN, f64::NAN), [40.0 / 256.0, 32.0 / 256.0]);
-        assert_eq!(
-            at(f64::INFINITY, f64::NEG_INFINITY),
-            [72.0 / 256.0, 16.0 / 256.0]
-        );
     }
 }

@@ -5,19 +5,44 @@
 //! (rayon) over the four children. The triangles of every node are one contiguous range of a single
 //! permutation array, so the leaves of any subtree are contiguous in tree order.
 //!
+//! What a node's atlas holds (DESIGN.md "Repeats"): one rect per material (per material and density class
+//! with repeats baked), whose UV range per axis is the [`super::cover`] of its triangles — at most one
+//! period where the sampler repeats, mirrors or clamps, so a rect's size depends on the texels per period
+//! and not on how often the texture repeats.
+//!
+//! The split (§5.3) cuts the midpoint-sorted sequence where the summed texel demand ([`super::demand`],
+//! the paper's condition (b) itself) is balanced: the larger half as small as possible. Midpoints are
+//! compared quantised to `2⁻²⁰` of the scene's extent and a cut never separates equal keys, so a
+//! translation of the whole scene (UTM coordinates) that perturbs midpoints by rounding gives the same
+//! tree.
+//!
+//! Leaves that are not a plain fit ([`LeafReason`]):
+//! - a rect that alone needs more than the atlas (one period at the required density, plus borders):
+//!   the node's resolution is scaled to fit it (splitting cannot shrink one period);
+//! - a **source-resolution node**: its texel demand is almost all capped to the sources
+//!   ([`LayoutOptions::capped_share`]), so deeper leaves would only copy the originals. It becomes a leaf
+//!   whose atlas holds its content scaled to fit, `min_distance = d_min / scale`; nearer, its originals
+//!   are drawn. Only when those originals stay within [`LayoutOptions::capped_originals`] texels, so the
+//!   textures a close camera needs stay pageable;
+//! - a single triangle that alone needs more than the atlas is *clamped* likewise.
+//!
 //! Termination, where the paper would loop forever: a split always leaves every child with fewer triangles
-//! than its parent (the cut index is kept inside `1..n`), a single triangle that alone needs more than the
-//! atlas is *clamped* (its leaf's resolution is scaled down and its `min_distance` raised by the same
-//! factor; reported), and `max_depth` bounds the depth with an error naming the region.
+//! than its parent (the cut index is kept inside `1..n`), and `max_depth` bounds the depth with an error
+//! naming the region.
 
-use super::area::{AreaInput, AreaOptions, required_area};
+use super::area::{AreaInput, AreaOptions, required_area, scale_to_fit};
+use super::assemble::original_class;
+use super::cover::AxisCover;
+use super::demand::{DemandModel, prefix_demands};
 use super::pack::{PackOptions, pack};
 use super::prepare::TriInfo;
 use super::sizing::SizeMethod;
+use super::tree::RectWrap;
 use crate::ids::{Cell, Level, MaterialId};
 use crate::scene::Scene;
 use glam::{DVec2, DVec3};
-use std::collections::BTreeMap;
+use serde::Serialize;
+use std::collections::{BTreeMap, HashSet};
 use std::ops::Range;
 
 /// Options of the layout stage.
@@ -28,6 +53,38 @@ pub struct LayoutOptions {
     pub max_depth: u8,
     /// Never more texels per repetition than the source image has (see `area`).
     pub cap_to_source: bool,
+    /// Repeats wrapped in the shader: rects hold at most one period ([`super::RepeatMode::Wrap`]).
+    pub wrap: bool,
+    /// A node that does not fit is made a scaled leaf instead of split when its original textures (at
+    /// their stored class sizes) need at most this many texels (0: always split).
+    pub leaf_originals: u64,
+}
+
+/// A scaled leaf whose demand is at least this share capped to the sources counts as
+/// [`LeafReason::SourceResolution`].
+pub const SOURCE_RESOLUTION_SHARE: f64 = 0.9;
+
+/// A split whose children's original textures average at least this share of the parent's does not
+/// separate textures: the node becomes a [`LeafReason::Shared`] leaf instead.
+pub const FUTILE_SPLIT_SHARE: f64 = 0.9;
+
+/// Why a leaf ended where it did.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum LeafReason {
+    /// Its rects packed into one atlas at full resolution.
+    Fits,
+    /// A rect alone needs more than the atlas: the leaf's resolution is scaled to fit it.
+    Oversized,
+    /// Its originals are within [`LayoutOptions::leaf_originals`] and its demand is (almost) all at source
+    /// resolution: deeper atlases would only copy the originals. Content scaled to fit.
+    SourceResolution,
+    /// Its originals are within [`LayoutOptions::leaf_originals`]: not split, content scaled to fit.
+    Scaled,
+    /// Splitting would not shrink its texture set (every quarter uses about the same textures): content
+    /// scaled to fit.
+    Shared,
+    /// A single triangle needs more than the atlas: scaled to fit.
+    Clamped,
 }
 
 /// One material's area in a node atlas (for one density class of its triangles), before pixels exist.
@@ -41,8 +98,11 @@ pub struct PlannedRect {
     pub inner: [u32; 4],
     pub uv_min: DVec2,
     pub uv_max: DVec2,
-    /// True if the source cap limited this texture's resolution (then the guarantee is the source's).
-    pub capped: bool,
+    /// Per axis, how UVs reach the rect.
+    pub wrap: [RectWrap; 2],
+    /// Per axis, whether the source cap limited this texture's resolution (then the guarantee is the
+    /// source's).
+    pub capped: [bool; 2],
 }
 
 /// A successful leaf layout.
@@ -51,8 +111,11 @@ pub struct LeafLayout {
     pub rects: Vec<PlannedRect>,
     /// Share of the atlas covered by outer rectangles, 0..1.
     pub occupancy: f64,
-    /// 1.0 unless the leaf had to be clamped.
+    /// 1.0 unless the leaf had to be scaled down (see [`LeafReason`]).
     pub clamp_scale: f64,
+    pub reason: LeafReason,
+    /// Texels of the leaf's original textures at their stored class sizes.
+    pub original_texels: u64,
 }
 
 /// A node of the layout tree.
@@ -104,21 +167,86 @@ pub enum LayoutError {
     },
 }
 
+/// Leaves per [`LeafReason`], and what the scaled ones imply.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct LeafCounts {
+    pub fits: u64,
+    pub oversized: u64,
+    pub source_resolution: u64,
+    pub scaled: u64,
+    pub shared: u64,
+    pub clamped: u64,
+    /// Original texels (at class size) of the leaves scaled for their content (source-resolution, scaled,
+    /// shared): summed, and the largest single leaf's (what a camera next to it needs resident).
+    pub scaled_original_texels: u64,
+    pub scaled_original_texels_max: u64,
+    /// The smallest resolution scale of any leaf (1 when none was scaled).
+    pub scale_min: f64,
+}
+
 /// The whole layout plus counters for the report.
 #[derive(Debug)]
 pub struct Layout {
     pub root: LayoutNode,
     /// Permutation of the prepared triangles: leaves' ranges in tree order.
     pub order: Vec<u32>,
+    /// Leaves whose resolution was scaled below 1 (oversized rects, source-resolution nodes, clamped
+    /// triangles).
     pub clamped_leaves: usize,
+    pub leaves: LeafCounts,
 }
 
 struct Ctx<'a> {
     scene: &'a Scene,
     infos: &'a [TriInfo],
     opts: &'a LayoutOptions,
+    split: Splitter<'a>,
     nodes: &'a std::sync::atomic::AtomicU64,
     progress: &'a (dyn Fn(u64) + Sync),
+}
+
+/// The demand model of `scene` under `opts` (sources, sampler wraps, border, cap, wrap).
+pub fn demand_model(scene: &Scene, opts: &LayoutOptions) -> DemandModel {
+    DemandModel {
+        sources: scene
+            .materials
+            .iter()
+            .map(|m| {
+                let img = &scene.images[m.image.idx()];
+                [img.width, img.height]
+            })
+            .collect(),
+        wraps: scene.materials.iter().map(|m| m.wrap).collect(),
+        wrap: opts.wrap,
+        border: opts.border,
+        cap_to_source: opts.cap_to_source,
+    }
+}
+
+/// Quantised plane midpoints: `floor((mid − min mid) / q)` with `q = 2^(ceil(log2 extent) − 20)`.
+pub fn midpoint_keys(infos: &[TriInfo]) -> Vec<[i64; 2]> {
+    let mut lo = DVec2::splat(f64::INFINITY);
+    let mut hi = DVec2::splat(f64::NEG_INFINITY);
+    for t in infos {
+        lo = lo.min(t.mid);
+        hi = hi.max(t.mid);
+    }
+    if infos.is_empty() {
+        return Vec::new();
+    }
+    let extent = (hi - lo).max_element();
+    let q = if extent.is_finite() && extent > 0.0 {
+        (extent.log2().ceil() - 20.0).exp2()
+    } else {
+        1.0
+    };
+    infos
+        .iter()
+        .map(|t| {
+            let k = ((t.mid - lo) / q).floor();
+            [k.x as i64, k.y as i64]
+        })
+        .collect()
 }
 
 /// Lays out a tree for the prepared triangles `infos` (paper §5.1).
@@ -130,27 +258,63 @@ pub fn layout(
 ) -> Result<Layout, LayoutError> {
     let mut order: Vec<u32> = (0..infos.len() as u32).collect();
     let nodes = std::sync::atomic::AtomicU64::new(0);
+    let model = demand_model(scene, opts);
+    let keys = midpoint_keys(infos);
     let ctx = Ctx {
         scene,
         infos,
         opts,
+        split: Splitter {
+            infos,
+            keys: &keys,
+            model: &model,
+        },
         nodes: &nodes,
         progress,
     };
     let root = build_node(&ctx, &mut order, 0, Level(0), Cell::default())?;
-    let clamped_leaves = count_clamped(&root);
+    let mut leaves = LeafCounts {
+        scale_min: 1.0,
+        ..LeafCounts::default()
+    };
+    count_leaves(&root, &mut leaves);
     Ok(Layout {
         root,
         order,
-        clamped_leaves,
+        clamped_leaves: (leaves.oversized
+            + leaves.source_resolution
+            + leaves.scaled
+            + leaves.shared
+            + leaves.clamped) as usize,
+        leaves,
     })
 }
 
-fn count_clamped(n: &LayoutNode) -> usize {
+fn count_leaves(n: &LayoutNode, c: &mut LeafCounts) {
     match &n.kind {
-        LayoutKind::Leaf(l) => usize::from(l.clamp_scale < 1.0),
+        LayoutKind::Leaf(l) => {
+            c.scale_min = c.scale_min.min(l.clamp_scale);
+            let counter = match l.reason {
+                LeafReason::Fits => &mut c.fits,
+                LeafReason::Oversized => &mut c.oversized,
+                LeafReason::Clamped => &mut c.clamped,
+                LeafReason::SourceResolution => &mut c.source_resolution,
+                LeafReason::Scaled => &mut c.scaled,
+                LeafReason::Shared => &mut c.shared,
+            };
+            *counter += 1;
+            if matches!(
+                l.reason,
+                LeafReason::SourceResolution | LeafReason::Scaled | LeafReason::Shared
+            ) {
+                c.scaled_original_texels += l.original_texels;
+                c.scaled_original_texels_max = c.scaled_original_texels_max.max(l.original_texels);
+            }
+        }
         LayoutKind::Inner { children, .. } => {
-            children.iter().flatten().map(|c| count_clamped(c)).sum()
+            for ch in children.iter().flatten() {
+                count_leaves(ch, c);
+            }
         }
     }
 }
@@ -181,21 +345,41 @@ fn build_node(
     let range = offset..offset + items.len();
     let n = ctx.nodes.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     (ctx.progress)(n + 1);
-    let leaf = match try_leaf(ctx, items, 1.0) {
-        Some(leaf) => Some(leaf),
-        None if items.len() == 1 => Some(clamp_leaf(ctx, items)?),
-        None => None,
+    let needs = material_needs(ctx, items);
+    let base = base_scale(ctx, &needs);
+    let leaf = |leaf: LeafLayout| LayoutNode {
+        range: range.clone(),
+        level,
+        cell,
+        lo,
+        hi,
+        kind: LayoutKind::Leaf(leaf),
     };
-    if let Some(leaf) = leaf {
-        let kind = LayoutKind::Leaf(leaf);
-        return Ok(LayoutNode {
-            range,
-            level,
-            cell,
-            lo,
-            hi,
-            kind,
-        });
+    let reason = if base < 1.0 {
+        LeafReason::Oversized
+    } else {
+        LeafReason::Fits
+    };
+    if let Some(l) = try_leaf(ctx, &needs, base, reason) {
+        return Ok(leaf(l));
+    }
+    if items.len() == 1 {
+        return Ok(leaf(clamp_leaf(
+            ctx,
+            items,
+            &needs,
+            base,
+            LeafReason::Clamped,
+        )?));
+    }
+    let (share, originals) = capped_demand(ctx, &needs);
+    if originals <= ctx.opts.leaf_originals {
+        let reason = if share >= SOURCE_RESOLUTION_SHARE {
+            LeafReason::SourceResolution
+        } else {
+            LeafReason::Scaled
+        };
+        return Ok(leaf(clamp_leaf(ctx, items, &needs, base, reason)?));
     }
     if level.0 >= ctx.opts.max_depth {
         return Err(LayoutError::DepthExceeded {
@@ -206,7 +390,23 @@ fn build_node(
             atlas: ctx.opts.atlas_size,
         });
     }
-    let groups = split4(ctx.infos, items);
+    let groups = ctx.split.split4(items);
+    let mut start = 0;
+    let mut child_originals = 0.0;
+    for g in groups {
+        child_originals += original_texels(ctx, &items[start..start + g]) as f64;
+        start += g;
+    }
+    let filled = groups.iter().filter(|&&g| g > 0).count().max(1) as f64;
+    if child_originals / filled >= FUTILE_SPLIT_SHARE * originals as f64 {
+        return Ok(leaf(clamp_leaf(
+            ctx,
+            items,
+            &needs,
+            base,
+            LeafReason::Shared,
+        )?));
+    }
     // Carve the slice into the four groups in array order: q0, q2 (low x), q1, q3 (high x).
     let (a, rest) = items.split_at_mut(groups[0]);
     let (b, rest) = rest.split_at_mut(groups[1]);
@@ -244,74 +444,120 @@ fn build_node(
     })
 }
 
-/// Splits `items` in place into four groups (paper §5.3): sort by plane-midpoint x and cut where the summed
-/// world area is closest to half, then each half likewise by y. Returns the group lengths in array order
-/// (low-x/low-y, low-x/high-y, high-x/low-y, high-x/high-y). Every group is shorter than `items` when
-/// `items.len() ≥ 2`: the cut is kept inside `1..n`, so thousands of triangles with one midpoint still split.
-pub fn split4(infos: &[TriInfo], items: &mut [u32]) -> [usize; 4] {
-    let k = cut_sorted(infos, items, |t| t.mid.x);
-    let (lo, hi) = items.split_at_mut(k);
-    let k0 = cut_sorted(infos, lo, |t| t.mid.y);
-    let k1 = cut_sorted(infos, hi, |t| t.mid.y);
-    [k0, lo.len() - k0, k1, hi.len() - k1]
+/// Splits triangle sets in four by texel demand (paper §5.3 with condition (b) itself).
+pub struct Splitter<'a> {
+    pub infos: &'a [TriInfo],
+    /// [`midpoint_keys`] of `infos`.
+    pub keys: &'a [[i64; 2]],
+    pub model: &'a DemandModel,
 }
 
-/// Sorts `items` by `key` (ties by index, deterministic) and returns the cut index closest to half the
-/// summed area, clamped to `1..n` for n ≥ 2 (for n ≤ 1 it returns n: everything in the low group).
-fn cut_sorted(infos: &[TriInfo], items: &mut [u32], key: impl Fn(&TriInfo) -> f64) -> usize {
-    let n = items.len();
-    if n <= 1 {
-        return n;
+impl Splitter<'_> {
+    /// Splits `items` in place into four groups: sort by quantised plane-midpoint x and cut where the texel
+    /// demand of the two halves is balanced, then each half likewise by y. Returns the group lengths in
+    /// array order (low-x/low-y, low-x/high-y, high-x/low-y, high-x/high-y). Every group is shorter than
+    /// `items` when `items.len() ≥ 2`: the cut is kept inside `1..n`, so thousands of triangles with one
+    /// midpoint still split.
+    pub fn split4(&self, items: &mut [u32]) -> [usize; 4] {
+        let k = self.cut_sorted(items, 0);
+        let (lo, hi) = items.split_at_mut(k);
+        let k0 = self.cut_sorted(lo, 1);
+        let k1 = self.cut_sorted(hi, 1);
+        [k0, lo.len() - k0, k1, hi.len() - k1]
     }
-    items.sort_unstable_by(|&a, &b| {
-        key(&infos[a as usize])
-            .total_cmp(&key(&infos[b as usize]))
-            .then(a.cmp(&b))
-    });
-    let total: f64 = items.iter().map(|&i| infos[i as usize].area).sum();
-    if total <= 0.0 || !total.is_finite() {
-        return n / 2;
-    }
-    let half = total * 0.5;
-    let mut acc = 0.0;
-    let mut best = 1;
-    let mut best_err = f64::INFINITY;
-    for (i, &it) in items.iter().enumerate().take(n - 1) {
-        acc += infos[it as usize].area;
-        let err = (acc - half).abs();
-        if err < best_err {
-            best_err = err;
-            best = i + 1;
+
+    /// Sorts `items` by key `axis` (ties by index, deterministic) and returns the cut index: among the
+    /// positions between different keys, the one where `max(demand(before), demand(after))` is smallest
+    /// (ties: nearest the middle, then the lower). Without such a position (all keys equal) the middle; for
+    /// n ≤ 1 it returns n (everything in the low group).
+    pub fn cut_sorted(&self, items: &mut [u32], axis: usize) -> usize {
+        let n = items.len();
+        if n <= 1 {
+            return n;
         }
+        let keys = self.keys;
+        items.sort_unstable_by(|&a, &b| {
+            keys[a as usize][axis]
+                .cmp(&keys[b as usize][axis])
+                .then(a.cmp(&b))
+        });
+        let before = prefix_demands(self.model, self.infos, items);
+        let rev: Vec<u32> = items.iter().rev().copied().collect();
+        let after = prefix_demands(self.model, self.infos, &rev);
+        let mut best: Option<(u64, usize, usize)> = None;
+        for k in 1..n {
+            if keys[items[k - 1] as usize][axis] == keys[items[k] as usize][axis] {
+                continue;
+            }
+            let cost = before[k].max(after[n - k]);
+            let off_centre = (2 * k).abs_diff(n);
+            if best.is_none_or(|(c, o, _)| (cost, off_centre) < (c, o)) {
+                best = Some((cost, off_centre, k));
+            }
+        }
+        best.map_or(n / 2, |(_, _, k)| k)
     }
-    best.clamp(1, n - 1)
 }
 
-/// Per-(material, density class) requirements of a node (the maxima of §5.2.1 and the UV bounding area of §5.2.2).
+/// Per-(material, density class) requirements of a node (the maxima of §5.2.1 and the UV cover of
+/// §5.2.2, [`super::cover`]).
 struct MatNeed {
     w: f64,
     h: f64,
-    uv_min: DVec2,
-    uv_max: DVec2,
+    cover: [AxisCover; 2],
     point_uvs: bool,
 }
 
-fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<(MaterialId, i32), MatNeed> {
+impl MatNeed {
+    /// The area input at the node's requirement (palette textures — several constant-UV triangles —
+    /// keep their source resolution over their used area).
+    fn input(&self, source: [u32; 2]) -> AreaInput {
+        let (u0, u1) = self.cover[0].range();
+        let (v0, v1) = self.cover[1].range();
+        let (mut w, mut h) = (self.w, self.h);
+        if self.point_uvs && (u1 > u0 || v1 > v0) {
+            w = w.max(f64::from(source[0]));
+            h = h.max(f64::from(source[1]));
+        }
+        AreaInput {
+            w,
+            h,
+            uv_min: [u0, v0],
+            uv_max: [u1, v1],
+            source,
+        }
+    }
+}
+
+fn material_needs(ctx: &Ctx<'_>, items: &[u32]) -> BTreeMap<(MaterialId, i32), MatNeed> {
     let mut m: BTreeMap<(MaterialId, i32), MatNeed> = BTreeMap::new();
     for &i in items {
-        let t = &infos[i as usize];
-        let e = m.entry((t.material, t.class)).or_insert(MatNeed {
-            w: 0.0,
-            h: 0.0,
-            uv_min: DVec2::splat(f64::INFINITY),
-            uv_max: DVec2::splat(f64::NEG_INFINITY),
-            point_uvs: false,
-        });
-        for uv in t.uv {
-            if uv.is_finite() {
-                e.uv_min = e.uv_min.min(uv);
-                e.uv_max = e.uv_max.max(uv);
+        let t = &ctx.infos[i as usize];
+        let e = m.entry((t.material, t.class)).or_insert_with(|| {
+            let wrap = ctx.scene.materials[t.material.idx()].wrap;
+            let mode = |k: usize| {
+                if ctx.opts.wrap {
+                    RectWrap::for_sampler(wrap[k])
+                } else {
+                    RectWrap::Linear
+                }
+            };
+            MatNeed {
+                w: 0.0,
+                h: 0.0,
+                cover: [AxisCover::new(mode(0)), AxisCover::new(mode(1))],
+                point_uvs: false,
             }
+        });
+        for k in 0..2 {
+            let (lo, hi) =
+                t.uv.iter()
+                    .map(|uv| uv[k])
+                    .filter(|x| x.is_finite())
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                        (a.min(x), b.max(x))
+                    });
+            e.cover[k].add(lo, hi);
         }
         match t.size.method {
             SizeMethod::Exact | SizeMethod::EdgeFallback => {
@@ -325,51 +571,120 @@ fn material_needs(infos: &[TriInfo], items: &[u32]) -> BTreeMap<(MaterialId, i32
             SizeMethod::WorldDegenerate => {}
         }
     }
-    for e in m.values_mut() {
-        if !e.uv_min.is_finite() {
-            e.uv_min = DVec2::ZERO;
-            e.uv_max = DVec2::ZERO;
-        }
-    }
     m
 }
 
-/// Tries to lay out one atlas for `items` at resolution `scale` (§5.2.2, §5.2.3).
-fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
-    let needs = material_needs(ctx.infos, items);
-    let aopts = AreaOptions {
+fn source_of(ctx: &Ctx<'_>, mat: MaterialId) -> [u32; 2] {
+    let img = &ctx.scene.images[ctx.scene.materials[mat.idx()].image.idx()];
+    [img.width, img.height]
+}
+
+fn area_options(ctx: &Ctx<'_>, scale: f64) -> AreaOptions {
+    AreaOptions {
         border: ctx.opts.border,
         scale,
         cap_to_source: ctx.opts.cap_to_source,
         max_side: ctx.opts.atlas_size,
+    }
+}
+
+/// The largest resolution scale `≤ 1` at which every rect fits the atlas on its own. With repeats wrapped a
+/// rect holds at most one period, so a rect too large alone stays too large in every descendant: the node
+/// is scaled instead of split. With repeats baked splitting shrinks the UV ranges: 1.
+fn base_scale(ctx: &Ctx<'_>, needs: &BTreeMap<(MaterialId, i32), MatNeed>) -> f64 {
+    if !ctx.opts.wrap {
+        return 1.0;
+    }
+    let opts = area_options(ctx, 1.0);
+    needs
+        .iter()
+        .filter_map(|(&(mat, _), need)| {
+            scale_to_fit(&need.input(source_of(ctx, mat)), &opts, ctx.opts.atlas_size)
+        })
+        .fold(1.0, f64::min)
+}
+
+/// Texels of the original textures (at their stored class sizes) of the triangles `items`.
+fn original_texels(ctx: &Ctx<'_>, items: &[u32]) -> u64 {
+    let mut seen = HashSet::new();
+    let mut total = 0u64;
+    for &i in items {
+        let m = ctx.infos[i as usize].material;
+        if seen.insert(m) {
+            let src = source_of(ctx, m);
+            let c = u64::from(original_class(src[0], src[1]));
+            total = total.saturating_add(c * c);
+        }
+    }
+    total
+}
+
+/// `(share of the node's demand capped to the sources, texels of its originals at class size)`.
+fn capped_demand(ctx: &Ctx<'_>, needs: &BTreeMap<(MaterialId, i32), MatNeed>) -> (f64, u64) {
+    let opts = AreaOptions {
+        max_side: u32::MAX,
+        ..area_options(ctx, 1.0)
     };
+    let (mut total, mut capped) = (0.0f64, 0.0f64);
+    let mut seen = HashSet::new();
+    let mut originals = 0u64;
+    for (&(mat, _), need) in needs {
+        let src = source_of(ctx, mat);
+        if seen.insert(mat) {
+            let c = u64::from(original_class(src[0], src[1]));
+            originals = originals.saturating_add(c * c);
+        }
+        let input = need.input(src);
+        let Ok(a) = required_area(&input, &opts) else {
+            continue;
+        };
+        let area = a.outer_texels() as f64;
+        let cw = f64::from(u8::from(input.w > f64::from(src[0])));
+        let ch = f64::from(u8::from(input.h > f64::from(src[1])));
+        total += area;
+        capped += area * 0.5 * (cw + ch);
+    }
+    let share = if ctx.opts.cap_to_source && total > 0.0 {
+        capped / total
+    } else {
+        0.0
+    };
+    (share, originals)
+}
+
+/// Tries to lay out one atlas for the node's `needs` at resolution `scale` (§5.2.2, §5.2.3).
+fn try_leaf(
+    ctx: &Ctx<'_>,
+    needs: &BTreeMap<(MaterialId, i32), MatNeed>,
+    scale: f64,
+    reason: LeafReason,
+) -> Option<LeafLayout> {
+    let aopts = area_options(ctx, scale);
     let mut mats = Vec::with_capacity(needs.len());
     let mut sizes = Vec::with_capacity(needs.len());
     let mut summed: u64 = 0;
     let cap = u64::from(ctx.opts.atlas_size) * u64::from(ctx.opts.atlas_size);
-    for (&(mat, class), need) in &needs {
-        let img = &ctx.scene.images[ctx.scene.materials[mat.idx()].image.idx()];
-        let (mut w, mut h) = (need.w, need.h);
-        if need.point_uvs && need.uv_max != need.uv_min {
-            w = w.max(f64::from(img.width));
-            h = h.max(f64::from(img.height));
-        }
-        let input = AreaInput {
-            w,
-            h,
-            uv_min: need.uv_min.to_array(),
-            uv_max: need.uv_max.to_array(),
-            source: [img.width, img.height],
-        };
+    let mut seen = HashSet::new();
+    let mut original_texels = 0u64;
+    for (&(mat, class), need) in needs {
+        let src = source_of(ctx, mat);
+        let input = need.input(src);
         let area = required_area(&input, &aopts).ok()?;
-        let capped = ctx.opts.cap_to_source
-            && (need.w > f64::from(img.width) || need.h > f64::from(img.height));
+        let capped = [
+            ctx.opts.cap_to_source && need.w > f64::from(src[0]),
+            ctx.opts.cap_to_source && need.h > f64::from(src[1]),
+        ];
         summed += u64::from(area.outer_w) * u64::from(area.outer_h);
         if summed > cap {
             return None;
         }
+        if seen.insert(mat) {
+            let c = u64::from(original_class(src[0], src[1]));
+            original_texels += c * c;
+        }
         sizes.push([area.outer_w, area.outer_h]);
-        mats.push((mat, class, area, need.uv_min, need.uv_max, capped));
+        let wrap = [need.cover[0].wrap(), need.cover[1].wrap()];
+        mats.push((mat, class, area, input.uv_min, input.uv_max, wrap, capped));
     }
     let packing = pack(
         &sizes,
@@ -383,13 +698,14 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
         .into_iter()
         .zip(packing.positions.iter())
         .map(
-            |((material, class, a, uv_min, uv_max, capped), p)| PlannedRect {
+            |((material, class, a, uv_min, uv_max, wrap, capped), p)| PlannedRect {
                 material,
                 class,
                 outer: [p[0], p[1], a.outer_w, a.outer_h],
                 inner: [p[0] + a.border[0], p[1] + a.border[1], a.inner_w, a.inner_h],
-                uv_min,
-                uv_max,
+                uv_min: DVec2::from(uv_min),
+                uv_max: DVec2::from(uv_max),
+                wrap,
                 capped,
             },
         )
@@ -398,15 +714,24 @@ fn try_leaf(ctx: &Ctx<'_>, items: &[u32], scale: f64) -> Option<LeafLayout> {
         rects,
         occupancy: packing.occupancy,
         clamp_scale: scale,
+        reason,
+        original_texels,
     })
 }
 
-/// A single triangle that alone needs more than the atlas: the largest scale (to 1/64 precision in
-/// log2) at which it fits. Its leaf's `min_distance` becomes `d_min / scale`.
-fn clamp_leaf(ctx: &Ctx<'_>, items: &[u32]) -> Result<LeafLayout, LayoutError> {
-    // Bisection on log2(scale) in [-40, 0].
-    let (mut lo, mut hi) = (-40.0f64, 0.0f64);
-    let Some(mut best) = try_leaf(ctx, items, lo.exp2()) else {
+/// A node that is to be a leaf although its content does not fit at `base`: the largest scale (to 1/4096
+/// precision in log2, below `base`) at which it fits. Its `min_distance` becomes `d_min / scale`.
+fn clamp_leaf(
+    ctx: &Ctx<'_>,
+    items: &[u32],
+    needs: &BTreeMap<(MaterialId, i32), MatNeed>,
+    base: f64,
+    reason: LeafReason,
+) -> Result<LeafLayout, LayoutError> {
+    // Bisection on log2(scale) in [log2(base) − 40, log2(base)].
+    let top = base.log2();
+    let (mut lo, mut hi) = (top - 40.0, top);
+    let Some(mut best) = try_leaf(ctx, needs, lo.exp2(), reason) else {
         let t = &ctx.infos[items[0] as usize];
         return Err(LayoutError::Unfittable {
             scene_triangle: t.scene_tri,
@@ -417,7 +742,7 @@ fn clamp_leaf(ctx: &Ctx<'_>, items: &[u32]) -> Result<LeafLayout, LayoutError> {
     };
     for _ in 0..12 {
         let mid = 0.5 * (lo + hi);
-        match try_leaf(ctx, items, mid.exp2()) {
+        match try_leaf(ctx, needs, mid.exp2(), reason) {
             Some(l) => {
                 best = l;
                 lo = mid;
@@ -432,34 +757,56 @@ fn clamp_leaf(ctx: &Ctx<'_>, items: &[u32]) -> Result<LeafLayout, LayoutError> {
 mod tests {
     use super::*;
     use crate::build::sizing::{SizeEstimate, SizeMethod};
+    use crate::scene::Wrap;
 
-    fn tri(mid: DVec2, area: f64) -> TriInfo {
+    /// A triangle of `material` at plane midpoint `mid` needing `w` texels per period over UV `[0, 1]²`.
+    fn tri(mid: DVec2, material: u32, w: f64, area: f64) -> TriInfo {
         TriInfo {
             scene_tri: 0,
             pos: [DVec3::ZERO; 3],
-            material: MaterialId(0),
+            material: MaterialId(material),
             mid,
             area,
             size: SizeEstimate {
-                w: 1.0,
-                h: 1.0,
+                w,
+                h: w,
                 method: SizeMethod::Exact,
             },
             class: 0,
-            uv: [DVec2::ZERO; 3],
+            uv: [DVec2::ZERO, DVec2::X, DVec2::Y],
             lo: DVec3::ZERO,
             hi: DVec3::ZERO,
         }
     }
 
+    fn model(materials: usize) -> DemandModel {
+        DemandModel {
+            sources: vec![[1024, 1024]; materials],
+            wraps: vec![[Wrap::Repeat; 2]; materials],
+            wrap: true,
+            border: 2,
+            cap_to_source: true,
+        }
+    }
+
+    fn split(infos: &[TriInfo], model: &DemandModel, items: &mut [u32]) -> [usize; 4] {
+        let keys = midpoint_keys(infos);
+        Splitter {
+            infos,
+            keys: &keys,
+            model,
+        }
+        .split4(items)
+    }
+
     #[test]
-    fn split_balances_area_in_x_then_y() {
-        // A 4×4 grid of unit-area triangles: the split must give four 2×2 quadrants.
+    fn split_balances_demand_in_x_then_y() {
+        // A 4×4 grid of triangles with a material each, equal demand: four 2×2 quadrants.
         let infos: Vec<TriInfo> = (0..16)
-            .map(|i| tri(DVec2::new((i % 4) as f64, (i / 4) as f64), 1.0))
+            .map(|i| tri(DVec2::new((i % 4) as f64, (i / 4) as f64), i, 60.0, 1.0))
             .collect();
         let mut items: Vec<u32> = (0..16).rev().collect();
-        let g = split4(&infos, &mut items);
+        let g = split(&infos, &model(16), &mut items);
         assert_eq!(g, [4, 4, 4, 4]);
         let groups: Vec<&[u32]> = {
             let (a, r) = items.split_at(4);
@@ -478,24 +825,42 @@ mod tests {
     }
 
     #[test]
-    fn split_cuts_at_half_the_area_not_half_the_count() {
-        // One big triangle on the left outweighs ten small ones on the right.
-        let mut infos = vec![tri(DVec2::new(0.0, 0.0), 10.0)];
-        infos.extend((1..=10).map(|i| tri(DVec2::new(i as f64, 0.0), 1.0)));
-        let mut items: Vec<u32> = (0..11).collect();
-        let g = split4(&infos, &mut items);
-        assert_eq!(
-            g[0] + g[1],
-            1,
-            "the heavy triangle alone forms the low-x half: {g:?}"
+    fn split_follows_texel_demand_not_world_area() {
+        // Left (x = 0..9): ten big triangles (area 100 each) sharing one texture, one period of 60 texels:
+        // demand 64² however many there are. Right (x = 10..19): ten small triangles (area 1) with a
+        // texture each: 10 · 64². Equal world areas would cut inside the left group (x ≈ 5); equal demand
+        // cuts inside the right group, so the low half holds the shared texture and about half the small
+        // ones (64² · 5.5 per side).
+        let mut infos: Vec<TriInfo> = (0..10)
+            .map(|i| tri(DVec2::new(f64::from(i), 0.0), 0, 60.0, 100.0))
+            .collect();
+        infos.extend((0..10).map(|i| tri(DVec2::new(f64::from(10 + i), 0.0), 1 + i, 60.0, 1.0)));
+        let mut items: Vec<u32> = (0..20).collect();
+        let keys = midpoint_keys(&infos);
+        let m = model(11);
+        let s = Splitter {
+            infos: &infos,
+            keys: &keys,
+            model: &m,
+        };
+        let k = s.cut_sorted(&mut items, 0);
+        // At a cut k ≥ 10 the low half needs 64² · (1 + k − 10), the high half 64² · (20 − k): the larger is
+        // smallest (6 · 64²) at k = 14 and 15, and the tie goes to the cut nearer the middle.
+        assert_eq!(k, 14, "cut at {k}");
+        let area_left: f64 = items[..k].iter().map(|&i| infos[i as usize].area).sum();
+        assert!(
+            area_left > 900.0,
+            "the low half holds the big shared triangles"
         );
     }
 
     #[test]
-    fn split_terminates_on_identical_midpoints_and_zero_areas() {
-        let infos: Vec<TriInfo> = (0..1000).map(|_| tri(DVec2::new(5.0, 5.0), 0.0)).collect();
+    fn split_terminates_on_identical_midpoints_and_never_separates_equal_keys() {
+        let infos: Vec<TriInfo> = (0..1000)
+            .map(|i| tri(DVec2::new(5.0, 5.0), i % 7, 10.0, 0.0))
+            .collect();
         let mut items: Vec<u32> = (0..1000).collect();
-        let g = split4(&infos, &mut items);
+        let g = split(&infos, &model(7), &mut items);
         assert_eq!(g.iter().sum::<usize>(), 1000);
         assert!(
             g.iter().all(|&n| n < 1000),
@@ -504,10 +869,34 @@ mod tests {
         // Two triangles: each goes to its own child; one triangle: everything in the first group.
         let mut two = vec![0u32, 1];
         assert_eq!(
-            split4(&infos, &mut two).iter().filter(|&&n| n == 1).count(),
+            split(&infos, &model(7), &mut two)
+                .iter()
+                .filter(|&&n| n == 1)
+                .count(),
             2
         );
         let mut one = vec![0u32];
-        assert_eq!(split4(&infos, &mut one), [1, 0, 0, 0]);
+        assert_eq!(split(&infos, &model(7), &mut one), [1, 0, 0, 0]);
+        // Midpoints 1e-9 apart are one key: the cut falls between x = 0 and x = 1, never inside the pair.
+        let infos = vec![
+            tri(DVec2::new(0.0, 0.0), 0, 10.0, 1.0),
+            tri(DVec2::new(1e-9, 0.0), 1, 10.0, 1.0),
+            tri(DVec2::new(1.0, 0.0), 2, 10.0, 1.0),
+            tri(DVec2::new(1000.0, 0.0), 3, 10.0, 1.0),
+        ];
+        let keys = midpoint_keys(&infos);
+        assert_eq!(keys[0], keys[1]);
+        let m = model(4);
+        let s = Splitter {
+            infos: &infos,
+            keys: &keys,
+            model: &m,
+        };
+        let mut items = vec![0, 1, 2, 3];
+        let k = s.cut_sorted(&mut items, 0);
+        assert!(
+            k == 2 || k == 3,
+            "cut {k} must not separate triangles 0 and 1"
+        );
     }
 }

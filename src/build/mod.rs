@@ -11,6 +11,8 @@
 
 pub mod area;
 pub mod assemble;
+pub mod cover;
+pub mod demand;
 pub mod image_ops;
 pub mod layout;
 pub mod pack;
@@ -35,6 +37,37 @@ pub enum DMin {
     Metres(f64),
     /// `d_min = scene diagonal / R` (the paper used R = 151 for Berlin and 62 for Chemnitz).
     Ratio(f64),
+}
+
+/// How repeated textures are stored (DESIGN.md "Repeats").
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+pub enum RepeatMode {
+    /// At most one period per rect; the fragment shader wraps the UV into it (default).
+    #[default]
+    Wrap,
+    /// Every repetition the UVs span copied into the atlas (the paper's §5.2.2), big triangles cut into
+    /// pieces: the reference the sweep compares against.
+    Bake,
+}
+
+impl RepeatMode {
+    pub fn label(self) -> &'static str {
+        match self {
+            RepeatMode::Wrap => "wrap",
+            RepeatMode::Bake => "bake",
+        }
+    }
+}
+
+impl std::str::FromStr for RepeatMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<RepeatMode, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "wrap" => Ok(RepeatMode::Wrap),
+            "bake" => Ok(RepeatMode::Bake),
+            _ => Err(format!("unknown repeat mode {s:?} (wrap or bake)")),
+        }
+    }
 }
 
 /// Options of a build. Defaults follow the paper (800 px, ratio 1) and the issue (atlas 1024, depth cap 24),
@@ -66,6 +99,13 @@ pub struct BuildOptions {
     pub mip_filter: image_ops::MipFilter,
     /// Block compression of atlases and original textures (every mip level), per tree kind.
     pub compress: crate::texfmt::Compression,
+    /// Repeats wrapped in the shader (one period per rect) or baked into the atlas.
+    pub repeat: RepeatMode,
+    /// A node that does not fit one atlas is not split when its original textures need at most this many
+    /// atlases' worth of texels: it becomes a leaf whose atlas holds its content scaled to fit
+    /// (`min_distance` raised by that scale), its originals drawn nearer ([`layout::LeafReason`]). 0: split
+    /// every node that does not fit (the paper's tree).
+    pub leaf_originals_atlases: f64,
 }
 
 impl Default for BuildOptions {
@@ -84,6 +124,8 @@ impl Default for BuildOptions {
             max_file_bytes: 64 << 30,
             mip_filter: image_ops::MipFilter::Box,
             compress: crate::texfmt::Compression::None,
+            repeat: RepeatMode::Wrap,
+            leaf_originals_atlases: 16.0,
         }
     }
 }
@@ -169,7 +211,13 @@ pub struct TreeReport {
     pub depth: u8,
     pub vertices: u64,
     pub clamped_leaves: u64,
+    /// Leaves by why they ended ([`layout::LeafReason`]) and the originals source-resolution leaves imply.
+    pub leaf_reasons: layout::LeafCounts,
     pub capped_rects: u64,
+    /// Periods stored in the leaf atlases (Σ over rects of the UV area their inner rectangle shows) and
+    /// periods the UVs span (Σ over rects of the UV hull area of their triangles): what wrapping saves.
+    pub periods_stored: f64,
+    pub periods_spanned: f64,
     pub occupancy_mean: f64,
     pub occupancy_min: f64,
     pub occupancy_max: f64,
@@ -231,6 +279,13 @@ pub fn resolve_params(
     }
     if opts.screen_width == 0 {
         return bad("screen-width", "0".into(), "must be positive");
+    }
+    if !(opts.leaf_originals_atlases.is_finite() && opts.leaf_originals_atlases >= 0.0) {
+        return bad(
+            "leaf-originals",
+            opts.leaf_originals_atlases.to_string(),
+            "must be a number of atlases ≥ 0",
+        );
     }
     if opts.max_depth == 0 || opts.max_depth > 30 {
         return bad(
@@ -325,6 +380,7 @@ pub fn build(
             cap_to_source: opts.cap_to_source,
             split_limit: f64::from(params.atlas_size / 4),
             max_pieces: opts.max_pieces,
+            wrap: opts.repeat == RepeatMode::Wrap,
         };
         let infos = prepare::prepare(scene, tris, &popts);
         let sizing = prepare::analyze(&infos);
@@ -338,6 +394,10 @@ pub fn build(
             border: params.border,
             max_depth: params.max_depth,
             cap_to_source: opts.cap_to_source,
+            wrap: opts.repeat == RepeatMode::Wrap,
+            leaf_originals: (opts.leaf_originals_atlases.max(0.0)
+                * f64::from(params.atlas_size)
+                * f64::from(params.atlas_size)) as u64,
         };
         let lay =
             layout::layout(scene, &infos, &lopts, &|n| progress.set(n)).map_err(|source| {
@@ -376,7 +436,10 @@ pub fn build(
             depth: asm.tree.nodes.iter().map(|n| n.level.0).max().unwrap_or(0),
             vertices: asm.tree.vertices.len() as u64,
             clamped_leaves: lay.clamped_leaves as u64,
+            leaf_reasons: lay.leaves.clone(),
             capped_rects: asm.capped.iter().flatten().filter(|c| **c).count() as u64,
+            periods_stored: asm.periods_stored,
+            periods_spanned: asm.periods_spanned,
             occupancy_mean: occ.iter().sum::<f64>() / occ.len().max(1) as f64,
             occupancy_min: occ.iter().copied().fold(f64::INFINITY, f64::min),
             occupancy_max: occ.iter().copied().fold(0.0, f64::max),
@@ -440,11 +503,11 @@ pub fn build(
         .count() as u64;
     let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
     for r in &reports {
-        if r.clamped_leaves > 0 {
+        if r.leaf_reasons.clamped > 0 {
             warnings.push(format!(
                 "{:?} tree: {} leaves hold a triangle that alone needs more than one atlas; their resolution was \
                  scaled down and their min_distance raised accordingly",
-                r.kind, r.clamped_leaves
+                r.kind, r.leaf_reasons.clamped
             ));
         }
     }

@@ -78,12 +78,17 @@ pub struct PrepareOptions {
     pub split_limit: f64,
     /// At most this many pieces per scene triangle; beyond, the layout clamps the piece's resolution.
     pub max_pieces: u32,
+    /// Repeats are wrapped in the shader ([`super::RepeatMode::Wrap`]): a rect holds at most one period,
+    /// so no triangle is cut for its UV range and every triangle of a material shares one density class
+    /// (one rect per material and node, at the largest density its triangles need).
+    pub wrap: bool,
 }
 
 /// Prepares the triangles `tris` (indices into `scene.triangles`) for a build. Parallel over triangles.
 ///
-/// Triangles whose texture footprint at d_min is larger than `split_limit` texels on a texture axis (a
-/// ground quad with a tile repeated hundreds of times, a long wall) are split at the midpoint of their
+/// With repeats baked (`!opts.wrap`), triangles whose texture footprint at d_min is larger than
+/// `split_limit` texels on a texture axis (a ground quad with a tile repeated hundreds of times, a long
+/// wall) are split at the midpoint of their
 /// longest edge, measured in texels, until every piece fits (bounded by `max_pieces`). Splitting is exact
 /// (positions and UVs are affine on a triangle), keeps `min_distance = d_min` for their leaves, and lets the
 /// pieces spread over several leaves. Without it the paper loops forever, and plain clamping would coarsen
@@ -103,7 +108,13 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInf
                 w = w.min(f64::from(img.width));
                 h = h.min(f64::from(img.height));
             }
-            let pieces = tessellate(p, uv, w, h, opts.split_limit, opts.max_pieces);
+            let max_pieces = if opts.wrap { 1 } else { opts.max_pieces };
+            let pieces = tessellate(p, uv, w, h, opts.split_limit, max_pieces);
+            let class = if opts.wrap {
+                0
+            } else {
+                density_class(w, h, size.method)
+            };
             pieces.into_iter().map(move |(p, uv0)| {
                 let shift = period_shift(uv0, mat.wrap);
                 let uv = uv0.map(|u| u - shift);
@@ -116,7 +127,7 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInf
                     mid: if mid.is_finite() { mid } else { DVec2::ZERO },
                     area: if area.is_finite() { area } else { 0.0 },
                     size,
-                    class: density_class(w, h, size.method),
+                    class,
                     uv,
                     lo: p[0].min(p[1]).min(p[2]),
                     hi: p[0].max(p[1]).max(p[2]),

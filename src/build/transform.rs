@@ -1,17 +1,74 @@
 //! Per-node texture transforms (paper §5.1, Fig. 4) in the exact form of DESIGN.md "Precision".
 //!
 //! The paper stores root-atlas UVs and draws a node at level k with `fract(uv_root · 2^k)`. In f32 that
-//! leaves `24 − k − log2(atlas_size)` bits below a texel. We store each vertex's *leaf-local* atlas UV and
+//! leaves `24 − k − log2(atlas_size)` bits below a texel. We use each fragment's *leaf-local* atlas UV and
 //! each leaf's integer cell `(ix, iy)` at its level K; drawn with the atlas of an ancestor at level j ≤ K:
 //!
 //! `uv_j = uv_leaf · 2^(j−K) + ((ix, iy) mod 2^(K−j)) / 2^(K−j)`
 //!
 //! a power-of-two scale (exact in floating point) plus an offset that is an integer divided by a power of
 //! two (exact), so the only rounding is one final addition. The shader (`shaders/tree.wgsl`) does exactly
-//! the f32 arithmetic of [`atlas_uv_at_f32`].
+//! the f32 arithmetic of [`atlas_uv_at_f32`]. "Leaf-local atlas UV" is a fragment's position in its leaf's
+//! atlas, which the shader computes from the original UV:
+//!
+//! Before that transform, a UV reaches its rect of the leaf atlas through the rect's per-axis wrap
+//! ([`RectWrap`], DESIGN.md "Repeats"): [`rect_t`] and [`rect_texel`] here are the f64 reference of what
+//! the shader does in f32 (`render::batch::RectMap::texel_f32` is its exact twin).
 
+use super::tree::{AtlasRect, RectWrap};
 use crate::ids::{Cell, Level};
 use glam::{DVec2, Vec2};
+
+/// `u` folded into `[0, 1]` as a MIRRORED_REPEAT sampler reads it (period 2).
+#[inline]
+pub fn mirror(u: f64) -> f64 {
+    let p = u - 2.0 * (u * 0.5).floor();
+    if p > 1.0 { 2.0 - p } else { p }
+}
+
+/// Half the part of the period a REPEAT rect does not hold (`(1 − span) / 2`, 0 for a full period): UVs
+/// are reduced into `[−half_gap, span + half_gap)` around the rect, so a UV just outside the held range
+/// (interpolation noise, filtering) lands next to the near edge, never at the far one.
+#[inline]
+pub fn half_gap(uv_min: f64, uv_max: f64) -> f64 {
+    (0.5 * (1.0 - (uv_max - uv_min))).max(0.0)
+}
+
+/// The rect-relative coordinate of UV `u` along one axis: its offset from `uv_min` after the axis' wrap,
+/// UV units. Every UV of the rect's triangles lands in `[0, uv_max − uv_min]`; the rect's border holds
+/// what the sampler's own rule shows around that range.
+#[inline]
+pub fn rect_t(u: f64, wrap: RectWrap, uv_min: f64, uv_max: f64) -> f64 {
+    match wrap {
+        RectWrap::Linear => u - uv_min,
+        RectWrap::Repeat => {
+            let x = u - uv_min;
+            x - (x + half_gap(uv_min, uv_max)).floor()
+        }
+        RectWrap::Mirror => mirror(u) - uv_min,
+        RectWrap::Clamp => u.clamp(0.0, 1.0) - uv_min,
+    }
+}
+
+/// Leaf-atlas texel coordinates (x right, y down, texel units, not centres) of UV `uv` in `rect`:
+/// [`rect_t`] per axis scaled onto the inner rectangle, then kept `margin` texels inside the outer
+/// rectangle (its centre where the outer rectangle is narrower than twice the margin). The shader uses the
+/// filter footprint as the margin, so no sample reaches a neighbouring rect.
+pub fn rect_texel(uv: DVec2, rect: &AtlasRect, margin: DVec2) -> DVec2 {
+    let tpu = rect.texels_per_uv();
+    let axis = |k: usize, u: f64, m: f64| {
+        let t = rect_t(u, rect.wrap[k], rect.uv_min[k], rect.uv_max[k]);
+        let x = f64::from(rect.inner[k]) + t * tpu[k];
+        let lo = f64::from(rect.outer[k]) + m;
+        let hi = f64::from(rect.outer[k] + rect.outer[k + 2]) - m;
+        if lo <= hi {
+            x.clamp(lo, hi)
+        } else {
+            0.5 * (lo + hi)
+        }
+    };
+    DVec2::new(axis(0, uv.x, margin.x), axis(1, uv.y, margin.y))
+}
 
 /// The cell offset of a level-K cell inside its level-j ancestor, in units of the ancestor's atlas:
 /// `(cell mod 2^(K−j)) / 2^(K−j)`. `j ≤ K ≤ 31`.

@@ -76,17 +76,89 @@ impl Node {
     }
 }
 
+/// How the UVs of a rect's triangles reach its inner rectangle, per texture axis (DESIGN.md "Repeats: one
+/// period per rect, wrapped in the shader"). The fragment shader and its CPU twins
+/// ([`crate::build::transform::rect_t`]) apply it to the unbounded, interpolated original UV.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+pub enum RectWrap {
+    /// Baked (the paper's §5.2.2): `inner` shows `[uv_min, uv_max]`, every repetition the UVs span copied
+    /// into the atlas; the UV reaches the rect unchanged.
+    #[default]
+    Linear,
+    /// REPEAT sampler: `inner` shows at most one period, `[uv_min, uv_max]` with `uv_max − uv_min ≤ 1`; the
+    /// UV is reduced by whole periods into it. Exactly one period: its border is the periodic
+    /// continuation, so filtering across the seam reads what the original texture would.
+    Repeat,
+    /// MIRRORED_REPEAT sampler: `[uv_min, uv_max] ⊂ [0, 1]`; the UV is folded into `[0, 1]` first.
+    Mirror,
+    /// CLAMP_TO_EDGE sampler: `[uv_min, uv_max] ⊂ [0, 1]`; the UV is clamped to `[0, 1]` first.
+    Clamp,
+}
+
+impl RectWrap {
+    /// The paging file's (and the shader's) code of this mode.
+    pub fn code(self) -> u32 {
+        match self {
+            RectWrap::Linear => 0,
+            RectWrap::Repeat => 1,
+            RectWrap::Mirror => 2,
+            RectWrap::Clamp => 3,
+        }
+    }
+
+    /// The mode of `code` (`None` for an unknown code).
+    pub fn from_code(code: u32) -> Option<RectWrap> {
+        Some(match code {
+            0 => RectWrap::Linear,
+            1 => RectWrap::Repeat,
+            2 => RectWrap::Mirror,
+            3 => RectWrap::Clamp,
+            _ => return None,
+        })
+    }
+
+    /// The rect mode for a sampler's wrap mode when repeats are wrapped in the shader.
+    pub fn for_sampler(w: crate::scene::Wrap) -> RectWrap {
+        match w {
+            crate::scene::Wrap::Repeat => RectWrap::Repeat,
+            crate::scene::Wrap::MirroredRepeat => RectWrap::Mirror,
+            crate::scene::Wrap::ClampToEdge => RectWrap::Clamp,
+        }
+    }
+}
+
 /// Where one material's texture area sits in a leaf atlas (paper §5.2.2–5.2.3).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AtlasRect {
     pub material: MaterialId,
     /// Outer rectangle incl. border, texels, 4-aligned: `[x, y, w, h]`.
     pub outer: [u32; 4],
-    /// Inner rectangle (the UV bounding area A_tex maps onto exactly this), texels: `[x, y, w, h]`.
+    /// Inner rectangle (the UV area A_tex maps onto exactly this), texels: `[x, y, w, h]`.
     pub inner: [u32; 4],
-    /// A_tex in the material's UV space: `inner` shows `[uv_min, uv_max]`.
+    /// A_tex in the material's UV space: `inner` shows `[uv_min, uv_max]` (see [`RectWrap`] for the range
+    /// each mode allows).
     pub uv_min: [f64; 2],
     pub uv_max: [f64; 2],
+    /// Per axis, how the UVs of the rect's triangles reach `[uv_min, uv_max]`.
+    pub wrap: [RectWrap; 2],
+    /// Per axis, whether the source cap limited the texels per period (the guarantee is then the
+    /// source's: the atlas holds the source's full resolution).
+    pub capped: [bool; 2],
+}
+
+impl AtlasRect {
+    /// Leaf-atlas texels per unit of UV along each axis (`inner` size over the UV span; a zero span, a
+    /// one-texel area, counts as one UV).
+    pub fn texels_per_uv(&self) -> [f64; 2] {
+        let axis = |inner: u32, lo: f64, hi: f64| {
+            let span = hi - lo;
+            f64::from(inner) / if span > 0.0 { span } else { 1.0 }
+        };
+        [
+            axis(self.inner[2], self.uv_min[0], self.uv_max[0]),
+            axis(self.inner[3], self.uv_min[1], self.uv_max[1]),
+        ]
+    }
 }
 
 /// One original texture a leaf uses near the camera (d < d_min), resampled to a square power-of-two
@@ -121,20 +193,25 @@ pub struct Leaf {
 }
 
 /// A vertex as stored and drawn. WGSL twin: `TreeVertex` in `shaders/tree.wgsl`.
+///
+/// One UV set serves every level and both texture sources: the fragment shader maps `orig_uv` into the
+/// vertex's rect of the leaf atlas ([`RectWrap`]) and from there into the atlas of the drawn level (the
+/// exact transform of DESIGN.md "Precision"), or samples the original texture with it.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable, Serialize)]
 #[repr(C)]
 pub struct TreeVertex {
     /// Position relative to the leaf origin (f32 is exact enough: leaves are small).
     pub pos: [f32; 3],
-    /// Leaf-local atlas UV in [0, 1] of the leaf's atlas.
-    pub atlas_uv: [f32; 2],
     /// Original UV, shifted per triangle by a whole period so it stays small (exact for repeat/mirror).
     pub orig_uv: [f32; 2],
     /// The leaf this vertex belongs to.
     pub leaf: u32,
     /// Index into the leaf's `originals` (TAB's texture-array mapping for original-texture draws).
     pub original: u32,
+    /// Index into the leaf's `rects`: the atlas area its triangle's texture occupies.
+    pub rect: u32,
 }
+const _: () = assert!(size_of::<TreeVertex>() == 32);
 
 /// What a block holds.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]

@@ -67,6 +67,21 @@ pub struct BuildArgs {
     /// each tree's PSNR against the uncompressed atlases.
     #[arg(long, value_enum, default_value_t = CompressArg::None)]
     pub compress: CompressArg,
+    /// How repeated textures are stored. `wrap`: each atlas rect holds at most one period of its texture
+    /// (the used range when shorter) at the texels per period d_min needs, with a border filled by the
+    /// sampler's own rule, and the fragment shader wraps the UV into it: the file no longer grows with how
+    /// often a texture repeats. `bake`: every repetition the UVs span is copied into the atlas and big
+    /// triangles are cut into pieces (the paper's §5.2.2; the sweep's reference for what wrapping costs).
+    #[arg(long, default_value = "wrap")]
+    pub repeat: atlastree::build::RepeatMode,
+    /// A node that does not fit one atlas is not split when its original textures need at most this many
+    /// atlases' worth of texels: it becomes a leaf whose atlas holds its content scaled to fit
+    /// (min_distance raised by that scale), and nearer than that its original textures are drawn. Deeper
+    /// leaves would mostly copy those originals (at R151 most real textures are needed at their source
+    /// resolution), so this keeps the tree shallow while what a close camera needs stays pageable. 0: split
+    /// every node that does not fit (the paper's tree).
+    #[arg(long, default_value_t = 16.0)]
+    pub leaf_originals: f64,
     /// Build the tree over the triangles of these materials only (comma-separated glob patterns on glTF
     /// material names, `*` and `?`), e.g. `--materials 'facade_*'` for the paper's Berlin test, whose atlas
     /// tree held only the facades (§7). d_min ratios then refer to the kept geometry's diagonal.
@@ -124,6 +139,8 @@ impl BuildArgs {
             max_file_bytes: self.max_file_gib << 30,
             mip_filter: self.filter,
             compress: self.compress.compression(),
+            repeat: self.repeat,
+            leaf_originals_atlases: self.leaf_originals,
         }
     }
 }
@@ -153,6 +170,18 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         print_report(&report, &a.out);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `n` texels as "12.3 Mtexels".
+fn human_texels(n: u64) -> String {
+    let n = n as f64;
+    if n >= 1e9 {
+        format!("{:.2} Gtexels", n / 1e9)
+    } else if n >= 1e6 {
+        format!("{:.1} Mtexels", n / 1e6)
+    } else {
+        format!("{:.0} ktexels", n / 1e3)
+    }
 }
 
 pub fn print_report(r: &BuildReport, out: &std::path::Path) {
@@ -185,6 +214,27 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
             s.world_degenerate,
             t.capped_rects,
             t.clamped_leaves
+        );
+        let lr = &t.leaf_reasons;
+        println!(
+            "    leaves: {} fit, {} scaled for an oversized rect, {} scaled at source resolution, {} scaled within \
+             --leaf-originals, {} shared-texture, {} clamped triangles; smallest scale {:.3}; originals of scaled \
+             leaves {} (largest leaf {})",
+            lr.fits,
+            lr.oversized,
+            lr.source_resolution,
+            lr.scaled,
+            lr.shared,
+            lr.clamped,
+            lr.scale_min,
+            human_texels(lr.scaled_original_texels),
+            human_texels(lr.scaled_original_texels_max)
+        );
+        println!(
+            "    periods stored {:.1} of the {:.1} the UVs span ({:.0}× fewer)",
+            t.periods_stored,
+            t.periods_spanned,
+            t.periods_spanned / t.periods_stored.max(1e-9)
         );
         println!(
             "    blocks stored as {} ({} bytes per 4×4 texels); atlas PSNR vs uncompressed {}",

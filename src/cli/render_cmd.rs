@@ -56,9 +56,10 @@ pub struct RenderArgs {
     /// Skip GPU timestamp queries.
     #[arg(long)]
     pub no_gpu_timing: bool,
-    /// Anisotropy clamp of the samplers, 1 (isotropic trilinear) to 16, in every mode alike. A CPU
-    /// rasteriser (lavapipe) pays per tap, so lower values trade sharpness at grazing angles for time.
-    #[arg(long, default_value_t = RendererOptions::ANISOTROPY, value_parser = clap::value_parser!(u16).range(1..=16))]
+    /// Anisotropy clamp of the samplers, 1 (isotropic trilinear) to 16, in every mode alike; `auto`: 16 on
+    /// a GPU, 1 on a software rasteriser (lavapipe's anisotropic filtering with the explicit gradients of
+    /// wrapped atlas UVs costs ~100× per pixel). Lower values trade sharpness at grazing angles for time.
+    #[arg(long, default_value = "auto", value_parser = parse_anisotropy)]
     pub anisotropy: u16,
     /// Page blocks with at most this many resident (the paper used 160). Omit to load everything.
     #[arg(long)]
@@ -488,4 +489,15 @@ fn paging_row(p: &atlastree::render::PagingFrame) -> String {
         p.apply_errors,
         p.resident_hash
     )
+}
+
+/// `auto` ([`RendererOptions::AUTO`]) or 1..=16.
+pub fn parse_anisotropy(s: &str) -> Result<u16, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(RendererOptions::AUTO);
+    }
+    match s.parse::<u16>() {
+        Ok(v) if (1..=16).contains(&v) => Ok(v),
+        _ => Err(format!("{s:?}: expected auto or an integer from 1 to 16")),
+    }
 }

@@ -52,10 +52,11 @@ pub struct SweepArgs {
     /// Keep the paging files in OUT/builds (by default each is deleted once its variants are measured).
     #[arg(long)]
     pub keep_builds: bool,
-    /// Sampler anisotropy (1–16) of every render, the reference included. On lavapipe the tree's
-    /// original-texture draws (explicit gradients) and the reference (implicit) filter differently under
-    /// anisotropy (measured 28–44 dB apart at 16, 75 dB at 1): 1 isolates the atlas tree's own error.
-    #[arg(long, default_value_t = atlastree::render::RendererOptions::ANISOTROPY, value_parser = clap::value_parser!(u16).range(1..=16))]
+    /// Sampler anisotropy (1–16, or `auto`: 16 on a GPU, 1 on a software rasteriser) of every render, the
+    /// reference included. On lavapipe the tree's draws (explicit gradients) and the reference (implicit)
+    /// filter differently under anisotropy (measured 28–44 dB apart at 16, 75 dB at 1), and the
+    /// explicit-gradient path costs ~100× per pixel: 1 isolates the atlas tree's own error.
+    #[arg(long, default_value = "auto", value_parser = super::render_cmd::parse_anisotropy)]
     pub anisotropy: u16,
     /// Up axis; `auto` takes the axis of least extent.
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]

@@ -16,13 +16,14 @@
 //! Record `i` of the indirect buffer has `first_instance = i`: the vertex shader reads `records[i]` through
 //! `instance_index`.
 
-use crate::build::tree::TreeVertex;
+use crate::build::transform::half_gap;
+use crate::build::tree::{AtlasRect, RectWrap, TreeVertex};
 use crate::ids::NONE;
 use crate::paging::Resolved;
 use crate::select::{Cut, Source};
 use crate::store::format::NodeRecord;
 use bytemuck::{Pod, Zeroable};
-use glam::DVec3;
+use glam::{DVec3, Vec2};
 
 /// `DrawIndexedIndirectArgs` as stored in the indirect buffer (20 bytes, wgpu's layout).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
@@ -70,8 +71,116 @@ pub struct LeafGpu {
     pub level: u32,
     /// First entry of the leaf's texture-array mapping in the TAM buffer (global index).
     pub first_tam: u32,
+    /// First entry of the leaf's rects in the rect buffer (global index).
+    pub first_rect: u32,
+    pub _pad: [u32; 3],
 }
-const _: () = assert!(size_of::<LeafGpu>() == 16);
+const _: () = assert!(size_of::<LeafGpu>() == 32);
+
+/// How a fragment's original UV reaches its texture's rect in its leaf's atlas (DESIGN.md "Repeats"): the
+/// rect's per-axis wrap ([`RectWrap`]), then the linear map onto the inner rectangle, kept inside the
+/// outer rectangle by the filter footprint. WGSL twin: `RectMap` in `shaders/tree.wgsl`;
+/// [`RectMap::texel_f32`] is the shader's arithmetic on the CPU, [`crate::build::transform::rect_texel`]
+/// its f64 reference. All lengths in leaf-atlas texels.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct RectMap {
+    /// UV shown at the inner rectangle's low edge (after the wrap).
+    pub uv_min: [f32; 2],
+    /// Leaf-atlas texels per unit of UV.
+    pub texels_per_uv: [f32; 2],
+    /// Low corner of the inner rectangle.
+    pub inner_lo: [f32; 2],
+    /// REPEAT axes: half the part of the period the rect does not hold ([`crate::build::transform::half_gap`]).
+    pub half_gap: [f32; 2],
+    /// The outer rectangle (border included).
+    pub outer_lo: [f32; 2],
+    pub outer_hi: [f32; 2],
+    /// `wrap_s | wrap_t << 2`, [`RectWrap::code`]s.
+    pub wrap: u32,
+    pub _pad: [u32; 3],
+}
+const _: () = assert!(size_of::<RectMap>() == 64);
+
+impl RectMap {
+    /// The GPU record of a stored rect.
+    pub fn new(r: &AtlasRect) -> RectMap {
+        let tpu = r.texels_per_uv();
+        let gap = |k: usize| half_gap(r.uv_min[k], r.uv_max[k]) as f32;
+        RectMap {
+            uv_min: [r.uv_min[0] as f32, r.uv_min[1] as f32],
+            texels_per_uv: [tpu[0] as f32, tpu[1] as f32],
+            inner_lo: [r.inner[0] as f32, r.inner[1] as f32],
+            half_gap: [gap(0), gap(1)],
+            outer_lo: [r.outer[0] as f32, r.outer[1] as f32],
+            outer_hi: [
+                (r.outer[0] + r.outer[2]) as f32,
+                (r.outer[1] + r.outer[3]) as f32,
+            ],
+            wrap: r.wrap[0].code() | r.wrap[1].code() << 2,
+            _pad: [0; 3],
+        }
+    }
+
+    /// `(rect coordinate, sign of its derivative)` of `u` on axis `k`: `rect_axis` in the shader.
+    pub fn axis_f32(&self, u: f32, k: usize) -> (f32, f32) {
+        let mode = (self.wrap >> (2 * k)) & 3;
+        let lo = self.uv_min[k];
+        if mode == RectWrap::Repeat.code() {
+            let x = u - lo;
+            return (x - (x + self.half_gap[k]).floor(), 1.0);
+        }
+        if mode == RectWrap::Mirror.code() {
+            let p = u - 2.0 * (u * 0.5).floor();
+            return if p > 1.0 {
+                (2.0 - p - lo, -1.0)
+            } else {
+                (p - lo, 1.0)
+            };
+        }
+        if mode == RectWrap::Clamp.code() {
+            return (u.clamp(0.0, 1.0) - lo, 1.0);
+        }
+        (u - lo, 1.0)
+    }
+
+    /// The shader's `rect_texel`: leaf-atlas texel coordinates of UV `uv` with screen derivatives `ddx`,
+    /// `ddy` drawn at a level `level_texels` leaf texels per texel of the drawn atlas (`2^(K − j)`), and the
+    /// derivatives of those coordinates. The sample is kept half the footprint plus half a drawn texel
+    /// inside the outer rectangle (its centre where it is narrower than that), so the filter never reads a
+    /// neighbouring rect.
+    pub fn texel_f32(
+        &self,
+        uv: Vec2,
+        ddx: Vec2,
+        ddy: Vec2,
+        level_texels: f32,
+    ) -> (Vec2, Vec2, Vec2) {
+        let (ts, ss) = self.axis_f32(uv.x, 0);
+        let (tt, st) = self.axis_f32(uv.y, 1);
+        let tpu = Vec2::from(self.texels_per_uv) * Vec2::new(ss, st);
+        let gx = ddx * tpu;
+        let gy = ddy * tpu;
+        let margin = 0.5 * (gx.abs() + gy.abs()) + Vec2::splat(0.5 * level_texels);
+        let lo = Vec2::from(self.outer_lo) + margin;
+        let hi = Vec2::from(self.outer_hi) - margin;
+        let t = Vec2::from(self.inner_lo) + Vec2::new(ts, tt) * Vec2::from(self.texels_per_uv);
+        let centre = 0.5 * (lo + hi);
+        let texel = Vec2::new(
+            if lo.x > hi.x {
+                centre.x
+            } else {
+                t.x.clamp(lo.x, hi.x)
+            },
+            if lo.y > hi.y {
+                centre.y
+            } else {
+                t.y.clamp(lo.y, hi.y)
+            },
+        );
+        (texel, gx, gy)
+    }
+}
 
 /// Wrap codes of [`TamEntry::wrap`] (per axis; `wrap = s | t << 2`), as in the paging file.
 pub const WRAP_REPEAT: u32 = 0;
@@ -373,5 +482,5 @@ impl LeafOffsets {
     }
 }
 
-/// The vertex attribute layout of [`TreeVertex`] (locations 0–4: pos, atlas_uv, orig_uv, leaf, original).
+/// The vertex stride of [`TreeVertex`] (locations 0–4: pos, orig_uv, leaf, original, rect).
 pub const VERTEX_STRIDE: u64 = size_of::<TreeVertex>() as u64;

@@ -91,13 +91,16 @@ pub enum RenderError {
         class_size: u32,
     },
     #[error(
-        "tree {tree} leaf {leaf}: a vertex names original {original} (or another leaf); the leaf has {originals}"
+        "tree {tree} leaf {leaf}: a vertex names original {original} and rect {rect} (or another leaf); the leaf \
+         has {originals} originals and {rects} rects"
     )]
     BadVertex {
         tree: usize,
         leaf: u32,
         original: u32,
         originals: u32,
+        rect: u32,
+        rects: u32,
     },
     #[error("frame size {width}x{height} is empty")]
     BadSize { width: u32, height: u32 },

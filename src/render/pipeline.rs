@@ -19,13 +19,17 @@ pub const B_DRAWS: u32 = 1;
 pub const B_LEAVES: u32 = 2;
 pub const B_OFFSETS: u32 = 3;
 pub const B_TAM: u32 = 4;
-pub const B_ATLAS_SAMPLER: u32 = 5;
-pub const B_ORIGINAL_SAMPLER: u32 = 6;
-pub const B_ATLAS0: u32 = 7;
+pub const B_RECTS: u32 = 5;
+pub const B_ATLAS_SAMPLER: u32 = 6;
+pub const B_ATLAS_SAMPLER_ISO: u32 = 7;
+pub const B_ORIGINAL_SAMPLER: u32 = 8;
+pub const B_ORIGINAL_SAMPLER_ISO: u32 = 9;
+pub const B_ATLAS0: u32 = 10;
 pub const B_CLASS0: u32 = B_ATLAS0 + MAX_ATLAS_ARRAYS as u32;
 
+/// pos, orig_uv, leaf, original, rect (the fields of `TreeVertex` in order).
 const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 5] = wgpu::vertex_attr_array![
-    0 => Float32x3, 1 => Float32x2, 2 => Float32x2, 3 => Uint32, 4 => Uint32
+    0 => Float32x3, 1 => Float32x2, 2 => Uint32, 3 => Uint32, 4 => Uint32
 ];
 
 /// Vertex buffer layout of `TreeVertex`.
@@ -58,6 +62,10 @@ fn storage() -> wgpu::BindingType {
     }
 }
 
+fn filtering() -> wgpu::BindingType {
+    wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)
+}
+
 fn uniform() -> wgpu::BindingType {
     wgpu::BindingType::Buffer {
         ty: wgpu::BufferBindingType::Uniform,
@@ -86,16 +94,11 @@ pub fn tree_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
         entry(B_LEAVES, V, storage()),
         entry(B_OFFSETS, V, storage()),
         entry(B_TAM, F, storage()),
-        entry(
-            B_ATLAS_SAMPLER,
-            F,
-            wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-        ),
-        entry(
-            B_ORIGINAL_SAMPLER,
-            F,
-            wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-        ),
+        entry(B_RECTS, F, storage()),
+        entry(B_ATLAS_SAMPLER, F, filtering()),
+        entry(B_ATLAS_SAMPLER_ISO, F, filtering()),
+        entry(B_ORIGINAL_SAMPLER, F, filtering()),
+        entry(B_ORIGINAL_SAMPLER_ISO, F, filtering()),
     ];
     for i in 0..(MAX_ATLAS_ARRAYS + CLASS_COUNT) as u32 {
         entries.push(entry(

@@ -8,8 +8,8 @@
 
 use super::RenderError;
 use super::batch::{
-    AtlasSlot, LeafGpu, LeafOffsets, Pass, TamEntry, TreeBatchInfo, WRAP_CLAMP, WRAP_MIRROR,
-    WRAP_REPEAT, leaf_ranges,
+    AtlasSlot, LeafGpu, LeafOffsets, Pass, RectMap, TamEntry, TreeBatchInfo, WRAP_CLAMP,
+    WRAP_MIRROR, WRAP_REPEAT, leaf_ranges,
 };
 use super::textures::{
     CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index, common_format, gpu_format,
@@ -69,6 +69,8 @@ pub struct Resident {
     pub leaves_buffer: wgpu::Buffer,
     pub offsets_buffer: wgpu::Buffer,
     pub tam_buffer: wgpu::Buffer,
+    /// Every leaf's rects ([`RectMap`]), global numbering (`LeafGpu::first_rect`).
+    pub rects_buffer: wgpu::Buffer,
     pub leaf_offsets: LeafOffsets,
     pub atlas_arrays: Vec<TextureArray>,
     /// One per class (`None`: no original of that class).
@@ -239,11 +241,11 @@ fn buffer(
     contents: &[u8],
     usage: wgpu::BufferUsages,
 ) -> wgpu::Buffer {
-    // wgpu rejects zero-sized bindings: keep at least 16 bytes.
+    // wgpu rejects zero-sized bindings and ones smaller than one array element: keep at least 256 bytes.
     let mut owned;
-    let contents = if contents.len() < 16 {
+    let contents = if contents.len() < 256 {
         owned = contents.to_vec();
-        owned.resize(16, 0);
+        owned.resize(256, 0);
         &owned[..]
     } else {
         contents
@@ -264,6 +266,8 @@ pub struct Plan {
     pub vertices: Vec<TreeVertex>,
     pub indices: Vec<u32>,
     pub leaves: Vec<LeafGpu>,
+    /// Every leaf's rects, global numbering.
+    pub rects: Vec<RectMap>,
     /// Leaf origins, f64, global leaf numbering.
     pub origins: Vec<DVec3>,
     pub tam: Vec<TamEntry>,
@@ -471,6 +475,7 @@ impl Resident {
                 bytemuck::cast_slice(&tam),
                 storage | wgpu::BufferUsages::COPY_DST,
             ),
+            rects_buffer: buffer(ctx, "rects", bytemuck::cast_slice(&g.rects), storage),
             leaf_offsets,
             infos,
             atlas_arrays,
@@ -521,12 +526,20 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
             let originals = view.leaf_originals(leaf);
             let offsets = slot_offsets(originals, view.format());
             let first_tam = count_u32("tam", g.tam.len())?;
+            let first_rect = count_u32("rects", g.rects.len())?;
             g.leaves.push(LeafGpu {
                 cell_ix: node.map_or(0, |n| n.cell.ix),
                 cell_iy: node.map_or(0, |n| n.cell.iy),
                 level: node.map_or(0, |n| n.level),
                 first_tam,
+                first_rect,
+                _pad: [0; 3],
             });
+            g.rects.extend(
+                view.leaf_rects(leaf)
+                    .iter()
+                    .map(|r| RectMap::new(&r.decode())),
+            );
             g.origins.push(DVec3::from_array(leaf.origin));
             for (o, &offset) in originals.iter().zip(&offsets) {
                 let m = materials.get(o.material as usize).copied();
@@ -562,21 +575,25 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                     _pad: [0; 2],
                 });
             }
-            // Every vertex's `original` must index the leaf's TAM range (the shader does not check).
+            // Every vertex's `original` and `rect` must index the leaf's TAM and rect ranges (the shader does
+            // not check).
             let first = leaf.first_vertex as usize;
             let verts = view
                 .vertices
                 .get(first..first.saturating_add(leaf.vertex_count as usize))
                 .unwrap_or(&[]);
-            if let Some(v) = verts
-                .iter()
-                .find(|v| v.original >= leaf.original_count || v.leaf != li as u32)
-            {
+            if let Some(v) = verts.iter().find(|v| {
+                v.original >= leaf.original_count
+                    || v.rect >= leaf.rect_count
+                    || v.leaf != li as u32
+            }) {
                 return Err(RenderError::BadVertex {
                     tree: t,
                     leaf: li as u32,
                     original: v.original,
                     originals: leaf.original_count,
+                    rect: v.rect,
+                    rects: leaf.rect_count,
                 });
             }
         }

@@ -28,7 +28,8 @@
 //! size, so a change of layout is a compile error, not a silent format change.
 
 use crate::build::tree::{
-    AtlasRect, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind, TreeVertex,
+    AtlasRect, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, RectWrap, TreeKind,
+    TreeVertex,
 };
 use crate::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NONE, NodeId};
 use crate::scene::{AlphaMode, Material, UpAxis, Wrap};
@@ -40,8 +41,9 @@ pub const MAGIC: [u8; 8] = *b"ATLTREE\0";
 /// The format version this build reads and writes. Bump on any layout change.
 ///
 /// History: 1 = RGBA8 blocks only; 2 = per-tree block format ([`TreeRecord::format`]) and per-block
-/// compression error ([`BlockRecord::sse`]).
-pub const FORMAT_VERSION: u32 = 2;
+/// compression error ([`BlockRecord::sse`]); 3 = repeats wrapped in the shader: per-rect wrap and cap flags
+/// ([`RectRecord::flags`]), vertices without a baked atlas UV but with their rect ([`TreeVertex::rect`]).
+pub const FORMAT_VERSION: u32 = 3;
 /// Alignment of every section's offset, bytes.
 pub const SECTION_ALIGN: u64 = 16;
 /// Alignment of every block's offset, bytes (one page: a block can be mapped or read with O_DIRECT alone).
@@ -560,9 +562,13 @@ pub struct RectRecord {
     pub outer: [u32; 4],
     /// Inner rectangle `[x, y, w, h]`, texels.
     pub inner: [u32; 4],
-    pub _pad: u32,
+    /// `wrap_s | wrap_t << 2 | capped_s << 4 | capped_t << 5` ([`RectWrap::code`]); other bits zero.
+    pub flags: u32,
 }
 const _: () = assert!(size_of::<RectRecord>() == 72);
+
+/// Bits of [`RectRecord::flags`] this version defines.
+pub const RECT_FLAGS_KNOWN: u32 = 0x3f;
 
 impl RectRecord {
     pub fn encode(r: &AtlasRect) -> Self {
@@ -572,10 +578,31 @@ impl RectRecord {
             material: r.material.0,
             outer: r.outer,
             inner: r.inner,
-            _pad: 0,
+            flags: r.wrap[0].code()
+                | r.wrap[1].code() << 2
+                | u32::from(r.capped[0]) << 4
+                | u32::from(r.capped[1]) << 5,
         }
     }
 
+    /// Per-axis wrap of the rect (`None` for flags this version does not define; validated files have
+    /// none).
+    pub fn wrap(&self) -> Option<[RectWrap; 2]> {
+        if self.flags & !RECT_FLAGS_KNOWN != 0 {
+            return None;
+        }
+        Some([
+            RectWrap::from_code(self.flags & 3)?,
+            RectWrap::from_code((self.flags >> 2) & 3)?,
+        ])
+    }
+
+    /// Per axis, whether the source cap limited the rect's texels per period.
+    pub fn capped(&self) -> [bool; 2] {
+        [self.flags & 16 != 0, self.flags & 32 != 0]
+    }
+
+    /// The rect; unknown flags decode as [`RectWrap::Linear`] (validated files have none).
     pub fn decode(&self) -> AtlasRect {
         AtlasRect {
             material: MaterialId(self.material),
@@ -583,6 +610,8 @@ impl RectRecord {
             inner: self.inner,
             uv_min: self.uv_min,
             uv_max: self.uv_max,
+            wrap: self.wrap().unwrap_or_default(),
+            capped: self.capped(),
         }
     }
 }

@@ -378,13 +378,11 @@ fn check_rects_originals(
 ) -> Result<(), StoreError> {
     let m = materials as u64;
     for (i, r) in t.rects.iter().enumerate() {
-        in_range(
-            "rects",
-            t.record.rects.first + i as u64,
-            "material",
-            u64::from(r.material),
-            m,
-        )?;
+        let gi = t.record.rects.first + i as u64;
+        in_range("rects", gi, "material", u64::from(r.material), m)?;
+        if r.wrap().is_none() {
+            return Err(bad_value("rects", gi, "flags", u64::from(r.flags)));
+        }
     }
     for (i, o) in t.originals.iter().enumerate() {
         let gi = t.record.originals.first + i as u64;
@@ -410,6 +408,21 @@ fn check_vertices_indices(t: &TreeTables<'_>) -> Result<(), StoreError> {
             "leaf",
             value,
             leaves.into(),
+        ));
+    }
+    // Every vertex's rect is one of its leaf's (the shader indexes the rect table with it unchecked).
+    if let Some(i) = t
+        .vertices
+        .iter()
+        .position(|v| v.rect >= t.leaves[v.leaf as usize].rect_count)
+    {
+        let v = &t.vertices[i];
+        return Err(bad_ref(
+            "vertices",
+            t.record.vertices.first + i as u64,
+            "rect",
+            u64::from(v.rect),
+            u64::from(t.leaves[v.leaf as usize].rect_count),
         ));
     }
     let limit = t.vertices.len() as u64;

@@ -9,6 +9,9 @@ use crate::texfmt::{TexFormat, channels_for, psnr};
 use serde::Serialize;
 use std::collections::BTreeSet;
 
+mod rects;
+pub use rects::wrap_border_tolerance;
+
 /// Per-level numbers of one tree.
 #[derive(Clone, Debug, Serialize)]
 pub struct LevelStats {
@@ -203,6 +206,18 @@ pub struct VerifyReport {
     pub nodes_checked: u64,
     pub triangles_checked: u64,
     pub vertices_checked: u64,
+    /// Rects checked (range per wrap mode, texels per period against every triangle's requirement).
+    pub rects_checked: u64,
+    /// (triangle, axis) pairs whose required texels per period were checked against their rect.
+    pub periods_checked: u64,
+    /// The smallest ratio found of a rect's texels per period to what one of its (uncapped) triangles
+    /// needs at the leaf's min_distance (≥ 1 − 1e-6 holds the d_min guarantee).
+    pub period_ratio_min: f64,
+    /// Wrap borders of leaf atlases compared with what the sampler rule puts there (periodic partner,
+    /// reflection, edge texel), level 0 decoded: sides checked and the largest mean difference of one
+    /// side, sRGB8 levels.
+    pub wrap_borders_checked: u64,
+    pub wrap_border_mean_max: f64,
     /// Triangles that are extra pieces of split scene triangles.
     pub split_pieces: u64,
     /// Up to 100 violations, each naming the tree, node/leaf/vertex and the numbers.
@@ -244,8 +259,9 @@ impl VerifyReport {
 
 /// Checks every block checksum and the invariants: children inside parent bounds, levels and cells
 /// consistent, min_distance of inner nodes = 2 · max(children), leaves contiguous in tree order and every
-/// node's index range the union of its children's, every triangle in exactly one leaf, every vertex's atlas
-/// UV inside its texture's area of the leaf atlas.
+/// node's index range the union of its children's, every triangle in exactly one leaf and inside its
+/// rect under the rect's wrap, every rect holding the texels per period its triangles need, and every
+/// wrap border of a leaf atlas showing what the sampler's rule puts there.
 pub fn verify(file: &TreeFile) -> VerifyReport {
     verify_with(file, None)
 }
@@ -255,6 +271,7 @@ pub fn verify(file: &TreeFile) -> VerifyReport {
 pub fn verify_with(file: &TreeFile, reference: Option<&TreeFile>) -> VerifyReport {
     let mut r = verify_structure(file);
     verify_psnr(file, reference, &mut r);
+    rects::verify_wrap_borders(file, &mut r);
     r
 }
 
@@ -360,7 +377,6 @@ fn verify_structure(file: &TreeFile) -> VerifyReport {
         }
     }
     let params = file.to_params();
-    let size = f64::from(params.atlas_size);
     let mut seen: Vec<u32> = Vec::new();
     for ti in 0..file.trees() {
         let Some(t) = file.tree(ti) else { continue };
@@ -448,7 +464,8 @@ fn verify_structure(file: &TreeFile) -> VerifyReport {
                 }
             }
         }
-        // Leaves: contiguous in order; every vertex inside its leaf's range and its texture's inner rect.
+        // Leaves: contiguous in order; every vertex inside its leaf's range, every triangle inside its rect
+        // (per axis under the rect's wrap) with the texels per period its geometry needs (rects module).
         let mut next_index = 0u32;
         for (li, l) in t.leaves.iter().enumerate() {
             if l.first_index != next_index {
@@ -458,65 +475,7 @@ fn verify_structure(file: &TreeFile) -> VerifyReport {
                 ));
             }
             next_index = l.first_index + l.index_count;
-            let rects = t.leaf_rects(l);
-            let originals = t.leaf_originals(l);
-            let Some(idx) = t.indices.get(l.first_index as usize..next_index as usize) else {
-                r.fail(format!("tree {ti} leaf {li}: index range out of bounds"));
-                continue;
-            };
-            for &vi in idx {
-                if vi < l.first_vertex || vi >= l.first_vertex + l.vertex_count {
-                    r.fail(format!(
-                        "tree {ti} leaf {li}: index {vi} outside its vertices"
-                    ));
-                    continue;
-                }
-                let v = &t.vertices[vi as usize];
-                r.vertices_checked += 1;
-                if v.leaf as usize != li {
-                    r.fail(format!(
-                        "tree {ti} vertex {vi}: leaf {} but used by leaf {li}",
-                        v.leaf
-                    ));
-                }
-                let Some(o) = originals.get(v.original as usize) else {
-                    r.fail(format!(
-                        "tree {ti} vertex {vi}: original {} of {}",
-                        v.original,
-                        originals.len()
-                    ));
-                    continue;
-                };
-                // A material may have several areas (one per density class): the vertex must lie in one.
-                let (x, y) = (
-                    f64::from(v.atlas_uv[0]) * size,
-                    f64::from(v.atlas_uv[1]) * size,
-                );
-                let tol = 1e-3;
-                let mut areas = rects.iter().filter(|x| x.material == o.material).peekable();
-                if areas.peek().is_none() {
-                    r.fail(format!(
-                        "tree {ti} leaf {li}: no atlas area for material {}",
-                        o.material
-                    ));
-                    continue;
-                }
-                let inside = areas.any(|rect| {
-                    x >= f64::from(rect.inner[0]) - tol
-                        && x <= f64::from(rect.inner[0] + rect.inner[2]) + tol
-                        && y >= f64::from(rect.inner[1]) - tol
-                        && y <= f64::from(rect.inner[1] + rect.inner[3]) + tol
-                });
-                if !inside
-                    || !v.pos.iter().all(|c| c.is_finite())
-                    || !v.orig_uv.iter().all(|c| c.is_finite())
-                {
-                    r.fail(format!(
-                        "tree {ti} leaf {li} vertex {vi}: atlas texel ({x:.3}, {y:.3}) outside every area of material {} or not finite",
-                        o.material
-                    ));
-                }
-            }
+            rects::verify_leaf(&t, ti, li, &params, &mut r);
         }
         if next_index as usize != t.indices.len() {
             r.fail(format!(

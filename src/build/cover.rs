@@ -1,0 +1,283 @@
+//! The UV range one atlas rect must hold along one texture axis (DESIGN.md "Repeats: one period per rect,
+//! wrapped in the shader"; the paper's future work §8.2).
+//!
+//! Input: the UV interval `[lo, hi]` of every triangle of one material in one node along one axis, each
+//! already shifted by whole periods ([`super::prepare::period_shift`]: `lo ∈ [0, 1)` on REPEAT axes,
+//! `lo ∈ [0, 2)` on MIRRORED_REPEAT axes, unshifted on CLAMP axes). Output: the range `[uv_min, uv_max]`
+//! the rect's inner rectangle shows and its [`RectWrap`]:
+//!
+//! - [`RectWrap::Linear`] (baked, `--repeat bake`): the hull of the intervals, every period copied.
+//! - [`RectWrap::Repeat`]: the shortest arc of the unit circle (UV mod 1) containing every interval;
+//!   exactly one period `[0, 1]` when the intervals cover the circle (or one triangle alone spans a
+//!   period). `uv_max − uv_min ≤ 1` always.
+//! - [`RectWrap::Mirror`]: the hull of the intervals folded into `[0, 1]` (mirror period 2).
+//! - [`RectWrap::Clamp`]: the hull of the intervals clamped to `[0, 1]`.
+//!
+//! Contract (checked by `inspect --verify`): for every input interval, every `u` in it lands inside
+//! `[0, uv_max − uv_min]` under [`super::transform::rect_t`], to within f64 rounding. Non-finite intervals
+//! are ignored; no interval at all gives the point range `[0, 0]`.
+
+use super::tree::RectWrap;
+
+/// A gap of the circle shorter than this (UV) is not worth a partial arc: the rect holds a full period.
+pub const MIN_GAP: f64 = 1e-6;
+
+/// Accumulates the intervals of one axis of one rect.
+#[derive(Clone, Debug, Default)]
+pub struct AxisCover {
+    wrap: RectWrap,
+    lo: f64,
+    hi: f64,
+    /// Repeat only: intervals on the circle (`[lo, hi]` with `0 ≤ lo < 1`, `hi < lo + 1`), unsorted.
+    arcs: Vec<(f64, f64)>,
+    /// Repeat only: some interval spans a whole period.
+    full: bool,
+    any: bool,
+}
+
+impl AxisCover {
+    pub fn new(wrap: RectWrap) -> AxisCover {
+        AxisCover {
+            wrap,
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+            ..AxisCover::default()
+        }
+    }
+
+    /// Adds one triangle's interval `[lo, hi]` (`lo ≤ hi`; non-finite values are ignored).
+    pub fn add(&mut self, lo: f64, hi: f64) {
+        if !(lo.is_finite() && hi.is_finite()) || hi < lo {
+            return;
+        }
+        self.any = true;
+        match self.wrap {
+            RectWrap::Linear => self.hull(lo, hi),
+            RectWrap::Clamp => self.hull(lo.clamp(0.0, 1.0), hi.clamp(0.0, 1.0)),
+            RectWrap::Mirror => {
+                let (a, b) = mirror_image(lo, hi);
+                self.hull(a, b);
+            }
+            RectWrap::Repeat => {
+                if self.full {
+                    return;
+                }
+                if hi - lo >= 1.0 {
+                    self.full = true;
+                    self.arcs = Vec::new();
+                    return;
+                }
+                let start = lo - lo.floor();
+                self.arcs.push((start, start + (hi - lo)));
+            }
+        }
+    }
+
+    fn hull(&mut self, lo: f64, hi: f64) {
+        self.lo = self.lo.min(lo);
+        self.hi = self.hi.max(hi);
+    }
+
+    /// `(uv_min, uv_max)` of the rect along this axis (see the module docs).
+    pub fn range(&self) -> (f64, f64) {
+        if !self.any {
+            return (0.0, 0.0);
+        }
+        match self.wrap {
+            RectWrap::Repeat if self.full => (0.0, 1.0),
+            RectWrap::Repeat => {
+                let (start, span) = shortest_arc(&self.arcs);
+                (start, start + span)
+            }
+            _ => (self.lo, self.hi),
+        }
+    }
+
+    pub fn wrap(&self) -> RectWrap {
+        self.wrap
+    }
+}
+
+/// The image of `[lo, hi]` under the mirror fold (period 2, `[0, 1]` forward, `[1, 2]` backward): the hull
+/// of the fold at both ends and at every integer inside.
+pub fn mirror_image(lo: f64, hi: f64) -> (f64, f64) {
+    if hi - lo >= 2.0 {
+        return (0.0, 1.0);
+    }
+    let m = super::transform::mirror;
+    let (mut a, mut b) = (m(lo).min(m(hi)), m(lo).max(m(hi)));
+    // Integers inside (lo, hi) fold to 0 (even) or 1 (odd); at most two of them since hi − lo < 2.
+    let first = lo.floor() + 1.0;
+    let mut k = first;
+    while k < hi {
+        let v = m(k);
+        a = a.min(v);
+        b = b.max(v);
+        k += 1.0;
+    }
+    (a, b)
+}
+
+/// The shortest arc of the unit circle containing every arc `(start, end)` (`0 ≤ start < 1`,
+/// `end < start + 1`): `(arc start in [0, 1), length in [0, 1])`. Length 1 (start 0) when the arcs leave
+/// no gap of at least [`MIN_GAP`]. Deterministic for a given set of arcs, whatever their order.
+pub fn shortest_arc(arcs: &[(f64, f64)]) -> (f64, f64) {
+    if arcs.is_empty() {
+        return (0.0, 0.0);
+    }
+    // Unroll onto [0, 1): an arc past 1 becomes two pieces.
+    let mut pieces: Vec<(f64, f64)> = Vec::with_capacity(arcs.len() + 4);
+    for &(s, e) in arcs {
+        // A start of exactly 1 (rounding of a period shift) is the same point as 0.
+        let (s, e) = if s >= 1.0 { (s - 1.0, e - 1.0) } else { (s, e) };
+        if e > 1.0 {
+            pieces.push((s, 1.0));
+            pieces.push((0.0, e - 1.0));
+        } else {
+            pieces.push((s, e));
+        }
+    }
+    pieces.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    // Merge and find the largest gap; the gap across 1 → 0 wraps around.
+    let mut best_gap = -1.0f64;
+    let mut best_start = 0.0f64;
+    let (first_start, _) = pieces[0];
+    let mut end = pieces[0].1;
+    for &(s, e) in &pieces[1..] {
+        if s > end {
+            let gap = s - end;
+            if gap > best_gap {
+                best_gap = gap;
+                best_start = s;
+            }
+        }
+        end = end.max(e);
+    }
+    let wrap_gap = 1.0 - end + first_start;
+    if wrap_gap > best_gap {
+        best_gap = wrap_gap;
+        best_start = first_start;
+    }
+    if best_gap < MIN_GAP {
+        return (0.0, 1.0);
+    }
+    (best_start, (1.0 - best_gap).max(0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::transform::rect_t;
+
+    fn cover(wrap: RectWrap, ivs: &[(f64, f64)]) -> (f64, f64) {
+        let mut c = AxisCover::new(wrap);
+        for &(a, b) in ivs {
+            c.add(a, b);
+        }
+        c.range()
+    }
+
+    /// Every u of every interval lands in [0, span] (the module contract).
+    fn assert_contract(wrap: RectWrap, ivs: &[(f64, f64)]) {
+        let (lo, hi) = cover(wrap, ivs);
+        let span = hi - lo;
+        for &(a, b) in ivs {
+            for k in 0..=64 {
+                let u = a + (b - a) * f64::from(k) / 64.0;
+                let t = rect_t(u, wrap, lo, hi);
+                assert!(
+                    (-1e-9..=span + 1e-9).contains(&t),
+                    "{wrap:?} {ivs:?}: u {u} → t {t} outside [0, {span}] (range {lo}..{hi})"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn repeat_finds_the_shortest_arc_across_the_seam() {
+        // [0.8, 0.95] and [0.05, 0.3] (as 1.05..1.3 shifted down): the arc 0.8 → 1.3, span 0.5.
+        let ivs = [(0.8, 0.95), (0.05, 0.3)];
+        let (lo, hi) = cover(RectWrap::Repeat, &ivs);
+        assert!(
+            (lo - 0.8).abs() < 1e-12 && (hi - 1.3).abs() < 1e-12,
+            "{lo} {hi}"
+        );
+        assert_contract(RectWrap::Repeat, &ivs);
+        // A triangle across the seam itself.
+        let ivs = [(0.9, 1.2), (0.4, 0.5)];
+        let (lo, hi) = cover(RectWrap::Repeat, &ivs);
+        assert!(
+            (lo - 0.4).abs() < 1e-12 && (hi - 1.2).abs() < 1e-12,
+            "{lo} {hi}"
+        );
+        assert_contract(RectWrap::Repeat, &ivs);
+    }
+
+    #[test]
+    fn repeat_holds_one_period_when_the_circle_is_covered() {
+        assert_eq!(cover(RectWrap::Repeat, &[(0.3, 1.3)]), (0.0, 1.0));
+        assert_eq!(cover(RectWrap::Repeat, &[(0.0, 170.0)]), (0.0, 1.0));
+        assert_eq!(
+            cover(RectWrap::Repeat, &[(0.0, 0.6), (0.5, 1.1)]),
+            (0.0, 1.0)
+        );
+        assert_contract(RectWrap::Repeat, &[(0.0, 0.6), (0.5, 1.1), (0.2, 5.0)]);
+        // Inside one period: the hull.
+        assert_eq!(
+            cover(RectWrap::Repeat, &[(0.25, 0.5), (0.1, 0.2)]),
+            (0.1, 0.5)
+        );
+    }
+
+    #[test]
+    fn mirror_folds_and_clamp_clamps() {
+        // [0.5, 1.5] folds to [0.5, 1]; [1.2, 1.4] (backward) to [0.6, 0.8].
+        assert_eq!(cover(RectWrap::Mirror, &[(0.5, 1.5)]), (0.5, 1.0));
+        let (a, b) = cover(RectWrap::Mirror, &[(1.2, 1.4)]);
+        assert!((a - 0.6).abs() < 1e-12 && (b - 0.8).abs() < 1e-12);
+        assert_eq!(cover(RectWrap::Mirror, &[(0.1, 2.3)]), (0.0, 1.0));
+        assert_contract(RectWrap::Mirror, &[(0.5, 1.5), (1.2, 1.4), (1.9, 2.1)]);
+        assert_eq!(
+            cover(RectWrap::Clamp, &[(-3.0, 0.4), (0.2, 0.7)]),
+            (0.0, 0.7)
+        );
+        assert_contract(RectWrap::Clamp, &[(-3.0, 0.4), (0.2, 0.7), (2.0, 9.0)]);
+        assert_eq!(
+            cover(RectWrap::Linear, &[(-3.0, 0.4), (0.2, 7.5)]),
+            (-3.0, 7.5)
+        );
+    }
+
+    #[test]
+    fn degenerate_and_non_finite_inputs() {
+        assert_eq!(cover(RectWrap::Repeat, &[]), (0.0, 0.0));
+        assert_eq!(cover(RectWrap::Repeat, &[(f64::NAN, 1.0)]), (0.0, 0.0));
+        assert_eq!(cover(RectWrap::Repeat, &[(0.25, 0.25)]), (0.25, 0.25));
+        // The order of the arcs does not matter.
+        let a = [(0.1, 0.2), (0.7, 0.9), (0.4, 0.45)];
+        let b = [(0.4, 0.45), (0.1, 0.2), (0.7, 0.9)];
+        assert_eq!(shortest_arc(&a), shortest_arc(&b));
+        // A start of exactly 1 (float rounding of a period shift) is the same as 0.
+        assert_eq!(shortest_arc(&[(1.0, 1.25)]), (0.0, 0.25));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn contract_holds_for_random_intervals(
+            ivs in proptest::collection::vec((0.0f64..1.0, 0.0f64..0.7), 1..12),
+            mode in 0u32..4,
+        ) {
+            let wrap = RectWrap::from_code(mode).unwrap();
+            let ivs: Vec<(f64, f64)> = ivs.iter().map(|&(a, l)| match wrap {
+                RectWrap::Mirror => (a * 2.0, a * 2.0 + l),
+                RectWrap::Clamp | RectWrap::Linear => (a * 4.0 - 2.0, a * 4.0 - 2.0 + l),
+                RectWrap::Repeat => (a, a + l),
+            }).collect();
+            assert_contract(wrap, &ivs);
+            let (lo, hi) = cover(wrap, &ivs);
+            if wrap != RectWrap::Linear {
+                proptest::prop_assert!(hi - lo <= 1.0 + 1e-12);
+            }
+        }
+    }
+}

@@ -1,0 +1,220 @@
+//! Texel demand of a set of triangles: the summed outer atlas area (texels², borders included) that its
+//! materials' rects need at `d_min`, after the source cap and the wrap. The split of paper §5.3 balances
+//! it — the paper's condition (b) itself, "the summed number of texels for all required texture areas",
+//! which the paper approximates by equal world areas; with repeats wrapped in the shader and textures
+//! shared between triangles, world area and demand no longer agree (a 4 km ground with a 28 m tile needs one
+//! period, not 140²).
+//!
+//! The demand of a set is computed per material from running maxima, so the demand of every prefix of a
+//! sorted sequence costs one pass ([`prefix_demands`]). Per axis the UV range is the hull of the
+//! triangles' (period-shifted) intervals, at most one period where the sampler repeats, mirrors or
+//! clamps — an upper bound of the exact cover the layout computes ([`super::cover`]), equal to it when the
+//! range does not straddle a seam. Units: texels².
+
+use super::area::{AreaInput, AreaOptions, required_area};
+use super::prepare::TriInfo;
+use super::sizing::SizeMethod;
+use crate::scene::Wrap;
+use glam::DVec2;
+
+/// What the demand of a triangle depends on beyond the triangle itself.
+#[derive(Clone, Debug)]
+pub struct DemandModel {
+    /// Per material: source image size `[w, h]`, texels.
+    pub sources: Vec<[u32; 2]>,
+    /// Per material: sampler wrap modes.
+    pub wraps: Vec<[Wrap; 2]>,
+    /// Repeats wrapped in the shader (else baked: the whole UV hull is stored).
+    pub wrap: bool,
+    pub border: u32,
+    pub cap_to_source: bool,
+}
+
+/// Running per-material maxima of a set of triangles.
+#[derive(Copy, Clone, Debug)]
+struct Acc {
+    w: f64,
+    h: f64,
+    lo: DVec2,
+    hi: DVec2,
+    point_uvs: bool,
+    used: bool,
+}
+
+impl Default for Acc {
+    fn default() -> Acc {
+        Acc {
+            w: 0.0,
+            h: 0.0,
+            lo: DVec2::splat(f64::INFINITY),
+            hi: DVec2::splat(f64::NEG_INFINITY),
+            point_uvs: false,
+            used: false,
+        }
+    }
+}
+
+impl Acc {
+    fn add(&mut self, t: &TriInfo) {
+        self.used = true;
+        for uv in t.uv {
+            if uv.is_finite() {
+                self.lo = self.lo.min(uv);
+                self.hi = self.hi.max(uv);
+            }
+        }
+        match t.size.method {
+            SizeMethod::Exact | SizeMethod::EdgeFallback => {
+                self.w = self.w.max(t.size.w);
+                self.h = self.h.max(t.size.h);
+            }
+            SizeMethod::AllUvEqual => self.point_uvs = true,
+            SizeMethod::WorldDegenerate => {}
+        }
+    }
+}
+
+impl DemandModel {
+    /// The stored UV span along one axis of a material whose triangles' hull is `[lo, hi]`.
+    fn span(&self, lo: f64, hi: f64, wrap: Wrap) -> f64 {
+        if !(lo.is_finite() && hi.is_finite()) || hi < lo {
+            return 0.0;
+        }
+        if !self.wrap {
+            return hi - lo;
+        }
+        match wrap {
+            Wrap::Repeat | Wrap::MirroredRepeat => (hi - lo).min(1.0),
+            Wrap::ClampToEdge => hi.clamp(0.0, 1.0) - lo.clamp(0.0, 1.0),
+        }
+    }
+
+    /// Outer area of material `m`'s rect for the running maxima `a` (0 when unused). Computed by the
+    /// area stage's own [`required_area`], so rounding, border and cap are the layout's.
+    fn area(&self, m: usize, a: &Acc) -> u64 {
+        if !a.used {
+            return 0;
+        }
+        let src = self.sources.get(m).copied().unwrap_or([1, 1]);
+        let wrap = self.wraps.get(m).copied().unwrap_or([Wrap::Repeat; 2]);
+        let span = [
+            self.span(a.lo.x, a.hi.x, wrap[0]),
+            self.span(a.lo.y, a.hi.y, wrap[1]),
+        ];
+        let (mut w, mut h) = (a.w, a.h);
+        if a.point_uvs && span.iter().any(|&s| s > 0.0) {
+            w = w.max(f64::from(src[0]));
+            h = h.max(f64::from(src[1]));
+        }
+        let input = AreaInput {
+            w,
+            h,
+            uv_min: [0.0; 2],
+            uv_max: span,
+            source: src,
+        };
+        let opts = AreaOptions {
+            border: self.border,
+            scale: 1.0,
+            cap_to_source: self.cap_to_source,
+            max_side: u32::MAX,
+        };
+        match required_area(&input, &opts) {
+            Ok(r) => r.outer_texels(),
+            // Beyond u32 sides: saturate (such a set never fits; only the order of demands matters).
+            Err(_) => u64::MAX / 4,
+        }
+    }
+}
+
+/// The demand of every prefix of `items` (indices into `infos`): `out[k]` is the demand of `items[..k]`,
+/// `k = 0..=items.len()` (so `out[0] = 0`). `O(n)` after one map of the materials in `items`.
+pub fn prefix_demands(model: &DemandModel, infos: &[TriInfo], items: &[u32]) -> Vec<u64> {
+    let mut acc: Vec<Acc> = vec![Acc::default(); model.sources.len()];
+    let mut area: Vec<u64> = vec![0; model.sources.len()];
+    let mut total: u64 = 0;
+    let mut out = Vec::with_capacity(items.len() + 1);
+    out.push(0);
+    for &i in items {
+        let t = &infos[i as usize];
+        let m = t.material.idx();
+        if let Some(a) = acc.get_mut(m) {
+            a.add(t);
+            let new = model.area(m, a);
+            total = total.saturating_sub(area[m]).saturating_add(new);
+            area[m] = new;
+        }
+        out.push(total);
+    }
+    out
+}
+
+/// The demand of a whole set (analyzer twin of [`prefix_demands`]: its last entry).
+pub fn demand(model: &DemandModel, infos: &[TriInfo], items: &[u32]) -> u64 {
+    prefix_demands(model, infos, items)
+        .last()
+        .copied()
+        .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::sizing::SizeEstimate;
+    use crate::ids::MaterialId;
+    use glam::DVec3;
+
+    fn tri(material: u32, w: f64, uv0: [f64; 2], uv1: [f64; 2]) -> TriInfo {
+        TriInfo {
+            scene_tri: 0,
+            pos: [DVec3::ZERO; 3],
+            material: MaterialId(material),
+            mid: DVec2::ZERO,
+            area: 1.0,
+            size: SizeEstimate {
+                w,
+                h: w,
+                method: SizeMethod::Exact,
+            },
+            class: 0,
+            uv: [DVec2::from(uv0), DVec2::from(uv1), DVec2::from(uv0)],
+            lo: DVec3::ZERO,
+            hi: DVec3::ZERO,
+        }
+    }
+
+    fn model(wrap: bool) -> DemandModel {
+        DemandModel {
+            sources: vec![[512, 512], [64, 64]],
+            wraps: vec![[Wrap::Repeat; 2]; 2],
+            wrap,
+            border: 2,
+            cap_to_source: true,
+        }
+    }
+
+    #[test]
+    fn a_shared_texture_counts_once_and_wrap_caps_one_period() {
+        // Two triangles of material 0 over 40 periods at 100 texels/period: wrapped, one period
+        // (100 + 4 → 104²); baked, 40 periods (4000 + 4 → 4004 × 104).
+        let infos = vec![
+            tri(0, 100.0, [0.0, 0.0], [40.0, 1.0]),
+            tri(0, 100.0, [0.0, 0.0], [40.0, 1.0]),
+        ];
+        let p = prefix_demands(&model(true), &infos, &[0, 1]);
+        assert_eq!(p, vec![0, 104 * 104, 104 * 104]);
+        assert_eq!(demand(&model(false), &infos, &[0, 1]), 4004 * 104);
+    }
+
+    #[test]
+    fn the_source_cap_bounds_the_demand() {
+        // 1000 texels/period of a 64² source: capped at 64 (+4 → 68²).
+        let infos = vec![tri(1, 1000.0, [0.0, 0.0], [1.0, 1.0])];
+        assert_eq!(demand(&model(true), &infos, &[0]), 68 * 68);
+        let uncapped = DemandModel {
+            cap_to_source: false,
+            ..model(true)
+        };
+        assert_eq!(demand(&uncapped, &infos, &[0]), 1004 * 1004);
+    }
+}
