@@ -26,6 +26,8 @@ override PASS: u32 = 0u;
 override SOURCE: u32 = 0u;
 // Atlas arrays in use (1..4) and the class arrays present (bit k: class 4 << k); the rest is compiled out.
 override ATLAS_ARRAYS: u32 = 4u;
+// Bit a: atlas array a is block-compressed (its 4×4 blocks mix neighbouring rects at coarse mips).
+override ATLAS_BC_MASK: u32 = 0u;
 override CLASS_MASK: u32 = 0x3ffu;
 // 1: the texel-density debug pipeline (render::density): instead of the colour, write the texels of mip 0
 // per screen pixel of the sampled texture (Rgba32Float target, no blending).
@@ -186,8 +188,11 @@ struct RectSample {
 }
 
 // RectMap::texel_f32: the fragment's texel in its leaf's atlas, kept half the footprint plus half a drawn
-// texel (`level_texels` leaf texels) inside the outer rectangle.
-fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32) -> RectSample {
+// texel (`level_texels` leaf texels) inside the outer rectangle, and the footprint capped at the outer
+// rectangle's smaller side over `cells` (2, or 8 for block-compressed arrays): a pixel wider than that sees
+// the rect's average, which the mip level where the rect is `cells` texels wide holds at its centre,
+// without its neighbours (and with `cells` 8 inside a 4×4 block of its own).
+fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32, cells: f32) -> RectSample {
     let s = rect_axis(uv.x, r.wrap & 3u, r.uv_min.x, r.half_gap.x);
     let t = rect_axis(uv.y, (r.wrap >> 2u) & 3u, r.uv_min.y, r.half_gap.y);
     let tpu = r.texels_per_uv * vec2<f32>(s.y, t.y);
@@ -199,6 +204,14 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     let hi = r.outer_hi - margin;
     let p = r.inner_lo + vec2<f32>(s.x, t.x) * r.texels_per_uv;
     out.texel = select(clamp(p, lo, hi), 0.5 * (lo + hi), lo > hi);
+    let outer = r.outer_hi - r.outer_lo;
+    let cap = min(outer.x, outer.y) / cells;
+    let footprint = max(length(out.gx), length(out.gy));
+    if footprint > cap {
+        let k = cap / footprint;
+        out.gx = out.gx * k;
+        out.gy = out.gy * k;
+    }
     return out;
 }
 
@@ -345,7 +358,8 @@ struct AtlasSample {
 fn atlas_sample(in: VertexOut, ddx: vec2<f32>, ddy: vec2<f32>) -> AtlasSample {
     let x = in.level_xf;
     let size = globals.atlas_texels;
-    let r = rect_texel(rects[in.rect], in.uv, ddx, ddy, 1.0 / x.x);
+    let cells = select(2.0, 8.0, (ATLAS_BC_MASK & (1u << in.which)) != 0u);
+    let r = rect_texel(rects[in.rect], in.uv, ddx, ddy, 1.0 / x.x, cells);
     var out: AtlasSample;
     out.uv = (r.texel / size) * x.x + x.yz;
     out.ddx = r.gx * (x.x / size);

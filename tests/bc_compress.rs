@@ -2,7 +2,8 @@
 //! the no-bleeding property of compressed atlases (which mip levels a 4×4 block can mix two textures at).
 
 use atlastree::build::image_ops::{
-    LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, mip_chain_rgba8, resample_square,
+    LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, mip_chain_rgba8, neutral_fill,
+    resample_square,
 };
 use atlastree::scene::{DecodedImage, Wrap};
 use atlastree::texfmt::{
@@ -300,7 +301,7 @@ fn parent_level_0_does_not_mix_textures() {
     let parent = |invert: bool| {
         let child = MipChain::build(atlas(&rects, 5, invert));
         let half = child.levels[1].clone();
-        combine_quadrants([Some(&half), None, None, Some(&half)], size).unwrap()
+        combine_quadrants([Some(&half), None, None, Some(&half)], size, neutral_fill()).unwrap()
     };
     for format in [TexFormat::Bc1, TexFormat::Bc7] {
         let a = levels(format, &MipChain::build(parent(false)).to_rgba8(), size);

@@ -7,7 +7,7 @@ use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::ids::NONE;
 use atlastree::scene::synthetic::small_city;
 use atlastree::store::TreeFile;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use hard_util::{f_proj_params, pixels_per_texel};
 
 fn opts(atlas: u32) -> BuildOptions {
@@ -17,13 +17,15 @@ fn opts(atlas: u32) -> BuildOptions {
         // The paper's border: the 64² atlases of these tests were sized around it.
         border: 8,
         max_file_bytes: 1 << 30,
+        // The paper's tree: every node that does not fit one atlas is split (multi-level).
+        leaf_originals_atlases: 0.0,
         ..BuildOptions::default()
     }
 }
 
 #[test]
 fn small_city_builds_a_multilevel_tree_that_verifies() {
-    let scene = small_city(4, 64);
+    let scene = small_city(6, 64);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
     let report = build(&scene, &opts(256), &out, &NoProgress).unwrap();
@@ -61,7 +63,7 @@ fn d_min_guarantee_holds_at_leaves_and_every_ancestor() {
     let file = TreeFile::open(&out).unwrap();
     let p = file.to_params();
     let t = file.tree(0).unwrap();
-    let size = p.atlas_size as f64;
+
     let mut checked = 0;
     let mut worst: f64 = 0.0;
     for leaf in t.leaves {
@@ -71,7 +73,7 @@ fn d_min_guarantee_holds_at_leaves_and_every_ancestor() {
         for tri in idx.chunks(3) {
             let v = [tri[0], tri[1], tri[2]].map(|i| t.vertices[i as usize]);
             let pos = v.map(|v| DVec3::from_array(v.pos.map(f64::from)));
-            let uv = v.map(|v| DVec2::new(v.atlas_uv[0] as f64, v.atlas_uv[1] as f64) * size);
+            let uv = v.map(|v| hard_util::vertex_atlas_texels(&t, leaf, &v));
             // Walk up: at level j the texel is 2^(K-j) leaf texels wide, seen from that node's min_distance.
             let mut n = node;
             let mut scale = 1.0;
@@ -185,8 +187,12 @@ fn every_triangle_is_covered_exactly_once_even_when_split() {
     let scene = small_city(2, 64);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("s.atlastree");
-    // A small atlas forces the ground quad (and long walls) to be split.
-    let report = build(&scene, &opts(128), &out, &NoProgress).unwrap();
+    // A small atlas forces the ground quad (and long walls) to be split when repeats are baked.
+    let baked = BuildOptions {
+        repeat: atlastree::build::RepeatMode::Bake,
+        ..opts(128)
+    };
+    let report = build(&scene, &baked, &out, &NoProgress).unwrap();
     assert!(
         report.trees[0].pieces > report.trees[0].triangles,
         "nothing was split"

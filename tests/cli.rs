@@ -57,7 +57,22 @@ fn scene_info_reports_the_default_scene() {
 fn build_then_inspect_verify() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
-    let b = build_json(&out, &["--atlas-size", "512"]);
+    // The defaults keep the 2-Mtexel district in one leaf scaled to fit (its originals are within the
+    // 16-atlas budget): one node per tree, the opaque leaf scaled below 1.
+    let d = build_json(&out, &["--atlas-size", "512"]);
+    let t0 = &d["trees"][0];
+    assert_eq!(
+        (t0["nodes"].as_u64(), t0["depth"].as_u64()),
+        (Some(1), Some(0)),
+        "{d}"
+    );
+    assert_eq!(t0["leaf_reasons"]["scaled"], 1, "{d}");
+    assert!(
+        t0["leaf_reasons"]["scale_min"].as_f64().unwrap() < 1.0,
+        "{d}"
+    );
+    // A 2-atlas budget splits it into a multi-level tree.
+    let b = build_json(&out, &["--atlas-size", "512", "--leaf-originals", "2"]);
     let trees = b["trees"].as_array().unwrap();
     assert_eq!(
         trees.len(),

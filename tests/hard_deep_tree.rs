@@ -167,7 +167,7 @@ fn deep_leaves_sample_the_same_texel_as_f64_at_every_level() {
         for tri in 0..(leaf.index_count / 3) as usize {
             let first = leaf.first_index as usize / 3 + tri;
             let (_, v) = leaf_triangle(&t, leaf.origin, first);
-            let uvs = v.map(|v| Vec2::from_array(v.atlas_uv));
+            let uvs = v.map(|v| vertex_leaf_uv(&t, leaf, &v, size as f32));
             for &uv in &uvs {
                 assert!(uv.min_element() >= 0.0 && uv.max_element() <= 1.0, "{uv}");
             }

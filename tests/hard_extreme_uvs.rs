@@ -276,7 +276,12 @@ fn repeats_cost_texels_by_world_size_only() {
         ],
         m,
     );
-    let built = build_ok(&b.build(), &tiny_opts(256, 2000.0));
+    let scene = b.build();
+    let baked = atlastree::build::BuildOptions {
+        repeat: atlastree::build::RepeatMode::Bake,
+        ..tiny_opts(256, 2000.0)
+    };
+    let built = build_ok(&scene, &baked);
     assert_sound(&built.file);
     let f = built.file.to_params().f_proj();
     let t = built.file.tree(0).unwrap();
@@ -285,8 +290,17 @@ fn repeats_cost_texels_by_world_size_only() {
     let want = (100.0 * f).ceil() as u32;
     assert_eq!([r.inner[2], r.inner[3]], [want, want], "{r:?}");
     assert_eq!((r.uv_min, r.uv_max), ([0.0; 2], [1e4; 2]));
+    // Wrapped in the shader: one period at the texels one period needs (100 m / 1e4 · f), ≥ 1.
+    let wrapped = build_ok(&scene, &tiny_opts(256, 2000.0));
+    assert_sound(&wrapped.file);
+    let tw = wrapped.file.tree(0).unwrap();
+    let rw = tw.leaf_rects(&tw.leaves[0])[0];
+    let per_period = ((100.0 / 1e4 * f).ceil() as u32).max(1);
+    assert_eq!([rw.inner[2], rw.inner[3]], [per_period; 2], "{rw:?}");
+    assert_eq!((rw.uv_min, rw.uv_max), ([0.0; 2], [1.0; 2]));
     eprintln!(
-        "1e4 repetitions of a 64² texture on a 100 m triangle: {want}² texels (source-resolution copy: {}²)",
+        "1e4 repetitions of a 64² texture on a 100 m triangle: baked {want}² texels, wrapped {per_period}² \
+         (source-resolution copy: {}²)",
         64e4
     );
 }

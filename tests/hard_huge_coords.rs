@@ -128,7 +128,7 @@ fn compare_files(a: &TreeFile, b: &TreeFile, by: DVec3) {
 
 #[test]
 fn translation_changes_nothing_but_bounds_and_origins() {
-    let scene = small_city(2, 32);
+    let scene = small_city(2, 64);
     let base = build_ok(&scene, &opts());
     assert_sound(&base.file);
     assert!(base.report.trees[0].depth >= 2, "want a multi-level tree");

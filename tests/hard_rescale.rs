@@ -17,7 +17,7 @@ use atlastree::ids::NONE;
 use atlastree::scene::synthetic::small_city;
 use atlastree::select::{Cut, SelectOptions, Source, min_distance_scale, select};
 use atlastree::store::TreeView;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use hard_util::*;
 
 const FACTORS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
@@ -44,7 +44,7 @@ fn worst_in_range(
         let texel = atlas * 2f64.powi(-((k - level) as i32));
         for tri in 0..leaf.index_count as usize / 3 {
             let (pos, v) = leaf_triangle(t, leaf.origin, leaf.first_index as usize / 3 + tri);
-            let uv = v.map(|v| DVec2::new(v.atlas_uv[0].into(), v.atlas_uv[1].into()) * texel);
+            let uv = v.map(|v| vertex_atlas_texels(t, leaf, &v) / atlas * texel);
             if let Some(r) = pixels_per_texel(pos, uv, fp) {
                 worst = worst.max(r);
             }

@@ -27,7 +27,7 @@ struct Fixture {
     file: TreeFile,
 }
 
-/// The bytes of a small built tree (16 blocks, about 1 MB, depth 2), built once per test binary; each
+/// The bytes of a small built tree (23 blocks, about 1.4 MB, depth 2), built once per test binary; each
 /// test gets its own copy on disk.
 fn tree_bytes() -> Arc<Vec<u8>> {
     static BYTES: OnceLock<Arc<Vec<u8>>> = OnceLock::new();
@@ -40,9 +40,11 @@ fn tree_bytes() -> Arc<Vec<u8>> {
                 atlas_size: 128,
                 max_file_bytes: 1 << 30,
                 border: 8,
+                // The paper's tree: every node that does not fit one atlas is split (multi-level).
+                leaf_originals_atlases: 0.0,
                 ..BuildOptions::default()
             };
-            build(&small_city(2, 16), &opts, &path, &NoProgress).unwrap();
+            build(&small_city(2, 64), &opts, &path, &NoProgress).unwrap();
             Arc::new(std::fs::read(&path).unwrap())
         })
         .clone()

@@ -472,7 +472,12 @@ fn combine_quadrants_places_children() {
         .iter()
         .map(|&c| LinearImage::new_filled(4, 4, c))
         .collect();
-    let out = combine_quadrants([Some(&kids[0]), Some(&kids[1]), Some(&kids[2]), None], 8).unwrap();
+    let out = combine_quadrants(
+        [Some(&kids[0]), Some(&kids[1]), Some(&kids[2]), None],
+        8,
+        neutral_fill(),
+    )
+    .unwrap();
     assert_eq!((out.width, out.height, out.data.len()), (8, 8, 64));
     for y in 0..8u32 {
         for x in 0..8u32 {
@@ -484,18 +489,18 @@ fn combine_quadrants_places_children() {
     // Sub-texel placement: a distinct texel at (1, 2) of child 3 lands at (4 + 1, 4 + 2).
     let mut k3 = LinearImage::new_filled(4, 4, [0.0; 4]);
     k3.set(1, 2, [0.2, 0.3, 0.4, 1.0]).unwrap();
-    let out = combine_quadrants([None, None, None, Some(&k3)], 8).unwrap();
+    let out = combine_quadrants([None, None, None, Some(&k3)], 8, neutral_fill()).unwrap();
     assert_eq!(out.get(5, 6).unwrap(), [0.2, 0.3, 0.4, 1.0]);
     assert_eq!(out.get(5, 5).unwrap(), [0.0; 4]);
     let grey = neutral_fill();
     assert_eq!(linear_to_srgb8(grey[0]), 128);
     // Errors.
     assert!(matches!(
-        combine_quadrants([Some(&kids[0]), None, None, None], 6),
+        combine_quadrants([Some(&kids[0]), None, None, None], 6, neutral_fill()),
         Err(ImageOpsError::ChildSize { quadrant: 0, .. })
     ));
     assert!(matches!(
-        combine_quadrants([None; 4], 7),
+        combine_quadrants([None; 4], 7, neutral_fill()),
         Err(ImageOpsError::QuadrantSize { size: 7 })
     ));
 }
@@ -515,6 +520,7 @@ fn combine_of_halved_children_equals_halved_combination() {
             Some(&halves[3]),
         ],
         16,
+        neutral_fill(),
     )
     .unwrap();
     let mut mosaic = LinearImage::new_filled(32, 32, [0.0; 4]);

@@ -22,6 +22,8 @@ fn city_file(dir: &std::path::Path) -> TreeFile {
         atlas_size: 128,
         max_file_bytes: 1 << 30,
         border: 8,
+        // The paper's tree: every node that does not fit one atlas is split (multi-level).
+        leaf_originals_atlases: 0.0,
         ..BuildOptions::default()
     };
     build(&scene, &opts, &out, &NoProgress).unwrap();

@@ -24,6 +24,8 @@ fn city(dir: &Path) -> PathBuf {
         d_min: DMin::Ratio(10.0),
         atlas_size: 512,
         border: 8,
+        // The paper's tree: every node that does not fit one atlas is split (multi-level).
+        leaf_originals_atlases: 0.0,
         ..BuildOptions::default()
     };
     build(&scene, &opts, &out, &NoProgress).unwrap();

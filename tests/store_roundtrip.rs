@@ -3,7 +3,7 @@
 
 use atlastree::build::tree::{
     AtlasForest, AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef,
-    TreeKind, TreeVertex,
+    RectWrap, TreeKind, TreeVertex,
 };
 use atlastree::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NodeId};
 use atlastree::scene::{AlphaMode, Material, UpAxis, Wrap};
@@ -81,14 +81,15 @@ impl Builder<'_> {
         let first_vertex = self.tree.vertices.len() as u32;
         let first_index = self.tree.indices.len() as u32;
         let n = self.spec.verts_per_leaf;
+        let rect_count = 1 + self.rng.below(3) as u32;
         for _ in 0..n {
             let r = &mut *self.rng;
             self.tree.vertices.push(TreeVertex {
                 pos: [r.f32(), r.f32(), r.f32()],
-                atlas_uv: [r.f32(), r.f32()],
                 orig_uv: [r.f32() * 4.0, r.f32() * 4.0],
                 leaf: id.0,
                 original: r.below(3) as u32,
+                rect: r.below(u64::from(rect_count)) as u32,
             });
         }
         for _ in 0..self.spec.tris_per_leaf {
@@ -99,13 +100,18 @@ impl Builder<'_> {
             let src = self.rng.below(1 << 20) as u32;
             self.tree.source_triangles.push(src);
         }
-        let rects = (0..1 + self.rng.below(3))
-            .map(|_| AtlasRect {
-                material: MaterialId(self.rng.below(u64::from(self.materials)) as u32),
-                outer: [0, 4, 64, 32],
-                inner: [8, 12, 48, 16],
-                uv_min: [-self.rng.f64(), 0.25],
-                uv_max: [1.5 + self.rng.f64(), 3.0],
+        let rects = (0..rect_count)
+            .map(|_| {
+                let mode = |c: u64| RectWrap::from_code(c as u32).unwrap();
+                AtlasRect {
+                    material: MaterialId(self.rng.below(u64::from(self.materials)) as u32),
+                    outer: [0, 4, 64, 32],
+                    inner: [8, 12, 48, 16],
+                    uv_min: [-self.rng.f64(), 0.25],
+                    uv_max: [1.5 + self.rng.f64(), 3.0],
+                    wrap: [mode(self.rng.below(4)), mode(self.rng.below(4))],
+                    capped: [self.rng.below(2) == 1, self.rng.below(2) == 1],
+                }
             })
             .collect();
         let mut originals = Vec::new();
@@ -593,15 +599,16 @@ fn resealed_bad_references_are_named() {
     assert!(
         matches!(TreeFile::from_bytes(&b), Err(StoreError::Misaligned { offset, .. }) if offset == off + 16)
     );
-    // A future version, and version 1 (RGBA8 only, 40-byte block records): both refused by number.
-    for found in [3u32, 1] {
+    // A future version, and versions 1 (RGBA8 only, 40-byte block records) and 2 (baked atlas UVs in the
+    // vertices): all refused by number.
+    for found in [4u32, 2, 1] {
         let mut b = bytes.clone();
         b[8..12].copy_from_slice(&found.to_le_bytes());
         reseal(&mut b);
         match TreeFile::from_bytes(&b) {
             Err(StoreError::UnsupportedVersion {
                 found: f,
-                supported: 2,
+                supported: 3,
             }) => assert_eq!(f, found),
             other => panic!("version {found}: {:?}", other.err()),
         }

@@ -320,6 +320,8 @@ fn kaiser_filter_changes_texels_not_layout() {
                 d_min: DMin::Ratio(4.0),
                 atlas_size: 256,
                 mip_filter: f,
+                // The paper's tree: every node that does not fit one atlas is split (multi-level).
+                leaf_originals_atlases: 0.0,
                 ..BuildOptions::default()
             },
             &out,

@@ -12,7 +12,7 @@
 //!
 //! The split (§5.3) cuts the midpoint-sorted sequence where the summed texel demand ([`super::demand`],
 //! the paper's condition (b) itself) is balanced: the larger half as small as possible. Midpoints are
-//! compared quantised to `2⁻²⁰` of the scene's extent and a cut never separates equal keys, so a
+//! compared quantised to `2⁻²⁴` of the node's extent and a cut never separates equal keys, so a
 //! translation of the whole scene (UTM coordinates) that perturbs midpoints by rounding gives the same
 //! tree.
 //!
@@ -58,14 +58,39 @@ pub struct LayoutOptions {
     /// A node that does not fit is made a scaled leaf instead of split when its original textures (at
     /// their stored class sizes) need at most this many texels (0: always split).
     pub leaf_originals: u64,
+    /// What the split balances.
+    pub split: SplitRule,
+}
+
+/// What the split of §5.3 balances.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+pub enum SplitRule {
+    /// The summed texel demand of the halves, condition (b) itself ([`super::demand`]).
+    #[default]
+    Demand,
+    /// The summed world area of the halves: the paper's approximation of (b), which assumes every texture
+    /// point maps to one world point (no repeats, no shared textures).
+    Area,
+}
+
+impl std::str::FromStr for SplitRule {
+    type Err = String;
+    fn from_str(s: &str) -> Result<SplitRule, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "demand" => Ok(SplitRule::Demand),
+            "area" => Ok(SplitRule::Area),
+            _ => Err(format!("unknown split rule {s:?} (demand or area)")),
+        }
+    }
 }
 
 /// A scaled leaf whose demand is at least this share capped to the sources counts as
 /// [`LeafReason::SourceResolution`].
 pub const SOURCE_RESOLUTION_SHARE: f64 = 0.9;
 
-/// A split whose children's original textures average at least this share of the parent's does not
-/// separate textures: the node becomes a [`LeafReason::Shared`] leaf instead.
+/// A split whose children's texel demands average at least this share of the parent's does not separate
+/// what the atlas must hold (every quarter needs about the same textures and periods): the node becomes a
+/// [`LeafReason::Shared`] leaf instead.
 pub const FUTILE_SPLIT_SHARE: f64 = 0.9;
 
 /// Why a leaf ended where it did.
@@ -80,8 +105,8 @@ pub enum LeafReason {
     SourceResolution,
     /// Its originals are within [`LayoutOptions::leaf_originals`]: not split, content scaled to fit.
     Scaled,
-    /// Splitting would not shrink its texture set (every quarter uses about the same textures): content
-    /// scaled to fit.
+    /// Splitting would not shrink its texel demand (every quarter needs about the same textures and
+    /// periods): content scaled to fit.
     Shared,
     /// A single triangle needs more than the atlas: scaled to fit.
     Clamped,
@@ -223,29 +248,31 @@ pub fn demand_model(scene: &Scene, opts: &LayoutOptions) -> DemandModel {
     }
 }
 
-/// Quantised plane midpoints: `floor((mid − min mid) / q)` with `q = 2^(ceil(log2 extent) − 20)`.
-pub fn midpoint_keys(infos: &[TriInfo]) -> Vec<[i64; 2]> {
-    let mut lo = DVec2::splat(f64::INFINITY);
-    let mut hi = DVec2::splat(f64::NEG_INFINITY);
-    for t in infos {
-        lo = lo.min(t.mid);
-        hi = hi.max(t.mid);
-    }
-    if infos.is_empty() {
-        return Vec::new();
-    }
-    let extent = (hi - lo).max_element();
+/// Midpoints are compared in units of `2^(ceil(log2 extent) − MIDPOINT_BITS)` of the node's extent along
+/// the sorted axis.
+pub const MIDPOINT_BITS: i32 = 24;
+
+/// Quantised plane midpoints of `items` along `axis` (0: x, 1: y of the plane): `floor((mid − min) / q)`
+/// with `q = 2^(ceil(log2 extent) − MIDPOINT_BITS)`, the extent that of the items' midpoints. A translation
+/// of the scene that perturbs every midpoint by rounding (≪ q) leaves the keys unchanged except for
+/// midpoints within that rounding of a bucket edge; the quantum follows the node, so deep nodes of tiny
+/// triangles still separate them.
+pub fn midpoint_keys(infos: &[TriInfo], items: &[u32], axis: usize) -> Vec<i64> {
+    let (lo, hi) = items
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &i| {
+            let m = infos[i as usize].mid[axis];
+            (a.min(m), b.max(m))
+        });
+    let extent = hi - lo;
     let q = if extent.is_finite() && extent > 0.0 {
-        (extent.log2().ceil() - 20.0).exp2()
+        (extent.log2().ceil() - f64::from(MIDPOINT_BITS)).exp2()
     } else {
         1.0
     };
-    infos
+    items
         .iter()
-        .map(|t| {
-            let k = ((t.mid - lo) / q).floor();
-            [k.x as i64, k.y as i64]
-        })
+        .map(|&i| ((infos[i as usize].mid[axis] - lo) / q).floor() as i64)
         .collect()
 }
 
@@ -259,15 +286,14 @@ pub fn layout(
     let mut order: Vec<u32> = (0..infos.len() as u32).collect();
     let nodes = std::sync::atomic::AtomicU64::new(0);
     let model = demand_model(scene, opts);
-    let keys = midpoint_keys(infos);
     let ctx = Ctx {
         scene,
         infos,
         opts,
         split: Splitter {
             infos,
-            keys: &keys,
             model: &model,
+            rule: opts.split,
         },
         nodes: &nodes,
         progress,
@@ -379,7 +405,9 @@ fn build_node(
         } else {
             LeafReason::Scaled
         };
-        return Ok(leaf(clamp_leaf(ctx, items, &needs, base, reason)?));
+        if let Some(l) = scaled_leaf(ctx, items, &needs, base, reason) {
+            return Ok(leaf(l));
+        }
     }
     if level.0 >= ctx.opts.max_depth {
         return Err(LayoutError::DepthExceeded {
@@ -391,21 +419,22 @@ fn build_node(
         });
     }
     let groups = ctx.split.split4(items);
+    let model = ctx.split.model;
     let mut start = 0;
-    let mut child_originals = 0.0;
+    let mut child_demand = 0.0;
     for g in groups {
-        child_originals += original_texels(ctx, &items[start..start + g]) as f64;
+        child_demand += super::demand::demand(model, ctx.infos, &items[start..start + g]) as f64;
         start += g;
     }
     let filled = groups.iter().filter(|&&g| g > 0).count().max(1) as f64;
-    if child_originals / filled >= FUTILE_SPLIT_SHARE * originals as f64 {
-        return Ok(leaf(clamp_leaf(
-            ctx,
-            items,
-            &needs,
-            base,
-            LeafReason::Shared,
-        )?));
+    let own_demand = super::demand::demand(model, ctx.infos, items) as f64;
+    // Only with repeats wrapped: baked ranges are per-triangle shifted, so one split often leaves every
+    // child all the phases while deeper ones do separate them.
+    if ctx.opts.wrap
+        && child_demand / filled >= FUTILE_SPLIT_SHARE * own_demand
+        && let Some(l) = scaled_leaf(ctx, items, &needs, base, LeafReason::Shared)
+    {
+        return Ok(leaf(l));
     }
     // Carve the slice into the four groups in array order: q0, q2 (low x), q1, q3 (high x).
     let (a, rest) = items.split_at_mut(groups[0]);
@@ -447,9 +476,8 @@ fn build_node(
 /// Splits triangle sets in four by texel demand (paper §5.3 with condition (b) itself).
 pub struct Splitter<'a> {
     pub infos: &'a [TriInfo],
-    /// [`midpoint_keys`] of `infos`.
-    pub keys: &'a [[i64; 2]],
     pub model: &'a DemandModel,
+    pub rule: SplitRule,
 }
 
 impl Splitter<'_> {
@@ -468,28 +496,42 @@ impl Splitter<'_> {
 
     /// Sorts `items` by key `axis` (ties by index, deterministic) and returns the cut index: among the
     /// positions between different keys, the one where `max(demand(before), demand(after))` is smallest
-    /// (ties: nearest the middle, then the lower). Without such a position (all keys equal) the middle; for
+    /// ([`SplitRule::Demand`]; with [`SplitRule::Area`], where the world area before is closest to half),
+    /// ties nearest the middle, then the lower. Without such a position (all keys equal) the middle; for
     /// n ≤ 1 it returns n (everything in the low group).
     pub fn cut_sorted(&self, items: &mut [u32], axis: usize) -> usize {
         let n = items.len();
         if n <= 1 {
             return n;
         }
-        let keys = self.keys;
-        items.sort_unstable_by(|&a, &b| {
-            keys[a as usize][axis]
-                .cmp(&keys[b as usize][axis])
-                .then(a.cmp(&b))
-        });
-        let before = prefix_demands(self.model, self.infos, items);
-        let rev: Vec<u32> = items.iter().rev().copied().collect();
-        let after = prefix_demands(self.model, self.infos, &rev);
-        let mut best: Option<(u64, usize, usize)> = None;
+        let keys = midpoint_keys(self.infos, items, axis);
+        let mut order: Vec<(i64, u32)> = keys.into_iter().zip(items.iter().copied()).collect();
+        order.sort_unstable();
+        for (slot, &(_, it)) in items.iter_mut().zip(&order) {
+            *slot = it;
+        }
+        let cost_of: Box<dyn Fn(usize) -> f64> = match self.rule {
+            SplitRule::Demand => {
+                let before = prefix_demands(self.model, self.infos, items);
+                let rev: Vec<u32> = items.iter().rev().copied().collect();
+                let after = prefix_demands(self.model, self.infos, &rev);
+                Box::new(move |k| before[k].max(after[n - k]) as f64)
+            }
+            SplitRule::Area => {
+                let mut acc = vec![0.0f64; n + 1];
+                for (i, &it) in items.iter().enumerate() {
+                    acc[i + 1] = acc[i] + self.infos[it as usize].area;
+                }
+                let half = 0.5 * acc[n];
+                Box::new(move |k| (acc[k] - half).abs())
+            }
+        };
+        let mut best: Option<(f64, usize, usize)> = None;
         for k in 1..n {
-            if keys[items[k - 1] as usize][axis] == keys[items[k] as usize][axis] {
+            if order[k - 1].0 == order[k].0 {
                 continue;
             }
-            let cost = before[k].max(after[n - k]);
+            let cost = cost_of(k);
             let off_centre = (2 * k).abs_diff(n);
             if best.is_none_or(|(c, o, _)| (cost, off_centre) < (c, o)) {
                 best = Some((cost, off_centre, k));
@@ -604,21 +646,6 @@ fn base_scale(ctx: &Ctx<'_>, needs: &BTreeMap<(MaterialId, i32), MatNeed>) -> f6
         .fold(1.0, f64::min)
 }
 
-/// Texels of the original textures (at their stored class sizes) of the triangles `items`.
-fn original_texels(ctx: &Ctx<'_>, items: &[u32]) -> u64 {
-    let mut seen = HashSet::new();
-    let mut total = 0u64;
-    for &i in items {
-        let m = ctx.infos[i as usize].material;
-        if seen.insert(m) {
-            let src = source_of(ctx, m);
-            let c = u64::from(original_class(src[0], src[1]));
-            total = total.saturating_add(c * c);
-        }
-    }
-    total
-}
-
 /// `(share of the node's demand capped to the sources, texels of its originals at class size)`.
 fn capped_demand(ctx: &Ctx<'_>, needs: &BTreeMap<(MaterialId, i32), MatNeed>) -> (f64, u64) {
     let opts = AreaOptions {
@@ -719,6 +746,24 @@ fn try_leaf(
     })
 }
 
+/// A node made a leaf for its content ([`LeafReason::SourceResolution`], [`LeafReason::Scaled`],
+/// [`LeafReason::Shared`]) when its content fits at a scale of at least [`MIN_LEAF_SCALE`]; `None` (split
+/// it instead) when it does not — too many rects for their borders, or a scale so small its atlas would
+/// serve only from far beyond the scene.
+fn scaled_leaf(
+    ctx: &Ctx<'_>,
+    items: &[u32],
+    needs: &BTreeMap<(MaterialId, i32), MatNeed>,
+    base: f64,
+    reason: LeafReason,
+) -> Option<LeafLayout> {
+    try_leaf(ctx, needs, base * MIN_LEAF_SCALE, reason)?;
+    clamp_leaf(ctx, items, needs, base, reason).ok()
+}
+
+/// The smallest resolution scale of a leaf made for its content (`min_distance ≤ 16 · d_min`).
+pub const MIN_LEAF_SCALE: f64 = 1.0 / 16.0;
+
 /// A node that is to be a leaf although its content does not fit at `base`: the largest scale (to 1/4096
 /// precision in log2, below `base`) at which it fits. Its `min_distance` becomes `d_min / scale`.
 fn clamp_leaf(
@@ -790,11 +835,10 @@ mod tests {
     }
 
     fn split(infos: &[TriInfo], model: &DemandModel, items: &mut [u32]) -> [usize; 4] {
-        let keys = midpoint_keys(infos);
         Splitter {
             infos,
-            keys: &keys,
             model,
+            rule: SplitRule::Demand,
         }
         .split4(items)
     }
@@ -836,12 +880,11 @@ mod tests {
             .collect();
         infos.extend((0..10).map(|i| tri(DVec2::new(f64::from(10 + i), 0.0), 1 + i, 60.0, 1.0)));
         let mut items: Vec<u32> = (0..20).collect();
-        let keys = midpoint_keys(&infos);
         let m = model(11);
         let s = Splitter {
             infos: &infos,
-            keys: &keys,
             model: &m,
+            rule: SplitRule::Demand,
         };
         let k = s.cut_sorted(&mut items, 0);
         // At a cut k ≥ 10 the low half needs 64² · (1 + k − 10), the high half 64² · (20 − k): the larger is
@@ -884,13 +927,14 @@ mod tests {
             tri(DVec2::new(1.0, 0.0), 2, 10.0, 1.0),
             tri(DVec2::new(1000.0, 0.0), 3, 10.0, 1.0),
         ];
-        let keys = midpoint_keys(&infos);
+        let keys = midpoint_keys(&infos, &[0, 1, 2, 3], 0);
         assert_eq!(keys[0], keys[1]);
+        assert_ne!(keys[1], keys[2]);
         let m = model(4);
         let s = Splitter {
             infos: &infos,
-            keys: &keys,
             model: &m,
+            rule: SplitRule::Demand,
         };
         let mut items = vec![0, 1, 2, 3];
         let k = s.cut_sorted(&mut items, 0);

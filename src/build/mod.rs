@@ -106,6 +106,8 @@ pub struct BuildOptions {
     /// (`min_distance` raised by that scale), its originals drawn nearer ([`layout::LeafReason`]). 0: split
     /// every node that does not fit (the paper's tree).
     pub leaf_originals_atlases: f64,
+    /// What the split of §5.3 balances (texel demand; world area as the paper).
+    pub split: layout::SplitRule,
 }
 
 impl Default for BuildOptions {
@@ -126,6 +128,7 @@ impl Default for BuildOptions {
             compress: crate::texfmt::Compression::None,
             repeat: RepeatMode::Wrap,
             leaf_originals_atlases: 16.0,
+            split: layout::SplitRule::Demand,
         }
     }
 }
@@ -395,6 +398,7 @@ pub fn build(
             max_depth: params.max_depth,
             cap_to_source: opts.cap_to_source,
             wrap: opts.repeat == RepeatMode::Wrap,
+            split: opts.split,
             leaf_originals: (opts.leaf_originals_atlases.max(0.0)
                 * f64::from(params.atlas_size)
                 * f64::from(params.atlas_size)) as u64,

@@ -9,7 +9,7 @@ use super::BuildError;
 use super::image_ops::ImageOpsError;
 use super::image_ops::{
     LinearImage, MipChain, MipFilter, MipOptions, RectJob, combine_quadrants, draw_rect,
-    mip_chain_rgba8, resample_square,
+    mip_chain_rgba8, neutral_fill, resample_square,
 };
 use super::tree::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::ids::{ImageId, NodeId};
@@ -218,10 +218,12 @@ pub fn raster_tree(ctx: &RasterCtx<'_>, tree: &AtlasTree) -> Result<(), BuildErr
     raster_node(ctx, tree, NodeId(0)).map(|_| ())
 }
 
+/// The colour of atlas space no texture occupies (unused leaf space, missing quadrants of inner atlases).
 fn fill_for(kind: TreeKind) -> [f32; 4] {
     match kind {
         // Mid grey, opaque: unused atlas space is never sampled at the levels borders protect.
-        TreeKind::Opaque => [0.2140, 0.2140, 0.2140, 1.0],
+        TreeKind::Opaque => neutral_fill(),
+        // Transparent: the RGBA8 conversion bleeds the nearest visible colour into it.
         TreeKind::Alpha => [0.0; 4],
     }
 }
@@ -254,7 +256,7 @@ fn raster_node(
         for (q, img) in &halves {
             quads[*q] = Some(img);
         }
-        combine_quadrants(quads, size)
+        combine_quadrants(quads, size, fill_for(tree.kind))
             .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))?
     };
     // One mip chain serves both the stored block and the parent, which needs exactly level 1.

@@ -82,6 +82,11 @@ pub struct BuildArgs {
     /// every node that does not fit (the paper's tree).
     #[arg(long, default_value_t = 16.0)]
     pub leaf_originals: f64,
+    /// What the split of a node into four balances (paper §5.3): `demand`, the summed atlas area the
+    /// halves' textures need (the paper's condition b itself: a texture shared by many triangles or
+    /// repeated counts once), or `area`, their summed world area (the paper's approximation).
+    #[arg(long, default_value = "demand")]
+    pub split: atlastree::build::layout::SplitRule,
     /// Build the tree over the triangles of these materials only (comma-separated glob patterns on glTF
     /// material names, `*` and `?`), e.g. `--materials 'facade_*'` for the paper's Berlin test, whose atlas
     /// tree held only the facades (§7). d_min ratios then refer to the kept geometry's diagonal.
@@ -141,6 +146,7 @@ impl BuildArgs {
             compress: self.compress.compression(),
             repeat: self.repeat,
             leaf_originals_atlases: self.leaf_originals,
+            split: self.split,
         }
     }
 }

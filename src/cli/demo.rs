@@ -25,6 +25,10 @@ pub struct DemoArgs {
     /// D/10 (61 m) rather than the paper's D/151 for Berlin.
     #[arg(long, default_value_t = 10.0)]
     pub d_min_ratio: f64,
+    /// `build --leaf-originals` for the demo: the default scene holds only 2 Mtexels of textures, which the
+    /// default budget (16 atlases) keeps in one scaled leaf; 2 atlases give a multi-level tree to page.
+    #[arg(long, default_value_t = 2.0)]
+    pub leaf_originals: f64,
     /// Frames of the rendered overview-dive (every 10th is written as PNG).
     #[arg(long, default_value_t = 60)]
     pub frames: usize,
@@ -46,6 +50,7 @@ pub fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
     let opts = BuildOptions {
         d_min: DMin::Ratio(a.d_min_ratio),
         atlas_size: a.atlas_size,
+        leaf_originals_atlases: a.leaf_originals,
         ..BuildOptions::default()
     };
     let report =

@@ -313,13 +313,18 @@ impl BorderSide {
         };
         for &(b, p) in &self.pairs {
             for o in self.span.0..self.span.1 {
+                let (x0, y0, x1, y1) = if self.axis == 0 {
+                    (b, o, p, o)
+                } else {
+                    (o, b, o, p)
+                };
+                // Fully transparent texels carry the colour bled in from their nearest visible texel
+                // (alpha trees), which depends on the neighbourhood: only their alpha is compared.
+                let transparent = at(x0, y0, 3) == 0 && at(x1, y1, 3) == 0;
                 for c in 0..4 {
-                    let (x0, y0, x1, y1) = if self.axis == 0 {
-                        (b, o, p, o)
-                    } else {
-                        (o, b, o, p)
-                    };
-                    sum += u64::from(at(x0, y0, c).abs_diff(at(x1, y1, c)));
+                    if !(transparent && c < 3) {
+                        sum += u64::from(at(x0, y0, c).abs_diff(at(x1, y1, c)));
+                    }
                     n += 1;
                 }
             }

@@ -103,6 +103,12 @@ pub struct RectMap {
 const _: () = assert!(size_of::<RectMap>() == 64);
 
 impl RectMap {
+    /// Texels of the outer rectangle at the coarsest mip a sample reads ([`RectMap::texel_f32`]).
+    pub const CELLS: f32 = 2.0;
+    /// The same for block-compressed atlases: from 8 texels on, the rect's centre lies in a 4×4 block of
+    /// its own (coarser, BC blocks mix neighbouring rects).
+    pub const CELLS_BC: f32 = 8.0;
+
     /// The GPU record of a stored rect.
     pub fn new(r: &AtlasRect) -> RectMap {
         let tpu = r.texels_per_uv();
@@ -146,15 +152,19 @@ impl RectMap {
 
     /// The shader's `rect_texel`: leaf-atlas texel coordinates of UV `uv` with screen derivatives `ddx`,
     /// `ddy` drawn at a level `level_texels` leaf texels per texel of the drawn atlas (`2^(K − j)`), and the
-    /// derivatives of those coordinates. The sample is kept half the footprint plus half a drawn texel
+    /// derivatives the sampler is given. The sample is kept half the footprint plus half a drawn texel
     /// inside the outer rectangle (its centre where it is narrower than that), so the filter never reads a
-    /// neighbouring rect.
+    /// neighbouring rect; and the footprint is capped at the outer rectangle's smaller side over `cells`
+    /// ([`RectMap::CELLS`], [`RectMap::CELLS_BC`]): a pixel wider than that sees the rect's average (the
+    /// period is smaller than the pixel), which the mip level where the rect is `cells` texels wide holds
+    /// at its centre, without its neighbours.
     pub fn texel_f32(
         &self,
         uv: Vec2,
         ddx: Vec2,
         ddy: Vec2,
         level_texels: f32,
+        cells: f32,
     ) -> (Vec2, Vec2, Vec2) {
         let (ts, ss) = self.axis_f32(uv.x, 0);
         let (tt, st) = self.axis_f32(uv.y, 1);
@@ -178,6 +188,13 @@ impl RectMap {
                 t.y.clamp(lo.y, hi.y)
             },
         );
+        let outer = Vec2::from(self.outer_hi) - Vec2::from(self.outer_lo);
+        let cap = outer.x.min(outer.y) / cells;
+        let footprint = gx.length().max(gy.length());
+        if footprint > cap {
+            let k = cap / footprint;
+            return (texel, gx * k, gy * k);
+        }
         (texel, gx, gy)
     }
 }

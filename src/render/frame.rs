@@ -898,8 +898,8 @@ impl<'f> Renderer<'f> {
     }
 }
 
-/// Specialisation of `tree.wgsl` to what the file has: the number of atlas arrays and the class arrays
-/// present (absent ones are compiled out, see [`Group`]).
+/// Specialisation of `tree.wgsl` to what the file has: the number of atlas arrays, which of them are
+/// block-compressed, and the class arrays present (absent ones are compiled out, see [`Group`]).
 pub(super) fn tree_specialisation(res: &Resident) -> Specialisation {
     let class_mask = res
         .class_arrays
@@ -907,12 +907,19 @@ pub(super) fn tree_specialisation(res: &Resident) -> Specialisation {
         .enumerate()
         .filter(|(_, a)| a.is_some())
         .fold(0u32, |m, (k, _)| m | 1 << k);
+    let bc_mask = res
+        .atlas_arrays
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| a.format.is_compressed())
+        .fold(0u32, |m, (k, _)| m | 1 << k);
     Specialisation {
         constants: vec![
             (
                 "ATLAS_ARRAYS",
                 f64::from(res.atlas_arrays.len().max(1) as u32),
             ),
+            ("ATLAS_BC_MASK", f64::from(bc_mask)),
             ("CLASS_MASK", f64::from(class_mask)),
         ],
         source: true,

@@ -733,7 +733,7 @@ mod tests {
     #[test]
     fn section_record_sizes_match_types() {
         assert_eq!(Section::Nodes.record_size(), 104);
-        assert_eq!(Section::Vertices.record_size(), 36);
+        assert_eq!(Section::Vertices.record_size(), 32);
         assert_eq!(Section::Blocks.record_size(), 48);
         for (i, s) in Section::ALL.iter().enumerate() {
             assert_eq!(*s as usize, i, "{}", s.name());

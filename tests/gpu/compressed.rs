@@ -47,6 +47,8 @@ fn build_city(dir: &Path, compress: Compression) -> Result<PathBuf, String> {
         atlas_size: 512,
         max_file_bytes: 1 << 30,
         compress,
+        // The paper's tree: every node that does not fit one atlas is split (multi-level).
+        leaf_originals_atlases: 0.0,
         ..BuildOptions::default()
     };
     build(&scene, &opts, &out, &NoProgress).map_err(e)?;

@@ -71,6 +71,8 @@ fn build_scene(
         d_min,
         atlas_size: atlas,
         max_file_bytes: 1 << 30,
+        // The paper's tree: every node that does not fit one atlas is split (multi-level).
+        leaf_originals_atlases: 0.0,
         ..BuildOptions::default()
     };
     build(scene, &opts, &out, &NoProgress).map_err(e)?;

@@ -31,6 +31,10 @@ pub fn tiny_opts(atlas: u32, d_min: f64) -> BuildOptions {
         border: 8,
         max_file_bytes: 256 << 20,
         image_cache_bytes: 64 << 20,
+        // These hard cases are about the paper's tree: every node that does not fit is split, where the
+        // summed world area is halved (§5.3).
+        leaf_originals_atlases: 0.0,
+        split: atlastree::build::layout::SplitRule::Area,
         ..BuildOptions::default()
     }
 }
@@ -93,11 +97,40 @@ pub fn assert_sound(file: &TreeFile) {
 }
 
 pub fn vertex_finite(v: &TreeVertex) -> bool {
-    v.pos
-        .iter()
-        .chain(&v.atlas_uv)
-        .chain(&v.orig_uv)
-        .all(|c| c.is_finite())
+    v.pos.iter().chain(&v.orig_uv).all(|c| c.is_finite())
+}
+
+/// The vertex's position in its leaf's atlas, texels, under the *linear* (unwrapped) map of its rect:
+/// `inner + (uv − uv_min) · texels per UV`. The rect's wrap moves whole periods, so this map's Jacobian is
+/// the density the atlas gives the triangle (what the d_min guarantee is about).
+pub fn vertex_atlas_texels(
+    t: &atlastree::store::TreeView<'_>,
+    leaf: &atlastree::store::format::LeafRecord,
+    v: &TreeVertex,
+) -> DVec2 {
+    let r = t.leaf_rects(leaf)[v.rect as usize].decode();
+    let tpu = r.texels_per_uv();
+    let axis = |k: usize| f64::from(r.inner[k]) + (f64::from(v.orig_uv[k]) - r.uv_min[k]) * tpu[k];
+    DVec2::new(axis(0), axis(1))
+}
+
+/// The vertex's leaf-local atlas UV as the shader computes it (`RectMap::texel_f32`, f32), in `[0, 1]`.
+pub fn vertex_leaf_uv(
+    t: &atlastree::store::TreeView<'_>,
+    leaf: &atlastree::store::format::LeafRecord,
+    v: &TreeVertex,
+    atlas: f32,
+) -> glam::Vec2 {
+    let r = t.leaf_rects(leaf)[v.rect as usize].decode();
+    let map = atlastree::render::batch::RectMap::new(&r);
+    let (texel, _, _) = map.texel_f32(
+        glam::Vec2::from_array(v.orig_uv),
+        glam::Vec2::ZERO,
+        glam::Vec2::ZERO,
+        1.0,
+        atlastree::render::batch::RectMap::CELLS,
+    );
+    texel / atlas
 }
 
 /// Max over the two texture axes of (world units per atlas texel) · f_proj(d): ≤ 1 means at least

@@ -171,10 +171,13 @@ pub fn neutral_fill() -> [f32; 4] {
 
 /// The inner-node atlas of side `size` (paper §5.1): child `q`'s image, already at `size / 2` (its mip
 /// level 1), goes to quadrant `q` (bit 0: right half, +x; bit 1: lower half, +y); missing children leave
-/// [`neutral_fill`]. Errors if `size` is odd or < 2, or a child is not `size/2 × size/2`.
+/// `fill` (opaque trees: [`neutral_fill`]; alpha trees: transparent, so the colour bleed of the RGBA8
+/// conversion gives it its visible neighbours' colour and no grey halo reaches coarse mips). Errors if
+/// `size` is odd or < 2, or a child is not `size/2 × size/2`.
 pub fn combine_quadrants(
     children: [Option<&LinearImage>; 4],
     size: u32,
+    fill: [f32; 4],
 ) -> Result<LinearImage, ImageOpsError> {
     if size < 2 || !size.is_multiple_of(2) {
         return Err(ImageOpsError::QuadrantSize { size });
@@ -193,7 +196,7 @@ pub fn combine_quadrants(
             c.check()?;
         }
     }
-    let mut out = LinearImage::new_filled(size, size, neutral_fill());
+    let mut out = LinearImage::new_filled(size, size, fill);
     let (n, h) = (size as usize, half as usize);
     for (q, c) in children.iter().enumerate() {
         let Some(c) = c else { continue };
