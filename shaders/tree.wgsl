@@ -77,8 +77,7 @@ struct RectMap {
     // wrap_s | wrap_t << 2: 0 linear (baked), 1 repeat, 2 mirror, 3 clamp (build::tree::RectWrap codes).
     wrap: u32,
     _p0: u32,
-    _p1: u32,
-    _p2: u32,
+    inner_size: vec2<f32>,
 }
 
 // Twin of render::batch::TamEntry (48 bytes).
@@ -187,11 +186,14 @@ struct RectSample {
     gy: vec2<f32>,
 }
 
-// RectMap::texel_f32: the fragment's texel in its leaf's atlas, kept half the footprint plus half a drawn
-// texel (`level_texels` leaf texels) inside the outer rectangle, and the footprint capped at the outer
-// rectangle's smaller side over `cells` (2, or 8 for block-compressed arrays): a pixel wider than that sees
-// the rect's average, which the mip level where the rect is `cells` texels wide holds at its centre,
-// without its neighbours (and with `cells` 8 inside a 4×4 block of its own).
+// RectMap::CELLS and CELLS_BC.
+const CELLS: f32 = 2.0;
+const CELLS_BC: f32 = 8.0;
+
+// RectMap::texel_f32: the fragment's texel in its leaf's atlas. A footprint wider than half the inner
+// rectangle covers (about) a period: the period's average, at the rect's centre on the mip where the inner
+// rectangle is `cells` texels wide (2; 8 for block-compressed arrays). Otherwise the sample is kept
+// half the footprint plus half a drawn texel (`level_texels` leaf texels) inside the outer rectangle.
 fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32, cells: f32) -> RectSample {
     let s = rect_axis(uv.x, r.wrap & 3u, r.uv_min.x, r.half_gap.x);
     let t = rect_axis(uv.y, (r.wrap >> 2u) & 3u, r.uv_min.y, r.half_gap.y);
@@ -199,19 +201,20 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     var out: RectSample;
     out.gx = ddx * tpu;
     out.gy = ddy * tpu;
+    let period = min(r.inner_size.x, r.inner_size.y);
+    let footprint = max(length(out.gx), length(out.gy));
+    if footprint > period / CELLS {
+        let k = period / cells / footprint;
+        out.gx = out.gx * k;
+        out.gy = out.gy * k;
+        out.texel = r.inner_lo + 0.5 * r.inner_size;
+        return out;
+    }
     let margin = 0.5 * (abs(out.gx) + abs(out.gy)) + vec2<f32>(0.5 * level_texels);
     let lo = r.outer_lo + margin;
     let hi = r.outer_hi - margin;
     let p = r.inner_lo + vec2<f32>(s.x, t.x) * r.texels_per_uv;
-    out.texel = select(clamp(p, lo, hi), 0.5 * (lo + hi), lo > hi);
-    let outer = r.outer_hi - r.outer_lo;
-    let cap = min(outer.x, outer.y) / cells;
-    let footprint = max(length(out.gx), length(out.gy));
-    if footprint > cap {
-        let k = cap / footprint;
-        out.gx = out.gx * k;
-        out.gy = out.gy * k;
-    }
+    out.texel = select(clamp(p, lo, hi), r.inner_lo + 0.5 * r.inner_size, lo > hi);
     return out;
 }
 
@@ -358,7 +361,7 @@ struct AtlasSample {
 fn atlas_sample(in: VertexOut, ddx: vec2<f32>, ddy: vec2<f32>) -> AtlasSample {
     let x = in.level_xf;
     let size = globals.atlas_texels;
-    let cells = select(2.0, 8.0, (ATLAS_BC_MASK & (1u << in.which)) != 0u);
+    let cells = select(CELLS, CELLS_BC, (ATLAS_BC_MASK & (1u << in.which)) != 0u);
     let r = rect_texel(rects[in.rect], in.uv, ddx, ddy, 1.0 / x.x, cells);
     var out: AtlasSample;
     out.uv = (r.texel / size) * x.x + x.yz;

@@ -98,15 +98,17 @@ pub struct RectMap {
     pub outer_hi: [f32; 2],
     /// `wrap_s | wrap_t << 2`, [`RectWrap::code`]s.
     pub wrap: u32,
-    pub _pad: [u32; 3],
+    pub _pad: u32,
+    /// Size of the inner rectangle.
+    pub inner_size: [f32; 2],
 }
 const _: () = assert!(size_of::<RectMap>() == 64);
 
 impl RectMap {
-    /// Texels of the outer rectangle at the coarsest mip a sample reads ([`RectMap::texel_f32`]).
+    /// Texels of the inner rectangle at the coarsest mip a sample reads ([`RectMap::texel_f32`]).
     pub const CELLS: f32 = 2.0;
-    /// The same for block-compressed atlases: from 8 texels on, the rect's centre lies in a 4×4 block of
-    /// its own (coarser, BC blocks mix neighbouring rects).
+    /// The same for block-compressed atlases: from 8 texels on, the rect's centre lies in a 4×4 block
+    /// inside the rect (coarser, BC blocks mix neighbouring rects).
     pub const CELLS_BC: f32 = 8.0;
 
     /// The GPU record of a stored rect.
@@ -124,7 +126,8 @@ impl RectMap {
                 (r.outer[1] + r.outer[3]) as f32,
             ],
             wrap: r.wrap[0].code() | r.wrap[1].code() << 2,
-            _pad: [0; 3],
+            _pad: 0,
+            inner_size: [r.inner[2] as f32, r.inner[3] as f32],
         }
     }
 
@@ -152,12 +155,17 @@ impl RectMap {
 
     /// The shader's `rect_texel`: leaf-atlas texel coordinates of UV `uv` with screen derivatives `ddx`,
     /// `ddy` drawn at a level `level_texels` leaf texels per texel of the drawn atlas (`2^(K − j)`), and the
-    /// derivatives the sampler is given. The sample is kept half the footprint plus half a drawn texel
-    /// inside the outer rectangle (its centre where it is narrower than that), so the filter never reads a
-    /// neighbouring rect; and the footprint is capped at the outer rectangle's smaller side over `cells`
-    /// ([`RectMap::CELLS`], [`RectMap::CELLS_BC`]): a pixel wider than that sees the rect's average (the
-    /// period is smaller than the pixel), which the mip level where the rect is `cells` texels wide holds
-    /// at its centre, without its neighbours.
+    /// derivatives the sampler is given.
+    ///
+    /// - A pixel whose footprint exceeds half the inner rectangle's smaller side covers (about) a period:
+    ///   it gets the period's average, which the mip level where the inner rectangle is `cells` texels wide
+    ///   ([`RectMap::CELLS`]; [`RectMap::CELLS_BC`] for block-compressed atlases, whose coarser blocks mix
+    ///   neighbouring rects) holds at its centre (the gradients are scaled to that level, the sample moved
+    ///   to the centre) — no neighbour bleeds in, no aliasing, and every such pixel of the rect reads the
+    ///   same texels.
+    /// - Otherwise the sample is kept half the footprint plus half a drawn texel inside the outer
+    ///   rectangle, so the filter reads the rect's border (the sampler's rule) and never a neighbouring
+    ///   rect; at the inner centre where the rectangle is narrower than that.
     pub fn texel_f32(
         &self,
         uv: Vec2,
@@ -171,11 +179,19 @@ impl RectMap {
         let tpu = Vec2::from(self.texels_per_uv) * Vec2::new(ss, st);
         let gx = ddx * tpu;
         let gy = ddy * tpu;
+        let inner_lo = Vec2::from(self.inner_lo);
+        let inner = Vec2::from(self.inner_size);
+        let period = inner.x.min(inner.y);
+        let footprint = gx.length().max(gy.length());
+        if footprint > period / RectMap::CELLS {
+            let k = period / cells / footprint;
+            return (inner_lo + 0.5 * inner, gx * k, gy * k);
+        }
         let margin = 0.5 * (gx.abs() + gy.abs()) + Vec2::splat(0.5 * level_texels);
         let lo = Vec2::from(self.outer_lo) + margin;
         let hi = Vec2::from(self.outer_hi) - margin;
-        let t = Vec2::from(self.inner_lo) + Vec2::new(ts, tt) * Vec2::from(self.texels_per_uv);
-        let centre = 0.5 * (lo + hi);
+        let t = inner_lo + Vec2::new(ts, tt) * Vec2::from(self.texels_per_uv);
+        let centre = inner_lo + 0.5 * inner;
         let texel = Vec2::new(
             if lo.x > hi.x {
                 centre.x
@@ -188,13 +204,6 @@ impl RectMap {
                 t.y.clamp(lo.y, hi.y)
             },
         );
-        let outer = Vec2::from(self.outer_hi) - Vec2::from(self.outer_lo);
-        let cap = outer.x.min(outer.y) / cells;
-        let footprint = gx.length().max(gy.length());
-        if footprint > cap {
-            let k = cap / footprint;
-            return (texel, gx * k, gy * k);
-        }
         (texel, gx, gy)
     }
 }
