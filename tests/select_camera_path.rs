@@ -1,7 +1,7 @@
 //! Camera paths: JSON round trip, exact keyframes, clear errors for bad files, generated paths inside
 //! their documented bounds.
 
-use atlastree::camera::{CameraError, CameraPath, Keyframe, PathKind};
+use atlastree::camera::{CameraError, CameraPath, Ground, GroundError, Keyframe, PathKind};
 use atlastree::scene::UpAxis;
 use glam::{DVec2, DVec3};
 use std::path::Path;
@@ -348,10 +348,57 @@ fn generated_paths_reject_bad_bounds() {
         matches!(e, Err(CameraError::BadBounds { kind: "street", .. })),
         "{e:?}"
     );
-    let e = PathKind::OverviewDive.resolve(
+    let e = PathKind::OverviewDive.resolve(&Ground::flat(
         DVec3::splat(f64::INFINITY),
         DVec3::splat(f64::INFINITY),
         UpAxis::Z,
+    ));
+    assert!(
+        matches!(
+            e,
+            Err(CameraError::BadBounds {
+                kind: "overview-dive",
+                ..
+            })
+        ),
+        "{e:?}"
     );
-    assert!(matches!(e, Err(CameraError::BadBounds { .. })), "{e:?}");
+}
+
+#[test]
+fn resolve_with_derives_the_ground_only_for_generated_paths() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let file = dir.path().join("path.json");
+    sample_path().save(&file).unwrap_or_else(|e| panic!("{e}"));
+    let failing = || Err(GroundError::NoGeometry);
+    // A JSON path never asks for the ground.
+    let loaded = PathKind::File(file.clone())
+        .resolve_with(|| panic!("the ground was derived for a JSON path"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(loaded, sample_path());
+    // A generated one does, and says which path could not get it.
+    for kind in [PathKind::OverviewDive, PathKind::Street, PathKind::Orbit] {
+        let e = kind.resolve_with(failing);
+        assert!(
+            matches!(&e, Err(CameraError::Ground { kind: k, source: GroundError::NoGeometry }) if *k == kind),
+            "{e:?}"
+        );
+        let msg = e.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(msg.contains(&kind.to_string()), "{msg}");
+    }
+    // Over a flat ground resolve gives the bounds-only paths.
+    let (lo, hi) = (DVec3::new(0.0, 34.0, 0.0), DVec3::new(800.0, 90.0, 300.0));
+    let flat = Ground::flat(lo, hi, UpAxis::Y);
+    let pairs = [
+        (
+            PathKind::OverviewDive,
+            CameraPath::overview_dive(lo, hi, UpAxis::Y),
+        ),
+        (PathKind::Street, CameraPath::street(lo, hi, UpAxis::Y)),
+        (PathKind::Orbit, CameraPath::orbit(lo, hi, UpAxis::Y)),
+    ];
+    for (kind, expect) in pairs {
+        let got = kind.resolve_with(|| Ok(flat.clone()));
+        assert_eq!(got.ok(), expect.ok(), "{kind}");
+    }
 }

@@ -1,12 +1,11 @@
 use anyhow::{Context, bail};
-use atlastree::camera::{Camera, PathKind};
+use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
 use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource, PagerOptions};
 use atlastree::render::{FrameStats, Mode, PagingSetup, Renderer, RendererOptions};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::store::TreeFile;
 use clap::Args;
-use glam::DVec3;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -107,22 +106,6 @@ fn is_url(s: &str) -> bool {
     s.starts_with("http://") || s.starts_with("https://")
 }
 
-pub(crate) fn scene_bounds(file: &TreeFile) -> Option<(DVec3, DVec3)> {
-    let mut b: Option<(DVec3, DVec3)> = None;
-    for t in 0..file.trees() {
-        let root = file.tree(t)?.nodes.first().copied()?;
-        let (lo, hi) = (
-            DVec3::from_array(root.bounds_min),
-            DVec3::from_array(root.bounds_max),
-        );
-        b = Some(match b {
-            Some((a, c)) => (a.min(lo), c.max(hi)),
-            None => (lo, hi),
-        });
-    }
-    b
-}
-
 /// Mean and max of a column.
 fn mean_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut n, mut sum, mut max) = (0usize, 0.0, f64::NEG_INFINITY);
@@ -158,9 +141,8 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         (None, false) => None,
     };
     let params = file.to_params();
-    let (lo, hi) = scene_bounds(&file).context("the file has no nodes")?;
     let kind: PathKind = a.path.parse()?;
-    let path = kind.resolve(lo, hi, params.up)?;
+    let path = kind.resolve_with(|| Ground::from_tree(&file))?;
     let aspect = f64::from(a.width) / f64::from(a.height.max(1));
     let cameras: Vec<Camera> = path
         .frames(a.fps, a.frames)

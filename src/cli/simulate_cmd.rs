@@ -1,8 +1,7 @@
 //! `atlastree simulate`: paging-budget experiments without a GPU.
 
-use super::render_cmd::scene_bounds;
 use anyhow::{Context, bail};
-use atlastree::camera::{Camera, PathKind};
+use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::paging::{Policy, UploadBudget};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::sim::SimInput;
@@ -114,9 +113,8 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
     }
     let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
     let params = file.to_params();
-    let (lo, hi) = scene_bounds(&file).context("the file has no nodes")?;
     let kind: PathKind = a.path.parse()?;
-    let path = kind.resolve(lo, hi, params.up)?;
+    let path = kind.resolve_with(|| Ground::from_tree(&file))?;
     let frames = a
         .frames
         .unwrap_or_else(|| (path.duration() * a.fps).ceil().max(1.0) as usize);

@@ -1,6 +1,6 @@
 use super::{UpArg, load_scene};
 use anyhow::{Context, bail};
-use atlastree::camera::PathKind;
+use atlastree::camera::{Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
 use atlastree::sweep::output::write_outputs;
 use atlastree::sweep::run::sample_path;
@@ -112,9 +112,8 @@ pub fn run(a: SweepArgs) -> anyhow::Result<ExitCode> {
     grid.validate(&a.grid)?;
     let plan = grid.plan();
     let scene = load_scene(&a.scene, a.up)?;
-    let (lo, hi) = scene.bounds().context("the scene has no vertices")?;
     let kind: PathKind = a.path.parse()?;
-    let path = kind.resolve(lo, hi, scene.up)?;
+    let path = kind.resolve_with(|| Ground::from_scene(&scene))?;
     let aspect = f64::from(plan.width) / f64::from(plan.height);
     let cameras = sample_path(&path, plan.frames, aspect);
 

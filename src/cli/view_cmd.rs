@@ -1,8 +1,8 @@
 use anyhow::{Context, bail};
-use atlastree::camera::{Camera, PathKind};
+use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::render::Mode;
 use atlastree::store::TreeFile;
-use atlastree::view::{ViewOptions, ViewReport, scene_bounds};
+use atlastree::view::{ViewOptions, ViewReport};
 use clap::Args;
 use glam::DVec3;
 use std::path::PathBuf;
@@ -130,9 +130,11 @@ pub fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
     }
     let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
     let params = file.to_params();
-    let (lo, hi) = scene_bounds(&file).context("the file has no nodes")?;
     let path = match &a.path {
-        Some(p) => Some(p.parse::<PathKind>()?.resolve(lo, hi, params.up)?),
+        Some(p) => Some(
+            p.parse::<PathKind>()?
+                .resolve_with(|| Ground::from_tree(&file))?,
+        ),
         None => None,
     };
     let camera = a
