@@ -26,8 +26,6 @@ override PASS: u32 = 0u;
 override SOURCE: u32 = 0u;
 // Atlas arrays in use (1..4) and the class arrays present (bit k: class 4 << k); the rest is compiled out.
 override ATLAS_ARRAYS: u32 = 4u;
-// Bit a: atlas array a is block-compressed (its 4×4 blocks mix neighbouring rects at coarse mips).
-override ATLAS_BC_MASK: u32 = 0u;
 override CLASS_MASK: u32 = 0x3ffu;
 // 1: the texel-density debug pipeline (render::density): instead of the colour, write the texels of mip 0
 // per screen pixel of the sampled texture (Rgba32Float target, no blending).
@@ -100,25 +98,21 @@ struct TamEntry {
 @group(0) @binding(4) var<storage, read> tam: array<TamEntry>;
 @group(0) @binding(5) var<storage, read> rects: array<RectMap>;
 @group(0) @binding(6) var atlas_sampler: sampler;
-// The same filter without anisotropy: used where a fragment's footprint is (nearly) isotropic, where the two
-// agree; a software rasteriser's anisotropic path costs per probe (lavapipe: ~50× on wrapped atlas UVs).
-@group(0) @binding(7) var atlas_sampler_iso: sampler;
-@group(0) @binding(8) var original_sampler: sampler;
-@group(0) @binding(9) var original_sampler_iso: sampler;
-@group(0) @binding(10) var atlas0: texture_2d_array<f32>;
-@group(0) @binding(11) var atlas1: texture_2d_array<f32>;
-@group(0) @binding(12) var atlas2: texture_2d_array<f32>;
-@group(0) @binding(13) var atlas3: texture_2d_array<f32>;
-@group(0) @binding(14) var class0: texture_2d_array<f32>;
-@group(0) @binding(15) var class1: texture_2d_array<f32>;
-@group(0) @binding(16) var class2: texture_2d_array<f32>;
-@group(0) @binding(17) var class3: texture_2d_array<f32>;
-@group(0) @binding(18) var class4: texture_2d_array<f32>;
-@group(0) @binding(19) var class5: texture_2d_array<f32>;
-@group(0) @binding(20) var class6: texture_2d_array<f32>;
-@group(0) @binding(21) var class7: texture_2d_array<f32>;
-@group(0) @binding(22) var class8: texture_2d_array<f32>;
-@group(0) @binding(23) var class9: texture_2d_array<f32>;
+@group(0) @binding(7) var original_sampler: sampler;
+@group(0) @binding(8) var atlas0: texture_2d_array<f32>;
+@group(0) @binding(9) var atlas1: texture_2d_array<f32>;
+@group(0) @binding(10) var atlas2: texture_2d_array<f32>;
+@group(0) @binding(11) var atlas3: texture_2d_array<f32>;
+@group(0) @binding(12) var class0: texture_2d_array<f32>;
+@group(0) @binding(13) var class1: texture_2d_array<f32>;
+@group(0) @binding(14) var class2: texture_2d_array<f32>;
+@group(0) @binding(15) var class3: texture_2d_array<f32>;
+@group(0) @binding(16) var class4: texture_2d_array<f32>;
+@group(0) @binding(17) var class5: texture_2d_array<f32>;
+@group(0) @binding(18) var class6: texture_2d_array<f32>;
+@group(0) @binding(19) var class7: texture_2d_array<f32>;
+@group(0) @binding(20) var class8: texture_2d_array<f32>;
+@group(0) @binding(21) var class9: texture_2d_array<f32>;
 
 struct VertexIn {
     @builtin(instance_index) instance: u32,
@@ -186,15 +180,18 @@ struct RectSample {
     gy: vec2<f32>,
 }
 
-// RectMap::CELLS and CELLS_BC.
+// RectMap::CELLS, FLAT_SHARE and SHARPEN_MIN.
 const CELLS: f32 = 2.0;
-const CELLS_BC: f32 = 8.0;
+const FLAT_SHARE: f32 = 1.0;
+const SHARPEN_MIN: f32 = 0.25;
 
-// RectMap::texel_f32: the fragment's texel in its leaf's atlas. A footprint wider than half the inner
-// rectangle covers (about) a period: the period's average, at the rect's centre on the mip where the inner
-// rectangle is `cells` texels wide (2; 8 for block-compressed arrays). Otherwise the sample is kept
-// half the footprint plus half a drawn texel (`level_texels` leaf texels) inside the outer rectangle.
-fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32, cells: f32) -> RectSample {
+// RectMap::texel_f32: the fragment's texel in its leaf's atlas. Where the filter would reach past the
+// rect's border the gradients are sharpened by k <= 1 to what the border protects. A footprint of more than
+// FLAT_SHARE of the inner rectangle, or k < SHARPEN_MIN, covers (about) a period: it gets the period's
+// average, at the rect's centre on the mip where the inner rectangle is CELLS texels wide. Otherwise the
+// sample is kept half the footprint plus half a drawn texel (`level_texels` leaf texels) inside the outer
+// rectangle.
+fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32) -> RectSample {
     let s = rect_axis(uv.x, r.wrap & 3u, r.uv_min.x, r.half_gap.x);
     let t = rect_axis(uv.y, (r.wrap >> 2u) & 3u, r.uv_min.y, r.half_gap.y);
     let tpu = r.texels_per_uv * vec2<f32>(s.y, t.y);
@@ -203,14 +200,23 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     out.gy = ddy * tpu;
     let period = min(r.inner_size.x, r.inner_size.y);
     let footprint = max(length(out.gx), length(out.gy));
-    if footprint > period / CELLS {
-        let k = period / cells / footprint;
-        out.gx = out.gx * k;
-        out.gy = out.gy * k;
+    let half_box = 0.5 * (abs(out.gx) + abs(out.gy));
+    let inner_hi = r.inner_lo + r.inner_size;
+    let border = min(r.inner_lo - r.outer_lo, r.outer_hi - inner_hi);
+    // Where the footprint reaches past the border, sharpen it to what the border protects.
+    let room = max(border - vec2<f32>(0.5 * level_texels), vec2<f32>(0.0));
+    let fit = room / max(half_box, vec2<f32>(1e-30));
+    let k = min(1.0, min(fit.x, fit.y));
+    if footprint > period * FLAT_SHARE || k < SHARPEN_MIN {
+        let kk = period / CELLS / footprint;
+        out.gx = out.gx * kk;
+        out.gy = out.gy * kk;
         out.texel = r.inner_lo + 0.5 * r.inner_size;
         return out;
     }
-    let margin = 0.5 * (abs(out.gx) + abs(out.gy)) + vec2<f32>(0.5 * level_texels);
+    out.gx = out.gx * k;
+    out.gy = out.gy * k;
+    let margin = half_box * k + vec2<f32>(0.5 * level_texels);
     let lo = r.outer_lo + margin;
     let hi = r.outer_hi - margin;
     let p = r.inner_lo + vec2<f32>(s.x, t.x) * r.texels_per_uv;
@@ -243,27 +249,6 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-// The footprint's axes differ by more than ANISOTROPY_MIN (then the anisotropic sampler is used).
-const ANISOTROPY_MIN: f32 = 1.5;
-fn is_anisotropic(ddx: vec2<f32>, ddy: vec2<f32>) -> bool {
-    let sv = singular_values(ddx, ddy, 1.0);
-    return sv.y > ANISOTROPY_MIN * sv.x;
-}
-
-fn sample_atlas_iso(array: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
-    var c = textureSampleGrad(atlas0, atlas_sampler_iso, uv, layer, ddx, ddy);
-    if ATLAS_ARRAYS > 1u && array == 1u {
-        c = textureSampleGrad(atlas1, atlas_sampler_iso, uv, layer, ddx, ddy);
-    }
-    if ATLAS_ARRAYS > 2u && array == 2u {
-        c = textureSampleGrad(atlas2, atlas_sampler_iso, uv, layer, ddx, ddy);
-    }
-    if ATLAS_ARRAYS > 3u && array == 3u {
-        c = textureSampleGrad(atlas3, atlas_sampler_iso, uv, layer, ddx, ddy);
-    }
-    return c;
-}
-
 fn sample_atlas(array: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
     var c = textureSampleGrad(atlas0, atlas_sampler, uv, layer, ddx, ddy);
     if ATLAS_ARRAYS > 1u && array == 1u {
@@ -284,13 +269,7 @@ fn is_class(class_index: u32, k: u32) -> bool {
 }
 
 fn sample_class(class_index: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
-    if is_anisotropic(ddx, ddy) {
-        return sample_class_with(original_sampler, class_index, uv, layer, ddx, ddy);
-    }
-    return sample_class_with(original_sampler_iso, class_index, uv, layer, ddx, ddy);
-}
-
-fn sample_class_with(s: sampler, class_index: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
+    let s = original_sampler;
     var c = vec4<f32>(0.0);
     if is_class(class_index, 0u) { c = textureSampleGrad(class0, s, uv, layer, ddx, ddy); }
     if is_class(class_index, 1u) { c = textureSampleGrad(class1, s, uv, layer, ddx, ddy); }
@@ -361,8 +340,7 @@ struct AtlasSample {
 fn atlas_sample(in: VertexOut, ddx: vec2<f32>, ddy: vec2<f32>) -> AtlasSample {
     let x = in.level_xf;
     let size = globals.atlas_texels;
-    let cells = select(CELLS, CELLS_BC, (ATLAS_BC_MASK & (1u << in.which)) != 0u);
-    let r = rect_texel(rects[in.rect], in.uv, ddx, ddy, 1.0 / x.x, cells);
+    let r = rect_texel(rects[in.rect], in.uv, ddx, ddy, 1.0 / x.x);
     var out: AtlasSample;
     out.uv = (r.texel / size) * x.x + x.yz;
     out.ddx = r.gx * (x.x / size);
@@ -382,16 +360,13 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if SOURCE == 0u {
         let a = atlas_sample(in, ddx, ddy);
         if DENSITY == 1u {
-            // (texels/pixel min, max, source 0 atlas / 1 original, level; 255 for originals).
-            let sv = singular_values(a.ddx, a.ddy, globals.atlas_texels);
+            // (texels/pixel min, max, source 0 atlas / 1 original, level; 255 for originals), from the
+            // footprint itself (not the one capped for sampling).
+            let tpu = rects[in.rect].texels_per_uv * (in.level_xf.x / globals.atlas_texels);
+            let sv = singular_values(ddx * tpu, ddy * tpu, globals.atlas_texels);
             return vec4<f32>(sv.x, sv.y, 0.0, f32(in.level));
         }
-        var c: vec4<f32>;
-        if is_anisotropic(a.ddx, a.ddy) {
-            c = sample_atlas(in.which, a.uv, in.layer, a.ddx, a.ddy);
-        } else {
-            c = sample_atlas_iso(in.which, a.uv, in.layer, a.ddx, a.ddy);
-        }
+        let c = sample_atlas(in.which, a.uv, in.layer, a.ddx, a.ddy);
         return finish(c, in.cutoff, 2u);
     }
     let e = tam[in.which];

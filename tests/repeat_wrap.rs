@@ -168,13 +168,8 @@ fn rect_sampling_matches_the_original_per_mode_level_and_edge() {
                     let uv = DVec2::new(u, v);
                     let want = sample_footprint(&src_chain, [case.wrap; 2], uv, DVec2::splat(fp));
                     let d = Vec2::new(fp as f32, 0.0);
-                    let (texel, _, _) = map.texel_f32(
-                        uv.as_vec2(),
-                        d,
-                        Vec2::new(0.0, fp as f32),
-                        scale as f32,
-                        RectMap::CELLS,
-                    );
+                    let (texel, _, _) =
+                        map.texel_f32(uv.as_vec2(), d, Vec2::new(0.0, fp as f32), scale as f32);
                     let got = bilinear(level, texel.as_dvec2() / scale);
                     if std::env::var_os("TWIN_DEBUG").is_some() && max_diff(got, want) > 0.02 {
                         eprintln!("{:?} n={n} uv={uv} got {got:?} want {want:?}", case.mode);
@@ -427,13 +422,8 @@ fn a_uv_range_of_2_9e9_builds_and_maps_without_nan() {
                     let uv = Vec2::from(v[0].orig_uv) * (1.0 - a - c)
                         + Vec2::from(v[1].orig_uv) * a
                         + Vec2::from(v[2].orig_uv) * c;
-                    let (texel, gx, gy) = map.texel_f32(
-                        uv,
-                        Vec2::new(1e8, 0.0),
-                        Vec2::new(0.0, 1e8),
-                        1.0,
-                        RectMap::CELLS,
-                    );
+                    let (texel, gx, gy) =
+                        map.texel_f32(uv, Vec2::new(1e8, 0.0), Vec2::new(0.0, 1e8), 1.0);
                     assert!(
                         texel.is_finite() && gx.is_finite() && gy.is_finite(),
                         "{uv} → {texel} {gx} {gy}"

@@ -14,7 +14,7 @@ use atlastree::sweep::summary::{
 use std::path::Path;
 
 #[test]
-fn small_preset_is_a_star_of_three_builds_and_thirteen_variants() {
+fn small_preset_is_a_star_of_four_builds_and_seventeen_variants() {
     let g = Grid::preset("small").expect("preset");
     g.validate("small").expect("valid");
     let p = g.plan();
@@ -24,14 +24,15 @@ fn small_preset_is_a_star_of_three_builds_and_thirteen_variants() {
         [
             "r15_a512_b16_box",
             "r15_a1024_b16_box",
-            "r15_a512_b16_kaiser"
+            "r15_a512_b16_kaiser",
+            "r15_a512_b16_box_bake"
         ]
     );
     assert!(p.builds[0].is_base && !p.builds[1].is_base);
     // Base: 4 texel ratios + 1 capacity; the others 4 ratios each.
     let counts: Vec<usize> = p.builds.iter().map(|b| b.runtimes.len()).collect();
-    assert_eq!(counts, [5, 4, 4]);
-    assert_eq!(p.variants(), 13);
+    assert_eq!(counts, [5, 4, 4, 4]);
+    assert_eq!(p.variants(), 17);
     let base: Vec<String> = p.builds[0].runtimes.iter().map(|r| r.id()).collect();
     assert_eq!(
         base,
@@ -41,15 +42,16 @@ fn small_preset_is_a_star_of_three_builds_and_thirteen_variants() {
 }
 
 #[test]
-fn full_preset_has_ten_builds() {
+fn full_preset_has_eleven_builds() {
     let p = Grid::preset("full").expect("preset").plan();
-    // base + d_min 10, 60 + atlas 512, 2048 + border 2, 8 + kaiser + bc1, bc7.
-    assert_eq!(p.builds.len(), 10);
+    // base + d_min 10, 60 + atlas 512, 2048 + border 2, 8 + kaiser + bc1, bc7 + bake.
+    assert_eq!(p.builds.len(), 11);
     assert_eq!(p.builds[0].runtimes.len(), 6);
-    assert_eq!(p.variants(), 6 + 9 * 4);
+    assert_eq!(p.variants(), 6 + 10 * 4);
     let ids: Vec<String> = p.builds.iter().map(|b| b.knobs.id()).collect();
     assert!(
-        ids.contains(&"r30_a1024_b16_box_bc1".to_string()),
+        ids.contains(&"r30_a1024_b16_box_bc1".to_string())
+            && ids.contains(&"r30_a1024_b16_box_bake".to_string()),
         "{ids:?}"
     );
     assert_eq!(ids[0], "r30_a1024_b16_box");
@@ -104,6 +106,7 @@ fn knobs(atlas: u32) -> BuildKnobs {
         border: 8,
         filter: MipFilter::Box,
         compress: Default::default(),
+        repeat: Default::default(),
     }
 }
 

@@ -103,8 +103,9 @@ pub(super) fn verify_leaf(
         }
         let rect = &rects[verts[0].rect as usize];
         let uv = verts.map(|v| DVec2::new(f64::from(v.orig_uv[0]), f64::from(v.orig_uv[1])));
-        for k in 0..2 {
-            if let Err(msg) = check_inside(rect, k, [uv[0][k], uv[1][k], uv[2][k]]) {
+        for k in [0usize, 1] {
+            let axis = uv.map(|p| p[k]);
+            if let Err(msg) = check_inside(rect, k, axis) {
                 r.fail(format!("tree {ti} leaf {li} rect {}: {msg}", verts[0].rect));
             }
         }
@@ -129,20 +130,19 @@ fn check_rect(rect: &RectRecord, atlas: u32) -> Result<(), String> {
     let Some(wrap) = rect.wrap() else {
         return Err(format!("unknown flags {:#x}", rect.flags));
     };
-    for k in 0..2 {
+    for (k, &axis_wrap) in wrap.iter().enumerate() {
         let (lo, hi) = (rect.uv_min[k], rect.uv_max[k]);
         let ok = lo.is_finite()
             && hi.is_finite()
             && lo <= hi
-            && match wrap[k] {
+            && match axis_wrap {
                 RectWrap::Linear => true,
                 RectWrap::Repeat => hi - lo <= 1.0 + 1e-12 && (0.0..1.0).contains(&lo),
                 RectWrap::Mirror | RectWrap::Clamp => lo >= 0.0 && hi <= 1.0,
             };
         if !ok {
             return Err(format!(
-                "axis {k}: {:?} range [{lo}, {hi}] is not what the mode allows",
-                wrap[k]
+                "axis {k}: {axis_wrap:?} range [{lo}, {hi}] is not what the mode allows"
             ));
         }
     }
@@ -342,7 +342,7 @@ fn border_sides(rect: &RectRecord) -> Vec<BorderSide> {
         return Vec::new();
     };
     let mut out = Vec::new();
-    for k in 0..2 {
+    for (k, &axis_wrap) in wrap.iter().enumerate() {
         let (o0, ow) = (rect.outer[k], rect.outer[k + 2]);
         let (i0, iw) = (rect.inner[k], rect.inner[k + 2]);
         let (i_end, o_end) = (i0 + iw, o0 + ow);
@@ -361,7 +361,7 @@ fn border_sides(rect: &RectRecord) -> Vec<BorderSide> {
                 });
             }
         };
-        match wrap[k] {
+        match axis_wrap {
             RectWrap::Repeat if hi - lo >= 1.0 - 1e-12 => {
                 // Partner one period (iw texels) away, inside the inner rectangle when the border is
                 // narrower than the period.

@@ -4,9 +4,9 @@ use super::batch::{BatchOptions, DrawIndexedIndirect, FrameBatch, Group, NodeRec
 use super::density::{DensityFrame, DensityTarget};
 use super::naive::Naive;
 use super::pipeline::{
-    B_ATLAS_SAMPLER, B_ATLAS_SAMPLER_ISO, B_ATLAS0, B_CLASS0, B_DRAWS, B_GLOBALS, B_LEAVES,
-    B_OFFSETS, B_ORIGINAL_SAMPLER, B_ORIGINAL_SAMPLER_ISO, B_RECTS, B_TAM, COLOR_FORMAT,
-    DEPTH_FORMAT, PassPipelines, Specialisation, sampler, tree_bind_group_layout, vertex_layout,
+    B_ATLAS_SAMPLER, B_ATLAS0, B_CLASS0, B_DRAWS, B_GLOBALS, B_LEAVES, B_OFFSETS,
+    B_ORIGINAL_SAMPLER, B_RECTS, B_TAM, COLOR_FORMAT, DEPTH_FORMAT, PassPipelines, Specialisation,
+    sampler, tree_bind_group_layout, vertex_layout,
 };
 use super::resident::Resident;
 use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
@@ -207,8 +207,8 @@ pub struct Renderer<'f> {
     indirect: Growable,
     bind_group: wgpu::BindGroup,
     dummy_bind_group: wgpu::BindGroup,
-    /// Atlas, atlas isotropic, original, original isotropic (the shader's bindings in that order).
-    samplers: [wgpu::Sampler; 4],
+    /// Atlas and original-texture samplers (the shader's bindings in that order).
+    samplers: [wgpu::Sampler; 2],
     naive: Option<Naive>,
     pub color: wgpu::Texture,
     color_view: wgpu::TextureView,
@@ -325,9 +325,7 @@ impl<'f> Renderer<'f> {
         let repeat = [wgpu::AddressMode::Repeat; 2];
         let samplers = [
             sampler(device, "atlas sampler", clamp, aniso),
-            sampler(device, "atlas sampler (isotropic)", clamp, 1),
             sampler(device, "original sampler", repeat, aniso),
-            sampler(device, "original sampler (isotropic)", repeat, 1),
         ];
         let (color, color_view, depth_view) = targets(device, opts.width, opts.height);
         let make = |dummy: bool| {
@@ -898,8 +896,7 @@ impl<'f> Renderer<'f> {
     }
 }
 
-/// Specialisation of `tree.wgsl` to what the file has: the number of atlas arrays, which of them are
-/// block-compressed, and the class arrays present (absent ones are compiled out, see [`Group`]).
+/// Specialisation of `tree.wgsl` to what the file has: the number of atlas arrays and the class arrays present (absent ones are compiled out, see [`Group`]).
 pub(super) fn tree_specialisation(res: &Resident) -> Specialisation {
     let class_mask = res
         .class_arrays
@@ -907,19 +904,12 @@ pub(super) fn tree_specialisation(res: &Resident) -> Specialisation {
         .enumerate()
         .filter(|(_, a)| a.is_some())
         .fold(0u32, |m, (k, _)| m | 1 << k);
-    let bc_mask = res
-        .atlas_arrays
-        .iter()
-        .enumerate()
-        .filter(|(_, a)| a.format.is_compressed())
-        .fold(0u32, |m, (k, _)| m | 1 << k);
     Specialisation {
         constants: vec![
             (
                 "ATLAS_ARRAYS",
                 f64::from(res.atlas_arrays.len().max(1) as u32),
             ),
-            ("ATLAS_BC_MASK", f64::from(bc_mask)),
             ("CLASS_MASK", f64::from(class_mask)),
         ],
         source: true,
@@ -991,7 +981,7 @@ fn tree_bind_group(
     res: &Resident,
     globals: &wgpu::Buffer,
     records: &wgpu::Buffer,
-    samplers: &[wgpu::Sampler; 4],
+    samplers: &[wgpu::Sampler; 2],
     dummy: bool,
 ) -> wgpu::BindGroup {
     let mut entries = vec![
@@ -1024,16 +1014,8 @@ fn tree_bind_group(
             resource: wgpu::BindingResource::Sampler(&samplers[0]),
         },
         wgpu::BindGroupEntry {
-            binding: B_ATLAS_SAMPLER_ISO,
-            resource: wgpu::BindingResource::Sampler(&samplers[1]),
-        },
-        wgpu::BindGroupEntry {
             binding: B_ORIGINAL_SAMPLER,
-            resource: wgpu::BindingResource::Sampler(&samplers[2]),
-        },
-        wgpu::BindGroupEntry {
-            binding: B_ORIGINAL_SAMPLER_ISO,
-            resource: wgpu::BindingResource::Sampler(&samplers[3]),
+            resource: wgpu::BindingResource::Sampler(&samplers[1]),
         },
     ];
     for i in 0..MAX_ATLAS_ARRAYS {

@@ -21,10 +21,8 @@ pub const B_OFFSETS: u32 = 3;
 pub const B_TAM: u32 = 4;
 pub const B_RECTS: u32 = 5;
 pub const B_ATLAS_SAMPLER: u32 = 6;
-pub const B_ATLAS_SAMPLER_ISO: u32 = 7;
-pub const B_ORIGINAL_SAMPLER: u32 = 8;
-pub const B_ORIGINAL_SAMPLER_ISO: u32 = 9;
-pub const B_ATLAS0: u32 = 10;
+pub const B_ORIGINAL_SAMPLER: u32 = 7;
+pub const B_ATLAS0: u32 = 8;
 pub const B_CLASS0: u32 = B_ATLAS0 + MAX_ATLAS_ARRAYS as u32;
 
 /// pos, orig_uv, leaf, original, rect (the fields of `TreeVertex` in order).
@@ -96,9 +94,7 @@ pub fn tree_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
         entry(B_TAM, F, storage()),
         entry(B_RECTS, F, storage()),
         entry(B_ATLAS_SAMPLER, F, filtering()),
-        entry(B_ATLAS_SAMPLER_ISO, F, filtering()),
         entry(B_ORIGINAL_SAMPLER, F, filtering()),
-        entry(B_ORIGINAL_SAMPLER_ISO, F, filtering()),
     ];
     for i in 0..(MAX_ATLAS_ARRAYS + CLASS_COUNT) as u32 {
         entries.push(entry(

@@ -16,7 +16,7 @@
 
 use super::SweepError;
 use crate::build::image_ops::MipFilter;
-use crate::build::{BuildOptions, DMin};
+use crate::build::{BuildOptions, DMin, RepeatMode};
 use crate::texfmt::Compression;
 use serde::{Deserialize, Serialize};
 
@@ -35,6 +35,9 @@ pub struct BuildKnobs {
     /// Block compression of atlases and original textures.
     #[serde(default, with = "compress_name")]
     pub compress: Compression,
+    /// Repeats wrapped in the shader (one period per rect) or baked into the atlas.
+    #[serde(default, with = "repeat_name")]
+    pub repeat: RepeatMode,
 }
 
 /// Values of the runtime knobs of one variant.
@@ -57,6 +60,8 @@ pub struct Base {
     pub filter: MipFilter,
     #[serde(default, with = "compress_name")]
     pub compress: Compression,
+    #[serde(default, with = "repeat_name")]
+    pub repeat: RepeatMode,
     pub texel_ratio: f64,
     #[serde(default)]
     pub capacity: Option<u32>,
@@ -70,6 +75,7 @@ impl Base {
             border: self.border,
             filter: self.filter,
             compress: self.compress,
+            repeat: self.repeat,
         }
     }
     pub fn runtime(&self) -> RuntimeKnobs {
@@ -96,6 +102,8 @@ pub struct Grid {
     pub filter: Vec<MipFilter>,
     #[serde(default, with = "compress_names")]
     pub compress: Vec<Compression>,
+    #[serde(default, with = "repeat_names")]
+    pub repeat: Vec<RepeatMode>,
     #[serde(default)]
     pub texel_ratio: Vec<f64>,
     #[serde(default)]
@@ -152,14 +160,18 @@ impl Plan {
 }
 
 impl BuildKnobs {
-    /// Stable short name, e.g. `r10_a512_b8_box`.
+    /// Stable short name, e.g. `r10_a512_b8_box` (`_bc1`, `_bake` appended when not the default).
     pub fn id(&self) -> String {
         let compress = match self.compress {
             Compression::None => String::new(),
             c => format!("_{}", c.label()),
         };
+        let repeat = match self.repeat {
+            RepeatMode::Wrap => String::new(),
+            r => format!("_{}", r.label()),
+        };
         format!(
-            "r{}_a{}_b{}_{}{compress}",
+            "r{}_a{}_b{}_{}{compress}{repeat}",
             self.d_min_ratio,
             self.atlas_size,
             self.border,
@@ -175,6 +187,7 @@ impl BuildKnobs {
             border: self.border,
             mip_filter: self.filter,
             compress: self.compress,
+            repeat: self.repeat,
             ..BuildOptions::default()
         }
     }
@@ -199,10 +212,11 @@ pub fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
 pub const PRESETS: [&str; 2] = ["small", "full"];
 
 impl Grid {
-    /// Both around the build defaults (border 16). `small`: data/city in CI time (d_min = diagonal / 15;
-    /// 3 builds at atlas 512/1024 and box/Kaiser, 4 texel ratios, one capacity, 6 frames of 320×240).
-    /// `full`: 10 builds (d_min ratio 10/30/60, atlas 512/1024/2048, border 2/8/16 (the paper's 8),
-    /// box/Kaiser, compression none/bc1/bc7), 4 texel ratios, capacities 32 and 128, 12 frames of 640×480.
+    /// Both around the build defaults (border 16, repeats wrapped). `small`: data/city in CI time (d_min =
+    /// diagonal / 15; 4 builds: atlas 512/1024, box/Kaiser, repeats baked; 4 texel ratios, one capacity, 6
+    /// frames of 320×240). `full`: 11 builds (d_min ratio 10/30/60, atlas 512/1024/2048, border 2/8/16 (the
+    /// paper's 8), box/Kaiser, compression none/bc1/bc7, repeats wrap/bake), 4 texel ratios, capacities 32
+    /// and 128, 12 frames of 640×480.
     pub fn preset(name: &str) -> Option<Grid> {
         let ratios = vec![0.25, 0.5, 1.0, 2.0];
         match name {
@@ -213,6 +227,7 @@ impl Grid {
                     border: 16,
                     filter: MipFilter::Box,
                     compress: Compression::None,
+                    repeat: RepeatMode::Wrap,
                     texel_ratio: 1.0,
                     capacity: None,
                 },
@@ -221,6 +236,7 @@ impl Grid {
                 border: vec![],
                 filter: vec![MipFilter::Box, MipFilter::Kaiser],
                 compress: vec![],
+                repeat: vec![RepeatMode::Bake],
                 texel_ratio: ratios,
                 capacity: vec![24],
                 texel_ratio_on_every_build: true,
@@ -235,6 +251,7 @@ impl Grid {
                     border: 16,
                     filter: MipFilter::Box,
                     compress: Compression::None,
+                    repeat: RepeatMode::Wrap,
                     texel_ratio: 1.0,
                     capacity: None,
                 },
@@ -243,6 +260,7 @@ impl Grid {
                 border: vec![2, 8, 16],
                 filter: vec![MipFilter::Box, MipFilter::Kaiser],
                 compress: vec![Compression::Bc1, Compression::Bc7],
+                repeat: vec![RepeatMode::Bake],
                 texel_ratio: ratios,
                 capacity: vec![32, 128],
                 texel_ratio_on_every_build: true,
@@ -334,6 +352,9 @@ impl Grid {
                 ..base
             });
         }
+        for &r in &self.repeat {
+            push(BuildKnobs { repeat: r, ..base });
+        }
         let builds = builds
             .into_iter()
             .enumerate()
@@ -408,6 +429,36 @@ mod filter_names {
         s.collect_seq(f.iter().map(|f| f.name()))
     }
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<MipFilter>, D::Error> {
+        let v = Vec::<String>::deserialize(d)?;
+        v.iter()
+            .map(|s| s.parse().map_err(serde::de::Error::custom))
+            .collect()
+    }
+}
+
+/// serde of a [`RepeatMode`] as its lower-case name.
+mod repeat_name {
+    use crate::build::RepeatMode;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(r: &RepeatMode, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(r.label())
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<RepeatMode, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// serde of a list of [`RepeatMode`]s as lower-case names.
+mod repeat_names {
+    use crate::build::RepeatMode;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(r: &[RepeatMode], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(r.iter().map(|r| r.label()))
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<RepeatMode>, D::Error> {
         let v = Vec::<String>::deserialize(d)?;
         v.iter()
             .map(|s| s.parse().map_err(serde::de::Error::custom))

@@ -13,13 +13,14 @@ use crate::report::write_atomic;
 use std::path::{Path, PathBuf};
 
 /// Columns of `sweep.csv`.
-pub const SWEEP_HEADER: [&str; 25] = [
+pub const SWEEP_HEADER: [&str; 26] = [
     "variant",
     "d_min_ratio",
     "atlas_size",
     "border",
     "filter",
     "compress",
+    "repeat",
     "texel_ratio",
     "capacity",
     "frames",
@@ -77,6 +78,7 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
         Cell::UInt(u64::from(r.build.border)),
         Cell::Text(r.build.filter.name().into()),
         Cell::Text(r.build.compress.label().into()),
+        Cell::Text(r.build.repeat.label().into()),
         Cell::Float(r.runtime.texel_ratio),
         capacity_cell(r.runtime.capacity),
         Cell::UInt(r.frames as u64),
@@ -146,6 +148,7 @@ fn write_builds(path: &Path, builds: &[BuildRow]) -> Result<(), SweepError> {
         "border",
         "filter",
         "compress",
+        "repeat",
         "file_bytes",
         "nodes",
         "leaves",
@@ -165,6 +168,7 @@ fn write_builds(path: &Path, builds: &[BuildRow]) -> Result<(), SweepError> {
                 Cell::UInt(u64::from(b.knobs.border)),
                 Cell::Text(b.knobs.filter.name().into()),
                 Cell::Text(b.knobs.compress.label().into()),
+                Cell::Text(b.knobs.repeat.label().into()),
                 Cell::UInt(b.file_bytes),
                 Cell::UInt(b.nodes),
                 Cell::UInt(b.leaves),

@@ -199,6 +199,9 @@ fn differing(
     if ab.compress != bb.compress {
         d.push(("compress", bb.compress.label().to_string()));
     }
+    if ab.repeat != bb.repeat {
+        d.push(("repeat", bb.repeat.label().to_string()));
+    }
     if ar.texel_ratio != br.texel_ratio {
         d.push(("texel_ratio", br.texel_ratio.to_string()));
     }
@@ -266,7 +269,7 @@ fn f(v: f64, decimals: usize) -> String {
 /// One line describing a variant's knobs and its headline numbers.
 fn describe(r: &VariantRow) -> String {
     format!(
-        "`{}`: d_min ratio {}, atlas {}², border {}, filter {}, compression {}, texel ratio {}, {} — covered PSNR {:.2} dB, \
+        "`{}`: d_min ratio {}, atlas {}², border {}, filter {}, compression {}, repeats {}, texel ratio {}, {} — covered PSNR {:.2} dB, \
          SSIM {:.4}, median frame {:.2} ms, file {}, build {:.2} s",
         r.id,
         r.build.d_min_ratio,
@@ -274,6 +277,7 @@ fn describe(r: &VariantRow) -> String {
         r.build.border,
         r.build.filter.name(),
         r.build.compress.label(),
+        r.build.repeat.label(),
         r.runtime.texel_ratio,
         r.runtime
             .capacity

@@ -1,4 +1,4 @@
-//! Paged rendering (paper §6) end to end on lavapipe: data/city's tree (111 blocks) flown along the
+//! Paged rendering (paper §6) end to end on lavapipe: data/city's deep tree (187 blocks, k = 24) flown along the
 //! overview-dive with a capacity far below the block count and a one-block-per-frame upload budget, so
 //! frames are drawn with coarser ancestors while blocks load:
 //!
@@ -16,7 +16,9 @@ use atlastree::store::TreeFile;
 use std::sync::Arc;
 
 use crate::harness::GpuTest;
-use crate::render::{H, W, build_city, dive_cameras, e, frame, is_sky, renderer, scale_for};
+use crate::render::{
+    H, W, build_city_deep as build_city, dive_cameras, e, frame, is_sky, renderer, scale_for,
+};
 
 pub fn tests() -> Vec<GpuTest> {
     vec![
@@ -138,7 +140,7 @@ fn paged_frames_stay_under_k_draw_everything_and_converge(ctx: &GpuContext) -> R
     let path = build_city(dir.path())?;
     let file = TreeFile::open(&path).map_err(e)?;
     let blocks = file.blocks().len() as u32;
-    let k = 12;
+    let k = 24;
     if blocks < 4 * k {
         return Err(format!(
             "fixture has only {blocks} blocks; the test wants k far below that"
@@ -262,7 +264,7 @@ fn over_http_with_the_server_stopped_and_restarted(ctx: &GpuContext) -> Result<(
         return Err("the served file's block table differs".into());
     }
     let http = Arc::new(http);
-    let k = 12;
+    let k = 24;
     let mut p = paged(ctx, &tables, k, UploadBudget::Unlimited, http.clone(), 2)?;
     let mut full = renderer(ctx, &file)?;
     let cams = dive_cameras(&file, 24)?;

@@ -52,11 +52,19 @@ pub(crate) fn e<E: std::fmt::Display>(x: E) -> String {
     x.to_string()
 }
 
-/// data/city (with alpha materials: both trees, all three pipelines) at atlas 512, d_min = diagonal / 10.
+/// data/city (with alpha materials: both trees, all three pipelines) at atlas 512, d_min = diagonal / 10,
+/// every node that does not fit split (the paper's tree): 13 nodes, depth 2 (opaque tree).
 pub(crate) fn build_city(dir: &Path) -> Result<PathBuf, String> {
     let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
     let scene = atlastree::scene::import(&scene_path, &Default::default()).map_err(e)?;
     build_scene(&scene, dir, "city.atlastree", DMin::Ratio(10.0), 512)
+}
+
+/// The same at d_min = diagonal / 20: 106 nodes, depth 4, 187 blocks (paging, level colours).
+pub(crate) fn build_city_deep(dir: &Path) -> Result<PathBuf, String> {
+    let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+    let scene = atlastree::scene::import(&scene_path, &Default::default()).map_err(e)?;
+    build_scene(&scene, dir, "city-deep.atlastree", DMin::Ratio(20.0), 512)
 }
 
 fn build_scene(
@@ -109,6 +117,15 @@ pub(crate) fn renderer<'f>(
     ctx: &'f GpuContext,
     file: &'f TreeFile,
 ) -> Result<Renderer<'f>, String> {
+    renderer_with(ctx, file, atlastree::render::RendererOptions::ANISOTROPY)
+}
+
+/// A W×H renderer with sampler anisotropy `anisotropy` ([`RendererOptions::AUTO`] for the device's).
+pub(crate) fn renderer_with<'f>(
+    ctx: &'f GpuContext,
+    file: &'f TreeFile,
+    anisotropy: u16,
+) -> Result<Renderer<'f>, String> {
     Renderer::new(
         ctx,
         file,
@@ -116,7 +133,7 @@ pub(crate) fn renderer<'f>(
             width: W,
             height: H,
             gpu_timing: false,
-            anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
+            anisotropy,
         },
     )
     .map_err(e)
@@ -192,22 +209,111 @@ pub(crate) fn psnr_covered(a: &[u8], b: &[u8]) -> (f64, usize) {
 ///
 /// The root views are the hard ones: the camera is beyond the root's min_distance, the sampler picks
 /// coarser mips of the root atlas, and the border (halved at every level up) is what keeps neighbouring
-/// areas apart there. At the paper's border 8 (one texel at the root of this depth-3 tree) they measured
-/// 33.1 and 33.2 dB; at the default 16, 38.3 and 38.2 dB (below the root: 39–53 dB).
+/// areas apart there. With repeats wrapped in the shader every period boundary of a repeated texture is a
+/// seam of its rect: the views must show seams drawn with atlases at two levels at least (counted from the
+/// cut: items whose triangles' UVs span more than their rect's period), at sampler anisotropy 1 and 16.
 fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
     let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
-    let mut r = renderer(ctx, &file)?;
-    let (mut below_root, mut root_views, mut report) = (0, 0, Vec::new());
     let mut failures = Vec::new();
-    for cam in dive_cameras(&file, 8)? {
-        let (ts, tree) = frame(&mut r, &file, &cam, Mode::Tree)?;
+    let mut lines = Vec::new();
+    let software = ctx.info.is_software();
+    for anisotropy in [1u16, 16] {
+        let mut r = renderer_with(ctx, &file, anisotropy)?;
+        // A software rasteriser's anisotropic path may ignore explicit gradients (lavapipe: constant
+        // 0.2-UV gradients render 15.8 dB apart at anisotropy 1 and 16), so the floor at 16 is asserted on
+        // hardware adapters only; on software the measured numbers are printed loudly.
+        let mut own = Vec::new();
+        let sink = if anisotropy > 1 && software {
+            &mut own
+        } else {
+            &mut failures
+        };
+        let (report, seam_levels) = compare_views(&mut r, &file, sink)?;
+        if !own.is_empty() {
+            println!(
+                "  NOT ASSERTED on software adapter {} at anisotropy {anisotropy} (driver ignores explicit \
+                 gradients there): {own:?}",
+                ctx.info
+            );
+        }
+        lines.push(format!(
+            "anisotropy {anisotropy}: seams drawn with atlases at levels {seam_levels:?}; {}",
+            report.join("; ")
+        ));
+        if seam_levels.len() < 2 {
+            failures.push(format!(
+                "anisotropy {anisotropy}: seams drawn with atlases at levels {seam_levels:?}, want ≥ 2"
+            ));
+        }
+    }
+    println!(
+        "  tree vs original PSNR per view:\n    {}",
+        lines.join("\n    ")
+    );
+    if !failures.is_empty() {
+        return Err(format!("{failures:?}; all views: {lines:?}"));
+    }
+    Ok(())
+}
+
+/// Levels of the atlas items of `r`'s last cut whose triangles cross a wrap seam: some triangle of the
+/// item's subtree spans more UV than its rect holds on a REPEAT axis.
+fn seam_levels(r: &Renderer<'_>, file: &TreeFile) -> std::collections::BTreeSet<u8> {
+    use atlastree::build::tree::RectWrap;
+    let mut levels = std::collections::BTreeSet::new();
+    for (t, cut) in r.cuts().iter().enumerate() {
+        let Some(view) = file.tree(t) else { continue };
+        for item in cut.items.iter().filter(|i| i.source == Source::Atlas) {
+            let first = item.first_index as usize;
+            let end = first + item.index_count as usize;
+            let crosses = view.leaves.iter().any(|leaf| {
+                let (lf, ln) = (leaf.first_index as usize, leaf.index_count as usize);
+                if lf < first || lf + ln > end {
+                    return false;
+                }
+                let rects = view.leaf_rects(leaf);
+                view.indices[lf..lf + ln].chunks_exact(3).any(|tri| {
+                    let v = [tri[0], tri[1], tri[2]].map(|i| view.vertices[i as usize]);
+                    let rect = rects[v[0].rect as usize].decode();
+                    (0..2).any(|k| {
+                        let lo = v.iter().map(|v| v.orig_uv[k]).fold(f32::INFINITY, f32::min);
+                        let hi = v
+                            .iter()
+                            .map(|v| v.orig_uv[k])
+                            .fold(f32::NEG_INFINITY, f32::max);
+                        rect.wrap[k] == RectWrap::Repeat
+                            && f64::from(hi - lo) > rect.uv_max[k] - rect.uv_min[k] + 1e-6
+                    })
+                })
+            });
+            if crosses {
+                levels.insert(item.level);
+            }
+        }
+    }
+    levels
+}
+
+/// Tree against original frames on the dive views; failures appended; returns the per-view lines and the
+/// levels at which wrap seams were drawn with atlases.
+fn compare_views(
+    r: &mut Renderer<'_>,
+    file: &TreeFile,
+    failures: &mut Vec<String>,
+) -> Result<(Vec<String>, std::collections::BTreeSet<u8>), String> {
+    let (mut below_root, mut root_views, mut report) = (0, 0, Vec::new());
+    let mut seams = std::collections::BTreeSet::new();
+    for cam in dive_cameras(file, 8)? {
+        let r = &mut *r;
+        let (ts, tree) = frame(r, file, &cam, Mode::Tree)?;
+        seams.extend(seam_levels(r, file));
         let items: Vec<_> = r.cuts().iter().flat_map(|c| &c.items).copied().collect();
         let atlas_items = items.iter().filter(|i| i.source == Source::Atlas).count();
         let root_atlas = items
             .iter()
             .any(|i| i.source == Source::Atlas && i.level == 0);
-        let (os, orig) = frame(&mut r, &file, &cam, Mode::Original)?;
+        let (os, orig) = frame(r, file, &cam, Mode::Original)?;
         if ts.triangles != os.triangles {
             return Err(format!(
                 "tree draws {} triangles, original {}",
@@ -233,16 +339,12 @@ fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
         }
         report.push(line);
     }
-    println!("  tree vs original PSNR per view: {}", report.join("; "));
-    if !failures.is_empty() {
-        return Err(format!("PSNR too low: {failures:?}; all views: {report:?}"));
-    }
     if below_root == 0 || root_views == 0 {
-        return Err(format!(
-            "need views with the root atlas and below it, got {root_views} and {below_root}: {report:?}"
+        failures.push(format!(
+            "need views with the root atlas and below it, got {root_views} and {below_root}"
         ));
     }
-    Ok(())
+    Ok((report, seams))
 }
 
 /// Tree mode: one bind group and one multi-draw call per non-empty pipeline (pass × atlas/originals, at most
@@ -419,7 +521,7 @@ fn srgb(l: f64) -> u8 {
 /// is a level colour or white (original textures).
 fn tree_levels_shows_several_levels(ctx: &GpuContext) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&build_city_deep(dir.path())?).map_err(e)?;
     let mut r = renderer(ctx, &file)?;
     let palette: Vec<[u8; 3]> = LEVEL_COLOURS
         .iter()

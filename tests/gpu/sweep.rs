@@ -222,9 +222,9 @@ fn check_builds(builds: &CsvTable) -> Result<(), String> {
         find(1024.0, "box")?,
         find(512.0, "kaiser")?,
     );
-    if leaves[big] >= leaves[small] {
+    if leaves[big] > leaves[small] {
         return Err(format!(
-            "atlas 1024 has {} leaves, atlas 512 {}: bigger atlases should need fewer",
+            "atlas 1024 has {} leaves, atlas 512 {}: bigger atlases should need no more",
             leaves[big], leaves[small]
         ));
     }

@@ -128,7 +128,6 @@ pub fn vertex_leaf_uv(
         glam::Vec2::ZERO,
         glam::Vec2::ZERO,
         1.0,
-        atlastree::render::batch::RectMap::CELLS,
     );
     texel / atlas
 }

@@ -60,6 +60,7 @@ fn sizing(c: &mut Criterion) {
         cap_to_source: true,
         split_limit: f64::from(params.atlas_size / 4),
         max_pieces: 4096,
+        wrap: true,
     };
     let mut g = c.benchmark_group("sizing");
     g.throughput(Throughput::Elements(tris.len() as u64));
