@@ -72,9 +72,10 @@ struct RectMap {
     half_gap: vec2<f32>,
     outer_lo: vec2<f32>,
     outer_hi: vec2<f32>,
-    // wrap_s | wrap_t << 2: 0 linear (baked), 1 repeat, 2 mirror, 3 clamp (build::tree::RectWrap codes).
+    // wrap_s | wrap_t << 2: 0 linear (baked), 1 repeat, 2 mirror, 3 clamp (build::tree::RectWrap codes);
+    // | alpha_mode << 4 (the material's: 0 opaque, 1 mask, 2 blend).
     wrap: u32,
-    _p0: u32,
+    cutoff: f32,
     inner_size: vec2<f32>,
 }
 
@@ -132,7 +133,6 @@ struct VertexOut {
     // Atlas array (atlas draw) or TAM index (original draw).
     @location(2) @interpolate(flat) which: u32,
     @location(3) @interpolate(flat) level: u32,
-    @location(4) @interpolate(flat) cutoff: f32,
     // Atlas draws: the rect (global index) and the level transform (2^(j-K), cell offset * 2^(j-K)).
     @location(5) @interpolate(flat) rect: u32,
     @location(6) @interpolate(flat) level_xf: vec3<f32>,
@@ -234,7 +234,6 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.clip = globals.view_proj * vec4<f32>(rel, 1.0);
     out.layer = d.atlas_layer;
     out.level = d.level;
-    out.cutoff = d.alpha_cutoff;
     out.uv = v.orig_uv;
     if d.atlas_layer != NONE {
         out.which = d.atlas_array;
@@ -367,7 +366,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             return vec4<f32>(sv.x, sv.y, 0.0, f32(in.level));
         }
         let c = sample_atlas(in.which, a.uv, in.layer, a.ddx, a.ddy);
-        return finish(c, in.cutoff, 2u);
+        // Per material, as original draws: MASK tested against its cutoff, BLEND blended (or, in a blend
+        // node's depth pre-pass, written where opaque).
+        let rm = rects[in.rect];
+        return finish(c, rm.cutoff, (rm.wrap >> 4u) & 3u);
     }
     let e = tam[in.which];
     if DENSITY == 1u {
@@ -382,10 +384,20 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     return finish(colour, e.cutoff, e.alpha_mode);
 }
 
+// batch::OPAQUE_ALPHA: in the mask pass (a blend node's depth pre-pass), BLEND texels at or above it are
+// opaque and write depth.
+const OPAQUE_ALPHA: f32 = 0.998039;
+
 // The colour of a textured fragment (tree and dummy modes) in the pipeline's pass, or discard (alpha mask
-// and blend). `alpha_mode`: the material's (original draws) or 2 (atlas draws: the pass decides).
+// and blend). `alpha_mode` and `cutoff`: the material's (its TAM entry, or its rect for atlas draws).
 fn finish(colour: vec4<f32>, cutoff: f32, alpha_mode: u32) -> vec4<f32> {
     if PASS == 0u {
+        return vec4<f32>(colour.rgb, 1.0);
+    }
+    if PASS == 1u && alpha_mode == 2u {
+        if colour.a < OPAQUE_ALPHA {
+            discard;
+        }
         return vec4<f32>(colour.rgb, 1.0);
     }
     if PASS == 1u || alpha_mode == 1u {

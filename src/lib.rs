@@ -16,9 +16,12 @@
 //!
 //! - [`scene`]: glTF 2.0 import into a world-space triangle soup with f64 positions, materials, wrap modes,
 //!   alpha modes and lazily decoded images.
-//! - [`build`]: the preprocessor. Sizing (§5.2.1), required areas (§5.2.2), MaxRects packing (§5.2.3),
-//!   splitting (§5.3), leaf atlas rasterisation in linear light, inner atlases by 2×2 combine and halve
-//!   (§5.1), per-node texture transforms in the exact form of DESIGN.md "Precision".
+//! - [`build`]: the preprocessor. Sizing (§5.2.1), required areas (§5.2.2) with repeats held as one period
+//!   per rect and wrapped in the shader (§8.2 future work; `--repeat bake` stores them as the paper does),
+//!   MaxRects packing (§5.2.3), splitting balanced by texel demand (§5.3 condition b), scaled leaves where
+//!   deeper atlases would only copy the originals, leaf atlas rasterisation in linear light with borders by
+//!   the sampler's rule, inner atlases by 2×2 combine and halve (§5.1), per-node texture transforms in the
+//!   exact form of DESIGN.md "Precision", all in a local frame (translation-invariant trees).
 //! - [`store`]: the paging file. Pod records read in place from a memory map, 4 KiB-aligned checksummed
 //!   blocks, atomic writes.
 //! - [`gpu`]: wgpu device setup shared by the renderer and the GPU tests.

@@ -156,7 +156,7 @@ fn rect_sampling_matches_the_original_per_mode_level_and_edge() {
         let job = RectJob::from_atlas_rect(&rect, [case.wrap; 2], [1.0; 4]);
         draw_rect(&mut atlas, &job, &src_chain).unwrap();
         let atlas = MipChain::build(atlas);
-        let map = RectMap::new(&rect);
+        let map = RectMap::new(&rect, atlastree::scene::AlphaMode::Opaque);
         let (mut worst, mut worst_naive) = (0.0f32, 0.0f32);
         for n in 0..3u32 {
             let scale = f64::from(1u32 << n);
@@ -414,7 +414,7 @@ fn a_uv_range_of_2_9e9_builds_and_maps_without_nan() {
                 r.uv_max[0] - r.uv_min[0] <= 1.0 && r.uv_max[1] - r.uv_min[1] <= 1.0,
                 "{r:?}"
             );
-            let map = RectMap::new(&r);
+            let map = RectMap::new(&r, atlastree::scene::AlphaMode::Opaque);
             // The vertices and points across the triangle, with the enormous gradients such a triangle
             // has on screen.
             for a in [0.0f32, 0.25, 0.5, 1.0] {

@@ -25,6 +25,10 @@ import tempfile
 import time
 
 
+# `overview-dive` lasts 20 s: `--frames` samples are spread over all of it.
+PATH_SECONDS = 20.0
+
+
 def run(cmd, timeout):
     t = time.time()
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
@@ -59,15 +63,16 @@ def measure(binary, scene, flags, frames, render, timeout):
         row["atlas_blocks"] = r["atlas_blocks"]
         row["original_blocks"] = r["original_blocks"]
         row["trees"] = [
-            {k: t[k] for k in ("kind", "nodes", "leaves", "depth", "leaf_reasons", "periods_stored",
-                               "periods_spanned", "root_min_distance")}
+            {k: t.get(k) for k in ("kind", "nodes", "leaves", "depth", "leaf_reasons", "periods_stored",
+                                   "periods_spanned", "root_min_distance")}
             for t in r["trees"]
         ]
         row["atlas_bytes"] = atlas_bytes(binary, out, timeout)
         if render:
             rdir = os.path.join(tmp, "render")
             rr, rsecs = run([binary, "render", out, "--path", "overview-dive", "--out", rdir, "--width", "800",
-                             "--height", "600", "--frames", str(frames), "--every", "0", "--warmup", "1",
+                             "--height", "600", "--frames", str(frames), "--fps", str(frames / PATH_SECONDS),
+                             "--every", "0", "--warmup", "1",
                              "--no-gpu-timing"], timeout)
             row["render_s"] = round(rsecs, 1)
             stats = os.path.join(rdir, "stats.csv")

@@ -43,7 +43,9 @@
 //!   large triangles next to it is not; and
 //! - it is not at the foot of a drop: its height is at most [`Ground::MAX_DROP_M`] m or one cell
 //!   diagonal (whichever is more) below each of its 8 neighbours' (the triangles of a cliff or quay
-//!   wall above the sea belong to the land, not to the sea floor at its foot).
+//!   wall above the sea belong to the land, not to the sea floor at its foot); and
+//! - it belongs to the scene's *main body*: of the groups of such cells (cells within 5 % of the grid
+//!   side of each other connected), the one owning the most triangles (an airplane prop far out over a track's sea is a group of its own, not a street).
 //!
 //! [`Ground::content_near`] finds the nearest content.
 
@@ -565,12 +567,13 @@ impl Survey {
         let highest = heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let threshold = content_threshold(&self.owned);
         let drop = Ground::MAX_DROP_M.max(self.grid.cell.length());
-        let content = (0..self.grid.len())
+        let content: Vec<bool> = (0..self.grid.len())
             .map(|i| {
                 self.owned.get(i).is_some_and(|&n| n >= threshold)
                     && !foot_of_drop(&heights, self.grid.nx, self.grid.ny, i, drop)
             })
             .collect();
+        let content = main_body(&content, &self.owned, self.grid.nx, self.grid.ny);
         Ground {
             up: self.up,
             lo,
@@ -601,6 +604,54 @@ impl Survey {
             }
         }
         out
+    }
+}
+
+/// Content cells at most this share of the longer grid side apart (Chebyshev, in cells, at least 1)
+/// belong to one group in [`main_body`]: a town's blocks across its streets are one body.
+const BODY_REACH: f64 = 0.05;
+
+/// The group of `content` cells (row-major, `nx × ny`; cells within [`BODY_REACH`] of each other
+/// connected) that owns the most triangles (ties: the first in row-major order); every other content
+/// cell is cleared. A scene's main body (a town, a track) rather than an outlier far off in its bounds
+/// (an airplane flying over a sea, a skybox prop) is where generated paths go.
+fn main_body(content: &[bool], owned: &[u32], nx: usize, ny: usize) -> Vec<bool> {
+    let reach = ((nx.max(ny) as f64 * BODY_REACH).round() as i64).max(1);
+    let mut label = vec![u32::MAX; content.len()];
+    let mut best: Option<(u64, u32)> = None;
+    let mut stack = Vec::new();
+    for start in 0..content.len() {
+        if !content[start] || label[start] != u32::MAX {
+            continue;
+        }
+        let id = start as u32;
+        let mut triangles = 0u64;
+        label[start] = id;
+        stack.push(start);
+        while let Some(i) = stack.pop() {
+            triangles += u64::from(owned.get(i).copied().unwrap_or(0));
+            let (x, y) = (i % nx, i / nx);
+            for dy in -reach..=reach {
+                for dx in -reach..=reach {
+                    let (qx, qy) = (x as i64 + dx, y as i64 + dy);
+                    if qx < 0 || qy < 0 || qx >= nx as i64 || qy >= ny as i64 {
+                        continue;
+                    }
+                    let q = qy as usize * nx + qx as usize;
+                    if content[q] && label[q] == u32::MAX {
+                        label[q] = id;
+                        stack.push(q);
+                    }
+                }
+            }
+        }
+        if best.is_none_or(|(t, _)| triangles > t) {
+            best = Some((triangles, id));
+        }
+    }
+    match best {
+        Some((_, id)) => label.iter().map(|&l| l == id).collect(),
+        None => content.to_vec(),
     }
 }
 

@@ -140,6 +140,14 @@ fn building(
     quad(t, corners.map(|(x, y)| p(x, y, ROOF)));
 }
 
+/// A box of side `w` with its low corner at `corner` (world), walls in `storeys` rows of quads: a dense
+/// cluster of triangles away from the ground (an airplane prop over the sea).
+pub fn prop(t: &mut Vec<[DVec3; 3]>, corner: DVec3, w: f64, storeys: usize) {
+    let p =
+        |a: f64, b: f64, h: f64| DVec3::new(corner.x + a, corner.y + h * w / ROOF, corner.z + b);
+    building(t, &p, (0.0, 0.0), w, storeys);
+}
+
 /// The bounds of triangles.
 pub fn bounds(tris: &[[DVec3; 3]]) -> (DVec3, DVec3) {
     tris.iter()

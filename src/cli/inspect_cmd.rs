@@ -59,7 +59,7 @@ pub fn print_inspect(r: &InspectReport) {
     );
     for t in &r.trees {
         println!(
-            "  {:?} tree: {} nodes, {} leaves, depth {}, {} triangles, {} vertices, {} atlas + {} original blocks ({}), {} clamped leaves",
+            "  {:?} tree: {} nodes, {} leaves, depth {}, {} triangles, {} vertices, {} atlas + {} original blocks ({}), {} scaled leaves",
             t.kind,
             t.nodes,
             t.leaves,
@@ -79,6 +79,24 @@ pub fn print_inspect(r: &InspectReport) {
             fmt_psnr(t.atlas_psnr_min_db),
             fmt_psnr(t.originals_psnr_db)
         );
+        let rp = &t.repeats;
+        if rp.rects > 0 {
+            // Chain bytes: 4/3 of the level-0 texels at the format's bytes per texel.
+            let bytes =
+                |texels: f64| (texels * f64::from(t.bytes_per_block) / 16.0 * 4.0 / 3.0) as u64;
+            println!(
+                "    repeats: {} rects hold a full period of {} images: {} of atlas texels over all levels \
+                 ({:.1}% of {}); drawn from their originals' mip chains instead: {} once \
+                 (today's per-leaf copies: {})",
+                rp.rects,
+                rp.images,
+                human_bytes(bytes(rp.atlas_texels)),
+                100.0 * rp.atlas_texels / (rp.all_atlas_texels.max(1) as f64),
+                human_bytes(bytes(rp.all_atlas_texels as f64)),
+                human_bytes(bytes(rp.original_texels_once as f64)),
+                human_bytes(bytes(rp.original_texels_per_leaf as f64)),
+            );
+        }
         println!("    level  nodes  leaves  triangles-in-leaves  min_distance (m)");
         for l in &t.levels {
             println!(

@@ -10,7 +10,9 @@ use serde::Serialize;
 use std::collections::BTreeSet;
 
 mod rects;
+mod repeats;
 pub use rects::wrap_border_tolerance;
+pub use repeats::RepeatCost;
 
 /// Per-level numbers of one tree.
 #[derive(Clone, Debug, Serialize)]
@@ -50,6 +52,8 @@ pub struct TreeInfo {
     /// The same for the original-texture blocks.
     pub originals_psnr_db: f64,
     pub levels: Vec<LevelStats>,
+    /// Repeat rects and what drawing them from their originals instead would cost ([`RepeatCost`]).
+    pub repeats: RepeatCost,
 }
 
 /// Values compared per stored atlas of a tree of `kind` (texels of the full chain × channels): the
@@ -137,6 +141,7 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             atlas_psnr_min_db: atlas_min,
             originals_psnr_db: psnr(originals_sse, original_samples),
             levels,
+            repeats: repeats::repeat_cost(file, ti, params.atlas_size).unwrap_or_default(),
         });
     }
     let mats: Vec<_> = file
@@ -184,7 +189,8 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
     let clamped: u64 = trees.iter().map(|t| t.clamped_leaves).sum();
     if clamped > 0 {
         enabled.push(format!(
-            "clamped leaves: {clamped} (a triangle alone needed more than one atlas)"
+            "scaled leaves: {clamped} (atlas content scaled to fit, min_distance raised by the scale: \
+             a rect or triangle alone larger than the atlas, or a leaf kept for its few originals)"
         ));
     }
     InspectReport {

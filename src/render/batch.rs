@@ -20,6 +20,7 @@ use crate::build::transform::half_gap;
 use crate::build::tree::{AtlasRect, RectWrap, TreeVertex};
 use crate::ids::NONE;
 use crate::paging::Resolved;
+use crate::scene::AlphaMode;
 use crate::select::{Cut, Source};
 use crate::store::format::NodeRecord;
 use bytemuck::{Pod, Zeroable};
@@ -37,6 +38,10 @@ pub struct DrawIndexedIndirect {
 }
 const _: () = assert!(size_of::<DrawIndexedIndirect>() == 20);
 
+/// Alpha at and above which a BLEND material's texel counts as opaque in the depth pre-pass of blend
+/// nodes (the mask pipeline). WGSL twin: `OPAQUE_ALPHA`.
+pub const OPAQUE_ALPHA: f32 = 1.0 - 0.5 / 255.0;
+
 /// Per-draw data, indexed by `instance_index` (= the record's `first_instance`).
 /// WGSL twin: `NodeDraw` in `shaders/tree.wgsl`.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -50,7 +55,8 @@ pub struct NodeRecordGpu {
     pub level: u32,
     /// Index of the tree's leaf 0 in the leaves and leaf-offset buffers.
     pub leaf_base: u32,
-    /// Alpha cutoff of atlas draws in the mask pass (originals use their material's).
+    /// The smallest MASK cutoff below the node (diagnostics; fragments are tested with their material's
+    /// cutoff, from its rect or TAM entry).
     pub alpha_cutoff: f32,
     /// Tree-local node id (diagnostics).
     pub node: u32,
@@ -96,9 +102,11 @@ pub struct RectMap {
     /// The outer rectangle (border included).
     pub outer_lo: [f32; 2],
     pub outer_hi: [f32; 2],
-    /// `wrap_s | wrap_t << 2`, [`RectWrap::code`]s.
+    /// `wrap_s | wrap_t << 2` ([`RectWrap::code`]s) `| alpha_mode << 4` (the material's: 0 opaque, 1 mask,
+    /// 2 blend, as [`TamEntry::alpha_mode`]): atlas draws test and blend per material, as originals do.
     pub wrap: u32,
-    pub _pad: u32,
+    /// The material's MASK cutoff (0.5 for other modes).
+    pub cutoff: f32,
     /// Size of the inner rectangle.
     pub inner_size: [f32; 2],
 }
@@ -117,8 +125,13 @@ impl RectMap {
     /// sample would alias, and the pixel gets the period's average instead.
     pub const SHARPEN_MIN: f32 = 0.25;
 
-    /// The GPU record of a stored rect.
-    pub fn new(r: &AtlasRect) -> RectMap {
+    /// The GPU record of a stored rect of a material with alpha mode `alpha`.
+    pub fn new(r: &AtlasRect, alpha: AlphaMode) -> RectMap {
+        let (mode, cutoff) = match alpha {
+            AlphaMode::Opaque => (0, 0.5),
+            AlphaMode::Mask { cutoff } => (1, cutoff),
+            AlphaMode::Blend => (2, 0.5),
+        };
         let tpu = r.texels_per_uv();
         let gap = |k: usize| half_gap(r.uv_min[k], r.uv_max[k]) as f32;
         RectMap {
@@ -131,8 +144,8 @@ impl RectMap {
                 (r.outer[0] + r.outer[2]) as f32,
                 (r.outer[1] + r.outer[3]) as f32,
             ],
-            wrap: r.wrap[0].code() | r.wrap[1].code() << 2,
-            _pad: 0,
+            wrap: r.wrap[0].code() | r.wrap[1].code() << 2 | mode << 4,
+            cutoff,
             inner_size: [r.inner[2] as f32, r.inner[3] as f32],
         }
     }
@@ -454,6 +467,13 @@ impl FrameBatch {
                 self.original_records += 1;
             }
             self.triangles += u64::from(item.index_count / 3);
+            if pass == Pass::Blend {
+                // Depth pre-pass of the node's opaque texels (MASK materials above their cutoff, BLEND
+                // ones at full alpha) in the mask pipeline: a node mixing MASK and BLEND materials (one
+                // scaled leaf may hold a whole track's vegetation) keeps MASK occlusion right; the blend
+                // pass then adds only what the pre-pass left (equal depth fails the Greater test).
+                self.pending[Group::new(Pass::Mask, atlas.is_none()).index()].push((draw, record));
+            }
             self.pending[Group::new(pass, atlas.is_none()).index()].push((draw, record));
         }
         skipped

@@ -535,11 +535,13 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                 first_rect,
                 _pad: [0; 3],
             });
-            g.rects.extend(
-                view.leaf_rects(leaf)
-                    .iter()
-                    .map(|r| RectMap::new(&r.decode())),
-            );
+            g.rects.extend(view.leaf_rects(leaf).iter().map(|r| {
+                let alpha = materials
+                    .get(r.material as usize)
+                    .and_then(|m| m.alpha())
+                    .unwrap_or(AlphaMode::Opaque);
+                RectMap::new(&r.decode(), alpha)
+            }));
             g.origins.push(DVec3::from_array(leaf.origin));
             for (o, &offset) in originals.iter().zip(&offsets) {
                 let m = materials.get(o.material as usize).copied();

@@ -32,6 +32,13 @@ pub struct SceneInfo {
     pub texture_texels: u64,
     /// Images per kind: "file", "embedded", "solid", "fallback".
     pub image_kinds: BTreeMap<String, u64>,
+    /// Periods (texture copies, in UV² units) the triangles' UVs unroll: Σ over triangles of the UV area.
+    /// What baking repeats into atlases stores at the least (`--repeat bake`).
+    pub periods_spanned: f64,
+    /// Periods one copy per material holds: Σ over materials of the UV box area with every REPEAT /
+    /// MIRRORED_REPEAT axis capped at one period — what a node holding the whole scene stores with
+    /// repeats wrapped in the shader (`--repeat wrap`, the default).
+    pub periods_wrapped: f64,
     pub report: ImportReport,
 }
 
@@ -53,6 +60,10 @@ pub struct MaterialInfo {
     /// Max over triangles of the triangle's own UV span per axis: the largest repetition within one
     /// triangle (what an atlas must reserve for a single triangle).
     pub max_triangle_uv_span: Option<[f64; 2]>,
+    /// Σ over the material's triangles of their UV area (periods unrolled; see [`SceneInfo::periods_spanned`]).
+    pub periods_spanned: f64,
+    /// The UV box area with wrapped axes capped at one period (see [`SceneInfo::periods_wrapped`]).
+    pub periods_wrapped: f64,
 }
 
 /// Per-image statistics.
@@ -95,6 +106,8 @@ struct UvAcc {
     min: [f64; 2],
     max: [f64; 2],
     tri_span: [f64; 2],
+    /// Σ |UV area| of the triangles.
+    area: f64,
 }
 
 impl Default for UvAcc {
@@ -104,6 +117,7 @@ impl Default for UvAcc {
             min: [f64::INFINITY; 2],
             max: [f64::NEG_INFINITY; 2],
             tri_span: [0.0; 2],
+            area: 0.0,
         }
     }
 }
@@ -122,6 +136,11 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
                 .map_or(glam::DVec2::ZERO, |v| v.uv)
         });
         a.tris += 1;
+        let (e1, e2) = (uvs[1] - uvs[0], uvs[2] - uvs[0]);
+        let area = 0.5 * e1.perp_dot(e2).abs();
+        if area.is_finite() {
+            a.area += area;
+        }
         for axis in 0..2 {
             let (lo, hi) = uvs
                 .iter()
@@ -155,6 +174,13 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
                 u.1 += a.tris;
             }
             let has = a.tris > 0;
+            // REPEAT / MIRRORED_REPEAT: one period; CLAMP_TO_EDGE: beyond [0, 1] only edge texels.
+            let wrapped_span = |k: usize| (a.max[k] - a.min[k]).clamp(0.0, 1.0);
+            let periods_wrapped = if has && a.max.iter().chain(&a.min).all(|x| x.is_finite()) {
+                wrapped_span(0) * wrapped_span(1)
+            } else {
+                0.0
+            };
             MaterialInfo {
                 id: i as u32,
                 name: m.name.clone(),
@@ -167,6 +193,8 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
                 uv_max: has.then_some(a.max),
                 uv_bbox_span: has.then_some([a.max[0] - a.min[0], a.max[1] - a.min[1]]),
                 max_triangle_uv_span: has.then_some(a.tri_span),
+                periods_spanned: a.area,
+                periods_wrapped,
             }
         })
         .collect();
@@ -197,6 +225,8 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
             }
         })
         .collect();
+    let periods_spanned = materials.iter().map(|m| m.periods_spanned).sum();
+    let periods_wrapped = materials.iter().map(|m| m.periods_wrapped).sum();
     let bounds = scene.bounds();
     let planarity = bounds.and_then(|(lo, hi)| {
         let e = hi - lo;
@@ -223,6 +253,8 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
         planarity,
         texture_texels: scene.images.iter().map(|i| i.texels()).sum(),
         image_kinds,
+        periods_spanned,
+        periods_wrapped,
         report: scene.report.clone(),
     }
 }
@@ -274,6 +306,13 @@ impl fmt::Display for SceneInfo {
             .map(|(k, v)| format!("{k} ×{v}"))
             .collect();
         writeln!(f, "  wrap modes: {}", wraps.join(", "))?;
+        writeln!(
+            f,
+            "  periods the UVs span {:.1} (baked, at least); one wrapped copy per material {:.1} ({:.1}× less)",
+            self.periods_spanned,
+            self.periods_wrapped,
+            self.periods_spanned / self.periods_wrapped.max(f64::MIN_POSITIVE)
+        )?;
         let kinds: Vec<String> = self
             .image_kinds
             .iter()

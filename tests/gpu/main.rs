@@ -2,6 +2,7 @@
 //!
 //! To add tests: create a module under `tests/gpu/` with `pub fn tests() -> Vec<GpuTest>` and list it below.
 
+mod alpha;
 mod compressed;
 mod device;
 mod golden;
@@ -24,6 +25,7 @@ fn main() -> ExitCode {
         view::tests(),
         sweep::tests(),
         compressed::tests(),
+        alpha::tests(),
     ]
     .into_iter()
     .flatten()

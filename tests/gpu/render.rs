@@ -11,6 +11,7 @@
 use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::gpu::GpuContext;
+use atlastree::render::batch::{Group, Pass};
 use atlastree::render::{FrameStats, Mode, Renderer, RendererOptions};
 use atlastree::scene::Scene;
 use atlastree::select::{SelectOptions, Source, min_distance_scale};
@@ -348,7 +349,8 @@ fn compare_views(
 }
 
 /// Tree mode: one bind group and one multi-draw call per non-empty pipeline (pass × atlas/originals, at most
-/// 6), for cuts of very different sizes; one indirect record per selected node. Original mode: one bind
+/// 6), for cuts of very different sizes; one indirect record per selected node (two for a blend node:
+/// depth pre-pass and blend). Original mode: one bind
 /// group and one draw per (leaf, original texture).
 fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
@@ -375,9 +377,17 @@ fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String>
                 s.nodes_drawn, s.bind_group_changes, s.draw_calls
             ));
         }
-        if s.indirect_records != s.nodes_drawn {
+        // A blend node is drawn twice: its depth pre-pass in the mask pipeline, then blended.
+        let blend_records: u32 = [
+            Group::new(Pass::Blend, false),
+            Group::new(Pass::Blend, true),
+        ]
+        .iter()
+        .map(|g| r.batch().group_ranges[g.index()].1)
+        .sum();
+        if s.indirect_records != s.nodes_drawn + blend_records {
             return Err(format!(
-                "{} indirect records for {} selected nodes",
+                "{} indirect records for {} selected nodes ({blend_records} of them blend nodes)",
                 s.indirect_records, s.nodes_drawn
             ));
         }

@@ -302,3 +302,25 @@ fn from_scene_and_from_tree_see_the_same_ground() {
     assert_eq!(c, from_scene.content_near(spot));
     assert_eq!(from_tree.content_cells(), from_scene.content_cells());
 }
+
+#[test]
+fn a_dense_prop_far_out_over_the_sea_is_not_where_a_dive_goes() {
+    for coast in [Coast::West, Coast::North] {
+        let mut tris = test_scenes::coast(coast, 10.0, 20.0, 4);
+        // An "airplane": a dense 20 m box of many storeys 300 m above the sea, right at the preferred
+        // dive spot (620, 370), far from the town (a track's decorative prop).
+        let before = tris.len();
+        test_scenes::prop(&mut tris, DVec3::new(610.0, -300.0, 360.0), 20.0, 64);
+        assert!(tris.len() - before > 500);
+        let (lo, hi) = test_scenes::bounds(&tris);
+        let g = Ground::from_triangles(lo, hi, UpAxis::Y, tris.iter().copied())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let spot = DVec2::new(620.0, 370.0);
+        let c = g.content_near(spot);
+        assert!(
+            coast.on_town(c),
+            "{coast:?}: the dive goes to {c}, not the town"
+        );
+        assert!(coast.distance_to_coast(c) < 20.0, "{coast:?}: {c}");
+    }
+}
