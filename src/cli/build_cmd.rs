@@ -213,7 +213,7 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
         );
         let s = &t.sizing;
         println!(
-            "    sizing: {} exact, {} edge fallback, {} all-UV-equal, {} world-degenerate; {} rects capped to source; {} clamped leaves",
+            "    sizing: {} exact, {} edge fallback, {} all-UV-equal, {} world-degenerate; {} rects capped to source; {} scaled leaves",
             s.exact,
             s.edge_fallback,
             s.all_uv_equal,

@@ -114,4 +114,12 @@ pub enum RenderError {
     Blocks(#[from] crate::paging::BlockTableError),
     #[error("starting loader threads: {0}")]
     Loader(std::io::Error),
+    /// A broken residency invariant (a bug, not bad input): reported instead of drawing a wrong texture.
+    #[error("residency invariant broken: {what} (unique {unique}, class {class}, layer {layer})")]
+    Residency {
+        what: &'static str,
+        unique: u32,
+        class: u32,
+        layer: u32,
+    },
 }

@@ -313,7 +313,12 @@ impl Resident {
                     limit: u64::from(max_layers) * MAX_ATLAS_ARRAYS as u64,
                 });
             };
-            let layer = arr.layers.alloc().unwrap_or(0);
+            // `array` has a free layer (checked above).
+            let layer = arr.layers.alloc().ok_or(RenderError::TooManyLayers {
+                what: "atlases".into(),
+                layers: u64::from(atlas_count),
+                limit: u64::from(arr.layers.capacity()),
+            })?;
             let bytes = file.block(block)?;
             let texels = texels_for_upload(stored, bytes, params.atlas_size, target)
                 .ok_or(RenderError::ShortBlock { block })?;
@@ -365,10 +370,21 @@ impl Resident {
                         .map(|a| (i, a))
                 })
             else {
-                continue;
+                // `class_slots` sized the slots for every unique: running out is a bug.
+                return Err(RenderError::Residency {
+                    what: "no class slot with a free layer for an original",
+                    unique: 0,
+                    class: u.class,
+                    layer: 0,
+                });
             };
             u.class = slot as u32;
-            u.layer = arr.layers.alloc().unwrap_or(0);
+            u.layer = arr.layers.alloc().ok_or(RenderError::Residency {
+                what: "class slot reported a free layer but allocation failed",
+                unique: 0,
+                class: u.class,
+                layer: 0,
+            })?;
             let bytes = match block_cache {
                 Some((b, bytes)) if b == u.block => bytes,
                 _ => {
@@ -824,8 +840,17 @@ impl Resident {
                     .get_mut(node as usize)
                     .and_then(Option::take)
                 {
-                    if let Some(a) = self.atlas_arrays.get_mut(s.array as usize) {
-                        a.layers.free(s.layer);
+                    let freed = self
+                        .atlas_arrays
+                        .get_mut(s.array as usize)
+                        .is_some_and(|a| a.layers.free(s.layer));
+                    if !freed {
+                        return Err(RenderError::Residency {
+                            what: "evicting an atlas whose layer is not allocated",
+                            unique: node,
+                            class: s.array,
+                            layer: s.layer,
+                        });
                     }
                     p.atlas_layers_used -= 1;
                 }
@@ -849,31 +874,40 @@ impl Resident {
                 }
                 for (ui, offset) in held {
                     let u = ui as usize;
-                    p.unique_refs[u] += 1;
-                    if p.unique_refs[u] > 1 {
+                    if p.unique_refs[u] > 0 {
+                        p.unique_refs[u] += 1;
                         continue;
                     }
                     let class = self.uniques[u].class as usize;
                     let Some(arr) = self.class_arrays.get_mut(class).and_then(|a| a.as_mut())
                     else {
-                        continue;
+                        return Err(RenderError::Residency {
+                            what: "an original's class array does not exist",
+                            unique: ui,
+                            class: class as u32,
+                            layer: 0,
+                        });
                     };
                     let layer = arr.layers.alloc().ok_or(RenderError::TooManyLayers {
                         what: format!("resident original textures of class {}", 4u32 << class),
                         layers: u64::from(arr.layers.capacity()) + 1,
                         limit: u64::from(arr.layers.capacity()),
                     })?;
-                    let chain = usize::try_from(offset)
+                    // From here a failure hands the layer back: the reference count only counts
+                    // uniques that hold a layer.
+                    let (stored, size) = (self.uniques[u].format, self.uniques[u].class_size);
+                    let target = arr.format;
+                    let texels = usize::try_from(offset)
                         .ok()
                         .and_then(|o| bytes.get(o..))
-                        .ok_or(RenderError::ShortBlock { block })?;
-                    let (stored, size) = (self.uniques[u].format, self.uniques[u].class_size);
-                    let texels = texels_for_upload(stored, chain, size, arr.format)
-                        .ok_or(RenderError::ShortBlock { block })?;
-                    p.converted_on_load += u64::from(stored != arr.format);
-                    uploaded += arr
-                        .upload_chain(queue, layer, &texels)
-                        .ok_or(RenderError::ShortBlock { block })?;
+                        .and_then(|chain| texels_for_upload(stored, chain, size, target));
+                    let Some(n) = texels.and_then(|t| arr.upload_chain(queue, layer, &t)) else {
+                        arr.layers.free(layer);
+                        return Err(RenderError::ShortBlock { block });
+                    };
+                    p.unique_refs[u] = 1;
+                    p.converted_on_load += u64::from(stored != target);
+                    uploaded += n;
                     self.uniques[u].layer = layer;
                     p.original_layers_used += 1;
                     for &e in &p.tam_users[u] {
@@ -906,11 +940,21 @@ impl Resident {
                     p.unique_refs[u] -= 1;
                     if p.unique_refs[u] == 0 {
                         let class = self.uniques[u].class as usize;
-                        if let Some(arr) = self.class_arrays.get_mut(class).and_then(|a| a.as_mut())
-                        {
-                            arr.layers.free(self.uniques[u].layer);
-                            p.original_layers_used -= 1;
+                        let layer = self.uniques[u].layer;
+                        let freed = self
+                            .class_arrays
+                            .get_mut(class)
+                            .and_then(|a| a.as_mut())
+                            .is_some_and(|arr| arr.layers.free(layer));
+                        if !freed {
+                            return Err(RenderError::Residency {
+                                what: "evicting an original whose layer is not allocated",
+                                unique: ui,
+                                class: class as u32,
+                                layer,
+                            });
                         }
+                        p.original_layers_used -= 1;
                     }
                 }
                 if let Some(m) = info.originals_missing.get_mut(node as usize) {
