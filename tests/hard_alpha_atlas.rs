@@ -141,3 +141,88 @@ fn stored_alpha_atlases_have_no_dark_fringe_at_any_level() {
          naive straight-alpha halving of the source textures: darkest edge red {naive_darkest}/255"
     );
 }
+
+/// An OPAQUE material ignores its texture's alpha (glTF 2.0 §3.9.4): a texture whose alpha is 0 over
+/// half its texels (game textures often carry alpha for other uses) must keep its colours there, in
+/// the atlas and in the stored original, not the colour bled in from the visible half. Before the
+/// decode forced alpha 1 for opaque-only images, those texels held the bled neighbour colour.
+#[test]
+fn opaque_materials_keep_the_colour_under_zero_alpha() {
+    let texel = |x: u32, y: u32| -> [u8; 4] {
+        let a = if x < 16 { 255 } else { 0 };
+        [(x * 8) as u8, (y * 8) as u8, 200, a]
+    };
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.image("logo", 32, 32, texel);
+    let m = b.material(img, [Wrap::ClampToEdge; 2], AlphaMode::Opaque);
+    b.quad(
+        [
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(20.0, 0.0, 0.0),
+            DVec3::new(20.0, 0.0, 20.0),
+            DVec3::new(0.0, 0.0, 20.0),
+        ],
+        DVec2::ZERO,
+        DVec2::ONE,
+        m,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("logo.atlastree");
+    let opts = atlastree::build::BuildOptions {
+        // d_min small enough that the 32² source is capped: the rect holds it texel for texel.
+        d_min: atlastree::build::DMin::Ratio(200.0),
+        atlas_size: 128,
+        max_file_bytes: 1 << 30,
+        ..Default::default()
+    };
+    let report =
+        atlastree::build::build(&b.build(), &opts, &out, &atlastree::build::NoProgress).unwrap();
+    assert_eq!(report.images_alpha_ignored, 1);
+    let f = atlastree::store::TreeFile::open(&out).unwrap();
+    let t = f.tree(0).unwrap();
+    assert_eq!(t.kind, TreeKind::Opaque);
+    let leaf = &t.leaves[0];
+    let rect = t.leaf_rects(leaf)[0];
+    assert_eq!(
+        &rect.inner[2..],
+        &[32, 32],
+        "the rect holds the source texel for texel"
+    );
+    let atlas = f
+        .block(BlockId(t.nodes[leaf.node as usize].atlas_block))
+        .unwrap();
+    let size = 128usize;
+    let mut worst = 0i32;
+    for y in 0..32u32 {
+        for x in 0..32u32 {
+            let (ax, ay) = (rect.inner[0] + x, rect.inner[1] + y);
+            let i = (ay as usize * size + ax as usize) * 4;
+            let want = texel(x, y);
+            for c in 0..3 {
+                worst = worst.max((i32::from(atlas[i + c]) - i32::from(want[c])).abs());
+            }
+        }
+    }
+    assert!(
+        worst <= 2,
+        "atlas colours under alpha 0 differ by up to {worst} levels"
+    );
+    // The stored original (slot 0 of its block, level 0 first) holds the same colours.
+    let o = t.leaf_originals(leaf)[0];
+    assert_eq!(o.class_size, 32);
+    let block = f.block(BlockId(o.block)).unwrap();
+    let mut worst = 0i32;
+    for y in 0..32u32 {
+        for x in 0..32u32 {
+            let i = (y as usize * 32 + x as usize) * 4;
+            let want = texel(x, y);
+            for c in 0..3 {
+                worst = worst.max((i32::from(block[i + c]) - i32::from(want[c])).abs());
+            }
+        }
+    }
+    assert!(
+        worst <= 2,
+        "original colours under alpha 0 differ by up to {worst} levels"
+    );
+}

@@ -599,17 +599,22 @@ fn resealed_bad_references_are_named() {
     assert!(
         matches!(TreeFile::from_bytes(&b), Err(StoreError::Misaligned { offset, .. }) if offset == off + 16)
     );
-    // A future version, and versions 1 (RGBA8 only, 40-byte block records) and 2 (baked atlas UVs in the
-    // vertices): all refused by number.
-    for found in [4u32, 2, 1] {
+    // A future version, and versions 1 (RGBA8 only, 40-byte block records), 2 (baked atlas UVs in the
+    // vertices) and 3 (originals stored per leaf): all refused by number, the message says to rebuild.
+    for found in [5u32, 3, 2, 1] {
         let mut b = bytes.clone();
         b[8..12].copy_from_slice(&found.to_le_bytes());
         reseal(&mut b);
         match TreeFile::from_bytes(&b) {
-            Err(StoreError::UnsupportedVersion {
-                found: f,
-                supported: 3,
-            }) => assert_eq!(f, found),
+            Err(
+                e @ StoreError::UnsupportedVersion {
+                    found: f,
+                    supported: 4,
+                },
+            ) => {
+                assert_eq!(f, found);
+                assert!(e.to_string().contains("rebuilt"), "{e}");
+            }
             other => panic!("version {found}: {:?}", other.err()),
         }
     }

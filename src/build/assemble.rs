@@ -62,6 +62,9 @@ struct Asm<'a> {
     format: TexFormat,
     out: Assembled,
     next_block: u32,
+    /// Originals stored so far in this tree, per material: `(block, slot, class size)`. Each is stored once
+    /// (by the first leaf that needs it) and referenced by every later leaf (DESIGN.md "Originals").
+    stored: HashMap<MaterialId, (BlockId, u32, u32)>,
 }
 
 /// Flattens `root` (a layout over `infos`, permutation `order`) into tree `tree_index` of a forest whose
@@ -104,6 +107,7 @@ pub fn assemble(
             periods_spanned: 0.0,
         },
         next_block: first_block,
+        stored: HashMap::new(),
     };
     a.node(root, None);
     a.out
@@ -175,8 +179,9 @@ impl Asm<'_> {
             DVec3::ZERO
         };
 
-        // Original textures: one entry per material, grouped greedily into blocks of about an atlas' size
-        // (an image larger than that is a block of its own).
+        // Original textures: one entry per material. Those no earlier leaf of the tree stored are grouped
+        // greedily into blocks of about an atlas' size (an image larger than that is a block of its own),
+        // owned by this leaf; the others reference the block that holds them (stored once, §8.3).
         let budget = self.format.chain_bytes(self.params.atlas_size);
         let mut seen_materials = std::collections::HashSet::new();
         let classes: Vec<(MaterialId, crate::ids::ImageId, u32)> = l
@@ -189,9 +194,13 @@ impl Asm<'_> {
                 (r.material, mat.image, original_class(img.width, img.height))
             })
             .collect();
-        let parts = group_into_blocks(classes.iter().map(|c| self.format.chain_bytes(c.2)), budget);
-        let mut originals: Vec<OriginalRef> = Vec::with_capacity(classes.len());
-        let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
+        let new: Vec<usize> = (0..classes.len())
+            .filter(|&i| !self.stored.contains_key(&classes[i].0))
+            .collect();
+        let parts = group_into_blocks(
+            new.iter().map(|&i| self.format.chain_bytes(classes[i].2)),
+            budget,
+        );
         let mut block_ids: Vec<BlockId> = Vec::new();
         for (part, bytes) in parts.sizes.iter().enumerate() {
             block_ids.push(self.block(
@@ -202,14 +211,21 @@ impl Asm<'_> {
                 *bytes,
             ));
         }
-        for (i, &(material, image, class_size)) in classes.iter().enumerate() {
-            let (part, slot) = parts.place[i];
+        for (k, &i) in new.iter().enumerate() {
+            let (part, slot) = parts.place[k];
+            self.stored
+                .insert(classes[i].0, (block_ids[part], slot, classes[i].2));
+        }
+        let mut originals: Vec<OriginalRef> = Vec::with_capacity(classes.len());
+        let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
+        for &(material, image, class_size) in &classes {
+            let (block, slot, _) = self.stored[&material];
             slot_of.insert(material, originals.len() as u32);
             originals.push(OriginalRef {
                 material,
                 image,
                 class_size,
-                block: block_ids[part],
+                block,
                 slot,
             });
         }

@@ -242,6 +242,9 @@ pub struct BuildReport {
     pub timings: Vec<(String, f64)>,
     pub images_decoded: u64,
     pub image_fallbacks: u64,
+    /// Images used only by OPAQUE materials whose alpha channel (some texel below 255) was ignored, as
+    /// glTF specifies: their colour is kept where alpha is 0.
+    pub images_alpha_ignored: u64,
     pub peak_rss_bytes: Option<u64>,
     pub warnings: Vec<String>,
 }
@@ -526,6 +529,9 @@ pub fn build(
         timings,
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
         image_fallbacks: cache.fallbacks.load(std::sync::atomic::Ordering::Relaxed),
+        images_alpha_ignored: cache
+            .alpha_ignored
+            .load(std::sync::atomic::Ordering::Relaxed),
         peak_rss_bytes: crate::util::peak_rss_bytes(),
         warnings,
     })

@@ -51,12 +51,31 @@ pub struct ImageCache<'a> {
     /// Encoded original textures (class size, full mip chain) shared by the leaves that use them.
     originals: Mutex<OriginalCache>,
     pub original_hits: AtomicU64,
+    /// Per image: every material that uses it is OPAQUE, so its alpha channel is ignored (glTF: "the
+    /// rendered output is fully opaque and any alpha value is ignored"). Decoded with alpha 1, such an
+    /// image keeps the colour of texels whose stored alpha is 0 (premultiplying would lose it).
+    opaque_only: Vec<bool>,
+    /// Images whose alpha was ignored this way although some texel had alpha < 255 (reported).
+    pub alpha_ignored: AtomicU64,
 }
 
 /// An original texture as stored: image, class size, wrap modes (resampling depends on them), storage
 /// format and compared channels (the encoding depends on them).
 pub type OriginalKey = (ImageId, u32, [crate::scene::Wrap; 2], TexFormat, usize);
 /// Encoded original textures by key, and their total bytes.
+/// Per image of `scene`: used by at least one material and by OPAQUE materials only.
+fn opaque_only_images(scene: &Scene) -> Vec<bool> {
+    let mut used = vec![false; scene.images.len()];
+    let mut alpha = vec![false; scene.images.len()];
+    for m in &scene.materials {
+        if let Some(u) = used.get_mut(m.image.idx()) {
+            *u = true;
+            alpha[m.image.idx()] |= m.alpha.uses_alpha();
+        }
+    }
+    used.iter().zip(&alpha).map(|(&u, &a)| u && !a).collect()
+}
+
 type OriginalCache = (HashMap<OriginalKey, Arc<Encoded>>, u64);
 
 #[derive(Default)]
@@ -77,6 +96,8 @@ impl<'a> ImageCache<'a> {
             warnings: Mutex::new(Vec::new()),
             originals: Mutex::new((HashMap::new(), 0)),
             original_hits: AtomicU64::new(0),
+            opaque_only: opaque_only_images(scene),
+            alpha_ignored: AtomicU64::new(0),
         }
     }
 
@@ -94,7 +115,14 @@ impl<'a> ImageCache<'a> {
         }
         self.decodes.fetch_add(1, Ordering::Relaxed);
         let src = &self.scene.images[id.idx()];
-        let decoded = src.decode().map_err(|e| e.to_string());
+        let opaque = self.opaque_only.get(id.idx()).copied().unwrap_or(false);
+        let decoded = src.decode().map_err(|e| e.to_string()).map(|mut d| {
+            if opaque && d.pixels.iter().any(|p| p[3] < 255) {
+                self.alpha_ignored.fetch_add(1, Ordering::Relaxed);
+                d.pixels.iter_mut().for_each(|p| p[3] = 255);
+            }
+            d
+        });
         let linear = decoded.and_then(|d| {
             LinearImage::from_decoded(&d)
                 .map(|l| (d, l))
@@ -316,16 +344,32 @@ pub fn leaf_atlas(
     Ok(atlas)
 }
 
+/// True if `leaf` is the first leaf of `tree` (in leaf order) that references `block`: the one that stores
+/// it (the assembler hands blocks out in that order).
+fn owns_block(tree: &AtlasTree, leaf: &Leaf, block: crate::ids::BlockId) -> bool {
+    tree.leaves
+        .iter()
+        .find(|l| l.originals.iter().any(|o| o.block == block))
+        .is_some_and(|first| std::ptr::eq(first, leaf))
+}
+
 fn image_err(what: String, source: ImageOpsError) -> BuildError {
     BuildError::Image { what, source }
 }
 
-/// A leaf's original textures, each resampled to its class size with a full mip chain, back to back per
-/// block (layout of `OriginalRef::slot`).
+/// The original textures a leaf stores (those of the blocks it owns: the first leaf of the tree that needs
+/// a material stores it, later ones reference it), each resampled to its class size with a full mip chain,
+/// back to back per block in slot order (layout of `OriginalRef::slot`).
 fn write_originals(ctx: &RasterCtx<'_>, tree: &AtlasTree, leaf: &Leaf) -> Result<(), BuildError> {
     let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>, u64)> = Vec::new();
     let channels = channels_for(tree.kind);
-    for o in &leaf.originals {
+    let mut own: Vec<&crate::build::tree::OriginalRef> = leaf
+        .originals
+        .iter()
+        .filter(|o| owns_block(tree, leaf, o.block))
+        .collect();
+    own.sort_by_key(|o| (o.block, o.slot));
+    for o in own {
         let mat = &ctx.scene.materials[o.material.idx()];
         let enc = ctx
             .cache

@@ -260,9 +260,10 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
         .collect();
     println!("  time: {}", times.join(", "));
     println!(
-        "  images decoded {} ({} fallbacks), peak memory {}",
+        "  images decoded {} ({} fallbacks, alpha ignored in {} used only by OPAQUE materials), peak memory {}",
         r.images_decoded,
         r.image_fallbacks,
+        r.images_alpha_ignored,
         r.peak_rss_bytes.map_or("?".into(), human_bytes)
     );
     for w in &r.warnings {

@@ -79,6 +79,19 @@ pub fn print_inspect(r: &InspectReport) {
             fmt_psnr(t.atlas_psnr_min_db),
             fmt_psnr(t.originals_psnr_db)
         );
+        if t.originals_stored > 0 {
+            let hist: Vec<String> = t
+                .originals_sharing
+                .iter()
+                .map(|(leaves, n)| format!("{n}×{leaves}"))
+                .collect();
+            println!(
+                "    originals: {} stored once, {} leaf references (stored originals × leaves sharing each: {})",
+                t.originals_stored,
+                t.original_refs,
+                hist.join(", ")
+            );
+        }
         let rp = &t.repeats;
         if rp.rects > 0 {
             // Chain bytes: 4/3 of the level-0 texels at the format's bytes per texel.
@@ -87,7 +100,7 @@ pub fn print_inspect(r: &InspectReport) {
             println!(
                 "    repeats: {} rects hold a full period of {} images: {} of atlas texels over all levels \
                  ({:.1}% of {}); drawn from their originals' mip chains instead: {} once \
-                 (today's per-leaf copies: {})",
+                 (one copy per leaf, as before format 4: {})",
                 rp.rects,
                 rp.images,
                 human_bytes(bytes(rp.atlas_texels)),

@@ -54,6 +54,12 @@ pub struct TreeInfo {
     pub levels: Vec<LevelStats>,
     /// Repeat rects and what drawing them from their originals instead would cost ([`RepeatCost`]).
     pub repeats: RepeatCost,
+    /// Original textures stored (distinct block slots; each once per tree since format 4) and the leaf
+    /// references to them.
+    pub originals_stored: u64,
+    pub original_refs: u64,
+    /// `(leaves referencing a stored original, how many stored originals have that many)`, ascending.
+    pub originals_sharing: Vec<(u64, u64)>,
 }
 
 /// Values compared per stored atlas of a tree of `kind` (texels of the full chain × channels): the
@@ -118,6 +124,15 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
                 originals_sse += b.sse;
             }
         }
+        let mut sharing: std::collections::HashMap<(u32, u32), u64> = Default::default();
+        for o in t.originals {
+            *sharing.entry((o.block, o.slot)).or_default() += 1;
+        }
+        let mut hist: std::collections::BTreeMap<u64, u64> = Default::default();
+        for &n in sharing.values() {
+            *hist.entry(n).or_default() += 1;
+        }
+        let histogram: Vec<(u64, u64)> = hist.into_iter().collect();
         let original_samples: u64 = t
             .originals
             .iter()
@@ -142,6 +157,9 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             originals_psnr_db: psnr(originals_sse, original_samples),
             levels,
             repeats: repeats::repeat_cost(file, ti, params.atlas_size).unwrap_or_default(),
+            originals_stored: sharing.len() as u64,
+            original_refs: t.originals.len() as u64,
+            originals_sharing: histogram,
         });
     }
     let mats: Vec<_> = file

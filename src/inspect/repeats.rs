@@ -28,7 +28,8 @@ pub struct RepeatCost {
     /// Σ over those images of their stored original size² (each once): what drawing them from their
     /// mip chains at every level would store, and the most it would keep resident.
     pub original_texels_once: u64,
-    /// The same summed over every leaf that holds them (today's per-leaf original copies).
+    /// The same summed over every leaf that references them (one copy per leaf, as files before format 4
+    /// stored them).
     pub original_texels_per_leaf: u64,
 }
 

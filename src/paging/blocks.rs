@@ -67,8 +67,11 @@ pub struct TreeBlocks {
 pub struct BlockTable {
     pub blocks: Vec<BlockMeta>,
     pub trees: Vec<TreeBlocks>,
-    /// Original-texture blocks grouped by leaf node (see [`TreeBlocks::originals`]).
+    /// Original-texture blocks grouped by leaf node (see [`TreeBlocks::originals`]); a shared block
+    /// appears under every leaf that references it.
     pub original_blocks: Vec<BlockId>,
+    /// Per block, the leaf nodes referencing it (original-texture blocks; see [`BlockTable::users`]).
+    pub users: Vec<Vec<NodeId>>,
 }
 
 /// Why a block table could not be made (only from unvalidated, hand-made inputs).
@@ -87,15 +90,105 @@ pub enum BlockTableError {
     BadKind { block: u32, kind: u32 },
     #[error("tree {tree}: node {node} has no atlas block")]
     NoAtlas { tree: u32, node: u32 },
+    #[error(
+        "tree {tree} leaf node {node}: original references block {block}, which is not an original-texture block of the tree"
+    )]
+    BadOriginalBlock { tree: u32, node: u32, block: u32 },
 }
 
 impl BlockTable {
     /// The table of an open file.
     pub fn from_file(file: &TreeFile) -> Result<BlockTable, BlockTableError> {
-        let trees: Vec<&[NodeRecord]> = (0..file.trees())
-            .filter_map(|t| file.tree(t).map(|v| v.nodes))
+        let views: Vec<_> = (0..file.trees()).filter_map(|t| file.tree(t)).collect();
+        let trees: Vec<&[NodeRecord]> = views.iter().map(|v| v.nodes).collect();
+        let mut table = BlockTable::new(&trees, file.blocks())?;
+        // Per leaf node, the distinct blocks its originals reference (its own and those stored by an
+        // earlier leaf of the tree, DESIGN.md "Originals").
+        let refs: Vec<Vec<Vec<BlockId>>> = views
+            .iter()
+            .map(|v| {
+                let mut per_node = vec![Vec::new(); v.nodes.len()];
+                for leaf in v.leaves {
+                    let Some(list) = per_node.get_mut(leaf.node as usize) else {
+                        continue;
+                    };
+                    for o in v.leaf_originals(leaf) {
+                        let b = BlockId(o.block);
+                        if !list.contains(&b) {
+                            list.push(b);
+                        }
+                    }
+                }
+                per_node
+            })
             .collect();
-        BlockTable::new(&trees, file.blocks())
+        table.share_originals(&trees, &refs)?;
+        Ok(table)
+    }
+
+    /// Replaces each leaf's original blocks by `refs[tree][node]` (blocks may be shared by several
+    /// leaves) and makes a shared block's closure parent the atlas of the lowest common ancestor of the
+    /// leaves that reference it: that atlas is on the root path of each of them, so the closure costs no
+    /// block their own paths do not.
+    pub fn share_originals(
+        &mut self,
+        trees: &[&[NodeRecord]],
+        refs: &[Vec<Vec<BlockId>>],
+    ) -> Result<(), BlockTableError> {
+        let mut users: Vec<Vec<NodeId>> = vec![Vec::new(); self.blocks.len()];
+        self.original_blocks.clear();
+        for (t, per_node) in refs.iter().enumerate() {
+            let Some(tb) = self.trees.get_mut(t) else {
+                continue;
+            };
+            for (n, list) in per_node.iter().enumerate() {
+                let first = self.original_blocks.len() as u32;
+                for &b in list {
+                    let ok = self.blocks.get(b.idx()).is_some_and(|m| {
+                        m.tree as usize == t && matches!(m.item, BlockItem::Originals { .. })
+                    });
+                    if !ok {
+                        return Err(BlockTableError::BadOriginalBlock {
+                            tree: t as u32,
+                            node: n as u32,
+                            block: b.0,
+                        });
+                    }
+                    users[b.idx()].push(NodeId(n as u32));
+                    self.original_blocks.push(b);
+                }
+                if let Some(r) = tb.originals.get_mut(n) {
+                    *r = (first, list.len() as u32);
+                }
+            }
+        }
+        for (b, nodes) in users.iter().enumerate() {
+            let (tree, item) = (self.blocks[b].tree as usize, self.blocks[b].item);
+            let (Some(nodes_of), BlockItem::Originals { .. }) = (trees.get(tree), item) else {
+                continue;
+            };
+            let Some(lca) = lowest_common_ancestor(nodes_of, nodes) else {
+                continue;
+            };
+            let parent = self.trees[tree]
+                .atlas
+                .get(lca.idx())
+                .copied()
+                .flatten()
+                .ok_or(BlockTableError::NoAtlas {
+                    tree: tree as u32,
+                    node: lca.0,
+                })?;
+            self.blocks[b].parent = Some(parent);
+        }
+        self.users = users;
+        Ok(())
+    }
+
+    /// The leaf nodes whose originals reference original-texture block `b` (after
+    /// [`BlockTable::share_originals`]; before, empty).
+    pub fn users(&self, b: BlockId) -> &[NodeId] {
+        self.users.get(b.idx()).map_or(&[], Vec::as_slice)
     }
 
     /// The table of `trees` (node tables, tree-local ids) and the global `blocks` records. Every node must
@@ -114,6 +207,7 @@ impl BlockTable {
                 })
                 .collect(),
             original_blocks: Vec::new(),
+            users: Vec::new(),
         };
         // Leaf id → node id per tree.
         let leaf_nodes: Vec<Vec<u32>> = trees
@@ -275,4 +369,29 @@ impl BlockTable {
     pub fn total_bytes(&self) -> u64 {
         self.blocks.iter().map(|b| b.bytes).sum()
     }
+}
+
+/// The deepest node that is an ancestor of (or equal to) every node of `nodes` (parent links of `tree`);
+/// `None` for an empty list or broken links.
+fn lowest_common_ancestor(tree: &[NodeRecord], nodes: &[NodeId]) -> Option<NodeId> {
+    let path = |n: NodeId| {
+        let mut p = vec![n];
+        let mut cur = n;
+        while let Some(node) = tree.get(cur.idx()) {
+            if node.parent == NONE || p.len() > tree.len() {
+                break;
+            }
+            cur = NodeId(node.parent);
+            p.push(cur);
+        }
+        p.reverse();
+        p
+    };
+    let mut common = path(*nodes.first()?);
+    for &n in &nodes[1..] {
+        let p = path(n);
+        let k = common.iter().zip(&p).take_while(|(a, b)| a == b).count();
+        common.truncate(k);
+    }
+    common.last().copied()
 }

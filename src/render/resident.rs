@@ -218,19 +218,23 @@ fn atlas_arrays_for(
 
 /// Byte offset of each original of a leaf inside its block: images of one block are back to back in slot
 /// order, each a full mip chain of its class size in the tree's `format`.
-fn slot_offsets(originals: &[OriginalRecord], format: TexFormat) -> Vec<u64> {
-    let mut out = vec![0u64; originals.len()];
-    let mut by_block: HashMap<u32, Vec<usize>> = HashMap::new();
-    for (i, o) in originals.iter().enumerate() {
-        by_block.entry(o.block).or_default().push(i);
-    }
-    for idx in by_block.values_mut() {
-        idx.sort_by_key(|&i| originals[i].slot);
-        let mut off = 0u64;
-        for &i in idx.iter() {
-            out[i] = off;
-            off += format.chain_bytes(originals[i].class_size);
+fn slot_offsets(originals: &[OriginalRecord], format: TexFormat) -> HashMap<(u32, u32), u64> {
+    // Every (block, slot) once (a shared original is listed by every leaf that references it), in slot
+    // order per block: the chains lie back to back.
+    let mut slots: Vec<(u32, u32, u32)> = originals
+        .iter()
+        .map(|o| (o.block, o.slot, o.class_size))
+        .collect();
+    slots.sort_unstable();
+    slots.dedup_by_key(|x| (x.0, x.1));
+    let mut out = HashMap::with_capacity(slots.len());
+    let (mut block, mut off) = (u32::MAX, 0u64);
+    for (b, slot, class_size) in slots {
+        if b != block {
+            (block, off) = (b, 0);
         }
+        out.insert((b, slot), off);
+        off += format.chain_bytes(class_size);
     }
     out
 }
@@ -530,6 +534,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
         if view.kind == crate::build::tree::TreeKind::Alpha {
             g.has_alpha = true;
         }
+        let offsets = slot_offsets(view.originals, view.format());
         let count_u32 = |what: &'static str, n: usize| {
             u32::try_from(n).map_err(|_| RenderError::TooLarge { what })
         };
@@ -540,7 +545,6 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
         for (li, leaf) in view.leaves.iter().enumerate() {
             let node = view.nodes.get(leaf.node as usize);
             let originals = view.leaf_originals(leaf);
-            let offsets = slot_offsets(originals, view.format());
             let first_tam = count_u32("tam", g.tam.len())?;
             let first_rect = count_u32("rects", g.rects.len())?;
             g.leaves.push(LeafGpu {
@@ -559,7 +563,8 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                 RectMap::new(&r.decode(), alpha)
             }));
             g.origins.push(DVec3::from_array(leaf.origin));
-            for (o, &offset) in originals.iter().zip(&offsets) {
+            for o in originals {
+                let offset = offsets.get(&(o.block, o.slot)).copied().unwrap_or(0);
                 let m = materials.get(o.material as usize).copied();
                 let class = class_index(o.class_size).ok_or(RenderError::BadClass {
                     tree: t,
@@ -921,8 +926,11 @@ impl Resident {
                         }
                     }
                 }
-                if let Some(m) = info.originals_missing.get_mut(node as usize) {
-                    *m = m.saturating_sub(1);
+                // Every leaf that references the block (shared originals) has one block less missing.
+                for n in table.users(block) {
+                    if let Some(m) = info.originals_missing.get_mut(n.idx()) {
+                        *m = m.saturating_sub(1);
+                    }
                 }
                 Ok(uploaded)
             }
@@ -957,8 +965,10 @@ impl Resident {
                         p.original_layers_used -= 1;
                     }
                 }
-                if let Some(m) = info.originals_missing.get_mut(node as usize) {
-                    *m += 1;
+                for n in table.users(block) {
+                    if let Some(m) = info.originals_missing.get_mut(n.idx()) {
+                        *m += 1;
+                    }
                 }
                 Ok(0)
             }

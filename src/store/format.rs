@@ -42,8 +42,9 @@ pub const MAGIC: [u8; 8] = *b"ATLTREE\0";
 ///
 /// History: 1 = RGBA8 blocks only; 2 = per-tree block format ([`TreeRecord::format`]) and per-block
 /// compression error ([`BlockRecord::sse`]); 3 = repeats wrapped in the shader: per-rect wrap and cap flags
-/// ([`RectRecord::flags`]), vertices without a baked atlas UV but with their rect ([`TreeVertex::rect`]).
-pub const FORMAT_VERSION: u32 = 3;
+/// ([`RectRecord::flags`]), vertices without a baked atlas UV but with their rect ([`TreeVertex::rect`]);
+/// 4 = original textures stored once per tree: an [`OriginalRecord`] may name a block another leaf owns.
+pub const FORMAT_VERSION: u32 = 4;
 /// Alignment of every section's offset, bytes.
 pub const SECTION_ALIGN: u64 = 16;
 /// Alignment of every block's offset, bytes (one page: a block can be mapped or read with O_DIRECT alone).

@@ -26,7 +26,10 @@ use std::path::PathBuf;
 pub enum StoreError {
     #[error("{path}: not an atlastree file (magic {found:02x?})")]
     BadMagic { path: PathBuf, found: Vec<u8> },
-    #[error("unsupported format version {found} (this build reads version {supported})")]
+    #[error(
+        "unsupported format version {found} (this build reads version {supported}; files of older versions \
+         must be rebuilt from their scene with `atlastree build`)"
+    )]
     UnsupportedVersion { found: u32, supported: u32 },
     #[error("{path}: file is {len} bytes, {needed} needed")]
     Truncated {

@@ -362,8 +362,9 @@ fn check_leaves(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreE
                 u64::from(o.block),
                 blocks.len() as u64,
             )?;
+            // Stored once per tree (format 4): the block may belong to an earlier leaf of the tree.
             let b = &blocks[o.block as usize];
-            if b.tree != t.tree || b.kind != BLOCK_ORIGINALS || b.item != l as u32 {
+            if b.tree != t.tree || b.kind != BLOCK_ORIGINALS || b.item > l as u32 {
                 return Err(bad_value("originals", go, "block", u64::from(o.block)));
             }
         }
