@@ -115,7 +115,7 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
             );
         }
         // Conservation: replay the run with the event log; loaded bytes = sizes of the loaded blocks.
-        let mut loaded = 0u64;
+        let (mut loaded, mut loaded_originals) = (0u64, 0u64);
         let mut resident = std::collections::HashSet::new();
         let (rows, _) = simulate_with(
             &input,
@@ -128,7 +128,11 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
                         resident.insert(*block),
                         "{block} loaded twice without eviction"
                     );
-                    loaded += input.table.meta(*block).bytes;
+                    let m = input.table.meta(*block);
+                    loaded += m.bytes;
+                    if !m.item.is_atlas() {
+                        loaded_originals += m.bytes;
+                    }
                 }
                 Event::Evicted { block } => {
                     assert!(resident.remove(block), "{block} evicted but not resident");
@@ -138,6 +142,20 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
         .unwrap();
         let bytes: u64 = rows.iter().map(|x| x.bytes).sum();
         assert_eq!(bytes, loaded, "{}", r.key.label());
+        // Originals and atlases apart: loaded and resident bytes add up per kind.
+        let originals: u64 = rows.iter().map(|x| x.bytes_originals).sum();
+        assert_eq!(originals, loaded_originals, "{}", r.key.label());
+        assert_eq!(r.summary.bytes_originals_total, loaded_originals);
+        let last = rows.last().unwrap();
+        // The roots are loaded by the bootstrap, before the first frame's events.
+        resident.extend(input.table.roots());
+        let resident_bytes: u64 = resident.iter().map(|b| input.table.meta(*b).bytes).sum();
+        assert_eq!(
+            last.resident_bytes_atlases + last.resident_bytes_originals,
+            resident_bytes,
+            "{}",
+            r.key.label()
+        );
         assert_eq!(rows, r.rows, "{}: replay differs", r.key.label());
     }
     // The I/O model costs: at 5 MB/s the same flight is never better than instant arrival.

@@ -179,18 +179,19 @@ pub fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&rows)?);
     } else {
         println!(
-            "{:<32} {:>8} {:>8} {:>8} {:>10} {:>6} {:>6} {:>6}  converge (frames after each jump)",
-            "run", "mean", "p95", "max", "MB", "peak", "jumps", "stalls"
+            "{:<32} {:>8} {:>8} {:>8} {:>10} {:>10} {:>6} {:>6} {:>6}  converge (frames after each jump)",
+            "run", "mean", "p95", "max", "MB", "orig MB", "peak", "jumps", "stalls"
         );
         for r in &results {
             let s = &r.summary;
             println!(
-                "{:<32} {:>8.4} {:>8.4} {:>8.4} {:>10.1} {:>6} {:>6} {:>6}  {:?}",
+                "{:<32} {:>8.4} {:>8.4} {:>8.4} {:>10.1} {:>10.1} {:>6} {:>6} {:>6}  {:?}",
                 r.key.label(),
                 s.mean_coarser,
                 s.p95_coarser,
                 s.max_coarser,
                 s.bytes_total as f64 / 1e6,
+                s.bytes_originals_total as f64 / 1e6,
                 s.peak_resident,
                 s.jumps,
                 s.stalls,

@@ -154,6 +154,11 @@ pub struct FrameRow {
     pub in_flight: u32,
     pub loaded: u32,
     pub bytes: u64,
+    /// Of `bytes`, those of original-texture blocks (the rest are atlases).
+    pub bytes_originals: u64,
+    /// Bytes resident after the frame: atlas blocks and original-texture blocks apart.
+    pub resident_bytes_atlases: u64,
+    pub resident_bytes_originals: u64,
     pub evictions: u32,
     pub ideal_fraction: f64,
     /// Share of the drawn screen area rendered coarser than the target (see `paging::resolve`).
@@ -174,6 +179,8 @@ pub struct RunSummary {
     pub p95_coarser: f64,
     pub max_coarser: f64,
     pub bytes_total: u64,
+    /// Of `bytes_total`, those of original-texture blocks.
+    pub bytes_originals_total: u64,
     pub loads: u64,
     pub peak_resident: u32,
     /// Frames where the ideal set suddenly lost residency (the path "jumped"): the ideal fraction fell by
@@ -245,11 +252,27 @@ pub fn simulate_with(
             select(nodes, cam, &frustum, scale, cut);
         }
         let frame = i as u32;
+        let mut bytes_originals = 0u64;
+        let table = &input.table;
         let f = session.frame(&input.trees, cam, &frustum, scale, now, &mut *loader, |e| {
+            if let crate::paging::Event::Loaded { block, .. } = &e
+                && !table.meta(*block).item.is_atlas()
+            {
+                bytes_originals += table.meta(*block).bytes;
+            }
             events(frame, &e)
         });
         let pager = &session.pager;
         let table = pager.table();
+        let (mut resident_atlases, mut resident_originals) = (0u64, 0u64);
+        for &b in pager.resident() {
+            let m = table.meta(b);
+            if m.item.is_atlas() {
+                resident_atlases += m.bytes;
+            } else {
+                resident_originals += m.bytes;
+            }
+        }
         let coarse = resolve_frame(
             &input.trees,
             &cuts,
@@ -269,6 +292,9 @@ pub fn simulate_with(
             in_flight: f.in_flight,
             loaded: s.loaded,
             bytes: s.bytes_loaded,
+            bytes_originals,
+            resident_bytes_atlases: resident_atlases,
+            resident_bytes_originals: resident_originals,
             evictions: s.evictions,
             ideal_fraction: s.ideal_fraction(),
             coarser_share: coarse.share(),
@@ -321,6 +347,7 @@ pub fn summarise(rows: &[FrameRow], cancelled: u64, discarded: u64) -> RunSummar
         p95_coarser: p95,
         max_coarser: shares.last().copied().unwrap_or(0.0),
         bytes_total: rows.iter().map(|r| r.bytes).sum(),
+        bytes_originals_total: rows.iter().map(|r| r.bytes_originals).sum(),
         loads: rows.iter().map(|r| u64::from(r.loaded)).sum(),
         peak_resident: rows.iter().map(|r| r.resident).max().unwrap_or(0),
         jumps,
