@@ -9,6 +9,7 @@ mod golden;
 mod harness;
 mod paging;
 mod render;
+mod shared;
 mod smoke;
 mod sweep;
 mod view;
@@ -26,6 +27,7 @@ fn main() -> ExitCode {
         sweep::tests(),
         compressed::tests(),
         alpha::tests(),
+        shared::tests(),
     ]
     .into_iter()
     .flatten()

@@ -1,0 +1,131 @@
+//! Shared original-texture blocks on the GPU (issue 17): a corrupt shared block is refused on load
+//! (counted), the leaves that need it are drawn with their ancestor atlas, and nothing goes missing.
+
+use atlastree::build::{BuildOptions, DMin, NoProgress, build};
+use atlastree::camera::Camera;
+use atlastree::gpu::GpuContext;
+use atlastree::paging::{FileSource, UploadBudget};
+use atlastree::render::Mode;
+use atlastree::scene::synthetic::SceneBuilder;
+use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
+use atlastree::store::TreeFile;
+use glam::{DVec2, DVec3};
+use std::sync::Arc;
+
+use crate::harness::GpuTest;
+use crate::paging::{coverage_mismatch, paged};
+use crate::render::{H, W, e, scale_for};
+
+pub fn tests() -> Vec<GpuTest> {
+    vec![GpuTest {
+        name: "shared::a_corrupt_shared_block_falls_back_to_the_ancestor_atlas",
+        run: a_corrupt_shared_block_falls_back_to_the_ancestor_atlas,
+    }]
+}
+
+/// Four 200 m quadrants with their own textures and one "poster" texture in the north-west and
+/// south-east (as `tests/shared_originals.rs`).
+fn corners() -> Scene {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let poster = b.pattern_image("poster", 128, 99);
+    let poster = b.material(poster, [Wrap::ClampToEdge; 2], AlphaMode::Opaque);
+    for q in 0..4u32 {
+        let (x, z) = (f64::from(q % 2) * 200.0, f64::from(q / 2) * 200.0);
+        let img = b.pattern_image(&format!("ground {q}"), 256, q);
+        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let c = [(0.0, 0.0), (200.0, 0.0), (200.0, 200.0), (0.0, 200.0)]
+            .map(|(dx, dz)| DVec3::new(x + dx, 0.0, z + dz));
+        b.quad(c, DVec2::ZERO, DVec2::splat(4.0), m);
+    }
+    for (x, z) in [(40.0, 40.0), (340.0, 340.0)] {
+        let c = [(0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (0.0, 20.0)]
+            .map(|(dx, dz)| DVec3::new(x + dx, 0.5, z + dz));
+        b.quad(c, DVec2::ZERO, DVec2::ONE, poster);
+    }
+    b.build()
+}
+
+/// The same view paged from an intact file and from a copy whose shared poster block has one flipped
+/// byte: the corrupt load is counted as a failure, the corrupt run draws part of the frame coarser
+/// (the poster's leaves fall back to an ancestor atlas) while the intact run converges to none, and both
+/// cover exactly the same pixels (no hole).
+fn a_corrupt_shared_block_falls_back_to_the_ancestor_atlas(ctx: &GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let good = dir.path().join("corners.atlastree");
+    let opts = BuildOptions {
+        d_min: DMin::Ratio(40.0),
+        atlas_size: 256,
+        max_file_bytes: 1 << 30,
+        leaf_originals_atlases: 0.0,
+        ..BuildOptions::default()
+    };
+    build(&corners(), &opts, &good, &NoProgress).map_err(e)?;
+    let intact = TreeFile::open(&good).map_err(e)?;
+    let t = intact.tree(0).ok_or("no tree 0")?;
+    let shared = t
+        .originals
+        .iter()
+        .find(|o| o.material == 0)
+        .map(|o| o.block)
+        .ok_or("no poster original")?;
+    let users = t.originals.iter().filter(|o| o.block == shared).count();
+    if users < 2 {
+        return Err(format!(
+            "the poster block is referenced {users} times, want ≥ 2"
+        ));
+    }
+    let rec = intact.blocks()[shared as usize];
+    let mut bytes = std::fs::read(&good).map_err(e)?;
+    bytes[rec.offset as usize + 100] ^= 0xff;
+    let bad = dir.path().join("corrupt.atlastree");
+    std::fs::write(&bad, &bytes).map_err(e)?;
+    let corrupt = TreeFile::open(&bad).map_err(e)?;
+    // 1.5 m above the south-east poster (its leaf's min_distance is ~2.4 m at 320 px): the leaf draws
+    // its originals, the poster among them.
+    let cam = Camera {
+        eye: DVec3::new(350.0, 1.5, 344.0),
+        target: DVec3::new(350.0, 0.0, 356.0),
+        up: DVec3::Y,
+        fov_x_deg: 60.0,
+        aspect: f64::from(W) / f64::from(H),
+        near: 0.5,
+        far: 5000.0,
+    };
+    let k = intact.blocks().len() as u32;
+    let run = |file: &TreeFile| -> Result<(u32, f64, Vec<u8>), String> {
+        let source = Arc::new(FileSource::new(Arc::new(
+            TreeFile::open(file.path()).map_err(e)?,
+        )));
+        let mut r = paged(ctx, file, k, UploadBudget::Unlimited, source, 0)?;
+        let scale = scale_for(file, &cam)?;
+        let (mut failures, mut coarse) = (0, 0.0);
+        for _ in 0..30 {
+            let s = r.render(&cam, scale, Mode::Tree).map_err(e)?;
+            let p = s.paging.ok_or("not paged")?;
+            failures += p.session.pager.failures;
+            coarse = p.coarse.share();
+        }
+        Ok((failures, coarse, r.read_frame().map_err(e)?))
+    };
+    let (good_failures, good_coarse, good_frame) = run(&intact)?;
+    let (bad_failures, bad_coarse, bad_frame) = run(&corrupt)?;
+    println!(
+        "  intact: {good_failures} failed loads, coarser share {good_coarse:.3}; corrupt shared block: \
+         {bad_failures} failed loads, coarser share {bad_coarse:.3}"
+    );
+    if good_failures != 0 || good_coarse != 0.0 {
+        return Err(format!(
+            "intact file: {good_failures} failures, coarser {good_coarse}"
+        ));
+    }
+    if bad_failures == 0 || bad_coarse <= 0.0 {
+        return Err(format!(
+            "corrupt shared block: {bad_failures} failures counted, coarser share {bad_coarse} (want > 0)"
+        ));
+    }
+    let holes = coverage_mismatch(&good_frame, &bad_frame);
+    if holes != 0 {
+        return Err(format!("{holes} pixels differ in coverage: a hole"));
+    }
+    Ok(())
+}
