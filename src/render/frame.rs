@@ -75,6 +75,11 @@ pub struct PagingFrame {
     /// Time spent in residency changes (uploads), ms, and bytes uploaded to the GPU.
     pub upload_ms: f64,
     pub uploaded_bytes: u64,
+    /// Of the bytes the pager loaded this frame, those of original-texture blocks (the rest are atlases).
+    pub loaded_original_bytes: u64,
+    /// Bytes of the resident blocks after the frame, atlases and original textures apart.
+    pub resident_atlas_bytes: u64,
+    pub resident_original_bytes: u64,
     /// `xxh3_64` of the sorted resident block ids (compared with the simulator's log).
     pub resident_hash: u64,
     /// Residency changes the GPU side could not apply (drawn coarser instead), this frame.
@@ -435,6 +440,7 @@ impl<'f> Renderer<'f> {
         let queue = &self.ctx.queue;
         let table = &rt.table;
         let (mut bytes, mut errors, mut last_error) = (0u64, 0u32, None);
+        let mut loaded_original_bytes = 0u64;
         let t = Instant::now();
         let session = rt.session.frame(
             &trees,
@@ -444,7 +450,14 @@ impl<'f> Renderer<'f> {
             rt.clock,
             &mut *rt.loader,
             |ev| match resident.apply(queue, table, &ev) {
-                Ok(b) => bytes += b,
+                Ok(b) => {
+                    bytes += b;
+                    if let crate::paging::Event::Loaded { block, .. } = &ev
+                        && !table.meta(*block).item.is_atlas()
+                    {
+                        loaded_original_bytes += table.meta(*block).bytes;
+                    }
+                }
                 Err(e) => {
                     errors += 1;
                     last_error = Some(e.to_string());
@@ -475,11 +488,23 @@ impl<'f> Renderer<'f> {
             &mut rt.resolved,
         );
         let p = self.resident.paged.as_ref();
+        let (mut resident_atlas_bytes, mut resident_original_bytes) = (0u64, 0u64);
+        for &b in rt.session.pager.resident() {
+            let m = rt.table.meta(b);
+            if m.item.is_atlas() {
+                resident_atlas_bytes += m.bytes;
+            } else {
+                resident_original_bytes += m.bytes;
+            }
+        }
         Some(PagingFrame {
             session,
             coarse,
             upload_ms,
             uploaded_bytes: bytes,
+            loaded_original_bytes,
+            resident_atlas_bytes,
+            resident_original_bytes,
             resident_hash: crate::paging::resident_fingerprint(rt.session.pager.resident()),
             apply_errors: errors,
             atlas_layers_used: p.map_or(0, |p| p.atlas_layers_used),
