@@ -2,73 +2,26 @@
 //! the quadtree is one slot of one block, every leaf that shows it references that block, the pager ranks
 //! it by the best of its leaves, and a flight over both corners loads it once.
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
+#[path = "fixtures/corners.rs"]
+mod fixtures;
+
+use atlastree::build::{NoProgress, build};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::NodeId;
 use atlastree::paging::usage::{UsageScratch, classify};
 use atlastree::paging::{BlockTable, Event, Usage, ViewInput};
-use atlastree::scene::synthetic::SceneBuilder;
-use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::sim::{SimInput, simulate_with};
 use atlastree::store::TreeFile;
-use glam::{DVec2, DVec3};
+use fixtures::{POSTER, corners, options};
+use glam::DVec3;
 use std::collections::{BTreeSet, HashMap};
-
-/// A 400 m ground of four 200 m quadrants, each with its own 256² texture, and a "poster" (its own 128²
-/// texture) on a small quad in the north-west and in the south-east quadrant.
-fn corners() -> Scene {
-    let mut b = SceneBuilder::new(UpAxis::Y);
-    let poster = b.pattern_image("poster", 128, 99);
-    let poster = b.material(poster, [Wrap::ClampToEdge; 2], AlphaMode::Opaque);
-    for q in 0..4u32 {
-        let (x, z) = (f64::from(q % 2) * 200.0, f64::from(q / 2) * 200.0);
-        let img = b.pattern_image(&format!("ground {q}"), 256, q);
-        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
-        b.quad(
-            [
-                DVec3::new(x, 0.0, z),
-                DVec3::new(x + 200.0, 0.0, z),
-                DVec3::new(x + 200.0, 0.0, z + 200.0),
-                DVec3::new(x, 0.0, z + 200.0),
-            ],
-            DVec2::ZERO,
-            DVec2::splat(4.0),
-            m,
-        );
-    }
-    for (x, z) in [(40.0, 40.0), (340.0, 340.0)] {
-        b.quad(
-            [
-                DVec3::new(x, 0.5, z),
-                DVec3::new(x + 20.0, 0.5, z),
-                DVec3::new(x + 20.0, 0.5, z + 20.0),
-                DVec3::new(x, 0.5, z + 20.0),
-            ],
-            DVec2::ZERO,
-            DVec2::ONE,
-            poster,
-        );
-    }
-    b.build()
-}
 
 fn build_corners(dir: &std::path::Path) -> TreeFile {
     let out = dir.join("corners.atlastree");
-    let opts = BuildOptions {
-        d_min: DMin::Ratio(40.0),
-        atlas_size: 256,
-        max_file_bytes: 1 << 30,
-        // The paper's tree: split until every node fits one atlas (one leaf per quadrant or finer).
-        leaf_originals_atlases: 0.0,
-        ..BuildOptions::default()
-    };
-    build(&corners(), &opts, &out, &NoProgress).unwrap();
+    build(&corners(), &options(), &out, &NoProgress).unwrap();
     TreeFile::open(&out).unwrap()
 }
-
-/// The poster material's id (material 0: the first one added).
-const POSTER: u32 = 0;
 
 #[test]
 fn a_texture_in_opposite_corners_is_stored_once_and_referenced_by_both_leaves() {

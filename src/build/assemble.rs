@@ -62,9 +62,9 @@ struct Asm<'a> {
     format: TexFormat,
     out: Assembled,
     next_block: u32,
-    /// Originals stored so far in this tree, per material: `(block, slot, class size)`. Each is stored once
-    /// (by the first leaf that needs it) and referenced by every later leaf (DESIGN.md "Originals").
-    stored: HashMap<MaterialId, (BlockId, u32, u32)>,
+    /// Originals stored so far in this tree, per material: `(block, slot)`. Each is stored once (by the
+    /// first leaf that needs it) and referenced by every later leaf (DESIGN.md "Originals").
+    stored: HashMap<MaterialId, (BlockId, u32)>,
 }
 
 /// Flattens `root` (a layout over `infos`, permutation `order`) into tree `tree_index` of a forest whose
@@ -213,13 +213,12 @@ impl Asm<'_> {
         }
         for (k, &i) in new.iter().enumerate() {
             let (part, slot) = parts.place[k];
-            self.stored
-                .insert(classes[i].0, (block_ids[part], slot, classes[i].2));
+            self.stored.insert(classes[i].0, (block_ids[part], slot));
         }
         let mut originals: Vec<OriginalRef> = Vec::with_capacity(classes.len());
         let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
         for &(material, image, class_size) in &classes {
-            let (block, slot, _) = self.stored[&material];
+            let (block, slot) = self.stored[&material];
             slot_of.insert(material, originals.len() as u32);
             originals.push(OriginalRef {
                 material,

@@ -62,7 +62,6 @@ pub struct ImageCache<'a> {
 /// An original texture as stored: image, class size, wrap modes (resampling depends on them), storage
 /// format and compared channels (the encoding depends on them).
 pub type OriginalKey = (ImageId, u32, [crate::scene::Wrap; 2], TexFormat, usize);
-/// Encoded original textures by key, and their total bytes.
 /// Per image of `scene`: used by at least one material and by OPAQUE materials only.
 fn opaque_only_images(scene: &Scene) -> Vec<bool> {
     let mut used = vec![false; scene.images.len()];
@@ -76,6 +75,7 @@ fn opaque_only_images(scene: &Scene) -> Vec<bool> {
     used.iter().zip(&alpha).map(|(&u, &a)| u && !a).collect()
 }
 
+/// Encoded original textures by key, and their total bytes.
 type OriginalCache = (HashMap<OriginalKey, Arc<Encoded>>, u64);
 
 #[derive(Default)]
@@ -243,7 +243,20 @@ pub struct RasterCtx<'a> {
 
 /// Rasterises every atlas and original-texture block of `tree` into the writer.
 pub fn raster_tree(ctx: &RasterCtx<'_>, tree: &AtlasTree) -> Result<(), BuildError> {
-    raster_node(ctx, tree, NodeId(0)).map(|_| ())
+    let owners = block_owners(tree);
+    raster_node(ctx, tree, &owners, NodeId(0)).map(|_| ())
+}
+
+/// Per original-texture block, the leaf that stores it: the first leaf (in leaf order) referencing it,
+/// the one the assembler made it for. Later leaves only reference it.
+fn block_owners(tree: &AtlasTree) -> HashMap<crate::ids::BlockId, usize> {
+    let mut owners = HashMap::new();
+    for (li, leaf) in tree.leaves.iter().enumerate() {
+        for o in &leaf.originals {
+            owners.entry(o.block).or_insert(li);
+        }
+    }
+    owners
 }
 
 /// The colour of atlas space no texture occupies (unused leaf space, missing quadrants of inner atlases).
@@ -259,13 +272,15 @@ fn fill_for(kind: TreeKind) -> [f32; 4] {
 fn raster_node(
     ctx: &RasterCtx<'_>,
     tree: &AtlasTree,
+    owners: &HashMap<crate::ids::BlockId, usize>,
     id: NodeId,
 ) -> Result<LinearImage, BuildError> {
     let node = &tree.nodes[id.idx()];
     let size = ctx.params.atlas_size;
-    let atlas = if let Some(leaf) = node.leaf {
-        let leaf = &tree.leaves[leaf.idx()];
-        write_originals(ctx, tree, leaf)?;
+    let atlas = if let Some(leaf_id) = node.leaf {
+        let leaf = &tree.leaves[leaf_id.idx()];
+        let own = |b| owners.get(&b) == Some(&leaf_id.idx());
+        write_originals(ctx, tree, leaf, own)?;
         leaf_atlas(ctx, leaf, size, fill_for(tree.kind))
             .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
     } else {
@@ -278,7 +293,7 @@ fn raster_node(
         use rayon::prelude::*;
         let halves: Vec<(usize, LinearImage)> = kids
             .par_iter()
-            .map(|&(q, c)| raster_node(ctx, tree, c).map(|img| (q, img)))
+            .map(|&(q, c)| raster_node(ctx, tree, owners, c).map(|img| (q, img)))
             .collect::<Result<_, _>>()?;
         let mut quads: [Option<&LinearImage>; 4] = [None; 4];
         for (q, img) in &halves {
@@ -344,15 +359,6 @@ pub fn leaf_atlas(
     Ok(atlas)
 }
 
-/// True if `leaf` is the first leaf of `tree` (in leaf order) that references `block`: the one that stores
-/// it (the assembler hands blocks out in that order).
-fn owns_block(tree: &AtlasTree, leaf: &Leaf, block: crate::ids::BlockId) -> bool {
-    tree.leaves
-        .iter()
-        .find(|l| l.originals.iter().any(|o| o.block == block))
-        .is_some_and(|first| std::ptr::eq(first, leaf))
-}
-
 fn image_err(what: String, source: ImageOpsError) -> BuildError {
     BuildError::Image { what, source }
 }
@@ -360,14 +366,16 @@ fn image_err(what: String, source: ImageOpsError) -> BuildError {
 /// The original textures a leaf stores (those of the blocks it owns: the first leaf of the tree that needs
 /// a material stores it, later ones reference it), each resampled to its class size with a full mip chain,
 /// back to back per block in slot order (layout of `OriginalRef::slot`).
-fn write_originals(ctx: &RasterCtx<'_>, tree: &AtlasTree, leaf: &Leaf) -> Result<(), BuildError> {
+fn write_originals(
+    ctx: &RasterCtx<'_>,
+    tree: &AtlasTree,
+    leaf: &Leaf,
+    owns: impl Fn(crate::ids::BlockId) -> bool,
+) -> Result<(), BuildError> {
     let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>, u64)> = Vec::new();
     let channels = channels_for(tree.kind);
-    let mut own: Vec<&crate::build::tree::OriginalRef> = leaf
-        .originals
-        .iter()
-        .filter(|o| owns_block(tree, leaf, o.block))
-        .collect();
+    let mut own: Vec<&crate::build::tree::OriginalRef> =
+        leaf.originals.iter().filter(|o| owns(o.block)).collect();
     own.sort_by_key(|o| (o.block, o.slot));
     for o in own {
         let mat = &ctx.scene.materials[o.material.idx()];

@@ -365,6 +365,19 @@ impl BlockTable {
         &self.blocks[b.idx()]
     }
 
+    /// Bytes of `blocks` as `(atlases, original textures)`: what the renderer and the simulator report
+    /// apart for loads and residency.
+    pub fn bytes_by_kind(&self, blocks: impl IntoIterator<Item = BlockId>) -> (u64, u64) {
+        blocks.into_iter().fold((0, 0), |(a, o), b| {
+            let m = self.meta(b);
+            if m.item.is_atlas() {
+                (a + m.bytes, o)
+            } else {
+                (a, o + m.bytes)
+            }
+        })
+    }
+
     /// Total bytes of all blocks.
     pub fn total_bytes(&self) -> u64 {
         self.blocks.iter().map(|b| b.bytes).sum()

@@ -452,10 +452,8 @@ impl<'f> Renderer<'f> {
             |ev| match resident.apply(queue, table, &ev) {
                 Ok(b) => {
                     bytes += b;
-                    if let crate::paging::Event::Loaded { block, .. } = &ev
-                        && !table.meta(*block).item.is_atlas()
-                    {
-                        loaded_original_bytes += table.meta(*block).bytes;
+                    if let crate::paging::Event::Loaded { block, .. } = &ev {
+                        loaded_original_bytes += table.bytes_by_kind([*block]).1;
                     }
                 }
                 Err(e) => {
@@ -488,15 +486,9 @@ impl<'f> Renderer<'f> {
             &mut rt.resolved,
         );
         let p = self.resident.paged.as_ref();
-        let (mut resident_atlas_bytes, mut resident_original_bytes) = (0u64, 0u64);
-        for &b in rt.session.pager.resident() {
-            let m = rt.table.meta(b);
-            if m.item.is_atlas() {
-                resident_atlas_bytes += m.bytes;
-            } else {
-                resident_original_bytes += m.bytes;
-            }
-        }
+        let (resident_atlas_bytes, resident_original_bytes) = rt
+            .table
+            .bytes_by_kind(rt.session.pager.resident().iter().copied());
         Some(PagingFrame {
             session,
             coarse,

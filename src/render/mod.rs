@@ -114,6 +114,8 @@ pub enum RenderError {
     Blocks(#[from] crate::paging::BlockTableError),
     #[error("starting loader threads: {0}")]
     Loader(std::io::Error),
+    #[error("original slot {slot} of block {block} is missing from its tree's slot table")]
+    MissingSlot { block: u32, slot: u32 },
     /// A broken residency invariant (a bug, not bad input): reported instead of drawing a wrong texture.
     #[error("residency invariant broken: {what} (unique {unique}, class {class}, layer {layer})")]
     Residency {

@@ -564,7 +564,13 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
             }));
             g.origins.push(DVec3::from_array(leaf.origin));
             for o in originals {
-                let offset = offsets.get(&(o.block, o.slot)).copied().unwrap_or(0);
+                // Built from the same table: a missing slot is a broken invariant, not a zero offset.
+                let offset = *offsets
+                    .get(&(o.block, o.slot))
+                    .ok_or(RenderError::MissingSlot {
+                        block: o.block,
+                        slot: o.slot,
+                    })?;
                 let m = materials.get(o.material as usize).copied();
                 let class = class_index(o.class_size).ok_or(RenderError::BadClass {
                     tree: t,

@@ -255,24 +255,14 @@ pub fn simulate_with(
         let mut bytes_originals = 0u64;
         let table = &input.table;
         let f = session.frame(&input.trees, cam, &frustum, scale, now, &mut *loader, |e| {
-            if let crate::paging::Event::Loaded { block, .. } = &e
-                && !table.meta(*block).item.is_atlas()
-            {
-                bytes_originals += table.meta(*block).bytes;
+            if let crate::paging::Event::Loaded { block, .. } = &e {
+                bytes_originals += table.bytes_by_kind([*block]).1;
             }
             events(frame, &e)
         });
         let pager = &session.pager;
-        let table = pager.table();
-        let (mut resident_atlases, mut resident_originals) = (0u64, 0u64);
-        for &b in pager.resident() {
-            let m = table.meta(b);
-            if m.item.is_atlas() {
-                resident_atlases += m.bytes;
-            } else {
-                resident_originals += m.bytes;
-            }
-        }
+        let (resident_atlases, resident_originals) =
+            table.bytes_by_kind(pager.resident().iter().copied());
         let coarse = resolve_frame(
             &input.trees,
             &cuts,

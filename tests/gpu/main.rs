@@ -5,6 +5,8 @@
 mod alpha;
 mod compressed;
 mod device;
+#[path = "../fixtures/corners.rs"]
+mod fixtures;
 mod golden;
 mod harness;
 mod paging;

@@ -1,17 +1,16 @@
 //! Shared original-texture blocks on the GPU (issue 17): a corrupt shared block is refused on load
 //! (counted), the leaves that need it are drawn with their ancestor atlas, and nothing goes missing.
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
+use atlastree::build::{NoProgress, build};
 use atlastree::camera::Camera;
 use atlastree::gpu::GpuContext;
 use atlastree::paging::{FileSource, UploadBudget};
 use atlastree::render::Mode;
-use atlastree::scene::synthetic::SceneBuilder;
-use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use atlastree::store::TreeFile;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use std::sync::Arc;
 
+use crate::fixtures::{POSTER, corners, options};
 use crate::harness::GpuTest;
 use crate::paging::{coverage_mismatch, paged};
 use crate::render::{H, W, e, scale_for};
@@ -23,28 +22,6 @@ pub fn tests() -> Vec<GpuTest> {
     }]
 }
 
-/// Four 200 m quadrants with their own textures and one "poster" texture in the north-west and
-/// south-east (as `tests/shared_originals.rs`).
-fn corners() -> Scene {
-    let mut b = SceneBuilder::new(UpAxis::Y);
-    let poster = b.pattern_image("poster", 128, 99);
-    let poster = b.material(poster, [Wrap::ClampToEdge; 2], AlphaMode::Opaque);
-    for q in 0..4u32 {
-        let (x, z) = (f64::from(q % 2) * 200.0, f64::from(q / 2) * 200.0);
-        let img = b.pattern_image(&format!("ground {q}"), 256, q);
-        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
-        let c = [(0.0, 0.0), (200.0, 0.0), (200.0, 200.0), (0.0, 200.0)]
-            .map(|(dx, dz)| DVec3::new(x + dx, 0.0, z + dz));
-        b.quad(c, DVec2::ZERO, DVec2::splat(4.0), m);
-    }
-    for (x, z) in [(40.0, 40.0), (340.0, 340.0)] {
-        let c = [(0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (0.0, 20.0)]
-            .map(|(dx, dz)| DVec3::new(x + dx, 0.5, z + dz));
-        b.quad(c, DVec2::ZERO, DVec2::ONE, poster);
-    }
-    b.build()
-}
-
 /// The same view paged from an intact file and from a copy whose shared poster block has one flipped
 /// byte: the corrupt load is counted as a failure, the corrupt run draws part of the frame coarser
 /// (the poster's leaves fall back to an ancestor atlas) while the intact run converges to none, and both
@@ -52,20 +29,13 @@ fn corners() -> Scene {
 fn a_corrupt_shared_block_falls_back_to_the_ancestor_atlas(ctx: &GpuContext) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
     let good = dir.path().join("corners.atlastree");
-    let opts = BuildOptions {
-        d_min: DMin::Ratio(40.0),
-        atlas_size: 256,
-        max_file_bytes: 1 << 30,
-        leaf_originals_atlases: 0.0,
-        ..BuildOptions::default()
-    };
-    build(&corners(), &opts, &good, &NoProgress).map_err(e)?;
+    build(&corners(), &options(), &good, &NoProgress).map_err(e)?;
     let intact = TreeFile::open(&good).map_err(e)?;
     let t = intact.tree(0).ok_or("no tree 0")?;
     let shared = t
         .originals
         .iter()
-        .find(|o| o.material == 0)
+        .find(|o| o.material == POSTER)
         .map(|o| o.block)
         .ok_or("no poster original")?;
     let users = t.originals.iter().filter(|o| o.block == shared).count();
