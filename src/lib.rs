@@ -6,7 +6,7 @@
 //! ## Data flow
 //!
 //! ```text
-//! glTF ──scene::import──▶ Scene ──build::*──▶ AtlasForest (in memory) ──store::write──▶ .atlastree file
+//! glTF ──scene::import──▶ Scene ──preprocess──▶ model::AtlasForest  ──store::write──▶ .atlastree file
 //!                                                                                         │ memmap2
 //!  camera path ──▶ select (per frame cut) ──▶ paging (ideal block set, queue) ──▶ residency ─┤
 //!                         │                                                                 ▼
@@ -16,7 +16,10 @@
 //!
 //! - [`scene`]: glTF 2.0 import into a world-space triangle soup with f64 positions, materials, wrap modes,
 //!   alpha modes and lazily decoded images.
-//! - [`build`]: the preprocessor. Sizing (§5.2.1), required areas (§5.2.2) with repeats held as one period
+//! - [`model`]: the atlas-tree model every stage reads: forest, nodes, leaves, rects, vertex records, the
+//!   per-node texture transforms and the per-triangle sizing rule (§5.2.1). No stage imports the preprocessor
+//!   to read a tree.
+//! - [`preprocess`]: the preprocessor. Sizing (§5.2.1), required areas (§5.2.2) with repeats held as one period
 //!   per rect and wrapped in the shader (§8.2 future work; `--repeat bake` stores them as the paper does),
 //!   MaxRects packing (§5.2.3), splitting balanced by texel demand (§5.3 condition b), scaled leaves where
 //!   deeper atlases would only copy the originals, leaf atlas rasterisation in linear light with borders by
@@ -46,12 +49,13 @@
 //! - [`sim`]: paging-budget experiments without a GPU: the same paging session on a frame clock with an I/O
 //!   model; grids over capacity × bandwidth × latency × policy.
 
-pub mod build;
 pub mod camera;
 pub mod gpu;
 pub mod ids;
 pub mod inspect;
+pub mod model;
 pub mod paging;
+pub mod preprocess;
 pub mod render;
 pub mod report;
 pub mod scene;

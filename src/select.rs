@@ -18,9 +18,9 @@
 //! which "does not stop at missing nodes" and also classifies culled nodes, reuses the same visibility and
 //! distance code ([`evaluate`]) with a different visitor.
 
-use crate::build::tree::BuildParams;
 use crate::camera::{Camera, Frustum, PlaneMask, Visibility, distance_to_aabb};
 use crate::ids::{NONE, NodeId};
+use crate::model::BuildParams;
 use crate::store::format::NodeRecord;
 use glam::DVec3;
 use serde::Serialize;

@@ -15,7 +15,7 @@
 //! independent of the encoder, so round-trip tests check one against the other; the renderer uses it to
 //! decode blocks on load when the adapter lacks `TEXTURE_COMPRESSION_BC`.
 //!
-//! **Bleeding.** Packing aligns outer rectangles to 4 texels and the border is 8 texels ([`crate::build`]).
+//! **Bleeding.** Packing aligns outer rectangles to 4 texels and the border is 8 texels ([`crate::preprocess`]).
 //! At mip level L a rectangle's origin is aligned to `4/2^L` texels and its border is `8/2^L` wide, so:
 //! at levels 0 and 1 every 4×4 block that touches a texture's inner rectangle holds only that texture's
 //! texels (inner or border) — compressed texels there are exactly independent of the neighbours; from
@@ -30,7 +30,6 @@
 //! Errors are measured in the stored 8-bit sRGB values (the values the GPU filters after sRGB decode):
 //! `sse` sums squared differences over R, G, B (and A for trees with alpha) of every texel of every level.
 
-use crate::build::tree::TreeKind;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -49,7 +48,7 @@ pub enum TexFormat {
     Bc7,
 }
 
-/// What `build --compress` asks for; the format of each tree follows from its kind ([`Compression::format_for`]).
+/// What `build --compress` asks for; the format of each tree follows from its kind ([`crate::model::TreeKind::format`]).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
 pub enum Compression {
     /// RGBA8 everywhere.
@@ -73,12 +72,13 @@ impl Compression {
         }
     }
 
-    /// The storage format of a tree of `kind`.
-    pub fn format_for(self, kind: TreeKind) -> TexFormat {
-        match (self, kind) {
+    /// The storage format of a tree whose texels carry alpha (`alpha`) or not: BC1 asks for BC3 where alpha
+    /// is needed ([`crate::model::TreeKind::format`]).
+    pub fn format_for(self, alpha: bool) -> TexFormat {
+        match (self, alpha) {
             (Compression::None, _) => TexFormat::Rgba8,
-            (Compression::Bc1, TreeKind::Opaque) => TexFormat::Bc1,
-            (Compression::Bc1, TreeKind::Alpha) => TexFormat::Bc3,
+            (Compression::Bc1, false) => TexFormat::Bc1,
+            (Compression::Bc1, true) => TexFormat::Bc3,
             (Compression::Bc7, _) => TexFormat::Bc7,
         }
     }
@@ -195,14 +195,6 @@ pub struct Encoded {
     pub sse: u64,
     /// Number of compared values (texels × channels), the denominator of the MSE.
     pub samples: u64,
-}
-
-/// Channels compared for errors: RGB for opaque trees (alpha is always 255), RGBA for alpha trees.
-pub fn channels_for(kind: TreeKind) -> usize {
-    match kind {
-        TreeKind::Opaque => 3,
-        TreeKind::Alpha => 4,
-    }
 }
 
 /// PSNR in dB of a mean squared error of 8-bit values: `10 log10(255² / (sse / samples))`; infinite for a
@@ -442,7 +434,7 @@ mod tests {
         assert_eq!(TexFormat::Bc7.chain_bytes(8), (4 + 1 + 1 + 1) * 16);
         assert_eq!(
             TexFormat::Rgba8.chain_bytes(1024),
-            crate::build::tree::mip_chain_bytes(1024)
+            (0..=10).map(|l| (1u64 << (2 * l)) * 4).sum::<u64>()
         );
         // Level 0 of BC1 is 1/8 of RGBA8, BC7 1/4.
         assert_eq!(TexFormat::Bc1.level_bytes(1024) * 8, 1024 * 1024 * 4);

@@ -1,7 +1,7 @@
 //! Block compression (issue 9): encode/decode round trips on real textures with PSNR floors per format, and
 //! the no-bleeding property of compressed atlases (which mip levels a 4×4 block can mix two textures at).
 
-use atlastree::build::image_ops::{
+use atlastree::preprocess::image_ops::{
     LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, mip_chain_rgba8, neutral_fill,
     resample_square,
 };

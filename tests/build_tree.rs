@@ -3,8 +3,8 @@
 
 mod hard_util;
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::ids::NONE;
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::scene::synthetic::small_city;
 use atlastree::store::TreeFile;
 use glam::DVec3;
@@ -189,7 +189,7 @@ fn every_triangle_is_covered_exactly_once_even_when_split() {
     let out = dir.path().join("s.atlastree");
     // A small atlas forces the ground quad (and long walls) to be split when repeats are baked.
     let baked = BuildOptions {
-        repeat: atlastree::build::RepeatMode::Bake,
+        repeat: atlastree::preprocess::RepeatMode::Bake,
         ..opts(128)
     };
     let report = build(&scene, &baked, &out, &NoProgress).unwrap();

@@ -10,8 +10,8 @@
 
 mod hard_util;
 
-use atlastree::build::tree::TreeKind;
 use atlastree::ids::{BlockId, NONE};
+use atlastree::model::TreeKind;
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3};
@@ -168,15 +168,16 @@ fn opaque_materials_keep_the_colour_under_zero_alpha() {
     );
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("logo.atlastree");
-    let opts = atlastree::build::BuildOptions {
+    let opts = atlastree::preprocess::BuildOptions {
         // d_min small enough that the 32² source is capped: the rect holds it texel for texel.
-        d_min: atlastree::build::DMin::Ratio(200.0),
+        d_min: atlastree::preprocess::DMin::Ratio(200.0),
         atlas_size: 128,
         max_file_bytes: 1 << 30,
         ..Default::default()
     };
     let report =
-        atlastree::build::build(&b.build(), &opts, &out, &atlastree::build::NoProgress).unwrap();
+        atlastree::preprocess::build(&b.build(), &opts, &out, &atlastree::preprocess::NoProgress)
+            .unwrap();
     assert_eq!(report.images_alpha_ignored, 1);
     let f = atlastree::store::TreeFile::open(&out).unwrap();
     let t = f.tree(0).unwrap();

@@ -3,7 +3,7 @@
 //! Guards against: the paper's texture transform `fract(uv_root · 2^k)` in f32, which keeps only
 //! `24 − k − log2(atlas)` bits below a texel: at depth 20 in a 1024 atlas it is off by tens of texels, at
 //! depth 24 by the whole atlas. We store leaf-local atlas UVs plus the integer cell and do one exact
-//! power-of-two scale and one rounding (`build::transform`). Also guards against seams: the children of
+//! power-of-two scale and one rounding (`model::transform`). Also guards against seams: the children of
 //! every node must tile its atlas square exactly (no gap, no overlap) at every level down to 24, and
 //! against a depth cap that is not enforced.
 //!
@@ -15,10 +15,10 @@
 
 mod hard_util;
 
-use atlastree::build::BuildError;
-use atlastree::build::layout::LayoutError;
-use atlastree::build::transform::{atlas_uv_at, atlas_uv_at_f32, atlas_uv_naive_f32};
 use atlastree::ids::{Cell, Level, NONE};
+use atlastree::model::transform::{atlas_uv_at, atlas_uv_at_f32, atlas_uv_naive_f32};
+use atlastree::preprocess::BuildError;
+use atlastree::preprocess::layout::LayoutError;
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3, Vec2};
@@ -83,7 +83,7 @@ fn depth_22_builds_verifies_and_the_depth_cap_is_enforced() {
     );
 
     // --max-depth is respected: the same scene with a cap of 21 is refused, naming the region and cap.
-    let o = atlastree::build::BuildOptions {
+    let o = atlastree::preprocess::BuildOptions {
         max_depth: 21,
         ..tiny_opts(64, D_MIN)
     };

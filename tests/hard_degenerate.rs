@@ -4,13 +4,13 @@
 //! Guards against: the §5.2.1 estimate done naively, `|P_T(Tex_T⁻¹(e_k))|` with an unguarded 2×2 inverse.
 //! For a UV triangle of relative area 1e-12 the inverse is ~1e12, so a 10 m triangle "needs" ~1e13 texels
 //! per repetition (measured below): an absurd texture that no atlas holds, and (paper) a split that never
-//! ends. Ours (`build::sizing::texels_per_uv`) falls back to the paper's edge estimate for ill-conditioned
+//! ends. Ours (`model::sizing::texels_per_uv`) falls back to the paper's edge estimate for ill-conditioned
 //! UVs, flags point UVs, ignores zero-area world triangles, and always returns finite sizes; the tree
 //! builds and verifies, and no atlas area exceeds what the triangles' world size asks for.
 
 mod hard_util;
 
-use atlastree::build::sizing::{SizeMethod, texels_per_uv};
+use atlastree::model::sizing::{SizeMethod, texels_per_uv};
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3};
@@ -135,10 +135,10 @@ fn degenerate_scene_builds_and_verifies() {
     let s = scene();
     // Large d_min: nothing is split. Small d_min without the source cap: the large ones are tessellated.
     for (d_min, cap) in [(500.0, true), (200.0, false)] {
-        let o = atlastree::build::BuildOptions {
+        let o = atlastree::preprocess::BuildOptions {
             cap_to_source: cap,
             // The baked tree: big triangles are tessellated, never scaled.
-            repeat: atlastree::build::RepeatMode::Bake,
+            repeat: atlastree::preprocess::RepeatMode::Bake,
             ..tiny_opts(128, d_min)
         };
         let built = build_ok(&s, &o);

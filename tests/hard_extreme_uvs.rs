@@ -11,8 +11,9 @@
 
 mod hard_util;
 
-use atlastree::build::sizing::{SizeMethod, analyze_sizing, texels_per_uv};
 use atlastree::ids::MaterialId;
+use atlastree::model::sizing::{SizeMethod, texels_per_uv};
+use atlastree::preprocess::sizing::analyze_sizing;
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3};
@@ -141,7 +142,7 @@ const D_MIN: f64 = 200.0;
 #[test]
 fn sizing_stays_finite_and_uses_the_expected_method() {
     let c = scene(true);
-    let p = atlastree::build::resolve_params(&c.scene, &tiny_opts(128, D_MIN))
+    let p = atlastree::preprocess::resolve_params(&c.scene, &tiny_opts(128, D_MIN))
         .unwrap()
         .0;
     let f = p.f_proj();
@@ -277,8 +278,8 @@ fn repeats_cost_texels_by_world_size_only() {
         m,
     );
     let scene = b.build();
-    let baked = atlastree::build::BuildOptions {
-        repeat: atlastree::build::RepeatMode::Bake,
+    let baked = atlastree::preprocess::BuildOptions {
+        repeat: atlastree::preprocess::RepeatMode::Bake,
         ..tiny_opts(256, 2000.0)
     };
     let built = build_ok(&scene, &baked);

@@ -31,9 +31,9 @@ fn translated(scene: &Scene, by: DVec3) -> Scene {
     s
 }
 
-fn opts() -> atlastree::build::BuildOptions {
-    atlastree::build::BuildOptions {
-        d_min: atlastree::build::DMin::Ratio(20.0),
+fn opts() -> atlastree::preprocess::BuildOptions {
+    atlastree::preprocess::BuildOptions {
+        d_min: atlastree::preprocess::DMin::Ratio(20.0),
         ..tiny_opts(128, 1.0)
     }
 }
@@ -180,7 +180,7 @@ fn f32_absolute_positions_lose_half_a_metre_at_1e7() {
     // Larger atlases: fewer split triangles, so most stored corners are scene corners.
     let built = build_ok(
         &scene,
-        &atlastree::build::BuildOptions {
+        &atlastree::preprocess::BuildOptions {
             atlas_size: 512,
             ..opts()
         },

@@ -11,9 +11,9 @@
 
 mod hard_util;
 
-use atlastree::build::BuildError;
-use atlastree::build::BuildOptions;
-use atlastree::build::prepare::{PrepareOptions, prepare};
+use atlastree::preprocess::BuildError;
+use atlastree::preprocess::BuildOptions;
+use atlastree::preprocess::prepare::{PrepareOptions, prepare};
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3};
@@ -42,7 +42,7 @@ fn big_opts(max_pieces: u32) -> BuildOptions {
         cap_to_source: false,
         max_pieces,
         // Tessellation and clamping are what baked repeats need (wrapped: one period, 100 texels).
-        repeat: atlastree::build::RepeatMode::Bake,
+        repeat: atlastree::preprocess::RepeatMode::Bake,
         ..tiny_opts(128, 69.3)
     }
 }
@@ -206,7 +206,7 @@ fn a_point_footprint_terminates_and_a_point_scene_is_refused() {
     for eps in [0.0, 1e-9] {
         let scene = vertical_at_one_spot(300, eps);
         let o = BuildOptions {
-            d_min: atlastree::build::DMin::Ratio(20.0),
+            d_min: atlastree::preprocess::DMin::Ratio(20.0),
             ..tiny_opts(64, 1.0)
         };
         let built = build_ok(&scene, &o);
@@ -232,7 +232,7 @@ fn a_point_footprint_terminates_and_a_point_scene_is_refused() {
     }
     let point = b.build();
     let o = BuildOptions {
-        d_min: atlastree::build::DMin::Ratio(20.0),
+        d_min: atlastree::preprocess::DMin::Ratio(20.0),
         ..tiny_opts(64, 1.0)
     };
     let Err((_, e)) = try_build(&point, &o) else {

@@ -11,9 +11,9 @@
 
 mod hard_util;
 
-use atlastree::build::BuildOptions;
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::NONE;
+use atlastree::preprocess::BuildOptions;
 use atlastree::scene::synthetic::small_city;
 use atlastree::select::{Cut, SelectOptions, Source, min_distance_scale, select};
 use atlastree::store::TreeView;

@@ -22,8 +22,8 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 
 fn city() -> Built {
-    let o = atlastree::build::BuildOptions {
-        d_min: atlastree::build::DMin::Ratio(20.0),
+    let o = atlastree::preprocess::BuildOptions {
+        d_min: atlastree::preprocess::DMin::Ratio(20.0),
         ..tiny_opts(128, 1.0)
     };
     let b = build_ok(&small_city(3, 32), &o);

@@ -6,10 +6,10 @@
 
 mod http_util;
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::ids::BlockId;
 use atlastree::paging::http::serve;
 use atlastree::paging::{BlockSource, HttpOptions, HttpSource, SourceError};
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::scene::synthetic::small_city;
 use atlastree::store::format::HEADER_SIZE;
 use atlastree::store::{StoreError, TreeFile};

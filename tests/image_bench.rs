@@ -1,7 +1,7 @@
 //! Throughput of the image operations (ignored by default; run with
 //! `cargo test --test image_bench -- --ignored --nocapture`). Asserts only that the work was done.
 
-use atlastree::build::image_ops::{
+use atlastree::preprocess::image_ops::{
     LinearImage, MipChain, RectJob, draw_rect, halve, mip_chain_rgba8,
 };
 use atlastree::scene::Wrap;

@@ -1,13 +1,13 @@
-//! Integration tests of `build::image_ops` (issue 8, case 8): linear-light filtering, sRGB exactness,
+//! Integration tests of `preprocess::image_ops` (issue 8, case 8): linear-light filtering, sRGB exactness,
 //! premultiplied alpha, minification, wrap modes, huge UVs, border continuation, quadrant combine.
 
-use atlastree::build::image_ops::{
+use atlastree::preprocess::image_ops::{
     ImageOpsError, LinearImage, MipChain, RectJob, combine_quadrants, draw_rect, halve,
     linear_to_srgb8, mip_chain_rgba8, neutral_fill, resample_square, sample_footprint,
     srgb8_to_linear,
 };
-use atlastree::build::tree::mip_chain_bytes;
 use atlastree::scene::{DecodedImage, Wrap};
+use atlastree::texfmt::TexFormat as MipFormat;
 use glam::DVec2;
 
 /// Deterministic xorshift64 bytes.
@@ -402,8 +402,8 @@ fn draw_rect_border_continues_the_texture() {
                     assert_eq!(got, [9.0; 4], "texel ({x}, {y}) outside outer was written");
                     continue;
                 }
-                let sx = atlastree::build::image_ops::wrap_index(x as i64 - 11 + 4, 16, wrap);
-                let sy = atlastree::build::image_ops::wrap_index(y as i64 - 13 + 4, 16, wrap);
+                let sx = atlastree::preprocess::image_ops::wrap_index(x as i64 - 11 + 4, 16, wrap);
+                let sy = atlastree::preprocess::image_ops::wrap_index(y as i64 - 13 + 4, 16, wrap);
                 let want = lin.get(sx, sy).unwrap();
                 for c in 0..4 {
                     assert!(
@@ -547,7 +547,11 @@ fn mip_chain_rgba8_length_matches_block_size() {
     for size in [1u32, 2, 4, 64, 256] {
         let base = LinearImage::new_filled(size, size, [0.2, 0.2, 0.2, 1.0]);
         let bytes = mip_chain_rgba8(&base);
-        assert_eq!(bytes.len() as u64, mip_chain_bytes(size), "size {size}");
+        assert_eq!(
+            bytes.len() as u64,
+            MipFormat::Rgba8.chain_bytes(size),
+            "size {size}"
+        );
         // The 1×1 tail is the image's mean.
         let last = &bytes[bytes.len() - 4..];
         assert_eq!(

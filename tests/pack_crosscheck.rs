@@ -1,7 +1,7 @@
-//! Cross-check of `build::pack` against the `crunch` packer (crates.io) on random rectangle sets, and the
+//! Cross-check of `preprocess::pack` against the `crunch` packer (crates.io) on random rectangle sets, and the
 //! occupancy both reach. Run with `--nocapture` to see the numbers.
 
-use atlastree::build::pack::{PackOptions, pack, verify_packing};
+use atlastree::preprocess::pack::{PackOptions, pack, verify_packing};
 
 /// SplitMix64: deterministic, dependency-free.
 struct Rng(u64);

@@ -1,7 +1,7 @@
 //! Packing time for 50, 500 and 2,000 rectangles (ignored by default: timing, not correctness).
 //! `cargo test --test pack_timing -- --ignored --nocapture`
 
-use atlastree::build::pack::{PackFailure, PackOptions, SortOrder, pack, verify_packing};
+use atlastree::preprocess::pack::{PackFailure, PackOptions, SortOrder, pack, verify_packing};
 use std::time::{Duration, Instant};
 
 struct Rng(u64);

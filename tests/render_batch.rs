@@ -3,9 +3,9 @@
 //! numbers the node records, passes partition the records, leaf ranges are the subtrees' leaves, and leaf
 //! offsets are `origin − eye` for exactly the leaves under the cut.
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::camera::CameraPath;
 use atlastree::ids::NONE;
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::render::batch::{
     AtlasSlot, BatchOptions, FrameBatch, Group, LeafOffsets, Pass, leaf_ranges,
 };

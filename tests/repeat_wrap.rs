@@ -5,12 +5,12 @@
 
 mod hard_util;
 
-use atlastree::build::image_ops::{
+use atlastree::ids::MaterialId;
+use atlastree::model::{AtlasRect, RectWrap};
+use atlastree::preprocess::image_ops::{
     LinearImage, MipChain, RectJob, draw_rect, neutral_fill, sample_footprint,
 };
-use atlastree::build::tree::{AtlasRect, RectWrap};
-use atlastree::build::{BuildOptions, DMin};
-use atlastree::ids::MaterialId;
+use atlastree::preprocess::{BuildOptions, DMin};
 use atlastree::render::batch::RectMap;
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, DecodedImage, Scene, UpAxis, Wrap};
@@ -280,8 +280,14 @@ fn the_split_balances_texel_demand_not_world_area() {
         }
         plates
     };
-    let demand = build_ok(&scene, &opts(atlastree::build::layout::SplitRule::Demand));
-    let area = build_ok(&scene, &opts(atlastree::build::layout::SplitRule::Area));
+    let demand = build_ok(
+        &scene,
+        &opts(atlastree::preprocess::layout::SplitRule::Demand),
+    );
+    let area = build_ok(
+        &scene,
+        &opts(atlastree::preprocess::layout::SplitRule::Area),
+    );
     assert_sound(&demand.file);
     assert_sound(&area.file);
     let (d, a) = (plates_beside_tiles(&demand), plates_beside_tiles(&area));

@@ -5,11 +5,11 @@
 #[path = "fixtures/corners.rs"]
 mod fixtures;
 
-use atlastree::build::{NoProgress, build};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::NodeId;
 use atlastree::paging::usage::{UsageScratch, classify};
 use atlastree::paging::{BlockTable, Event, Usage, ViewInput};
+use atlastree::preprocess::{NoProgress, build};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::sim::{SimInput, simulate_with};
 use atlastree::store::TreeFile;

@@ -3,9 +3,9 @@
 //! monotonicity of the mean coarser share in capacity and bandwidth under the paper's policy, and the
 //! I/O model's timing on a hand-computed case.
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::paging::{Event, Policy, UploadBudget};
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::sim::grid::{GridSpec, run_grid, write_csvs};
 use atlastree::sim::{SimInput, simulate_with};

@@ -1,11 +1,11 @@
 //! Paging file: write a synthetic forest from many threads, read it back (mmap, read, in-memory) and compare
 //! every table and block; reject truncation and corruption with errors, never panics; atomic publication.
 
-use atlastree::build::tree::{
+use atlastree::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NodeId};
+use atlastree::model::{
     AtlasForest, AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef,
     RectWrap, TreeKind, TreeVertex,
 };
-use atlastree::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NodeId};
 use atlastree::scene::{AlphaMode, Material, UpAxis, Wrap};
 use atlastree::store::format::{HEADER_SIZE, Header, NodeRecord, Section};
 use atlastree::store::{FileWriter, LoadMode, StoreError, TreeFile};

@@ -2,8 +2,8 @@
 //! front and the recommendation (pure functions on hand-made rows), and the build's `mip_filter` knob
 //! (Kaiser changes texels, never the layout). The GPU run of the small grid is `tests/gpu/sweep.rs`.
 
-use atlastree::build::image_ops::MipFilter;
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
+use atlastree::preprocess::image_ops::MipFilter;
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::report::metrics::Histogram;
 use atlastree::sweep::grid::{BuildKnobs, Grid, RuntimeKnobs};
 use atlastree::sweep::run::{BuildRow, FrameRow, SweepData, merge_histogram};

@@ -1,6 +1,6 @@
 use super::{UpArg, load_scene, progress::Bars};
 use anyhow::Context;
-use atlastree::build::{BuildOptions, BuildReport, DMin, build};
+use atlastree::preprocess::{BuildOptions, BuildReport, DMin, build};
 use atlastree::texfmt::Compression;
 use atlastree::util::human_bytes;
 use clap::Args;
@@ -44,7 +44,7 @@ pub struct BuildArgs {
     /// Down-sampling kernel of the atlas mip chains and inner atlases: `box` (2×2 mean) or `kaiser`
     /// (Kaiser-windowed sinc, sharper, slight clamped ringing). Original textures always use `box`.
     #[arg(long, default_value = "box")]
-    pub filter: atlastree::build::image_ops::MipFilter,
+    pub filter: atlastree::preprocess::image_ops::MipFilter,
     /// Maximum tree depth; a region that needs more is an error naming it.
     #[arg(long, default_value_t = 24)]
     pub max_depth: u8,
@@ -73,7 +73,7 @@ pub struct BuildArgs {
     /// often a texture repeats. `bake`: every repetition the UVs span is copied into the atlas and big
     /// triangles are cut into pieces (the paper's §5.2.2; the sweep's reference for what wrapping costs).
     #[arg(long, default_value = "wrap")]
-    pub repeat: atlastree::build::RepeatMode,
+    pub repeat: atlastree::preprocess::RepeatMode,
     /// A node that does not fit one atlas is not split when its original textures need at most this many
     /// atlases' worth of texels: it becomes a leaf whose atlas holds its content scaled to fit
     /// (min_distance raised by that scale), and nearer than that its original textures are drawn. Deeper
@@ -86,7 +86,7 @@ pub struct BuildArgs {
     /// halves' textures need (the paper's condition b itself: a texture shared by many triangles or
     /// repeated counts once), or `area`, their summed world area (the paper's approximation).
     #[arg(long, default_value = "demand")]
-    pub split: atlastree::build::layout::SplitRule,
+    pub split: atlastree::preprocess::layout::SplitRule,
     /// Build the tree over the triangles of these materials only (comma-separated glob patterns on glTF
     /// material names, `*` and `?`), e.g. `--materials 'facade_*'` for the paper's Berlin test, whose atlas
     /// tree held only the facades (§7). d_min ratios then refer to the kept geometry's diagonal.

@@ -1,6 +1,6 @@
 use super::{UpArg, build_cmd, inspect_cmd, load_scene, progress::Bars, render_cmd, simulate_cmd};
 use anyhow::Context;
-use atlastree::build::{BuildOptions, DMin, build};
+use atlastree::preprocess::{BuildOptions, DMin, build};
 use clap::Args;
 use std::path::PathBuf;
 use std::process::ExitCode;

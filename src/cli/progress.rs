@@ -1,4 +1,4 @@
-//! indicatif progress bars for the library's [`atlastree::build::Progress`].
+//! indicatif progress bars for the library's [`atlastree::preprocess::Progress`].
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::sync::Mutex;
@@ -19,7 +19,7 @@ impl Bars {
     }
 }
 
-impl atlastree::build::Progress for Bars {
+impl atlastree::preprocess::Progress for Bars {
     fn stage(&self, name: &str, total: Option<u64>) {
         let pb = match total {
             Some(t) => ProgressBar::new(t).with_style(

@@ -321,7 +321,7 @@ impl ModeRun {
 /// `min_distance` scale for the run-time width, texel ratio and the camera's field of view.
 fn scale_of(
     a: &RenderArgs,
-    params: &atlastree::build::tree::BuildParams,
+    params: &atlastree::model::BuildParams,
     cam: &Camera,
 ) -> anyhow::Result<f64> {
     Ok(min_distance_scale(

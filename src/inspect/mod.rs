@@ -1,11 +1,11 @@
 //! `inspect`: what a paging file holds, per tree and level, what the build enabled and why; and `verify`:
 //! every checksum and every structural invariant of the tree (paper §3, §5.1), each violation named.
 
-use crate::build::tree::{BuildParams, TreeKind};
 use crate::ids::NONE;
+use crate::model::{BuildParams, TreeKind};
 use crate::scene::{AlphaMode, Wrap};
 use crate::store::{StoreError, TreeFile};
-use crate::texfmt::{TexFormat, channels_for, psnr};
+use crate::texfmt::{TexFormat, psnr};
 use serde::Serialize;
 use std::collections::BTreeSet;
 
@@ -65,7 +65,7 @@ pub struct TreeInfo {
 /// Values compared per stored atlas of a tree of `kind` (texels of the full chain × channels): the
 /// denominator of its recorded error ([`crate::store::format::BlockRecord::sse`]).
 pub fn atlas_samples(kind: TreeKind, atlas_size: u32) -> u64 {
-    TexFormat::Rgba8.chain_bytes(atlas_size) / 4 * channels_for(kind) as u64
+    TexFormat::Rgba8.chain_bytes(atlas_size) / 4 * kind.channels() as u64
 }
 
 /// What `atlastree inspect` prints.
@@ -136,7 +136,7 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
         let original_samples: u64 = t
             .originals
             .iter()
-            .map(|o| TexFormat::Rgba8.chain_bytes(o.class_size) / 4 * channels_for(t.kind) as u64)
+            .map(|o| TexFormat::Rgba8.chain_bytes(o.class_size) / 4 * t.kind.channels() as u64)
             .sum();
         trees.push(TreeInfo {
             kind: t.kind,
@@ -336,7 +336,7 @@ fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyRepo
             continue;
         }
         let samples = atlas_samples(t.kind, size);
-        let channels = channels_for(t.kind);
+        let channels = t.kind.channels();
         for (ni, n) in t.nodes.iter().enumerate() {
             let Some(b) = file.blocks().get(n.atlas_block as usize) else {
                 continue;

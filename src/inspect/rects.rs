@@ -7,10 +7,10 @@
 //! texture would show.
 
 use super::VerifyReport;
-use crate::build::cover::mirror_image;
-use crate::build::sizing::{SizeMethod, texels_per_uv};
-use crate::build::transform::rect_t;
-use crate::build::tree::{BuildParams, RectWrap};
+use crate::model::sizing::{SizeMethod, texels_per_uv};
+use crate::model::transform::mirror_image;
+use crate::model::transform::rect_t;
+use crate::model::{BuildParams, RectWrap};
 use crate::store::format::{LeafRecord, RectRecord};
 use crate::store::{TreeFile, TreeView};
 use crate::texfmt::TexFormat;

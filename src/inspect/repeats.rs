@@ -8,7 +8,7 @@
 //! all levels are `A · Σ_{k=0..=level} 4^−k`. Texel counts here are level-0 texels of a mip chain (a
 //! chain is 4/3 of that); bytes follow from the tree's format.
 
-use crate::build::tree::RectWrap;
+use crate::model::RectWrap;
 use crate::store::TreeFile;
 use crate::store::format::RectRecord;
 use serde::Serialize;

@@ -16,9 +16,9 @@
 //! Record `i` of the indirect buffer has `first_instance = i`: the vertex shader reads `records[i]` through
 //! `instance_index`.
 
-use crate::build::transform::half_gap;
-use crate::build::tree::{AtlasRect, RectWrap, TreeVertex};
 use crate::ids::NONE;
+use crate::model::transform::half_gap;
+use crate::model::{AtlasRect, RectWrap, TreeVertex};
 use crate::paging::Resolved;
 use crate::scene::AlphaMode;
 use crate::select::{Cut, Source};
@@ -86,7 +86,7 @@ const _: () = assert!(size_of::<LeafGpu>() == 32);
 /// How a fragment's original UV reaches its texture's rect in its leaf's atlas (DESIGN.md "Repeats"): the
 /// rect's per-axis wrap ([`RectWrap`]), then the linear map onto the inner rectangle, kept inside the
 /// outer rectangle by the filter footprint. WGSL twin: `RectMap` in `shaders/tree.wgsl`;
-/// [`RectMap::texel_f32`] is the shader's arithmetic on the CPU, [`crate::build::transform::rect_texel`]
+/// [`RectMap::texel_f32`] is the shader's arithmetic on the CPU, [`crate::model::transform::rect_texel`]
 /// its f64 reference. All lengths in leaf-atlas texels.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 #[repr(C)]
@@ -97,7 +97,7 @@ pub struct RectMap {
     pub texels_per_uv: [f32; 2],
     /// Low corner of the inner rectangle.
     pub inner_lo: [f32; 2],
-    /// REPEAT axes: half the part of the period the rect does not hold ([`crate::build::transform::half_gap`]).
+    /// REPEAT axes: half the part of the period the rect does not hold ([`crate::model::transform::half_gap`]).
     pub half_gap: [f32; 2],
     /// The outer rectangle (border included).
     pub outer_lo: [f32; 2],

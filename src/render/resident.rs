@@ -15,9 +15,9 @@ use super::textures::{
     CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index, common_format, gpu_format,
     texels_for_upload,
 };
-use crate::build::tree::TreeVertex;
 use crate::gpu::GpuContext;
 use crate::ids::{BlockId, NONE, NodeId};
+use crate::model::TreeVertex;
 use crate::paging::{BlockTable, Event};
 use crate::scene::{AlphaMode, Wrap};
 use crate::store::format::{MaterialRecord, OriginalRecord};
@@ -129,7 +129,7 @@ fn passes_and_cutoffs(
     ranges: &[(u32, u32)],
 ) -> (Vec<Pass>, Vec<f32>) {
     let n = view.nodes.len();
-    if view.kind == crate::build::tree::TreeKind::Opaque {
+    if view.kind == crate::model::TreeKind::Opaque {
         return (vec![Pass::Opaque; n], vec![0.5; n]);
     }
     let per_leaf: Vec<(bool, f32)> = view
@@ -531,7 +531,7 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
     let mut unique_of: HashMap<(u32, u32), u32> = HashMap::new();
     for t in 0..file.trees() {
         let view = file.tree(t).ok_or(RenderError::MissingTree { tree: t })?;
-        if view.kind == crate::build::tree::TreeKind::Alpha {
+        if view.kind == crate::model::TreeKind::Alpha {
             g.has_alpha = true;
         }
         let offsets = slot_offsets(view.originals, view.format());

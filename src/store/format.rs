@@ -27,11 +27,11 @@
 //! Every record has explicit padding fields (bytemuck's derive rejects implicit padding) and a const-asserted
 //! size, so a change of layout is a compile error, not a silent format change.
 
-use crate::build::tree::{
+use crate::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NONE, NodeId};
+use crate::model::{
     AtlasRect, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, RectWrap, TreeKind,
     TreeVertex,
 };
-use crate::ids::{BlockId, Cell, ImageId, LeafId, Level, MaterialId, NONE, NodeId};
 use crate::scene::{AlphaMode, Material, UpAxis, Wrap};
 use crate::texfmt::TexFormat;
 use bytemuck::{Pod, Zeroable};

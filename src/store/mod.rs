@@ -8,7 +8,7 @@
 //!   and publishes the file atomically (temp file in the same directory, fsync, rename).
 //! - [`TreeFile`]: maps (or reads) and validates a file, then hands out slices in place.
 //!
-//! [`AtlasForest`]: crate::build::tree::AtlasForest
+//! [`AtlasForest`]: crate::model::AtlasForest
 
 pub mod format;
 mod read;

@@ -8,8 +8,8 @@ use super::format::{
 };
 use super::validate::{self, TreeCounts, TreeTables};
 use super::{StoreError, check_endian};
-use crate::build::tree::{AtlasForest, AtlasTree, BuildParams, TreeKind, TreeVertex};
 use crate::ids::BlockId;
+use crate::model::{AtlasForest, AtlasTree, BuildParams, TreeKind, TreeVertex};
 use crate::scene::Material;
 use bytemuck::Pod;
 use rayon::prelude::*;

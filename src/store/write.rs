@@ -8,8 +8,8 @@ use super::format::{
 };
 use super::validate::{self, TreeCounts, TreeTables};
 use super::{StoreError, check_endian};
-use crate::build::tree::{AtlasForest, AtlasTree};
 use crate::ids::BlockId;
+use crate::model::{AtlasForest, AtlasTree};
 use bytemuck::Zeroable;
 use std::fs::File;
 use std::path::{Path, PathBuf};

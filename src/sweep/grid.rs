@@ -15,8 +15,8 @@
 //!   not `none`, so uncompressed ids stay as they were.
 
 use super::SweepError;
-use crate::build::image_ops::MipFilter;
-use crate::build::{BuildOptions, DMin, RepeatMode};
+use crate::preprocess::image_ops::MipFilter;
+use crate::preprocess::{BuildOptions, DMin, RepeatMode};
 use crate::texfmt::Compression;
 use serde::{Deserialize, Serialize};
 
@@ -408,7 +408,7 @@ impl Grid {
 
 /// serde of a [`MipFilter`] as its lower-case name.
 mod filter_name {
-    use crate::build::image_ops::MipFilter;
+    use crate::preprocess::image_ops::MipFilter;
     use serde::{Deserialize, Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(f: &MipFilter, s: S) -> Result<S::Ok, S::Error> {
@@ -422,7 +422,7 @@ mod filter_name {
 
 /// serde of a list of [`MipFilter`]s as lower-case names.
 mod filter_names {
-    use crate::build::image_ops::MipFilter;
+    use crate::preprocess::image_ops::MipFilter;
     use serde::{Deserialize, Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(f: &[MipFilter], s: S) -> Result<S::Ok, S::Error> {
@@ -438,7 +438,7 @@ mod filter_names {
 
 /// serde of a [`RepeatMode`] as its lower-case name.
 mod repeat_name {
-    use crate::build::RepeatMode;
+    use crate::preprocess::RepeatMode;
     use serde::{Deserialize, Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(r: &RepeatMode, s: S) -> Result<S::Ok, S::Error> {
@@ -452,7 +452,7 @@ mod repeat_name {
 
 /// serde of a list of [`RepeatMode`]s as lower-case names.
 mod repeat_names {
-    use crate::build::RepeatMode;
+    use crate::preprocess::RepeatMode;
     use serde::{Deserialize, Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(r: &[RepeatMode], s: S) -> Result<S::Ok, S::Error> {

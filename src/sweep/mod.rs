@@ -27,8 +27,8 @@ pub mod summary;
 pub use grid::{BuildKnobs, Grid, Plan, RuntimeKnobs};
 pub use run::{BuildRow, FrameRow, SweepData, SweepOptions, SweepProgress, run_sweep};
 
-use crate::build::BuildError;
 use crate::camera::CameraError;
+use crate::preprocess::BuildError;
 use crate::render::RenderError;
 use crate::report::ReportError;
 use crate::select::SelectError;

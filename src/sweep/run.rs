@@ -3,10 +3,10 @@
 
 use super::SweepError;
 use super::grid::{BuildKnobs, Plan, PlannedBuild, RuntimeKnobs, variant_id};
-use crate::build::{NoProgress, build};
 use crate::camera::{Camera, CameraPath};
 use crate::gpu::{GpuContext, GpuError};
 use crate::paging::{FileSource, PagerOptions};
+use crate::preprocess::{NoProgress, build};
 use crate::render::{FrameStats, Mode, PagingSetup, RenderError, Renderer, RendererOptions};
 use crate::report::metrics::{Histogram, magnified_share, min_density, psnr, psnr_masked, ssim};
 use crate::scene::Scene;
@@ -92,7 +92,7 @@ pub struct BuildRow {
     pub depth: u8,
     pub blocks: u64,
     /// Seconds per stage (`sizing Opaque`, `layout Opaque`, `assemble Opaque`, …, `rasterise`, `write`),
-    /// as [`crate::build::BuildReport::timings`] without `total`.
+    /// as [`crate::preprocess::BuildReport::timings`] without `total`.
     pub stage_s: Vec<(String, f64)>,
     /// Wall time of the whole build, seconds.
     pub build_s: f64,

@@ -4,9 +4,9 @@
 //! drawn in the blend pipeline (no depth write), so without a depth pre-pass its MASK quads would be
 //! ordered by submission instead of depth (on a real track, far corn plants painted over near ones).
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::camera::Camera;
 use atlastree::gpu::GpuContext;
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::render::Mode;
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};

@@ -12,8 +12,8 @@
 //!   (measured: a few alpha-tested pixels of a grazing MASK edge flip, 37.8 dB in the worst view), not
 //!   a decoding difference (the CPU-decoded frames are closer to the uncompressed ones than the GPU's).
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::gpu::{GpuContext, GpuFeatures};
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::render::{Mode, Renderer, RendererOptions};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::store::TreeFile;

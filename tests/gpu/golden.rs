@@ -359,7 +359,7 @@ fn wrapped_ground() -> atlastree::scene::Scene {
 /// the other goldens) and against the original textures (≥ 35 dB). Missing golden or `ATLASTREE_BLESS=1`:
 /// writes it and fails.
 fn wrapped_ground_matches_its_golden_and_the_originals(ctx: &GpuContext) -> Result<(), String> {
-    use atlastree::build::{BuildOptions, DMin, NoProgress, build};
+    use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
     let dir = tempfile::tempdir().map_err(e)?;
     let out = dir.path().join("ground.atlastree");
     let opts = BuildOptions {

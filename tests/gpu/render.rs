@@ -8,9 +8,9 @@
 //!
 //! Frames are 320×240: lavapipe's cost is per triangle and per pixel.
 
-use atlastree::build::{BuildOptions, DMin, NoProgress, build};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::gpu::GpuContext;
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::render::batch::{Group, Pass};
 use atlastree::render::{FrameStats, Mode, Renderer, RendererOptions};
 use atlastree::scene::Scene;
@@ -261,7 +261,7 @@ fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
 /// Levels of the atlas items of `r`'s last cut whose triangles cross a wrap seam: some triangle of the
 /// item's subtree spans more UV than its rect holds on a REPEAT axis.
 fn seam_levels(r: &Renderer<'_>, file: &TreeFile) -> std::collections::BTreeSet<u8> {
-    use atlastree::build::tree::RectWrap;
+    use atlastree::model::RectWrap;
     let mut levels = std::collections::BTreeSet::new();
     for (t, cut) in r.cuts().iter().enumerate() {
         let Some(view) = file.tree(t) else { continue };

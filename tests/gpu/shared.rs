@@ -1,10 +1,10 @@
 //! Shared original-texture blocks on the GPU (issue 17): a corrupt shared block is refused on load
 //! (counted), the leaves that need it are drawn with their ancestor atlas, and nothing goes missing.
 
-use atlastree::build::{NoProgress, build};
 use atlastree::camera::Camera;
 use atlastree::gpu::GpuContext;
 use atlastree::paging::{FileSource, UploadBudget};
+use atlastree::preprocess::{NoProgress, build};
 use atlastree::render::Mode;
 use atlastree::store::TreeFile;
 use glam::DVec3;

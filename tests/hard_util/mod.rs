@@ -3,10 +3,10 @@
 //! tests/build_tree.rs, and the cut invariants on a real tree.
 #![allow(dead_code)]
 
-use atlastree::build::tree::{BuildParams, TreeVertex};
-use atlastree::build::{BuildError, BuildOptions, BuildReport, DMin, NoProgress, build};
 use atlastree::camera::{Camera, Visibility};
 use atlastree::ids::NONE;
+use atlastree::model::{BuildParams, TreeVertex};
+use atlastree::preprocess::{BuildError, BuildOptions, BuildReport, DMin, NoProgress, build};
 use atlastree::scene::Scene;
 use atlastree::select::Cut;
 use atlastree::store::TreeFile;
@@ -34,7 +34,7 @@ pub fn tiny_opts(atlas: u32, d_min: f64) -> BuildOptions {
         // These hard cases are about the paper's tree: every node that does not fit is split, where the
         // summed world area is halved (§5.3).
         leaf_originals_atlases: 0.0,
-        split: atlastree::build::layout::SplitRule::Area,
+        split: atlastree::preprocess::layout::SplitRule::Area,
         ..BuildOptions::default()
     }
 }

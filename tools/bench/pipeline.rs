@@ -1,8 +1,8 @@
 //! `cargo bench --bench pipeline`: the hot paths of the build and of a frame, each with its throughput
 //! (criterion prints elements/s next to the time):
 //!
-//! - `sizing`: per-triangle sizing of data/city (paper §5.2.1, `build::prepare::prepare`), triangles/s;
-//! - `packing`: MaxRects packing of 200 rects (8–60 texels a side) into one 1024² atlas (§5.2.3, `build::pack::pack`), rects/s;
+//! - `sizing`: per-triangle sizing of data/city (paper §5.2.1, `preprocess::prepare::prepare`), triangles/s;
+//! - `packing`: MaxRects packing of 200 rects (8–60 texels a side) into one 1024² atlas (§5.2.3, `preprocess::pack::pack`), rects/s;
 //! - `raster`: one 256² packed area of a leaf atlas drawn from a 512² source mip chain
 //!   (`image_ops::draw_rect`, minification-correct footprint sampling), texels/s;
 //! - `downsample`: one 1024² → 512² mip level, box and Kaiser (`image_ops::downsample`), source texels/s;
@@ -13,16 +13,16 @@
 #[path = "../../tests/select_util/mod.rs"]
 mod select_util;
 
-use atlastree::build::image_ops::{
-    LinearImage, MipChain, MipFilter, MipOptions, RectJob, downsample, draw_rect,
-};
-use atlastree::build::pack::{PackOptions, pack};
-use atlastree::build::prepare::{PrepareOptions, prepare};
-use atlastree::build::{BuildOptions, resolve_params};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::NONE;
 use atlastree::paging::usage::{UsageScratch, classify};
 use atlastree::paging::{BlockTable, Pager, PagerOptions, ViewInput};
+use atlastree::preprocess::image_ops::{
+    LinearImage, MipChain, MipFilter, MipOptions, RectJob, downsample, draw_rect,
+};
+use atlastree::preprocess::pack::{PackOptions, pack};
+use atlastree::preprocess::prepare::{PrepareOptions, prepare};
+use atlastree::preprocess::{BuildOptions, resolve_params};
 use atlastree::scene::{UpAxis, Wrap};
 use atlastree::select::{Cut, select};
 use atlastree::store::format::{BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, NodeRecord};

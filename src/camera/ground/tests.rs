@@ -274,13 +274,13 @@ fn from_scene_and_from_tree_see_the_same_ground() {
 
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let out = dir.path().join("coast.atlastree");
-    let opts = crate::build::BuildOptions {
-        d_min: crate::build::DMin::Ratio(10.0),
+    let opts = crate::preprocess::BuildOptions {
+        d_min: crate::preprocess::DMin::Ratio(10.0),
         atlas_size: 256,
         border: 8,
         ..Default::default()
     };
-    crate::build::build(&scene, &opts, &out, &crate::build::NoProgress)
+    crate::preprocess::build(&scene, &opts, &out, &crate::preprocess::NoProgress)
         .unwrap_or_else(|e| panic!("{e}"));
     let file = TreeFile::open(&out).unwrap_or_else(|e| panic!("{e}"));
     let from_tree = Ground::from_tree(&file).unwrap_or_else(|e| panic!("{e}"));

@@ -36,9 +36,9 @@ use super::cover::AxisCover;
 use super::demand::{DemandModel, prefix_demands};
 use super::pack::{PackOptions, pack};
 use super::prepare::TriInfo;
-use super::sizing::SizeMethod;
-use super::tree::RectWrap;
 use crate::ids::{Cell, Level, MaterialId};
+use crate::model::RectWrap;
+use crate::model::sizing::SizeMethod;
 use crate::scene::Scene;
 use glam::{DVec2, DVec3};
 use serde::Serialize;
@@ -801,7 +801,7 @@ fn clamp_leaf(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::sizing::{SizeEstimate, SizeMethod};
+    use crate::model::sizing::{SizeEstimate, SizeMethod};
     use crate::scene::Wrap;
 
     /// A triangle of `material` at plane midpoint `mid` needing `w` texels per period over UV `[0, 1]²`.

@@ -15,8 +15,8 @@
 //! ([`RectWrap`], DESIGN.md "Repeats"): [`rect_t`] and [`rect_texel`] here are the f64 reference of what
 //! the shader does in f32 (`render::batch::RectMap::texel_f32` is its exact twin).
 
-use super::tree::{AtlasRect, RectWrap};
 use crate::ids::{Cell, Level};
+use crate::model::{AtlasRect, RectWrap};
 use glam::{DVec2, Vec2};
 
 /// `u` folded into `[0, 1]` as a MIRRORED_REPEAT sampler reads it (period 2).
@@ -24,6 +24,26 @@ use glam::{DVec2, Vec2};
 pub fn mirror(u: f64) -> f64 {
     let p = u - 2.0 * (u * 0.5).floor();
     if p > 1.0 { 2.0 - p } else { p }
+}
+
+/// The image of `[lo, hi]` under the mirror fold (period 2, `[0, 1]` forward, `[1, 2]` backward): the hull
+/// of the fold at both ends and at every integer inside.
+pub fn mirror_image(lo: f64, hi: f64) -> (f64, f64) {
+    if hi - lo >= 2.0 {
+        return (0.0, 1.0);
+    }
+    let m = mirror;
+    let (mut a, mut b) = (m(lo).min(m(hi)), m(lo).max(m(hi)));
+    // Integers inside (lo, hi) fold to 0 (even) or 1 (odd); at most two of them since hi − lo < 2.
+    let first = lo.floor() + 1.0;
+    let mut k = first;
+    while k < hi {
+        let v = m(k);
+        a = a.min(v);
+        b = b.max(v);
+        k += 1.0;
+    }
+    (a, b)
 }
 
 /// Half the part of the period a REPEAT rect does not hold (`(1 − span) / 2`, 0 for a full period): UVs

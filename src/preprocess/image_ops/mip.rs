@@ -320,7 +320,7 @@ fn weighted_sum(taps: impl Iterator<Item = (usize, f32)>, data: &[[f32; 4]]) -> 
 }
 
 /// All mip levels of `base` as RGBA8 sRGB straight alpha, level 0 first, box filter. For a square
-/// power-of-two base of side `n` the length is `crate::build::tree::mip_chain_bytes(n)`; other sizes give
+/// power-of-two base of side `n` the length is `TexFormat::Rgba8.chain_bytes(n)`; other sizes give
 /// the same concatenation of their `ceil`-halved levels.
 pub fn mip_chain_rgba8(base: &LinearImage) -> Vec<u8> {
     mip_chain_rgba8_with(base, &MipOptions::default())

@@ -4,11 +4,11 @@
 
 use super::layout::{LayoutKind, LayoutNode, LeafLayout};
 use super::prepare::TriInfo;
-use super::tree::{
+use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
+use crate::model::{
     AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind,
     TreeVertex,
 };
-use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
 use crate::scene::Scene;
 use crate::texfmt::TexFormat;
 use glam::{DVec2, DVec3};

@@ -47,6 +47,21 @@ pub enum TreeKind {
     Alpha,
 }
 
+impl TreeKind {
+    /// Channels compared for errors: RGB for opaque trees (alpha is always 255), RGBA for alpha trees.
+    pub fn channels(self) -> usize {
+        match self {
+            TreeKind::Opaque => 3,
+            TreeKind::Alpha => 4,
+        }
+    }
+
+    /// The storage format of this tree's blocks under `build --compress` (BC1 becomes BC3 on alpha trees).
+    pub fn format(self, compress: crate::texfmt::Compression) -> crate::texfmt::TexFormat {
+        compress.format_for(self == TreeKind::Alpha)
+    }
+}
+
 /// One node of the quadtree.
 #[derive(Clone, Debug, Serialize)]
 pub struct Node {
@@ -78,7 +93,7 @@ impl Node {
 
 /// How the UVs of a rect's triangles reach its inner rectangle, per texture axis (DESIGN.md "Repeats: one
 /// period per rect, wrapped in the shader"). The fragment shader and its CPU twins
-/// ([`crate::build::transform::rect_t`]) apply it to the unbounded, interpolated original UV.
+/// ([`crate::model::transform::rect_t`]) apply it to the unbounded, interpolated original UV.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
 pub enum RectWrap {
     /// Baked (the paper's §5.2.2): `inner` shows `[uv_min, uv_max]`, every repetition the UVs span copied
@@ -247,19 +262,6 @@ pub struct AtlasTree {
     pub indices: Vec<u32>,
     /// For each triangle of `indices` (in order), the scene triangle it came from.
     pub source_triangles: Vec<u32>,
-}
-
-/// Bytes of an RGBA8 square image of side `size` with its full mip chain down to 1×1.
-pub fn mip_chain_bytes(size: u32) -> u64 {
-    let mut s = size.max(1) as u64;
-    let mut total = 0;
-    loop {
-        total += s * s * 4;
-        if s == 1 {
-            return total;
-        }
-        s /= 2;
-    }
 }
 
 /// Everything one paging file holds: the build parameters, the scene's materials, one or two trees

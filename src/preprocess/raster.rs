@@ -11,11 +11,11 @@ use super::image_ops::{
     LinearImage, MipChain, MipFilter, MipOptions, RectJob, combine_quadrants, draw_rect,
     mip_chain_rgba8, neutral_fill, resample_square,
 };
-use super::tree::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::ids::{ImageId, NodeId};
+use crate::model::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::scene::{DecodedImage, Scene};
 use crate::store::FileWriter;
-use crate::texfmt::{Encoded, TexFormat, channels_for, encode_chain};
+use crate::texfmt::{Encoded, TexFormat, encode_chain};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -310,16 +310,12 @@ fn raster_node(
             ..MipOptions::default()
         },
     );
-    let enc = encode_chain(
-        tree.format,
-        &chain.to_rgba8(),
-        size,
-        channels_for(tree.kind),
-    )
-    .map_err(|source| BuildError::Encode {
-        what: format!("atlas of node {}", id.0),
-        source,
-    })?;
+    let enc = encode_chain(tree.format, &chain.to_rgba8(), size, tree.kind.channels()).map_err(
+        |source| BuildError::Encode {
+            what: format!("atlas of node {}", id.0),
+            source,
+        },
+    )?;
     ctx.writer
         .write_block_measured(node.atlas_block, &enc.bytes, enc.sse)?;
     ctx.atlas_sse.fetch_add(enc.sse, Ordering::Relaxed);
@@ -373,8 +369,8 @@ fn write_originals(
     owns: impl Fn(crate::ids::BlockId) -> bool,
 ) -> Result<(), BuildError> {
     let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>, u64)> = Vec::new();
-    let channels = channels_for(tree.kind);
-    let mut own: Vec<&crate::build::tree::OriginalRef> =
+    let channels = tree.kind.channels();
+    let mut own: Vec<&crate::model::OriginalRef> =
         leaf.originals.iter().filter(|o| owns(o.block)).collect();
     own.sort_by_key(|o| (o.block, o.slot));
     for o in own {

@@ -6,7 +6,7 @@ use super::linear::LinearImage;
 use super::mip::{MipChain, MipFilter, MipOptions};
 use super::sample::{AxisTaps, FootprintPlan, apply_taps, period_shift};
 use super::srgb::srgb8_to_linear;
-use crate::build::tree::AtlasRect;
+use crate::model::AtlasRect;
 use crate::scene::{DecodedImage, Wrap};
 use glam::DVec2;
 use rayon::prelude::*;

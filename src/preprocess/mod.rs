@@ -19,16 +19,14 @@ pub mod pack;
 pub mod prepare;
 pub mod raster;
 pub mod sizing;
-pub mod transform;
-pub mod tree;
 
+use crate::model::{AtlasForest, BuildParams, TreeKind};
 use crate::scene::Scene;
 use crate::store::{FileWriter, StoreError};
 use serde::Serialize;
 use std::path::Path;
 use std::sync::atomic::AtomicU64;
 use std::time::Instant;
-use tree::{AtlasForest, BuildParams, TreeKind};
 
 /// How d_min is given.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
@@ -427,14 +425,14 @@ pub fn build(
                 kind: *kind,
                 tree_index: forest.trees.len() as u32,
                 first_block: forest.blocks.len() as u32,
-                format: opts.compress.format_for(*kind),
+                format: kind.format(opts.compress),
             },
         );
         time(&format!("assemble {kind:?}"), t);
         let occ = &asm.occupancy;
         reports.push(TreeReport {
             kind: *kind,
-            format: opts.compress.format_for(*kind),
+            format: kind.format(opts.compress),
             atlas_psnr_db: f64::INFINITY,
             triangles: tris.len() as u64,
             pieces: infos.len() as u64,
@@ -506,7 +504,7 @@ pub fn build(
     let atlas_blocks = forest
         .blocks
         .iter()
-        .filter(|b| matches!(b.kind, tree::BlockKind::Atlas { .. }))
+        .filter(|b| matches!(b.kind, crate::model::BlockKind::Atlas { .. }))
         .count() as u64;
     let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
     for r in &reports {

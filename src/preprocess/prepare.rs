@@ -1,8 +1,8 @@
 //! Per-triangle preparation shared by every node of a build: sizing (§5.2.1), the per-triangle UV period
 //! shift, world area and plane midpoint (§5.3). Computed once, then only indexed.
 
-use super::sizing::{SizeEstimate, SizeMethod, texels_per_uv};
 use crate::ids::MaterialId;
+use crate::model::sizing::{SizeEstimate, SizeMethod, texels_per_uv};
 use crate::scene::{Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3};
 

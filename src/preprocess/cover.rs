@@ -14,10 +14,11 @@
 //! - [`RectWrap::Clamp`]: the hull of the intervals clamped to `[0, 1]`.
 //!
 //! Contract (checked by `inspect --verify`): for every input interval, every `u` in it lands inside
-//! `[0, uv_max − uv_min]` under [`super::transform::rect_t`], to within f64 rounding. Non-finite intervals
+//! `[0, uv_max − uv_min]` under [`crate::model::transform::rect_t`], to within f64 rounding. Non-finite intervals
 //! are ignored; no interval at all gives the point range `[0, 0]`.
 
-use super::tree::RectWrap;
+use crate::model::RectWrap;
+use crate::model::transform::mirror_image;
 
 /// A gap of the circle shorter than this (UV) is not worth a partial arc: the rect holds a full period.
 pub const MIN_GAP: f64 = 1e-6;
@@ -98,26 +99,6 @@ impl AxisCover {
     }
 }
 
-/// The image of `[lo, hi]` under the mirror fold (period 2, `[0, 1]` forward, `[1, 2]` backward): the hull
-/// of the fold at both ends and at every integer inside.
-pub fn mirror_image(lo: f64, hi: f64) -> (f64, f64) {
-    if hi - lo >= 2.0 {
-        return (0.0, 1.0);
-    }
-    let m = super::transform::mirror;
-    let (mut a, mut b) = (m(lo).min(m(hi)), m(lo).max(m(hi)));
-    // Integers inside (lo, hi) fold to 0 (even) or 1 (odd); at most two of them since hi − lo < 2.
-    let first = lo.floor() + 1.0;
-    let mut k = first;
-    while k < hi {
-        let v = m(k);
-        a = a.min(v);
-        b = b.max(v);
-        k += 1.0;
-    }
-    (a, b)
-}
-
 /// The shortest arc of the unit circle containing every arc `(start, end)` (`0 ≤ start < 1`,
 /// `end < start + 1`): `(arc start in [0, 1), length in [0, 1])`. Length 1 (start 0) when the arcs leave
 /// no gap of at least [`MIN_GAP`]. Deterministic for a given set of arcs, whatever their order.
@@ -167,7 +148,7 @@ pub fn shortest_arc(arcs: &[(f64, f64)]) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::transform::rect_t;
+    use crate::model::transform::rect_t;
 
     fn cover(wrap: RectWrap, ivs: &[(f64, f64)]) -> (f64, f64) {
         let mut c = AxisCover::new(wrap);

@@ -1,12 +1,12 @@
 //! Required atlas area of one material in one node (paper §5.2.2).
 //!
 //! Input: the per-repetition size `(w, h)` (texels per unit of UV, the maximum over the material's
-//! triangles from [`crate::build::sizing`]), the UV bounding box `A_tex = [uv_min, uv_max]` of those
+//! triangles from [`crate::preprocess::sizing`]), the UV bounding box `A_tex = [uv_min, uv_max]` of those
 //! triangles and the source image size. Output: the inner rectangle that `A_tex` maps onto, and the outer
 //! rectangle with the border that the packer places.
 //!
 //! - **Inner**: `ceil(w · scale · |A_w|) × ceil(h · scale · |A_h|)`, at least 1×1. With
-//!   [`SizeMethod::AllUvEqual`](crate::build::sizing::SizeMethod::AllUvEqual) triangles only, `w = h = 0`
+//!   [`SizeMethod::AllUvEqual`](crate::model::sizing::SizeMethod::AllUvEqual) triangles only, `w = h = 0`
 //!   and the inner area is the paper's fixed 1×1. Repetition counts cost nothing by themselves: `w · |A_w|`
 //!   is the world length of the textured surface times `f_proj` (paper: "depends only on the triangle area
 //!   in world space").
@@ -27,7 +27,7 @@ use serde::Serialize;
 /// What [`required_area`] needs for one material in one node.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct AreaInput {
-    /// Texels per unit of U / V (max over the triangles, [`crate::build::sizing::SizeMax`]).
+    /// Texels per unit of U / V (max over the triangles, [`crate::preprocess::sizing::SizeMax`]).
     pub w: f64,
     pub h: f64,
     /// `A_tex`: UV bounding box of the triangles (`uv_min ≤ uv_max` per axis).

@@ -13,7 +13,7 @@
 
 use super::area::{AreaInput, AreaOptions, required_area};
 use super::prepare::TriInfo;
-use super::sizing::SizeMethod;
+use crate::model::sizing::SizeMethod;
 use crate::scene::Wrap;
 use glam::DVec2;
 
@@ -160,8 +160,8 @@ pub fn demand(model: &DemandModel, infos: &[TriInfo], items: &[u32]) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::sizing::SizeEstimate;
     use crate::ids::MaterialId;
+    use crate::model::sizing::SizeEstimate;
     use glam::DVec3;
 
     fn tri(material: u32, w: f64, uv0: [f64; 2], uv1: [f64; 2]) -> TriInfo {
