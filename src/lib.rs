@@ -55,6 +55,7 @@ pub mod ids;
 pub mod inspect;
 pub mod model;
 pub mod paging;
+pub mod plan;
 pub mod preprocess;
 pub mod render;
 pub mod report;

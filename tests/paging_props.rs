@@ -104,7 +104,9 @@ impl Driver {
             })
             .collect();
         self.in_transit.retain(|(t, _)| *t > now);
-        let stats = self.pager.accept(arrivals, |_| {});
+        let stats = self
+            .pager
+            .accept(arrivals, |_| atlastree::paging::Applied::Done);
         self.pager.check_invariants()?;
         if stats.resident > self.pager.options().capacity {
             return Err(format!("resident {} > k", stats.resident));

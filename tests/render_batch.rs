@@ -9,7 +9,7 @@ use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::render::batch::{
     AtlasSlot, BatchOptions, FrameBatch, Group, LeafOffsets, Pass, leaf_ranges,
 };
-use atlastree::render::resident::plan;
+use atlastree::render::resident::gather_tables;
 use atlastree::select::{Cut, Source, select};
 use atlastree::store::TreeFile;
 use glam::DVec3;
@@ -69,7 +69,7 @@ fn leaf_ranges_are_the_subtrees_leaves() {
 fn records_match_the_cut_and_first_instance_numbers_them() {
     let dir = tempfile::tempdir().unwrap();
     let file = city_file(dir.path());
-    let mut p = plan(&file).unwrap();
+    let mut p = gather_tables(&file).unwrap();
     let view = file.tree(0).unwrap();
     // Resident atlas slots as the uploader assigns them: layers in node order.
     for (layer, slot) in p.infos[0].atlas_slots.iter_mut().enumerate() {
@@ -207,7 +207,7 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
 fn plan_maps_every_vertex_original_into_its_leaf_tam_range() {
     let dir = tempfile::tempdir().unwrap();
     let file = city_file(dir.path());
-    let p = plan(&file).unwrap();
+    let p = gather_tables(&file).unwrap();
     let view = file.tree(0).unwrap();
     assert_eq!(p.leaves.len(), view.leaves.len());
     assert_eq!(p.vertices.len(), view.vertices.len());

@@ -2,7 +2,8 @@ use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
 use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource, PagerOptions};
-use atlastree::render::{FrameStats, Mode, PagingSetup, Renderer, RendererOptions};
+use atlastree::plan::{FramePlanner, PagingFrame, PagingSetup};
+use atlastree::render::{FrameStats, Mode, Renderer, RendererOptions};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::store::TreeFile;
 use clap::Args;
@@ -161,8 +162,11 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         gpu_timing: !a.no_gpu_timing,
         anisotropy: a.anisotropy,
     };
-    let mut renderer = match capacity {
-        None => Renderer::new(&ctx, &file, ropts)?,
+    let (mut planner, mut renderer) = match capacity {
+        None => (
+            FramePlanner::from_file(&file),
+            Renderer::new(&ctx, &file, ropts)?,
+        ),
         Some(k) => {
             let source: Arc<dyn BlockSource> = match &http {
                 Some(h) => h.clone(),
@@ -173,10 +177,8 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
                 source.name(),
                 a.policy.name()
             );
-            Renderer::new_paged(
-                &ctx,
+            let mut planner = FramePlanner::paged_from_file(
                 &file,
-                ropts,
                 PagingSetup {
                     pager: PagerOptions {
                         capacity: k,
@@ -188,7 +190,9 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
                     source,
                     loader_threads: a.loader_threads,
                 },
-            )?
+            )?;
+            let renderer = Renderer::new_paged(&ctx, &file, ropts, &mut planner)?;
+            (planner, renderer)
         }
     };
     let s = &renderer.resident.stats;
@@ -234,27 +238,40 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
             thumbs: Vec::new(),
         });
     }
-    // Warm up every mode on frames spread over the path (shader compilation, first uploads), then render
-    // each frame in all modes back to back, so load changes on the machine hit every mode alike.
+    // Warm up every mode on frames spread over the path (shader compilation, first uploads) with still
+    // plans: they select and resolve but step no pager and move no clock, so a paged run starts from the
+    // bootstrap at time 0 whatever the warm-up. Then each frame is planned once, at i / fps, and that one
+    // plan is drawn in every mode back to back: load changes on the machine hit every mode alike, and the
+    // modes draw the same cut and residency.
     for run in &runs {
         for k in 0..a.warmup {
             if let Some(cam) = cameras.get(k * cameras.len() / a.warmup.max(1)) {
-                renderer.render(cam, scale_of(&a, &params, cam)?, run.mode)?;
+                let plan = planner.plan_still(
+                    cam,
+                    scale_of(&a, &params, cam)?,
+                    &mut renderer.residency(),
+                )?;
+                renderer.execute(plan, run.mode)?;
             }
         }
     }
     for (i, cam) in cameras.iter().enumerate() {
         let scale = scale_of(&a, &params, cam)?;
+        let plan = planner.plan(cam, i as f64 / a.fps, scale, &mut renderer.residency())?;
         for run in &mut runs {
-            renderer.set_clock(i as f64 / a.fps);
-            let s = renderer.render(cam, scale, run.mode)?;
+            let s = renderer.execute(plan, run.mode)?;
             run.stats.push(s);
             if a.every > 0 && i % a.every == 0 {
                 run.save_frame(&renderer, &a, i)?;
             }
         }
     }
-    let mut means = Vec::new();
+    if let Some(e) = planner.last_error() {
+        eprintln!(
+            "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
+        );
+    }
+    let mut medians = Vec::new();
     for run in &runs {
         write_csv(&run.dir.join("stats.csv"), &run.stats)?;
         if !run.thumbs.is_empty() {
@@ -263,14 +280,14 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
                 .context("writing the contact sheet")?;
         }
         let frame = median(run.stats.iter().map(|s| s.frame_ms).collect());
-        means.push((run.mode, frame));
+        medians.push((run.mode, frame));
         print_summary(run.mode, &run.stats, &run.dir);
     }
-    let mean_of = |m: Mode| means.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
-    if let (Some(t), Some(d)) = (mean_of(Mode::Tree), mean_of(Mode::Dummy)) {
+    let median_of = |m: Mode| medians.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
+    if let (Some(t), Some(d)) = (median_of(Mode::Tree), median_of(Mode::Dummy)) {
         println!("median frame time tree / dummy: {:.3}", t / d);
     }
-    if let (Some(t), Some(o)) = (mean_of(Mode::Tree), mean_of(Mode::Original)) {
+    if let (Some(t), Some(o)) = (median_of(Mode::Tree), median_of(Mode::Original)) {
         println!("median frame time original / tree: {:.3}", o / t);
     }
     Ok(ExitCode::SUCCESS)
@@ -353,7 +370,7 @@ fn write_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
     let paged = stats.iter().any(|s| s.paging.is_some());
     write!(
         f,
-        "frame,nodes_visited,nodes_drawn,indirect_records,draw_calls,bind_group_changes,triangles,select_us,encode_us,gpu_ms,frame_ms"
+        "frame,nodes_visited,nodes_drawn,indirect_records,draw_calls,bind_group_changes,triangles,skipped_draws,select_us,encode_us,gpu_ms,frame_ms"
     )?;
     if paged {
         write!(f, ",{PAGING_HEADER}")?;
@@ -362,20 +379,21 @@ fn write_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
     for (i, s) in stats.iter().enumerate() {
         write!(
             f,
-            "{i},{},{},{},{},{},{},{:.1},{:.1},{},{:.3}",
+            "{i},{},{},{},{},{},{},{},{:.1},{:.1},{},{:.3}",
             s.nodes_visited,
             s.nodes_drawn,
             s.indirect_records,
             s.draw_calls,
             s.bind_group_changes,
             s.triangles,
+            s.skipped_draws,
             s.select_us,
             s.encode_us,
             s.gpu_ms.map_or(String::new(), |g| format!("{g:.3}")),
             s.frame_ms
         )?;
         if let Some(p) = &s.paging {
-            write!(f, ",{}", paging_row(p))?;
+            write!(f, ",{}", paging_row(s, p))?;
         }
         writeln!(f)?;
     }
@@ -413,8 +431,7 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         let (mean, max) = mean_max(gpu.iter().copied());
         println!("  {:<20} mean {mean:>10.2}  max {max:>10.2}", "GPU ms");
     }
-    let paged: Vec<&atlastree::render::PagingFrame> =
-        stats.iter().filter_map(|s| s.paging.as_ref()).collect();
+    let paged: Vec<&PagingFrame> = stats.iter().filter_map(|s| s.paging.as_ref()).collect();
     if !paged.is_empty() {
         let peak = paged
             .iter()
@@ -445,7 +462,7 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
 /// The paging columns of `stats.csv`.
 const PAGING_HEADER: &str = "blocks_needed,blocks_culled,blocks_parent_needed,ideal,resident,queued,in_flight,loaded,bytes_loaded,bytes_loaded_originals,resident_bytes_atlases,resident_bytes_originals,ideal_fraction,coarser_share,coarser_items,evictions,cancelled,discarded,failures,upload_ms,atlas_layers_used,original_layers_used,apply_errors,resident_hash";
 
-fn paging_row(p: &atlastree::render::PagingFrame) -> String {
+fn paging_row(f: &FrameStats, p: &PagingFrame) -> String {
     let s = &p.session.pager;
     format!(
         "{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{},{},{},{},{},{:.3},{},{},{},{:016x}",
@@ -469,8 +486,8 @@ fn paging_row(p: &atlastree::render::PagingFrame) -> String {
         s.discarded,
         s.failures,
         p.upload_ms,
-        p.atlas_layers_used,
-        p.original_layers_used,
+        f.atlas_layers_used,
+        f.original_layers_used,
         p.apply_errors,
         p.resident_hash
     )

@@ -27,8 +27,8 @@ pub use blocks::{BlockItem, BlockMeta, BlockTable, BlockTableError};
 pub use http::{HttpOptions, HttpSource, HttpStats};
 pub use loader::{ImmediateLoader, Loader, ThreadedLoader};
 pub use pager::{
-    Arrival, Event, Pager, PagerError, PagerFrameStats, PagerOptions, PagerTotals, Request,
-    UploadBudget, resident_fingerprint,
+    Applied, Arrival, Event, Pager, PagerError, PagerFrameStats, PagerOptions, PagerTotals,
+    Request, UploadBudget, resident_fingerprint,
 };
 pub use policy::Policy;
 pub use resolve::{Coarseness, Resolved, resolve, resolve_cut, screen_fraction};

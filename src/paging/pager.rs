@@ -132,6 +132,14 @@ pub enum Event {
     },
 }
 
+/// Whether the executor could apply a residency change ([`Pager::accept`]).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Applied {
+    Done,
+    /// Not applied: a loaded block is taken back (not resident, a failure, retried later).
+    Failed,
+}
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 enum State {
     Absent,
@@ -461,7 +469,7 @@ impl Pager {
     pub fn accept(
         &mut self,
         arrivals: impl IntoIterator<Item = Arrival>,
-        mut apply: impl FnMut(Event),
+        mut apply: impl FnMut(Event) -> Applied,
     ) -> PagerFrameStats {
         for a in arrivals {
             let i = a.block.idx();
@@ -530,20 +538,27 @@ impl Pager {
                     self.stats.priority_violations += 1;
                 }
                 self.evict(victim);
-                apply(Event::Evicted { block: victim });
+                // A failed eviction leaves a stale GPU layer; the executor counts it. The block is gone
+                // from residency either way.
+                let _ = apply(Event::Evicted { block: victim });
             }
             self.make_resident(block);
             let bytes = self.table.blocks[i].bytes;
             accepted_bytes += bytes;
             self.stats.loaded += 1;
             self.stats.bytes_loaded += bytes;
-            apply(Event::Loaded { block, data });
+            if apply(Event::Loaded { block, data }) == Applied::Failed {
+                // The executor could not make it usable (e.g. the GPU upload failed): not resident, counted
+                // as a failed load and retried after the back-off, so residency never names a block that
+                // cannot be drawn. Nothing was staged after it yet, so no child depends on it.
+                self.revoke(block);
+            }
         }
         // Over capacity after a capacity decrease: shed the least important non-ideal blocks.
         while self.resident.len() as u32 > self.opts.capacity {
             let Some(victim) = self.victim() else { break };
             self.evict(victim);
-            apply(Event::Evicted { block: victim });
+            let _ = apply(Event::Evicted { block: victim });
         }
         self.staged = keep;
         self.finish_stats();
@@ -611,6 +626,23 @@ impl Pager {
         if let Some(p) = self.table.meta(b).parent {
             self.resident_children[p.idx()] += 1;
         }
+    }
+
+    /// Takes back a block made resident this frame whose residency change could not be applied: absent
+    /// again, one failure more, retried after the same back-off as a failed load.
+    fn revoke(&mut self, b: BlockId) {
+        let i = b.idx();
+        self.state[i] = State::Absent;
+        if let Some(pos) = self.resident.iter().position(|&r| r == b) {
+            self.resident.swap_remove(pos);
+        }
+        if let Some(p) = self.table.meta(b).parent {
+            self.resident_children[p.idx()] -= 1;
+        }
+        self.stats.failures += 1;
+        let n = self.fail_count[i].min(6);
+        self.fail_count[i] = self.fail_count[i].saturating_add(1);
+        self.failed_until[i] = self.frame + u64::from(self.opts.retry_frames.max(1)) * (1u64 << n);
     }
 
     fn evict(&mut self, b: BlockId) {

@@ -3,7 +3,7 @@
 //! the frame's cuts against residency with its screen-space accounting.
 
 use super::loader::Loader;
-use super::pager::{Arrival, Event, Pager, PagerFrameStats};
+use super::pager::{Applied, Arrival, Event, Pager, PagerFrameStats};
 use super::policy::LOOKAHEAD_S;
 use super::resolve::{Coarseness, Resolved, resolve_cut};
 use super::usage::ViewInput;
@@ -60,7 +60,7 @@ impl PagingSession {
         scale: f64,
         now: f64,
         loader: &mut dyn Loader,
-        apply: impl FnMut(Event),
+        apply: impl FnMut(Event) -> Applied,
     ) -> SessionFrame {
         let lookahead = self.lookahead(camera.eye, now);
         let view = ViewInput {

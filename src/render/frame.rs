@@ -1,4 +1,6 @@
-//! The renderer: per frame, select (paper §4) → batch → upload → one render pass, and its counters.
+//! The renderer: executes a [`FramePlan`] (batch → upload → one render pass) and counts what it did. It
+//! owns pipelines, residency (texture arrays, geometry) and targets; what to draw is decided by the
+//! [`FramePlanner`].
 
 use super::batch::{BatchOptions, DrawIndexedIndirect, FrameBatch, Group, NodeRecordGpu, Pass};
 use super::density::{DensityFrame, DensityTarget};
@@ -13,16 +15,12 @@ use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
 use super::{Mode, RenderError};
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, readback_rgba8};
-use crate::paging::{
-    BlockSource, BlockTable, Coarseness, ImmediateLoader, Loader, Pager, PagerOptions,
-    PagingSession, Resolved, SessionFrame, ThreadedLoader, resolve_frame,
-};
-use crate::select::{Cut, select};
+use crate::paging::Event;
+use crate::plan::{FramePlan, FramePlanner, PagingFrame, PlanError, Residency};
+use crate::select::Cut;
 use crate::store::TreeFile;
-use crate::store::format::NodeRecord;
 use bytemuck::{Pod, Zeroable};
 use glam::{DMat4, DVec4};
-use std::sync::Arc;
 use std::time::Instant;
 
 /// The uniform block of both shaders. WGSL twin: `Globals`.
@@ -62,49 +60,31 @@ pub struct FrameStats {
     pub gpu_ms: Option<f64>,
     /// Wall time from the start of select to the GPU having finished the frame, ms.
     pub frame_ms: f64,
-    /// Paging counters (`None` when all blocks are resident).
+    /// CPU time of the paging step and resolution, µs (0 when not paged).
+    pub page_us: f64,
+    /// Cut items the batch could not draw: their resolved atlas (or original texture) holds no GPU layer.
+    /// Always 0 while the planner's residency and the GPU's agree; counted, never silently dropped.
+    pub skipped_draws: u32,
+    /// Layers in use in the atlas arrays and the original-texture arrays after the frame.
+    pub atlas_layers_used: u32,
+    pub original_layers_used: u32,
+    /// Paging counters of the plan (`None` when all blocks are resident).
     pub paging: Option<PagingFrame>,
 }
 
-/// Paging counters of one frame (the paging columns of `stats.csv`).
-#[derive(Copy, Clone, Debug, Default, PartialEq)]
-pub struct PagingFrame {
-    pub session: SessionFrame,
-    /// Screen accounting of the draws: share rendered coarser than the selection asked for.
-    pub coarse: Coarseness,
-    /// Time spent in residency changes (uploads), ms, and bytes uploaded to the GPU.
-    pub upload_ms: f64,
-    pub uploaded_bytes: u64,
-    /// Of the bytes the pager loaded this frame, those of original-texture blocks (the rest are atlases).
-    pub loaded_original_bytes: u64,
-    /// Bytes of the resident blocks after the frame, atlases and original textures apart.
-    pub resident_atlas_bytes: u64,
-    pub resident_original_bytes: u64,
-    /// `xxh3_64` of the sorted resident block ids (compared with the simulator's log).
-    pub resident_hash: u64,
-    /// Residency changes the GPU side could not apply (drawn coarser instead), this frame.
-    pub apply_errors: u32,
-    /// Layers in use in the atlas arrays and the original-texture arrays.
-    pub atlas_layers_used: u32,
-    pub original_layers_used: u32,
+/// The renderer's [`Residency`]: a plan's residency changes become uploads into (and frees of) the
+/// texture arrays. A change that cannot be applied is an error the planner counts and takes back.
+pub struct GpuResidency<'r> {
+    resident: &'r mut Resident,
+    queue: &'r wgpu::Queue,
 }
 
-/// How a paged renderer gets its blocks.
-pub struct PagingSetup {
-    pub pager: PagerOptions,
-    pub source: Arc<dyn BlockSource>,
-    /// Loader threads; 0 loads synchronously inside the frame (deterministic, for tests and comparisons).
-    pub loader_threads: usize,
-}
-
-struct PagingRuntime {
-    session: PagingSession,
-    loader: Box<dyn Loader>,
-    table: BlockTable,
-    resolved: Vec<Vec<Resolved>>,
-    clock: f64,
-    clock_set: bool,
-    last_error: Option<String>,
+impl Residency for GpuResidency<'_> {
+    fn apply(&mut self, event: &Event) -> Result<u64, String> {
+        self.resident
+            .apply(self.queue, event)
+            .map_err(|e| e.to_string())
+    }
 }
 
 /// Options of a [`Renderer`].
@@ -218,15 +198,12 @@ pub struct Renderer<'f> {
     pub color: wgpu::Texture,
     color_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
-    cuts: Vec<Cut>,
     batch: FrameBatch,
     timestamps: Option<Timestamps>,
     /// Texel-density pipelines and target, created on the first [`Renderer::render_density`].
     density: Option<DensityTarget>,
-    /// Block paging (`None`: everything resident).
-    paging: Option<PagingRuntime>,
-    /// Camera the cut is selected for instead of the frame's camera ([`Renderer::freeze_selection`]).
-    frozen: Option<Camera>,
+    /// Created for a paging planner: texture arrays sized for its capacity, blocks arrive as it plans.
+    paged: bool,
 }
 
 impl<'f> Renderer<'f> {
@@ -247,16 +224,17 @@ impl<'f> Renderer<'f> {
         let resident = ctx.scoped("uploading every block (all resident)", |_| {
             Resident::load(ctx, file)
         })??;
-        Self::with_resident(ctx, file, opts, resident, None)
+        Self::with_resident(ctx, file, opts, resident, false)
     }
 
-    /// A renderer that pages blocks (paper §6): texture arrays sized for `setup.pager.capacity` blocks,
-    /// the root atlases loaded now, everything else on demand through `setup.source`.
+    /// A renderer for a paging `planner` (paper §6): texture arrays sized for the planner's capacity, the
+    /// root atlases the planner bootstrapped uploaded now, everything else as the planner's plans page it
+    /// in through [`Renderer::residency`]. Errors: [`RenderError::Plan`] when the planner does not page.
     pub fn new_paged(
         ctx: &'f GpuContext,
         file: &'f TreeFile,
         opts: RendererOptions,
-        setup: PagingSetup,
+        planner: &mut FramePlanner<'_>,
     ) -> Result<Renderer<'f>, RenderError> {
         if opts.width == 0 || opts.height == 0 {
             return Err(RenderError::BadSize {
@@ -264,40 +242,17 @@ impl<'f> Renderer<'f> {
                 height: opts.height,
             });
         }
-        let table = BlockTable::from_file(file)?;
+        let (Some(table), Some(capacity)) = (planner.table(), planner.max_capacity()) else {
+            return Err(RenderError::Plan(PlanError::NotPaged));
+        };
+        let table = table.clone();
         let mut resident = ctx.scoped("allocating the paged texture arrays", |_| {
-            Resident::load_paged(ctx, file, &table, setup.pager.capacity)
+            Resident::load_paged(ctx, file, &table, capacity)
         })??;
-        let mut pager = Pager::new(table.clone(), setup.pager)?;
-        let records = file.blocks().to_vec();
-        let source = setup.source;
-        let events = pager.bootstrap(|b| {
-            let r = records
-                .get(b.idx())
-                .ok_or_else(|| format!("{b} not in the table"))?;
-            source.fetch(b, r).map(Some).map_err(|e| e.to_string())
-        })?;
-        for e in &events {
-            resident.apply(&ctx.queue, &table, e)?;
+        for e in &planner.take_bootstrap() {
+            resident.apply(&ctx.queue, e)?;
         }
-        let loader: Box<dyn Loader> = if setup.loader_threads == 0 {
-            Box::new(ImmediateLoader::new(source, records))
-        } else {
-            Box::new(
-                ThreadedLoader::new(source, records, setup.loader_threads)
-                    .map_err(RenderError::Loader)?,
-            )
-        };
-        let runtime = PagingRuntime {
-            session: PagingSession::new(pager),
-            loader,
-            table,
-            resolved: Vec::new(),
-            clock: 0.0,
-            clock_set: false,
-            last_error: None,
-        };
-        Self::with_resident(ctx, file, opts, resident, Some(runtime))
+        Self::with_resident(ctx, file, opts, resident, true)
     }
 
     fn with_resident(
@@ -305,7 +260,7 @@ impl<'f> Renderer<'f> {
         file: &'f TreeFile,
         opts: RendererOptions,
         resident: Resident,
-        paging: Option<PagingRuntime>,
+        paged: bool,
     ) -> Result<Renderer<'f>, RenderError> {
         let device = &ctx.device;
         let layout = tree_bind_group_layout(device);
@@ -366,7 +321,6 @@ impl<'f> Renderer<'f> {
             }),
             period_ns: f64::from(ctx.features.timestamp_period_ns),
         });
-        let trees = resident.infos.len();
         Ok(Renderer {
             ctx,
             file,
@@ -384,136 +338,29 @@ impl<'f> Renderer<'f> {
             color,
             color_view,
             depth_view,
-            cuts: vec![Cut::new(); trees],
             batch: FrameBatch::new(),
             timestamps,
             density: None,
-            paging,
-            frozen: None,
+            paged,
         })
     }
 
-    /// Sets the paging clock (seconds) for the next frame; without it the clock advances 1/60 s per frame.
-    pub fn set_clock(&mut self, seconds: f64) {
-        if let Some(p) = &mut self.paging {
-            p.clock = seconds;
-            p.clock_set = true;
+    /// Where a plan applies its residency changes: this renderer's texture arrays (uploads and frees).
+    pub fn residency(&mut self) -> GpuResidency<'_> {
+        GpuResidency {
+            resident: &mut self.resident,
+            queue: &self.ctx.queue,
         }
     }
 
-    /// The pager (`None` when all blocks are resident).
-    pub fn pager(&self) -> Option<&Pager> {
-        self.paging.as_ref().map(|p| &p.session.pager)
-    }
-
-    /// Changes the paging capacity live (clamped to the GPU layers allocated at creation).
-    pub fn set_capacity(&mut self, capacity: u32) {
-        if let Some(p) = &mut self.paging {
-            p.session
-                .pager
-                .set_capacity(capacity.min(self.resident.stats.atlas_layers.max(1)));
-        }
-    }
-
-    /// The last residency error the GPU side reported, if any.
-    pub fn last_paging_error(&self) -> Option<&str> {
-        self.paging.as_ref().and_then(|p| p.last_error.as_deref())
-    }
-
-    /// One paging step after select: plan, load, apply residency changes, resolve the cuts.
-    fn page(
-        &mut self,
-        camera: &Camera,
-        frustum: &crate::camera::Frustum,
-        scale: f64,
-    ) -> Option<PagingFrame> {
-        let rt = self.paging.as_mut()?;
-        let file = self.file;
-        let trees: Vec<&[NodeRecord]> = (0..file.trees())
-            .filter_map(|t| file.tree(t).map(|v| v.nodes))
-            .collect();
-        if !rt.clock_set {
-            rt.clock += 1.0 / 60.0;
-        }
-        rt.clock_set = false;
-        let resident = &mut self.resident;
-        let queue = &self.ctx.queue;
-        let table = &rt.table;
-        let (mut bytes, mut errors, mut last_error) = (0u64, 0u32, None);
-        let mut loaded_original_bytes = 0u64;
-        let t = Instant::now();
-        let session = rt.session.frame(
-            &trees,
-            camera,
-            frustum,
-            scale,
-            rt.clock,
-            &mut *rt.loader,
-            |ev| match resident.apply(queue, table, &ev) {
-                Ok(b) => {
-                    bytes += b;
-                    if let crate::paging::Event::Loaded { block, .. } = &ev {
-                        loaded_original_bytes += table.bytes_by_kind([*block]).1;
-                    }
-                }
-                Err(e) => {
-                    errors += 1;
-                    last_error = Some(e.to_string());
-                }
-            },
-        );
-        let upload_ms = t.elapsed().as_secs_f64() * 1e3;
-        if last_error.is_some() {
-            rt.last_error = last_error;
-        }
-        let infos = &self.resident.infos;
-        let coarse = resolve_frame(
-            &trees,
-            &self.cuts,
-            camera,
-            |t, n| {
-                infos
-                    .get(t)
-                    .and_then(|i| i.atlas_slots.get(n.idx()).copied().flatten())
-                    .is_some()
-            },
-            |t, n| {
-                infos
-                    .get(t)
-                    .and_then(|i| i.originals_missing.get(n.idx()))
-                    .is_some_and(|&m| m == 0)
-            },
-            &mut rt.resolved,
-        );
-        let p = self.resident.paged.as_ref();
-        let (resident_atlas_bytes, resident_original_bytes) = rt
-            .table
-            .bytes_by_kind(rt.session.pager.resident().iter().copied());
-        Some(PagingFrame {
-            session,
-            coarse,
-            upload_ms,
-            uploaded_bytes: bytes,
-            loaded_original_bytes,
-            resident_atlas_bytes,
-            resident_original_bytes,
-            resident_hash: crate::paging::resident_fingerprint(rt.session.pager.resident()),
-            apply_errors: errors,
-            atlas_layers_used: p.map_or(0, |p| p.atlas_layers_used),
-            original_layers_used: p.map_or(0, |p| p.original_layers_used),
-        })
+    /// Whether this renderer was created for a paging planner.
+    pub fn is_paged(&self) -> bool {
+        self.paged
     }
 
     /// Number of render pipelines created so far (the alpha ones only once needed).
     pub fn pipelines_created(&self) -> usize {
         self.pipelines.created()
-    }
-
-    /// Selects every following frame's cut for `camera` instead of the frame's own camera (`None`: the
-    /// frame's camera again), so the cut of one view can be looked at from elsewhere (the viewer's "freeze
-    /// selection"). Draws still use the frame's camera.
-    pub fn freeze_selection(&mut self, camera: Option<Camera>) {
-        self.frozen = camera;
     }
 
     /// Replaces the colour and depth targets by ones of `width`×`height` pixels (a resized window); the
@@ -532,34 +379,24 @@ impl<'f> Renderer<'f> {
         Ok(())
     }
 
-    /// The cuts of the last frame, one per tree.
-    pub fn cuts(&self) -> &[Cut] {
-        &self.cuts
-    }
-
     /// The batch of the last tree-mode frame.
     pub fn batch(&self) -> &FrameBatch {
         &self.batch
     }
 
-    /// Renders one frame of `camera` (its aspect should be width/height) with node `min_distance`s scaled by
-    /// `scale` ([`crate::select::min_distance_scale`]), and waits for the GPU.
-    pub fn render(
-        &mut self,
-        camera: &Camera,
-        scale: f64,
-        mode: Mode,
-    ) -> Result<FrameStats, RenderError> {
-        self.render_to(camera, scale, mode, false)
+    /// Executes `plan` (made by a [`FramePlanner`] whose residency changes went to
+    /// [`Renderer::residency`]) in `mode`, and waits for the GPU. A plan may be executed any number of
+    /// times and in several modes: executing steps nothing.
+    pub fn execute(&mut self, plan: &FramePlan, mode: Mode) -> Result<FrameStats, RenderError> {
+        self.execute_to(plan, mode, false)
     }
 
-    /// Texel-density debug frame: the cut and draws of [`Mode::Tree`] for `camera` at `scale`, each pixel
-    /// holding the texels (of mip 0 of the atlas or original texture it samples) per screen pixel
-    /// instead of a colour; read back to the CPU. See [`super::density`].
-    pub fn render_density(
+    /// Texel-density debug frame of `plan`: the draws of [`Mode::Tree`], each pixel holding the texels (of
+    /// mip 0 of the atlas or original texture it samples) per screen pixel instead of a colour; read back
+    /// to the CPU. See [`super::density`]. Works on paged renderers too (the plan is not stepped again).
+    pub fn execute_density(
         &mut self,
-        camera: &Camera,
-        scale: f64,
+        plan: &FramePlan,
     ) -> Result<(FrameStats, DensityFrame), RenderError> {
         if self.density.is_none() {
             self.density = Some(DensityTarget::new(
@@ -570,7 +407,7 @@ impl<'f> Renderer<'f> {
                 self.opts.height,
             ));
         }
-        let stats = self.render_to(camera, scale, Mode::Tree, true)?;
+        let stats = self.execute_to(plan, Mode::Tree, true)?;
         let Some(d) = &self.density else {
             return Err(RenderError::BadSize {
                 width: self.opts.width,
@@ -580,38 +417,38 @@ impl<'f> Renderer<'f> {
         Ok((stats, d.read(self.ctx)?))
     }
 
-    /// One frame into the colour target, or (`density`) into the density target.
-    fn render_to(
+    /// One frame of `plan` into the colour target, or (`density`) into the density target.
+    fn execute_to(
         &mut self,
-        camera: &Camera,
-        scale: f64,
+        plan: &FramePlan,
         mode: Mode,
         density: bool,
     ) -> Result<FrameStats, RenderError> {
-        let t0 = Instant::now();
-        let mut stats = FrameStats::default();
-        let selector = *self.frozen.as_ref().unwrap_or(camera);
-        let frustum = selector.frustum();
-        for (t, cut) in self.cuts.iter_mut().enumerate() {
-            let view = self
-                .file
-                .tree(t)
-                .ok_or(RenderError::MissingTree { tree: t })?;
-            select(view.nodes, &selector, &frustum, scale, cut);
-            stats.nodes_visited += cut.visited;
-            stats.nodes_drawn += cut.items.len() as u32;
-        }
         let t1 = Instant::now();
-        stats.select_us = (t1 - t0).as_secs_f64() * 1e6;
-        if self.paging.is_some() && mode == Mode::Original {
+        if self.paged && mode == Mode::Original {
             return Err(RenderError::NotWhenPaged {
                 what: "the naive original-texture mode",
             });
         }
-        stats.paging = self.page(&selector, &frustum, scale);
-        let t1 = Instant::now();
-
-        for (info, cut) in self.resident.infos.iter().zip(&self.cuts) {
+        if plan.cuts.len() != self.resident.infos.len() {
+            return Err(RenderError::PlanMismatch {
+                cuts: plan.cuts.len(),
+                trees: self.resident.infos.len(),
+            });
+        }
+        let camera = &plan.camera;
+        let mut stats = FrameStats {
+            nodes_visited: plan.stats.nodes_visited,
+            nodes_drawn: plan.stats.nodes_drawn,
+            select_us: plan.stats.select_us,
+            page_us: plan.stats.page_us,
+            paging: plan.stats.paging,
+            ..FrameStats::default()
+        };
+        let p = &self.resident.residency;
+        stats.atlas_layers_used = p.atlas_layers_used;
+        stats.original_layers_used = p.original_layers_used;
+        for (info, cut) in self.resident.infos.iter().zip(&plan.cuts) {
             self.resident.leaf_offsets.update(info, cut, camera.eye);
         }
         self.resident.write_offsets(&self.ctx.queue);
@@ -632,9 +469,9 @@ impl<'f> Renderer<'f> {
                 label: Some("frame"),
             });
         if mode == Mode::Original {
-            self.encode_naive(&mut encoder, &mut stats)?;
+            self.encode_naive(&mut encoder, &plan.cuts, &mut stats)?;
         } else {
-            self.encode_tree(&mut encoder, mode, density, &mut stats);
+            self.encode_tree(&mut encoder, plan, mode, density, &mut stats);
         }
         if let Some(ts) = &self.timestamps {
             encoder.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
@@ -647,7 +484,8 @@ impl<'f> Renderer<'f> {
             .device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| RenderError::Gpu(e.into()))?;
-        stats.frame_ms = t0.elapsed().as_secs_f64() * 1e3;
+        stats.frame_ms =
+            (plan.stats.select_us + plan.stats.page_us) * 1e-3 + t1.elapsed().as_secs_f64() * 1e3;
         Ok(stats)
     }
 
@@ -726,6 +564,7 @@ impl<'f> Renderer<'f> {
     fn encode_tree(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
+        plan: &FramePlan,
         mode: Mode,
         density: bool,
         stats: &mut FrameStats,
@@ -737,14 +576,11 @@ impl<'f> Renderer<'f> {
         let opts = BatchOptions {
             dummy: mode == Mode::Dummy,
         };
-        for (t, (info, cut)) in self.resident.infos.iter().zip(&self.cuts).enumerate() {
+        for (t, (info, cut)) in self.resident.infos.iter().zip(&plan.cuts).enumerate() {
             if let Some(view) = self.file.tree(t) {
-                let resolved = self
-                    .paging
-                    .as_ref()
-                    .and_then(|p| p.resolved.get(t))
-                    .map(Vec::as_slice);
-                self.batch.add_cut(info, view.nodes, cut, resolved, opts);
+                stats.skipped_draws +=
+                    self.batch
+                        .add_cut(info, view.nodes, cut, plan.resolved(t), opts);
             }
         }
         self.batch.finish();
@@ -824,6 +660,7 @@ impl<'f> Renderer<'f> {
     fn encode_naive(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
+        cuts: &[Cut],
         stats: &mut FrameStats,
     ) -> Result<(), RenderError> {
         if self.naive.is_none() {
@@ -840,7 +677,7 @@ impl<'f> Renderer<'f> {
         };
         // Visible leaves: every leaf below a cut item (same culling as the tree modes).
         let mut lists: [Vec<u32>; 3] = Default::default();
-        for (info, cut) in self.resident.infos.iter().zip(&self.cuts) {
+        for (info, cut) in self.resident.infos.iter().zip(cuts) {
             for item in &cut.items {
                 let Some(&(first, count)) = info.leaf_ranges.get(item.node.idx()) else {
                     continue;

@@ -1,27 +1,33 @@
 //! The texture-atlas tree renderer (paper §4) with texture-array batching (Trapp & Döllner 2015), wgpu.
 //!
-//! All blocks of a paging file are resident (paging is a later stage). Per frame: the cut of every tree
-//! ([`crate::select::select`]) becomes one indirect record per selected node ([`batch`]); all atlases are
-//! layers of one texture array and original textures layers of one array per class size ([`textures`]);
-//! one bind group and one `multi_draw_indexed_indirect` per pipeline (opaque; alpha mask and alpha blend
-//! only for files with an alpha tree, created on first use) draw the frame ([`Renderer`]).
+//! The renderer executes plans: a [`crate::plan::FramePlan`] (the cut of every tree, resolved against
+//! residency) becomes one indirect record per selected node ([`batch`]); atlases are layers of texture
+//! arrays and original textures layers of one array per class size ([`textures`]), uploaded and freed as
+//! the plan's residency changes arrive ([`resident`], all blocks at once when nothing is paged); one bind
+//! group and one `multi_draw_indexed_indirect` per pipeline (opaque; alpha mask and alpha blend only for
+//! files with an alpha tree, created on first use) draw the frame ([`Renderer`]). [`FrameLoop`] is the
+//! per-frame loop of a planner and a renderer (plan, then execute) for callers that draw one mode per
+//! frame.
 //!
 //! Modes ([`Mode`]) on the same cut: the product (`Tree`), the naive per-texture baseline (`Original`), the
 //! upper bound with one 1×1 texture (`Dummy`), and colour-by-level (`TreeLevels`).
 //!
-//! Debug: [`Renderer::render_density`] writes texels per pixel instead of colours ([`density`]).
+//! Debug: [`Renderer::execute_density`] writes texels per pixel instead of colours ([`density`]).
 //!
 //! Shaders: `shaders/tree.wgsl` (tree, dummy, levels, density), `shaders/naive.wgsl` (original).
 
 pub mod batch;
 pub mod density;
 mod frame;
+mod frame_loop;
 mod naive;
 pub mod pipeline;
 pub mod resident;
 pub mod textures;
 
-pub use frame::{FrameStats, PagingFrame, PagingSetup, Renderer, RendererOptions};
+pub use crate::plan::{PagingFrame, PagingSetup};
+pub use frame::{FrameStats, GpuResidency, Renderer, RendererOptions};
+pub use frame_loop::FrameLoop;
 
 use crate::gpu::GpuError;
 use crate::ids::BlockId;
@@ -112,8 +118,12 @@ pub enum RenderError {
     Paging(#[from] crate::paging::PagerError),
     #[error(transparent)]
     Blocks(#[from] crate::paging::BlockTableError),
-    #[error("starting loader threads: {0}")]
-    Loader(std::io::Error),
+    #[error(transparent)]
+    Plan(#[from] crate::plan::PlanError),
+    #[error("no frame was planned")]
+    NoPlan,
+    #[error("the plan has {cuts} cuts but the renderer's file has {trees} trees")]
+    PlanMismatch { cuts: usize, trees: usize },
     #[error("original slot {slot} of block {block} is missing from its tree's slot table")]
     MissingSlot { block: u32, slot: u32 },
     /// A broken residency invariant (a bug, not bad input): reported instead of drawing a wrong texture.

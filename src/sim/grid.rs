@@ -3,7 +3,8 @@
 
 use super::{FrameRow, IoModel, RunSummary, SimInput, SimOptions, simulate};
 use crate::camera::Camera;
-use crate::paging::{PagerError, PagerOptions, Policy, UploadBudget};
+use crate::paging::{PagerOptions, Policy, UploadBudget};
+use crate::plan::PlanError;
 use crate::report::ReportError;
 use crate::report::csv::{Cell, CsvWriter};
 use crate::report::plot::{HeatMap, PlotOptions, Series, heat_map, line_chart};
@@ -122,7 +123,7 @@ pub fn run_grid(
     scale: f64,
     spec: &GridSpec,
     tick: &(dyn Fn() + Sync),
-) -> Result<Vec<RunResult>, PagerError> {
+) -> Result<Vec<RunResult>, PlanError> {
     spec.cells()
         .into_par_iter()
         .map(|key| {

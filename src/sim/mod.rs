@@ -11,11 +11,9 @@
 //! rows byte for byte (runs of a grid execute in parallel, each on its own).
 
 use crate::camera::Camera;
-use crate::ids::{BlockId, NodeId};
-use crate::paging::{
-    Arrival, BlockTable, Loader, Pager, PagerOptions, PagingSession, Request, resolve_frame,
-};
-use crate::select::{Cut, select};
+use crate::ids::BlockId;
+use crate::paging::{Arrival, BlockTable, Loader, PagerOptions, Request};
+use crate::plan::{FramePlanner, PlanError, RecordResidency};
 use crate::store::format::NodeRecord;
 use serde::Serialize;
 
@@ -220,7 +218,7 @@ pub fn simulate(
     cameras: &[Camera],
     scale: f64,
     opts: &SimOptions,
-) -> Result<(Vec<FrameRow>, RunSummary), crate::paging::PagerError> {
+) -> Result<(Vec<FrameRow>, RunSummary), PlanError> {
     simulate_with(input, cameras, scale, opts, &mut |_, _| {})
 }
 
@@ -232,69 +230,55 @@ pub fn simulate_with(
     scale: f64,
     opts: &SimOptions,
     events: &mut dyn FnMut(u32, &crate::paging::Event),
-) -> Result<(Vec<FrameRow>, RunSummary), crate::paging::PagerError> {
-    let mut pager_opts = opts.pager;
-    pager_opts.capacity = pager_opts.capacity.min(input.table.len().max(1) as u32);
-    let mut pager = Pager::new(input.table.clone(), pager_opts)?;
-    pager.bootstrap(|_| Ok(None))?;
-    let mut session = PagingSession::new(pager);
-    let mut loader: Box<dyn Loader> = match opts.io {
+) -> Result<(Vec<FrameRow>, RunSummary), PlanError> {
+    let loader: Box<dyn Loader> = match opts.io {
         Some(m) => Box::new(ModelLoader::new(m)),
         None => Box::new(InstantLoader::default()),
     };
-    let mut cuts = vec![Cut::new(); input.trees.len()];
-    let mut resolved = Vec::new();
+    let mut planner = FramePlanner::paged(
+        input.trees.clone(),
+        input.table.clone(),
+        opts.pager,
+        loader,
+        |_| Ok(None),
+    )?;
+    // The roots are resident before the first frame; the log starts with frame 0's changes.
+    planner.take_bootstrap();
     let mut rows = Vec::with_capacity(cameras.len());
     for (i, cam) in cameras.iter().enumerate() {
         let now = i as f64 / opts.fps;
-        let frustum = cam.frustum();
-        for (nodes, cut) in input.trees.iter().zip(cuts.iter_mut()) {
-            select(nodes, cam, &frustum, scale, cut);
-        }
         let frame = i as u32;
-        let mut bytes_originals = 0u64;
-        let table = &input.table;
-        let f = session.frame(&input.trees, cam, &frustum, scale, now, &mut *loader, |e| {
-            if let crate::paging::Event::Loaded { block, .. } = &e {
-                bytes_originals += table.bytes_by_kind([*block]).1;
-            }
-            events(frame, &e)
-        });
-        let pager = &session.pager;
-        let (resident_atlases, resident_originals) =
-            table.bytes_by_kind(pager.resident().iter().copied());
-        let coarse = resolve_frame(
-            &input.trees,
-            &cuts,
+        let plan = planner.plan(
             cam,
-            |t, n| table.atlas(t, n).is_some_and(|b| pager.is_resident(b)),
-            |t, n: NodeId| table.originals(t, n).iter().all(|&b| pager.is_resident(b)),
-            &mut resolved,
-        );
-        let s = f.pager;
+            now,
+            scale,
+            &mut RecordResidency(|e: &crate::paging::Event| events(frame, e)),
+        )?;
+        let p = plan.stats.paging.ok_or(PlanError::NotPaged)?;
+        let s = p.session.pager;
         rows.push(FrameRow {
-            frame: i as u32,
+            frame,
             time: now,
             needed: s.usage.needed,
             ideal: s.ideal,
             resident: s.resident,
-            queued: f.queued,
-            in_flight: f.in_flight,
+            queued: p.session.queued,
+            in_flight: p.session.in_flight,
             loaded: s.loaded,
             bytes: s.bytes_loaded,
-            bytes_originals,
-            resident_bytes_atlases: resident_atlases,
-            resident_bytes_originals: resident_originals,
+            bytes_originals: p.loaded_original_bytes,
+            resident_bytes_atlases: p.resident_atlas_bytes,
+            resident_bytes_originals: p.resident_original_bytes,
             evictions: s.evictions,
             ideal_fraction: s.ideal_fraction(),
-            coarser_share: coarse.share(),
-            coarser_gap: coarse.mean_gap(),
+            coarser_share: p.coarse.share(),
+            coarser_gap: p.coarse.mean_gap(),
             time_to_ideal: -1,
-            resident_hash: crate::paging::resident_fingerprint(pager.resident()),
+            resident_hash: p.resident_hash,
         });
     }
     fill_time_to_ideal(&mut rows);
-    let t = session.pager.totals();
+    let t = planner.pager().map(|p| *p.totals()).unwrap_or_default();
     let summary = summarise(&rows, t.cancelled, t.discarded);
     Ok((rows, summary))
 }

@@ -6,8 +6,9 @@ use super::grid::{BuildKnobs, Plan, PlannedBuild, RuntimeKnobs, variant_id};
 use crate::camera::{Camera, CameraPath};
 use crate::gpu::{GpuContext, GpuError};
 use crate::paging::{FileSource, PagerOptions};
+use crate::plan::{FramePlanner, PagingSetup};
 use crate::preprocess::{NoProgress, build};
-use crate::render::{FrameStats, Mode, PagingSetup, RenderError, Renderer, RendererOptions};
+use crate::render::{FrameStats, Mode, RenderError, Renderer, RendererOptions};
 use crate::report::metrics::{Histogram, magnified_share, min_density, psnr, psnr_masked, ssim};
 use crate::scene::Scene;
 use crate::select::{SelectOptions, min_distance_scale};
@@ -118,10 +119,10 @@ pub struct FrameRow {
     pub covered_pixels: u64,
     /// SSIM of the luma (Gaussian 11×11 window), 1 = identical.
     pub ssim: f64,
-    /// Share of drawn pixels with fewer than 1 texel per pixel along the least-sampled direction (NaN for
-    /// paged variants: the density pass would advance paging).
+    /// Share of drawn pixels with fewer than 1 texel per pixel along the least-sampled direction (paged
+    /// variants too: the density pass executes the frame's plan again without stepping the pager).
     pub magnified_share: f64,
-    /// Share of drawn pixels with fewer texels per pixel than the variant's texel ratio (NaN when paged).
+    /// Share of drawn pixels with fewer texels per pixel than the variant's texel ratio.
     pub below_target_share: f64,
     /// Screen share drawn coarser than selected because a block was not resident (0 when not paged).
     pub coarser_share: f64,
@@ -334,9 +335,18 @@ fn run_build(
         Err(e) => return Err(render_err(pb.knobs.id(), 0)(e)),
     };
     data.resident_bytes.push(full.resident.stats.texture_bytes);
+    let mut resident_planner = FramePlanner::from_file(file);
     if pb.is_base {
         progress.message("reference frames (original textures)");
-        *reference = reference_frames(&mut full, file, plan, cameras, opts, progress)?;
+        *reference = reference_frames(
+            &mut resident_planner,
+            &mut full,
+            file,
+            plan,
+            cameras,
+            opts,
+            progress,
+        )?;
     }
     for rt in &pb.runtimes {
         let id = variant_id(&pb.knobs, rt);
@@ -354,11 +364,21 @@ fn run_build(
                 for k in 0..opts.warmup.min(cameras.len()) {
                     let (_, cam) = &cameras[k * cameras.len() / opts.warmup.max(1)];
                     let s = scale(file, plan, rt.texel_ratio, cam)?;
-                    full.render(cam, s, Mode::Tree)
+                    let warm = resident_planner
+                        .plan_still(cam, s, &mut full.residency())
+                        .map_err(|e| render_err(id.clone(), k)(e.into()))?;
+                    full.execute(warm, Mode::Tree)
                         .map_err(render_err(id.clone(), k))?;
                 }
                 for (i, (t, cam)) in cameras.iter().enumerate() {
-                    let row = ctx.measure(&mut full, i, *t, cam, Some(&mut hist))?;
+                    let row = ctx.measure(
+                        &mut resident_planner,
+                        &mut full,
+                        i,
+                        *t,
+                        cam,
+                        Some(&mut hist),
+                    )?;
                     data.frames.push(row);
                     progress.advance(1);
                 }
@@ -371,21 +391,19 @@ fn run_build(
                         source,
                     })?,
                 )));
-                let mut paged = Renderer::new_paged(
-                    ctx,
-                    file,
-                    ropts,
-                    PagingSetup {
-                        pager: PagerOptions {
-                            capacity: k,
-                            max_queue: opts.max_queue,
-                            ..PagerOptions::default()
-                        },
-                        source,
-                        loader_threads: 0,
+                let setup = PagingSetup {
+                    pager: PagerOptions {
+                        capacity: k,
+                        max_queue: opts.max_queue,
+                        ..PagerOptions::default()
                     },
-                )
-                .map_err(render_err(id.clone(), 0))?;
+                    source,
+                    loader_threads: 0,
+                };
+                let mut planner = FramePlanner::paged_from_file(file, setup)
+                    .map_err(|e| render_err(id.clone(), 0)(e.into()))?;
+                let mut paged = Renderer::new_paged(ctx, file, ropts, &mut planner)
+                    .map_err(render_err(id.clone(), 0))?;
                 let ctx = VariantCtx {
                     file,
                     plan,
@@ -394,8 +412,7 @@ fn run_build(
                     reference,
                 };
                 for (i, (t, cam)) in cameras.iter().enumerate() {
-                    paged.set_clock(*t);
-                    let row = ctx.measure(&mut paged, i, *t, cam, None)?;
+                    let row = ctx.measure(&mut planner, &mut paged, i, *t, cam, None)?;
                     data.frames.push(row);
                     progress.advance(1);
                 }
@@ -408,6 +425,7 @@ fn run_build(
 /// The reference of every frame: [`Mode::Original`] (original textures, naive draws) and the pixels the
 /// density pass covers, at texel ratio 1 on the base build.
 fn reference_frames(
+    planner: &mut FramePlanner<'_>,
     r: &mut Renderer<'_>,
     file: &TreeFile,
     plan: &Plan,
@@ -425,15 +443,20 @@ fn reference_frames(
     if opts.warmup > 0
         && let Some((_, cam)) = cameras.first()
     {
-        r.render(cam, scale(file, plan, 1.0, cam)?, Mode::Original)
-            .map_err(err(0))?;
+        let warm = planner
+            .plan_still(cam, scale(file, plan, 1.0, cam)?, &mut r.residency())
+            .map_err(|e| err(0)(e.into()))?;
+        r.execute(warm, Mode::Original).map_err(err(0))?;
     }
     let mut out = Vec::with_capacity(cameras.len());
-    for (i, (_, cam)) in cameras.iter().enumerate() {
+    for (i, (t, cam)) in cameras.iter().enumerate() {
         let s = scale(file, plan, 1.0, cam)?;
-        r.render(cam, s, Mode::Original).map_err(err(i))?;
+        let frame = planner
+            .plan(cam, *t, s, &mut r.residency())
+            .map_err(|e| err(i)(e.into()))?;
+        r.execute(frame, Mode::Original).map_err(err(i))?;
         let rgba = r.read_frame().map_err(err(i))?;
-        let (_, density) = r.render_density(cam, s).map_err(err(i))?;
+        let (_, density) = r.execute_density(frame).map_err(err(i))?;
         let covered = density.pixels.iter().map(Option::is_some).collect();
         out.push(Reference { rgba, covered });
         progress.advance(1);
@@ -451,10 +474,12 @@ struct VariantCtx<'a> {
 }
 
 impl VariantCtx<'_> {
-    /// Renders frame `i` in tree mode, compares it with the reference, and (when `hist` is given, i.e.
-    /// not paged) runs the density pass for the magnified shares and the histogram.
+    /// Plans frame `i` (one paging step when paged), renders it in tree mode, compares it with the
+    /// reference, and runs the density pass of the same plan for the magnified shares (and, when `hist` is
+    /// given, the histogram).
     fn measure(
         &self,
+        planner: &mut FramePlanner<'_>,
         r: &mut Renderer<'_>,
         i: usize,
         time_s: f64,
@@ -474,7 +499,10 @@ impl VariantCtx<'_> {
             source,
         };
         let s = scale(self.file, self.plan, rt.texel_ratio, cam)?;
-        let stats: FrameStats = r.render(cam, s, Mode::Tree).map_err(render_err)?;
+        let frame = planner
+            .plan(cam, time_s, s, &mut r.residency())
+            .map_err(|e| render_err(e.into()))?;
+        let stats: FrameStats = r.execute(frame, Mode::Tree).map_err(render_err)?;
         let rgba = r.read_frame().map_err(render_err)?;
         let reference = self.reference.get(i).ok_or(SweepError::Grid {
             origin: self.id.to_string(),
@@ -484,12 +512,12 @@ impl VariantCtx<'_> {
         let (covered_db, covered) =
             psnr_masked(&rgba, &reference.rgba, w, h, &reference.covered).map_err(metric_err)?;
         let ssim = ssim(&rgba, &reference.rgba, w, h).map_err(metric_err)?;
-        let (mut magnified, mut below) = (f64::NAN, f64::NAN);
+        // The density pass executes the same plan: it steps no pager, so paged variants get it too.
+        let (_, density) = r.execute_density(frame).map_err(render_err)?;
+        let d = min_density(&density);
+        let magnified = magnified_share(&d, 1.0).fraction();
+        let below = magnified_share(&d, rt.texel_ratio).fraction();
         if let Some(hist) = hist {
-            let (_, density) = r.render_density(cam, s).map_err(render_err)?;
-            let d = min_density(&density);
-            magnified = magnified_share(&d, 1.0).fraction();
-            below = magnified_share(&d, rt.texel_ratio).fraction();
             merge_histogram(hist, &Histogram::log2(&d, HIST_MIN_EXP, HIST_MAX_EXP));
         }
         let paging = stats.paging.as_ref();

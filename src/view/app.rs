@@ -7,7 +7,7 @@ use super::present::{COMPOSITE_FORMAT, Presenter, ShotSource};
 use super::{ViewError, ViewOptions, ViewReport, scene_bounds};
 use crate::camera::{Camera, CameraPath};
 use crate::gpu::{GpuContext, GpuOptions};
-use crate::render::{FrameStats, Mode, Renderer, RendererOptions};
+use crate::render::{FrameLoop, FrameStats, Mode, RendererOptions};
 use crate::select::{SelectOptions, min_distance_scale};
 use crate::store::TreeFile;
 use glam::DVec3;
@@ -152,7 +152,8 @@ struct Running<'a> {
     file: &'a TreeFile,
     bounds: (DVec3, DVec3),
     presenter: Presenter<'a>,
-    renderer: Renderer<'a>,
+    /// The frame planner and the renderer that executes its plans.
+    frame_loop: FrameLoop<'a>,
     egui_ctx: egui::Context,
     egui_state: egui_winit::State,
     egui_renderer: egui_wgpu::Renderer,
@@ -203,8 +204,8 @@ impl<'a> Running<'a> {
             gpu_timing: opts.gpu_timing,
             anisotropy: crate::render::RendererOptions::ANISOTROPY,
         };
-        let renderer = match opts.capacity {
-            None => Renderer::new(ctx, file, ropts)?,
+        let frame_loop = match opts.capacity {
+            None => FrameLoop::new(ctx, file, ropts)?,
             Some(k) => {
                 // Blocks from the same file through the pager's loader threads (paper §6).
                 let reopened =
@@ -212,11 +213,11 @@ impl<'a> Running<'a> {
                 let source = std::sync::Arc::new(crate::paging::FileSource::new(
                     std::sync::Arc::new(reopened),
                 ));
-                Renderer::new_paged(
+                FrameLoop::new_paged(
                     ctx,
                     file,
                     ropts,
-                    crate::render::PagingSetup {
+                    crate::plan::PagingSetup {
                         pager: crate::paging::PagerOptions {
                             capacity: k,
                             ..Default::default()
@@ -264,7 +265,7 @@ impl<'a> Running<'a> {
             file,
             bounds,
             presenter,
-            renderer,
+            frame_loop,
             egui_ctx,
             egui_state,
             egui_renderer,
@@ -457,14 +458,14 @@ impl<'a> Running<'a> {
         }
         self.last_frame = Some(now);
         let (w, h) = self.presenter.size();
-        self.renderer.resize(w, h)?;
+        self.frame_loop.renderer.resize(w, h)?;
         let camera = self.camera(dt);
         match (self.settings.freeze, self.frozen) {
             (true, None) => self.frozen = Some(camera),
             (false, Some(_)) => self.frozen = None,
             _ => {}
         }
-        self.renderer.freeze_selection(self.frozen);
+        self.frame_loop.planner.freeze_selection(self.frozen);
         let selector = self.frozen.as_ref().unwrap_or(&camera);
         let scale = min_distance_scale(
             &self.file.to_params(),
@@ -474,17 +475,17 @@ impl<'a> Running<'a> {
                 fov_x_deg: selector.fov_x_deg,
             },
         )?;
-        // The pager: a paged renderer updates its residency inside `render` on the wall clock; the capacity
-        // slider applies live.
+        // The planner pages on the wall clock; the capacity slider applies live, up to the capacity the
+        // texture arrays were sized for.
         let clock = self.started.elapsed().as_secs_f64();
-        if let Some(pager) = self.renderer.pager()
+        if let Some(pager) = self.frame_loop.pager()
             && pager.options().capacity != self.settings.capacity
         {
-            self.renderer.set_capacity(self.settings.capacity);
+            self.frame_loop.planner.set_capacity(self.settings.capacity);
         }
-        self.renderer.set_clock(clock);
+        self.frame_loop.set_clock(clock);
         self.stats = self
-            .renderer
+            .frame_loop
             .render(&camera, scale, self.settings.render_mode())?;
         self.paging = self.stats.paging.map(|p| PagingStats {
             needed: p.session.pager.usage.needed,
@@ -556,7 +557,7 @@ impl<'a> Running<'a> {
     /// World bounds and levels of the last frame's cut items.
     fn node_boxes(&self) -> Vec<NodeBox> {
         let mut boxes = Vec::new();
-        for (t, cut) in self.renderer.cuts().iter().enumerate() {
+        for (t, cut) in self.frame_loop.cuts().iter().enumerate() {
             let Some(view) = self.file.tree(t) else {
                 continue;
             };
@@ -601,7 +602,7 @@ impl<'a> Running<'a> {
             label: Some("view frame"),
         });
         self.presenter
-            .copy_frame(&mut encoder, &self.renderer.color);
+            .copy_frame(&mut encoder, &self.frame_loop.renderer.color);
         let extra =
             self.egui_renderer
                 .update_buffers(device, queue, &mut encoder, &primitives, &screen);

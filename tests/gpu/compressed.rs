@@ -14,7 +14,7 @@
 
 use atlastree::gpu::{GpuContext, GpuFeatures};
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
-use atlastree::render::{Mode, Renderer, RendererOptions};
+use atlastree::render::{FrameLoop, Mode, RendererOptions};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::store::TreeFile;
 use atlastree::texfmt::{Compression, TexFormat};
@@ -60,7 +60,7 @@ type Frames = (Vec<Vec<u8>>, u64, Vec<TexFormat>);
 
 /// The [`Frames`] of `file` along the dive.
 fn frames(ctx: &GpuContext, file: &TreeFile) -> Result<Frames, String> {
-    let mut r = Renderer::new(
+    let mut r = FrameLoop::new(
         ctx,
         file,
         RendererOptions {
@@ -91,8 +91,14 @@ fn frames(ctx: &GpuContext, file: &TreeFile) -> Result<Frames, String> {
         r.render(&cam, scale, Mode::Tree).map_err(e)?;
         out.push(r.read_frame().map_err(e)?);
     }
-    let formats = r.resident.atlas_arrays.iter().map(|a| a.format).collect();
-    Ok((out, r.resident.stats.decoded_on_load, formats))
+    let formats = r
+        .renderer
+        .resident
+        .atlas_arrays
+        .iter()
+        .map(|a| a.format)
+        .collect();
+    Ok((out, r.renderer.resident.stats.decoded_on_load, formats))
 }
 
 /// `ctx` as an adapter without BC support would present it (same device; the loader must decode).

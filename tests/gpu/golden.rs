@@ -11,7 +11,7 @@
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::gpu::GpuContext;
 use atlastree::render::density::{DensityFrame, log2_histogram};
-use atlastree::render::{Mode, Renderer, RendererOptions};
+use atlastree::render::{FrameLoop, Mode, RendererOptions};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::store::TreeFile;
 use std::path::{Path, PathBuf};
@@ -103,14 +103,14 @@ fn scale_for(file: &TreeFile, cam: &Camera, texel_ratio: f64) -> Result<f64, Str
     .map_err(e)
 }
 
-fn renderer<'f>(ctx: &'f GpuContext, file: &'f TreeFile) -> Result<Renderer<'f>, String> {
+fn renderer<'f>(ctx: &'f GpuContext, file: &'f TreeFile) -> Result<FrameLoop<'f>, String> {
     let opts = RendererOptions {
         width: W,
         height: H,
         gpu_timing: false,
         anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
     };
-    Renderer::new(ctx, file, opts).map_err(e)
+    FrameLoop::new(ctx, file, opts).map_err(e)
 }
 
 /// RGBA frame → RGB (the frames are opaque).

@@ -10,6 +10,7 @@ mod fixtures;
 mod golden;
 mod harness;
 mod paging;
+mod planner;
 mod render;
 mod shared;
 mod smoke;
@@ -25,6 +26,7 @@ fn main() -> ExitCode {
         render::tests(),
         golden::tests(),
         paging::tests(),
+        planner::tests(),
         view::tests(),
         sweep::tests(),
         compressed::tests(),

@@ -11,7 +11,7 @@
 use atlastree::camera::Camera;
 use atlastree::gpu::GpuContext;
 use atlastree::paging::{FileSource, PagerOptions, Policy, UploadBudget};
-use atlastree::render::{Mode, PagingSetup, Renderer, RendererOptions};
+use atlastree::render::{FrameLoop, Mode, PagingSetup, RendererOptions};
 use atlastree::store::TreeFile;
 use std::sync::Arc;
 
@@ -44,7 +44,7 @@ pub(crate) fn paged<'f>(
     budget: UploadBudget,
     source: Arc<dyn atlastree::paging::BlockSource>,
     threads: usize,
-) -> Result<Renderer<'f>, String> {
+) -> Result<FrameLoop<'f>, String> {
     paged_with(ctx, file, k, budget, source, threads, Policy::Paper)
 }
 
@@ -56,8 +56,8 @@ pub(crate) fn paged_with<'f>(
     source: Arc<dyn atlastree::paging::BlockSource>,
     threads: usize,
     policy: Policy,
-) -> Result<Renderer<'f>, String> {
-    Renderer::new_paged(
+) -> Result<FrameLoop<'f>, String> {
+    FrameLoop::new_paged(
         ctx,
         file,
         RendererOptions {
@@ -91,8 +91,8 @@ pub(crate) fn coverage_mismatch(a: &[u8], b: &[u8]) -> usize {
 
 /// Checks one paged frame against the all-resident one; returns whether it was drawn coarser.
 pub(crate) fn check_frame(
-    paged: &mut Renderer<'_>,
-    full: &mut Renderer<'_>,
+    paged: &mut FrameLoop<'_>,
+    full: &mut FrameLoop<'_>,
     file: &TreeFile,
     cam: &Camera,
     k: u32,

@@ -12,7 +12,7 @@ use atlastree::camera::{Camera, CameraPath};
 use atlastree::gpu::GpuContext;
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::render::batch::{Group, Pass};
-use atlastree::render::{FrameStats, Mode, Renderer, RendererOptions};
+use atlastree::render::{FrameLoop, FrameStats, Mode, RendererOptions};
 use atlastree::scene::Scene;
 use atlastree::select::{SelectOptions, Source, min_distance_scale};
 use atlastree::store::TreeFile;
@@ -117,7 +117,7 @@ pub(crate) fn scale_for(file: &TreeFile, cam: &Camera) -> Result<f64, String> {
 pub(crate) fn renderer<'f>(
     ctx: &'f GpuContext,
     file: &'f TreeFile,
-) -> Result<Renderer<'f>, String> {
+) -> Result<FrameLoop<'f>, String> {
     renderer_with(ctx, file, atlastree::render::RendererOptions::ANISOTROPY)
 }
 
@@ -126,8 +126,8 @@ pub(crate) fn renderer_with<'f>(
     ctx: &'f GpuContext,
     file: &'f TreeFile,
     anisotropy: u16,
-) -> Result<Renderer<'f>, String> {
-    Renderer::new(
+) -> Result<FrameLoop<'f>, String> {
+    FrameLoop::new(
         ctx,
         file,
         RendererOptions {
@@ -141,7 +141,7 @@ pub(crate) fn renderer_with<'f>(
 }
 
 pub(crate) fn frame(
-    r: &mut Renderer<'_>,
+    r: &mut FrameLoop<'_>,
     file: &TreeFile,
     cam: &Camera,
     mode: Mode,
@@ -260,7 +260,7 @@ fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
 
 /// Levels of the atlas items of `r`'s last cut whose triangles cross a wrap seam: some triangle of the
 /// item's subtree spans more UV than its rect holds on a REPEAT axis.
-fn seam_levels(r: &Renderer<'_>, file: &TreeFile) -> std::collections::BTreeSet<u8> {
+fn seam_levels(r: &FrameLoop<'_>, file: &TreeFile) -> std::collections::BTreeSet<u8> {
     use atlastree::model::RectWrap;
     let mut levels = std::collections::BTreeSet::new();
     for (t, cut) in r.cuts().iter().enumerate() {
@@ -299,7 +299,7 @@ fn seam_levels(r: &Renderer<'_>, file: &TreeFile) -> std::collections::BTreeSet<
 /// Tree against original frames on the dive views; failures appended; returns the per-view lines and the
 /// levels at which wrap seams were drawn with atlases.
 fn compare_views(
-    r: &mut Renderer<'_>,
+    r: &mut FrameLoop<'_>,
     file: &TreeFile,
     failures: &mut Vec<String>,
 ) -> Result<(Vec<String>, std::collections::BTreeSet<u8>), String> {
@@ -366,6 +366,7 @@ fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String>
         let scale = scale_for(&file, &cam)? * ratio;
         let s = r.render(&cam, scale, Mode::Tree).map_err(e)?;
         let passes = r
+            .renderer
             .batch()
             .group_ranges
             .iter()
@@ -383,7 +384,7 @@ fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String>
             Group::new(Pass::Blend, true),
         ]
         .iter()
-        .map(|g| r.batch().group_ranges[g.index()].1)
+        .map(|g| r.renderer.batch().group_ranges[g.index()].1)
         .sum();
         if s.indirect_records != s.nodes_drawn + blend_records {
             return Err(format!(
@@ -423,7 +424,7 @@ fn anisotropy_reaches_the_samplers(ctx: &GpuContext) -> Result<(), String> {
     let (lo, hi) = bounds(&file)?;
     let path = CameraPath::street(lo, hi, file.to_params().up).map_err(e)?;
     let make = |anisotropy| {
-        Renderer::new(
+        FrameLoop::new(
             ctx,
             &file,
             RendererOptions {

@@ -8,7 +8,7 @@
 use atlastree::camera::Camera;
 use atlastree::gpu::GpuContext;
 use atlastree::ids::NodeId;
-use atlastree::render::{Mode, RenderError, Renderer, RendererOptions};
+use atlastree::render::{FrameLoop, Mode, RenderError, RendererOptions};
 use atlastree::select::{SelectOptions, Source, min_distance_scale};
 use atlastree::store::TreeFile;
 
@@ -83,8 +83,8 @@ fn renderer<'f>(
     file: &'f TreeFile,
     w: u32,
     h: u32,
-) -> Result<Renderer<'f>, String> {
-    Renderer::new(
+) -> Result<FrameLoop<'f>, String> {
+    FrameLoop::new(
         ctx,
         file,
         RendererOptions {
@@ -97,7 +97,7 @@ fn renderer<'f>(
     .map_err(e)
 }
 
-fn selection(r: &Renderer<'_>) -> Vec<Vec<(NodeId, Source)>> {
+fn selection(r: &FrameLoop<'_>) -> Vec<Vec<(NodeId, Source)>> {
     r.cuts().iter().map(|c| c.selection().collect()).collect()
 }
 
@@ -120,7 +120,7 @@ fn frozen_selection_keeps_the_cut(ctx: &GpuContext) -> Result<(), String> {
             s_street.nodes_drawn
         ));
     }
-    r.freeze_selection(Some(street));
+    r.planner.freeze_selection(Some(street));
     let s_frozen = r
         .render(&overview, scale(&file, W, &street)?, Mode::Tree)
         .map_err(e)?;
@@ -140,7 +140,7 @@ fn frozen_selection_keeps_the_cut(ctx: &GpuContext) -> Result<(), String> {
             "frozen counters {s_frozen:?} differ from the street frame's {s_street:?}"
         ));
     }
-    r.freeze_selection(None);
+    r.planner.freeze_selection(None);
     let s_again = r
         .render(&overview, scale(&file, W, &overview)?, Mode::Tree)
         .map_err(e)?;
@@ -164,18 +164,18 @@ fn resize_matches_a_fresh_renderer(ctx: &GpuContext) -> Result<(), String> {
     let mut r = renderer(ctx, &file, W, H)?;
     r.render(&street, scale(&file, W, &street)?, Mode::Tree)
         .map_err(e)?;
-    match r.resize(0, 10) {
+    match r.renderer.resize(0, 10) {
         Err(RenderError::BadSize {
             width: 0,
             height: 10,
         }) => {}
         other => return Err(format!("resize(0, 10) gave {other:?}")),
     }
-    r.resize(w2, h2).map_err(e)?;
+    r.renderer.resize(w2, h2).map_err(e)?;
     r.render(&cam, scale(&file, w2, &cam)?, Mode::Tree)
         .map_err(e)?;
     let resized = r.read_frame().map_err(e)?;
-    if resized.len() != (w2 * h2 * 4) as usize || r.color.width() != w2 {
+    if resized.len() != (w2 * h2 * 4) as usize || r.renderer.color.width() != w2 {
         return Err(format!(
             "resized frame has {} bytes, expected {}",
             resized.len(),

@@ -1,0 +1,446 @@
+//! The frame planner: what a frame draws, decided on the CPU as plain data (vello's "decide on the CPU,
+//! execute on the GPU"). Camera, clock and min-distance scale go in; a [`FramePlan`] comes out:
+//!
+//! 1. **select** (paper §4): the cut of every tree for the selecting camera (the frame's, or a frozen one);
+//! 2. **page** (§6, only when blocks are paged): usage and ideal set under the capacity k, the request
+//!    queue handed to the loader, arrivals accepted; each residency change is handed to the executor's
+//!    [`Residency`] as it happens, and a change the executor cannot apply is taken back by the pager (the
+//!    block is not resident, counted as a failed load and retried), so residency never names a block
+//!    that cannot be drawn;
+//! 3. **resolve**: every cut item against the pager's residency (drawing with missing blocks: the nearest
+//!    resident ancestor atlas), with the screen-space accounting of what is drawn coarser.
+//!
+//! The renderer executes a plan (colour or density pass, as often as it likes, without stepping the
+//! pager again); the simulator records it with [`NoResidency`]; the viewer, `render` and `sweep` drive the
+//! same planner. This is the one per-frame loop of the code base.
+//!
+//! Clock: every paged plan names its time (seconds); it must not run backwards
+//! ([`PlanError::TimeBackwards`]). [`FramePlanner::plan_still`] plans without paging (select and resolve
+//! against current residency, no clock), for warm-up draws and previews.
+
+use crate::camera::Camera;
+use crate::ids::BlockId;
+use crate::paging::{
+    Applied, BlockSource, BlockTable, BlockTableError, Coarseness, Event, ImmediateLoader, Loader,
+    Pager, PagerError, PagerOptions, PagingSession, Resolved, SessionFrame, ThreadedLoader,
+    resident_fingerprint, resolve_frame,
+};
+use crate::select::{Cut, select};
+use crate::store::TreeFile;
+use crate::store::format::NodeRecord;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Where the executor applies residency changes (GPU uploads and frees for the renderer; nothing for the
+/// simulator).
+pub trait Residency {
+    /// Applies one change of the pager; returns the bytes uploaded. An error means the change could not
+    /// be applied: for a loaded block the pager then takes it back (drawn coarser, retried later).
+    fn apply(&mut self, event: &Event) -> Result<u64, String>;
+}
+
+/// The simulator's executor: nothing to upload, every change applies.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct NoResidency;
+
+impl Residency for NoResidency {
+    fn apply(&mut self, _: &Event) -> Result<u64, String> {
+        Ok(0)
+    }
+}
+
+/// A recorder: applies nothing, hands every change to a closure (the simulator's event log).
+pub struct RecordResidency<F: FnMut(&Event)>(pub F);
+
+impl<F: FnMut(&Event)> Residency for RecordResidency<F> {
+    fn apply(&mut self, event: &Event) -> Result<u64, String> {
+        (self.0)(event);
+        Ok(0)
+    }
+}
+
+/// Errors of planning.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    #[error(transparent)]
+    Pager(#[from] PagerError),
+    #[error(transparent)]
+    Blocks(#[from] BlockTableError),
+    #[error("starting loader threads: {0}")]
+    Loader(std::io::Error),
+    #[error("root atlas {block} could not be made resident: {message}")]
+    RootApply { block: BlockId, message: String },
+    #[error("the planner does not page (a paged run was asked of an all-resident planner)")]
+    NotPaged,
+    #[error("the frame clock ran backwards: {time} s after {last} s")]
+    TimeBackwards { time: f64, last: f64 },
+}
+
+/// How a paged planner gets its blocks.
+pub struct PagingSetup {
+    pub pager: PagerOptions,
+    pub source: Arc<dyn BlockSource>,
+    /// Loader threads; 0 loads synchronously inside the frame (deterministic, for tests and comparisons).
+    pub loader_threads: usize,
+}
+
+/// Paging counters of one plan (the paging columns of `stats.csv` and `frames.csv`).
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct PagingFrame {
+    pub session: SessionFrame,
+    /// Screen accounting of the draws: share rendered coarser than the selection asked for.
+    pub coarse: Coarseness,
+    /// Time spent applying residency changes (uploads), ms, and bytes the executor uploaded.
+    pub upload_ms: f64,
+    pub uploaded_bytes: u64,
+    /// Of the bytes the pager loaded this frame, those of original-texture blocks (the rest are atlases).
+    pub loaded_original_bytes: u64,
+    /// Bytes of the resident blocks after the frame, atlases and original textures apart.
+    pub resident_atlas_bytes: u64,
+    pub resident_original_bytes: u64,
+    /// `xxh3_64` of the sorted resident block ids (compared between renderer and simulator).
+    pub resident_hash: u64,
+    /// Residency changes the executor could not apply this frame (loads taken back, drawn coarser).
+    pub apply_errors: u32,
+}
+
+/// Counters of one plan.
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct PlanStats {
+    /// Nodes evaluated by the traversals (all trees), culled ones included.
+    pub nodes_visited: u32,
+    /// Cut items (selected nodes) of all trees.
+    pub nodes_drawn: u32,
+    /// CPU time of the traversal (select), µs.
+    pub select_us: f64,
+    /// CPU time of the paging step and resolution, µs (0 when not paged).
+    pub page_us: f64,
+    /// `None` when every block is resident.
+    pub paging: Option<PagingFrame>,
+}
+
+/// One frame, decided: plain data the renderer executes and the simulator records.
+#[derive(Clone, Debug)]
+pub struct FramePlan {
+    /// Plans made so far by this planner, this one included (1 for the first).
+    pub frame: u64,
+    /// Clock time of the plan, seconds (`None` for [`FramePlanner::plan_still`]).
+    pub time: Option<f64>,
+    /// The camera the frame is drawn with, and the one the cut was selected for (they differ while the
+    /// selection is frozen).
+    pub camera: Camera,
+    pub selector: Camera,
+    /// `min_distance` scale of the selection ([`crate::select::min_distance_scale`]).
+    pub scale: f64,
+    /// One cut per tree.
+    pub cuts: Vec<Cut>,
+    /// Per tree and cut item, how it is drawn with the resident blocks; `None` when every block is
+    /// resident (every item as selected).
+    pub resolved: Option<Vec<Vec<Resolved>>>,
+    pub stats: PlanStats,
+}
+
+impl FramePlan {
+    /// The resolution of tree `t`'s cut (`None`: every item as selected).
+    pub fn resolved(&self, t: usize) -> Option<&[Resolved]> {
+        self.resolved
+            .as_ref()
+            .and_then(|r| r.get(t))
+            .map(Vec::as_slice)
+    }
+}
+
+struct PagingState {
+    session: PagingSession,
+    loader: Box<dyn Loader>,
+    table: BlockTable,
+    /// The capacity the executor was sized for: `set_capacity` never goes above it.
+    max_capacity: u32,
+    /// Root loads of the bootstrap, applied to the executor at the first plan.
+    pending: Vec<Event>,
+    last_time: Option<f64>,
+    last_error: Option<String>,
+}
+
+/// Plans frames of one set of trees. See the module docs.
+pub struct FramePlanner<'a> {
+    trees: Vec<&'a [NodeRecord]>,
+    paging: Option<PagingState>,
+    frozen: Option<Camera>,
+    plan: Option<FramePlan>,
+}
+
+impl<'a> FramePlanner<'a> {
+    /// A planner with every block resident (no paging).
+    pub fn new(trees: Vec<&'a [NodeRecord]>) -> FramePlanner<'a> {
+        FramePlanner {
+            trees,
+            paging: None,
+            frozen: None,
+            plan: None,
+        }
+    }
+
+    /// Every tree of `file`, every block resident.
+    pub fn from_file(file: &'a TreeFile) -> FramePlanner<'a> {
+        FramePlanner::new(file_trees(file))
+    }
+
+    /// A paging planner: the pager with `opts` (capacity clamped to the table's blocks), the root atlases
+    /// fetched now with `fetch_root` (applied to the executor at the first plan), `loader` for the rest.
+    pub fn paged(
+        trees: Vec<&'a [NodeRecord]>,
+        table: BlockTable,
+        mut opts: PagerOptions,
+        loader: Box<dyn Loader>,
+        fetch_root: impl FnMut(BlockId) -> Result<Option<Vec<u8>>, String>,
+    ) -> Result<FramePlanner<'a>, PlanError> {
+        opts.capacity = opts.capacity.min(table.len().max(1) as u32);
+        let mut pager = Pager::new(table.clone(), opts)?;
+        let pending = pager.bootstrap(fetch_root)?;
+        let max_capacity = pager.options().capacity;
+        Ok(FramePlanner {
+            trees,
+            paging: Some(PagingState {
+                session: PagingSession::new(pager),
+                loader,
+                table,
+                max_capacity,
+                pending,
+                last_time: None,
+                last_error: None,
+            }),
+            frozen: None,
+            plan: None,
+        })
+    }
+
+    /// A paging planner over `file` whose blocks come from `setup.source` (the renderer's and viewer's).
+    pub fn paged_from_file(
+        file: &'a TreeFile,
+        setup: PagingSetup,
+    ) -> Result<FramePlanner<'a>, PlanError> {
+        let table = BlockTable::from_file(file)?;
+        let records = file.blocks().to_vec();
+        let source = setup.source;
+        let fetch = {
+            let (source, records) = (source.clone(), records.clone());
+            move |b: BlockId| {
+                let r = records
+                    .get(b.idx())
+                    .ok_or_else(|| format!("{b} not in the table"))?;
+                source.fetch(b, r).map(Some).map_err(|e| e.to_string())
+            }
+        };
+        let loader: Box<dyn Loader> = if setup.loader_threads == 0 {
+            Box::new(ImmediateLoader::new(source, records))
+        } else {
+            Box::new(
+                ThreadedLoader::new(source, records, setup.loader_threads)
+                    .map_err(PlanError::Loader)?,
+            )
+        };
+        FramePlanner::paged(file_trees(file), table, setup.pager, loader, fetch)
+    }
+
+    /// The trees planned.
+    pub fn trees(&self) -> &[&'a [NodeRecord]] {
+        &self.trees
+    }
+
+    /// The pager (`None` when every block is resident).
+    pub fn pager(&self) -> Option<&Pager> {
+        self.paging.as_ref().map(|p| &p.session.pager)
+    }
+
+    /// The block table of a paging planner.
+    pub fn table(&self) -> Option<&BlockTable> {
+        self.paging.as_ref().map(|p| &p.table)
+    }
+
+    /// The capacity the executor must be sized for (`None` when not paged): the capacity at creation,
+    /// clamped to the number of blocks.
+    pub fn max_capacity(&self) -> Option<u32> {
+        self.paging.as_ref().map(|p| p.max_capacity)
+    }
+
+    /// Changes the capacity k live (a viewer slider), clamped to [`FramePlanner::max_capacity`]: k counts
+    /// atlas and original-texture blocks alike, and the executor's arrays hold any k blocks up to that.
+    pub fn set_capacity(&mut self, capacity: u32) {
+        if let Some(p) = &mut self.paging {
+            p.session
+                .pager
+                .set_capacity(capacity.min(p.max_capacity.max(1)));
+        }
+    }
+
+    /// The root loads of the bootstrap not yet applied, taken: an executor that holds the roots already (or
+    /// a simulator whose log starts with the first frame) takes them; otherwise the first plan applies them.
+    pub fn take_bootstrap(&mut self) -> Vec<Event> {
+        self.paging
+            .as_mut()
+            .map(|p| std::mem::take(&mut p.pending))
+            .unwrap_or_default()
+    }
+
+    /// The last residency change the executor could not apply, if any.
+    pub fn last_error(&self) -> Option<&str> {
+        self.paging.as_ref().and_then(|p| p.last_error.as_deref())
+    }
+
+    /// Selects every following plan's cut for `camera` instead of the frame's own camera (`None`: the
+    /// frame's camera again): the viewer's "freeze selection". Draws still use the frame's camera.
+    pub fn freeze_selection(&mut self, camera: Option<Camera>) {
+        self.frozen = camera;
+    }
+
+    /// The last plan made.
+    pub fn last(&self) -> Option<&FramePlan> {
+        self.plan.as_ref()
+    }
+
+    /// Plans the frame of `camera` at clock `time` (seconds) with min-distance `scale`: select, one
+    /// paging step whose residency changes go to `residency`, resolve. See the module docs.
+    pub fn plan(
+        &mut self,
+        camera: &Camera,
+        time: f64,
+        scale: f64,
+        residency: &mut dyn Residency,
+    ) -> Result<&FramePlan, PlanError> {
+        self.plan_inner(camera, Some(time), scale, residency)
+    }
+
+    /// Plans `camera` without a paging step: select, and resolve against the residency as it is (no
+    /// clock, no loads, no evictions). For warm-up draws and previews; a paged executor must already hold
+    /// the roots, so this applies the bootstrap's root loads if no plan did yet.
+    pub fn plan_still(
+        &mut self,
+        camera: &Camera,
+        scale: f64,
+        residency: &mut dyn Residency,
+    ) -> Result<&FramePlan, PlanError> {
+        self.plan_inner(camera, None, scale, residency)
+    }
+
+    fn plan_inner(
+        &mut self,
+        camera: &Camera,
+        time: Option<f64>,
+        scale: f64,
+        residency: &mut dyn Residency,
+    ) -> Result<&FramePlan, PlanError> {
+        if let (Some(p), Some(t)) = (&self.paging, time)
+            && let Some(last) = p.last_time
+            && t < last
+        {
+            return Err(PlanError::TimeBackwards { time: t, last });
+        }
+        if let Some(p) = &mut self.paging {
+            for ev in p.pending.drain(..) {
+                let block = match &ev {
+                    Event::Loaded { block, .. } | Event::Evicted { block } => *block,
+                };
+                residency
+                    .apply(&ev)
+                    .map_err(|message| PlanError::RootApply { block, message })?;
+            }
+        }
+        let t0 = Instant::now();
+        let selector = self.frozen.unwrap_or(*camera);
+        let frustum = selector.frustum();
+        let previous = self.plan.take();
+        let frame = previous.as_ref().map_or(0, |p| p.frame) + 1;
+        let (mut cuts, mut reuse_resolved) =
+            previous.map_or((Vec::new(), None), |p| (p.cuts, p.resolved));
+        cuts.resize_with(self.trees.len(), Cut::new);
+        let mut stats = PlanStats::default();
+        for (nodes, cut) in self.trees.iter().zip(cuts.iter_mut()) {
+            select(nodes, &selector, &frustum, scale, cut);
+            stats.nodes_visited += cut.visited;
+            stats.nodes_drawn += cut.items.len() as u32;
+        }
+        let t1 = Instant::now();
+        stats.select_us = (t1 - t0).as_secs_f64() * 1e6;
+        let mut resolved = None;
+        if let Some(p) = &mut self.paging {
+            let mut frame_stats = PagingFrame::default();
+            if let Some(now) = time {
+                p.last_time = Some(now);
+                let table = &p.table;
+                let (mut uploaded, mut errors, mut loaded_originals) = (0u64, 0u32, 0u64);
+                let mut last_error = None;
+                let t = Instant::now();
+                let session = p.session.frame(
+                    &self.trees,
+                    &selector,
+                    &frustum,
+                    scale,
+                    now,
+                    &mut *p.loader,
+                    |ev| {
+                        if let Event::Loaded { block, .. } = &ev {
+                            loaded_originals += table.bytes_by_kind([*block]).1;
+                        }
+                        match residency.apply(&ev) {
+                            Ok(b) => {
+                                uploaded += b;
+                                Applied::Done
+                            }
+                            Err(e) => {
+                                errors += 1;
+                                last_error = Some(e);
+                                Applied::Failed
+                            }
+                        }
+                    },
+                );
+                frame_stats.upload_ms = t.elapsed().as_secs_f64() * 1e3;
+                frame_stats.session = session;
+                frame_stats.uploaded_bytes = uploaded;
+                frame_stats.loaded_original_bytes = loaded_originals;
+                frame_stats.apply_errors = errors;
+                if last_error.is_some() {
+                    p.last_error = last_error;
+                }
+            } else {
+                frame_stats.session.pager = *p.session.pager.frame_stats();
+            }
+            let pager = &p.session.pager;
+            let table = &p.table;
+            let mut out = reuse_resolved.take().unwrap_or_default();
+            frame_stats.coarse = resolve_frame(
+                &self.trees,
+                &cuts,
+                &selector,
+                |t, n| table.atlas(t, n).is_some_and(|b| pager.is_resident(b)),
+                |t, n| table.originals(t, n).iter().all(|&b| pager.is_resident(b)),
+                &mut out,
+            );
+            let (atlases, originals) = table.bytes_by_kind(pager.resident().iter().copied());
+            frame_stats.resident_atlas_bytes = atlases;
+            frame_stats.resident_original_bytes = originals;
+            frame_stats.resident_hash = resident_fingerprint(pager.resident());
+            resolved = Some(out);
+            stats.paging = Some(frame_stats);
+            stats.page_us = t1.elapsed().as_secs_f64() * 1e6;
+        }
+        Ok(self.plan.insert(FramePlan {
+            frame,
+            time,
+            camera: *camera,
+            selector,
+            scale,
+            cuts,
+            resolved,
+            stats,
+        }))
+    }
+}
+
+/// The node tables of every tree of `file`, in tree order.
+pub fn file_trees(file: &TreeFile) -> Vec<&[NodeRecord]> {
+    (0..file.trees())
+        .filter_map(|t| file.tree(t).map(|v| v.nodes))
+        .collect()
+}

@@ -1,0 +1,244 @@
+//! The CPU half of a GPU load: every tree's geometry, leaf table, rect maps and original-texture mapping
+//! (TAM) gathered into the shared arrays the shader indexes ([`gather_tables`]), with what the shader does
+//! not check checked here (vertex → TAM and rect ranges, class sizes, slot offsets).
+
+use super::UniqueOriginal;
+use crate::ids::{BlockId, NONE};
+use crate::model::TreeVertex;
+use crate::render::RenderError;
+use crate::render::batch::{
+    LeafGpu, Pass, RectMap, TamEntry, TreeBatchInfo, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT,
+    leaf_ranges,
+};
+use crate::render::textures::class_index;
+use crate::scene::{AlphaMode, Wrap};
+use crate::store::format::{MaterialRecord, OriginalRecord};
+use crate::store::{TreeFile, TreeView};
+use crate::texfmt::TexFormat;
+use glam::DVec3;
+use std::collections::HashMap;
+
+/// Geometry, leaves and the original-texture mapping of all trees, gathered on the CPU ([`gather_tables`]): what
+/// [`super::Resident`] uploads. Atlas slots are still `None` and TAM layers 0 (assigned at upload).
+#[derive(Default)]
+pub struct GpuTables {
+    pub infos: Vec<TreeBatchInfo>,
+    pub vertices: Vec<TreeVertex>,
+    pub indices: Vec<u32>,
+    pub leaves: Vec<LeafGpu>,
+    /// Every leaf's rects, global numbering.
+    pub rects: Vec<RectMap>,
+    /// Leaf origins, f64, global leaf numbering.
+    pub origins: Vec<DVec3>,
+    pub tam: Vec<TamEntry>,
+    pub tam_unique: Vec<u32>,
+    pub uniques: Vec<UniqueOriginal>,
+    /// `(tree, node, block)` of every atlas, in upload order.
+    pub atlas_blocks: Vec<(u32, u32, BlockId)>,
+    /// `(block, unique, offset in the block)` of every original texture copy (one per leaf that uses it).
+    pub block_uniques: Vec<(BlockId, u32, u64)>,
+    /// Storage format of each tree's blocks.
+    pub formats: Vec<TexFormat>,
+    pub has_alpha: bool,
+}
+
+/// Reads all trees' tables into the shared CPU arrays; checks what the shader will index.
+pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
+    let materials = file.materials();
+    let mut g = GpuTables::default();
+    let mut unique_of: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in 0..file.trees() {
+        let view = file.tree(t).ok_or(RenderError::MissingTree { tree: t })?;
+        if view.kind == crate::model::TreeKind::Alpha {
+            g.has_alpha = true;
+        }
+        let offsets = slot_offsets(view.originals, view.format());
+        let count_u32 = |what: &'static str, n: usize| {
+            u32::try_from(n).map_err(|_| RenderError::TooLarge { what })
+        };
+        let leaf_base = count_u32("leaves", g.leaves.len())?;
+        let index_base = count_u32("indices", g.indices.len())?;
+        let vertex_base = i32::try_from(g.vertices.len())
+            .map_err(|_| RenderError::TooLarge { what: "vertices" })?;
+        for (li, leaf) in view.leaves.iter().enumerate() {
+            let node = view.nodes.get(leaf.node as usize);
+            let originals = view.leaf_originals(leaf);
+            let first_tam = count_u32("tam", g.tam.len())?;
+            let first_rect = count_u32("rects", g.rects.len())?;
+            g.leaves.push(LeafGpu {
+                cell_ix: node.map_or(0, |n| n.cell.ix),
+                cell_iy: node.map_or(0, |n| n.cell.iy),
+                level: node.map_or(0, |n| n.level),
+                first_tam,
+                first_rect,
+                _pad: [0; 3],
+            });
+            g.rects.extend(view.leaf_rects(leaf).iter().map(|r| {
+                let alpha = materials
+                    .get(r.material as usize)
+                    .and_then(|m| m.alpha())
+                    .unwrap_or(AlphaMode::Opaque);
+                RectMap::new(&r.decode(), alpha)
+            }));
+            g.origins.push(DVec3::from_array(leaf.origin));
+            for o in originals {
+                // Built from the same table: a missing slot is a broken invariant, not a zero offset.
+                let offset = *offsets
+                    .get(&(o.block, o.slot))
+                    .ok_or(RenderError::MissingSlot {
+                        block: o.block,
+                        slot: o.slot,
+                    })?;
+                let m = materials.get(o.material as usize).copied();
+                let class = class_index(o.class_size).ok_or(RenderError::BadClass {
+                    tree: t,
+                    leaf: li as u32,
+                    class_size: o.class_size,
+                })?;
+                let next = g.uniques.len() as u32;
+                let ui = *unique_of.entry((o.material, o.class_size)).or_insert(next);
+                if ui == next {
+                    g.uniques.push(UniqueOriginal {
+                        material: o.material,
+                        class_size: o.class_size,
+                        class,
+                        slot: 0,
+                        layer: 0,
+                        block: BlockId(o.block),
+                        offset,
+                        format: view.format(),
+                    });
+                }
+                g.tam_unique.push(ui);
+                g.block_uniques.push((BlockId(o.block), ui, offset));
+                let wrap = m.and_then(|m| m.wraps()).unwrap_or([Wrap::Repeat; 2]);
+                g.tam.push(TamEntry {
+                    class,
+                    layer: 0,
+                    wrap: wrap_code(wrap[0]) | wrap_code(wrap[1]) << 2,
+                    alpha_mode: m.map_or(0, |m| m.alpha_mode),
+                    factor: m.map_or([1.0; 4], |m| m.base_color_factor),
+                    cutoff: m.map_or(0.5, |m| m.alpha_cutoff),
+                    class_size: o.class_size as f32,
+                    _pad: [0; 2],
+                });
+            }
+            // Every vertex's `original` and `rect` must index the leaf's TAM and rect ranges (the shader does
+            // not check).
+            let first = leaf.first_vertex as usize;
+            let verts = view
+                .vertices
+                .get(first..first.saturating_add(leaf.vertex_count as usize))
+                .unwrap_or(&[]);
+            if let Some(v) = verts.iter().find(|v| {
+                v.original >= leaf.original_count
+                    || v.rect >= leaf.rect_count
+                    || v.leaf != li as u32
+            }) {
+                return Err(RenderError::BadVertex {
+                    tree: t,
+                    leaf: li as u32,
+                    original: v.original,
+                    originals: leaf.original_count,
+                    rect: v.rect,
+                    rects: leaf.rect_count,
+                });
+            }
+        }
+        let ranges = leaf_ranges(view.nodes);
+        let (passes, cutoffs) = passes_and_cutoffs(&view, materials, &ranges);
+        for (ni, n) in view.nodes.iter().enumerate() {
+            if n.atlas_block != NONE {
+                g.atlas_blocks
+                    .push((t as u32, ni as u32, BlockId(n.atlas_block)));
+            }
+        }
+        g.formats.push(view.format());
+        g.infos.push(TreeBatchInfo {
+            tree: t as u32,
+            leaf_base,
+            index_base,
+            vertex_base,
+            leaf_ranges: ranges,
+            passes,
+            cutoffs,
+            atlas_slots: vec![None; view.nodes.len()],
+            originals_missing: vec![0; view.nodes.len()],
+        });
+        g.vertices.extend_from_slice(view.vertices);
+        g.indices.extend_from_slice(view.indices);
+    }
+    Ok(g)
+}
+
+fn wrap_code(w: Wrap) -> u32 {
+    match w {
+        Wrap::Repeat => WRAP_REPEAT,
+        Wrap::MirroredRepeat => WRAP_MIRROR,
+        Wrap::ClampToEdge => WRAP_CLAMP,
+    }
+}
+
+/// Per node of an alpha tree: Blend if any leaf below uses a BLEND material, else Mask; cutoff = smallest
+/// MASK cutoff below (0.5 without one). Opaque trees: all Opaque.
+fn passes_and_cutoffs(
+    view: &TreeView<'_>,
+    materials: &[MaterialRecord],
+    ranges: &[(u32, u32)],
+) -> (Vec<Pass>, Vec<f32>) {
+    let n = view.nodes.len();
+    if view.kind == crate::model::TreeKind::Opaque {
+        return (vec![Pass::Opaque; n], vec![0.5; n]);
+    }
+    let per_leaf: Vec<(bool, f32)> = view
+        .leaves
+        .iter()
+        .map(|l| {
+            let mut blend = false;
+            let mut cutoff = f32::INFINITY;
+            for r in view.leaf_rects(l) {
+                match materials.get(r.material as usize).and_then(|m| m.alpha()) {
+                    Some(AlphaMode::Blend) => blend = true,
+                    Some(AlphaMode::Mask { cutoff: c }) => cutoff = cutoff.min(c),
+                    _ => {}
+                }
+            }
+            (blend, cutoff)
+        })
+        .collect();
+    let mut passes = Vec::with_capacity(n);
+    let mut cutoffs = Vec::with_capacity(n);
+    for &(first, count) in ranges {
+        let below = per_leaf
+            .get(first as usize..(first as usize).saturating_add(count as usize))
+            .unwrap_or(&[]);
+        let blend = below.iter().any(|l| l.0);
+        let cutoff = below.iter().map(|l| l.1).fold(f32::INFINITY, f32::min);
+        passes.push(if blend { Pass::Blend } else { Pass::Mask });
+        cutoffs.push(if cutoff.is_finite() { cutoff } else { 0.5 });
+    }
+    (passes, cutoffs)
+}
+
+/// Byte offset of each original of a leaf inside its block: images of one block are back to back in slot
+/// order, each a full mip chain of its class size in the tree's `format`.
+fn slot_offsets(originals: &[OriginalRecord], format: TexFormat) -> HashMap<(u32, u32), u64> {
+    // Every (block, slot) once (a shared original is listed by every leaf that references it), in slot
+    // order per block: the chains lie back to back.
+    let mut slots: Vec<(u32, u32, u32)> = originals
+        .iter()
+        .map(|o| (o.block, o.slot, o.class_size))
+        .collect();
+    slots.sort_unstable();
+    slots.dedup_by_key(|x| (x.0, x.1));
+    let mut out = HashMap::with_capacity(slots.len());
+    let (mut block, mut off) = (u32::MAX, 0u64);
+    for (b, slot, class_size) in slots {
+        if b != block {
+            (block, off) = (b, 0);
+        }
+        out.insert((b, slot), off);
+        off += format.chain_bytes(class_size);
+    }
+    out
+}

@@ -1,0 +1,285 @@
+//! The frame planner against the GPU executor, on data/city's deep tree (187 blocks, atlases and leaves'
+//! original textures):
+//!
+//! - the capacity k counts every block: a paged renderer created for k = all blocks returns to all of them
+//!   after the slider went down (it was clamped to the atlas layers, fewer than the blocks);
+//! - `render` warm-up frames and extra `--mode`s step no pager: the paging columns of `stats.csv` are the
+//!   same with `--warmup 3 --mode tree,dummy` as with `--warmup 0 --mode tree`;
+//! - executing a plan on a renderer that did not receive its residency changes skips the draws whose
+//!   atlas holds no layer and counts them (`skipped_draws`), never drawing a wrong texture silently;
+//! - the density pass of a paged frame executes the same plan: the pager's totals do not move.
+
+use atlastree::gpu::GpuContext;
+use atlastree::paging::{FileSource, UploadBudget};
+use atlastree::plan::FramePlanner;
+use atlastree::render::{Mode, Renderer, RendererOptions};
+use atlastree::report::csv::read_csv;
+use atlastree::store::TreeFile;
+use std::path::Path;
+use std::process::Command;
+use std::sync::Arc;
+
+use crate::harness::GpuTest;
+use crate::paging::paged;
+use crate::render::{H, W, build_city_deep, dive_cameras, e, scale_for};
+
+pub fn tests() -> Vec<GpuTest> {
+    vec![
+        GpuTest {
+            name: "planner::capacity_returns_to_every_block_not_just_the_atlas_layers",
+            run: capacity_returns_to_every_block_not_just_the_atlas_layers,
+        },
+        GpuTest {
+            name: "planner::warm_up_and_extra_modes_step_no_pager",
+            run: warm_up_and_extra_modes_step_no_pager,
+        },
+        GpuTest {
+            name: "planner::draws_without_a_gpu_layer_are_skipped_and_counted",
+            run: draws_without_a_gpu_layer_are_skipped_and_counted,
+        },
+        GpuTest {
+            name: "planner::density_pass_of_a_paged_frame_steps_nothing",
+            run: density_pass_of_a_paged_frame_steps_nothing,
+        },
+    ]
+}
+
+fn source(path: &Path) -> Result<Arc<FileSource>, String> {
+    Ok(Arc::new(FileSource::new(Arc::new(
+        TreeFile::open(path).map_err(e)?,
+    ))))
+}
+
+fn capacity_returns_to_every_block_not_just_the_atlas_layers(
+    ctx: &GpuContext,
+) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let path = build_city_deep(dir.path())?;
+    let file = TreeFile::open(&path).map_err(e)?;
+    let blocks = file.blocks().len() as u32;
+    let mut r = paged(
+        ctx,
+        &file,
+        blocks,
+        UploadBudget::Unlimited,
+        source(&path)?,
+        0,
+    )?;
+    let atlas_layers = r.renderer.resident.stats.atlas_layers;
+    if atlas_layers >= blocks {
+        return Err(format!(
+            "{atlas_layers} atlas layers for {blocks} blocks: the file has no original blocks, the test proves nothing"
+        ));
+    }
+    r.planner.set_capacity(4);
+    r.planner.set_capacity(blocks);
+    let k = r.pager().ok_or("no pager")?.options().capacity;
+    if k != blocks {
+        return Err(format!(
+            "capacity {k} after asking for all {blocks} blocks (atlas layers: {atlas_layers})"
+        ));
+    }
+    // And the arrays take the blocks the flight brings without a residency error.
+    let cams = dive_cameras(&file, 30)?;
+    let scale = scale_for(&file, &cams[0])?;
+    for (i, cam) in cams.iter().enumerate() {
+        r.set_clock(i as f64 / 30.0);
+        let s = r.render(cam, scale, Mode::Tree).map_err(e)?;
+        let p = s.paging.ok_or("no paging stats")?;
+        if p.apply_errors > 0 || s.skipped_draws > 0 {
+            return Err(format!(
+                "frame {i}: {} apply errors, {} skipped draws ({:?})",
+                p.apply_errors,
+                s.skipped_draws,
+                r.planner.last_error()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The paging columns of `dir/stats.csv` (from `blocks_needed` on), one string per frame.
+fn paging_columns(dir: &Path) -> Result<Vec<String>, String> {
+    let t = read_csv(&dir.join("stats.csv")).map_err(e)?;
+    let first = t
+        .header
+        .iter()
+        .position(|h| h == "blocks_needed")
+        .ok_or("no paging columns in stats.csv")?;
+    // upload_ms is a wall-clock time: compare everything else.
+    let skip = t.header.iter().position(|h| h == "upload_ms");
+    Ok(t.rows
+        .iter()
+        .map(|r| {
+            r.iter()
+                .enumerate()
+                .filter(|(i, _)| *i >= first && Some(*i) != skip)
+                .map(|(_, c)| c.as_str())
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect())
+}
+
+fn warm_up_and_extra_modes_step_no_pager(_: &GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let path = build_city_deep(dir.path())?;
+    let run = |out: &Path, warmup: &str, modes: &str| -> Result<(), String> {
+        let o = Command::new(env!("CARGO_BIN_EXE_atlastree"))
+            .arg("render")
+            .arg(&path)
+            .args([
+                "--capacity",
+                "24",
+                "--loader-threads",
+                "0",
+                "--frames",
+                "12",
+            ])
+            .args(["--width", "160", "--height", "120", "--every", "0"])
+            .args([
+                "--upload-budget",
+                "1MB",
+                "--warmup",
+                warmup,
+                "--mode",
+                modes,
+            ])
+            .arg("--out")
+            .arg(out)
+            .output()
+            .map_err(e)?;
+        if !o.status.success() {
+            return Err(format!(
+                "render failed: {}",
+                String::from_utf8_lossy(&o.stderr)
+            ));
+        }
+        Ok(())
+    };
+    let plain = dir.path().join("plain");
+    let warm = dir.path().join("warm");
+    run(&plain, "0", "tree")?;
+    run(&warm, "3", "tree,dummy")?;
+    let base = paging_columns(&plain)?;
+    if base.windows(2).all(|w| w[0] == w[1]) {
+        return Err("the paging columns never change: the test proves nothing".into());
+    }
+    for mode in ["tree", "dummy"] {
+        let other = paging_columns(&warm.join(mode))?;
+        if let Some(i) = (0..base.len().max(other.len())).find(|&i| base.get(i) != other.get(i)) {
+            return Err(format!(
+                "{mode} with warm-up and two modes differs from one mode without warm-up at frame {i}:\n  {:?}\n  {:?}",
+                base.get(i),
+                other.get(i)
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn draws_without_a_gpu_layer_are_skipped_and_counted(ctx: &GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let path = build_city_deep(dir.path())?;
+    let file = TreeFile::open(&path).map_err(e)?;
+    let blocks = file.blocks().len() as u32;
+    let opts = RendererOptions {
+        width: W,
+        height: H,
+        gpu_timing: false,
+        anisotropy: RendererOptions::ANISOTROPY,
+    };
+    let mut planned = paged(
+        ctx,
+        &file,
+        blocks,
+        UploadBudget::Unlimited,
+        source(&path)?,
+        0,
+    )?;
+    // A second renderer that only ever received the roots: the plan's resolved atlases are not on it.
+    let mut other_planner = FramePlanner::paged_from_file(
+        &file,
+        atlastree::plan::PagingSetup {
+            pager: atlastree::paging::PagerOptions {
+                capacity: blocks,
+                ..Default::default()
+            },
+            source: source(&path)?,
+            loader_threads: 0,
+        },
+    )
+    .map_err(e)?;
+    let mut stale = Renderer::new_paged(ctx, &file, opts, &mut other_planner).map_err(e)?;
+    let cams = dive_cameras(&file, 30)?;
+    let cam = cams.last().ok_or("no cameras")?;
+    let scale = scale_for(&file, cam)?;
+    planned.set_clock(1.0);
+    let s = planned.render(cam, scale, Mode::Tree).map_err(e)?;
+    if s.skipped_draws != 0 {
+        return Err(format!(
+            "{} draws skipped on the renderer that holds the plan's blocks",
+            s.skipped_draws
+        ));
+    }
+    let plan = planned.planner.last().ok_or("no plan")?;
+    let deep = plan
+        .resolved
+        .iter()
+        .flatten()
+        .flatten()
+        .filter(|r| r.atlas_node.is_some_and(|n| n.0 != 0))
+        .count();
+    let stale_stats = stale.execute(plan, Mode::Tree).map_err(e)?;
+    if deep == 0 {
+        return Err("every item resolved to a root: the test proves nothing".into());
+    }
+    if stale_stats.skipped_draws == 0 {
+        return Err(format!(
+            "{deep} items name atlases the stale renderer does not hold, none counted as skipped"
+        ));
+    }
+    if stale_stats.indirect_records + stale_stats.skipped_draws < s.indirect_records {
+        return Err(format!(
+            "stale: {} drawn + {} skipped < {} records of the same plan",
+            stale_stats.indirect_records, stale_stats.skipped_draws, s.indirect_records
+        ));
+    }
+    Ok(())
+}
+
+fn density_pass_of_a_paged_frame_steps_nothing(ctx: &GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let path = build_city_deep(dir.path())?;
+    let file = TreeFile::open(&path).map_err(e)?;
+    let mut r = paged(
+        ctx,
+        &file,
+        24,
+        UploadBudget::Bytes(1 << 20),
+        source(&path)?,
+        0,
+    )?;
+    let cams = dive_cameras(&file, 10)?;
+    let scale = scale_for(&file, &cams[0])?;
+    let mut drawn = 0;
+    for (i, cam) in cams.iter().enumerate() {
+        r.set_clock(i as f64 / 30.0);
+        r.render(cam, scale, Mode::Tree).map_err(e)?;
+        let before = *r.pager().ok_or("no pager")?.totals();
+        let plan = r.planner.last().ok_or("no plan")?;
+        let (_, density) = r.renderer.execute_density(plan).map_err(e)?;
+        r.renderer.execute(plan, Mode::Dummy).map_err(e)?;
+        let after = *r.pager().ok_or("no pager")?.totals();
+        if before != after {
+            return Err(format!(
+                "frame {i}: executing the plan again stepped the pager: {before:?} → {after:?}"
+            ));
+        }
+        drawn += density.pixels.iter().filter(|p| p.is_some()).count();
+    }
+    if drawn == 0 {
+        return Err("the density passes drew nothing".into());
+    }
+    Ok(())
+}
