@@ -6,12 +6,13 @@
 //! ## Data flow
 //!
 //! ```text
-//! glTF ──scene::import──▶ Scene ──preprocess──▶ model::AtlasForest  ──store::write──▶ .atlastree file
-//!                                                                                         │ memmap2
-//!  camera path ──▶ select (per frame cut) ──▶ paging (ideal block set, queue) ──▶ residency ─┤
-//!                         │                                                                 ▼
-//!                         └────────────▶ render::batch (indirect records, plain data) ──▶ render (wgpu)
-//!  sim: the same select + paging driven by a camera path and an I/O model, no GPU
+//! glTF ──scene::import──▶ Scene ──preprocess──▶ model::AtlasForest ──store::write──▶ .atlastree file
+//!                                                                                       │ memmap2
+//!   camera, time ──▶ plan::FramePlanner ─────────────────────────────────────────────────┤
+//!                     select (per-frame cut) → paging (ideal set, queue, loads) → resolve  │
+//!                     │ plain data: FramePlan (cuts, residency changes, resolved items)    ▼
+//!                     ├──▶ render::Renderer (batch → indirect records → wgpu, colour or density)
+//!                     └──▶ sim (the same plans on an I/O model, no GPU) · view · sweep · render CLI
 //! ```
 //!
 //! - [`scene`]: glTF 2.0 import into a world-space triangle soup with f64 positions, materials, wrap modes,
@@ -31,10 +32,14 @@
 //! - [`gpu`]: wgpu device setup shared by the renderer and the GPU tests.
 //! - [`camera`]: cameras, frusta, distance to bounds, keyframed and generated camera paths (f64).
 //! - [`select`]: the per-frame cut (§4): hierarchical culling, distance test, atlas or original textures.
+//! - [`plan`]: the frame planner, the one per-frame loop: (camera, time) → [`plan::FramePlan`] by select →
+//!   page → resolve, with the residency changes handed to the executor (the renderer's texture arrays, or
+//!   nothing for the simulator).
 //!
-//! - [`render`]: the wgpu renderer. All atlases are layers of one texture array, original textures layers of
-//!   one array per class size; [`render::batch`] turns a cut into indirect records (plain data), and a frame is
-//!   one bind group and one multi-draw-indirect call per pipeline (texture-array batching).
+//! - [`render`]: the wgpu renderer, executing plans. Atlases are layers of texture arrays, original textures
+//!   layers of one array per class size, uploaded as blocks become resident; [`render::batch`] turns a plan's
+//!   cuts into indirect records (plain data), and a frame is one bind group and one multi-draw-indirect call
+//!   per pipeline (texture-array batching).
 //! - [`texfmt`]: block formats of the paging file (RGBA8, BC1/BC3/BC7): sizes, CPU encode and decode.
 //! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
 //! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
@@ -46,7 +51,7 @@
 //!
 //! - [`paging`]: prioritised block paging (§6): usage categories, the ideal set under a capacity k, the
 //!   re-ranked request queue, loaders (synchronous, threads, HTTP), residency, drawing with missing blocks.
-//! - [`sim`]: paging-budget experiments without a GPU: the same paging session on a frame clock with an I/O
+//! - [`sim`]: paging-budget experiments without a GPU: the same frame planner on a frame clock with an I/O
 //!   model; grids over capacity × bandwidth × latency × policy.
 
 pub mod camera;
