@@ -117,7 +117,9 @@ fn no_folder_imports_a_folder_that_imports_it_back() {
 #[test]
 fn the_stages_that_read_a_tree_read_the_model_not_the_preprocessor() {
     let graph = module_graph();
-    for reader in ["select", "plan", "render", "inspect", "store", "paging", "model"] {
+    for reader in [
+        "select", "plan", "render", "inspect", "store", "paging", "model",
+    ] {
         let edges = graph
             .get(reader)
             .unwrap_or_else(|| panic!("no module {reader}"));

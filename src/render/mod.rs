@@ -18,6 +18,7 @@
 
 pub mod batch;
 pub mod density;
+mod encode;
 mod frame;
 mod frame_loop;
 mod naive;
