@@ -307,7 +307,7 @@ impl Pager {
     }
 
     /// Changes the capacity (live, e.g. a viewer slider). Never below the roots; excess resident blocks
-    /// are evicted as new ones arrive (and by [`Pager::shrink`]).
+    /// are evicted as new ones arrive (and at the end of [`Pager::accept`]).
     pub fn set_capacity(&mut self, capacity: u32) {
         let roots = self.is_root.iter().filter(|&&r| r).count() as u32;
         self.opts.capacity = capacity.max(roots);

@@ -15,8 +15,8 @@
 //!
 //! Among equal usage the nearer block (distance from the eye to the node's bounds) comes first, and among
 //! equal usage and distance the lower level. Because a parent's bounds contain its children's, a parent is
-//! never farther than its child, so every prefix of the order is closed under [`BlockMeta::parent`]
-//! (`crate::paging::blocks`), which is what keeps the resident set a union of root paths.
+//! never farther than its child, so every prefix of the order is closed under
+//! [`BlockMeta::parent`](crate::paging::BlockMeta::parent), which is what keeps the resident set a union of root paths.
 
 use super::blocks::BlockTable;
 use crate::camera::{Frustum, Visibility, distance_to_aabb};

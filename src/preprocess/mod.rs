@@ -5,7 +5,7 @@
 //! 2. [`layout`]: try an atlas per node (§5.2.2 areas via [`area`], §5.2.3 packing via [`pack`]); split on
 //!    failure (§5.3). Sizes only, no pixels.
 //! 3. [`assemble`]: nodes in pre-order, leaves in tree order, geometry in the exact single-UV-set form
-//!    ([`transform`]), original-texture classes, the block table with every block's byte size.
+//!    ([`crate::model::transform`]), original-texture classes, the block table with every block's byte size.
 //! 4. [`raster`]: the pixel pass ([`image_ops`]), streamed into [`crate::store::FileWriter`] at offsets fixed
 //!    in stage 3, then the file is finished atomically.
 

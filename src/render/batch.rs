@@ -411,8 +411,9 @@ impl FrameBatch {
 
     /// Adds the records of one tree's cut. `resolved[i]` says how item `i` is drawn this frame (its own
     /// atlas, an ancestor's atlas because blocks are missing, or the leaf's originals; see
-    /// [`crate::paging::resolve`]); pass `None` when everything is resident (every item as selected). Items
-    /// whose node is out of range, or whose atlas is not resident, are skipped; returns how many were.
+    /// [`crate::paging::resolve`](mod@crate::paging::resolve)); pass `None` when everything is resident (every item as selected). Items
+    /// whose node is out of range, or whose atlas holds no GPU layer, are skipped; returns how many were
+    /// (the renderer reports them as `FrameStats::skipped_draws`).
     pub fn add_cut(
         &mut self,
         info: &TreeBatchInfo,

@@ -1,7 +1,7 @@
 //! Paging-budget experiments without a GPU (issue "Paging-budget experiments"): the renderer's very
-//! [`PagingSession`] (select, usage, ideal set, queue, residency) driven by a camera path on a frame clock,
-//! with an optional I/O model in place of the loader threads, and the renderer's screen accounting
-//! ([`resolve_frame`]) in place of the GPU.
+//! [`FramePlanner`] (select, usage, ideal set, queue, residency, resolution with its screen accounting)
+//! driven by a camera path on a frame clock, with an optional I/O model in place of the loader threads and
+//! nothing in place of the GPU uploads.
 //!
 //! Only the effects a run asks for are modelled: without an [`IoModel`] a block arrives in the frame it is
 //! requested (the local file "as it would deliver"), without a capacity nothing is ever evicted (`k` = all

@@ -3,7 +3,7 @@
 //! blocks (atlases and leaves' original textures), each 4 KiB aligned and checksummed so the paging read
 //! ([`TreeFile::block`]) verifies what it loads.
 //!
-//! - [`format`]: the records and the header (little-endian, versioned).
+//! - [`format`](mod@format): the records and the header (little-endian, versioned).
 //! - [`FileWriter`]: computes the layout up front from the block sizes, accepts blocks from many threads,
 //!   and publishes the file atomically (temp file in the same directory, fsync, rename).
 //! - [`TreeFile`]: maps (or reads) and validates a file, then hands out slices in place.

@@ -1,8 +1,9 @@
 //! `atlastree view`: an interactive fly-through window over a paging file with a live inspector.
 //!
 //! The window (winit) shows the frames of the same [`crate::render::Renderer`] as `atlastree render`: one
-//! `Renderer::render` per frame into its offscreen target, copied into a composite image, the egui
-//! inspector ([`overlay`]) drawn on top, and blitted into the window's surface ([`present`],
+//! plan of the [`crate::plan::FramePlanner`] per frame on the wall clock, executed into the renderer's
+//! offscreen target ([`crate::render::FrameLoop`]), copied into a composite image, the egui
+//! inspector ([`overlay`]) drawn on top, and blitted into the window's surface (`present`,
 //! `shaders/blit.wgsl`). Camera: fly/orbit controls, framing and recording ([`controls`]), or following a
 //! [`CameraPath`].
 //!

@@ -6,9 +6,9 @@
 //! Original textures are deduplicated by `(material, class size)`: one layer serves every leaf that shows
 //! the texture, held while any resident block that carries it is resident.
 //!
-//! - [`tables`]: the CPU gathering of what the shader indexes;
-//! - [`arrays`]: the texture arrays a capacity needs (atlas arrays per format, class slots);
-//! - [`apply`]: uploads and frees of one block.
+//! - `tables`: the CPU gathering of what the shader indexes ([`gather_tables`]);
+//! - `arrays`: the texture arrays a capacity needs (atlas arrays per format, [`class_slots`]);
+//! - `apply`: uploads and frees of one block ([`Resident::apply`]).
 
 mod apply;
 mod arrays;
@@ -74,7 +74,7 @@ pub struct Resident {
     pub leaves_buffer: wgpu::Buffer,
     pub offsets_buffer: wgpu::Buffer,
     pub tam_buffer: wgpu::Buffer,
-    /// Every leaf's rects ([`RectMap`]), global numbering (`LeafGpu::first_rect`).
+    /// Every leaf's rects (`RectMap`), global numbering (`LeafGpu::first_rect`).
     pub rects_buffer: wgpu::Buffer,
     pub leaf_offsets: LeafOffsets,
     pub atlas_arrays: Vec<TextureArray>,
