@@ -4,7 +4,7 @@
 //! encoded bytes (embedded / data-URI images) or the file path; the pixels are decoded on demand by
 //! [`ImageSource::decode`], so a scene with hundreds of large textures never holds them all decoded.
 
-use super::import::SceneError;
+use super::error::SceneError;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::PathBuf;
 use std::sync::Arc;

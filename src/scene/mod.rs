@@ -5,13 +5,15 @@
 //! (every instance becomes distinct triangles), `KHR_texture_transform` is baked into the UVs, and the
 //! distribution plane (paper §3) is fixed by [`UpAxis`].
 
+pub mod error;
 pub mod image_source;
 pub mod import;
 pub mod info;
 pub mod synthetic;
 
+pub use error::SceneError;
 pub use image_source::{DecodedImage, ImageSource};
-pub use import::{ImportOptions, SceneError, import};
+pub use import::{ImportOptions, import};
 
 use crate::ids::{ImageId, MaterialId};
 use glam::{DVec2, DVec3};

@@ -1,0 +1,285 @@
+//! The tree's shape: try a node atlas, split on failure (paper §5.1, §5.2.3, §5.3).
+//!
+//! Only sizes are computed here, no pixel: a node "fits" when the required areas of all its textures pack
+//! into one atlas. Nodes that do not fit are split into four groups; the recursion runs in parallel
+//! (rayon) over the four children. The triangles of every node are one contiguous range of a single
+//! permutation array, so the leaves of any subtree are contiguous in tree order.
+//!
+//! What a node's atlas holds (DESIGN.md "Repeats"): one rect per material (per material and density class
+//! with repeats baked), whose UV range per axis is the [`super::cover`] of its triangles — at most one
+//! period where the sampler repeats, mirrors or clamps, so a rect's size depends on the texels per period
+//! and not on how often the texture repeats.
+//!
+//! The split (§5.3) cuts the midpoint-sorted sequence where the summed texel demand ([`super::demand`],
+//! the paper's condition (b) itself) is balanced: the larger half as small as possible. Midpoints are
+//! compared quantised to `2⁻²⁴` of the node's extent and a cut never separates equal keys, so a
+//! translation of the whole scene (UTM coordinates) that perturbs midpoints by rounding gives the same
+//! tree.
+//!
+//! Leaves that are not a plain fit ([`LeafReason`]):
+//! - a rect that alone needs more than the atlas (one period at the required density, plus borders):
+//!   the node's resolution is scaled to fit it (splitting cannot shrink one period);
+//! - a **source-resolution node**: its texel demand is almost all capped to the sources
+//!   ([`SOURCE_RESOLUTION_SHARE`]), so deeper leaves would only copy the originals. It becomes a leaf
+//!   whose atlas holds its content scaled to fit, `min_distance = d_min / scale`; nearer, its originals
+//!   are drawn. Only when those originals stay within [`LayoutOptions::leaf_originals`] texels, so the
+//!   textures a close camera needs stay pageable;
+//! - a single triangle that alone needs more than the atlas is *clamped* likewise.
+//!
+//! Termination, where the paper would loop forever: a split always leaves every child with fewer triangles
+//! than its parent (the cut index is kept inside `1..n`), and `max_depth` bounds the depth with an error
+//! naming the region.
+//!
+//! Where things are: `tree.rs` holds the options and the tree a layout produces; `split.rs` the split
+//! of a node's triangles in four; `leaf.rs` the planning of one node's atlas; this file the recursion
+//! that tries a leaf, else splits.
+
+mod leaf;
+mod split;
+mod tree;
+
+pub use leaf::MIN_LEAF_SCALE;
+pub use split::{MIDPOINT_BITS, SplitRule, Splitter, midpoint_keys};
+pub use tree::{
+    Layout, LayoutError, LayoutKind, LayoutNode, LayoutOptions, LeafCounts, LeafLayout, LeafReason,
+    PlannedRect,
+};
+
+use super::demand::DemandModel;
+use super::prepare::TriInfo;
+use crate::ids::{Cell, Level};
+use crate::scene::Scene;
+use glam::DVec3;
+use leaf::{base_scale, capped_demand, clamp_leaf, material_needs, scaled_leaf, try_leaf};
+
+/// A scaled leaf whose demand is at least this share capped to the sources counts as
+/// [`LeafReason::SourceResolution`].
+pub const SOURCE_RESOLUTION_SHARE: f64 = 0.9;
+
+/// A split whose children's texel demands average at least this share of the parent's does not separate
+/// what the atlas must hold (every quarter needs about the same textures and periods): the node becomes a
+/// [`LeafReason::Shared`] leaf instead.
+pub const FUTILE_SPLIT_SHARE: f64 = 0.9;
+
+/// What the recursion shares: the leaf planner's inputs, the splitter, and the node counter behind the
+/// progress callback.
+struct Ctx<'a> {
+    leaf: leaf::Ctx<'a>,
+    split: Splitter<'a>,
+    nodes: &'a std::sync::atomic::AtomicU64,
+    progress: &'a (dyn Fn(u64) + Sync),
+}
+
+/// The demand model of `scene` under `opts` (sources, sampler wraps, border, cap, wrap).
+pub fn demand_model(scene: &Scene, opts: &LayoutOptions) -> DemandModel {
+    DemandModel {
+        sources: scene
+            .materials
+            .iter()
+            .map(|m| {
+                let img = &scene.images[m.image.idx()];
+                [img.width, img.height]
+            })
+            .collect(),
+        wraps: scene.materials.iter().map(|m| m.wrap).collect(),
+        wrap: opts.wrap,
+        border: opts.border,
+        cap_to_source: opts.cap_to_source,
+    }
+}
+
+/// Lays out a tree for the prepared triangles `infos` (paper §5.1).
+pub fn layout(
+    scene: &Scene,
+    infos: &[TriInfo],
+    opts: &LayoutOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Layout, LayoutError> {
+    let mut order: Vec<u32> = (0..infos.len() as u32).collect();
+    let nodes = std::sync::atomic::AtomicU64::new(0);
+    let model = demand_model(scene, opts);
+    let ctx = Ctx {
+        leaf: leaf::Ctx { scene, infos, opts },
+        split: Splitter {
+            infos,
+            model: &model,
+            rule: opts.split,
+        },
+        nodes: &nodes,
+        progress,
+    };
+    let root = build_node(&ctx, &mut order, 0, Level(0), Cell::default())?;
+    let mut leaves = LeafCounts {
+        scale_min: 1.0,
+        ..LeafCounts::default()
+    };
+    count_leaves(&root, &mut leaves);
+    Ok(Layout {
+        root,
+        order,
+        clamped_leaves: (leaves.oversized
+            + leaves.source_resolution
+            + leaves.scaled
+            + leaves.shared
+            + leaves.clamped) as usize,
+        leaves,
+    })
+}
+
+fn count_leaves(n: &LayoutNode, c: &mut LeafCounts) {
+    match &n.kind {
+        LayoutKind::Leaf(l) => {
+            c.scale_min = c.scale_min.min(l.clamp_scale);
+            let counter = match l.reason {
+                LeafReason::Fits => &mut c.fits,
+                LeafReason::Oversized => &mut c.oversized,
+                LeafReason::Clamped => &mut c.clamped,
+                LeafReason::SourceResolution => &mut c.source_resolution,
+                LeafReason::Scaled => &mut c.scaled,
+                LeafReason::Shared => &mut c.shared,
+            };
+            *counter += 1;
+            if matches!(
+                l.reason,
+                LeafReason::SourceResolution | LeafReason::Scaled | LeafReason::Shared
+            ) {
+                c.scaled_original_texels += l.original_texels;
+                c.scaled_original_texels_max = c.scaled_original_texels_max.max(l.original_texels);
+            }
+        }
+        LayoutKind::Inner { children, .. } => {
+            for ch in children.iter().flatten() {
+                count_leaves(ch, c);
+            }
+        }
+    }
+}
+
+fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for &i in items {
+        let t = &infos[i as usize];
+        lo = lo.min(t.lo);
+        hi = hi.max(t.hi);
+    }
+    if items.is_empty() {
+        (DVec3::ZERO, DVec3::ZERO)
+    } else {
+        (lo, hi)
+    }
+}
+
+fn build_node(
+    ctx: &Ctx<'_>,
+    items: &mut [u32],
+    offset: usize,
+    level: Level,
+    cell: Cell,
+) -> Result<LayoutNode, LayoutError> {
+    let (lo, hi) = bounds(ctx.leaf.infos, items);
+    let range = offset..offset + items.len();
+    let n = ctx.nodes.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    (ctx.progress)(n + 1);
+    let needs = material_needs(&ctx.leaf, items);
+    let base = base_scale(&ctx.leaf, &needs);
+    let leaf = |leaf: LeafLayout| LayoutNode {
+        range: range.clone(),
+        level,
+        cell,
+        lo,
+        hi,
+        kind: LayoutKind::Leaf(leaf),
+    };
+    let reason = if base < 1.0 {
+        LeafReason::Oversized
+    } else {
+        LeafReason::Fits
+    };
+    if let Some(l) = try_leaf(&ctx.leaf, &needs, base, reason) {
+        return Ok(leaf(l));
+    }
+    if items.len() == 1 {
+        return Ok(leaf(clamp_leaf(
+            &ctx.leaf,
+            items,
+            &needs,
+            base,
+            LeafReason::Clamped,
+        )?));
+    }
+    let (share, originals) = capped_demand(&ctx.leaf, &needs);
+    if originals <= ctx.leaf.opts.leaf_originals {
+        let reason = if share >= SOURCE_RESOLUTION_SHARE {
+            LeafReason::SourceResolution
+        } else {
+            LeafReason::Scaled
+        };
+        if let Some(l) = scaled_leaf(&ctx.leaf, items, &needs, base, reason) {
+            return Ok(leaf(l));
+        }
+    }
+    if level.0 >= ctx.leaf.opts.max_depth {
+        return Err(LayoutError::DepthExceeded {
+            lo,
+            hi,
+            triangles: items.len(),
+            depth: ctx.leaf.opts.max_depth,
+            atlas: ctx.leaf.opts.atlas_size,
+        });
+    }
+    let groups = ctx.split.split4(items);
+    let model = ctx.split.model;
+    let mut start = 0;
+    let mut child_demand = 0.0;
+    for g in groups {
+        child_demand +=
+            super::demand::demand(model, ctx.leaf.infos, &items[start..start + g]) as f64;
+        start += g;
+    }
+    let filled = groups.iter().filter(|&&g| g > 0).count().max(1) as f64;
+    let own_demand = super::demand::demand(model, ctx.leaf.infos, items) as f64;
+    // Only with repeats wrapped: baked ranges are per-triangle shifted, so one split often leaves every
+    // child all the phases while deeper ones do separate them.
+    if ctx.leaf.opts.wrap
+        && child_demand / filled >= FUTILE_SPLIT_SHARE * own_demand
+        && let Some(l) = scaled_leaf(&ctx.leaf, items, &needs, base, LeafReason::Shared)
+    {
+        return Ok(leaf(l));
+    }
+    // Carve the slice into the four groups in array order: q0, q2 (low x), q1, q3 (high x).
+    let (a, rest) = items.split_at_mut(groups[0]);
+    let (b, rest) = rest.split_at_mut(groups[1]);
+    let (c, d) = rest.split_at_mut(groups[2]);
+    let order = [0u8, 2, 1, 3];
+    let offs = [
+        offset,
+        offset + groups[0],
+        offset + groups[0] + groups[1],
+        offset + groups[0] + groups[1] + groups[2],
+    ];
+    let child = |slice: &mut [u32], i: usize| -> Result<Option<Box<LayoutNode>>, LayoutError> {
+        if slice.is_empty() {
+            return Ok(None);
+        }
+        let q = order[i] as u32;
+        build_node(ctx, slice, offs[i], Level(level.0 + 1), cell.child(q))
+            .map(|n| Some(Box::new(n)))
+    };
+    let ((ra, rb), (rc, rd)) = rayon::join(
+        || rayon::join(|| child(a, 0), || child(b, 1)),
+        || rayon::join(|| child(c, 2), || child(d, 3)),
+    );
+    let mut children: [Option<Box<LayoutNode>>; 4] = Default::default();
+    for (i, r) in [ra, rb, rc, rd].into_iter().enumerate() {
+        children[order[i] as usize] = r?;
+    }
+    Ok(LayoutNode {
+        range,
+        level,
+        cell,
+        lo,
+        hi,
+        kind: LayoutKind::Inner { children, order },
+    })
+}

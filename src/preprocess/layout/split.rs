@@ -1,0 +1,278 @@
+//! The split of §5.3: a node's triangles → four groups, in place in the permutation array.
+//!
+//! Triangles are sorted by their plane midpoints quantised to about `2^−MIDPOINT_BITS` of the node's
+//! extent ([`midpoint_keys`]), first along x, then each half along y, and cut where the two sides
+//! balance what [`SplitRule`] says: the summed texel demand ([`crate::preprocess::demand`], condition
+//! (b) itself), or the summed world area (the paper's approximation). A cut never separates equal keys
+//! and is kept inside `1..n`, so every group of a node with ≥ 2 triangles is smaller than the node.
+
+use crate::preprocess::demand::{DemandModel, prefix_demands};
+use crate::preprocess::prepare::TriInfo;
+use serde::Serialize;
+
+/// What the split of §5.3 balances.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
+pub enum SplitRule {
+    /// The summed texel demand of the halves, condition (b) itself ([`crate::preprocess::demand`]).
+    #[default]
+    Demand,
+    /// The summed world area of the halves: the paper's approximation of (b), which assumes every texture
+    /// point maps to one world point (no repeats, no shared textures).
+    Area,
+}
+
+impl std::str::FromStr for SplitRule {
+    type Err = String;
+    fn from_str(s: &str) -> Result<SplitRule, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "demand" => Ok(SplitRule::Demand),
+            "area" => Ok(SplitRule::Area),
+            _ => Err(format!("unknown split rule {s:?} (demand or area)")),
+        }
+    }
+}
+
+/// Midpoints are compared in units of `2^(ceil(log2 extent) − MIDPOINT_BITS)` of the node's extent along
+/// the sorted axis.
+pub const MIDPOINT_BITS: i32 = 24;
+
+/// Quantised plane midpoints of `items` along `axis` (0: x, 1: y of the plane): `floor((mid − min) / q)`
+/// with `q = 2^(ceil(log2 extent) − MIDPOINT_BITS)`, the extent that of the items' midpoints. A translation
+/// of the scene that perturbs every midpoint by rounding (≪ q) leaves the keys unchanged except for
+/// midpoints within that rounding of a bucket edge; the quantum follows the node, so deep nodes of tiny
+/// triangles still separate them.
+pub fn midpoint_keys(infos: &[TriInfo], items: &[u32], axis: usize) -> Vec<i64> {
+    let (lo, hi) = items
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &i| {
+            let m = infos[i as usize].mid[axis];
+            (a.min(m), b.max(m))
+        });
+    let extent = hi - lo;
+    let q = if extent.is_finite() && extent > 0.0 {
+        (extent.log2().ceil() - f64::from(MIDPOINT_BITS)).exp2()
+    } else {
+        1.0
+    };
+    items
+        .iter()
+        .map(|&i| ((infos[i as usize].mid[axis] - lo) / q).floor() as i64)
+        .collect()
+}
+
+/// Splits triangle sets in four by texel demand (paper §5.3 with condition (b) itself).
+pub struct Splitter<'a> {
+    pub infos: &'a [TriInfo],
+    pub model: &'a DemandModel,
+    pub rule: SplitRule,
+}
+
+impl Splitter<'_> {
+    /// Splits `items` in place into four groups: sort by quantised plane-midpoint x and cut where the texel
+    /// demand of the two halves is balanced, then each half likewise by y. Returns the group lengths in
+    /// array order (low-x/low-y, low-x/high-y, high-x/low-y, high-x/high-y). Every group is shorter than
+    /// `items` when `items.len() ≥ 2`: the cut is kept inside `1..n`, so thousands of triangles with one
+    /// midpoint still split.
+    pub fn split4(&self, items: &mut [u32]) -> [usize; 4] {
+        let k = self.cut_sorted(items, 0);
+        let (lo, hi) = items.split_at_mut(k);
+        let k0 = self.cut_sorted(lo, 1);
+        let k1 = self.cut_sorted(hi, 1);
+        [k0, lo.len() - k0, k1, hi.len() - k1]
+    }
+
+    /// Sorts `items` by key `axis` (ties by index, deterministic) and returns the cut index: among the
+    /// positions between different keys, the one where `max(demand(before), demand(after))` is smallest
+    /// ([`SplitRule::Demand`]; with [`SplitRule::Area`], where the world area before is closest to half),
+    /// ties nearest the middle, then the lower. Without such a position (all keys equal) the middle; for
+    /// n ≤ 1 it returns n (everything in the low group).
+    pub fn cut_sorted(&self, items: &mut [u32], axis: usize) -> usize {
+        let n = items.len();
+        if n <= 1 {
+            return n;
+        }
+        let keys = midpoint_keys(self.infos, items, axis);
+        let mut order: Vec<(i64, u32)> = keys.into_iter().zip(items.iter().copied()).collect();
+        order.sort_unstable();
+        for (slot, &(_, it)) in items.iter_mut().zip(&order) {
+            *slot = it;
+        }
+        let cost_of: Box<dyn Fn(usize) -> f64> = match self.rule {
+            SplitRule::Demand => {
+                let before = prefix_demands(self.model, self.infos, items);
+                let rev: Vec<u32> = items.iter().rev().copied().collect();
+                let after = prefix_demands(self.model, self.infos, &rev);
+                Box::new(move |k| before[k].max(after[n - k]) as f64)
+            }
+            SplitRule::Area => {
+                let mut acc = vec![0.0f64; n + 1];
+                for (i, &it) in items.iter().enumerate() {
+                    acc[i + 1] = acc[i] + self.infos[it as usize].area;
+                }
+                let half = 0.5 * acc[n];
+                Box::new(move |k| (acc[k] - half).abs())
+            }
+        };
+        let mut best: Option<(f64, usize, usize)> = None;
+        for k in 1..n {
+            if order[k - 1].0 == order[k].0 {
+                continue;
+            }
+            let cost = cost_of(k);
+            let off_centre = (2 * k).abs_diff(n);
+            if best.is_none_or(|(c, o, _)| (cost, off_centre) < (c, o)) {
+                best = Some((cost, off_centre, k));
+            }
+        }
+        best.map_or(n / 2, |(_, _, k)| k)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ids::MaterialId;
+    use crate::model::sizing::{SizeEstimate, SizeMethod};
+    use crate::scene::Wrap;
+    use glam::{DVec2, DVec3};
+
+    /// A triangle of `material` at plane midpoint `mid` needing `w` texels per period over UV `[0, 1]²`.
+    fn tri(mid: DVec2, material: u32, w: f64, area: f64) -> TriInfo {
+        TriInfo {
+            scene_tri: 0,
+            pos: [DVec3::ZERO; 3],
+            material: MaterialId(material),
+            mid,
+            area,
+            size: SizeEstimate {
+                w,
+                h: w,
+                method: SizeMethod::Exact,
+            },
+            class: 0,
+            uv: [DVec2::ZERO, DVec2::X, DVec2::Y],
+            lo: DVec3::ZERO,
+            hi: DVec3::ZERO,
+        }
+    }
+
+    fn model(materials: usize) -> DemandModel {
+        DemandModel {
+            sources: vec![[1024, 1024]; materials],
+            wraps: vec![[Wrap::Repeat; 2]; materials],
+            wrap: true,
+            border: 2,
+            cap_to_source: true,
+        }
+    }
+
+    fn split(infos: &[TriInfo], model: &DemandModel, items: &mut [u32]) -> [usize; 4] {
+        Splitter {
+            infos,
+            model,
+            rule: SplitRule::Demand,
+        }
+        .split4(items)
+    }
+
+    #[test]
+    fn split_balances_demand_in_x_then_y() {
+        // A 4×4 grid of triangles with a material each, equal demand: four 2×2 quadrants.
+        let infos: Vec<TriInfo> = (0..16)
+            .map(|i| tri(DVec2::new((i % 4) as f64, (i / 4) as f64), i, 60.0, 1.0))
+            .collect();
+        let mut items: Vec<u32> = (0..16).rev().collect();
+        let g = split(&infos, &model(16), &mut items);
+        assert_eq!(g, [4, 4, 4, 4]);
+        let groups: Vec<&[u32]> = {
+            let (a, r) = items.split_at(4);
+            let (b, r) = r.split_at(4);
+            let (c, d) = r.split_at(4);
+            vec![a, b, c, d]
+        };
+        // Array order: low-x/low-y, low-x/high-y, high-x/low-y, high-x/high-y.
+        let want = [(false, false), (false, true), (true, false), (true, true)];
+        for (grp, (hx, hy)) in groups.iter().zip(want) {
+            for &i in *grp {
+                let m = infos[i as usize].mid;
+                assert_eq!((m.x >= 2.0, m.y >= 2.0), (hx, hy), "triangle {i} at {m}");
+            }
+        }
+    }
+
+    #[test]
+    fn split_follows_texel_demand_not_world_area() {
+        // Left (x = 0..9): ten big triangles (area 100 each) sharing one texture, one period of 60 texels:
+        // demand 64² however many there are. Right (x = 10..19): ten small triangles (area 1) with a
+        // texture each: 10 · 64². Equal world areas would cut inside the left group (x ≈ 5); equal demand
+        // cuts inside the right group, so the low half holds the shared texture and about half the small
+        // ones (64² · 5.5 per side).
+        let mut infos: Vec<TriInfo> = (0..10)
+            .map(|i| tri(DVec2::new(f64::from(i), 0.0), 0, 60.0, 100.0))
+            .collect();
+        infos.extend((0..10).map(|i| tri(DVec2::new(f64::from(10 + i), 0.0), 1 + i, 60.0, 1.0)));
+        let mut items: Vec<u32> = (0..20).collect();
+        let m = model(11);
+        let s = Splitter {
+            infos: &infos,
+            model: &m,
+            rule: SplitRule::Demand,
+        };
+        let k = s.cut_sorted(&mut items, 0);
+        // At a cut k ≥ 10 the low half needs 64² · (1 + k − 10), the high half 64² · (20 − k): the larger is
+        // smallest (6 · 64²) at k = 14 and 15, and the tie goes to the cut nearer the middle.
+        assert_eq!(k, 14, "cut at {k}");
+        let area_left: f64 = items[..k].iter().map(|&i| infos[i as usize].area).sum();
+        assert!(
+            area_left > 900.0,
+            "the low half holds the big shared triangles"
+        );
+    }
+
+    #[test]
+    fn split_terminates_on_identical_midpoints_and_never_separates_equal_keys() {
+        let infos: Vec<TriInfo> = (0..1000)
+            .map(|i| tri(DVec2::new(5.0, 5.0), i % 7, 10.0, 0.0))
+            .collect();
+        let mut items: Vec<u32> = (0..1000).collect();
+        let g = split(&infos, &model(7), &mut items);
+        assert_eq!(g.iter().sum::<usize>(), 1000);
+        assert!(
+            g.iter().all(|&n| n < 1000),
+            "every child must shrink: {g:?}"
+        );
+        // Two triangles: each goes to its own child; one triangle: everything in the first group.
+        let mut two = vec![0u32, 1];
+        assert_eq!(
+            split(&infos, &model(7), &mut two)
+                .iter()
+                .filter(|&&n| n == 1)
+                .count(),
+            2
+        );
+        let mut one = vec![0u32];
+        assert_eq!(split(&infos, &model(7), &mut one), [1, 0, 0, 0]);
+        // Midpoints 1e-9 apart are one key: the cut falls between x = 0 and x = 1, never inside the pair.
+        let infos = vec![
+            tri(DVec2::new(0.0, 0.0), 0, 10.0, 1.0),
+            tri(DVec2::new(1e-9, 0.0), 1, 10.0, 1.0),
+            tri(DVec2::new(1.0, 0.0), 2, 10.0, 1.0),
+            tri(DVec2::new(1000.0, 0.0), 3, 10.0, 1.0),
+        ];
+        let keys = midpoint_keys(&infos, &[0, 1, 2, 3], 0);
+        assert_eq!(keys[0], keys[1]);
+        assert_ne!(keys[1], keys[2]);
+        let m = model(4);
+        let s = Splitter {
+            infos: &infos,
+            model: &m,
+            rule: SplitRule::Demand,
+        };
+        let mut items = vec![0, 1, 2, 3];
+        let k = s.cut_sorted(&mut items, 0);
+        assert!(
+            k == 2 || k == 3,
+            "cut {k} must not separate triangles 0 and 1"
+        );
+    }
+}

@@ -1,0 +1,91 @@
+//! [`SceneError`]: why a scene could not be imported or an image not decoded.
+//!
+//! Its own file so that the importer ([`mod@super::import`]) and the lazy image decoder
+//! ([`super::image_source`]) both depend on it instead of on each other. Every variant names the file
+//! (or image) and, where it applies, mesh, primitive, accessor or node; the text is the user-facing
+//! message.
+
+/// Import failures. Every variant names the file and, where it applies, mesh, primitive and accessor.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{file}: cannot read: {source}")]
+    Io {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{file}: not a valid glTF/GLB file: {reason}")]
+    Parse { file: String, reason: String },
+    #[error("{file}: glTF validation failed: {reason}")]
+    Invalid { file: String, reason: String },
+    #[error("{file}: required extension {extension} is not supported")]
+    UnsupportedExtension { file: String, extension: String },
+    #[error("{file}: buffer {buffer} ({uri}): {reason}")]
+    Buffer {
+        file: String,
+        buffer: usize,
+        uri: String,
+        reason: String,
+    },
+    #[error(
+        "{file}: mesh {mesh} ({mesh_name}) primitive {primitive}: accessor {accessor}: {reason}"
+    )]
+    /// A bad accessor; `reason` starts with the attribute it was read as ("POSITION", "TEXCOORD_1",
+    /// "indices").
+    Accessor {
+        file: String,
+        mesh: usize,
+        mesh_name: String,
+        primitive: usize,
+        accessor: usize,
+        reason: String,
+    },
+    #[error(
+        "{file}: mesh {mesh} ({mesh_name}) primitive {primitive}: index accessor {accessor} element {position} \
+         is vertex {index}, but the primitive has {vertex_count} vertices"
+    )]
+    IndexOutOfRange {
+        file: String,
+        mesh: usize,
+        mesh_name: String,
+        primitive: usize,
+        accessor: usize,
+        position: usize,
+        index: u32,
+        vertex_count: usize,
+    },
+    #[error("{file}: node {node} ({node_name}) is its own ancestor (recursive node graph)")]
+    RecursiveNodes {
+        file: String,
+        node: usize,
+        node_name: String,
+    },
+    #[error("{file}: node {node} ({node_name}): EXT_mesh_gpu_instancing: {reason}")]
+    Instancing {
+        file: String,
+        node: usize,
+        node_name: String,
+        reason: String,
+    },
+    #[error("{file}: scene too large: {what}")]
+    TooLarge { file: String, what: String },
+    #[error("image {image}: {reason}")]
+    ImageDecode { image: String, reason: String },
+    #[error("{0}")]
+    Other(String),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn error_stays_small() {
+        // clippy::result_large_err: keep `Result<_, SceneError>` cheap to return.
+        assert!(
+            std::mem::size_of::<SceneError>() < 128,
+            "{}",
+            std::mem::size_of::<SceneError>()
+        );
+    }
+}

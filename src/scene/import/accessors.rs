@@ -1,0 +1,330 @@
+//! Accessor reading: glTF accessors (buffer bytes) → f64 components or u32 indices, every byte range
+//! checked.
+//!
+//! Input: the loaded buffers (`&[Option<Vec<u8>>]`, indexed by glTF buffer; see
+//! [`super::uri::Buffers`]) and a [`gltf::Accessor`]. Output: `count × dims` f64 values in element
+//! order, with sparse substitution applied and normalised integers mapped to [0, 1] / [-1, 1] as the
+//! glTF specification says, or u32 vertex indices. A view, stride or sparse range past its buffer is an
+//! [`AccErr`] naming the accessor; [`PrimCtx::error`] attaches the mesh and primitive to make it a
+//! [`SceneError`].
+
+use crate::scene::error::SceneError;
+use gltf::accessor::{DataType, Dimensions};
+
+/// Cap on accessors without a buffer view (sparse-only, zero-initialised), in elements.
+const MAX_SPARSE_ONLY_COUNT: usize = 1 << 26;
+
+/// Mesh/primitive identification for errors and warnings.
+pub(super) struct PrimCtx {
+    pub(super) mesh: usize,
+    pub(super) mesh_name: String,
+    pub(super) primitive: usize,
+}
+
+/// An accessor-level failure before the mesh context is attached.
+pub(super) struct AccErr {
+    pub(super) accessor: usize,
+    pub(super) reason: String,
+}
+
+impl PrimCtx {
+    /// `e` as a [`SceneError::Accessor`] of this primitive in `file`, read as `semantic`.
+    pub(super) fn error(&self, file: &str, semantic: &str, e: AccErr) -> SceneError {
+        SceneError::Accessor {
+            file: file.to_string(),
+            mesh: self.mesh,
+            mesh_name: self.mesh_name.clone(),
+            primitive: self.primitive,
+            accessor: e.accessor,
+            reason: format!("{semantic}: {}", e.reason),
+        }
+    }
+}
+
+fn component_size(t: DataType) -> usize {
+    match t {
+        DataType::I8 | DataType::U8 => 1,
+        DataType::I16 | DataType::U16 => 2,
+        DataType::U32 | DataType::F32 => 4,
+    }
+}
+
+fn dimension_count(d: Dimensions) -> usize {
+    match d {
+        Dimensions::Scalar => 1,
+        Dimensions::Vec2 => 2,
+        Dimensions::Vec3 => 3,
+        Dimensions::Vec4 | Dimensions::Mat2 => 4,
+        Dimensions::Mat3 => 9,
+        Dimensions::Mat4 => 16,
+    }
+}
+
+/// One component as f64 (`b` holds exactly `component_size(t)` bytes). Normalised integers map to
+/// [0, 1] (unsigned) or [-1, 1] (signed, `max(v / MAX, -1)`), per the glTF specification.
+#[inline]
+fn decode_component(t: DataType, normalized: bool, b: &[u8]) -> f64 {
+    let (v, max) = match t {
+        DataType::F32 => return f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        DataType::I8 => (f64::from(b[0] as i8), 127.0),
+        DataType::U8 => (f64::from(b[0]), 255.0),
+        DataType::I16 => (f64::from(i16::from_le_bytes([b[0], b[1]])), 32767.0),
+        DataType::U16 => (f64::from(u16::from_le_bytes([b[0], b[1]])), 65535.0),
+        DataType::U32 => (
+            f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            4_294_967_295.0,
+        ),
+    };
+    if normalized { (v / max).max(-1.0) } else { v }
+}
+
+/// The bytes of buffer view `view`, checked against the loaded buffer.
+pub(super) fn view_slice<'b>(
+    buffers: &'b [Option<Vec<u8>>],
+    view: &gltf::buffer::View,
+) -> Result<&'b [u8], String> {
+    let b = view.buffer().index();
+    let buf = buffers
+        .get(b)
+        .and_then(|x| x.as_deref())
+        .ok_or_else(|| format!("buffer {b} not loaded"))?;
+    let end = view
+        .offset()
+        .checked_add(view.length())
+        .ok_or("buffer view range overflows")?;
+    buf.get(view.offset()..end).ok_or_else(|| {
+        format!(
+            "buffer view {} (bytes {}..{end}) exceeds buffer {b} of {} bytes",
+            view.index(),
+            view.offset(),
+            buf.len()
+        )
+    })
+}
+
+/// Dense element layout inside a view: `count` elements of `elem` bytes, `stride` apart, from `offset`.
+struct Dense<'b> {
+    data: &'b [u8],
+    stride: usize,
+    elem: usize,
+    count: usize,
+}
+
+fn dense<'b>(
+    buffers: &'b [Option<Vec<u8>>],
+    view: &gltf::buffer::View,
+    offset: usize,
+    count: usize,
+    elem: usize,
+    use_view_stride: bool,
+) -> Result<Dense<'b>, String> {
+    let vs = view_slice(buffers, view)?;
+    let stride = if use_view_stride {
+        view.stride().unwrap_or(elem)
+    } else {
+        elem
+    };
+    if stride < elem {
+        return Err(format!(
+            "byteStride {stride} is smaller than the element size {elem}"
+        ));
+    }
+    if count == 0 {
+        return Ok(Dense {
+            data: &[],
+            stride,
+            elem,
+            count,
+        });
+    }
+    let end = (count - 1)
+        .checked_mul(stride)
+        .and_then(|x| x.checked_add(offset))
+        .and_then(|x| x.checked_add(elem))
+        .ok_or("accessor byte range overflows")?;
+    let data = vs.get(offset..end).ok_or_else(|| {
+        format!(
+            "{count} elements of {elem} bytes (stride {stride}) from byte {offset} end at byte {end}, past the end \
+             of buffer view {} ({} bytes)",
+            view.index(),
+            vs.len()
+        )
+    })?;
+    Ok(Dense {
+        data,
+        stride,
+        elem,
+        count,
+    })
+}
+
+impl Dense<'_> {
+    /// The element slices (each exactly `elem` bytes).
+    fn elements(&self) -> impl Iterator<Item = &[u8]> {
+        self.data
+            .chunks(self.stride)
+            .take(self.count)
+            .filter_map(|c| c.get(..self.elem))
+    }
+}
+
+/// Reads accessor `acc` as `count × dims` f64 into `out` (sparse substitution applied). The accessor
+/// must have exactly `dims` components per element.
+pub(super) fn read_floats(
+    buffers: &[Option<Vec<u8>>],
+    acc: &gltf::Accessor,
+    dims: usize,
+    out: &mut Vec<f64>,
+    tmp: &mut Vec<f64>,
+) -> Result<(), AccErr> {
+    let err = |reason: String| AccErr {
+        accessor: acc.index(),
+        reason,
+    };
+    let got = dimension_count(acc.dimensions());
+    if got != dims {
+        return Err(err(format!(
+            "has {:?} elements, expected {dims} components",
+            acc.dimensions()
+        )));
+    }
+    let t = acc.data_type();
+    let cs = component_size(t);
+    let norm = acc.normalized();
+    let count = acc.count();
+    out.clear();
+    match acc.view() {
+        Some(view) => {
+            let d = dense(buffers, &view, acc.offset(), count, cs * dims, true).map_err(err)?;
+            out.reserve(count * dims);
+            for e in d.elements() {
+                out.extend(e.chunks_exact(cs).map(|b| decode_component(t, norm, b)));
+            }
+        }
+        None => {
+            if count > MAX_SPARSE_ONLY_COUNT {
+                return Err(err(format!("{count} elements without a buffer view")));
+            }
+            out.resize(count * dims, 0.0);
+        }
+    }
+    if out.len() != count * dims {
+        return Err(err("short read".into()));
+    }
+    if let Some(sp) = acc.sparse() {
+        let mut idx = Vec::new();
+        let iv = sp.indices();
+        let it = match iv.index_type() {
+            gltf::accessor::sparse::IndexType::U8 => DataType::U8,
+            gltf::accessor::sparse::IndexType::U16 => DataType::U16,
+            gltf::accessor::sparse::IndexType::U32 => DataType::U32,
+        };
+        let n = sp.count();
+        let d = dense(
+            buffers,
+            &iv.view(),
+            iv.offset(),
+            n,
+            component_size(it),
+            false,
+        )
+        .map_err(|r| err(format!("sparse indices: {r}")))?;
+        idx.extend(
+            d.elements()
+                .map(|b| decode_component(it, false, b) as usize),
+        );
+        let vv = sp.values();
+        let d = dense(buffers, &vv.view(), vv.offset(), n, cs * dims, false)
+            .map_err(|r| err(format!("sparse values: {r}")))?;
+        tmp.clear();
+        for e in d.elements() {
+            tmp.extend(e.chunks_exact(cs).map(|b| decode_component(t, norm, b)));
+        }
+        for (k, &i) in idx.iter().enumerate() {
+            let dst = i
+                .checked_mul(dims)
+                .and_then(|s| out.get_mut(s..s + dims))
+                .ok_or_else(|| err(format!("sparse index {i} out of range ({count} elements)")))?;
+            let src = tmp
+                .get(k * dims..(k + 1) * dims)
+                .ok_or_else(|| err("sparse values short".into()))?;
+            dst.copy_from_slice(src);
+        }
+    }
+    Ok(())
+}
+
+/// Reads an index accessor (SCALAR of u8/u16/u32) into `out`.
+pub(super) fn read_indices(
+    buffers: &[Option<Vec<u8>>],
+    acc: &gltf::Accessor,
+    out: &mut Vec<u32>,
+    tmp: &mut Vec<f64>,
+) -> Result<(), AccErr> {
+    let err = |reason: String| AccErr {
+        accessor: acc.index(),
+        reason,
+    };
+    let t = acc.data_type();
+    if acc.dimensions() != Dimensions::Scalar
+        || !matches!(t, DataType::U8 | DataType::U16 | DataType::U32)
+    {
+        return Err(err(format!(
+            "indices must be SCALAR of unsigned byte/short/int, found {:?} of {t:?}",
+            acc.dimensions()
+        )));
+    }
+    out.clear();
+    if acc.sparse().is_some() || acc.view().is_none() {
+        let mut vals = Vec::new();
+        read_floats(buffers, acc, 1, &mut vals, tmp)?;
+        out.extend(vals.iter().map(|&v| v as u32));
+        return Ok(());
+    }
+    let Some(view) = acc.view() else {
+        return Ok(());
+    };
+    let cs = component_size(t);
+    let d = dense(buffers, &view, acc.offset(), acc.count(), cs, true).map_err(err)?;
+    out.reserve(acc.count());
+    match t {
+        DataType::U8 => out.extend(d.elements().map(|b| u32::from(b[0]))),
+        DataType::U16 => out.extend(
+            d.elements()
+                .map(|b| u32::from(u16::from_le_bytes([b[0], b[1]]))),
+        ),
+        _ => out.extend(
+            d.elements()
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        ),
+    }
+    Ok(())
+}
+
+/// An accessor's count if its dense range fits its view's declared length, else 0 (used for
+/// reservations only; the real check happens when reading).
+pub(super) fn plausible_count(acc: &gltf::Accessor) -> usize {
+    let Some(view) = acc.view() else { return 0 };
+    let elem = component_size(acc.data_type()) * dimension_count(acc.dimensions());
+    let stride = view.stride().unwrap_or(elem).max(elem);
+    let fits = acc
+        .count()
+        .checked_sub(1)
+        .and_then(|c| c.checked_mul(stride))
+        .and_then(|x| x.checked_add(acc.offset() + elem))
+        .is_some_and(|end| end <= view.length());
+    if fits { acc.count() } else { 0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normalized_components() {
+        assert_eq!(decode_component(DataType::U8, true, &[255]), 1.0);
+        assert_eq!(decode_component(DataType::I8, true, &[0x80]), -1.0);
+        assert_eq!(decode_component(DataType::U16, true, &[0xff, 0xff]), 1.0);
+        assert_eq!(decode_component(DataType::U16, false, &[2, 1]), 258.0);
+    }
+}

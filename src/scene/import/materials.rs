@@ -1,0 +1,317 @@
+//! Materials: glTF materials, samplers and textures → [`Material`]s with one base-colour image each,
+//! and how their vertices get UVs ([`UvSource`]).
+//!
+//! Per (glTF material, solid) pair one [`Material`] is made, on first use by a primitive. A textured
+//! material keeps its base-colour texture's sampler wraps ([`Wrap`]), `alphaMode`/`alphaCutoff`
+//! ([`AlphaMode`]) and `baseColorFactor` (linear RGBA); its `KHR_texture_transform`, read in f64 from the
+//! raw JSON, is returned as a [`UvTransform`] for the geometry to bake into the UVs. A material without a
+//! texture, or whose `texCoord` set the primitive lacks, gets a deduplicated 1×1 image of its factor
+//! encoded as sRGB8 ([`srgb8`]) and the UV (0.5, 0.5). glTF images are deduplicated by index; one that
+//! cannot be read is replaced by the fallback checker and counted.
+
+use super::accessors::PrimCtx;
+use super::uri::Buffers;
+use crate::ids::{ImageId, MaterialId};
+use crate::scene::image_source::ImageSource;
+use crate::scene::{AlphaMode, ImportReport, Material, Wrap};
+use glam::DVec2;
+use gltf::Semantic;
+use serde::Deserialize;
+use std::collections::HashMap;
+
+// Raw JSON read in f64 (gltf-json keeps KHR_texture_transform as f32).
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct RawMaterial {
+    pbr_metallic_roughness: Option<RawPbr>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "camelCase")]
+struct RawPbr {
+    base_color_texture: Option<RawTexInfo>,
+}
+
+#[derive(Deserialize, Default)]
+struct RawTexInfo {
+    extensions: Option<RawTexExt>,
+}
+
+#[derive(Deserialize, Default)]
+struct RawTexExt {
+    #[serde(rename = "KHR_texture_transform")]
+    texture_transform: Option<RawTexTransform>,
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+struct RawTexTransform {
+    offset: Option<[f64; 2]>,
+    rotation: Option<f64>,
+    scale: Option<[f64; 2]>,
+    #[serde(rename = "texCoord")]
+    tex_coord: Option<u32>,
+}
+
+/// `KHR_texture_transform` in f64: `uv' = T(offset) · R(rotation) · S(scale) · uv`.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct UvTransform {
+    pub offset: DVec2,
+    /// Radians, counter-clockwise in UV space (the extension's convention).
+    pub rotation: f64,
+    pub scale: DVec2,
+}
+
+impl UvTransform {
+    /// Applies the transform: `u' = cos·sx·u + sin·sy·v + ox`, `v' = −sin·sx·u + cos·sy·v + oy`
+    /// (the matrix of the KHR_texture_transform specification).
+    #[inline]
+    pub fn apply(&self, uv: DVec2) -> DVec2 {
+        let (s, c) = self.rotation.sin_cos();
+        let su = uv.x * self.scale.x;
+        let sv = uv.y * self.scale.y;
+        DVec2::new(
+            c * su + s * sv + self.offset.x,
+            -s * su + c * sv + self.offset.y,
+        )
+    }
+}
+
+impl From<RawTexTransform> for UvTransform {
+    fn from(r: RawTexTransform) -> Self {
+        UvTransform {
+            offset: r.offset.map_or(DVec2::ZERO, DVec2::from),
+            rotation: r.rotation.unwrap_or(0.0),
+            scale: r.scale.map_or(DVec2::ONE, DVec2::from),
+        }
+    }
+}
+
+/// How a material's vertices get their UVs.
+#[derive(Clone, Copy)]
+pub(super) enum UvSource {
+    /// From `TEXCOORD_set`, then the optional transform.
+    Set(u32, Option<UvTransform>),
+    /// 1×1 solid image: every vertex gets the texel centre (0.5, 0.5).
+    Solid,
+}
+
+/// The materials and images made so far, and what deduplicates them.
+pub(super) struct Materials<'a> {
+    /// The glTF file (for warnings).
+    file: &'a str,
+    /// Per glTF material: its raw JSON (for `KHR_texture_transform` in f64).
+    raw: Vec<RawMaterial>,
+    pub(super) materials: Vec<Material>,
+    /// Per material: how its vertices get their UVs.
+    uv: Vec<UvSource>,
+    pub(super) images: Vec<ImageSource>,
+    image_ids: HashMap<usize, ImageId>,
+    solid_ids: HashMap<[u8; 4], ImageId>,
+    material_ids: HashMap<(Option<usize>, bool), MaterialId>,
+}
+
+impl<'a> Materials<'a> {
+    pub(super) fn new(file: &'a str, raw: Vec<RawMaterial>) -> Self {
+        Materials {
+            file,
+            raw,
+            materials: Vec::new(),
+            uv: Vec::new(),
+            images: Vec::new(),
+            image_ids: HashMap::new(),
+            solid_ids: HashMap::new(),
+            material_ids: HashMap::new(),
+        }
+    }
+
+    /// The material for primitive `prim` and its UV source. A textured material whose `texCoord` set is
+    /// missing on this primitive becomes a solid-colour variant (counted warning).
+    pub(super) fn material_for(
+        &mut self,
+        prim: &gltf::Primitive,
+        ctx: &PrimCtx,
+        buffers: &mut Buffers,
+        report: &mut ImportReport,
+    ) -> (MaterialId, UvSource) {
+        let gm = prim.material();
+        let index = gm.index();
+        let pbr = gm.pbr_metallic_roughness();
+        let raw_tt = index
+            .and_then(|i| self.raw.get(i))
+            .and_then(|m| m.pbr_metallic_roughness.as_ref())
+            .and_then(|p| p.base_color_texture.as_ref())
+            .and_then(|t| t.extensions.as_ref())
+            .and_then(|e| e.texture_transform);
+        let tex = pbr.base_color_texture();
+        let set = tex
+            .as_ref()
+            .map(|info| raw_tt.and_then(|t| t.tex_coord).unwrap_or(info.tex_coord()));
+        let has_uvs = set.is_some_and(|s| prim.get(&Semantic::TexCoords(s)).is_some());
+        if let (Some(s), false) = (set, has_uvs) {
+            report.missing_texcoords += 1;
+            report.warn(format!(
+                "{}: mesh {} ({}) primitive {}: material {} has a base colour texture on TEXCOORD_{s}, which the \
+                 primitive lacks; using a solid image of its baseColorFactor",
+                self.file,
+                ctx.mesh,
+                ctx.mesh_name,
+                ctx.primitive,
+                index.map_or("default".to_string(), |i| i.to_string())
+            ));
+        }
+        let solid = !has_uvs;
+        if let Some(&id) = self.material_ids.get(&(index, solid)) {
+            let uv = self.uv.get(id.idx()).copied().unwrap_or(UvSource::Solid);
+            return (id, uv);
+        }
+        let factor = pbr.base_color_factor();
+        let alpha = match gm.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Mask => AlphaMode::Mask {
+                cutoff: gm.alpha_cutoff().unwrap_or(0.5),
+            },
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+        };
+        let name = match (gm.name(), index) {
+            (Some(n), _) => n.to_string(),
+            (None, Some(i)) => format!("material {i}"),
+            (None, None) => "default material".to_string(),
+        };
+        let (material, uv) = match (tex, set) {
+            (Some(info), Some(s)) if !solid => {
+                let texture = info.texture();
+                let sampler = texture.sampler();
+                let image = self.image_for(texture.source(), buffers, report);
+                let xf = raw_tt.map(UvTransform::from);
+                let m = Material {
+                    name,
+                    image,
+                    tex_coord: s,
+                    wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+                    alpha,
+                    base_color_factor: factor,
+                    texture_transform: xf.is_some(),
+                };
+                (m, UvSource::Set(s, xf))
+            }
+            _ => {
+                let image = self.solid_image(srgb8(factor));
+                let m = Material {
+                    name,
+                    image,
+                    tex_coord: 0,
+                    wrap: [Wrap::ClampToEdge; 2],
+                    alpha,
+                    base_color_factor: [1.0; 4],
+                    texture_transform: false,
+                };
+                (m, UvSource::Solid)
+            }
+        };
+        let id = MaterialId(self.materials.len() as u32);
+        self.materials.push(material);
+        self.uv.push(uv);
+        self.material_ids.insert((index, solid), id);
+        (id, uv)
+    }
+
+    /// The deduplicated 1×1 image of an sRGB RGBA8 colour.
+    fn solid_image(&mut self, rgba: [u8; 4]) -> ImageId {
+        if let Some(&id) = self.solid_ids.get(&rgba) {
+            return id;
+        }
+        let id = self.push_image(ImageSource::solid(rgba));
+        self.solid_ids.insert(rgba, id);
+        id
+    }
+
+    fn push_image(&mut self, img: ImageSource) -> ImageId {
+        let id = ImageId(self.images.len() as u32);
+        self.images.push(img);
+        id
+    }
+
+    /// The image for glTF image `img` (header read once); missing/undecodable → fallback + warning.
+    fn image_for(
+        &mut self,
+        img: gltf::Image,
+        buffers: &mut Buffers,
+        report: &mut ImportReport,
+    ) -> ImageId {
+        if let Some(&id) = self.image_ids.get(&img.index()) {
+            return id;
+        }
+        let (name, loaded) = buffers.load_image(&img);
+        let source = match loaded {
+            Ok(src) => src,
+            Err(reason) => {
+                report.missing_images += 1;
+                report.warn(format!(
+                    "{}: image {} ({name}): {reason}; using the magenta/black fallback checker",
+                    self.file,
+                    img.index()
+                ));
+                ImageSource::fallback(&name)
+            }
+        };
+        let id = self.push_image(source);
+        self.image_ids.insert(img.index(), id);
+        id
+    }
+}
+
+fn wrap(w: gltf::texture::WrappingMode) -> Wrap {
+    match w {
+        gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+        gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+    }
+}
+
+/// Linear RGBA factor → sRGB-encoded RGBA8 (alpha stays linear), each clamped to [0, 1] and rounded.
+pub fn srgb8(linear: [f32; 4]) -> [u8; 4] {
+    let enc = |c: f32| {
+        let c = f64::from(c);
+        let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
+        let s = if c <= 0.003_130_8 {
+            12.92 * c
+        } else {
+            1.055 * c.powf(1.0 / 2.4) - 0.055
+        };
+        (s * 255.0).round() as u8
+    };
+    let a = f64::from(linear[3]);
+    let a = if a.is_nan() { 1.0 } else { a.clamp(0.0, 1.0) };
+    [
+        enc(linear[0]),
+        enc(linear[1]),
+        enc(linear[2]),
+        (a * 255.0).round() as u8,
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_encoding() {
+        assert_eq!(srgb8([0.0, 1.0, 0.5, 0.5]), [0, 255, 188, 128]);
+        assert_eq!(srgb8([f32::NAN, 2.0, -1.0, 1.0]), [0, 255, 0, 255]);
+    }
+
+    #[test]
+    fn texture_transform_matrix() {
+        // Rotation by 90°: (1, 0) → (0, -1) scaled by 2 in u, then offset (0.5, 0.25).
+        let t = UvTransform {
+            offset: DVec2::new(0.5, 0.25),
+            rotation: std::f64::consts::FRAC_PI_2,
+            scale: DVec2::new(2.0, 3.0),
+        };
+        let r = t.apply(DVec2::new(1.0, 0.0));
+        assert!((r - DVec2::new(0.5, -1.75)).length() < 1e-12, "{r}");
+        let r = t.apply(DVec2::new(0.0, 1.0));
+        assert!((r - DVec2::new(3.5, 0.25)).length() < 1e-12, "{r}");
+    }
+}

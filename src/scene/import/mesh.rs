@@ -1,0 +1,389 @@
+//! Geometry: the primitives of each mesh instance → world-space vertices and triangles.
+//!
+//! Positions (f64, after the instance's world matrix) and UVs (f64, `KHR_texture_transform` baked in,
+//! or the solid texel centre) are read per primitive into reused scratch buffers; indices (or `0..n`)
+//! are checked against the vertex count and assembled for triangle lists, strips and fans. Only
+//! vertices used by kept triangles are emitted, once per instance. Triangles with a non-finite position
+//! or UV are skipped, UVs beyond ±[`LARGE_UV`] kept; both counted. Non-triangle modes and primitives
+//! without POSITION are skipped (counted warning). Bad accessors and out-of-range indices are errors.
+
+use super::accessors::{PrimCtx, plausible_count, read_floats, read_indices};
+use super::materials::{Materials, UvSource};
+use super::nodes::Instance;
+use super::uri::Buffers;
+use crate::ids::MaterialId;
+use crate::scene::error::SceneError;
+use crate::scene::{ImportReport, Triangle, Vertex};
+use glam::{DVec2, DVec3};
+use gltf::Semantic;
+use gltf::mesh::Mode;
+use std::collections::HashMap;
+
+/// UV components beyond ±this are kept but counted (`large_uv_triangles`).
+pub const LARGE_UV: f64 = 1e6;
+
+/// Reused per-primitive buffers (no per-vertex allocation).
+#[derive(Default)]
+struct Scratch {
+    floats: Vec<f64>,
+    tmp: Vec<f64>,
+    world: Vec<DVec3>,
+    uvs: Vec<DVec2>,
+    indices: Vec<u32>,
+    remap: Vec<u32>,
+}
+
+/// Per-primitive triangle counts.
+#[derive(Default)]
+struct TriCounts {
+    bad_pos: u64,
+    bad_uv: u64,
+    large_uv: u64,
+}
+
+/// The triangle soup built so far.
+pub(super) struct Geometry<'a> {
+    /// The glTF file (for errors and warnings).
+    file: &'a str,
+    meshes: Vec<gltf::Mesh<'a>>,
+    pub(super) vertices: Vec<Vertex>,
+    pub(super) triangles: Vec<Triangle>,
+    scratch: Scratch,
+}
+
+impl<'a> Geometry<'a> {
+    pub(super) fn new(file: &'a str, doc: &'a gltf::Document) -> Self {
+        Geometry {
+            file,
+            meshes: doc.meshes().collect(),
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// Reserves the output vectors from the accessor counts (capped by the buffer view sizes). Allocation
+    /// failure of the reservation is not an error: the vectors then grow as needed.
+    pub(super) fn reserve(&mut self, instances: &[Instance]) -> Result<(), SceneError> {
+        let meshes = &self.meshes;
+        let mut per_mesh: HashMap<usize, (u64, u64)> = HashMap::new();
+        let (mut tris, mut verts) = (0u64, 0u64);
+        for inst in instances {
+            let (t, v) = *per_mesh.entry(inst.mesh).or_insert_with(|| {
+                let Some(mesh) = meshes.get(inst.mesh) else {
+                    return (0, 0);
+                };
+                mesh.primitives().fold((0, 0), |(t, v), p| {
+                    let nv = p
+                        .get(&Semantic::Positions)
+                        .map_or(0, |a| plausible_count(&a)) as u64;
+                    let ni = p.indices().map_or(nv, |a| plausible_count(&a) as u64);
+                    (t + ni / 3, v + nv)
+                })
+            });
+            tris = tris.saturating_add(t);
+            verts = verts.saturating_add(v);
+        }
+        if verts > u64::from(u32::MAX) {
+            return Err(SceneError::TooLarge {
+                file: self.file.to_string(),
+                what: format!("{verts} vertices exceed the u32 vertex index range"),
+            });
+        }
+        let _ = self
+            .triangles
+            .try_reserve(usize::try_from(tris).unwrap_or(0));
+        let _ = self
+            .vertices
+            .try_reserve(usize::try_from(verts).unwrap_or(0));
+        Ok(())
+    }
+
+    /// Emits every primitive of `inst`'s mesh.
+    pub(super) fn emit_instance(
+        &mut self,
+        inst: &Instance,
+        materials: &mut Materials,
+        buffers: &mut Buffers,
+        report: &mut ImportReport,
+    ) -> Result<(), SceneError> {
+        let Some(mesh) = self.meshes.get(inst.mesh).cloned() else {
+            return Ok(());
+        };
+        let mesh_name = mesh.name().unwrap_or("").to_string();
+        for prim in mesh.primitives() {
+            let ctx = PrimCtx {
+                mesh: inst.mesh,
+                mesh_name: mesh_name.clone(),
+                primitive: prim.index(),
+            };
+            self.emit_primitive(inst, &prim, &ctx, materials, buffers, report)?;
+        }
+        Ok(())
+    }
+
+    /// Emits one primitive of one instance: world-space vertices (only those used by kept triangles)
+    /// and triangles. See the module docs for what is skipped and counted.
+    fn emit_primitive(
+        &mut self,
+        inst: &Instance,
+        prim: &gltf::Primitive<'a>,
+        ctx: &PrimCtx,
+        materials: &mut Materials,
+        buffers: &mut Buffers,
+        report: &mut ImportReport,
+    ) -> Result<(), SceneError> {
+        let mode = prim.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            report.skipped_primitives += 1;
+            report.warn(format!(
+                "{}: mesh {} ({}) primitive {}: mode {mode:?} is not triangles; skipped (node {})",
+                self.file, ctx.mesh, ctx.mesh_name, ctx.primitive, inst.node
+            ));
+            return Ok(());
+        }
+        let Some(pos_acc) = prim.get(&Semantic::Positions) else {
+            report.skipped_primitives += 1;
+            report.warn(format!(
+                "{}: mesh {} ({}) primitive {}: no POSITION attribute; skipped",
+                self.file, ctx.mesh, ctx.mesh_name, ctx.primitive
+            ));
+            return Ok(());
+        };
+        let (material, uv_source) = materials.material_for(prim, ctx, buffers, report);
+
+        // Positions → world space.
+        buffers.load_accessor(&pos_acc)?;
+        let s = &mut self.scratch;
+        read_floats(buffers.data(), &pos_acc, 3, &mut s.floats, &mut s.tmp)
+            .map_err(|e| ctx.error(self.file, "POSITION", e))?;
+        let n = pos_acc.count();
+        let s = &mut self.scratch;
+        s.world.clear();
+        s.world.extend(
+            s.floats
+                .chunks_exact(3)
+                .map(|p| inst.world.transform_point3(DVec3::new(p[0], p[1], p[2]))),
+        );
+
+        // UVs (transform baked in f64).
+        s.uvs.clear();
+        if let UvSource::Set(set, xf) = uv_source {
+            let semantic = format!("TEXCOORD_{set}");
+            let Some(uv_acc) = prim.get(&Semantic::TexCoords(set)) else {
+                return Err(SceneError::Other(format!(
+                    "{}: internal: {semantic} vanished",
+                    self.file
+                )));
+            };
+            if uv_acc.count() != n {
+                return Err(SceneError::Accessor {
+                    file: self.file.to_string(),
+                    mesh: ctx.mesh,
+                    mesh_name: ctx.mesh_name.clone(),
+                    primitive: ctx.primitive,
+                    accessor: uv_acc.index(),
+                    reason: format!(
+                        "{semantic} has {} elements but POSITION (accessor {}) has {n}",
+                        uv_acc.count(),
+                        pos_acc.index()
+                    ),
+                });
+            }
+            buffers.load_accessor(&uv_acc)?;
+            let s = &mut self.scratch;
+            read_floats(buffers.data(), &uv_acc, 2, &mut s.floats, &mut s.tmp)
+                .map_err(|e| ctx.error(self.file, &semantic, e))?;
+            let s = &mut self.scratch;
+            match xf {
+                Some(t) => s.uvs.extend(
+                    s.floats
+                        .chunks_exact(2)
+                        .map(|c| t.apply(DVec2::new(c[0], c[1]))),
+                ),
+                None => s
+                    .uvs
+                    .extend(s.floats.chunks_exact(2).map(|c| DVec2::new(c[0], c[1]))),
+            }
+        }
+
+        // Indices (or 0..n), checked against the vertex count.
+        match prim.indices() {
+            Some(idx_acc) => {
+                buffers.load_accessor(&idx_acc)?;
+                let s = &mut self.scratch;
+                read_indices(buffers.data(), &idx_acc, &mut s.indices, &mut s.tmp)
+                    .map_err(|e| ctx.error(self.file, "indices", e))?;
+                if let Some((position, &index)) = self
+                    .scratch
+                    .indices
+                    .iter()
+                    .enumerate()
+                    .find(|(_, i)| **i as usize >= n)
+                {
+                    return Err(SceneError::IndexOutOfRange {
+                        file: self.file.to_string(),
+                        mesh: ctx.mesh,
+                        mesh_name: ctx.mesh_name.clone(),
+                        primitive: ctx.primitive,
+                        accessor: idx_acc.index(),
+                        position,
+                        index,
+                        vertex_count: n,
+                    });
+                }
+            }
+            None => {
+                let count = u32::try_from(n).map_err(|_| SceneError::TooLarge {
+                    file: self.file.to_string(),
+                    what: format!(
+                        "mesh {} primitive {}: {n} vertices",
+                        ctx.mesh, ctx.primitive
+                    ),
+                })?;
+                self.scratch.indices.clear();
+                self.scratch.indices.extend(0..count);
+            }
+        }
+        let leftover = match mode {
+            Mode::Triangles => self.scratch.indices.len() % 3,
+            _ => 0,
+        };
+        if leftover != 0 {
+            report.warn(format!(
+                "{}: mesh {} ({}) primitive {}: {} indices is not a multiple of 3; the last {leftover} ignored",
+                self.file,
+                ctx.mesh,
+                ctx.mesh_name,
+                ctx.primitive,
+                self.scratch.indices.len()
+            ));
+        }
+        let counts = self.assemble(mode, material, n)?;
+        self.report_counts(ctx, &counts, report);
+        Ok(())
+    }
+
+    /// Builds the triangles of the current primitive from `scratch` (world positions, UVs, indices).
+    fn assemble(
+        &mut self,
+        mode: Mode,
+        material: MaterialId,
+        n: usize,
+    ) -> Result<TriCounts, SceneError> {
+        let Scratch {
+            world,
+            uvs,
+            indices,
+            remap,
+            ..
+        } = &mut self.scratch;
+        remap.clear();
+        remap.resize(n, u32::MAX);
+        let ntri = match mode {
+            Mode::Triangles => indices.len() / 3,
+            _ => indices.len().saturating_sub(2),
+        };
+        let solid_uv = DVec2::splat(0.5);
+        let mut counts = TriCounts::default();
+        for t in 0..ntri {
+            let tri = match mode {
+                Mode::Triangles => [3 * t, 3 * t + 1, 3 * t + 2],
+                Mode::TriangleStrip if t % 2 == 0 => [t, t + 1, t + 2],
+                Mode::TriangleStrip => [t, t + 2, t + 1],
+                _ => [t + 1, t + 2, 0],
+            };
+            let (Some(&a), Some(&b), Some(&c)) = (
+                indices.get(tri[0]),
+                indices.get(tri[1]),
+                indices.get(tri[2]),
+            ) else {
+                continue;
+            };
+            let l = [a as usize, b as usize, c as usize];
+            let (Some(&p0), Some(&p1), Some(&p2)) =
+                (world.get(l[0]), world.get(l[1]), world.get(l[2]))
+            else {
+                continue;
+            };
+            let p = [p0, p1, p2];
+            if !p.iter().all(|q| q.is_finite()) {
+                counts.bad_pos += 1;
+                continue;
+            }
+            let uv = if uvs.is_empty() {
+                [solid_uv; 3]
+            } else {
+                let (Some(&u0), Some(&u1), Some(&u2)) =
+                    (uvs.get(l[0]), uvs.get(l[1]), uvs.get(l[2]))
+                else {
+                    continue;
+                };
+                [u0, u1, u2]
+            };
+            if !uv.iter().all(|u| u.is_finite()) {
+                counts.bad_uv += 1;
+                continue;
+            }
+            if uv
+                .iter()
+                .any(|u| u.x.abs() > LARGE_UV || u.y.abs() > LARGE_UV)
+            {
+                counts.large_uv += 1;
+            }
+            let mut v = [0u32; 3];
+            for k in 0..3 {
+                let slot = remap
+                    .get_mut(l[k])
+                    .ok_or_else(|| SceneError::Other("internal: remap".into()))?;
+                if *slot == u32::MAX {
+                    *slot = u32::try_from(self.vertices.len())
+                        .ok()
+                        .filter(|&x| x != u32::MAX)
+                        .ok_or_else(|| SceneError::TooLarge {
+                            file: self.file.to_string(),
+                            what: "more than 2^32-1 vertices".into(),
+                        })?;
+                    self.vertices.push(Vertex {
+                        pos: p[k],
+                        uv: uv[k],
+                    });
+                }
+                v[k] = *slot;
+            }
+            self.triangles.push(Triangle { v, material });
+        }
+        Ok(counts)
+    }
+
+    fn report_counts(&self, ctx: &PrimCtx, c: &TriCounts, report: &mut ImportReport) {
+        let where_ = format!(
+            "{}: mesh {} ({}) primitive {}",
+            self.file, ctx.mesh, ctx.mesh_name, ctx.primitive
+        );
+        if c.bad_pos > 0 {
+            report.skipped_triangles += c.bad_pos;
+            report.warn(format!(
+                "{where_}: {} triangles with NaN/Inf positions skipped",
+                c.bad_pos
+            ));
+        }
+        if c.bad_uv > 0 {
+            report.skipped_triangles += c.bad_uv;
+            report.warn(format!(
+                "{where_}: {} triangles with NaN/Inf UVs skipped",
+                c.bad_uv
+            ));
+        }
+        if c.large_uv > 0 {
+            report.large_uv_triangles += c.large_uv;
+            report.warn(format!(
+                "{where_}: {} triangles with |uv| > {LARGE_UV:e} kept",
+                c.large_uv
+            ));
+        }
+    }
+}

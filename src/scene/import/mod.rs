@@ -1,0 +1,220 @@
+//! glTF 2.0 import into a flat world-space triangle soup: the entry point [`import`] and what it
+//! hands from one stage to the next.
+//!
+//! The data change form in this order, one file each:
+//! - `uri.rs`: the file's bytes → JSON and the GLB `BIN` chunk; buffers (external files, data URIs, the
+//!   `BIN` chunk) loaded on first use; images only have their header read
+//!   ([`crate::scene::image_source::read_header`]) and are decoded lazily;
+//! - here: the JSON → a validated [`gltf::Document`] plus the raw JSON fields gltf-json keeps as f32;
+//! - `nodes.rs`: the node graph → mesh instances with f64 world matrices ([`glam::DMat4`] products,
+//!   taken from the raw JSON), `EXT_mesh_gpu_instancing` expanded;
+//! - `mesh.rs`: each instance's primitives → distinct world-space vertices and triangles, reading
+//!   attributes through `accessors.rs` (bytes → f64 / u32, ranges checked) and materials through
+//!   `materials.rs` (glTF material → [`crate::scene::Material`] and how its vertices get UVs).
+//!
+//! Every stage counts what it skips in the [`ImportReport`] and warns through `warnings.rs` (at most
+//! [`MAX_WARNINGS`] messages kept).
+//!
+//! Policy on bad input: structural errors (unreadable/invalid JSON, schema failures, missing buffers,
+//! accessors past their buffer, out-of-range indices, recursive node graphs, unsupported required
+//! extensions) are a [`SceneError`]; data problems that affect single triangles (non-finite positions or
+//! UVs) skip those triangles; unsupported primitive modes skip the primitive; missing images are
+//! replaced by a fallback checker. Every skip is counted in [`ImportReport`].
+
+mod accessors;
+mod materials;
+mod mesh;
+mod nodes;
+mod uri;
+mod warnings;
+
+pub use crate::scene::error::SceneError;
+pub use materials::{UvTransform, srgb8};
+pub use mesh::LARGE_UV;
+pub use nodes::MAX_NODE_VISITS;
+pub use uri::percent_decode;
+pub use warnings::MAX_WARNINGS;
+
+use crate::scene::{ImportReport, Scene, UpAxis};
+use glam::DVec3;
+use materials::{Materials, RawMaterial};
+use mesh::Geometry;
+use nodes::{RawNode, Walk};
+use serde::Deserialize;
+use std::path::Path;
+use uri::{Buffers, split_glb};
+
+/// Required extensions this importer honours (others listed in `extensionsRequired` are an error).
+pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
+    "KHR_texture_transform",
+    "KHR_mesh_quantization",
+    "EXT_mesh_gpu_instancing",
+    "KHR_materials_unlit",
+];
+
+/// Import options.
+#[derive(Clone, Debug, Default)]
+pub struct ImportOptions {
+    /// `None` = auto (the axis of least extent of the world bounds; ties prefer Y, then Z).
+    pub up: Option<UpAxis>,
+}
+
+/// Imports a `.gltf` (external files and/or data URIs) or `.glb` file into a world-space [`Scene`].
+///
+/// The default scene is walked (all root nodes if there is none); every mesh instance (node, and
+/// `EXT_mesh_gpu_instancing` instance) becomes distinct vertices and triangles. See the module docs for
+/// the error/warning policy.
+pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+        file: file.clone(),
+        source,
+    })?;
+    let (json_bytes, blob) = split_glb(bytes, &file)?;
+    let (doc, tolerated) = parse_document(&json_bytes, &file)?;
+    let raw: RawRoot = serde_json::from_slice(&json_bytes).map_err(|e| SceneError::Parse {
+        file: file.clone(),
+        reason: format!("raw JSON: {e}"),
+    })?;
+    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut report = ImportReport::default();
+    for w in tolerated {
+        report.warn(w);
+    }
+    let accessors: Vec<gltf::Accessor> = doc.accessors().collect();
+    let mut buffers = Buffers::new(&file, base_dir, &doc, blob);
+    let instances = Walk {
+        file: &file,
+        doc: &doc,
+        raw: &raw.nodes,
+        accessors: &accessors,
+        buffers: &mut buffers,
+        report: &mut report,
+    }
+    .instances()?;
+    let mut geometry = Geometry::new(&file, &doc);
+    geometry.reserve(&instances)?;
+    let mut materials = Materials::new(&file, raw.materials);
+    for inst in &instances {
+        geometry.emit_instance(inst, &mut materials, &mut buffers, &mut report)?;
+    }
+    Ok(finish(path, opts, geometry, materials, report))
+}
+
+/// Parses and validates the glTF JSON. `extensionsRequired` is checked against
+/// [`SUPPORTED_REQUIRED_EXTENSIONS`] here (gltf-json does not know some of ours). Every schema failure
+/// is an error except a missing POSITION `min`/`max` (required by the specification but omitted by many
+/// exporters, and unused here): those are returned as warnings.
+fn parse_document(json: &[u8], file: &str) -> Result<(gltf::Document, Vec<String>), SceneError> {
+    use gltf::json::validation::{Error as VError, Validate};
+    let mut root: gltf::json::Root =
+        gltf::json::deserialize::from_slice(json).map_err(|e| SceneError::Parse {
+            file: file.to_string(),
+            reason: e.to_string(),
+        })?;
+    if let Some(ext) = root
+        .extensions_required
+        .iter()
+        .find(|e| !SUPPORTED_REQUIRED_EXTENSIONS.contains(&e.as_str()))
+    {
+        return Err(SceneError::UnsupportedExtension {
+            file: file.to_string(),
+            extension: ext.clone(),
+        });
+    }
+    root.extensions_required.clear();
+    let mut errors = Vec::new();
+    let mut tolerated = Vec::new();
+    root.validate(&root, gltf::json::Path::new, &mut |path, error| {
+        let p = path().to_string();
+        let bounds =
+            p.contains("attributes[\"POSITION\"]") && (p.ends_with(".min") || p.ends_with(".max"));
+        if bounds && matches!(error, VError::Missing) {
+            tolerated.push(format!(
+                "{file}: {p} is missing (required by glTF; ignored)"
+            ));
+        } else {
+            errors.push(format!("{p}: {error}"));
+        }
+    });
+    if !errors.is_empty() {
+        return Err(SceneError::Invalid {
+            file: file.to_string(),
+            reason: errors.join("; "),
+        });
+    }
+    Ok((
+        gltf::Document::from_json_without_validation(root),
+        tolerated,
+    ))
+}
+
+/// The raw JSON fields read in f64 (gltf-json keeps transforms and KHR_texture_transform as f32).
+#[derive(Deserialize, Default)]
+struct RawRoot {
+    #[serde(default)]
+    nodes: Vec<RawNode>,
+    #[serde(default)]
+    materials: Vec<RawMaterial>,
+}
+
+/// The scene of the built geometry and materials: closes the warning list ("... and N more") and picks
+/// the up axis.
+fn finish(
+    path: &Path,
+    opts: &ImportOptions,
+    geometry: Geometry,
+    materials: Materials,
+    mut report: ImportReport,
+) -> Scene {
+    report.close_warnings();
+    let mut scene = Scene {
+        source: path.to_path_buf(),
+        up: UpAxis::Y,
+        vertices: geometry.vertices,
+        triangles: geometry.triangles,
+        materials: materials.materials,
+        images: materials.images,
+        report,
+    };
+    scene.up = opts.up.unwrap_or_else(|| auto_up(scene.bounds()));
+    scene
+}
+
+/// Auto up axis: the axis of least extent of `bounds`; ties prefer Y, then Z, then X. Y for no bounds.
+pub fn auto_up(bounds: Option<(DVec3, DVec3)>) -> UpAxis {
+    let Some((lo, hi)) = bounds else {
+        return UpAxis::Y;
+    };
+    let e = hi - lo;
+    let mut best = (UpAxis::Y, e.y);
+    for (axis, ext) in [(UpAxis::Z, e.z), (UpAxis::X, e.x)] {
+        if ext < best.1 {
+            best = (axis, ext);
+        }
+    }
+    best.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_up_picks_least_extent() {
+        assert_eq!(auto_up(None), UpAxis::Y);
+        assert_eq!(
+            auto_up(Some((DVec3::ZERO, DVec3::new(10.0, 10.0, 1.0)))),
+            UpAxis::Z
+        );
+        assert_eq!(
+            auto_up(Some((DVec3::ZERO, DVec3::new(10.0, 1.0, 10.0)))),
+            UpAxis::Y
+        );
+        assert_eq!(
+            auto_up(Some((DVec3::ZERO, DVec3::new(0.5, 1.0, 10.0)))),
+            UpAxis::X
+        );
+        assert_eq!(auto_up(Some((DVec3::ZERO, DVec3::ONE))), UpAxis::Y);
+    }
+}

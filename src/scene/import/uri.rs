@@ -1,0 +1,269 @@
+//! Where the bytes come from: the GLB container, buffers (GLB `BIN` chunk, data URIs, external files)
+//! and image headers.
+//!
+//! [`Buffers`] loads each glTF buffer once, on first use, and checks it holds `byteLength` bytes; an
+//! unreadable or short buffer is a [`SceneError::Buffer`]. Relative URIs are percent-decoded and
+//! resolved against the glTF file's directory; `data:` URIs must be base64. Images are not decoded
+//! here: [`Buffers::load_image`] reads only their header ([`image_source::read_header`]) and keeps the
+//! path (external file) or the encoded bytes (data URI, buffer view) for the lazy decode.
+
+use super::accessors::view_slice;
+use crate::scene::error::SceneError;
+use crate::scene::image_source::{self, ImageData, ImageSource};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// Splits a GLB into (JSON chunk, BIN chunk); a `.gltf` is all JSON.
+pub(super) fn split_glb(
+    bytes: Vec<u8>,
+    file: &str,
+) -> Result<(Vec<u8>, Option<Vec<u8>>), SceneError> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok((bytes, None));
+    }
+    let glb = gltf::Glb::from_slice(&bytes).map_err(|e| SceneError::Parse {
+        file: file.to_string(),
+        reason: format!("GLB: {e}"),
+    })?;
+    Ok((glb.json.into_owned(), glb.bin.map(|b| b.into_owned())))
+}
+
+/// The buffers of one glTF file, loaded lazily.
+pub(super) struct Buffers<'a> {
+    /// The glTF file (for error messages).
+    file: &'a str,
+    /// Relative URIs are resolved against this directory.
+    base_dir: PathBuf,
+    doc: &'a gltf::Document,
+    /// The GLB `BIN` chunk until the buffer that uses it is loaded.
+    blob: Option<Vec<u8>>,
+    /// Per glTF buffer: its bytes once loaded.
+    data: Vec<Option<Vec<u8>>>,
+}
+
+impl<'a> Buffers<'a> {
+    pub(super) fn new(
+        file: &'a str,
+        base_dir: PathBuf,
+        doc: &'a gltf::Document,
+        blob: Option<Vec<u8>>,
+    ) -> Self {
+        Buffers {
+            file,
+            base_dir,
+            doc,
+            blob,
+            data: vec![None; doc.buffers().len()],
+        }
+    }
+
+    /// The loaded buffers by glTF index (`None`: not loaded yet), as the accessor readers take them.
+    pub(super) fn data(&self) -> &[Option<Vec<u8>>] {
+        &self.data
+    }
+
+    /// Loads buffer `index` if not loaded yet (GLB BIN chunk, data URI or external file).
+    fn load_buffer(&mut self, index: usize) -> Result<(), SceneError> {
+        if self.data.get(index).is_some_and(Option::is_some) {
+            return Ok(());
+        }
+        let buffer = self
+            .doc
+            .buffers()
+            .nth(index)
+            .ok_or_else(|| SceneError::Buffer {
+                file: self.file.to_string(),
+                buffer: index,
+                uri: String::new(),
+                reason: "no such buffer".into(),
+            })?;
+        let (uri, data) = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                let data = self
+                    .blob
+                    .take()
+                    .ok_or_else(|| "GLB BIN chunk missing or already used".to_string());
+                ("<GLB BIN chunk>".to_string(), data)
+            }
+            gltf::buffer::Source::Uri(uri) => (uri.to_string(), self.read_uri(uri)),
+        };
+        let err = |reason: String| SceneError::Buffer {
+            file: self.file.to_string(),
+            buffer: index,
+            uri: uri.clone(),
+            reason,
+        };
+        let data = data.map_err(err)?;
+        if data.len() < buffer.length() {
+            return Err(err(format!(
+                "has {} bytes, byteLength says {}",
+                data.len(),
+                buffer.length()
+            )));
+        }
+        if let Some(slot) = self.data.get_mut(index) {
+            *slot = Some(data);
+        }
+        Ok(())
+    }
+
+    /// Reads a URI: `data:` (base64) or a path relative to the glTF file (percent-decoded).
+    fn read_uri(&self, uri: &str) -> Result<Vec<u8>, String> {
+        if uri.starts_with("data:") {
+            return decode_data_uri(uri);
+        }
+        let path = self.base_dir.join(percent_decode(uri));
+        std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    /// Loads every buffer accessor `acc` reads from (its view and sparse views).
+    pub(super) fn load_accessor(&mut self, acc: &gltf::Accessor) -> Result<(), SceneError> {
+        let mut needed = Vec::with_capacity(3);
+        if let Some(v) = acc.view() {
+            needed.push(v.buffer().index());
+        }
+        if let Some(sp) = acc.sparse() {
+            needed.push(sp.indices().view().buffer().index());
+            needed.push(sp.values().view().buffer().index());
+        }
+        for b in needed {
+            self.load_buffer(b)?;
+        }
+        Ok(())
+    }
+
+    /// Reads an image's header and keeps its path (external file) or encoded bytes.
+    pub(super) fn load_image(
+        &mut self,
+        img: &gltf::Image,
+    ) -> (String, Result<ImageSource, String>) {
+        // `gltf::Image::source` unwraps `mimeType`/`uri`, which validation does not guarantee: read
+        // the JSON fields directly.
+        let json = self.doc.as_json().images.get(img.index());
+        let view = json
+            .and_then(|j| j.buffer_view)
+            .and_then(|v| self.doc.views().nth(v.value()));
+        let uri = json.and_then(|j| j.uri.as_deref());
+        let source = match (view, uri) {
+            (Some(view), _) => ImgSrc::View(view),
+            (None, Some(uri)) => ImgSrc::Uri(uri),
+            (None, None) => {
+                let name = img
+                    .name()
+                    .map_or_else(|| format!("image {}", img.index()), str::to_string);
+                return (name, Err("neither uri nor bufferView".to_string()));
+            }
+        };
+        match source {
+            ImgSrc::Uri(uri) if uri.starts_with("data:") => {
+                let name = img.name().map_or_else(
+                    || format!("image {} (data URI)", img.index()),
+                    str::to_string,
+                );
+                let res = decode_data_uri(uri).and_then(|b| from_bytes(&name, b.into()));
+                (name, res)
+            }
+            ImgSrc::Uri(uri) => {
+                let rel = percent_decode(uri);
+                let path = self.base_dir.join(&rel);
+                let name = img.name().map_or_else(|| rel.clone(), str::to_string);
+                let res = std::fs::File::open(&path)
+                    .map_err(|e| format!("{}: {e}", path.display()))
+                    .and_then(|f| {
+                        image_source::read_header(std::io::BufReader::new(f))
+                            .map_err(|e| format!("{}: {e}", path.display()))
+                    })
+                    .map(|h| ImageSource {
+                        name: name.clone(),
+                        width: h.width,
+                        height: h.height,
+                        has_alpha: h.has_alpha,
+                        color: h.color,
+                        data: ImageData::File(path.clone()),
+                    });
+                (name, res)
+            }
+            ImgSrc::View(view) => {
+                let name = img.name().map_or_else(
+                    || format!("image {} (buffer view {})", img.index(), view.index()),
+                    str::to_string,
+                );
+                let res = self
+                    .load_buffer(view.buffer().index())
+                    .map_err(|e| e.to_string())
+                    .and_then(|()| view_slice(&self.data, &view))
+                    .and_then(|bytes| from_bytes(&name, Arc::from(bytes)));
+                (name, res)
+            }
+        }
+    }
+}
+
+/// Where an image's bytes are.
+enum ImgSrc<'a> {
+    View(gltf::buffer::View<'a>),
+    Uri(&'a str),
+}
+
+/// Header of encoded bytes → an `ImageSource` keeping the bytes.
+fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<ImageSource, String> {
+    let h = image_source::read_header(std::io::Cursor::new(&bytes[..]))?;
+    Ok(ImageSource {
+        name: name.to_string(),
+        width: h.width,
+        height: h.height,
+        has_alpha: h.has_alpha,
+        color: h.color,
+        data: ImageData::Bytes(bytes),
+    })
+}
+
+/// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).
+pub fn percent_decode(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |k: usize| b.get(k).and_then(|c| (*c as char).to_digit(16));
+        match (b[i], hex(i + 1), hex(i + 2)) {
+            (b'%', Some(h), Some(l)) => {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+            }
+            (c, _, _) => {
+                out.push(c);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// Decodes a base64 `data:` URI (padding optional).
+fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
+    use base64::Engine;
+    let (head, payload) = uri.split_once(',').ok_or("data URI without ','")?;
+    if !head.ends_with(";base64") {
+        return Err(format!("data URI '{head}' is not base64"));
+    }
+    let engine = base64::engine::GeneralPurpose::new(
+        &base64::alphabet::STANDARD,
+        base64::engine::GeneralPurposeConfig::new()
+            .with_decode_padding_mode(base64::engine::DecodePaddingMode::Indifferent),
+    );
+    engine
+        .decode(payload.trim())
+        .map_err(|e| format!("data URI base64: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percent_decoding() {
+        assert_eq!(percent_decode("a%20b%2Fc.png"), "a b/c.png");
+        assert_eq!(percent_decode("100%"), "100%");
+        assert_eq!(percent_decode("%zz%4"), "%zz%4");
+    }
+}
