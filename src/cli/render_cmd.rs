@@ -426,6 +426,12 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
     for (name, (mean, max)) in rows {
         println!("  {name:<20} mean {mean:>10.2}  max {max:>10.2}");
     }
+    let skipped: u64 = stats.iter().map(|s| u64::from(s.skipped_draws)).sum();
+    if skipped > 0 {
+        println!(
+            "  warning: {skipped} draws skipped over the run (their atlas held no GPU layer; see stats.csv skipped_draws)"
+        );
+    }
     let gpu: Vec<f64> = stats.iter().filter_map(|s| s.gpu_ms).collect();
     if !gpu.is_empty() {
         let (mean, max) = mean_max(gpu.iter().copied());
