@@ -1,0 +1,201 @@
+//! The frame planner on the CPU (no GPU): select → page → resolve as plain data.
+//!
+//! - a residency change the executor cannot apply is taken back: the block is not resident, the failure
+//!   is counted (`apply_errors`, the pager's failures, `last_error`), the items that needed it are drawn
+//!   with an ancestor atlas, and the block is requested again after the back-off;
+//! - a still plan (warm-up, preview) steps no pager and moves no clock;
+//! - the clock may not run backwards;
+//! - the capacity may be lowered and raised again up to the capacity at creation, never above it.
+
+use atlastree::camera::{Camera, CameraPath};
+use atlastree::ids::BlockId;
+use atlastree::paging::{BlockTable, Event, PagerOptions};
+use atlastree::plan::{FramePlanner, NoResidency, PlanError, Residency};
+use atlastree::preprocess::{NoProgress, build};
+use atlastree::select::{SelectOptions, min_distance_scale};
+use atlastree::sim::InstantLoader;
+use atlastree::store::TreeFile;
+use crate::fixtures::corners::{corners, options};
+use glam::DVec3;
+
+fn build_corners(dir: &std::path::Path) -> TreeFile {
+    let out = dir.join("corners.atlastree");
+    build(&corners(), &options(), &out, &NoProgress).unwrap();
+    TreeFile::open(&out).unwrap()
+}
+
+fn street(file: &TreeFile, n: usize) -> (Vec<Camera>, f64) {
+    let params = file.to_params();
+    let path = CameraPath::street(
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::new(400.0, 1.0, 400.0),
+        params.up,
+    )
+    .unwrap();
+    let cams: Vec<Camera> = path.frames(30.0, n).collect();
+    let scale = min_distance_scale(
+        &params,
+        &SelectOptions {
+            screen_width: 800,
+            texel_ratio: 1.0,
+            fov_x_deg: cams[0].fov_x_deg,
+        },
+    )
+    .unwrap();
+    (cams, scale)
+}
+
+fn planner(file: &TreeFile, capacity: u32) -> FramePlanner<'_> {
+    let table = BlockTable::from_file(file).unwrap();
+    let trees = atlastree::plan::file_trees(file);
+    let opts = PagerOptions {
+        capacity,
+        ..PagerOptions::default()
+    };
+    let mut p = FramePlanner::paged(
+        trees,
+        table,
+        opts,
+        Box::new(InstantLoader::default()),
+        |_| Ok(None),
+    )
+    .unwrap();
+    p.take_bootstrap();
+    p
+}
+
+/// Fails every load of one block; counts the changes it saw.
+struct FailOne {
+    block: BlockId,
+    loads_seen: u32,
+}
+
+impl Residency for FailOne {
+    fn apply(&mut self, event: &Event) -> Result<u64, String> {
+        match event {
+            Event::Loaded { block, .. } if *block == self.block => {
+                self.loads_seen += 1;
+                Err(format!("{block}: upload refused (test)"))
+            }
+            _ => Ok(0),
+        }
+    }
+}
+
+#[test]
+fn a_load_the_executor_cannot_apply_is_taken_back_counted_and_retried() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = build_corners(dir.path());
+    let (cams, scale) = street(&file, 120);
+    // Which block does the flight load first (a clean run)?
+    let mut clean = planner(&file, u32::MAX);
+    let mut first_load = None;
+    let mut record = atlastree::plan::RecordResidency(|e: &Event| {
+        if let Event::Loaded { block, .. } = e {
+            first_load.get_or_insert(*block);
+        }
+    });
+    for (i, c) in cams.iter().enumerate() {
+        clean.plan(c, i as f64 / 30.0, scale, &mut record).unwrap();
+    }
+    let victim = first_load.expect("the flight loads some block");
+    let mut p = planner(&file, u32::MAX);
+    let mut exec = FailOne {
+        block: victim,
+        loads_seen: 0,
+    };
+    let mut errors = 0u32;
+    let mut coarser_frames = 0u32;
+    for (i, c) in cams.iter().enumerate() {
+        let plan = p.plan(c, i as f64 / 30.0, scale, &mut exec).unwrap();
+        let s = plan.stats.paging.unwrap();
+        errors += s.apply_errors;
+        coarser_frames += u32::from(s.coarse.coarser_items > 0);
+        let pager = p.pager().unwrap();
+        assert!(
+            !pager.is_resident(victim),
+            "frame {i}: the block the executor refused is resident"
+        );
+        pager.check_invariants().unwrap();
+    }
+    assert!(
+        exec.loads_seen >= 2,
+        "the refused block is requested again after the back-off ({} loads)",
+        exec.loads_seen
+    );
+    assert_eq!(errors, exec.loads_seen, "every refusal is counted");
+    assert_eq!(
+        p.pager().unwrap().totals().failures,
+        u64::from(exec.loads_seen)
+    );
+    assert!(p.last_error().unwrap().contains("upload refused"));
+    assert!(
+        coarser_frames > 0,
+        "the items that needed the refused block are drawn coarser"
+    );
+}
+
+#[test]
+fn a_still_plan_steps_no_pager_and_moves_no_clock() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = build_corners(dir.path());
+    let (cams, scale) = street(&file, 60);
+    let mut p = planner(&file, 8);
+    let last = cams.last().unwrap();
+    for c in &cams[..30] {
+        let before = *p.pager().unwrap().totals();
+        let plan = p.plan_still(c, scale, &mut NoResidency).unwrap();
+        assert_eq!(plan.time, None);
+        assert!(plan.resolved.is_some());
+        assert_eq!(*p.pager().unwrap().totals(), before);
+    }
+    // A still plan at a late camera does not let a later timed plan start pre-warmed: the first timed
+    // plan loads what a fresh planner's first plan loads.
+    p.plan_still(last, scale, &mut NoResidency).unwrap();
+    let a = p.plan(&cams[0], 0.0, scale, &mut NoResidency).unwrap();
+    let a = a.stats.paging.unwrap().resident_hash;
+    let mut fresh = planner(&file, 8);
+    let b = fresh.plan(&cams[0], 0.0, scale, &mut NoResidency).unwrap();
+    assert_eq!(a, b.stats.paging.unwrap().resident_hash);
+}
+
+#[test]
+fn the_clock_may_not_run_backwards() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = build_corners(dir.path());
+    let (cams, scale) = street(&file, 2);
+    let mut p = planner(&file, 8);
+    p.plan(&cams[0], 1.0, scale, &mut NoResidency).unwrap();
+    p.plan(&cams[1], 1.0, scale, &mut NoResidency).unwrap();
+    match p.plan(&cams[1], 0.5, scale, &mut NoResidency) {
+        Err(PlanError::TimeBackwards { time, last }) => assert_eq!((time, last), (0.5, 1.0)),
+        Err(e) => panic!("wrong error: {e}"),
+        Ok(_) => panic!("a plan at 0.5 s after one at 1 s was accepted"),
+    }
+}
+
+#[test]
+fn capacity_goes_down_and_back_up_to_the_capacity_at_creation() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = build_corners(dir.path());
+    let blocks = file.blocks().len() as u32;
+    let mut p = planner(&file, u32::MAX);
+    assert_eq!(p.max_capacity(), Some(blocks));
+    p.set_capacity(2);
+    assert_eq!(p.pager().unwrap().options().capacity, 2);
+    p.set_capacity(blocks);
+    assert_eq!(p.pager().unwrap().options().capacity, blocks);
+    p.set_capacity(blocks + 10);
+    assert_eq!(
+        p.pager().unwrap().options().capacity,
+        blocks,
+        "never above what the executor was sized for"
+    );
+    // An all-resident planner has no capacity and plans without paging.
+    let mut all = FramePlanner::from_file(&file);
+    assert_eq!(all.max_capacity(), None);
+    let (cams, scale) = street(&file, 1);
+    let plan = all.plan(&cams[0], 0.0, scale, &mut NoResidency).unwrap();
+    assert!(plan.resolved.is_none() && plan.stats.paging.is_none());
+    assert!(plan.stats.nodes_drawn > 0);
+}
