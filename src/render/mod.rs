@@ -11,7 +11,8 @@
 //!
 //! Debug: [`Renderer::render_density`] writes texels per pixel instead of colours ([`density`]).
 //!
-//! Shaders: `shaders/tree.wgsl` (tree, dummy, levels, density), `shaders/naive.wgsl` (original).
+//! Shaders: `shaders/tree.wgsl` (tree, dummy, levels, density), `shaders/naive.wgsl` (original); their
+//! Rust twins (buffer structs, bindings, overrides, codes) are [`wgsl::tree`] and [`wgsl::naive`].
 
 pub mod batch;
 pub mod density;
@@ -20,6 +21,7 @@ mod naive;
 pub mod pipeline;
 pub mod resident;
 pub mod textures;
+pub mod wgsl;
 
 pub use frame::{FrameStats, PagingFrame, PagingSetup, Renderer, RendererOptions};
 

@@ -7,13 +7,13 @@
 //! serves every leaf.
 
 use super::RenderError;
-use super::batch::{
-    AtlasSlot, LeafGpu, LeafOffsets, Pass, RectMap, TamEntry, TreeBatchInfo, WRAP_CLAMP,
-    WRAP_MIRROR, WRAP_REPEAT, leaf_ranges,
-};
+use super::batch::{AtlasSlot, LeafOffsets, Pass, TreeBatchInfo, leaf_ranges};
 use super::textures::{
     CLASS_COUNT, MAX_ATLAS_ARRAYS, TextureArray, class_index, common_format, gpu_format,
     texels_for_upload,
+};
+use super::wgsl::tree::{
+    ALPHA_OPAQUE, LeafInfo, RectMap, TamEntry, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT, WRAP_T_SHIFT,
 };
 use crate::gpu::GpuContext;
 use crate::ids::{BlockId, NONE, NodeId};
@@ -69,7 +69,7 @@ pub struct Resident {
     pub leaves_buffer: wgpu::Buffer,
     pub offsets_buffer: wgpu::Buffer,
     pub tam_buffer: wgpu::Buffer,
-    /// Every leaf's rects ([`RectMap`]), global numbering (`LeafGpu::first_rect`).
+    /// Every leaf's rects ([`RectMap`]), global numbering (`LeafInfo::first_rect`).
     pub rects_buffer: wgpu::Buffer,
     pub leaf_offsets: LeafOffsets,
     pub atlas_arrays: Vec<TextureArray>,
@@ -79,7 +79,7 @@ pub struct Resident {
     pub dummy: TextureArray,
     pub tam: Vec<TamEntry>,
     /// All trees' leaves (global numbering).
-    pub leaves: Vec<LeafGpu>,
+    pub leaves: Vec<LeafInfo>,
     pub uniques: Vec<UniqueOriginal>,
     /// Per TAM entry, its index in `uniques`.
     pub tam_unique: Vec<u32>,
@@ -269,7 +269,7 @@ pub struct Plan {
     pub infos: Vec<TreeBatchInfo>,
     pub vertices: Vec<TreeVertex>,
     pub indices: Vec<u32>,
-    pub leaves: Vec<LeafGpu>,
+    pub leaves: Vec<LeafInfo>,
     /// Every leaf's rects, global numbering.
     pub rects: Vec<RectMap>,
     /// Leaf origins, f64, global leaf numbering.
@@ -413,7 +413,7 @@ impl Resident {
         for (e, &ui) in tam.iter_mut().zip(&g.tam_unique) {
             if let Some(u) = uniques.get(ui as usize) {
                 e.layer = u.layer;
-                e.class = u.class;
+                e.class_index = u.class;
             }
         }
 
@@ -547,13 +547,14 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
             let originals = view.leaf_originals(leaf);
             let first_tam = count_u32("tam", g.tam.len())?;
             let first_rect = count_u32("rects", g.rects.len())?;
-            g.leaves.push(LeafGpu {
-                cell_ix: node.map_or(0, |n| n.cell.ix),
-                cell_iy: node.map_or(0, |n| n.cell.iy),
+            g.leaves.push(LeafInfo {
+                cell: node.map_or([0, 0], |n| [n.cell.ix, n.cell.iy]),
                 level: node.map_or(0, |n| n.level),
                 first_tam,
                 first_rect,
-                _pad: [0; 3],
+                _p0: 0,
+                _p1: 0,
+                _p2: 0,
             });
             g.rects.extend(view.leaf_rects(leaf).iter().map(|r| {
                 let alpha = materials
@@ -594,14 +595,15 @@ pub fn plan(file: &TreeFile) -> Result<Plan, RenderError> {
                 g.block_uniques.push((BlockId(o.block), ui, offset));
                 let wrap = m.and_then(|m| m.wraps()).unwrap_or([Wrap::Repeat; 2]);
                 g.tam.push(TamEntry {
-                    class,
+                    class_index: class,
                     layer: 0,
-                    wrap: wrap_code(wrap[0]) | wrap_code(wrap[1]) << 2,
-                    alpha_mode: m.map_or(0, |m| m.alpha_mode),
+                    wrap: wrap_code(wrap[0]) | wrap_code(wrap[1]) << WRAP_T_SHIFT,
+                    alpha_mode: m.map_or(ALPHA_OPAQUE, |m| m.alpha_mode),
                     factor: m.map_or([1.0; 4], |m| m.base_color_factor),
                     cutoff: m.map_or(0.5, |m| m.alpha_cutoff),
                     class_size: o.class_size as f32,
-                    _pad: [0; 2],
+                    _p0: 0,
+                    _p1: 0,
                 });
             }
             // Every vertex's `original` and `rect` must index the leaf's TAM and rect ranges (the shader does
