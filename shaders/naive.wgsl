@@ -2,13 +2,26 @@
 // bind group (texture, sampler with the material's hardware wrap modes, material parameters), and every
 // (leaf, original texture) pair is its own draw call. Same positions as tree.wgsl: leaf-relative vertices
 // plus per-frame camera-relative leaf offsets; the draw's first instance is the tree's leaf base.
+//
+// Rust twins (structs, bindings, override names and every `const` below, checked by tests/shaders_naga.rs):
+// render::wgsl::naive.
 
-override PASS: u32 = 0u;
+// Values of PASS (tree.wgsl's): every other pass tests the material's alpha mode.
+const PASS_OPAQUE: u32 = 0u;
+// Material.alpha_mode codes (tree.wgsl's).
+const ALPHA_OPAQUE: u32 = 0u;
+const ALPHA_MASK: u32 = 1u;
+const ALPHA_BLEND: u32 = 2u;
+// In the blend pass, fragments below it are discarded.
+const BLEND_MIN_ALPHA: f32 = 0.5 / 255.0;
 
+override PASS: u32 = PASS_OPAQUE;
+
+// The frame's uniform block, the same buffer as tree.wgsl's (this shader reads only view_proj).
 struct Globals {
     view_proj: mat4x4<f32>,
     mode: u32,
-    _p0: u32,
+    atlas_texels: f32,
     _p1: u32,
     _p2: u32,
 }
@@ -55,16 +68,16 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // reference differs from the tree only by what the tree stores (lavapipe filters implicit and explicit
     // gradients differently under anisotropy: 28–44 dB apart at 16).
     let colour = textureSampleGrad(tex, tex_sampler, in.uv, dpdx(in.uv), dpdy(in.uv)) * material.factor;
-    if PASS == 0u || material.alpha_mode == 0u {
+    if PASS == PASS_OPAQUE || material.alpha_mode == ALPHA_OPAQUE {
         return vec4<f32>(colour.rgb, 1.0);
     }
-    if material.alpha_mode == 1u {
+    if material.alpha_mode == ALPHA_MASK {
         if colour.a < material.cutoff {
             discard;
         }
         return vec4<f32>(colour.rgb, 1.0);
     }
-    if colour.a < 0.5 / 255.0 {
+    if colour.a < BLEND_MIN_ALPHA {
         discard;
     }
     return colour;

@@ -1,39 +1,83 @@
 // The texture-atlas tree renderer with texture-array batching (Buchholz & Döllner 2005 §4; Trapp & Döllner
 // 2015). One bind group per frame, one multi_draw_indexed_indirect per pipeline: every indirect record draws
-// one selected node, and its `first_instance` indexes `draws` (Rust twin: render::batch::NodeRecordGpu).
+// one selected node, and its `first_instance` indexes `draws`.
+//
+// Rust twins (structs, bindings, override names and every `const` below, checked by tests/shaders_naga.rs):
+// render::wgsl::tree.
 //
 // Positions: vertices are relative to their leaf origin (f32); `offsets[leaf]` is `leaf.origin - eye`,
 // computed per frame in f64 on the CPU, so the view-projection matrix has no translation (DESIGN.md
 // "Precision").
 // Atlas UVs (DESIGN.md "Repeats" and "Precision"): per fragment the original UV is wrapped into its rect of
-// the leaf atlas (`rect_texel`, twin of render::batch::RectMap::texel_f32: repeat, mirror or clamp per axis,
-// then onto the inner rectangle, kept a filter footprint inside the outer one), then taken to the atlas of
-// the drawn level j: `uv_j = uv_leaf * 2^(j-K) + ((ix, iy) mod 2^(K-j)) * 2^(j-K)`, exactly the f32
-// arithmetic of `build::transform::atlas_uv_at_f32`. Sampling uses the gradients of the unwrapped UV carried
-// through the same maps (`textureSampleGrad`), so mip selection and anisotropy are continuous across seams.
+// the leaf atlas (`rect_texel`, twin of render::wgsl::tree::RectMap::texel_f32: repeat, mirror or clamp per
+// axis, then onto the inner rectangle, kept a filter footprint inside the outer one), then taken to the atlas
+// of the drawn level j: `uv_j = uv_leaf * 2^(j-K) + ((ix, iy) mod 2^(K-j)) * 2^(j-K)`, exactly the f32
+// arithmetic of `build::transform::atlas_uv_at_f32`. Sampling uses the gradients of the unwrapped UV
+// carried through the same maps (`textureSampleGrad`), so mip selection and anisotropy are continuous
+// across seams.
 // Originals: the per-vertex `original` indexes the leaf's range of the texture-array mapping (TAM), which
 // names the class array binding (one per class size, a class past the layer limit continuing in unused
 // bindings when everything is resident; lavapipe has no binding arrays, so the arrays are separate
 // bindings and the shader switches), the layer, the wrap modes and the material factor.
 
+// NodeDraw.atlas_layer of an original-texture draw.
 const NONE: u32 = 0xffffffffu;
 
-// Pipeline pass: 0 opaque, 1 alpha mask, 2 alpha blend.
-override PASS: u32 = 0u;
-// Texture source of the pipeline's records: 0 atlases, 1 original textures. Atlas and original draws are
+// Values of PASS (render::batch::Pass).
+const PASS_OPAQUE: u32 = 0u;
+const PASS_MASK: u32 = 1u;
+const PASS_BLEND: u32 = 2u;
+// Values of SOURCE.
+const SOURCE_ATLAS: u32 = 0u;
+const SOURCE_ORIGINAL: u32 = 1u;
+// Values of DENSITY.
+const DENSITY_OFF: u32 = 0u;
+const DENSITY_ON: u32 = 1u;
+// Values of Globals.mode.
+const MODE_TEXTURED: u32 = 0u;
+const MODE_LEVELS: u32 = 1u;
+// Atlas array bindings (atlas0..) and class array bindings (class0.., class 4 << k).
+const MAX_ATLAS_ARRAYS: u32 = 4u;
+const CLASS_COUNT: u32 = 10u;
+// The level of an original-texture draw (white in the level colouring; the density target's alpha).
+const LEVEL_ORIGINAL: u32 = 255u;
+
+// Packed codes (RectMap.wrap, TamEntry.wrap): wrap_s | wrap_t << WRAP_T_SHIFT, and for rects
+// | alpha_mode << ALPHA_SHIFT; every code CODE_MASK wide.
+const WRAP_T_SHIFT: u32 = 2u;
+const ALPHA_SHIFT: u32 = 4u;
+const CODE_MASK: u32 = 3u;
+// TamEntry wrap codes per axis (the paging file's).
+const WRAP_REPEAT: u32 = 0u;
+const WRAP_MIRROR: u32 = 1u;
+const WRAP_CLAMP: u32 = 2u;
+// RectMap wrap codes per axis (model::RectWrap codes): linear (baked), repeat, mirror, clamp.
+const RECT_WRAP_LINEAR: u32 = 0u;
+const RECT_WRAP_REPEAT: u32 = 1u;
+const RECT_WRAP_MIRROR: u32 = 2u;
+const RECT_WRAP_CLAMP: u32 = 3u;
+// Alpha modes of a material (TamEntry.alpha_mode, RectMap.wrap >> ALPHA_SHIFT; the paging file's).
+const ALPHA_OPAQUE: u32 = 0u;
+const ALPHA_MASK: u32 = 1u;
+const ALPHA_BLEND: u32 = 2u;
+
+// Pipeline pass: PASS_OPAQUE, PASS_MASK or PASS_BLEND.
+override PASS: u32 = PASS_OPAQUE;
+// Texture source of the pipeline's records: SOURCE_ATLAS or SOURCE_ORIGINAL. Atlas and original draws are
 // separate pipelines (render::batch::Group): software rasterisers run every texture fetch of a shader
 // under an execution mask, so one shader able to sample every array would pay for all on every pixel.
-override SOURCE: u32 = 0u;
-// Atlas arrays in use (1..4) and the class arrays present (bit k: class 4 << k); the rest is compiled out.
-override ATLAS_ARRAYS: u32 = 4u;
-override CLASS_MASK: u32 = 0x3ffu;
-// 1: the texel-density debug pipeline (render::density): instead of the colour, write the texels of mip 0
-// per screen pixel of the sampled texture (Rgba32Float target, no blending).
-override DENSITY: u32 = 0u;
+override SOURCE: u32 = SOURCE_ATLAS;
+// Atlas arrays in use (1..=MAX_ATLAS_ARRAYS) and the class arrays present (bit k: class 4 << k); the rest
+// is compiled out.
+override ATLAS_ARRAYS: u32 = MAX_ATLAS_ARRAYS;
+override CLASS_MASK: u32 = (1u << CLASS_COUNT) - 1u;
+// DENSITY_ON: the texel-density debug pipeline (render::density): instead of the colour, write the texels
+// of mip 0 per screen pixel of the sampled texture (Rgba32Float target, no blending).
+override DENSITY: u32 = DENSITY_OFF;
 
 struct Globals {
     view_proj: mat4x4<f32>,
-    // 0 textured (tree, dummy), 1 colour by level.
+    // MODE_TEXTURED (tree, dummy) or MODE_LEVELS (colour by level).
     mode: u32,
     // Side of every atlas, texels.
     atlas_texels: f32,
@@ -41,7 +85,7 @@ struct Globals {
     _p2: u32,
 }
 
-// Twin of render::batch::NodeRecordGpu (32 bytes).
+// One per indirect record (32 bytes).
 struct NodeDraw {
     atlas_layer: u32,
     atlas_array: u32,
@@ -53,7 +97,7 @@ struct NodeDraw {
     _pad: u32,
 }
 
-// Twin of render::batch::LeafGpu (32 bytes).
+// One per leaf (32 bytes).
 struct LeafInfo {
     cell: vec2<u32>,
     level: u32,
@@ -64,7 +108,7 @@ struct LeafInfo {
     _p2: u32,
 }
 
-// Twin of render::batch::RectMap (64 bytes), leaf-atlas texels.
+// One per (leaf, rect) (64 bytes), leaf-atlas texels.
 struct RectMap {
     uv_min: vec2<f32>,
     texels_per_uv: vec2<f32>,
@@ -72,17 +116,18 @@ struct RectMap {
     half_gap: vec2<f32>,
     outer_lo: vec2<f32>,
     outer_hi: vec2<f32>,
-    // wrap_s | wrap_t << 2: 0 linear (baked), 1 repeat, 2 mirror, 3 clamp (build::tree::RectWrap codes);
-    // | alpha_mode << 4 (the material's: 0 opaque, 1 mask, 2 blend).
+    // wrap_s | wrap_t << WRAP_T_SHIFT (RECT_WRAP_* codes) | alpha_mode << ALPHA_SHIFT (the material's
+    // ALPHA_* code).
     wrap: u32,
     cutoff: f32,
     inner_size: vec2<f32>,
 }
 
-// Twin of render::batch::TamEntry (48 bytes).
+// One per (leaf, original texture) (48 bytes).
 struct TamEntry {
     class_index: u32,
     layer: u32,
+    // wrap_s | wrap_t << WRAP_T_SHIFT (WRAP_* codes).
     wrap: u32,
     alpha_mode: u32,
     factor: vec4<f32>,
@@ -155,18 +200,18 @@ fn level_transform(cell: vec2<u32>, leaf_level: u32, level: u32) -> vec3<f32> {
 
 // One axis of RectMap::axis_f32: (the rect coordinate of u, the sign of its derivative).
 fn rect_axis(u: f32, mode: u32, uv_min: f32, half_gap: f32) -> vec2<f32> {
-    if mode == 1u {
+    if mode == RECT_WRAP_REPEAT {
         let x = u - uv_min;
         return vec2<f32>(x - floor(x + half_gap), 1.0);
     }
-    if mode == 2u {
+    if mode == RECT_WRAP_MIRROR {
         let p = u - 2.0 * floor(u * 0.5);
         if p > 1.0 {
             return vec2<f32>(2.0 - p - uv_min, -1.0);
         }
         return vec2<f32>(p - uv_min, 1.0);
     }
-    if mode == 3u {
+    if mode == RECT_WRAP_CLAMP {
         return vec2<f32>(clamp(u, 0.0, 1.0) - uv_min, 1.0);
     }
     return vec2<f32>(u - uv_min, 1.0);
@@ -180,7 +225,7 @@ struct RectSample {
     gy: vec2<f32>,
 }
 
-// RectMap::CELLS, FLAT_SHARE and SHARPEN_MIN.
+// See render::wgsl::tree::CELLS, FLAT_SHARE and SHARPEN_MIN.
 const CELLS: f32 = 2.0;
 const FLAT_SHARE: f32 = 1.0;
 const SHARPEN_MIN: f32 = 0.25;
@@ -192,8 +237,8 @@ const SHARPEN_MIN: f32 = 0.25;
 // sample is kept half the footprint plus half a drawn texel (`level_texels` leaf texels) inside the outer
 // rectangle.
 fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32) -> RectSample {
-    let s = rect_axis(uv.x, r.wrap & 3u, r.uv_min.x, r.half_gap.x);
-    let t = rect_axis(uv.y, (r.wrap >> 2u) & 3u, r.uv_min.y, r.half_gap.y);
+    let s = rect_axis(uv.x, r.wrap & CODE_MASK, r.uv_min.x, r.half_gap.x);
+    let t = rect_axis(uv.y, (r.wrap >> WRAP_T_SHIFT) & CODE_MASK, r.uv_min.y, r.half_gap.y);
     let tpu = r.texels_per_uv * vec2<f32>(s.y, t.y);
     var out: RectSample;
     out.gx = ddx * tpu;
@@ -241,7 +286,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
         out.level_xf = level_transform(leaf.cell, leaf.level, d.level);
     } else {
         out.which = leaf.first_tam + v.original;
-        out.level = 255u;
+        out.level = LEVEL_ORIGINAL;
         out.rect = 0u;
         out.level_xf = vec3<f32>(1.0, 0.0, 0.0);
     }
@@ -289,12 +334,12 @@ fn sample_class(class_index: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy
 // clamp filtering give at mip 0 (coarser mips blend at most half a texel of the opposite edge).
 fn wrap_axis(u: f32, mode: u32, size: f32) -> f32 {
     let h = 0.5 / size;
-    if mode == 1u {
+    if mode == WRAP_MIRROR {
         let t = fract(u * 0.5) * 2.0;
         let m = select(t, 2.0 - t, t > 1.0);
         return clamp(m, h, 1.0 - h);
     }
-    if mode == 2u {
+    if mode == WRAP_CLAMP {
         return clamp(u, h, 1.0 - h);
     }
     return fract(u);
@@ -311,7 +356,7 @@ fn level_colour(level: u32) -> vec3<f32> {
         vec3<f32>(0.95, 0.50, 0.05),
         vec3<f32>(0.50, 0.30, 0.90),
     );
-    if level == 255u {
+    if level == LEVEL_ORIGINAL {
         return vec3<f32>(1.0, 1.0, 1.0);
     }
     return palette[level % 8u];
@@ -353,63 +398,64 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // wrap seams and inside the switches below.
     let ddx = dpdx(in.uv);
     let ddy = dpdy(in.uv);
-    if globals.mode == 1u {
+    if globals.mode == MODE_LEVELS {
         return vec4<f32>(level_colour(in.level), 1.0);
     }
-    if SOURCE == 0u {
+    if SOURCE == SOURCE_ATLAS {
         let a = atlas_sample(in, ddx, ddy);
-        if DENSITY == 1u {
-            // (texels/pixel min, max, source 0 atlas / 1 original, level; 255 for originals), from the
-            // footprint itself (not the one capped for sampling).
+        if DENSITY == DENSITY_ON {
+            // (texels/pixel min, max, source (SOURCE_ATLAS, SOURCE_ORIGINAL), level; LEVEL_ORIGINAL for
+            // originals), from the footprint itself (not the one capped for sampling).
             let tpu = rects[in.rect].texels_per_uv * (in.level_xf.x / globals.atlas_texels);
             let sv = singular_values(ddx * tpu, ddy * tpu, globals.atlas_texels);
-            return vec4<f32>(sv.x, sv.y, 0.0, f32(in.level));
+            return vec4<f32>(sv.x, sv.y, f32(SOURCE_ATLAS), f32(in.level));
         }
         let c = sample_atlas(in.which, a.uv, in.layer, a.ddx, a.ddy);
         // Per material, as original draws: MASK tested against its cutoff, BLEND blended (or, in a blend
         // node's depth pre-pass, written where opaque).
         let rm = rects[in.rect];
-        return finish(c, rm.cutoff, (rm.wrap >> 4u) & 3u);
+        return finish(c, rm.cutoff, (rm.wrap >> ALPHA_SHIFT) & CODE_MASK);
     }
     let e = tam[in.which];
-    if DENSITY == 1u {
+    if DENSITY == DENSITY_ON {
         let sv = singular_values(ddx, ddy, e.class_size);
-        return vec4<f32>(sv.x, sv.y, 1.0, f32(in.level));
+        return vec4<f32>(sv.x, sv.y, f32(SOURCE_ORIGINAL), f32(in.level));
     }
     let wrapped = vec2<f32>(
-        wrap_axis(in.uv.x, e.wrap & 3u, e.class_size),
-        wrap_axis(in.uv.y, (e.wrap >> 2u) & 3u, e.class_size),
+        wrap_axis(in.uv.x, e.wrap & CODE_MASK, e.class_size),
+        wrap_axis(in.uv.y, (e.wrap >> WRAP_T_SHIFT) & CODE_MASK, e.class_size),
     );
     let colour = sample_class(e.class_index, wrapped, e.layer, ddx, ddy) * e.factor;
     return finish(colour, e.cutoff, e.alpha_mode);
 }
 
-// batch::OPAQUE_ALPHA: in the mask pass (a blend node's depth pre-pass), BLEND texels at or above it are
-// opaque and write depth.
+// In the mask pass (a blend node's depth pre-pass), BLEND texels at or above OPAQUE_ALPHA are opaque and
+// write depth; in the blend pass, fragments below BLEND_MIN_ALPHA are discarded.
 const OPAQUE_ALPHA: f32 = 0.998039;
+const BLEND_MIN_ALPHA: f32 = 0.5 / 255.0;
 
 // The colour of a textured fragment (tree and dummy modes) in the pipeline's pass, or discard (alpha mask
 // and blend). `alpha_mode` and `cutoff`: the material's (its TAM entry, or its rect for atlas draws).
 fn finish(colour: vec4<f32>, cutoff: f32, alpha_mode: u32) -> vec4<f32> {
-    if PASS == 0u {
+    if PASS == PASS_OPAQUE {
         return vec4<f32>(colour.rgb, 1.0);
     }
-    if PASS == 1u && alpha_mode == 2u {
+    if PASS == PASS_MASK && alpha_mode == ALPHA_BLEND {
         if colour.a < OPAQUE_ALPHA {
             discard;
         }
         return vec4<f32>(colour.rgb, 1.0);
     }
-    if PASS == 1u || alpha_mode == 1u {
+    if PASS == PASS_MASK || alpha_mode == ALPHA_MASK {
         if colour.a < cutoff {
             discard;
         }
         return vec4<f32>(colour.rgb, 1.0);
     }
-    if alpha_mode == 0u {
+    if alpha_mode == ALPHA_OPAQUE {
         return vec4<f32>(colour.rgb, 1.0);
     }
-    if colour.a < 0.5 / 255.0 {
+    if colour.a < BLEND_MIN_ALPHA {
         discard;
     }
     return colour;

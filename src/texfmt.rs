@@ -15,17 +15,26 @@
 //! independent of the encoder, so round-trip tests check one against the other; the renderer uses it to
 //! decode blocks on load when the adapter lacks `TEXTURE_COMPRESSION_BC`.
 //!
-//! **Bleeding.** Packing aligns outer rectangles to 4 texels and the border is 8 texels ([`crate::preprocess`]).
-//! At mip level L a rectangle's origin is aligned to `4/2^L` texels and its border is `8/2^L` wide, so:
-//! at levels 0 and 1 every 4×4 block that touches a texture's inner rectangle holds only that texture's
-//! texels (inner or border) — compressed texels there are exactly independent of the neighbours; from
-//! level 2 on a block can reach 1 (L2) to 3 (L3+) texels into the neighbour, and the texels within 3 of
-//! the inner edge can shift (tests/cpu/texfmt.rs measures ≤ 25/255 for BC1, ≤ 16 for BC7 at L2–L3 on
-//! contrasting textures). An inner atlas at height h shows leaf level `h + L` at its level L, so the
-//! guarantee covers leaf atlases' levels 0–1 and their parents' level 0: the levels sampled when a node is
-//! drawn near its min_distance. Uncompressed, levels 0–3 are independent (the box filter stays in the
-//! border), so compression costs one to two protected levels; a 16-texel alignment would restore them at
-//! a packing cost (not done).
+//! **Bleeding.** Packing aligns outer rectangles, and so the inner edges, to 4 texels; the border is `b`
+//! texels, 16 by default ([`crate::preprocess::BuildOptions`]; the paper's 8 can be chosen). In level-0
+//! texels past an inner edge: a level-L texel overlapping the inner rectangle starts at most
+//! `(2^L − 4)⁺` outside it (0, 0, 0, 4, 12, 28 … for L = 0, 1, 2 …), and the 4×4 block of level L holding
+//! such a texel at most `4·(2^L − 1)` (0, 4, 12, 28, 60 …). Level L is independent of the neighbours while
+//! that reach stays inside the border:
+//!
+//! - uncompressed (the default box mip filter): levels 0–4 at border 16 (0–3 at border 8);
+//! - compressed: every 4×4 block that touches a texture's inner rectangle holds only that texture's texels
+//!   (inner or border) at levels 0–2 at border 16 (0–1 at border 8) — compressed texels there are exactly
+//!   independent of the neighbours. At the levels after that a block can also hold texels of the
+//!   neighbour, and the texels within 3 of the inner edge can shift.
+//!
+//! tests/cpu/texfmt.rs checks both borders on contrasting textures (levels 0–3); the shifts it measures
+//! past the protected levels are at most 25/255 for BC1 and 16 for BC7 at border 8 (L2–L3), 16 for BC1 and
+//! 4 for BC7 at border 16 (L3). An inner atlas at height h shows leaf level `h + L` at its level L, so at
+//! border 16 the guarantee covers leaf atlases' levels 0–2, their parents' levels 0–1 and their
+//! grandparents' level 0: the levels sampled when a node is drawn near its min_distance. Compression
+//! costs two protected levels at either border. Aligning outer rectangles to 16 texels would protect one
+//! more level either way (at border 16: compressed 0–3, uncompressed 0–5) at a packing cost (not done).
 //!
 //! Errors are measured in the stored 8-bit sRGB values (the values the GPU filters after sRGB decode):
 //! `sse` sums squared differences over R, G, B (and A for trees with alpha) of every texel of every level.

@@ -13,7 +13,7 @@
 //!
 //! Before that transform, a UV reaches its rect of the leaf atlas through the rect's per-axis wrap
 //! ([`RectWrap`], DESIGN.md "Repeats"): [`rect_t`] and [`rect_texel`] here are the f64 reference of what
-//! the shader does in f32 (`render::batch::RectMap::texel_f32` is its exact twin).
+//! the shader does in f32 (`render::wgsl::tree::RectMap::texel_f32` is its exact twin).
 
 use crate::ids::{Cell, Level};
 use crate::model::{AtlasRect, RectWrap};

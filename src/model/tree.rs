@@ -111,8 +111,8 @@ pub enum RectWrap {
 }
 
 impl RectWrap {
-    /// The paging file's (and the shader's) code of this mode.
-    pub fn code(self) -> u32 {
+    /// The paging file's (and the shader's, `render::wgsl::tree::RECT_WRAP_*`) code of this mode.
+    pub const fn code(self) -> u32 {
         match self {
             RectWrap::Linear => 0,
             RectWrap::Repeat => 1,

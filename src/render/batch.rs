@@ -1,5 +1,5 @@
 //! Per-frame draw data, as plain data (no wgpu types): from the cut of each tree ([`crate::select::Cut`]),
-//! one indirect record per selected node and one [`NodeRecordGpu`] per record, grouped by pipeline pass
+//! one indirect record per selected node and one [`NodeDraw`] per record, grouped by pipeline pass
 //! (texture-array batching, Trapp & Döllner 2015: one multi-draw-indirect call per pipeline).
 //!
 //! Layout of the GPU data (all trees of a file share one set of buffers):
@@ -15,16 +15,23 @@
 //!
 //! Record `i` of the indirect buffer has `first_instance = i`: the vertex shader reads `records[i]` through
 //! `instance_index`.
+//!
+//! The records themselves ([`NodeDraw`], [`RectMap`], and the leaf and TAM records) are the shader's
+//! twins in [`crate::render::wgsl::tree`].
 
+use super::wgsl::tree::{
+    ALPHA_BLEND, ALPHA_MASK, ALPHA_OPAQUE, ALPHA_SHIFT, NodeDraw, PASS_BLEND, PASS_MASK,
+    PASS_OPAQUE, RectMap, WRAP_T_SHIFT,
+};
 use crate::ids::NONE;
 use crate::model::transform::half_gap;
-use crate::model::{AtlasRect, RectWrap, TreeVertex};
+use crate::model::{AtlasRect, TreeVertex};
 use crate::paging::Resolved;
 use crate::scene::AlphaMode;
 use crate::select::{Cut, Source};
 use crate::store::format::NodeRecord;
 use bytemuck::{Pod, Zeroable};
-use glam::{DVec3, Vec2};
+use glam::DVec3;
 
 /// `DrawIndexedIndirectArgs` as stored in the indirect buffer (20 bytes, wgpu's layout).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
@@ -38,99 +45,14 @@ pub struct DrawIndexedIndirect {
 }
 const _: () = assert!(size_of::<DrawIndexedIndirect>() == 20);
 
-/// Alpha at and above which a BLEND material's texel counts as opaque in the depth pre-pass of blend
-/// nodes (the mask pipeline). WGSL twin: `OPAQUE_ALPHA`.
-pub const OPAQUE_ALPHA: f32 = 1.0 - 0.5 / 255.0;
-
-/// Per-draw data, indexed by `instance_index` (= the record's `first_instance`).
-/// WGSL twin: `NodeDraw` in `shaders/tree.wgsl`.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
-#[repr(C)]
-pub struct NodeRecordGpu {
-    /// Layer of the node's atlas in atlas array `atlas_array`; [`NONE`] for an original-texture draw.
-    pub atlas_layer: u32,
-    /// Which atlas array (0 unless the layers exceed the device limit, see `render::textures`).
-    pub atlas_array: u32,
-    /// The node's level j: vertices map their leaf-local atlas UV into this ancestor's atlas.
-    pub level: u32,
-    /// Index of the tree's leaf 0 in the leaves and leaf-offset buffers.
-    pub leaf_base: u32,
-    /// The smallest MASK cutoff below the node (diagnostics; fragments are tested with their material's
-    /// cutoff, from its rect or TAM entry).
-    pub alpha_cutoff: f32,
-    /// Tree-local node id (diagnostics).
-    pub node: u32,
-    /// Tree index.
-    pub tree: u32,
-    pub _pad: u32,
-}
-const _: () = assert!(size_of::<NodeRecordGpu>() == 32);
-
-/// Static per-leaf data. WGSL twin: `LeafInfo` in `shaders/tree.wgsl`.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
-#[repr(C)]
-pub struct LeafGpu {
-    /// The leaf's cell at its level (paper Fig. 4).
-    pub cell_ix: u32,
-    pub cell_iy: u32,
-    /// The leaf's level K.
-    pub level: u32,
-    /// First entry of the leaf's texture-array mapping in the TAM buffer (global index).
-    pub first_tam: u32,
-    /// First entry of the leaf's rects in the rect buffer (global index).
-    pub first_rect: u32,
-    pub _pad: [u32; 3],
-}
-const _: () = assert!(size_of::<LeafGpu>() == 32);
-
-/// How a fragment's original UV reaches its texture's rect in its leaf's atlas (DESIGN.md "Repeats"): the
-/// rect's per-axis wrap ([`RectWrap`]), then the linear map onto the inner rectangle, kept inside the
-/// outer rectangle by the filter footprint. WGSL twin: `RectMap` in `shaders/tree.wgsl`;
-/// [`RectMap::texel_f32`] is the shader's arithmetic on the CPU, [`crate::model::transform::rect_texel`]
-/// its f64 reference. All lengths in leaf-atlas texels.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
-#[repr(C)]
-pub struct RectMap {
-    /// UV shown at the inner rectangle's low edge (after the wrap).
-    pub uv_min: [f32; 2],
-    /// Leaf-atlas texels per unit of UV.
-    pub texels_per_uv: [f32; 2],
-    /// Low corner of the inner rectangle.
-    pub inner_lo: [f32; 2],
-    /// REPEAT axes: half the part of the period the rect does not hold ([`crate::model::transform::half_gap`]).
-    pub half_gap: [f32; 2],
-    /// The outer rectangle (border included).
-    pub outer_lo: [f32; 2],
-    pub outer_hi: [f32; 2],
-    /// `wrap_s | wrap_t << 2` ([`RectWrap::code`]s) `| alpha_mode << 4` (the material's: 0 opaque, 1 mask,
-    /// 2 blend, as [`TamEntry::alpha_mode`]): atlas draws test and blend per material, as originals do.
-    pub wrap: u32,
-    /// The material's MASK cutoff (0.5 for other modes).
-    pub cutoff: f32,
-    /// Size of the inner rectangle.
-    pub inner_size: [f32; 2],
-}
-const _: () = assert!(size_of::<RectMap>() == 64);
-
+/// Built from the stored tree (the struct and its shader twins are in [`crate::render::wgsl::tree`]).
 impl RectMap {
-    /// Texels of the inner rectangle at the mip a flattened sample reads ([`RectMap::texel_f32`]): at 2,
-    /// a bilinear tap at the inner centre averages the whole period. Block-compressed atlases use the
-    /// same level (measured on data/city, BC7 against uncompressed: 47.5–53 dB per view, against 34 dB
-    /// with a finer level for BC).
-    pub const CELLS: f32 = 2.0;
-    /// A footprint larger than this share of the period gets the period's average.
-    pub const FLAT_SHARE: f32 = 1.0;
-    /// Where the footprint reaches past the border (coarse levels, whose borders are halved per level),
-    /// the gradients are sharpened by `k ≤ 1` to what the border protects; below this `k` the sharpened
-    /// sample would alias, and the pixel gets the period's average instead.
-    pub const SHARPEN_MIN: f32 = 0.25;
-
     /// The GPU record of a stored rect of a material with alpha mode `alpha`.
     pub fn new(r: &AtlasRect, alpha: AlphaMode) -> RectMap {
         let (mode, cutoff) = match alpha {
-            AlphaMode::Opaque => (0, 0.5),
-            AlphaMode::Mask { cutoff } => (1, cutoff),
-            AlphaMode::Blend => (2, 0.5),
+            AlphaMode::Opaque => (ALPHA_OPAQUE, 0.5),
+            AlphaMode::Mask { cutoff } => (ALPHA_MASK, cutoff),
+            AlphaMode::Blend => (ALPHA_BLEND, 0.5),
         };
         let tpu = r.texels_per_uv();
         let gap = |k: usize| half_gap(r.uv_min[k], r.uv_max[k]) as f32;
@@ -144,135 +66,23 @@ impl RectMap {
                 (r.outer[0] + r.outer[2]) as f32,
                 (r.outer[1] + r.outer[3]) as f32,
             ],
-            wrap: r.wrap[0].code() | r.wrap[1].code() << 2 | mode << 4,
+            wrap: r.wrap[0].code() | r.wrap[1].code() << WRAP_T_SHIFT | mode << ALPHA_SHIFT,
             cutoff,
             inner_size: [r.inner[2] as f32, r.inner[3] as f32],
         }
     }
-
-    /// `(rect coordinate, sign of its derivative)` of `u` on axis `k`: `rect_axis` in the shader.
-    pub fn axis_f32(&self, u: f32, k: usize) -> (f32, f32) {
-        let mode = (self.wrap >> (2 * k)) & 3;
-        let lo = self.uv_min[k];
-        if mode == RectWrap::Repeat.code() {
-            let x = u - lo;
-            return (x - (x + self.half_gap[k]).floor(), 1.0);
-        }
-        if mode == RectWrap::Mirror.code() {
-            let p = u - 2.0 * (u * 0.5).floor();
-            return if p > 1.0 {
-                (2.0 - p - lo, -1.0)
-            } else {
-                (p - lo, 1.0)
-            };
-        }
-        if mode == RectWrap::Clamp.code() {
-            return (u.clamp(0.0, 1.0) - lo, 1.0);
-        }
-        (u - lo, 1.0)
-    }
-
-    /// The shader's `rect_texel`: leaf-atlas texel coordinates of UV `uv` with screen derivatives `ddx`,
-    /// `ddy` drawn at a level `level_texels` leaf texels per texel of the drawn atlas (`2^(K − j)`), and the
-    /// derivatives the sampler is given.
-    ///
-    /// - Where the filter footprint (half the gradient box plus half a drawn texel) would reach past the
-    ///   rect's border, the gradients are scaled by `k = room / half box ≤ 1`, so the filter reads the
-    ///   rect's border (the sampler's rule) and never a neighbouring rect.
-    /// - A pixel whose footprint exceeds [`RectMap::FLAT_SHARE`] of the inner rectangle's smaller side, or
-    ///   whose `k` is below [`RectMap::SHARPEN_MIN`], covers (about) a period: it gets the period's
-    ///   average, which the mip level where the inner rectangle is [`RectMap::CELLS`] texels wide holds at
-    ///   its centre (the gradients are scaled to that level, the sample moved to the centre) — no neighbour
-    ///   bleeds in, no aliasing, and every such pixel of the rect reads the same texels.
-    /// - Otherwise the sample is kept half the (sharpened) footprint plus half a drawn texel inside the
-    ///   outer rectangle; at the inner centre where the rectangle is narrower than that.
-    pub fn texel_f32(
-        &self,
-        uv: Vec2,
-        ddx: Vec2,
-        ddy: Vec2,
-        level_texels: f32,
-    ) -> (Vec2, Vec2, Vec2) {
-        let (ts, ss) = self.axis_f32(uv.x, 0);
-        let (tt, st) = self.axis_f32(uv.y, 1);
-        let tpu = Vec2::from(self.texels_per_uv) * Vec2::new(ss, st);
-        let gx = ddx * tpu;
-        let gy = ddy * tpu;
-        let inner_lo = Vec2::from(self.inner_lo);
-        let inner = Vec2::from(self.inner_size);
-        let centre = inner_lo + 0.5 * inner;
-        let period = inner.x.min(inner.y);
-        let footprint = gx.length().max(gy.length());
-        let half_box = 0.5 * (gx.abs() + gy.abs());
-        let (outer_lo, outer_hi) = (Vec2::from(self.outer_lo), Vec2::from(self.outer_hi));
-        let border = (inner_lo - outer_lo).min(outer_hi - (inner_lo + inner));
-        let room = (border - Vec2::splat(0.5 * level_texels)).max(Vec2::ZERO);
-        let fit = room / half_box.max(Vec2::splat(1e-30));
-        let k = fit.min_element().min(1.0);
-        if footprint > period * RectMap::FLAT_SHARE || k < RectMap::SHARPEN_MIN {
-            let kk = period / RectMap::CELLS / footprint;
-            return (centre, gx * kk, gy * kk);
-        }
-        let (gx, gy) = (gx * k, gy * k);
-        let margin = half_box * k + Vec2::splat(0.5 * level_texels);
-        let lo = outer_lo + margin;
-        let hi = outer_hi - margin;
-        let t = inner_lo + Vec2::new(ts, tt) * Vec2::from(self.texels_per_uv);
-        let texel = Vec2::new(
-            if lo.x > hi.x {
-                centre.x
-            } else {
-                t.x.clamp(lo.x, hi.x)
-            },
-            if lo.y > hi.y {
-                centre.y
-            } else {
-                t.y.clamp(lo.y, hi.y)
-            },
-        );
-        (texel, gx, gy)
-    }
 }
 
-/// Wrap codes of [`TamEntry::wrap`] (per axis; `wrap = s | t << 2`), as in the paging file.
-pub const WRAP_REPEAT: u32 = 0;
-pub const WRAP_MIRROR: u32 = 1;
-pub const WRAP_CLAMP: u32 = 2;
-
-/// One entry of TAB's texture-array mapping (TAM): where an original texture lives and how it is sampled.
-/// WGSL twin: `TamEntry` in `shaders/tree.wgsl`.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
-#[repr(C)]
-pub struct TamEntry {
-    /// Class array binding (`class0..class9` in the shader). Paged: `log2(class_size) − 2` (class 4 → 0 …
-    /// class 2048 → 9); all resident, a class past the layer limit continues in unused bindings
-    /// (`resident::class_slots`), so the binding's size is `class_size`, not derived from the index.
-    pub class: u32,
-    /// Layer in the class array.
-    pub layer: u32,
-    /// `wrap_s | wrap_t << 2` ([`WRAP_REPEAT`], [`WRAP_MIRROR`], [`WRAP_CLAMP`]).
-    pub wrap: u32,
-    /// 0 opaque, 1 mask, 2 blend (the paging file's codes).
-    pub alpha_mode: u32,
-    /// Linear RGBA multiplier (the atlas has it baked in; originals are stored without it).
-    pub factor: [f32; 4],
-    /// MASK cutoff.
-    pub cutoff: f32,
-    /// Side of the class, texels.
-    pub class_size: f32,
-    pub _pad: [u32; 2],
-}
-const _: () = assert!(size_of::<TamEntry>() == 48);
-
-/// The pipeline a record is drawn with.
+/// The pipeline a record is drawn with; the discriminant is the shader's `PASS`.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+#[repr(u32)]
 pub enum Pass {
     /// Opaque tree: depth write, no blending.
-    Opaque = 0,
+    Opaque = PASS_OPAQUE,
     /// Alpha tree, subtree without BLEND materials: discard below the cutoff, depth write.
-    Mask = 1,
+    Mask = PASS_MASK,
     /// Alpha tree, subtree with a BLEND material: blending, no depth write, after the others.
-    Blend = 2,
+    Blend = PASS_BLEND,
 }
 
 impl Pass {
@@ -381,7 +191,7 @@ pub struct FrameBatch {
     /// Indirect records, grouped by [`Group`] (`group_ranges`); `indirect[i].first_instance == i`.
     pub indirect: Vec<DrawIndexedIndirect>,
     /// `records[i]` belongs to `indirect[i]`.
-    pub records: Vec<NodeRecordGpu>,
+    pub records: Vec<NodeDraw>,
     /// Per [`Group`] (by [`Group::index`]): `(first, count)` of `indirect` drawn by that group's multi-draw
     /// call.
     pub group_ranges: [(u32, u32); GROUPS],
@@ -389,7 +199,7 @@ pub struct FrameBatch {
     pub triangles: u64,
     /// Records drawn with original textures.
     pub original_records: u32,
-    pending: [Vec<(DrawIndexedIndirect, NodeRecordGpu)>; GROUPS],
+    pending: [Vec<(DrawIndexedIndirect, NodeDraw)>; GROUPS],
 }
 
 impl FrameBatch {
@@ -447,7 +257,7 @@ impl FrameBatch {
                 }
                 (None, false) => None,
             };
-            let record = NodeRecordGpu {
+            let record = NodeDraw {
                 atlas_layer: atlas.map_or(NONE, |(s, _)| s.layer),
                 atlas_array: atlas.map_or(0, |(s, _)| s.array),
                 level: atlas.map_or(node.level, |(_, l)| l),

@@ -32,7 +32,8 @@ pub struct TexelDensity {
     pub max: f32,
     /// Drawn with an original texture (else an atlas).
     pub original: bool,
-    /// Tree level of the atlas (255 for original textures).
+    /// Tree level of the atlas ([`LEVEL_ORIGINAL`](super::wgsl::tree::LEVEL_ORIGINAL) for original
+    /// textures).
     pub level: u32,
 }
 
@@ -74,7 +75,7 @@ impl DensityTarget {
         let pipelines = PassPipelines::new(
             device,
             "tree density",
-            include_str!("../../shaders/tree.wgsl"),
+            super::wgsl::tree::WGSL,
             &[layout],
             vertex_layout(),
             Specialisation {

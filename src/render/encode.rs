@@ -2,9 +2,10 @@
 //! one `multi_draw_indexed_indirect` per non-empty pipeline) and the naive per-texture baseline, and the
 //! GPU timestamps around them.
 
-use super::batch::{BatchOptions, DrawIndexedIndirect, Group, NodeRecordGpu, Pass};
+use super::batch::{BatchOptions, DrawIndexedIndirect, Group, Pass};
 use super::frame::{FrameStats, Renderer, tree_bind_group};
 use super::naive::Naive;
+use super::wgsl::tree::NodeDraw;
 use super::{Mode, RenderError};
 use crate::plan::FramePlan;
 use crate::select::Cut;
@@ -119,7 +120,7 @@ impl Renderer<'_> {
         let grew = self.records.write(
             device,
             queue,
-            bytemuck::cast_slice::<NodeRecordGpu, u8>(&self.batch.records),
+            bytemuck::cast_slice::<NodeDraw, u8>(&self.batch.records),
         );
         self.indirect.write(
             device,

@@ -6,32 +6,20 @@ use super::batch::FrameBatch;
 use super::density::{DensityFrame, DensityTarget};
 use super::naive::Naive;
 use super::pipeline::{
-    B_ATLAS_SAMPLER, B_ATLAS0, B_CLASS0, B_DRAWS, B_GLOBALS, B_LEAVES, B_OFFSETS,
-    B_ORIGINAL_SAMPLER, B_RECTS, B_TAM, COLOR_FORMAT, DEPTH_FORMAT, PassPipelines, Specialisation,
-    sampler, tree_bind_group_layout, vertex_layout,
+    COLOR_FORMAT, DEPTH_FORMAT, PassPipelines, Specialisation, sampler, tree_bind_group_layout,
+    vertex_layout,
 };
 use super::resident::Resident;
 use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
+use super::wgsl::tree::{self, Globals, MODE_LEVELS, MODE_TEXTURED};
 use super::{Mode, RenderError};
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, readback_rgba8};
 use crate::paging::Event;
 use crate::plan::{FramePlan, FramePlanner, PagingFrame, PlanError, Residency};
 use crate::store::TreeFile;
-use bytemuck::{Pod, Zeroable};
 use glam::{DMat4, DVec4};
 use std::time::Instant;
-
-/// The uniform block of both shaders. WGSL twin: `Globals`.
-#[derive(Copy, Clone, Debug, Pod, Zeroable)]
-#[repr(C)]
-struct Globals {
-    view_proj: [[f32; 4]; 4],
-    mode: u32,
-    /// Side of every atlas, texels (the rect maps are in leaf-atlas texels).
-    atlas_texels: f32,
-    _pad: [u32; 2],
-}
 
 /// Counters and timings of one frame (the columns of `stats.csv`).
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
@@ -271,7 +259,7 @@ impl<'f> Renderer<'f> {
         let pipelines = PassPipelines::new(
             device,
             "tree",
-            include_str!("../../shaders/tree.wgsl"),
+            tree::WGSL,
             &[&layout],
             vertex_layout(),
             tree_specialisation(&resident),
@@ -458,9 +446,14 @@ impl<'f> Renderer<'f> {
         self.resident.write_offsets(&self.ctx.queue);
         let globals = Globals {
             view_proj: view_proj_reverse_z(camera),
-            mode: u32::from(mode == Mode::TreeLevels),
+            mode: if mode == Mode::TreeLevels {
+                MODE_LEVELS
+            } else {
+                MODE_TEXTURED
+            },
             atlas_texels: self.file.params().atlas_size as f32,
-            _pad: [0; 2],
+            _p1: 0,
+            _p2: 0,
         };
         self.ctx
             .queue
@@ -514,10 +507,10 @@ pub(super) fn tree_specialisation(res: &Resident) -> Specialisation {
     Specialisation {
         constants: vec![
             (
-                "ATLAS_ARRAYS",
+                tree::overrides::ATLAS_ARRAYS,
                 f64::from(res.atlas_arrays.len().max(1) as u32),
             ),
-            ("CLASS_MASK", f64::from(class_mask)),
+            (tree::overrides::CLASS_MASK, f64::from(class_mask)),
         ],
         source: true,
         density: false,
@@ -585,35 +578,35 @@ pub(super) fn tree_bind_group(
 ) -> wgpu::BindGroup {
     let mut entries = vec![
         wgpu::BindGroupEntry {
-            binding: B_GLOBALS,
+            binding: tree::binding::GLOBALS,
             resource: globals.as_entire_binding(),
         },
         wgpu::BindGroupEntry {
-            binding: B_DRAWS,
+            binding: tree::binding::DRAWS,
             resource: records.as_entire_binding(),
         },
         wgpu::BindGroupEntry {
-            binding: B_LEAVES,
+            binding: tree::binding::LEAVES,
             resource: res.leaves_buffer.as_entire_binding(),
         },
         wgpu::BindGroupEntry {
-            binding: B_OFFSETS,
+            binding: tree::binding::OFFSETS,
             resource: res.offsets_buffer.as_entire_binding(),
         },
         wgpu::BindGroupEntry {
-            binding: B_TAM,
+            binding: tree::binding::TAM,
             resource: res.tam_buffer.as_entire_binding(),
         },
         wgpu::BindGroupEntry {
-            binding: B_RECTS,
+            binding: tree::binding::RECTS,
             resource: res.rects_buffer.as_entire_binding(),
         },
         wgpu::BindGroupEntry {
-            binding: B_ATLAS_SAMPLER,
+            binding: tree::binding::ATLAS_SAMPLER,
             resource: wgpu::BindingResource::Sampler(&samplers[0]),
         },
         wgpu::BindGroupEntry {
-            binding: B_ORIGINAL_SAMPLER,
+            binding: tree::binding::ORIGINAL_SAMPLER,
             resource: wgpu::BindingResource::Sampler(&samplers[1]),
         },
     ];
@@ -623,7 +616,7 @@ pub(super) fn tree_bind_group(
             _ => &res.dummy.view,
         };
         entries.push(wgpu::BindGroupEntry {
-            binding: B_ATLAS0 + i as u32,
+            binding: tree::binding::ATLAS0 + i as u32,
             resource: wgpu::BindingResource::TextureView(view),
         });
     }
@@ -633,7 +626,7 @@ pub(super) fn tree_bind_group(
             _ => &res.dummy.view,
         };
         entries.push(wgpu::BindGroupEntry {
-            binding: B_CLASS0 + k as u32,
+            binding: tree::binding::CLASS0 + k as u32,
             resource: wgpu::BindingResource::TextureView(view),
         });
     }

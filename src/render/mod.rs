@@ -14,7 +14,8 @@
 //!
 //! Debug: [`Renderer::execute_density`] writes texels per pixel instead of colours ([`density`]).
 //!
-//! Shaders: `shaders/tree.wgsl` (tree, dummy, levels, density), `shaders/naive.wgsl` (original).
+//! Shaders: `shaders/tree.wgsl` (tree, dummy, levels, density), `shaders/naive.wgsl` (original); their
+//! Rust twins (buffer structs, bindings, overrides, codes) are [`wgsl::tree`] and [`wgsl::naive`].
 
 pub mod batch;
 pub mod density;
@@ -25,6 +26,7 @@ mod naive;
 pub mod pipeline;
 pub mod resident;
 pub mod textures;
+pub mod wgsl;
 
 pub use crate::plan::{PagingFrame, PagingSetup};
 pub use frame::{FrameStats, GpuResidency, Renderer, RendererOptions};

@@ -9,21 +9,11 @@ use super::pipeline::{
 };
 use super::resident::Resident;
 use super::textures::{gpu_format, mip_levels, texels_for_upload, upload_mip_chain};
+use super::wgsl::naive::{self, ALPHA_MASK, ALPHA_OPAQUE, Material, binding};
 use crate::gpu::GpuContext;
 use crate::scene::Wrap;
 use crate::store::TreeFile;
-use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
-
-/// Material parameters of one naive bind group. WGSL twin: `Material` in `shaders/naive.wgsl`.
-#[derive(Copy, Clone, Debug, Pod, Zeroable)]
-#[repr(C)]
-struct MaterialGpu {
-    factor: [f32; 4],
-    alpha_mode: u32,
-    cutoff: f32,
-    _pad: [u32; 2],
-}
 
 /// One draw: a leaf's triangles that use one original texture.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -71,7 +61,7 @@ impl Naive {
         let pipelines = PassPipelines::new(
             device,
             "naive",
-            include_str!("../../shaders/naive.wgsl"),
+            naive::WGSL,
             &[&l0, &l1],
             vertex_layout(),
             Specialisation::default(),
@@ -81,11 +71,11 @@ impl Naive {
             layout: &l0,
             entries: &[
                 wgpu::BindGroupEntry {
-                    binding: 0,
+                    binding: binding::GLOBALS,
                     resource: globals.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
-                    binding: 1,
+                    binding: binding::OFFSETS,
                     resource: res.offsets_buffer.as_entire_binding(),
                 },
             ],
@@ -134,11 +124,12 @@ impl Naive {
                 samplers.push((wrap, s));
             }
             let s = &samplers.iter().find(|(w, _)| *w == wrap).map(|(_, s)| s);
-            let params = MaterialGpu {
+            let params = Material {
                 factor: m.map_or([1.0; 4], |m| m.base_color_factor),
-                alpha_mode: m.map_or(0, |m| m.alpha_mode),
+                alpha_mode: m.map_or(ALPHA_OPAQUE, |m| m.alpha_mode),
                 cutoff: m.map_or(0.5, |m| m.alpha_cutoff),
-                _pad: [0; 2],
+                _p0: 0,
+                _p1: 0,
             };
             let ub = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("naive material"),
@@ -151,15 +142,15 @@ impl Naive {
                 layout: &l1,
                 entries: &[
                     wgpu::BindGroupEntry {
-                        binding: 0,
+                        binding: binding::TEX,
                         resource: wgpu::BindingResource::TextureView(&view),
                     },
                     wgpu::BindGroupEntry {
-                        binding: 1,
+                        binding: binding::TEX_SAMPLER,
                         resource: wgpu::BindingResource::Sampler(s),
                     },
                     wgpu::BindGroupEntry {
-                        binding: 2,
+                        binding: binding::MATERIAL,
                         resource: ub.as_entire_binding(),
                     },
                 ],
@@ -204,8 +195,8 @@ impl Naive {
                         continue;
                     }
                     let pass = match e.alpha_mode {
-                        0 => Pass::Opaque,
-                        1 => Pass::Mask,
+                        ALPHA_OPAQUE => Pass::Opaque,
+                        ALPHA_MASK => Pass::Mask,
                         _ => Pass::Blend,
                     };
                     draws.push(NaiveDraw {

@@ -4,6 +4,7 @@
 
 use super::batch::{GROUPS, Group, Pass, VERTEX_STRIDE};
 use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
+use super::wgsl::{naive, tree};
 
 /// Colour target format: sRGB, so the shaders work in linear light and the PNGs hold sRGB bytes.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -12,18 +13,6 @@ pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrg
 pub const DENSITY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// Depth format; reverse Z (clear 0, compare Greater) for precision at large depth ranges.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-
-/// Binding numbers of `tree.wgsl` group 0.
-pub const B_GLOBALS: u32 = 0;
-pub const B_DRAWS: u32 = 1;
-pub const B_LEAVES: u32 = 2;
-pub const B_OFFSETS: u32 = 3;
-pub const B_TAM: u32 = 4;
-pub const B_RECTS: u32 = 5;
-pub const B_ATLAS_SAMPLER: u32 = 6;
-pub const B_ORIGINAL_SAMPLER: u32 = 7;
-pub const B_ATLAS0: u32 = 8;
-pub const B_CLASS0: u32 = B_ATLAS0 + MAX_ATLAS_ARRAYS as u32;
 
 /// pos, orig_uv, leaf, original, rect (the fields of `TreeVertex` in order).
 const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 5] = wgpu::vertex_attr_array![
@@ -84,21 +73,23 @@ const VF: wgpu::ShaderStages = wgpu::ShaderStages::VERTEX_FRAGMENT;
 const V: wgpu::ShaderStages = wgpu::ShaderStages::VERTEX;
 const F: wgpu::ShaderStages = wgpu::ShaderStages::FRAGMENT;
 
-/// Group 0 of `tree.wgsl`.
+/// Group 0 of `tree.wgsl` ([`tree::binding`]).
 pub fn tree_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    use tree::binding as b;
     let mut entries = vec![
-        entry(B_GLOBALS, VF, uniform()),
-        entry(B_DRAWS, V, storage()),
-        entry(B_LEAVES, V, storage()),
-        entry(B_OFFSETS, V, storage()),
-        entry(B_TAM, F, storage()),
-        entry(B_RECTS, F, storage()),
-        entry(B_ATLAS_SAMPLER, F, filtering()),
-        entry(B_ORIGINAL_SAMPLER, F, filtering()),
+        entry(b::GLOBALS, VF, uniform()),
+        entry(b::DRAWS, V, storage()),
+        entry(b::LEAVES, V, storage()),
+        entry(b::OFFSETS, V, storage()),
+        entry(b::TAM, F, storage()),
+        entry(b::RECTS, F, storage()),
+        entry(b::ATLAS_SAMPLER, F, filtering()),
+        entry(b::ORIGINAL_SAMPLER, F, filtering()),
     ];
+    // The class bindings follow the atlas bindings.
     for i in 0..(MAX_ATLAS_ARRAYS + CLASS_COUNT) as u32 {
         entries.push(entry(
-            B_ATLAS0 + i,
+            b::ATLAS0 + i,
             F,
             texture(wgpu::TextureViewDimension::D2Array),
         ));
@@ -109,22 +100,27 @@ pub fn tree_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     })
 }
 
-/// Group 0 (globals, leaf offsets) and group 1 (texture, sampler, material) of `naive.wgsl`.
+/// Group 0 (globals, leaf offsets) and group 1 (texture, sampler, material) of `naive.wgsl`
+/// ([`naive::binding`]).
 pub fn naive_bind_group_layouts(device: &wgpu::Device) -> [wgpu::BindGroupLayout; 2] {
+    use naive::binding as b;
     let g0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("naive group 0"),
-        entries: &[entry(0, VF, uniform()), entry(1, V, storage())],
+        entries: &[
+            entry(b::GLOBALS, VF, uniform()),
+            entry(b::OFFSETS, V, storage()),
+        ],
     });
     let g1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("naive group 1"),
         entries: &[
-            entry(0, F, texture(wgpu::TextureViewDimension::D2)),
+            entry(b::TEX, F, texture(wgpu::TextureViewDimension::D2)),
             entry(
-                1,
+                b::TEX_SAMPLER,
                 F,
                 wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
             ),
-            entry(2, F, uniform()),
+            entry(b::MATERIAL, F, uniform()),
         ],
     });
     [g0, g1]
@@ -151,14 +147,16 @@ pub fn sampler(
     })
 }
 
-/// How a shader is specialised per [`Group`] (WGSL `override` constants).
+/// How a shader is specialised per [`Group`] (WGSL `override` constants; `tree.wgsl` and `naive.wgsl`
+/// both have `PASS`, [`tree::overrides`], [`naive::overrides`]).
 #[derive(Clone, Debug, Default)]
 pub struct Specialisation {
     /// Constants every pipeline gets (besides `PASS`).
     pub constants: Vec<(&'static str, f64)>,
-    /// The shader has `override SOURCE` (0 atlas, 1 originals).
+    /// The shader has `override SOURCE` ([`tree::SOURCE_ATLAS`], [`tree::SOURCE_ORIGINAL`]).
     pub source: bool,
-    /// The texel-density variant: `DENSITY = 1`, target [`DENSITY_FORMAT`], no blending.
+    /// The texel-density variant: `DENSITY` = [`tree::DENSITY_ON`], target [`DENSITY_FORMAT`], no
+    /// blending.
     pub density: bool,
 }
 
@@ -217,12 +215,17 @@ impl PassPipelines {
     /// The pipeline of `group`, created on first use.
     pub fn get(&mut self, device: &wgpu::Device, group: Group) -> &wgpu::RenderPipeline {
         let mut constants = self.spec.constants.clone();
-        constants.push(("PASS", f64::from(group.pass as u32)));
+        constants.push((tree::overrides::PASS, f64::from(group.pass as u32)));
         if self.spec.source {
-            constants.push(("SOURCE", f64::from(u32::from(group.original))));
+            let source = if group.original {
+                tree::SOURCE_ORIGINAL
+            } else {
+                tree::SOURCE_ATLAS
+            };
+            constants.push((tree::overrides::SOURCE, f64::from(source)));
         }
         if self.spec.density {
-            constants.push(("DENSITY", 1.0));
+            constants.push((tree::overrides::DENSITY, f64::from(tree::DENSITY_ON)));
         }
         let slot = &mut self.pipelines[group.index()];
         slot.get_or_insert_with(|| {
@@ -248,7 +251,7 @@ fn create_pipeline(
     pass: Pass,
     constants: &[(&str, f64)],
 ) -> wgpu::RenderPipeline {
-    let density = constants.contains(&("DENSITY", 1.0));
+    let density = constants.contains(&(tree::overrides::DENSITY, f64::from(tree::DENSITY_ON)));
     let blend = (pass == Pass::Blend && !density).then_some(wgpu::BlendState::ALPHA_BLENDING);
     let format = if density {
         DENSITY_FORMAT

@@ -41,7 +41,10 @@ pub fn mip_levels(size: u32) -> u32 {
     32 - size.max(1).leading_zeros()
 }
 
-/// A free list of layers `0..capacity`: lowest free layer first, O(1) free.
+/// A free list of layers `0..capacity`. [`LayerAllocator::alloc`] hands out the most recently freed layer
+/// first (last in, first out), and only when none is free the lowest layer never handed out (a fresh
+/// allocator counts up from 0). [`LayerAllocator::free`] is linear in the number of free layers (it refuses
+/// a double free).
 #[derive(Clone, Debug)]
 pub struct LayerAllocator {
     capacity: u32,
@@ -62,7 +65,8 @@ impl LayerAllocator {
         }
     }
 
-    /// A free layer, `None` when all `capacity` layers are in use.
+    /// A free layer (the last one freed, else the next never used), `None` when all `capacity` layers are
+    /// in use.
     pub fn alloc(&mut self) -> Option<u32> {
         let layer = match self.free.pop() {
             Some(l) => l,
@@ -325,5 +329,19 @@ mod tests {
         assert_eq!(a.in_use(), 2);
         assert_eq!(a.alloc(), Some(1));
         assert_eq!(a.alloc(), None);
+    }
+
+    #[test]
+    fn allocator_reuses_the_last_freed_layer_before_fresh_ones() {
+        let mut a = LayerAllocator::new(8);
+        let first: Vec<_> = (0..4).map(|_| a.alloc()).collect();
+        assert_eq!(first, [Some(0), Some(1), Some(2), Some(3)]);
+        assert!(a.free(0));
+        assert!(a.free(2));
+        // Last in, first out; not the lowest free layer (0) first.
+        assert_eq!((a.alloc(), a.alloc()), (Some(2), Some(0)));
+        // Then the layers never handed out, in order.
+        assert_eq!((a.alloc(), a.alloc()), (Some(4), Some(5)));
+        assert_eq!(a.in_use(), 6);
     }
 }

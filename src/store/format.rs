@@ -269,6 +269,11 @@ pub const ALPHA_OPAQUE: u32 = 0;
 pub const ALPHA_MASK: u32 = 1;
 pub const ALPHA_BLEND: u32 = 2;
 
+/// Wrap modes in [`MaterialRecord::wrap`] (per axis).
+pub const WRAP_REPEAT: u32 = 0;
+pub const WRAP_MIRROR: u32 = 1;
+pub const WRAP_CLAMP: u32 = 2;
+
 /// One scene material ([`Material`]); the name lives in the Strings section.
 #[derive(Copy, Clone, Debug, PartialEq, Pod, Zeroable)]
 #[repr(C)]
@@ -279,7 +284,8 @@ pub struct MaterialRecord {
     pub alpha_cutoff: f32,
     /// [`ALPHA_OPAQUE`], [`ALPHA_MASK`] or [`ALPHA_BLEND`].
     pub alpha_mode: u32,
-    /// `[wrap_s, wrap_t]`: 0 = repeat, 1 = mirrored repeat, 2 = clamp to edge.
+    /// `[wrap_s, wrap_t]`: [`WRAP_REPEAT`], [`WRAP_MIRROR`] (mirrored repeat) or [`WRAP_CLAMP`] (clamp to
+    /// edge).
     pub wrap: [u32; 2],
     /// Scene image id.
     pub image: u32,
@@ -350,17 +356,17 @@ impl MaterialRecord {
 
 fn encode_wrap(w: Wrap) -> u32 {
     match w {
-        Wrap::Repeat => 0,
-        Wrap::MirroredRepeat => 1,
-        Wrap::ClampToEdge => 2,
+        Wrap::Repeat => WRAP_REPEAT,
+        Wrap::MirroredRepeat => WRAP_MIRROR,
+        Wrap::ClampToEdge => WRAP_CLAMP,
     }
 }
 
 fn decode_wrap(raw: u32) -> Option<Wrap> {
     match raw {
-        0 => Some(Wrap::Repeat),
-        1 => Some(Wrap::MirroredRepeat),
-        2 => Some(Wrap::ClampToEdge),
+        WRAP_REPEAT => Some(Wrap::Repeat),
+        WRAP_MIRROR => Some(Wrap::MirroredRepeat),
+        WRAP_CLAMP => Some(Wrap::ClampToEdge),
         _ => None,
     }
 }

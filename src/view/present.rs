@@ -8,6 +8,7 @@
 
 use super::ViewError;
 use crate::gpu::{GpuContext, readback_rgba8, readback_texels};
+use crate::render::wgsl::blit;
 
 /// Format of the composite image and of the overlay's target: raw sRGB-encoded bytes.
 pub const COMPOSITE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -117,7 +118,7 @@ impl<'w> Presenter<'w> {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("blit"),
             entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
+                binding: blit::binding::SOURCE,
                 visibility: wgpu::ShaderStages::FRAGMENT,
                 ty: wgpu::BindingType::Texture {
                     sample_type: wgpu::TextureSampleType::Float { filterable: false },
@@ -267,7 +268,7 @@ impl Composite {
             label: Some("blit source"),
             layout,
             entries: &[wgpu::BindGroupEntry {
-                binding: 0,
+                binding: blit::binding::SOURCE,
                 resource: wgpu::BindingResource::TextureView(&view),
             }],
         });
@@ -286,7 +287,7 @@ fn blit_pipeline(
 ) -> wgpu::RenderPipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("blit"),
-        source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/blit.wgsl").into()),
+        source: wgpu::ShaderSource::Wgsl(blit::WGSL.into()),
     });
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("blit"),

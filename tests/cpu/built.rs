@@ -123,7 +123,7 @@ pub fn vertex_leaf_uv(
     atlas: f32,
 ) -> glam::Vec2 {
     let r = t.leaf_rects(leaf)[v.rect as usize].decode();
-    let map = atlastree::render::batch::RectMap::new(&r, atlastree::scene::AlphaMode::Opaque);
+    let map = atlastree::render::wgsl::tree::RectMap::new(&r, atlastree::scene::AlphaMode::Opaque);
     let (texel, _, _) = map.texel_f32(
         glam::Vec2::from_array(v.orig_uv),
         glam::Vec2::ZERO,

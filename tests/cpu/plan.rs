@@ -7,6 +7,7 @@
 //! - the clock may not run backwards;
 //! - the capacity may be lowered and raised again up to the capacity at creation, never above it.
 
+use crate::fixtures::corners::{corners, options};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::BlockId;
 use atlastree::paging::{BlockTable, Event, PagerOptions};
@@ -15,7 +16,6 @@ use atlastree::preprocess::{NoProgress, build};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::sim::InstantLoader;
 use atlastree::store::TreeFile;
-use crate::fixtures::corners::{corners, options};
 use glam::DVec3;
 
 fn build_corners(dir: &std::path::Path) -> TreeFile {

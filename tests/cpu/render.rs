@@ -214,14 +214,14 @@ fn plan_maps_every_vertex_original_into_its_leaf_tam_range() {
     for (li, (leaf, gpu)) in view.leaves.iter().zip(&p.leaves).enumerate() {
         let node = &view.nodes[leaf.node as usize];
         assert_eq!(
-            (gpu.cell_ix, gpu.cell_iy, gpu.level),
-            (node.cell.ix, node.cell.iy, node.level)
+            (gpu.cell, gpu.level),
+            ([node.cell.ix, node.cell.iy], node.level)
         );
         assert_eq!(p.origins[li], DVec3::from_array(leaf.origin));
         for (k, o) in view.leaf_originals(leaf).iter().enumerate() {
             let e = &p.tam[gpu.first_tam as usize + k];
             assert_eq!(e.class_size, o.class_size as f32);
-            assert_eq!(4u32 << e.class, o.class_size);
+            assert_eq!(4u32 << e.class_index, o.class_size);
             let u = &p.uniques[p.tam_unique[gpu.first_tam as usize + k] as usize];
             assert_eq!((u.material, u.class_size), (o.material, o.class_size));
         }

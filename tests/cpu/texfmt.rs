@@ -136,20 +136,39 @@ fn noise_is_harder_than_photos_but_bounded() {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Bleeding. Packing aligns outer rectangles to 4 texels and the border is 8 texels. At mip level L a rect's
-// outer origin is aligned to 4/2^L texels and its border is 8/2^L texels wide:
-//   L0: origin ≡ 0 (mod 4), border 8 → the BC blocks that touch the inner rect hold only its own texels.
-//   L1: origin ≡ 0 (mod 2), border 4 → same (a block that starts inside the border ends before the
-//       neighbour).
-//   L2: origin any, border 2 → a block touching the inner rect can reach 1 texel into the neighbour.
-//   L3: border 1 → up to 3 foreign texels in a block.
-// Without compression levels 0–3 are independent of the neighbours (the box filter never reaches past the
-// border). With compression, levels 0–1 are *exactly* independent; from level 2 on, texels within 3 texels
-// of the inner edge can change with the neighbour. An inner atlas at height h above the leaves shows leaf
-// level h + L at its level L, so "levels 0–1" means: leaf atlases' levels 0 and 1, and their parents' level 0.
+// Bleeding (the analysis in src/texfmt.rs). Packing aligns outer rectangles, and so the inner edges, to 4
+// texels; the border is `b` texels (16 by default, the paper's 8 as the thin case). Measured in level-0
+// texels past the inner edge:
+//   - a level-L texel overlapping the inner rect starts at most (2^L − 4)⁺ outside it (box filter), so
+//     uncompressed, level L is independent of the neighbours while (2^L − 4)⁺ ≤ b: levels 0–3 at b = 8,
+//     0–4 at b = 16;
+//   - a 4×4 block of level L holding such a texel starts at most 4·(2^L − 1) outside it (0, 4, 12, 28 …),
+//     so compressed, the blocks that touch the inner rect hold only its own texels while
+//     4·(2^L − 1) ≤ b: levels 0–1 at b = 8, 0–2 at b = 16. Past those levels, texels within 3 texels of
+//     the inner edge can change with the neighbour.
+// An inner atlas at height h above the leaves shows leaf level h + L at its level L, so at b = 8 "levels
+// 0–1" means: leaf atlases' levels 0 and 1, and their parents' level 0.
+
+/// The last level whose texels touching the inner rect are independent of the neighbours at border `b`:
+/// uncompressed and block-compressed (see above).
+fn independent_levels(border: u32, compressed: bool) -> u32 {
+    let reach = |l: u32| {
+        if compressed {
+            4 * ((1 << l) - 1)
+        } else {
+            (1u32 << l).saturating_sub(4)
+        }
+    };
+    (0..16).take_while(|&l| reach(l) <= border).last().unwrap()
+}
 
 /// Adjacent 4-aligned outer rects (worst case: no gap) with an 8-texel border, inside a 256² atlas.
 fn layout() -> Vec<([u32; 4], [u32; 4])> {
+    layout_with_border(8)
+}
+
+/// [`layout`] with a `border`-texel border.
+fn layout_with_border(border: u32) -> Vec<([u32; 4], [u32; 4])> {
     let widths = [44u32, 60, 36, 100];
     let heights = [52u32, 76, 40, 84];
     let mut rects = Vec::new();
@@ -159,7 +178,7 @@ fn layout() -> Vec<([u32; 4], [u32; 4])> {
         for i in 0..widths.len() {
             let w = widths[(i + j) % widths.len()];
             let outer = [x, y, w, h];
-            let inner = [x + 8, y + 8, w - 16, h - 16];
+            let inner = [x + border, y + border, w - 2 * border, h - 2 * border];
             rects.push((outer, inner));
             x += w;
         }
@@ -239,8 +258,20 @@ fn edge_distance(inner: [u32; 4], l: u32, x: u32, y: u32) -> u32 {
 }
 
 #[test]
-fn compressed_atlas_levels_0_and_1_never_mix_textures() {
-    let rects = layout();
+fn atlas_levels_the_border_protects_never_mix_textures() {
+    assert_eq!(
+        [8, 16].map(|b| (independent_levels(b, false), independent_levels(b, true))),
+        [(3, 1), (4, 2)]
+    );
+    for border in [8, 16] {
+        atlas_levels_never_mix_textures(border);
+    }
+}
+
+/// At border `border`: the levels [`independent_levels`] names are unchanged by the neighbours, deeper
+/// levels change only within 3 texels of the inner edge (levels 0–3 checked).
+fn atlas_levels_never_mix_textures(border: u32) {
+    let rects = layout_with_border(border);
     let size = 256u32;
     for format in [TexFormat::Rgba8, TexFormat::Bc1, TexFormat::Bc7] {
         let mut report = Vec::new();
@@ -271,17 +302,18 @@ fn compressed_atlas_levels_0_and_1_never_mix_textures() {
                         max_dist = max_dist.max(edge_distance(inner, l, x, y));
                     }
                 }
-                let safe = if format == TexFormat::Rgba8 { 3 } else { 1 };
+                let safe = independent_levels(border, format != TexFormat::Rgba8);
                 if l <= safe {
                     assert_eq!(
                         changed, 0,
-                        "{format:?} level {l}: rect {keep}'s texels depend on its neighbours"
+                        "border {border}, {format:?} level {l}: rect {keep}'s texels depend on its neighbours"
                     );
                 } else {
                     // A 4×4 block reaches at most 3 texels inward from where the foreign texels are.
                     assert!(
                         max_dist < 3,
-                        "{format:?} level {l}: a texel {max_dist} texels inside rect {keep} changed"
+                        "border {border}, {format:?} level {l}: a texel {max_dist} texels inside rect \
+                         {keep} changed"
                     );
                 }
                 report.push(format!(
@@ -289,7 +321,7 @@ fn compressed_atlas_levels_0_and_1_never_mix_textures() {
                 ));
             }
         }
-        eprintln!("{format:?}: {}", report.join("; "));
+        eprintln!("border {border}, {format:?}: {}", report.join("; "));
     }
 }
 

@@ -2,6 +2,7 @@
 //! (multi_draw_indexed_indirect, first_instance ≠ 0, per-draw layer from a storage buffer) work on this machine.
 
 use atlastree::gpu::{GpuContext, readback_rgba8};
+use atlastree::render::wgsl::smoke_tab::{self, DrawData, binding};
 use wgpu::util::DeviceExt;
 
 use crate::harness::GpuTest;
@@ -324,7 +325,7 @@ fn tab_bind_group_layout(ctx: &GpuContext) -> wgpu::BindGroupLayout {
             label: Some("smoke tab"),
             entries: &[
                 entry(
-                    0,
+                    binding::DRAWS,
                     wgpu::ShaderStages::VERTEX,
                     wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Storage { read_only: true },
@@ -333,7 +334,7 @@ fn tab_bind_group_layout(ctx: &GpuContext) -> wgpu::BindGroupLayout {
                     },
                 ),
                 entry(
-                    1,
+                    binding::ATLAS,
                     wgpu::ShaderStages::FRAGMENT,
                     wgpu::BindingType::Texture {
                         sample_type: wgpu::TextureSampleType::Float { filterable: true },
@@ -342,7 +343,7 @@ fn tab_bind_group_layout(ctx: &GpuContext) -> wgpu::BindGroupLayout {
                     },
                 ),
                 entry(
-                    2,
+                    binding::ATLAS_SAMPLER,
                     wgpu::ShaderStages::FRAGMENT,
                     wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                 ),
@@ -372,7 +373,10 @@ fn multi_draw_indirect_first_instance_selects_layer(ctx: &GpuContext) -> Result<
     };
     let vertices: Vec<[f32; 4]> = quad(-0.9, -0.1).into_iter().chain(quad(0.1, 0.9)).collect();
     let indices: [u32; 12] = [0, 1, 2, 0, 2, 3, 0, 1, 2, 0, 2, 3];
-    let draw_layers: [[u32; 4]; 2] = [[1, 0, 0, 0], [0, 0, 0, 0]];
+    let draw_layers = [1, 0].map(|layer| DrawData {
+        layer,
+        ..DrawData::default()
+    });
     let records = [
         wgpu::util::DrawIndexedIndirectArgs {
             index_count: 6,
@@ -429,15 +433,15 @@ fn multi_draw_indirect_first_instance_selects_layer(ctx: &GpuContext) -> Result<
         layout: &bgl,
         entries: &[
             wgpu::BindGroupEntry {
-                binding: 0,
+                binding: binding::DRAWS,
                 resource: draw_buffer.as_entire_binding(),
             },
             wgpu::BindGroupEntry {
-                binding: 1,
+                binding: binding::ATLAS,
                 resource: wgpu::BindingResource::TextureView(&layers_view),
             },
             wgpu::BindGroupEntry {
-                binding: 2,
+                binding: binding::ATLAS_SAMPLER,
                 resource: wgpu::BindingResource::Sampler(&sampler),
             },
         ],
@@ -449,11 +453,7 @@ fn multi_draw_indirect_first_instance_selects_layer(ctx: &GpuContext) -> Result<
             bind_group_layouts: &[Some(&bgl)],
             immediate_size: 0,
         });
-    let module = shader(
-        ctx,
-        "smoke_tab.wgsl",
-        include_str!("../../shaders/smoke_tab.wgsl"),
-    );
+    let module = shader(ctx, "smoke_tab.wgsl", smoke_tab::WGSL);
     let layout = wgpu::VertexBufferLayout {
         array_stride: 16,
         step_mode: wgpu::VertexStepMode::Vertex,

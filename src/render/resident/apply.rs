@@ -6,8 +6,9 @@ use super::Resident;
 use crate::ids::BlockId;
 use crate::paging::Event;
 use crate::render::RenderError;
-use crate::render::batch::{AtlasSlot, TamEntry};
+use crate::render::batch::AtlasSlot;
 use crate::render::textures::{gpu_format, texels_for_upload};
+use crate::render::wgsl::tree::TamEntry;
 use crate::texfmt::TexFormat;
 
 impl Resident {
@@ -245,7 +246,7 @@ impl Resident {
         p.original_layers_used += 1;
         for &e in &p.tam_users[u] {
             if let Some(entry) = self.tam.get_mut(e as usize) {
-                entry.class = slot as u32;
+                entry.class_index = slot as u32;
                 entry.layer = layer;
                 queue.write_buffer(
                     &self.tam_buffer,

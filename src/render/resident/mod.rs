@@ -18,8 +18,9 @@ pub use arrays::class_slots;
 pub use tables::{GpuTables, gather_tables};
 
 use super::RenderError;
-use super::batch::{LeafGpu, LeafOffsets, TamEntry, TreeBatchInfo};
+use super::batch::{LeafOffsets, TreeBatchInfo};
 use super::textures::{CLASS_COUNT, TextureArray, common_format, gpu_format};
+use super::wgsl::tree::{LeafInfo, TamEntry};
 use crate::gpu::GpuContext;
 use crate::ids::{BlockId, NodeId};
 use crate::paging::BlockTable;
@@ -74,7 +75,7 @@ pub struct Resident {
     pub leaves_buffer: wgpu::Buffer,
     pub offsets_buffer: wgpu::Buffer,
     pub tam_buffer: wgpu::Buffer,
-    /// Every leaf's rects (`RectMap`), global numbering (`LeafGpu::first_rect`).
+    /// Every leaf's rects (`RectMap`), global numbering (`LeafInfo::first_rect`).
     pub rects_buffer: wgpu::Buffer,
     pub leaf_offsets: LeafOffsets,
     pub atlas_arrays: Vec<TextureArray>,
@@ -84,7 +85,7 @@ pub struct Resident {
     pub dummy: TextureArray,
     pub tam: Vec<TamEntry>,
     /// All trees' leaves (global numbering).
-    pub leaves: Vec<LeafGpu>,
+    pub leaves: Vec<LeafInfo>,
     pub uniques: Vec<UniqueOriginal>,
     /// Per TAM entry, its index in `uniques`.
     pub tam_unique: Vec<u32>,

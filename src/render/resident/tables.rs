@@ -6,11 +6,11 @@ use super::UniqueOriginal;
 use crate::ids::{BlockId, NONE};
 use crate::model::TreeVertex;
 use crate::render::RenderError;
-use crate::render::batch::{
-    LeafGpu, Pass, RectMap, TamEntry, TreeBatchInfo, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT,
-    leaf_ranges,
-};
+use crate::render::batch::{Pass, TreeBatchInfo, leaf_ranges};
 use crate::render::textures::class_index;
+use crate::render::wgsl::tree::{
+    ALPHA_OPAQUE, LeafInfo, RectMap, TamEntry, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT, WRAP_T_SHIFT,
+};
 use crate::scene::{AlphaMode, Wrap};
 use crate::store::format::{MaterialRecord, OriginalRecord};
 use crate::store::{TreeFile, TreeView};
@@ -25,7 +25,7 @@ pub struct GpuTables {
     pub infos: Vec<TreeBatchInfo>,
     pub vertices: Vec<TreeVertex>,
     pub indices: Vec<u32>,
-    pub leaves: Vec<LeafGpu>,
+    pub leaves: Vec<LeafInfo>,
     /// Every leaf's rects, global numbering.
     pub rects: Vec<RectMap>,
     /// Leaf origins, f64, global leaf numbering.
@@ -65,13 +65,14 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
             let originals = view.leaf_originals(leaf);
             let first_tam = count_u32("tam", g.tam.len())?;
             let first_rect = count_u32("rects", g.rects.len())?;
-            g.leaves.push(LeafGpu {
-                cell_ix: node.map_or(0, |n| n.cell.ix),
-                cell_iy: node.map_or(0, |n| n.cell.iy),
+            g.leaves.push(LeafInfo {
+                cell: node.map_or([0, 0], |n| [n.cell.ix, n.cell.iy]),
                 level: node.map_or(0, |n| n.level),
                 first_tam,
                 first_rect,
-                _pad: [0; 3],
+                _p0: 0,
+                _p1: 0,
+                _p2: 0,
             });
             g.rects.extend(view.leaf_rects(leaf).iter().map(|r| {
                 let alpha = materials
@@ -113,14 +114,15 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
                 g.block_uniques.push((BlockId(o.block), ui, offset));
                 let wrap = m.and_then(|m| m.wraps()).unwrap_or([Wrap::Repeat; 2]);
                 g.tam.push(TamEntry {
-                    class,
+                    class_index: class,
                     layer: 0,
-                    wrap: wrap_code(wrap[0]) | wrap_code(wrap[1]) << 2,
-                    alpha_mode: m.map_or(0, |m| m.alpha_mode),
+                    wrap: wrap_code(wrap[0]) | wrap_code(wrap[1]) << WRAP_T_SHIFT,
+                    alpha_mode: m.map_or(ALPHA_OPAQUE, |m| m.alpha_mode),
                     factor: m.map_or([1.0; 4], |m| m.base_color_factor),
                     cutoff: m.map_or(0.5, |m| m.alpha_cutoff),
                     class_size: o.class_size as f32,
-                    _pad: [0; 2],
+                    _p0: 0,
+                    _p1: 0,
                 });
             }
             // Every vertex's `original` and `rect` must index the leaf's TAM and rect ranges (the shader does

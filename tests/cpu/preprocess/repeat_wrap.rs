@@ -10,7 +10,7 @@ use atlastree::preprocess::image_ops::{
     LinearImage, MipChain, RectJob, draw_rect, neutral_fill, sample_footprint,
 };
 use atlastree::preprocess::{BuildOptions, DMin};
-use atlastree::render::batch::RectMap;
+use atlastree::render::wgsl::tree::RectMap;
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, DecodedImage, Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3, Vec2};

@@ -1,0 +1,352 @@
+//! Twins of `shaders/tree.wgsl`, the renderer's shader: the frame's uniform block ([`Globals`]), the
+//! per-draw, per-leaf, per-rect and per-original records ([`NodeDraw`], [`LeafInfo`], [`RectMap`],
+//! [`TamEntry`]), the bindings of its one bind group ([`binding`]), its overrides ([`overrides`]) and its
+//! codes. [`RectMap::texel_f32`] is the shader's `rect_texel` on the CPU.
+
+use crate::model::RectWrap;
+use bytemuck::{Pod, Zeroable};
+use glam::Vec2;
+
+/// The shader's source.
+pub const WGSL: &str = include_str!("../../../shaders/tree.wgsl");
+
+wgsl_consts! {
+    /// [`NodeDraw::atlas_layer`] of an original-texture draw ([`crate::ids::NONE`]).
+    NONE: u32 = crate::ids::NONE;
+
+    /// [`overrides::PASS`] of the opaque pipelines (the discriminants of [`crate::render::batch::Pass`]).
+    PASS_OPAQUE: u32 = 0;
+    /// [`overrides::PASS`] of the alpha-mask pipelines (and of a blend node's depth pre-pass).
+    PASS_MASK: u32 = 1;
+    /// [`overrides::PASS`] of the alpha-blend pipelines.
+    PASS_BLEND: u32 = 2;
+
+    /// [`overrides::SOURCE`] of the pipelines drawing atlases.
+    SOURCE_ATLAS: u32 = 0;
+    /// [`overrides::SOURCE`] of the pipelines drawing original textures.
+    SOURCE_ORIGINAL: u32 = 1;
+
+    /// [`overrides::DENSITY`] of the colour pipelines.
+    DENSITY_OFF: u32 = 0;
+    /// [`overrides::DENSITY`] of the texel-density debug pipelines ([`crate::render::density`]).
+    DENSITY_ON: u32 = 1;
+
+    /// [`Globals::mode`]: textured (modes tree and dummy).
+    MODE_TEXTURED: u32 = 0;
+    /// [`Globals::mode`]: coloured by the level of the atlas drawn (mode tree-levels).
+    MODE_LEVELS: u32 = 1;
+
+    /// Atlas array bindings `atlas0 …` ([`crate::render::textures::MAX_ATLAS_ARRAYS`]).
+    MAX_ATLAS_ARRAYS: u32 = crate::render::textures::MAX_ATLAS_ARRAYS as u32;
+    /// Class array bindings `class0 …`, class `k` of size `4 << k`
+    /// ([`crate::render::textures::CLASS_COUNT`]).
+    CLASS_COUNT: u32 = crate::render::textures::CLASS_COUNT as u32;
+
+    /// The level an original-texture draw reports (white in mode tree-levels; the density target's `a`).
+    LEVEL_ORIGINAL: u32 = 255;
+
+    /// `wrap_t` sits this many bits above `wrap_s` in [`RectMap::wrap`] and [`TamEntry::wrap`].
+    WRAP_T_SHIFT: u32 = 2;
+    /// The material's alpha mode sits this many bits up in [`RectMap::wrap`].
+    ALPHA_SHIFT: u32 = 4;
+    /// Mask of one code (a wrap or alpha mode) in a packed `wrap`.
+    CODE_MASK: u32 = 3;
+
+    /// [`TamEntry::wrap`] codes per axis, the paging file's ([`crate::store::format::WRAP_REPEAT`] …):
+    /// repeat.
+    WRAP_REPEAT: u32 = crate::store::format::WRAP_REPEAT;
+    /// Mirrored repeat.
+    WRAP_MIRROR: u32 = crate::store::format::WRAP_MIRROR;
+    /// Clamp to edge.
+    WRAP_CLAMP: u32 = crate::store::format::WRAP_CLAMP;
+
+    /// [`RectMap::wrap`] codes per axis, [`RectWrap::code`]: linear (baked repeats).
+    RECT_WRAP_LINEAR: u32 = RectWrap::Linear.code();
+    /// Repeat, wrapped in the shader.
+    RECT_WRAP_REPEAT: u32 = RectWrap::Repeat.code();
+    /// Mirrored repeat, folded in the shader.
+    RECT_WRAP_MIRROR: u32 = RectWrap::Mirror.code();
+    /// Clamp to edge, clamped in the shader.
+    RECT_WRAP_CLAMP: u32 = RectWrap::Clamp.code();
+
+    /// Alpha modes ([`TamEntry::alpha_mode`], and in [`RectMap::wrap`]), the paging file's
+    /// ([`crate::store::format::ALPHA_OPAQUE`] …): opaque.
+    ALPHA_OPAQUE: u32 = crate::store::format::ALPHA_OPAQUE;
+    /// Alpha mask: discarded below the material's cutoff.
+    ALPHA_MASK: u32 = crate::store::format::ALPHA_MASK;
+    /// Alpha blend.
+    ALPHA_BLEND: u32 = crate::store::format::ALPHA_BLEND;
+
+    /// Alpha at and above which a BLEND material's texel counts as opaque in the depth pre-pass of blend
+    /// nodes (the mask pipeline): about `1 − 0.5/255`, as the literal the shader has always had (3 f32
+    /// ulps below `1 − 0.5/255`).
+    OPAQUE_ALPHA: f32 = 0.998039;
+    /// Alpha below which a fragment of a BLEND material is discarded in the blend pass.
+    BLEND_MIN_ALPHA: f32 = 0.5 / 255.0;
+
+    /// Texels of the inner rectangle at the mip a flattened sample reads ([`RectMap::texel_f32`]): at 2,
+    /// a bilinear tap at the inner centre averages the whole period. Block-compressed atlases use the
+    /// same level (measured on data/city, BC7 against uncompressed: 47.5–53 dB per view, against 34 dB
+    /// with a finer level for BC).
+    CELLS: f32 = 2.0;
+    /// A footprint larger than this share of the period gets the period's average.
+    FLAT_SHARE: f32 = 1.0;
+    /// Where the footprint reaches past the border (coarse levels, whose borders are halved per level),
+    /// the gradients are sharpened by `k ≤ 1` to what the border protects; below this `k` the sharpened
+    /// sample would alias, and the pixel gets the period's average instead.
+    SHARPEN_MIN: f32 = 0.25;
+}
+
+wgsl_overrides! {
+    /// The pipeline's pass: [`PASS_OPAQUE`](super::PASS_OPAQUE), [`PASS_MASK`](super::PASS_MASK) or
+    /// [`PASS_BLEND`](super::PASS_BLEND).
+    PASS,
+    /// The texture source of the pipeline's records: [`SOURCE_ATLAS`](super::SOURCE_ATLAS) or
+    /// [`SOURCE_ORIGINAL`](super::SOURCE_ORIGINAL).
+    SOURCE,
+    /// Atlas arrays in use (1 ..= [`MAX_ATLAS_ARRAYS`](super::MAX_ATLAS_ARRAYS)); the others are compiled
+    /// out.
+    ATLAS_ARRAYS,
+    /// Class arrays present: bit `k` for class `4 << k`; the others are compiled out.
+    CLASS_MASK,
+    /// [`DENSITY_ON`](super::DENSITY_ON): the texel-density variant.
+    DENSITY,
+}
+
+/// `@binding` numbers of the shader's one bind group (group 0), named after its variables.
+pub mod binding {
+    use super::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
+    use crate::render::wgsl::Binding;
+
+    /// `globals`: [`Globals`](super::Globals).
+    pub const GLOBALS: u32 = 0;
+    /// `draws`: [`NodeDraw`](super::NodeDraw) per indirect record.
+    pub const DRAWS: u32 = 1;
+    /// `leaves`: [`LeafInfo`](super::LeafInfo) per leaf.
+    pub const LEAVES: u32 = 2;
+    /// `offsets`: per leaf `origin − eye` (`vec4<f32>`).
+    pub const OFFSETS: u32 = 3;
+    /// `tam`: [`TamEntry`](super::TamEntry) per (leaf, original).
+    pub const TAM: u32 = 4;
+    /// `rects`: [`RectMap`](super::RectMap) per (leaf, rect).
+    pub const RECTS: u32 = 5;
+    /// `atlas_sampler` (clamp to edge).
+    pub const ATLAS_SAMPLER: u32 = 6;
+    /// `original_sampler` (repeat; the shader wraps).
+    pub const ORIGINAL_SAMPLER: u32 = 7;
+    /// `atlas0`; atlas array `i` is `atlas{i}` at `ATLAS0 + i`, `i < MAX_ATLAS_ARRAYS`.
+    pub const ATLAS0: u32 = 8;
+    /// `class0`; class binding `k` is `class{k}` at `CLASS0 + k`, `k < CLASS_COUNT`.
+    pub const CLASS0: u32 = ATLAS0 + MAX_ATLAS_ARRAYS;
+
+    /// Every resource of the shader.
+    pub const ALL: &[Binding] = &[
+        Binding::one("globals", 0, GLOBALS),
+        Binding::one("draws", 0, DRAWS),
+        Binding::one("leaves", 0, LEAVES),
+        Binding::one("offsets", 0, OFFSETS),
+        Binding::one("tam", 0, TAM),
+        Binding::one("rects", 0, RECTS),
+        Binding::one("atlas_sampler", 0, ATLAS_SAMPLER),
+        Binding::one("original_sampler", 0, ORIGINAL_SAMPLER),
+        Binding::numbered("atlas", 0, ATLAS0, MAX_ATLAS_ARRAYS),
+        Binding::numbered("class", 0, CLASS0, CLASS_COUNT),
+    ];
+}
+
+/// The uniform block, written once per frame. `naive.wgsl` declares the same block (the naive pipelines
+/// bind the same buffer).
+#[derive(Copy, Clone, Debug, Pod, Zeroable)]
+#[repr(C)]
+pub struct Globals {
+    /// View-projection without translation (positions are eye-relative), reverse Z.
+    pub view_proj: [[f32; 4]; 4],
+    /// [`MODE_TEXTURED`] or [`MODE_LEVELS`].
+    pub mode: u32,
+    /// Side of every atlas, texels (the rect maps are in leaf-atlas texels).
+    pub atlas_texels: f32,
+    pub _p1: u32,
+    pub _p2: u32,
+}
+const _: () = assert!(size_of::<Globals>() == 80);
+
+/// Per-draw data, indexed by `instance_index` (= the record's `first_instance`).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct NodeDraw {
+    /// Layer of the node's atlas in atlas array `atlas_array`; [`NONE`] for an original-texture draw.
+    pub atlas_layer: u32,
+    /// Which atlas array (0 unless the layers exceed the device limit, see `render::textures`).
+    pub atlas_array: u32,
+    /// The node's level j: vertices map their leaf-local atlas UV into this ancestor's atlas.
+    pub level: u32,
+    /// Index of the tree's leaf 0 in the leaves and leaf-offset buffers.
+    pub leaf_base: u32,
+    /// The smallest MASK cutoff below the node (diagnostics; fragments are tested with their material's
+    /// cutoff, from its rect or TAM entry).
+    pub alpha_cutoff: f32,
+    /// Tree-local node id (diagnostics).
+    pub node: u32,
+    /// Tree index.
+    pub tree: u32,
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<NodeDraw>() == 32);
+
+/// Static per-leaf data.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+#[repr(C)]
+pub struct LeafInfo {
+    /// The leaf's cell `(ix, iy)` at its level (paper Fig. 4).
+    pub cell: [u32; 2],
+    /// The leaf's level K.
+    pub level: u32,
+    /// First entry of the leaf's texture-array mapping in the TAM buffer (global index).
+    pub first_tam: u32,
+    /// First entry of the leaf's rects in the rect buffer (global index).
+    pub first_rect: u32,
+    pub _p0: u32,
+    pub _p1: u32,
+    pub _p2: u32,
+}
+const _: () = assert!(size_of::<LeafInfo>() == 32);
+
+/// How a fragment's original UV reaches its texture's rect in its leaf's atlas (DESIGN.md "Repeats"): the
+/// rect's per-axis wrap ([`RectWrap`]), then the linear map onto the inner rectangle, kept inside the
+/// outer rectangle by the filter footprint. [`RectMap::texel_f32`] is the shader's arithmetic on the CPU,
+/// [`crate::model::transform::rect_texel`] its f64 reference; `RectMap::new` (in
+/// [`crate::render::batch`]) builds it from a stored rect. All lengths in leaf-atlas texels.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct RectMap {
+    /// UV shown at the inner rectangle's low edge (after the wrap).
+    pub uv_min: [f32; 2],
+    /// Leaf-atlas texels per unit of UV.
+    pub texels_per_uv: [f32; 2],
+    /// Low corner of the inner rectangle.
+    pub inner_lo: [f32; 2],
+    /// REPEAT axes: half the part of the period the rect does not hold ([`crate::model::transform::half_gap`]).
+    pub half_gap: [f32; 2],
+    /// The outer rectangle (border included).
+    pub outer_lo: [f32; 2],
+    pub outer_hi: [f32; 2],
+    /// `wrap_s | wrap_t << WRAP_T_SHIFT` ([`RECT_WRAP_LINEAR`] … [`RECT_WRAP_CLAMP`])
+    /// `| alpha_mode << ALPHA_SHIFT` (the material's [`ALPHA_OPAQUE`], [`ALPHA_MASK`] or [`ALPHA_BLEND`], as
+    /// [`TamEntry::alpha_mode`]): atlas draws test and blend per material, as originals do.
+    pub wrap: u32,
+    /// The material's MASK cutoff (0.5 for other modes).
+    pub cutoff: f32,
+    /// Size of the inner rectangle.
+    pub inner_size: [f32; 2],
+}
+const _: () = assert!(size_of::<RectMap>() == 64);
+
+impl RectMap {
+    /// `(rect coordinate, sign of its derivative)` of `u` on axis `k`: `rect_axis` in the shader.
+    pub fn axis_f32(&self, u: f32, k: usize) -> (f32, f32) {
+        let mode = (self.wrap >> (WRAP_T_SHIFT * k as u32)) & CODE_MASK;
+        let lo = self.uv_min[k];
+        if mode == RECT_WRAP_REPEAT {
+            let x = u - lo;
+            return (x - (x + self.half_gap[k]).floor(), 1.0);
+        }
+        if mode == RECT_WRAP_MIRROR {
+            let p = u - 2.0 * (u * 0.5).floor();
+            return if p > 1.0 {
+                (2.0 - p - lo, -1.0)
+            } else {
+                (p - lo, 1.0)
+            };
+        }
+        if mode == RECT_WRAP_CLAMP {
+            return (u.clamp(0.0, 1.0) - lo, 1.0);
+        }
+        (u - lo, 1.0)
+    }
+
+    /// The shader's `rect_texel`: leaf-atlas texel coordinates of UV `uv` with screen derivatives `ddx`,
+    /// `ddy` drawn at a level `level_texels` leaf texels per texel of the drawn atlas (`2^(K − j)`), and the
+    /// derivatives the sampler is given.
+    ///
+    /// - Where the filter footprint (half the gradient box plus half a drawn texel) would reach past the
+    ///   rect's border, the gradients are scaled by `k = room / half box ≤ 1`, so the filter reads the
+    ///   rect's border (the sampler's rule) and never a neighbouring rect.
+    /// - A pixel whose footprint exceeds [`FLAT_SHARE`] of the inner rectangle's smaller side, or whose
+    ///   `k` is below [`SHARPEN_MIN`], covers (about) a period: it gets the period's average, which the
+    ///   mip level where the inner rectangle is [`CELLS`] texels wide holds at its centre (the gradients
+    ///   are scaled to that level, the sample moved to the centre) — no neighbour bleeds in, no aliasing,
+    ///   and every such pixel of the rect reads the same texels.
+    /// - Otherwise the sample is kept half the (sharpened) footprint plus half a drawn texel inside the
+    ///   outer rectangle; at the inner centre where the rectangle is narrower than that.
+    pub fn texel_f32(
+        &self,
+        uv: Vec2,
+        ddx: Vec2,
+        ddy: Vec2,
+        level_texels: f32,
+    ) -> (Vec2, Vec2, Vec2) {
+        let (ts, ss) = self.axis_f32(uv.x, 0);
+        let (tt, st) = self.axis_f32(uv.y, 1);
+        let tpu = Vec2::from(self.texels_per_uv) * Vec2::new(ss, st);
+        let gx = ddx * tpu;
+        let gy = ddy * tpu;
+        let inner_lo = Vec2::from(self.inner_lo);
+        let inner = Vec2::from(self.inner_size);
+        let centre = inner_lo + 0.5 * inner;
+        let period = inner.x.min(inner.y);
+        let footprint = gx.length().max(gy.length());
+        let half_box = 0.5 * (gx.abs() + gy.abs());
+        let (outer_lo, outer_hi) = (Vec2::from(self.outer_lo), Vec2::from(self.outer_hi));
+        let border = (inner_lo - outer_lo).min(outer_hi - (inner_lo + inner));
+        let room = (border - Vec2::splat(0.5 * level_texels)).max(Vec2::ZERO);
+        let fit = room / half_box.max(Vec2::splat(1e-30));
+        let k = fit.min_element().min(1.0);
+        if footprint > period * FLAT_SHARE || k < SHARPEN_MIN {
+            let kk = period / CELLS / footprint;
+            return (centre, gx * kk, gy * kk);
+        }
+        let (gx, gy) = (gx * k, gy * k);
+        let margin = half_box * k + Vec2::splat(0.5 * level_texels);
+        let lo = outer_lo + margin;
+        let hi = outer_hi - margin;
+        let t = inner_lo + Vec2::new(ts, tt) * Vec2::from(self.texels_per_uv);
+        let texel = Vec2::new(
+            if lo.x > hi.x {
+                centre.x
+            } else {
+                t.x.clamp(lo.x, hi.x)
+            },
+            if lo.y > hi.y {
+                centre.y
+            } else {
+                t.y.clamp(lo.y, hi.y)
+            },
+        );
+        (texel, gx, gy)
+    }
+}
+
+/// One entry of TAB's texture-array mapping (TAM): where an original texture lives and how it is sampled.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct TamEntry {
+    /// Class array binding (`class0..class9` in the shader). Paged: `log2(class_size) − 2` (class 4 → 0 …
+    /// class 2048 → 9); all resident, a class past the layer limit continues in unused bindings
+    /// (`resident::class_slots`), so the binding's size is `class_size`, not derived from the index.
+    pub class_index: u32,
+    /// Layer in the class array.
+    pub layer: u32,
+    /// `wrap_s | wrap_t << WRAP_T_SHIFT` ([`WRAP_REPEAT`], [`WRAP_MIRROR`], [`WRAP_CLAMP`]).
+    pub wrap: u32,
+    /// [`ALPHA_OPAQUE`], [`ALPHA_MASK`] or [`ALPHA_BLEND`].
+    pub alpha_mode: u32,
+    /// Linear RGBA multiplier (the atlas has it baked in; originals are stored without it).
+    pub factor: [f32; 4],
+    /// MASK cutoff.
+    pub cutoff: f32,
+    /// Side of the class, texels.
+    pub class_size: f32,
+    pub _p0: u32,
+    pub _p1: u32,
+}
+const _: () = assert!(size_of::<TamEntry>() == 48);
