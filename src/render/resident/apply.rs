@@ -27,6 +27,22 @@ impl Resident {
         }
     }
 
+    /// `(tree, node)` of `block`'s atlas or leaf, checked against the loaded trees.
+    fn owner(&self, block: BlockId) -> Result<(u32, u32), RenderError> {
+        let (tree, node) = self
+            .residency
+            .block_node
+            .get(block.idx())
+            .copied()
+            .ok_or(RenderError::ShortBlock { block })?;
+        if tree as usize >= self.infos.len() {
+            return Err(RenderError::MissingTree {
+                tree: tree as usize,
+            });
+        }
+        Ok((tree, node))
+    }
+
     /// Uploads `block` (its bytes as stored): an atlas into a free layer of an atlas array of its GPU
     /// format, an originals block's textures into free layers of their class bindings (a texture another
     /// resident block already brought is only referenced once more). Returns the bytes uploaded. On an
@@ -37,18 +53,9 @@ impl Resident {
         block: BlockId,
         bytes: &[u8],
     ) -> Result<u64, RenderError> {
+        let (tree, node) = self.owner(block)?;
         let p = &mut self.residency;
-        let (tree, node) = p
-            .block_node
-            .get(block.idx())
-            .copied()
-            .ok_or(RenderError::ShortBlock { block })?;
-        let info = self
-            .infos
-            .get_mut(tree as usize)
-            .ok_or(RenderError::MissingTree {
-                tree: tree as usize,
-            })?;
+        let info = &mut self.infos[tree as usize];
         if p.table.meta(block).item.is_atlas() {
             let stored =
                 p.tree_formats
@@ -130,18 +137,9 @@ impl Resident {
     /// Frees an evicted block's layers: its atlas layer, or the layers of the original textures no other
     /// resident block still references.
     pub fn free_block(&mut self, block: BlockId) -> Result<(), RenderError> {
+        let (tree, node) = self.owner(block)?;
         let p = &mut self.residency;
-        let (tree, node) = p
-            .block_node
-            .get(block.idx())
-            .copied()
-            .ok_or(RenderError::ShortBlock { block })?;
-        let info = self
-            .infos
-            .get_mut(tree as usize)
-            .ok_or(RenderError::MissingTree {
-                tree: tree as usize,
-            })?;
+        let info = &mut self.infos[tree as usize];
         if p.table.meta(block).item.is_atlas() {
             let Some(s) = info
                 .atlas_slots
