@@ -530,7 +530,7 @@ mod tests {
 
     #[test]
     fn items_follow_the_stored_order_not_quadrant_order() {
-        // Regression (issue 8, tests/hard_select_real.rs): the builder stores quadrants in the order
+        // Regression (issue 8, tests/cpu/select/real_tree.rs): the builder stores quadrants in the order
         // 0, 2, 1, 3 (node ids and index ranges); the cut must still come out in index order.
         let leaf = |first_index: u32, leaf: u32| NodeRecord {
             first_index,

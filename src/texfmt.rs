@@ -20,7 +20,7 @@
 //! at levels 0 and 1 every 4×4 block that touches a texture's inner rectangle holds only that texture's
 //! texels (inner or border) — compressed texels there are exactly independent of the neighbours; from
 //! level 2 on a block can reach 1 (L2) to 3 (L3+) texels into the neighbour, and the texels within 3 of
-//! the inner edge can shift (tests/bc_compress.rs measures ≤ 25/255 for BC1, ≤ 16 for BC7 at L2–L3 on
+//! the inner edge can shift (tests/cpu/texfmt.rs measures ≤ 25/255 for BC1, ≤ 16 for BC7 at L2–L3 on
 //! contrasting textures). An inner atlas at height h shows leaf level `h + L` at its level L, so the
 //! guarantee covers leaf atlases' levels 0–1 and their parents' level 0: the levels sampled when a node is
 //! drawn near its min_distance. Uncompressed, levels 0–3 are independent (the box filter stays in the

@@ -295,7 +295,7 @@ fn run(cmd: &mut Command, dir: &Path, name: &str) -> Result<String, String> {
     Ok(stdout)
 }
 
-/// data/city at atlas 512, d_min = diagonal / 10 (as tests/cli.rs), built with the binary.
+/// data/city at atlas 512, d_min = diagonal / 10 (as tests/cpu/cli.rs), built with the binary.
 fn build_city(dir: &Path) -> Result<PathBuf, String> {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
     let out = dir.join("city.atlastree");

@@ -10,8 +10,8 @@
 //! - `priority`: the paging usage traversal (`paging::usage::classify`) and a full `Pager::plan` (§6) on
 //!   the same tree with one atlas block per node and one original block per leaf, nodes/s.
 
-#[path = "../../tests/select_util/mod.rs"]
-mod select_util;
+#[path = "../../tests/fixtures/select_trees.rs"]
+mod select_trees;
 
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::NONE;
@@ -134,7 +134,7 @@ fn downsampling(c: &mut Criterion) {
     g.finish();
 }
 
-/// One atlas block per node and one original block per leaf (as tests/paging_props.rs).
+/// One atlas block per node and one original block per leaf (as tests/cpu/paging/props.rs).
 fn blocks_for(nodes: &[NodeRecord]) -> Vec<BlockRecord> {
     let rec = |kind, item, length| BlockRecord {
         offset: 0,
@@ -166,7 +166,7 @@ fn cameras(nodes: &[NodeRecord]) -> Vec<Camera> {
 }
 
 fn selection_and_priority(c: &mut Criterion) {
-    let nodes = select_util::berlin(3);
+    let nodes = select_trees::berlin(3);
     let cams = cameras(&nodes);
     if cams.is_empty() {
         return;

@@ -3,8 +3,8 @@
 //! iteration = one frame (frustum + traversal), cycling through the cameras, so the reported time is
 //! per frame. Target: < 50 µs on one core.
 
-#[path = "../../tests/select_util/mod.rs"]
-mod select_util;
+#[path = "../../tests/fixtures/select_trees.rs"]
+mod select_trees;
 
 use atlastree::camera::CameraPath;
 use atlastree::scene::UpAxis;
@@ -13,7 +13,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
-    let nodes = select_util::berlin(3);
+    let nodes = select_trees::berlin(3);
     let (lo, hi) = (nodes[0].bounds_min.into(), nodes[0].bounds_max.into());
     let mut group = c.benchmark_group("select");
     let dive = CameraPath::overview_dive(lo, hi, UpAxis::Y);

@@ -1,0 +1,5 @@
+//! Paging (`paging`, paper §6): the pager's invariants, and blocks over HTTP.
+
+mod http;
+mod http_server;
+mod props;

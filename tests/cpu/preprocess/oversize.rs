@@ -1,0 +1,248 @@
+//! Oversize input (hard case 5 of issue 8): one triangle that alone needs more than the atlas; thousands of triangles with the
+//! same midpoint; a scene that is a single point in the distribution plane.
+//!
+//! Guards against the paper's non-termination (§5.3 splits "until each node fits", which never happens
+//! for a triangle larger than the atlas, and a spatial split of triangles with one midpoint never separates
+//! them). Ours: an oversize triangle is tessellated up to `max_pieces` (the pieces tile it exactly and keep
+//! `min_distance = d_min`), beyond that its leaf is clamped (reported; `min_distance = d_min / clamp`); the
+//! area-balanced cut always leaves every child smaller than its parent, so equal midpoints and a point
+//! footprint still terminate, with depth ≈ log4(n / leaf capacity); a scene that is one point in 3-D
+//! cannot have a d_min derived from its size and is refused naming the parameter.
+
+use crate::built::*;
+use atlastree::preprocess::BuildError;
+use atlastree::preprocess::BuildOptions;
+use atlastree::preprocess::prepare::{PrepareOptions, prepare};
+use atlastree::scene::synthetic::SceneBuilder;
+use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
+use glam::{DVec2, DVec3};
+
+/// One 100 m triangle with 10 repetitions of a 256² texture.
+fn one_big_triangle() -> Scene {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.pattern_image("big", 256, 3);
+    let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    b.triangle(
+        [
+            DVec3::ZERO,
+            DVec3::new(100.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 100.0),
+        ],
+        [DVec2::ZERO, DVec2::new(10.0, 0.0), DVec2::new(0.0, 10.0)],
+        m,
+    );
+    b.build()
+}
+
+/// 128² atlases, no source cap, d_min such that the triangle needs 100 m · f ≈ 1000 texels per axis.
+fn big_opts(max_pieces: u32) -> BuildOptions {
+    BuildOptions {
+        cap_to_source: false,
+        max_pieces,
+        // Tessellation and clamping are what baked repeats need (wrapped: one period, 100 texels).
+        repeat: atlastree::preprocess::RepeatMode::Bake,
+        ..tiny_opts(128, 69.3)
+    }
+}
+
+fn tri_area(p: [DVec3; 3]) -> f64 {
+    0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length()
+}
+
+#[test]
+fn oversize_triangle_is_clamped_with_one_piece_and_split_by_default() {
+    let scene = one_big_triangle();
+    // max_pieces = 1: one leaf, clamped, min_distance = d_min / clamp_scale.
+    let clamped = build_ok(&scene, &big_opts(1));
+    assert_sound(&clamped.file);
+    let r = &clamped.report.trees[0];
+    assert_eq!((r.pieces, r.leaves, r.clamped_leaves), (1, 1, 1), "{r:?}");
+    assert!(
+        clamped
+            .report
+            .warnings
+            .iter()
+            .any(|w| w.contains("scaled down"))
+    );
+    let p = clamped.file.to_params();
+    let t = clamped.file.tree(0).unwrap();
+    let leaf = t.leaves[0];
+    let need = 100.0 * p.f_proj(); // texels per axis at scale 1
+    assert!(need > 900.0, "{need}");
+    assert!(leaf.clamp_scale < 1.0 && leaf.clamp_scale > 0.0);
+    assert_eq!(t.nodes[0].min_distance, p.d_min / leaf.clamp_scale);
+    let rect = t.leaf_rects(&leaf)[0];
+    let inner_max = f64::from(p.atlas_size - 2 * p.border);
+    // The clamp is the largest that fits, to the bisection's precision (2^(40/4096) ≈ 0.7 %).
+    assert!(need * leaf.clamp_scale <= inner_max, "{rect:?}");
+    assert!(
+        f64::from(rect.inner[2]) >= 0.95 * (inner_max - 4.0),
+        "{rect:?}"
+    );
+
+    // Default: split into pieces that tile the triangle, nothing clamped, every leaf at d_min.
+    let split = build_ok(&scene, &big_opts(BuildOptions::default().max_pieces));
+    assert_sound(&split.file);
+    let r = &split.report.trees[0];
+    assert_eq!(r.clamped_leaves, 0, "{r:?}");
+    assert!(r.pieces > 100 && r.leaves > 1, "{r:?}");
+    let t = split.file.tree(0).unwrap();
+    let mut covered = 0.0;
+    let mut worst: f64 = 0.0;
+    for leaf in t.leaves {
+        assert_eq!(leaf.clamp_scale, 1.0);
+        assert_eq!(t.nodes[leaf.node as usize].min_distance, p.d_min);
+        let first = leaf.first_index as usize / 3;
+        for k in 0..leaf.index_count as usize / 3 {
+            let (pos, v) = leaf_triangle(&t, leaf.origin, first + k);
+            covered += tri_area(pos);
+            // The d_min guarantee holds for every piece at its own leaf.
+            let uv = v.map(|v| vertex_atlas_texels(&t, leaf, &v));
+            if let Some(ppt) = pixels_per_texel(pos, uv, f_proj_params(&p, p.d_min)) {
+                worst = worst.max(ppt);
+            }
+        }
+    }
+    let want = tri_area(scene.tri_positions(&scene.triangles[0]));
+    assert!(
+        (covered - want).abs() <= 1e-6 * want,
+        "pieces cover {covered} of {want}"
+    );
+    assert!(worst <= 1.01, "{worst} pixels per texel at d_min");
+    let root_split = t.nodes[0].min_distance;
+    let root_clamp = clamped.file.tree(0).unwrap().nodes[0].min_distance;
+    eprintln!(
+        "oversize triangle ({need:.0} texels/axis, 128 atlas): clamp scale {:.4}, clamped root min_distance \
+         {root_clamp:.0} m (leaf at d_min/clamp); split into {} pieces in {} leaves, worst {worst:.3} pixels \
+         per texel at d_min, root min_distance {root_split:.0} m",
+        leaf.clamp_scale, r.pieces, r.leaves
+    );
+}
+
+/// `n` triangles of equal area with exactly the same centroid (integer corners summing to 3·centre), each
+/// with its own texture, so at most 9 share a 64² atlas.
+fn same_midpoint(n: u32) -> Scene {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let c = DVec3::new(500.0, 0.0, 500.0);
+    for i in 0..n {
+        let img = b.image(&format!("m{i}"), 4, 4, move |_, _| {
+            [(i % 251) as u8, (i / 251) as u8, 99, 255]
+        });
+        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        // Sheared copies of one triangle: equal areas (1.5 · 20 · 20), different shapes, one centroid.
+        let d = DVec3::new(20.0, 0.0, 0.0);
+        let e = DVec3::new(f64::from(i) - f64::from(n / 2), 0.0, 20.0);
+        b.triangle(
+            [c + d, c + e, c - d - e],
+            [DVec2::ZERO, DVec2::X, DVec2::Y],
+            m,
+        );
+    }
+    b.build()
+}
+
+#[test]
+fn thousands_of_triangles_with_one_midpoint_terminate() {
+    let n = 2000;
+    let scene = same_midpoint(n);
+    let popts = PrepareOptions {
+        f_proj: 1e-3,
+        up: UpAxis::Y,
+        cap_to_source: true,
+        split_limit: 16.0,
+        max_pieces: 4096,
+        wrap: true,
+    };
+    let infos = prepare(&scene, &(0..n).collect::<Vec<_>>(), &popts);
+    let mid = infos[0].mid;
+    assert!(
+        infos.iter().all(|t| t.mid == mid),
+        "midpoints must coincide exactly"
+    );
+    // Naive: a spatial split at the mean midpoint puts every triangle on one side — no progress, forever.
+    let below = infos.iter().filter(|t| t.mid.x < mid.x).count();
+    assert_eq!(below, 0);
+
+    let built = build_ok(&scene, &tiny_opts(64, 1e6));
+    assert_sound(&built.file);
+    let r = &built.report.trees[0];
+    // 2000 textures, ≤ 9 per leaf: ≥ 223 leaves; the balanced cut gives depth ⌈log4(2000 / 9)⌉ + 1 at most.
+    assert!(r.leaves >= 223, "{r:?}");
+    assert!(r.depth <= 5, "depth {}", r.depth);
+    eprintln!(
+        "{n} triangles with one midpoint: spatial split moves {below} of {n}; ours: depth {}, {} leaves",
+        r.depth, r.leaves
+    );
+}
+
+/// `n` vertical triangles at one spot: needles (ε = 0, zero area) or walls ε wide.
+fn vertical_at_one_spot(n: u32, eps: f64) -> Scene {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    for i in 0..n {
+        let img = b.image(&format!("v{i}"), 4, 4, move |_, _| {
+            [(i % 256) as u8, 50, 50, 255]
+        });
+        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let h = 10.0 + f64::from(i % 7);
+        let a = f64::from(i) * 0.1;
+        let off = DVec3::new(a.cos(), 0.0, a.sin()) * eps;
+        b.triangle(
+            [
+                DVec3::new(7.0, 0.0, 7.0),
+                DVec3::new(7.0, h, 7.0) + off,
+                DVec3::new(7.0, h * 0.5, 7.0) - off,
+            ],
+            [DVec2::ZERO, DVec2::X, DVec2::Y],
+            m,
+        );
+    }
+    b.build()
+}
+
+#[test]
+fn a_point_footprint_terminates_and_a_point_scene_is_refused() {
+    for eps in [0.0, 1e-9] {
+        let scene = vertical_at_one_spot(300, eps);
+        let o = BuildOptions {
+            d_min: atlastree::preprocess::DMin::Ratio(20.0),
+            ..tiny_opts(64, 1.0)
+        };
+        let built = build_ok(&scene, &o);
+        assert_sound(&built.file);
+        let r = &built.report.trees[0];
+        assert!(r.leaves >= 34 && r.depth <= 4, "ε {eps}: {r:?}");
+        if eps == 0.0 {
+            assert_eq!(r.sizing.world_degenerate, 300);
+        } else {
+            assert_eq!(r.sizing.exact, 300);
+        }
+        eprintln!(
+            "300 vertical triangles at one spot, ε = {eps}: depth {}, {} leaves",
+            r.depth, r.leaves
+        );
+    }
+    // Every vertex at one point: d_min = diagonal / R = 0 is refused, naming the parameter.
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.pattern_image("p", 4, 0);
+    let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    for _ in 0..50 {
+        b.triangle([DVec3::splat(3.0); 3], [DVec2::ZERO, DVec2::X, DVec2::Y], m);
+    }
+    let point = b.build();
+    let o = BuildOptions {
+        d_min: atlastree::preprocess::DMin::Ratio(20.0),
+        ..tiny_opts(64, 1.0)
+    };
+    let Err((_, e)) = try_build(&point, &o) else {
+        panic!("a point scene built with a d_min derived from its size")
+    };
+    assert!(
+        matches!(e, BuildError::InvalidParam { name: "d-min", .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("single point"), "{e}");
+    // With d_min given in metres it builds: one leaf, the paper's 1×1 area.
+    let built = build_ok(&point, &tiny_opts(64, 10.0));
+    assert_sound(&built.file);
+    assert_eq!(built.report.trees[0].leaves, 1);
+}

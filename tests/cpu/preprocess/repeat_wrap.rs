@@ -1,0 +1,449 @@
+//! Repeats wrapped in the shader (DESIGN.md "Repeats: one period per rect"): the CPU twin of the fragment
+//! shader's rect mapping samples what the original texture shows, per wrap mode, per level and at the rect
+//! edges; the split balances texel demand, not world area; a translated scene (UTM coordinates, with
+//! rounding) gives the identical tree; a UV range of ±2.9e9 on one triangle builds without NaN.
+
+use crate::built::*;
+use atlastree::ids::MaterialId;
+use atlastree::model::{AtlasRect, RectWrap};
+use atlastree::preprocess::image_ops::{
+    LinearImage, MipChain, RectJob, draw_rect, neutral_fill, sample_footprint,
+};
+use atlastree::preprocess::{BuildOptions, DMin};
+use atlastree::render::batch::RectMap;
+use atlastree::scene::synthetic::SceneBuilder;
+use atlastree::scene::{AlphaMode, DecodedImage, Scene, UpAxis, Wrap};
+use glam::{DVec2, DVec3, Vec2};
+
+/// A 64² source, continuous under the sampler's rule (else the original itself has a hard edge at the
+/// seam, where two correct filters of different shape disagree), but not symmetric: for REPEAT a periodic
+/// wave with a phase (u and v), otherwise ramps (dark → bright red in u, green in v). A wrong seam —
+/// clamping where the sampler repeats, the far edge of the rect, no reflection — shows as a jump of up to
+/// the whole range.
+fn source(periodic: bool) -> DecodedImage {
+    let n = 64u32;
+    let pixels = (0..n * n)
+        .map(|i| {
+            let (x, y) = (i % n, i / n);
+            let (u, v) = ((f64::from(x) + 0.5) / 64.0, (f64::from(y) + 0.5) / 64.0);
+            let c = |t: f64| {
+                if periodic {
+                    0.5 + 0.5 * (std::f64::consts::TAU * t + 0.9).sin()
+                } else {
+                    t
+                }
+            };
+            [(c(u) * 255.0) as u8, (c(v) * 255.0) as u8, 40, 255]
+        })
+        .collect();
+    DecodedImage {
+        width: n,
+        height: n,
+        pixels,
+    }
+}
+
+/// Bilinear sample of `img` at texel coordinates `p` (texel units, centres at +0.5), clamped to the image.
+fn bilinear(img: &LinearImage, p: DVec2) -> [f32; 4] {
+    let x = p.x - 0.5;
+    let y = p.y - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+    let at = |xi: f64, yi: f64| {
+        let cx = (xi as i64).clamp(0, i64::from(img.width) - 1) as u32;
+        let cy = (yi as i64).clamp(0, i64::from(img.height) - 1) as u32;
+        img.get(cx, cy).unwrap_or([0.0; 4])
+    };
+    let (a, b, c, d) = (
+        at(x0, y0),
+        at(x0 + 1.0, y0),
+        at(x0, y0 + 1.0),
+        at(x0 + 1.0, y0 + 1.0),
+    );
+    let mut out = [0.0f32; 4];
+    for k in 0..4 {
+        let top = a[k] * (1.0 - fx) + b[k] * fx;
+        let bottom = c[k] * (1.0 - fx) + d[k] * fx;
+        out[k] = top * (1.0 - fy) + bottom * fy;
+    }
+    out
+}
+
+fn max_diff(a: [f32; 4], b: [f32; 4]) -> f32 {
+    (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f32::max)
+}
+
+/// One case of the twin test: a rect of the source under `wrap`, holding `[lo, hi]` on both axes at
+/// 48 texels per UV, in a 128² leaf atlas with a 16-texel border.
+struct Case {
+    wrap: Wrap,
+    mode: RectWrap,
+    lo: f64,
+    hi: f64,
+    /// UVs to sample: inside, at the seams / edges, far outside.
+    us: Vec<f64>,
+}
+
+fn cases() -> Vec<Case> {
+    let seam = |c: f64| [c - 0.004, c - 0.0005, c, c + 0.0005, c + 0.004];
+    let mut repeat_full: Vec<f64> = [0.13, 0.5, 0.87, -3.6, 7.25].to_vec();
+    repeat_full.extend(seam(0.0).iter().chain(&seam(1.0)).chain(&seam(5.0)));
+    let mut repeat_part: Vec<f64> = [0.25, 0.45, 0.65, 3.3, -1.55].to_vec();
+    repeat_part.extend(seam(0.2).iter().chain(&seam(1.7)));
+    let mut mirror: Vec<f64> = [0.3, 1.3, -0.7, 2.6].to_vec();
+    mirror.extend(seam(0.0).iter().chain(&seam(1.0)).chain(&seam(2.0)));
+    let mut clamp: Vec<f64> = [0.4, -0.5, 1.5, 9.0].to_vec();
+    clamp.extend(seam(0.0).iter().chain(&seam(1.0)));
+    vec![
+        Case {
+            wrap: Wrap::Repeat,
+            mode: RectWrap::Repeat,
+            lo: 0.0,
+            hi: 1.0,
+            us: repeat_full,
+        },
+        Case {
+            wrap: Wrap::Repeat,
+            mode: RectWrap::Repeat,
+            lo: 0.2,
+            hi: 0.7,
+            us: repeat_part,
+        },
+        Case {
+            wrap: Wrap::MirroredRepeat,
+            mode: RectWrap::Mirror,
+            lo: 0.0,
+            hi: 1.0,
+            us: mirror,
+        },
+        Case {
+            wrap: Wrap::ClampToEdge,
+            mode: RectWrap::Clamp,
+            lo: 0.0,
+            hi: 1.0,
+            us: clamp,
+        },
+    ]
+}
+
+/// The rect sampled through the shader's mapping (`RectMap::texel_f32`) at level `K − n` (the leaf
+/// atlas's mip n, which is exactly that leaf's part of its level-(K − n) ancestor), against the original
+/// texture filtered over the same footprint, per wrap mode, for UVs inside, at the seams and far outside.
+/// The naive mapping (no wrap: the UV clamped to the rect) is measured too and must fail at the seams, so
+/// the tolerance is tight enough to see a wrong border.
+#[test]
+fn rect_sampling_matches_the_original_per_mode_level_and_edge() {
+    let (tpu, border, size) = (48.0f64, 16u32, 128u32);
+    let mut report = Vec::new();
+    for case in cases() {
+        let src = source(case.wrap == Wrap::Repeat);
+        let src_chain = MipChain::build(LinearImage::from_decoded(&src).unwrap());
+        let span = case.hi - case.lo;
+        let inner = (tpu * span).round() as u32;
+        let outer = inner + 2 * border;
+        let rect = AtlasRect {
+            material: MaterialId(0),
+            outer: [8, 8, outer, outer],
+            inner: [8 + border, 8 + border, inner, inner],
+            uv_min: [case.lo; 2],
+            uv_max: [case.hi; 2],
+            wrap: [case.mode; 2],
+            capped: [false; 2],
+        };
+        let mut atlas = LinearImage::new_filled(size, size, neutral_fill());
+        let job = RectJob::from_atlas_rect(&rect, [case.wrap; 2], [1.0; 4]);
+        draw_rect(&mut atlas, &job, &src_chain).unwrap();
+        let atlas = MipChain::build(atlas);
+        let map = RectMap::new(&rect, atlastree::scene::AlphaMode::Opaque);
+        let (mut worst, mut worst_naive) = (0.0f32, 0.0f32);
+        for n in 0..3u32 {
+            let scale = f64::from(1u32 << n);
+            let level = &atlas.levels[n as usize];
+            // One pixel covers one texel of the drawn level.
+            let fp = scale / f64::from(inner) * span;
+            for &u in &case.us {
+                for &v in &[0.37 * span + case.lo, u] {
+                    let uv = DVec2::new(u, v);
+                    let want = sample_footprint(&src_chain, [case.wrap; 2], uv, DVec2::splat(fp));
+                    let d = Vec2::new(fp as f32, 0.0);
+                    let (texel, _, _) =
+                        map.texel_f32(uv.as_vec2(), d, Vec2::new(0.0, fp as f32), scale as f32);
+                    let got = bilinear(level, texel.as_dvec2() / scale);
+                    if std::env::var_os("TWIN_DEBUG").is_some() && max_diff(got, want) > 0.02 {
+                        eprintln!("{:?} n={n} uv={uv} got {got:?} want {want:?}", case.mode);
+                    }
+                    worst = worst.max(max_diff(got, want));
+                    // Naive: the UV clamped to the rect's range, no wrap.
+                    let naive_t = |x: f64| x.clamp(case.lo, case.hi) - case.lo;
+                    let p = DVec2::new(
+                        f64::from(rect.inner[0]) + naive_t(u) * tpu,
+                        f64::from(rect.inner[1]) + naive_t(v) * tpu,
+                    );
+                    let naive = bilinear(level, p / scale);
+                    worst_naive = worst_naive.max(max_diff(naive, want));
+                }
+            }
+        }
+        report.push(format!(
+            "{:?} [{}, {}]: worst {worst:.4}, naive {worst_naive:.3}",
+            case.mode, case.lo, case.hi
+        ));
+        assert!(
+            worst <= 0.03,
+            "{:?} [{}, {}]: the rect through the shader's mapping differs from the original by {worst} \
+             (linear, max over R, G, B)",
+            case.mode,
+            case.lo,
+            case.hi
+        );
+        if case.mode != RectWrap::Clamp {
+            assert!(
+                worst_naive > 0.1,
+                "{:?}: the naive mapping should fail at the seams ({worst_naive})",
+                case.mode
+            );
+        }
+    }
+    eprintln!(
+        "rect sampling vs the original, levels K..K−2:\n  {}",
+        report.join("\n  ")
+    );
+}
+
+/// A hand-made scene whose world areas and texel demands disagree: west, 16 big ground tiles (100 × 100 m
+/// each) share one repeated texture (one period in any atlas); east, 16 small 2 × 2 m plates with a
+/// texture each. Equal world areas put almost everything east of the cut into one half; equal demand cuts
+/// among the plates. The first split (x) of the demand tree keeps the shared-texture tiles and part of
+/// the plates together, the area tree separates the tiles from every plate.
+#[test]
+fn the_split_balances_texel_demand_not_world_area() {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let ground_img = b.pattern_image("ground", 64, 0);
+    let ground = b.material(ground_img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    for i in 0..16 {
+        let x = f64::from(i % 4) * 100.0;
+        let z = f64::from(i / 4) * 100.0;
+        b.quad(
+            [
+                DVec3::new(x, 0.0, z),
+                DVec3::new(x + 100.0, 0.0, z),
+                DVec3::new(x + 100.0, 0.0, z + 100.0),
+                DVec3::new(x, 0.0, z + 100.0),
+            ],
+            DVec2::ZERO,
+            DVec2::splat(20.0),
+            ground,
+        );
+    }
+    for i in 0..16 {
+        let img = b.pattern_image(&format!("plate {i}"), 64, 1 + i);
+        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let x = 420.0 + f64::from(i % 4) * 5.0;
+        let z = f64::from(i / 4) * 100.0 + 40.0;
+        b.quad(
+            [
+                DVec3::new(x, 0.0, z),
+                DVec3::new(x + 2.0, 0.0, z),
+                DVec3::new(x + 2.0, 0.0, z + 2.0),
+                DVec3::new(x, 0.0, z + 2.0),
+            ],
+            DVec2::ZERO,
+            DVec2::ONE,
+            m,
+        );
+    }
+    let scene = b.build();
+    let opts = |split| BuildOptions {
+        split,
+        ..tiny_opts(128, 30.0)
+    };
+    let plates_beside_tiles = |built: &Built| -> usize {
+        // Which top-level quadrant (by its x half) each triangle ended in: count plates sharing the west
+        // half with the tiles.
+        let t = built.file.tree(0).unwrap();
+        let root = &t.nodes[0];
+        let west: Vec<u32> = [0usize, 2]
+            .iter()
+            .filter_map(|&q| {
+                let c = root.children[q];
+                (c != atlastree::ids::NONE).then_some(c)
+            })
+            .collect();
+        let mut plates = 0;
+        for c in west {
+            let n = &t.nodes[c as usize];
+            let tris = &t.source_triangles
+                [n.first_index as usize / 3..(n.first_index + n.index_count) as usize / 3];
+            plates += tris.iter().filter(|&&s| s >= 32).count() / 2;
+        }
+        plates
+    };
+    let demand = build_ok(
+        &scene,
+        &opts(atlastree::preprocess::layout::SplitRule::Demand),
+    );
+    let area = build_ok(
+        &scene,
+        &opts(atlastree::preprocess::layout::SplitRule::Area),
+    );
+    assert_sound(&demand.file);
+    assert_sound(&area.file);
+    let (d, a) = (plates_beside_tiles(&demand), plates_beside_tiles(&area));
+    eprintln!(
+        "plates in the tiles' half: demand split {d} of 16, area split {a} of 16 (nodes {} vs {})",
+        demand.report.trees[0].nodes, area.report.trees[0].nodes
+    );
+    assert_eq!(a, 0, "the area split puts the tiles alone in the west half");
+    assert!(
+        (4..=12).contains(&d),
+        "the demand split balances the plates' textures against the one shared tile texture: {d}"
+    );
+}
+
+/// Adds `by` to every position, rounding as f64 does (the scene's coordinates are not representable
+/// after the translation, as in real data).
+fn translated(scene: &Scene, by: DVec3) -> Scene {
+    let mut s = scene.clone();
+    for v in &mut s.vertices {
+        v.pos += by;
+    }
+    s
+}
+
+/// A scene with coordinates that lose bits when moved to UTM size: vertices at irrational-looking
+/// offsets.
+fn jittered_city() -> Scene {
+    let mut s = atlastree::scene::synthetic::small_city(3, 64);
+    for (i, v) in s.vertices.iter_mut().enumerate() {
+        let j = (i as f64 * 0.618_033_988_749_895).fract();
+        v.pos += DVec3::new(j * 0.731, 0.0, (1.0 - j) * 0.377);
+    }
+    s
+}
+
+/// The same scene under an extra translation of (4.5e6, 120, 5.5e6) — positions rounded to f64 at that
+/// size, so every midpoint and area differs in its last bits — gives the identical tree: every node's level,
+/// cell, children and triangle set, every leaf's rects.
+#[test]
+fn a_translated_scene_gives_the_identical_tree() {
+    let scene = jittered_city();
+    let moved = translated(&scene, DVec3::new(4.5e6, 120.0, 5.5e6));
+    // The translation really rounds: some positions differ from exact after moving back.
+    let rounded = scene
+        .vertices
+        .iter()
+        .zip(&moved.vertices)
+        .filter(|(a, b)| (b.pos - DVec3::new(4.5e6, 120.0, 5.5e6)) != a.pos)
+        .count();
+    assert!(rounded > 100, "{rounded} positions rounded");
+    for opts in [
+        BuildOptions {
+            d_min: DMin::Ratio(60.0),
+            ..tiny_opts(128, 1.0)
+        },
+        BuildOptions {
+            d_min: DMin::Ratio(60.0),
+            atlas_size: 128,
+            max_file_bytes: 256 << 20,
+            ..BuildOptions::default()
+        },
+    ] {
+        let a = build_ok(&scene, &opts);
+        let b = build_ok(&moved, &opts);
+        let (ta, tb) = (a.file.tree(0).unwrap(), b.file.tree(0).unwrap());
+        assert!(ta.nodes.len() > 1, "want a multi-node tree");
+        assert_eq!(ta.nodes.len(), tb.nodes.len());
+        for (i, (x, y)) in ta.nodes.iter().zip(tb.nodes).enumerate() {
+            assert_eq!(
+                (x.level, x.cell, x.children, x.first_index, x.index_count),
+                (y.level, y.cell, y.children, y.first_index, y.index_count),
+                "node {i}"
+            );
+        }
+        assert_eq!(ta.source_triangles, tb.source_triangles, "triangle sets");
+        for (x, y) in ta.leaves.iter().zip(tb.leaves) {
+            let (rx, ry) = (ta.leaf_rects(x), tb.leaf_rects(y));
+            assert_eq!(rx.len(), ry.len());
+            for (p, q) in rx.iter().zip(ry) {
+                assert_eq!(
+                    (p.material, p.outer, p.inner, p.flags),
+                    (q.material, q.outer, q.inner, q.flags)
+                );
+            }
+        }
+        eprintln!(
+            "translated by (4.5e6, 120, 5.5e6), {rounded} positions rounded: {} nodes, identical",
+            ta.nodes.len()
+        );
+    }
+}
+
+/// One triangle whose UVs span ±2.9e9 repetitions: it builds (one period), verifies, and the shader's
+/// mapping gives finite texels inside the rect at its vertices and across it.
+#[test]
+fn a_uv_range_of_2_9e9_builds_and_maps_without_nan() {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.pattern_image("t", 32, 7);
+    for (i, wrap) in [Wrap::Repeat, Wrap::MirroredRepeat, Wrap::ClampToEdge]
+        .into_iter()
+        .enumerate()
+    {
+        let m = b.material(img, [wrap; 2], AlphaMode::Opaque);
+        let x = i as f64 * 200.0;
+        b.triangle(
+            [
+                DVec3::new(x, 0.0, 0.0),
+                DVec3::new(x + 100.0, 0.0, 0.0),
+                DVec3::new(x, 0.0, 100.0),
+            ],
+            [
+                DVec2::new(-2.9e9, -2.9e9),
+                DVec2::new(2.9e9, -2.9e9),
+                DVec2::new(-2.9e9, 2.9e9),
+            ],
+            m,
+        );
+    }
+    let built = build_ok(&b.build(), &tiny_opts(128, 50.0));
+    assert_sound(&built.file);
+    let t = built.file.tree(0).unwrap();
+    let size = built.file.to_params().atlas_size as f32;
+    let mut checked = 0;
+    for leaf in t.leaves {
+        let rects = t.leaf_rects(leaf);
+        for k in 0..leaf.index_count as usize / 3 {
+            let (_, v) = leaf_triangle(&t, leaf.origin, leaf.first_index as usize / 3 + k);
+            let r = rects[v[0].rect as usize].decode();
+            assert!(
+                r.uv_max[0] - r.uv_min[0] <= 1.0 && r.uv_max[1] - r.uv_min[1] <= 1.0,
+                "{r:?}"
+            );
+            let map = RectMap::new(&r, atlastree::scene::AlphaMode::Opaque);
+            // The vertices and points across the triangle, with the enormous gradients such a triangle
+            // has on screen.
+            for a in [0.0f32, 0.25, 0.5, 1.0] {
+                for c in [0.0f32, 0.3, 1.0 - a] {
+                    let uv = Vec2::from(v[0].orig_uv) * (1.0 - a - c)
+                        + Vec2::from(v[1].orig_uv) * a
+                        + Vec2::from(v[2].orig_uv) * c;
+                    let (texel, gx, gy) =
+                        map.texel_f32(uv, Vec2::new(1e8, 0.0), Vec2::new(0.0, 1e8), 1.0);
+                    assert!(
+                        texel.is_finite() && gx.is_finite() && gy.is_finite(),
+                        "{uv} → {texel} {gx} {gy}"
+                    );
+                    let lo = Vec2::new(r.outer[0] as f32, r.outer[1] as f32);
+                    let hi = lo + Vec2::new(r.outer[2] as f32, r.outer[3] as f32);
+                    assert!(
+                        texel.cmpge(lo).all()
+                            && texel.cmple(hi).all()
+                            && texel.cmple(Vec2::splat(size)).all(),
+                        "{texel} outside {lo}..{hi}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked >= 3 * 12, "{checked}");
+}

@@ -1,0 +1,4 @@
+//! `report`: image metrics, plots and CSV.
+
+mod metrics;
+mod plot;

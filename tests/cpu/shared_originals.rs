@@ -1,0 +1,167 @@
+//! Original textures stored and paged once (issue 17): a texture shown by leaves in opposite corners of
+//! the quadtree is one slot of one block, every leaf that shows it references that block, the pager ranks
+//! it by the best of its leaves, and a flight over both corners loads it once.
+
+use crate::fixtures::corners::{POSTER, corners, options};
+use atlastree::camera::{Camera, CameraPath};
+use atlastree::ids::NodeId;
+use atlastree::paging::usage::{UsageScratch, classify};
+use atlastree::paging::{BlockTable, Event, Usage, ViewInput};
+use atlastree::preprocess::{NoProgress, build};
+use atlastree::select::{SelectOptions, min_distance_scale};
+use atlastree::sim::{SimInput, simulate_with};
+use atlastree::store::TreeFile;
+use glam::DVec3;
+use std::collections::{BTreeSet, HashMap};
+
+fn build_corners(dir: &std::path::Path) -> TreeFile {
+    let out = dir.join("corners.atlastree");
+    build(&corners(), &options(), &out, &NoProgress).unwrap();
+    TreeFile::open(&out).unwrap()
+}
+
+#[test]
+fn a_texture_in_opposite_corners_is_stored_once_and_referenced_by_both_leaves() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = build_corners(dir.path());
+    let t = file.tree(0).unwrap();
+    // Every leaf that shows the poster references the same (block, slot).
+    let mut refs: Vec<(u32, (u32, u32))> = Vec::new();
+    for leaf in t.leaves {
+        for o in t
+            .leaf_originals(leaf)
+            .iter()
+            .filter(|o| o.material == POSTER)
+        {
+            refs.push((leaf.node, (o.block, o.slot)));
+        }
+    }
+    assert!(
+        refs.len() >= 2,
+        "the poster is shown by ≥ 2 leaves: {refs:?}"
+    );
+    let places: BTreeSet<(u32, u32)> = refs.iter().map(|r| r.1).collect();
+    assert_eq!(places.len(), 1, "stored once: {refs:?}");
+    // Each material's original is stored once: the original blocks hold exactly the distinct chains.
+    let mut chains: HashMap<u32, u64> = HashMap::new();
+    for o in t.originals {
+        chains.insert(o.material, t.format().chain_bytes(o.class_size));
+    }
+    let stored: u64 = file
+        .blocks()
+        .iter()
+        .filter(|b| b.kind == atlastree::store::format::BLOCK_ORIGINALS)
+        .map(|b| b.length)
+        .sum();
+    assert_eq!(stored, chains.values().sum::<u64>(), "{chains:?}");
+    // The block table lists the shared block under both leaves; its closure parent is the atlas of
+    // their lowest common ancestor (here the root: the corners lie in different quadrants).
+    let table = BlockTable::from_file(&file).unwrap();
+    let block = atlastree::ids::BlockId(places.iter().next().unwrap().0);
+    let users: BTreeSet<u32> = table.users(block).iter().map(|n| n.0).collect();
+    let leaves: BTreeSet<u32> = refs.iter().map(|r| r.0).collect();
+    assert_eq!(users, leaves);
+    for &n in &leaves {
+        assert!(table.originals(0, NodeId(n)).contains(&block));
+    }
+    assert_eq!(table.meta(block).parent, table.atlas(0, NodeId(0)));
+    // inspect --verify holds on the shared layout.
+    let report = atlastree::inspect::verify(&file);
+    assert!(report.ok(), "{:?}", report.violations);
+}
+
+#[test]
+fn the_pager_ranks_a_shared_block_by_its_best_leaf_and_a_flight_loads_it_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = build_corners(dir.path());
+    let table = BlockTable::from_file(&file).unwrap();
+    let t = file.tree(0).unwrap();
+    let poster = t
+        .originals
+        .iter()
+        .find(|o| o.material == POSTER)
+        .map(|o| atlastree::ids::BlockId(o.block))
+        .unwrap();
+    let params = file.to_params();
+    let trees: Vec<&[atlastree::store::format::NodeRecord]> = (0..file.trees())
+        .map(|i| file.tree(i).unwrap().nodes)
+        .collect();
+    let look = |eye: DVec3, target: DVec3| Camera {
+        eye,
+        target,
+        up: DVec3::Y,
+        fov_x_deg: 60.0,
+        aspect: 4.0 / 3.0,
+        near: 0.5,
+        far: 5000.0,
+    };
+    let scale = min_distance_scale(
+        &params,
+        &SelectOptions {
+            screen_width: 800,
+            texel_ratio: 1.0,
+            fov_x_deg: 60.0,
+        },
+    )
+    .unwrap();
+    // Standing over the south-east poster, looking at it: only that corner's leaf needs originals; the
+    // shared block is needed through it, the north-west leaf's own original blocks are not.
+    let cam = look(DVec3::new(350.0, 3.0, 330.0), DVec3::new(350.0, 0.0, 350.0));
+    let frustum = cam.frustum();
+    let view = ViewInput {
+        eye: cam.eye,
+        frustum: &frustum,
+        scale,
+        lookahead: None,
+    };
+    let mut scratch = UsageScratch::default();
+    let mut out = Vec::new();
+    classify(&table, &trees, &view, &mut scratch, &mut out);
+    let usage = |b| out.iter().find(|c| c.block == b).map(|c| c.usage);
+    assert_eq!(usage(poster), Some(Usage::Needed), "{out:?}");
+    assert_eq!(out.iter().filter(|c| c.block == poster).count(), 1);
+    let far_leaf = table
+        .users(poster)
+        .iter()
+        .copied()
+        .find(|&n| {
+            let b = t.nodes[n.idx()].bounds_max;
+            b[0] < 250.0 && b[2] < 250.0
+        })
+        .unwrap();
+    for &b in table
+        .originals(0, far_leaf)
+        .iter()
+        .filter(|&&b| b != poster)
+    {
+        assert_ne!(
+            usage(b),
+            Some(Usage::Needed),
+            "north-west block {b} needed from the south-east"
+        );
+    }
+    // A flight from one corner to the other with every block allowed: every block, the shared one
+    // included, is loaded at most once (it is never loaded for the second corner again).
+    let input = SimInput::from_file(&file).unwrap();
+    let lo = DVec3::new(0.0, 0.0, 0.0);
+    let hi = DVec3::new(400.0, 1.0, 400.0);
+    let path = CameraPath::street(lo, hi, params.up).unwrap();
+    let cams: Vec<Camera> = path.frames(30.0, 300).collect();
+    let opts = atlastree::sim::SimOptions {
+        fps: 30.0,
+        pager: atlastree::paging::PagerOptions {
+            capacity: u32::MAX,
+            ..Default::default()
+        },
+        io: None,
+    };
+    let mut loads: HashMap<u32, u32> = HashMap::new();
+    simulate_with(&input, &cams, scale, &opts, &mut |_, e| {
+        if let Event::Loaded { block, .. } = e {
+            *loads.entry(block.0).or_default() += 1;
+        }
+    })
+    .unwrap();
+    assert_eq!(loads.get(&poster.0), Some(&1), "{loads:?}");
+    assert!(loads.values().all(|&n| n == 1), "{loads:?}");
+}

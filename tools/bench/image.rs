@@ -1,0 +1,69 @@
+//! `cargo bench --bench image`: throughput of the image operations of the build
+//! (`preprocess::image_ops`) on 1024² images: `draw_rect` magnifying and minifying a 512² source (wrapped),
+//! one `halve`, a whole RGBA8 mip chain (`mip_chain_rgba8`, 11 levels, encode included) and `to_rgba8`.
+//! Criterion prints texels/s next to the time (per destination texel, or per source texel for `halve`).
+//! Their correctness is `tests/cpu/preprocess/image_ops.rs`.
+
+use atlastree::preprocess::image_ops::{
+    LinearImage, MipChain, RectJob, draw_rect, halve, mip_chain_rgba8,
+};
+use atlastree::scene::Wrap;
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use std::hint::black_box;
+
+fn gradient(n: u32) -> LinearImage {
+    let data = (0..n * n).map(|i| {
+        let (x, y) = ((i % n) as f32 / n as f32, (i / n) as f32 / n as f32);
+        [x, y, 0.5 * (x + y), 1.0]
+    });
+    LinearImage {
+        width: n,
+        height: n,
+        data: data.collect(),
+    }
+}
+
+const TEXELS: u64 = 1024 * 1024;
+
+fn draw(c: &mut Criterion) {
+    let src = MipChain::build(gradient(512));
+    let mut dst = LinearImage::new_filled(1024, 1024, [0.0; 4]);
+    let job = |uv_max: f64| RectJob {
+        outer: [0, 0, 1024, 1024],
+        inner: [8, 8, 1008, 1008],
+        uv_min: [0.0; 2],
+        uv_max: [uv_max; 2],
+        wrap: [Wrap::Repeat; 2],
+        factor: [1.0; 4],
+    };
+    let mut g = c.benchmark_group("draw_rect-1024");
+    g.throughput(Throughput::Elements(TEXELS));
+    for (name, uv_max) in [
+        // 512 → 1024: one tap per texel.
+        ("magnify-2x", 1.0),
+        // 2×2 taps per texel.
+        ("minify-4x", 8.0),
+        ("minify-1.5x", 3.0),
+    ] {
+        let job = job(uv_max);
+        g.bench_function(name, |b| {
+            b.iter(|| draw_rect(black_box(&mut dst), &job, &src).unwrap())
+        });
+    }
+    g.finish();
+}
+
+fn levels(c: &mut Criterion) {
+    let big = gradient(1024);
+    let mut g = c.benchmark_group("image-1024");
+    g.throughput(Throughput::Elements(TEXELS));
+    g.bench_function("halve", |b| b.iter(|| black_box(halve(&big).width)));
+    g.bench_function("mip_chain_rgba8", |b| {
+        b.iter(|| black_box(mip_chain_rgba8(&big).len()))
+    });
+    g.bench_function("to_rgba8", |b| b.iter(|| black_box(big.to_rgba8().len())));
+    g.finish();
+}
+
+criterion_group!(benches, draw, levels);
+criterion_main!(benches);
