@@ -12,6 +12,7 @@ mod harness;
 mod paging;
 mod planner;
 mod render;
+mod residency;
 mod shared;
 mod smoke;
 mod sweep;
@@ -27,6 +28,7 @@ fn main() -> ExitCode {
         golden::tests(),
         paging::tests(),
         planner::tests(),
+        residency::tests(),
         view::tests(),
         sweep::tests(),
         compressed::tests(),
