@@ -45,6 +45,18 @@ pub struct DensityFrame {
     pub pixels: Vec<Option<TexelDensity>>,
 }
 
+impl DensityFrame {
+    /// The minimum texel density (texels of mip 0 per pixel along the least-sampled direction) of every
+    /// pixel, row-major; NaN where nothing was drawn. Input for `report::metrics::magnified_share` and
+    /// `Histogram::log2`.
+    pub fn min_density(&self) -> Vec<f32> {
+        self.pixels
+            .iter()
+            .map(|p| p.map_or(f32::NAN, |d| d.min))
+            .collect()
+    }
+}
+
 /// Pixel counts of `values` by ⌊log2 v⌋ (keys ascending); values ≤ 0 or not finite are left out.
 pub fn log2_histogram(values: impl IntoIterator<Item = f32>) -> Vec<(i32, usize)> {
     let mut bins = std::collections::BTreeMap::<i32, usize>::new();

@@ -6,11 +6,10 @@
 //!
 //! - [`psnr`]: peak signal-to-noise ratio of the RGB channels in dB, capped at [`PSNR_CAP_DB`].
 //! - [`ssim`]: mean structural similarity (Wang, Bovik, Sheikh, Simoncelli 2004) of the BT.601 luma.
-//! - [`magnified_share`], [`Histogram`]: the texel-per-pixel density of [`crate::render::density`].
+//! - [`magnified_share`], [`Histogram`]: the texel-per-pixel density of `render::density` (its `DensityFrame::min_density`).
 //! - [`pareto_front`]: the non-dominated (cost, accuracy) points of a sweep.
 
 use super::ReportError;
-use crate::render::density::DensityFrame;
 use rayon::prelude::*;
 
 /// PSNR of identical images, and the ceiling of every PSNR (dB). A finite cap keeps CSV columns numeric
@@ -212,17 +211,6 @@ fn ssim_luma(x: &[f64], y: &[f64], w: usize, h: usize) -> f64 {
     row_sums.iter().sum::<f64>() / (ow * oh) as f64
 }
 
-/// The minimum texel density (texels of mip 0 per pixel along the least-sampled direction) of every
-/// pixel of a density frame, row-major; NaN where nothing was drawn. Input for [`magnified_share`] and
-/// [`Histogram::log2`].
-pub fn min_density(frame: &DensityFrame) -> Vec<f32> {
-    frame
-        .pixels
-        .iter()
-        .map(|p| p.map_or(f32::NAN, |d| d.min))
-        .collect()
-}
-
 /// Counts of drawn pixels and of those among them below a threshold.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
 pub struct Share {
@@ -244,7 +232,7 @@ impl Share {
 }
 
 /// Among the drawn pixels of a density buffer (texels per pixel, one value per pixel; NaN or negative =
-/// not drawn, e.g. from [`min_density`]), how many receive strictly fewer than `target` texels per pixel,
+/// not drawn, e.g. from `render::density::DensityFrame::min_density`), how many receive strictly fewer than `target` texels per pixel,
 /// i.e. are magnified beyond the target texel ratio (§3.3: an atlas chosen by the selection promises at
 /// least `texel_ratio` texels per pixel). Use [`Share::fraction`] for the screen share.
 ///

@@ -9,7 +9,7 @@ use crate::paging::{FileSource, PagerOptions};
 use crate::plan::{FramePlanner, PagingSetup};
 use crate::preprocess::{NoProgress, build};
 use crate::render::{FrameStats, Mode, RenderError, Renderer, RendererOptions};
-use crate::report::metrics::{Histogram, magnified_share, min_density, psnr, psnr_masked, ssim};
+use crate::report::metrics::{Histogram, magnified_share, psnr, psnr_masked, ssim};
 use crate::scene::Scene;
 use crate::select::{SelectOptions, min_distance_scale};
 use crate::store::TreeFile;
@@ -514,7 +514,7 @@ impl VariantCtx<'_> {
         let ssim = ssim(&rgba, &reference.rgba, w, h).map_err(metric_err)?;
         // The density pass executes the same plan: it steps no pager, so paged variants get it too.
         let (_, density) = r.execute_density(frame).map_err(render_err)?;
-        let d = min_density(&density);
+        let d = density.min_density();
         let magnified = magnified_share(&d, 1.0).fraction();
         let below = magnified_share(&d, rt.texel_ratio).fraction();
         if let Some(hist) = hist {
