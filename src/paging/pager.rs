@@ -4,7 +4,10 @@
 //!
 //! Per frame:
 //! 1. [`Pager::plan`]: usage traversal ([`super::usage::classify`]), ranking by the [`Policy`], the ideal
-//!    set (the first `k` admitted candidates, closed under parents), cancellation of requests that left it,
+//!    set (the first `k` admitted candidates, closed under parents; an originals block enters only together
+//!    with every other block of a leaf that uses it, the smallest such group that fits, since a leaf draws
+//!    its originals only when all of them are resident: with shared originals a leaf may need several
+//!    blocks), cancellation of requests that left it,
 //!    and the wanted requests in priority order (bounded by `max_queue`) for the loader;
 //! 2. the loader runs and returns [`Arrival`]s;
 //! 3. [`Pager::accept`]: arrivals are staged, then made resident in rank order within the upload budget,
@@ -387,18 +390,35 @@ impl Pager {
         }
         self.ideal.clear();
         let k = self.opts.capacity as usize;
+        let mut group = Vec::new();
         for c in &candidates {
             if self.ideal.len() >= k {
                 break;
+            }
+            if self.rank[c.block.idx()] != u32::MAX {
+                continue; // taken in with a leaf's group of original blocks
             }
             let parent_ok = self
                 .table
                 .meta(c.block)
                 .parent
                 .is_none_or(|p| self.rank[p.idx()] != u32::MAX);
-            if parent_ok {
+            if !parent_ok {
+                continue;
+            }
+            if self.table.meta(c.block).item.is_atlas() {
                 self.rank[c.block.idx()] = self.ideal.len() as u32;
                 self.ideal.push(c.block);
+                continue;
+            }
+            // An originals block only serves a leaf whose originals are all resident: take it in with the
+            // rest of the smallest such group that fits in what is left of k, or leave its room to the
+            // blocks after it (shared originals, format 4: a leaf may need several blocks).
+            if self.smallest_fitting_group(c.block, k - self.ideal.len(), &mut group) {
+                for &b in &group {
+                    self.rank[b.idx()] = self.ideal.len() as u32;
+                    self.ideal.push(b);
+                }
             }
         }
         self.candidates = candidates;
@@ -626,6 +646,58 @@ impl Pager {
         if let Some(p) = self.table.meta(b).parent {
             self.resident_children[p.idx()] += 1;
         }
+    }
+
+    /// The blocks not yet ideal of the leaf (among those that use originals block `b`) that needs the
+    /// fewest of them to have all its originals, if every one is a candidate whose parent is ideal and
+    /// they fit in `room`; into `out`, `b` first. False (and `out` empty) when no leaf's group fits.
+    fn smallest_fitting_group(&self, b: BlockId, room: usize, out: &mut Vec<BlockId>) -> bool {
+        out.clear();
+        let tree = self.table.meta(b).tree as usize;
+        let mut best: Option<usize> = None;
+        let mut best_leaf = None;
+        // Without a sharing table (every leaf's originals in blocks of its own) the block's own leaf.
+        let own = [self.table.meta(b).item.node()];
+        let users = match self.table.users(b) {
+            [] => &own[..],
+            u => u,
+        };
+        for &leaf in users {
+            let blocks = match self.table.originals(tree, leaf) {
+                [] => std::slice::from_ref(&b),
+                x => x,
+            };
+            let mut missing = 0usize;
+            let feasible = blocks.iter().all(|&x| {
+                let i = x.idx();
+                if self.rank[i] != u32::MAX {
+                    return true;
+                }
+                missing += 1;
+                self.order[i] != u32::MAX
+                    && self
+                        .table
+                        .meta(x)
+                        .parent
+                        .is_none_or(|p| self.rank[p.idx()] != u32::MAX)
+            });
+            if feasible && missing <= room && best.is_none_or(|m| missing < m) {
+                best = Some(missing);
+                best_leaf = Some(leaf);
+            }
+        }
+        let Some(leaf) = best_leaf else {
+            return false;
+        };
+        out.push(b);
+        out.extend(
+            self.table
+                .originals(tree, leaf)
+                .iter()
+                .copied()
+                .filter(|&x| x != b && self.rank[x.idx()] == u32::MAX),
+        );
+        true
     }
 
     /// Takes back a block made resident this frame whose residency change could not be applied: absent
