@@ -9,7 +9,7 @@ use super::{Mode, RenderError};
 use crate::camera::Camera;
 use crate::gpu::GpuContext;
 use crate::paging::Pager;
-use crate::plan::{FramePlan, FramePlanner, PagingSetup};
+use crate::plan::{FramePlanner, PagingSetup};
 use crate::select::Cut;
 use crate::store::TreeFile;
 
@@ -60,14 +60,13 @@ impl<'f> FrameLoop<'f> {
         self.clock_set = true;
     }
 
-    fn next_plan(&mut self, camera: &Camera, scale: f64) -> Result<&FramePlan, RenderError> {
+    /// The clock of the next paged plan: as set, or 1/60 s after the last one.
+    fn tick(&mut self) -> f64 {
         if !self.clock_set {
             self.clock += 1.0 / 60.0;
         }
         self.clock_set = false;
-        Ok(self
-            .planner
-            .plan(camera, self.clock, scale, &mut self.renderer.residency())?)
+        self.clock
     }
 
     /// Plans and draws one frame of `camera` (its aspect should be width/height) with node
@@ -78,8 +77,10 @@ impl<'f> FrameLoop<'f> {
         scale: f64,
         mode: Mode,
     ) -> Result<FrameStats, RenderError> {
-        self.next_plan(camera, scale)?;
-        let plan = self.planner.last().ok_or(RenderError::NoPlan)?;
+        let now = self.tick();
+        let plan = self
+            .planner
+            .plan(camera, now, scale, &mut self.renderer.residency())?;
         self.renderer.execute(plan, mode)
     }
 
@@ -89,8 +90,10 @@ impl<'f> FrameLoop<'f> {
         camera: &Camera,
         scale: f64,
     ) -> Result<(FrameStats, DensityFrame), RenderError> {
-        self.next_plan(camera, scale)?;
-        let plan = self.planner.last().ok_or(RenderError::NoPlan)?;
+        let now = self.tick();
+        let plan = self
+            .planner
+            .plan(camera, now, scale, &mut self.renderer.residency())?;
         self.renderer.execute_density(plan)
     }
 

@@ -123,8 +123,6 @@ pub enum RenderError {
     Blocks(#[from] crate::paging::BlockTableError),
     #[error(transparent)]
     Plan(#[from] crate::plan::PlanError),
-    #[error("no frame was planned")]
-    NoPlan,
     #[error("the plan has {cuts} cuts but the renderer's file has {trees} trees")]
     PlanMismatch { cuts: usize, trees: usize },
     #[error("original slot {slot} of block {block} is missing from its tree's slot table")]
