@@ -466,12 +466,12 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
 }
 
 /// The paging columns of `stats.csv`.
-const PAGING_HEADER: &str = "blocks_needed,blocks_culled,blocks_parent_needed,ideal,resident,queued,in_flight,loaded,bytes_loaded,bytes_loaded_originals,resident_bytes_atlases,resident_bytes_originals,ideal_fraction,coarser_share,coarser_items,evictions,cancelled,discarded,failures,upload_ms,atlas_layers_used,original_layers_used,apply_errors,resident_hash";
+const PAGING_HEADER: &str = "blocks_needed,blocks_culled,blocks_parent_needed,ideal,resident,queued,in_flight,loaded,bytes_loaded,bytes_loaded_originals,resident_bytes_atlases,resident_bytes_originals,ideal_fraction,coarser_share,coarser_items,evictions,cancelled,discarded,failures,upload_ms,atlas_layers_used,original_layers_used,apply_errors,evict_errors,resident_hash";
 
 fn paging_row(f: &FrameStats, p: &PagingFrame) -> String {
     let s = &p.session.pager;
     format!(
-        "{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{},{},{},{},{},{:.3},{},{},{},{:016x}",
+        "{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{},{},{},{},{},{:.3},{},{},{},{},{:016x}",
         s.usage.needed,
         s.usage.culled,
         s.usage.parent_needed,
@@ -495,6 +495,7 @@ fn paging_row(f: &FrameStats, p: &PagingFrame) -> String {
         f.atlas_layers_used,
         f.original_layers_used,
         p.apply_errors,
+        p.evict_errors,
         p.resident_hash
     )
 }

@@ -21,7 +21,7 @@
 use super::blocks::BlockTable;
 use super::policy::Policy;
 use super::usage::{Candidate, UsageCounts, UsageScratch, ViewInput, classify};
-use crate::ids::BlockId;
+use crate::ids::{BlockId, NodeId};
 use crate::store::format::NodeRecord;
 use serde::Serialize;
 use std::time::Instant;
@@ -414,9 +414,12 @@ impl Pager {
             // An originals block only serves a leaf whose originals are all resident: take it in with the
             // rest of the smallest such group that fits in what is left of k, or leave its room to the
             // blocks after it (shared originals, format 4: a leaf may need several blocks).
-            if self.smallest_fitting_group(c.block, k - self.ideal.len(), &mut group) {
+            if self.leaf_group(c.block, k - self.ideal.len(), &mut group) {
+                let lead = self.order[c.block.idx()];
                 for &b in &group {
                     self.rank[b.idx()] = self.ideal.len() as u32;
+                    // Taken in with its lead: it ranks as the lead does (eviction order, violations).
+                    self.order[b.idx()] = self.order[b.idx()].min(lead);
                     self.ideal.push(b);
                 }
             }
@@ -569,9 +572,12 @@ impl Pager {
             self.stats.bytes_loaded += bytes;
             if apply(Event::Loaded { block, data }) == Applied::Failed {
                 // The executor could not make it usable (e.g. the GPU upload failed): not resident, counted
-                // as a failed load and retried after the back-off, so residency never names a block that
-                // cannot be drawn. Nothing was staged after it yet, so no child depends on it.
+                // as a failed load (not as a load) and retried after the back-off, so residency never names
+                // a block that cannot be drawn. Nothing was staged after it yet, so no child depends on it.
                 self.revoke(block);
+                accepted_bytes -= bytes;
+                self.stats.loaded -= 1;
+                self.stats.bytes_loaded -= bytes;
             }
         }
         // Over capacity after a capacity decrease: shed the least important non-ideal blocks.
@@ -648,21 +654,30 @@ impl Pager {
         }
     }
 
-    /// The blocks not yet ideal of the leaf (among those that use originals block `b`) that needs the
-    /// fewest of them to have all its originals, if every one is a candidate whose parent is ideal and
-    /// they fit in `room`; into `out`, `b` first. False (and `out` empty) when no leaf's group fits.
-    fn smallest_fitting_group(&self, b: BlockId, room: usize, out: &mut Vec<BlockId>) -> bool {
+    /// The blocks not yet ideal of the most important leaf (its atlas earliest among this frame's
+    /// candidates) among those that use originals block `b`, whose missing blocks are all candidates with
+    /// ideal parents and fit in `room`; into `out`, `b` first. Leaves whose atlas is no candidate (not in
+    /// this frame's traversal) are not considered. False (and `out` empty) when no leaf's group fits.
+    fn leaf_group(&self, b: BlockId, room: usize, out: &mut Vec<BlockId>) -> bool {
         out.clear();
         let tree = self.table.meta(b).tree as usize;
-        let mut best: Option<usize> = None;
-        let mut best_leaf = None;
         // Without a sharing table (every leaf's originals in blocks of its own) the block's own leaf.
         let own = [self.table.meta(b).item.node()];
         let users = match self.table.users(b) {
             [] => &own[..],
             u => u,
         };
+        let importance = |leaf: NodeId| {
+            self.table
+                .atlas(tree, leaf)
+                .map_or(u32::MAX, |a| self.order[a.idx()])
+        };
+        let mut best: Option<(u32, NodeId)> = None;
         for &leaf in users {
+            let order = importance(leaf);
+            if order == u32::MAX || best.is_some_and(|(o, _)| o <= order) {
+                continue;
+            }
             let blocks = match self.table.originals(tree, leaf) {
                 [] => std::slice::from_ref(&b),
                 x => x,
@@ -681,18 +696,17 @@ impl Pager {
                         .parent
                         .is_none_or(|p| self.rank[p.idx()] != u32::MAX)
             });
-            if feasible && missing <= room && best.is_none_or(|m| missing < m) {
-                best = Some(missing);
-                best_leaf = Some(leaf);
+            if feasible && missing <= room {
+                best = Some((order, leaf));
             }
         }
-        let Some(leaf) = best_leaf else {
+        let Some((_, leaf)) = best else {
             return false;
         };
         out.push(b);
+        let blocks = self.table.originals(tree, leaf);
         out.extend(
-            self.table
-                .originals(tree, leaf)
+            blocks
                 .iter()
                 .copied()
                 .filter(|&x| x != b && self.rank[x.idx()] == u32::MAX),

@@ -72,6 +72,8 @@ pub enum PlanError {
     RootApply { block: BlockId, message: String },
     #[error("the planner does not page (a paged run was asked of an all-resident planner)")]
     NotPaged,
+    #[error("the frame clock is not a finite time: {time}")]
+    TimeNotFinite { time: f64 },
     #[error("the frame clock ran backwards: {time} s after {last} s")]
     TimeBackwards { time: f64, last: f64 },
 }
@@ -90,7 +92,7 @@ pub struct PagingFrame {
     pub session: SessionFrame,
     /// Screen accounting of the draws: share rendered coarser than the selection asked for.
     pub coarse: Coarseness,
-    /// Time spent applying residency changes (uploads), ms, and bytes the executor uploaded.
+    /// Time spent in the executor applying residency changes (uploads, frees), ms, and bytes it uploaded.
     pub upload_ms: f64,
     pub uploaded_bytes: u64,
     /// Of the bytes the pager loaded this frame, those of original-texture blocks (the rest are atlases).
@@ -100,8 +102,11 @@ pub struct PagingFrame {
     pub resident_original_bytes: u64,
     /// `xxh3_64` of the sorted resident block ids (compared between renderer and simulator).
     pub resident_hash: u64,
-    /// Residency changes the executor could not apply this frame (loads taken back, drawn coarser).
+    /// Loads the executor could not apply this frame (taken back by the pager, drawn coarser, retried).
     pub apply_errors: u32,
+    /// Evictions the executor could not apply this frame (the block is gone from residency either way;
+    /// the executor's bookkeeping reported a broken invariant).
+    pub evict_errors: u32,
 }
 
 /// Counters of one plan.
@@ -330,6 +335,11 @@ impl<'a> FramePlanner<'a> {
         scale: f64,
         residency: &mut dyn Residency,
     ) -> Result<&FramePlan, PlanError> {
+        if let Some(t) = time
+            && !t.is_finite()
+        {
+            return Err(PlanError::TimeNotFinite { time: t });
+        }
         if let (Some(p), Some(t)) = (&self.paging, time)
             && let Some(last) = p.last_time
             && t < last
@@ -337,13 +347,15 @@ impl<'a> FramePlanner<'a> {
             return Err(PlanError::TimeBackwards { time: t, last });
         }
         if let Some(p) = &mut self.paging {
-            for ev in p.pending.drain(..) {
-                let block = match &ev {
+            // One at a time, removed once applied: after an error the rest stay pending for a retry.
+            while let Some(ev) = p.pending.first() {
+                let block = match ev {
                     Event::Loaded { block, .. } | Event::Evicted { block } => *block,
                 };
                 residency
-                    .apply(&ev)
+                    .apply(ev)
                     .map_err(|message| PlanError::RootApply { block, message })?;
+                p.pending.remove(0);
             }
         }
         let t0 = Instant::now();
@@ -368,9 +380,10 @@ impl<'a> FramePlanner<'a> {
             if let Some(now) = time {
                 p.last_time = Some(now);
                 let table = &p.table;
-                let (mut uploaded, mut errors, mut loaded_originals) = (0u64, 0u32, 0u64);
+                let (mut uploaded, mut loaded_originals) = (0u64, 0u64);
+                let (mut load_errors, mut evict_errors) = (0u32, 0u32);
                 let mut last_error = None;
-                let t = Instant::now();
+                let mut apply_time = std::time::Duration::ZERO;
                 let session = p.session.frame(
                     &self.trees,
                     &selector,
@@ -379,32 +392,53 @@ impl<'a> FramePlanner<'a> {
                     now,
                     &mut *p.loader,
                     |ev| {
-                        if let Event::Loaded { block, .. } = &ev {
-                            loaded_originals += table.bytes_by_kind([*block]).1;
-                        }
-                        match residency.apply(&ev) {
-                            Ok(b) => {
+                        let t = Instant::now();
+                        let result = residency.apply(&ev);
+                        apply_time += t.elapsed();
+                        let load = match &ev {
+                            Event::Loaded { block, .. } => Some(*block),
+                            Event::Evicted { .. } => None,
+                        };
+                        match (result, load) {
+                            (Ok(b), load) => {
                                 uploaded += b;
+                                if let Some(block) = load {
+                                    loaded_originals += table.bytes_by_kind([block]).1;
+                                }
                                 Applied::Done
                             }
-                            Err(e) => {
-                                errors += 1;
+                            (Err(e), Some(_)) => {
+                                load_errors += 1;
+                                last_error = Some(e);
+                                Applied::Failed
+                            }
+                            (Err(e), None) => {
+                                evict_errors += 1;
                                 last_error = Some(e);
                                 Applied::Failed
                             }
                         }
                     },
                 );
-                frame_stats.upload_ms = t.elapsed().as_secs_f64() * 1e3;
+                frame_stats.upload_ms = apply_time.as_secs_f64() * 1e3;
                 frame_stats.session = session;
                 frame_stats.uploaded_bytes = uploaded;
                 frame_stats.loaded_original_bytes = loaded_originals;
-                frame_stats.apply_errors = errors;
+                frame_stats.apply_errors = load_errors;
+                frame_stats.evict_errors = evict_errors;
                 if last_error.is_some() {
                     p.last_error = last_error;
                 }
             } else {
-                frame_stats.session.pager = *p.session.pager.frame_stats();
+                // Nothing happened: the state of the last step, none of its per-frame deltas.
+                let last = *p.session.pager.frame_stats();
+                let s = &mut frame_stats.session.pager;
+                s.usage = last.usage;
+                s.ideal = last.ideal;
+                s.resident = last.resident;
+                s.ideal_resident = last.ideal_resident;
+                s.requested = last.requested;
+                s.staged = last.staged;
             }
             let pager = &p.session.pager;
             let table = &p.table;

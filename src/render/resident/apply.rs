@@ -87,11 +87,22 @@ impl Resident {
                 arr.layers.free(layer);
                 return Err(RenderError::ShortBlock { block });
             };
-            if let Some(slot) = info.atlas_slots.get_mut(node as usize) {
-                *slot = Some(AtlasSlot {
-                    array: ai as u32,
-                    layer,
-                });
+            match info.atlas_slots.get_mut(node as usize) {
+                Some(slot @ None) => {
+                    *slot = Some(AtlasSlot {
+                        array: ai as u32,
+                        layer,
+                    })
+                }
+                _ => {
+                    arr.layers.free(layer);
+                    return Err(RenderError::Residency {
+                        what: "uploading an atlas whose node already holds a layer (or does not exist)",
+                        unique: node,
+                        class: ai as u32,
+                        layer,
+                    });
+                }
             }
             p.decoded_on_load += u64::from(stored != target);
             p.atlas_layers_used += 1;
@@ -117,7 +128,8 @@ impl Resident {
                 Err(e) => {
                     // Hand back what this block referenced so far: no reference without a resident block.
                     for &(done, _) in &held[..i] {
-                        self.release_unique(done)?;
+                        // A rollback that fails is a broken invariant too; the first error is reported.
+                        let _ = self.release_unique(done);
                     }
                     return Err(e);
                 }
@@ -173,8 +185,24 @@ impl Resident {
             .get(block.idx())
             .cloned()
             .unwrap_or_default();
+        // Check every reference first, so a broken count changes nothing; then release them all (a layer
+        // that fails to free is reported after the rest are released).
+        if let Some(&(ui, _)) = held
+            .iter()
+            .find(|&&(u, _)| self.residency.unique_refs[u as usize] == 0)
+        {
+            return Err(RenderError::Residency {
+                what: "evicting an original that holds no reference",
+                unique: ui,
+                class: self.uniques[ui as usize].class,
+                layer: 0,
+            });
+        }
+        let mut first_error = None;
         for (ui, _) in held {
-            self.release_unique(ui)?;
+            if let Err(e) = self.release_unique(ui) {
+                first_error.get_or_insert(e);
+            }
         }
         let p = &self.residency;
         let info = &mut self.infos[tree as usize];
@@ -183,7 +211,7 @@ impl Resident {
                 *m += 1;
             }
         }
-        Ok(())
+        first_error.map_or(Ok(()), Err)
     }
 
     /// One reference more to unique `ui` carried by `block` at `offset`: its first reference allocates a
