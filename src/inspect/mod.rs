@@ -124,19 +124,23 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
                 originals_sse += b.sse;
             }
         }
-        let mut sharing: std::collections::HashMap<(u32, u32), u64> = Default::default();
+        // Per stored original (block, slot): its class size and how many leaves reference it.
+        let mut sharing: std::collections::HashMap<(u32, u32), (u32, u64)> = Default::default();
         for o in t.originals {
-            *sharing.entry((o.block, o.slot)).or_default() += 1;
+            sharing
+                .entry((o.block, o.slot))
+                .or_insert((o.class_size, 0))
+                .1 += 1;
         }
         let mut hist: std::collections::BTreeMap<u64, u64> = Default::default();
-        for &n in sharing.values() {
+        for &(_, n) in sharing.values() {
             *hist.entry(n).or_default() += 1;
         }
         let histogram: Vec<(u64, u64)> = hist.into_iter().collect();
-        let original_samples: u64 = t
-            .originals
-            .iter()
-            .map(|o| TexFormat::Rgba8.chain_bytes(o.class_size) / 4 * t.kind.channels() as u64)
+        // The stored chains' samples, each once (the block errors are of the stored bytes).
+        let original_samples: u64 = sharing
+            .values()
+            .map(|&(size, _)| TexFormat::Rgba8.chain_bytes(size) / 4 * t.kind.channels() as u64)
             .sum();
         trees.push(TreeInfo {
             kind: t.kind,
