@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Draws the module map of src/ as an SVG, read from the code (the same rule as tests/architecture.rs:
+"""Draws the module map of src/ as an SVG, read from the code (the same rule as tests/cpu/architecture.rs:
 top-level module A depends on B when a file of A names `crate::B`, comments and unit tests left out).
 
 Modules are placed in pipeline order: columns by the longest import chain below them (leaves of the graph

@@ -71,7 +71,7 @@ pub struct BlockTable {
     /// appears under every leaf that references it.
     pub original_blocks: Vec<BlockId>,
     /// Per block, the leaf nodes referencing it (original-texture blocks; see [`BlockTable::users`]).
-    pub users: Vec<Vec<NodeId>>,
+    users: Vec<Vec<NodeId>>,
 }
 
 /// Why a block table could not be made (only from unvalidated, hand-made inputs).
@@ -185,8 +185,8 @@ impl BlockTable {
         Ok(())
     }
 
-    /// The leaf nodes whose originals reference original-texture block `b` (after
-    /// [`BlockTable::share_originals`]; before, empty).
+    /// The leaf nodes whose originals reference original-texture block `b`: its own leaf, or after
+    /// [`BlockTable::share_originals`] every leaf that references it (empty for atlases).
     pub fn users(&self, b: BlockId) -> &[NodeId] {
         self.users.get(b.idx()).map_or(&[], Vec::as_slice)
     }
@@ -310,7 +310,10 @@ impl BlockTable {
             })
             .collect();
         by_node.sort_unstable();
+        table.users = vec![Vec::new(); table.blocks.len()];
         for (tree, node, _, b) in by_node {
+            // Each block serves its own leaf until [`BlockTable::share_originals`] says otherwise.
+            table.users[b.idx()].push(NodeId(node));
             let range = &mut table.trees[tree as usize].originals[node as usize];
             if range.1 == 0 {
                 range.0 = table.original_blocks.len() as u32;

@@ -5,9 +5,9 @@
 //! Per frame:
 //! 1. [`Pager::plan`]: usage traversal ([`super::usage::classify`]), ranking by the [`Policy`], the ideal
 //!    set (the first `k` admitted candidates, closed under parents; an originals block enters only together
-//!    with every other block of a leaf that uses it, the smallest such group that fits, since a leaf draws
-//!    its originals only when all of them are resident: with shared originals a leaf may need several
-//!    blocks), cancellation of requests that left it,
+//!    with every other block of a leaf that uses it — the most important such leaf whose group fits —,
+//!    since a leaf draws its originals only when all of them are resident: with shared originals a leaf
+//!    may need several blocks), cancellation of requests that left it,
 //!    and the wanted requests in priority order (bounded by `max_queue`) for the loader;
 //! 2. the loader runs and returns [`Arrival`]s;
 //! 3. [`Pager::accept`]: arrivals are staged, then made resident in rank order within the upload budget,
@@ -398,12 +398,7 @@ impl Pager {
             if self.rank[c.block.idx()] != u32::MAX {
                 continue; // taken in with a leaf's group of original blocks
             }
-            let parent_ok = self
-                .table
-                .meta(c.block)
-                .parent
-                .is_none_or(|p| self.rank[p.idx()] != u32::MAX);
-            if !parent_ok {
+            if !self.parent_ideal(c.block) {
                 continue;
             }
             if self.table.meta(c.block).item.is_atlas() {
@@ -412,8 +407,8 @@ impl Pager {
                 continue;
             }
             // An originals block only serves a leaf whose originals are all resident: take it in with the
-            // rest of the smallest such group that fits in what is left of k, or leave its room to the
-            // blocks after it (shared originals, format 4: a leaf may need several blocks).
+            // rest of such a leaf's group ([`Pager::leaf_group`]) if it fits in what is left of k, or leave
+            // its room to the blocks after it (shared originals, format 4: a leaf may need several blocks).
             if self.leaf_group(c.block, k - self.ideal.len(), &mut group) {
                 let lead = self.order[c.block.idx()];
                 for &b in &group {
@@ -513,11 +508,7 @@ impl Pager {
                 }
                 Err(_) => {
                     self.state[i] = State::Absent;
-                    self.stats.failures += 1;
-                    let n = self.fail_count[i].min(6);
-                    self.fail_count[i] = self.fail_count[i].saturating_add(1);
-                    self.failed_until[i] =
-                        self.frame + u64::from(self.opts.retry_frames.max(1)) * (1u64 << n);
+                    self.back_off(a.block);
                 }
             }
         }
@@ -566,19 +557,18 @@ impl Pager {
                 let _ = apply(Event::Evicted { block: victim });
             }
             self.make_resident(block);
-            let bytes = self.table.blocks[i].bytes;
-            accepted_bytes += bytes;
-            self.stats.loaded += 1;
-            self.stats.bytes_loaded += bytes;
             if apply(Event::Loaded { block, data }) == Applied::Failed {
                 // The executor could not make it usable (e.g. the GPU upload failed): not resident, counted
                 // as a failed load (not as a load) and retried after the back-off, so residency never names
                 // a block that cannot be drawn. Nothing was staged after it yet, so no child depends on it.
-                self.revoke(block);
-                accepted_bytes -= bytes;
-                self.stats.loaded -= 1;
-                self.stats.bytes_loaded -= bytes;
+                self.unmake_resident(block);
+                self.back_off(block);
+                continue;
             }
+            let bytes = self.table.blocks[i].bytes;
+            accepted_bytes += bytes;
+            self.stats.loaded += 1;
+            self.stats.bytes_loaded += bytes;
         }
         // Over capacity after a capacity decrease: shed the least important non-ideal blocks.
         while self.resident.len() as u32 > self.opts.capacity {
@@ -661,12 +651,7 @@ impl Pager {
     fn leaf_group(&self, b: BlockId, room: usize, out: &mut Vec<BlockId>) -> bool {
         out.clear();
         let tree = self.table.meta(b).tree as usize;
-        // Without a sharing table (every leaf's originals in blocks of its own) the block's own leaf.
-        let own = [self.table.meta(b).item.node()];
-        let users = match self.table.users(b) {
-            [] => &own[..],
-            u => u,
-        };
+        let users = self.table.users(b);
         let importance = |leaf: NodeId| {
             self.table
                 .atlas(tree, leaf)
@@ -678,10 +663,7 @@ impl Pager {
             if order == u32::MAX || best.is_some_and(|(o, _)| o <= order) {
                 continue;
             }
-            let blocks = match self.table.originals(tree, leaf) {
-                [] => std::slice::from_ref(&b),
-                x => x,
-            };
+            let blocks = self.table.originals(tree, leaf);
             let mut missing = 0usize;
             let feasible = blocks.iter().all(|&x| {
                 let i = x.idx();
@@ -689,12 +671,7 @@ impl Pager {
                     return true;
                 }
                 missing += 1;
-                self.order[i] != u32::MAX
-                    && self
-                        .table
-                        .meta(x)
-                        .parent
-                        .is_none_or(|p| self.rank[p.idx()] != u32::MAX)
+                self.order[i] != u32::MAX && self.parent_ideal(x)
             });
             if feasible && missing <= room {
                 best = Some((order, leaf));
@@ -714,24 +691,17 @@ impl Pager {
         true
     }
 
-    /// Takes back a block made resident this frame whose residency change could not be applied: absent
-    /// again, one failure more, retried after the same back-off as a failed load.
-    fn revoke(&mut self, b: BlockId) {
+    /// One failure more for `b`: not requested again before the back-off (doubling per failure, capped).
+    fn back_off(&mut self, b: BlockId) {
         let i = b.idx();
-        self.state[i] = State::Absent;
-        if let Some(pos) = self.resident.iter().position(|&r| r == b) {
-            self.resident.swap_remove(pos);
-        }
-        if let Some(p) = self.table.meta(b).parent {
-            self.resident_children[p.idx()] -= 1;
-        }
         self.stats.failures += 1;
         let n = self.fail_count[i].min(6);
         self.fail_count[i] = self.fail_count[i].saturating_add(1);
         self.failed_until[i] = self.frame + u64::from(self.opts.retry_frames.max(1)) * (1u64 << n);
     }
 
-    fn evict(&mut self, b: BlockId) {
+    /// Removes `b` from residency (absent again), the inverse of [`Pager::make_resident`].
+    fn unmake_resident(&mut self, b: BlockId) {
         self.state[b.idx()] = State::Absent;
         if let Some(pos) = self.resident.iter().position(|&r| r == b) {
             self.resident.swap_remove(pos);
@@ -739,6 +709,18 @@ impl Pager {
         if let Some(p) = self.table.meta(b).parent {
             self.resident_children[p.idx()] -= 1;
         }
+    }
+
+    /// Whether `b`'s parent (if any) is in the ideal set built so far.
+    fn parent_ideal(&self, b: BlockId) -> bool {
+        self.table
+            .meta(b)
+            .parent
+            .is_none_or(|p| self.rank[p.idx()] != u32::MAX)
+    }
+
+    fn evict(&mut self, b: BlockId) {
+        self.unmake_resident(b);
         self.stats.evictions += 1;
     }
 

@@ -399,21 +399,20 @@ impl<'a> FramePlanner<'a> {
                             Event::Loaded { block, .. } => Some(*block),
                             Event::Evicted { .. } => None,
                         };
-                        match (result, load) {
-                            (Ok(b), load) => {
+                        match result {
+                            Ok(b) => {
                                 uploaded += b;
                                 if let Some(block) = load {
                                     loaded_originals += table.bytes_by_kind([block]).1;
                                 }
                                 Applied::Done
                             }
-                            (Err(e), Some(_)) => {
-                                load_errors += 1;
-                                last_error = Some(e);
-                                Applied::Failed
-                            }
-                            (Err(e), None) => {
-                                evict_errors += 1;
+                            Err(e) => {
+                                *if load.is_some() {
+                                    &mut load_errors
+                                } else {
+                                    &mut evict_errors
+                                } += 1;
                                 last_error = Some(e);
                                 Applied::Failed
                             }

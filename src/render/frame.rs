@@ -345,11 +345,6 @@ impl<'f> Renderer<'f> {
         }
     }
 
-    /// Whether this renderer was created for a paging planner.
-    pub fn is_paged(&self) -> bool {
-        self.paged
-    }
-
     /// Number of render pipelines created so far (the alpha ones only once needed).
     pub fn pipelines_created(&self) -> usize {
         self.pipelines.created()

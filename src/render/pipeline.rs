@@ -214,20 +214,8 @@ impl PassPipelines {
 
     /// The pipeline of `group`, created on first use.
     pub fn get(&mut self, device: &wgpu::Device, group: Group) -> &wgpu::RenderPipeline {
-        let mut constants = self.spec.constants.clone();
-        constants.push((tree::overrides::PASS, f64::from(group.pass as u32)));
-        if self.spec.source {
-            let source = if group.original {
-                tree::SOURCE_ORIGINAL
-            } else {
-                tree::SOURCE_ATLAS
-            };
-            constants.push((tree::overrides::SOURCE, f64::from(source)));
-        }
-        if self.spec.density {
-            constants.push((tree::overrides::DENSITY, f64::from(tree::DENSITY_ON)));
-        }
         let slot = &mut self.pipelines[group.index()];
+        let spec = &self.spec;
         slot.get_or_insert_with(|| {
             create_pipeline(
                 device,
@@ -235,8 +223,8 @@ impl PassPipelines {
                 &self.module,
                 &self.layout,
                 &self.vertex,
-                group.pass,
-                &constants,
+                group,
+                spec,
             )
         })
     }
@@ -248,10 +236,23 @@ fn create_pipeline(
     module: &wgpu::ShaderModule,
     layout: &wgpu::PipelineLayout,
     vertex: &wgpu::VertexBufferLayout<'static>,
-    pass: Pass,
-    constants: &[(&str, f64)],
+    group: Group,
+    spec: &Specialisation,
 ) -> wgpu::RenderPipeline {
-    let density = constants.contains(&(tree::overrides::DENSITY, f64::from(tree::DENSITY_ON)));
+    let mut constants = spec.constants.clone();
+    constants.push((tree::overrides::PASS, f64::from(group.pass as u32)));
+    if spec.source {
+        let source = if group.original {
+            tree::SOURCE_ORIGINAL
+        } else {
+            tree::SOURCE_ATLAS
+        };
+        constants.push((tree::overrides::SOURCE, f64::from(source)));
+    }
+    if spec.density {
+        constants.push((tree::overrides::DENSITY, f64::from(tree::DENSITY_ON)));
+    }
+    let (pass, density) = (group.pass, spec.density);
     let blend = (pass == Pass::Blend && !density).then_some(wgpu::BlendState::ALPHA_BLENDING);
     let format = if density {
         DENSITY_FORMAT
@@ -265,7 +266,7 @@ fn create_pipeline(
             module,
             entry_point: Some("vs_main"),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants,
+                constants: &constants,
                 ..Default::default()
             },
             buffers: &[Some(vertex.clone())],
@@ -287,7 +288,7 @@ fn create_pipeline(
             module,
             entry_point: Some("fs_main"),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants,
+                constants: &constants,
                 ..Default::default()
             },
             targets: &[Some(wgpu::ColorTargetState {

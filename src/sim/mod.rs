@@ -203,9 +203,7 @@ impl<'a> SimInput<'a> {
         file: &'a crate::store::TreeFile,
     ) -> Result<SimInput<'a>, crate::paging::BlockTableError> {
         Ok(SimInput {
-            trees: (0..file.trees())
-                .filter_map(|t| file.tree(t).map(|v| v.nodes))
-                .collect(),
+            trees: crate::plan::file_trees(file),
             table: BlockTable::from_file(file)?,
         })
     }

@@ -354,7 +354,8 @@ impl MaterialRecord {
     }
 }
 
-fn encode_wrap(w: Wrap) -> u32 {
+/// The stored (and shader) code of a wrap mode.
+pub fn encode_wrap(w: Wrap) -> u32 {
     match w {
         Wrap::Repeat => WRAP_REPEAT,
         Wrap::MirroredRepeat => WRAP_MIRROR,

@@ -61,6 +61,15 @@ pub(crate) fn build_city(dir: &Path) -> Result<PathBuf, String> {
     build_scene(&scene, dir, "city.atlastree", DMin::Ratio(10.0), 512)
 }
 
+/// [`build_city_deep`] built once per test run into cargo's test scratch directory (the build is
+/// deterministic; tests only read the file).
+pub(crate) fn city_deep() -> Result<PathBuf, String> {
+    static BUILT: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
+    BUILT
+        .get_or_init(|| build_city_deep(Path::new(env!("CARGO_TARGET_TMPDIR"))))
+        .clone()
+}
+
 /// The same at d_min = diagonal / 20: 106 nodes, depth 4, 187 blocks (paging, level colours).
 pub(crate) fn build_city_deep(dir: &Path) -> Result<PathBuf, String> {
     let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");

@@ -17,7 +17,7 @@ use atlastree::render::resident::Resident;
 use atlastree::store::TreeFile;
 
 use crate::harness::GpuTest;
-use crate::render::{build_city_deep, e};
+use crate::render::{city_deep, e};
 
 pub fn tests() -> Vec<GpuTest> {
     vec![
@@ -44,8 +44,7 @@ fn loaded(block: BlockId, bytes: &[u8]) -> Event {
 }
 
 fn a_short_originals_block_changes_no_reference(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let path = build_city_deep(dir.path())?;
+    let path = city_deep()?;
     let file = TreeFile::open(&path).map_err(e)?;
     let table = BlockTable::from_file(&file).map_err(e)?;
     let all = table.len() as u32;
@@ -112,8 +111,7 @@ fn a_short_originals_block_changes_no_reference(ctx: &GpuContext) -> Result<(), 
 }
 
 fn a_full_atlas_array_refuses_instead_of_overwriting(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let path = build_city_deep(dir.path())?;
+    let path = city_deep()?;
     let file = TreeFile::open(&path).map_err(e)?;
     let table = BlockTable::from_file(&file).map_err(e)?;
     let mut r = Resident::load_paged(ctx, &file, &table, 1).map_err(e)?;
@@ -151,8 +149,7 @@ fn a_full_atlas_array_refuses_instead_of_overwriting(ctx: &GpuContext) -> Result
 }
 
 fn a_full_class_array_refuses_and_counts_no_reference(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let path = build_city_deep(dir.path())?;
+    let path = city_deep()?;
     let file = TreeFile::open(&path).map_err(e)?;
     let table = BlockTable::from_file(&file).map_err(e)?;
     let mut r = Resident::load_paged(ctx, &file, &table, 1).map_err(e)?;

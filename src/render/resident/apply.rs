@@ -29,12 +29,12 @@ impl Resident {
 
     /// `(tree, node)` of `block`'s atlas or leaf, checked against the loaded trees.
     fn owner(&self, block: BlockId) -> Result<(u32, u32), RenderError> {
-        let (tree, node) = self
-            .residency
-            .block_node
-            .get(block.idx())
-            .copied()
-            .ok_or(RenderError::ShortBlock { block })?;
+        let table = &self.residency.table;
+        if block.idx() >= table.len() {
+            return Err(RenderError::ShortBlock { block });
+        }
+        let meta = table.meta(block);
+        let (tree, node) = (meta.tree, meta.item.node().0);
         if tree as usize >= self.infos.len() {
             return Err(RenderError::MissingTree {
                 tree: tree as usize,

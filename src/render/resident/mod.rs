@@ -117,8 +117,6 @@ pub struct Bookkeeping {
     pub block_uniques: Vec<Vec<(u32, u64)>>,
     /// Per unique: the TAM entries that name it.
     pub tam_users: Vec<Vec<u32>>,
-    /// Per block: `(tree, node)` of an atlas block, or of the leaf node of an originals block.
-    pub block_node: Vec<(u32, u32)>,
     /// Atlas layers in use, original-texture layers in use (residency statistics).
     pub atlas_layers_used: u32,
     pub original_layers_used: u32,
@@ -321,11 +319,6 @@ impl Resident {
                 v.push(e as u32);
             }
         }
-        let block_node = table
-            .blocks
-            .iter()
-            .map(|m| (m.tree, m.item.node().0))
-            .collect();
         let uniques = std::mem::take(&mut g.uniques);
         let tam = std::mem::take(&mut g.tam);
         let stats = LoadStats {
@@ -357,7 +350,6 @@ impl Resident {
             unique_refs: vec![0; uniques.len()],
             block_uniques,
             tam_users,
-            block_node,
             atlas_layers_used: 0,
             original_layers_used: 0,
         };

@@ -8,11 +8,9 @@ use crate::model::TreeVertex;
 use crate::render::RenderError;
 use crate::render::batch::{Pass, TreeBatchInfo, leaf_ranges};
 use crate::render::textures::class_index;
-use crate::render::wgsl::tree::{
-    ALPHA_OPAQUE, LeafInfo, RectMap, TamEntry, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT, WRAP_T_SHIFT,
-};
+use crate::render::wgsl::tree::{ALPHA_OPAQUE, LeafInfo, RectMap, TamEntry, WRAP_T_SHIFT};
 use crate::scene::{AlphaMode, Wrap};
-use crate::store::format::{MaterialRecord, OriginalRecord};
+use crate::store::format::{MaterialRecord, OriginalRecord, encode_wrap};
 use crate::store::{TreeFile, TreeView};
 use crate::texfmt::TexFormat;
 use glam::DVec3;
@@ -116,7 +114,7 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
                 g.tam.push(TamEntry {
                     class_index: class,
                     layer: 0,
-                    wrap: wrap_code(wrap[0]) | wrap_code(wrap[1]) << WRAP_T_SHIFT,
+                    wrap: encode_wrap(wrap[0]) | encode_wrap(wrap[1]) << WRAP_T_SHIFT,
                     alpha_mode: m.map_or(ALPHA_OPAQUE, |m| m.alpha_mode),
                     factor: m.map_or([1.0; 4], |m| m.base_color_factor),
                     cutoff: m.map_or(0.5, |m| m.alpha_cutoff),
@@ -171,14 +169,6 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
         g.indices.extend_from_slice(view.indices);
     }
     Ok(g)
-}
-
-fn wrap_code(w: Wrap) -> u32 {
-    match w {
-        Wrap::Repeat => WRAP_REPEAT,
-        Wrap::MirroredRepeat => WRAP_MIRROR,
-        Wrap::ClampToEdge => WRAP_CLAMP,
-    }
 }
 
 /// Per node of an alpha tree: Blend if any leaf below uses a BLEND material, else Mask; cutoff = smallest

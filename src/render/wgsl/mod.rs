@@ -6,7 +6,7 @@
 //! (`overrides`, set per pipeline) and every module-scope `const` of the shader (wrap, alpha, pass and mode
 //! codes, thresholds), which the WGSL compares against by name instead of by magic number.
 //!
-//! `tests/shaders_naga.rs` parses every shader with naga and checks its module against it: struct sizes,
+//! `tests/cpu/shaders.rs` parses every shader with naga and checks its module against it: struct sizes,
 //! member names, offsets and sizes (naga's layouter against `size_of`/`offset_of!`), every binding, every
 //! override name and every `const` value ([`CONSTS`](tree::CONSTS) lists them with their WGSL names).
 //!
@@ -29,7 +29,7 @@ macro_rules! wgsl_consts {
     ($( $(#[$doc:meta])* $name:ident: $ty:ident = $value:expr; )*) => {
         $( $(#[$doc])* pub const $name: $ty = $value; )*
         /// Every module-scope `const` of the shader: its WGSL name and the value the Rust constant of that
-        /// name has (`tests/shaders_naga.rs` checks both directions against the WGSL).
+        /// name has (`tests/cpu/shaders.rs` checks both directions against the WGSL).
         pub const CONSTS: &[(&str, $crate::render::wgsl::ConstValue)] = &[
             $( (stringify!($name), wgsl_consts!(@value $ty $name)), )*
         ];
