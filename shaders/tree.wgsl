@@ -133,8 +133,9 @@ struct TamEntry {
     factor: vec4<f32>,
     cutoff: f32,
     class_size: f32,
-    _p0: u32,
-    _p1: u32,
+    // Stored sides of the texture, texels (each <= class_size): the layer holds it tiled (texfmt::rect),
+    // so the wrapped UV is scaled by extent / class_size.
+    extent: vec2<f32>,
 }
 
 @group(0) @binding(0) var<uniform> globals: Globals;
@@ -417,15 +418,17 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         return finish(c, rm.cutoff, (rm.wrap >> ALPHA_SHIFT) & CODE_MASK);
     }
     let e = tam[in.which];
+    // The texture's UV into its tiled layer: one period is extent / class_size of the layer per axis.
+    let scale = e.extent / e.class_size;
     if DENSITY == DENSITY_ON {
-        let sv = singular_values(ddx, ddy, e.class_size);
+        let sv = singular_values(ddx * scale, ddy * scale, e.class_size);
         return vec4<f32>(sv.x, sv.y, f32(SOURCE_ORIGINAL), f32(in.level));
     }
     let wrapped = vec2<f32>(
-        wrap_axis(in.uv.x, e.wrap & CODE_MASK, e.class_size),
-        wrap_axis(in.uv.y, (e.wrap >> WRAP_T_SHIFT) & CODE_MASK, e.class_size),
-    );
-    let colour = sample_class(e.class_index, wrapped, e.layer, ddx, ddy) * e.factor;
+        wrap_axis(in.uv.x, e.wrap & CODE_MASK, e.extent.x),
+        wrap_axis(in.uv.y, (e.wrap >> WRAP_T_SHIFT) & CODE_MASK, e.extent.y),
+    ) * scale;
+    let colour = sample_class(e.class_index, wrapped, e.layer, ddx * scale, ddy * scale) * e.factor;
     return finish(colour, e.cutoff, e.alpha_mode);
 }
 

@@ -1,8 +1,8 @@
 //! Texel formats of the paging file's blocks: RGBA8 sRGB, or block compression (BC1, BC3, BC7, all sRGB),
 //! the S3TC the paper (§6) used to shrink the paging file and the transfer per block.
 //!
-//! A block is one or more square power-of-two images, each with its full mip chain down to 1×1, level 0
-//! first, every level stored in the block's format. A compressed level of side `s` is `ceil(s/4)²` 4×4
+//! A block is one or more power-of-two images (atlases square; original textures `w × h`, see [`rect`]),
+//! each with its full mip chain down to 1×1, level 0 first, every level stored in the block's format. A compressed level of side `s` is `ceil(s/4)²` 4×4
 //! blocks in row-major order; levels smaller than 4 (2×2, 1×1) occupy one whole 4×4 block whose texels
 //! outside the level replicate its edge (what GPUs expect: the physical size of a BC mip is rounded up
 //! to the block size).
@@ -41,6 +41,12 @@
 
 use rayon::prelude::*;
 use serde::Serialize;
+
+mod rect;
+pub use rect::{
+    decode_chain_rect, decode_level_rect, encode_chain_rect, encode_level_rect, mip_extents,
+    tile_chain_to_square,
+};
 
 /// Storage format of a tree's blocks (atlases and original textures alike). Codes are stored in
 /// [`crate::store::format::TreeRecord::format`].
@@ -103,6 +109,14 @@ pub enum TexFormatError {
         format: TexFormat,
         size: u32,
         offset: u64,
+        expected: u64,
+        got: u64,
+    },
+    #[error("{format:?} mip chain of a {width}×{height} image needs {expected} bytes, got {got}")]
+    RectChainLength {
+        format: TexFormat,
+        width: u32,
+        height: u32,
         expected: u64,
         got: u64,
     },

@@ -242,6 +242,18 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
             t.periods_spanned,
             t.periods_spanned / t.periods_stored.max(1e-9)
         );
+        let o = &t.originals;
+        println!(
+            "    originals: {} stored once ({} leaf references, {} images), {} ({} as square classes); the sources once in {} with mips {} ({:.2}×)",
+            o.stored,
+            o.references,
+            o.images,
+            human_bytes(o.bytes),
+            human_bytes(o.square_bytes),
+            t.format.name(),
+            human_bytes(o.source_bytes),
+            o.bytes as f64 / o.source_bytes.max(1) as f64
+        );
         println!(
             "    blocks stored as {} ({} bytes per 4×4 texels); atlas PSNR vs uncompressed {}",
             t.format.name(),

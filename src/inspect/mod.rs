@@ -124,12 +124,13 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
                 originals_sse += b.sse;
             }
         }
-        // Per stored original (block, slot): its class size and how many leaves reference it.
-        let mut sharing: std::collections::HashMap<(u32, u32), (u32, u64)> = Default::default();
+        // Per stored original (block, slot): its stored sides and how many leaves reference it.
+        let mut sharing: std::collections::HashMap<(u32, u32), ([u32; 2], u64)> =
+            Default::default();
         for o in t.originals {
             sharing
                 .entry((o.block, o.slot))
-                .or_insert((o.class_size, 0))
+                .or_insert((o.extent(), 0))
                 .1 += 1;
         }
         let mut hist: std::collections::BTreeMap<u64, u64> = Default::default();
@@ -140,7 +141,9 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
         // The stored chains' samples, each once (the block errors are of the stored bytes).
         let original_samples: u64 = sharing
             .values()
-            .map(|&(size, _)| TexFormat::Rgba8.chain_bytes(size) / 4 * t.kind.channels() as u64)
+            .map(|&([w, h], _)| {
+                TexFormat::Rgba8.chain_bytes_rect(w, h) / 4 * t.kind.channels() as u64
+            })
             .sum();
         trees.push(TreeInfo {
             kind: t.kind,

@@ -57,7 +57,7 @@ pub fn repeat_cost(file: &TreeFile, tree: usize, atlas_size: u32) -> Option<Repe
         ..RepeatCost::default()
     };
     // Per image: stored original side (largest over leaves) and how many leaves hold it.
-    let mut images: BTreeMap<u32, (u32, u64)> = BTreeMap::new();
+    let mut images: BTreeMap<u32, (u64, u64)> = BTreeMap::new();
     for leaf in t.leaves {
         let level = t.nodes.get(leaf.node as usize).map_or(0, |n| n.level);
         let levels: f64 = (0..=level).map(|k| 0.25f64.powi(k as i32)).sum();
@@ -73,12 +73,13 @@ pub fn repeat_cost(file: &TreeFile, tree: usize, atlas_size: u32) -> Option<Repe
             .filter(|o| materials.contains(&o.material))
         {
             let e = images.entry(o.image).or_insert((0, 0));
-            e.0 = e.0.max(o.class_size);
+            let [w, h] = o.extent();
+            e.0 = e.0.max(u64::from(w) * u64::from(h));
             e.1 += 1;
         }
     }
     c.images = images.len() as u64;
-    c.original_texels_once = images.values().map(|&(s, _)| u64::from(s).pow(2)).sum();
-    c.original_texels_per_leaf = images.values().map(|&(s, n)| u64::from(s).pow(2) * n).sum();
+    c.original_texels_once = images.values().map(|&(s, _)| s).sum();
+    c.original_texels_per_leaf = images.values().map(|&(s, n)| s * n).sum();
     Some(c)
 }

@@ -176,14 +176,22 @@ impl AtlasRect {
     }
 }
 
-/// One original texture a leaf uses near the camera (d < d_min), resampled to a square power-of-two
-/// class size and stored in one of the leaf's original-texture blocks.
+/// Largest side of a stored original texture, texels (and the largest class array).
+pub const MAX_ORIGINAL_CLASS: u32 = 2048;
+/// Smallest side (one BC block).
+pub const MIN_ORIGINAL_CLASS: u32 = 4;
+
+/// One original texture a leaf uses near the camera (d < d_min), resampled to power-of-two sides and
+/// stored once per tree in an original-texture block (format 5: non-square, see [`crate::texfmt::mip_extents`]).
 #[derive(Clone, Debug, Serialize)]
 pub struct OriginalRef {
     pub material: MaterialId,
     pub image: ImageId,
-    /// Width = height after resampling, texels (power of two).
+    /// Side of the square class array it is drawn from, texels: `max(extent)` (power of two).
     pub class_size: u32,
+    /// Stored width and height after resampling, texels (each a power of two, at most `class_size`); the
+    /// renderer tiles it into a `class_size²` layer.
+    pub extent: [u32; 2],
     pub block: BlockId,
     /// Index of this image within its block (images of one block are stored back to back, each with its
     /// full mip chain).
@@ -233,8 +241,8 @@ const _: () = assert!(size_of::<TreeVertex>() == 32);
 pub enum BlockKind {
     /// A node's atlas: `atlas_size²` sRGB in the tree's format, full mip chain, level 0 first.
     Atlas { node: NodeId },
-    /// Part `part` of a leaf's original textures: its images back to back, each a full sRGB mip chain in
-    /// the tree's format.
+    /// Part `part` of the original textures first stored by a leaf: images back to back, each a full sRGB
+    /// `w × h` mip chain in the tree's format.
     Originals { leaf: LeafId, part: u32 },
 }
 

@@ -14,17 +14,83 @@ use crate::texfmt::TexFormat;
 use glam::{DVec2, DVec3};
 use std::collections::HashMap;
 
-/// Largest class size for stored original textures (texels per side).
-pub const MAX_ORIGINAL_CLASS: u32 = 2048;
-/// Smallest class size (one BC block).
-pub const MIN_ORIGINAL_CLASS: u32 = 4;
+pub use crate::model::{MAX_ORIGINAL_CLASS, MIN_ORIGINAL_CLASS};
 
-/// The square power-of-two class an original image of `w × h` is stored at.
+/// The square power-of-two class an original image of `w × h` is drawn from (its array's side).
 pub fn original_class(w: u32, h: u32) -> u32 {
     w.max(h)
         .max(1)
         .next_power_of_two()
         .clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
+}
+
+/// The stored `[width, height]` of an original image of `w × h`: each side to the next power of two in
+/// `MIN_ORIGINAL_CLASS..=MAX_ORIGINAL_CLASS` (so the larger is [`original_class`]). Non-square, so a
+/// `1024 × 256` texture stores a quarter of the `1024²` its class layer holds (issue 17).
+pub fn original_extent(w: u32, h: u32) -> [u32; 2] {
+    let side = |v: u32| {
+        v.max(1)
+            .next_power_of_two()
+            .clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
+    };
+    [side(w), side(h)]
+}
+
+/// What a tree's original textures cost in the file against their sources (issue 17's measure).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct OriginalsCost {
+    /// Distinct stored chains (`(block, slot)`), and the leaf references to them.
+    pub stored: u64,
+    pub references: u64,
+    /// Bytes of the stored chains (every original-texture block of the tree).
+    pub bytes: u64,
+    /// What the same chains took as square classes (`max(w, h)²`, format 4 and before).
+    pub square_bytes: u64,
+    /// Distinct source images behind them, and the bytes of each once at its own size in the tree's
+    /// format with a full mip chain (sides halved rounding up down to 1×1).
+    pub images: u64,
+    pub source_bytes: u64,
+}
+
+/// [`OriginalsCost`] of `tree` built from `scene`.
+pub fn originals_cost(tree: &AtlasTree, scene: &Scene) -> OriginalsCost {
+    let mut chains: HashMap<(BlockId, u32), [u32; 2]> = HashMap::new();
+    let mut images = std::collections::HashSet::new();
+    let mut c = OriginalsCost::default();
+    for o in tree.leaves.iter().flat_map(|l| &l.originals) {
+        c.references += 1;
+        chains.insert((o.block, o.slot), o.extent);
+        images.insert(o.image);
+    }
+    c.stored = chains.len() as u64;
+    c.bytes = chains
+        .values()
+        .map(|&[w, h]| tree.format.chain_bytes_rect(w, h))
+        .sum();
+    c.square_bytes = chains
+        .values()
+        .map(|&[w, h]| tree.format.chain_bytes(w.max(h)))
+        .sum();
+    c.images = images.len() as u64;
+    c.source_bytes = images
+        .iter()
+        .filter_map(|i| scene.images.get(i.idx()))
+        .map(|img| source_chain_bytes(tree.format, img.width, img.height))
+        .sum();
+    c
+}
+
+/// Bytes of a `w × h` image (any sides) with its full mip chain in `format`: levels halved rounding up
+/// down to 1×1.
+pub fn source_chain_bytes(format: TexFormat, w: u32, h: u32) -> u64 {
+    let (mut w, mut h, mut total) = (w.max(1), h.max(1), 0u64);
+    loop {
+        total += format.level_bytes_rect(w, h);
+        if w == 1 && h == 1 {
+            return total;
+        }
+        (w, h) = (w.div_ceil(2), h.div_ceil(2));
+    }
 }
 
 /// Where a tree goes in its forest.
@@ -184,21 +250,28 @@ impl Asm<'_> {
         // owned by this leaf; the others reference the block that holds them (stored once, §8.3).
         let budget = self.format.chain_bytes(self.params.atlas_size);
         let mut seen_materials = std::collections::HashSet::new();
-        let classes: Vec<(MaterialId, crate::ids::ImageId, u32)> = l
+        let classes: Vec<(MaterialId, crate::ids::ImageId, [u32; 2])> = l
             .rects
             .iter()
             .filter(|r| seen_materials.insert(r.material))
             .map(|r| {
                 let mat = &self.scene.materials[r.material.idx()];
                 let img = &self.scene.images[mat.image.idx()];
-                (r.material, mat.image, original_class(img.width, img.height))
+                (
+                    r.material,
+                    mat.image,
+                    original_extent(img.width, img.height),
+                )
             })
             .collect();
         let new: Vec<usize> = (0..classes.len())
             .filter(|&i| !self.stored.contains_key(&classes[i].0))
             .collect();
         let parts = group_into_blocks(
-            new.iter().map(|&i| self.format.chain_bytes(classes[i].2)),
+            new.iter().map(|&i| {
+                let [w, h] = classes[i].2;
+                self.format.chain_bytes_rect(w, h)
+            }),
             budget,
         );
         let mut block_ids: Vec<BlockId> = Vec::new();
@@ -217,13 +290,14 @@ impl Asm<'_> {
         }
         let mut originals: Vec<OriginalRef> = Vec::with_capacity(classes.len());
         let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
-        for &(material, image, class_size) in &classes {
+        for &(material, image, extent) in &classes {
             let (block, slot) = self.stored[&material];
             slot_of.insert(material, originals.len() as u32);
             originals.push(OriginalRef {
                 material,
                 image,
-                class_size,
+                class_size: extent[0].max(extent[1]),
+                extent,
                 block,
                 slot,
             });
@@ -365,5 +439,8 @@ mod tests {
         assert_eq!(original_class(300, 200), 512);
         assert_eq!(original_class(512, 512), 512);
         assert_eq!(original_class(8192, 16), 2048);
+        assert_eq!(original_extent(8192, 16), [2048, 16]);
+        assert_eq!(original_extent(300, 200), [512, 256]);
+        assert_eq!(original_extent(1, 1024), [4, 1024]);
     }
 }

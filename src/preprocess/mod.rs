@@ -224,6 +224,8 @@ pub struct TreeReport {
     pub occupancy_max: f64,
     pub root_min_distance: f64,
     pub sizing: prepare::PrepareReport,
+    /// The original textures' bytes against their sources once ([`assemble::OriginalsCost`]).
+    pub originals: assemble::OriginalsCost,
 }
 
 /// What a build did, with the numbers (printed by `atlastree build`, JSON with `--json`).
@@ -450,6 +452,7 @@ pub fn build(
             occupancy_max: occ.iter().copied().fold(0.0, f64::max),
             root_min_distance: asm.tree.nodes.first().map_or(0.0, |n| n.min_distance),
             sizing,
+            originals: assemble::originals_cost(&asm.tree, scene),
         });
         forest.trees.push(asm.tree);
         forest.blocks.extend(asm.blocks);

@@ -9,13 +9,13 @@ use super::BuildError;
 use super::image_ops::ImageOpsError;
 use super::image_ops::{
     LinearImage, MipChain, MipFilter, MipOptions, RectJob, combine_quadrants, draw_rect,
-    mip_chain_rgba8, neutral_fill, resample_square,
+    mip_chain_rgba8, neutral_fill, resample_rect,
 };
 use crate::ids::{ImageId, NodeId};
 use crate::model::{AtlasTree, BuildParams, Leaf, TreeKind};
 use crate::scene::{DecodedImage, Scene};
 use crate::store::FileWriter;
-use crate::texfmt::{Encoded, TexFormat, encode_chain};
+use crate::texfmt::{Encoded, TexFormat, encode_chain, encode_chain_rect};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -59,9 +59,9 @@ pub struct ImageCache<'a> {
     pub alpha_ignored: AtomicU64,
 }
 
-/// An original texture as stored: image, class size, wrap modes (resampling depends on them), storage
-/// format and compared channels (the encoding depends on them).
-pub type OriginalKey = (ImageId, u32, [crate::scene::Wrap; 2], TexFormat, usize);
+/// An original texture as stored: image, stored `[width, height]`, wrap modes (resampling depends on
+/// them), storage format and compared channels (the encoding depends on them).
+pub type OriginalKey = (ImageId, [u32; 2], [crate::scene::Wrap; 2], TexFormat, usize);
 /// Per image of `scene`: used by at least one material and by OPAQUE materials only.
 fn opaque_only_images(scene: &Scene) -> Vec<bool> {
     let mut used = vec![false; scene.images.len()];
@@ -185,15 +185,17 @@ impl ImageCache<'_> {
             self.original_hits.fetch_add(1, Ordering::Relaxed);
             return Ok(b.clone());
         }
-        let what = || format!("original texture {} at class {}", key.0.0, key.1);
+        let [w, h] = key.1;
+        let what = || format!("original texture {} at {w}×{h}", key.0.0);
         let img = self.get(key.0);
-        let lin = resample_square(&img.decoded, key.1, key.2).map_err(|e| image_err(what(), e))?;
-        let enc = encode_chain(key.3, &mip_chain_rgba8(&lin), key.1, key.4).map_err(|source| {
-            BuildError::Encode {
-                what: what(),
-                source,
-            }
-        })?;
+        let lin = resample_rect(&img.decoded, w, h, key.2).map_err(|e| image_err(what(), e))?;
+        let enc =
+            encode_chain_rect(key.3, &mip_chain_rgba8(&lin), w, h, key.4).map_err(|source| {
+                BuildError::Encode {
+                    what: what(),
+                    source,
+                }
+            })?;
         let bytes = Arc::new(enc);
         let mut st = self.originals.lock().unwrap_or_else(|e| e.into_inner());
         if st.1 + bytes.bytes.len() as u64 > self.cap_bytes / 4 {
@@ -360,7 +362,7 @@ fn image_err(what: String, source: ImageOpsError) -> BuildError {
 }
 
 /// The original textures a leaf stores (those of the blocks it owns: the first leaf of the tree that needs
-/// a material stores it, later ones reference it), each resampled to its class size with a full mip chain,
+/// a material stores it, later ones reference it), each resampled to its stored sides with a full mip chain,
 /// back to back per block in slot order (layout of `OriginalRef::slot`).
 fn write_originals(
     ctx: &RasterCtx<'_>,
@@ -377,7 +379,7 @@ fn write_originals(
         let mat = &ctx.scene.materials[o.material.idx()];
         let enc = ctx
             .cache
-            .original((o.image, o.class_size, mat.wrap, tree.format, channels))?;
+            .original((o.image, o.extent, mat.wrap, tree.format, channels))?;
         match blocks.last_mut() {
             Some((b, buf, sse)) if *b == o.block => {
                 buf.extend_from_slice(&enc.bytes);

@@ -8,7 +8,7 @@ use super::pipeline::{
     PassPipelines, Specialisation, naive_bind_group_layouts, sampler, vertex_layout,
 };
 use super::resident::Resident;
-use super::textures::{gpu_format, mip_levels, texels_for_upload, upload_mip_chain};
+use super::textures::{gpu_format, mip_levels, rect_texels_for_upload, upload_mip_chain_rect};
 use super::wgsl::naive::{self, ALPHA_MASK, ALPHA_OPAQUE, Material, binding};
 use crate::gpu::GpuContext;
 use crate::scene::Wrap;
@@ -93,8 +93,8 @@ impl Naive {
             let tex = device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("naive original"),
                 size: wgpu::Extent3d {
-                    width: u.class_size,
-                    height: u.class_size,
+                    width: u.extent[0],
+                    height: u.extent[1],
                     depth_or_array_layers: 1,
                 },
                 mip_level_count: mip_levels(u.class_size),
@@ -109,9 +109,9 @@ impl Naive {
                 .ok()
                 .and_then(|o| bytes.get(o..))
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
-            let texels = texels_for_upload(u.format, chain, u.class_size, target)
+            let texels = rect_texels_for_upload(u.format, chain, u.extent, target)
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
-            upload_mip_chain(&ctx.queue, &tex, u.class_size, 0, &texels, target)
+            upload_mip_chain_rect(&ctx.queue, &tex, u.extent, 0, &texels, target)
                 .ok_or(RenderError::ShortBlock { block: u.block })?;
             let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
             if !samplers.iter().any(|(w, _)| *w == wrap) {

@@ -152,6 +152,48 @@ pub fn texels_for_upload(
     decode_chain(stored, bytes, size).ok().map(Cow::Owned)
 }
 
+/// [`texels_for_upload`] of a `w × h` chain (`crate::texfmt::mip_extents`), not tiled: the texels of a
+/// `w × h` texture of format `target`.
+pub fn rect_texels_for_upload(
+    stored: TexFormat,
+    bytes: &[u8],
+    [w, h]: [u32; 2],
+    target: TexFormat,
+) -> Option<Cow<'_, [u8]>> {
+    if w == h {
+        return texels_for_upload(stored, bytes, w, target);
+    }
+    let len = usize::try_from(stored.chain_bytes_rect(w, h)).ok()?;
+    let chain = bytes.get(..len)?;
+    match (stored, target) {
+        (a, b) if a == b => Some(Cow::Borrowed(chain)),
+        (TexFormat::Bc1, TexFormat::Bc3) => Some(Cow::Owned(crate::texfmt::bc1_to_bc3(chain))),
+        (_, TexFormat::Rgba8) => crate::texfmt::decode_chain_rect(stored, chain, w, h)
+            .ok()
+            .map(Cow::Owned),
+        _ => None,
+    }
+}
+
+/// The texels of the `s × s` class layer (`s = max(w, h)`) that shows a `w × h` original chain stored as
+/// `stored` (the start of `bytes`), in format `target` (as [`texels_for_upload`]), tiled across the layer
+/// ([`crate::texfmt::tile_chain_to_square`]; the shader scales its UV by `extent / s`). Square chains are
+/// [`texels_for_upload`]. `None` if `bytes` is shorter than the chain or for a pair without a conversion.
+pub fn layer_texels_for_upload(
+    stored: TexFormat,
+    bytes: &[u8],
+    [w, h]: [u32; 2],
+    target: TexFormat,
+) -> Option<Cow<'_, [u8]>> {
+    if w == h {
+        return texels_for_upload(stored, bytes, w, target);
+    }
+    let converted = rect_texels_for_upload(stored, bytes, [w, h], target)?;
+    crate::texfmt::tile_chain_to_square(target, &converted, w, h)
+        .ok()
+        .map(Cow::Owned)
+}
+
 /// One texture array with its allocator.
 pub struct TextureArray {
     pub texture: wgpu::Texture,
@@ -209,10 +251,8 @@ impl TextureArray {
     }
 }
 
-/// Writes a full mip chain of a `size²` image stored as `format` into `layer` of `texture` (which must
-/// have that format) with one `queue.write_texture` per level. `None` if `chain` is shorter than
-/// `format.chain_bytes(size)`. BC levels smaller than 4×4 are copied as one whole block (their physical
-/// size).
+/// Writes a full mip chain of a `size²` image stored as `format` into `layer` of `texture`: the square
+/// case of [`upload_mip_chain_rect`].
 pub fn upload_mip_chain(
     queue: &wgpu::Queue,
     texture: &wgpu::Texture,
@@ -221,25 +261,39 @@ pub fn upload_mip_chain(
     chain: &[u8],
     format: TexFormat,
 ) -> Option<u64> {
-    let total = format.chain_bytes(size);
+    upload_mip_chain_rect(queue, texture, [size, size], layer, chain, format)
+}
+
+/// Writes a full mip chain of a `w × h` image stored as `format` ([`crate::texfmt::mip_extents`]) into
+/// `layer` of `texture` (which must have that format and size) with one `queue.write_texture` per level.
+/// `None` if `chain` is shorter than `format.chain_bytes_rect(w, h)`. BC levels with a side under 4 are
+/// copied as whole blocks (their physical size).
+pub fn upload_mip_chain_rect(
+    queue: &wgpu::Queue,
+    texture: &wgpu::Texture,
+    [w, h]: [u32; 2],
+    layer: u32,
+    chain: &[u8],
+    format: TexFormat,
+) -> Option<u64> {
+    let total = format.chain_bytes_rect(w, h);
     if (chain.len() as u64) < total {
         return None;
     }
     let mut offset = 0usize;
-    for level in 0..mip_levels(size) {
-        let s = (size >> level).max(1);
-        let bytes = format.level_bytes(s) as usize;
+    for (level, (a, b)) in crate::texfmt::mip_extents(w, h).enumerate() {
+        let bytes = format.level_bytes_rect(a, b) as usize;
         let data = chain.get(offset..offset + bytes)?;
-        let (bytes_per_row, rows) = format.upload_layout(s);
-        let extent = if format.is_compressed() {
-            s.div_ceil(4) * 4
+        let (bytes_per_row, _) = format.upload_layout(a);
+        let (width, height, rows) = if format.is_compressed() {
+            (a.div_ceil(4) * 4, b.div_ceil(4) * 4, b.div_ceil(4))
         } else {
-            s
+            (a, b, b)
         };
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
                 texture,
-                mip_level: level,
+                mip_level: level as u32,
                 origin: wgpu::Origin3d {
                     x: 0,
                     y: 0,
@@ -254,8 +308,8 @@ pub fn upload_mip_chain(
                 rows_per_image: Some(rows),
             },
             wgpu::Extent3d {
-                width: extent,
-                height: extent,
+                width,
+                height,
                 depth_or_array_layers: 1,
             },
         );

@@ -43,8 +43,9 @@ pub const MAGIC: [u8; 8] = *b"ATLTREE\0";
 /// History: 1 = RGBA8 blocks only; 2 = per-tree block format ([`TreeRecord::format`]) and per-block
 /// compression error ([`BlockRecord::sse`]); 3 = repeats wrapped in the shader: per-rect wrap and cap flags
 /// ([`RectRecord::flags`]), vertices without a baked atlas UV but with their rect ([`TreeVertex::rect`]);
-/// 4 = original textures stored once per tree: an [`OriginalRecord`] may name a block another leaf owns.
-pub const FORMAT_VERSION: u32 = 4;
+/// 4 = original textures stored once per tree: an [`OriginalRecord`] may name a block another leaf owns;
+/// 5 = original textures stored non-square ([`OriginalRecord::width`], [`OriginalRecord::height`]).
+pub const FORMAT_VERSION: u32 = 5;
 /// Alignment of every section's offset, bytes.
 pub const SECTION_ALIGN: u64 = 16;
 /// Alignment of every block's offset, bytes (one page: a block can be mapped or read with O_DIRECT alone).
@@ -630,8 +631,11 @@ impl RectRecord {
 pub struct OriginalRecord {
     pub material: u32,
     pub image: u32,
-    /// Side after resampling, texels.
-    pub class_size: u32,
+    /// Stored width after resampling, texels (a power of two in 4..=2048; the block holds a
+    /// `width × height` chain, [`crate::texfmt::mip_extents`]).
+    pub width: u16,
+    /// Stored height, texels (as `width`).
+    pub height: u16,
     /// Global block id.
     pub block: u32,
     /// Position within the block.
@@ -640,11 +644,23 @@ pub struct OriginalRecord {
 const _: () = assert!(size_of::<OriginalRecord>() == 20);
 
 impl OriginalRecord {
+    /// Side of the class array the texture is drawn from: the larger of its sides.
+    pub fn class_size(&self) -> u32 {
+        u32::from(self.width.max(self.height))
+    }
+
+    /// `[width, height]`, texels.
+    pub fn extent(&self) -> [u32; 2] {
+        [u32::from(self.width), u32::from(self.height)]
+    }
+
     pub fn encode(o: &OriginalRef) -> Self {
+        let side = |v: u32| u16::try_from(v).unwrap_or(u16::MAX);
         OriginalRecord {
             material: o.material.0,
             image: o.image.0,
-            class_size: o.class_size,
+            width: side(o.extent[0]),
+            height: side(o.extent[1]),
             block: o.block.0,
             slot: o.slot,
         }
@@ -654,7 +670,8 @@ impl OriginalRecord {
         OriginalRef {
             material: MaterialId(self.material),
             image: ImageId(self.image),
-            class_size: self.class_size,
+            class_size: self.class_size(),
+            extent: self.extent(),
             block: BlockId(self.block),
             slot: self.slot,
         }

@@ -8,6 +8,7 @@
 use super::format::{BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, MaterialRecord, ParamsRecord};
 use super::{StoreError, TreeView};
 use crate::ids::NONE;
+use crate::model::{MAX_ORIGINAL_CLASS, MIN_ORIGINAL_CLASS};
 
 /// The tables of one tree ([`TreeView`]) and the tree's index, which error messages and block checks need.
 pub(crate) struct TreeTables<'a> {
@@ -214,7 +215,45 @@ pub(crate) fn check_tree(
     check_nodes(t, blocks)?;
     check_leaves(t, blocks)?;
     check_rects_originals(t, materials, blocks)?;
+    check_original_slots(t, blocks)?;
     check_vertices_indices(t)
+}
+
+/// Every originals block of the tree holds exactly the chains its references name: one (material,
+/// extent) per `(block, slot)` however many leaves reference it, slots `0..n` without a gap, and the
+/// chains' bytes in the tree's format summing to the block's length (the renderer reads a slot at the
+/// sum of the chains before it). Runs after [`check_rects_originals`] (block ids and sides are valid).
+fn check_original_slots(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreError> {
+    let Some(format) = t.record.tex_format() else {
+        return Ok(());
+    };
+    let mut slots: std::collections::BTreeMap<(u32, u32), (u64, u32, [u32; 2])> =
+        Default::default();
+    for (i, o) in t.originals.iter().enumerate() {
+        let gi = t.record.originals.first + i as u64;
+        let entry = slots
+            .entry((o.block, o.slot))
+            .or_insert((gi, o.material, o.extent()));
+        if (entry.1, entry.2) != (o.material, o.extent()) {
+            return Err(bad_value("originals", gi, "slot", u64::from(o.slot)));
+        }
+    }
+    let mut by_block: std::collections::BTreeMap<u32, (u32, u64)> = Default::default();
+    for (&(block, slot), &(gi, _, [w, h])) in &slots {
+        let (next, bytes) = by_block.entry(block).or_insert((0, 0));
+        if slot != *next {
+            return Err(bad_value("originals", gi, "slot", u64::from(slot)));
+        }
+        *next += 1;
+        *bytes += format.chain_bytes_rect(w, h);
+    }
+    for (block, (_, bytes)) in by_block {
+        let length = blocks[block as usize].length;
+        if length != bytes {
+            return Err(bad_value("blocks", u64::from(block), "length", length));
+        }
+    }
+    Ok(())
 }
 
 fn check_nodes(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreError> {
@@ -395,6 +434,13 @@ fn check_rects_originals(
             u64::from(o.block),
             blocks.len() as u64,
         )?;
+        // Each side a power of two in the class range (the renderer picks the class array by the larger).
+        for (field, side) in [("width", o.width), ("height", o.height)] {
+            let range = MIN_ORIGINAL_CLASS..=MAX_ORIGINAL_CLASS;
+            if !side.is_power_of_two() || !range.contains(&u32::from(side)) {
+                return Err(bad_value("originals", gi, field, u64::from(side)));
+            }
+        }
     }
     Ok(())
 }

@@ -220,18 +220,15 @@ fn plan_maps_every_vertex_original_into_its_leaf_tam_range() {
         assert_eq!(p.origins[li], DVec3::from_array(leaf.origin));
         for (k, o) in view.leaf_originals(leaf).iter().enumerate() {
             let e = &p.tam[gpu.first_tam as usize + k];
-            assert_eq!(e.class_size, o.class_size as f32);
-            assert_eq!(4u32 << e.class_index, o.class_size);
+            assert_eq!(e.class_size, o.class_size() as f32);
+            assert_eq!(e.extent, o.extent().map(|v| v as f32));
+            assert_eq!(4u32 << e.class_index, o.class_size());
             let u = &p.uniques[p.tam_unique[gpu.first_tam as usize + k] as usize];
-            assert_eq!((u.material, u.class_size), (o.material, o.class_size));
+            assert_eq!((u.material, u.extent), (o.material, o.extent()));
         }
     }
-    // Deduplication: one unique texture per (material, class size), fewer than the per-leaf copies.
-    let mut keys: Vec<(u32, u32)> = p
-        .uniques
-        .iter()
-        .map(|u| (u.material, u.class_size))
-        .collect();
+    // Deduplication: one unique texture per (material, extent), fewer than the per-leaf copies.
+    let mut keys: Vec<(u32, [u32; 2])> = p.uniques.iter().map(|u| (u.material, u.extent)).collect();
     keys.sort_unstable();
     keys.dedup();
     assert_eq!(keys.len(), p.uniques.len());

@@ -167,8 +167,7 @@ fn all_twins() -> Vec<Twins> {
                     factor,
                     cutoff,
                     class_size,
-                    _p0,
-                    _p1
+                    extent
                 }),
             ],
         },

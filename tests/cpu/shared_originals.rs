@@ -45,7 +45,10 @@ fn a_texture_in_opposite_corners_is_stored_once_and_referenced_by_both_leaves() 
     // Each material's original is stored once: the original blocks hold exactly the distinct chains.
     let mut chains: HashMap<u32, u64> = HashMap::new();
     for o in t.originals {
-        chains.insert(o.material, t.format().chain_bytes(o.class_size));
+        chains.insert(
+            o.material,
+            t.format().chain_bytes_rect(o.extent()[0], o.extent()[1]),
+        );
     }
     let stored: u64 = file
         .blocks()

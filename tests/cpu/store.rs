@@ -318,9 +318,50 @@ fn resealed_bad_references_are_named() {
     assert!(
         matches!(TreeFile::from_bytes(&b), Err(StoreError::Misaligned { offset, .. }) if offset == off + 16)
     );
+    // An original whose width is not a power of two (OriginalRecord::width at byte 8), and one whose
+    // chain no longer fits its block (height doubled: the block's slots sum to more than its length).
+    let mut b = bytes.clone();
+    let at = record_at(&b, Section::Originals, 0) + 8;
+    b[at..at + 2].copy_from_slice(&48u16.to_le_bytes());
+    reseal(&mut b);
+    assert!(
+        matches!(
+            TreeFile::from_bytes(&b),
+            Err(StoreError::BadValue {
+                table: "originals",
+                index: 0,
+                field: "width",
+                value: 48
+            })
+        ),
+        "{:?}",
+        TreeFile::from_bytes(&b).err()
+    );
+    let mut b = bytes.clone();
+    let at = record_at(&b, Section::Originals, 0) + 10;
+    let h = u16::from_le_bytes(b[at..at + 2].try_into().unwrap());
+    b[at..at + 2].copy_from_slice(&(h * 2).to_le_bytes());
+    reseal(&mut b);
+    assert!(
+        matches!(
+            TreeFile::from_bytes(&b),
+            Err(StoreError::BadValue {
+                table: "blocks",
+                field: "length",
+                ..
+            }) | Err(StoreError::BadValue {
+                table: "originals",
+                field: "height",
+                ..
+            })
+        ),
+        "{:?}",
+        TreeFile::from_bytes(&b).err()
+    );
     // A future version, and versions 1 (RGBA8 only, 40-byte block records), 2 (baked atlas UVs in the
-    // vertices) and 3 (originals stored per leaf): all refused by number, the message says to rebuild.
-    for found in [5u32, 3, 2, 1] {
+    // vertices), 3 (originals stored per leaf) and 4 (originals at square classes): all refused by
+    // number, the message says to rebuild.
+    for found in [6u32, 4, 3, 2, 1] {
         let mut b = bytes.clone();
         b[8..12].copy_from_slice(&found.to_le_bytes());
         reseal(&mut b);
@@ -328,7 +369,7 @@ fn resealed_bad_references_are_named() {
             Err(
                 e @ StoreError::UnsupportedVersion {
                     found: f,
-                    supported: 4,
+                    supported: 5,
                 },
             ) => {
                 assert_eq!(f, found);

@@ -5,6 +5,7 @@
 mod alpha;
 mod compressed;
 mod device;
+mod extent;
 #[path = "../fixtures/corners.rs"]
 mod fixtures;
 mod golden;
@@ -24,6 +25,7 @@ fn main() -> ExitCode {
     let registry: Vec<harness::GpuTest> = [
         smoke::tests(),
         device::tests(),
+        extent::tests(),
         render::tests(),
         golden::tests(),
         paging::tests(),

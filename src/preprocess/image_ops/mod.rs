@@ -13,7 +13,8 @@
 //!   maths (UVs of ±1e5 are reduced by their period first).
 //! - [`draw_rect`]: fill one packed texture area of a leaf atlas, border included (§5.2.2, §5.2.3).
 //! - [`combine_quadrants`]: the inner-node atlas from four children's level-1 mips (§5.1).
-//! - [`resample_square`]: original textures at a square power-of-two class size, seamless under wrap.
+//! - [`resample_rect`] / [`resample_square`]: original textures at their stored power-of-two sides,
+//!   seamless under wrap.
 //!
 //! Conventions: texel `(x, y)` has `y` = row from the top; UV `(0, 0)` is the top-left corner of the image,
 //! `u` runs along `x` and `v` along `y` (glTF); texel centres are at `(x + 0.5) / width`.
@@ -28,7 +29,9 @@ pub use linear::LinearImage;
 pub use mip::{
     MipChain, MipFilter, MipOptions, downsample, halve, mip_chain_rgba8, mip_chain_rgba8_with,
 };
-pub use raster::{RectJob, combine_quadrants, draw_rect, neutral_fill, resample_square};
+pub use raster::{
+    RectJob, combine_quadrants, draw_rect, neutral_fill, resample_rect, resample_square,
+};
 pub use sample::{FootprintPlan, MAX_ANISOTROPY, sample_footprint, sample_planned, wrap_index};
 pub use srgb::{linear_to_srgb8, srgb8_to_linear};
 

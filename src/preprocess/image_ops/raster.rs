@@ -211,16 +211,26 @@ pub fn combine_quadrants(
     Ok(out)
 }
 
-/// `img` resampled to `size × size` (an original texture at its power-of-two class size), filtered like
-/// [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the edges follow `wrap`,
-/// so a repeat or mirror texture tiles as seamlessly after resampling as before.
+/// `img` resampled to `size × size` (a square original texture), as [`resample_rect`].
 pub fn resample_square(
     img: &DecodedImage,
     size: u32,
     wrap: [Wrap; 2],
 ) -> Result<LinearImage, ImageOpsError> {
-    if size == 0 {
-        return Err(ImageOpsError::ZeroSize { size });
+    resample_rect(img, size, size, wrap)
+}
+
+/// `img` resampled to `w × h` (an original texture at its stored power-of-two sides), filtered like
+/// [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the edges follow `wrap`,
+/// so a repeat or mirror texture tiles as seamlessly after resampling as before.
+pub fn resample_rect(
+    img: &DecodedImage,
+    w: u32,
+    h: u32,
+    wrap: [Wrap; 2],
+) -> Result<LinearImage, ImageOpsError> {
+    if w == 0 || h == 0 {
+        return Err(ImageOpsError::ZeroSize { size: w.min(h) });
     }
     let base = LinearImage::from_decoded(img)?;
     let chain = MipChain::build_with(
@@ -230,10 +240,10 @@ pub fn resample_square(
             wrap,
         },
     );
-    let mut out = LinearImage::new_filled(size, size, [0.0; 4]);
+    let mut out = LinearImage::new_filled(w, h, [0.0; 4]);
     let job = RectJob {
-        outer: [0, 0, size, size],
-        inner: [0, 0, size, size],
+        outer: [0, 0, w, h],
+        inner: [0, 0, w, h],
         uv_min: [0.0; 2],
         uv_max: [1.0; 2],
         wrap,

@@ -7,7 +7,7 @@ use crate::ids::BlockId;
 use crate::paging::Event;
 use crate::render::RenderError;
 use crate::render::batch::AtlasSlot;
-use crate::render::textures::{gpu_format, texels_for_upload};
+use crate::render::textures::{gpu_format, layer_texels_for_upload, texels_for_upload};
 use crate::render::wgsl::tree::TamEntry;
 use crate::texfmt::TexFormat;
 
@@ -116,7 +116,7 @@ impl Resident {
         // Check every chain first, so a short block changes no reference count.
         for &(ui, offset) in &held {
             let u = &self.uniques[ui as usize];
-            let need = u.format.chain_bytes(u.class_size);
+            let need = u.format.chain_bytes_rect(u.extent[0], u.extent[1]);
             if offset.saturating_add(need) > bytes.len() as u64 {
                 return Err(RenderError::ShortBlock { block });
             }
@@ -254,12 +254,12 @@ impl Resident {
         })?;
         // From here a failure hands the layer back: the reference count only counts uniques that hold a
         // layer.
-        let (stored, size) = (self.uniques[u].format, self.uniques[u].class_size);
+        let (stored, extent) = (self.uniques[u].format, self.uniques[u].extent);
         let target = arr.format;
         let texels = usize::try_from(offset)
             .ok()
             .and_then(|o| bytes.get(o..))
-            .and_then(|chain| texels_for_upload(stored, chain, size, target));
+            .and_then(|chain| layer_texels_for_upload(stored, chain, extent, target));
         let Some(n) = texels.and_then(|t| arr.upload_chain(queue, layer, &t)) else {
             arr.layers.free(layer);
             return Err(RenderError::ShortBlock { block });

@@ -3,8 +3,9 @@
 //! uploaded as they become resident and from which they are freed when evicted ([`Resident::apply`]).
 //! The all-resident load is the same load with k = every block ([`Resident::load`]).
 //!
-//! Original textures are deduplicated by `(material, class size)`: one layer serves every leaf that shows
-//! the texture, held while any resident block that carries it is resident.
+//! Original textures are deduplicated by `(material, stored extent)`: one layer serves every leaf that
+//! shows the texture, held while any resident block that carries it is resident. A non-square texture
+//! fills its square class layer tiled ([`crate::texfmt::tile_chain_to_square`]).
 //!
 //! - `tables`: the CPU gathering of what the shader indexes ([`gather_tables`]);
 //! - `arrays`: the texture arrays a capacity needs (atlas arrays per format, [`class_slots`]);
@@ -35,6 +36,8 @@ use wgpu::util::DeviceExt;
 pub struct UniqueOriginal {
     pub material: u32,
     pub class_size: u32,
+    /// Stored `[width, height]`, texels (`class_size` is the larger; the layer tiles the texture).
+    pub extent: [u32; 2],
     /// Size class: `class_size == 4 << class`.
     pub class: u32,
     /// The class binding (`class0..`) and layer it occupies while resident (0, 0 before its first upload).

@@ -44,7 +44,7 @@ pub struct GpuTables {
 pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
     let materials = file.materials();
     let mut g = GpuTables::default();
-    let mut unique_of: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut unique_of: HashMap<(u32, [u32; 2]), u32> = HashMap::new();
     for t in 0..file.trees() {
         let view = file.tree(t).ok_or(RenderError::MissingTree { tree: t })?;
         if view.kind == crate::model::TreeKind::Alpha {
@@ -89,17 +89,18 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
                         slot: o.slot,
                     })?;
                 let m = materials.get(o.material as usize).copied();
-                let class = class_index(o.class_size).ok_or(RenderError::BadClass {
+                let class = class_index(o.class_size()).ok_or(RenderError::BadClass {
                     tree: t,
                     leaf: li as u32,
-                    class_size: o.class_size,
+                    class_size: o.class_size(),
                 })?;
                 let next = g.uniques.len() as u32;
-                let ui = *unique_of.entry((o.material, o.class_size)).or_insert(next);
+                let ui = *unique_of.entry((o.material, o.extent())).or_insert(next);
                 if ui == next {
                     g.uniques.push(UniqueOriginal {
                         material: o.material,
-                        class_size: o.class_size,
+                        class_size: o.class_size(),
+                        extent: o.extent(),
                         class,
                         slot: 0,
                         layer: 0,
@@ -118,9 +119,8 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
                     alpha_mode: m.map_or(ALPHA_OPAQUE, |m| m.alpha_mode),
                     factor: m.map_or([1.0; 4], |m| m.base_color_factor),
                     cutoff: m.map_or(0.5, |m| m.alpha_cutoff),
-                    class_size: o.class_size as f32,
-                    _p0: 0,
-                    _p1: 0,
+                    class_size: o.class_size() as f32,
+                    extent: o.extent().map(|v| v as f32),
                 });
             }
             // Every vertex's `original` and `rect` must index the leaf's TAM and rect ranges (the shader does
@@ -213,24 +213,24 @@ fn passes_and_cutoffs(
 }
 
 /// Byte offset of each original of a leaf inside its block: images of one block are back to back in slot
-/// order, each a full mip chain of its class size in the tree's `format`.
+/// order, each a full `width × height` mip chain in the tree's `format`.
 fn slot_offsets(originals: &[OriginalRecord], format: TexFormat) -> HashMap<(u32, u32), u64> {
     // Every (block, slot) once (a shared original is listed by every leaf that references it), in slot
     // order per block: the chains lie back to back.
-    let mut slots: Vec<(u32, u32, u32)> = originals
+    let mut slots: Vec<(u32, u32, [u32; 2])> = originals
         .iter()
-        .map(|o| (o.block, o.slot, o.class_size))
+        .map(|o| (o.block, o.slot, o.extent()))
         .collect();
     slots.sort_unstable();
     slots.dedup_by_key(|x| (x.0, x.1));
     let mut out = HashMap::with_capacity(slots.len());
     let (mut block, mut off) = (u32::MAX, 0u64);
-    for (b, slot, class_size) in slots {
+    for (b, slot, [w, h]) in slots {
         if b != block {
             (block, off) = (b, 0);
         }
         out.insert((b, slot), off);
-        off += format.chain_bytes(class_size);
+        off += format.chain_bytes_rect(w, h);
     }
     out
 }

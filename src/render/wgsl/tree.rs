@@ -346,7 +346,8 @@ pub struct TamEntry {
     pub cutoff: f32,
     /// Side of the class, texels.
     pub class_size: f32,
-    pub _p0: u32,
-    pub _p1: u32,
+    /// Stored width and height of the texture, texels (each ≤ `class_size`): the layer holds it tiled,
+    /// and the shader scales its wrapped UV by `extent / class_size` (see [`crate::texfmt::tile_chain_to_square`]).
+    pub extent: [f32; 2],
 }
 const _: () = assert!(size_of::<TamEntry>() == 48);

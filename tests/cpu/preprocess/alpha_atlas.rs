@@ -208,7 +208,7 @@ fn opaque_materials_keep_the_colour_under_zero_alpha() {
     );
     // The stored original (slot 0 of its block, level 0 first) holds the same colours.
     let o = t.leaf_originals(leaf)[0];
-    assert_eq!(o.class_size, 32);
+    assert_eq!(o.extent(), [32, 32]);
     let block = f.block(BlockId(o.block)).unwrap();
     let mut worst = 0i32;
     for y in 0..32u32 {
