@@ -91,6 +91,19 @@ pub fn print_inspect(r: &InspectReport) {
                 t.original_refs,
                 hist.join(", ")
             );
+            let b = &t.original_blocks_cost;
+            println!(
+                "    original blocks: {} of {:.2} / {:.2} / {:.2} atlases (smallest / median / largest; {} over one atlas); \
+                 leaves load {} of blocks for {} of their own textures ({:.2}×)",
+                t.original_blocks,
+                b.size_vs_atlas[0],
+                b.size_vs_atlas[1],
+                b.size_vs_atlas[2],
+                b.over_atlas,
+                human_bytes(b.loaded_bytes),
+                human_bytes(b.needed_bytes),
+                b.loaded_bytes as f64 / b.needed_bytes.max(1) as f64
+            );
         }
         let rp = &t.repeats;
         if rp.rects > 0 {

@@ -60,6 +60,61 @@ pub struct TreeInfo {
     pub original_refs: u64,
     /// `(leaves referencing a stored original, how many stored originals have that many)`, ascending.
     pub originals_sharing: Vec<(u64, u64)>,
+    /// The original-texture blocks' sizes against one atlas block ([`OriginalBlocks`]).
+    pub original_blocks_cost: OriginalBlocks,
+}
+
+/// How a tree's original textures are cut into blocks (§6: blocks of about one atlas; issue 17).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct OriginalBlocks {
+    /// Block bytes over one atlas block's bytes: smallest, median, largest.
+    pub size_vs_atlas: [f64; 3],
+    /// Blocks over one atlas (a texture larger than an atlas is a block of its own).
+    pub over_atlas: u64,
+    /// Σ over leaves of the bytes of the textures each leaf draws, and of the blocks it must load for
+    /// them (a block carries the textures grouped with them): the second over the first is what loading
+    /// by blocks costs over loading exactly what a leaf shows (1 = nothing extra).
+    pub needed_bytes: u64,
+    pub loaded_bytes: u64,
+}
+
+/// [`OriginalBlocks`] of tree `ti` of `file`.
+pub fn original_blocks_cost(file: &TreeFile, ti: usize, atlas_bytes: u64) -> OriginalBlocks {
+    let Some(t) = file.tree(ti) else {
+        return OriginalBlocks::default();
+    };
+    let blocks = file.blocks();
+    let format = t.format();
+    let mut sizes: Vec<u64> = blocks
+        .iter()
+        .filter(|b| b.tree as usize == ti && b.kind == crate::store::format::BLOCK_ORIGINALS)
+        .map(|b| b.length)
+        .collect();
+    sizes.sort_unstable();
+    let ratio = |b: u64| b as f64 / atlas_bytes.max(1) as f64;
+    let mut c = OriginalBlocks {
+        over_atlas: sizes.iter().filter(|&&b| b > atlas_bytes).count() as u64,
+        ..OriginalBlocks::default()
+    };
+    if let (Some(&lo), Some(&hi)) = (sizes.first(), sizes.last()) {
+        c.size_vs_atlas = [lo, sizes[sizes.len() / 2], hi].map(ratio);
+    }
+    for leaf in t.leaves {
+        let originals = t.leaf_originals(leaf);
+        let mut needed: BTreeSet<(u32, u32)> = BTreeSet::new();
+        for o in originals {
+            if needed.insert((o.block, o.slot)) {
+                c.needed_bytes += format.chain_bytes_rect(o.extent()[0], o.extent()[1]);
+            }
+        }
+        let used: BTreeSet<u32> = originals.iter().map(|o| o.block).collect();
+        c.loaded_bytes += used
+            .iter()
+            .filter_map(|&b| blocks.get(b as usize))
+            .map(|b| b.length)
+            .sum::<u64>();
+    }
+    c
 }
 
 /// Values compared per stored atlas of a tree of `kind` (texels of the full chain × channels): the
@@ -167,6 +222,11 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             originals_stored: sharing.len() as u64,
             original_refs: t.originals.len() as u64,
             originals_sharing: histogram,
+            original_blocks_cost: original_blocks_cost(
+                file,
+                ti,
+                t.format().chain_bytes(params.atlas_size),
+            ),
         });
     }
     let mats: Vec<_> = file

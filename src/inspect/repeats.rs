@@ -25,7 +25,7 @@ pub struct RepeatCost {
     pub all_atlas_texels: u64,
     /// Distinct images behind the repeat rects.
     pub images: u64,
-    /// Σ over those images of their stored original size² (each once): what drawing them from their
+    /// Σ over those images of their stored original texels, `w × h` (each once): what drawing them from their
     /// mip chains at every level would store, and the most it would keep resident.
     pub original_texels_once: u64,
     /// The same summed over every leaf that references them (one copy per leaf, as files before format 4

@@ -1,8 +1,10 @@
 //! Flattening a layout into the stored tree (paper §3, §5.1): nodes in pre-order, leaves in tree order,
 //! per-leaf geometry in the exact single-UV-set form of DESIGN.md "Precision", original-texture classes,
-//! and the block table (one block per atlas; a leaf's original textures in blocks of about an atlas' size).
+//! and the block table (one block per atlas; the tree's original textures, each once, in blocks of about an
+//! atlas' size grouped by the leaves that draw them, [`super::originals`]).
 
 use super::layout::{LayoutKind, LayoutNode, LeafLayout};
+use super::originals::{MAX_BLOCK_WASTE, OriginalItem, group_by_users};
 use super::prepare::TriInfo;
 use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
 use crate::model::{
@@ -14,84 +16,8 @@ use crate::texfmt::TexFormat;
 use glam::{DVec2, DVec3};
 use std::collections::HashMap;
 
+pub use super::originals::{original_class, original_extent};
 pub use crate::model::{MAX_ORIGINAL_CLASS, MIN_ORIGINAL_CLASS};
-
-/// The square power-of-two class an original image of `w × h` is drawn from (its array's side).
-pub fn original_class(w: u32, h: u32) -> u32 {
-    w.max(h)
-        .max(1)
-        .next_power_of_two()
-        .clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
-}
-
-/// The stored `[width, height]` of an original image of `w × h`: each side to the next power of two in
-/// `MIN_ORIGINAL_CLASS..=MAX_ORIGINAL_CLASS` (so the larger is [`original_class`]). Non-square, so a
-/// `1024 × 256` texture stores a quarter of the `1024²` its class layer holds (issue 17).
-pub fn original_extent(w: u32, h: u32) -> [u32; 2] {
-    let side = |v: u32| {
-        v.max(1)
-            .next_power_of_two()
-            .clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
-    };
-    [side(w), side(h)]
-}
-
-/// What a tree's original textures cost in the file against their sources (issue 17's measure).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-pub struct OriginalsCost {
-    /// Distinct stored chains (`(block, slot)`), and the leaf references to them.
-    pub stored: u64,
-    pub references: u64,
-    /// Bytes of the stored chains (every original-texture block of the tree).
-    pub bytes: u64,
-    /// What the same chains took as square classes (`max(w, h)²`, format 4 and before).
-    pub square_bytes: u64,
-    /// Distinct source images behind them, and the bytes of each once at its own size in the tree's
-    /// format with a full mip chain (sides halved rounding up down to 1×1).
-    pub images: u64,
-    pub source_bytes: u64,
-}
-
-/// [`OriginalsCost`] of `tree` built from `scene`.
-pub fn originals_cost(tree: &AtlasTree, scene: &Scene) -> OriginalsCost {
-    let mut chains: HashMap<(BlockId, u32), [u32; 2]> = HashMap::new();
-    let mut images = std::collections::HashSet::new();
-    let mut c = OriginalsCost::default();
-    for o in tree.leaves.iter().flat_map(|l| &l.originals) {
-        c.references += 1;
-        chains.insert((o.block, o.slot), o.extent);
-        images.insert(o.image);
-    }
-    c.stored = chains.len() as u64;
-    c.bytes = chains
-        .values()
-        .map(|&[w, h]| tree.format.chain_bytes_rect(w, h))
-        .sum();
-    c.square_bytes = chains
-        .values()
-        .map(|&[w, h]| tree.format.chain_bytes(w.max(h)))
-        .sum();
-    c.images = images.len() as u64;
-    c.source_bytes = images
-        .iter()
-        .filter_map(|i| scene.images.get(i.idx()))
-        .map(|img| source_chain_bytes(tree.format, img.width, img.height))
-        .sum();
-    c
-}
-
-/// Bytes of a `w × h` image (any sides) with its full mip chain in `format`: levels halved rounding up
-/// down to 1×1.
-pub fn source_chain_bytes(format: TexFormat, w: u32, h: u32) -> u64 {
-    let (mut w, mut h, mut total) = (w.max(1), h.max(1), 0u64);
-    loop {
-        total += format.level_bytes_rect(w, h);
-        if w == 1 && h == 1 {
-            return total;
-        }
-        (w, h) = (w.div_ceil(2), h.div_ceil(2));
-    }
-}
 
 /// Where a tree goes in its forest.
 #[derive(Copy, Clone, Debug)]
@@ -128,9 +54,11 @@ struct Asm<'a> {
     format: TexFormat,
     out: Assembled,
     next_block: u32,
-    /// Originals stored so far in this tree, per material: `(block, slot)`. Each is stored once (by the
-    /// first leaf that needs it) and referenced by every later leaf (DESIGN.md "Originals").
-    stored: HashMap<MaterialId, (BlockId, u32)>,
+    /// The tree's original textures, per material in order of first use: stored bytes and the leaves
+    /// that draw it. Each is stored once; [`Asm::place_originals`] cuts them into blocks
+    /// ([`group_by_users`]) when every leaf is known (DESIGN.md "Originals").
+    pending: Vec<(MaterialId, OriginalItem)>,
+    pending_of: HashMap<MaterialId, usize>,
 }
 
 /// Flattens `root` (a layout over `infos`, permutation `order`) into tree `tree_index` of a forest whose
@@ -173,9 +101,11 @@ pub fn assemble(
             periods_spanned: 0.0,
         },
         next_block: first_block,
-        stored: HashMap::new(),
+        pending: Vec::new(),
+        pending_of: HashMap::new(),
     };
     a.node(root, None);
+    a.place_originals();
     a.out
 }
 
@@ -189,6 +119,43 @@ impl Asm<'_> {
             bytes,
         });
         id
+    }
+
+    /// Cuts the tree's original textures into blocks of about one atlas ([`group_by_users`]), appends
+    /// them after the tree's atlas blocks (each owned by its first user leaf) and points every leaf's
+    /// references at their block and slot.
+    fn place_originals(&mut self) {
+        let budget = self.format.chain_bytes(self.params.atlas_size);
+        let items: Vec<OriginalItem> = self.pending.iter().map(|p| p.1.clone()).collect();
+        let blocks = group_by_users(&items, budget, MAX_BLOCK_WASTE);
+        let mut place: HashMap<MaterialId, (BlockId, u32)> = HashMap::new();
+        let mut parts: HashMap<u32, u32> = HashMap::new();
+        for b in &blocks {
+            let part = parts.entry(b.owner).or_default();
+            let id = self.block(
+                BlockKind::Originals {
+                    leaf: LeafId(b.owner),
+                    part: *part,
+                },
+                b.bytes,
+            );
+            *part += 1;
+            for (slot, &i) in b.items.iter().enumerate() {
+                place.insert(self.pending[i].0, (id, slot as u32));
+            }
+        }
+        for o in self
+            .out
+            .tree
+            .leaves
+            .iter_mut()
+            .flat_map(|l| &mut l.originals)
+        {
+            // Every pending material is in exactly one block (group_by_users' contract).
+            if let Some(&(block, slot)) = place.get(&o.material) {
+                (o.block, o.slot) = (block, slot);
+            }
+        }
     }
 
     fn node(&mut self, n: &LayoutNode, parent: Option<NodeId>) -> NodeId {
@@ -245,61 +212,35 @@ impl Asm<'_> {
             DVec3::ZERO
         };
 
-        // Original textures: one entry per material. Those no earlier leaf of the tree stored are grouped
-        // greedily into blocks of about an atlas' size (an image larger than that is a block of its own),
-        // owned by this leaf; the others reference the block that holds them (stored once, §8.3).
-        let budget = self.format.chain_bytes(self.params.atlas_size);
+        // Original textures: one entry per material, each recorded with its users; the blocks are cut
+        // once all leaves are known (`place_originals` fills in `block` and `slot`).
         let mut seen_materials = std::collections::HashSet::new();
-        let classes: Vec<(MaterialId, crate::ids::ImageId, [u32; 2])> = l
-            .rects
-            .iter()
-            .filter(|r| seen_materials.insert(r.material))
-            .map(|r| {
-                let mat = &self.scene.materials[r.material.idx()];
-                let img = &self.scene.images[mat.image.idx()];
-                (
-                    r.material,
-                    mat.image,
-                    original_extent(img.width, img.height),
-                )
-            })
-            .collect();
-        let new: Vec<usize> = (0..classes.len())
-            .filter(|&i| !self.stored.contains_key(&classes[i].0))
-            .collect();
-        let parts = group_into_blocks(
-            new.iter().map(|&i| {
-                let [w, h] = classes[i].2;
-                self.format.chain_bytes_rect(w, h)
-            }),
-            budget,
-        );
-        let mut block_ids: Vec<BlockId> = Vec::new();
-        for (part, bytes) in parts.sizes.iter().enumerate() {
-            block_ids.push(self.block(
-                BlockKind::Originals {
-                    leaf: leaf_id,
-                    part: part as u32,
-                },
-                *bytes,
-            ));
-        }
-        for (k, &i) in new.iter().enumerate() {
-            let (part, slot) = parts.place[k];
-            self.stored.insert(classes[i].0, (block_ids[part], slot));
-        }
-        let mut originals: Vec<OriginalRef> = Vec::with_capacity(classes.len());
+        let mut originals: Vec<OriginalRef> = Vec::new();
         let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
-        for &(material, image, extent) in &classes {
-            let (block, slot) = self.stored[&material];
-            slot_of.insert(material, originals.len() as u32);
+        for r in l.rects.iter().filter(|r| seen_materials.insert(r.material)) {
+            let mat = &self.scene.materials[r.material.idx()];
+            let img = &self.scene.images[mat.image.idx()];
+            let extent = original_extent(img.width, img.height);
+            let next = self.pending.len();
+            let k = *self.pending_of.entry(r.material).or_insert(next);
+            if k == next {
+                self.pending.push((
+                    r.material,
+                    OriginalItem {
+                        bytes: self.format.chain_bytes_rect(extent[0], extent[1]),
+                        users: Vec::new(),
+                    },
+                ));
+            }
+            self.pending[k].1.users.push(leaf_id.0);
+            slot_of.insert(r.material, originals.len() as u32);
             originals.push(OriginalRef {
-                material,
-                image,
+                material: r.material,
+                image: mat.image,
                 class_size: extent[0].max(extent[1]),
                 extent,
-                block,
-                slot,
+                block: BlockId(crate::ids::NONE),
+                slot: crate::ids::NONE,
             });
         }
 
@@ -386,61 +327,4 @@ fn finite2(a: [f32; 2]) -> [f32; 2] {
 }
 fn finite3(a: [f32; 3]) -> [f32; 3] {
     a.map(|x| if x.is_finite() { x } else { 0.0 })
-}
-
-/// Greedy grouping of byte sizes into blocks of at most `budget` bytes (items larger than the budget get a
-/// block of their own), in order.
-pub struct BlockGrouping {
-    /// Bytes of each block.
-    pub sizes: Vec<u64>,
-    /// For each item: (block index, slot within the block).
-    pub place: Vec<(usize, u32)>,
-}
-
-pub fn group_into_blocks(items: impl IntoIterator<Item = u64>, budget: u64) -> BlockGrouping {
-    let mut g = BlockGrouping {
-        sizes: Vec::new(),
-        place: Vec::new(),
-    };
-    let mut slot = 0u32;
-    for bytes in items {
-        match g.sizes.last_mut() {
-            Some(last) if *last + bytes <= budget => {
-                *last += bytes;
-                slot += 1;
-            }
-            _ => {
-                g.sizes.push(bytes);
-                slot = 0;
-            }
-        }
-        g.place.push((g.sizes.len() - 1, slot));
-    }
-    g
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn grouping_respects_budget_and_order() {
-        let g = group_into_blocks([40, 50, 20, 200, 10, 90], 100);
-        assert_eq!(g.sizes, vec![90, 20, 200, 100]);
-        assert_eq!(
-            g.place,
-            vec![(0, 0), (0, 1), (1, 0), (2, 0), (3, 0), (3, 1)]
-        );
-    }
-
-    #[test]
-    fn classes_are_powers_of_two_within_limits() {
-        assert_eq!(original_class(1, 1), 4);
-        assert_eq!(original_class(300, 200), 512);
-        assert_eq!(original_class(512, 512), 512);
-        assert_eq!(original_class(8192, 16), 2048);
-        assert_eq!(original_extent(8192, 16), [2048, 16]);
-        assert_eq!(original_extent(300, 200), [512, 256]);
-        assert_eq!(original_extent(1, 1024), [4, 1024]);
-    }
 }

@@ -5,7 +5,8 @@
 //! 2. [`layout`]: try an atlas per node (§5.2.2 areas via [`area`], §5.2.3 packing via [`pack`]); split on
 //!    failure (§5.3). Sizes only, no pixels.
 //! 3. [`assemble`]: nodes in pre-order, leaves in tree order, geometry in the exact single-UV-set form
-//!    ([`crate::model::transform`]), original-texture classes, the block table with every block's byte size.
+//!    ([`crate::model::transform`]), original-texture extents, the block table with every block's byte size
+//!    (original textures once per tree, cut into blocks by their users in [`originals`]).
 //! 4. [`raster`]: the pixel pass ([`image_ops`]), streamed into [`crate::store::FileWriter`] at offsets fixed
 //!    in stage 3, then the file is finished atomically.
 
@@ -15,6 +16,7 @@ pub mod cover;
 pub mod demand;
 pub mod image_ops;
 pub mod layout;
+pub mod originals;
 pub mod pack;
 pub mod prepare;
 pub mod raster;
@@ -224,8 +226,8 @@ pub struct TreeReport {
     pub occupancy_max: f64,
     pub root_min_distance: f64,
     pub sizing: prepare::PrepareReport,
-    /// The original textures' bytes against their sources once ([`assemble::OriginalsCost`]).
-    pub originals: assemble::OriginalsCost,
+    /// The original textures' bytes against their sources once ([`originals::OriginalsCost`]).
+    pub originals: originals::OriginalsCost,
 }
 
 /// What a build did, with the numbers (printed by `atlastree build`, JSON with `--json`).
@@ -452,7 +454,7 @@ pub fn build(
             occupancy_max: occ.iter().copied().fold(0.0, f64::max),
             root_min_distance: asm.tree.nodes.first().map_or(0.0, |n| n.min_distance),
             sizing,
-            originals: assemble::originals_cost(&asm.tree, scene),
+            originals: originals::originals_cost(&asm.tree, scene),
         });
         forest.trees.push(asm.tree);
         forest.blocks.extend(asm.blocks);

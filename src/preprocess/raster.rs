@@ -1,5 +1,5 @@
 //! The pixel pass: leaf atlases rasterised on the CPU in linear light, inner atlases as the 2×2 combination
-//! of their children halved (paper §5.1), original textures resampled to their class size, every block
+//! of their children halved (paper §5.1), original textures resampled to their stored sides, every block
 //! encoded with its full mip chain and streamed into the paging file at its pre-assigned offset.
 //!
 //! Post-order and parallel over subtrees (rayon); each call returns its atlas halved, which is all the
@@ -48,7 +48,7 @@ pub struct ImageCache<'a> {
     pub fallbacks: AtomicU64,
     pub decodes: AtomicU64,
     pub warnings: Mutex<Vec<String>>,
-    /// Encoded original textures (class size, full mip chain) shared by the leaves that use them.
+    /// Encoded original textures (stored sides, full mip chain) shared by the leaves that use them.
     originals: Mutex<OriginalCache>,
     pub original_hits: AtomicU64,
     /// Per image: every material that uses it is OPAQUE, so its alpha channel is ignored (glTF: "the
@@ -245,20 +245,39 @@ pub struct RasterCtx<'a> {
 
 /// Rasterises every atlas and original-texture block of `tree` into the writer.
 pub fn raster_tree(ctx: &RasterCtx<'_>, tree: &AtlasTree) -> Result<(), BuildError> {
-    let owners = block_owners(tree);
-    raster_node(ctx, tree, &owners, NodeId(0)).map(|_| ())
+    let owned = owned_blocks(tree);
+    raster_node(ctx, tree, &owned, NodeId(0)).map(|_| ())
 }
 
-/// Per original-texture block, the leaf that stores it: the first leaf (in leaf order) referencing it,
-/// the one the assembler made it for. Later leaves only reference it.
-fn block_owners(tree: &AtlasTree) -> HashMap<crate::ids::BlockId, usize> {
-    let mut owners = HashMap::new();
+/// One original-texture block and its images in slot order (each listed once, however many leaves
+/// reference it).
+type BlockSlots<'t> = (crate::ids::BlockId, Vec<&'t crate::model::OriginalRef>);
+
+/// Per leaf (index), the original-texture blocks it writes: each block is written by the first leaf (in
+/// leaf order) that references it, with every slot any leaf references (a block groups textures by
+/// their users, so its writer need not show them all).
+fn owned_blocks(tree: &AtlasTree) -> HashMap<usize, Vec<BlockSlots<'_>>> {
+    let mut owner: HashMap<crate::ids::BlockId, usize> = HashMap::new();
+    let mut slots: HashMap<
+        crate::ids::BlockId,
+        std::collections::BTreeMap<u32, &crate::model::OriginalRef>,
+    > = HashMap::new();
     for (li, leaf) in tree.leaves.iter().enumerate() {
         for o in &leaf.originals {
-            owners.entry(o.block).or_insert(li);
+            owner.entry(o.block).or_insert(li);
+            slots.entry(o.block).or_default().entry(o.slot).or_insert(o);
         }
     }
-    owners
+    let mut out: HashMap<usize, Vec<BlockSlots<'_>>> = HashMap::new();
+    for (block, by_slot) in slots {
+        out.entry(owner[&block])
+            .or_default()
+            .push((block, by_slot.into_values().collect()));
+    }
+    for blocks in out.values_mut() {
+        blocks.sort_by_key(|b| b.0);
+    }
+    out
 }
 
 /// The colour of atlas space no texture occupies (unused leaf space, missing quadrants of inner atlases).
@@ -274,15 +293,16 @@ fn fill_for(kind: TreeKind) -> [f32; 4] {
 fn raster_node(
     ctx: &RasterCtx<'_>,
     tree: &AtlasTree,
-    owners: &HashMap<crate::ids::BlockId, usize>,
+    owned: &HashMap<usize, Vec<BlockSlots<'_>>>,
     id: NodeId,
 ) -> Result<LinearImage, BuildError> {
     let node = &tree.nodes[id.idx()];
     let size = ctx.params.atlas_size;
     let atlas = if let Some(leaf_id) = node.leaf {
         let leaf = &tree.leaves[leaf_id.idx()];
-        let own = |b| owners.get(&b) == Some(&leaf_id.idx());
-        write_originals(ctx, tree, leaf, own)?;
+        if let Some(blocks) = owned.get(&leaf_id.idx()) {
+            write_originals(ctx, tree, blocks)?;
+        }
         leaf_atlas(ctx, leaf, size, fill_for(tree.kind))
             .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
     } else {
@@ -295,7 +315,7 @@ fn raster_node(
         use rayon::prelude::*;
         let halves: Vec<(usize, LinearImage)> = kids
             .par_iter()
-            .map(|&(q, c)| raster_node(ctx, tree, owners, c).map(|img| (q, img)))
+            .map(|&(q, c)| raster_node(ctx, tree, owned, c).map(|img| (q, img)))
             .collect::<Result<_, _>>()?;
         let mut quads: [Option<&LinearImage>; 4] = [None; 4];
         for (q, img) in &halves {
@@ -361,35 +381,25 @@ fn image_err(what: String, source: ImageOpsError) -> BuildError {
     BuildError::Image { what, source }
 }
 
-/// The original textures a leaf stores (those of the blocks it owns: the first leaf of the tree that needs
-/// a material stores it, later ones reference it), each resampled to its stored sides with a full mip chain,
-/// back to back per block in slot order (layout of `OriginalRef::slot`).
+/// The original-texture blocks a leaf writes ([`owned_blocks`]): each block's images resampled to their
+/// stored sides with a full mip chain, back to back in slot order (layout of `OriginalRef::slot`).
 fn write_originals(
     ctx: &RasterCtx<'_>,
     tree: &AtlasTree,
-    leaf: &Leaf,
-    owns: impl Fn(crate::ids::BlockId) -> bool,
+    blocks: &[BlockSlots<'_>],
 ) -> Result<(), BuildError> {
-    let mut blocks: Vec<(crate::ids::BlockId, Vec<u8>, u64)> = Vec::new();
     let channels = tree.kind.channels();
-    let mut own: Vec<&crate::model::OriginalRef> =
-        leaf.originals.iter().filter(|o| owns(o.block)).collect();
-    own.sort_by_key(|o| (o.block, o.slot));
-    for o in own {
-        let mat = &ctx.scene.materials[o.material.idx()];
-        let enc = ctx
-            .cache
-            .original((o.image, o.extent, mat.wrap, tree.format, channels))?;
-        match blocks.last_mut() {
-            Some((b, buf, sse)) if *b == o.block => {
-                buf.extend_from_slice(&enc.bytes);
-                *sse += enc.sse;
-            }
-            _ => blocks.push((o.block, enc.bytes.clone(), enc.sse)),
+    for (block, slots) in blocks {
+        let (mut buf, mut sse) = (Vec::new(), 0u64);
+        for o in slots {
+            let mat = &ctx.scene.materials[o.material.idx()];
+            let enc = ctx
+                .cache
+                .original((o.image, o.extent, mat.wrap, tree.format, channels))?;
+            buf.extend_from_slice(&enc.bytes);
+            sse += enc.sse;
         }
-    }
-    for (b, buf, sse) in blocks {
-        ctx.writer.write_block_measured(b, &buf, sse)?;
+        ctx.writer.write_block_measured(*block, &buf, sse)?;
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 //! The pass draws the cut of [`super::Mode::Tree`] with the `DENSITY = 1` variant of `shaders/tree.wgsl`
 //! into an `Rgba32Float` target. Per pixel it writes the singular values of the Jacobian
 //! d(texel of mip 0)/d(screen pixel), from the quad derivatives of the UV times the texture size (atlas
-//! array size, or the class size of the original texture): the smaller one is the texel density along the
+//! array size, or the stored sides of the original texture): the smaller one is the texel density along the
 //! least-sampled screen direction (< 1: the texture is magnified there), the larger one the density the
 //! isotropic mip selection sees. The paper's selection criterion (§3.3, `min_distance`) promises that an
 //! atlas delivers at least `texel_ratio` texels per pixel; original textures are the source resolution

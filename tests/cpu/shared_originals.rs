@@ -260,3 +260,72 @@ fn an_originals_block_is_ideal_only_with_every_other_block_of_a_leaf_that_uses_i
         "no multi-block leaf ever had its group ideal: the test proves nothing"
     );
 }
+
+/// Blocks group textures by the leaves that draw them (§6, issue 17): on the corners scene and on the small
+/// city (one facade texture per building, several buildings per leaf) every originals block is at most one
+/// atlas unless it is one texture, a block's first user leaf owns it, and what the leaves load by blocks
+/// is within `MAX_BLOCK_WASTE` of what they draw (inspect's twin of the grouping's bound). The city has
+/// more textures than blocks: small ones share blocks.
+#[test]
+fn original_blocks_group_textures_by_their_users_within_the_waste_bound() {
+    use atlastree::inspect::original_blocks_cost;
+    use atlastree::preprocess::BuildOptions;
+    use atlastree::preprocess::originals::MAX_BLOCK_WASTE;
+    let dir = tempfile::tempdir().unwrap();
+    let city = dir.path().join("city.atlastree");
+    let opts = BuildOptions {
+        atlas_size: 256,
+        ..BuildOptions::default()
+    };
+    build(
+        &atlastree::scene::synthetic::small_city(8, 64),
+        &opts,
+        &city,
+        &NoProgress,
+    )
+    .unwrap();
+    let files = [build_corners(dir.path()), TreeFile::open(&city).unwrap()];
+    for (fi, file) in files.iter().enumerate() {
+        let atlas = file
+            .tree(0)
+            .unwrap()
+            .format()
+            .chain_bytes(file.to_params().atlas_size);
+        let t = file.tree(0).unwrap();
+        let mut slots: HashMap<u32, BTreeSet<u32>> = HashMap::new();
+        let mut first_user: HashMap<u32, u32> = HashMap::new();
+        for (li, leaf) in t.leaves.iter().enumerate() {
+            for o in t.leaf_originals(leaf) {
+                slots.entry(o.block).or_default().insert(o.slot);
+                first_user.entry(o.block).or_insert(li as u32);
+            }
+        }
+        for (&b, s) in &slots {
+            let rec = file.blocks()[b as usize];
+            assert!(
+                rec.length <= atlas || s.len() == 1,
+                "file {fi} block {b}: {} bytes, {} slots",
+                rec.length,
+                s.len()
+            );
+            assert_eq!(
+                rec.item, first_user[&b],
+                "file {fi} block {b}: owned by its first user"
+            );
+        }
+        let c = original_blocks_cost(file, 0, atlas);
+        assert!(c.needed_bytes > 0);
+        assert!(
+            c.loaded_bytes as f64 <= (1.0 + MAX_BLOCK_WASTE) * c.needed_bytes as f64,
+            "file {fi}: {c:?}"
+        );
+        if fi == 1 {
+            let stored: usize = slots.values().map(BTreeSet::len).sum();
+            assert!(
+                slots.len() < stored,
+                "city: {} blocks for {stored} textures",
+                slots.len()
+            );
+        }
+    }
+}
