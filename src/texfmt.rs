@@ -1,11 +1,12 @@
 //! Texel formats of the paging file's blocks: RGBA8 sRGB, or block compression (BC1, BC3, BC7, all sRGB),
 //! the S3TC the paper (§6) used to shrink the paging file and the transfer per block.
 //!
-//! A block is one or more power-of-two images (atlases square; original textures `w × h`, see [`rect`]),
-//! each with its full mip chain down to 1×1, level 0 first, every level stored in the block's format. A compressed level of side `s` is `ceil(s/4)²` 4×4
-//! blocks in row-major order; levels smaller than 4 (2×2, 1×1) occupy one whole 4×4 block whose texels
-//! outside the level replicate its edge (what GPUs expect: the physical size of a BC mip is rounded up
-//! to the block size).
+//! A block is one or more power-of-two images (atlases square; original textures `w × h`, tiled into a
+//! square layer on upload, see [`mip_extents`] and [`tile_chain_to_square`]), each with its full mip chain
+//! down to 1×1, level 0 first, every level stored in the block's format. A compressed level of side `s`
+//! is `ceil(s/4)²` 4×4 blocks in row-major order; levels smaller than 4 (2×2, 1×1) occupy one whole 4×4
+//! block whose texels outside the level replicate its edge (what GPUs expect: the physical size of a BC
+//! mip is rounded up to the block size; non-square levels repeat periodically instead).
 //!
 //! Encoding uses `intel_tex_2`: Intel's ISPC texture compressor kernels, shipped as prebuilt SIMD static
 //! libraries in the crate (builds offline from crates.io; `build.rs` links libstdc++, which its C++ part
@@ -306,40 +307,9 @@ pub fn encode_level(format: TexFormat, rgba: &[u8], s: u32, alpha: bool) -> Vec<
 }
 
 /// Decodes one level of side `s` stored in `format` (`bytes.len() == format.level_bytes(s)`) to `s×s`
-/// RGBA8. RGBA8 is returned as is.
+/// RGBA8 (the square case of [`decode_level_rect`]). RGBA8 is returned as is.
 pub fn decode_level(format: TexFormat, bytes: &[u8], s: u32) -> Vec<u8> {
-    if format == TexFormat::Rgba8 {
-        return bytes.to_vec();
-    }
-    let s = s.max(1);
-    let bw = s.div_ceil(4) as usize;
-    let p = bw * 4;
-    let bb = format.bytes_per_block() as usize;
-    let mut padded = vec![0u8; p * p * 4];
-    let pitch = p * 4;
-    padded
-        .par_chunks_mut(pitch * 4)
-        .zip(bytes.par_chunks(bw * bb))
-        .for_each(|(rows, blocks)| {
-            for (bx, block) in blocks.chunks_exact(bb).enumerate() {
-                let dst = &mut rows[bx * 16..];
-                match format {
-                    TexFormat::Bc1 => bcdec_rs::bc1(block, dst, pitch),
-                    TexFormat::Bc3 => bcdec_rs::bc3(block, dst, pitch),
-                    TexFormat::Bc7 => bcdec_rs::bc7(block, dst, pitch),
-                    TexFormat::Rgba8 => {}
-                }
-            }
-        });
-    let s = s as usize;
-    if s == p {
-        return padded;
-    }
-    let mut out = Vec::with_capacity(s * s * 4);
-    for y in 0..s {
-        out.extend_from_slice(&padded[y * pitch..][..s * 4]);
-    }
-    out
+    decode_level_rect(format, bytes, s, s)
 }
 
 /// Encodes a full RGBA8 mip chain of a `size²` image (`chain.len() == TexFormat::Rgba8.chain_bytes(size)`)

@@ -185,10 +185,10 @@ pub fn layer_texels_for_upload(
     [w, h]: [u32; 2],
     target: TexFormat,
 ) -> Option<Cow<'_, [u8]>> {
-    if w == h {
-        return texels_for_upload(stored, bytes, w, target);
-    }
     let converted = rect_texels_for_upload(stored, bytes, [w, h], target)?;
+    if w == h {
+        return Some(converted);
+    }
     crate::texfmt::tile_chain_to_square(target, &converted, w, h)
         .ok()
         .map(Cow::Owned)

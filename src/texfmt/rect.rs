@@ -14,9 +14,7 @@
 //! block of a 2-texel-high level holds two whole periods and tiling stays a copy of whole blocks. Square
 //! images (`w == h`) take the square path unchanged, byte for byte.
 
-use super::{
-    Encoded, TexFormat, TexFormatError, decode_level, encode_band, encode_level, sse_rgba8,
-};
+use super::{Encoded, TexFormat, TexFormatError, encode_band, encode_level, sse_rgba8};
 use rayon::prelude::*;
 
 /// Extents `(w, h)` of the mip levels of a `w × h` image: `(max(1, w >> l), max(1, h >> l))` for
@@ -89,30 +87,34 @@ pub fn encode_level_rect(format: TexFormat, rgba: &[u8], w: u32, h: u32, alpha: 
 }
 
 /// Decodes one `w × h` level stored in `format` (`bytes.len() == format.level_bytes_rect(w, h)`) to
-/// `w × h` RGBA8. `w == h` is [`decode_level`].
+/// `w × h` RGBA8 (rows of 4×4 blocks in parallel, cropped to the level). RGBA8 is returned as is.
 pub fn decode_level_rect(format: TexFormat, bytes: &[u8], w: u32, h: u32) -> Vec<u8> {
-    if w == h {
-        return decode_level(format, bytes, w);
-    }
     if format == TexFormat::Rgba8 {
         return bytes.to_vec();
     }
+    let (w, h) = (w.max(1), h.max(1));
     let (bw, bh) = (w.div_ceil(4) as usize, h.div_ceil(4) as usize);
     let bb = format.bytes_per_block() as usize;
     let pitch = bw * 16;
     let mut padded = vec![0u8; pitch * bh * 4];
-    for (rows, blocks) in padded.chunks_mut(pitch * 4).zip(bytes.chunks(bw * bb)) {
-        for (bx, block) in blocks.chunks_exact(bb).enumerate() {
-            let dst = &mut rows[bx * 16..];
-            match format {
-                TexFormat::Bc1 => bcdec_rs::bc1(block, dst, pitch),
-                TexFormat::Bc3 => bcdec_rs::bc3(block, dst, pitch),
-                TexFormat::Bc7 => bcdec_rs::bc7(block, dst, pitch),
-                TexFormat::Rgba8 => {}
+    padded
+        .par_chunks_mut(pitch * 4)
+        .zip(bytes.par_chunks(bw * bb))
+        .for_each(|(rows, blocks)| {
+            for (bx, block) in blocks.chunks_exact(bb).enumerate() {
+                let dst = &mut rows[bx * 16..];
+                match format {
+                    TexFormat::Bc1 => bcdec_rs::bc1(block, dst, pitch),
+                    TexFormat::Bc3 => bcdec_rs::bc3(block, dst, pitch),
+                    TexFormat::Bc7 => bcdec_rs::bc7(block, dst, pitch),
+                    TexFormat::Rgba8 => {}
+                }
             }
-        }
-    }
+        });
     let (w, h) = (w as usize, h as usize);
+    if w * 4 == pitch && h == bh * 4 {
+        return padded;
+    }
     let mut out = Vec::with_capacity(w * h * 4);
     for y in 0..h {
         out.extend_from_slice(&padded[y * pitch..][..w * 4]);
