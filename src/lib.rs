@@ -27,8 +27,8 @@
 //!   the sampler's rule, inner atlases by 2×2 combine and halve (§5.1), per-node texture transforms in the
 //!   exact form of DESIGN.md "Precision", all in a local frame (translation-invariant trees).
 //! - [`store`]: the paging file. Pod records read in place from a memory map, 4 KiB-aligned checksummed
-//!   blocks, atomic writes; each original texture stored once per tree, referenced by every leaf that
-//!   shows it (format 4).
+//!   blocks, atomic writes; each original texture stored once per tree at its own power-of-two sides, in
+//!   blocks grouped by the leaves that show it, referenced by every one of them (format 5).
 //! - [`gpu`]: wgpu device setup shared by the renderer and the GPU tests.
 //! - [`camera`]: cameras, frusta, distance to bounds, keyframed and generated camera paths (f64).
 //! - [`select`]: the per-frame cut (§4): hierarchical culling, distance test, atlas or original textures.

@@ -4,7 +4,7 @@
 //! A block is one or more power-of-two images (atlases square; original textures `w × h`, tiled into a
 //! square layer on upload, see [`mip_extents`] and [`tile_chain_to_square`]), each with its full mip chain
 //! down to 1×1, level 0 first, every level stored in the block's format. A compressed level of side `s`
-//! is `ceil(s/4)²` 4×4 blocks in row-major order; levels smaller than 4 (2×2, 1×1) occupy one whole 4×4
+//! is `ceil(s/4)²` 4×4 blocks in row-major order (`ceil(w/4) · ceil(h/4)` for a `w × h` level); levels smaller than 4 (2×2, 1×1) occupy one whole 4×4
 //! block whose texels outside the level replicate its edge (what GPUs expect: the physical size of a BC
 //! mip is rounded up to the block size; non-square levels repeat periodically instead).
 //!

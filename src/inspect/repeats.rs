@@ -56,7 +56,7 @@ pub fn repeat_cost(file: &TreeFile, tree: usize, atlas_size: u32) -> Option<Repe
             * u64::from(atlas_size).pow(2),
         ..RepeatCost::default()
     };
-    // Per image: stored original side (largest over leaves) and how many leaves hold it.
+    // Per image: stored original texels `w × h` (largest over leaves) and how many leaves hold it.
     let mut images: BTreeMap<u32, (u64, u64)> = BTreeMap::new();
     for leaf in t.leaves {
         let level = t.nodes.get(leaf.node as usize).map_or(0, |n| n.level);

@@ -241,7 +241,8 @@ const _: () = assert!(size_of::<TreeVertex>() == 32);
 pub enum BlockKind {
     /// A node's atlas: `atlas_size²` sRGB in the tree's format, full mip chain, level 0 first.
     Atlas { node: NodeId },
-    /// Part `part` of the original textures first stored by a leaf: images back to back, each a full sRGB
+    /// Part `part` of the original-texture blocks owned by `leaf`, the first leaf that draws one of its
+    /// textures (other leaves reference it too): images back to back, each a full sRGB
     /// `w × h` mip chain in the tree's format.
     Originals { leaf: LeafId, part: u32 },
 }

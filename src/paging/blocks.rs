@@ -17,7 +17,8 @@ use crate::store::format::{BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, NodeRecord
 pub enum BlockItem {
     /// The atlas (full mip chain) of `node`.
     Atlas { node: NodeId },
-    /// Part `part` of the original textures of leaf `leaf`, whose node is `node`.
+    /// Part `part` of the original-texture blocks owned by leaf `leaf` (whose node is `node`): the first
+    /// leaf that draws one of its textures; other leaves may reference it too ([`BlockTable::users`]).
     Originals {
         leaf: LeafId,
         node: NodeId,

@@ -228,6 +228,7 @@ impl Asm<'_> {
                     r.material,
                     OriginalItem {
                         bytes: self.format.chain_bytes_rect(extent[0], extent[1]),
+                        layer_bytes: self.format.chain_bytes(extent[0].max(extent[1])),
                         users: Vec::new(),
                     },
                 ));

@@ -12,9 +12,10 @@ use crate::scene::Scene;
 use crate::texfmt::TexFormat;
 use std::collections::{BTreeMap, HashMap, HashSet};
 
-/// Extra bytes a block may make its leaves load, over the bytes of the textures they draw from it (0.25:
-/// a leaf loads at most about a quarter more than it shows, summed over the block's users). Measured on
-/// cornfield_crossing and the Berlin-like city, see the issue 17 note.
+/// Extra bytes a block may make its users load, over the bytes of the textures they draw from it, summed
+/// over the block's users (0.25: together they load at most a quarter more than they draw; one leaf of
+/// many may load more than that). Chosen among 0–1 on cornfield_crossing and volcano_island, see the
+/// issue 17 note. Bytes are stored bytes: on the GPU every texture takes a whole square class layer.
 pub const MAX_BLOCK_WASTE: f64 = 0.25;
 
 /// Groups considered for a merge: the most recently opened blocks (tree order is spatial order, so these
@@ -41,10 +42,12 @@ pub fn original_extent(w: u32, h: u32) -> [u32; 2] {
     [side(w), side(h)]
 }
 
-/// One texture to place: its stored bytes and the leaves that draw it (ascending, no repeats).
+/// One texture to place: its stored bytes (`w × h` chain), the bytes of the class layer it takes on the
+/// GPU (`class²` chain) and the leaves that draw it (ascending, no repeats).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct OriginalItem {
     pub bytes: u64,
+    pub layer_bytes: u64,
     pub users: Vec<u32>,
 }
 
@@ -53,7 +56,9 @@ pub struct OriginalItem {
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct GroupedBlock {
     pub owner: u32,
+    /// Stored bytes, and the bytes of its textures' class layers on the GPU.
     pub bytes: u64,
+    pub layer_bytes: u64,
     pub items: Vec<usize>,
 }
 
@@ -92,8 +97,10 @@ impl Open {
         (count * total - need, need)
     }
 
-    fn add(&mut self, index: usize, bytes: u64, users: &[u32]) {
+    fn add(&mut self, index: usize, item: &OriginalItem) {
+        let (bytes, users) = (item.bytes, &item.users);
         self.block.bytes += bytes;
+        self.block.layer_bytes += item.layer_bytes;
         self.block.items.push(index);
         for &u in users {
             *self.needed.entry(u).or_default() += bytes;
@@ -102,22 +109,30 @@ impl Open {
     }
 }
 
-/// Cuts textures into blocks of at most `budget` bytes (one atlas; a texture larger than that is a block
-/// of its own): textures with the same users together first, then such groups merged with a block of
+/// Cuts textures into blocks of at most `budget` bytes (one atlas), counted both as stored bytes and as
+/// the class layers they take on the GPU, so k blocks stay about k atlases in memory as well as on disk (a
+/// texture larger than that is a block of its own): textures with the same users together first, then such groups merged with a block of
 /// nearby textures while the block's waste (bytes its users load but do not draw) stays within
 /// `max_waste` of what they draw. Items are taken in order of their first user (tree order), so blocks
 /// follow the tree's spatial order. Every item is in exactly one block; blocks are in order of owner.
 pub fn group_by_users(items: &[OriginalItem], budget: u64, max_waste: f64) -> Vec<GroupedBlock> {
+    debug_assert!(
+        items
+            .iter()
+            .all(|i| i.users.windows(2).all(|w| w[0] < w[1])),
+        "users ascending without repeats"
+    );
     let mut order: Vec<usize> = (0..items.len()).collect();
     order.sort_by(|&a, &b| items[a].users.cmp(&items[b].users).then(a.cmp(&b)));
     let mut done: Vec<GroupedBlock> = Vec::new();
     let mut open: Vec<Open> = Vec::new();
     for &i in &order {
         let it = &items[i];
-        if it.bytes >= budget {
+        if it.bytes.max(it.layer_bytes) >= budget {
             done.push(GroupedBlock {
                 owner: it.users.first().copied().unwrap_or(0),
                 bytes: it.bytes,
+                layer_bytes: it.layer_bytes,
                 items: vec![i],
             });
             continue;
@@ -126,7 +141,9 @@ pub fn group_by_users(items: &[OriginalItem], budget: u64, max_waste: f64) -> Ve
         let best = open[lo..]
             .iter()
             .enumerate()
-            .filter(|(_, o)| o.block.bytes + it.bytes <= budget)
+            .filter(|(_, o)| {
+                o.block.bytes + it.bytes <= budget && o.block.layer_bytes + it.layer_bytes <= budget
+            })
             .map(|(k, o)| {
                 let (waste, need) = o.cost_with(it.bytes, &it.users);
                 (k + lo, waste as f64 / need.max(1) as f64)
@@ -134,11 +151,11 @@ pub fn group_by_users(items: &[OriginalItem], budget: u64, max_waste: f64) -> Ve
             .filter(|&(_, ratio)| ratio <= max_waste)
             .min_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
         match best {
-            Some((k, _)) => open[k].add(i, it.bytes, &it.users),
+            Some((k, _)) => open[k].add(i, it),
             None => {
                 let mut o = Open::default();
                 o.block.owner = it.users.first().copied().unwrap_or(0);
-                o.add(i, it.bytes, &it.users);
+                o.add(i, it);
                 open.push(o);
             }
         }
@@ -212,6 +229,7 @@ mod tests {
     fn item(bytes: u64, users: &[u32]) -> OriginalItem {
         OriginalItem {
             bytes,
+            layer_bytes: bytes,
             users: users.to_vec(),
         }
     }
@@ -269,6 +287,17 @@ mod tests {
             [(0, 30), (2, 500), (5, 30)]
         );
         assert_eq!(waste(&items, &blocks).0, 0);
+        // Non-square textures: small stored, a whole class layer each on the GPU. Three of 30 stored
+        // and 60 layer bytes: by stored bytes they would share a 100-byte block, by layers they cannot.
+        let wide: Vec<OriginalItem> = (0..3)
+            .map(|_| OriginalItem {
+                layer_bytes: 60,
+                ..item(30, &[0])
+            })
+            .collect();
+        let blocks = group_by_users(&wide, 100, 0.0);
+        assert_eq!(blocks.len(), 3);
+        assert!(blocks.iter().all(|b| b.layer_bytes <= 100));
     }
 
     #[test]

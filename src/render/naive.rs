@@ -97,7 +97,7 @@ impl Naive {
                     height: u.extent[1],
                     depth_or_array_layers: 1,
                 },
-                mip_level_count: mip_levels(u.class_size),
+                mip_level_count: mip_levels(u.extent[0].max(u.extent[1])),
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
                 format: target.wgpu_format(),

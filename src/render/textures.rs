@@ -323,6 +323,39 @@ mod tests {
     use super::*;
 
     #[test]
+    fn non_square_layers_convert_then_tile() {
+        // A 16×4 gradient chain stored as BC1, uploaded to BC1, BC3 and RGBA8 arrays: each layer is the
+        // same picture (the BC1 decode) tiled 4× down at every level.
+        let mut chain = Vec::new();
+        for (a, b) in crate::texfmt::mip_extents(16, 4) {
+            chain.extend(
+                (0..a * b).flat_map(|i| [(i % a * 255 / a) as u8, (i / a * 60) as u8, 90, 255]),
+            );
+        }
+        let bc1 = crate::texfmt::encode_chain_rect(TexFormat::Bc1, &chain, 16, 4, 3).unwrap();
+        let want = crate::texfmt::decode_chain(
+            TexFormat::Bc1,
+            &crate::texfmt::tile_chain_to_square(TexFormat::Bc1, &bc1.bytes, 16, 4).unwrap(),
+            16,
+        )
+        .unwrap();
+        for target in [TexFormat::Bc1, TexFormat::Bc3, TexFormat::Rgba8] {
+            let layer =
+                layer_texels_for_upload(TexFormat::Bc1, &bc1.bytes, [16, 4], target).unwrap();
+            assert_eq!(layer.len() as u64, target.chain_bytes(16), "{target:?}");
+            let got = decode_chain(target, &layer, 16).unwrap();
+            assert_eq!(got, want, "{target:?}");
+        }
+        assert!(
+            layer_texels_for_upload(TexFormat::Bc1, &bc1.bytes[..8], [16, 4], TexFormat::Bc1)
+                .is_none()
+        );
+        assert!(
+            layer_texels_for_upload(TexFormat::Bc7, &bc1.bytes, [16, 4], TexFormat::Bc1).is_none()
+        );
+    }
+
+    #[test]
     fn class_indices_cover_4_to_2048() {
         assert_eq!(class_index(4), Some(0));
         assert_eq!(class_index(2048), Some(9));

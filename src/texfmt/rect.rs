@@ -217,10 +217,11 @@ pub fn tile_chain_to_square(
         let bs = side.div_ceil(unit) as usize;
         let level = &chain[offset..offset + bw * bh * bytes];
         offset += level.len();
+        // Both sides are powers of two in units (or one unit), so a layer row is whole stored rows.
         for y in 0..bs {
             let row = &level[(y % bh) * bw * bytes..][..bw * bytes];
-            for x in 0..bs {
-                out.extend_from_slice(&row[(x % bw) * bytes..][..bytes]);
+            for _ in 0..bs / bw {
+                out.extend_from_slice(row);
             }
         }
     }

@@ -329,3 +329,117 @@ fn original_blocks_group_textures_by_their_users_within_the_waste_bound() {
         }
     }
 }
+
+/// Evicting one leaf's need keeps a block another needed leaf uses: 60 frames over the north-west poster,
+/// then 120 over the south-east one, at capacities tight enough that blocks only north-west leaves use
+/// are evicted after the jump. The shared poster block, needed through the south-east leaf, is never evicted
+/// once that leaf needs it and is loaded once; a pager that ranked it by the leaf it was first loaded for
+/// would evict and reload it.
+#[test]
+fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = build_corners(dir.path());
+    let table = BlockTable::from_file(&file).unwrap();
+    let t = file.tree(0).unwrap();
+    let poster = t
+        .originals
+        .iter()
+        .find(|o| o.material == POSTER)
+        .map(|o| o.block)
+        .unwrap();
+    let users = table.users(atlastree::ids::BlockId(poster));
+    let north_west = |n: &NodeId| {
+        let b = t.nodes[n.idx()].bounds_max;
+        b[0] < 250.0 && b[2] < 250.0
+    };
+    // Original blocks only north-west leaves use (the north-west ground's).
+    let nw_only: BTreeSet<u32> = t
+        .originals
+        .iter()
+        .map(|o| o.block)
+        .filter(|&b| {
+            let u = table.users(atlastree::ids::BlockId(b));
+            b != poster && !u.is_empty() && u.iter().all(north_west)
+        })
+        .collect();
+    assert!(
+        !nw_only.is_empty(),
+        "the north-west ground has blocks of its own"
+    );
+    let look = |eye: DVec3, target: DVec3| Camera {
+        eye,
+        target,
+        up: DVec3::Y,
+        fov_x_deg: 60.0,
+        aspect: 4.0 / 3.0,
+        near: 0.5,
+        far: 5000.0,
+    };
+    let mut cams = vec![look(DVec3::new(50.0, 3.0, 30.0), DVec3::new(50.0, 0.0, 50.0)); 60];
+    cams.extend(vec![
+        look(
+            DVec3::new(350.0, 3.0, 330.0),
+            DVec3::new(350.0, 0.0, 350.0)
+        );
+        120
+    ]);
+    let scale = min_distance_scale(
+        &file.to_params(),
+        &SelectOptions {
+            screen_width: 800,
+            texel_ratio: 1.0,
+            fov_x_deg: 60.0,
+        },
+    )
+    .unwrap();
+    let input = SimInput::from_file(&file).unwrap();
+    let mut pressured = Vec::new();
+    for k in 3..=16u32 {
+        let opts = atlastree::sim::SimOptions {
+            fps: 30.0,
+            pager: atlastree::paging::PagerOptions {
+                capacity: k,
+                ..Default::default()
+            },
+            io: None,
+        };
+        let (mut loads, mut evicted_after, mut nw_evicted) = (0, 0, false);
+        let mut resident_at_end = false;
+        simulate_with(&input, &cams, scale, &opts, &mut |frame, e| match e {
+            Event::Loaded { block, .. } if block.0 == poster => {
+                loads += 1;
+                resident_at_end = true;
+            }
+            Event::Evicted { block } if block.0 == poster => {
+                resident_at_end = false;
+                if frame >= 60 {
+                    evicted_after += 1;
+                }
+            }
+            Event::Evicted { block } if frame >= 60 && nw_only.contains(&block.0) => {
+                nw_evicted = true;
+            }
+            _ => {}
+        })
+        .unwrap();
+        if loads == 0 {
+            continue; // k too small to hold the poster with its parents at all
+        }
+        assert_eq!(
+            evicted_after, 0,
+            "k = {k}: the shared block was evicted after the jump"
+        );
+        assert_eq!(
+            loads, 1,
+            "k = {k}: the shared block was loaded {loads} times"
+        );
+        assert!(resident_at_end, "k = {k}");
+        if nw_evicted {
+            pressured.push(k);
+        }
+    }
+    assert!(
+        !pressured.is_empty(),
+        "no capacity evicted the north-west leaf's own blocks after the jump"
+    );
+}

@@ -134,7 +134,7 @@ pub(super) fn base_scale(ctx: &Ctx<'_>, needs: &BTreeMap<(MaterialId, i32), MatN
         .fold(1.0, f64::min)
 }
 
-/// `(share of the node's demand capped to the sources, texels of its originals at class size)`.
+/// `(share of the node's demand capped to the sources, texels of its originals as class layers, `class²` each)`.
 pub(super) fn capped_demand(
     ctx: &Ctx<'_>,
     needs: &BTreeMap<(MaterialId, i32), MatNeed>,

@@ -20,8 +20,9 @@ pub struct LayoutOptions {
     /// Repeats wrapped in the shader: rects hold at most one period
     /// ([`crate::preprocess::RepeatMode::Wrap`]).
     pub wrap: bool,
-    /// A node that does not fit is made a scaled leaf instead of split when its original textures (at
-    /// their stored class sizes) need at most this many texels (0: always split).
+    /// A node that does not fit is made a scaled leaf instead of split when its original textures (as
+    /// class layers, `class²` each: what they hold resident on the GPU) need at most this many texels
+    /// (0: always split).
     pub leaf_originals: u64,
     /// What the split balances.
     pub split: SplitRule,
@@ -74,7 +75,7 @@ pub struct LeafLayout {
     /// 1.0 unless the leaf had to be scaled down (see [`LeafReason`]).
     pub clamp_scale: f64,
     pub reason: LeafReason,
-    /// Texels of the leaf's original textures at their stored class sizes.
+    /// Texels of the leaf's original textures as class layers (`class²` each, what they hold resident on the GPU; the file stores `w × h`).
     pub original_texels: u64,
 }
 
@@ -136,7 +137,7 @@ pub struct LeafCounts {
     pub scaled: u64,
     pub shared: u64,
     pub clamped: u64,
-    /// Original texels (at class size) of the leaves scaled for their content (source-resolution, scaled,
+    /// Original texels (as class layers, `class²` each) of the leaves scaled for their content (source-resolution, scaled,
     /// shared): summed, and the largest single leaf's (what a camera next to it needs resident).
     pub scaled_original_texels: u64,
     pub scaled_original_texels_max: u64,
