@@ -38,7 +38,7 @@ def main():
                 mbs = r["key"]["bandwidth"] / 1e6
                 orig = s.get("bytes_originals_total")
                 orig = f" ({orig / 1e6:.1f})" if orig is not None else ""
-                print(f"| {label} | {p} | {mbs:g} | {s['mean_coarser']:.3f} | {s['bytes_total'] / 1e6:.1f}{orig} | "
+                print(f"| {label} | {p} | {mbs:g} | {s['mean_coarser']:.4f} | {s['bytes_total'] / 1e6:.1f}{orig} | "
                       f"{s['loads']} | {' '.join(map(str, s['converge_frames']))} |")
 
 

@@ -347,7 +347,6 @@ fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
         .find(|o| o.material == POSTER)
         .map(|o| o.block)
         .unwrap();
-    let users = table.users(atlastree::ids::BlockId(poster));
     let north_west = |n: &NodeId| {
         let b = t.nodes[n.idx()].bounds_max;
         b[0] < 250.0 && b[2] < 250.0
