@@ -92,17 +92,24 @@ pub fn print_inspect(r: &InspectReport) {
                 hist.join(", ")
             );
             let b = &t.original_blocks_cost;
+            let shared: Vec<String> = b
+                .users_per_block
+                .iter()
+                .map(|(leaves, n)| format!("{n}×{leaves}"))
+                .collect();
             println!(
-                "    original blocks: {} of {:.2} / {:.2} / {:.2} atlases (smallest / median / largest; {} over one atlas); \
-                 leaves load {} of blocks for {} of their own textures ({:.2}×)",
+                "    original blocks: {} ({}) of {:.3} / {:.2} / {:.2} atlases (smallest / median / largest; {} over one atlas); \
+                 leaves load {} of blocks for {} of their own textures ({:.2}×); blocks × leaves sharing each: {}",
                 t.original_blocks,
+                human_bytes(b.bytes),
                 b.size_vs_atlas[0],
                 b.size_vs_atlas[1],
                 b.size_vs_atlas[2],
                 b.over_atlas,
                 human_bytes(b.loaded_bytes),
                 human_bytes(b.needed_bytes),
-                b.loaded_bytes as f64 / b.needed_bytes.max(1) as f64
+                b.loaded_bytes as f64 / b.needed_bytes.max(1) as f64,
+                shared.join(", ")
             );
         }
         let rp = &t.repeats;

@@ -67,6 +67,10 @@ pub struct TreeInfo {
 /// How a tree's original textures are cut into blocks (§6: blocks of about one atlas; issue 17).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct OriginalBlocks {
+    /// Bytes of all the tree's original-texture blocks.
+    pub bytes: u64,
+    /// `(leaves referencing a block, how many blocks have that many)`, ascending.
+    pub users_per_block: Vec<(u64, u64)>,
     /// Block bytes over one atlas block's bytes: smallest, median, largest.
     pub size_vs_atlas: [f64; 3],
     /// Blocks over one atlas (a texture larger than an atlas is a block of its own).
@@ -93,9 +97,22 @@ pub fn original_blocks_cost(file: &TreeFile, ti: usize, atlas_bytes: u64) -> Ori
     sizes.sort_unstable();
     let ratio = |b: u64| b as f64 / atlas_bytes.max(1) as f64;
     let mut c = OriginalBlocks {
+        bytes: sizes.iter().sum(),
         over_atlas: sizes.iter().filter(|&&b| b > atlas_bytes).count() as u64,
         ..OriginalBlocks::default()
     };
+    let mut users: std::collections::BTreeMap<u32, u64> = Default::default();
+    for leaf in t.leaves {
+        let blocks: BTreeSet<u32> = t.leaf_originals(leaf).iter().map(|o| o.block).collect();
+        for b in blocks {
+            *users.entry(b).or_default() += 1;
+        }
+    }
+    let mut hist: std::collections::BTreeMap<u64, u64> = Default::default();
+    for n in users.into_values() {
+        *hist.entry(n).or_default() += 1;
+    }
+    c.users_per_block = hist.into_iter().collect();
     if let (Some(&lo), Some(&hi)) = (sizes.first(), sizes.last()) {
         c.size_vs_atlas = [lo, sizes[sizes.len() / 2], hi].map(ratio);
     }
