@@ -20,6 +20,39 @@ fn build_corners(dir: &std::path::Path) -> TreeFile {
     TreeFile::open(&out).unwrap()
 }
 
+/// The block holding the poster's original texture.
+fn poster_block(file: &TreeFile) -> atlastree::ids::BlockId {
+    let t = file.tree(0).unwrap();
+    let o = t.originals.iter().find(|o| o.material == POSTER).unwrap();
+    atlastree::ids::BlockId(o.block)
+}
+
+/// A 60° camera at `eye` looking at `target` (4:3, Y up).
+fn look(eye: DVec3, target: DVec3) -> Camera {
+    Camera {
+        eye,
+        target,
+        up: DVec3::Y,
+        fov_x_deg: 60.0,
+        aspect: 4.0 / 3.0,
+        near: 0.5,
+        far: 5000.0,
+    }
+}
+
+/// The selection scale of an 800 px wide, 60° view at texel ratio 1.
+fn scale_800(file: &TreeFile) -> f64 {
+    min_distance_scale(
+        &file.to_params(),
+        &SelectOptions {
+            screen_width: 800,
+            texel_ratio: 1.0,
+            fov_x_deg: 60.0,
+        },
+    )
+    .unwrap()
+}
+
 #[test]
 fn a_texture_in_opposite_corners_is_stored_once_and_referenced_by_both_leaves() {
     let dir = tempfile::tempdir().unwrap();
@@ -79,34 +112,12 @@ fn the_pager_ranks_a_shared_block_by_its_best_leaf_and_a_flight_loads_it_once() 
     let file = build_corners(dir.path());
     let table = BlockTable::from_file(&file).unwrap();
     let t = file.tree(0).unwrap();
-    let poster = t
-        .originals
-        .iter()
-        .find(|o| o.material == POSTER)
-        .map(|o| atlastree::ids::BlockId(o.block))
-        .unwrap();
+    let poster = poster_block(&file);
     let params = file.to_params();
     let trees: Vec<&[atlastree::store::format::NodeRecord]> = (0..file.trees())
         .map(|i| file.tree(i).unwrap().nodes)
         .collect();
-    let look = |eye: DVec3, target: DVec3| Camera {
-        eye,
-        target,
-        up: DVec3::Y,
-        fov_x_deg: 60.0,
-        aspect: 4.0 / 3.0,
-        near: 0.5,
-        far: 5000.0,
-    };
-    let scale = min_distance_scale(
-        &params,
-        &SelectOptions {
-            screen_width: 800,
-            texel_ratio: 1.0,
-            fov_x_deg: 60.0,
-        },
-    )
-    .unwrap();
+    let scale = scale_800(&file);
     // Standing over the south-east poster, looking at it: only that corner's leaf needs originals; the
     // shared block is needed through it, the north-west leaf's own original blocks are not.
     let cam = look(DVec3::new(350.0, 3.0, 330.0), DVec3::new(350.0, 0.0, 350.0));
@@ -341,12 +352,7 @@ fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
     let file = build_corners(dir.path());
     let table = BlockTable::from_file(&file).unwrap();
     let t = file.tree(0).unwrap();
-    let poster = t
-        .originals
-        .iter()
-        .find(|o| o.material == POSTER)
-        .map(|o| o.block)
-        .unwrap();
+    let poster = poster_block(&file).0;
     let north_west = |n: &NodeId| {
         let b = t.nodes[n.idx()].bounds_max;
         b[0] < 250.0 && b[2] < 250.0
@@ -365,15 +371,6 @@ fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
         !nw_only.is_empty(),
         "the north-west ground has blocks of its own"
     );
-    let look = |eye: DVec3, target: DVec3| Camera {
-        eye,
-        target,
-        up: DVec3::Y,
-        fov_x_deg: 60.0,
-        aspect: 4.0 / 3.0,
-        near: 0.5,
-        far: 5000.0,
-    };
     let mut cams = vec![look(DVec3::new(50.0, 3.0, 30.0), DVec3::new(50.0, 0.0, 50.0)); 60];
     cams.extend(vec![
         look(
@@ -382,15 +379,7 @@ fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
         );
         120
     ]);
-    let scale = min_distance_scale(
-        &file.to_params(),
-        &SelectOptions {
-            screen_width: 800,
-            texel_ratio: 1.0,
-            fov_x_deg: 60.0,
-        },
-    )
-    .unwrap();
+    let scale = scale_800(&file);
     let input = SimInput::from_file(&file).unwrap();
     let mut pressured = Vec::new();
     for k in 3..=16u32 {
