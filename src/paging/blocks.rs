@@ -47,6 +47,10 @@ pub struct BlockMeta {
     pub item: BlockItem,
     /// Size in bytes (what a load transfers).
     pub bytes: u64,
+    /// Bytes the executor writes to the GPU for it, in the stored format: `bytes` for an atlas; for
+    /// original textures their square class layers (a `w × h` texture is uploaded tiled into `class²`,
+    /// [`crate::texfmt::tile_chain_to_square`]). What [`crate::paging::UploadBudget::Bytes`] counts.
+    pub upload_bytes: u64,
     /// Hierarchy level used for priorities: the node's level for an atlas, the leaf's level + 1 for its
     /// original textures (they refine the leaf atlas).
     pub level: u32,
@@ -124,6 +128,22 @@ impl BlockTable {
             })
             .collect();
         table.share_originals(&trees, &refs)?;
+        // Originals upload as whole class layers: each (block, slot) once.
+        for v in &views {
+            let mut slots = std::collections::BTreeMap::new();
+            for o in v.originals {
+                slots.insert((o.block, o.slot), o.class_size());
+            }
+            let mut layers = std::collections::BTreeMap::<u32, u64>::new();
+            for ((b, _), class) in slots {
+                *layers.entry(b).or_default() += v.format().chain_bytes(class);
+            }
+            for (b, bytes) in layers {
+                if let Some(m) = table.blocks.get_mut(b as usize) {
+                    m.upload_bytes = bytes;
+                }
+            }
+        }
         Ok(table)
     }
 
@@ -294,6 +314,7 @@ impl BlockTable {
                 tree,
                 item,
                 bytes,
+                upload_bytes: bytes,
                 level,
                 parent,
             });

@@ -40,8 +40,9 @@ pub enum UploadBudget {
     /// Everything that arrived.
     #[default]
     Unlimited,
-    /// Bytes per frame (at least one block per frame is always accepted, so a block larger than the
-    /// budget still loads).
+    /// Bytes uploaded per frame, as [`crate::paging::BlockMeta::upload_bytes`] counts them (original
+    /// textures as their class layers); at least one block per frame is always accepted, so a block
+    /// larger than the budget still loads.
     Bytes(u64),
     /// Milliseconds of upload work per frame, measured around the upload callback (same minimum).
     Millis(f64),
@@ -566,7 +567,7 @@ impl Pager {
                 continue;
             }
             let bytes = self.table.blocks[i].bytes;
-            accepted_bytes += bytes;
+            accepted_bytes += self.table.blocks[i].upload_bytes;
             self.stats.loaded += 1;
             self.stats.bytes_loaded += bytes;
         }

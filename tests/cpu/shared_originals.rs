@@ -431,3 +431,32 @@ fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
         "no capacity evicted the north-west leaf's own blocks after the jump"
     );
 }
+
+/// A non-square original (format 5) transfers its `w × h` chain but uploads its square class layer: the
+/// block table's `bytes` and `upload_bytes` (what `UploadBudget::Bytes` counts) say so; atlases upload
+/// what they transfer.
+#[test]
+fn a_non_square_original_transfers_its_chain_and_uploads_its_class_layer() {
+    use atlastree::scene::synthetic::SceneBuilder;
+    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.image("wide", 256, 64, |x, y| [x as u8, y as u8, 80, 255]);
+    let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    let quad =
+        [(0.0, 0.0), (16.0, 0.0), (16.0, 16.0), (0.0, 16.0)].map(|(x, z)| DVec3::new(x, 0.0, z));
+    b.quad(quad, glam::DVec2::ZERO, glam::DVec2::splat(4.0), m);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("wide.atlastree");
+    build(&b.build(), &options(), &out, &NoProgress).unwrap();
+    let file = TreeFile::open(&out).unwrap();
+    let table = BlockTable::from_file(&file).unwrap();
+    let t = file.tree(0).unwrap();
+    let f = t.format();
+    let o = t.originals[0];
+    assert_eq!(o.extent(), [256, 64]);
+    let meta = table.meta(atlastree::ids::BlockId(o.block));
+    assert_eq!(meta.bytes, f.chain_bytes_rect(256, 64));
+    assert_eq!(meta.upload_bytes, f.chain_bytes(256));
+    let atlas = table.atlas(0, NodeId(0)).unwrap();
+    assert_eq!(table.meta(atlas).upload_bytes, table.meta(atlas).bytes);
+}
