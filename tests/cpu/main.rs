@@ -31,3 +31,4 @@ mod sim;
 mod store;
 mod sweep;
 mod texfmt;
+mod views;

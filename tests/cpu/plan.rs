@@ -13,7 +13,6 @@ use atlastree::ids::BlockId;
 use atlastree::paging::{BlockTable, Event, PagerOptions};
 use atlastree::plan::{FramePlanner, NoResidency, PlanError, Residency};
 use atlastree::preprocess::{NoProgress, build};
-use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::sim::InstantLoader;
 use atlastree::store::TreeFile;
 use glam::DVec3;
@@ -33,15 +32,7 @@ fn street(file: &TreeFile, n: usize) -> (Vec<Camera>, f64) {
     )
     .unwrap();
     let cams: Vec<Camera> = path.frames(30.0, n).collect();
-    let scale = min_distance_scale(
-        &params,
-        &SelectOptions {
-            screen_width: 800,
-            texel_ratio: 1.0,
-            fov_x_deg: cams[0].fov_x_deg,
-        },
-    )
-    .unwrap();
+    let scale = crate::views::scale_800(&params, cams[0].fov_x_deg);
     (cams, scale)
 }
 

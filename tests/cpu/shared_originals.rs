@@ -8,7 +8,6 @@ use atlastree::ids::NodeId;
 use atlastree::paging::usage::{UsageScratch, classify};
 use atlastree::paging::{BlockTable, Event, Usage, ViewInput};
 use atlastree::preprocess::{NoProgress, build};
-use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::sim::{SimInput, simulate_with};
 use atlastree::store::TreeFile;
 use glam::DVec3;
@@ -29,28 +28,12 @@ fn poster_block(file: &TreeFile) -> atlastree::ids::BlockId {
 
 /// A 60° camera at `eye` looking at `target` (4:3, Y up).
 fn look(eye: DVec3, target: DVec3) -> Camera {
-    Camera {
-        eye,
-        target,
-        up: DVec3::Y,
-        fov_x_deg: 60.0,
-        aspect: 4.0 / 3.0,
-        near: 0.5,
-        far: 5000.0,
-    }
+    crate::views::look(eye, target, 5000.0)
 }
 
 /// The selection scale of an 800 px wide, 60° view at texel ratio 1.
 fn scale_800(file: &TreeFile) -> f64 {
-    min_distance_scale(
-        &file.to_params(),
-        &SelectOptions {
-            screen_width: 800,
-            texel_ratio: 1.0,
-            fov_x_deg: 60.0,
-        },
-    )
-    .unwrap()
+    crate::views::scale_800(&file.to_params(), 60.0)
 }
 
 #[test]
@@ -207,15 +190,7 @@ fn an_originals_block_is_ideal_only_with_every_other_block_of_a_leaf_that_uses_i
     )
     .unwrap();
     let cams: Vec<Camera> = path.frames(30.0, 300).collect();
-    let scale = min_distance_scale(
-        &params,
-        &SelectOptions {
-            screen_width: 800,
-            texel_ratio: 1.0,
-            fov_x_deg: cams[0].fov_x_deg,
-        },
-    )
-    .unwrap();
+    let scale = crate::views::scale_800(&params, cams[0].fov_x_deg);
     let multi = (0..file.tree(0).unwrap().nodes.len() as u32)
         .map(NodeId)
         .filter(|&n| table.originals(0, n).len() > 1)

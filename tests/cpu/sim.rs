@@ -6,7 +6,6 @@
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::paging::{Event, Policy, UploadBudget};
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
-use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::sim::grid::{GridSpec, run_grid, write_csvs};
 use atlastree::sim::{SimInput, simulate_with};
 use atlastree::store::TreeFile;
@@ -50,15 +49,7 @@ fn cameras(file: &TreeFile, fps: f64, n: usize) -> Vec<Camera> {
 }
 
 fn scale(file: &TreeFile, cam: &Camera) -> f64 {
-    min_distance_scale(
-        &file.to_params(),
-        &SelectOptions {
-            screen_width: 800,
-            texel_ratio: 1.0,
-            fov_x_deg: cam.fov_x_deg,
-        },
-    )
-    .unwrap()
+    crate::views::scale_800(&file.to_params(), cam.fov_x_deg)
 }
 
 fn spec(capacities: Vec<Option<u32>>, bandwidths: Vec<Option<f64>>, policy: Policy) -> GridSpec {

@@ -169,15 +169,7 @@ fn tree_and_placement() -> (Vec<NodeRecord>, Placement) {
 }
 
 fn look(eye: DVec3, target: DVec3) -> Camera {
-    Camera {
-        eye,
-        target,
-        up: DVec3::Y,
-        fov_x_deg: 60.0,
-        aspect: 4.0 / 3.0,
-        near: 0.5,
-        far: 1e5,
-    }
+    crate::views::look(eye, target, 1e5)
 }
 
 #[test]
