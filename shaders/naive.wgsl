@@ -3,7 +3,7 @@
 // (leaf, original texture) pair is its own draw call. Same positions as tree.wgsl: leaf-relative vertices
 // plus per-frame camera-relative leaf offsets; the draw's first instance is the tree's leaf base.
 //
-// Rust twins (structs, bindings, override names and every `const` below, checked by tests/shaders_naga.rs):
+// Rust twins (structs, bindings, override names and every `const` below, checked by tests/cpu/shaders.rs):
 // render::wgsl::naive.
 
 // Values of PASS (tree.wgsl's): every other pass tests the material's alpha mode.

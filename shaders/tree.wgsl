@@ -2,7 +2,7 @@
 // 2015). One bind group per frame, one multi_draw_indexed_indirect per pipeline: every indirect record draws
 // one selected node, and its `first_instance` indexes `draws`.
 //
-// Rust twins (structs, bindings, override names and every `const` below, checked by tests/shaders_naga.rs):
+// Rust twins (structs, bindings, override names and every `const` below, checked by tests/cpu/shaders.rs):
 // render::wgsl::tree.
 //
 // Positions: vertices are relative to their leaf origin (f32); `offsets[leaf]` is `leaf.origin - eye`,
@@ -12,7 +12,7 @@
 // the leaf atlas (`rect_texel`, twin of render::wgsl::tree::RectMap::texel_f32: repeat, mirror or clamp per
 // axis, then onto the inner rectangle, kept a filter footprint inside the outer one), then taken to the atlas
 // of the drawn level j: `uv_j = uv_leaf * 2^(j-K) + ((ix, iy) mod 2^(K-j)) * 2^(j-K)`, exactly the f32
-// arithmetic of `build::transform::atlas_uv_at_f32`. Sampling uses the gradients of the unwrapped UV
+// arithmetic of `model::transform::atlas_uv_at_f32`. Sampling uses the gradients of the unwrapped UV
 // carried through the same maps (`textureSampleGrad`), so mip selection and anisotropy are continuous
 // across seams.
 // Originals: the per-vertex `original` indexes the leaf's range of the texture-array mapping (TAM), which
@@ -189,7 +189,7 @@ fn exp2_neg(d: u32) -> f32 {
     return bitcast<f32>((127u - d) << 23u);
 }
 
-// The level transform of build::transform::atlas_uv_at_f32 as (2^(j-K), offset): the leaf-local UV in
+// The level transform of model::transform::atlas_uv_at_f32 as (2^(j-K), offset): the leaf-local UV in
 // the atlas of the ancestor at `level` is `uv_leaf * x + offset` (both factors exact).
 fn level_transform(cell: vec2<u32>, leaf_level: u32, level: u32) -> vec3<f32> {
     let d = min(leaf_level - min(level, leaf_level), 31u);

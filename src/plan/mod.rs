@@ -11,7 +11,7 @@
 //!    resident ancestor atlas), with the screen-space accounting of what is drawn coarser.
 //!
 //! The renderer executes a plan (colour or density pass, as often as it likes, without stepping the
-//! pager again); the simulator records it with [`NoResidency`]; the viewer, `render` and `sweep` drive the
+//! pager again); the simulator records it with [`RecordResidency`]; the viewer, `render` and `sweep` drive the
 //! same planner. This is the one per-frame loop of the code base.
 //!
 //! Clock: every paged plan names its time (seconds); it must not run backwards
@@ -248,10 +248,6 @@ impl<'a> FramePlanner<'a> {
         FramePlanner::paged(file_trees(file), table, setup.pager, loader, fetch)
     }
 
-    /// The trees planned.
-    pub fn trees(&self) -> &[&'a [NodeRecord]] {
-        &self.trees
-    }
 
     /// The pager (`None` when every block is resident).
     pub fn pager(&self) -> Option<&Pager> {

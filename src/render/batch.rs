@@ -148,9 +148,6 @@ pub struct TreeBatchInfo {
     /// Per node: where its atlas is resident (`None`: not resident; such nodes are drawn with originals if
     /// they are leaves and skipped otherwise — with all blocks resident this does not happen).
     pub atlas_slots: Vec<Option<AtlasSlot>>,
-    /// Per node: original-texture blocks of the leaf not yet resident (0 = its originals can be drawn;
-    /// always 0 when everything is resident, and for inner nodes).
-    pub originals_missing: Vec<u32>,
 }
 
 /// Per node, the range of leaves of its subtree: `(first leaf, count)`. Leaves are numbered in tree order and

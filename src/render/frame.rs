@@ -237,9 +237,8 @@ impl<'f> Renderer<'f> {
         let (Some(table), Some(capacity)) = (planner.table(), planner.max_capacity()) else {
             return Err(RenderError::Plan(PlanError::NotPaged));
         };
-        let table = table.clone();
         let mut resident = ctx.scoped("allocating the paged texture arrays", |_| {
-            Resident::load_paged(ctx, file, &table, capacity)
+            Resident::load_paged(ctx, file, table, capacity)
         })??;
         for e in &planner.take_bootstrap() {
             resident.apply(&ctx.queue, e)?;

@@ -118,8 +118,6 @@ pub enum RenderError {
     )]
     NotWhenPaged { what: &'static str },
     #[error(transparent)]
-    Paging(#[from] crate::paging::PagerError),
-    #[error(transparent)]
     Blocks(#[from] crate::paging::BlockTableError),
     #[error(transparent)]
     Plan(#[from] crate::plan::PlanError),

@@ -17,7 +17,7 @@
 //!
 //! [`LayerAllocator`] hands out layers (paging slots) from a free list; the paging issue reuses it.
 
-use crate::texfmt::{TexFormat, decode_chain};
+use crate::texfmt::TexFormat;
 use std::borrow::Cow;
 
 /// Atlas arrays bound at once (the shader switches over this many bindings).
@@ -137,32 +137,17 @@ pub fn texels_for_upload(
     size: u32,
     target: TexFormat,
 ) -> Option<Cow<'_, [u8]>> {
-    let len = usize::try_from(stored.chain_bytes(size)).ok()?;
-    if stored == target {
-        return bytes.get(..len).map(Cow::Borrowed);
-    }
-    if (stored, target) == (TexFormat::Bc1, TexFormat::Bc3) {
-        return bytes
-            .get(..len)
-            .map(|b| Cow::Owned(crate::texfmt::bc1_to_bc3(b)));
-    }
-    if target != TexFormat::Rgba8 {
-        return None;
-    }
-    decode_chain(stored, bytes, size).ok().map(Cow::Owned)
+    rect_texels_for_upload(stored, bytes, [size, size], target)
 }
 
-/// [`texels_for_upload`] of a `w × h` chain (`crate::texfmt::mip_extents`), not tiled: the texels of a
-/// `w × h` texture of format `target`.
+/// The texels of a `w × h` chain (`crate::texfmt::mip_extents`) stored as `stored`, as a `w × h`
+/// texture of format `target` takes them, not tiled (see [`texels_for_upload`]).
 pub fn rect_texels_for_upload(
     stored: TexFormat,
     bytes: &[u8],
     [w, h]: [u32; 2],
     target: TexFormat,
 ) -> Option<Cow<'_, [u8]>> {
-    if w == h {
-        return texels_for_upload(stored, bytes, w, target);
-    }
     let len = usize::try_from(stored.chain_bytes_rect(w, h)).ok()?;
     let chain = bytes.get(..len)?;
     match (stored, target) {
@@ -321,6 +306,7 @@ pub fn upload_mip_chain_rect(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::texfmt::decode_chain;
 
     #[test]
     fn non_square_layers_convert_then_tile() {

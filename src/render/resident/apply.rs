@@ -135,14 +135,6 @@ impl Resident {
                 }
             }
         }
-        // Every leaf that references the block (shared originals) has one block less missing.
-        let p = &self.residency;
-        let info = &mut self.infos[tree as usize];
-        for n in p.table.users(block) {
-            if let Some(m) = info.originals_missing.get_mut(n.idx()) {
-                *m = m.saturating_sub(1);
-            }
-        }
         Ok(uploaded)
     }
 
@@ -202,13 +194,6 @@ impl Resident {
         for (ui, _) in held {
             if let Err(e) = self.release_unique(ui) {
                 first_error.get_or_insert(e);
-            }
-        }
-        let p = &self.residency;
-        let info = &mut self.infos[tree as usize];
-        for n in p.table.users(block) {
-            if let Some(m) = info.originals_missing.get_mut(n.idx()) {
-                *m += 1;
             }
         }
         first_error.map_or(Ok(()), Err)

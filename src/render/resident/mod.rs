@@ -23,7 +23,7 @@ use super::batch::{LeafOffsets, TreeBatchInfo};
 use super::textures::{CLASS_COUNT, TextureArray, common_format, gpu_format};
 use super::wgsl::tree::{LeafInfo, TamEntry};
 use crate::gpu::GpuContext;
-use crate::ids::{BlockId, NodeId};
+use crate::ids::BlockId;
 use crate::paging::BlockTable;
 use crate::store::TreeFile;
 use crate::store::format::MaterialRecord;
@@ -265,12 +265,7 @@ impl Resident {
         let params = file.to_params();
         let max_layers = ctx.features.max_texture_array_layers.max(1);
         let mut g = gather_tables(file)?;
-        let mut infos = std::mem::take(&mut g.infos);
-        for (t, info) in infos.iter_mut().enumerate() {
-            for (n, missing) in info.originals_missing.iter_mut().enumerate() {
-                *missing = table.originals(t, NodeId(n as u32)).len() as u32;
-            }
-        }
+        let infos = std::mem::take(&mut g.infos);
         // Atlas arrays: per GPU format, each with room for min(capacity, atlases of that format) layers.
         let bc = ctx.features.texture_compression_bc;
         let atlas_arrays = atlas_arrays_for(ctx, &g, params.atlas_size, capacity)?;

@@ -163,7 +163,6 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
             passes,
             cutoffs,
             atlas_slots: vec![None; view.nodes.len()],
-            originals_missing: vec![0; view.nodes.len()],
         });
         g.vertices.extend_from_slice(view.vertices);
         g.indices.extend_from_slice(view.indices);
