@@ -101,21 +101,11 @@ pub fn original_blocks_cost(file: &TreeFile, ti: usize, atlas_bytes: u64) -> Ori
         over_atlas: sizes.iter().filter(|&&b| b > atlas_bytes).count() as u64,
         ..OriginalBlocks::default()
     };
-    let mut users: std::collections::BTreeMap<u32, u64> = Default::default();
-    for leaf in t.leaves {
-        let blocks: BTreeSet<u32> = t.leaf_originals(leaf).iter().map(|o| o.block).collect();
-        for b in blocks {
-            *users.entry(b).or_default() += 1;
-        }
-    }
-    let mut hist: std::collections::BTreeMap<u64, u64> = Default::default();
-    for n in users.into_values() {
-        *hist.entry(n).or_default() += 1;
-    }
-    c.users_per_block = hist.into_iter().collect();
     if let (Some(&lo), Some(&hi)) = (sizes.first(), sizes.last()) {
         c.size_vs_atlas = [lo, sizes[sizes.len() / 2], hi].map(ratio);
     }
+    // One pass over the leaves: the chains each draws, the blocks it loads for them, and their users.
+    let mut users: std::collections::BTreeMap<u32, u64> = Default::default();
     for leaf in t.leaves {
         let originals = t.leaf_originals(leaf);
         let mut needed: BTreeSet<(u32, u32)> = BTreeSet::new();
@@ -125,13 +115,22 @@ pub fn original_blocks_cost(file: &TreeFile, ti: usize, atlas_bytes: u64) -> Ori
             }
         }
         let used: BTreeSet<u32> = originals.iter().map(|o| o.block).collect();
-        c.loaded_bytes += used
-            .iter()
-            .filter_map(|&b| blocks.get(b as usize))
-            .map(|b| b.length)
-            .sum::<u64>();
+        for &b in &used {
+            *users.entry(b).or_default() += 1;
+            c.loaded_bytes += blocks.get(b as usize).map_or(0, |r| r.length);
+        }
     }
+    c.users_per_block = histogram(users.into_values());
     c
+}
+
+/// `(value, how many times it occurs)` of `values`, ascending by value.
+fn histogram(values: impl Iterator<Item = u64>) -> Vec<(u64, u64)> {
+    let mut hist: std::collections::BTreeMap<u64, u64> = Default::default();
+    for v in values {
+        *hist.entry(v).or_default() += 1;
+    }
+    hist.into_iter().collect()
 }
 
 /// Values compared per stored atlas of a tree of `kind` (texels of the full chain × channels): the
@@ -205,11 +204,7 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
                 .or_insert((o.extent(), 0))
                 .1 += 1;
         }
-        let mut hist: std::collections::BTreeMap<u64, u64> = Default::default();
-        for &(_, n) in sharing.values() {
-            *hist.entry(n).or_default() += 1;
-        }
-        let histogram: Vec<(u64, u64)> = hist.into_iter().collect();
+        let histogram = histogram(sharing.values().map(|&(_, n)| n));
         // The stored chains' samples, each once (the block errors are of the stored bytes).
         let original_samples: u64 = sharing
             .values()

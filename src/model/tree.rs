@@ -187,15 +187,20 @@ pub const MIN_ORIGINAL_CLASS: u32 = 4;
 pub struct OriginalRef {
     pub material: MaterialId,
     pub image: ImageId,
-    /// Side of the square class array it is drawn from, texels: `max(extent)` (power of two).
-    pub class_size: u32,
-    /// Stored width and height after resampling, texels (each a power of two, at most `class_size`); the
-    /// renderer tiles it into a `class_size²` layer.
+    /// Stored width and height after resampling, texels (each a power of two); the renderer tiles it into
+    /// a layer of its class ([`OriginalRef::class_size`]).
     pub extent: [u32; 2],
     pub block: BlockId,
     /// Index of this image within its block (images of one block are stored back to back, each with its
     /// full mip chain).
     pub slot: u32,
+}
+
+impl OriginalRef {
+    /// Side of the square class array it is drawn from, texels: the larger of its sides.
+    pub fn class_size(&self) -> u32 {
+        self.extent[0].max(self.extent[1])
+    }
 }
 
 /// A leaf: its triangles, atlas layout and original textures.

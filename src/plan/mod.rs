@@ -248,7 +248,6 @@ impl<'a> FramePlanner<'a> {
         FramePlanner::paged(file_trees(file), table, setup.pager, loader, fetch)
     }
 
-
     /// The pager (`None` when every block is resident).
     pub fn pager(&self) -> Option<&Pager> {
         self.paging.as_ref().map(|p| &p.session.pager)

@@ -238,7 +238,6 @@ impl Asm<'_> {
             originals.push(OriginalRef {
                 material: r.material,
                 image: mat.image,
-                class_size: extent[0].max(extent[1]),
                 extent,
                 block: BlockId(crate::ids::NONE),
                 slot: crate::ids::NONE,

@@ -24,10 +24,8 @@ const MERGE_WINDOW: usize = 64;
 
 /// The square power-of-two class an original image of `w × h` is drawn from (its array's side).
 pub fn original_class(w: u32, h: u32) -> u32 {
-    w.max(h)
-        .max(1)
-        .next_power_of_two()
-        .clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
+    let [a, b] = original_extent(w, h);
+    a.max(b)
 }
 
 /// The stored `[width, height]` of an original image of `w × h`: each side to the next power of two in

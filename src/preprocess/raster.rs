@@ -188,7 +188,8 @@ impl ImageCache<'_> {
         let [w, h] = key.1;
         let what = || format!("original texture {} at {w}×{h}", key.0.0);
         let img = self.get(key.0);
-        let lin = resample_rect(&img.decoded, w, h, key.2).map_err(|e| image_err(what(), e))?;
+        // The cached chain is box-filtered, as resampling wants.
+        let lin = resample_rect(&img.chain, w, h, key.2).map_err(|e| image_err(what(), e))?;
         let enc =
             encode_chain_rect(key.3, &mip_chain_rgba8(&lin), w, h, key.4).map_err(|source| {
                 BuildError::Encode {

@@ -670,7 +670,6 @@ impl OriginalRecord {
         OriginalRef {
             material: MaterialId(self.material),
             image: ImageId(self.image),
-            class_size: self.class_size(),
             extent: self.extent(),
             block: BlockId(self.block),
             slot: self.slot,

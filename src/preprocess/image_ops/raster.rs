@@ -211,20 +211,29 @@ pub fn combine_quadrants(
     Ok(out)
 }
 
-/// `img` resampled to `size × size` (a square original texture), as [`resample_rect`].
+/// `img` resampled to `size × size` (a square original texture): [`resample_rect`] of its box-filtered
+/// mip chain.
 pub fn resample_square(
     img: &DecodedImage,
     size: u32,
     wrap: [Wrap; 2],
 ) -> Result<LinearImage, ImageOpsError> {
-    resample_rect(img, size, size, wrap)
+    let chain = MipChain::build_with(
+        LinearImage::from_decoded(img)?,
+        &MipOptions {
+            filter: MipFilter::Box,
+            wrap,
+        },
+    );
+    resample_rect(&chain, size, size, wrap)
 }
 
-/// `img` resampled to `w × h` (an original texture at its stored power-of-two sides), filtered like
-/// [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the edges follow `wrap`,
-/// so a repeat or mirror texture tiles as seamlessly after resampling as before.
+/// The image of `chain` (its linear-light box mip chain, e.g. the one the image cache holds; box weights
+/// do not depend on wrap) resampled to `w × h` (an original texture at its stored power-of-two sides),
+/// filtered like [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the edges
+/// follow `wrap`, so a repeat or mirror texture tiles as seamlessly after resampling as before.
 pub fn resample_rect(
-    img: &DecodedImage,
+    chain: &MipChain,
     w: u32,
     h: u32,
     wrap: [Wrap; 2],
@@ -232,14 +241,6 @@ pub fn resample_rect(
     if w == 0 || h == 0 {
         return Err(ImageOpsError::ZeroSize { size: w.min(h) });
     }
-    let base = LinearImage::from_decoded(img)?;
-    let chain = MipChain::build_with(
-        base,
-        &MipOptions {
-            filter: MipFilter::Box,
-            wrap,
-        },
-    );
     let mut out = LinearImage::new_filled(w, h, [0.0; 4]);
     let job = RectJob {
         outer: [0, 0, w, h],
@@ -249,6 +250,6 @@ pub fn resample_rect(
         wrap,
         factor: [1.0; 4],
     };
-    draw_rect(&mut out, &job, &chain)?;
+    draw_rect(&mut out, &job, chain)?;
     Ok(out)
 }
