@@ -340,6 +340,10 @@ fn resealed_bad_references_are_named() {
     let mut b = bytes.clone();
     let at = record_at(&b, Section::Originals, 0) + 10;
     let h = u16::from_le_bytes(b[at..at + 2].try_into().unwrap());
+    assert!(
+        h <= 1024,
+        "the fixture's sides stay small, so twice the height is still a valid side"
+    );
     b[at..at + 2].copy_from_slice(&(h * 2).to_le_bytes());
     reseal(&mut b);
     assert!(
@@ -348,10 +352,6 @@ fn resealed_bad_references_are_named() {
             Err(StoreError::BadValue {
                 table: "blocks",
                 field: "length",
-                ..
-            }) | Err(StoreError::BadValue {
-                table: "originals",
-                field: "height",
                 ..
             })
         ),
