@@ -17,7 +17,7 @@ use atlastree::store::TreeFile;
 use std::path::{Path, PathBuf};
 
 use crate::harness::GpuTest;
-use crate::render::{bounds, build_city, psnr_covered};
+use crate::render::{bounds, city, psnr_covered};
 
 pub fn tests() -> Vec<GpuTest> {
     vec![
@@ -134,8 +134,7 @@ const GOLDEN_VIEW: f64 = 0.28;
 /// Every mode on the golden view against `data/golden/<mode>.png` (PSNR ≥ 40 dB over covered pixels;
 /// identical frames give +∞). Missing goldens or `ATLASTREE_BLESS=1`: writes them and fails.
 fn modes_match_golden_images(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&city()?).map_err(e)?;
     let mut r = renderer(ctx, &file)?;
     let cam = dive_camera(&file, GOLDEN_VIEW)?;
     let scale = scale_for(&file, &cam, 1.0)?;
@@ -256,8 +255,7 @@ const MIN_ATLAS_DENSITY: f32 = 0.9;
 /// pixels is lower than at ratio 1 (by ≥ 1.5× in at least two views, never higher): the knob works.
 /// Prints per view the counts and the log2 histograms (bin k: texels per pixel in [2^k, 2^(k+1))).
 fn atlas_texels_per_pixel_meet_the_ratio(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&city()?).map_err(e)?;
     let mut r = renderer(ctx, &file)?;
     let (mut failures, mut lowered) = (Vec::new(), 0);
     let (mut atlas_px, mut original_px) = (0, 0);

@@ -16,9 +16,7 @@ use atlastree::store::TreeFile;
 use std::sync::Arc;
 
 use crate::harness::GpuTest;
-use crate::render::{
-    H, W, build_city_deep as build_city, dive_cameras, e, frame, is_sky, renderer, scale_for,
-};
+use crate::render::{H, W, city_deep, dive_cameras, e, frame, is_sky, renderer, scale_for};
 
 pub fn tests() -> Vec<GpuTest> {
     vec![
@@ -136,8 +134,7 @@ pub(crate) fn check_frame(
 }
 
 fn paged_frames_stay_under_k_draw_everything_and_converge(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let path = build_city(dir.path())?;
+    let path = city_deep()?;
     let file = TreeFile::open(&path).map_err(e)?;
     let blocks = file.blocks().len() as u32;
     let k = 24;
@@ -189,8 +186,7 @@ fn paged_frames_stay_under_k_draw_everything_and_converge(ctx: &GpuContext) -> R
 /// frame as the GPU renderer with the synchronous loader: the same paging code drives both.
 fn simulator_resident_sets_match_the_renderer(ctx: &GpuContext) -> Result<(), String> {
     use atlastree::sim::{SimInput, SimOptions, simulate};
-    let dir = tempfile::tempdir().map_err(e)?;
-    let path = build_city(dir.path())?;
+    let path = city_deep()?;
     let file = TreeFile::open(&path).map_err(e)?;
     let cams = dive_cameras(&file, 30)?;
     let budget = UploadBudget::Bytes(2_000_000);
@@ -246,8 +242,7 @@ fn over_http_with_the_server_stopped_and_restarted(ctx: &GpuContext) -> Result<(
     use atlastree::paging::http::serve;
     use atlastree::paging::{HttpOptions, HttpSource};
     use std::time::Duration;
-    let dir = tempfile::tempdir().map_err(e)?;
-    let path = build_city(dir.path())?;
+    let path = city_deep()?;
     let file = TreeFile::open(&path).map_err(e)?;
     let server = serve::spawn(&path, "127.0.0.1:0".parse().map_err(e)?).map_err(e)?;
     let addr = server.addr();

@@ -61,6 +61,15 @@ pub(crate) fn build_city(dir: &Path) -> Result<PathBuf, String> {
     build_scene(&scene, dir, "city.atlastree", DMin::Ratio(10.0), 512)
 }
 
+/// [`build_city`] built once per test run into cargo's test scratch directory (the build is
+/// deterministic; tests only read the file).
+pub(crate) fn city() -> Result<PathBuf, String> {
+    static BUILT: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
+    BUILT
+        .get_or_init(|| build_city(Path::new(env!("CARGO_TARGET_TMPDIR"))))
+        .clone()
+}
+
 /// [`build_city_deep`] built once per test run into cargo's test scratch directory (the build is
 /// deterministic; tests only read the file).
 pub(crate) fn city_deep() -> Result<PathBuf, String> {
@@ -223,8 +232,7 @@ pub(crate) fn psnr_covered(a: &[u8], b: &[u8]) -> (f64, usize) {
 /// seam of its rect: the views must show seams drawn with atlases at two levels at least (counted from the
 /// cut: items whose triangles' UVs span more than their rect's period), at sampler anisotropy 1 and 16.
 fn tree_matches_original_textures(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&city()?).map_err(e)?;
     let mut failures = Vec::new();
     let mut lines = Vec::new();
     let software = ctx.info.is_software();
@@ -362,8 +370,7 @@ fn compare_views(
 /// depth pre-pass and blend). Original mode: one bind
 /// group and one draw per (leaf, original texture).
 fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&city()?).map_err(e)?;
     let mut r = renderer(ctx, &file)?;
     let mut drawn = Vec::new();
     // Texel ratios 1, 4 and 16 on the same views: cuts from the root alone to dozens of leaves.
@@ -428,8 +435,7 @@ fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String>
 /// anisotropically (identical ones where it cannot), yet stays a faithful image of the same view
 /// (≥ 25 dB against 16× over the covered pixels: only the blur at grazing angles differs).
 fn anisotropy_reaches_the_samplers(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&city()?).map_err(e)?;
     let (lo, hi) = bounds(&file)?;
     let path = CameraPath::street(lo, hi, file.to_params().up).map_err(e)?;
     let make = |anisotropy| {
@@ -540,8 +546,7 @@ fn srgb(l: f64) -> u8 {
 /// Tree-levels on the dive: some view shows at least two different level colours, and every covered pixel
 /// is a level colour or white (original textures).
 fn tree_levels_shows_several_levels(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city_deep(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&city_deep()?).map_err(e)?;
     let mut r = renderer(ctx, &file)?;
     let palette: Vec<[u8; 3]> = LEVEL_COLOURS
         .iter()

@@ -13,7 +13,7 @@ use atlastree::select::{SelectOptions, Source, min_distance_scale};
 use atlastree::store::TreeFile;
 
 use crate::harness::GpuTest;
-use crate::render::{bounds, build_city, psnr_covered};
+use crate::render::{bounds, city, psnr_covered};
 
 pub fn tests() -> Vec<GpuTest> {
     vec![
@@ -102,8 +102,7 @@ fn selection(r: &FrameLoop<'_>) -> Vec<Vec<(NodeId, Source)>> {
 }
 
 fn frozen_selection_keeps_the_cut(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&city()?).map_err(e)?;
     let (street, overview) = cameras(&file)?;
     let mut r = renderer(ctx, &file, W, H)?;
     let s_street = r
@@ -155,8 +154,7 @@ fn frozen_selection_keeps_the_cut(ctx: &GpuContext) -> Result<(), String> {
 }
 
 fn resize_matches_a_fresh_renderer(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let file = TreeFile::open(&build_city(dir.path())?).map_err(e)?;
+    let file = TreeFile::open(&city()?).map_err(e)?;
     let (street, _) = cameras(&file)?;
     let (w2, h2) = (W / 2 + 16, H / 2);
     let mut cam = street;
