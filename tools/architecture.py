@@ -32,8 +32,27 @@ def top_module(path):
     return None if name in ("lib", "main", "cli") else name
 
 
+def test_files():
+    """Files declared `#[cfg(test)] mod NAME;` (test code, as in tests/cpu/architecture.rs)."""
+    out = set()
+    for dirpath, _, files in os.walk(ROOT):
+        for f in files:
+            if not f.endswith(".rs"):
+                continue
+            p = os.path.join(dirpath, f)
+            lines = [l.strip() for l in open(p, encoding="utf-8")]
+            base = dirpath if f == "mod.rs" else p[:-3]
+            for a, b in zip(lines, lines[1:]):
+                m = re.fullmatch(r"mod ([a-z_0-9]+);", b)
+                if a == "#[cfg(test)]" and m:
+                    out.add(os.path.join(base, m.group(1) + ".rs"))
+                    out.add(os.path.join(base, m.group(1), "mod.rs"))
+    return out
+
+
 def graph():
     edges, lines = defaultdict(set), defaultdict(int)
+    skip = test_files()
     for dirpath, _, files in os.walk(ROOT):
         for f in files:
             if not f.endswith(".rs"):
@@ -43,13 +62,17 @@ def graph():
             if m is None:
                 continue
             edges[m]
-            test_code = f == "tests.rs"
+            # Unit tests (a `tests.rs` file, a file declared `#[cfg(test)] mod NAME;`, or the
+            # `#[cfg(test)] mod NAME {` that ends a file) may use any stage to make their fixtures: they
+            # are not the module's dependencies (the rule of tests/cpu/architecture.rs).
+            test_code = f == "tests.rs" or p in skip
+            cfg_test = False
             for line in open(p, encoding="utf-8"):
                 lines[m] += 1
-                # Unit tests (a `tests.rs` file, or the `#[cfg(test)]` module that ends a file) may use
-                # any stage to make their fixtures: they are not the module's dependencies.
-                test_code = test_code or line.strip() == "#[cfg(test)]"
-                if test_code:
+                t = line.strip()
+                test_code = test_code or (cfg_test and t.endswith("{"))
+                cfg_test = t == "#[cfg(test)]"
+                if test_code or cfg_test:
                     continue
                 code = line.split("//")[0]
                 for dep in re.findall(r"crate::([a-z_0-9]+)", code):

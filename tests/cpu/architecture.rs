@@ -35,19 +35,54 @@ fn module_graph() -> BTreeMap<String, BTreeMap<String, String>> {
     let mut files = Vec::new();
     rust_files(&src, &mut files);
     files.sort();
+    // Unit tests may use any stage to make their fixtures: they are not the module's dependencies. Test
+    // code is a file named `tests.rs`, a file declared `#[cfg(test)] mod NAME;`, or the `#[cfg(test)]
+    // `mod NAME {` that ends a file; any other item under `#[cfg(test)]` is refused (the scan could
+    // not tell where it ends).
+    let texts: Vec<String> = files
+        .iter()
+        .map(|f| std::fs::read_to_string(f).unwrap())
+        .collect();
+    let mut test_files = std::collections::BTreeSet::new();
+    for (f, text) in files.iter().zip(&texts) {
+        let lines: Vec<&str> = text.lines().map(str::trim).collect();
+        for (ln, pair) in lines.windows(2).enumerate() {
+            if pair[0] != "#[cfg(test)]" {
+                continue;
+            }
+            let item = pair[1];
+            if let Some(name) = item.strip_prefix("mod ").and_then(|m| m.strip_suffix(';')) {
+                let dir = if f.file_name().is_some_and(|n| n == "mod.rs") {
+                    f.parent().unwrap().to_path_buf()
+                } else {
+                    f.with_extension("")
+                };
+                test_files.insert(dir.join(format!("{name}.rs")));
+                test_files.insert(dir.join(name).join("mod.rs"));
+            } else if !(item.starts_with("mod ") && item.ends_with('{')) {
+                panic!(
+                    "{}:{}: `#[cfg(test)] {item}`: the architecture scan only understands test modules",
+                    f.display(),
+                    ln + 2
+                );
+            }
+        }
+    }
     let mut graph: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
-    for f in &files {
+    for (f, text) in files.iter().zip(&texts) {
         let Some(from) = top_module(&src, f) else {
             continue;
         };
-        let text = std::fs::read_to_string(f).unwrap();
         let entry = graph.entry(from.clone()).or_default();
-        // Unit tests (a `tests.rs` file, or the `#[cfg(test)]` module that ends a file) may use any stage
-        // to make their fixtures: they are not the module's dependencies.
-        let mut test_code = f.file_name().is_some_and(|n| n == "tests.rs");
+        let mut test_code =
+            f.file_name().is_some_and(|n| n == "tests.rs") || test_files.contains(f);
+        let mut cfg_test = false;
         for (ln, line) in text.lines().enumerate() {
-            test_code = test_code || line.trim() == "#[cfg(test)]";
-            if test_code {
+            let t = line.trim();
+            // `#[cfg(test)] mod NAME;` skips one line (the file is skipped above); `mod NAME {` the rest.
+            test_code = test_code || (cfg_test && t.ends_with('{'));
+            cfg_test = t == "#[cfg(test)]";
+            if test_code || cfg_test {
                 continue;
             }
             let code = line.split("//").next().unwrap_or("");
