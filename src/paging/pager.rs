@@ -183,6 +183,20 @@ pub struct PagerFrameStats {
 }
 
 impl PagerFrameStats {
+    /// The state these stats describe (usage, ideal, resident, requested, staged) without any of the
+    /// step's per-frame deltas (loads, evictions, cancellations, failures …): a frame that steps nothing.
+    pub fn state_only(&self) -> PagerFrameStats {
+        PagerFrameStats {
+            usage: self.usage,
+            ideal: self.ideal,
+            resident: self.resident,
+            ideal_resident: self.ideal_resident,
+            requested: self.requested,
+            staged: self.staged,
+            ..PagerFrameStats::default()
+        }
+    }
+
     /// Share of the ideal set that is resident (1 when the ideal set is empty).
     pub fn ideal_fraction(&self) -> f64 {
         if self.ideal == 0 {

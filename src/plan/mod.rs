@@ -425,14 +425,7 @@ impl<'a> FramePlanner<'a> {
                 }
             } else {
                 // Nothing happened: the state of the last step, none of its per-frame deltas.
-                let last = *p.session.pager.frame_stats();
-                let s = &mut frame_stats.session.pager;
-                s.usage = last.usage;
-                s.ideal = last.ideal;
-                s.resident = last.resident;
-                s.ideal_resident = last.ideal_resident;
-                s.requested = last.requested;
-                s.staged = last.staged;
+                frame_stats.session.pager = p.session.pager.frame_stats().state_only();
             }
             let pager = &p.session.pager;
             let table = &p.table;
