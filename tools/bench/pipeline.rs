@@ -46,13 +46,10 @@ fn noise(w: u32, h: u32) -> LinearImage {
 
 fn sizing(c: &mut Criterion) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
-    let Ok(scene) = atlastree::scene::import(&path, &Default::default()) else {
-        eprintln!("sizing: data/city not importable, skipped");
-        return;
-    };
-    let Ok((params, _)) = resolve_params(&scene, &BuildOptions::default()) else {
-        return;
-    };
+    // A bench that cannot run fails loudly: a silently missing row would hide a regression.
+    let scene = atlastree::scene::import(&path, &Default::default()).expect("data/city imports");
+    let (params, _) =
+        resolve_params(&scene, &BuildOptions::default()).expect("default options are valid");
     let tris: Vec<u32> = (0..scene.triangles.len() as u32).collect();
     let opts = PrepareOptions {
         f_proj: params.f_proj(),
@@ -87,8 +84,7 @@ fn packing(c: &mut Criterion) {
     };
     // pack wants multiples of 4 texels; a failed packing would time only the early exit.
     if let Err(e) = pack(&sizes, &opts) {
-        eprintln!("packing: the benchmark rects do not pack ({e}), skipped");
-        return;
+        panic!("packing: the benchmark rects do not pack ({e})");
     }
     let mut g = c.benchmark_group("packing");
     g.throughput(Throughput::Elements(sizes.len() as u64));
@@ -168,9 +164,10 @@ fn cameras(nodes: &[NodeRecord]) -> Vec<Camera> {
 fn selection_and_priority(c: &mut Criterion) {
     let nodes = select_trees::berlin(3);
     let cams = cameras(&nodes);
-    if cams.is_empty() {
-        return;
-    }
+    assert!(
+        !cams.is_empty(),
+        "select: no cameras for the Berlin-like tree"
+    );
     let n = nodes.len() as u64;
     let mut g = c.benchmark_group("select");
     g.throughput(Throughput::Elements(n));
@@ -187,10 +184,7 @@ fn selection_and_priority(c: &mut Criterion) {
     g.finish();
 
     let blocks = blocks_for(&nodes);
-    let Ok(table) = BlockTable::new(&[&nodes], &blocks) else {
-        eprintln!("priority: block table rejected, skipped");
-        return;
-    };
+    let table = BlockTable::new(&[&nodes], &blocks).expect("priority: the block table is valid");
     let mut g = c.benchmark_group("priority");
     g.throughput(Throughput::Elements(n));
     let mut scratch = UsageScratch::default();
@@ -211,13 +205,15 @@ fn selection_and_priority(c: &mut Criterion) {
             black_box(out.len())
         })
     });
-    if let Ok(mut pager) = Pager::new(
-        table.clone(),
-        PagerOptions {
-            capacity: 160,
-            ..PagerOptions::default()
-        },
-    ) {
+    {
+        let mut pager = Pager::new(
+            table.clone(),
+            PagerOptions {
+                capacity: 160,
+                ..PagerOptions::default()
+            },
+        )
+        .expect("a pager over the table");
         let mut i = 0usize;
         g.bench_function("plan-berlin-dive-k160", |b| {
             b.iter(|| {
