@@ -1,0 +1,17 @@
+//! The project's own fuzzing (`cargo test --release --test fuzz`): structure-aware mutants of every input
+//! atlastree reads from strangers, on stable Rust, with a fixed seed so a CI run is reproducible.
+//!
+//! Each target is a module with one `#[test]` that calls [`harness::run`] with a mutator. A mutator draws its
+//! choices from an [`arbitrary::Unstructured`] (so the same targets can later be driven by cargo-fuzz) and
+//! says what the library did with the mutant ([`harness::Verdict`]). The harness counts outcomes, catches
+//! panics, flags cases that run longer than [`harness::HANG_LIMIT`], and fails the test on any panic, hang or
+//! accepted corruption, writing the failing input under `target/fuzz-failures/<target>/` so it can be
+//! committed to `tests/fuzz/corpus/<target>/` as a regression case. Every file in a target's corpus folder
+//! is replayed first, on every run.
+//!
+//! - CI: the defaults, a few thousand cases over all targets (`ATLASTREE_FUZZ_CASES` per target unset).
+//! - A long run: `ATLASTREE_FUZZ_CASES=25000 ATLASTREE_FUZZ_SEED=$RANDOM cargo test --release --test fuzz
+//!   -- --nocapture` (each target prints its counts; ≥ 100 k cases over the targets).
+
+#[allow(dead_code)] // targets arrive module by module
+mod harness;
