@@ -457,7 +457,7 @@ fn plan_tree(
     progress: &dyn Progress,
     timings: &mut Timings,
 ) -> Result<(assemble::Assembled, TreeReport), BuildError> {
-    let (kind, format) = (slot.kind, slot.format);
+    let kind = slot.kind;
     let wrap = opts.repeat == RepeatMode::Wrap;
 
     let t = Instant::now();
@@ -497,13 +497,26 @@ fn plan_tree(
     let asm = assemble::assemble(scene, &infos, &lay.order, &lay.root, params, slot);
     timings.push(&format!("assemble {kind:?}"), t);
 
+    let report = tree_report(scene, tris.len(), infos.len(), &lay, &asm, sizing);
+    Ok((asm, report))
+}
+
+/// The report of one tree after assembly (its atlas PSNR is filled in by the pixel pass).
+fn tree_report(
+    scene: &Scene,
+    triangles: usize,
+    pieces: usize,
+    lay: &layout::Layout,
+    asm: &assemble::Assembled,
+    sizing: prepare::PrepareReport,
+) -> TreeReport {
     let occ = &asm.occupancy;
-    let report = TreeReport {
-        kind,
-        format,
+    TreeReport {
+        kind: asm.tree.kind,
+        format: asm.tree.format,
         atlas_psnr_db: crate::texfmt::PSNR_CAP_DB,
-        triangles: tris.len() as u64,
-        pieces: infos.len() as u64,
+        triangles: triangles as u64,
+        pieces: pieces as u64,
         nodes: asm.tree.nodes.len() as u64,
         leaves: asm.tree.leaves.len() as u64,
         depth: asm.tree.nodes.iter().map(|n| n.level.0).max().unwrap_or(0),
@@ -519,8 +532,7 @@ fn plan_tree(
         root_min_distance: asm.tree.nodes.first().map_or(0.0, |n| n.min_distance),
         sizing,
         originals: originals::originals_cost(&asm.tree, scene),
-    };
-    Ok((asm, report))
+    }
 }
 
 /// Refuses, before anything is written, a forest whose blocks exceed `limit` bytes.

@@ -111,6 +111,18 @@ pub struct NaiveTables<'a> {
     pub tam_unique: &'a [u32],
 }
 
+impl<'a> NaiveTables<'a> {
+    /// The tables of [`crate::render::resident::gather_tables`].
+    pub fn of(g: &'a crate::render::resident::GpuTables) -> NaiveTables<'a> {
+        NaiveTables {
+            infos: &g.infos,
+            leaves: &g.leaves,
+            tam: &g.tam,
+            tam_unique: &g.tam_unique,
+        }
+    }
+}
+
 /// The pass of an original-texture draw of a material with alpha code `alpha_mode`.
 fn pass_of(alpha_mode: u32) -> Pass {
     match alpha_mode {

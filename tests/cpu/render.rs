@@ -249,12 +249,7 @@ fn naive_batch_draws_every_triangle_once() {
     let dir = tempfile::tempdir().unwrap();
     let file = city_file(dir.path());
     let g = gather_tables(&file).unwrap();
-    let tables = NaiveTables {
-        infos: &g.infos,
-        leaves: &g.leaves,
-        tam: &g.tam,
-        tam_unique: &g.tam_unique,
-    };
+    let tables = NaiveTables::of(&g);
     let plan = plan_naive(&file, tables).unwrap();
 
     // Independently: per leaf, the set of originals its triangles use, and its triangle count.
@@ -316,20 +311,15 @@ fn naive_batch_draws_every_triangle_once() {
     );
 }
 
-/// Tables that disagree with the file are errors naming the leaf, never a draw left out: a missing TAM
-/// entry, a missing leaf record, a vertex that names an original past the leaf's.
+/// Tables that disagree with the file are errors naming what is missing, never a draw left out: a missing
+/// TAM entry, a missing leaf record, a tree the file does not have.
 #[test]
 fn naive_batch_refuses_inconsistent_tables() {
     use atlastree::render::naive_batch::{NaiveBatchError, NaiveTables, plan_naive};
     let dir = tempfile::tempdir().unwrap();
     let file = city_file(dir.path());
     let g = gather_tables(&file).unwrap();
-    let tables = NaiveTables {
-        infos: &g.infos,
-        leaves: &g.leaves,
-        tam: &g.tam,
-        tam_unique: &g.tam_unique,
-    };
+    let tables = NaiveTables::of(&g);
     let short_tam = &g.tam[..g.tam.len() - 1];
     let err = plan_naive(
         &file,
@@ -380,23 +370,28 @@ fn naive_batch_refuses_inconsistent_tables() {
 
 /// `RectMap::texel_f32` (the shader's arithmetic in f32) agrees with the f64 reference
 /// `model::transform::rect_texel` on the grid of `tests/fixtures/shader_math.rs` (every wrap mode, rect
-/// edges, UVs up to 65536 periods out, levels to 24), within the tolerance stated there; near-branch samples
-/// are few.
+/// edges, UVs up to 65536 periods out, levels to 24), within the tolerance stated there, and the f32 level
+/// transform of its texel with the f64 one within 2⁻²⁴; near-branch samples are few.
 #[test]
 fn texel_f32_agrees_with_f64_reference() {
-    use crate::fixtures::shader_math::{F64Check, check_f64, rects, samples};
-    use atlastree::render::wgsl::tree::RectMap;
-    use atlastree::scene::AlphaMode;
+    use crate::fixtures::shader_math::{ATLAS, F64Check, check_f64, maps, rects, samples};
+    use atlastree::ids::Level;
+    use atlastree::model::transform::{atlas_uv_at, atlas_uv_at_f32};
     let rects = rects();
-    let maps: Vec<RectMap> = rects
-        .iter()
-        .map(|r| RectMap::new(r, AlphaMode::Opaque))
-        .collect();
+    let maps = maps(&rects);
     let samples = samples(&rects);
     let (mut agree, mut near) = (0usize, 0usize);
     let mut failures = Vec::new();
     for s in &samples {
         let (texel, _, _) = maps[s.rect].texel_f32(s.uv, s.ddx, s.ddy, s.level_texels());
+        // Then the level transform, in f32 as the shader and in f64: one rounding of a value in [0, 1].
+        let (k, j) = (Level(s.leaf_level), Level(s.level));
+        let leaf_uv = texel / ATLAS as f32;
+        let f32_uv = atlas_uv_at_f32(leaf_uv, s.cell, k, j).as_dvec2();
+        let f64_uv = atlas_uv_at(leaf_uv.as_dvec2(), s.cell, k, j);
+        if (f32_uv - f64_uv).abs().max_element() > 2f64.powi(-24) {
+            failures.push(format!("{s:?}: atlas uv {f32_uv} in f32, {f64_uv} in f64"));
+        }
         match check_f64(&rects[s.rect], s, texel) {
             Ok(F64Check::Agrees) => agree += 1,
             Ok(F64Check::NearBranch) => near += 1,
