@@ -68,14 +68,6 @@ id_type!(
 )]
 pub struct Level(pub u8);
 
-impl Level {
-    /// `2^level`, the number of cells per axis at this level.
-    #[inline]
-    pub fn cells_per_axis(self) -> u32 {
-        1u32 << self.0
-    }
-}
-
 /// Integer cell of a node at its level: the node's atlas is the square `[ix, ix+1) × [iy, iy+1)` of the
 /// root atlas scaled by `2^level` (paper §5.1, Fig. 4). `ix, iy < 2^level`.
 #[derive(

@@ -14,6 +14,13 @@
 //! tests/gpu/harness.rs: without `Xvfb` or an adapter every test is a loud SKIPPED and counted as skipped;
 //! with `ATLASTREE_REQUIRE_GPU=1` they fail instead. Closing line `view: P passed, F failed, S skipped`.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "test code: a failed unwrap is a failed test"
+)]
+
 use std::cell::OnceCell;
 use std::fs::File;
 use std::io::{BufRead, BufReader};
@@ -341,26 +348,21 @@ fn load(path: &Path) -> Result<image::RgbaImage, String> {
     Ok(img)
 }
 
-/// PSNR over RGB of the columns `x0..` of two equally sized images, dB (infinite when identical).
+/// PSNR over RGB of the columns `x0..` of two equally sized images, dB ([`atlastree::texfmt::psnr`]: the
+/// 99 dB cap when identical).
 fn psnr_from(a: &image::RgbaImage, b: &image::RgbaImage, x0: u32) -> f64 {
-    let (mut sum, mut n) = (0.0f64, 0u64);
+    let (mut sse, mut n) = (0u64, 0u64);
     for (x, y, p) in a.enumerate_pixels() {
         if x < x0 {
             continue;
         }
         let q = b.get_pixel(x, y);
         for c in 0..3 {
-            let d = f64::from(p[c]) - f64::from(q[c]);
-            sum += d * d;
+            sse += u64::from(p[c].abs_diff(q[c])).pow(2);
             n += 1;
         }
     }
-    let mse = sum / n.max(1) as f64;
-    if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (255.0f64 * 255.0 / mse).log10()
-    }
+    atlastree::texfmt::psnr(sse, n)
 }
 
 fn matches_headless_render(f: &Fixture) -> Result<(), String> {

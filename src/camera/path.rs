@@ -403,12 +403,6 @@ impl std::fmt::Display for PathKind {
 }
 
 impl PathKind {
-    /// True for the generated kinds (`overview-dive`, `street`, `orbit`), which fly over a [`Ground`];
-    /// a JSON file needs none.
-    pub fn is_generated(&self) -> bool {
-        !matches!(self, PathKind::File(_))
-    }
-
     /// The path: generated over `ground` (its bounds, up axis and heights), or loaded from the file
     /// (the ground is then unused).
     pub fn resolve(&self, ground: &Ground) -> Result<CameraPath, CameraError> {

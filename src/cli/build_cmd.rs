@@ -283,9 +283,9 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
     }
 }
 
-/// A PSNR for humans: `lossless` when infinite.
+/// A PSNR for humans: `lossless` at the cap ([`atlastree::texfmt::PSNR_CAP_DB`]) and above.
 pub fn fmt_psnr(db: f64) -> String {
-    if db.is_infinite() {
+    if db >= atlastree::texfmt::PSNR_CAP_DB {
         "lossless".into()
     } else {
         format!("{db:.2} dB")

@@ -6,6 +6,7 @@ use atlastree::plan::{FramePlanner, PagingFrame, PagingSetup};
 use atlastree::render::{FrameStats, Mode, Renderer, RendererOptions};
 use atlastree::select::{SelectOptions, min_distance_scale};
 use atlastree::store::TreeFile;
+use atlastree::sweep::summary::median;
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -279,7 +280,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
                 .save(run.dir.join("contact_sheet.png"))
                 .context("writing the contact sheet")?;
         }
-        let frame = median(run.stats.iter().map(|s| s.frame_ms).collect());
+        let frame = median(run.stats.iter().map(|s| s.frame_ms));
         medians.push((run.mode, frame));
         print_summary(run.mode, &run.stats, &run.dir);
     }
@@ -291,16 +292,6 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         println!("median frame time original / tree: {:.3}", o / t);
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Median of `v` (0 when empty).
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
 }
 
 /// One mode's outputs.

@@ -72,8 +72,10 @@ pub fn rect_t(u: f64, wrap: RectWrap, uv_min: f64, uv_max: f64) -> f64 {
 
 /// Leaf-atlas texel coordinates (x right, y down, texel units, not centres) of UV `uv` in `rect`:
 /// [`rect_t`] per axis scaled onto the inner rectangle, then kept `margin` texels inside the outer
-/// rectangle (its centre where the outer rectangle is narrower than twice the margin). The shader uses the
-/// filter footprint as the margin, so no sample reaches a neighbouring rect.
+/// rectangle (the inner rectangle's centre where the outer rectangle is narrower than twice the margin,
+/// as the shader). The shader uses the filter footprint as the margin, so no sample reaches a neighbouring
+/// rect; its f32 twin, `render::wgsl::tree::RectMap::texel_f32`, agrees with this within f32 precision
+/// (tests/cpu/render.rs and, on the GPU, tests/gpu/shader_math.rs).
 pub fn rect_texel(uv: DVec2, rect: &AtlasRect, margin: DVec2) -> DVec2 {
     let tpu = rect.texels_per_uv();
     let axis = |k: usize, u: f64, m: f64| {
@@ -84,7 +86,7 @@ pub fn rect_texel(uv: DVec2, rect: &AtlasRect, margin: DVec2) -> DVec2 {
         if lo <= hi {
             x.clamp(lo, hi)
         } else {
-            0.5 * (lo + hi)
+            f64::from(rect.inner[k]) + 0.5 * f64::from(rect.inner[k + 2])
         }
     };
     DVec2::new(axis(0, uv.x, margin.x), axis(1, uv.y, margin.y))

@@ -18,7 +18,7 @@
 //! ([`PlanError::TimeBackwards`]). [`FramePlanner::plan_still`] plans without paging (select and resolve
 //! against current residency, no clock), for warm-up draws and previews.
 
-use crate::camera::Camera;
+use crate::camera::{Camera, Frustum};
 use crate::ids::BlockId;
 use crate::paging::{
     Applied, BlockSource, BlockTable, BlockTableError, Coarseness, Event, ImmediateLoader, Loader,
@@ -323,6 +323,8 @@ impl<'a> FramePlanner<'a> {
         self.plan_inner(camera, None, scale, residency)
     }
 
+    /// The phases of a plan: check the clock, apply the bootstrap's pending root loads, select, and (paged
+    /// only) one paging step at `time` (none for `None`) and the resolution against residency.
     fn plan_inner(
         &mut self,
         camera: &Camera,
@@ -330,118 +332,41 @@ impl<'a> FramePlanner<'a> {
         scale: f64,
         residency: &mut dyn Residency,
     ) -> Result<&FramePlan, PlanError> {
-        if let Some(t) = time
-            && !t.is_finite()
-        {
-            return Err(PlanError::TimeNotFinite { time: t });
-        }
-        if let (Some(p), Some(t)) = (&self.paging, time)
-            && let Some(last) = p.last_time
-            && t < last
-        {
-            return Err(PlanError::TimeBackwards { time: t, last });
-        }
+        self.check_clock(time)?;
         if let Some(p) = &mut self.paging {
-            // One at a time, removed once applied: after an error the rest stay pending for a retry.
-            while let Some(ev) = p.pending.first() {
-                let block = match ev {
-                    Event::Loaded { block, .. } | Event::Evicted { block } => *block,
-                };
-                residency
-                    .apply(ev)
-                    .map_err(|message| PlanError::RootApply { block, message })?;
-                p.pending.remove(0);
-            }
+            p.apply_pending(residency)?;
         }
         let t0 = Instant::now();
         let selector = self.frozen.unwrap_or(*camera);
         let frustum = selector.frustum();
         let previous = self.plan.take();
         let frame = previous.as_ref().map_or(0, |p| p.frame) + 1;
-        let (mut cuts, mut reuse_resolved) =
+        let (mut cuts, reuse_resolved) =
             previous.map_or((Vec::new(), None), |p| (p.cuts, p.resolved));
-        cuts.resize_with(self.trees.len(), Cut::new);
-        let mut stats = PlanStats::default();
-        for (nodes, cut) in self.trees.iter().zip(cuts.iter_mut()) {
-            select(nodes, &selector, &frustum, scale, cut);
-            stats.nodes_visited += cut.visited;
-            stats.nodes_drawn += cut.items.len() as u32;
-        }
+        let mut stats = select_cuts(&self.trees, &selector, &frustum, scale, &mut cuts);
         let t1 = Instant::now();
         stats.select_us = (t1 - t0).as_secs_f64() * 1e6;
         let mut resolved = None;
         if let Some(p) = &mut self.paging {
-            let mut frame_stats = PagingFrame::default();
-            if let Some(now) = time {
-                p.last_time = Some(now);
-                let table = &p.table;
-                let (mut uploaded, mut loaded_originals) = (0u64, 0u64);
-                let (mut load_errors, mut evict_errors) = (0u32, 0u32);
-                let mut last_error = None;
-                let mut apply_time = std::time::Duration::ZERO;
-                let session = p.session.frame(
-                    &self.trees,
-                    &selector,
-                    &frustum,
-                    scale,
-                    now,
-                    &mut *p.loader,
-                    |ev| {
-                        let t = Instant::now();
-                        let result = residency.apply(&ev);
-                        apply_time += t.elapsed();
-                        let load = match &ev {
-                            Event::Loaded { block, .. } => Some(*block),
-                            Event::Evicted { .. } => None,
-                        };
-                        match result {
-                            Ok(b) => {
-                                uploaded += b;
-                                if let Some(block) = load {
-                                    loaded_originals += table.bytes_by_kind([block]).1;
-                                }
-                                Applied::Done
-                            }
-                            Err(e) => {
-                                *if load.is_some() {
-                                    &mut load_errors
-                                } else {
-                                    &mut evict_errors
-                                } += 1;
-                                last_error = Some(e);
-                                Applied::Failed
-                            }
-                        }
-                    },
-                );
-                frame_stats.upload_ms = apply_time.as_secs_f64() * 1e3;
-                frame_stats.session = session;
-                frame_stats.uploaded_bytes = uploaded;
-                frame_stats.loaded_original_bytes = loaded_originals;
-                frame_stats.apply_errors = load_errors;
-                frame_stats.evict_errors = evict_errors;
-                if last_error.is_some() {
-                    p.last_error = last_error;
-                }
-            } else {
+            let view = View {
+                trees: &self.trees,
+                selector: &selector,
+                frustum: &frustum,
+                scale,
+            };
+            let mut frame_stats = match time {
+                Some(now) => p.step(&view, now, residency),
                 // Nothing happened: the state of the last step, none of its per-frame deltas.
-                frame_stats.session.pager = p.session.pager.frame_stats().state_only();
-            }
-            let pager = &p.session.pager;
-            let table = &p.table;
-            let mut out = reuse_resolved.take().unwrap_or_default();
-            frame_stats.coarse = resolve_frame(
-                &self.trees,
-                &cuts,
-                &selector,
-                |t, n| table.atlas(t, n).is_some_and(|b| pager.is_resident(b)),
-                |t, n| table.originals(t, n).iter().all(|&b| pager.is_resident(b)),
-                &mut out,
-            );
-            let (atlases, originals) = table.bytes_by_kind(pager.resident().iter().copied());
-            frame_stats.resident_atlas_bytes = atlases;
-            frame_stats.resident_original_bytes = originals;
-            frame_stats.resident_hash = resident_fingerprint(pager.resident());
+                None => PagingFrame {
+                    session: SessionFrame {
+                        pager: p.session.pager.frame_stats().state_only(),
+                        ..SessionFrame::default()
+                    },
+                    ..PagingFrame::default()
+                },
+            };
+            let mut out = reuse_resolved.unwrap_or_default();
+            p.resolve(&view, &cuts, &mut frame_stats, &mut out);
             resolved = Some(out);
             stats.paging = Some(frame_stats);
             stats.page_us = t1.elapsed().as_secs_f64() * 1e6;
@@ -456,6 +381,175 @@ impl<'a> FramePlanner<'a> {
             resolved,
             stats,
         }))
+    }
+
+    /// A plan's time must be finite, and a paged plan's must not run backwards.
+    fn check_clock(&self, time: Option<f64>) -> Result<(), PlanError> {
+        if let Some(t) = time
+            && !t.is_finite()
+        {
+            return Err(PlanError::TimeNotFinite { time: t });
+        }
+        if let (Some(p), Some(t)) = (&self.paging, time)
+            && let Some(last) = p.last_time
+            && t < last
+        {
+            return Err(PlanError::TimeBackwards { time: t, last });
+        }
+        Ok(())
+    }
+}
+
+/// The cut of every tree for `selector` into `cuts` (one per tree; the previous plan's, reused), and the
+/// plan's counters of the traversal.
+fn select_cuts(
+    trees: &[&[NodeRecord]],
+    selector: &Camera,
+    frustum: &Frustum,
+    scale: f64,
+    cuts: &mut Vec<Cut>,
+) -> PlanStats {
+    cuts.resize_with(trees.len(), Cut::new);
+    let mut stats = PlanStats::default();
+    for (nodes, cut) in trees.iter().zip(cuts.iter_mut()) {
+        select(nodes, selector, frustum, scale, cut);
+        stats.nodes_visited += cut.visited;
+        stats.nodes_drawn += cut.items.len() as u32;
+    }
+    stats
+}
+
+/// What the paging phases of one plan look at.
+struct View<'v, 'a> {
+    trees: &'v [&'a [NodeRecord]],
+    selector: &'v Camera,
+    frustum: &'v Frustum,
+    scale: f64,
+}
+
+/// Hands a paging step's residency changes to the executor and counts what came of them.
+struct Applier<'r, 't> {
+    residency: &'r mut dyn Residency,
+    table: &'t BlockTable,
+    apply_time: std::time::Duration,
+    uploaded: u64,
+    loaded_originals: u64,
+    load_errors: u32,
+    evict_errors: u32,
+    last_error: Option<String>,
+}
+
+impl Applier<'_, '_> {
+    /// Applies one change; a failed one is counted (load or eviction) and handed back to the pager.
+    fn apply(&mut self, ev: &Event) -> Applied {
+        let t = Instant::now();
+        let result = self.residency.apply(ev);
+        self.apply_time += t.elapsed();
+        let load = match ev {
+            Event::Loaded { block, .. } => Some(*block),
+            Event::Evicted { .. } => None,
+        };
+        match result {
+            Ok(bytes) => {
+                self.uploaded += bytes;
+                if let Some(block) = load {
+                    self.loaded_originals += self.table.bytes_by_kind([block]).1;
+                }
+                Applied::Done
+            }
+            Err(e) => {
+                if load.is_some() {
+                    self.load_errors += 1;
+                } else {
+                    self.evict_errors += 1;
+                }
+                self.last_error = Some(e);
+                Applied::Failed
+            }
+        }
+    }
+}
+
+impl PagingState {
+    /// Applies the bootstrap's root loads, one at a time, each removed once applied: after an error the
+    /// rest stay pending for a retry.
+    fn apply_pending(&mut self, residency: &mut dyn Residency) -> Result<(), PlanError> {
+        while let Some(ev) = self.pending.first() {
+            let block = match ev {
+                Event::Loaded { block, .. } | Event::Evicted { block } => *block,
+            };
+            residency
+                .apply(ev)
+                .map_err(|message| PlanError::RootApply { block, message })?;
+            self.pending.remove(0);
+        }
+        Ok(())
+    }
+
+    /// One paging step at clock `now`, its residency changes applied through `residency`.
+    fn step(
+        &mut self,
+        view: &View<'_, '_>,
+        now: f64,
+        residency: &mut dyn Residency,
+    ) -> PagingFrame {
+        self.last_time = Some(now);
+        let mut applier = Applier {
+            residency,
+            table: &self.table,
+            apply_time: std::time::Duration::ZERO,
+            uploaded: 0,
+            loaded_originals: 0,
+            load_errors: 0,
+            evict_errors: 0,
+            last_error: None,
+        };
+        let session = self.session.frame(
+            view.trees,
+            view.selector,
+            view.frustum,
+            view.scale,
+            now,
+            &mut *self.loader,
+            |ev| applier.apply(&ev),
+        );
+        if applier.last_error.is_some() {
+            self.last_error = applier.last_error;
+        }
+        PagingFrame {
+            session,
+            upload_ms: applier.apply_time.as_secs_f64() * 1e3,
+            uploaded_bytes: applier.uploaded,
+            loaded_original_bytes: applier.loaded_originals,
+            apply_errors: applier.load_errors,
+            evict_errors: applier.evict_errors,
+            ..PagingFrame::default()
+        }
+    }
+
+    /// Resolves every cut item against the pager's residency into `out`, with the screen accounting and the
+    /// resident bytes and fingerprint in `frame`.
+    fn resolve(
+        &self,
+        view: &View<'_, '_>,
+        cuts: &[Cut],
+        frame: &mut PagingFrame,
+        out: &mut Vec<Vec<Resolved>>,
+    ) {
+        let pager = &self.session.pager;
+        let table = &self.table;
+        frame.coarse = resolve_frame(
+            view.trees,
+            cuts,
+            view.selector,
+            |t, n| table.atlas(t, n).is_some_and(|b| pager.is_resident(b)),
+            |t, n| table.originals(t, n).iter().all(|&b| pager.is_resident(b)),
+            out,
+        );
+        let (atlases, originals) = table.bytes_by_kind(pager.resident().iter().copied());
+        frame.resident_atlas_bytes = atlases;
+        frame.resident_original_bytes = originals;
+        frame.resident_hash = resident_fingerprint(pager.resident());
     }
 }
 

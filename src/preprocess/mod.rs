@@ -27,7 +27,7 @@ use crate::scene::Scene;
 use crate::store::{FileWriter, StoreError};
 use serde::Serialize;
 use std::path::Path;
-use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// How d_min is given.
@@ -203,7 +203,7 @@ pub struct TreeReport {
     /// Storage format of the tree's blocks.
     pub format: crate::texfmt::TexFormat,
     /// PSNR (dB, 8-bit sRGB values, all levels) of the stored atlases against the uncompressed ones they
-    /// were encoded from; infinite for RGBA8.
+    /// were encoded from ([`crate::texfmt::psnr`]); the cap, 99 dB, for RGBA8 (lossless).
     pub atlas_psnr_db: f64,
     /// Scene triangles in this tree.
     pub triangles: u64,
@@ -352,7 +352,8 @@ pub fn partition_triangles(scene: &Scene) -> Vec<(TreeKind, Vec<u32>)> {
         .collect()
 }
 
-/// Builds the atlas tree(s) of `scene` and writes them atomically to `out`.
+/// Builds the atlas tree(s) of `scene` and writes them atomically to `out`: the stages of the module docs,
+/// one phase each.
 pub fn build(
     scene: &Scene,
     opts: &BuildOptions,
@@ -367,11 +368,63 @@ pub fn build(
             path: scene.source.display().to_string(),
         });
     }
-    let f_proj = params.f_proj();
-    let mut timings: Vec<(String, f64)> = Vec::new();
-    let mut time =
-        |name: &str, t: Instant| timings.push((name.to_string(), t.elapsed().as_secs_f64()));
+    let mut timings = Timings::default();
+    let (forest, mut reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
+    check_file_size(&forest, &reports, opts.max_file_bytes)?;
 
+    let t = Instant::now();
+    let writer = FileWriter::create(out, &forest)?;
+    let cache = raster::ImageCache::new(scene, opts.image_cache_bytes);
+    rasterise_forest(
+        scene,
+        opts.mip_filter,
+        &forest,
+        &writer,
+        &cache,
+        &mut reports,
+        progress,
+    )?;
+    timings.push("rasterise", t);
+
+    let t = Instant::now();
+    progress.stage("write", None);
+    let summary = writer.finish()?;
+    progress.finish_stage();
+    timings.push("write", t);
+    timings.push("total", t_all);
+
+    Ok(build_report(
+        params,
+        diagonal,
+        &forest,
+        reports,
+        summary.total,
+        timings,
+        &cache,
+    ))
+}
+
+/// `(stage, seconds)` of a build, in the order the stages ended.
+#[derive(Default)]
+struct Timings(Vec<(String, f64)>);
+
+impl Timings {
+    /// Records stage `name` as begun at `start` and ended now.
+    fn push(&mut self, name: &str, start: Instant) {
+        self.0
+            .push((name.to_string(), start.elapsed().as_secs_f64()));
+    }
+}
+
+/// Stages 1–3 for every tree: the forest without pixels (every block's size fixed), with a report per tree.
+fn plan_forest(
+    scene: &Scene,
+    opts: &BuildOptions,
+    params: &BuildParams,
+    parts: &[(TreeKind, Vec<u32>)],
+    progress: &dyn Progress,
+    timings: &mut Timings,
+) -> Result<(AtlasForest, Vec<TreeReport>), BuildError> {
     let mut forest = AtlasForest {
         params: params.clone(),
         materials: scene.materials.clone(),
@@ -379,140 +432,180 @@ pub fn build(
         blocks: vec![],
     };
     let mut reports = Vec::new();
-    for (kind, tris) in &parts {
-        let t = Instant::now();
-        progress.stage(&format!("sizing {kind:?}"), None);
-        let popts = prepare::PrepareOptions {
-            f_proj,
-            up: params.up,
-            cap_to_source: opts.cap_to_source,
-            split_limit: f64::from(params.atlas_size / 4),
-            max_pieces: opts.max_pieces,
-            wrap: opts.repeat == RepeatMode::Wrap,
-        };
-        let infos = prepare::prepare(scene, tris, &popts);
-        let sizing = prepare::analyze(&infos);
-        progress.finish_stage();
-        time(&format!("sizing {kind:?}"), t);
-
-        let t = Instant::now();
-        progress.stage(&format!("layout {kind:?} (nodes)"), None);
-        let lopts = layout::LayoutOptions {
-            atlas_size: params.atlas_size,
-            border: params.border,
-            max_depth: params.max_depth,
-            cap_to_source: opts.cap_to_source,
-            wrap: opts.repeat == RepeatMode::Wrap,
-            split: opts.split,
-            leaf_originals: (opts.leaf_originals_atlases.max(0.0)
-                * f64::from(params.atlas_size)
-                * f64::from(params.atlas_size)) as u64,
-        };
-        let lay =
-            layout::layout(scene, &infos, &lopts, &|n| progress.set(n)).map_err(|source| {
-                BuildError::Layout {
-                    kind: *kind,
-                    source,
-                }
-            })?;
-        progress.finish_stage();
-        time(&format!("layout {kind:?}"), t);
-
-        let t = Instant::now();
-        let asm = assemble::assemble(
-            scene,
-            &infos,
-            &lay.order,
-            &lay.root,
-            &params,
-            assemble::TreeSlot {
-                kind: *kind,
-                tree_index: forest.trees.len() as u32,
-                first_block: forest.blocks.len() as u32,
-                format: kind.format(opts.compress),
-            },
-        );
-        time(&format!("assemble {kind:?}"), t);
-        let occ = &asm.occupancy;
-        reports.push(TreeReport {
+    for (kind, tris) in parts {
+        let slot = assemble::TreeSlot {
             kind: *kind,
+            tree_index: forest.trees.len() as u32,
+            first_block: forest.blocks.len() as u32,
             format: kind.format(opts.compress),
-            atlas_psnr_db: f64::INFINITY,
-            triangles: tris.len() as u64,
-            pieces: infos.len() as u64,
-            nodes: asm.tree.nodes.len() as u64,
-            leaves: asm.tree.leaves.len() as u64,
-            depth: asm.tree.nodes.iter().map(|n| n.level.0).max().unwrap_or(0),
-            vertices: asm.tree.vertices.len() as u64,
-            clamped_leaves: lay.clamped_leaves as u64,
-            leaf_reasons: lay.leaves.clone(),
-            capped_rects: asm.capped.iter().flatten().filter(|c| **c).count() as u64,
-            periods_stored: asm.periods_stored,
-            periods_spanned: asm.periods_spanned,
-            occupancy_mean: occ.iter().sum::<f64>() / occ.len().max(1) as f64,
-            occupancy_min: occ.iter().copied().fold(f64::INFINITY, f64::min),
-            occupancy_max: occ.iter().copied().fold(0.0, f64::max),
-            root_min_distance: asm.tree.nodes.first().map_or(0.0, |n| n.min_distance),
-            sizing,
-            originals: originals::originals_cost(&asm.tree, scene),
-        });
+        };
+        let (asm, report) = plan_tree(scene, opts, params, tris, slot, progress, timings)?;
+        reports.push(report);
         forest.trees.push(asm.tree);
         forest.blocks.extend(asm.blocks);
     }
+    Ok((forest, reports))
+}
 
+/// Stages 1–3 for one tree: sizing, layout, assembly.
+fn plan_tree(
+    scene: &Scene,
+    opts: &BuildOptions,
+    params: &BuildParams,
+    tris: &[u32],
+    slot: assemble::TreeSlot,
+    progress: &dyn Progress,
+    timings: &mut Timings,
+) -> Result<(assemble::Assembled, TreeReport), BuildError> {
+    let kind = slot.kind;
+    let wrap = opts.repeat == RepeatMode::Wrap;
+
+    let t = Instant::now();
+    progress.stage(&format!("sizing {kind:?}"), None);
+    let popts = prepare::PrepareOptions {
+        f_proj: params.f_proj(),
+        up: params.up,
+        cap_to_source: opts.cap_to_source,
+        split_limit: f64::from(params.atlas_size / 4),
+        max_pieces: opts.max_pieces,
+        wrap,
+    };
+    let infos = prepare::prepare(scene, tris, &popts);
+    let sizing = prepare::analyze(&infos);
+    progress.finish_stage();
+    timings.push(&format!("sizing {kind:?}"), t);
+
+    let t = Instant::now();
+    progress.stage(&format!("layout {kind:?} (nodes)"), None);
+    let lopts = layout::LayoutOptions {
+        atlas_size: params.atlas_size,
+        border: params.border,
+        max_depth: params.max_depth,
+        cap_to_source: opts.cap_to_source,
+        wrap,
+        split: opts.split,
+        leaf_originals: (opts.leaf_originals_atlases.max(0.0)
+            * f64::from(params.atlas_size)
+            * f64::from(params.atlas_size)) as u64,
+    };
+    let lay = layout::layout(scene, &infos, &lopts, &|n| progress.set(n))
+        .map_err(|source| BuildError::Layout { kind, source })?;
+    progress.finish_stage();
+    timings.push(&format!("layout {kind:?}"), t);
+
+    let t = Instant::now();
+    let asm = assemble::assemble(scene, &infos, &lay.order, &lay.root, params, slot);
+    timings.push(&format!("assemble {kind:?}"), t);
+
+    let report = tree_report(scene, tris.len(), infos.len(), &lay, &asm, sizing);
+    Ok((asm, report))
+}
+
+/// The report of one tree after assembly (its atlas PSNR is filled in by the pixel pass).
+fn tree_report(
+    scene: &Scene,
+    triangles: usize,
+    pieces: usize,
+    lay: &layout::Layout,
+    asm: &assemble::Assembled,
+    sizing: prepare::PrepareReport,
+) -> TreeReport {
+    let occ = &asm.occupancy;
+    TreeReport {
+        kind: asm.tree.kind,
+        format: asm.tree.format,
+        atlas_psnr_db: crate::texfmt::PSNR_CAP_DB,
+        triangles: triangles as u64,
+        pieces: pieces as u64,
+        nodes: asm.tree.nodes.len() as u64,
+        leaves: asm.tree.leaves.len() as u64,
+        depth: asm.tree.nodes.iter().map(|n| n.level.0).max().unwrap_or(0),
+        vertices: asm.tree.vertices.len() as u64,
+        clamped_leaves: lay.clamped_leaves as u64,
+        leaf_reasons: lay.leaves.clone(),
+        capped_rects: asm.capped.iter().flatten().filter(|c| **c).count() as u64,
+        periods_stored: asm.periods_stored,
+        periods_spanned: asm.periods_spanned,
+        occupancy_mean: occ.iter().sum::<f64>() / occ.len().max(1) as f64,
+        occupancy_min: occ.iter().copied().fold(f64::INFINITY, f64::min),
+        occupancy_max: occ.iter().copied().fold(0.0, f64::max),
+        root_min_distance: asm.tree.nodes.first().map_or(0.0, |n| n.min_distance),
+        sizing,
+        originals: originals::originals_cost(&asm.tree, scene),
+    }
+}
+
+/// Refuses, before anything is written, a forest whose blocks exceed `limit` bytes.
+fn check_file_size(
+    forest: &AtlasForest,
+    reports: &[TreeReport],
+    limit: u64,
+) -> Result<(), BuildError> {
     let predicted: u64 = forest.blocks.iter().map(|b| b.bytes).sum();
-    if predicted > opts.max_file_bytes {
+    if predicted > limit {
         return Err(BuildError::TooLarge {
             nodes: reports.iter().map(|r| r.nodes).sum(),
             depth: reports.iter().map(|r| r.depth).max().unwrap_or(0),
             blocks: forest.blocks.len() as u64,
             predicted,
-            limit: opts.max_file_bytes,
+            limit,
         });
     }
-    let t = Instant::now();
-    let writer = FileWriter::create(out, &forest)?;
-    let cache = raster::ImageCache::new(scene, opts.image_cache_bytes);
+    Ok(())
+}
+
+/// Stage 4: every tree's pixels into `writer`; each report gets its atlases' PSNR against the uncompressed
+/// atlases they were encoded from.
+fn rasterise_forest(
+    scene: &Scene,
+    mip_filter: image_ops::MipFilter,
+    forest: &AtlasForest,
+    writer: &FileWriter,
+    cache: &raster::ImageCache<'_>,
+    reports: &mut [TreeReport],
+    progress: &dyn Progress,
+) -> Result<(), BuildError> {
     let total_nodes: u64 = forest.trees.iter().map(|t| t.nodes.len() as u64).sum();
     progress.stage("rasterise atlases", Some(total_nodes));
-    let done = AtomicU64::new(0);
     let set = |n: u64| progress.set(n);
     let ctx = raster::RasterCtx {
         scene,
-        params: &params,
-        writer: &writer,
-        cache: &cache,
+        params: &forest.params,
+        writer,
+        cache,
         progress: &set,
-        done,
-        mip_filter: opts.mip_filter,
+        done: AtomicU64::new(0),
+        mip_filter,
         atlas_sse: AtomicU64::new(0),
         atlas_samples: AtomicU64::new(0),
     };
-    for (tree, report) in forest.trees.iter().zip(&mut reports) {
+    for (tree, report) in forest.trees.iter().zip(reports) {
         raster::raster_tree(&ctx, tree)?;
-        let sse = ctx.atlas_sse.swap(0, std::sync::atomic::Ordering::Relaxed);
-        let samples = ctx
-            .atlas_samples
-            .swap(0, std::sync::atomic::Ordering::Relaxed);
+        let sse = ctx.atlas_sse.swap(0, Ordering::Relaxed);
+        let samples = ctx.atlas_samples.swap(0, Ordering::Relaxed);
         report.atlas_psnr_db = crate::texfmt::psnr(sse, samples);
     }
     progress.finish_stage();
-    time("rasterise", t);
+    Ok(())
+}
 
-    let t = Instant::now();
-    progress.stage("write", None);
-    let summary = writer.finish()?;
-    progress.finish_stage();
-    time("write", t);
-    time("total", t_all);
-
+/// The report of a finished build, with the warnings of the image cache and of clamped leaves.
+fn build_report(
+    params: BuildParams,
+    scene_diagonal: f64,
+    forest: &AtlasForest,
+    trees: Vec<TreeReport>,
+    file_bytes: u64,
+    timings: Timings,
+    cache: &raster::ImageCache<'_>,
+) -> BuildReport {
     let atlas_blocks = forest
         .blocks
         .iter()
         .filter(|b| matches!(b.kind, crate::model::BlockKind::Atlas { .. }))
         .count() as u64;
     let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
-    for r in &reports {
+    for r in &trees {
         if r.leaf_reasons.clamped > 0 {
             warnings.push(format!(
                 "{:?} tree: {} leaves hold a triangle that alone needs more than one atlas; their resolution was \
@@ -521,21 +614,19 @@ pub fn build(
             ));
         }
     }
-    Ok(BuildReport {
+    BuildReport {
         params,
-        scene_diagonal: diagonal,
-        trees: reports,
+        scene_diagonal,
+        trees,
         blocks: forest.blocks.len() as u64,
         atlas_blocks,
         original_blocks: forest.blocks.len() as u64 - atlas_blocks,
-        file_bytes: summary.total,
-        timings,
-        images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
-        image_fallbacks: cache.fallbacks.load(std::sync::atomic::Ordering::Relaxed),
-        images_alpha_ignored: cache
-            .alpha_ignored
-            .load(std::sync::atomic::Ordering::Relaxed),
+        file_bytes,
+        timings: timings.0,
+        images_decoded: cache.decodes.load(Ordering::Relaxed),
+        image_fallbacks: cache.fallbacks.load(Ordering::Relaxed),
+        images_alpha_ignored: cache.alpha_ignored.load(Ordering::Relaxed),
         peak_rss_bytes: crate::util::peak_rss_bytes(),
         warnings,
-    })
+    }
 }

@@ -50,19 +50,11 @@ pub fn density_class(w: f64, h: f64, method: SizeMethod) -> i32 {
 ///
 /// This bounds the atlas area A_tex of a texture in a node to `[0, 1 + max triangle span]` instead of the
 /// union of all repetitions the scene happens to use (the paper copies the whole union, §5.2.2), and keeps
-/// stored original UVs small enough for f32 (UV offsets of 1e5 or −2.9e9 occur in real data).
+/// stored original UVs small enough for f32 (UV offsets of 1e5 or −2.9e9 occur in real data). Per axis the
+/// shift of the triangle's lowest UV by the sampler's rule (`image_ops::period_shift`, the raster's too).
 pub fn period_shift(uv: [DVec2; 3], wrap: [Wrap; 2]) -> DVec2 {
     let lo = uv[0].min(uv[1]).min(uv[2]);
-    let axis = |v: f64, w: Wrap| -> f64 {
-        if !v.is_finite() {
-            return 0.0;
-        }
-        match w {
-            Wrap::Repeat => v.floor(),
-            Wrap::MirroredRepeat => 2.0 * (v * 0.5).floor(),
-            Wrap::ClampToEdge => 0.0,
-        }
-    };
+    let axis = super::image_ops::period_shift;
     DVec2::new(axis(lo.x, wrap[0]), axis(lo.y, wrap[1]))
 }
 

@@ -139,7 +139,7 @@ impl<'a> ImageCache<'a> {
                         id.0, src.name
                     ));
                 }
-                let d = fallback_checker();
+                let d = crate::scene::image_source::fallback_checker();
                 let l = LinearImage::from_decoded(&d)
                     .unwrap_or_else(|_| LinearImage::new_filled(1, 1, [1.0, 0.0, 1.0, 1.0]));
                 (d, l)
@@ -206,24 +206,6 @@ impl ImageCache<'_> {
         st.1 += bytes.bytes.len() as u64;
         st.0.insert(key, bytes.clone());
         Ok(bytes)
-    }
-}
-
-/// The 8×8 magenta/black checker used for images that cannot be decoded.
-pub fn fallback_checker() -> DecodedImage {
-    let pixels = (0..64)
-        .map(|i| {
-            if ((i % 8) + (i / 8)) % 2 == 0 {
-                [255, 0, 255, 255]
-            } else {
-                [0, 0, 0, 255]
-            }
-        })
-        .collect();
-    DecodedImage {
-        width: 8,
-        height: 8,
-        pixels,
     }
 }
 

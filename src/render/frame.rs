@@ -344,11 +344,6 @@ impl<'f> Renderer<'f> {
         }
     }
 
-    /// Number of render pipelines created so far (the alpha ones only once needed).
-    pub fn pipelines_created(&self) -> usize {
-        self.pipelines.created()
-    }
-
     /// Replaces the colour and depth targets by ones of `width`×`height` pixels (a resized window); the
     /// resident data and pipelines are kept. Errors: [`RenderError::BadSize`] for an empty size.
     pub fn resize(&mut self, width: u32, height: u32) -> Result<(), RenderError> {

@@ -23,6 +23,7 @@ mod encode;
 mod frame;
 mod frame_loop;
 mod naive;
+pub mod naive_batch;
 pub mod pipeline;
 pub mod resident;
 pub mod textures;
@@ -121,6 +122,8 @@ pub enum RenderError {
     Blocks(#[from] crate::paging::BlockTableError),
     #[error(transparent)]
     Plan(#[from] crate::plan::PlanError),
+    #[error(transparent)]
+    NaiveBatch(#[from] naive_batch::NaiveBatchError),
     #[error("the plan has {cuts} cuts but the renderer's file has {trees} trees")]
     PlanMismatch { cuts: usize, trees: usize },
     #[error("original slot {slot} of block {block} is missing from its tree's slot table")]

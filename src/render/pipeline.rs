@@ -202,11 +202,6 @@ impl PassPipelines {
         p
     }
 
-    /// Number of pipelines created so far.
-    pub fn created(&self) -> usize {
-        self.pipelines.iter().filter(|p| p.is_some()).count()
-    }
-
     /// The pipeline of `group` if it was created.
     pub fn existing(&self, group: Group) -> Option<&wgpu::RenderPipeline> {
         self.pipelines[group.index()].as_ref()

@@ -17,7 +17,7 @@
 //!
 //! [`LayerAllocator`] hands out layers (paging slots) from a free list; the paging issue reuses it.
 
-use crate::texfmt::TexFormat;
+use crate::texfmt::{TexFormat, mip_level_count};
 use std::borrow::Cow;
 
 /// Atlas arrays bound at once (the shader switches over this many bindings).
@@ -34,11 +34,6 @@ pub fn class_index(size: u32) -> Option<u32> {
     }
     let k = size.trailing_zeros() - MIN_CLASS_SIZE.trailing_zeros();
     ((k as usize) < CLASS_COUNT).then_some(k)
-}
-
-/// Number of mip levels of a `size²` texture down to 1×1.
-pub fn mip_levels(size: u32) -> u32 {
-    32 - size.max(1).leading_zeros()
 }
 
 /// A free list of layers `0..capacity`. [`LayerAllocator::alloc`] hands out the most recently freed layer
@@ -207,7 +202,7 @@ impl TextureArray {
                 height: size,
                 depth_or_array_layers: layers,
             },
-            mip_level_count: mip_levels(size),
+            mip_level_count: mip_level_count(size),
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: format.wgpu_format(),
@@ -348,8 +343,8 @@ mod tests {
         assert_eq!(class_index(2), None);
         assert_eq!(class_index(4096), None);
         assert_eq!(class_index(12), None);
-        assert_eq!(mip_levels(512), 10);
-        assert_eq!(mip_levels(1), 1);
+        assert_eq!(mip_level_count(512), 10);
+        assert_eq!(mip_level_count(1), 1);
     }
 
     #[test]

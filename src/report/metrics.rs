@@ -12,10 +12,7 @@
 use super::ReportError;
 use rayon::prelude::*;
 
-/// PSNR of identical images, and the ceiling of every PSNR (dB). A finite cap keeps CSV columns numeric
-/// and means stay meaningful; 99 dB is an MSE of about 8·10⁻⁶ (8-bit images differing in one channel
-/// of one pixel by 1 reach 99 dB only above ~10¹⁴ pixels, so real differences never touch the cap).
-pub const PSNR_CAP_DB: f64 = 99.0;
+pub use crate::texfmt::PSNR_CAP_DB;
 
 /// Checks that `buf` holds a `width × height` RGBA8 frame.
 fn check_frame(what: &'static str, buf: &[u8], width: u32, height: u32) -> Result<(), ReportError> {
@@ -33,18 +30,10 @@ fn check_frame(what: &'static str, buf: &[u8], width: u32, height: u32) -> Resul
     }
 }
 
-/// PSNR from a mean squared error on a 0–255 scale, capped at [`PSNR_CAP_DB`].
-pub fn psnr_from_mse(mse: f64) -> f64 {
-    if mse <= 0.0 {
-        return PSNR_CAP_DB;
-    }
-    (10.0 * (255.0 * 255.0 / mse).log10()).min(PSNR_CAP_DB)
-}
-
 /// Peak signal-to-noise ratio (dB) of two RGBA8 frames over the R, G and B channels of every pixel:
 /// `10 · log10(255² / MSE)`, MSE the mean of the squared 8-bit differences over `3 · width · height`
-/// values. Identical frames give [`PSNR_CAP_DB`] (99 dB), as does any PSNR above it. An empty frame
-/// (0 pixels) counts as identical.
+/// values ([`crate::texfmt::psnr`], the crate's one rule). Identical frames give [`PSNR_CAP_DB`] (99 dB),
+/// as does any PSNR above it. An empty frame (0 pixels) counts as identical.
 pub fn psnr(a: &[u8], b: &[u8], width: u32, height: u32) -> Result<f64, ReportError> {
     check_frame("psnr: first frame", a, width, height)?;
     check_frame("psnr: second frame", b, width, height)?;
@@ -57,12 +46,7 @@ pub fn psnr(a: &[u8], b: &[u8], width: u32, height: u32) -> Result<f64, ReportEr
                 .sum::<u64>()
         })
         .sum();
-    let n = 3 * width as u64 * height as u64;
-    Ok(if n == 0 {
-        PSNR_CAP_DB
-    } else {
-        psnr_from_mse(sse as f64 / n as f64)
-    })
+    Ok(crate::texfmt::psnr(sse, 3 * width as u64 * height as u64))
 }
 
 /// [`psnr`] over the pixels where `mask` is true (row-major, one entry per pixel); also returns how many
@@ -96,12 +80,7 @@ pub fn psnr_masked(
             .sum::<u64>();
         count += 1;
     }
-    let psnr = if count == 0 {
-        PSNR_CAP_DB
-    } else {
-        psnr_from_mse(sse as f64 / (3 * count) as f64)
-    };
-    Ok((psnr, count))
+    Ok((crate::texfmt::psnr(sse, 3 * count as u64), count))
 }
 
 /// Side of the SSIM window (pixels).

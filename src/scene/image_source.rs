@@ -143,8 +143,8 @@ impl ImageSource {
     }
 }
 
-/// The 8×8 magenta/black checkerboard.
-fn fallback_checker() -> DecodedImage {
+/// The 8×8 magenta/black checkerboard ([`FALLBACK_COLORS`]) drawn for images that cannot be decoded.
+pub fn fallback_checker() -> DecodedImage {
     let n = FALLBACK_SIZE;
     let pixels = (0..n * n)
         .map(|i| FALLBACK_COLORS[(((i % n) + (i / n)) % 2) as usize])

@@ -69,6 +69,10 @@ impl Backing {
     }
 
     /// Maps `file` read-only.
+    #[allow(
+        unsafe_code,
+        reason = "memory-mapping the file: the one unsafe call, SAFETY below"
+    )]
     fn map(file: &File, path: &Path) -> Result<Backing, StoreError> {
         // SAFETY: see the contract on `TreeFile`: the file is treated as immutable while mapped; the map is
         // read-only and every byte we interpret is validated (bounds, checksums) before use.

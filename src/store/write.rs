@@ -413,11 +413,6 @@ impl FileWriter {
         &self.target
     }
 
-    /// Number of blocks the file holds.
-    pub fn block_count(&self) -> usize {
-        self.blocks.len()
-    }
-
     /// Writes block `id`: exactly `forest.blocks[id].bytes` bytes, once. Thread-safe; blocks may arrive in
     /// any order. On an I/O error the block stays unwritten and may be retried.
     pub fn write_block(&self, id: BlockId, bytes: &[u8]) -> Result<(), StoreError> {

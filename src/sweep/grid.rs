@@ -208,9 +208,6 @@ pub fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
     format!("{}_{}", b.id(), r.id())
 }
 
-/// Names of the presets.
-pub const PRESETS: [&str; 2] = ["small", "full"];
-
 impl Grid {
     /// Both around the build defaults (border 16, repeats wrapped). `small`: data/city in CI time (d_min =
     /// diagonal / 15; 4 builds: atlas 512/1024, box/Kaiser, repeats baked; 4 texel ratios, one capacity, 6

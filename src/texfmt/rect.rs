@@ -21,7 +21,7 @@ use rayon::prelude::*;
 /// `l = 0 ..= log2(max(w, h))`.
 pub fn mip_extents(w: u32, h: u32) -> impl Iterator<Item = (u32, u32)> {
     let (w, h) = (w.max(1), h.max(1));
-    let levels = 32 - w.max(h).leading_zeros();
+    let levels = super::mip_level_count(w.max(h));
     (0..levels).map(move |l| ((w >> l).max(1), (h >> l).max(1)))
 }
 

@@ -10,6 +10,13 @@
 //! default: a sibling of the directory that holds this `main.rs`, e.g. `paging/props.txt` for
 //! `paging/props.rs`); commit them.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "test code: a failed unwrap is a failed test"
+)]
+
 mod built;
 #[path = "../fixtures/mod.rs"]
 mod fixtures;

@@ -239,3 +239,170 @@ fn plan_maps_every_vertex_original_into_its_leaf_tam_range() {
         p.tam.len()
     );
 }
+
+/// The naive baseline's draws (`render::naive_batch`, planned on the CPU) on the city: one draw per (leaf,
+/// original) pair with triangles, exactly the leaf's triangles of that original, every triangle of the tree
+/// drawn once, each draw in its material's pass with its TAM entry's texture; the counts are pinned.
+#[test]
+fn naive_batch_draws_every_triangle_once() {
+    use atlastree::render::naive_batch::{NaiveTables, plan_naive};
+    let dir = tempfile::tempdir().unwrap();
+    let file = city_file(dir.path());
+    let g = gather_tables(&file).unwrap();
+    let tables = NaiveTables::of(&g);
+    let plan = plan_naive(&file, tables).unwrap();
+
+    // Independently: per leaf, the set of originals its triangles use, and its triangle count.
+    let (mut pairs, mut triangles, mut leaves) = (0usize, 0usize, 0usize);
+    for (t, info) in g.infos.iter().enumerate() {
+        let view = file.tree(t).unwrap();
+        for (li, leaf) in view.leaves.iter().enumerate() {
+            let gl = info.leaf_base as usize + li;
+            let first = leaf.first_index as usize;
+            let tris = &view.indices[first..first + leaf.index_count as usize];
+            let mut used: Vec<u32> = tris
+                .chunks_exact(3)
+                .map(|c| view.vertices[c[0] as usize].original)
+                .collect();
+            used.sort_unstable();
+            used.dedup();
+            let (d0, dn) = plan.leaf_draws[gl];
+            assert_eq!(dn as usize, used.len(), "tree {t} leaf {li}");
+            for (k, &o) in used.iter().enumerate() {
+                let d = plan.draws[d0 as usize + k];
+                let mine: Vec<u32> = tris
+                    .chunks_exact(3)
+                    .filter(|c| view.vertices[c[0] as usize].original == o)
+                    .flatten()
+                    .copied()
+                    .collect();
+                let range = d.first_index as usize..(d.first_index + d.index_count) as usize;
+                assert_eq!(
+                    plan.indices[range],
+                    mine[..],
+                    "tree {t} leaf {li} original {o}"
+                );
+                let entry = g.leaves[gl].first_tam as usize + o as usize;
+                assert_eq!(d.texture, g.tam_unique[entry]);
+                assert_eq!(d.pass as u32, g.tam[entry].alpha_mode.min(2));
+                assert_eq!(
+                    (d.base_vertex, d.leaf_base),
+                    (info.vertex_base, info.leaf_base)
+                );
+            }
+            pairs += used.len();
+            triangles += tris.len() / 3;
+            leaves += 1;
+        }
+    }
+    assert_eq!(plan.leaf_draws.len(), leaves);
+    assert_eq!(plan.draws.len(), pairs);
+    assert_eq!(plan.indices.len(), 3 * triangles);
+    // The fixture's numbers: 22 leaves, 40 (leaf, original) draws, 162 triangles, every pair used.
+    assert_eq!(
+        (leaves, plan.draws.len(), triangles, plan.empty_pairs),
+        (22, 40, 162, 0)
+    );
+}
+
+/// Tables that disagree with the file are errors naming what is missing, never a draw left out: a missing
+/// TAM entry, a missing leaf record, a tree the file does not have.
+#[test]
+fn naive_batch_refuses_inconsistent_tables() {
+    use atlastree::render::naive_batch::{NaiveBatchError, NaiveTables, plan_naive};
+    let dir = tempfile::tempdir().unwrap();
+    let file = city_file(dir.path());
+    let g = gather_tables(&file).unwrap();
+    let tables = NaiveTables::of(&g);
+    let short_tam = &g.tam[..g.tam.len() - 1];
+    let err = plan_naive(
+        &file,
+        NaiveTables {
+            tam: short_tam,
+            ..tables
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, NaiveBatchError::MissingTam { entry, entries, .. } if entry == g.tam.len() - 1 && entries == g.tam.len() - 1),
+        "{err}"
+    );
+    let short_leaves = &g.leaves[..g.leaves.len() - 1];
+    let err = plan_naive(
+        &file,
+        NaiveTables {
+            leaves: short_leaves,
+            ..tables
+        },
+    )
+    .unwrap_err();
+    assert_eq!(
+        err,
+        NaiveBatchError::MissingLeaf {
+            leaf: g.leaves.len() - 1,
+            leaves: g.leaves.len() - 1
+        }
+    );
+    // One tree more than the file has.
+    let mut infos = g.infos.clone();
+    infos.push(infos[0].clone());
+    let err = plan_naive(
+        &file,
+        NaiveTables {
+            infos: &infos,
+            ..tables
+        },
+    )
+    .unwrap_err();
+    assert_eq!(
+        err,
+        NaiveBatchError::MissingTree {
+            tree: g.infos.len()
+        }
+    );
+}
+
+/// `RectMap::texel_f32` (the shader's arithmetic in f32) agrees with the f64 reference
+/// `model::transform::rect_texel` on the grid of `tests/fixtures/shader_math.rs` (every wrap mode, rect
+/// edges, UVs up to 65536 periods out, levels to 24), within the tolerance stated there, and the f32 level
+/// transform of its texel with the f64 one within 2⁻²⁴; near-branch samples are few.
+#[test]
+fn texel_f32_agrees_with_f64_reference() {
+    use crate::fixtures::shader_math::{ATLAS, F64Check, check_f64, maps, rects, samples};
+    use atlastree::ids::Level;
+    use atlastree::model::transform::{atlas_uv_at, atlas_uv_at_f32};
+    let rects = rects();
+    let maps = maps(&rects);
+    let samples = samples(&rects);
+    let (mut agree, mut near) = (0usize, 0usize);
+    let mut failures = Vec::new();
+    for s in &samples {
+        let (texel, _, _) = maps[s.rect].texel_f32(s.uv, s.ddx, s.ddy, s.level_texels());
+        // Then the level transform, in f32 as the shader and in f64: one rounding of a value in [0, 1].
+        let (k, j) = (Level(s.leaf_level), Level(s.level));
+        let leaf_uv = texel / ATLAS as f32;
+        let f32_uv = atlas_uv_at_f32(leaf_uv, s.cell, k, j).as_dvec2();
+        let f64_uv = atlas_uv_at(leaf_uv.as_dvec2(), s.cell, k, j);
+        if (f32_uv - f64_uv).abs().max_element() > 2f64.powi(-24) {
+            failures.push(format!("{s:?}: atlas uv {f32_uv} in f32, {f64_uv} in f64"));
+        }
+        match check_f64(&rects[s.rect], s, texel) {
+            Ok(F64Check::Agrees) => agree += 1,
+            Ok(F64Check::NearBranch) => near += 1,
+            Err(e) => failures.push(e),
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {} samples disagree:\n{}",
+        failures.len(),
+        samples.len(),
+        failures[..failures.len().min(20)].join("\n")
+    );
+    assert_eq!(agree + near, samples.len());
+    assert!(
+        near * 100 <= samples.len(),
+        "{near} near-branch samples of {}",
+        samples.len()
+    );
+}

@@ -13,5 +13,12 @@
 //! - A long run: `ATLASTREE_FUZZ_CASES=25000 ATLASTREE_FUZZ_SEED=$RANDOM cargo test --release --test fuzz
 //!   -- --nocapture` (each target prints its counts; ≥ 100 k cases over the targets).
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "test code: a failed unwrap is a failed test"
+)]
+
 #[allow(dead_code)] // targets arrive module by module
 mod harness;

@@ -239,7 +239,7 @@ fn timestamps_measure_a_pass(ctx: &GpuContext) -> Result<(), String> {
 }
 
 /// Maps `buffer` for reading, waits, and copies its bytes out.
-fn map_read(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, String> {
+pub(crate) fn map_read(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, String> {
     let (sender, receiver) = std::sync::mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = sender.send(r);

@@ -2,6 +2,13 @@
 //!
 //! To add tests: create a module under `tests/gpu/` with `pub fn tests() -> Vec<GpuTest>` and list it below.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "test code: a failed unwrap is a failed test"
+)]
+
 mod alpha;
 mod compressed;
 mod device;
@@ -14,6 +21,9 @@ mod paging;
 mod planner;
 mod render;
 mod residency;
+mod shader_math;
+#[path = "../fixtures/shader_math.rs"]
+mod shader_math_grid;
 mod shared;
 mod smoke;
 mod sweep;
@@ -36,6 +46,7 @@ fn main() -> ExitCode {
         compressed::tests(),
         alpha::tests(),
         shared::tests(),
+        shader_math::tests(),
     ]
     .into_iter()
     .flatten()

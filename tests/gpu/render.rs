@@ -201,24 +201,19 @@ pub(crate) fn is_sky(px: &[u8]) -> bool {
 }
 
 /// PSNR (dB) of the RGB channels over the pixels that are not background in at least one image, and the
-/// number of such pixels. Identical covered pixels give +∞.
+/// number of such pixels ([`atlastree::texfmt::psnr`]: identical covered pixels give the 99 dB cap).
 pub(crate) fn psnr_covered(a: &[u8], b: &[u8]) -> (f64, usize) {
-    let (mut se, mut n) = (0.0f64, 0usize);
+    let (mut sse, mut n) = (0u64, 0usize);
     for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
         if is_sky(pa) && is_sky(pb) {
             continue;
         }
         n += 1;
-        for c in 0..3 {
-            let d = f64::from(pa[c]) - f64::from(pb[c]);
-            se += d * d;
-        }
+        sse += (0..3)
+            .map(|c| u64::from(pa[c].abs_diff(pb[c])).pow(2))
+            .sum::<u64>();
     }
-    if n == 0 || se == 0.0 {
-        return (f64::INFINITY, n);
-    }
-    let mse = se / (3 * n) as f64;
-    (10.0 * (255.0f64 * 255.0 / mse).log10(), n)
+    (atlastree::texfmt::psnr(sse, 3 * n as u64), n)
 }
 
 /// Tree frame (atlases where they suffice) against the frame drawn with every original texture bound

@@ -4,6 +4,13 @@
 //! Criterion prints texels/s next to the time (per destination texel, or per source texel for `halve`).
 //! Their correctness is `tests/cpu/preprocess/image_ops.rs`.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "benchmark code: a failed unwrap fails the run loudly"
+)]
+
 use atlastree::preprocess::image_ops::{
     LinearImage, MipChain, RectJob, draw_rect, halve, mip_chain_rgba8,
 };

@@ -3,6 +3,13 @@
 //! written to a temp dir first). One iteration = one whole import; criterion prints triangles/s. That
 //! every triangle and image arrives is `tests/cpu/import/tiled.rs` (the same scene, smaller).
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "benchmark code: a failed unwrap fails the run loudly"
+)]
+
 #[path = "../../tests/fixtures/tiled_gltf.rs"]
 mod tiled_gltf;
 

@@ -3,6 +3,13 @@
 //! Target: SSIM well under the ~10–20 ms a lavapipe frame takes, so per-frame accuracy is affordable in
 //! `sweep`.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "benchmark code: a failed unwrap fails the run loudly"
+)]
+
 use atlastree::report::metrics::{psnr, ssim};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;

@@ -5,6 +5,13 @@
 //! search. Which sets pack, and that the packings are valid, is
 //! `tests/cpu/preprocess/pack.rs::bench_sets_pack_validly_up_to_90_percent_fill`.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "benchmark code: a failed unwrap fails the run loudly"
+)]
+
 #[path = "../../tests/fixtures/pack_sets.rs"]
 mod pack_sets;
 

@@ -10,6 +10,13 @@
 //! - `priority`: the paging usage traversal (`paging::usage::classify`) and a full `Pager::plan` (§6) on
 //!   the same tree with one atlas block per node and one original block per leaf, nodes/s.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "benchmark code: a failed unwrap fails the run loudly"
+)]
+
 #[path = "../../tests/fixtures/select_trees.rs"]
 mod select_trees;
 

@@ -3,6 +3,13 @@
 //! iteration = one frame (frustum + traversal), cycling through the cameras, so the reported time is
 //! per frame. Target: < 50 µs on one core.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "benchmark code: a failed unwrap fails the run loudly"
+)]
+
 #[path = "../../tests/fixtures/select_trees.rs"]
 mod select_trees;
 

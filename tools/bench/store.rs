@@ -4,6 +4,13 @@
 //! open + validate with mmap and with read, and of `verify_blocks`. Round trips, corruption and atomic
 //! publication are `tests/cpu/store.rs`.
 
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "benchmark code: a failed unwrap fails the run loudly"
+)]
+
 #[path = "../../tests/fixtures/store_forest.rs"]
 mod store_forest;
 

@@ -32,6 +32,7 @@ pub use mip::{
 pub use raster::{
     RectJob, combine_quadrants, draw_rect, neutral_fill, resample_rect, resample_square,
 };
+pub(crate) use sample::period_shift;
 pub use sample::{FootprintPlan, MAX_ANISOTROPY, sample_footprint, sample_planned, wrap_index};
 pub use srgb::{linear_to_srgb8, srgb8_to_linear};
 
