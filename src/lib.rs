@@ -25,7 +25,7 @@
 //!   MaxRects packing (§5.2.3), splitting balanced by texel demand (§5.3 condition b), scaled leaves where
 //!   deeper atlases would only copy the originals, leaf atlas rasterisation in linear light with borders by
 //!   the sampler's rule, inner atlases by 2×2 combine and halve (§5.1), per-node texture transforms in the
-//!   exact form of DESIGN.md "Precision", all in a local frame (translation-invariant trees).
+//!   exact form of docs/DESIGN.md "Precision", all in a local frame (translation-invariant trees).
 //! - [`store`]: the paging file. Pod records read in place from a memory map, 4 KiB-aligned checksummed
 //!   blocks, atomic writes; each original texture stored once per tree at its own power-of-two sides, in
 //!   blocks grouped by the leaves that show it, referenced by every one of them (format 5).
