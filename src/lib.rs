@@ -42,7 +42,7 @@
 //!   per pipeline (texture-array batching).
 //! - [`texfmt`]: block formats of the paging file (RGBA8, BC1/BC3/BC7): sizes, CPU encode and decode.
 //! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
-//! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
+//! - [`report`]: experiment reporting: the one per-frame CSV schema, PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
 //!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
 //! - [`view`]: the interactive window (winit + egui inspector) over the same renderer.
 //! - [`sweep`]: what accuracy costs in time: builds and renders a grid of knob values (d_min, atlas size,
