@@ -314,3 +314,69 @@ pub fn parse_list<T>(
         .map(|s| f(s.trim()).with_context(|| format!("bad --{what} value {s:?}")))
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Build {
+        #[command(flatten)]
+        params: BuildParamsArgs,
+    }
+
+    /// Without flags the shared build parameters are the library's defaults, so `sweep` builds exactly
+    /// what it built before it took them.
+    #[test]
+    fn build_parameter_defaults_are_the_librarys() {
+        let b = Build::parse_from(["build"]);
+        let ours = serde_json::to_value(b.params.apply(BuildOptions::default())).unwrap();
+        let lib = serde_json::to_value(BuildOptions::default()).unwrap();
+        assert_eq!(ours, lib);
+    }
+
+    #[test]
+    fn simulate_refuses_a_time_budget_and_keeps_bytes() {
+        let q = |b: &str| QueueArgs {
+            upload_budget: Some(b.parse().unwrap()),
+            max_queue: None,
+        };
+        let e = q("2ms").byte_budget().unwrap_err().to_string();
+        assert!(
+            e.contains("--upload-budget 2ms") && e.contains("no uploads"),
+            "{e}"
+        );
+        assert_eq!(
+            q("8MB").byte_budget().unwrap(),
+            UploadBudget::Bytes(8_000_000)
+        );
+        assert_eq!(
+            QueueArgs::default().byte_budget().unwrap(),
+            UploadBudget::Unlimited
+        );
+    }
+
+    #[test]
+    fn viewport_defaults_differ_per_group() {
+        #[derive(Parser)]
+        struct Window {
+            #[command(flatten)]
+            window: WindowArgs,
+        }
+        #[derive(Parser)]
+        struct Offscreen {
+            #[command(flatten)]
+            viewport: ViewportArgs,
+        }
+        let w = Window::parse_from(["view"]).window;
+        let v = Offscreen::parse_from(["render"]).viewport;
+        assert_eq!(
+            (w.width, w.height, v.width, v.height),
+            (1280, 720, 800, 600)
+        );
+        let zero = Offscreen::parse_from(["render", "--width", "0"]).viewport;
+        assert!(zero.validate().is_err());
+        assert!(v.validate().is_ok());
+    }
+}
