@@ -6,9 +6,9 @@
 // render::wgsl::tree.
 //
 // Positions: vertices are relative to their leaf origin (f32); `offsets[leaf]` is `leaf.origin - eye`,
-// computed per frame in f64 on the CPU, so the view-projection matrix has no translation (DESIGN.md
+// computed per frame in f64 on the CPU, so the view-projection matrix has no translation (docs/DESIGN.md
 // "Precision").
-// Atlas UVs (DESIGN.md "Repeats" and "Precision"): per fragment the original UV is wrapped into its rect of
+// Atlas UVs (docs/DESIGN.md "Repeats" and "Precision"): per fragment the original UV is wrapped into its rect of
 // the leaf atlas (`rect_texel`, twin of render::wgsl::tree::RectMap::texel_f32: repeat, mirror or clamp per
 // axis, then onto the inner rectangle, kept a filter footprint inside the outer one), then taken to the atlas
 // of the drawn level j: `uv_j = uv_leaf * 2^(j-K) + ((ix, iy) mod 2^(K-j)) * 2^(j-K)`, exactly the f32

@@ -25,7 +25,7 @@
 //!   MaxRects packing (§5.2.3), splitting balanced by texel demand (§5.3 condition b), scaled leaves where
 //!   deeper atlases would only copy the originals, leaf atlas rasterisation in linear light with borders by
 //!   the sampler's rule, inner atlases by 2×2 combine and halve (§5.1), per-node texture transforms in the
-//!   exact form of DESIGN.md "Precision", all in a local frame (translation-invariant trees).
+//!   exact form of docs/DESIGN.md "Precision", all in a local frame (translation-invariant trees).
 //! - [`store`]: the paging file. Pod records read in place from a memory map, 4 KiB-aligned checksummed
 //!   blocks, atomic writes; each original texture stored once per tree at its own power-of-two sides, in
 //!   blocks grouped by the leaves that show it, referenced by every one of them (format 5).
@@ -42,7 +42,7 @@
 //!   per pipeline (texture-array batching).
 //! - [`texfmt`]: block formats of the paging file (RGBA8, BC1/BC3/BC7): sizes, CPU encode and decode.
 //! - [`inspect`]: reports and `verify` (every checksum and tree invariant) of a paging file.
-//! - [`report`]: experiment reporting: PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
+//! - [`report`]: experiment reporting: the one per-frame CSV schema, PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
 //!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
 //! - [`view`]: the interactive window (winit + egui inspector) over the same renderer.
 //! - [`sweep`]: what accuracy costs in time: builds and renders a grid of knob values (d_min, atlas size,

@@ -70,7 +70,7 @@ fn check(
     }
 }
 
-/// The factor every node's `min_distance` is multiplied by under `opts` (paper §4 end, DESIGN
+/// The factor every node's `min_distance` is multiplied by under `opts` (paper §4 end, docs/DESIGN.md
 /// "Texel-per-pixel control").
 ///
 /// Derivation from `f_proj = r · w / (2 d tan(c/2))` (§5.2.1, texels per world unit required at distance

@@ -1,3 +1,4 @@
+use super::args::BuildParamsArgs;
 use super::{UpArg, load_scene, progress::Bars};
 use anyhow::Context;
 use atlastree::preprocess::{BuildOptions, BuildReport, DMin, build};
@@ -23,15 +24,6 @@ pub struct BuildArgs {
     /// d_min = scene diagonal / R (the paper: 151 for Berlin, 62 for Chemnitz). Default 151.
     #[arg(long)]
     pub d_min_ratio: Option<f64>,
-    /// Screen width in pixels the guarantee is computed for (rescaled at run time without rebuild).
-    #[arg(long, default_value_t = 800)]
-    pub screen_width: u32,
-    /// Horizontal field of view, degrees.
-    #[arg(long, default_value_t = 60.0)]
-    pub fov: f64,
-    /// Texels per pixel required at d_min.
-    #[arg(long, default_value_t = 1.0)]
-    pub texel_ratio: f64,
     /// Side of every atlas in texels (power of two).
     #[arg(long, default_value_t = 1024)]
     pub atlas_size: u32,
@@ -45,22 +37,6 @@ pub struct BuildArgs {
     /// (Kaiser-windowed sinc, sharper, slight clamped ringing). Original textures always use `box`.
     #[arg(long, default_value = "box")]
     pub filter: atlastree::preprocess::image_ops::MipFilter,
-    /// Maximum tree depth; a region that needs more is an error naming it.
-    #[arg(long, default_value_t = 24)]
-    pub max_depth: u8,
-    /// Allow more texels per texture repetition than the source image has (by default capped).
-    #[arg(long)]
-    pub no_source_cap: bool,
-    /// Bound on decoded source images held in memory at once, MiB.
-    #[arg(long, default_value_t = 2048)]
-    pub image_cache_mib: u64,
-    /// Split a triangle too big for one atlas (a ground quad with a tile repeated hundreds of times) into at
-    /// most this many pieces; beyond that its leaf's resolution is clamped. 1 disables splitting.
-    #[arg(long, default_value_t = 4096)]
-    pub max_pieces: u32,
-    /// Refuse, before writing anything, a build whose paging file would exceed this size (GiB).
-    #[arg(long, default_value_t = 64)]
-    pub max_file_gib: u64,
     /// Block compression of every atlas and original texture, every mip level (paper §6: S3TC shrinks the
     /// paging file and each page-in). `bc1`: BC1 (8 bytes per 4×4 texels, 1/8 of RGBA8) for the opaque tree,
     /// BC3 (16 bytes) for the alpha tree; `bc7`: BC7 (16 bytes, better quality) for both. The report gives
@@ -74,19 +50,6 @@ pub struct BuildArgs {
     /// triangles are cut into pieces (the paper's §5.2.2; the sweep's reference for what wrapping costs).
     #[arg(long, default_value = "wrap")]
     pub repeat: atlastree::preprocess::RepeatMode,
-    /// A node that does not fit one atlas is not split when its original textures need at most this many
-    /// atlases' worth of texels: it becomes a leaf whose atlas holds its content scaled to fit
-    /// (min_distance raised by that scale), and nearer than that its original textures are drawn. Deeper
-    /// leaves would mostly copy those originals (at R151 most real textures are needed at their source
-    /// resolution), so this keeps the tree shallow while what a close camera needs stays pageable. 0: split
-    /// every node that does not fit (the paper's tree).
-    #[arg(long, default_value_t = 16.0)]
-    pub leaf_originals: f64,
-    /// What the split of a node into four balances (paper §5.3): `demand`, the summed atlas area the
-    /// halves' textures need (the paper's condition b itself: a texture shared by many triangles or
-    /// repeated counts once), or `area`, their summed world area (the paper's approximation).
-    #[arg(long, default_value = "demand")]
-    pub split: atlastree::preprocess::layout::SplitRule,
     /// Build the tree over the triangles of these materials only (comma-separated glob patterns on glTF
     /// material names, `*` and `?`), e.g. `--materials 'facade_*'` for the paper's Berlin test, whose atlas
     /// tree held only the facades (§7). d_min ratios then refer to the kept geometry's diagonal.
@@ -101,6 +64,8 @@ pub struct BuildArgs {
     /// No progress bars.
     #[arg(short, long)]
     pub quiet: bool,
+    #[command(flatten, next_help_heading = "Build parameters (shared with sweep)")]
+    pub params: BuildParamsArgs,
 }
 
 /// `--compress` values.
@@ -125,29 +90,22 @@ impl CompressArg {
 }
 
 impl BuildArgs {
+    /// The build options: these flags over the shared build parameters.
     pub fn options(&self) -> BuildOptions {
-        BuildOptions {
+        let base = BuildOptions {
             d_min: match (self.d_min, self.d_min_ratio) {
                 (Some(m), _) => DMin::Metres(m),
                 (None, Some(r)) => DMin::Ratio(r),
                 (None, None) => DMin::Ratio(151.0),
             },
-            screen_width: self.screen_width,
-            fov_deg: self.fov,
-            texel_ratio: self.texel_ratio,
             atlas_size: self.atlas_size,
             border: self.border,
-            max_depth: self.max_depth,
-            cap_to_source: !self.no_source_cap,
-            image_cache_bytes: self.image_cache_mib << 20,
-            max_pieces: self.max_pieces,
-            max_file_bytes: self.max_file_gib << 30,
             mip_filter: self.filter,
             compress: self.compress.compression(),
             repeat: self.repeat,
-            leaf_originals_atlases: self.leaf_originals,
-            split: self.split,
-        }
+            ..BuildOptions::default()
+        };
+        self.params.apply(base)
     }
 }
 

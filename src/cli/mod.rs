@@ -1,5 +1,8 @@
-//! Subcommands. Each `*Args` struct is the clap view; `run_*` validates and calls the library.
+//! Subcommands. Each `*Args` struct is the clap view, with flag groups shared between commands in
+//! [`args`]; a command's validate step turns its parsed flags into a checked configuration (refusing a
+//! flag that means nothing for it, with a message), and its `run` only runs.
 
+mod args;
 mod build_cmd;
 mod demo;
 mod inspect_cmd;

@@ -1,14 +1,18 @@
+//! `atlastree render`: flags → [`RenderConfig`] ([`RenderArgs::validate`]) → [`execute`], a run in named
+//! phases: open the source, sample the cameras, set up the frame loop, warm up, fly, write and report.
+
+use super::args::{Paging, PagingArgs, SourceArg, Viewport, ViewportArgs, is_url};
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
-use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource, PagerOptions};
-use atlastree::plan::{FramePlanner, PagingFrame, PagingSetup};
-use atlastree::render::{FrameStats, Mode, Renderer, RendererOptions};
-use atlastree::select::{SelectOptions, min_distance_scale};
+use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource};
+use atlastree::plan::PagingSetup;
+use atlastree::render::{FrameLoop, FrameStats, Mode, RendererOptions};
+use atlastree::report::columns;
+use atlastree::report::csv::CsvWriter;
 use atlastree::store::TreeFile;
 use atlastree::sweep::summary::median;
 use clap::Args;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -19,7 +23,8 @@ use std::sync::Arc;
 /// Without `--capacity` every block is uploaded at start. With `--capacity k` blocks are paged (paper §6):
 /// at most k blocks resident, loaded by priority from `--source`, missing ones drawn with the nearest
 /// resident ancestor atlas; `stats.csv` then gains the paging columns (blocks needed / ideal / resident /
-/// queued / in flight, bytes loaded, ideal fraction resident, coarser screen share, evictions).
+/// queued / in flight, bytes loaded, ideal fraction resident, coarser screen share, evictions, …; the
+/// README's "Changelog" lists the column names).
 #[derive(Args, Debug)]
 pub struct RenderArgs {
     /// The paging file, or an http(s) URL of one (then blocks are paged over HTTP; `--capacity` defaults
@@ -27,21 +32,14 @@ pub struct RenderArgs {
     pub file: PathBuf,
     /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
     #[arg(long, default_value = "overview-dive")]
-    pub path: String,
+    pub path: PathKind,
     /// Output directory (one subdirectory per mode when several modes are given).
     #[arg(long, default_value = "out/render")]
     pub out: PathBuf,
-    #[arg(long, default_value_t = 800)]
-    pub width: u32,
-    #[arg(long, default_value_t = 600)]
-    pub height: u32,
     /// tree (the product), original (naive per-texture draws), dummy (one 1×1 texture), tree-levels (colour
     /// by level). Comma-separated to measure several modes in one run on the same frames.
     #[arg(long, default_value = "tree", value_delimiter = ',')]
     pub mode: Vec<Mode>,
-    /// Texels per pixel required (min_distance scales linearly with it and with the width).
-    #[arg(long, default_value_t = 1.0)]
-    pub texel_ratio: f64,
     /// Number of frames.
     #[arg(long, default_value_t = 120)]
     pub frames: usize,
@@ -62,50 +60,360 @@ pub struct RenderArgs {
     /// wrapped atlas UVs costs ~100× per pixel). Lower values trade sharpness at grazing angles for time.
     #[arg(long, default_value = "auto", value_parser = parse_anisotropy)]
     pub anisotropy: u16,
-    /// Page blocks with at most this many resident (the paper used 160). Omit to load everything.
-    #[arg(long)]
-    pub capacity: Option<u32>,
-    /// Where blocks come from when paging: `file` (the paging file, memory-mapped) or an http(s) URL of
-    /// the same file on any static server that supports range requests (see `atlastree serve`).
-    #[arg(long, default_value = "file")]
-    pub source: String,
-    /// Upload budget per frame when paging: `unlimited`, bytes (`8MB`, `512KiB`) or time (`2ms`).
-    #[arg(long, default_value = "unlimited")]
-    pub upload_budget: atlastree::paging::UploadBudget,
-    /// Maximum outstanding block requests when paging.
-    #[arg(long, default_value_t = 8)]
-    pub max_queue: u32,
-    /// Paging policy: paper (§6), distance, lru, ours (paper + hysteresis + lookahead).
-    #[arg(long, default_value = "paper")]
-    pub policy: atlastree::paging::Policy,
-    /// Loader threads when paging; 0 loads synchronously within the frame (deterministic).
-    #[arg(long, default_value_t = 2)]
-    pub loader_threads: usize,
+    #[command(flatten, next_help_heading = "Viewport")]
+    pub viewport: ViewportArgs,
+    #[command(flatten, next_help_heading = "Paging")]
+    pub paging: PagingArgs,
 }
 
-/// The block source named by `--source`.
-fn block_source(source: &str, file: &TreeFile) -> anyhow::Result<Arc<dyn BlockSource>> {
-    if source == "file" {
-        let reopened = TreeFile::open(file.path())
-            .with_context(|| format!("reopening {}", file.path().display()))?;
-        return Ok(Arc::new(FileSource::new(Arc::new(reopened))));
-    }
-    if is_url(source) {
-        let (tables, http) = HttpSource::open(source, HttpOptions::default())
-            .with_context(|| format!("opening {source}"))?;
-        if tables.header().file_len != file.header().file_len || tables.blocks() != file.blocks() {
+/// Where the tree comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TreeSource {
+    Local(PathBuf),
+    /// An http(s) URL: tables read over HTTP, blocks paged from it.
+    Remote(String),
+}
+
+/// A checked `render` run.
+#[derive(Debug, Clone)]
+pub struct RenderConfig {
+    pub tree: TreeSource,
+    pub path: PathKind,
+    pub out: PathBuf,
+    pub viewport: Viewport,
+    /// Non-empty, no duplicates.
+    pub modes: Vec<Mode>,
+    /// > 0.
+    pub frames: usize,
+    pub every: usize,
+    /// Finite, > 0.
+    pub fps: f64,
+    pub warmup: usize,
+    pub gpu_timing: bool,
+    pub anisotropy: u16,
+    /// `None`: every block uploaded at start.
+    pub paging: Option<RenderPaging>,
+}
+
+/// Paging of a `render` run.
+#[derive(Debug, Clone)]
+pub struct RenderPaging {
+    /// `None`: all blocks (a remote file without `--capacity`).
+    pub capacity: Option<u32>,
+    pub paging: Paging,
+}
+
+impl RenderArgs {
+    /// Checks the flags and derives the run.
+    pub fn validate(self) -> anyhow::Result<RenderConfig> {
+        if self.frames == 0 {
+            bail!("--frames must be > 0");
+        }
+        if !(self.fps.is_finite() && self.fps > 0.0) {
+            bail!("--fps must be finite and > 0 (got {})", self.fps);
+        }
+        let mut modes: Vec<Mode> = Vec::new();
+        for m in self.mode {
+            if modes.contains(&m) {
+                bail!("--mode {} is given twice", m.name());
+            }
+            modes.push(m);
+        }
+        if modes.is_empty() {
+            bail!("--mode needs at least one mode");
+        }
+        let name = self.file.to_string_lossy();
+        let tree = if is_url(&name) {
+            TreeSource::Remote(name.into_owned())
+        } else {
+            TreeSource::Local(self.file.clone())
+        };
+        let paged = self.paging.capacity.is_some() || matches!(tree, TreeSource::Remote(_));
+        if !paged && let Some(flag) = self.paging.given_beyond_capacity() {
             bail!(
-                "{source} is not the same paging file as {} (block tables differ)",
-                file.path().display()
+                "{flag} means nothing without --capacity: every block is uploaded at start (give \
+                 --capacity K to page)"
             );
         }
-        return Ok(Arc::new(http));
+        if let TreeSource::Remote(url) = &tree
+            && self.paging.source.is_some()
+        {
+            bail!("--source means nothing when FILE is a URL: blocks are paged from {url}");
+        }
+        let paging = if paged {
+            Some(RenderPaging {
+                capacity: self.paging.capacity,
+                paging: self.paging.validate()?,
+            })
+        } else {
+            None
+        };
+        if paging.is_some() && modes.contains(&Mode::Original) {
+            bail!(
+                "--mode original draws every original texture naively and needs every block resident: \
+                 not with paging"
+            );
+        }
+        Ok(RenderConfig {
+            tree,
+            path: self.path,
+            out: self.out,
+            viewport: self.viewport.validate()?,
+            modes,
+            frames: self.frames,
+            every: self.every,
+            fps: self.fps,
+            warmup: self.warmup,
+            gpu_timing: !self.no_gpu_timing,
+            anisotropy: self.anisotropy,
+            paging,
+        })
     }
-    bail!("unknown --source {source:?}: expected `file` or an http:// URL")
 }
 
-fn is_url(s: &str) -> bool {
-    s.starts_with("http://") || s.starts_with("https://")
+pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
+    execute(&a.validate()?)
+}
+
+/// Runs a checked configuration.
+pub fn execute(cfg: &RenderConfig) -> anyhow::Result<ExitCode> {
+    let (file, http) = open_tree(&cfg.tree)?;
+    let cameras = sample_cameras(cfg, &file)?;
+    let ctx = GpuContext::new_headless(&GpuOptions::default())?;
+    println!("adapter: {}", ctx.adapter_summary());
+    let mut fl = frame_loop(&ctx, &file, cfg, http)?;
+    let mut runs = mode_runs(cfg, cameras.len())?;
+    warm_up(&mut fl, cfg, &file, &cameras, &runs)?;
+    fly(&mut fl, cfg, &file, &cameras, &mut runs)?;
+    if let Some(e) = fl.planner.last_error() {
+        eprintln!(
+            "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
+        );
+    }
+    write_and_report(&runs)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Phase 1: the tree's tables, from the file or over HTTP (with the HTTP source for its blocks).
+fn open_tree(tree: &TreeSource) -> anyhow::Result<(TreeFile, Option<Arc<HttpSource>>)> {
+    Ok(match tree {
+        TreeSource::Remote(url) => {
+            let (tables, source) = HttpSource::open(url, HttpOptions::default())
+                .with_context(|| format!("opening {url}"))?;
+            (tables, Some(Arc::new(source)))
+        }
+        TreeSource::Local(path) => (
+            TreeFile::open(path).with_context(|| format!("opening {}", path.display()))?,
+            None,
+        ),
+    })
+}
+
+/// Phase 2: one camera per frame, path time `i / fps`, with the viewport's aspect.
+fn sample_cameras(cfg: &RenderConfig, file: &TreeFile) -> anyhow::Result<Vec<Camera>> {
+    let path = cfg.path.resolve_with(|| Ground::from_tree(file))?;
+    Ok(cfg.viewport.cameras(&path, cfg.fps, cfg.frames))
+}
+
+/// The block source of a paged run: the HTTP source of a remote tree, else `--source`.
+fn block_source(
+    source: &SourceArg,
+    file: &TreeFile,
+    http: Option<Arc<HttpSource>>,
+) -> anyhow::Result<Arc<dyn BlockSource>> {
+    if let Some(h) = http {
+        return Ok(h);
+    }
+    match source {
+        SourceArg::File => {
+            let reopened = TreeFile::open(file.path())
+                .with_context(|| format!("reopening {}", file.path().display()))?;
+            Ok(Arc::new(FileSource::new(Arc::new(reopened))))
+        }
+        SourceArg::Url(url) => {
+            let (tables, http) = HttpSource::open(url, HttpOptions::default())
+                .with_context(|| format!("opening {url}"))?;
+            if tables.header().file_len != file.header().file_len
+                || tables.blocks() != file.blocks()
+            {
+                bail!(
+                    "{url} is not the same paging file as {} (block tables differ)",
+                    file.path().display()
+                );
+            }
+            Ok(Arc::new(http))
+        }
+    }
+}
+
+/// Phase 3: the planner and the renderer ([`FrameLoop`]), all blocks resident or paged; prints what
+/// became resident.
+fn frame_loop<'f>(
+    ctx: &'f GpuContext,
+    file: &'f TreeFile,
+    cfg: &RenderConfig,
+    http: Option<Arc<HttpSource>>,
+) -> anyhow::Result<FrameLoop<'f>> {
+    let t = std::time::Instant::now();
+    let ropts = RendererOptions {
+        width: cfg.viewport.width,
+        height: cfg.viewport.height,
+        gpu_timing: cfg.gpu_timing,
+        anisotropy: cfg.anisotropy,
+    };
+    let fl = match &cfg.paging {
+        None => FrameLoop::new(ctx, file, ropts)?,
+        Some(p) => {
+            let source = block_source(&p.paging.source, file, http)?;
+            let k = p.capacity.unwrap_or(file.blocks().len() as u32);
+            println!(
+                "paging: k = {k}, source {}, policy {}",
+                source.name(),
+                p.paging.pager.policy.name()
+            );
+            let setup = PagingSetup {
+                pager: atlastree::paging::PagerOptions {
+                    capacity: k,
+                    ..p.paging.pager
+                },
+                source,
+                loader_threads: p.paging.loader_threads,
+            };
+            FrameLoop::new_paged(ctx, file, ropts, setup)?
+        }
+    };
+    print_resident(ctx, &fl, t.elapsed().as_secs_f64());
+    Ok(fl)
+}
+
+/// What the frame loop made resident at start, and how the atlas arrays are stored.
+fn print_resident(ctx: &GpuContext, fl: &FrameLoop<'_>, seconds: f64) {
+    let s = &fl.renderer.resident.stats;
+    println!(
+        "resident: {} trees, {} nodes, {} leaves, {} vertices; {} atlas layers in {} array(s), {} original layers in {} class arrays, {:.1} MiB of textures ({:.2} s)",
+        s.trees,
+        s.nodes,
+        s.leaves,
+        s.vertices,
+        s.atlas_layers,
+        s.atlas_arrays,
+        s.original_layers,
+        s.class_arrays,
+        s.texture_bytes as f64 / (1 << 20) as f64,
+        seconds
+    );
+    let formats: Vec<&str> = fl
+        .renderer
+        .resident
+        .atlas_arrays
+        .iter()
+        .map(|a| a.format.name())
+        .collect();
+    println!(
+        "  atlas array formats: {}; adapter BC support: {}; {} compressed mip chains decoded to RGBA8 on load, {} BC1 chains widened to BC3",
+        formats.join(", "),
+        ctx.features.texture_compression_bc,
+        s.decoded_on_load,
+        s.widened_on_load
+    );
+}
+
+/// Phase 4: one output directory per mode (the output directory itself for a single mode).
+fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> {
+    std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
+    let mut runs = Vec::new();
+    for &mode in &cfg.modes {
+        let dir = if cfg.modes.len() > 1 {
+            cfg.out.join(mode.name())
+        } else {
+            cfg.out.clone()
+        };
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        runs.push(ModeRun {
+            mode,
+            dir,
+            stats: Vec::with_capacity(frames),
+            thumbs: Vec::new(),
+        });
+    }
+    Ok(runs)
+}
+
+/// Phase 5: every mode drawn on `warmup` frames spread over the path (shader compilation, first
+/// uploads) with still plans: they select and resolve but step no pager and move no clock, so a paged
+/// run starts from the bootstrap at time 0 whatever the warm-up.
+fn warm_up(
+    fl: &mut FrameLoop<'_>,
+    cfg: &RenderConfig,
+    file: &TreeFile,
+    cameras: &[Camera],
+    runs: &[ModeRun],
+) -> anyhow::Result<()> {
+    let params = file.to_params();
+    for run in runs {
+        for k in 0..cfg.warmup {
+            if let Some(cam) = cameras.get(k * cameras.len() / cfg.warmup.max(1)) {
+                let scale = cfg.viewport.scale(&params, cam.fov_x_deg)?;
+                let plan = fl
+                    .planner
+                    .plan_still(cam, scale, &mut fl.renderer.residency())?;
+                fl.renderer.execute(plan, run.mode)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Phase 6: each frame planned once, at clock `i / fps`, and that one plan drawn in every mode back to
+/// back: load changes on the machine hit every mode alike, and the modes draw the same cut and
+/// residency. Every `every`-th frame is saved per mode.
+fn fly(
+    fl: &mut FrameLoop<'_>,
+    cfg: &RenderConfig,
+    file: &TreeFile,
+    cameras: &[Camera],
+    runs: &mut [ModeRun],
+) -> anyhow::Result<()> {
+    let params = file.to_params();
+    for (i, cam) in cameras.iter().enumerate() {
+        let scale = cfg.viewport.scale(&params, cam.fov_x_deg)?;
+        let plan = fl
+            .planner
+            .plan(cam, i as f64 / cfg.fps, scale, &mut fl.renderer.residency())?;
+        for run in runs.iter_mut() {
+            let s = fl.renderer.execute(plan, run.mode)?;
+            run.stats.push(s);
+            if cfg.every > 0 && i % cfg.every == 0 {
+                run.save_frame(&fl.renderer, &cfg.viewport, i)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Phase 7: per mode `stats.csv`, the contact sheet and a summary on stdout; then the frame-time ratios
+/// between modes.
+fn write_and_report(runs: &[ModeRun]) -> anyhow::Result<()> {
+    let mut medians = Vec::new();
+    for run in runs {
+        write_stats_csv(&run.dir.join("stats.csv"), &run.stats)?;
+        if !run.thumbs.is_empty() {
+            contact_sheet(&run.thumbs)
+                .save(run.dir.join("contact_sheet.png"))
+                .context("writing the contact sheet")?;
+        }
+        let frame = median(run.stats.iter().map(|s| s.frame_ms));
+        medians.push((run.mode, frame));
+        print_summary(run.mode, &run.stats, &run.dir);
+    }
+    let median_of = |m: Mode| medians.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
+    if let (Some(t), Some(d)) = (median_of(Mode::Tree), median_of(Mode::Dummy)) {
+        println!("median frame time tree / dummy: {:.3}", t / d);
+    }
+    if let (Some(t), Some(o)) = (median_of(Mode::Tree), median_of(Mode::Original)) {
+        println!("median frame time original / tree: {:.3}", o / t);
+    }
+    Ok(())
 }
 
 /// Mean and max of a column.
@@ -123,177 +431,6 @@ fn mean_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
     }
 }
 
-pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
-    if a.frames == 0 || !(a.fps.is_finite() && a.fps > 0.0) {
-        bail!("--frames must be > 0 and --fps finite and > 0");
-    }
-    let name = a.file.to_string_lossy().to_string();
-    let remote = is_url(&name);
-    let (file, http) = if remote {
-        let (tables, source) = HttpSource::open(&name, HttpOptions::default())
-            .with_context(|| format!("opening {name}"))?;
-        (tables, Some(Arc::new(source)))
-    } else {
-        let f = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
-        (f, None)
-    };
-    let capacity = match (a.capacity, remote) {
-        (Some(k), _) => Some(k),
-        (None, true) => Some(file.blocks().len() as u32),
-        (None, false) => None,
-    };
-    let params = file.to_params();
-    let kind: PathKind = a.path.parse()?;
-    let path = kind.resolve_with(|| Ground::from_tree(&file))?;
-    let aspect = f64::from(a.width) / f64::from(a.height.max(1));
-    let cameras: Vec<Camera> = path
-        .frames(a.fps, a.frames)
-        .map(|mut c| {
-            c.aspect = aspect;
-            c
-        })
-        .collect();
-
-    let ctx = GpuContext::new_headless(&GpuOptions::default())?;
-    println!("adapter: {}", ctx.adapter_summary());
-    let t = std::time::Instant::now();
-    let ropts = RendererOptions {
-        width: a.width,
-        height: a.height,
-        gpu_timing: !a.no_gpu_timing,
-        anisotropy: a.anisotropy,
-    };
-    let (mut planner, mut renderer) = match capacity {
-        None => (
-            FramePlanner::from_file(&file),
-            Renderer::new(&ctx, &file, ropts)?,
-        ),
-        Some(k) => {
-            let source: Arc<dyn BlockSource> = match &http {
-                Some(h) => h.clone(),
-                None => block_source(&a.source, &file)?,
-            };
-            println!(
-                "paging: k = {k}, source {}, policy {}",
-                source.name(),
-                a.policy.name()
-            );
-            let mut planner = FramePlanner::paged_from_file(
-                &file,
-                PagingSetup {
-                    pager: PagerOptions {
-                        capacity: k,
-                        max_queue: a.max_queue,
-                        budget: a.upload_budget,
-                        policy: a.policy,
-                        ..PagerOptions::default()
-                    },
-                    source,
-                    loader_threads: a.loader_threads,
-                },
-            )?;
-            let renderer = Renderer::new_paged(&ctx, &file, ropts, &mut planner)?;
-            (planner, renderer)
-        }
-    };
-    let s = &renderer.resident.stats;
-    println!(
-        "resident: {} trees, {} nodes, {} leaves, {} vertices; {} atlas layers in {} array(s), {} original layers in {} class arrays, {:.1} MiB of textures ({:.2} s)",
-        s.trees,
-        s.nodes,
-        s.leaves,
-        s.vertices,
-        s.atlas_layers,
-        s.atlas_arrays,
-        s.original_layers,
-        s.class_arrays,
-        s.texture_bytes as f64 / (1 << 20) as f64,
-        t.elapsed().as_secs_f64()
-    );
-    let formats: Vec<&str> = renderer
-        .resident
-        .atlas_arrays
-        .iter()
-        .map(|a| a.format.name())
-        .collect();
-    println!(
-        "  atlas array formats: {}; adapter BC support: {}; {} compressed mip chains decoded to RGBA8 on load, {} BC1 chains widened to BC3",
-        formats.join(", "),
-        ctx.features.texture_compression_bc,
-        s.decoded_on_load,
-        s.widened_on_load
-    );
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let mut runs = Vec::new();
-    for &mode in &a.mode {
-        let dir = if a.mode.len() > 1 {
-            a.out.join(mode.name())
-        } else {
-            a.out.clone()
-        };
-        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        runs.push(ModeRun {
-            mode,
-            dir,
-            stats: Vec::with_capacity(cameras.len()),
-            thumbs: Vec::new(),
-        });
-    }
-    // Warm up every mode on frames spread over the path (shader compilation, first uploads) with still
-    // plans: they select and resolve but step no pager and move no clock, so a paged run starts from the
-    // bootstrap at time 0 whatever the warm-up. Then each frame is planned once, at i / fps, and that one
-    // plan is drawn in every mode back to back: load changes on the machine hit every mode alike, and the
-    // modes draw the same cut and residency.
-    for run in &runs {
-        for k in 0..a.warmup {
-            if let Some(cam) = cameras.get(k * cameras.len() / a.warmup.max(1)) {
-                let plan = planner.plan_still(
-                    cam,
-                    scale_of(&a, &params, cam)?,
-                    &mut renderer.residency(),
-                )?;
-                renderer.execute(plan, run.mode)?;
-            }
-        }
-    }
-    for (i, cam) in cameras.iter().enumerate() {
-        let scale = scale_of(&a, &params, cam)?;
-        let plan = planner.plan(cam, i as f64 / a.fps, scale, &mut renderer.residency())?;
-        for run in &mut runs {
-            let s = renderer.execute(plan, run.mode)?;
-            run.stats.push(s);
-            if a.every > 0 && i % a.every == 0 {
-                run.save_frame(&renderer, &a, i)?;
-            }
-        }
-    }
-    if let Some(e) = planner.last_error() {
-        eprintln!(
-            "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
-        );
-    }
-    let mut medians = Vec::new();
-    for run in &runs {
-        write_csv(&run.dir.join("stats.csv"), &run.stats)?;
-        if !run.thumbs.is_empty() {
-            contact_sheet(&run.thumbs)
-                .save(run.dir.join("contact_sheet.png"))
-                .context("writing the contact sheet")?;
-        }
-        let frame = median(run.stats.iter().map(|s| s.frame_ms));
-        medians.push((run.mode, frame));
-        print_summary(run.mode, &run.stats, &run.dir);
-    }
-    let median_of = |m: Mode| medians.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
-    if let (Some(t), Some(d)) = (median_of(Mode::Tree), median_of(Mode::Dummy)) {
-        println!("median frame time tree / dummy: {:.3}", t / d);
-    }
-    if let (Some(t), Some(o)) = (median_of(Mode::Tree), median_of(Mode::Original)) {
-        println!("median frame time original / tree: {:.3}", o / t);
-    }
-    Ok(ExitCode::SUCCESS)
-}
-
 /// One mode's outputs.
 struct ModeRun {
     mode: Mode,
@@ -306,40 +443,24 @@ impl ModeRun {
     /// Writes the last frame as `frame_NNNN.png` and keeps a quarter-size thumbnail for the contact sheet.
     fn save_frame(
         &mut self,
-        renderer: &Renderer<'_>,
-        a: &RenderArgs,
+        renderer: &atlastree::render::Renderer<'_>,
+        v: &Viewport,
         i: usize,
     ) -> anyhow::Result<()> {
         let rgba = renderer.read_frame()?;
-        let img = image::RgbaImage::from_raw(a.width, a.height, rgba)
+        let img = image::RgbaImage::from_raw(v.width, v.height, rgba)
             .context("frame readback has the wrong size")?;
         let png = self.dir.join(format!("frame_{i:04}.png"));
         img.save(&png)
             .with_context(|| format!("writing {}", png.display()))?;
         self.thumbs.push(image::imageops::resize(
             &img,
-            (a.width / 4).max(1),
-            (a.height / 4).max(1),
+            (v.width / 4).max(1),
+            (v.height / 4).max(1),
             image::imageops::FilterType::Triangle,
         ));
         Ok(())
     }
-}
-
-/// `min_distance` scale for the run-time width, texel ratio and the camera's field of view.
-fn scale_of(
-    a: &RenderArgs,
-    params: &atlastree::model::BuildParams,
-    cam: &Camera,
-) -> anyhow::Result<f64> {
-    Ok(min_distance_scale(
-        params,
-        &SelectOptions {
-            screen_width: a.width,
-            texel_ratio: a.texel_ratio,
-            fov_x_deg: cam.fov_x_deg,
-        },
-    )?)
 }
 
 fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
@@ -354,49 +475,34 @@ fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
     sheet
 }
 
-fn write_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
-    let mut f = std::io::BufWriter::new(
-        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
-    );
-    let paged = stats.iter().any(|s| s.paging.is_some());
-    write!(
-        f,
-        "frame,nodes_visited,nodes_drawn,indirect_records,draw_calls,bind_group_changes,triangles,skipped_draws,select_us,encode_us,gpu_ms,frame_ms"
-    )?;
-    if paged {
-        write!(f, ",{PAGING_HEADER}")?;
-    }
-    writeln!(f)?;
-    for (i, s) in stats.iter().enumerate() {
-        write!(
-            f,
-            "{i},{},{},{},{},{},{},{},{:.1},{:.1},{},{:.3}",
-            s.nodes_visited,
-            s.nodes_drawn,
-            s.indirect_records,
-            s.draw_calls,
-            s.bind_group_changes,
-            s.triangles,
-            s.skipped_draws,
-            s.select_us,
-            s.encode_us,
-            s.gpu_ms.map_or(String::new(), |g| format!("{g:.3}")),
-            s.frame_ms
-        )?;
-        if let Some(p) = &s.paging {
-            write!(f, ",{}", paging_row(s, p))?;
+/// `stats.csv`: `frame`, the frame's counters and timings ([`columns::frame_columns`]) and, when paged,
+/// the paging columns ([`columns::paging_columns`]).
+fn write_stats_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
+    let paged = stats.iter().any(|s| s.paging().is_some());
+    let row = |s: &FrameStats| {
+        let mut c = columns::frame_columns(s);
+        if paged {
+            c.extend(columns::paging_columns_or_empty(s.paging()));
         }
-        writeln!(f)?;
+        c
+    };
+    let mut header = vec!["frame"];
+    header.extend(columns::names(&row(&FrameStats::default())));
+    let mut w = CsvWriter::create(path, &header)?;
+    for (i, s) in stats.iter().enumerate() {
+        let mut cells = vec![atlastree::report::csv::Cell::from(i)];
+        cells.extend(columns::cells(row(s)));
+        w.row(&cells)?;
     }
-    f.flush()?;
+    w.finish()?;
     Ok(())
 }
 
 fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
     let col = |f: &dyn Fn(&FrameStats) -> f64| mean_max(stats.iter().map(f));
     let rows: [(&str, (f64, f64)); 9] = [
-        ("nodes visited", col(&|s| f64::from(s.nodes_visited))),
-        ("nodes drawn", col(&|s| f64::from(s.nodes_drawn))),
+        ("nodes visited", col(&|s| f64::from(s.plan.nodes_visited))),
+        ("nodes drawn", col(&|s| f64::from(s.plan.nodes_drawn))),
         ("indirect records", col(&|s| f64::from(s.indirect_records))),
         ("draw calls", col(&|s| f64::from(s.draw_calls))),
         (
@@ -404,7 +510,7 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
             col(&|s| f64::from(s.bind_group_changes)),
         ),
         ("triangles", col(&|s| s.triangles as f64)),
-        ("select µs", col(&|s| s.select_us)),
+        ("select µs", col(&|s| s.plan.select_us)),
         ("encode µs", col(&|s| s.encode_us)),
         ("frame ms", col(&|s| s.frame_ms)),
     ];
@@ -428,7 +534,7 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         let (mean, max) = mean_max(gpu.iter().copied());
         println!("  {:<20} mean {mean:>10.2}  max {max:>10.2}", "GPU ms");
     }
-    let paged: Vec<&PagingFrame> = stats.iter().filter_map(|s| s.paging.as_ref()).collect();
+    let paged: Vec<_> = stats.iter().filter_map(FrameStats::paging).collect();
     if !paged.is_empty() {
         let peak = paged
             .iter()
@@ -454,41 +560,6 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         median(frame),
         median(gpu)
     );
-}
-
-/// The paging columns of `stats.csv`.
-const PAGING_HEADER: &str = "blocks_needed,blocks_culled,blocks_parent_needed,ideal,resident,queued,in_flight,loaded,bytes_loaded,bytes_loaded_originals,resident_bytes_atlases,resident_bytes_originals,ideal_fraction,coarser_share,coarser_items,evictions,cancelled,discarded,failures,upload_ms,atlas_layers_used,original_layers_used,apply_errors,evict_errors,resident_hash";
-
-fn paging_row(f: &FrameStats, p: &PagingFrame) -> String {
-    let s = &p.session.pager;
-    format!(
-        "{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{},{},{},{},{},{:.3},{},{},{},{},{:016x}",
-        s.usage.needed,
-        s.usage.culled,
-        s.usage.parent_needed,
-        s.ideal,
-        s.resident,
-        p.session.queued,
-        p.session.in_flight,
-        s.loaded,
-        s.bytes_loaded,
-        p.loaded_original_bytes,
-        p.resident_atlas_bytes,
-        p.resident_original_bytes,
-        s.ideal_fraction(),
-        p.coarse.share(),
-        p.coarse.coarser_items,
-        s.evictions,
-        s.cancelled,
-        s.discarded,
-        s.failures,
-        p.upload_ms,
-        f.atlas_layers_used,
-        f.original_layers_used,
-        p.apply_errors,
-        p.evict_errors,
-        p.resident_hash
-    )
 }
 
 /// `auto` ([`RendererOptions::AUTO`]) or 1..=16.

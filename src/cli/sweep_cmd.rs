@@ -1,7 +1,10 @@
+use super::args::BuildParamsArgs;
 use super::{UpArg, load_scene};
 use anyhow::{Context, bail};
 use atlastree::camera::{Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
+use atlastree::preprocess::BuildOptions;
+use atlastree::sweep::grid::Plan;
 use atlastree::sweep::output::write_outputs;
 use atlastree::sweep::run::sample_path;
 use atlastree::sweep::summary::{PSNR_TOLERANCE_DB, recommend};
@@ -33,7 +36,7 @@ pub struct SweepArgs {
     pub scene: PathBuf,
     /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
     #[arg(long, default_value = "overview-dive")]
-    pub path: String,
+    pub path: PathKind,
     /// Output directory.
     #[arg(long, default_value = "out/sweep")]
     pub out: PathBuf,
@@ -67,6 +70,11 @@ pub struct SweepArgs {
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
+    #[command(
+        flatten,
+        next_help_heading = "Build parameters (every build of the grid)"
+    )]
+    pub build: BuildParamsArgs,
 }
 
 /// An indicatif bar with ETA for the sweep.
@@ -98,27 +106,80 @@ fn load_grid(spec: &str) -> anyhow::Result<Grid> {
     Ok(Grid::from_json(&text, spec)?)
 }
 
+/// A checked `sweep` run.
+pub struct SweepConfig {
+    pub scene: PathBuf,
+    pub up: UpArg,
+    pub path: PathKind,
+    pub out: PathBuf,
+    /// The grid with the command line's overrides, validated, as a plan.
+    pub plan: Plan,
+    pub keep_builds: bool,
+    pub anisotropy: u16,
+    /// Options of every build beside the grid's knobs.
+    pub build: BuildOptions,
+    pub json: bool,
+    pub quiet: bool,
+}
+
+impl SweepArgs {
+    /// Loads the grid, applies `--frames`, `--width` and `--height`, and validates it.
+    pub fn validate(self) -> anyhow::Result<SweepConfig> {
+        let mut grid = load_grid(&self.grid)?;
+        if let Some(f) = self.frames {
+            grid.frames = f;
+        }
+        if let Some(w) = self.width {
+            grid.width = w;
+        }
+        if let Some(h) = self.height {
+            grid.height = h;
+        }
+        grid.validate(&self.grid)?;
+        Ok(SweepConfig {
+            scene: self.scene,
+            up: self.up,
+            path: self.path,
+            out: self.out,
+            plan: grid.plan(),
+            keep_builds: self.keep_builds,
+            anisotropy: self.anisotropy,
+            build: self.build.apply(BuildOptions::default()),
+            json: self.json,
+            quiet: self.quiet,
+        })
+    }
+}
+
 pub fn run(a: SweepArgs) -> anyhow::Result<ExitCode> {
-    let mut grid = load_grid(&a.grid)?;
-    if let Some(f) = a.frames {
-        grid.frames = f;
+    execute(&a.validate()?)
+}
+
+/// The progress bar of a run (hidden with `--quiet` or `--json`).
+fn progress_bar(cfg: &SweepConfig) -> ProgressBar {
+    let pb = ProgressBar::new(0).with_style(
+        ProgressStyle::with_template("{wide_msg} [{bar:30}] {pos}/{len} {elapsed} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    if cfg.quiet || cfg.json {
+        pb.set_draw_target(ProgressDrawTarget::hidden());
+    } else {
+        pb.enable_steady_tick(Duration::from_millis(200));
     }
-    if let Some(w) = a.width {
-        grid.width = w;
-    }
-    if let Some(h) = a.height {
-        grid.height = h;
-    }
-    grid.validate(&a.grid)?;
-    let plan = grid.plan();
-    let scene = load_scene(&a.scene, a.up)?;
-    let kind: PathKind = a.path.parse()?;
-    let path = kind.resolve_with(|| Ground::from_scene(&scene))?;
+    pb
+}
+
+/// Runs a checked configuration: import, sample the path, build and measure, write and report.
+pub fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
+    let plan = &cfg.plan;
+    let scene = load_scene(&cfg.scene, cfg.up)?;
+    let path = cfg.path.resolve_with(|| Ground::from_scene(&scene))?;
     let aspect = f64::from(plan.width) / f64::from(plan.height);
     let cameras = sample_path(&path, plan.frames, aspect);
 
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
-    if !a.json {
+    if !cfg.json {
         println!(
             "adapter: {}\nsweep: {} builds, {} variants, {} frames of {}×{}",
             ctx.adapter_summary(),
@@ -129,30 +190,26 @@ pub fn run(a: SweepArgs) -> anyhow::Result<ExitCode> {
             plan.height
         );
     }
-    let pb = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template("{wide_msg} [{bar:30}] {pos}/{len} {elapsed} eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    if a.quiet || a.json {
-        pb.set_draw_target(ProgressDrawTarget::hidden());
-    } else {
-        pb.enable_steady_tick(Duration::from_millis(200));
-    }
     let opts = SweepOptions {
-        builds_dir: a.out.join("builds"),
-        keep_builds: a.keep_builds,
-        anisotropy: a.anisotropy,
+        builds_dir: cfg.out.join("builds"),
+        keep_builds: cfg.keep_builds,
+        anisotropy: cfg.anisotropy,
+        build: cfg.build.clone(),
         ..SweepOptions::default()
     };
     let t = std::time::Instant::now();
-    let data = run_sweep(&ctx, &scene, &plan, &cameras, &opts, &Bar(pb))?;
-    if !a.keep_builds {
+    let data = run_sweep(&ctx, &scene, plan, &cameras, &opts, &Bar(progress_bar(cfg)))?;
+    if !cfg.keep_builds {
         let _ = std::fs::remove_dir(&opts.builds_dir);
     }
-    let (rows, written) = write_outputs(&a.out, &data, &a.scene.display().to_string(), &a.path)?;
+    let (rows, written) = write_outputs(
+        &cfg.out,
+        &data,
+        &cfg.scene.display().to_string(),
+        &cfg.path.to_string(),
+    )?;
     let rec = recommend(&rows, PSNR_TOLERANCE_DB);
-    if a.json {
+    if cfg.json {
         let out =
             serde_json::json!({ "variants": rows, "builds": data.builds, "recommendation": rec });
         println!("{}", serde_json::to_string_pretty(&out)?);

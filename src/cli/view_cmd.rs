@@ -1,3 +1,4 @@
+use super::args::{PagingArgs, WindowArgs};
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::render::Mode;
@@ -22,24 +23,10 @@ use std::process::ExitCode;
 pub struct ViewArgs {
     /// The paging file.
     pub file: PathBuf,
-    /// Initial window width, pixels.
-    #[arg(long, default_value_t = 1280)]
-    pub width: u32,
-    /// Initial window height, pixels.
-    #[arg(long, default_value_t = 720)]
-    pub height: u32,
     /// Start mode: tree (the product), original (naive per-texture draws), dummy (one 1×1 texture),
     /// tree-levels (tree with level colouring).
     #[arg(long, default_value = "tree")]
     pub mode: Mode,
-    /// Texels per pixel required at start (the inspector's slider changes it live).
-    #[arg(long, default_value_t = 1.0)]
-    pub texel_ratio: f64,
-    /// Page blocks (paper §6) with at most k resident, loaded from the file by two loader threads; the
-    /// inspector shows the paging counters and its capacity slider changes k live (up to this k). Without
-    /// it every block is uploaded at start and the paging rows read n/a.
-    #[arg(long)]
-    pub capacity: Option<u32>,
     /// Follow a camera path (overview-dive, street, orbit, or a keyframe JSON file, e.g. one recorded
     /// with R). Moving the camera leaves follow mode; the inspector's "follow" resumes it.
     #[arg(long)]
@@ -79,6 +66,15 @@ pub struct ViewArgs {
     /// Print the session report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Initial window size and texel ratio (the inspector's slider changes the ratio live).
+    #[command(flatten, next_help_heading = "Viewport")]
+    pub viewport: WindowArgs,
+    /// `--capacity K` pages blocks (paper §6) with at most k resident, loaded from the file by two loader
+    /// threads with the paper policy; the inspector shows the paging counters and its capacity slider
+    /// changes k live (up to this k). Without it every block is uploaded at start and the paging rows
+    /// read n/a. The other paging flags are `render`'s.
+    #[command(flatten, next_help_heading = "Paging")]
+    pub paging: PagingArgs,
 }
 
 /// Parses `EX,EY,EZ,TX,TY,TZ[,FOV]`.
@@ -115,54 +111,72 @@ fn parse_camera(s: &str, up: DVec3) -> anyhow::Result<Camera> {
     })
 }
 
+impl ViewArgs {
+    /// The checks that need no file: refused flags, ranges.
+    fn check_flags(&self) -> anyhow::Result<()> {
+        self.viewport.validate()?;
+        if let Some(flag) = self.paging.given_beyond_capacity() {
+            bail!(
+                "{flag} means nothing for view: it pages from the file with two loader threads, the paper                  policy and the default queue (only --capacity applies; use `render` for the others)"
+            );
+        }
+        if self.paging.capacity == Some(0) {
+            bail!("--capacity must be > 0 (omit it to upload every block)");
+        }
+        if self.path_fps.is_some_and(|f| !(f.is_finite() && f > 0.0)) {
+            bail!("--path-fps must be finite and > 0");
+        }
+        if self.screenshot_after == Some(0) {
+            bail!("--screenshot-after counts frames from 1");
+        }
+        Ok(())
+    }
+
+    /// Checks the flags and derives the viewer's options (the path and camera resolved on `file`).
+    fn validate(&self, file: &TreeFile) -> anyhow::Result<ViewOptions> {
+        self.check_flags()?;
+        let viewport = self.viewport.validate()?;
+        let params = file.to_params();
+        let path = match &self.path {
+            Some(p) => Some(
+                p.parse::<PathKind>()?
+                    .resolve_with(|| Ground::from_tree(file))?,
+            ),
+            None => None,
+        };
+        let camera = self
+            .camera
+            .as_deref()
+            .map(|s| parse_camera(s, params.up.vector()))
+            .transpose()?;
+        Ok(ViewOptions {
+            width: viewport.width,
+            height: viewport.height,
+            mode: self.mode,
+            texel_ratio: viewport.texel_ratio,
+            capacity: self.paging.capacity,
+            camera,
+            path,
+            path_fps: self.path_fps,
+            screenshot_after: self.screenshot_after,
+            exit_after_screenshot: self.exit,
+            screenshot: self
+                .screenshot
+                .clone()
+                .unwrap_or_else(|| self.out.join("screenshot.png")),
+            out_dir: self.out.clone(),
+            hide_overlay: self.hide_overlay,
+            bounds: self.bounds,
+            vsync: !self.no_vsync,
+            gpu_timing: !self.no_gpu_timing,
+        })
+    }
+}
+
 pub fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
-    if a.width == 0 || a.height == 0 {
-        bail!("--width and --height must be > 0");
-    }
-    if !(a.texel_ratio.is_finite() && a.texel_ratio > 0.0) {
-        bail!("--texel-ratio must be finite and > 0");
-    }
-    if a.path_fps.is_some_and(|f| !(f.is_finite() && f > 0.0)) {
-        bail!("--path-fps must be finite and > 0");
-    }
-    if a.screenshot_after == Some(0) {
-        bail!("--screenshot-after counts frames from 1");
-    }
+    a.check_flags()?;
     let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
-    let params = file.to_params();
-    let path = match &a.path {
-        Some(p) => Some(
-            p.parse::<PathKind>()?
-                .resolve_with(|| Ground::from_tree(&file))?,
-        ),
-        None => None,
-    };
-    let camera = a
-        .camera
-        .as_deref()
-        .map(|s| parse_camera(s, params.up.vector()))
-        .transpose()?;
-    let opts = ViewOptions {
-        width: a.width,
-        height: a.height,
-        mode: a.mode,
-        texel_ratio: a.texel_ratio,
-        capacity: a.capacity,
-        camera,
-        path,
-        path_fps: a.path_fps,
-        screenshot_after: a.screenshot_after,
-        exit_after_screenshot: a.exit,
-        screenshot: a
-            .screenshot
-            .clone()
-            .unwrap_or_else(|| a.out.join("screenshot.png")),
-        out_dir: a.out.clone(),
-        hide_overlay: a.hide_overlay,
-        bounds: a.bounds,
-        vsync: !a.no_vsync,
-        gpu_timing: !a.no_gpu_timing,
-    };
+    let opts = a.validate(&file)?;
     let report = atlastree::view::run(&file, opts)?;
     print_report(&report, a.json);
     Ok(ExitCode::SUCCESS)

@@ -149,7 +149,7 @@ pub struct InspectReport {
     pub trees: Vec<TreeInfo>,
     pub blocks: u64,
     pub block_bytes_total: u64,
-    /// Effects the scene called for, each with the reason (DESIGN: "Effects only where the scene calls").
+    /// Effects the scene called for, each with the reason (docs/DESIGN.md "Effects only where the scene calls for them").
     pub enabled: Vec<String>,
 }
 

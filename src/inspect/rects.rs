@@ -1,4 +1,4 @@
-//! `verify` of the leaf rects (DESIGN.md "Repeats: one period per rect, wrapped in the shader"): every
+//! `verify` of the leaf rects (docs/DESIGN.md "Repeats: one period per rect, wrapped in the shader"): every
 //! triangle lands inside its rect under the rect's per-axis wrap, every rect holds the texels per period
 //! that its triangles need at the leaf's `min_distance` (the d_min guarantee of paper §5.2.1 at the leaves;
 //! `min_distance` doubling up the tree carries it to every ancestor), and every wrap border of a leaf atlas

@@ -1,4 +1,4 @@
-//! Per-node texture transforms (paper §5.1, Fig. 4) in the exact form of DESIGN.md "Precision".
+//! Per-node texture transforms (paper §5.1, Fig. 4) in the exact form of docs/DESIGN.md "Precision".
 //!
 //! The paper stores root-atlas UVs and draws a node at level k with `fract(uv_root · 2^k)`. In f32 that
 //! leaves `24 − k − log2(atlas_size)` bits below a texel. We use each fragment's *leaf-local* atlas UV and
@@ -12,7 +12,7 @@
 //! atlas, which the shader computes from the original UV:
 //!
 //! Before that transform, a UV reaches its rect of the leaf atlas through the rect's per-axis wrap
-//! ([`RectWrap`], DESIGN.md "Repeats"): [`rect_t`] and [`rect_texel`] here are the f64 reference of what
+//! ([`RectWrap`], docs/DESIGN.md "Repeats"): [`rect_t`] and [`rect_texel`] here are the f64 reference of what
 //! the shader does in f32 (`render::wgsl::tree::RectMap::texel_f32` is its exact twin).
 
 use crate::ids::{Cell, Level};

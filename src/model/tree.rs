@@ -91,7 +91,7 @@ impl Node {
     }
 }
 
-/// How the UVs of a rect's triangles reach its inner rectangle, per texture axis (DESIGN.md "Repeats: one
+/// How the UVs of a rect's triangles reach its inner rectangle, per texture axis (docs/DESIGN.md "Repeats: one
 /// period per rect, wrapped in the shader"). The fragment shader and its CPU twins
 /// ([`crate::model::transform::rect_t`]) apply it to the unbounded, interpolated original UV.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
@@ -207,7 +207,7 @@ impl OriginalRef {
 #[derive(Clone, Debug, Serialize)]
 pub struct Leaf {
     pub node: NodeId,
-    /// Positions of this leaf's vertices are stored relative to this point (f64), see DESIGN "Precision".
+    /// Positions of this leaf's vertices are stored relative to this point (f64), see docs/DESIGN.md "Precision".
     pub origin: DVec3,
     pub first_vertex: u32,
     pub vertex_count: u32,
@@ -224,7 +224,7 @@ pub struct Leaf {
 ///
 /// One UV set serves every level and both texture sources: the fragment shader maps `orig_uv` into the
 /// vertex's rect of the leaf atlas ([`RectWrap`]) and from there into the atlas of the drawn level (the
-/// exact transform of DESIGN.md "Precision"), or samples the original texture with it.
+/// exact transform of docs/DESIGN.md "Precision"), or samples the original texture with it.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable, Serialize)]
 #[repr(C)]
 pub struct TreeVertex {

@@ -108,7 +108,7 @@ impl BlockTable {
         let trees: Vec<&[NodeRecord]> = views.iter().map(|v| v.nodes).collect();
         let mut table = BlockTable::new(&trees, file.blocks())?;
         // Per leaf node, the distinct blocks its originals reference (its own and those stored by an
-        // earlier leaf of the tree, DESIGN.md "Originals").
+        // earlier leaf of the tree, docs/DESIGN.md "Originals").
         let refs: Vec<Vec<Vec<BlockId>>> = views
             .iter()
             .map(|v| {

@@ -1,5 +1,5 @@
 //! Flattening a layout into the stored tree (paper §3, §5.1): nodes in pre-order, leaves in tree order,
-//! per-leaf geometry in the exact single-UV-set form of DESIGN.md "Precision", original-texture classes,
+//! per-leaf geometry in the exact single-UV-set form of docs/DESIGN.md "Precision", original-texture classes,
 //! and the block table (one block per atlas; the tree's original textures, each once, in blocks of about an
 //! atlas' size grouped by the leaves that draw them, [`super::originals`]).
 
@@ -56,7 +56,7 @@ struct Asm<'a> {
     next_block: u32,
     /// The tree's original textures, per material in order of first use: stored bytes and the leaves
     /// that draw it. Each is stored once; [`Asm::place_originals`] cuts them into blocks
-    /// ([`group_by_users`]) when every leaf is known (DESIGN.md "Originals").
+    /// ([`group_by_users`]) when every leaf is known (docs/DESIGN.md "Originals").
     pending: Vec<(MaterialId, OriginalItem)>,
     pending_of: HashMap<MaterialId, usize>,
 }

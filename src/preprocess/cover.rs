@@ -1,4 +1,4 @@
-//! The UV range one atlas rect must hold along one texture axis (DESIGN.md "Repeats: one period per rect,
+//! The UV range one atlas rect must hold along one texture axis (docs/DESIGN.md "Repeats: one period per rect,
 //! wrapped in the shader"; the paper's future work §8.2).
 //!
 //! Input: the UV interval `[lo, hi]` of every triangle of one material in one node along one axis, each

@@ -39,7 +39,7 @@ pub enum DMin {
     Ratio(f64),
 }
 
-/// How repeated textures are stored (DESIGN.md "Repeats").
+/// How repeated textures are stored (docs/DESIGN.md "Repeats").
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
 pub enum RepeatMode {
     /// At most one period per rect; the fragment shader wraps the UV into it (default).

@@ -10,7 +10,7 @@
 //!   `first_index`;
 //! - leaves: every tree's leaves back to back; tree `t` starts at `leaf_base[t]`, stored in the node record so
 //!   the shader finds leaf `leaf_base + vertex.leaf`;
-//! - per-frame leaf offsets `leaf.origin − eye` (f64 on the CPU, then f32; DESIGN.md "Precision"): only the
+//! - per-frame leaf offsets `leaf.origin − eye` (f64 on the CPU, then f32; docs/DESIGN.md "Precision"): only the
 //!   leaves of drawn nodes are updated ([`LeafOffsets::update`]).
 //!
 //! Record `i` of the indirect buffer has `first_instance = i`: the vertex shader reads `records[i]` through
@@ -314,7 +314,7 @@ impl FrameBatch {
 }
 
 /// The per-frame, camera-relative leaf origins `leaf.origin − eye`, computed in f64 and stored as f32
-/// (DESIGN.md "Precision"). WGSL: `array<vec4<f32>>` indexed by `leaf_base + vertex.leaf`.
+/// (docs/DESIGN.md "Precision"). WGSL: `array<vec4<f32>>` indexed by `leaf_base + vertex.leaf`.
 #[derive(Clone, Debug, Default)]
 pub struct LeafOffsets {
     /// All trees' leaf origins back to back (same numbering as the leaves buffer).

@@ -16,18 +16,18 @@ use super::{Mode, RenderError};
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, readback_rgba8};
 use crate::paging::Event;
-use crate::plan::{FramePlan, FramePlanner, PagingFrame, PlanError, Residency};
+use crate::plan::{FramePlan, FramePlanner, PagingFrame, PlanError, PlanStats, Residency};
 use crate::store::TreeFile;
 use glam::{DMat4, DVec4};
 use std::time::Instant;
 
-/// Counters and timings of one frame (the columns of `stats.csv`).
+/// Counters and timings of one frame: the plan's counters as the planner made them ([`PlanStats`], held,
+/// not copied) and what the renderer did with the plan. The CSV columns of every per-frame table come
+/// from [`crate::report::columns`].
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct FrameStats {
-    /// Nodes evaluated by the traversals (all trees), culled ones included.
-    pub nodes_visited: u32,
-    /// Cut items (selected nodes) of all trees.
-    pub nodes_drawn: u32,
+    /// The executed plan's counters: nodes visited and drawn, select and paging time, paging counters.
+    pub plan: PlanStats,
     /// Indirect records submitted (tree modes) — 0 in original mode.
     pub indirect_records: u32,
     /// Records drawn with original textures (tree modes).
@@ -39,24 +39,25 @@ pub struct FrameStats {
     /// `set_pipeline` calls.
     pub pipeline_changes: u32,
     pub triangles: u64,
-    /// CPU time of the traversal (select), µs.
-    pub select_us: f64,
     /// CPU time of batching, uploads and command encoding, µs.
     pub encode_us: f64,
     /// GPU time of the render pass from timestamp queries, ms (`None` without timestamp support).
     pub gpu_ms: Option<f64>,
     /// Wall time from the start of select to the GPU having finished the frame, ms.
     pub frame_ms: f64,
-    /// CPU time of the paging step and resolution, µs (0 when not paged).
-    pub page_us: f64,
     /// Cut items the batch could not draw: their resolved atlas (or original texture) holds no GPU layer.
     /// Always 0 while the planner's residency and the GPU's agree; counted, never silently dropped.
     pub skipped_draws: u32,
     /// Layers in use in the atlas arrays and the original-texture arrays after the frame.
     pub atlas_layers_used: u32,
     pub original_layers_used: u32,
+}
+
+impl FrameStats {
     /// Paging counters of the plan (`None` when all blocks are resident).
-    pub paging: Option<PagingFrame>,
+    pub fn paging(&self) -> Option<&PagingFrame> {
+        self.plan.paging.as_ref()
+    }
 }
 
 /// The renderer's [`Residency`]: a plan's residency changes become uploads into (and frees of) the
@@ -419,11 +420,7 @@ impl<'f> Renderer<'f> {
         }
         let camera = &plan.camera;
         let mut stats = FrameStats {
-            nodes_visited: plan.stats.nodes_visited,
-            nodes_drawn: plan.stats.nodes_drawn,
-            select_us: plan.stats.select_us,
-            page_us: plan.stats.page_us,
-            paging: plan.stats.paging,
+            plan: plan.stats,
             ..FrameStats::default()
         };
         let p = &self.resident.residency;

@@ -1,7 +1,9 @@
 //! The per-frame loop of a [`FramePlanner`] and a [`Renderer`]: plan the frame (select, page, resolve; the
-//! residency changes go to the renderer's texture arrays), then execute the plan. For callers that draw
-//! each frame once (tests, the sweep's single-mode passes); `render` with several modes and the viewer
-//! plan once and execute the same plan as often as they need.
+//! residency changes go to the renderer's texture arrays), then execute the plan. [`FrameLoop::new`] and
+//! [`FrameLoop::new_paged`] are the one way to set the pair up (`render`, `sweep`, the viewer, tests);
+//! [`FrameLoop::render`] serves callers that draw each frame once, and callers that execute one plan
+//! several times (`render` with several modes, the sweep's density pass) use the public `planner` and
+//! `renderer` directly.
 
 use super::density::DensityFrame;
 use super::frame::{FrameStats, Renderer, RendererOptions};

@@ -2,6 +2,7 @@
 //!
 //! - [`metrics`]: PSNR and SSIM of RGBA8 frames, shares and log2 histograms of the texel-per-pixel
 //!   density pass ([`crate::render::density`]), the Pareto front of (cost, accuracy) points. Pure CPU.
+//! - [`columns`]: the one schema of per-frame counters (plan, renderer, paging) every per-frame CSV writes.
 //! - [`csv`]: deterministic CSV tables (fixed float formatting), written atomically; a reader for tests.
 //! - [`plot`]: line charts, heat maps, scatter plots with a marked Pareto front and bar charts, each
 //!   written as `NAME.svg` and `NAME.png` (temp file + rename) with an embedded font, so the pictures are
@@ -10,6 +11,7 @@
 //! Every output file appears whole or not at all: written to a temp file in the same directory, then
 //! renamed over the target.
 
+pub mod columns;
 pub mod csv;
 pub mod metrics;
 pub mod plot;

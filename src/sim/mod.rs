@@ -13,7 +13,7 @@
 use crate::camera::Camera;
 use crate::ids::BlockId;
 use crate::paging::{Arrival, BlockTable, Loader, PagerOptions, Request};
-use crate::plan::{FramePlanner, PlanError, RecordResidency};
+use crate::plan::{FramePlanner, PagingFrame, PlanError, RecordResidency};
 use crate::store::format::NodeRecord;
 use serde::Serialize;
 
@@ -139,34 +139,35 @@ pub struct SimOptions {
     pub io: Option<IoModel>,
 }
 
-/// One frame of a run (a row of `frames.csv`).
-#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+/// One frame of a run (a row of `frames.csv`: these fields, then the paging counters through
+/// [`crate::report::columns::paging_columns`], timings left out).
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct FrameRow {
     pub frame: u32,
     /// Clock, seconds.
     pub time: f64,
-    pub needed: u32,
-    pub ideal: u32,
-    pub resident: u32,
-    pub queued: u32,
-    pub in_flight: u32,
-    pub loaded: u32,
-    pub bytes: u64,
-    /// Of `bytes`, those of original-texture blocks (the rest are atlases).
-    pub bytes_originals: u64,
-    /// Bytes resident after the frame: atlas blocks and original-texture blocks apart.
-    pub resident_bytes_atlases: u64,
-    pub resident_bytes_originals: u64,
-    pub evictions: u32,
-    pub ideal_fraction: f64,
-    /// Share of the drawn screen area rendered coarser than the target (see `paging::resolve`).
-    pub coarser_share: f64,
-    /// Mean level gap over the coarser area: the delivered texel-per-pixel ratio there is the target
-    /// divided by 2^gap.
-    pub coarser_gap: f64,
+    /// The plan's paging counters; `upload_ms` is 0 (there are no uploads, and the time the planner took
+    /// in the recording executor measures nothing), so rows compare equal between identical runs.
+    pub paging: PagingFrame,
     /// Frames from this one until the ideal set is next fully resident (−1: never within the run).
     pub time_to_ideal: i32,
-    pub resident_hash: u64,
+}
+
+impl FrameRow {
+    /// Share of the drawn screen area rendered coarser than the target (see `paging::resolve`).
+    pub fn coarser_share(&self) -> f64 {
+        self.paging.coarse.share()
+    }
+
+    /// Share of the ideal set resident after the frame.
+    pub fn ideal_fraction(&self) -> f64 {
+        self.paging.session.pager.ideal_fraction()
+    }
+
+    /// Bytes the pager loaded this frame.
+    pub fn bytes_loaded(&self) -> u64 {
+        self.paging.session.pager.bytes_loaded
+    }
 }
 
 /// One run's summary (a row of `summary.csv`).
@@ -252,27 +253,16 @@ pub fn simulate_with(
             scale,
             &mut RecordResidency(|e: &crate::paging::Event| events(frame, e)),
         )?;
-        let p = plan.stats.paging.ok_or(PlanError::NotPaged)?;
-        let s = p.session.pager;
+        let paging = plan.stats.paging.ok_or(PlanError::NotPaged)?;
         rows.push(FrameRow {
             frame,
             time: now,
-            needed: s.usage.needed,
-            ideal: s.ideal,
-            resident: s.resident,
-            queued: p.session.queued,
-            in_flight: p.session.in_flight,
-            loaded: s.loaded,
-            bytes: s.bytes_loaded,
-            bytes_originals: p.loaded_original_bytes,
-            resident_bytes_atlases: p.resident_atlas_bytes,
-            resident_bytes_originals: p.resident_original_bytes,
-            evictions: s.evictions,
-            ideal_fraction: s.ideal_fraction(),
-            coarser_share: p.coarse.share(),
-            coarser_gap: p.coarse.mean_gap(),
+            // No uploads here: the planner timed the recording closure, which is no measure of anything.
+            paging: PagingFrame {
+                upload_ms: 0.0,
+                ..paging
+            },
             time_to_ideal: -1,
-            resident_hash: p.resident_hash,
         });
     }
     fill_time_to_ideal(&mut rows);
@@ -284,7 +274,7 @@ pub fn simulate_with(
 fn fill_time_to_ideal(rows: &mut [FrameRow]) {
     let mut next_full: Option<usize> = None;
     for i in (0..rows.len()).rev() {
-        if rows[i].ideal_fraction >= 1.0 {
+        if rows[i].ideal_fraction() >= 1.0 {
             next_full = Some(i);
         }
         rows[i].time_to_ideal = next_full.map_or(-1, |j| (j - i) as i32);
@@ -294,7 +284,7 @@ fn fill_time_to_ideal(rows: &mut [FrameRow]) {
 /// Summary statistics of a run's rows (see [`RunSummary`] for the definitions).
 pub fn summarise(rows: &[FrameRow], cancelled: u64, discarded: u64) -> RunSummary {
     let n = rows.len();
-    let mut shares: Vec<f64> = rows.iter().map(|r| r.coarser_share).collect();
+    let mut shares: Vec<f64> = rows.iter().map(FrameRow::coarser_share).collect();
     shares.sort_by(f64::total_cmp);
     let p95 = if n == 0 {
         0.0
@@ -304,7 +294,7 @@ pub fn summarise(rows: &[FrameRow], cancelled: u64, discarded: u64) -> RunSummar
     let mut jumps = 0;
     let mut converge = Vec::new();
     for i in 1..n {
-        if rows[i - 1].ideal_fraction - rows[i].ideal_fraction >= 0.25 {
+        if rows[i - 1].ideal_fraction() - rows[i].ideal_fraction() >= 0.25 {
             jumps += 1;
             converge.push(rows[i].time_to_ideal);
         }
@@ -318,13 +308,20 @@ pub fn summarise(rows: &[FrameRow], cancelled: u64, discarded: u64) -> RunSummar
         },
         p95_coarser: p95,
         max_coarser: shares.last().copied().unwrap_or(0.0),
-        bytes_total: rows.iter().map(|r| r.bytes).sum(),
-        bytes_originals_total: rows.iter().map(|r| r.bytes_originals).sum(),
-        loads: rows.iter().map(|r| u64::from(r.loaded)).sum(),
-        peak_resident: rows.iter().map(|r| r.resident).max().unwrap_or(0),
+        bytes_total: rows.iter().map(FrameRow::bytes_loaded).sum(),
+        bytes_originals_total: rows.iter().map(|r| r.paging.loaded_original_bytes).sum(),
+        loads: rows
+            .iter()
+            .map(|r| u64::from(r.paging.session.pager.loaded))
+            .sum(),
+        peak_resident: rows
+            .iter()
+            .map(|r| r.paging.session.pager.resident)
+            .max()
+            .unwrap_or(0),
         jumps,
         converge_frames: converge,
-        stalls: rows.iter().filter(|r| r.coarser_share >= 0.5).count() as u32,
+        stalls: rows.iter().filter(|r| r.coarser_share() >= 0.5).count() as u32,
         cancelled,
         discarded,
     }

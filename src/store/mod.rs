@@ -1,4 +1,4 @@
-//! The paging file (DESIGN.md `store/`, paper §6): one file holds an [`AtlasForest`] — build parameters,
+//! The paging file (docs/DESIGN.md "File format", paper §6): one file holds an [`AtlasForest`] — build parameters,
 //! materials, one or two trees as fixed-size Pod tables read in place from a memory map, and the texture
 //! blocks (atlases and leaves' original textures), each 4 KiB aligned and checksummed so the paging read
 //! ([`TreeFile::block`]) verifies what it loads.

@@ -4,6 +4,8 @@
 use super::SweepError;
 use super::run::{BuildRow, FrameRow, SweepData};
 use super::summary::{ReportContext, VariantRow, markdown, summarise};
+use crate::render::FrameStats;
+use crate::report::columns;
 use crate::report::csv::{Cell, write_csv};
 use crate::report::plot::{
     Better, LabelledPoint, PlotOptions, PointLabels, ScatterSeries, Series, histogram_chart,
@@ -35,15 +37,15 @@ pub const SWEEP_HEADER: [&str; 26] = [
     "gpu_ms",
     "frame_ms",
     "frame_ms_median",
-    "bytes_paged",
+    "bytes_loaded",
     "file_bytes",
     "build_s",
     "peak_build_rss_bytes",
     "build",
 ];
 
-/// Columns of `frames.csv`.
-pub const FRAMES_HEADER: [&str; 20] = [
+/// The columns of `frames.csv` before the per-frame counters: the variant and what it was compared with.
+const FRAME_KEY_HEADER: [&str; 12] = [
     "variant",
     "build",
     "texel_ratio",
@@ -56,15 +58,22 @@ pub const FRAMES_HEADER: [&str; 20] = [
     "ssim",
     "magnified_share",
     "below_target_share",
-    "coarser_share",
-    "select_us",
-    "encode_us",
-    "gpu_ms",
-    "frame_ms",
-    "bytes_paged",
-    "nodes_drawn",
-    "draw_calls",
 ];
+
+/// The columns of one `frames.csv` row after its key: the frame's counters and timings, then its paging
+/// counters (empty cells for variants with every block resident), both through [`columns`].
+fn frame_counters(stats: &FrameStats) -> Vec<columns::Column> {
+    let mut c = columns::frame_columns(stats);
+    c.extend(columns::paging_columns_or_empty(stats.paging()));
+    c
+}
+
+/// Columns of `frames.csv`.
+pub fn frames_header() -> Vec<&'static str> {
+    let mut h = FRAME_KEY_HEADER.to_vec();
+    h.extend(columns::names(&frame_counters(&FrameStats::default())));
+    h
+}
 
 fn capacity_cell(c: Option<u32>) -> Cell {
     c.map_or(Cell::Text("all".into()), |k| Cell::UInt(u64::from(k)))
@@ -93,7 +102,7 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
         Cell::Float(r.gpu_ms),
         Cell::Float(r.frame_ms),
         Cell::Float(r.frame_ms_median),
-        Cell::UInt(r.bytes_paged),
+        Cell::UInt(r.bytes_loaded),
         Cell::UInt(r.file_bytes),
         Cell::Float(r.build_s),
         r.peak_rss_bytes
@@ -103,7 +112,7 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
 }
 
 fn frame_row(f: &FrameRow) -> Vec<Cell> {
-    vec![
+    let mut row = vec![
         Cell::Text(f.variant_id()),
         Cell::Text(f.build.id()),
         Cell::Float(f.runtime.texel_ratio),
@@ -116,15 +125,9 @@ fn frame_row(f: &FrameRow) -> Vec<Cell> {
         Cell::Float(f.ssim),
         Cell::Float(f.magnified_share),
         Cell::Float(f.below_target_share),
-        Cell::Float(f.coarser_share),
-        Cell::Float(f.select_us),
-        Cell::Float(f.encode_us),
-        Cell::Float(f.gpu_ms),
-        Cell::Float(f.frame_ms),
-        Cell::UInt(f.bytes_paged),
-        Cell::UInt(u64::from(f.nodes_drawn)),
-        Cell::UInt(u64::from(f.draw_calls)),
-    ]
+    ];
+    row.extend(columns::cells(frame_counters(&f.stats)));
+    row
 }
 
 /// `builds.csv`: knobs, size, shape, build seconds, peak memory and one column per stage.
@@ -338,7 +341,7 @@ pub fn write_outputs(
     let frames_csv = dir.join("frames.csv");
     write_csv(
         &frames_csv,
-        &FRAMES_HEADER,
+        &frames_header(),
         &data.frames.iter().map(frame_row).collect::<Vec<_>>(),
     )?;
     let builds_csv = dir.join("builds.csv");

@@ -7,8 +7,8 @@ use crate::camera::{Camera, CameraPath};
 use crate::gpu::{GpuContext, GpuError};
 use crate::paging::{FileSource, PagerOptions};
 use crate::plan::{FramePlanner, PagingSetup};
-use crate::preprocess::{NoProgress, build};
-use crate::render::{FrameStats, Mode, RenderError, Renderer, RendererOptions};
+use crate::preprocess::{BuildOptions, NoProgress, build};
+use crate::render::{FrameLoop, FrameStats, Mode, RenderError, Renderer, RendererOptions};
 use crate::report::metrics::{Histogram, magnified_share, psnr, psnr_masked, ssim};
 use crate::scene::Scene;
 use crate::select::{SelectOptions, min_distance_scale};
@@ -37,6 +37,9 @@ pub struct SweepOptions {
     pub gpu_timing: bool,
     /// Sampler anisotropy of every render, the reference included ([`RendererOptions::anisotropy`]).
     pub anisotropy: u16,
+    /// The options of every build beside the grid's knobs ([`BuildKnobs`] replace d_min, atlas size,
+    /// border, filter, compression and repeat mode).
+    pub build: BuildOptions,
 }
 
 impl SweepOptions {
@@ -60,6 +63,7 @@ impl Default for SweepOptions {
             max_queue: 8,
             gpu_timing: true,
             anisotropy: RendererOptions::ANISOTROPY,
+            build: BuildOptions::default(),
         }
     }
 }
@@ -105,7 +109,7 @@ pub struct BuildRow {
 }
 
 /// One variant on one frame.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug)]
 pub struct FrameRow {
     pub build: BuildKnobs,
     pub runtime: RuntimeKnobs,
@@ -124,17 +128,9 @@ pub struct FrameRow {
     pub magnified_share: f64,
     /// Share of drawn pixels with fewer texels per pixel than the variant's texel ratio.
     pub below_target_share: f64,
-    /// Screen share drawn coarser than selected because a block was not resident (0 when not paged).
-    pub coarser_share: f64,
-    pub select_us: f64,
-    pub encode_us: f64,
-    /// NaN without timestamp queries.
-    pub gpu_ms: f64,
-    pub frame_ms: f64,
-    /// Bytes loaded by the pager this frame (0 when not paged).
-    pub bytes_paged: u64,
-    pub nodes_drawn: u32,
-    pub draw_calls: u32,
+    /// What the frame's plan and the renderer counted (the paging counters in `stats.plan.paging` when
+    /// the variant is paged), written through [`crate::report::columns`].
+    pub stats: FrameStats,
 }
 
 impl FrameRow {
@@ -228,7 +224,8 @@ pub fn run_sweep(
     for pb in &plan.builds {
         let path = opts.builds_dir.join(format!("{}.atlastree", pb.knobs.id()));
         progress.message(&format!("build {}", pb.knobs.id()));
-        data.builds.push(build_one(scene, &pb.knobs, &path)?);
+        data.builds
+            .push(build_one(scene, &pb.knobs, &opts.build, &path)?);
         progress.advance(n);
         let file = TreeFile::open(&path).map_err(|source| SweepError::Open {
             path: path.clone(),
@@ -255,15 +252,35 @@ pub fn run_sweep(
     Ok(data)
 }
 
+/// The options of the build of `knobs`: the knobs over `base`.
+pub fn build_options(knobs: &BuildKnobs, base: &BuildOptions) -> BuildOptions {
+    let k = knobs.options();
+    BuildOptions {
+        d_min: k.d_min,
+        atlas_size: k.atlas_size,
+        border: k.border,
+        mip_filter: k.mip_filter,
+        compress: k.compress,
+        repeat: k.repeat,
+        ..base.clone()
+    }
+}
+
 /// Builds one variant, timing it and its peak memory.
-fn build_one(scene: &Scene, knobs: &BuildKnobs, out: &Path) -> Result<BuildRow, SweepError> {
+fn build_one(
+    scene: &Scene,
+    knobs: &BuildKnobs,
+    base: &BuildOptions,
+    out: &Path,
+) -> Result<BuildRow, SweepError> {
     let reset = reset_peak_rss();
     let t = std::time::Instant::now();
-    let r =
-        build(scene, &knobs.options(), out, &NoProgress).map_err(|source| SweepError::Build {
+    let r = build(scene, &build_options(knobs, base), out, &NoProgress).map_err(|source| {
+        SweepError::Build {
             build: knobs.id(),
             source: Box::new(source),
-        })?;
+        }
+    })?;
     let build_s = t.elapsed().as_secs_f64();
     Ok(BuildRow {
         knobs: *knobs,
@@ -320,7 +337,7 @@ fn run_build(
             source: Box::new(source),
         }
     };
-    let mut full = match Renderer::new(ctx, file, ropts) {
+    let mut full = match FrameLoop::new(ctx, file, ropts) {
         Ok(r) => r,
         Err(
             e
@@ -334,13 +351,13 @@ fn run_build(
         }
         Err(e) => return Err(render_err(pb.knobs.id(), 0)(e)),
     };
-    data.resident_bytes.push(full.resident.stats.texture_bytes);
-    let mut resident_planner = FramePlanner::from_file(file);
+    data.resident_bytes
+        .push(full.renderer.resident.stats.texture_bytes);
     if pb.is_base {
         progress.message("reference frames (original textures)");
         *reference = reference_frames(
-            &mut resident_planner,
-            &mut full,
+            &mut full.planner,
+            &mut full.renderer,
             file,
             plan,
             cameras,
@@ -364,16 +381,18 @@ fn run_build(
                 for k in 0..opts.warmup.min(cameras.len()) {
                     let (_, cam) = &cameras[k * cameras.len() / opts.warmup.max(1)];
                     let s = scale(file, plan, rt.texel_ratio, cam)?;
-                    let warm = resident_planner
-                        .plan_still(cam, s, &mut full.residency())
+                    let warm = full
+                        .planner
+                        .plan_still(cam, s, &mut full.renderer.residency())
                         .map_err(|e| render_err(id.clone(), k)(e.into()))?;
-                    full.execute(warm, Mode::Tree)
+                    full.renderer
+                        .execute(warm, Mode::Tree)
                         .map_err(render_err(id.clone(), k))?;
                 }
                 for (i, (t, cam)) in cameras.iter().enumerate() {
                     let row = ctx.measure(
-                        &mut resident_planner,
-                        &mut full,
+                        &mut full.planner,
+                        &mut full.renderer,
                         i,
                         *t,
                         cam,
@@ -400,9 +419,7 @@ fn run_build(
                     source,
                     loader_threads: 0,
                 };
-                let mut planner = FramePlanner::paged_from_file(file, setup)
-                    .map_err(|e| render_err(id.clone(), 0)(e.into()))?;
-                let mut paged = Renderer::new_paged(ctx, file, ropts, &mut planner)
+                let mut paged = FrameLoop::new_paged(ctx, file, ropts, setup)
                     .map_err(render_err(id.clone(), 0))?;
                 let ctx = VariantCtx {
                     file,
@@ -412,7 +429,8 @@ fn run_build(
                     reference,
                 };
                 for (i, (t, cam)) in cameras.iter().enumerate() {
-                    let row = ctx.measure(&mut planner, &mut paged, i, *t, cam, None)?;
+                    let row =
+                        ctx.measure(&mut paged.planner, &mut paged.renderer, i, *t, cam, None)?;
                     data.frames.push(row);
                     progress.advance(1);
                 }
@@ -520,7 +538,6 @@ impl VariantCtx<'_> {
         if let Some(hist) = hist {
             merge_histogram(hist, &Histogram::log2(&d, HIST_MIN_EXP, HIST_MAX_EXP));
         }
-        let paging = stats.paging.as_ref();
         Ok(FrameRow {
             build: self.knobs.0,
             runtime: rt,
@@ -532,14 +549,7 @@ impl VariantCtx<'_> {
             ssim,
             magnified_share: magnified,
             below_target_share: below,
-            coarser_share: paging.map_or(0.0, |p| p.coarse.share()),
-            select_us: stats.select_us,
-            encode_us: stats.encode_us,
-            gpu_ms: stats.gpu_ms.unwrap_or(f64::NAN),
-            frame_ms: stats.frame_ms,
-            bytes_paged: paging.map_or(0, |p| p.session.pager.bytes_loaded),
-            nodes_drawn: stats.nodes_drawn,
-            draw_calls: stats.draw_calls,
+            stats,
         })
     }
 }

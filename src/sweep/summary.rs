@@ -31,8 +31,8 @@ pub struct VariantRow {
     pub frame_ms: f64,
     /// Median frame time (robust to one-off stalls such as first-use shader compiles).
     pub frame_ms_median: f64,
-    /// Bytes paged over all frames (0 when everything is resident).
-    pub bytes_paged: u64,
+    /// Bytes the pager loaded over all frames (0 when everything is resident).
+    pub bytes_loaded: u64,
     pub file_bytes: u64,
     pub build_s: f64,
     pub peak_rss_bytes: Option<u64>,
@@ -87,13 +87,16 @@ pub fn summarise(builds: &[BuildRow], frames: &[FrameRow]) -> Vec<VariantRow> {
                 ssim: col(&|f| f.ssim),
                 magnified_share: col(&|f| f.magnified_share),
                 below_target_share: col(&|f| f.below_target_share),
-                coarser_share: col(&|f| f.coarser_share),
-                select_us: col(&|f| f.select_us),
-                encode_us: col(&|f| f.encode_us),
-                gpu_ms: col(&|f| f.gpu_ms),
-                frame_ms: col(&|f| f.frame_ms),
-                frame_ms_median: median(rows.iter().map(|f| f.frame_ms)),
-                bytes_paged: rows.iter().map(|f| f.bytes_paged).sum(),
+                coarser_share: col(&|f| f.stats.paging().map_or(0.0, |p| p.coarse.share())),
+                select_us: col(&|f| f.stats.plan.select_us),
+                encode_us: col(&|f| f.stats.encode_us),
+                gpu_ms: col(&|f| f.stats.gpu_ms.unwrap_or(f64::NAN)),
+                frame_ms: col(&|f| f.stats.frame_ms),
+                frame_ms_median: median(rows.iter().map(|f| f.stats.frame_ms)),
+                bytes_loaded: rows
+                    .iter()
+                    .map(|f| f.stats.paging().map_or(0, |p| p.session.pager.bytes_loaded))
+                    .sum(),
                 file_bytes: build.map_or(0, |x| x.file_bytes),
                 build_s: build.map_or(0.0, |x| x.build_s),
                 peak_rss_bytes: build.and_then(|x| x.peak_rss_bytes),
@@ -506,7 +509,7 @@ fn variants_table(md: &mut String, rows: &[VariantRow]) {
             f(r.encode_us, 1),
             f(r.gpu_ms, 2),
             f(r.frame_ms_median, 2),
-            human_bytes(r.bytes_paged)
+            human_bytes(r.bytes_loaded)
         );
     }
     let _ = writeln!(md);

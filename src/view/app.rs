@@ -487,7 +487,7 @@ impl<'a> Running<'a> {
         self.stats = self
             .frame_loop
             .render(&camera, scale, self.settings.render_mode())?;
-        self.paging = self.stats.paging.map(|p| PagingStats {
+        self.paging = self.stats.plan.paging.map(|p| PagingStats {
             needed: p.session.pager.usage.needed,
             resident: p.session.pager.resident,
             in_flight: p.session.in_flight + p.session.queued,

@@ -315,3 +315,123 @@ fn demo_runs_and_writes_pictures() {
         assert!(img.width() >= 64, "{f}");
     }
 }
+
+/// `atlastree ARGS` that must be refused before any file is read: exit 2, no panic, stderr naming every
+/// string in `says`.
+fn refused(args: &[&str], says: &[&str]) {
+    let o = run(bin().args(args));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+    for s in says {
+        assert!(e.contains(s), "{args:?}: expected {s:?} in: {e}");
+    }
+}
+
+/// A flag that means nothing for a command is refused there with a message, before any file is opened
+/// (the files named here do not exist): a time upload budget in `simulate` (it has no uploads to time),
+/// paging flags without `--capacity` in `render`, paging flags beyond `--capacity` in `view`.
+#[test]
+fn flags_that_mean_nothing_are_refused() {
+    refused(
+        &["simulate", "nope.atlastree", "--upload-budget", "2ms"],
+        &["--upload-budget", "simulate has no uploads to time", "8MB"],
+    );
+    for (flag, value) in [
+        ("--upload-budget", "8MB"),
+        ("--max-queue", "4"),
+        ("--policy", "lru"),
+        ("--loader-threads", "0"),
+        ("--source", "file"),
+    ] {
+        refused(
+            &["render", "nope.atlastree", flag, value],
+            &[flag, "means nothing without --capacity"],
+        );
+    }
+    refused(
+        &[
+            "render",
+            "nope.atlastree",
+            "--capacity",
+            "8",
+            "--mode",
+            "tree,original",
+        ],
+        &["--mode original", "paging"],
+    );
+    refused(
+        &["render", "nope.atlastree", "--mode", "tree,tree"],
+        &["--mode tree is given twice"],
+    );
+    refused(
+        &[
+            "view",
+            "nope.atlastree",
+            "--capacity",
+            "8",
+            "--policy",
+            "lru",
+        ],
+        &["--policy means nothing for view"],
+    );
+    refused(
+        &["render", "nope.atlastree", "--width", "0"],
+        &["--width and --height must be > 0"],
+    );
+    // Accepted flags reach the file: the error names it.
+    refused(
+        &["simulate", "nope.atlastree", "--upload-budget", "8MB"],
+        &["nope.atlastree"],
+    );
+    refused(
+        &[
+            "render",
+            "nope.atlastree",
+            "--capacity",
+            "8",
+            "--upload-budget",
+            "2ms",
+        ],
+        &["nope.atlastree"],
+    );
+}
+
+/// The shared flag groups show in each command's help under their heading, with the command's defaults.
+#[test]
+fn help_shows_the_flag_groups() {
+    let help = |cmd: &str| {
+        let o = run(bin().args([cmd, "--help"]));
+        assert!(o.status.success(), "{cmd} --help");
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let render = help("render");
+    for s in [
+        "Viewport:",
+        "Paging:",
+        "--width <WIDTH>",
+        "[default: 800]",
+        "--upload-budget <BUDGET>",
+    ] {
+        assert!(render.contains(s), "render --help lacks {s:?}:\n{render}");
+    }
+    let view = help("view");
+    assert!(view.contains("[default: 1280]"), "{view}");
+    let simulate = help("simulate");
+    for s in ["Queue:", "--max-queue <N>", "Viewport:"] {
+        assert!(
+            simulate.contains(s),
+            "simulate --help lacks {s:?}:\n{simulate}"
+        );
+    }
+    for cmd in ["build", "sweep"] {
+        let h = help(cmd);
+        for s in ["--leaf-originals", "--screen-width", "--split"] {
+            assert!(h.contains(s), "{cmd} --help lacks {s:?}:\n{h}");
+        }
+    }
+    assert!(help("build").contains("--atlas-size"));
+    assert!(
+        !help("sweep").contains("--atlas-size"),
+        "the grid sets the atlas size"
+    );
+}

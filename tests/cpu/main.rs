@@ -25,6 +25,7 @@ mod architecture;
 mod camera;
 mod citygen;
 mod cli;
+mod docs;
 mod import;
 mod paging;
 mod plan;

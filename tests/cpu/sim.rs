@@ -94,15 +94,56 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
         assert!(x.len() > 1000, "{name} is nearly empty");
         assert!(x == y, "{name} differs between two identical runs");
     }
+    // frames.csv names its counters as every per-frame table does (report::columns), without timings.
+    let t = atlastree::report::csv::read_csv(&da.join("frames.csv")).unwrap();
+    let counters: Vec<&str> = atlastree::report::columns::paging_columns(&Default::default())
+        .into_iter()
+        .filter(|c| !c.timing)
+        .map(|c| c.name)
+        .collect();
+    let mut want = vec![
+        "run",
+        "capacity",
+        "bandwidth_bps",
+        "latency_ms",
+        "policy",
+        "frame",
+        "time_s",
+    ];
+    want.extend(&counters);
+    want.push("time_to_ideal");
+    assert_eq!(t.header, want);
+    for old in [
+        "needed",
+        "bytes",
+        "bytes_originals",
+        "coarser_levels",
+        "upload_ms",
+    ] {
+        assert!(
+            !t.header.iter().any(|h| h == old),
+            "{old} is still a column"
+        );
+    }
+    let rows: usize = a.iter().map(|r| r.rows.len()).sum();
+    assert_eq!(t.rows.len(), rows);
+    // The bytes_loaded column is the rows' bytes, frame by frame.
+    let col = t.header.iter().position(|h| h == "bytes_loaded").unwrap();
+    let written: Vec<u64> = t.rows.iter().map(|r| r[col].parse().unwrap()).collect();
+    let held: Vec<u64> = a
+        .iter()
+        .flat_map(|r| r.rows.iter().map(|x| x.bytes_loaded()))
+        .collect();
+    assert_eq!(written, held);
     for r in &a {
         let k = r.key.capacity.unwrap_or(u32::MAX);
         for row in &r.rows {
             assert!(
-                row.resident <= k,
+                row.paging.session.pager.resident <= k,
                 "{}: frame {} has {} > k",
                 r.key.label(),
                 row.frame,
-                row.resident
+                row.paging.session.pager.resident
             );
         }
         // Conservation: replay the run with the event log; loaded bytes = sizes of the loaded blocks.
@@ -131,10 +172,10 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
             },
         )
         .unwrap();
-        let bytes: u64 = rows.iter().map(|x| x.bytes).sum();
+        let bytes: u64 = rows.iter().map(|x| x.bytes_loaded()).sum();
         assert_eq!(bytes, loaded, "{}", r.key.label());
         // Originals and atlases apart: loaded and resident bytes add up per kind.
-        let originals: u64 = rows.iter().map(|x| x.bytes_originals).sum();
+        let originals: u64 = rows.iter().map(|x| x.paging.loaded_original_bytes).sum();
         assert_eq!(originals, loaded_originals, "{}", r.key.label());
         assert_eq!(r.summary.bytes_originals_total, loaded_originals);
         let last = rows.last().unwrap();
@@ -142,7 +183,7 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
         resident.extend(input.table.roots());
         let resident_bytes: u64 = resident.iter().map(|b| input.table.meta(*b).bytes).sum();
         assert_eq!(
-            last.resident_bytes_atlases + last.resident_bytes_originals,
+            last.paging.resident_atlas_bytes + last.paging.resident_original_bytes,
             resident_bytes,
             "{}",
             r.key.label()

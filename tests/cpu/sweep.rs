@@ -2,8 +2,10 @@
 //! front and the recommendation (pure functions on hand-made rows), and the build's `mip_filter` knob
 //! (Kaiser changes texels, never the layout). The GPU run of the small grid is `tests/gpu/sweep.rs`.
 
+use atlastree::plan::PlanStats;
 use atlastree::preprocess::image_ops::MipFilter;
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
+use atlastree::render::FrameStats;
 use atlastree::report::metrics::Histogram;
 use atlastree::sweep::grid::{BuildKnobs, Grid, RuntimeKnobs};
 use atlastree::sweep::run::{BuildRow, FrameRow, SweepData, merge_histogram};
@@ -125,14 +127,18 @@ fn frame(b: BuildKnobs, t: f64, i: usize, psnr: f64, ms: f64) -> FrameRow {
         ssim: 0.9,
         magnified_share: 0.1,
         below_target_share: 0.2,
-        coarser_share: 0.0,
-        select_us: 10.0,
-        encode_us: 20.0,
-        gpu_ms: f64::NAN,
-        frame_ms: ms,
-        bytes_paged: 0,
-        nodes_drawn: 3,
-        draw_calls: 1,
+        stats: FrameStats {
+            plan: PlanStats {
+                nodes_drawn: 3,
+                select_us: 10.0,
+                ..PlanStats::default()
+            },
+            encode_us: 20.0,
+            gpu_ms: None,
+            frame_ms: ms,
+            draw_calls: 1,
+            ..FrameStats::default()
+        },
     }
 }
 

@@ -98,7 +98,7 @@ pub(crate) fn check_frame(
 ) -> Result<(bool, Vec<u8>, Vec<u8>), String> {
     let (s, img) = frame(paged, file, cam, Mode::Tree)?;
     let (fs, full_img) = frame(full, file, cam, Mode::Tree)?;
-    let p = s.paging.ok_or("no paging stats on a paged renderer")?;
+    let p = s.plan.paging.ok_or("no paging stats on a paged renderer")?;
     if p.session.pager.resident > k {
         return Err(format!(
             "frame {i}: {} resident > k = {k}",
@@ -202,7 +202,7 @@ fn simulator_resident_sets_match_the_renderer(ctx: &GpuContext) -> Result<(), St
         for (i, cam) in cams.iter().enumerate() {
             r.set_clock(i as f64 / 30.0);
             let s = r.render(cam, scale, Mode::Tree).map_err(e)?;
-            gpu_hashes.push(s.paging.ok_or("no paging stats")?.resident_hash);
+            gpu_hashes.push(s.plan.paging.ok_or("no paging stats")?.resident_hash);
         }
         // The renderer's pager options (see `paged`) with this policy.
         let opts = SimOptions {
@@ -218,7 +218,7 @@ fn simulator_resident_sets_match_the_renderer(ctx: &GpuContext) -> Result<(), St
         };
         let input = SimInput::from_file(&file).map_err(e)?;
         let (rows, _) = simulate(&input, &cams, scale, &opts).map_err(e)?;
-        let sim_hashes: Vec<u64> = rows.iter().map(|r| r.resident_hash).collect();
+        let sim_hashes: Vec<u64> = rows.iter().map(|r| r.paging.resident_hash).collect();
         if sim_hashes != gpu_hashes {
             let first = sim_hashes.iter().zip(&gpu_hashes).position(|(a, b)| a != b);
             return Err(format!(

@@ -85,7 +85,7 @@ fn capacity_returns_to_every_block_not_just_the_atlas_layers(
     for (i, cam) in cams.iter().enumerate() {
         r.set_clock(i as f64 / 30.0);
         let s = r.render(cam, scale, Mode::Tree).map_err(e)?;
-        let p = s.paging.ok_or("no paging stats")?;
+        let p = s.plan.paging.ok_or("no paging stats")?;
         if p.apply_errors > 0 || s.skipped_draws > 0 {
             return Err(format!(
                 "frame {i}: {} apply errors, {} skipped draws ({:?})",
@@ -278,8 +278,8 @@ fn a_paged_plan_executes_again_to_the_same_frame(ctx: &GpuContext) -> Result<(),
             ));
         }
         if r.renderer.read_frame().map_err(e)? != colour
-            || (again.indirect_records, again.triangles, again.paging)
-                != (first.indirect_records, first.triangles, first.paging)
+            || (again.indirect_records, again.triangles, again.plan.paging)
+                != (first.indirect_records, first.triangles, first.plan.paging)
         {
             return Err(format!(
                 "frame {i}: the plan executed again after its density pass draws something else"

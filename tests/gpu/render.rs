@@ -386,7 +386,7 @@ fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String>
         if s.bind_group_changes != 1 || s.draw_calls != passes || passes == 0 || passes > 6 {
             return Err(format!(
                 "{} nodes drawn: {} bind groups, {} draw calls for {passes} non-empty pipeline groups",
-                s.nodes_drawn, s.bind_group_changes, s.draw_calls
+                s.plan.nodes_drawn, s.bind_group_changes, s.draw_calls
             ));
         }
         // A blend node is drawn twice: its depth pre-pass in the mask pipeline, then blended.
@@ -397,13 +397,13 @@ fn tree_mode_one_multi_draw_per_pipeline(ctx: &GpuContext) -> Result<(), String>
         .iter()
         .map(|g| r.renderer.batch().group_ranges[g.index()].1)
         .sum();
-        if s.indirect_records != s.nodes_drawn + blend_records {
+        if s.indirect_records != s.plan.nodes_drawn + blend_records {
             return Err(format!(
                 "{} indirect records for {} selected nodes ({blend_records} of them blend nodes)",
-                s.indirect_records, s.nodes_drawn
+                s.indirect_records, s.plan.nodes_drawn
             ));
         }
-        drawn.push(s.nodes_drawn);
+        drawn.push(s.plan.nodes_drawn);
         let o = r.render(&cam, scale, Mode::Original).map_err(e)?;
         if o.draw_calls < s.draw_calls || o.bind_group_changes != o.draw_calls + 1 {
             return Err(format!(
@@ -506,10 +506,10 @@ fn translated_scene_renders_the_same(ctx: &GpuContext) -> Result<(), String> {
         let (sb, b) = frame(&mut rb, &fb, &moved_cam, Mode::Tree)?;
         let (psnr, covered) = psnr_covered(&a, &b);
         results.push(format!("{psnr:.1} dB over {covered} px"));
-        if sa.nodes_drawn != sb.nodes_drawn || psnr < 50.0 || covered == 0 {
+        if sa.plan.nodes_drawn != sb.plan.nodes_drawn || psnr < 50.0 || covered == 0 {
             return Err(format!(
                 "translated frame differs: {} vs {} nodes, {results:?}",
-                sa.nodes_drawn, sb.nodes_drawn
+                sa.plan.nodes_drawn, sb.plan.nodes_drawn
             ));
         }
     }

@@ -71,7 +71,7 @@ fn a_corrupt_shared_block_falls_back_to_the_ancestor_atlas(ctx: &GpuContext) -> 
         let (mut failures, mut coarse) = (0, 0.0);
         for _ in 0..30 {
             let s = r.render(&cam, scale, Mode::Tree).map_err(e)?;
-            let p = s.paging.ok_or("not paged")?;
+            let p = s.plan.paging.ok_or("not paged")?;
             failures += p.session.pager.failures;
             coarse = p.coarse.share();
         }

@@ -132,12 +132,19 @@ fn check_complete(
             return Err(format!("sweep.csv row {i}: SSIM {s} outside [0, 1]"));
         }
     }
-    if let Some((i, _)) = frames
-        .rows
-        .iter()
-        .enumerate()
-        .find(|(_, r)| r.iter().any(|c| c.is_empty()))
-    {
+    // The paging columns (from `blocks_needed` on) are empty exactly for all-resident variants.
+    let paging = frames
+        .column_index("blocks_needed")
+        .ok_or("frames.csv has no paging columns")?;
+    let cap = frames
+        .column_index("capacity")
+        .ok_or("no capacity column")?;
+    if let Some((i, _)) = frames.rows.iter().enumerate().find(|(_, r)| {
+        let all = r[cap] == "all";
+        r.iter()
+            .enumerate()
+            .any(|(j, c)| c.is_empty() != (all && j >= paging))
+    }) {
         return Err(format!("frames.csv row {i} has an empty cell"));
     }
     Ok(())
@@ -237,7 +244,7 @@ fn check_builds(builds: &CsvTable) -> Result<(), String> {
 fn check_paged(sweep: &CsvTable) -> Result<(), String> {
     let cap = col(sweep, "capacity")?;
     let coarser = num(sweep, "coarser_share")?;
-    let paged = num(sweep, "bytes_paged")?;
+    let paged = num(sweep, "bytes_loaded")?;
     let rows: Vec<usize> = (0..cap.len()).filter(|&i| cap[i] != "all").collect();
     if rows.is_empty() {
         return Err("no paged variant".into());

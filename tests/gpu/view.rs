@@ -116,7 +116,7 @@ fn frozen_selection_keeps_the_cut(ctx: &GpuContext) -> Result<(), String> {
     if cut_street == cut_over {
         return Err(format!(
             "precondition: the street and overview views select the same cut ({} nodes)",
-            s_street.nodes_drawn
+            s_street.plan.nodes_drawn
         ));
     }
     r.planner.freeze_selection(Some(street));
@@ -127,12 +127,12 @@ fn frozen_selection_keeps_the_cut(ctx: &GpuContext) -> Result<(), String> {
         return Err("the frozen frame did not keep the street view's cut".into());
     }
     if (
-        s_frozen.nodes_drawn,
-        s_frozen.nodes_visited,
+        s_frozen.plan.nodes_drawn,
+        s_frozen.plan.nodes_visited,
         s_frozen.triangles,
     ) != (
-        s_street.nodes_drawn,
-        s_street.nodes_visited,
+        s_street.plan.nodes_drawn,
+        s_street.plan.nodes_visited,
         s_street.triangles,
     ) {
         return Err(format!(
@@ -143,12 +143,12 @@ fn frozen_selection_keeps_the_cut(ctx: &GpuContext) -> Result<(), String> {
     let s_again = r
         .render(&overview, scale(&file, W, &overview)?, Mode::Tree)
         .map_err(e)?;
-    if selection(&r) != cut_over || s_again.nodes_drawn != s_over.nodes_drawn {
+    if selection(&r) != cut_over || s_again.plan.nodes_drawn != s_over.plan.nodes_drawn {
         return Err("after unfreezing the overview did not select its own cut again".into());
     }
     println!(
         "    street cut {} nodes, overview cut {} nodes; frozen overview frame drew {}",
-        s_street.nodes_drawn, s_over.nodes_drawn, s_frozen.nodes_drawn
+        s_street.plan.nodes_drawn, s_over.plan.nodes_drawn, s_frozen.plan.nodes_drawn
     );
     Ok(())
 }

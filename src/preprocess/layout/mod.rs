@@ -5,7 +5,7 @@
 //! (rayon) over the four children. The triangles of every node are one contiguous range of a single
 //! permutation array, so the leaves of any subtree are contiguous in tree order.
 //!
-//! What a node's atlas holds (DESIGN.md "Repeats"): one rect per material (per material and density class
+//! What a node's atlas holds (docs/DESIGN.md "Repeats"): one rect per material (per material and density class
 //! with repeats baked), whose UV range per axis is the [`super::cover`] of its triangles — at most one
 //! period where the sampler repeats, mirrors or clamps, so a rect's size depends on the texels per period
 //! and not on how often the texture repeats.

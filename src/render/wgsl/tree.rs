@@ -211,7 +211,7 @@ pub struct LeafInfo {
 }
 const _: () = assert!(size_of::<LeafInfo>() == 32);
 
-/// How a fragment's original UV reaches its texture's rect in its leaf's atlas (DESIGN.md "Repeats"): the
+/// How a fragment's original UV reaches its texture's rect in its leaf's atlas (docs/DESIGN.md "Repeats"): the
 /// rect's per-axis wrap ([`RectWrap`]), then the linear map onto the inner rectangle, kept inside the
 /// outer rectangle by the filter footprint. [`RectMap::texel_f32`] is the shader's arithmetic on the CPU,
 /// [`crate::model::transform::rect_texel`] its f64 reference; `RectMap::new` (in

@@ -1,4 +1,4 @@
-//! Repeats wrapped in the shader (DESIGN.md "Repeats: one period per rect"): the CPU twin of the fragment
+//! Repeats wrapped in the shader (docs/DESIGN.md "Repeats"): the CPU twin of the fragment
 //! shader's rect mapping samples what the original texture shows, per wrap mode, per level and at the rect
 //! edges; the split balances texel demand, not world area; a translated scene (UTM coordinates, with
 //! rounding) gives the identical tree; a UV range of ±2.9e9 on one triangle builds without NaN.

@@ -1,0 +1,382 @@
+//! Flag groups shared by several commands (`#[command(flatten)]`), each with its validate step: parsed
+//! flags → a checked value the command's `run` uses. A flag of a group that means nothing for one command
+//! is refused there with a message naming the flag and why (see [`PagingArgs::given_beyond_capacity`]).
+
+use anyhow::{Context, bail};
+use atlastree::camera::{Camera, CameraPath};
+use atlastree::model::BuildParams;
+use atlastree::paging::{PagerOptions, Policy, UploadBudget};
+use atlastree::preprocess::BuildOptions;
+use atlastree::select::{SelectOptions, min_distance_scale};
+use clap::Args;
+
+/// Declares a viewport flag group with a command's default frame size (a const-generic struct would
+/// share one default string between its instances: clap keeps it in a static of the generic function).
+macro_rules! viewport_args {
+    ($(#[$doc:meta])* $name:ident, $w:expr, $h:expr) => {
+        $(#[$doc])*
+        #[derive(Args, Debug, Clone, Copy)]
+        pub struct $name {
+            /// Frame width, pixels (node min_distances scale linearly with it, paper §4).
+            #[arg(long, default_value_t = $w)]
+            pub width: u32,
+            /// Frame height, pixels.
+            #[arg(long, default_value_t = $h)]
+            pub height: u32,
+            /// Texels per pixel required (node min_distances scale linearly with it).
+            #[arg(long, default_value_t = 1.0)]
+            pub texel_ratio: f64,
+        }
+
+        impl $name {
+            /// Checks the sizes and the ratio.
+            pub fn validate(self) -> anyhow::Result<Viewport> {
+                Viewport::new(self.width, self.height, self.texel_ratio)
+            }
+        }
+    };
+}
+
+viewport_args!(
+    /// Frame size and texel-per-pixel target of an offscreen run (`render`, `simulate`): 800×600 by default.
+    ViewportArgs,
+    800,
+    600
+);
+viewport_args!(
+    /// Window size and texel-per-pixel target of `view`: 1280×720 by default.
+    WindowArgs,
+    1280,
+    720
+);
+
+/// A checked [`ViewportArgs`]: width and height > 0, texel ratio finite and > 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Viewport {
+    pub width: u32,
+    pub height: u32,
+    pub texel_ratio: f64,
+}
+
+impl Viewport {
+    /// Checks width and height > 0 and a finite texel ratio > 0.
+    pub fn new(width: u32, height: u32, texel_ratio: f64) -> anyhow::Result<Viewport> {
+        if width == 0 || height == 0 {
+            bail!("--width and --height must be > 0 (got {width}×{height})");
+        }
+        if !(texel_ratio.is_finite() && texel_ratio > 0.0) {
+            bail!("--texel-ratio must be finite and > 0 (got {texel_ratio})");
+        }
+        Ok(Viewport {
+            width,
+            height,
+            texel_ratio,
+        })
+    }
+
+    /// Width / height.
+    pub fn aspect(&self) -> f64 {
+        f64::from(self.width) / f64::from(self.height)
+    }
+
+    /// `frames` cameras of `path` at `fps` (path time `i / fps`) with this viewport's aspect.
+    pub fn cameras(&self, path: &CameraPath, fps: f64, frames: usize) -> Vec<Camera> {
+        let aspect = self.aspect();
+        path.frames(fps, frames)
+            .map(|mut c| {
+                c.aspect = aspect;
+                c
+            })
+            .collect()
+    }
+
+    /// The factor of every node's `min_distance` for this width and texel ratio at horizontal field of
+    /// view `fov_x_deg` ([`min_distance_scale`], paper §4).
+    pub fn scale(&self, params: &BuildParams, fov_x_deg: f64) -> anyhow::Result<f64> {
+        Ok(min_distance_scale(
+            params,
+            &SelectOptions {
+                screen_width: self.width,
+                texel_ratio: self.texel_ratio,
+                fov_x_deg,
+            },
+        )?)
+    }
+}
+
+/// How blocks queue and become resident per frame (`render --capacity`, `simulate`). Unset flags take
+/// the defaults of [`PagerOptions`].
+#[derive(Args, Debug, Clone, Default)]
+pub struct QueueArgs {
+    /// Upload budget per frame: `unlimited`, bytes (`8MB`, `512KiB`) or, for `render`, time (`2ms`; at
+    /// least one block per frame is always accepted) [default: unlimited]
+    #[arg(long, value_name = "BUDGET")]
+    pub upload_budget: Option<UploadBudget>,
+    /// Maximum outstanding block requests [default: 8]
+    #[arg(long, value_name = "N")]
+    pub max_queue: Option<u32>,
+}
+
+impl QueueArgs {
+    /// The first flag given, for "means nothing here" messages.
+    pub fn given(&self) -> Option<&'static str> {
+        if self.upload_budget.is_some() {
+            Some("--upload-budget")
+        } else if self.max_queue.is_some() {
+            Some("--max-queue")
+        } else {
+            None
+        }
+    }
+
+    /// `base` with the given flags applied.
+    pub fn apply(&self, base: PagerOptions) -> anyhow::Result<PagerOptions> {
+        if self.max_queue == Some(0) {
+            bail!("--max-queue must be > 0");
+        }
+        Ok(PagerOptions {
+            budget: self.upload_budget.unwrap_or(base.budget),
+            max_queue: self.max_queue.unwrap_or(base.max_queue),
+            ..base
+        })
+    }
+
+    /// The budget for the simulator, which has no uploads to time: a time budget is refused.
+    pub fn byte_budget(&self) -> anyhow::Result<UploadBudget> {
+        match self.upload_budget.unwrap_or_default() {
+            UploadBudget::Millis(ms) => bail!(
+                "--upload-budget {ms}ms: simulate has no uploads to time (its executor only records the \
+                 residency changes, so a time budget would time that bookkeeping on this machine); give \
+                 a byte budget such as 8MB, or unlimited"
+            ),
+            b => Ok(b),
+        }
+    }
+}
+
+/// Paging under a capacity (paper §6) for `render` and `view`.
+#[derive(Args, Debug, Clone, Default)]
+pub struct PagingArgs {
+    /// Page blocks with at most this many resident (the paper used 160); missing blocks are drawn with
+    /// the nearest resident ancestor atlas. Omit to upload every block at start.
+    #[arg(long, value_name = "K")]
+    pub capacity: Option<u32>,
+    /// Where paged blocks come from: `file` (the paging file, memory-mapped) or an http(s) URL of the
+    /// same file on any static server that supports range requests (see `atlastree serve`)
+    /// [default: file]
+    #[arg(long, value_name = "file|URL")]
+    pub source: Option<String>,
+    #[command(flatten)]
+    pub queue: QueueArgs,
+    /// Paging policy: paper (§6), distance, lru, ours (paper + hysteresis + lookahead) [default: paper]
+    #[arg(long)]
+    pub policy: Option<Policy>,
+    /// Loader threads; 0 loads synchronously within the frame (deterministic) [default: 2]
+    #[arg(long, value_name = "N")]
+    pub loader_threads: Option<usize>,
+}
+
+/// Where paged blocks come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SourceArg {
+    /// The paging file itself, memory-mapped.
+    File,
+    /// An http(s) URL of the same file.
+    Url(String),
+}
+
+/// A checked [`PagingArgs`] for a paged run (the capacity is decided by the command).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Paging {
+    /// Pager options; `capacity` is filled in by the command.
+    pub pager: PagerOptions,
+    pub source: SourceArg,
+    pub loader_threads: usize,
+}
+
+/// Whether `s` is an http(s) URL.
+pub fn is_url(s: &str) -> bool {
+    s.starts_with("http://") || s.starts_with("https://")
+}
+
+impl PagingArgs {
+    /// The first flag given besides `--capacity`, for "means nothing here" messages.
+    pub fn given_beyond_capacity(&self) -> Option<&'static str> {
+        if self.source.is_some() {
+            Some("--source")
+        } else if let Some(f) = self.queue.given() {
+            Some(f)
+        } else if self.policy.is_some() {
+            Some("--policy")
+        } else if self.loader_threads.is_some() {
+            Some("--loader-threads")
+        } else {
+            None
+        }
+    }
+
+    /// The paging settings (capacity left at the default for the caller to set).
+    pub fn validate(&self) -> anyhow::Result<Paging> {
+        if self.capacity == Some(0) {
+            bail!("--capacity must be > 0 (omit it to upload every block)");
+        }
+        let source = match self.source.as_deref() {
+            None | Some("file") => SourceArg::File,
+            Some(u) if is_url(u) => SourceArg::Url(u.to_string()),
+            Some(other) => bail!("unknown --source {other:?}: expected `file` or an http(s) URL"),
+        };
+        let base = PagerOptions::default();
+        let pager = self.queue.apply(PagerOptions {
+            policy: self.policy.unwrap_or(base.policy),
+            ..base
+        })?;
+        Ok(Paging {
+            pager,
+            source,
+            loader_threads: self.loader_threads.unwrap_or(2),
+        })
+    }
+}
+
+/// Build parameters beside the knobs of a build's shape and storage: the conditions the texel-per-pixel
+/// guarantee is computed for, the bounds a build keeps to, when a node becomes a leaf and how it splits.
+/// Shared by `build` and `sweep` (where they apply to every build of the grid; the grid sets d_min, atlas
+/// size, border, filter, compression and repeat mode). Defaults are [`BuildOptions::default`]'s.
+#[derive(Args, Debug, Clone)]
+pub struct BuildParamsArgs {
+    /// Screen width in pixels the guarantee is computed for (rescaled at run time without rebuild).
+    #[arg(long, default_value_t = 800)]
+    pub screen_width: u32,
+    /// Horizontal field of view, degrees.
+    #[arg(long, default_value_t = 60.0)]
+    pub fov: f64,
+    /// Texels per pixel required at d_min.
+    #[arg(long, default_value_t = 1.0)]
+    pub texel_ratio: f64,
+    /// Maximum tree depth; a region that needs more is an error naming it.
+    #[arg(long, default_value_t = 24)]
+    pub max_depth: u8,
+    /// Allow more texels per texture repetition than the source image has (by default capped).
+    #[arg(long)]
+    pub no_source_cap: bool,
+    /// Bound on decoded source images held in memory at once, MiB.
+    #[arg(long, default_value_t = 2048)]
+    pub image_cache_mib: u64,
+    /// Split a triangle too big for one atlas (a ground quad with a tile repeated hundreds of times) into at
+    /// most this many pieces; beyond that its leaf's resolution is clamped. 1 disables splitting.
+    #[arg(long, default_value_t = 4096)]
+    pub max_pieces: u32,
+    /// Refuse, before writing anything, a build whose paging file would exceed this size (GiB).
+    #[arg(long, default_value_t = 64)]
+    pub max_file_gib: u64,
+    /// A node that does not fit one atlas is not split when its original textures need at most this many
+    /// atlases' worth of texels: it becomes a leaf whose atlas holds its content scaled to fit
+    /// (min_distance raised by that scale), and nearer than that its original textures are drawn. Deeper
+    /// leaves would mostly copy those originals (at R151 most real textures are needed at their source
+    /// resolution), so this keeps the tree shallow while what a close camera needs stays pageable. 0: split
+    /// every node that does not fit (the paper's tree).
+    #[arg(long, default_value_t = 16.0)]
+    pub leaf_originals: f64,
+    /// What the split of a node into four balances (paper §5.3): `demand`, the summed atlas area the
+    /// halves' textures need (the paper's condition b itself: a texture shared by many triangles or
+    /// repeated counts once), or `area`, their summed world area (the paper's approximation).
+    #[arg(long, default_value = "demand")]
+    pub split: atlastree::preprocess::layout::SplitRule,
+}
+
+impl BuildParamsArgs {
+    /// `base` with these parameters.
+    pub fn apply(&self, base: BuildOptions) -> BuildOptions {
+        BuildOptions {
+            screen_width: self.screen_width,
+            fov_deg: self.fov,
+            texel_ratio: self.texel_ratio,
+            max_depth: self.max_depth,
+            cap_to_source: !self.no_source_cap,
+            image_cache_bytes: self.image_cache_mib << 20,
+            max_pieces: self.max_pieces,
+            max_file_bytes: self.max_file_gib << 30,
+            leaf_originals_atlases: self.leaf_originals,
+            split: self.split,
+            ..base
+        }
+    }
+}
+
+/// Parses a comma-separated list flag's values with `f`, naming the flag and value on failure.
+pub fn parse_list<T>(
+    what: &str,
+    items: &[String],
+    f: impl Fn(&str) -> Option<T>,
+) -> anyhow::Result<Vec<T>> {
+    items
+        .iter()
+        .map(|s| f(s.trim()).with_context(|| format!("bad --{what} value {s:?}")))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Build {
+        #[command(flatten)]
+        params: BuildParamsArgs,
+    }
+
+    /// Without flags the shared build parameters are the library's defaults, so `sweep` builds exactly
+    /// what it built before it took them.
+    #[test]
+    fn build_parameter_defaults_are_the_librarys() {
+        let b = Build::parse_from(["build"]);
+        let ours = serde_json::to_value(b.params.apply(BuildOptions::default())).unwrap();
+        let lib = serde_json::to_value(BuildOptions::default()).unwrap();
+        assert_eq!(ours, lib);
+    }
+
+    #[test]
+    fn simulate_refuses_a_time_budget_and_keeps_bytes() {
+        let q = |b: &str| QueueArgs {
+            upload_budget: Some(b.parse().unwrap()),
+            max_queue: None,
+        };
+        let e = q("2ms").byte_budget().unwrap_err().to_string();
+        assert!(
+            e.contains("--upload-budget 2ms") && e.contains("no uploads"),
+            "{e}"
+        );
+        assert_eq!(
+            q("8MB").byte_budget().unwrap(),
+            UploadBudget::Bytes(8_000_000)
+        );
+        assert_eq!(
+            QueueArgs::default().byte_budget().unwrap(),
+            UploadBudget::Unlimited
+        );
+    }
+
+    #[test]
+    fn viewport_defaults_differ_per_group() {
+        #[derive(Parser)]
+        struct Window {
+            #[command(flatten)]
+            window: WindowArgs,
+        }
+        #[derive(Parser)]
+        struct Offscreen {
+            #[command(flatten)]
+            viewport: ViewportArgs,
+        }
+        let w = Window::parse_from(["view"]).window;
+        let v = Offscreen::parse_from(["render"]).viewport;
+        assert_eq!(
+            (w.width, w.height, v.width, v.height),
+            (1280, 720, 800, 600)
+        );
+        let zero = Offscreen::parse_from(["render", "--width", "0"]).viewport;
+        assert!(zero.validate().is_err());
+        assert!(v.validate().is_ok());
+    }
+}
