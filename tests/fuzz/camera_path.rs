@@ -13,7 +13,7 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 /// Cases per CI run.
-const DEFAULT_CASES: u64 = 1500;
+const DEFAULT_CASES: u64 = 20_000;
 
 /// First line of an edit-script corpus file.
 const MAGIC: &str = "#camera-path-edits";

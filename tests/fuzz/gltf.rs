@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 /// Cases per CI run (see the module docs of `tests/fuzz/main.rs` for the budget).
-const DEFAULT_CASES: u64 = 150;
+const DEFAULT_CASES: u64 = 250;
 
 /// First line of an edit-script corpus file.
 pub const MAGIC: &str = "#gltf-edits";
@@ -140,7 +140,8 @@ fn offset(u: &mut Unstructured, len: usize) -> arbitrary::Result<usize> {
 
 fn poke_bytes(u: &mut Unstructured) -> arbitrary::Result<Vec<u8>> {
     if u.ratio(1, 3)? {
-        return Ok(u.bytes(u.int_in_range(1..=8)?)?.to_vec());
+        let n = u.int_in_range(1..=8)?;
+        return Ok(u.bytes(n)?.to_vec());
     }
     Ok(u.choose(POKES)?.to_vec())
 }
@@ -325,8 +326,10 @@ fn run_one(bytes: &[u8]) -> Verdict {
     };
     let dir = tempfile::tempdir().expect("temp dir");
     let path = write_mutant(dir.path(), &edits, b);
+    // Messages without the temp dir, so the summary sorts refusals by kind.
+    let prefix = format!("{}/", dir.path().display());
     let verdict = match import(&path, &ImportOptions::default()) {
-        Err(e) => Verdict::Refused(e.to_string()),
+        Err(e) => Verdict::Refused(e.to_string().replace(&prefix, "")),
         Ok(scene) => match broken_contract(&scene) {
             Some(why) => Verdict::AcceptedCorruption(why),
             None => {
@@ -346,7 +349,7 @@ fn run_one(bytes: &[u8]) -> Verdict {
                     &NoProgress,
                 ) {
                     Ok(_) => Verdict::Accepted,
-                    Err(e) => Verdict::Refused(format!("build: {e}")),
+                    Err(e) => Verdict::Refused(format!("build: {e}").replace(&prefix, "")),
                 }
             }
         },

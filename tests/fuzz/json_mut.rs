@@ -187,10 +187,10 @@ pub fn edge_value(u: &mut Unstructured, doc: &Value, ptr: &str) -> arbitrary::Re
             2 => x * 2.0,
             _ => x * 1000.0,
         };
-        if y.fract() == 0.0 && y >= 0.0 && y < 1e15 {
+        if y.fract() == 0.0 && (0.0..1e15).contains(&y) {
             return Ok(Value::from(y as u64));
         }
-        if y.fract() == 0.0 && y < 0.0 && y > -1e15 {
+        if y.fract() == 0.0 && (-1e15..0.0).contains(&y) {
             return Ok(Value::from(y as i64));
         }
         return Ok(serde_json::Number::from_f64(y).map_or(Value::Null, Value::Number));
@@ -229,9 +229,15 @@ pub fn random_edit(
             let list = if list.is_empty() { fallback } else { list };
             Ok(u.choose(list)?.clone())
         };
+    // A document without integers (a camera path) gets its numbers edited instead.
+    let integers = if paths.integers.is_empty() {
+        &paths.numbers
+    } else {
+        &paths.integers
+    };
     Ok(match u.int_in_range(0..=99)? {
         0..=49 => {
-            let p = pick(u, &paths.integers, &paths.all)?;
+            let p = pick(u, integers, &paths.all)?;
             let v = edge_value(u, doc, &p)?;
             JsonEdit::Set(p, v)
         }

@@ -15,7 +15,7 @@ use serde_json::Value;
 use std::sync::OnceLock;
 
 /// Cases per CI run.
-const DEFAULT_CASES: u64 = 1500;
+const DEFAULT_CASES: u64 = 20_000;
 
 /// First line of an edit-script corpus file (its edits apply to the `small` preset).
 const MAGIC: &str = "#sweep-grid-edits";
