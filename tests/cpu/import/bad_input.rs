@@ -272,3 +272,54 @@ fn truncated_png_falls_back_with_a_counted_warning() {
         report.warnings
     );
 }
+
+/// The reported command end to end: `atlastree build` on the edited city exits with an error (not 101, a
+/// panic) and prints the file and the JSON path, and no panic message.
+#[test]
+fn reported_build_command_fails_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["meshes"][5]["primitives"][0]["attributes"]["POSITION"] = json!(2147483648u64);
+    let (path, _) = import_city(dir.path(), &doc);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_atlastree"))
+        .arg("build")
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.path().join("out.atlastree"))
+        .args(["--atlas-size", "256", "--quiet"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "{}: meshes[5].primitives[0].attributes.POSITION = 2147483648: no accessor 2147483648 (there are 348)",
+            path.display()
+        )),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("out.atlastree").exists());
+}
+
+/// A GLB header whose total length is below its own 12 bytes: gltf 1.4.1 subtracts 12 from it first (an
+/// overflow panic in debug builds); it is refused before gltf reads it.
+#[test]
+fn glb_header_length_below_twelve_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = std::fs::read(city_dir().join("scene.bin")).unwrap();
+    let mut doc = city_json();
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    let mut glb = glb_bytes(&doc, &bin);
+    glb[8..12].copy_from_slice(&5u32.to_le_bytes());
+    let path = dir.path().join("short.glb");
+    std::fs::write(&path, &glb).unwrap();
+    let e = import(&path, &ImportOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: not a valid glTF/GLB file: GLB: header says the file has 5 bytes, fewer than its 12-byte header",
+            path.display()
+        )
+    );
+}
