@@ -46,7 +46,7 @@ pub enum CameraError {
         previous: usize,
         previous_time: f64,
     },
-    #[error("{path}: keyframe {keyframe}: {field} is {value}, beyond ±{limit:e} ({unit})")]
+    #[error("{path}: keyframe {keyframe}: {field} is {value:e}, beyond ±{limit:e} ({unit})")]
     OutOfRange {
         path: PathBuf,
         keyframe: usize,

@@ -76,6 +76,15 @@ fn broken_promise(grid: &Grid, scene: &Scene) -> Option<String> {
     if plan.width > MAX_SIDE || plan.height > MAX_SIDE {
         return Some(format!("frames of {}×{} px", plan.width, plan.height));
     }
+    // The preprocessor's own check (`border * 4 >= atlas_size` in u32) wraps for borders from 2^30 in
+    // release builds: compare in u64 here.
+    if let Some(b) = plan
+        .builds
+        .iter()
+        .find(|b| u64::from(b.knobs.border) * 4 >= u64::from(b.knobs.atlas_size))
+    {
+        return Some(format!("build {} has a border of a quarter atlas or more", b.knobs.id()));
+    }
     plan.builds.iter().find_map(|b| {
         resolve_params(scene, &b.knobs.options())
             .err()
