@@ -46,6 +46,25 @@ pub enum CameraError {
         previous: usize,
         previous_time: f64,
     },
+    #[error("{path}: keyframe {keyframe}: {field} is {value:e}, beyond ±{limit:e} ({unit})")]
+    OutOfRange {
+        path: PathBuf,
+        keyframe: usize,
+        field: &'static str,
+        value: f64,
+        limit: f64,
+        unit: &'static str,
+    },
+    #[error(
+        "{path}: keyframe {keyframe}: time {time} s is only {gap:e} s after keyframe {previous}'s (keyframes must be at least {MIN_KEYFRAME_GAP:e} s apart)"
+    )]
+    TooClose {
+        path: PathBuf,
+        keyframe: usize,
+        time: f64,
+        previous: usize,
+        gap: f64,
+    },
     #[error("{path}: keyframe {keyframe}: field of view {fov}° is outside (0°, 180°)")]
     BadFov {
         path: PathBuf,
@@ -89,6 +108,14 @@ pub enum CameraError {
         source: GroundError,
     },
 }
+
+/// Largest |coordinate| of a keyframe's eye or target, world units (10⁶ km: beyond any scene, and far
+/// enough from f64's range that the spline's differences and slopes stay finite).
+pub const MAX_COORDINATE: f64 = 1e9;
+/// Largest |time| of a keyframe, seconds (about 30 years).
+pub const MAX_TIME: f64 = 1e9;
+/// Smallest time between two keyframes, seconds (the spline divides by it).
+pub const MIN_KEYFRAME_GAP: f64 = 1e-6;
 
 /// One keyframe: time, eye, target and horizontal field of view.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -179,7 +206,10 @@ impl CameraPath {
         })
     }
 
-    /// Checks everything [`CameraPath::sample`] relies on; `origin` names the source in errors.
+    /// Checks everything [`CameraPath::sample`] relies on (finite values, |eye|, |target| ≤
+    /// [`MAX_COORDINATE`], |time| ≤ [`MAX_TIME`], times increasing by at least [`MIN_KEYFRAME_GAP`], a
+    /// field of view in (0°, 180°), a usable lens and up vector), so every sample is finite; `origin`
+    /// names the source in errors.
     pub fn validate(&self, origin: &Path) -> Result<(), CameraError> {
         let path = || origin.to_owned();
         if self.keyframes.is_empty() {
@@ -231,6 +261,23 @@ impl CameraPath {
                     value,
                 });
             }
+            let limits = [(MAX_TIME, "seconds")]
+                .into_iter()
+                .chain(std::iter::repeat_n((MAX_COORDINATE, "world units"), 6));
+            if let Some((&(field, value), (limit, unit))) = fields
+                .iter()
+                .zip(limits)
+                .find(|((_, v), (limit, _))| v.abs() > *limit)
+            {
+                return Err(CameraError::OutOfRange {
+                    path: path(),
+                    keyframe: i,
+                    field,
+                    value,
+                    limit,
+                    unit,
+                });
+            }
             if !(k.fov > 0.0 && k.fov < 180.0) {
                 return Err(CameraError::BadFov {
                     path: path(),
@@ -244,16 +291,25 @@ impl CameraPath {
                     keyframe: i,
                 });
             }
-            if let Some(prev) = i.checked_sub(1).and_then(|p| self.keyframes.get(p))
-                && k.time <= prev.time
-            {
-                return Err(CameraError::Unsorted {
-                    path: path(),
-                    keyframe: i,
-                    time: k.time,
-                    previous: i - 1,
-                    previous_time: prev.time,
-                });
+            if let Some(prev) = i.checked_sub(1).and_then(|p| self.keyframes.get(p)) {
+                if k.time <= prev.time {
+                    return Err(CameraError::Unsorted {
+                        path: path(),
+                        keyframe: i,
+                        time: k.time,
+                        previous: i - 1,
+                        previous_time: prev.time,
+                    });
+                }
+                if k.time - prev.time < MIN_KEYFRAME_GAP {
+                    return Err(CameraError::TooClose {
+                        path: path(),
+                        keyframe: i,
+                        time: k.time,
+                        previous: i - 1,
+                        gap: k.time - prev.time,
+                    });
+                }
             }
         }
         Ok(())

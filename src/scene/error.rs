@@ -18,6 +18,30 @@ pub enum SceneError {
     Parse { file: String, reason: String },
     #[error("{file}: glTF validation failed: {reason}")]
     Invalid { file: String, reason: String },
+    /// A reference to an object that does not exist (`path` is the JSON path of the reference).
+    #[error("{file}: {path} = {index}: no {what} {index} (there are {count})")]
+    BadIndex {
+        file: String,
+        path: String,
+        index: u64,
+        /// The kind of object referenced, singular ("accessor", "buffer view").
+        what: String,
+        count: usize,
+    },
+    /// A reference that is not a whole number (`value` is its JSON text, cut to 40 characters).
+    #[error("{file}: {path} = {value}: not an index (a whole number from 0)")]
+    NotAnIndex {
+        file: String,
+        path: String,
+        value: String,
+    },
+    /// A panic inside a dependency, contained at the import boundary (`stage`: what was running).
+    #[error("{file}: internal error in the gltf crate ({stage}): {message}")]
+    Internal {
+        file: String,
+        stage: &'static str,
+        message: String,
+    },
     #[error("{file}: required extension {extension} is not supported")]
     UnsupportedExtension { file: String, extension: String },
     #[error("{file}: buffer {buffer} ({uri}): {reason}")]

@@ -20,6 +20,11 @@ use crate::preprocess::{BuildOptions, DMin, RepeatMode};
 use crate::texfmt::Compression;
 use serde::{Deserialize, Serialize};
 
+/// The most frames a grid may ask for per variant.
+pub const MAX_FRAMES: usize = 100_000;
+/// The largest frame side a grid may ask for, pixels (wgpu's default `max_texture_dimension_2d`).
+pub const MAX_SIDE: u32 = 8192;
+
 /// Values of the build-time knobs of one paging file.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BuildKnobs {
@@ -277,7 +282,9 @@ impl Grid {
         })
     }
 
-    /// Checks every value (positive, finite, atlas sizes powers of two, at least one frame).
+    /// Checks every value (positive, finite, atlas sizes powers of two, at least one frame, at most
+    /// [`MAX_FRAMES`] frames of at most [`MAX_SIDE`]² pixels, every planned build's border below a quarter
+    /// of its atlas side as the preprocessor requires).
     pub fn validate(&self, origin: &str) -> Result<(), SweepError> {
         let bad = |message: String| {
             Err(SweepError::Grid {
@@ -311,6 +318,28 @@ impl Grid {
             return bad(format!(
                 "frames {} and size {}×{} must be positive",
                 self.frames, self.width, self.height
+            ));
+        }
+        if self.frames > MAX_FRAMES || self.width > MAX_SIDE || self.height > MAX_SIDE {
+            return bad(format!(
+                "frames {} and size {}×{} must be at most {MAX_FRAMES} frames of {MAX_SIDE}×{MAX_SIDE}",
+                self.frames, self.width, self.height
+            ));
+        }
+        // Every build of the star, as the preprocessor will check it (border < atlas / 4), in u64 so no
+        // border overflows the comparison.
+        if let Some(k) = self
+            .plan()
+            .builds
+            .iter()
+            .map(|b| b.knobs)
+            .find(|k| u64::from(k.border) * 4 >= u64::from(k.atlas_size))
+        {
+            return bad(format!(
+                "border {} must be less than a quarter of atlas_size {} (build {})",
+                k.border,
+                k.atlas_size,
+                k.id()
             ));
         }
         Ok(())

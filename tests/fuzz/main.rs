@@ -22,3 +22,8 @@
 
 #[allow(dead_code)] // targets arrive module by module
 mod harness;
+
+mod camera_path;
+mod gltf;
+mod json_mut;
+mod sweep_grid;

@@ -11,8 +11,10 @@
 use crate::scene::error::SceneError;
 use gltf::accessor::{DataType, Dimensions};
 
-/// Cap on accessors without a buffer view (sparse-only, zero-initialised), in elements.
-const MAX_SPARSE_ONLY_COUNT: usize = 1 << 26;
+/// Cap on accessors without a buffer view (sparse-only, zero-initialised), in elements: such an accessor
+/// costs no bytes in the file, so its count alone must not decide the allocation (2^24 VEC3 elements
+/// are 384 MiB of f64).
+const MAX_SPARSE_ONLY_COUNT: usize = 1 << 24;
 
 /// Mesh/primitive identification for errors and warnings.
 pub(super) struct PrimCtx {
@@ -311,7 +313,8 @@ pub(super) fn plausible_count(acc: &gltf::Accessor) -> usize {
         .count()
         .checked_sub(1)
         .and_then(|c| c.checked_mul(stride))
-        .and_then(|x| x.checked_add(acc.offset() + elem))
+        .and_then(|x| x.checked_add(acc.offset()))
+        .and_then(|x| x.checked_add(elem))
         .is_some_and(|end| end <= view.length());
     if fits { acc.count() } else { 0 }
 }

@@ -5,6 +5,8 @@
 //! - `uri.rs`: the file's bytes → JSON and the GLB `BIN` chunk; buffers (external files, data URIs, the
 //!   `BIN` chunk) loaded on first use; images only have their header read
 //!   ([`crate::scene::image_source::read_header`]) and are decoded lazily;
+//! - `refs.rs`: every index one object gives to another, checked in the raw JSON ([`serde_json::Value`])
+//!   with its JSON path, before gltf-json (whose validation indexes before it bounds-checks) sees it;
 //! - here: the JSON → a validated [`gltf::Document`] plus the raw JSON fields gltf-json keeps as f32;
 //! - `nodes.rs`: the node graph → mesh instances with f64 world matrices ([`glam::DMat4`] products,
 //!   taken from the raw JSON), `EXT_mesh_gpu_instancing` expanded;
@@ -19,12 +21,14 @@
 //! accessors past their buffer, out-of-range indices, recursive node graphs, unsupported required
 //! extensions) are a [`SceneError`]; data problems that affect single triangles (non-finite positions or
 //! UVs) skip those triangles; unsupported primitive modes skip the primitive; missing images are
-//! replaced by a fallback checker. Every skip is counted in [`ImportReport`].
+//! replaced by a fallback checker. Every skip is counted in [`ImportReport`]. A panic left in a
+//! dependency is caught at this boundary and returned as [`SceneError::Internal`] naming the file.
 
 mod accessors;
 mod materials;
 mod mesh;
 mod nodes;
+mod refs;
 mod uri;
 mod warnings;
 
@@ -41,6 +45,7 @@ use materials::{Materials, RawMaterial};
 use mesh::Geometry;
 use nodes::{RawNode, Walk};
 use serde::Deserialize;
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 use uri::{Buffers, split_glb};
 
@@ -66,13 +71,42 @@ pub struct ImportOptions {
 /// the error/warning policy.
 pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
     let file = path.display().to_string();
+    // The JSON is checked before gltf sees it (`refs`), so no known input panics in it; a panic that
+    // is left (in gltf, gltf-json or the importer itself) becomes an error naming the file.
+    catch_unwind(AssertUnwindSafe(|| import_unguarded(path, opts, &file))).unwrap_or_else(
+        |payload| {
+            Err(SceneError::Internal {
+                file: file.clone(),
+                stage: "reading the document",
+                message: panic_message(payload.as_ref()),
+            })
+        },
+    )
+}
+
+/// [`import`] without the panic guard.
+fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Scene, SceneError> {
+    let file = file.to_string();
     let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
         file: file.clone(),
         source,
     })?;
     let (json_bytes, blob) = split_glb(bytes, &file)?;
-    let (doc, tolerated) = parse_document(&json_bytes, &file)?;
-    let raw: RawRoot = serde_json::from_slice(&json_bytes).map_err(|e| SceneError::Parse {
+    let value: serde_json::Value =
+        serde_json::from_slice(&json_bytes).map_err(|e| SceneError::Parse {
+            file: file.clone(),
+            reason: e.to_string(),
+        })?;
+    refs::check_indices(&value, &file)?;
+    let (doc, tolerated) =
+        catch_unwind(|| parse_document(&json_bytes, &file)).unwrap_or_else(|payload| {
+            Err(SceneError::Internal {
+                file: file.clone(),
+                stage: "parsing and validating the JSON",
+                message: panic_message(payload.as_ref()),
+            })
+        })?;
+    let raw: RawRoot = serde_json::from_value(value).map_err(|e| SceneError::Parse {
         file: file.clone(),
         reason: format!("raw JSON: {e}"),
     })?;
@@ -99,6 +133,15 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
         geometry.emit_instance(inst, &mut materials, &mut buffers, &mut report)?;
     }
     Ok(finish(path, opts, geometry, materials, report))
+}
+
+/// The text of a panic payload (`&str` or `String`), or a placeholder.
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(a panic without a message)".to_string())
 }
 
 /// Parses and validates the glTF JSON. `extensionsRequired` is checked against

@@ -21,6 +21,19 @@ pub(super) fn split_glb(
     if !bytes.starts_with(b"glTF") {
         return Ok((bytes, None));
     }
+    // gltf 1.4.1 computes `length - 12` before comparing (an overflow, a panic in debug builds).
+    let length = bytes
+        .get(8..12)
+        .and_then(|b| <[u8; 4]>::try_from(b).ok())
+        .map(u32::from_le_bytes);
+    if let Some(length) = length.filter(|&n| n < 12) {
+        return Err(SceneError::Parse {
+            file: file.to_string(),
+            reason: format!(
+                "GLB: header says the file has {length} bytes, fewer than its 12-byte header"
+            ),
+        });
+    }
     let glb = gltf::Glb::from_slice(&bytes).map_err(|e| SceneError::Parse {
         file: file.to_string(),
         reason: format!("GLB: {e}"),

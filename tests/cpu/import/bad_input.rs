@@ -1,0 +1,325 @@
+//! Issue 23, bad input never panics: the embedded city (`data/city`) with one reference broken per object
+//! kind, as `.gltf` and as GLB, a missing buffer and truncated PNGs. Each case asserts the exact message
+//! the user reads (the file, the JSON path, the bad value, what exists).
+
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
+use atlastree::scene::{ImportOptions, Scene, SceneError, import};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+
+fn city_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city")
+}
+
+/// The city's JSON with every image URI made absolute (so a copy in a temp dir needs no textures).
+fn city_json() -> Value {
+    let text = std::fs::read(city_dir().join("scene.gltf")).unwrap();
+    let mut doc: Value = serde_json::from_slice(&text).unwrap();
+    for img in doc["images"].as_array_mut().unwrap() {
+        let abs = city_dir().join(img["uri"].as_str().unwrap());
+        img["uri"] = json!(abs.display().to_string());
+    }
+    doc
+}
+
+/// Writes `doc` as `dir/scene.gltf` (with the city's `scene.bin` next to it) and imports it.
+fn import_city(dir: &Path, doc: &Value) -> (PathBuf, Result<Scene, SceneError>) {
+    std::fs::copy(city_dir().join("scene.bin"), dir.join("scene.bin")).unwrap();
+    let path = dir.join("scene.gltf");
+    std::fs::write(&path, serde_json::to_vec(doc).unwrap()).unwrap();
+    let r = import(&path, &ImportOptions::default());
+    (path, r)
+}
+
+/// The error of importing the city with `ptr` set to `value`, and the file it names.
+fn city_error(ptr: &str, value: Value) -> (String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    *doc.pointer_mut(ptr).unwrap_or_else(|| panic!("{ptr}")) = value;
+    let (path, r) = import_city(dir.path(), &doc);
+    let e = r.err().unwrap_or_else(|| panic!("{ptr}: imported"));
+    (path.display().to_string(), e.to_string())
+}
+
+/// The reported case: `meshes[5].primitives[0].attributes.POSITION = 2147483648` made `atlastree build`
+/// panic inside gltf-json's validation (`mesh.rs:151`, index out of bounds).
+#[test]
+fn reported_position_2147483648_names_file_and_json_path() {
+    let (file, e) = city_error(
+        "/meshes/5/primitives/0/attributes/POSITION",
+        json!(2147483648u64),
+    );
+    assert!(file.ends_with("scene.gltf"), "{file}");
+    assert_eq!(
+        e,
+        format!(
+            "{file}: meshes[5].primitives[0].attributes.POSITION = 2147483648: no accessor 2147483648 \
+             (there are 348)"
+        )
+    );
+}
+
+/// One out-of-range (or not-an-index) reference of each kind of object that names another.
+#[test]
+fn out_of_range_index_per_object_kind() {
+    let cases: [(&str, Value, &str); 9] = [
+        (
+            "/accessors/7/bufferView",
+            json!(4),
+            "accessors[7].bufferView = 4: no buffer view 4 (there are 4)",
+        ),
+        (
+            "/bufferViews/2/buffer",
+            json!(4294967296u64),
+            "bufferViews[2].buffer = 4294967296: no buffer 4294967296 (there are 1)",
+        ),
+        (
+            "/nodes/2/mesh",
+            json!(50),
+            "nodes[2].mesh = 50: no mesh 50 (there are 50)",
+        ),
+        (
+            "/meshes/0/primitives/0/material",
+            json!(56),
+            "meshes[0].primitives[0].material = 56: no material 56 (there are 56)",
+        ),
+        (
+            "/meshes/0/primitives/0/indices",
+            json!(u64::MAX),
+            "meshes[0].primitives[0].indices = 18446744073709551615: no accessor 18446744073709551615 \
+             (there are 348)",
+        ),
+        (
+            "/textures/3/source",
+            json!(53),
+            "textures[3].source = 53: no image 53 (there are 53)",
+        ),
+        (
+            "/materials/1/pbrMetallicRoughness/baseColorTexture/index",
+            json!(99),
+            "materials[1].pbrMetallicRoughness.baseColorTexture.index = 99: no texture 99 (there are 53)",
+        ),
+        (
+            "/scenes/0/nodes/0",
+            json!(62),
+            "scenes[0].nodes[0] = 62: no node 62 (there are 62)",
+        ),
+        (
+            "/nodes/0/children/1",
+            json!(-1),
+            "nodes[0].children[1] = -1: not an index (a whole number from 0)",
+        ),
+    ];
+    for (ptr, value, want) in cases {
+        let (file, e) = city_error(ptr, value);
+        assert_eq!(e, format!("{file}: {want}"), "{ptr}");
+    }
+}
+
+/// Samplers of an animation are indexed per animation; skins and morph targets name accessors and nodes.
+#[test]
+fn animation_skin_and_morph_target_references() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["animations"] = json!([{"samplers": [{"input": 0, "output": 1}], "channels": [
+        {"sampler": 0, "target": {"node": 3, "path": "translation"}},
+        {"sampler": 1, "target": {"node": 3, "path": "rotation"}}]}]);
+    let (path, r) = import_city(dir.path(), &doc);
+    assert_eq!(
+        r.unwrap_err().to_string(),
+        format!(
+            "{}: animations[0].channels[1].sampler = 1: no animation sampler 1 (there are 1)",
+            path.display()
+        )
+    );
+    let mut doc = city_json();
+    doc["skins"] = json!([{"joints": [0, 1, 62]}]);
+    let (path, r) = import_city(dir.path(), &doc);
+    assert_eq!(
+        r.unwrap_err().to_string(),
+        format!(
+            "{}: skins[0].joints[2] = 62: no node 62 (there are 62)",
+            path.display()
+        )
+    );
+    let mut doc = city_json();
+    doc["meshes"][1]["primitives"][0]["targets"] = json!([{"POSITION": 348}]);
+    let (path, r) = import_city(dir.path(), &doc);
+    assert_eq!(
+        r.unwrap_err().to_string(),
+        format!(
+            "{}: meshes[1].primitives[0].targets[0].POSITION = 348: no accessor 348 (there are 348)",
+            path.display()
+        )
+    );
+}
+
+/// The same check on the JSON chunk of a GLB; the message names the `.glb`.
+#[test]
+fn glb_with_a_bad_index() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    doc["accessors"][36]["sparse"] = json!({"count": 1, "indices": {"bufferView": 9, "componentType": 5123}, "values": {"bufferView": 0}});
+    let bin = std::fs::read(city_dir().join("scene.bin")).unwrap();
+    let glb = glb_bytes(&doc, &bin);
+    let path = dir.path().join("city.glb");
+    std::fs::write(&path, &glb).unwrap();
+    let e = import(&path, &ImportOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: accessors[36].sparse.indices.bufferView = 9: no buffer view 9 (there are 4)",
+            path.display()
+        )
+    );
+    // Without the bad index the GLB imports like the .gltf.
+    doc["accessors"][36]
+        .as_object_mut()
+        .unwrap()
+        .remove("sparse");
+    let fixed = glb_bytes(&doc, &bin);
+    std::fs::write(&path, fixed).unwrap();
+    let s = import(&path, &ImportOptions::default()).unwrap();
+    assert_eq!(s.triangles.len(), city_triangles());
+}
+
+fn glb_bytes(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut json = serde_json::to_vec(doc).unwrap();
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut glb = b"glTF".to_vec();
+    for x in [2, total as u32, json.len() as u32] {
+        glb.extend_from_slice(&x.to_le_bytes());
+    }
+    glb.extend_from_slice(b"JSON");
+    glb.extend_from_slice(&json);
+    glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"BIN\0");
+    glb.extend_from_slice(bin);
+    glb
+}
+
+fn city_triangles() -> usize {
+    import(&city_dir().join("scene.gltf"), &ImportOptions::default())
+        .unwrap()
+        .triangles
+        .len()
+}
+
+#[test]
+fn missing_buffer_file_names_buffer_and_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, r) = import_city(dir.path(), &city_json());
+    assert_eq!(r.unwrap().triangles.len(), city_triangles());
+    std::fs::remove_file(dir.path().join("scene.bin")).unwrap();
+    let e = import(&path, &ImportOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: buffer 0 (scene.bin): {}: No such file or directory (os error 2)",
+            path.display(),
+            dir.path().join("scene.bin").display()
+        )
+    );
+}
+
+/// A PNG cut inside its header is replaced at import by the fallback checker (counted, one warning);
+/// one cut inside its pixel data imports by its header and is replaced when the build decodes it.
+#[test]
+fn truncated_png_falls_back_with_a_counted_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = std::fs::read(city_dir().join("textures/roof_0.png")).unwrap();
+    std::fs::write(dir.path().join("cut.png"), &png[..20]).unwrap();
+    let mut doc = city_json();
+    doc["images"][0]["uri"] = json!("cut.png");
+    let (path, r) = import_city(dir.path(), &doc);
+    let s = r.unwrap();
+    assert_eq!(s.report.missing_images, 1);
+    let want = format!(
+        "{}: image 0 (cut.png): {}: PNG IHDR: failed to fill whole buffer; using the magenta/black \
+         fallback checker",
+        path.display(),
+        dir.path().join("cut.png").display()
+    );
+    assert_eq!(
+        s.report.warnings.iter().filter(|w| **w == want).count(),
+        1,
+        "{:?}",
+        s.report.warnings
+    );
+    assert_eq!(s.triangles.len(), city_triangles());
+
+    let idat = png.windows(4).position(|w| w == b"IDAT").unwrap();
+    std::fs::write(dir.path().join("cut.png"), &png[..idat + 30]).unwrap();
+    let (_, r) = import_city(dir.path(), &doc);
+    let s = r.unwrap();
+    assert_eq!(s.report.missing_images, 0, "the header is intact");
+    let opts = BuildOptions {
+        d_min: DMin::Ratio(15.0),
+        atlas_size: 256,
+        border: 4,
+        max_depth: 6,
+        ..BuildOptions::default()
+    };
+    let report = build(&s, &opts, &dir.path().join("out.atlastree"), &NoProgress).unwrap();
+    assert_eq!(report.image_fallbacks, 1);
+    assert!(
+        report.warnings.iter().any(|w| w.contains(" (cut.png): ")),
+        "{:?}",
+        report.warnings
+    );
+}
+
+/// The reported command end to end: `atlastree build` on the edited city exits with an error (not 101, a
+/// panic) and prints the file and the JSON path, and no panic message.
+#[test]
+fn reported_build_command_fails_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["meshes"][5]["primitives"][0]["attributes"]["POSITION"] = json!(2147483648u64);
+    let (path, _) = import_city(dir.path(), &doc);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_atlastree"))
+        .arg("build")
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.path().join("out.atlastree"))
+        .args(["--atlas-size", "256", "--quiet"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "{}: meshes[5].primitives[0].attributes.POSITION = 2147483648: no accessor 2147483648 (there are 348)",
+            path.display()
+        )),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("out.atlastree").exists());
+}
+
+/// A GLB header whose total length is below its own 12 bytes: gltf 1.4.1 subtracts 12 from it first (an
+/// overflow panic in debug builds); it is refused before gltf reads it.
+#[test]
+fn glb_header_length_below_twelve_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = std::fs::read(city_dir().join("scene.bin")).unwrap();
+    let mut doc = city_json();
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    let mut glb = glb_bytes(&doc, &bin);
+    glb[8..12].copy_from_slice(&5u32.to_le_bytes());
+    let path = dir.path().join("short.glb");
+    std::fs::write(&path, &glb).unwrap();
+    let e = import(&path, &ImportOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: not a valid glTF/GLB file: GLB: header says the file has 5 bytes, fewer than its 12-byte header",
+            path.display()
+        )
+    );
+}
