@@ -85,8 +85,11 @@ fn range_in(
     }
 }
 
-/// The build parameters decode (known up axis, depth fits a byte).
+/// The build parameters decode (known up axis, depth fits a byte) and the padding field is zero.
 pub(crate) fn check_params(p: &ParamsRecord) -> Result<(), StoreError> {
+    if p._pad != 0 {
+        return Err(bad_value("params", 0, "_pad", u64::from(p._pad)));
+    }
     if p.decode().is_none() {
         let (field, value) = if p.up > 2 {
             ("up", p.up)
@@ -98,13 +101,16 @@ pub(crate) fn check_params(p: &ParamsRecord) -> Result<(), StoreError> {
     Ok(())
 }
 
-/// Every material has known wrap and alpha codes and a UTF-8 name inside the Strings section.
+/// Every material has known wrap and alpha codes, a UTF-8 name inside the Strings section and a zero `_pad`.
 pub(crate) fn check_materials(
     materials: &[MaterialRecord],
     strings: &[u8],
 ) -> Result<(), StoreError> {
     for (i, m) in materials.iter().enumerate() {
         let i = i as u64;
+        if m._pad != 0 {
+            return Err(bad_value("materials", i, "_pad", u64::from(m._pad)));
+        }
         if m.alpha().is_none() {
             return Err(bad_value(
                 "materials",
@@ -344,6 +350,9 @@ fn check_leaves(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreE
     let base = t.record.leaves.first;
     for (l, leaf) in t.leaves.iter().enumerate() {
         let gl = base + l as u64;
+        if leaf._pad != 0 {
+            return Err(bad_value("leaves", gl, "_pad", u64::from(leaf._pad)));
+        }
         in_range(
             "leaves",
             gl,

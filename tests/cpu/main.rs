@@ -15,6 +15,7 @@ mod built;
 mod fixtures;
 
 mod architecture;
+mod build_faults;
 mod camera;
 mod citygen;
 mod cli;
@@ -29,6 +30,7 @@ mod shaders;
 mod shared_originals;
 mod sim;
 mod store;
+mod store_bytes;
 mod sweep;
 mod texfmt;
 mod views;
