@@ -1,4 +1,4 @@
-//! Target `paging_file`: structure-aware mutants of a small built paging file (`data/city` at 64² atlases)
+//! Target `paging_file`: structure-aware mutants of a small built paging file (a synthetic city, 64² atlases)
 //! fed to `TreeFile::from_bytes`, the block reads the renderer uses (`FileSource::fetch`, the block table)
 //! and `inspect::verify` (what `atlastree inspect --verify` runs).
 //!
@@ -26,23 +26,22 @@ use std::sync::{Arc, OnceLock};
 /// CI cases (≈ 20 s in release on 2 cores).
 const DEFAULT_CASES: u64 = 600;
 
-/// The base file's bytes.
+/// The base file: `scene::synthetic::small_city(2, 32)` at 64² atlases (as `tests/cpu/store_bytes.rs`).
 fn base() -> &'static [u8] {
     static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
     BYTES.get_or_init(|| {
-        let scene_path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
-        let scene =
-            atlastree::scene::import(&scene_path, &Default::default()).expect("data/city imports");
+        let scene = atlastree::scene::synthetic::small_city(2, 32);
         let opts = BuildOptions {
-            d_min: DMin::Ratio(10.0),
+            d_min: DMin::Ratio(40.0),
             atlas_size: 64,
             border: 4,
+            // Split every node that does not fit (the paper's tree): more blocks, more padding.
+            leaf_originals_atlases: 0.0,
             ..Default::default()
         };
         let dir = tempfile::tempdir().expect("temp dir");
-        let out = dir.path().join("city64.atlastree");
-        build(&scene, &opts, &out, &NoProgress).expect("data/city builds");
+        let out = dir.path().join("tiny.atlastree");
+        build(&scene, &opts, &out, &NoProgress).expect("the small city builds");
         std::fs::read(&out).expect("read the build")
     })
 }
