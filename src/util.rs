@@ -1,4 +1,153 @@
-//! Small process-level helpers.
+//! Small process-level helpers, and the one atomic file writer ([`AtomicFile`], [`write_atomic`]) every
+//! output goes through (paging files, reports, plots, saved views).
+
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// A file being written beside its target and published by rename, so a reader of `target` sees the old
+/// file or the complete new one, never a part (also when the writer is killed, or two write at once).
+///
+/// - The temp file is `.<target name>.tmp.<pid>.<random>` in the target's directory, created exclusively
+///   (`O_EXCL`): concurrent writers of one target never share a temp file. It is locked (advisory,
+///   `flock`) for the writer's life.
+/// - Dropping an uncommitted `AtomicFile` (an error, a panic) removes the temp file. A writer that was
+///   killed leaves it; the next [`AtomicFile::create`] for the same target removes such stale temps (those
+///   whose process is gone and whose lock is free) before creating its own.
+/// - [`AtomicFile::commit`] fsyncs the file, renames it over the target and fsyncs the directory (unix),
+///   so after it returns the new file survives a crash.
+pub struct AtomicFile {
+    target: PathBuf,
+    temp: tempfile::NamedTempFile,
+}
+
+/// The directory `path` lives in (`.` for a bare name).
+pub fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// The prefix of every temp file of `target`: `.<name>.tmp.`.
+fn temp_prefix(target: &Path) -> String {
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    format!(".{name}.tmp.")
+}
+
+/// Whether process `pid` may still run: `/proc/<pid>` exists (Linux); elsewhere always `true` (then a
+/// stale temp is left for the user, never a live one removed).
+fn process_may_run(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    let proc = Path::new("/proc");
+    if proc.join("self").exists() {
+        proc.join(pid.to_string()).exists()
+    } else {
+        true
+    }
+}
+
+/// Removes the temp files of `target` left by writers that were killed: named by [`temp_prefix`], their
+/// pid gone and their lock free. Returns how many were removed. Errors (a racing remover, permissions)
+/// only leave a temp in place.
+pub fn remove_stale_temps(target: &Path) -> usize {
+    let prefix = temp_prefix(target);
+    let Ok(entries) = std::fs::read_dir(parent_dir(target)) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = name.strip_prefix(&prefix) else {
+            continue;
+        };
+        let Some(pid) = rest.split('.').next().and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        if process_may_run(pid) {
+            continue;
+        }
+        let path = entry.path();
+        // A free lock confirms the owner is gone (another pid namespace may share the directory).
+        let free = File::open(&path).is_ok_and(|f| f.try_lock().is_ok());
+        if free && std::fs::remove_file(&path).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
+impl AtomicFile {
+    /// Creates the temp file for `target` (whose directory must exist) with unix permissions `mode` less
+    /// the umask, after removing stale temps of `target` ([`remove_stale_temps`]).
+    pub fn create(target: &Path, mode: u32) -> std::io::Result<AtomicFile> {
+        remove_stale_temps(target);
+        let prefix = format!("{}{}.", temp_prefix(target), std::process::id());
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).rand_bytes(8);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            builder.permissions(std::fs::Permissions::from_mode(mode));
+        }
+        #[cfg(not(unix))]
+        let _ = mode;
+        let temp = builder.tempfile_in(parent_dir(target))?;
+        // Best effort: where advisory locks are unsupported the pid alone guards the temp.
+        let _ = temp.as_file().try_lock();
+        Ok(AtomicFile {
+            target: target.to_path_buf(),
+            temp,
+        })
+    }
+
+    /// The open temp file (write through it: `Write for &File`, or positional writes).
+    pub fn file(&self) -> &File {
+        self.temp.as_file()
+    }
+
+    /// The temp file's path.
+    pub fn temp_path(&self) -> &Path {
+        self.temp.path()
+    }
+
+    /// The path the file will appear at.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Fsyncs the temp file, renames it over the target (replacing any file there: readers that hold the
+    /// old one open keep it) and fsyncs the directory. On error the temp file is removed and the target
+    /// is untouched.
+    pub fn commit(self) -> std::io::Result<()> {
+        self.temp.as_file().sync_all()?;
+        let AtomicFile { target, temp } = self;
+        temp.persist(&target).map_err(|e| e.error)?;
+        sync_dir(parent_dir(&target))
+    }
+}
+
+/// Makes a rename in `dir` durable (unix: fsync the directory). A no-op elsewhere.
+fn sync_dir(dir: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    File::open(dir)?.sync_all()?;
+    #[cfg(not(unix))]
+    let _ = dir;
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically ([`AtomicFile`]), readable by all (0o644 less the umask, like a
+/// plain `File::create`). The parent directory must exist.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let file = AtomicFile::create(path, 0o644)?;
+    file.file().write_all(bytes)?;
+    file.commit()
+}
 
 /// Peak resident set size of this process in bytes (Linux `VmHWM`); `None` where unavailable.
 pub fn peak_rss_bytes() -> Option<u64> {

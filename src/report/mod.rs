@@ -16,7 +16,6 @@ pub mod csv;
 pub mod metrics;
 pub mod plot;
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Errors of the report module; each names the file or input it is about.
@@ -75,16 +74,9 @@ impl ReportError {
     }
 }
 
-/// Writes `bytes` to `path` atomically: a temp file in the same directory, flushed, then renamed over
-/// `path`. The parent directory must exist.
+/// Writes `bytes` to `path` atomically ([`crate::util::write_atomic`]). The parent directory must exist.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ReportError> {
-    let mut temp = temp_beside(path)?;
-    temp.write_all(bytes)
-        .and_then(|()| temp.as_file().sync_all())
-        .map_err(|e| ReportError::io(path, e))?;
-    temp.persist(path)
-        .map_err(|e| ReportError::io(path, e.error))?;
-    Ok(())
+    crate::util::write_atomic(path, bytes).map_err(|e| ReportError::io(path, e))
 }
 
 /// A temp file in `path`'s directory, created readable by all (0o644 less the umask, like a plain

@@ -20,9 +20,13 @@
 //! Everything is **little-endian**; the reader and writer refuse to run on big-endian targets rather than
 //! byte-swap. Ids inside a tree's records (node, leaf, rect, original, vertex and index numbers) are local to
 //! that tree: `NodeId(0)` is the root of every tree. Block ids are global (index into the Blocks section).
-//! Every gap (between sections, and from the last section to the first block) is zero; the reader checks it,
-//! so every byte before the first block is covered by a checksum or a zero check. Gaps between blocks are
-//! not checked.
+//! Placement is canonical: each section starts at the end of the one before rounded up to
+//! [`SECTION_ALIGN`], each block at the end of what precedes it rounded up to [`BLOCK_ALIGN`], and the file
+//! ends exactly where the last block ends (where the tables end when there is no block). Every gap is
+//! zero, and so are the records' `_pad` fields. Every byte of a file is thus covered by a checksum (header,
+//! sections, blocks) or a zero check: the reader checks the gaps up to the first block at open and the
+//! padding after a block whenever it reads that block ([`crate::store::TreeFile::block`]); the length check
+//! at open refuses truncated files and appended bytes.
 //!
 //! Every record has explicit padding fields (bytemuck's derive rejects implicit padding) and a const-asserted
 //! size, so a change of layout is a compile error, not a silent format change.

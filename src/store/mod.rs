@@ -15,7 +15,7 @@ mod read;
 mod validate;
 mod write;
 
-pub use read::{LoadMode, TreeFile, TreeView};
+pub use read::{LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
 pub use write::{FileWriter, WriteSummary};
 
 use crate::ids::BlockId;
@@ -63,8 +63,10 @@ pub enum StoreError {
         offset: u64,
         align: u64,
     },
-    #[error("non-zero padding byte at offset {offset}")]
+    #[error("padding between the tables or before the first block at byte {offset} is not zero")]
     NonZeroPadding { offset: u64 },
+    #[error("padding after {block} at byte {offset} is not zero")]
+    BlockPadding { block: BlockId, offset: u64 },
     #[error("checksum mismatch in {what}: expected {expected:#018x}, found {found:#018x}")]
     ChecksumMismatch {
         what: String,
@@ -93,11 +95,14 @@ pub enum StoreError {
         len: u64,
         file_len: u64,
     },
-    #[error("{block} starts at {offset}, before the end {previous_end} of what precedes it")]
-    BlockOverlap {
+    #[error(
+        "{block} starts at byte {offset}, expected {expected} (the end of what precedes it rounded up to \
+         the block alignment)"
+    )]
+    BlockPlacement {
         block: BlockId,
         offset: u64,
-        previous_end: u64,
+        expected: u64,
     },
     #[error("{block}: expected {expected} bytes, got {got}")]
     BlockLength {
@@ -117,6 +122,15 @@ pub enum StoreError {
     LayoutOverflow { what: &'static str },
     #[error("the paging file is little-endian; this target is big-endian")]
     BigEndian,
+    /// Writing the file failed (disk full, file size limit, I/O error); the temp file is removed and
+    /// nothing appears at `target`.
+    #[error("writing {target} failed, nothing written there: {source} (temp file {temp})")]
+    Write {
+        target: PathBuf,
+        temp: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,

@@ -324,8 +324,11 @@ fn check_sections(path: &Path, header: &Header, bytes: &[u8]) -> Result<u64, Sto
         if expected_len != Some(e.length) {
             return Err(layout("length", e.length, expected_len.unwrap_or(u64::MAX)));
         }
-        if e.offset < prev_end {
-            return Err(layout("offset", e.offset, prev_end));
+        // Canonical placement: the end of what precedes, rounded up to SECTION_ALIGN (so every gap is
+        // shorter than SECTION_ALIGN and zero-checked below).
+        let expected_offset = align_up(prev_end, SECTION_ALIGN).unwrap_or(u64::MAX);
+        if e.offset != expected_offset {
+            return Err(layout("offset", e.offset, expected_offset));
         }
         let end = e
             .offset
@@ -365,9 +368,12 @@ fn check_sections(path: &Path, header: &Header, bytes: &[u8]) -> Result<u64, Sto
     Ok(prev_end)
 }
 
-/// Block placement: after the tables, 4 KiB aligned, in id order without overlap, inside the file, and the
-/// file ends where the last block ends. The gap from the tables to the first block must be zero (checked as
-/// far as `bytes` reaches: all of it for a whole file, up to the prefix's end for a table prefix).
+/// Block placement: block `i` starts exactly at the end of what precedes it (the tables for block 0)
+/// rounded up to [`BLOCK_ALIGN`], inside the file, and the file ends exactly where the last block ends (at
+/// the tables' end when there is no block). So the only bytes not covered by a checksum are the zero
+/// padding in front of each block, shorter than [`BLOCK_ALIGN`]: the padding before block 0 is checked here
+/// (as far as `bytes` reaches: all of it for a whole file, up to the prefix's end for a table prefix), the
+/// padding after block `i` when block `i` is read ([`TreeFile::block`]).
 fn check_block_layout(
     blocks: &[BlockRecord],
     tables_end: u64,
@@ -377,19 +383,13 @@ fn check_block_layout(
     let mut prev_end = tables_end;
     for (i, b) in blocks.iter().enumerate() {
         let block = BlockId(i as u32);
-        if b.offset % BLOCK_ALIGN != 0 {
-            let what = format!("{block}");
-            return Err(StoreError::Misaligned {
-                what,
-                offset: b.offset,
-                align: BLOCK_ALIGN,
-            });
-        }
-        if b.offset < prev_end {
-            return Err(StoreError::BlockOverlap {
+        let expected =
+            align_up(prev_end, BLOCK_ALIGN).ok_or(StoreError::LayoutOverflow { what: "blocks" })?;
+        if b.offset != expected {
+            return Err(StoreError::BlockPlacement {
                 block,
                 offset: b.offset,
-                previous_end: prev_end,
+                expected,
             });
         }
         let end = b
@@ -407,9 +407,6 @@ fn check_block_layout(
         }
         prev_end = end;
     }
-    if blocks.is_empty() {
-        check_zero(bytes, tables_end, file_len)?;
-    }
     if prev_end != file_len {
         return Err(StoreError::SectionLayout {
             section: "blocks",
@@ -419,6 +416,40 @@ fn check_block_layout(
         });
     }
     Ok(())
+}
+
+/// The zero padding after block `record` (id `id`): from its end to the next [`BLOCK_ALIGN`] boundary,
+/// or to `file_len` for the last block (none: the file ends where it ends). `padding` holds those bytes
+/// ([`padding_range`]); fails naming the first non-zero byte.
+pub fn check_block_padding(
+    id: BlockId,
+    record: &BlockRecord,
+    file_len: u64,
+    padding: &[u8],
+) -> Result<(), StoreError> {
+    let (from, to) = padding_range(record, file_len);
+    if padding.len() as u64 != to - from {
+        return Err(StoreError::BlockLength {
+            block: id,
+            expected: to - from,
+            got: padding.len() as u64,
+        });
+    }
+    match padding.iter().position(|&b| b != 0) {
+        Some(p) => Err(StoreError::BlockPadding {
+            block: id,
+            offset: from + p as u64,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The byte range `[from, to)` of the padding after block `record` in a file of `file_len` bytes (empty
+/// for the last block and for a record outside the file).
+pub fn padding_range(record: &BlockRecord, file_len: u64) -> (u64, u64) {
+    let end = record.offset.saturating_add(record.length).min(file_len);
+    let to = align_up(end, BLOCK_ALIGN).unwrap_or(u64::MAX).min(file_len);
+    (end, to)
 }
 
 impl TreeFile {
@@ -679,7 +710,9 @@ impl TreeFile {
         self.records(Section::Blocks)
     }
 
-    /// The bytes of block `id`, after checking them against the block's checksum (the paging read).
+    /// The bytes of block `id`, after checking them against the block's checksum and the padding after it
+    /// (up to the next [`BLOCK_ALIGN`] boundary) for zero (the paging read; at most 4095 bytes more, in
+    /// the page holding the block's tail).
     /// Fails with [`StoreError::BlocksNotHeld`] on a table prefix ([`TreeFile::from_prefix`]).
     pub fn block(&self, id: BlockId) -> Result<&[u8], StoreError> {
         let blocks = self.blocks();
@@ -704,6 +737,9 @@ impl TreeFile {
                 file_len: self.file_len(),
             })?;
         checksum(format!("{id}"), b.checksum, bytes)?;
+        let (from, to) = padding_range(b, self.file_len());
+        let padding = slice_at(self.bytes(), from, to - from).unwrap_or(&[]);
+        check_block_padding(id, b, self.file_len(), padding)?;
         Ok(bytes)
     }
 

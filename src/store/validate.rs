@@ -10,6 +10,9 @@ use super::{StoreError, TreeView};
 use crate::ids::NONE;
 use crate::model::{MAX_ORIGINAL_CLASS, MIN_ORIGINAL_CLASS};
 
+/// The largest atlas side a file may record, texels (the builder's limit, `--atlas-size`).
+pub(crate) const MAX_ATLAS_SIZE: u32 = 16384;
+
 /// The tables of one tree ([`TreeView`]) and the tree's index, which error messages and block checks need.
 pub(crate) struct TreeTables<'a> {
     /// Index of the tree.
@@ -85,8 +88,21 @@ fn range_in(
     }
 }
 
-/// The build parameters decode (known up axis, depth fits a byte).
+/// The build parameters decode (known up axis, depth fits a byte), the atlas side is a power of two of at
+/// most [`MAX_ATLAS_SIZE`] and the padding field is zero.
 pub(crate) fn check_params(p: &ParamsRecord) -> Result<(), StoreError> {
+    if p._pad != 0 {
+        return Err(bad_value("params", 0, "_pad", u64::from(p._pad)));
+    }
+    // A power of two up to the builder's largest (what every atlas decode and mip chain assumes).
+    if !p.atlas_size.is_power_of_two() || p.atlas_size > MAX_ATLAS_SIZE {
+        return Err(bad_value(
+            "params",
+            0,
+            "atlas_size",
+            u64::from(p.atlas_size),
+        ));
+    }
     if p.decode().is_none() {
         let (field, value) = if p.up > 2 {
             ("up", p.up)
@@ -98,13 +114,16 @@ pub(crate) fn check_params(p: &ParamsRecord) -> Result<(), StoreError> {
     Ok(())
 }
 
-/// Every material has known wrap and alpha codes and a UTF-8 name inside the Strings section.
+/// Every material has known wrap and alpha codes, a UTF-8 name inside the Strings section and a zero `_pad`.
 pub(crate) fn check_materials(
     materials: &[MaterialRecord],
     strings: &[u8],
 ) -> Result<(), StoreError> {
     for (i, m) in materials.iter().enumerate() {
         let i = i as u64;
+        if m._pad != 0 {
+            return Err(bad_value("materials", i, "_pad", u64::from(m._pad)));
+        }
         if m.alpha().is_none() {
             return Err(bad_value(
                 "materials",
@@ -344,6 +363,9 @@ fn check_leaves(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreE
     let base = t.record.leaves.first;
     for (l, leaf) in t.leaves.iter().enumerate() {
         let gl = base + l as u64;
+        if leaf._pad != 0 {
+            return Err(bad_value("leaves", gl, "_pad", u64::from(leaf._pad)));
+        }
         in_range(
             "leaves",
             gl,

@@ -10,12 +10,12 @@ use super::validate::{self, TreeCounts, TreeTables};
 use super::{StoreError, check_endian};
 use crate::ids::BlockId;
 use crate::model::{AtlasForest, AtlasTree};
+use crate::util::AtomicFile;
 use bytemuck::Zeroable;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
-use tempfile::NamedTempFile;
 
 /// Bytes of a written file, by part.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -54,7 +54,8 @@ const WRITTEN: u8 = 2;
 /// and leaves any existing file at the target untouched.
 pub struct FileWriter {
     target: PathBuf,
-    temp: NamedTempFile,
+    /// The temp file beside the target ([`AtomicFile`]: unique per writer, removed on drop).
+    temp: AtomicFile,
     header: Header,
     /// Block table with checksums still 0.
     blocks: Vec<BlockRecord>,
@@ -308,23 +309,13 @@ impl FileWriter {
             .collect();
         validate_encoded(forest, &encoded, &blocks)?;
 
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        // The permissions of a plain `File::create` once renamed (0o666 less the umask); tempfile's
-        // default 0o600 would make a paging file private to its builder, e.g. unservable by another
-        // user's server.
-        let mut builder = tempfile::Builder::new();
-        builder.prefix(".tmp-atlastree");
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            builder.permissions(std::fs::Permissions::from_mode(0o666));
-        }
-        let temp = builder
-            .tempfile_in(dir)
-            .map_err(|e| StoreError::io(dir, e))?;
+        // The permissions of a plain `File::create` once renamed (0o666 less the umask); a private 0o600
+        // would make a paging file unservable by another user's server.
+        let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Write {
+            target: path.to_path_buf(),
+            temp: crate::util::parent_dir(path).to_path_buf(),
+            source,
+        })?;
         let mut writer = FileWriter {
             target: path.to_path_buf(),
             header: Header {
@@ -349,15 +340,20 @@ impl FileWriter {
         };
         writer
             .temp
-            .as_file()
+            .file()
             .set_len(file_len)
             .map_err(|e| writer.temp_err(e))?;
         writer.write_tables(forest, &encoded)?;
         Ok(writer)
     }
 
-    fn temp_err(&self, e: std::io::Error) -> StoreError {
-        StoreError::io(self.temp.path(), e)
+    /// An I/O error while writing, naming the target (what the user asked for) and the temp file.
+    fn temp_err(&self, source: std::io::Error) -> StoreError {
+        StoreError::Write {
+            target: self.target.clone(),
+            temp: self.temp.temp_path().to_path_buf(),
+            source,
+        }
     }
 
     /// Writes `parts` back to back at `section`'s offset and records their checksum in the header.
@@ -365,7 +361,7 @@ impl FileWriter {
         let mut offset = self.header.section(section).offset;
         let mut hasher = xxhash_rust::xxh3::Xxh3::new();
         for part in parts {
-            write_all_at(self.temp.as_file(), &self.lock, offset, part)
+            write_all_at(self.temp.file(), &self.lock, offset, part)
                 .map_err(|e| self.temp_err(e))?;
             hasher.update(part);
             offset += part.len() as u64;
@@ -455,7 +451,7 @@ impl FileWriter {
             return Err(StoreError::BlockWrittenTwice { block: id });
         }
         let sum = xxhash_rust::xxh3::xxh3_64(bytes);
-        if let Err(e) = write_all_at(self.temp.as_file(), &self.lock, record.offset, bytes) {
+        if let Err(e) = write_all_at(self.temp.file(), &self.lock, record.offset, bytes) {
             state.store(UNWRITTEN, Ordering::Release);
             return Err(self.temp_err(e));
         }
@@ -486,41 +482,22 @@ impl FileWriter {
         self.write_section(Section::Blocks, &[bytemuck::cast_slice(&blocks)])?;
         self.header.checksum = self.header.compute_checksum();
         let header = self.header;
-        write_all_at(
-            self.temp.as_file(),
-            &self.lock,
-            0,
-            bytemuck::bytes_of(&header),
-        )
-        .map_err(|e| self.temp_err(e))?;
-        self.temp
-            .as_file()
-            .sync_all()
+        write_all_at(self.temp.file(), &self.lock, 0, bytemuck::bytes_of(&header))
             .map_err(|e| self.temp_err(e))?;
-        let target = self.target.clone();
-        self.temp
-            .persist(&target)
-            .map_err(|e| StoreError::io(&target, e.error))?;
-        sync_parent_dir(&target)?;
-        Ok(self.summary)
+        let FileWriter {
+            target,
+            temp,
+            summary,
+            ..
+        } = self;
+        let temp_path = temp.temp_path().to_path_buf();
+        temp.commit().map_err(|source| StoreError::Write {
+            target,
+            temp: temp_path,
+            source,
+        })?;
+        Ok(summary)
     }
-}
-
-/// Makes the rename durable (unix: fsync the directory). A no-op elsewhere.
-fn sync_parent_dir(path: &Path) -> Result<(), StoreError> {
-    #[cfg(unix)]
-    {
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        File::open(dir)
-            .and_then(|d| d.sync_all())
-            .map_err(|e| StoreError::io(dir, e))?;
-    }
-    #[cfg(not(unix))]
-    let _ = path;
-    Ok(())
 }
 
 fn summarize(

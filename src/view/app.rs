@@ -12,7 +12,6 @@ use crate::select::{SelectOptions, min_distance_scale};
 use crate::store::TreeFile;
 use glam::DVec3;
 use std::cell::OnceCell;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use winit::application::ApplicationHandler;
@@ -771,25 +770,10 @@ fn numbered(dir: &Path, stem: &str, ext: &str) -> PathBuf {
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so no reader
 /// sees a half-written file. Creates the directory.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ViewError> {
-    let err = |message: String| ViewError::Write {
+    let err = |e: std::io::Error| ViewError::Write {
         path: path.to_owned(),
-        message,
+        message: e.to_string(),
     };
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| err(e.to_string()))?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| err(e.to_string()))?;
-    tmp.write_all(bytes).map_err(|e| err(e.to_string()))?;
-    // Temporary files are private (0600); outputs get the usual 0644.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(|e| err(e.to_string()))?;
-    }
-    tmp.persist(path).map_err(|e| err(e.error.to_string()))?;
-    Ok(())
+    std::fs::create_dir_all(crate::util::parent_dir(path)).map_err(err)?;
+    crate::util::write_atomic(path, bytes).map_err(err)
 }

@@ -22,6 +22,7 @@ mod built;
 mod fixtures;
 
 mod architecture;
+mod build_faults;
 mod camera;
 mod citygen;
 mod cli;
@@ -37,6 +38,7 @@ mod shaders;
 mod shared_originals;
 mod sim;
 mod store;
+mod store_bytes;
 mod sweep;
 mod texfmt;
 mod views;

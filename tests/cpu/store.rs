@@ -309,15 +309,17 @@ fn resealed_bad_references_are_named() {
         }
         other => panic!("{:?}", other.err()),
     }
-    // A block offset moved off its 4 KiB alignment.
+    // A block offset moved off its place (the end of the block before, rounded up to 4 KiB).
     let mut b = bytes.clone();
     let at = record_at(&b, Section::Blocks, 1);
     let off = u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
     b[at..at + 8].copy_from_slice(&(off + 16).to_le_bytes());
     reseal(&mut b);
-    assert!(
-        matches!(TreeFile::from_bytes(&b), Err(StoreError::Misaligned { offset, .. }) if offset == off + 16)
-    );
+    assert!(matches!(
+        TreeFile::from_bytes(&b),
+        Err(StoreError::BlockPlacement { block: BlockId(1), offset, expected })
+            if offset == off + 16 && expected == off
+    ));
     // An original whose width is not a power of two (OriginalRecord::width at byte 8), and one whose
     // chain no longer fits its block (height doubled: the block's slots sum to more than its length).
     let mut b = bytes.clone();

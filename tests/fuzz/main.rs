@@ -26,4 +26,5 @@ mod harness;
 mod camera_path;
 mod gltf;
 mod json_mut;
+mod paging_file;
 mod sweep_grid;

@@ -1,0 +1,241 @@
+//! Builds survive faults (issue 23): the real binary building `data/city` is killed at seeded moments,
+//! runs out of file size, races another build of the same output, and replaces a file a reader maps. Each
+//! time the output is absent or the complete file (byte-identical to a reference build), no temp file is
+//! left for the next build to trip on, and the next build succeeds byte for byte.
+
+use atlastree::inspect;
+use atlastree::store::{LoadMode, TreeFile};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+fn scene() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf")
+}
+
+/// `atlastree build` of `data/city` at 256² atlases into `out` (a few seconds in release).
+fn build_args(out: &Path, atlas: u32) -> Vec<String> {
+    let mut args: Vec<String> = ["build", "--d-min-ratio", "10", "--atlas-size"]
+        .map(String::from)
+        .into();
+    args.push(atlas.to_string());
+    args.push("-o".into());
+    args.push(out.display().to_string());
+    args.push(scene().display().to_string());
+    args
+}
+
+fn build_cmd(out: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_atlastree"));
+    c.args(build_args(out, 256))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    c
+}
+
+fn run_ok(cmd: &mut Command) -> Output {
+    let out = cmd.output().expect("spawn atlastree");
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// The reference build's bytes and how long it took.
+fn reference() -> &'static (Vec<u8>, Duration) {
+    static REF: OnceLock<(Vec<u8>, Duration)> = OnceLock::new();
+    REF.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("city.atlastree");
+        let t = Instant::now();
+        run_ok(&mut build_cmd(&out));
+        let took = t.elapsed();
+        let bytes = std::fs::read(&out).unwrap();
+        let file = TreeFile::from_bytes(&bytes).unwrap();
+        assert!(inspect::verify(&file).ok());
+        (bytes, took)
+    })
+}
+
+/// The temp files of `out` in its directory (`.<name>.tmp.*`).
+fn temps(out: &Path) -> Vec<String> {
+    let prefix = format!(".{}.tmp.", out.file_name().unwrap().to_string_lossy());
+    let mut v: Vec<String> = std::fs::read_dir(out.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(&prefix))
+        .collect();
+    v.sort();
+    v
+}
+
+/// The output is absent, or complete and equal to the reference.
+fn absent_or_complete(out: &Path, reference: &[u8], what: &str) -> bool {
+    match std::fs::read(out) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+        Err(e) => panic!("{what}: {e}"),
+        Ok(bytes) => {
+            assert!(
+                bytes == reference,
+                "{what}: output differs from the reference ({} bytes)",
+                bytes.len()
+            );
+            true
+        }
+    }
+}
+
+fn splitmix64(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+#[test]
+fn killed_build_leaves_nothing_or_the_whole_file_and_the_next_build_succeeds() {
+    let (reference, took) = reference();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    // 12 kill points: stratified over 0..1.1 × the reference build's time (one per stratum, seeded), so
+    // the early stages, the block writes, the rename and just after it are all hit.
+    let mut state = 23u64;
+    let points = 12u64;
+    let (mut complete, mut absent, mut stale_seen) = (0, 0, 0);
+    for k in 0..points {
+        let u = (k as f64 + (splitmix64(&mut state) >> 11) as f64 / (1u64 << 53) as f64)
+            / points as f64;
+        let delay = took.mul_f64(1.1 * u);
+        let _ = std::fs::remove_file(&out);
+        let mut child = build_cmd(&out).stderr(Stdio::null()).spawn().unwrap();
+        std::thread::sleep(delay);
+        let _ = child.kill(); // SIGKILL; an error means it had already exited
+        let status = child.wait().unwrap();
+        let what = format!("kill point {k} at {delay:?} ({status})");
+        if absent_or_complete(&out, reference, &what) {
+            complete += 1;
+        } else {
+            absent += 1;
+        }
+        stale_seen += temps(&out).len();
+        // The next build cleans up after the killed one and writes the same bytes.
+        run_ok(&mut build_cmd(&out));
+        assert!(
+            std::fs::read(&out).unwrap() == *reference,
+            "{what}: next build differs"
+        );
+        assert_eq!(
+            temps(&out),
+            Vec::<String>::new(),
+            "{what}: temps after the next build"
+        );
+    }
+    println!(
+        "kill test: {points} kill points over 1.1 × {took:?}: {absent} left no file, {complete} the complete \
+         file; {stale_seen} stale temps left by killed builds, all removed by the next build"
+    );
+    assert_eq!(absent + complete, points);
+}
+
+/// Runs the build under `ulimit -f 1024` (1 MiB or 512 KiB, by the shell's unit) with SIGXFSZ ignored, so
+/// the write fails with EFBIG instead of the process being killed.
+fn build_limited(out: &Path) -> Output {
+    let mut script = String::from("trap '' XFSZ; ulimit -f 1024; exec \"$0\"");
+    for i in 0..build_args(out, 256).len() {
+        script.push_str(&format!(" \"${}\"", i + 1));
+    }
+    Command::new("sh")
+        .arg("-c")
+        .arg(script)
+        .arg(env!("CARGO_BIN_EXE_atlastree"))
+        .args(build_args(out, 256))
+        .stdout(Stdio::null())
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn file_size_limit_fails_clearly_and_leaves_no_partial_file() {
+    let (reference, _) = reference();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    let failed = build_limited(&out);
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert_eq!(failed.status.code(), Some(1), "{}: {stderr}", failed.status);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let want = format!("writing {} failed", out.display());
+    assert!(stderr.contains(&want), "{stderr}");
+    assert!(stderr.contains("File too large"), "{stderr}");
+    assert!(!out.exists(), "no output file");
+    assert_eq!(temps(&out), Vec::<String>::new(), "temp removed");
+    // An existing output is kept as it was.
+    std::fs::write(&out, reference).unwrap();
+    let failed = build_limited(&out);
+    assert_eq!(failed.status.code(), Some(1));
+    assert!(
+        std::fs::read(&out).unwrap() == *reference,
+        "old file intact"
+    );
+    assert_eq!(temps(&out), Vec::<String>::new());
+    println!(
+        "disk-full test: exit 1, {}",
+        stderr.lines().last().unwrap_or("")
+    );
+}
+
+#[test]
+fn concurrent_builds_of_one_output_leave_one_complete_file() {
+    let (reference, _) = reference();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    let children: Vec<_> = (0..3).map(|_| build_cmd(&out).spawn().unwrap()).collect();
+    for c in children {
+        let o = c.wait_with_output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert!(
+        std::fs::read(&out).unwrap() == *reference,
+        "the survivor is complete"
+    );
+    assert_eq!(temps(&out), Vec::<String>::new());
+}
+
+#[test]
+fn mapped_reader_keeps_its_file_while_a_build_replaces_it() {
+    let (reference, _) = reference();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    std::fs::write(&out, reference).unwrap();
+    let old = TreeFile::open_with(&out, LoadMode::Mmap).unwrap();
+    assert!(old.is_mapped());
+    // A different build (128² atlases) replaces the file while `old` maps it.
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_atlastree"));
+    cmd.args(build_args(&out, 128)).stdout(Stdio::null());
+    let child = cmd.spawn().unwrap();
+    // Read and verify the old file while the build runs, and after.
+    let mut passes = 0;
+    let mut child = child;
+    loop {
+        old.verify_blocks().unwrap();
+        passes += 1;
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+    }
+    assert!(child.wait().unwrap().success());
+    assert!(inspect::verify(&old).ok(), "the old map still verifies");
+    assert_eq!(old.params().atlas_size, 256);
+    assert_eq!(old.file_len(), reference.len() as u64);
+    let new = TreeFile::open(&out).unwrap();
+    assert_eq!(
+        new.params().atlas_size,
+        128,
+        "the path now holds the new build"
+    );
+    assert!(passes >= 1);
+}

@@ -1,0 +1,205 @@
+//! Every byte of a paging file is accounted for (issue 23): a small built file (64² atlases, the smallest
+//! the builder accepts) refuses every single-byte change (XOR 0xFF) — header, tables, padding and block
+//! payloads, every byte of the file — every truncation and any appended bytes: at open
+//! (`TreeFile::from_bytes`, `TreeFile::open` with mmap and read) or in `inspect::verify`, the library side of
+//! `atlastree inspect --verify`.
+
+use atlastree::ids::BlockId;
+use atlastree::inspect;
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
+use atlastree::store::format::{BLOCK_ALIGN, HEADER_SIZE};
+use atlastree::store::{LoadMode, StoreError, TreeFile, padding_range};
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// A small synthetic city (2 × 2 buildings, 32² facades, `scene::synthetic::small_city`) built at the
+/// smallest atlas the builder accepts (64², border 4, d_min = diagonal / 40): its bytes.
+fn tiny() -> &'static [u8] {
+    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
+    BYTES.get_or_init(|| {
+        let scene = atlastree::scene::synthetic::small_city(2, 32);
+        let opts = BuildOptions {
+            d_min: DMin::Ratio(40.0),
+            atlas_size: 64,
+            border: 4,
+            // Split every node that does not fit (the paper's tree): more blocks, more padding.
+            leaf_originals_atlases: 0.0,
+            ..Default::default()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("tiny.atlastree");
+        build(&scene, &opts, &out, &NoProgress).unwrap();
+        std::fs::read(&out).unwrap()
+    })
+}
+
+/// The regions of a file, in file order: `(name, from, to)`, covering `0..len` exactly.
+fn regions(file: &TreeFile) -> Vec<(String, u64, u64)> {
+    let mut out = vec![("header".to_string(), 0, HEADER_SIZE as u64)];
+    let tables_end = file
+        .header()
+        .sections
+        .iter()
+        .map(|s| s.offset + s.length)
+        .max()
+        .unwrap();
+    out.push(("tables".into(), HEADER_SIZE as u64, tables_end));
+    let blocks = file.blocks();
+    let first = blocks.first().map_or(tables_end, |b| b.offset);
+    out.push(("padding before block 0".into(), tables_end, first));
+    for (i, b) in blocks.iter().enumerate() {
+        out.push((format!("block {i}"), b.offset, b.offset + b.length));
+        let (from, to) = padding_range(b, file.file_len());
+        out.push((format!("padding after block {i}"), from, to));
+    }
+    out
+}
+
+/// Why the bytes are refused (open, then `inspect::verify`), or `None` if they pass both.
+fn refusal(bytes: &[u8]) -> Option<String> {
+    let file = match TreeFile::from_bytes(bytes) {
+        Ok(f) => f,
+        Err(e) => return Some(format!("open: {e}")),
+    };
+    let v = inspect::verify(&file);
+    (!v.ok()).then(|| format!("verify: {}", v.violations.join("; ")))
+}
+
+#[test]
+fn every_single_byte_change_is_refused_naming_its_region() {
+    let bytes = tiny();
+    let file = TreeFile::from_bytes(bytes).unwrap();
+    assert!(inspect::verify(&file).ok(), "the clean file verifies");
+    let regions = regions(&file);
+    // The regions tile the file: nothing is left out of the accounting.
+    let mut at = 0;
+    for (name, from, to) in &regions {
+        assert_eq!(*from, at, "{name} starts where the previous region ends");
+        at = *to;
+    }
+    assert_eq!(
+        at,
+        bytes.len() as u64,
+        "the regions end where the file ends"
+    );
+    let blocks = file.blocks().len();
+    assert!(blocks >= 4, "{blocks} blocks");
+    let mut mutant = bytes.to_vec();
+    let (mut tried, mut padding_tried) = (0u64, 0u64);
+    for (name, from, to) in &regions {
+        for pos in *from..*to {
+            let p = pos as usize;
+            mutant[p] ^= 0xFF;
+            let why = refusal(&mutant);
+            mutant[p] ^= 0xFF;
+            tried += 1;
+            let Some(why) = why else {
+                panic!("flip at byte {pos} ({name}) accepted");
+            };
+            if let Some(i) = name.strip_prefix("padding after block ") {
+                padding_tried += 1;
+                // The message names the block and the byte.
+                let want = format!(
+                    "padding after {} at byte {pos} is not zero",
+                    BlockId(i.parse().unwrap())
+                );
+                assert!(why.contains(&want), "byte {pos}: {why}");
+            }
+        }
+    }
+    assert!(padding_tried > 0);
+    println!(
+        "every-byte test: {tried} single-byte mutants of a {}-byte file ({blocks} blocks, {padding_tried} \
+         padding bytes after blocks) all refused",
+        bytes.len()
+    );
+}
+
+#[test]
+fn truncation_and_appended_bytes_are_refused() {
+    let bytes = tiny();
+    let len = bytes.len();
+    // Every length up to the first block, every 4 KiB boundary ± 1, and 300 spread over the blocks.
+    let first = TreeFile::from_bytes(bytes).unwrap().blocks()[0].offset as usize;
+    let mut cuts: Vec<usize> = (0..=first).collect();
+    for page in (first..len).step_by(BLOCK_ALIGN as usize) {
+        cuts.extend([page - 1, page, page + 1]);
+    }
+    cuts.extend((0..300).map(|k| first + (len - first) * k / 300));
+    cuts.push(len - 1);
+    cuts.retain(|&c| c < len);
+    cuts.sort_unstable();
+    cuts.dedup();
+    for &cut in &cuts {
+        match TreeFile::from_bytes(&bytes[..cut]) {
+            Err(StoreError::Truncated { .. }) => {}
+            other => panic!("cut at {cut} of {len}: {:?}", other.err()),
+        }
+    }
+    for extra in [1usize, 4096] {
+        for fill in [0u8, 0xAB] {
+            let mut long = bytes.to_vec();
+            long.resize(len + extra, fill);
+            assert!(
+                matches!(
+                    TreeFile::from_bytes(&long),
+                    Err(StoreError::TrailingBytes { .. })
+                ),
+                "{extra} bytes of {fill:#x} appended"
+            );
+        }
+    }
+    println!(
+        "truncation test: {} cuts and 4 extensions of a {len}-byte file all refused",
+        cuts.len()
+    );
+}
+
+/// A file on disk: the mmap and read opens and the CLI refuse a flipped padding byte after a block, naming
+/// the block and the byte, while every other block still reads.
+#[test]
+fn padding_flip_refused_on_disk_by_open_modes_and_the_cli() {
+    let bytes = tiny();
+    let file = TreeFile::from_bytes(bytes).unwrap();
+    let (k, (from, to)) = (file.blocks().iter().enumerate())
+        .map(|(i, b)| (i, padding_range(b, file.file_len())))
+        .find(|(_, (f, t))| t > f)
+        .unwrap();
+    let pos = to - 1;
+    assert!(pos >= from);
+    let mut bad = bytes.to_vec();
+    bad[pos as usize] ^= 0xFF;
+    let dir = tempfile::tempdir().unwrap();
+    let path: PathBuf = dir.path().join("bad.atlastree");
+    std::fs::write(&path, &bad).unwrap();
+    for mode in [LoadMode::Mmap, LoadMode::Read] {
+        let f = TreeFile::open_with(&path, mode).unwrap();
+        for i in 0..f.blocks().len() {
+            let r = f.block(BlockId(i as u32));
+            if i == k {
+                match r {
+                    Err(StoreError::BlockPadding { block, offset }) => {
+                        assert_eq!((block, offset), (BlockId(k as u32), pos), "{mode:?}");
+                    }
+                    other => panic!("{mode:?} block {k}: {:?}", other.map(<[u8]>::len)),
+                }
+            } else {
+                r.unwrap();
+            }
+        }
+        assert!(f.verify_blocks().is_err());
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_atlastree"))
+        .args(["inspect", "--verify"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    let want = format!(
+        "padding after {} at byte {pos} is not zero",
+        BlockId(k as u32)
+    );
+    assert!(stdout.contains(&want), "{stdout}");
+}

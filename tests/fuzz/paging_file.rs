@@ -1,0 +1,297 @@
+//! Target `paging_file`: structure-aware mutants of a small built paging file (a synthetic city, 64² atlases)
+//! fed to `TreeFile::from_bytes`, the block reads the renderer uses (`FileSource::fetch`, the block table)
+//! and `inspect::verify` (what `atlastree inspect --verify` runs).
+//!
+//! Mutations, drawn from the case's bytes:
+//! - raw: byte flips (one to eight, most in the header, tables and padding), truncation, appended bytes,
+//!   and one header field (a section's offset, length, count, checksum, record size or kind, or the file
+//!   length, version, flags, alignments) set to an edge value with the header checksum fixed up. Every
+//!   byte of a file is covered by a checksum, a zero check or a layout rule (issue 23), so a raw mutant
+//!   that changes the file and passes `verify` is an accepted corruption (a failure).
+//! - resealed: a word of one record (tables, block records) set to an edge value, then every section
+//!   checksum and the header checksum recomputed, so the cross-reference and tree checks see the edit.
+//!   Such a file is internally consistent by construction (a deliberate rewrite, not a corruption), so
+//!   passing `verify` is `Accepted`; what must not happen is a panic or a hang in open, the block reads
+//!   or verify.
+
+use super::harness::{self, Verdict};
+use arbitrary::Unstructured;
+use atlastree::ids::BlockId;
+use atlastree::paging::{BlockSource, BlockTable, FileSource};
+use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
+use atlastree::store::TreeFile;
+use atlastree::store::format::{HEADER_SIZE, Header, SECTION_COUNT, Section};
+use std::sync::{Arc, OnceLock};
+
+/// CI cases (≈ 20 s in release on 2 cores).
+const DEFAULT_CASES: u64 = 600;
+
+/// The base file: `scene::synthetic::small_city(2, 32)` at 64² atlases (as `tests/cpu/store_bytes.rs`).
+fn base() -> &'static [u8] {
+    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
+    BYTES.get_or_init(|| {
+        let scene = atlastree::scene::synthetic::small_city(2, 32);
+        let opts = BuildOptions {
+            d_min: DMin::Ratio(40.0),
+            atlas_size: 64,
+            border: 4,
+            // Split every node that does not fit (the paper's tree): more blocks, more padding.
+            leaf_originals_atlases: 0.0,
+            ..Default::default()
+        };
+        let dir = tempfile::tempdir().expect("temp dir");
+        let out = dir.path().join("tiny.atlastree");
+        build(&scene, &opts, &out, &NoProgress).expect("the small city builds");
+        std::fs::read(&out).expect("read the build")
+    })
+}
+
+fn header_of(bytes: &[u8]) -> Header {
+    bytemuck::pod_read_unaligned(&bytes[..HEADER_SIZE])
+}
+
+fn put_header(bytes: &mut [u8], h: &Header) {
+    bytes[..HEADER_SIZE].copy_from_slice(bytemuck::bytes_of(h));
+}
+
+/// Recomputes every section checksum and the header checksum.
+fn reseal(bytes: &mut [u8]) {
+    let mut h = header_of(bytes);
+    for s in h.sections.iter_mut() {
+        if let Some(data) = bytes.get(s.offset as usize..(s.offset + s.length) as usize) {
+            s.checksum = xxhash_rust::xxh3::xxh3_64(data);
+        }
+    }
+    h.checksum = h.compute_checksum();
+    put_header(bytes, &h);
+}
+
+/// An edge value for a field now holding `old`, `bits` wide.
+fn edge(u: &mut Unstructured<'_>, old: u64, bits: u32, file_len: u64) -> arbitrary::Result<u64> {
+    let max = if bits == 64 {
+        u64::MAX
+    } else {
+        (1u64 << bits) - 1
+    };
+    let v = match u.int_in_range(0u8..=11)? {
+        0 => 0,
+        1 => 1,
+        2 => max,
+        3 => max - 1,
+        4 => old.wrapping_add(1),
+        5 => old.wrapping_sub(1),
+        6 => old.wrapping_add(16),
+        7 => old.wrapping_add(4096),
+        8 => file_len,
+        9 => old ^ (1 << u.int_in_range(0..=bits - 1)?),
+        10 => 1 << u.int_in_range(0..=bits - 1)?,
+        _ => u.arbitrary::<u64>()?,
+    };
+    Ok(v & max)
+}
+
+/// A position, mostly outside the block payloads (whose bytes only their checksum guards).
+fn position(u: &mut Unstructured<'_>, file: &TreeFile, len: usize) -> arbitrary::Result<usize> {
+    let blocks = file.blocks();
+    let first = blocks.first().map_or(len, |b| b.offset as usize);
+    Ok(match u.int_in_range(0u8..=9)? {
+        0..=3 => u.choose_index(first.max(1))?,
+        4..=6 if !blocks.is_empty() => {
+            // The padding after a block (or the block's last bytes when it has none).
+            let b = &blocks[u.choose_index(blocks.len())?];
+            let end = (b.offset + b.length) as usize;
+            let pad = atlastree::store::padding_range(b, file.file_len());
+            let to = (pad.1 as usize).max(end);
+            end.saturating_sub(2) + u.choose_index(to - end.saturating_sub(2) + 1)?
+        }
+        _ => u.choose_index(len)?,
+    }
+    .min(len - 1))
+}
+
+/// One raw mutation; returns its description.
+fn raw(u: &mut Unstructured<'_>, file: &TreeFile, m: &mut Vec<u8>) -> arbitrary::Result<String> {
+    let len = m.len();
+    Ok(match u.int_in_range(0u8..=9)? {
+        0..=3 => {
+            let p = position(u, file, len)?;
+            let mask = u.int_in_range(1u8..=255)?;
+            m[p] ^= mask;
+            format!("flip {mask:#04x} at {p}")
+        }
+        4 => {
+            let n = u.int_in_range(2usize..=8)?;
+            for _ in 0..n {
+                let p = position(u, file, len)?;
+                m[p] ^= u.int_in_range(1u8..=255)?;
+            }
+            format!("{n} flips")
+        }
+        5 => {
+            let cut = u.choose_index(len)?;
+            m.truncate(cut);
+            format!("truncated to {cut}")
+        }
+        6 => {
+            let n = *u.choose(&[1usize, 2, 15, 16, 4095, 4096, 4097])?;
+            let fill = *u.choose(&[0u8, 0xFF, 1])?;
+            m.resize(len + n, fill);
+            format!("{n} bytes of {fill:#x} appended")
+        }
+        _ => {
+            let mut h = header_of(m);
+            let fl = h.file_len;
+            let what = match u.int_in_range(0u8..=9)? {
+                0 => {
+                    h.file_len = edge(u, fl, 64, fl)?;
+                    "file_len".to_string()
+                }
+                1 => {
+                    h.version = edge(u, h.version.into(), 32, fl)? as u32;
+                    "version".into()
+                }
+                2 => {
+                    h.flags = edge(u, h.flags.into(), 32, fl)? as u32;
+                    "flags".into()
+                }
+                3 => {
+                    h.block_align = edge(u, h.block_align.into(), 32, fl)? as u32;
+                    "block_align".into()
+                }
+                _ => {
+                    let i = u.choose_index(SECTION_COUNT)?;
+                    let s = &mut h.sections[i];
+                    let field = match u.int_in_range(0u8..=5)? {
+                        0 => {
+                            s.offset = edge(u, s.offset, 64, fl)?;
+                            "offset"
+                        }
+                        1 => {
+                            s.length = edge(u, s.length, 64, fl)?;
+                            "length"
+                        }
+                        2 => {
+                            s.count = edge(u, s.count, 64, fl)?;
+                            "count"
+                        }
+                        3 => {
+                            s.checksum = edge(u, s.checksum, 64, fl)?;
+                            "checksum"
+                        }
+                        4 => {
+                            s.record_size = edge(u, s.record_size.into(), 32, fl)? as u32;
+                            "record_size"
+                        }
+                        _ => {
+                            s.kind = edge(u, s.kind.into(), 32, fl)? as u32;
+                            "kind"
+                        }
+                    };
+                    format!("section {} {field}", Section::ALL[i].name())
+                }
+            };
+            h.checksum = h.compute_checksum();
+            put_header(m, &h);
+            format!("header {what}")
+        }
+    })
+}
+
+/// One resealed record edit; returns its description.
+fn resealed(u: &mut Unstructured<'_>, m: &mut [u8]) -> arbitrary::Result<String> {
+    let h = header_of(m);
+    let fl = h.file_len;
+    let pick = [
+        Section::Params,
+        Section::Materials,
+        Section::Trees,
+        Section::Nodes,
+        Section::Leaves,
+        Section::Rects,
+        Section::Originals,
+        Section::Vertices,
+        Section::Indices,
+        Section::SourceTriangles,
+        Section::Blocks,
+        Section::Blocks,
+        Section::Blocks,
+    ];
+    let s = *u.choose(&pick)?;
+    let e = h.section(s);
+    if e.count == 0 {
+        return Err(arbitrary::Error::IncorrectFormat);
+    }
+    let rec = u.choose_index(e.count as usize)?;
+    let size = e.record_size as usize;
+    let wide = size % 8 == 0 && u.arbitrary::<bool>()?;
+    let w = if wide { 8 } else { 4 };
+    let word = u.choose_index(size / w)?;
+    let at = e.offset as usize + rec * size + word * w;
+    let old = if wide {
+        u64::from_le_bytes(m[at..at + 8].try_into().unwrap_or_default())
+    } else {
+        u64::from(u32::from_le_bytes(
+            m[at..at + 4].try_into().unwrap_or_default(),
+        ))
+    };
+    let v = edge(u, old, 8 * w as u32, fl)?;
+    m[at..at + w].copy_from_slice(&v.to_le_bytes()[..w]);
+    reseal(m);
+    Ok(format!(
+        "{}[{rec}] word {word} ({w} bytes) {old} → {v}, resealed",
+        s.name()
+    ))
+}
+
+/// Open, read every block as the renderer does, verify.
+fn judge(bytes: &[u8]) -> Result<(), String> {
+    let file = TreeFile::from_bytes(bytes).map_err(|e| format!("open: {e}"))?;
+    let file = Arc::new(file);
+    BlockTable::from_file(&file).map_err(|e| format!("block table: {e}"))?;
+    let source = FileSource::new(Arc::clone(&file));
+    for (i, record) in file.blocks().iter().enumerate() {
+        source
+            .fetch(BlockId(i as u32), record)
+            .map_err(|e| format!("fetch: {e}"))?;
+    }
+    let v = atlastree::inspect::verify(&file);
+    if v.ok() {
+        Ok(())
+    } else {
+        Err(format!("verify: {}", v.violations.join("; ")))
+    }
+}
+
+fn mutate(data: &[u8]) -> Verdict {
+    let base = base();
+    let Ok(file) = TreeFile::from_bytes(base) else {
+        return Verdict::AcceptedCorruption("the base file does not open".into());
+    };
+    let mut u = Unstructured::new(data);
+    let mut m = base.to_vec();
+    let is_raw = u.ratio(3u8, 4u8).unwrap_or(true);
+    let what = if is_raw {
+        raw(&mut u, &file, &mut m)
+    } else {
+        resealed(&mut u, &mut m)
+    };
+    let Ok(what) = what else {
+        return Verdict::Skipped;
+    };
+    if m == base {
+        return Verdict::Accepted; // the edit restored the same bytes: no change
+    }
+    match judge(&m) {
+        Err(why) => Verdict::Refused(why),
+        Ok(()) if is_raw => {
+            Verdict::AcceptedCorruption(format!("{what}: the changed file verifies"))
+        }
+        Ok(()) => Verdict::Accepted,
+    }
+}
+
+#[test]
+fn paging_file() {
+    let counts = harness::run("paging_file", DEFAULT_CASES, mutate);
+    assert!(counts.refused > 0, "{counts:?}");
+}
