@@ -15,3 +15,4 @@
 
 #[allow(dead_code)] // targets arrive module by module
 mod harness;
+mod http;
