@@ -78,15 +78,11 @@ pub fn input(seed: u64, index: u64) -> Vec<u8> {
 }
 
 fn corpus_dir(target: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fuzz/corpus")
-        .join(target)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz/corpus").join(target)
 }
 
 fn failure_dir(target: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("target/fuzz-failures")
-        .join(target)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("target/fuzz-failures").join(target)
 }
 
 /// The target's committed regression inputs, sorted by name.
@@ -100,10 +96,7 @@ fn corpus(target: &str) -> Vec<(String, Vec<u8>)> {
         .into_iter()
         .filter(|p| p.is_file())
         .map(|p| {
-            let name = p
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default();
+            let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
             let bytes = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
             (name, bytes)
         })
@@ -143,11 +136,7 @@ fn run_case(mutator: &Mutator, bytes: &[u8]) -> Outcome {
 
 /// Runs `target`: its corpus first, then `cases(default_cases)` seeded inputs. Prints the counts and
 /// fails (panics) if any case panicked, hung or was an accepted corruption, after saving those inputs.
-pub fn run(
-    target: &str,
-    default_cases: u64,
-    mutator: impl Fn(&[u8]) -> Verdict + Send + Sync + 'static,
-) -> Counts {
+pub fn run(target: &str, default_cases: u64, mutator: impl Fn(&[u8]) -> Verdict + Send + Sync + 'static) -> Counts {
     let mutator: Mutator = Arc::new(mutator);
     let seed = seed();
     let n = cases(default_cases);
@@ -157,10 +146,7 @@ pub fn run(
     let start = Instant::now();
     let corpus = corpus(target);
     let seeded = (0..n).map(|i| (format!("seed-{seed}-case-{i}"), input(seed, i)));
-    let all = corpus
-        .into_iter()
-        .map(|(name, b)| (name, b, true))
-        .chain(seeded.map(|(n, b)| (n, b, false)));
+    let all = corpus.into_iter().map(|(name, b)| (name, b, true)).chain(seeded.map(|(n, b)| (n, b, false)));
     for (name, bytes, from_corpus) in all {
         let outcome = run_case(&mutator, &bytes);
         let failure = match outcome {
@@ -225,10 +211,7 @@ pub fn run(
         for (name, why, bytes) in &failures {
             let path = dir.join(name);
             std::fs::write(&path, bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            eprintln!(
-                "fuzz {target}: {name}: {why}\n  input saved to {}",
-                path.display()
-            );
+            eprintln!("fuzz {target}: {name}: {why}\n  input saved to {}", path.display());
         }
         panic!(
             "fuzz {target}: {} failing cases (inputs under {}; copy them to {} once fixed)",
