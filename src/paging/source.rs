@@ -74,7 +74,9 @@ pub enum SourceError {
         message: String,
     },
     /// The bytes arrived but are too short or too long (the last of `attempts`).
-    #[error("{source_name}: {block}: expected {expected} bytes, got {got} (attempt {attempts})")]
+    #[error(
+        "{source_name}: {block}: expected {expected} bytes, got {got} after {attempts} attempt(s)"
+    )]
     Length {
         source_name: String,
         block: BlockId,
@@ -84,7 +86,7 @@ pub enum SourceError {
     },
     /// The bytes arrived but do not match the block's checksum (the last of `attempts`).
     #[error(
-        "{source_name}: {block}: checksum {found:#018x}, expected {expected:#018x} (attempt {attempts})"
+        "{source_name}: {block}: checksum {found:#018x}, expected {expected:#018x} after {attempts} attempt(s)"
     )]
     Checksum {
         source_name: String,

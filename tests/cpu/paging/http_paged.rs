@@ -9,9 +9,12 @@ use super::http_server::Faults;
 use atlastree::camera::{Camera, CameraPath, Ground};
 use atlastree::ids::BlockId;
 use atlastree::paging::{
-    BlockTable, Event, FileSource, HttpSource, PagerError, PagerOptions, SourceError,
+    BlockTable, Event, FileSource, HttpSource, PagerError, PagerOptions, ResidencyError,
+    SourceError,
 };
-use atlastree::plan::{FramePlanner, NoResidency, PagingSetup, PlanError, RecordResidency};
+use atlastree::plan::{
+    FramePlanner, NoResidency, PagingSetup, PlanError, RecordResidency, Residency,
+};
 use std::error::Error;
 use std::sync::Arc;
 
@@ -178,25 +181,7 @@ fn a_root_that_stays_broken_ends_with_a_clear_error_after_the_configured_attempt
 fn a_block_that_stays_broken_is_counted_drawn_coarser_and_retried_with_back_off() {
     let fx = fixture();
     let (cams, scale) = cameras(&fx, 150);
-    // The first block a clean run loads after the root.
-    let mut clean = FramePlanner::paged_from_file(
-        &fx.file,
-        setup(Arc::new(FileSource::new(Arc::new(
-            atlastree::store::TreeFile::open(&fx.path).unwrap(),
-        )))),
-    )
-    .unwrap();
-    clean.take_bootstrap();
-    let mut first = None;
-    let mut record = RecordResidency(|e: &Event| {
-        if let Event::Loaded { block, .. } = e {
-            first.get_or_insert(*block);
-        }
-    });
-    for (i, c) in cams.iter().enumerate() {
-        clean.plan(c, i as f64 / 30.0, scale, &mut record).unwrap();
-    }
-    let victim = first.expect("the flight loads a block besides the root");
+    let victim = first_loaded(&fx, &cams, scale);
     assert_ne!(victim, root(&fx));
 
     let server = fault_server(&fx);
@@ -246,4 +231,155 @@ fn a_block_that_stays_broken_is_counted_drawn_coarser_and_retried_with_back_off(
         attempts: 4,
     };
     assert!(e.is_transient());
+}
+
+/// Fails every fetch of one block with the error `make` builds; the rest come from the file.
+struct FailingSource {
+    inner: FileSource,
+    block: BlockId,
+    make: fn(BlockId) -> SourceError,
+    fetches: std::sync::atomic::AtomicU32,
+}
+
+impl atlastree::paging::BlockSource for FailingSource {
+    fn name(&self) -> String {
+        "failing".into()
+    }
+
+    fn fetch(
+        &self,
+        id: BlockId,
+        record: &atlastree::store::format::BlockRecord,
+    ) -> Result<Vec<u8>, SourceError> {
+        if id == self.block {
+            self.fetches
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            return Err((self.make)(id));
+        }
+        self.inner.fetch(id, record)
+    }
+}
+
+/// Refuses every load of one block with the error `make` builds.
+struct Refuse {
+    block: BlockId,
+    make: fn() -> ResidencyError,
+    seen: u32,
+}
+
+impl Residency for Refuse {
+    fn apply(&mut self, event: &Event) -> Result<u64, ResidencyError> {
+        match event {
+            Event::Loaded { block, .. } if *block == self.block => {
+                self.seen += 1;
+                Err((self.make)())
+            }
+            _ => Ok(0),
+        }
+    }
+}
+
+/// The first block a clean flight over `cams` loads after the roots.
+fn first_loaded(fx: &Fixture, cams: &[Camera], scale: f64) -> BlockId {
+    let mut clean = FramePlanner::paged_from_file(&fx.file, setup(file_source(fx))).unwrap();
+    clean.take_bootstrap();
+    let mut first = None;
+    let mut record = RecordResidency(|e: &Event| {
+        if let Event::Loaded { block, .. } = e {
+            first.get_or_insert(*block);
+        }
+    });
+    for (i, c) in cams.iter().enumerate() {
+        clean.plan(c, i as f64 / 30.0, scale, &mut record).unwrap();
+    }
+    first.expect("the flight loads a block besides the root")
+}
+
+fn file_source(fx: &Fixture) -> Arc<FileSource> {
+    Arc::new(FileSource::new(Arc::new(
+        atlastree::store::TreeFile::open(&fx.path).unwrap(),
+    )))
+}
+
+#[test]
+fn the_pager_backs_off_on_transient_failures_and_gives_up_longer_on_permanent_ones() {
+    let fx = fixture();
+    // 150 frames; retry_frames 8: a transient failure is retried after 8, 16, 32, 64 frames (≥ 3 tries
+    // while the block stays wanted); a permanent one waits the longest back-off, 64 × 8 = 512 frames.
+    let (cams, scale) = cameras(&fx, 150);
+    let victim = first_loaded(&fx, &cams, scale);
+    type Make = fn(BlockId) -> SourceError;
+    let transient: Make = |block| SourceError::Status {
+        url: "u".into(),
+        block,
+        status: 503,
+        offset: 0,
+        len: 0,
+        attempts: 4,
+    };
+    let permanent: Make = |block| SourceError::Status {
+        url: "u".into(),
+        block,
+        status: 404,
+        offset: 0,
+        len: 0,
+        attempts: 1,
+    };
+    let mut tries = Vec::new();
+    for make in [transient, permanent] {
+        assert_eq!(
+            make(victim).is_transient(),
+            std::ptr::fn_addr_eq(make, transient)
+        );
+        let source = Arc::new(FailingSource {
+            inner: FileSource::new(Arc::new(
+                atlastree::store::TreeFile::open(&fx.path).unwrap(),
+            )),
+            block: victim,
+            make,
+            fetches: Default::default(),
+        });
+        let mut p = FramePlanner::paged_from_file(&fx.file, setup(source.clone())).unwrap();
+        p.take_bootstrap();
+        for (i, c) in cams.iter().enumerate() {
+            p.plan(c, i as f64 / 30.0, scale, &mut NoResidency).unwrap();
+            assert!(!p.pager().unwrap().is_resident(victim));
+        }
+        let fetches = source.fetches.load(std::sync::atomic::Ordering::Relaxed);
+        assert_eq!(p.pager().unwrap().totals().failures, u64::from(fetches));
+        tries.push(fetches);
+    }
+    assert!(tries[0] >= 3, "transient: {tries:?}");
+    assert_eq!(tries[1], 1, "permanent: {tries:?}");
+
+    // The executor's errors: a failed upload may pass (backed off), no free layer cannot (given up).
+    let mut seen = Vec::new();
+    for make in [
+        (|| ResidencyError::Upload {
+            message: "device lost (test)".into(),
+        }) as fn() -> ResidencyError,
+        || ResidencyError::NoFreeLayer {
+            what: "resident atlases".into(),
+            needed: 9,
+            limit: 8,
+        },
+    ] {
+        let mut p = FramePlanner::paged_from_file(&fx.file, setup(file_source(&fx))).unwrap();
+        p.take_bootstrap();
+        let mut exec = Refuse {
+            block: victim,
+            make,
+            seen: 0,
+        };
+        let mut errors = 0;
+        for (i, c) in cams.iter().enumerate() {
+            let plan = p.plan(c, i as f64 / 30.0, scale, &mut exec).unwrap();
+            errors += plan.stats.paging.unwrap().apply_errors;
+            assert!(!p.pager().unwrap().is_resident(victim));
+        }
+        assert_eq!(errors, exec.seen);
+        seen.push(exec.seen);
+    }
+    assert!(seen[0] >= 3, "upload errors: {seen:?}");
+    assert_eq!(seen[1], 1, "no free layer: {seen:?}");
 }
