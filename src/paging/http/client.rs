@@ -9,8 +9,8 @@
 //! - retried, up to [`HttpOptions::retries`] times with exponential backoff (deterministic jitter): the
 //!   faults a network or an overloaded server produces and that may pass — connection, reset and timeout
 //!   errors (a server that sends its headers and then stalls included), `5xx`, `408`, `429`, short or
-//!   broken bodies, a `206` for another range, a block whose bytes fail their checksum (a corrupt
-//!   transfer);
+//!   broken bodies, a `206` for another range, a block (or at open the tables) whose bytes fail their
+//!   checksum (a corrupt transfer);
 //! - not retried: other `4xx` and statuses, a request that cannot be built, a `Content-Range` whose total
 //!   says the server's file ends before the range.
 //!
@@ -23,8 +23,8 @@
 
 use super::super::source::{BlockSource, SourceError, verify};
 use crate::ids::BlockId;
-use crate::store::TreeFile;
 use crate::store::format::{BlockRecord, HEADER_SIZE, Header};
+use crate::store::{StoreError, TreeFile};
 use std::io::Read;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
@@ -142,12 +142,17 @@ enum Failure {
     WrongRange { message: String, file_shorter: bool },
     /// The bytes of a block do not match its checksum.
     Checksum { found: u64 },
+    /// The tables' bytes fail one of their checksums (corrupt in transit).
+    Corrupt(String),
 }
 
 impl Failure {
     fn retryable(&self) -> bool {
         match self {
-            Failure::Transport(_) | Failure::Short { .. } | Failure::Checksum { .. } => true,
+            Failure::Transport(_)
+            | Failure::Short { .. }
+            | Failure::Checksum { .. }
+            | Failure::Corrupt(_) => true,
             Failure::Status(status) => *status >= 500 || matches!(status, 408 | 429),
             Failure::WrongRange { file_shorter, .. } => !file_shorter,
             Failure::Request(_) => false,
@@ -169,7 +174,7 @@ impl Failure {
 
     fn message(&self, expected: u64) -> String {
         match self {
-            Failure::Transport(m) | Failure::Request(m) => m.clone(),
+            Failure::Transport(m) | Failure::Request(m) | Failure::Corrupt(m) => m.clone(),
             Failure::Status(s) => format!("HTTP status {s}"),
             Failure::Short { got } => format!("got {got} of {expected} bytes"),
             Failure::WrongRange { message, .. } => message.clone(),
@@ -204,17 +209,14 @@ impl HttpSource {
     /// the header's).
     pub fn open(url: &str, options: HttpOptions) -> Result<(TreeFile, HttpSource), SourceError> {
         let mut source = HttpSource::new(url, options);
-        let head = source.get_tables(0, HEADER_SIZE as u64)?;
-        let store_err = |error| SourceError::Store {
-            source_name: url.to_string(),
-            error,
-        };
-        let prefix_len = TreeFile::prefix_len(&head.bytes).map_err(store_err)?;
+        let (prefix_len, head) =
+            source.get_tables(0, HEADER_SIZE as u64, |r| TreeFile::prefix_len(&r.bytes))?;
         let header: Header = bytemuck::pod_read_unaligned(&head.bytes[..HEADER_SIZE]);
-        let prefix = source.get_tables(0, prefix_len)?;
-        let file_len = prefix.total.or(head.total).unwrap_or(header.file_len);
-        let file = TreeFile::from_prefix(&prefix.bytes, file_len, url).map_err(store_err)?;
-        source.file_len = file_len;
+        let file_len = |r: &Ranged| r.total.or(head.total).unwrap_or(header.file_len);
+        let (file, prefix) = source.get_tables(0, prefix_len, |r| {
+            TreeFile::from_prefix(&r.bytes, file_len(r), url)
+        })?;
+        source.file_len = file_len(&prefix);
         Ok((file, source))
     }
 
@@ -255,17 +257,50 @@ impl HttpSource {
         self.counters.snapshot()
     }
 
-    /// `len` bytes at `offset` for the tables, with retries; failures become [`SourceError::Tables`].
-    fn get_tables(&self, offset: u64, len: u64) -> Result<Ranged, SourceError> {
-        let result = self.get_with_retries(offset, len, u64::MAX, |_| Ok(()));
-        self.counters.outcome(result.is_ok());
-        result.map_err(|(failure, attempts)| SourceError::Tables {
+    /// `len` bytes at `offset` for the tables, parsed by `parse`, with retries. A transfer whose bytes fail
+    /// a checksum or hold non-zero padding ([`StoreError::ChecksumMismatch`],
+    /// [`StoreError::NonZeroPadding`]: corrupt in transit) counts as a failed attempt and is
+    /// asked again; another parse error is returned at once as [`SourceError::Store`]; a fetch that fails
+    /// after every attempt is [`SourceError::Tables`].
+    fn get_tables<T>(
+        &self,
+        offset: u64,
+        len: u64,
+        parse: impl Fn(&Ranged) -> Result<T, StoreError>,
+    ) -> Result<(T, Ranged), SourceError> {
+        let parsed = std::cell::RefCell::new(None);
+        let check = |r: &Ranged| match parse(r) {
+            Err(e @ (StoreError::ChecksumMismatch { .. } | StoreError::NonZeroPadding { .. })) => {
+                bump(&self.counters.checksum_failures, 1);
+                Err(Failure::Corrupt(e.to_string()))
+            }
+            other => {
+                *parsed.borrow_mut() = Some(other);
+                Ok(())
+            }
+        };
+        let result = self.get_with_retries(offset, len, u64::MAX, check);
+        let tables_error = |failure: Failure, attempts| SourceError::Tables {
             url: self.url.clone(),
             offset,
             len,
             attempts,
             message: failure.message(len),
-        })
+        };
+        let value = match (result, parsed.into_inner()) {
+            (Ok(ranged), Some(Ok(value))) => Ok((value, ranged)),
+            (Ok(_), Some(Err(error))) => Err(SourceError::Store {
+                source_name: self.url.clone(),
+                error,
+            }),
+            (Ok(_), None) => Err(tables_error(
+                Failure::Corrupt("the tables were not parsed".into()),
+                1,
+            )),
+            (Err((failure, attempts)), _) => Err(tables_error(failure, attempts)),
+        };
+        self.counters.outcome(value.is_ok());
+        value
     }
 
     /// One range with retries, each answer checked by `check` (a failed check is one failed attempt).
@@ -397,7 +432,7 @@ impl HttpSource {
                 block: id,
                 message,
             },
-            f @ Failure::Transport(_) => SourceError::Transport {
+            f @ (Failure::Transport(_) | Failure::Corrupt(_)) => SourceError::Transport {
                 message: f.message(len),
                 url,
                 block: id,

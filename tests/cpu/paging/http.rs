@@ -334,6 +334,34 @@ fn not_found_is_not_retried() {
 fn corrupted_bytes_are_retried_then_a_checksum_error() {
     let fx = fixture();
     let server = fault_server(&fx);
+    // Corrupt tables at open (the header, then the prefix): asked again, then opened.
+    for faults in [
+        Faults {
+            corrupt: 1,
+            ..Faults::default()
+        },
+        Faults {
+            corrupt: 2,
+            ..Faults::default()
+        },
+    ] {
+        server.set_faults(faults);
+        let (remote, src) = HttpSource::open(&server.url(), quick()).unwrap();
+        assert_same_tables(&fx.file, &remote);
+        let s = src.stats();
+        assert_eq!((s.checksum_failures, s.failures), (s.retries, 0), "{s:?}");
+        assert!(s.retries >= 1, "{s:?}");
+    }
+    server.set_faults(Faults {
+        corrupt: 100,
+        ..Faults::default()
+    });
+    let e = HttpSource::open(&server.url(), quick()).err().unwrap();
+    assert!(
+        matches!(&e, SourceError::Tables { attempts: 4, message, .. } if message.contains("checksum")),
+        "{e}"
+    );
+    server.set_faults(Faults::default());
     let (remote, src) = HttpSource::open(&server.url(), quick()).unwrap();
     // Once corrupt (a transfer that may pass): retried, then the right bytes.
     server.set_faults(Faults {
