@@ -7,6 +7,15 @@ use std::io::Write;
 use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Duration;
+
+/// `10s`, `500ms`, `2` (seconds): a positive, finite duration.
+fn parse_duration(s: &str) -> Result<Duration, String> {
+    atlastree::util::parse_seconds(s)
+        .filter(|v| v.is_finite() && *v > 0.0 && *v < 1e9)
+        .map(Duration::from_secs_f64)
+        .ok_or_else(|| format!("bad duration {s:?}: expected e.g. 10s or 500ms"))
+}
 
 // The command's help text is the doc comment of `Command::Serve` (src/cli/mod.rs).
 #[derive(Args, Debug)]
@@ -19,6 +28,16 @@ pub struct ServeArgs {
     /// Address to listen on. The default serves this machine only; `0.0.0.0` serves the network.
     #[arg(long, default_value = "127.0.0.1")]
     pub bind: IpAddr,
+    /// Connections served at once; one more waits up to 2 s for a free slot, then gets 503.
+    #[arg(long, default_value_t = 256)]
+    pub max_connections: usize,
+    /// A request head must arrive within this time (slow clients are closed; also the keep-alive idle
+    /// limit), e.g. `10s`, `500ms`.
+    #[arg(long, default_value = "10s", value_parser = parse_duration)]
+    pub header_timeout: Duration,
+    /// A connection that moves no byte either way this long is closed, e.g. `30s`.
+    #[arg(long, default_value = "30s", value_parser = parse_duration)]
+    pub io_timeout: Duration,
     /// Print one JSON line `{"url", "addr", "blocks", "file_bytes"}` instead of text (for scripts: read
     /// the first line of stdout to get the URL).
     #[arg(long)]
@@ -29,7 +48,13 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
     let (blocks, file_bytes) = (file.blocks().len(), file.file_len());
     drop(file);
-    let server = serve::spawn(&a.file, SocketAddr::new(a.bind, a.port))?;
+    let options = serve::ServeOptions {
+        max_connections: a.max_connections,
+        header_timeout: a.header_timeout,
+        io_timeout: a.io_timeout,
+        ..serve::ServeOptions::default()
+    };
+    let server = serve::spawn_with(&a.file, SocketAddr::new(a.bind, a.port), options)?;
     if a.json {
         let line = serde_json::json!({
             "url": server.url(),

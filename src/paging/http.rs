@@ -6,14 +6,16 @@
 //!   requests and validates them ([`TreeFile::from_prefix`]); [`BlockSource::fetch`] fetches one block
 //!   with `Range: bytes=a-b`, with timeouts, bounded retries and exponential backoff, and verifies the
 //!   block's checksum on arrival. Counters ([`HttpStats`]) tell the renderer when the source is failing.
-//! - [`serve`]: axum + tower-http `ServeFile` on a small tokio runtime; [`serve::spawn`] for tests and
-//!   tools, `atlastree serve FILE --port P` for people.
+//! - [`serve`]: axum routing on hyper connections (a connection limit, header and I/O timeouts, ranges
+//!   streamed from the file, [`range`] for the `Range` rules) on a small tokio runtime; [`serve::spawn`]
+//!   for tests and tools, `atlastree serve FILE --port P` for people.
 //!
 //! [`BlockSource`]: super::BlockSource
 //! [`BlockSource::fetch`]: super::BlockSource::fetch
 //! [`TreeFile::from_prefix`]: crate::store::TreeFile::from_prefix
 
 mod client;
+pub mod range;
 pub mod serve;
 
 pub use client::{HttpOptions, HttpSource, HttpStats};

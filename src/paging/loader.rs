@@ -10,7 +10,7 @@
 //! The simulator's I/O model (`crate::sim`) is a third implementation.
 
 use super::pager::{Arrival, Request};
-use super::source::BlockSource;
+use super::source::{BlockSource, SourceError};
 use crate::ids::BlockId;
 use crate::store::format::BlockRecord;
 use std::collections::HashSet;
@@ -48,8 +48,11 @@ impl ImmediateLoader {
 
 fn fetch(source: &dyn BlockSource, records: &[BlockRecord], block: BlockId) -> Arrival {
     let result = match records.get(block.idx()) {
-        Some(r) => source.fetch(block, r).map(Some).map_err(|e| e.to_string()),
-        None => Err(format!("{block} is not in the block table")),
+        Some(r) => source.fetch(block, r).map(Some),
+        None => Err(SourceError::NotInTable {
+            block,
+            blocks: records.len() as u64,
+        }),
     };
     Arrival { block, result }
 }

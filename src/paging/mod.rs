@@ -14,10 +14,12 @@
 //! drive the same [`Pager`].
 
 pub mod blocks;
+pub mod budget;
 pub mod http;
 pub mod loader;
 pub mod pager;
 pub mod policy;
+pub mod residency;
 pub mod resolve;
 pub mod session;
 pub mod source;
@@ -31,6 +33,7 @@ pub use pager::{
     Request, UploadBudget, resident_fingerprint,
 };
 pub use policy::Policy;
+pub use residency::{ResidencyError, Retry};
 pub use resolve::{Coarseness, Resolved, resolve, resolve_cut, screen_fraction};
 pub use session::{PagingSession, SessionFrame, resolve_frame};
 pub use source::{BlockSource, FileSource, SourceError};

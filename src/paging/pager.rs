@@ -19,7 +19,10 @@
 //! ranks below the block that replaces it.
 
 use super::blocks::BlockTable;
+pub use super::budget::UploadBudget;
 use super::policy::Policy;
+use super::residency::Retry;
+use super::source::SourceError;
 use super::usage::{Candidate, UsageCounts, UsageScratch, ViewInput, classify};
 use crate::ids::{BlockId, NodeId};
 use crate::store::format::NodeRecord;
@@ -34,42 +37,8 @@ pub fn resident_fingerprint(blocks: &[BlockId]) -> u64 {
     xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(&ids))
 }
 
-/// How much may become resident per frame.
-#[derive(Copy, Clone, Debug, PartialEq, Default, Serialize)]
-pub enum UploadBudget {
-    /// Everything that arrived.
-    #[default]
-    Unlimited,
-    /// Bytes uploaded per frame, as [`crate::paging::BlockMeta::upload_bytes`] counts them (original
-    /// textures as their class layers); at least one block per frame is always accepted, so a block
-    /// larger than the budget still loads.
-    Bytes(u64),
-    /// Milliseconds of upload work per frame, measured around the upload callback (same minimum).
-    Millis(f64),
-}
-
-impl std::str::FromStr for UploadBudget {
-    type Err = String;
-    /// `unlimited`, a byte size per frame (`8MB`, `512KiB`), or a time per frame (`2ms`).
-    fn from_str(s: &str) -> Result<UploadBudget, String> {
-        let t = s.trim();
-        if t.eq_ignore_ascii_case("unlimited") || t == "0" {
-            return Ok(UploadBudget::Unlimited);
-        }
-        if t.ends_with("ms") || t.ends_with("us") || t.ends_with("µs") {
-            return crate::util::parse_seconds(t)
-                .filter(|&v| v > 0.0)
-                .map(|v| UploadBudget::Millis(v * 1e3))
-                .ok_or_else(|| format!("bad upload budget {s:?}: expected e.g. 2ms"));
-        }
-        crate::util::parse_bytes(t)
-            .filter(|&b| b > 0)
-            .map(UploadBudget::Bytes)
-            .ok_or_else(|| {
-                format!("bad upload budget {s:?}: expected unlimited, 8MB, 512KiB or 2ms")
-            })
-    }
-}
+/// Doublings of [`PagerOptions::retry_frames`] at most: the longest back-off is `64 × retry_frames`.
+const MAX_BACKOFF_DOUBLINGS: u8 = 6;
 
 /// Options of a [`Pager`].
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
@@ -97,8 +66,8 @@ impl Default for PagerOptions {
     }
 }
 
-/// Why a pager could not be made.
-#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+/// Why a pager could not be made, or could not load its roots.
+#[derive(Debug, thiserror::Error)]
 pub enum PagerError {
     #[error(
         "capacity k = {capacity} is below the {roots} root atlases that must always be resident"
@@ -106,8 +75,13 @@ pub enum PagerError {
     CapacityBelowRoots { capacity: u32, roots: u32 },
     #[error("queue length must be at least 1 (got {max_queue})")]
     EmptyQueue { max_queue: u32 },
-    #[error("loading root atlas {block} failed: {message}")]
-    RootLoad { block: BlockId, message: String },
+    /// A root atlas could not be fetched (after the source's own retries, counted in the error).
+    #[error("loading root atlas {block} failed")]
+    RootLoad {
+        block: BlockId,
+        #[source]
+        error: SourceError,
+    },
 }
 
 /// A request for the loader: one block, with its size.
@@ -117,11 +91,12 @@ pub struct Request {
     pub bytes: u64,
 }
 
-/// What a loader returns: the block's bytes (`None` when simulated), or why it failed.
+/// What a loader returns: the block's bytes (`None` when simulated), or why it failed (the pager decides
+/// from [`SourceError::is_transient`] how soon to ask again).
 #[derive(Debug)]
 pub struct Arrival {
     pub block: BlockId,
-    pub result: Result<Option<Vec<u8>>, String>,
+    pub result: Result<Option<Vec<u8>>, SourceError>,
 }
 
 /// A residency change the renderer must apply (upload into / free a layer).
@@ -140,8 +115,9 @@ pub enum Event {
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Applied {
     Done,
-    /// Not applied: a loaded block is taken back (not resident, a failure, retried later).
-    Failed,
+    /// Not applied: a loaded block is taken back (not resident, a failure, asked for again as the
+    /// [`Retry`] says).
+    Failed(Retry),
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -298,7 +274,7 @@ impl Pager {
     /// returns their `Loaded` events.
     pub fn bootstrap(
         &mut self,
-        mut fetch: impl FnMut(BlockId) -> Result<Option<Vec<u8>>, String>,
+        mut fetch: impl FnMut(BlockId) -> Result<Option<Vec<u8>>, SourceError>,
     ) -> Result<Vec<Event>, PagerError> {
         let roots: Vec<BlockId> = self.table.roots().collect();
         let mut events = Vec::new();
@@ -306,7 +282,7 @@ impl Pager {
             if self.state[block.idx()] == State::Resident {
                 continue;
             }
-            let data = fetch(block).map_err(|message| PagerError::RootLoad { block, message })?;
+            let data = fetch(block).map_err(|error| PagerError::RootLoad { block, error })?;
             self.make_resident(block);
             self.totals.loaded += 1;
             self.totals.bytes_loaded += self.table.meta(block).bytes;
@@ -368,6 +344,18 @@ impl Pager {
     pub fn plan(&mut self, trees: &[&[NodeRecord]], view: &ViewInput) -> &[Request] {
         self.frame += 1;
         self.stats = PagerFrameStats::default();
+        self.rank_candidates(trees, view);
+        self.choose_ideal_set();
+        let outstanding = self.cancel_requests_left_behind();
+        self.request_ideal_blocks(outstanding);
+        self.collect_wanted();
+        self.totals.cancelled += u64::from(self.stats.cancelled);
+        &self.wanted
+    }
+
+    /// Phase 1: the usage traversal ([`classify`]) into this frame's candidates, those the policy admits
+    /// (roots always), sorted roots first, then by the policy.
+    fn rank_candidates(&mut self, trees: &[&[NodeRecord]], view: &ViewInput) {
         let mut view = *view;
         if !self.opts.policy.uses_lookahead() {
             view.lookahead = None;
@@ -386,25 +374,29 @@ impl Pager {
         self.stats.usage = self.scratch.counts();
         let policy = self.opts.policy;
         candidates.retain(|c| policy.admits(c.usage) || self.is_root[c.block.idx()]);
-        {
-            let state = &self.state;
-            let is_root = &self.is_root;
-            candidates.sort_unstable_by(|a, b| {
-                // Roots first, always.
-                is_root[b.block.idx()]
-                    .cmp(&is_root[a.block.idx()])
-                    .then_with(|| policy.compare(a, b, |c| state[c.block.idx()] == State::Resident))
-            });
-        }
-        // The ideal set: first k, closed under parents.
+        let state = &self.state;
+        let is_root = &self.is_root;
+        candidates.sort_unstable_by(|a, b| {
+            // Roots first, always.
+            is_root[b.block.idx()]
+                .cmp(&is_root[a.block.idx()])
+                .then_with(|| policy.compare(a, b, |c| state[c.block.idx()] == State::Resident))
+        });
         for (pos, c) in candidates.iter().enumerate() {
             self.order[c.block.idx()] = pos as u32;
         }
+        self.candidates = candidates;
+    }
+
+    /// Phase 2: the ideal set, the first k candidates closed under parents, an originals block taken in
+    /// only with the rest of a leaf's group; stamps recency.
+    fn choose_ideal_set(&mut self) {
         for &b in &self.ideal {
             self.rank[b.idx()] = u32::MAX;
         }
         self.ideal.clear();
         let k = self.opts.capacity as usize;
+        let candidates = std::mem::take(&mut self.candidates);
         let mut group = Vec::new();
         for c in &candidates {
             if self.ideal.len() >= k {
@@ -439,12 +431,16 @@ impl Pager {
             self.last_used[b.idx()] = self.frame;
         }
         self.stats.ideal = self.ideal.len() as u32;
+    }
 
-        // Cancel requests that left the ideal set (not in flight under LRU: it never cancels).
+    /// Phase 3: cancels requests that left the ideal set (not in flight under LRU: it never cancels);
+    /// returns the requests still outstanding (requested or staged).
+    fn cancel_requests_left_behind(&mut self) -> u32 {
+        let cancels = self.opts.policy.cancels_in_flight();
         let mut outstanding = 0u32;
         for (i, s) in self.state.iter_mut().enumerate() {
             if *s == State::Requested {
-                if self.rank[i] == u32::MAX && policy.cancels_in_flight() {
+                if self.rank[i] == u32::MAX && cancels {
                     *s = State::Absent;
                     self.stats.cancelled += 1;
                 } else {
@@ -452,8 +448,12 @@ impl Pager {
                 }
             }
         }
-        outstanding += self.staged.len() as u32;
-        // New requests in ideal order.
+        outstanding + self.staged.len() as u32
+    }
+
+    /// Phase 4: new requests in ideal order, up to `max_queue` outstanding: absent blocks past their
+    /// back-off whose parent is resident or on its way.
+    fn request_ideal_blocks(&mut self, mut outstanding: u32) {
         for &b in &self.ideal {
             if outstanding >= self.opts.max_queue {
                 break;
@@ -474,7 +474,10 @@ impl Pager {
                 outstanding += 1;
             }
         }
-        // The wanted list: requested blocks, by rank (LRU: by request frame, then rank).
+    }
+
+    /// Phase 5: the wanted list, every requested block by rank (LRU: by request frame, then rank).
+    fn collect_wanted(&mut self) {
         self.wanted.clear();
         for (i, s) in self.state.iter().enumerate() {
             if *s == State::Requested {
@@ -486,14 +489,12 @@ impl Pager {
         }
         let rank = &self.rank;
         let at = &self.requested_at;
-        if policy.evicts_lru() {
+        if self.opts.policy.evicts_lru() {
             self.wanted
                 .sort_by_key(|r| (at[r.block.idx()], rank[r.block.idx()], r.block));
         } else {
             self.wanted.sort_by_key(|r| (rank[r.block.idx()], r.block));
         }
-        self.totals.cancelled += u64::from(self.stats.cancelled);
-        &self.wanted
     }
 
     /// Step 3 of a frame: takes the loader's arrivals, makes blocks resident in rank order within the
@@ -521,9 +522,9 @@ impl Pager {
                     self.fail_count[i] = 0;
                     self.staged.push((a.block, data));
                 }
-                Err(_) => {
+                Err(e) => {
                     self.state[i] = State::Absent;
-                    self.back_off(a.block);
+                    self.back_off(a.block, Retry::transient(e.is_transient()));
                 }
             }
         }
@@ -572,12 +573,13 @@ impl Pager {
                 let _ = apply(Event::Evicted { block: victim });
             }
             self.make_resident(block);
-            if apply(Event::Loaded { block, data }) == Applied::Failed {
-                // The executor could not make it usable (e.g. the GPU upload failed): not resident, counted
-                // as a failed load (not as a load) and retried after the back-off, so residency never names
-                // a block that cannot be drawn. Nothing was staged after it yet, so no child depends on it.
+            if let Applied::Failed(retry) = apply(Event::Loaded { block, data }) {
+                // The executor could not make it usable (e.g. no free layer, a failed upload): not
+                // resident, counted as a failed load (not as a load) and asked for again as `retry` says,
+                // so residency never names a block that cannot be drawn. Nothing was staged after it yet,
+                // so no child depends on it.
                 self.unmake_resident(block);
-                self.back_off(block);
+                self.back_off(block, retry);
                 continue;
             }
             let bytes = self.table.blocks[i].bytes;
@@ -706,11 +708,15 @@ impl Pager {
         true
     }
 
-    /// One failure more for `b`: not requested again before the back-off (doubling per failure, capped).
-    fn back_off(&mut self, b: BlockId) {
+    /// One failure more for `b`: not requested again before the back-off (doubling per failure, capped at
+    /// 64×; [`Retry::GiveUp`] goes to the cap at once).
+    fn back_off(&mut self, b: BlockId, retry: Retry) {
         let i = b.idx();
         self.stats.failures += 1;
-        let n = self.fail_count[i].min(6);
+        if retry == Retry::GiveUp {
+            self.fail_count[i] = self.fail_count[i].max(MAX_BACKOFF_DOUBLINGS);
+        }
+        let n = self.fail_count[i].min(MAX_BACKOFF_DOUBLINGS);
         self.fail_count[i] = self.fail_count[i].saturating_add(1);
         self.failed_until[i] = self.frame + u64::from(self.opts.retry_frames.max(1)) * (1u64 << n);
     }

@@ -9,7 +9,10 @@ use crate::store::TreeFile;
 use crate::store::format::BlockRecord;
 use std::sync::Arc;
 
-/// Why a block could not be fetched. The pager counts these and keeps drawing coarser atlases.
+/// Why a block could not be fetched. The pager counts these, keeps drawing coarser atlases, and decides
+/// from [`SourceError::is_transient`] how soon it asks again; a root atlas that cannot be fetched ends the
+/// run with this error as its cause. Variants of remote fetches name the URL, the block, the attempts
+/// made (the source's own retries included) and the last cause.
 #[derive(Debug, thiserror::Error)]
 pub enum SourceError {
     /// Local read failed (the store's own error: out of bounds, checksum, I/O).
@@ -18,22 +21,46 @@ pub enum SourceError {
         source_name: String,
         error: crate::store::StoreError,
     },
-    /// The server answered with an unexpected status.
-    #[error("{url}: HTTP status {status} for {block} (bytes {offset}..+{len})")]
+    /// A block id outside the block table (a caller's bug, never retried).
+    #[error("{block} is not in the block table ({blocks} blocks)")]
+    NotInTable { block: BlockId, blocks: u64 },
+    /// The server answered with an unexpected status (the last of `attempts`).
+    #[error(
+        "{url}: HTTP status {status} for {block} (bytes {offset}..+{len}) after {attempts} attempt(s)"
+    )]
     Status {
         url: String,
         block: BlockId,
         status: u16,
         offset: u64,
         len: u64,
+        attempts: u32,
     },
-    /// Connection, timeout or transport error after all retries.
-    #[error("{url}: {block} failed after {attempts} attempts: {message}")]
+    /// Connection, timeout, reset or broken body after all attempts.
+    #[error("{url}: {block} failed after {attempts} attempt(s): {message}")]
     Transport {
         url: String,
         block: BlockId,
         attempts: u32,
         message: String,
+    },
+    /// A request that cannot succeed as built (bad URL, redirect loop, TLS setup); not retried.
+    #[error("{url}: {block}: the request cannot succeed: {message}")]
+    Request {
+        url: String,
+        block: BlockId,
+        message: String,
+    },
+    /// A `206` for another range than asked for (the last of `attempts`).
+    #[error("{url}: {block} failed after {attempts} attempt(s): {message}")]
+    WrongRange {
+        url: String,
+        block: BlockId,
+        attempts: u32,
+        message: String,
+        /// The server's `Content-Range` total says its file ends before the range: asking again cannot
+        /// help.
+        file_shorter: bool,
     },
     /// Opening a remote file: its header or tables could not be fetched (after all retries).
     #[error(
@@ -46,22 +73,65 @@ pub enum SourceError {
         attempts: u32,
         message: String,
     },
-    /// The bytes arrived but are too short or too long.
-    #[error("{source_name}: {block}: expected {expected} bytes, got {got}")]
+    /// The bytes arrived but are too short or too long (the last of `attempts`).
+    #[error(
+        "{source_name}: {block}: expected {expected} bytes, got {got} after {attempts} attempt(s)"
+    )]
     Length {
         source_name: String,
         block: BlockId,
         expected: u64,
         got: u64,
+        attempts: u32,
     },
-    /// The bytes arrived but do not match the block's checksum.
-    #[error("{source_name}: {block}: checksum {found:#018x}, expected {expected:#018x}")]
+    /// The bytes arrived but do not match the block's checksum (the last of `attempts`).
+    #[error(
+        "{source_name}: {block}: checksum {found:#018x}, expected {expected:#018x} after {attempts} attempt(s)"
+    )]
     Checksum {
         source_name: String,
         block: BlockId,
         expected: u64,
         found: u64,
+        attempts: u32,
     },
+}
+
+impl SourceError {
+    /// Whether asking again later may succeed: connection and timeout errors, `5xx`, `408` and `429`,
+    /// short bodies, wrong `Content-Range`s (unless the server's file is shorter) and checksum mismatches
+    /// (a corrupt transfer) are transient; a `4xx`, a bad request, a block outside the table, a local
+    /// file's format error and a failed open are not (the pager then waits its longest back-off).
+    pub fn is_transient(&self) -> bool {
+        match self {
+            SourceError::Store { error, .. } => {
+                matches!(error, crate::store::StoreError::Io { .. })
+            }
+            SourceError::Status { status, .. } => *status >= 500 || matches!(status, 408 | 429),
+            SourceError::WrongRange { file_shorter, .. } => !file_shorter,
+            SourceError::Transport { .. }
+            | SourceError::Length { .. }
+            | SourceError::Checksum { .. } => true,
+            SourceError::NotInTable { .. }
+            | SourceError::Request { .. }
+            | SourceError::Tables { .. } => false,
+        }
+    }
+
+    /// Attempts made before this error was returned (1 for sources that do not retry).
+    pub fn attempts(&self) -> u32 {
+        match self {
+            SourceError::Status { attempts, .. }
+            | SourceError::Transport { attempts, .. }
+            | SourceError::WrongRange { attempts, .. }
+            | SourceError::Tables { attempts, .. }
+            | SourceError::Length { attempts, .. }
+            | SourceError::Checksum { attempts, .. } => *attempts,
+            SourceError::Store { .. }
+            | SourceError::NotInTable { .. }
+            | SourceError::Request { .. } => 1,
+        }
+    }
 }
 
 /// A place blocks can be read from. Implementations are blocking and thread-safe; the loader calls
@@ -115,6 +185,7 @@ pub fn verify(
             block: id,
             expected: record.length,
             got: bytes.len() as u64,
+            attempts: 1,
         });
     }
     let found = xxhash_rust::xxh3::xxh3_64(bytes);
@@ -124,6 +195,7 @@ pub fn verify(
             block: id,
             expected: record.checksum,
             found,
+            attempts: 1,
         });
     }
     Ok(())

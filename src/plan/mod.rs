@@ -22,8 +22,8 @@ use crate::camera::{Camera, Frustum};
 use crate::ids::BlockId;
 use crate::paging::{
     Applied, BlockSource, BlockTable, BlockTableError, Coarseness, Event, ImmediateLoader, Loader,
-    Pager, PagerError, PagerOptions, PagingSession, Resolved, SessionFrame, ThreadedLoader,
-    resident_fingerprint, resolve_frame,
+    Pager, PagerError, PagerOptions, PagingSession, ResidencyError, Resolved, SessionFrame,
+    SourceError, ThreadedLoader, resident_fingerprint, resolve_frame,
 };
 use crate::select::{Cut, select};
 use crate::store::TreeFile;
@@ -35,8 +35,9 @@ use std::time::Instant;
 /// simulator).
 pub trait Residency {
     /// Applies one change of the pager; returns the bytes uploaded. An error means the change could not
-    /// be applied: for a loaded block the pager then takes it back (drawn coarser, retried later).
-    fn apply(&mut self, event: &Event) -> Result<u64, String>;
+    /// be applied: for a loaded block the pager then takes it back (drawn coarser) and asks for it again
+    /// as the error's [`ResidencyError::retry`] says.
+    fn apply(&mut self, event: &Event) -> Result<u64, ResidencyError>;
 }
 
 /// The simulator's executor: nothing to upload, every change applies.
@@ -44,7 +45,7 @@ pub trait Residency {
 pub struct NoResidency;
 
 impl Residency for NoResidency {
-    fn apply(&mut self, _: &Event) -> Result<u64, String> {
+    fn apply(&mut self, _: &Event) -> Result<u64, ResidencyError> {
         Ok(0)
     }
 }
@@ -53,7 +54,7 @@ impl Residency for NoResidency {
 pub struct RecordResidency<F: FnMut(&Event)>(pub F);
 
 impl<F: FnMut(&Event)> Residency for RecordResidency<F> {
-    fn apply(&mut self, event: &Event) -> Result<u64, String> {
+    fn apply(&mut self, event: &Event) -> Result<u64, ResidencyError> {
         (self.0)(event);
         Ok(0)
     }
@@ -68,8 +69,12 @@ pub enum PlanError {
     Blocks(#[from] BlockTableError),
     #[error("starting loader threads: {0}")]
     Loader(std::io::Error),
-    #[error("root atlas {block} could not be made resident: {message}")]
-    RootApply { block: BlockId, message: String },
+    #[error("root atlas {block} could not be made resident")]
+    RootApply {
+        block: BlockId,
+        #[source]
+        error: ResidencyError,
+    },
     #[error("the planner does not page (a paged run was asked of an all-resident planner)")]
     NotPaged,
     #[error("the frame clock is not a finite time: {time}")]
@@ -198,7 +203,7 @@ impl<'a> FramePlanner<'a> {
         table: BlockTable,
         mut opts: PagerOptions,
         loader: Box<dyn Loader>,
-        fetch_root: impl FnMut(BlockId) -> Result<Option<Vec<u8>>, String>,
+        fetch_root: impl FnMut(BlockId) -> Result<Option<Vec<u8>>, SourceError>,
     ) -> Result<FramePlanner<'a>, PlanError> {
         opts.capacity = opts.capacity.min(table.len().max(1) as u32);
         let mut pager = Pager::new(table.clone(), opts)?;
@@ -231,10 +236,11 @@ impl<'a> FramePlanner<'a> {
         let fetch = {
             let (source, records) = (source.clone(), records.clone());
             move |b: BlockId| {
-                let r = records
-                    .get(b.idx())
-                    .ok_or_else(|| format!("{b} not in the table"))?;
-                source.fetch(b, r).map(Some).map_err(|e| e.to_string())
+                let r = records.get(b.idx()).ok_or(SourceError::NotInTable {
+                    block: b,
+                    blocks: records.len() as u64,
+                })?;
+                source.fetch(b, r).map(Some)
             }
         };
         let loader: Box<dyn Loader> = if setup.loader_threads == 0 {
@@ -463,8 +469,9 @@ impl Applier<'_, '_> {
                 } else {
                     self.evict_errors += 1;
                 }
-                self.last_error = Some(e);
-                Applied::Failed
+                let retry = e.retry();
+                self.last_error = Some(e.to_string());
+                Applied::Failed(retry)
             }
         }
     }
@@ -480,7 +487,7 @@ impl PagingState {
             };
             residency
                 .apply(ev)
-                .map_err(|message| PlanError::RootApply { block, message })?;
+                .map_err(|error| PlanError::RootApply { block, error })?;
             self.pending.remove(0);
         }
         Ok(())

@@ -15,7 +15,7 @@ use super::wgsl::tree::{self, Globals, MODE_LEVELS, MODE_TEXTURED};
 use super::{Mode, RenderError};
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, readback_rgba8};
-use crate::paging::Event;
+use crate::paging::{Event, ResidencyError};
 use crate::plan::{FramePlan, FramePlanner, PagingFrame, PlanError, PlanStats, Residency};
 use crate::store::TreeFile;
 use glam::{DMat4, DVec4};
@@ -68,10 +68,10 @@ pub struct GpuResidency<'r> {
 }
 
 impl Residency for GpuResidency<'_> {
-    fn apply(&mut self, event: &Event) -> Result<u64, String> {
+    fn apply(&mut self, event: &Event) -> Result<u64, ResidencyError> {
         self.resident
             .apply(self.queue, event)
-            .map_err(|e| e.to_string())
+            .map_err(ResidencyError::from)
     }
 }
 

@@ -10,7 +10,7 @@
 use crate::fixtures::corners::{corners, options};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::BlockId;
-use atlastree::paging::{BlockTable, Event, PagerOptions};
+use atlastree::paging::{BlockTable, Event, PagerOptions, ResidencyError};
 use atlastree::plan::{FramePlanner, NoResidency, PlanError, Residency};
 use atlastree::preprocess::{NoProgress, build};
 use atlastree::sim::InstantLoader;
@@ -62,11 +62,13 @@ struct FailOne {
 }
 
 impl Residency for FailOne {
-    fn apply(&mut self, event: &Event) -> Result<u64, String> {
+    fn apply(&mut self, event: &Event) -> Result<u64, ResidencyError> {
         match event {
             Event::Loaded { block, .. } if *block == self.block => {
                 self.loads_seen += 1;
-                Err(format!("{block}: upload refused (test)"))
+                Err(ResidencyError::Upload {
+                    message: format!("{block}: upload refused (test)"),
+                })
             }
             _ => Ok(0),
         }

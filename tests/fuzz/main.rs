@@ -25,6 +25,7 @@ mod harness;
 
 mod camera_path;
 mod gltf;
+mod http;
 mod json_mut;
 mod paging_file;
 mod sweep_grid;

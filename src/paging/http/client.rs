@@ -2,24 +2,29 @@
 //!
 //! Policy, per fetch (one block, or the tables at open):
 //! - one `GET` with `Range: bytes=a-b`; a `206` must carry `Content-Range: bytes a-b/…` and exactly
-//!   `b - a + 1` body bytes;
+//!   `b - a + 1` body bytes; a block's bytes must match its checksum;
 //! - a `200` (a server that ignores `Range`) is accepted: the body is streamed, the bytes before `a` are
 //!   skipped, the range is kept, the rest is not read (the connection is dropped). Counted in
 //!   [`HttpStats::full_responses`] so a misconfigured server shows up in the stats;
-//! - retried, up to [`HttpOptions::retries`] times with exponential backoff (deterministic jitter):
-//!   connection and timeout errors, `5xx`, short or broken bodies;
-//! - not retried: `4xx` and other statuses, a `206` for another range, a checksum mismatch (the server
-//!   holds other bytes than the tables describe: asking again gives the same bytes; the pager may ask again
-//!   later).
+//! - retried, up to [`HttpOptions::retries`] times with exponential backoff (deterministic jitter): the
+//!   faults a network or an overloaded server produces and that may pass — connection, reset and timeout
+//!   errors (a server that sends its headers and then stalls included), `5xx`, `408`, `429`, short or
+//!   broken bodies, a `206` for another range, a block (or at open the tables) whose bytes fail their
+//!   checksum (a corrupt transfer);
+//! - not retried: other `4xx` and statuses, a request that cannot be built, a `Content-Range` whose total
+//!   says the server's file ends before the range.
 //!
-//! Every attempt is bounded by [`HttpOptions::connect_timeout`] and [`HttpOptions::timeout`], so a fetch
-//! ends within about `(retries + 1) × timeout + Σ backoff`; against a stopped server (connection refused)
-//! within `Σ backoff`.
+//! The error of a fetch that failed names the URL, the block, the attempts made and the last cause
+//! ([`SourceError`]); [`SourceError::is_transient`] tells the pager whether to ask again soon.
+//!
+//! Every attempt is bounded by [`HttpOptions::connect_timeout`] and [`HttpOptions::timeout`] (the whole
+//! request: connect, headers and body), so a fetch ends within about `(retries + 1) × timeout + Σ backoff`;
+//! against a stopped server (connection refused) within `Σ backoff`.
 
 use super::super::source::{BlockSource, SourceError, verify};
 use crate::ids::BlockId;
-use crate::store::TreeFile;
 use crate::store::format::{BlockRecord, HEADER_SIZE, Header};
+use crate::store::{StoreError, TreeFile};
 use std::io::Read;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
@@ -67,7 +72,7 @@ pub struct HttpStats {
     pub blocks: u64,
     /// `200` answers to a range request (the server ignores `Range`; the range was cut from the stream).
     pub full_responses: u64,
-    /// Blocks whose bytes did not match their checksum (not retried).
+    /// Answers whose bytes did not match the block's checksum (every attempt counted; retried).
     pub checksum_failures: u64,
     /// Failed fetches since the last successful one: non-zero means "source failing, drawing coarser".
     pub consecutive_failures: u64,
@@ -133,16 +138,24 @@ enum Failure {
     Status(u16),
     /// The body ended early (or the file is shorter than the range).
     Short { got: u64 },
-    /// A `206` for another range than asked for.
-    WrongRange(String),
+    /// A `206` for another range than asked for; `file_shorter` when its total ends before the range.
+    WrongRange { message: String, file_shorter: bool },
+    /// The bytes of a block do not match its checksum.
+    Checksum { found: u64 },
+    /// The tables' bytes fail one of their checksums (corrupt in transit).
+    Corrupt(String),
 }
 
 impl Failure {
     fn retryable(&self) -> bool {
         match self {
-            Failure::Transport(_) | Failure::Short { .. } => true,
-            Failure::Status(status) => *status >= 500,
-            Failure::Request(_) | Failure::WrongRange(_) => false,
+            Failure::Transport(_)
+            | Failure::Short { .. }
+            | Failure::Checksum { .. }
+            | Failure::Corrupt(_) => true,
+            Failure::Status(status) => *status >= 500 || matches!(status, 408 | 429),
+            Failure::WrongRange { file_shorter, .. } => !file_shorter,
+            Failure::Request(_) => false,
         }
     }
 
@@ -161,10 +174,11 @@ impl Failure {
 
     fn message(&self, expected: u64) -> String {
         match self {
-            Failure::Transport(m) | Failure::Request(m) => m.clone(),
+            Failure::Transport(m) | Failure::Request(m) | Failure::Corrupt(m) => m.clone(),
             Failure::Status(s) => format!("HTTP status {s}"),
             Failure::Short { got } => format!("got {got} of {expected} bytes"),
-            Failure::WrongRange(m) => m.clone(),
+            Failure::WrongRange { message, .. } => message.clone(),
+            Failure::Checksum { found } => format!("checksum {found:#018x} does not match"),
         }
     }
 }
@@ -195,17 +209,14 @@ impl HttpSource {
     /// the header's).
     pub fn open(url: &str, options: HttpOptions) -> Result<(TreeFile, HttpSource), SourceError> {
         let mut source = HttpSource::new(url, options);
-        let head = source.get_tables(0, HEADER_SIZE as u64)?;
-        let store_err = |error| SourceError::Store {
-            source_name: url.to_string(),
-            error,
-        };
-        let prefix_len = TreeFile::prefix_len(&head.bytes).map_err(store_err)?;
+        let (prefix_len, head) =
+            source.get_tables(0, HEADER_SIZE as u64, |r| TreeFile::prefix_len(&r.bytes))?;
         let header: Header = bytemuck::pod_read_unaligned(&head.bytes[..HEADER_SIZE]);
-        let prefix = source.get_tables(0, prefix_len)?;
-        let file_len = prefix.total.or(head.total).unwrap_or(header.file_len);
-        let file = TreeFile::from_prefix(&prefix.bytes, file_len, url).map_err(store_err)?;
-        source.file_len = file_len;
+        let file_len = |r: &Ranged| r.total.or(head.total).unwrap_or(header.file_len);
+        let (file, prefix) = source.get_tables(0, prefix_len, |r| {
+            TreeFile::from_prefix(&r.bytes, file_len(r), url)
+        })?;
+        source.file_len = file_len(&prefix);
         Ok((file, source))
     }
 
@@ -246,25 +257,68 @@ impl HttpSource {
         self.counters.snapshot()
     }
 
-    /// `len` bytes at `offset` for the tables, with retries; failures become [`SourceError::Tables`].
-    fn get_tables(&self, offset: u64, len: u64) -> Result<Ranged, SourceError> {
-        let result = self.get_with_retries(offset, len, u64::MAX);
-        self.counters.outcome(result.is_ok());
-        result.map_err(|(failure, attempts)| SourceError::Tables {
+    /// `len` bytes at `offset` for the tables, parsed by `parse`, with retries. A transfer whose bytes fail
+    /// a checksum or hold non-zero padding ([`StoreError::ChecksumMismatch`],
+    /// [`StoreError::NonZeroPadding`]: corrupt in transit) counts as a failed attempt and is
+    /// asked again; another parse error is returned at once as [`SourceError::Store`]; a fetch that fails
+    /// after every attempt is [`SourceError::Tables`].
+    fn get_tables<T>(
+        &self,
+        offset: u64,
+        len: u64,
+        parse: impl Fn(&Ranged) -> Result<T, StoreError>,
+    ) -> Result<(T, Ranged), SourceError> {
+        let parsed = std::cell::RefCell::new(None);
+        let check = |r: &Ranged| match parse(r) {
+            Err(e @ (StoreError::ChecksumMismatch { .. } | StoreError::NonZeroPadding { .. })) => {
+                bump(&self.counters.checksum_failures, 1);
+                Err(Failure::Corrupt(e.to_string()))
+            }
+            other => {
+                *parsed.borrow_mut() = Some(other);
+                Ok(())
+            }
+        };
+        let result = self.get_with_retries(offset, len, u64::MAX, check);
+        let tables_error = |failure: Failure, attempts| SourceError::Tables {
             url: self.url.clone(),
             offset,
             len,
             attempts,
             message: failure.message(len),
-        })
+        };
+        let value = match (result, parsed.into_inner()) {
+            (Ok(ranged), Some(Ok(value))) => Ok((value, ranged)),
+            (Ok(_), Some(Err(error))) => Err(SourceError::Store {
+                source_name: self.url.clone(),
+                error,
+            }),
+            (Ok(_), None) => Err(tables_error(
+                Failure::Corrupt("the tables were not parsed".into()),
+                1,
+            )),
+            (Err((failure, attempts)), _) => Err(tables_error(failure, attempts)),
+        };
+        self.counters.outcome(value.is_ok());
+        value
     }
 
-    /// One range with retries. `seed` varies the backoff jitter (the block id), so loader threads that
-    /// fail together do not retry in lockstep. Errors carry the number of attempts made.
-    fn get_with_retries(&self, offset: u64, len: u64, seed: u64) -> Result<Ranged, (Failure, u32)> {
+    /// One range with retries, each answer checked by `check` (a failed check is one failed attempt).
+    /// `seed` varies the backoff jitter (the block id), so loader threads that fail together do not retry
+    /// in lockstep. Errors carry the number of attempts made.
+    fn get_with_retries(
+        &self,
+        offset: u64,
+        len: u64,
+        seed: u64,
+        check: impl Fn(&Ranged) -> Result<(), Failure>,
+    ) -> Result<Ranged, (Failure, u32)> {
         let mut attempt = 0u32;
         loop {
-            match self.get_range(offset, len) {
+            match self
+                .get_range(offset, len)
+                .and_then(|r| check(&r).map(|()| r))
+            {
                 Ok(r) => return Ok(r),
                 Err(f) if f.retryable() && attempt < self.options.retries => {
                     bump(&self.counters.retries, 1);
@@ -347,14 +401,38 @@ impl HttpSource {
                 status,
                 offset,
                 len,
+                attempts,
             },
             Failure::Short { got } => SourceError::Length {
                 source_name: url,
                 block: id,
                 expected: len,
                 got,
+                attempts,
             },
-            f => SourceError::Transport {
+            Failure::Checksum { found } => SourceError::Checksum {
+                source_name: url,
+                block: id,
+                expected: record.checksum,
+                found,
+                attempts,
+            },
+            Failure::WrongRange {
+                message,
+                file_shorter,
+            } => SourceError::WrongRange {
+                url,
+                block: id,
+                attempts,
+                message,
+                file_shorter,
+            },
+            Failure::Request(message) => SourceError::Request {
+                url,
+                block: id,
+                message,
+            },
+            f @ (Failure::Transport(_) | Failure::Corrupt(_)) => SourceError::Transport {
                 message: f.message(len),
                 url,
                 block: id,
@@ -368,14 +446,18 @@ impl HttpSource {
             verify(&self.url, id, record, &[])?;
             return Ok(Vec::new());
         }
-        let ranged = self
-            .get_with_retries(record.offset, record.length, id.0.into())
-            .map_err(|(f, attempts)| self.block_error(id, record, f, attempts))?;
-        let verified = verify(&self.url, id, record, &ranged.bytes);
-        if let Err(SourceError::Checksum { .. }) = verified {
+        let check = |r: &Ranged| {
+            let found = xxhash_rust::xxh3::xxh3_64(&r.bytes);
+            if found == record.checksum {
+                return Ok(());
+            }
             bump(&self.counters.checksum_failures, 1);
-        }
-        verified.map(|()| ranged.bytes)
+            Err(Failure::Checksum { found })
+        };
+        let ranged = self
+            .get_with_retries(record.offset, record.length, id.0.into(), check)
+            .map_err(|(f, attempts)| self.block_error(id, record, f, attempts))?;
+        Ok(ranged.bytes)
     }
 }
 
@@ -397,30 +479,30 @@ impl BlockSource for HttpSource {
 }
 
 /// Checks `Content-Range: bytes first-last/total` against the range asked for; returns the total (`None`
-/// for `*`).
+/// for `*`). A mismatch whose total ends before `last` says the server's file is shorter (permanent).
 fn check_content_range(
     header: Option<&str>,
     first: u64,
     last: u64,
 ) -> Result<Option<u64>, Failure> {
-    let wrong = || {
-        Failure::WrongRange(format!(
-            "206 with Content-Range {header:?}, expected bytes {first}-{last}/…"
-        ))
+    let wrong = |file_shorter: bool| Failure::WrongRange {
+        message: format!("206 with Content-Range {header:?}, expected bytes {first}-{last}/…"),
+        file_shorter,
     };
     let spec = header
         .and_then(|h| h.trim().strip_prefix("bytes "))
-        .ok_or_else(wrong)?;
-    let (range, total) = spec.split_once('/').ok_or_else(wrong)?;
-    let (a, b) = range.split_once('-').ok_or_else(wrong)?;
+        .ok_or_else(|| wrong(false))?;
+    let (range, total) = spec.split_once('/').ok_or_else(|| wrong(false))?;
     let parse = |s: &str| s.trim().parse::<u64>().ok();
+    let total = match total.trim() {
+        "*" => None,
+        t => Some(parse(t).ok_or_else(|| wrong(false))?),
+    };
+    let (a, b) = range.split_once('-').ok_or_else(|| wrong(false))?;
     if parse(a) != Some(first) || parse(b) != Some(last) {
-        return Err(wrong());
+        return Err(wrong(total.is_some_and(|t| t <= last)));
     }
-    match total.trim() {
-        "*" => Ok(None),
-        t => parse(t).map(Some).ok_or_else(wrong),
-    }
+    Ok(total)
 }
 
 /// The wait before retry `attempt` (0-based): `backoff_initial × 2^attempt`, at most `backoff_max`, times
@@ -466,6 +548,24 @@ mod tests {
             assert!(check_content_range(Some(bad), 10, 19).is_err(), "{bad}");
         }
         assert!(check_content_range(None, 10, 19).is_err());
+        // A total that ends before the range: the server's file is shorter, asking again cannot help.
+        let shorter = |h: &str| match check_content_range(Some(h), 10, 19) {
+            Err(Failure::WrongRange { file_shorter, .. }) => Some(file_shorter),
+            _ => None,
+        };
+        assert_eq!(shorter("bytes 0-9/10"), Some(true));
+        assert_eq!(shorter("bytes 10-18/19"), Some(true));
+        assert_eq!(shorter("bytes 10-18/100"), Some(false));
+        assert_eq!(shorter("bytes 10-18/*"), Some(false));
+        assert!(
+            Failure::WrongRange {
+                message: String::new(),
+                file_shorter: false
+            }
+            .retryable()
+        );
+        assert!(Failure::Checksum { found: 1 }.retryable());
+        assert!(!Failure::Status(404).retryable() && Failure::Status(429).retryable());
     }
 
     #[test]

@@ -4,7 +4,7 @@
 
 use super::Resident;
 use crate::ids::BlockId;
-use crate::paging::Event;
+use crate::paging::{Event, ResidencyError};
 use crate::render::RenderError;
 use crate::render::batch::AtlasSlot;
 use crate::render::textures::{gpu_format, layer_texels_for_upload, texels_for_upload};
@@ -301,5 +301,32 @@ impl Resident {
             p.original_layers_used -= 1;
         }
         Ok(())
+    }
+}
+
+/// The pager's view of a renderer error (the planner decides retry or give-up from it): no free layer,
+/// a block whose bytes cannot be uploaded, broken bookkeeping, or anything else as a failed upload.
+impl From<RenderError> for ResidencyError {
+    fn from(e: RenderError) -> ResidencyError {
+        match e {
+            RenderError::TooManyLayers {
+                what,
+                layers,
+                limit,
+            } => ResidencyError::NoFreeLayer {
+                what,
+                needed: layers,
+                limit,
+            },
+            RenderError::ShortBlock { block } => ResidencyError::BadBlock { block },
+            e @ (RenderError::Residency { .. }
+            | RenderError::MissingTree { .. }
+            | RenderError::MissingSlot { .. }) => ResidencyError::Bookkeeping {
+                message: e.to_string(),
+            },
+            e => ResidencyError::Upload {
+                message: e.to_string(),
+            },
+        }
     }
 }

@@ -18,11 +18,11 @@ use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 /// A built tree file in a temporary directory.
-struct Fixture {
+pub(super) struct Fixture {
     _dir: tempfile::TempDir,
-    path: PathBuf,
-    bytes: Arc<Vec<u8>>,
-    file: TreeFile,
+    pub(super) path: PathBuf,
+    pub(super) bytes: Arc<Vec<u8>>,
+    pub(super) file: TreeFile,
 }
 
 /// The bytes of a small built tree (23 blocks, about 1.4 MB, depth 2), built once per test binary; each
@@ -48,7 +48,7 @@ fn tree_bytes() -> Arc<Vec<u8>> {
         .clone()
 }
 
-fn fixture() -> Fixture {
+pub(super) fn fixture() -> Fixture {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("city.atlastree");
     let bytes = tree_bytes();
@@ -63,12 +63,12 @@ fn fixture() -> Fixture {
     }
 }
 
-fn any_port() -> SocketAddr {
+pub(super) fn any_port() -> SocketAddr {
     "127.0.0.1:0".parse().unwrap()
 }
 
 /// Fast retries for tests: 3 retries, 10 → 40 ms backoff, 2 s request timeout.
-fn quick() -> HttpOptions {
+pub(super) fn quick() -> HttpOptions {
     HttpOptions {
         connect_timeout: Duration::from_secs(1),
         timeout: Duration::from_secs(2),
@@ -78,7 +78,7 @@ fn quick() -> HttpOptions {
     }
 }
 
-fn fault_server(fx: &Fixture) -> FaultServer {
+pub(super) fn fault_server(fx: &Fixture) -> FaultServer {
     FaultServer::start(fx.bytes.clone(), "/city.atlastree", any_port()).unwrap()
 }
 
@@ -331,27 +331,157 @@ fn not_found_is_not_retried() {
 }
 
 #[test]
-fn corrupted_bytes_are_a_checksum_error_without_retries() {
+fn corrupted_bytes_are_retried_then_a_checksum_error() {
     let fx = fixture();
     let server = fault_server(&fx);
+    // Corrupt tables at open (the header, then the prefix): asked again, then opened.
+    for faults in [
+        Faults {
+            corrupt: 1,
+            ..Faults::default()
+        },
+        Faults {
+            corrupt: 2,
+            ..Faults::default()
+        },
+    ] {
+        server.set_faults(faults);
+        let (remote, src) = HttpSource::open(&server.url(), quick()).unwrap();
+        assert_same_tables(&fx.file, &remote);
+        let s = src.stats();
+        assert_eq!((s.checksum_failures, s.failures), (s.retries, 0), "{s:?}");
+        assert!(s.retries >= 1, "{s:?}");
+    }
+    server.set_faults(Faults {
+        corrupt: 100,
+        ..Faults::default()
+    });
+    let e = HttpSource::open(&server.url(), quick()).err().unwrap();
+    assert!(
+        matches!(&e, SourceError::Tables { attempts: 4, message, .. } if message.contains("checksum")),
+        "{e}"
+    );
+    server.set_faults(Faults::default());
     let (remote, src) = HttpSource::open(&server.url(), quick()).unwrap();
+    // Once corrupt (a transfer that may pass): retried, then the right bytes.
     server.set_faults(Faults {
         corrupt: 1,
+        ..Faults::default()
+    });
+    let before = src.stats();
+    assert_eq!(
+        fetch(&src, &remote, 2).unwrap(),
+        fx.file.block(BlockId(2)).unwrap()
+    );
+    let s = src.stats();
+    assert_eq!(
+        (s.requests - before.requests, s.retries - before.retries),
+        (2, 1)
+    );
+    assert_eq!((s.checksum_failures, s.failures), (1, 0));
+    // Always corrupt: a Checksum error after exactly retries + 1 attempts, transient for the pager.
+    server.set_faults(Faults {
+        corrupt: 100,
         ..Faults::default()
     });
     let before = src.stats();
     let e = fetch(&src, &remote, 2).unwrap_err();
     let expected = fx.file.blocks()[2].checksum;
     assert!(
-        matches!(e, SourceError::Checksum { block: BlockId(2), expected: x, .. } if x == expected),
+        matches!(e, SourceError::Checksum { block: BlockId(2), expected: x, attempts: 4, .. } if x == expected),
         "{e}"
     );
+    assert!(e.is_transient() && e.attempts() == 4);
     let s = src.stats();
-    assert_eq!((s.requests - before.requests, s.retries), (1, 0));
-    assert_eq!((s.checksum_failures, s.failures), (1, 1));
+    assert_eq!(
+        (s.requests - before.requests, s.retries - before.retries),
+        (4, 3)
+    );
+    assert_eq!((s.checksum_failures, s.failures), (5, 1));
+    server.set_faults(Faults::default());
     assert_eq!(
         fetch(&src, &remote, 2).unwrap(),
         fx.file.block(BlockId(2)).unwrap()
+    );
+}
+
+#[test]
+fn a_wrong_content_range_is_retried_then_reported() {
+    let fx = fixture();
+    let server = fault_server(&fx);
+    let (remote, src) = HttpSource::open(&server.url(), quick()).unwrap();
+    server.set_faults(Faults {
+        wrong_range: 2,
+        ..Faults::default()
+    });
+    let before = src.stats();
+    assert_eq!(
+        fetch(&src, &remote, 5).unwrap(),
+        fx.file.block(BlockId(5)).unwrap()
+    );
+    assert_eq!(src.stats().requests - before.requests, 3);
+    server.set_faults(Faults {
+        wrong_range: 100,
+        ..Faults::default()
+    });
+    let e = fetch(&src, &remote, 5).unwrap_err();
+    assert!(
+        matches!(
+            &e,
+            SourceError::WrongRange {
+                block: BlockId(5),
+                attempts: 4,
+                file_shorter: false,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.is_transient());
+    assert!(e.to_string().contains("after 4 attempt"), "{e}");
+}
+
+#[test]
+fn headers_then_a_stalled_body_times_out_and_is_retried() {
+    let fx = fixture();
+    let server = fault_server(&fx);
+    let options = HttpOptions {
+        timeout: Duration::from_millis(300),
+        retries: 2,
+        ..quick()
+    };
+    let (remote, src) = HttpSource::open(&server.url(), options).unwrap();
+    // Headers sent, body never: one timed-out attempt, then the right bytes.
+    server.set_faults(Faults {
+        stall_body: 1,
+        ..Faults::default()
+    });
+    let t = Instant::now();
+    assert_eq!(
+        fetch(&src, &remote, 1).unwrap(),
+        fx.file.block(BlockId(1)).unwrap()
+    );
+    let took = t.elapsed();
+    assert!(
+        took >= Duration::from_millis(300) && took < Duration::from_secs(5),
+        "{took:?}"
+    );
+    // Always stalled: Transport after retries + 1 attempts, each bounded by the timeout.
+    server.set_faults(Faults {
+        stall_body: 100,
+        ..Faults::default()
+    });
+    let t = Instant::now();
+    let e = fetch(&src, &remote, 1).unwrap_err();
+    let took = t.elapsed();
+    assert!(
+        matches!(e, SourceError::Transport { attempts: 3, .. }),
+        "{e}"
+    );
+    assert!(e.is_transient());
+    assert!(
+        took >= Duration::from_millis(900) && took < Duration::from_secs(8),
+        "{took:?}"
     );
 }
 

@@ -13,7 +13,8 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 /// What the next requests get. Counts are consumed one per request, in this order of precedence:
-/// `status`, `close`, `stall`, `truncate`, `corrupt`.
+/// `status`, `close`, `stall`, `stall_body`, `truncate`, `wrong_range`, `corrupt`; with `target` set,
+/// only by requests whose range starts at that offset (the others are answered normally).
 #[derive(Clone, Debug, Default)]
 pub struct Faults {
     /// Answer the next `n` requests with this status and an empty body.
@@ -26,6 +27,12 @@ pub struct Faults {
     pub truncate: u32,
     /// Flip one byte in the middle of the body of the next `n` answers.
     pub corrupt: u32,
+    /// Send the headers (full `Content-Length`) and then nothing, until the server stops.
+    pub stall_body: u32,
+    /// Answer `206` with a `Content-Range` one byte off (the right body).
+    pub wrong_range: u32,
+    /// Apply the faults only to requests whose range starts at this byte offset (one block).
+    pub target: Option<u64>,
     /// Ignore `Range` and answer `200` with the whole file (persistent).
     pub ignore_range: bool,
 }
@@ -206,14 +213,25 @@ enum Plan {
     Status(u16),
     Close,
     Stall,
+    StallBody,
     Truncate,
+    WrongRange,
     Corrupt,
     Normal,
 }
 
-fn take_fault(shared: &Shared) -> (Plan, bool) {
+/// The first byte a request asks for (`bytes=a-…`), if any.
+fn range_start(req: &Request) -> Option<u64> {
+    let spec = req.range.as_deref()?.strip_prefix("bytes=")?;
+    spec.split('-').next()?.trim().parse().ok()
+}
+
+fn take_fault(shared: &Shared, req: &Request) -> (Plan, bool) {
     let mut f = shared.faults.lock().unwrap();
     let ignore = f.ignore_range;
+    if f.target.is_some() && f.target != range_start(req) {
+        return (Plan::Normal, ignore);
+    }
     let plan = if let Some((status, n)) = f.status.filter(|&(_, n)| n > 0) {
         f.status = Some((status, n - 1));
         Plan::Status(status)
@@ -223,9 +241,15 @@ fn take_fault(shared: &Shared) -> (Plan, bool) {
     } else if f.stall > 0 {
         f.stall -= 1;
         Plan::Stall
+    } else if f.stall_body > 0 {
+        f.stall_body -= 1;
+        Plan::StallBody
     } else if f.truncate > 0 {
         f.truncate -= 1;
         Plan::Truncate
+    } else if f.wrong_range > 0 {
+        f.wrong_range -= 1;
+        Plan::WrongRange
     } else if f.corrupt > 0 {
         f.corrupt -= 1;
         Plan::Corrupt
@@ -262,7 +286,7 @@ fn head(out: &mut TcpStream, status: &str, headers: &[(String, String)]) -> std:
 /// Answers one request; `Ok(true)` if the connection may be reused.
 fn answer(out: &mut TcpStream, req: &Request, shared: &Shared) -> std::io::Result<bool> {
     let len = shared.data.len() as u64;
-    let (plan, ignore_range) = take_fault(shared);
+    let (plan, ignore_range) = take_fault(shared, req);
     if !matches!(plan, Plan::Normal) {
         shared.seen.lock().unwrap().faults += 1;
     }
@@ -311,9 +335,10 @@ fn answer(out: &mut TcpStream, req: &Request, shared: &Shared) -> std::io::Resul
     let status = match range {
         Some(_) => {
             shared.seen.lock().unwrap().partial += 1;
+            let shift = u64::from(matches!(plan, Plan::WrongRange));
             headers.push((
                 "Content-Range".into(),
-                format!("bytes {first}-{last}/{len}"),
+                format!("bytes {}-{}/{len}", first + shift, last + shift),
             ));
             "206 Partial Content"
         }
@@ -324,6 +349,13 @@ fn answer(out: &mut TcpStream, req: &Request, shared: &Shared) -> std::io::Resul
         return Ok(true);
     }
     match plan {
+        Plan::StallBody => {
+            out.flush()?;
+            while !shared.stop.load(Ordering::SeqCst) {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            Ok(false)
+        }
         Plan::Truncate => {
             out.write_all(&body[..body.len() / 2])?;
             Ok(false)

@@ -1,0 +1,40 @@
+//! The per-frame upload budget of the pager (paper §6: how much may become resident in one frame).
+
+use serde::Serialize;
+
+/// How much may become resident per frame.
+#[derive(Copy, Clone, Debug, PartialEq, Default, Serialize)]
+pub enum UploadBudget {
+    /// Everything that arrived.
+    #[default]
+    Unlimited,
+    /// Bytes uploaded per frame, as [`crate::paging::BlockMeta::upload_bytes`] counts them (original
+    /// textures as their class layers); at least one block per frame is always accepted, so a block
+    /// larger than the budget still loads.
+    Bytes(u64),
+    /// Milliseconds of upload work per frame, measured around the upload callback (same minimum).
+    Millis(f64),
+}
+
+impl std::str::FromStr for UploadBudget {
+    type Err = String;
+    /// `unlimited`, a byte size per frame (`8MB`, `512KiB`), or a time per frame (`2ms`).
+    fn from_str(s: &str) -> Result<UploadBudget, String> {
+        let t = s.trim();
+        if t.eq_ignore_ascii_case("unlimited") || t == "0" {
+            return Ok(UploadBudget::Unlimited);
+        }
+        if t.ends_with("ms") || t.ends_with("us") || t.ends_with("µs") {
+            return crate::util::parse_seconds(t)
+                .filter(|&v| v > 0.0)
+                .map(|v| UploadBudget::Millis(v * 1e3))
+                .ok_or_else(|| format!("bad upload budget {s:?}: expected e.g. 2ms"));
+        }
+        crate::util::parse_bytes(t)
+            .filter(|&b| b > 0)
+            .map(UploadBudget::Bytes)
+            .ok_or_else(|| {
+                format!("bad upload budget {s:?}: expected unlimited, 8MB, 512KiB or 2ms")
+            })
+    }
+}
