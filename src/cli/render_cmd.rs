@@ -475,12 +475,12 @@ fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
     sheet
 }
 
-/// `stats.csv`: `frame`, the frame's counters and timings ([`columns::frame_columns`]) and, when paged,
+/// `stats.csv`: `frame`, the frame's counters and timings ([`atlastree::render::frame_columns`]) and, when paged,
 /// the paging columns ([`columns::paging_columns`]).
 fn write_stats_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
     let paged = stats.iter().any(|s| s.paging().is_some());
     let row = |s: &FrameStats| {
-        let mut c = columns::frame_columns(s);
+        let mut c = atlastree::render::frame_columns(s);
         if paged {
             c.extend(columns::paging_columns_or_empty(s.paging()));
         }
@@ -536,14 +536,10 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
     }
     let paged: Vec<_> = stats.iter().filter_map(FrameStats::paging).collect();
     if !paged.is_empty() {
-        let peak = paged
-            .iter()
-            .map(|p| p.session.pager.resident)
-            .max()
-            .unwrap_or(0);
-        let bytes: u64 = paged.iter().map(|p| p.session.pager.bytes_loaded).sum();
+        let peak = paged.iter().map(|p| p.pager().resident).max().unwrap_or(0);
+        let bytes: u64 = paged.iter().map(|p| p.pager().bytes_loaded).sum();
         let (share, max_share) = mean_max(paged.iter().map(|p| p.coarse.share()));
-        let failures: u32 = paged.iter().map(|p| p.session.pager.failures).sum();
+        let failures: u32 = paged.iter().map(|p| p.pager().failures).sum();
         println!(
             "  paging: peak resident {peak}, {} loaded, coarser share mean {:.3} max {:.3}, {} load failures",
             atlastree::util::human_bytes(bytes),

@@ -1,5 +1,5 @@
 use anyhow::Context;
-use atlastree::paging::http::serve;
+use atlastree::paging::serve;
 use atlastree::store::TreeFile;
 use atlastree::util::human_bytes;
 use clap::Args;

@@ -10,31 +10,35 @@
 //!  cut + residency ──resolve──▶ draw with the nearest resident ancestor; Coarseness (screen share)
 //! ```
 //!
+//! The submodules are private: everything a caller uses is re-exported here, under one path (and the
+//! range server as [`serve`]).
+//!
 //! Everything here is plain CPU data and deterministic given the arrivals; the renderer and the simulator
 //! drive the same [`Pager`].
 
-pub mod blocks;
-pub mod budget;
-pub mod http;
-pub mod loader;
-pub mod pager;
-pub mod policy;
-pub mod residency;
-pub mod resolve;
-pub mod session;
-pub mod source;
-pub mod usage;
+mod blocks;
+mod budget;
+mod http;
+mod loader;
+mod pager;
+mod policy;
+mod residency;
+mod resolve;
+mod session;
+mod source;
+mod usage;
 
 pub use blocks::{BlockItem, BlockMeta, BlockTable, BlockTableError};
-pub use http::{HttpOptions, HttpSource, HttpStats};
+pub use budget::UploadBudget;
+pub use http::{HttpOptions, HttpSource, HttpStats, serve};
 pub use loader::{ImmediateLoader, Loader, ThreadedLoader};
 pub use pager::{
     Applied, Arrival, Event, Pager, PagerError, PagerFrameStats, PagerOptions, PagerTotals,
-    Request, UploadBudget, resident_fingerprint,
+    Request, resident_fingerprint,
 };
 pub use policy::Policy;
 pub use residency::{ResidencyError, Retry};
 pub use resolve::{Coarseness, Resolved, resolve, resolve_cut, screen_fraction};
 pub use session::{PagingSession, SessionFrame, resolve_frame};
 pub use source::{BlockSource, FileSource, SourceError};
-pub use usage::{Candidate, Usage, UsageCounts, ViewInput};
+pub use usage::{Candidate, Usage, UsageCounts, UsageScratch, ViewInput, classify};

@@ -19,7 +19,7 @@
 //! ranks below the block that replaces it.
 
 use super::blocks::BlockTable;
-pub use super::budget::UploadBudget;
+use super::budget::UploadBudget;
 use super::policy::Policy;
 use super::residency::Retry;
 use super::source::SourceError;

@@ -22,8 +22,8 @@ use crate::camera::{Camera, Frustum};
 use crate::ids::BlockId;
 use crate::paging::{
     Applied, BlockSource, BlockTable, BlockTableError, Coarseness, Event, ImmediateLoader, Loader,
-    Pager, PagerError, PagerOptions, PagingSession, ResidencyError, Resolved, SessionFrame,
-    SourceError, ThreadedLoader, resident_fingerprint, resolve_frame,
+    Pager, PagerError, PagerFrameStats, PagerOptions, PagingSession, ResidencyError, Resolved,
+    SessionFrame, SourceError, ThreadedLoader, resident_fingerprint, resolve_frame,
 };
 use crate::select::{Cut, select};
 use crate::store::TreeFile;
@@ -112,6 +112,13 @@ pub struct PagingFrame {
     /// Evictions the executor could not apply this frame (the block is gone from residency either way;
     /// the executor's bookkeeping reported a broken invariant).
     pub evict_errors: u32,
+}
+
+impl PagingFrame {
+    /// The pager's counters of the frame (usage, residency, loads, bytes, failures).
+    pub fn pager(&self) -> &PagerFrameStats {
+        &self.session.pager
+    }
 }
 
 /// Counters of one plan.

@@ -139,7 +139,7 @@ impl<'a> ImageCache<'a> {
                         id.0, src.name
                     ));
                 }
-                let d = crate::scene::image_source::fallback_checker();
+                let d = crate::scene::fallback_checker();
                 let l = LinearImage::from_decoded(&d)
                     .unwrap_or_else(|_| LinearImage::new_filled(1, 1, [1.0, 0.0, 1.0, 1.0]));
                 (d, l)

@@ -17,6 +17,7 @@ use crate::camera::Camera;
 use crate::gpu::{GpuContext, readback_rgba8};
 use crate::paging::{Event, ResidencyError};
 use crate::plan::{FramePlan, FramePlanner, PagingFrame, PlanError, PlanStats, Residency};
+use crate::report::columns::{self, Column};
 use crate::store::TreeFile;
 use glam::{DMat4, DVec4};
 use std::time::Instant;
@@ -625,4 +626,41 @@ pub(super) fn tree_bind_group(
         layout,
         entries: &entries,
     })
+}
+
+/// Columns of an executed frame: the plan's counters ([`columns::plan_columns`]), then the renderer's draw
+/// counters and timings (the paging counters are [`columns::paging_columns`]). `gpu_ms` is NaN (`nan`) without
+/// timestamp queries.
+pub fn frame_columns(s: &FrameStats) -> Vec<Column> {
+    let FrameStats {
+        plan,
+        indirect_records,
+        original_records,
+        draw_calls,
+        bind_group_changes,
+        pipeline_changes,
+        triangles,
+        encode_us,
+        gpu_ms,
+        frame_ms,
+        skipped_draws,
+        atlas_layers_used,
+        original_layers_used,
+    } = *s;
+    let mut out = columns::plan_columns(&plan);
+    out.extend([
+        Column::counter("indirect_records", indirect_records),
+        Column::counter("original_records", original_records),
+        Column::counter("draw_calls", draw_calls),
+        Column::counter("bind_group_changes", bind_group_changes),
+        Column::counter("pipeline_changes", pipeline_changes),
+        Column::counter("triangles", triangles),
+        Column::counter("skipped_draws", skipped_draws),
+        Column::counter("atlas_layers_used", atlas_layers_used),
+        Column::counter("original_layers_used", original_layers_used),
+        Column::timing("encode_us", encode_us),
+        Column::timing("gpu_ms", gpu_ms.unwrap_or(f64::NAN)),
+        Column::timing("frame_ms", frame_ms),
+    ]);
+    out
 }

@@ -30,7 +30,7 @@ pub mod textures;
 pub mod wgsl;
 
 pub use crate::plan::{PagingFrame, PagingSetup};
-pub use frame::{FrameStats, GpuResidency, Renderer, RendererOptions};
+pub use frame::{FrameStats, GpuResidency, Renderer, RendererOptions, frame_columns};
 pub use frame_loop::FrameLoop;
 
 use crate::gpu::GpuError;

@@ -3,15 +3,16 @@
 //! everywhere (the README's "Changelog" lists the names this replaced).
 //!
 //! Each mapping destructures its struct exhaustively (no `..`): a field added to [`PagingFrame`],
-//! [`SessionFrame`], [`PagerFrameStats`], [`UsageCounts`], [`Coarseness`], [`PlanStats`] or
-//! [`FrameStats`] breaks the build here, where it gets its column (or is named as left out, with the
-//! reason). Every column is a [`Column`]: its name, its cell, and whether it is a wall-clock time
-//! ([`Column::timing`]); the simulator's tables are byte-for-byte deterministic and leave timings out.
+//! [`SessionFrame`], [`PagerFrameStats`], [`UsageCounts`], [`Coarseness`] or [`PlanStats`] breaks the build
+//! here, where it gets its column (or is named as left out, with the reason); the renderer's `FrameStats`
+//! has its mapping beside it (`render::frame_columns`, built from these). Every column is a [`Column`]: its
+//! name, its cell, and whether it is a wall-clock time ([`Column::timing`]); the simulator's tables are
+//! byte-for-byte deterministic and leave timings out.
 
 use super::csv::Cell;
 use crate::paging::{Coarseness, PagerFrameStats, SessionFrame, UsageCounts};
 use crate::plan::{PagingFrame, PlanStats};
-use crate::render::FrameStats;
+use Column as C;
 
 /// One column of a per-frame table.
 #[derive(Clone, Debug, PartialEq)]
@@ -23,19 +24,23 @@ pub struct Column {
     pub timing: bool,
 }
 
-fn counter(name: &'static str, cell: impl Into<Cell>) -> Column {
-    Column {
-        name,
-        cell: cell.into(),
-        timing: false,
+impl Column {
+    /// A counter: the same for the same inputs.
+    pub fn counter(name: &'static str, cell: impl Into<Cell>) -> Column {
+        Column {
+            name,
+            cell: cell.into(),
+            timing: false,
+        }
     }
-}
 
-fn timing(name: &'static str, cell: impl Into<Cell>) -> Column {
-    Column {
-        name,
-        cell: cell.into(),
-        timing: true,
+    /// A wall-clock time (left out of deterministic tables).
+    pub fn timing(name: &'static str, cell: impl Into<Cell>) -> Column {
+        Column {
+            name,
+            cell: cell.into(),
+            timing: true,
+        }
     }
 }
 
@@ -93,37 +98,37 @@ pub fn paging_columns(p: &PagingFrame) -> Vec<Column> {
         coarser_area_by_gap: _,
     } = coarse;
     vec![
-        counter("blocks_needed", needed),
-        counter("blocks_culled", culled),
-        counter("blocks_parent_needed", parent_needed),
-        counter("ideal", ideal),
-        counter("ideal_resident", ideal_resident),
-        counter("ideal_fraction", ideal_fraction),
-        counter("resident", resident),
-        counter("requested", requested),
-        counter("staged", staged),
-        counter("queued", queued),
-        counter("in_flight", in_flight),
-        counter("loaded", loaded),
-        counter("bytes_loaded", bytes_loaded),
-        counter("bytes_loaded_originals", loaded_original_bytes),
-        counter("bytes_uploaded", uploaded_bytes),
-        counter("resident_bytes_atlases", resident_atlas_bytes),
-        counter("resident_bytes_originals", resident_original_bytes),
-        counter("evictions", evictions),
-        counter("cancelled", cancelled),
-        counter("discarded", discarded),
-        counter("discarded_bytes", discarded_bytes),
-        counter("failures", failures),
-        counter("priority_violations", priority_violations),
-        counter("drawn_items", items),
-        counter("coarser_items", coarser_items),
-        counter("coarser_share", coarser_share),
-        counter("coarser_gap", coarser_gap),
-        counter("apply_errors", apply_errors),
-        counter("evict_errors", evict_errors),
-        counter("resident_hash", Cell::Text(format!("{resident_hash:016x}"))),
-        timing("upload_ms", upload_ms),
+        C::counter("blocks_needed", needed),
+        C::counter("blocks_culled", culled),
+        C::counter("blocks_parent_needed", parent_needed),
+        C::counter("ideal", ideal),
+        C::counter("ideal_resident", ideal_resident),
+        C::counter("ideal_fraction", ideal_fraction),
+        C::counter("resident", resident),
+        C::counter("requested", requested),
+        C::counter("staged", staged),
+        C::counter("queued", queued),
+        C::counter("in_flight", in_flight),
+        C::counter("loaded", loaded),
+        C::counter("bytes_loaded", bytes_loaded),
+        C::counter("bytes_loaded_originals", loaded_original_bytes),
+        C::counter("bytes_uploaded", uploaded_bytes),
+        C::counter("resident_bytes_atlases", resident_atlas_bytes),
+        C::counter("resident_bytes_originals", resident_original_bytes),
+        C::counter("evictions", evictions),
+        C::counter("cancelled", cancelled),
+        C::counter("discarded", discarded),
+        C::counter("discarded_bytes", discarded_bytes),
+        C::counter("failures", failures),
+        C::counter("priority_violations", priority_violations),
+        C::counter("drawn_items", items),
+        C::counter("coarser_items", coarser_items),
+        C::counter("coarser_share", coarser_share),
+        C::counter("coarser_gap", coarser_gap),
+        C::counter("apply_errors", apply_errors),
+        C::counter("evict_errors", evict_errors),
+        C::counter("resident_hash", Cell::Text(format!("{resident_hash:016x}"))),
+        C::timing("upload_ms", upload_ms),
     ]
 }
 
@@ -152,48 +157,11 @@ pub fn plan_columns(s: &PlanStats) -> Vec<Column> {
         paging: _,
     } = *s;
     vec![
-        counter("nodes_visited", nodes_visited),
-        counter("nodes_drawn", nodes_drawn),
-        timing("select_us", select_us),
-        timing("page_us", page_us),
+        C::counter("nodes_visited", nodes_visited),
+        C::counter("nodes_drawn", nodes_drawn),
+        C::timing("select_us", select_us),
+        C::timing("page_us", page_us),
     ]
-}
-
-/// Columns of an executed frame: the plan's counters ([`plan_columns`]), then the renderer's draw
-/// counters and timings (the paging counters are [`paging_columns`]). `gpu_ms` is NaN (`nan`) without
-/// timestamp queries.
-pub fn frame_columns(s: &FrameStats) -> Vec<Column> {
-    let FrameStats {
-        plan,
-        indirect_records,
-        original_records,
-        draw_calls,
-        bind_group_changes,
-        pipeline_changes,
-        triangles,
-        encode_us,
-        gpu_ms,
-        frame_ms,
-        skipped_draws,
-        atlas_layers_used,
-        original_layers_used,
-    } = *s;
-    let mut out = plan_columns(&plan);
-    out.extend([
-        counter("indirect_records", indirect_records),
-        counter("original_records", original_records),
-        counter("draw_calls", draw_calls),
-        counter("bind_group_changes", bind_group_changes),
-        counter("pipeline_changes", pipeline_changes),
-        counter("triangles", triangles),
-        counter("skipped_draws", skipped_draws),
-        counter("atlas_layers_used", atlas_layers_used),
-        counter("original_layers_used", original_layers_used),
-        timing("encode_us", encode_us),
-        timing("gpu_ms", gpu_ms.unwrap_or(f64::NAN)),
-        timing("frame_ms", frame_ms),
-    ]);
-    out
 }
 
 /// The names of `columns`, for a header.

@@ -5,14 +5,14 @@
 //! (every instance becomes distinct triangles), `KHR_texture_transform` is baked into the UVs, and the
 //! distribution plane (paper §3) is fixed by [`UpAxis`].
 
-pub mod error;
-pub mod image_source;
-pub mod import;
+mod error;
+mod image_source;
+mod import;
 pub mod info;
 pub mod synthetic;
 
 pub use error::SceneError;
-pub use image_source::{DecodedImage, ImageSource};
+pub use image_source::{DecodedImage, FALLBACK_COLORS, ImageData, ImageSource, fallback_checker};
 pub use import::{ImportOptions, import};
 
 use crate::ids::{ImageId, MaterialId};
@@ -122,7 +122,7 @@ pub struct Triangle {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct ImportReport {
     /// Human-readable warnings, each naming file, mesh, primitive and accessor where it applies.
-    /// At most [`import::MAX_WARNINGS`] entries plus a final "... and N more".
+    /// At most 100 entries (`import::warnings::MAX_WARNINGS`) plus a final "... and N more".
     pub warnings: Vec<String>,
     /// Exact number of warnings (including those not kept in `warnings`).
     pub warnings_total: u64,
@@ -132,7 +132,7 @@ pub struct ImportReport {
     /// Primitives whose material has a base colour texture on a `TEXCOORD_n` the primitive lacks (drawn
     /// with a solid image of the material's factor instead).
     pub missing_texcoords: u64,
-    /// Kept triangles with a UV component beyond ±[`import::LARGE_UV`].
+    /// Kept triangles with a UV component beyond ±10⁶ (`import::mesh::LARGE_UV`).
     pub large_uv_triangles: u64,
     pub instances: u64,
     pub nodes: u64,

@@ -161,12 +161,12 @@ impl FrameRow {
 
     /// Share of the ideal set resident after the frame.
     pub fn ideal_fraction(&self) -> f64 {
-        self.paging.session.pager.ideal_fraction()
+        self.paging.pager().ideal_fraction()
     }
 
     /// Bytes the pager loaded this frame.
     pub fn bytes_loaded(&self) -> u64 {
-        self.paging.session.pager.bytes_loaded
+        self.paging.pager().bytes_loaded
     }
 }
 
@@ -312,11 +312,11 @@ pub fn summarise(rows: &[FrameRow], cancelled: u64, discarded: u64) -> RunSummar
         bytes_originals_total: rows.iter().map(|r| r.paging.loaded_original_bytes).sum(),
         loads: rows
             .iter()
-            .map(|r| u64::from(r.paging.session.pager.loaded))
+            .map(|r| u64::from(r.paging.pager().loaded))
             .sum(),
         peak_resident: rows
             .iter()
-            .map(|r| r.paging.session.pager.resident)
+            .map(|r| r.paging.pager().resident)
             .max()
             .unwrap_or(0),
         jumps,

@@ -1,9 +1,9 @@
 //! What accuracy costs in time: measure every knob that trades image fidelity for speed or memory on one
 //! scene and camera path (issue 7).
 //!
-//! - [`grid`]: the knobs and their values, a star around a base variant ([`grid::Grid`], presets `small`
-//!   and `full`, JSON files), expanded into builds and runtime variants ([`grid::Plan`]).
-//! - [`run`]: builds each build-time variant once, renders each runtime variant over the same frames and
+//! - `grid.rs`: the knobs and their values, a star around a base variant ([`Grid`], presets `small`
+//!   and `full`, JSON files), expanded into builds and runtime variants ([`Plan`]).
+//! - `run.rs` ([`run_sweep`]): builds each build-time variant once, renders each runtime variant over the same frames and
 //!   compares every frame with the reference: the same view drawn with the original textures at their
 //!   stored full resolution ([`crate::render::Mode::Original`], the naive renderer), on the base build.
 //!   Produces plain rows ([`BuildRow`], [`FrameRow`]).
@@ -19,13 +19,16 @@
 //! CPU select and encode µs, GPU ms (timestamp queries, when the device has them), frame ms and bytes
 //! paged in.
 
-pub mod grid;
+mod grid;
 pub mod output;
-pub mod run;
+mod run;
 pub mod summary;
 
 pub use grid::{BuildKnobs, Grid, Plan, RuntimeKnobs};
-pub use run::{BuildRow, FrameRow, SweepData, SweepOptions, SweepProgress, run_sweep};
+pub use run::{
+    BuildRow, FrameRow, NoSweepProgress, SweepData, SweepOptions, SweepProgress, merge_histogram,
+    run_sweep, sample_path,
+};
 
 use crate::camera::CameraError;
 use crate::preprocess::BuildError;

@@ -63,7 +63,7 @@ const FRAME_KEY_HEADER: [&str; 12] = [
 /// The columns of one `frames.csv` row after its key: the frame's counters and timings, then its paging
 /// counters (empty cells for variants with every block resident), both through [`columns`].
 fn frame_counters(stats: &FrameStats) -> Vec<columns::Column> {
-    let mut c = columns::frame_columns(stats);
+    let mut c = crate::render::frame_columns(stats);
     c.extend(columns::paging_columns_or_empty(stats.paging()));
     c
 }

@@ -95,7 +95,7 @@ pub fn summarise(builds: &[BuildRow], frames: &[FrameRow]) -> Vec<VariantRow> {
                 frame_ms_median: median(rows.iter().map(|f| f.stats.frame_ms)),
                 bytes_loaded: rows
                     .iter()
-                    .map(|f| f.stats.paging().map_or(0, |p| p.session.pager.bytes_loaded))
+                    .map(|f| f.stats.paging().map_or(0, |p| p.pager().bytes_loaded))
                     .sum(),
                 file_bytes: build.map_or(0, |x| x.file_bytes),
                 build_s: build.map_or(0.0, |x| x.build_s),

@@ -487,11 +487,11 @@ impl<'a> Running<'a> {
             .frame_loop
             .render(&camera, scale, self.settings.render_mode())?;
         self.paging = self.stats.plan.paging.map(|p| PagingStats {
-            needed: p.session.pager.usage.needed,
-            resident: p.session.pager.resident,
+            needed: p.pager().usage.needed,
+            resident: p.pager().resident,
             in_flight: p.session.in_flight + p.session.queued,
             bytes_per_second: if dt > 0.0 {
-                p.session.pager.bytes_loaded as f64 / dt
+                p.pager().bytes_loaded as f64 / dt
             } else {
                 0.0
             },

@@ -166,7 +166,7 @@ fn file_size_limit_fails_clearly_and_leaves_no_partial_file() {
     let out = dir.path().join("city.atlastree");
     let failed = build_limited(&out);
     let stderr = String::from_utf8_lossy(&failed.stderr);
-    assert_eq!(failed.status.code(), Some(1), "{}: {stderr}", failed.status);
+    assert_eq!(failed.status.code(), Some(2), "{}: {stderr}", failed.status);
     assert!(!stderr.contains("panicked"), "{stderr}");
     let want = format!("writing {} failed", out.display());
     assert!(stderr.contains(&want), "{stderr}");
@@ -176,14 +176,14 @@ fn file_size_limit_fails_clearly_and_leaves_no_partial_file() {
     // An existing output is kept as it was.
     std::fs::write(&out, reference).unwrap();
     let failed = build_limited(&out);
-    assert_eq!(failed.status.code(), Some(1));
+    assert_eq!(failed.status.code(), Some(2));
     assert!(
         std::fs::read(&out).unwrap() == *reference,
         "old file intact"
     );
     assert_eq!(temps(&out), Vec::<String>::new());
     println!(
-        "disk-full test: exit 1, {}",
+        "disk-full test: exit 2, {}",
         stderr.lines().last().unwrap_or("")
     );
 }

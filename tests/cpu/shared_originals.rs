@@ -5,8 +5,8 @@
 use crate::fixtures::corners::{POSTER, corners, options};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::NodeId;
-use atlastree::paging::usage::{UsageScratch, classify};
 use atlastree::paging::{BlockTable, Event, Usage, ViewInput};
+use atlastree::paging::{UsageScratch, classify};
 use atlastree::preprocess::{NoProgress, build};
 use atlastree::sim::{SimInput, simulate_with};
 use atlastree::store::TreeFile;

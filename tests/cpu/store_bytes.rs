@@ -6,32 +6,14 @@
 
 use atlastree::ids::BlockId;
 use atlastree::inspect;
-use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::store::format::{BLOCK_ALIGN, HEADER_SIZE};
 use atlastree::store::{LoadMode, StoreError, TreeFile, padding_range};
 use std::path::PathBuf;
 use std::process::Command;
-use std::sync::OnceLock;
 
-/// A small synthetic city (2 × 2 buildings, 32² facades, `scene::synthetic::small_city`) built at the
-/// smallest atlas the builder accepts (64², border 4, d_min = diagonal / 40): its bytes.
+/// The shared tiny paging file (`tests/fixtures/tiny_store.rs`): 64² atlases, every region kind.
 fn tiny() -> &'static [u8] {
-    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
-    BYTES.get_or_init(|| {
-        let scene = atlastree::scene::synthetic::small_city(2, 32);
-        let opts = BuildOptions {
-            d_min: DMin::Ratio(40.0),
-            atlas_size: 64,
-            border: 4,
-            // Split every node that does not fit (the paper's tree): more blocks, more padding.
-            leaf_originals_atlases: 0.0,
-            ..Default::default()
-        };
-        let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("tiny.atlastree");
-        build(&scene, &opts, &out, &NoProgress).unwrap();
-        std::fs::read(&out).unwrap()
-    })
+    crate::fixtures::tiny_store::tiny_paging_file()
 }
 
 /// The regions of a file, in file order: `(name, from, to)`, covering `0..len` exactly.

@@ -7,11 +7,12 @@ use atlastree::preprocess::image_ops::MipFilter;
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::render::FrameStats;
 use atlastree::report::metrics::Histogram;
-use atlastree::sweep::grid::{BuildKnobs, Grid, RuntimeKnobs};
-use atlastree::sweep::run::{BuildRow, FrameRow, SweepData, merge_histogram};
 use atlastree::sweep::summary::{
     ReportContext, base_row, frame_time_front, knob_effects, markdown, mean, median, recommend,
     summarise,
+};
+use atlastree::sweep::{
+    BuildKnobs, BuildRow, FrameRow, Grid, RuntimeKnobs, SweepData, merge_histogram,
 };
 use std::path::Path;
 

@@ -29,3 +29,5 @@ mod http;
 mod json_mut;
 mod paging_file;
 mod sweep_grid;
+#[path = "../fixtures/tiny_store.rs"]
+mod tiny_store;

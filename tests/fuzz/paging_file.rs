@@ -18,32 +18,16 @@ use super::harness::{self, Verdict};
 use arbitrary::Unstructured;
 use atlastree::ids::BlockId;
 use atlastree::paging::{BlockSource, BlockTable, FileSource};
-use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::store::TreeFile;
 use atlastree::store::format::{HEADER_SIZE, Header, SECTION_COUNT, Section};
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 /// CI cases (≈ 20 s in release on 2 cores).
 const DEFAULT_CASES: u64 = 600;
 
-/// The base file: `scene::synthetic::small_city(2, 32)` at 64² atlases (as `tests/cpu/store_bytes.rs`).
+/// The base file: the shared tiny paging file (`tests/fixtures/tiny_store.rs`).
 fn base() -> &'static [u8] {
-    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
-    BYTES.get_or_init(|| {
-        let scene = atlastree::scene::synthetic::small_city(2, 32);
-        let opts = BuildOptions {
-            d_min: DMin::Ratio(40.0),
-            atlas_size: 64,
-            border: 4,
-            // Split every node that does not fit (the paper's tree): more blocks, more padding.
-            leaf_originals_atlases: 0.0,
-            ..Default::default()
-        };
-        let dir = tempfile::tempdir().expect("temp dir");
-        let out = dir.path().join("tiny.atlastree");
-        build(&scene, &opts, &out, &NoProgress).expect("the small city builds");
-        std::fs::read(&out).expect("read the build")
-    })
+    super::tiny_store::tiny_paging_file()
 }
 
 fn header_of(bytes: &[u8]) -> Header {
@@ -223,7 +207,7 @@ fn resealed(u: &mut Unstructured<'_>, m: &mut [u8]) -> arbitrary::Result<String>
     }
     let rec = u.choose_index(e.count as usize)?;
     let size = e.record_size as usize;
-    let wide = size % 8 == 0 && u.arbitrary::<bool>()?;
+    let wide = size.is_multiple_of(8) && u.arbitrary::<bool>()?;
     let w = if wide { 8 } else { 4 };
     let word = u.choose_index(size / w)?;
     let at = e.offset as usize + rec * size + word * w;

@@ -83,7 +83,10 @@ fn broken_promise(grid: &Grid, scene: &Scene) -> Option<String> {
         .iter()
         .find(|b| u64::from(b.knobs.border) * 4 >= u64::from(b.knobs.atlas_size))
     {
-        return Some(format!("build {} has a border of a quarter atlas or more", b.knobs.id()));
+        return Some(format!(
+            "build {} has a border of a quarter atlas or more",
+            b.knobs.id()
+        ));
     }
     plan.builds.iter().find_map(|b| {
         resolve_params(scene, &b.knobs.options())

@@ -239,7 +239,7 @@ fn simulator_resident_sets_match_the_renderer(ctx: &GpuContext) -> Result<(), St
 /// loads fail and are counted, nothing panics, residency stays bounded — and restarted, after which the
 /// stopped camera's frame converges to the all-resident image.
 fn over_http_with_the_server_stopped_and_restarted(ctx: &GpuContext) -> Result<(), String> {
-    use atlastree::paging::http::serve;
+    use atlastree::paging::serve;
     use atlastree::paging::{HttpOptions, HttpSource};
     use std::time::Duration;
     let path = city_deep()?;

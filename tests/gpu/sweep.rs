@@ -18,8 +18,8 @@
 
 use atlastree::report::csv::{CsvTable, read_csv};
 use atlastree::sweep::output::write_outputs;
-use atlastree::sweep::run::{NoSweepProgress, sample_path};
 use atlastree::sweep::{Grid, SweepOptions, run_sweep};
+use atlastree::sweep::{NoSweepProgress, sample_path};
 use std::path::Path;
 
 use crate::harness::GpuTest;

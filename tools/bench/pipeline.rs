@@ -7,7 +7,7 @@
 //!   (`image_ops::draw_rect`, minification-correct footprint sampling), texels/s;
 //! - `downsample`: one 1024² → 512² mip level, box and Kaiser (`image_ops::downsample`), source texels/s;
 //! - `select`: the per-frame cut of a synthetic Berlin-sized tree (§4), nodes of the tree per second;
-//! - `priority`: the paging usage traversal (`paging::usage::classify`) and a full `Pager::plan` (§6) on
+//! - `priority`: the paging usage traversal (`paging::classify`) and a full `Pager::plan` (§6) on
 //!   the same tree with one atlas block per node and one original block per leaf, nodes/s.
 
 #![allow(
@@ -22,8 +22,8 @@ mod select_trees;
 
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::ids::NONE;
-use atlastree::paging::usage::{UsageScratch, classify};
 use atlastree::paging::{BlockTable, Pager, PagerOptions, ViewInput};
+use atlastree::paging::{UsageScratch, classify};
 use atlastree::preprocess::image_ops::{
     LinearImage, MipChain, MipFilter, MipOptions, RectJob, downsample, draw_rect,
 };

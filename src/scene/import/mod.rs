@@ -33,11 +33,6 @@ mod uri;
 mod warnings;
 
 pub use crate::scene::error::SceneError;
-pub use materials::{UvTransform, srgb8};
-pub use mesh::LARGE_UV;
-pub use nodes::MAX_NODE_VISITS;
-pub use uri::percent_decode;
-pub use warnings::MAX_WARNINGS;
 
 use crate::scene::{ImportReport, Scene, UpAxis};
 use glam::DVec3;

@@ -1,7 +1,7 @@
 //! Import of the Khronos/assimp glTF 2.0 samples from Debian's `assimp-testmodels`
 //! (`/usr/share/assimp/models/glTF2`). Missing samples make these tests FAIL, never pass silently.
 
-use atlastree::scene::image_source::ImageData;
+use atlastree::scene::ImageData;
 use atlastree::scene::{AlphaMode, ImportOptions, Scene, SceneError, UpAxis, Wrap, import, info};
 use glam::{DVec2, DVec3};
 use std::path::{Path, PathBuf};

@@ -1,8 +1,8 @@
 //! Import of small hand-written glTF files (written into temp dirs): transforms, instancing, texture
 //! transforms, samplers, alpha modes, solid colours, image formats, fallbacks and counted skips.
 
-use atlastree::scene::image_source::{FALLBACK_COLORS, ImageData};
 use atlastree::scene::{AlphaMode, ImportOptions, Scene, SceneError, UpAxis, Wrap, import, info};
+use atlastree::scene::{FALLBACK_COLORS, ImageData};
 use glam::{DVec2, DVec3};
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};

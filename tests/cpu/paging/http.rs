@@ -6,7 +6,7 @@
 
 use super::http_server::{FaultServer, Faults};
 use atlastree::ids::BlockId;
-use atlastree::paging::http::serve;
+use atlastree::paging::serve;
 use atlastree::paging::{BlockSource, HttpOptions, HttpSource, SourceError};
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::scene::synthetic::small_city;

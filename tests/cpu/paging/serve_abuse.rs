@@ -8,7 +8,7 @@
 //! ignore"); touching ranges coalesce into one 206; disjoint ones → 200; a head over 16 KiB → 431.
 
 use super::http::{Fixture, fixture};
-use atlastree::paging::http::serve::{self, ServeOptions};
+use atlastree::paging::serve::{self, ServeOptions};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::sync::atomic::{AtomicU64, Ordering};
