@@ -562,7 +562,12 @@ impl TreeFile {
                 tree: i as u32,
                 view: t,
             };
-            validate::check_tree(&tables, self.materials().len(), self.blocks())?;
+            validate::check_tree(
+                &tables,
+                self.materials().len(),
+                self.blocks(),
+                self.params().atlas_size,
+            )?;
         }
         Ok(())
     }

@@ -5,7 +5,9 @@
 //! O(n log n) in their count), so validating a file of 10k nodes and 1M vertices costs a few milliseconds. Indices reported in errors are positions in the file's section
 //! (tree base + tree-local index), so they name the exact record.
 
-use super::format::{BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, MaterialRecord, ParamsRecord};
+use super::format::{
+    BLOCK_ATLAS, BLOCK_ORIGINALS, BlockRecord, MaterialRecord, ParamsRecord, RectRecord,
+};
 use super::{StoreError, TreeView};
 use crate::ids::NONE;
 use crate::model::{MAX_ORIGINAL_CLASS, MIN_ORIGINAL_CLASS};
@@ -201,6 +203,7 @@ pub(crate) fn check_tree(
     t: &TreeTables<'_>,
     materials: usize,
     blocks: &[BlockRecord],
+    atlas_size: u32,
 ) -> Result<(), StoreError> {
     if t.record.tree_kind().is_none() {
         return Err(bad_value(
@@ -233,7 +236,7 @@ pub(crate) fn check_tree(
     }
     check_nodes(t, blocks)?;
     check_leaves(t, blocks)?;
-    check_rects_originals(t, materials, blocks)?;
+    check_rects_originals(t, materials, blocks, atlas_size)?;
     check_original_slots(t, blocks)?;
     check_vertices_indices(t)
 }
@@ -437,6 +440,7 @@ fn check_rects_originals(
     t: &TreeTables<'_>,
     materials: usize,
     blocks: &[BlockRecord],
+    atlas_size: u32,
 ) -> Result<(), StoreError> {
     let m = materials as u64;
     for (i, r) in t.rects.iter().enumerate() {
@@ -445,6 +449,7 @@ fn check_rects_originals(
         if r.wrap().is_none() {
             return Err(bad_value("rects", gi, "flags", u64::from(r.flags)));
         }
+        check_rect_geometry(r, gi, atlas_size)?;
     }
     for (i, o) in t.originals.iter().enumerate() {
         let gi = t.record.originals.first + i as u64;
@@ -462,6 +467,36 @@ fn check_rects_originals(
             if !side.is_power_of_two() || !range.contains(&u32::from(side)) {
                 return Err(bad_value("originals", gi, field, u64::from(side)));
             }
+        }
+    }
+    Ok(())
+}
+
+/// A rect's geometry: the outer rectangle inside the atlas (`x + w ≤ atlas_size`, in u64), the inner one
+/// inside the outer, and a finite UV rectangle with `uv_min ≤ uv_max` (what the shader, the border
+/// checks and the texel transforms assume; a resealed edit could otherwise make them loop over 2³² texels
+/// or divide by a NaN width).
+fn check_rect_geometry(r: &RectRecord, index: u64, atlas_size: u32) -> Result<(), StoreError> {
+    let size = u64::from(atlas_size);
+    const OUTER: [&str; 4] = ["outer.x", "outer.y", "outer.w", "outer.h"];
+    const INNER: [&str; 4] = ["inner.x", "inner.y", "inner.w", "inner.h"];
+    for k in 0..2 {
+        let (o0, ow) = (u64::from(r.outer[k]), u64::from(r.outer[k + 2]));
+        let (i0, iw) = (u64::from(r.inner[k]), u64::from(r.inner[k + 2]));
+        if o0 + ow > size {
+            return Err(bad_value("rects", index, OUTER[k + 2], ow));
+        }
+        if i0 < o0 {
+            return Err(bad_value("rects", index, INNER[k], i0));
+        }
+        if i0 + iw > o0 + ow {
+            return Err(bad_value("rects", index, INNER[k + 2], iw));
+        }
+        let (lo, hi) = (r.uv_min[k], r.uv_max[k]);
+        if !lo.is_finite() || !hi.is_finite() || lo > hi {
+            let field = if lo.is_finite() { "uv_max" } else { "uv_min" };
+            let bits = if lo.is_finite() { hi } else { lo }.to_bits();
+            return Err(bad_value("rects", index, field, bits));
         }
     }
     Ok(())

@@ -266,7 +266,7 @@ fn validate_encoded(
                 source_triangles: &src.source_triangles,
             },
         };
-        validate::check_tree(&tables, e.materials.len(), blocks)?;
+        validate::check_tree(&tables, e.materials.len(), blocks, e.params.atlas_size)?;
     }
     Ok(())
 }

@@ -22,8 +22,8 @@ use atlastree::store::TreeFile;
 use atlastree::store::format::{HEADER_SIZE, Header, SECTION_COUNT, Section};
 use std::sync::Arc;
 
-/// CI cases (≈ 20 s in release on 2 cores).
-const DEFAULT_CASES: u64 = 600;
+/// CI cases (≈ 3 s in release on 2 cores).
+const DEFAULT_CASES: u64 = 5000;
 
 /// The base file: the shared tiny paging file (`tests/fixtures/tiny_store.rs`).
 fn base() -> &'static [u8] {
