@@ -54,6 +54,10 @@
 //! - [`sim`]: paging-budget experiments without a GPU: the same frame planner on a frame clock with an I/O
 //!   model; grids over capacity × bandwidth × latency × policy.
 
+// An item is `pub` only where a caller outside the crate can reach it (the binary, tests, tools); the rest
+// is `pub(crate)` or narrower, so the public surface is what the modules re-export.
+#![warn(unreachable_pub)]
+
 pub mod camera;
 pub mod gpu;
 pub mod ids;

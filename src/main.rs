@@ -1,5 +1,7 @@
 //! `atlastree`: the command-line front end. clap arguments → validated options → library call → report.
 
+#![warn(unreachable_pub)]
+
 mod cli;
 
 fn main() -> std::process::ExitCode {

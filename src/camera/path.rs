@@ -111,11 +111,11 @@ pub enum CameraError {
 
 /// Largest |coordinate| of a keyframe's eye or target, world units (10⁶ km: beyond any scene, and far
 /// enough from f64's range that the spline's differences and slopes stay finite).
-pub const MAX_COORDINATE: f64 = 1e9;
+pub(super) const MAX_COORDINATE: f64 = 1e9;
 /// Largest |time| of a keyframe, seconds (about 30 years).
-pub const MAX_TIME: f64 = 1e9;
+pub(super) const MAX_TIME: f64 = 1e9;
 /// Smallest time between two keyframes, seconds (the spline divides by it).
-pub const MIN_KEYFRAME_GAP: f64 = 1e-6;
+pub(super) const MIN_KEYFRAME_GAP: f64 = 1e-6;
 
 /// One keyframe: time, eye, target and horizontal field of view.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -8,15 +8,15 @@ use crate::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3};
 
 /// Footprint side, metres.
-pub const SIDE: f64 = 1000.0;
+pub(super) const SIDE: f64 = 1000.0;
 /// Sea floor height, metres.
-pub const SEA: f64 = -600.0;
+pub(super) const SEA: f64 = -600.0;
 /// Building height, metres.
-pub const ROOF: f64 = 12.0;
+pub(super) const ROOF: f64 = 12.0;
 
 /// Which half is the town.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub enum Coast {
+pub(super) enum Coast {
     /// Town at `x < 500`, sea at `x > 500`.
     West,
     /// Town at `z > 500`, sea at `z < 500`.
@@ -25,7 +25,7 @@ pub enum Coast {
 
 impl Coast {
     /// True if plane point `p` (x, z) lies on the town's side.
-    pub fn on_town(self, p: DVec2) -> bool {
+    pub(super) fn on_town(self, p: DVec2) -> bool {
         match self {
             Coast::West => p.x < SIDE / 2.0,
             Coast::North => p.y > SIDE / 2.0,
@@ -33,7 +33,7 @@ impl Coast {
     }
 
     /// Distance of `p` from the coastline, metres.
-    pub fn distance_to_coast(self, p: DVec2) -> f64 {
+    pub(super) fn distance_to_coast(self, p: DVec2) -> f64 {
         match self {
             Coast::West => (p.x - SIDE / 2.0).abs(),
             Coast::North => (p.y - SIDE / 2.0).abs(),
@@ -58,7 +58,7 @@ fn quad(out: &mut Vec<[DVec3; 3]>, c: [DVec3; 4]) {
 
 /// The coastal town's triangles: `tile`-metre plateau tiles, a building every `spacing` metres
 /// (footprint `spacing · 0.4`, walls in `storeys` rows of quads per side), the cliff and the sea floor.
-pub fn coast(coast: Coast, tile: f64, spacing: f64, storeys: usize) -> Vec<[DVec3; 3]> {
+pub(super) fn coast(coast: Coast, tile: f64, spacing: f64, storeys: usize) -> Vec<[DVec3; 3]> {
     let half = SIDE / 2.0;
     let p = |a: f64, b: f64, h: f64| coast.point(a, b, h);
     let mut t = Vec::new();
@@ -142,14 +142,14 @@ fn building(
 
 /// A box of side `w` with its low corner at `corner` (world), walls in `storeys` rows of quads: a dense
 /// cluster of triangles away from the ground (an airplane prop over the sea).
-pub fn prop(t: &mut Vec<[DVec3; 3]>, corner: DVec3, w: f64, storeys: usize) {
+pub(super) fn prop(t: &mut Vec<[DVec3; 3]>, corner: DVec3, w: f64, storeys: usize) {
     let p =
         |a: f64, b: f64, h: f64| DVec3::new(corner.x + a, corner.y + h * w / ROOF, corner.z + b);
     building(t, &p, (0.0, 0.0), w, storeys);
 }
 
 /// The bounds of triangles.
-pub fn bounds(tris: &[[DVec3; 3]]) -> (DVec3, DVec3) {
+pub(super) fn bounds(tris: &[[DVec3; 3]]) -> (DVec3, DVec3) {
     tris.iter()
         .flatten()
         .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &v| {
@@ -161,7 +161,7 @@ pub fn bounds(tris: &[[DVec3; 3]]) -> (DVec3, DVec3) {
 /// paging-file build).
 ///
 /// [`Ground::from_scene`]: super::Ground::from_scene
-pub fn scene(tris: &[[DVec3; 3]]) -> Scene {
+pub(super) fn scene(tris: &[[DVec3; 3]]) -> Scene {
     let mut b = SceneBuilder::new(UpAxis::Y);
     let img = b.pattern_image("tile", 16, 1);
     let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);

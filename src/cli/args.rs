@@ -16,21 +16,21 @@ macro_rules! viewport_args {
     ($(#[$doc:meta])* $name:ident, $w:expr, $h:expr) => {
         $(#[$doc])*
         #[derive(Args, Debug, Clone, Copy)]
-        pub struct $name {
+        pub(crate) struct $name {
             /// Frame width, pixels (node min_distances scale linearly with it, paper §4).
             #[arg(long, default_value_t = $w)]
-            pub width: u32,
+            pub(crate) width: u32,
             /// Frame height, pixels.
             #[arg(long, default_value_t = $h)]
-            pub height: u32,
+            pub(crate) height: u32,
             /// Texels per pixel required (node min_distances scale linearly with it).
             #[arg(long, default_value_t = 1.0)]
-            pub texel_ratio: f64,
+            pub(crate) texel_ratio: f64,
         }
 
         impl $name {
             /// Checks the sizes and the ratio.
-            pub fn validate(self) -> anyhow::Result<Viewport> {
+            pub(crate) fn validate(self) -> anyhow::Result<Viewport> {
                 Viewport::new(self.width, self.height, self.texel_ratio)
             }
         }
@@ -52,7 +52,7 @@ viewport_args!(
 
 /// A checked [`ViewportArgs`]: width and height > 0, texel ratio finite and > 0.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Viewport {
+pub(crate) struct Viewport {
     pub width: u32,
     pub height: u32,
     pub texel_ratio: f64,
@@ -60,7 +60,7 @@ pub struct Viewport {
 
 impl Viewport {
     /// Checks width and height > 0 and a finite texel ratio > 0.
-    pub fn new(width: u32, height: u32, texel_ratio: f64) -> anyhow::Result<Viewport> {
+    pub(crate) fn new(width: u32, height: u32, texel_ratio: f64) -> anyhow::Result<Viewport> {
         if width == 0 || height == 0 {
             bail!("--width and --height must be > 0 (got {width}×{height})");
         }
@@ -75,12 +75,12 @@ impl Viewport {
     }
 
     /// Width / height.
-    pub fn aspect(&self) -> f64 {
+    pub(crate) fn aspect(&self) -> f64 {
         f64::from(self.width) / f64::from(self.height)
     }
 
     /// `frames` cameras of `path` at `fps` (path time `i / fps`) with this viewport's aspect.
-    pub fn cameras(&self, path: &CameraPath, fps: f64, frames: usize) -> Vec<Camera> {
+    pub(crate) fn cameras(&self, path: &CameraPath, fps: f64, frames: usize) -> Vec<Camera> {
         let aspect = self.aspect();
         path.frames(fps, frames)
             .map(|mut c| {
@@ -92,7 +92,7 @@ impl Viewport {
 
     /// The factor of every node's `min_distance` for this width and texel ratio at horizontal field of
     /// view `fov_x_deg` ([`min_distance_scale`], paper §4).
-    pub fn scale(&self, params: &BuildParams, fov_x_deg: f64) -> anyhow::Result<f64> {
+    pub(crate) fn scale(&self, params: &BuildParams, fov_x_deg: f64) -> anyhow::Result<f64> {
         Ok(min_distance_scale(
             params,
             &SelectOptions {
@@ -107,7 +107,7 @@ impl Viewport {
 /// How blocks queue and become resident per frame (`render --capacity`, `simulate`). Unset flags take
 /// the defaults of [`PagerOptions`].
 #[derive(Args, Debug, Clone, Default)]
-pub struct QueueArgs {
+pub(crate) struct QueueArgs {
     /// Upload budget per frame: `unlimited`, bytes (`8MB`, `512KiB`) or, for `render`, time (`2ms`; at
     /// least one block per frame is always accepted) [default: unlimited]
     #[arg(long, value_name = "BUDGET")]
@@ -119,7 +119,7 @@ pub struct QueueArgs {
 
 impl QueueArgs {
     /// The first flag given, for "means nothing here" messages.
-    pub fn given(&self) -> Option<&'static str> {
+    pub(crate) fn given(&self) -> Option<&'static str> {
         if self.upload_budget.is_some() {
             Some("--upload-budget")
         } else if self.max_queue.is_some() {
@@ -130,7 +130,7 @@ impl QueueArgs {
     }
 
     /// `base` with the given flags applied.
-    pub fn apply(&self, base: PagerOptions) -> anyhow::Result<PagerOptions> {
+    pub(crate) fn apply(&self, base: PagerOptions) -> anyhow::Result<PagerOptions> {
         if self.max_queue == Some(0) {
             bail!("--max-queue must be > 0");
         }
@@ -142,7 +142,7 @@ impl QueueArgs {
     }
 
     /// The budget for the simulator, which has no uploads to time: a time budget is refused.
-    pub fn byte_budget(&self) -> anyhow::Result<UploadBudget> {
+    pub(crate) fn byte_budget(&self) -> anyhow::Result<UploadBudget> {
         match self.upload_budget.unwrap_or_default() {
             UploadBudget::Millis(ms) => bail!(
                 "--upload-budget {ms}ms: simulate has no uploads to time (its executor only records the \
@@ -156,7 +156,7 @@ impl QueueArgs {
 
 /// Paging under a capacity (paper §6) for `render` and `view`.
 #[derive(Args, Debug, Clone, Default)]
-pub struct PagingArgs {
+pub(crate) struct PagingArgs {
     /// Page blocks with at most this many resident (the paper used 160); missing blocks are drawn with
     /// the nearest resident ancestor atlas. Omit to upload every block at start.
     #[arg(long, value_name = "K")]
@@ -178,7 +178,7 @@ pub struct PagingArgs {
 
 /// Where paged blocks come from.
 #[derive(Debug, Clone, PartialEq)]
-pub enum SourceArg {
+pub(crate) enum SourceArg {
     /// The paging file itself, memory-mapped.
     File,
     /// An http(s) URL of the same file.
@@ -187,7 +187,7 @@ pub enum SourceArg {
 
 /// A checked [`PagingArgs`] for a paged run (the capacity is decided by the command).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Paging {
+pub(crate) struct Paging {
     /// Pager options; `capacity` is filled in by the command.
     pub pager: PagerOptions,
     pub source: SourceArg,
@@ -195,13 +195,13 @@ pub struct Paging {
 }
 
 /// Whether `s` is an http(s) URL.
-pub fn is_url(s: &str) -> bool {
+pub(super) fn is_url(s: &str) -> bool {
     s.starts_with("http://") || s.starts_with("https://")
 }
 
 impl PagingArgs {
     /// The first flag given besides `--capacity`, for "means nothing here" messages.
-    pub fn given_beyond_capacity(&self) -> Option<&'static str> {
+    pub(crate) fn given_beyond_capacity(&self) -> Option<&'static str> {
         if self.source.is_some() {
             Some("--source")
         } else if let Some(f) = self.queue.given() {
@@ -216,7 +216,7 @@ impl PagingArgs {
     }
 
     /// The paging settings (capacity left at the default for the caller to set).
-    pub fn validate(&self) -> anyhow::Result<Paging> {
+    pub(crate) fn validate(&self) -> anyhow::Result<Paging> {
         if self.capacity == Some(0) {
             bail!("--capacity must be > 0 (omit it to upload every block)");
         }
@@ -243,7 +243,7 @@ impl PagingArgs {
 /// Shared by `build` and `sweep` (where they apply to every build of the grid; the grid sets d_min, atlas
 /// size, border, filter, compression and repeat mode). Defaults are [`BuildOptions::default`]'s.
 #[derive(Args, Debug, Clone)]
-pub struct BuildParamsArgs {
+pub(crate) struct BuildParamsArgs {
     /// Screen width in pixels the guarantee is computed for (rescaled at run time without rebuild).
     #[arg(long, default_value_t = 800)]
     pub screen_width: u32,
@@ -286,7 +286,7 @@ pub struct BuildParamsArgs {
 
 impl BuildParamsArgs {
     /// `base` with these parameters.
-    pub fn apply(&self, base: BuildOptions) -> BuildOptions {
+    pub(crate) fn apply(&self, base: BuildOptions) -> BuildOptions {
         BuildOptions {
             screen_width: self.screen_width,
             fov_deg: self.fov,
@@ -304,7 +304,7 @@ impl BuildParamsArgs {
 }
 
 /// Parses a comma-separated list flag's values with `f`, naming the flag and value on failure.
-pub fn parse_list<T>(
+pub(super) fn parse_list<T>(
     what: &str,
     items: &[String],
     f: impl Fn(&str) -> Option<T>,

@@ -12,7 +12,7 @@ use std::process::ExitCode;
 /// away sees at least `texel-ratio` texels per screen pixel (screen `screen-width` pixels wide, horizontal
 /// field of view `fov`). Smaller d_min: deeper tree, bigger file, original textures needed less often.
 #[derive(Args, Debug)]
-pub struct BuildArgs {
+pub(crate) struct BuildArgs {
     /// The glTF scene (.gltf or .glb).
     pub scene: PathBuf,
     /// Output paging file (written atomically: an interrupted build leaves no partial file).
@@ -70,7 +70,7 @@ pub struct BuildArgs {
 
 /// `--compress` values.
 #[derive(clap::ValueEnum, Copy, Clone, Debug, PartialEq, Eq)]
-pub enum CompressArg {
+pub(crate) enum CompressArg {
     /// RGBA8 (4 bytes per texel).
     None,
     /// BC1 opaque tree, BC3 alpha tree.
@@ -80,7 +80,7 @@ pub enum CompressArg {
 }
 
 impl CompressArg {
-    pub fn compression(self) -> Compression {
+    pub(crate) fn compression(self) -> Compression {
         match self {
             CompressArg::None => Compression::None,
             CompressArg::Bc1 => Compression::Bc1,
@@ -91,7 +91,7 @@ impl CompressArg {
 
 impl BuildArgs {
     /// The build options: these flags over the shared build parameters.
-    pub fn options(&self) -> BuildOptions {
+    pub(crate) fn options(&self) -> BuildOptions {
         let base = BuildOptions {
             d_min: match (self.d_min, self.d_min_ratio) {
                 (Some(m), _) => DMin::Metres(m),
@@ -109,7 +109,7 @@ impl BuildArgs {
     }
 }
 
-pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let t = std::time::Instant::now();
     let mut scene = load_scene(&a.scene, a.up)?;
     if !a.materials.is_empty() {
@@ -148,7 +148,7 @@ fn human_texels(n: u64) -> String {
     }
 }
 
-pub fn print_report(r: &BuildReport, out: &std::path::Path) {
+pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
     let p = &r.params;
     println!("wrote {} ({})", out.display(), human_bytes(r.file_bytes));
     println!(
@@ -242,7 +242,7 @@ pub fn print_report(r: &BuildReport, out: &std::path::Path) {
 }
 
 /// A PSNR for humans: `lossless` at the cap ([`atlastree::texfmt::PSNR_CAP_DB`]) and above.
-pub fn fmt_psnr(db: f64) -> String {
+pub(super) fn fmt_psnr(db: f64) -> String {
     if db >= atlastree::texfmt::PSNR_CAP_DB {
         "lossless".into()
     } else {

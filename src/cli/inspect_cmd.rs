@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Args, Debug)]
-pub struct InspectArgs {
+pub(crate) struct InspectArgs {
     /// A paging file written by `atlastree build`.
     pub file: PathBuf,
     /// Check every block checksum and every tree invariant; exit with status 1 on any violation. For
@@ -24,7 +24,7 @@ pub struct InspectArgs {
     pub json: bool,
 }
 
-pub fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     let (rep, ver) = open_and_inspect(&a.file, a.verify, a.reference.as_deref())
         .with_context(|| format!("opening {}", a.file.display()))?;
     if a.json {
@@ -44,7 +44,7 @@ pub fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     })
 }
 
-pub fn print_inspect(r: &InspectReport) {
+pub(super) fn print_inspect(r: &InspectReport) {
     let p = &r.params;
     println!("{} — {}", r.path, human_bytes(r.file_bytes));
     println!(
@@ -148,7 +148,7 @@ pub fn print_inspect(r: &InspectReport) {
     }
 }
 
-pub fn print_verify(v: &VerifyReport) {
+pub(super) fn print_verify(v: &VerifyReport) {
     println!(
         "verify: {} blocks, {} nodes, {} triangles, {} vertices checked: {}",
         v.blocks_checked,

@@ -31,13 +31,13 @@ use std::process::ExitCode;
     long_about,
     propagate_version = true
 )]
-pub struct Cli {
+pub(crate) struct Cli {
     #[command(subcommand)]
     pub command: Command,
 }
 
 #[derive(Subcommand, Debug)]
-pub enum Command {
+pub(crate) enum Command {
     /// Run the whole pipeline on the embedded default scene (data/city) and show what each stage did.
     Demo(demo::DemoArgs),
     /// Summarise a glTF scene: triangles, textures, UV ranges and repeats, wrap and alpha modes, planarity.
@@ -69,7 +69,7 @@ pub enum Command {
 
 /// Which axis points up (the other two span the distribution plane).
 #[derive(Copy, Clone, Debug, Default, ValueEnum)]
-pub enum UpArg {
+pub(crate) enum UpArg {
     /// The axis of least extent.
     #[default]
     Auto,
@@ -79,7 +79,7 @@ pub enum UpArg {
 }
 
 impl UpArg {
-    pub fn to_option(self) -> Option<atlastree::scene::UpAxis> {
+    pub(crate) fn to_option(self) -> Option<atlastree::scene::UpAxis> {
         use atlastree::scene::UpAxis;
         match self {
             UpArg::Auto => None,
@@ -90,7 +90,7 @@ impl UpArg {
     }
 }
 
-pub fn init_tracing() {
+pub(crate) fn init_tracing() {
     let filter = tracing_subscriber::EnvFilter::try_from_env("ATLASTREE_LOG")
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
     let _ = tracing_subscriber::fmt()
@@ -99,7 +99,7 @@ pub fn init_tracing() {
         .try_init();
 }
 
-pub fn run() -> anyhow::Result<ExitCode> {
+pub(crate) fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
     match cli.command {
         Command::Demo(a) => demo::run(a),
@@ -116,7 +116,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
 
 /// Keeps the triangles of the materials matching any of `globs` ([`atlastree::util::glob_match`]); an error
 /// naming the patterns and a few material names when nothing is left.
-pub fn retain_materials(
+pub(crate) fn retain_materials(
     scene: &mut atlastree::scene::Scene,
     globs: &[String],
 ) -> anyhow::Result<atlastree::scene::RetainReport> {
@@ -143,7 +143,10 @@ pub fn retain_materials(
 }
 
 /// Imports a scene with a clear error naming the file.
-pub fn load_scene(path: &std::path::Path, up: UpArg) -> anyhow::Result<atlastree::scene::Scene> {
+pub(crate) fn load_scene(
+    path: &std::path::Path,
+    up: UpArg,
+) -> anyhow::Result<atlastree::scene::Scene> {
     use anyhow::Context;
     let opts = atlastree::scene::ImportOptions { up: up.to_option() };
     atlastree::scene::import(path, &opts).with_context(|| format!("importing {}", path.display()))

@@ -5,13 +5,13 @@ use std::sync::Mutex;
 use std::time::Duration;
 
 /// Draws one bar (or spinner) per stage on stderr; hidden when stderr is not a terminal or `quiet`.
-pub struct Bars {
+pub(super) struct Bars {
     bar: Mutex<Option<ProgressBar>>,
     quiet: bool,
 }
 
 impl Bars {
-    pub fn new(quiet: bool) -> Self {
+    pub(super) fn new(quiet: bool) -> Self {
         Bars {
             bar: Mutex::new(None),
             quiet,

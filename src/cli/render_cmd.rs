@@ -26,7 +26,7 @@ use std::sync::Arc;
 /// queued / in flight, bytes loaded, ideal fraction resident, coarser screen share, evictions, …; the
 /// README's "Changelog" lists the column names).
 #[derive(Args, Debug)]
-pub struct RenderArgs {
+pub(crate) struct RenderArgs {
     /// The paging file, or an http(s) URL of one (then blocks are paged over HTTP; `--capacity` defaults
     /// to all blocks).
     pub file: PathBuf,
@@ -68,7 +68,7 @@ pub struct RenderArgs {
 
 /// Where the tree comes from.
 #[derive(Debug, Clone, PartialEq)]
-pub enum TreeSource {
+pub(crate) enum TreeSource {
     Local(PathBuf),
     /// An http(s) URL: tables read over HTTP, blocks paged from it.
     Remote(String),
@@ -76,7 +76,7 @@ pub enum TreeSource {
 
 /// A checked `render` run.
 #[derive(Debug, Clone)]
-pub struct RenderConfig {
+pub(crate) struct RenderConfig {
     pub tree: TreeSource,
     pub path: PathKind,
     pub out: PathBuf,
@@ -97,7 +97,7 @@ pub struct RenderConfig {
 
 /// Paging of a `render` run.
 #[derive(Debug, Clone)]
-pub struct RenderPaging {
+pub(crate) struct RenderPaging {
     /// `None`: all blocks (a remote file without `--capacity`).
     pub capacity: Option<u32>,
     pub paging: Paging,
@@ -105,7 +105,7 @@ pub struct RenderPaging {
 
 impl RenderArgs {
     /// Checks the flags and derives the run.
-    pub fn validate(self) -> anyhow::Result<RenderConfig> {
+    pub(crate) fn validate(self) -> anyhow::Result<RenderConfig> {
         if self.frames == 0 {
             bail!("--frames must be > 0");
         }
@@ -171,12 +171,12 @@ impl RenderArgs {
     }
 }
 
-pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     execute(&a.validate()?)
 }
 
 /// Runs a checked configuration.
-pub fn execute(cfg: &RenderConfig) -> anyhow::Result<ExitCode> {
+pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<ExitCode> {
     let (file, http) = open_tree(&cfg.tree)?;
     let cameras = sample_cameras(cfg, &file)?;
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
@@ -559,7 +559,7 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
 }
 
 /// `auto` ([`RendererOptions::AUTO`]) or 1..=16.
-pub fn parse_anisotropy(s: &str) -> Result<u16, String> {
+pub(super) fn parse_anisotropy(s: &str) -> Result<u16, String> {
     if s.eq_ignore_ascii_case("auto") {
         return Ok(RendererOptions::AUTO);
     }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Args, Debug)]
-pub struct SceneInfoArgs {
+pub(crate) struct SceneInfoArgs {
     /// The glTF scene (.gltf or .glb).
     pub scene: PathBuf,
     /// Up axis; `auto` takes the axis of least extent.
@@ -22,7 +22,7 @@ pub struct SceneInfoArgs {
     pub json: bool,
 }
 
-pub fn run(a: SceneInfoArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: SceneInfoArgs) -> anyhow::Result<ExitCode> {
     let t = std::time::Instant::now();
     let mut scene = load_scene(&a.scene, a.up)?;
     if !a.materials.is_empty() {

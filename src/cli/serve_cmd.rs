@@ -19,7 +19,7 @@ fn parse_duration(s: &str) -> Result<Duration, String> {
 
 // The command's help text is the doc comment of `Command::Serve` (src/cli/mod.rs).
 #[derive(Args, Debug)]
-pub struct ServeArgs {
+pub(crate) struct ServeArgs {
     /// A paging file written by `atlastree build`.
     pub file: PathBuf,
     /// TCP port; 0 picks a free one (printed).
@@ -44,7 +44,7 @@ pub struct ServeArgs {
     pub json: bool,
 }
 
-pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
     let (blocks, file_bytes) = (file.blocks().len(), file.file_len());
     drop(file);

@@ -26,7 +26,7 @@ use std::process::ExitCode;
 /// Example: `atlastree simulate city.atlastree --path overview-dive --capacity 40,80,160,320
 /// --bandwidth 5MB/s,50MB/s,500MB/s --latency 0ms,80ms --out sim/`
 #[derive(Args, Debug)]
-pub struct SimulateArgs {
+pub(crate) struct SimulateArgs {
     /// The paging file (only its tables are read).
     pub file: PathBuf,
     /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
@@ -71,7 +71,7 @@ pub struct SimulateArgs {
 
 /// A checked `simulate` run.
 #[derive(Debug, Clone)]
-pub struct SimulateConfig {
+pub(crate) struct SimulateConfig {
     pub file: PathBuf,
     pub path: PathKind,
     /// The grid axes and shared settings (a byte budget or none: a time budget is refused).
@@ -85,7 +85,7 @@ pub struct SimulateConfig {
 
 impl SimulateArgs {
     /// Checks the flags and derives the grid.
-    pub fn validate(self) -> anyhow::Result<SimulateConfig> {
+    pub(crate) fn validate(self) -> anyhow::Result<SimulateConfig> {
         if !(self.fps.is_finite() && self.fps > 0.0) {
             bail!("--fps must be finite and > 0 (got {})", self.fps);
         }
@@ -140,12 +140,12 @@ impl SimulateArgs {
     }
 }
 
-pub fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
     execute(&a.validate()?)
 }
 
 /// Runs a checked configuration.
-pub fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
+pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     let file =
         TreeFile::open(&cfg.file).with_context(|| format!("opening {}", cfg.file.display()))?;
     let cameras = sample_cameras(cfg, &file)?;

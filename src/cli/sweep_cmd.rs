@@ -29,7 +29,7 @@ use std::time::Duration;
 /// accuracy vs frame time with the Pareto front, vs file size, vs build time, vs texel ratio, and the
 /// texel-per-pixel histograms.
 #[derive(Args, Debug)]
-pub struct SweepArgs {
+pub(crate) struct SweepArgs {
     /// The glTF scene (.gltf or .glb).
     pub scene: PathBuf,
     /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
@@ -105,7 +105,7 @@ fn load_grid(spec: &str) -> anyhow::Result<Grid> {
 }
 
 /// A checked `sweep` run.
-pub struct SweepConfig {
+pub(crate) struct SweepConfig {
     pub scene: PathBuf,
     pub up: UpArg,
     pub path: PathKind,
@@ -122,7 +122,7 @@ pub struct SweepConfig {
 
 impl SweepArgs {
     /// Loads the grid, applies `--frames`, `--width` and `--height`, and validates it.
-    pub fn validate(self) -> anyhow::Result<SweepConfig> {
+    pub(crate) fn validate(self) -> anyhow::Result<SweepConfig> {
         let mut grid = load_grid(&self.grid)?;
         if let Some(f) = self.frames {
             grid.frames = f;
@@ -149,7 +149,7 @@ impl SweepArgs {
     }
 }
 
-pub fn run(a: SweepArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: SweepArgs) -> anyhow::Result<ExitCode> {
     execute(&a.validate()?)
 }
 
@@ -169,7 +169,7 @@ fn progress_bar(cfg: &SweepConfig) -> ProgressBar {
 }
 
 /// Runs a checked configuration: import, sample the path, build and measure, write and report.
-pub fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
+pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     let plan = &cfg.plan;
     let scene = load_scene(&cfg.scene, cfg.up)?;
     let path = cfg.path.resolve_with(|| Ground::from_scene(&scene))?;

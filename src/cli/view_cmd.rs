@@ -20,7 +20,7 @@ use std::process::ExitCode;
 /// Scripted: `--screenshot-after N --exit` writes the N-th frame to --screenshot and quits, e.g. under
 /// `xvfb-run -a` on a machine without a display (any wgpu backend; lavapipe works).
 #[derive(Args, Debug)]
-pub struct ViewArgs {
+pub(crate) struct ViewArgs {
     /// The paging file.
     pub file: PathBuf,
     /// Start mode: tree (the product), original (naive per-texture draws), dummy (one 1×1 texture),
@@ -173,7 +173,7 @@ impl ViewArgs {
     }
 }
 
-pub fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
     a.check_flags()?;
     let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
     let opts = a.validate(&file)?;

@@ -45,7 +45,7 @@ fn is_repeat_rect(r: &RectRecord) -> bool {
 }
 
 /// [`RepeatCost`] of tree `tree` of `file` (`None` if there is no such tree).
-pub fn repeat_cost(file: &TreeFile, tree: usize, atlas_size: u32) -> Option<RepeatCost> {
+pub(super) fn repeat_cost(file: &TreeFile, tree: usize, atlas_size: u32) -> Option<RepeatCost> {
     let t = file.tree(tree)?;
     let mut c = RepeatCost {
         all_atlas_texels: t

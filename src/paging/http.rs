@@ -15,7 +15,7 @@
 //! [`TreeFile::from_prefix`]: crate::store::TreeFile::from_prefix
 
 mod client;
-pub mod range;
+pub(super) mod range;
 pub mod serve;
 
 pub use client::{HttpOptions, HttpSource, HttpStats};

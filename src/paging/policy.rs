@@ -27,9 +27,9 @@ pub enum Policy {
 }
 
 /// Distance factor in favour of resident blocks under [`Policy::Ours`].
-pub const HYSTERESIS: f64 = 1.5;
+pub(super) const HYSTERESIS: f64 = 1.5;
 /// Motion extrapolation under [`Policy::Ours`], seconds.
-pub const LOOKAHEAD_S: f64 = 0.5;
+pub(super) const LOOKAHEAD_S: f64 = 0.5;
 
 impl Policy {
     pub const ALL: [Policy; 4] = [Policy::Paper, Policy::Distance, Policy::Lru, Policy::Ours];

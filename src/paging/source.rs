@@ -173,7 +173,7 @@ impl BlockSource for FileSource {
 }
 
 /// Checks `bytes` against `record` (length and `xxh3_64`); the check every source runs on arrival.
-pub fn verify(
+pub(super) fn verify(
     source_name: &str,
     id: BlockId,
     record: &BlockRecord,

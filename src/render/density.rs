@@ -77,7 +77,7 @@ pub(super) struct DensityTarget {
 
 impl DensityTarget {
     /// `spec`: the tree shader's specialisation for the file (the density flag is set here).
-    pub fn new(
+    pub(super) fn new(
         device: &wgpu::Device,
         layout: &wgpu::BindGroupLayout,
         spec: Specialisation,
@@ -118,7 +118,7 @@ impl DensityTarget {
     }
 
     /// Reads the target back (blocks until the GPU is done).
-    pub fn read(&self, ctx: &GpuContext) -> Result<DensityFrame, GpuError> {
+    pub(super) fn read(&self, ctx: &GpuContext) -> Result<DensityFrame, GpuError> {
         let (width, height) = (self.texture.width(), self.texture.height());
         let data = crate::gpu::readback_texels(ctx, &self.texture, 0, TEXEL_BYTES)?;
         let pixels = data

@@ -19,7 +19,7 @@ use crate::store::TreeFile;
 use crate::store::format::MaterialRecord;
 use wgpu::util::DeviceExt;
 
-pub struct Naive {
+pub(super) struct Naive {
     pub pipelines: PassPipelines,
     pub group0: wgpu::BindGroup,
     /// One per distinct original texture ([`NaiveDraw::texture`]).
@@ -43,7 +43,7 @@ fn address(w: Wrap) -> wgpu::AddressMode {
 impl Naive {
     /// Plans the draws (CPU), then creates the pipelines, the per-original textures and bind groups and
     /// the index buffer.
-    pub fn new(
+    pub(super) fn new(
         ctx: &GpuContext,
         file: &TreeFile,
         res: &Resident,

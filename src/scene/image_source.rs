@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 /// Side of the fallback checkerboard that replaces missing or undecodable images, in texels.
-pub const FALLBACK_SIZE: u32 = 8;
+pub(super) const FALLBACK_SIZE: u32 = 8;
 /// The two colours of the fallback checkerboard (sRGB RGBA8): magenta and black, visibly wrong.
 pub const FALLBACK_COLORS: [[u8; 4]; 2] = [[255, 0, 255, 255], [0, 0, 0, 255]];
 
@@ -55,7 +55,7 @@ pub struct DecodedImage {
 
 /// What the header of an encoded image says.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ImageHeader {
+pub(super) struct ImageHeader {
     pub width: u32,
     pub height: u32,
     pub has_alpha: bool,
@@ -183,7 +183,7 @@ fn decode_encoded<R: Read + Seek + std::io::BufRead>(
 /// Reads the header of an encoded PNG or JPEG image: dimensions, colour format and alpha, without
 /// decoding pixels. PNG headers are parsed directly (to report palette and bit depth and to see a
 /// `tRNS` chunk); other formats go through `image`'s decoder header.
-pub fn read_header<R: Read + Seek + std::io::BufRead>(
+pub(super) fn read_header<R: Read + Seek + std::io::BufRead>(
     mut reader: R,
 ) -> Result<ImageHeader, String> {
     let mut sig = [0u8; 8];

@@ -21,9 +21,9 @@ use crate::texfmt::Compression;
 use serde::{Deserialize, Serialize};
 
 /// The most frames a grid may ask for per variant.
-pub const MAX_FRAMES: usize = 100_000;
+pub(super) const MAX_FRAMES: usize = 100_000;
 /// The largest frame side a grid may ask for, pixels (wgpu's default `max_texture_dimension_2d`).
-pub const MAX_SIDE: u32 = 8192;
+pub(super) const MAX_SIDE: u32 = 8192;
 
 /// Values of the build-time knobs of one paging file.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -209,7 +209,7 @@ impl RuntimeKnobs {
 }
 
 /// The id of a variant: build id and runtime id.
-pub fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
+pub(super) fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
     format!("{}_{}", b.id(), r.id())
 }
 
@@ -437,10 +437,10 @@ mod filter_name {
     use crate::preprocess::image_ops::MipFilter;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(f: &MipFilter, s: S) -> Result<S::Ok, S::Error> {
+    pub(super) fn serialize<S: Serializer>(f: &MipFilter, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_str(f.name())
     }
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<MipFilter, D::Error> {
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<MipFilter, D::Error> {
         let s = String::deserialize(d)?;
         s.parse().map_err(serde::de::Error::custom)
     }
@@ -451,10 +451,10 @@ mod filter_names {
     use crate::preprocess::image_ops::MipFilter;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(f: &[MipFilter], s: S) -> Result<S::Ok, S::Error> {
+    pub(super) fn serialize<S: Serializer>(f: &[MipFilter], s: S) -> Result<S::Ok, S::Error> {
         s.collect_seq(f.iter().map(|f| f.name()))
     }
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<MipFilter>, D::Error> {
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<MipFilter>, D::Error> {
         let v = Vec::<String>::deserialize(d)?;
         v.iter()
             .map(|s| s.parse().map_err(serde::de::Error::custom))
@@ -467,10 +467,10 @@ mod repeat_name {
     use crate::preprocess::RepeatMode;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(r: &RepeatMode, s: S) -> Result<S::Ok, S::Error> {
+    pub(super) fn serialize<S: Serializer>(r: &RepeatMode, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_str(r.label())
     }
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<RepeatMode, D::Error> {
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<RepeatMode, D::Error> {
         let s = String::deserialize(d)?;
         s.parse().map_err(serde::de::Error::custom)
     }
@@ -481,10 +481,12 @@ mod repeat_names {
     use crate::preprocess::RepeatMode;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(r: &[RepeatMode], s: S) -> Result<S::Ok, S::Error> {
+    pub(super) fn serialize<S: Serializer>(r: &[RepeatMode], s: S) -> Result<S::Ok, S::Error> {
         s.collect_seq(r.iter().map(|r| r.label()))
     }
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<RepeatMode>, D::Error> {
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Vec<RepeatMode>, D::Error> {
         let v = Vec::<String>::deserialize(d)?;
         v.iter()
             .map(|s| s.parse().map_err(serde::de::Error::custom))
@@ -497,10 +499,10 @@ mod compress_name {
     use crate::texfmt::Compression;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(c: &Compression, s: S) -> Result<S::Ok, S::Error> {
+    pub(super) fn serialize<S: Serializer>(c: &Compression, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_str(c.label())
     }
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Compression, D::Error> {
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Compression, D::Error> {
         let s = String::deserialize(d)?;
         s.parse().map_err(serde::de::Error::custom)
     }
@@ -511,10 +513,12 @@ mod compress_names {
     use crate::texfmt::Compression;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(c: &[Compression], s: S) -> Result<S::Ok, S::Error> {
+    pub(super) fn serialize<S: Serializer>(c: &[Compression], s: S) -> Result<S::Ok, S::Error> {
         s.collect_seq(c.iter().map(|c| c.label()))
     }
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Compression>, D::Error> {
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Vec<Compression>, D::Error> {
         let v = Vec::<String>::deserialize(d)?;
         v.iter()
             .map(|s| s.parse().map_err(serde::de::Error::custom))

@@ -18,8 +18,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Range of the texel-density histograms: bins `[2^e, 2^(e+1))` for `e` in `HIST_MIN_EXP..HIST_MAX_EXP`.
-pub const HIST_MIN_EXP: i32 = -4;
-pub const HIST_MAX_EXP: i32 = 5;
+pub(super) const HIST_MIN_EXP: i32 = -4;
+pub(super) const HIST_MAX_EXP: i32 = 5;
 
 /// How a sweep runs.
 #[derive(Clone, Debug)]
@@ -253,7 +253,7 @@ pub fn run_sweep(
 }
 
 /// The options of the build of `knobs`: the knobs over `base`.
-pub fn build_options(knobs: &BuildKnobs, base: &BuildOptions) -> BuildOptions {
+pub(super) fn build_options(knobs: &BuildKnobs, base: &BuildOptions) -> BuildOptions {
     let k = knobs.options();
     BuildOptions {
         d_min: k.d_min,

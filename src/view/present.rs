@@ -11,7 +11,7 @@ use crate::gpu::{GpuContext, readback_rgba8, readback_texels};
 use crate::render::wgsl::blit;
 
 /// Format of the composite image and of the overlay's target: raw sRGB-encoded bytes.
-pub const COMPOSITE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+pub(super) const COMPOSITE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 
 /// Where a screenshot's pixels came from.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -32,7 +32,7 @@ impl ShotSource {
 }
 
 /// The configured surface and what the blit needs.
-pub struct Presenter<'w> {
+pub(super) struct Presenter<'w> {
     pub surface: wgpu::Surface<'w>,
     pub config: wgpu::SurfaceConfiguration,
     /// Format of the views the blit renders to (the surface format without sRGB).
@@ -64,7 +64,7 @@ fn byte_format(format: wgpu::TextureFormat) -> Option<bool> {
 impl<'w> Presenter<'w> {
     /// Configures `surface` at `width`×`height` physical pixels (at least 1×1) with an RGBA8/BGRA8 format,
     /// FIFO (`vsync`) or the lowest-latency mode available, and builds the blit pipeline.
-    pub fn new(
+    pub(super) fn new(
         ctx: &GpuContext,
         surface: wgpu::Surface<'w>,
         width: u32,
@@ -149,7 +149,7 @@ impl<'w> Presenter<'w> {
 
     /// Reconfigures the surface and recreates the composite at `width`×`height` (no-op when unchanged or
     /// empty, e.g. a minimised window).
-    pub fn resize(&mut self, ctx: &GpuContext, width: u32, height: u32) {
+    pub(super) fn resize(&mut self, ctx: &GpuContext, width: u32, height: u32) {
         if width == 0 || height == 0 || (width, height) == (self.config.width, self.config.height) {
             return;
         }
@@ -160,22 +160,22 @@ impl<'w> Presenter<'w> {
     }
 
     /// Re-applies the configuration (after a lost or outdated surface).
-    pub fn reconfigure(&self, ctx: &GpuContext) {
+    pub(super) fn reconfigure(&self, ctx: &GpuContext) {
         self.surface.configure(&ctx.device, &self.config);
     }
 
     /// Size of the surface and composite, physical pixels.
-    pub fn size(&self) -> (u32, u32) {
+    pub(super) fn size(&self) -> (u32, u32) {
         (self.config.width, self.config.height)
     }
 
     /// The composite image's view for the overlay pass.
-    pub fn composite_view(&self) -> &wgpu::TextureView {
+    pub(super) fn composite_view(&self) -> &wgpu::TextureView {
         &self.composite.view
     }
 
     /// Records the copy of the renderer's frame `color` into the composite (sizes must match).
-    pub fn copy_frame(&self, encoder: &mut wgpu::CommandEncoder, color: &wgpu::Texture) {
+    pub(super) fn copy_frame(&self, encoder: &mut wgpu::CommandEncoder, color: &wgpu::Texture) {
         let size = wgpu::Extent3d {
             width: color.width().min(self.config.width),
             height: color.height().min(self.config.height),
@@ -189,7 +189,7 @@ impl<'w> Presenter<'w> {
     }
 
     /// Records the blit of the composite into `target` (the surface texture).
-    pub fn blit(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::Texture) {
+    pub(super) fn blit(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::Texture) {
         let view = target.create_view(&wgpu::TextureViewDescriptor {
             format: Some(self.target_format),
             ..Default::default()
@@ -218,7 +218,7 @@ impl<'w> Presenter<'w> {
     /// Reads the frame back as RGBA bytes, rows top to bottom: from `surface` (the texture about to be
     /// presented) when there is one and the surface allows it, else from the composite. Blocks until the
     /// GPU is done.
-    pub fn read(
+    pub(super) fn read(
         &self,
         ctx: &GpuContext,
         surface: Option<&wgpu::Texture>,

@@ -11,14 +11,14 @@
 //!   `multipart/byteranges`, which RFC 9110 allows a server to decline by ignoring the header).
 
 /// Longest `Range` value read, bytes; a longer one is ignored as malformed.
-pub const MAX_RANGE_HEADER: usize = 1024;
+pub(crate) const MAX_RANGE_HEADER: usize = 1024;
 /// Most ranges in one `Range` value; more are ignored as malformed (RFC 9110 §14.2 warns of many small
 /// or overlapping ranges as a denial of service).
-pub const MAX_RANGES: usize = 16;
+pub(crate) const MAX_RANGES: usize = 16;
 
 /// How to answer a request for a file of known length.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum RangeAnswer {
+pub(crate) enum RangeAnswer {
     /// `200` with the whole file.
     Full,
     /// `206` with bytes `first..=last` (inclusive, within the file).
@@ -28,7 +28,7 @@ pub enum RangeAnswer {
 }
 
 /// The answer to `Range: header` (raw bytes, `None` when absent) for a file of `len` bytes.
-pub fn answer(header: Option<&[u8]>, len: u64) -> RangeAnswer {
+pub(crate) fn answer(header: Option<&[u8]>, len: u64) -> RangeAnswer {
     let Some(raw) = header else {
         return RangeAnswer::Full;
     };

@@ -55,7 +55,7 @@ struct RawTexTransform {
 
 /// `KHR_texture_transform` in f64: `uv' = T(offset) · R(rotation) · S(scale) · uv`.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct UvTransform {
+pub(super) struct UvTransform {
     pub offset: DVec2,
     /// Radians, counter-clockwise in UV space (the extension's convention).
     pub rotation: f64,
@@ -66,7 +66,7 @@ impl UvTransform {
     /// Applies the transform: `u' = cos·sx·u + sin·sy·v + ox`, `v' = −sin·sx·u + cos·sy·v + oy`
     /// (the matrix of the KHR_texture_transform specification).
     #[inline]
-    pub fn apply(&self, uv: DVec2) -> DVec2 {
+    pub(super) fn apply(&self, uv: DVec2) -> DVec2 {
         let (s, c) = self.rotation.sin_cos();
         let su = uv.x * self.scale.x;
         let sv = uv.y * self.scale.y;
@@ -270,7 +270,7 @@ fn wrap(w: gltf::texture::WrappingMode) -> Wrap {
 }
 
 /// Linear RGBA factor → sRGB-encoded RGBA8 (alpha stays linear), each clamped to [0, 1] and rounded.
-pub fn srgb8(linear: [f32; 4]) -> [u8; 4] {
+pub(super) fn srgb8(linear: [f32; 4]) -> [u8; 4] {
     let enc = |c: f32| {
         let c = f64::from(c);
         let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };

@@ -20,7 +20,7 @@ use gltf::mesh::Mode;
 use std::collections::HashMap;
 
 /// UV components beyond ±this are kept but counted (`large_uv_triangles`).
-pub const LARGE_UV: f64 = 1e6;
+pub(super) const LARGE_UV: f64 = 1e6;
 
 /// Reused per-primitive buffers (no per-vertex allocation).
 #[derive(Default)]

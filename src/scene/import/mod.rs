@@ -32,7 +32,7 @@ mod refs;
 mod uri;
 mod warnings;
 
-pub use crate::scene::error::SceneError;
+pub(super) use crate::scene::error::SceneError;
 
 use crate::scene::{ImportReport, Scene, UpAxis};
 use glam::DVec3;
@@ -45,7 +45,7 @@ use std::path::Path;
 use uri::{Buffers, split_glb};
 
 /// Required extensions this importer honours (others listed in `extensionsRequired` are an error).
-pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
+pub(super) const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
     "KHR_texture_transform",
     "KHR_mesh_quantization",
     "EXT_mesh_gpu_instancing",
@@ -220,7 +220,7 @@ fn finish(
 }
 
 /// Auto up axis: the axis of least extent of `bounds`; ties prefer Y, then Z, then X. Y for no bounds.
-pub fn auto_up(bounds: Option<(DVec3, DVec3)>) -> UpAxis {
+pub(super) fn auto_up(bounds: Option<(DVec3, DVec3)>) -> UpAxis {
     let Some((lo, hi)) = bounds else {
         return UpAxis::Y;
     };

@@ -15,7 +15,7 @@ use glam::{DMat4, DQuat, DVec3};
 use serde::Deserialize;
 
 /// Cap on node visits during the hierarchy walk (guards against exponential DAG expansion).
-pub const MAX_NODE_VISITS: u64 = 1 << 26;
+pub(super) const MAX_NODE_VISITS: u64 = 1 << 26;
 
 /// A node's transform as written in the JSON, in f64.
 #[derive(Deserialize, Default)]

@@ -232,7 +232,7 @@ fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<ImageSource, String> {
 }
 
 /// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).
-pub fn percent_decode(uri: &str) -> String {
+pub(super) fn percent_decode(uri: &str) -> String {
     let b = uri.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;

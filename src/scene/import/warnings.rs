@@ -7,7 +7,7 @@
 use crate::scene::ImportReport;
 
 /// At most this many warning strings are kept; the rest are counted in `warnings_total`.
-pub const MAX_WARNINGS: usize = 100;
+pub(super) const MAX_WARNINGS: usize = 100;
 
 impl ImportReport {
     /// Records a warning: the string is kept while fewer than [`MAX_WARNINGS`] are, the total is exact.
