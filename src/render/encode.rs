@@ -5,6 +5,7 @@
 use super::batch::{BatchOptions, DrawIndexedIndirect, Group, Pass};
 use super::frame::{FrameStats, Renderer, tree_bind_group};
 use super::naive::Naive;
+use super::naive_batch::visible_draws;
 use super::wgsl::tree::NodeDraw;
 use super::{Mode, RenderError};
 use crate::plan::FramePlan;
@@ -205,26 +206,8 @@ impl Renderer<'_> {
         let Some(naive) = self.naive.as_mut() else {
             return Ok(());
         };
-        // Visible leaves: every leaf below a cut item (same culling as the tree modes).
-        let mut lists: [Vec<u32>; 3] = Default::default();
-        for (info, cut) in self.resident.infos.iter().zip(cuts) {
-            for item in &cut.items {
-                let Some(&(first, count)) = info.leaf_ranges.get(item.node.idx()) else {
-                    continue;
-                };
-                for l in first..first.saturating_add(count) {
-                    let gl = info.leaf_base.saturating_add(l) as usize;
-                    let Some(&(d0, dn)) = naive.leaf_draws.get(gl) else {
-                        continue;
-                    };
-                    for d in d0..d0 + dn {
-                        if let Some(draw) = naive.draws.get(d as usize) {
-                            lists[draw.pass as usize].push(d);
-                        }
-                    }
-                }
-            }
-        }
+        // Visible leaves: every leaf below a cut item (same culling as the tree modes), planned on the CPU.
+        let lists = visible_draws(&self.resident.infos, cuts, &naive.leaf_draws, &naive.draws)?;
         for p in Pass::ALL {
             if !lists[p as usize].is_empty() {
                 naive.pipelines.get(&self.ctx.device, Group::new(p, false));
@@ -249,13 +232,15 @@ impl Renderer<'_> {
             };
             rp.set_pipeline(pipeline);
             stats.pipeline_changes += 1;
-            for &d in list {
-                let Some(draw) = naive.draws.get(d as usize) else {
-                    continue;
-                };
-                let Some(group) = naive.groups.get(draw.texture as usize) else {
-                    continue;
-                };
+            for draw in list {
+                let group =
+                    naive
+                        .groups
+                        .get(draw.texture as usize)
+                        .ok_or(RenderError::MissingTexture {
+                            texture: draw.texture,
+                            textures: naive.groups.len(),
+                        })?;
                 rp.set_bind_group(1, group, &[]);
                 stats.bind_group_changes += 1;
                 rp.draw_indexed(

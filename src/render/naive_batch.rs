@@ -11,6 +11,7 @@
 use super::batch::{Pass, TreeBatchInfo};
 use super::wgsl::naive::{ALPHA_MASK, ALPHA_OPAQUE};
 use super::wgsl::tree::{LeafInfo, TamEntry};
+use crate::select::Cut;
 use crate::store::TreeFile;
 
 /// One draw: a leaf's triangles that use one original texture.
@@ -96,6 +97,65 @@ pub enum NaiveBatchError {
     },
     #[error("more than 2^32 naive indices")]
     TooLarge,
+    #[error("tree {tree}: cut item node {node} is not in the tree's {nodes} nodes")]
+    CutNode {
+        tree: usize,
+        node: usize,
+        nodes: usize,
+    },
+    #[error("global leaf {leaf} has no draw list ({leaves} lists)")]
+    MissingDrawList { leaf: usize, leaves: usize },
+    #[error("global leaf {leaf}: draws {first}..+{count} reach past the {draws} draws")]
+    DrawRange {
+        leaf: usize,
+        first: u32,
+        count: u32,
+        draws: usize,
+    },
+}
+
+/// The naive draws of one frame, by pass ([`Pass::ALL`] order), each list in cut order: the draws of every
+/// leaf below a cut item (the tree modes' culling). `leaf_draws` is
+/// [`NaiveBatch::leaf_draws`] (per global leaf, its draws). A cut item, leaf or draw range the tables do
+/// not have is an error, not a skipped draw.
+pub fn visible_draws(
+    infos: &[TreeBatchInfo],
+    cuts: &[Cut],
+    leaf_draws: &[(u32, u32)],
+    draws: &[NaiveDraw],
+) -> Result<[Vec<NaiveDraw>; 3], NaiveBatchError> {
+    let mut lists: [Vec<NaiveDraw>; 3] = Default::default();
+    for (tree, (info, cut)) in infos.iter().zip(cuts).enumerate() {
+        for item in &cut.items {
+            let node = item.node.idx();
+            let &(first, count) = info.leaf_ranges.get(node).ok_or(NaiveBatchError::CutNode {
+                tree,
+                node,
+                nodes: info.leaf_ranges.len(),
+            })?;
+            for l in first..first.saturating_add(count) {
+                let leaf = info.leaf_base.saturating_add(l) as usize;
+                let &(d0, dn) = leaf_draws
+                    .get(leaf)
+                    .ok_or(NaiveBatchError::MissingDrawList {
+                        leaf,
+                        leaves: leaf_draws.len(),
+                    })?;
+                let range = draws
+                    .get(d0 as usize..(d0 as usize).saturating_add(dn as usize))
+                    .ok_or(NaiveBatchError::DrawRange {
+                        leaf,
+                        first: d0,
+                        count: dn,
+                        draws: draws.len(),
+                    })?;
+                for draw in range {
+                    lists[draw.pass as usize].push(*draw);
+                }
+            }
+        }
+    }
+    Ok(lists)
 }
 
 /// The tables the plan reads besides the file: the renderer's (`render::resident::gather_tables`).

@@ -102,10 +102,10 @@ fn killed_build_leaves_nothing_or_the_whole_file_and_the_next_build_succeeds() {
     let (reference, took) = reference();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
-    // 12 kill points: stratified over 0..1.1 × the reference build's time (one per stratum, seeded), so
+    // 40 kill points: stratified over 0..1.1 × the reference build's time (one per stratum, seeded), so
     // the early stages, the block writes, the rename and just after it are all hit.
     let mut state = 23u64;
-    let points = 12u64;
+    let points = 40u64;
     let (mut complete, mut absent, mut stale_seen) = (0, 0, 0);
     for k in 0..points {
         let u = (k as f64 + (splitmix64(&mut state) >> 11) as f64 / (1u64 << 53) as f64)

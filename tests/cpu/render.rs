@@ -305,6 +305,78 @@ fn naive_batch_draws_every_triangle_once() {
     );
 }
 
+/// The naive frame plan (`render::naive_batch::visible_draws`): a cut of every tree's root draws every
+/// planned draw exactly once, in its pass; a cut of one leaf draws that leaf's draws only; a cut naming a
+/// node the tables do not have is an error, not an empty frame.
+#[test]
+fn naive_visible_draws_cover_the_cut_exactly() {
+    use atlastree::ids::NodeId;
+    use atlastree::render::naive_batch::{NaiveBatchError, NaiveTables, plan_naive, visible_draws};
+    use atlastree::select::CutItem;
+    let dir = tempfile::tempdir().unwrap();
+    let file = city_file(dir.path());
+    let g = gather_tables(&file).unwrap();
+    let plan = plan_naive(&file, NaiveTables::of(&g)).unwrap();
+    let cut_of = |node: u32| {
+        let mut cut = Cut::new();
+        cut.items.push(CutItem {
+            node: NodeId(node),
+            source: Source::Atlas,
+            level: 0,
+            first_index: 0,
+            index_count: 0,
+            distance: 0.0,
+        });
+        cut
+    };
+    let roots: Vec<Cut> = g.infos.iter().map(|_| cut_of(0)).collect();
+    let lists = visible_draws(&g.infos, &roots, &plan.leaf_draws, &plan.draws).unwrap();
+    let mut all: Vec<_> = lists.iter().flatten().copied().collect();
+    assert_eq!(all.len(), plan.draws.len(), "every draw once");
+    for (p, list) in lists.iter().enumerate() {
+        assert!(list.iter().all(|d| d.pass as usize == p), "pass {p}");
+    }
+    let key = |d: &atlastree::render::naive_batch::NaiveDraw| (d.leaf_base, d.first_index);
+    all.sort_by_key(key);
+    let mut want = plan.draws.clone();
+    want.sort_by_key(key);
+    assert_eq!(all, want);
+
+    // One leaf: the node of tree 0's first leaf.
+    let leaf_node = file.tree(0).unwrap().leaves[0].node;
+    let mut one = vec![cut_of(leaf_node)];
+    one.extend(g.infos.iter().skip(1).map(|_| Cut::new()));
+    let lists = visible_draws(&g.infos, &one, &plan.leaf_draws, &plan.draws).unwrap();
+    let (d0, dn) = plan.leaf_draws[g.infos[0].leaf_base as usize];
+    let got: usize = lists.iter().map(Vec::len).sum();
+    assert_eq!(got, dn as usize);
+    assert!(
+        lists
+            .iter()
+            .flatten()
+            .all(|d| plan.draws[d0 as usize..(d0 + dn) as usize].contains(d))
+    );
+
+    // A node past the tree's nodes.
+    let nodes = g.infos[0].leaf_ranges.len();
+    let mut bad = vec![cut_of(nodes as u32)];
+    bad.extend(g.infos.iter().skip(1).map(|_| Cut::new()));
+    assert_eq!(
+        visible_draws(&g.infos, &bad, &plan.leaf_draws, &plan.draws).unwrap_err(),
+        NaiveBatchError::CutNode {
+            tree: 0,
+            node: nodes,
+            nodes
+        }
+    );
+    // Draw lists shorter than the leaves.
+    let short = &plan.leaf_draws[..plan.leaf_draws.len() - 1];
+    assert!(matches!(
+        visible_draws(&g.infos, &roots, short, &plan.draws),
+        Err(NaiveBatchError::MissingDrawList { .. })
+    ));
+}
+
 /// Tables that disagree with the file are errors naming what is missing, never a draw left out: a missing
 /// TAM entry, a missing leaf record, a tree the file does not have.
 #[test]
