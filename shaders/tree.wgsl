@@ -251,7 +251,9 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     let border = min(r.inner_lo - r.outer_lo, r.outer_hi - inner_hi);
     // Where the footprint reaches past the border, sharpen it to what the border protects.
     let room = max(border - vec2<f32>(0.5 * level_texels), vec2<f32>(0.0));
-    let fit = room / max(half_box, vec2<f32>(1e-30));
+    // An axis the footprint does not extend along reaches past nothing (fit 1): a constant UV would
+    // otherwise take the period branch with a zero footprint and NaN gradients.
+    let fit = select(room / max(half_box, vec2<f32>(1e-30)), vec2<f32>(1.0), half_box == vec2<f32>(0.0));
     let k = min(1.0, min(fit.x, fit.y));
     if footprint > period * FLAT_SHARE || k < SHARPEN_MIN {
         let kk = period / CELLS / footprint;

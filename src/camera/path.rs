@@ -198,11 +198,13 @@ impl CameraPath {
         serde_json::to_string_pretty(self).unwrap_or_default()
     }
 
-    /// Writes the path as JSON.
+    /// Writes the path as JSON, atomically (the old file or the new one, never a partial one).
     pub fn save(&self, path: &Path) -> Result<(), CameraError> {
-        std::fs::write(path, self.to_json() + "\n").map_err(|source| CameraError::Write {
-            path: path.to_owned(),
-            source,
+        crate::util::write_atomic(path, (self.to_json() + "\n").as_bytes()).map_err(|source| {
+            CameraError::Write {
+                path: path.to_owned(),
+                source,
+            }
         })
     }
 

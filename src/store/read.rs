@@ -181,8 +181,10 @@ fn slice_at(bytes: &[u8], offset: u64, len: u64) -> Option<&[u8]> {
     bytes.get(start..end)
 }
 
-/// Fails on the first non-zero byte in `bytes[from..to]`.
+/// Fails on the first non-zero byte in `bytes[from..to]`, as far as `bytes` reaches (a table prefix may
+/// end inside the gap).
 fn check_zero(bytes: &[u8], from: u64, to: u64) -> Result<(), StoreError> {
+    let to = to.min(bytes.len() as u64);
     let gap = slice_at(bytes, from, to.saturating_sub(from)).unwrap_or(&[]);
     match gap.iter().position(|&b| b != 0) {
         Some(p) => Err(StoreError::NonZeroPadding {

@@ -91,6 +91,9 @@ impl Base {
     }
 }
 
+/// Values one knob of a grid may list (a star of 8 knobs × 64 values is already days of rendering).
+const MAX_KNOB_VALUES: usize = 64;
+
 /// A sweep grid, read from JSON (`--grid FILE`) or a preset ([`Grid::preset`]). Lists may be empty (the
 /// knob stays at its base value); a list need not contain the base value.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -292,6 +295,23 @@ impl Grid {
                 message,
             })
         };
+        // Each knob's list is bounded before anything iterates it (duplicates are removed by linear
+        // search, and every value is at least one build or rendered variant).
+        let lengths = [
+            ("d_min_ratio", self.d_min_ratio.len()),
+            ("atlas_size", self.atlas_size.len()),
+            ("border", self.border.len()),
+            ("filter", self.filter.len()),
+            ("compress", self.compress.len()),
+            ("repeat", self.repeat.len()),
+            ("texel_ratio", self.texel_ratio.len()),
+            ("capacity", self.capacity.len()),
+        ];
+        if let Some((knob, n)) = lengths.iter().find(|(_, n)| *n > MAX_KNOB_VALUES) {
+            return bad(format!(
+                "{knob} lists {n} values; at most {MAX_KNOB_VALUES} per knob"
+            ));
+        }
         let b = &self.base;
         let ratios = self.d_min_ratio.iter().chain([&b.d_min_ratio]);
         if let Some(r) = ratios.into_iter().find(|r| !(r.is_finite() && **r > 0.0)) {

@@ -449,7 +449,11 @@ fn texel_f32_agrees_with_f64_reference() {
     let (mut agree, mut near) = (0usize, 0usize);
     let mut failures = Vec::new();
     for s in &samples {
-        let (texel, _, _) = maps[s.rect].texel_f32(s.uv, s.ddx, s.ddy, s.level_texels());
+        let (texel, gx, gy) = maps[s.rect].texel_f32(s.uv, s.ddx, s.ddy, s.level_texels());
+        // Gradients stay finite, zero footprints (constant UVs) included: they go to textureSampleGrad.
+        if !(gx.is_finite() && gy.is_finite()) {
+            failures.push(format!("{s:?}: gradients {gx} {gy} not finite"));
+        }
         // Then the level transform, in f32 as the shader and in f64: one rounding of a value in [0, 1].
         let (k, j) = (Level(s.leaf_level), Level(s.level));
         let leaf_uv = texel / ATLAS as f32;
@@ -472,8 +476,10 @@ fn texel_f32_agrees_with_f64_reference() {
         failures[..failures.len().min(20)].join("\n")
     );
     assert_eq!(agree + near, samples.len());
+    // At most 2% sit on a branch boundary (280 of 22,400: constant UVs at K = 10, j = 4, where a 64-texel
+    // outer rectangle leaves lo == hi).
     assert!(
-        near * 100 <= samples.len(),
+        near * 50 <= samples.len(),
         "{near} near-branch samples of {}",
         samples.len()
     );

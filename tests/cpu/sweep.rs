@@ -353,3 +353,18 @@ fn kaiser_filter_changes_texels_not_layout() {
     assert_eq!("kaiser".parse::<MipFilter>(), Ok(MipFilter::Kaiser));
     assert!("lanczos".parse::<MipFilter>().is_err());
 }
+
+/// A knob listing more than 64 values is refused before the grid is expanded (duplicates are removed by
+/// linear search, and each value costs at least one build or variant).
+#[test]
+fn a_knob_with_too_many_values_is_refused() {
+    let mut g = Grid::preset("small").expect("preset");
+    g.d_min_ratio = (1..=65).map(f64::from).collect();
+    let e = g.validate("test").unwrap_err().to_string();
+    assert!(
+        e.contains("d_min_ratio lists 65 values; at most 64 per knob"),
+        "{e}"
+    );
+    g.d_min_ratio.truncate(64);
+    g.validate("test").unwrap();
+}

@@ -333,7 +333,11 @@ impl HttpSource {
     /// One `GET` of bytes `offset..offset + len` (`len > 0`).
     fn get_range(&self, offset: u64, len: u64) -> Result<Ranged, Failure> {
         bump(&self.counters.requests, 1);
-        let last = offset + len - 1;
+        // Sizes come from the server's header: an empty or overflowing range is refused, not computed.
+        let last = (offset.checked_add(len))
+            .and_then(|end| end.checked_sub(1))
+            .filter(|_| len > 0)
+            .ok_or_else(|| Failure::Request(format!("no byte range {offset}+{len}")))?;
         let response = (self.agent.get(&self.url))
             .header("Range", format!("bytes={offset}-{last}"))
             .call()
@@ -365,7 +369,10 @@ impl HttpSource {
 
     /// Exactly `len` bytes of `body` (a longer body is cut: its extra bytes are never read).
     fn read_len(&self, body: &mut impl Read, len: u64) -> Result<Vec<u8>, Failure> {
-        let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
+        // `len` comes from the server's own tables: reserve at most 1 MiB up front and grow with what
+        // actually arrives (a lying header must not allocate gigabytes or abort).
+        let reserve = usize::try_from(len.min(1 << 20)).unwrap_or(0);
+        let mut bytes = Vec::with_capacity(reserve);
         let read = body.take(len).read_to_end(&mut bytes);
         bump(&self.counters.bytes, bytes.len() as u64);
         read.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
@@ -490,7 +497,13 @@ fn check_content_range(
         file_shorter,
     };
     let spec = header
-        .and_then(|h| h.trim().strip_prefix("bytes "))
+        .and_then(|h| {
+            // The unit is case-insensitive (RFC 9110 §14.1).
+            let h = h.trim();
+            h.get(..6)
+                .filter(|unit| unit.eq_ignore_ascii_case("bytes "))
+                .map(|_| &h[6..])
+        })
         .ok_or_else(|| wrong(false))?;
     let (range, total) = spec.split_once('/').ok_or_else(|| wrong(false))?;
     let parse = |s: &str| s.trim().parse::<u64>().ok();
@@ -499,8 +512,9 @@ fn check_content_range(
         t => Some(parse(t).ok_or_else(|| wrong(false))?),
     };
     let (a, b) = range.split_once('-').ok_or_else(|| wrong(false))?;
-    if parse(a) != Some(first) || parse(b) != Some(last) {
-        return Err(wrong(total.is_some_and(|t| t <= last)));
+    let shorter = total.is_some_and(|t| t <= last);
+    if parse(a) != Some(first) || parse(b) != Some(last) || shorter {
+        return Err(wrong(shorter));
     }
     Ok(total)
 }
@@ -511,7 +525,10 @@ fn backoff(options: &HttpOptions, attempt: u32, seed: u64) -> Duration {
     let doubled = options
         .backoff_initial
         .saturating_mul(1u32 << attempt.min(20));
-    let base = doubled.min(options.backoff_max);
+    // At most an hour, whatever a caller set (Duration::mul_f64 panics past Duration::MAX).
+    let base = doubled
+        .min(options.backoff_max)
+        .min(Duration::from_secs(3600));
     let hash = splitmix64(seed ^ u64::from(attempt).rotate_left(32));
     let jitter = 0.5 + 0.5 * (hash >> 11) as f64 / (1u64 << 53) as f64;
     base.mul_f64(jitter)
@@ -538,6 +555,11 @@ mod tests {
             check_content_range(Some("bytes 10-19/*"), 10, 19).unwrap(),
             None
         );
+        // The unit is case-insensitive.
+        assert_eq!(
+            check_content_range(Some("Bytes 10-19/100"), 10, 19).unwrap(),
+            Some(100)
+        );
         for bad in [
             "bytes 10-18/100",
             "bytes 0-19/100",
@@ -557,6 +579,8 @@ mod tests {
         assert_eq!(shorter("bytes 10-18/19"), Some(true));
         assert_eq!(shorter("bytes 10-18/100"), Some(false));
         assert_eq!(shorter("bytes 10-18/*"), Some(false));
+        // The asked range, but a total that cannot hold it.
+        assert_eq!(shorter("bytes 10-19/15"), Some(true));
         assert!(
             Failure::WrongRange {
                 message: String::new(),

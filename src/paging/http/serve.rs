@@ -141,7 +141,7 @@ pub enum ServeError {
         source: std::io::Error,
     },
     #[error(
-        "max_connections must be at least 1 and max_head_bytes at least 8192 (got {connections}, {head})"
+        "max_connections must be from 1 to 2^61 − 1 and max_head_bytes at least 8192 (got {connections}, {head})"
     )]
     Options { connections: usize, head: usize },
 }
@@ -204,7 +204,10 @@ pub fn spawn_with(
     addr: SocketAddr,
     options: ServeOptions,
 ) -> Result<ServerHandle, ServeError> {
-    if options.max_connections == 0 || options.max_head_bytes < 8192 {
+    if options.max_connections == 0
+        || options.max_connections > Semaphore::MAX_PERMITS
+        || options.max_head_bytes < 8192
+    {
         return Err(ServeError::Options {
             connections: options.max_connections,
             head: options.max_head_bytes,
@@ -412,7 +415,12 @@ async fn answer_file(
     let mut file = tokio::fs::File::open(&server.file).await?;
     let len = file.metadata().await?.len();
     bump(&server.counters.requests);
-    let range_header = headers.get(header::RANGE).map(HeaderValue::as_bytes);
+    // Ranges are defined for GET only, and with `If-Range` only when its validator matches; this server
+    // sends no validators, so none can match: the whole file (RFC 9110 §14.2, §13.1.5).
+    let range_header = headers
+        .get(header::RANGE)
+        .map(HeaderValue::as_bytes)
+        .filter(|_| *method == Method::GET && !headers.contains_key(header::IF_RANGE));
     let (status, first, count, content_range) = match range::answer(range_header, len) {
         RangeAnswer::Full => (StatusCode::OK, 0, len, None),
         RangeAnswer::Partial { first, last } => {

@@ -299,7 +299,14 @@ impl RectMap {
         let (outer_lo, outer_hi) = (Vec2::from(self.outer_lo), Vec2::from(self.outer_hi));
         let border = (inner_lo - outer_lo).min(outer_hi - (inner_lo + inner));
         let room = (border - Vec2::splat(0.5 * level_texels)).max(Vec2::ZERO);
-        let fit = room / half_box.max(Vec2::splat(1e-30));
+        // An axis the footprint does not extend along reaches past nothing (fit 1, not room / 0 = 0: a
+        // constant UV, as on a triangle with degenerate UVs, would take the period branch with a zero
+        // footprint and scale its gradients by ∞, giving NaN).
+        let fit = Vec2::select(
+            half_box.cmpeq(Vec2::ZERO),
+            Vec2::ONE,
+            room / half_box.max(Vec2::splat(1e-30)),
+        );
         let k = fit.min_element().min(1.0);
         if footprint > period * FLAT_SHARE || k < SHARPEN_MIN {
             let kk = period / CELLS / footprint;

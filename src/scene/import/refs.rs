@@ -362,7 +362,20 @@ impl Check<'_> {
             return Ok(());
         };
         for (key, child) in map {
+            // Application data and extensions the gltf crate does not read can name anything: only the
+            // core material and the KHR extensions it parses are checked.
+            if key == "extras" {
+                continue;
+            }
             let here = path.field(key);
+            if key == "extensions" {
+                if let (Some(exts), true) = (child.as_object(), depth < MATERIAL_DEPTH) {
+                    for (name, ext) in exts.iter().filter(|(name, _)| name.starts_with("KHR_")) {
+                        self.material_textures(ext, here.field(name), depth + 1)?;
+                    }
+                }
+                continue;
+            }
             if key.ends_with("Texture") && child.is_object() {
                 if let Some(index) = child.get("index") {
                     self.reference(

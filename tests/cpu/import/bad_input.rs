@@ -323,3 +323,27 @@ fn glb_header_length_below_twelve_is_refused() {
         )
     );
 }
+
+/// Texture references in a material's `extras` or in an extension the gltf crate does not read are
+/// application data: the file imports. The same reference in a KHR extension it reads is checked.
+#[test]
+fn material_extras_and_unknown_extensions_are_not_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["materials"][0]["extras"] = json!({ "fooTexture": { "index": 999 } });
+    doc["materials"][0]["extensions"] = json!({ "EXT_foo": { "barTexture": { "index": 999 } } });
+    let (_, r) = import_city(dir.path(), &doc);
+    assert!(r.is_ok(), "{:?}", r.err());
+    doc["materials"][0]["extensions"] =
+        json!({ "KHR_materials_clearcoat": { "clearcoatTexture": { "index": 999 } } });
+    let (path, r) = import_city(dir.path(), &doc);
+    let (file, e) = (path.display().to_string(), r.err().unwrap().to_string());
+    let textures = city_json()["textures"].as_array().unwrap().len();
+    assert_eq!(
+        e,
+        format!(
+            "{file}: materials[0].extensions.KHR_materials_clearcoat.clearcoatTexture.index = 999: \
+             no texture 999 (there are {textures})"
+        )
+    );
+}
