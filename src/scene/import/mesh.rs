@@ -21,6 +21,9 @@ use std::collections::HashMap;
 
 /// UV components beyond ±this are kept but counted (`large_uv_triangles`).
 pub(super) const LARGE_UV: f64 = 1e6;
+/// Triangles a scene may place over all its mesh instances (2^28, ~50 GiB of build memory at today's
+/// ~200 B per triangle): beyond it a small file repeating one mesh could exhaust memory.
+pub(super) const MAX_TRIANGLES: u64 = 1 << 28;
 
 /// Reused per-primitive buffers (no per-vertex allocation).
 #[derive(Default)]
@@ -83,6 +86,14 @@ impl<'a> Geometry<'a> {
             });
             tris = tris.saturating_add(t);
             verts = verts.saturating_add(v);
+        }
+        if tris > MAX_TRIANGLES {
+            return Err(SceneError::TooLarge {
+                file: self.file.to_string(),
+                what: format!(
+                    "{tris} triangles over all mesh instances exceed {MAX_TRIANGLES} (split the scene)"
+                ),
+            });
         }
         if verts > u64::from(u32::MAX) {
             return Err(SceneError::TooLarge {

@@ -16,6 +16,9 @@ use serde::Deserialize;
 
 /// Cap on node visits during the hierarchy walk (guards against exponential DAG expansion).
 pub(super) const MAX_NODE_VISITS: u64 = 1 << 26;
+/// Mesh instances the scene may place in all (node visits × `EXT_mesh_gpu_instancing` instances): a few
+/// bytes of JSON must not expand into gigabytes of instance records.
+pub(super) const MAX_INSTANCES: usize = 1 << 26;
 
 /// A node's transform as written in the JSON, in f64.
 #[derive(Deserialize, Default)]
@@ -123,7 +126,17 @@ impl<'a> Walk<'a, '_> {
             stack.push(Step::Exit(i));
             let world = parent * self.local_matrix(i);
             if let Some(mesh) = node.mesh() {
-                match self.gpu_instances(node)? {
+                let list = self.gpu_instances(node)?;
+                let adding = list.as_ref().map_or(1, Vec::len);
+                if instances.len().saturating_add(adding) > MAX_INSTANCES {
+                    return Err(SceneError::TooLarge {
+                        file: self.file.to_string(),
+                        what: format!(
+                            "more than {MAX_INSTANCES} mesh instances (node visits × GPU instances)"
+                        ),
+                    });
+                }
+                match list {
                     Some(list) => instances.extend(list.into_iter().map(|m| Instance {
                         node: i,
                         mesh: mesh.index(),
