@@ -518,8 +518,10 @@ impl Pager {
             }
             match a.result {
                 Ok(data) => {
+                    // The failure count is reset once the executor has the block (below), so a block
+                    // whose upload keeps failing backs off ever longer instead of being fetched again
+                    // every `retry_frames`.
                     self.state[i] = State::Staged;
-                    self.fail_count[i] = 0;
                     self.staged.push((a.block, data));
                 }
                 Err(e) => {
@@ -586,6 +588,7 @@ impl Pager {
             accepted_bytes += self.table.blocks[i].upload_bytes;
             self.stats.loaded += 1;
             self.stats.bytes_loaded += bytes;
+            self.fail_count[i] = 0;
         }
         // Over capacity after a capacity decrease: shed the least important non-ideal blocks.
         while self.resident.len() as u32 > self.opts.capacity {

@@ -99,8 +99,13 @@ fn a_load_the_executor_cannot_apply_is_taken_back_counted_and_retried() {
     };
     let mut errors = 0u32;
     let mut coarser_frames = 0u32;
+    let mut offered_at = Vec::new();
     for (i, c) in cams.iter().enumerate() {
+        let seen = exec.loads_seen;
         let plan = p.plan(c, i as f64 / 30.0, scale, &mut exec).unwrap();
+        if exec.loads_seen > seen {
+            offered_at.push(i);
+        }
         let s = plan.stats.paging.unwrap();
         errors += s.apply_errors;
         coarser_frames += u32::from(s.coarse.coarser_items > 0);
@@ -122,6 +127,16 @@ fn a_load_the_executor_cannot_apply_is_taken_back_counted_and_retried() {
         u64::from(exec.loads_seen)
     );
     assert!(p.last_error().unwrap().contains("upload refused"));
+    // A transient upload failure backs off ever longer (the failure count is not reset by the fetch that
+    // succeeded before the upload failed): the waits between offers never shrink and do grow.
+    let gaps: Vec<usize> = offered_at.windows(2).map(|w| w[1] - w[0]).collect();
+    assert!(
+        gaps.windows(2).all(|g| g[1] >= g[0]),
+        "offers at frames {offered_at:?}"
+    );
+    if let (Some(first), Some(last)) = (gaps.first(), gaps.last()) {
+        assert!(last > first, "offers at frames {offered_at:?}");
+    }
     assert!(
         coarser_frames > 0,
         "the items that needed the refused block are drawn coarser"
