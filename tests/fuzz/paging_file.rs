@@ -185,21 +185,11 @@ fn raw(u: &mut Unstructured<'_>, file: &TreeFile, m: &mut Vec<u8>) -> arbitrary:
 fn resealed(u: &mut Unstructured<'_>, m: &mut [u8]) -> arbitrary::Result<String> {
     let h = header_of(m);
     let fl = h.file_len;
-    let pick = [
-        Section::Params,
-        Section::Materials,
-        Section::Trees,
-        Section::Nodes,
-        Section::Leaves,
-        Section::Rects,
-        Section::Originals,
-        Section::Vertices,
-        Section::Indices,
-        Section::SourceTriangles,
-        Section::Blocks,
-        Section::Blocks,
-        Section::Blocks,
-    ];
+    // Every record section (strings hold bytes, not records), the block table three times as often.
+    let pick: Vec<Section> = (Section::ALL.iter().copied())
+        .filter(|&s| s != Section::Strings)
+        .chain([Section::Blocks, Section::Blocks])
+        .collect();
     let s = *u.choose(&pick)?;
     let e = h.section(s);
     if e.count == 0 {
