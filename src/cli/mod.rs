@@ -147,7 +147,14 @@ pub(crate) fn load_scene(
     path: &std::path::Path,
     up: UpArg,
 ) -> anyhow::Result<atlastree::scene::Scene> {
-    use anyhow::Context;
     let opts = atlastree::scene::ImportOptions { up: up.to_option() };
-    atlastree::scene::import(path, &opts).with_context(|| format!("importing {}", path.display()))
+    atlastree::scene::import(path, &opts).map_err(|e| {
+        // Most scene errors already start with the file; name it once.
+        let file = path.display().to_string();
+        if e.to_string().contains(&file) {
+            anyhow::Error::new(e)
+        } else {
+            anyhow::Error::new(e).context(format!("importing {file}"))
+        }
+    })
 }

@@ -276,7 +276,24 @@ fn bad_input_is_a_clear_error() {
     let missing = dir.path().join("nope.gltf");
     let o = run(bin().arg("scene-info").arg(&missing));
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("nope.gltf"));
+    // One line naming the file once, its cause once.
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(
+        stderr.trim_end(),
+        format!(
+            "error: {}: cannot read: No such file or directory (os error 2)",
+            missing.display()
+        ),
+    );
+    let missing_tree = dir.path().join("nope.atlastree");
+    let o = run(bin().arg("inspect").arg(&missing_tree));
+    assert_eq!(
+        String::from_utf8_lossy(&o.stderr).trim_end(),
+        format!(
+            "error: opening {}: No such file or directory (os error 2)",
+            missing_tree.display()
+        ),
+    );
     let broken = dir.path().join("broken.gltf");
     std::fs::write(
         &broken,
