@@ -132,6 +132,17 @@ impl AtomicFile {
     }
 }
 
+/// Writes go to the temp file (so a `BufWriter<AtomicFile>` streams into it).
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.temp.as_file().write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.temp.as_file().flush()
+    }
+}
+
 /// Makes a rename in `dir` durable (unix: fsync the directory). A no-op elsewhere.
 fn sync_dir(dir: &Path) -> std::io::Result<()> {
     #[cfg(unix)]

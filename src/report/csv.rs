@@ -11,6 +11,7 @@
 //! ```
 
 use super::ReportError;
+use crate::util::AtomicFile;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
@@ -122,13 +123,13 @@ pub struct CsvWriter {
     columns: usize,
     /// Data rows written so far (the header is line 1).
     rows: usize,
-    out: BufWriter<tempfile::NamedTempFile>,
+    out: BufWriter<AtomicFile>,
 }
 
 impl CsvWriter {
     /// Starts a table with the given header. The parent directory of `path` must exist.
     pub fn create(path: &Path, header: &[&str]) -> Result<CsvWriter, ReportError> {
-        let temp = super::temp_beside(path)?;
+        let temp = AtomicFile::create(path, 0o644).map_err(|e| ReportError::io(path, e))?;
         let mut w = CsvWriter {
             path: path.to_path_buf(),
             columns: header.len(),
@@ -165,18 +166,15 @@ impl CsvWriter {
             .map_err(|e| ReportError::io(&self.path, e))
     }
 
-    /// Flushes, syncs and renames the table into place; returns its path.
+    /// Flushes and commits the table ([`AtomicFile::commit`]: sync, rename, directory sync); returns its
+    /// path.
     pub fn finish(self) -> Result<PathBuf, ReportError> {
         let path = self.path;
         let temp = self
             .out
             .into_inner()
             .map_err(|e| ReportError::io(&path, e.into_error()))?;
-        temp.as_file()
-            .sync_all()
-            .map_err(|e| ReportError::io(&path, e))?;
-        temp.persist(&path)
-            .map_err(|e| ReportError::io(&path, e.error))?;
+        temp.commit().map_err(|e| ReportError::io(&path, e))?;
         Ok(path)
     }
 }

@@ -78,26 +78,3 @@ impl ReportError {
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ReportError> {
     crate::util::write_atomic(path, bytes).map_err(|e| ReportError::io(path, e))
 }
-
-/// A temp file in `path`'s directory, created readable by all (0o644 less the umask, like a plain
-/// `File::create`; tempfile's default 0o600 would make published reports private).
-pub(crate) fn temp_beside(path: &Path) -> Result<tempfile::NamedTempFile, ReportError> {
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".tmp-report");
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        builder.permissions(std::fs::Permissions::from_mode(0o644));
-    }
-    builder
-        .tempfile_in(parent_dir(path))
-        .map_err(|e| ReportError::io(path, e))
-}
-
-/// The directory a file at `path` lives in (`.` for a bare file name).
-pub(crate) fn parent_dir(path: &Path) -> &Path {
-    match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    }
-}

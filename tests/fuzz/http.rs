@@ -12,13 +12,11 @@ use crate::harness::{self, Verdict};
 use arbitrary::Unstructured;
 use atlastree::ids::BlockId;
 use atlastree::paging::{BlockSource, HttpOptions, HttpSource};
-use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
-use atlastree::scene::synthetic::small_city;
 use atlastree::store::TreeFile;
 use std::io::{BufRead, BufReader, Write};
 use std::net::{Shutdown, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -29,35 +27,17 @@ const TIMEOUT: Duration = Duration::from_millis(60);
 /// A stalled connection is held at most this long (the case's stop ends it sooner).
 const STALL_MAX: Duration = Duration::from_millis(400);
 
-/// The true file: a small tree (built once) and its parsed tables.
+/// The true file: the shared tiny paging file (`tests/fixtures/tiny_store.rs`) and its parsed tables.
 struct Truth {
-    bytes: Vec<u8>,
-    file: TreeFile,
-    _dir: tempfile::TempDir,
+    bytes: &'static [u8],
+    file: &'static TreeFile,
 }
 
-fn truth() -> &'static Truth {
-    static T: OnceLock<Truth> = OnceLock::new();
-    T.get_or_init(|| {
-        let dir = tempfile::tempdir().expect("temp dir");
-        let path = dir.path().join("city.atlastree");
-        let opts = BuildOptions {
-            d_min: DMin::Ratio(20.0),
-            atlas_size: 64,
-            max_file_bytes: 1 << 30,
-            border: 4,
-            leaf_originals_atlases: 0.0,
-            ..BuildOptions::default()
-        };
-        build(&small_city(2, 32), &opts, &path, &NoProgress).expect("build");
-        let bytes = std::fs::read(&path).expect("read");
-        let file = TreeFile::open(&path).expect("open");
-        Truth {
-            bytes,
-            file,
-            _dir: dir,
-        }
-    })
+fn truth() -> Truth {
+    Truth {
+        bytes: crate::tiny_store::tiny_paging_file(),
+        file: crate::tiny_store::tiny_paging_tree(),
+    }
 }
 
 /// What the server does with one request.
@@ -217,7 +197,7 @@ fn answer(
     action: Action,
     stop: &AtomicBool,
 ) -> bool {
-    let data = &truth().bytes;
+    let data = truth().bytes;
     let len = data.len() as u64;
     let (first, last) = range.unwrap_or((0, len.saturating_sub(1)));
     let last = last.min(len.saturating_sub(1));
@@ -331,7 +311,8 @@ fn case(bytes: &[u8]) -> Verdict {
         next: AtomicUsize::new(0),
     }) {
         Ok(s) => s,
-        Err(e) => return Verdict::Refused(format!("cannot start the fake server: {e}")),
+        // A harness fault, not the source's refusal.
+        Err(e) => panic!("cannot start the fake server: {e}"),
     };
     let options = HttpOptions {
         connect_timeout: Duration::from_millis(200),
@@ -355,9 +336,7 @@ fn case(bytes: &[u8]) -> Verdict {
     let mut refused = None;
     for b in which {
         let id = BlockId(b);
-        let Ok(truth) = t.file.block(id) else {
-            return Verdict::Skipped;
-        };
+        let truth = t.file.block(id).expect("the true file's blocks read");
         match src.fetch(id, &t.file.blocks()[b as usize]) {
             Ok(got) if got.as_slice() == truth => {}
             Ok(_) => return Verdict::AcceptedCorruption(format!("{id}: wrong bytes accepted")),

@@ -237,15 +237,12 @@ fn judge(bytes: &[u8]) -> Result<(), String> {
 }
 
 fn mutate(data: &[u8]) -> Verdict {
-    let base = base();
-    let Ok(file) = TreeFile::from_bytes(base) else {
-        return Verdict::AcceptedCorruption("the base file does not open".into());
-    };
+    let (base, file) = (base(), super::tiny_store::tiny_paging_tree());
     let mut u = Unstructured::new(data);
     let mut m = base.to_vec();
     let is_raw = u.ratio(3u8, 4u8).unwrap_or(true);
     let what = if is_raw {
-        raw(&mut u, &file, &mut m)
+        raw(&mut u, file, &mut m)
     } else {
         resealed(&mut u, &mut m)
     };

@@ -7,7 +7,7 @@
 //! `Content-Range: bytes */LEN`; malformed → ignored, 200 with the whole file (RFC 9110 §14.2 "MAY
 //! ignore"); touching ranges coalesce into one 206; disjoint ones → 200; a head over 16 KiB → 431.
 
-use super::http::{Fixture, fixture};
+use super::http::{Fixture, any_port, fixture};
 use atlastree::paging::serve::{self, ServeOptions};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -87,10 +87,6 @@ fn range(addr: SocketAddr, spec: &str) -> Answer {
         "/city.atlastree",
         &format!("Range: {spec}\r\n"),
     )
-}
-
-fn any_port() -> SocketAddr {
-    "127.0.0.1:0".parse().unwrap()
 }
 
 #[test]
