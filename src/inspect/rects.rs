@@ -49,7 +49,7 @@ pub(super) fn verify_leaf(
     let originals = t.leaf_originals(l);
     for (ri, rect) in rects.iter().enumerate() {
         r.rects_checked += 1;
-        if let Err(msg) = check_rect(rect, params.atlas_size) {
+        if let Err(msg) = check_rect(rect) {
             r.fail(format!("tree {ti} leaf {li} rect {ri}: {msg}"));
         }
     }
@@ -114,32 +114,19 @@ pub(super) fn verify_leaf(
     }
 }
 
-/// Range and placement of one rect.
-fn check_rect(rect: &RectRecord, atlas: u32) -> Result<(), String> {
-    let [ox, oy, ow, oh] = rect.outer.map(u64::from);
-    let [ix, iy, iw, ih] = rect.inner.map(u64::from);
-    if ox + ow > u64::from(atlas) || oy + oh > u64::from(atlas) {
-        return Err(format!("outer {:?} outside the {atlas}² atlas", rect.outer));
-    }
-    if ix < ox || iy < oy || ix + iw > ox + ow || iy + ih > oy + oh || iw == 0 || ih == 0 {
-        return Err(format!(
-            "inner {:?} not inside outer {:?}",
-            rect.inner, rect.outer
-        ));
-    }
+/// The UV range one rect's wrap modes allow. Placement (outer inside the atlas, a non-empty inner inside
+/// the outer) and finite ordered UVs are `TreeFile::open`'s checks (`store::validate`).
+fn check_rect(rect: &RectRecord) -> Result<(), String> {
     let Some(wrap) = rect.wrap() else {
         return Err(format!("unknown flags {:#x}", rect.flags));
     };
     for (k, &axis_wrap) in wrap.iter().enumerate() {
         let (lo, hi) = (rect.uv_min[k], rect.uv_max[k]);
-        let ok = lo.is_finite()
-            && hi.is_finite()
-            && lo <= hi
-            && match axis_wrap {
-                RectWrap::Linear => true,
-                RectWrap::Repeat => hi - lo <= 1.0 + 1e-12 && (0.0..1.0).contains(&lo),
-                RectWrap::Mirror | RectWrap::Clamp => lo >= 0.0 && hi <= 1.0,
-            };
+        let ok = match axis_wrap {
+            RectWrap::Linear => true,
+            RectWrap::Repeat => hi - lo <= 1.0 + 1e-12 && (0.0..1.0).contains(&lo),
+            RectWrap::Mirror | RectWrap::Clamp => lo >= 0.0 && hi <= 1.0,
+        };
         if !ok {
             return Err(format!(
                 "axis {k}: {axis_wrap:?} range [{lo}, {hi}] is not what the mode allows"

@@ -472,8 +472,8 @@ fn check_rects_originals(
     Ok(())
 }
 
-/// A rect's geometry: the outer rectangle inside the atlas (`x + w ≤ atlas_size`, in u64), the inner one
-/// inside the outer, and a finite UV rectangle with `uv_min ≤ uv_max` (what the shader, the border
+/// A rect's geometry: the outer rectangle inside the atlas (`x + w ≤ atlas_size`, in u64), a non-empty
+/// inner one inside the outer, and a finite UV rectangle with `uv_min ≤ uv_max` (what the shader, the border
 /// checks and the texel transforms assume; a resealed edit could otherwise make them loop over 2³² texels
 /// or divide by a NaN width).
 fn check_rect_geometry(r: &RectRecord, index: u64, atlas_size: u32) -> Result<(), StoreError> {
@@ -489,7 +489,7 @@ fn check_rect_geometry(r: &RectRecord, index: u64, atlas_size: u32) -> Result<()
         if i0 < o0 {
             return Err(bad_value("rects", index, INNER[k], i0));
         }
-        if i0 + iw > o0 + ow {
+        if iw == 0 || i0 + iw > o0 + ow {
             return Err(bad_value("rects", index, INNER[k + 2], iw));
         }
         let (lo, hi) = (r.uv_min[k], r.uv_max[k]);
