@@ -5,6 +5,7 @@
 mod cli;
 
 fn main() -> std::process::ExitCode {
+    quiet_on_closed_stdout();
     cli::init_tracing();
     match cli::run() {
         Ok(code) => code,
@@ -13,6 +14,25 @@ fn main() -> std::process::ExitCode {
             std::process::ExitCode::from(2)
         }
     }
+}
+
+/// A report piped into `head` (stdout closed early) ends the process quietly with the shell's status
+/// for SIGPIPE (141), as other command-line tools do, instead of a panic from `println!`; every other
+/// panic keeps the default report.
+fn quiet_on_closed_stdout() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let text = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if text.starts_with("failed printing to stdout") && text.contains("Broken pipe") {
+            std::process::exit(141);
+        }
+        default(info);
+    }));
 }
 
 /// The error and its causes joined by `: `, leaving out a cause whose text the message already holds (many

@@ -168,6 +168,12 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// Resets the peak resident set size ([`peak_rss_bytes`]) to the current one (Linux: `5` into
+/// `/proc/self/clear_refs`), so the next reading is the peak of what follows. False where unsupported.
+pub fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", b"5").is_ok()
+}
+
 /// Shell-style match of a whole name against `pattern`: `*` any run of characters (also none), `?` one
 /// character, everything else literally (case-sensitive). Two-pointer matcher that backtracks to the
 /// last `*` only: O(|pattern| · |name|) at worst, no recursion.

@@ -134,13 +134,20 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         }
     }
     let import_s = t.elapsed().as_secs_f64();
+    // The import's own peak; each stage of the build then reports its own (build summary).
+    let import_peak = atlastree::util::peak_rss_bytes();
+    atlastree::util::reset_peak_rss();
     let bars = Bars::new(a.quiet || a.json);
     if let Some(spec) = shard_spec(a.shard.as_deref())? {
-        return run_shard(&a, &scene, spec, import_s, &bars);
+        return run_shard(&a, &scene, spec, (import_s, import_peak), &bars);
     }
     let mut report = build(&scene, &a.options(), &a.out, &bars)
         .with_context(|| format!("building {} into {}", a.scene.display(), a.out.display()))?;
     report.timings.insert(0, ("import".into(), import_s));
+    if let Some(p) = import_peak {
+        report.stage_peak_rss.insert(0, ("import".into(), p));
+        report.peak_rss_bytes = report.peak_rss_bytes.max(Some(p));
+    }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -166,7 +173,7 @@ fn run_shard(
     a: &BuildArgs,
     scene: &atlastree::scene::Scene,
     spec: ShardSpec,
-    import_s: f64,
+    (import_s, import_peak): (f64, Option<u64>),
     bars: &Bars,
 ) -> anyhow::Result<ExitCode> {
     let sharded = ShardedOptions {
@@ -182,6 +189,10 @@ fn run_shard(
             )
         })?;
     report.timings.insert(0, ("import".into(), import_s));
+    if let Some(p) = import_peak {
+        report.stage_peak_rss.insert(0, ("import".into(), p));
+        report.peak_rss_bytes = report.peak_rss_bytes.max(Some(p));
+    }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(ExitCode::SUCCESS);
@@ -207,6 +218,7 @@ fn run_shard(
         r.images_decoded,
         r.peak_rss_bytes.map_or("?".into(), human_bytes)
     );
+    print_stage_peaks(&r.stage_peak_rss);
     println!(
         "  when all {} shards are written: atlastree merge {}",
         spec.count,
@@ -315,8 +327,21 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
         r.images_alpha_ignored,
         r.peak_rss_bytes.map_or("?".into(), human_bytes)
     );
+    print_stage_peaks(&r.stage_peak_rss);
     for w in &r.warnings {
         println!("  warning: {w}");
+    }
+}
+
+/// `  peak memory per stage: import 12 MiB, …` (nothing where the platform does not tell).
+fn print_stage_peaks(peaks: &[(String, u64)]) {
+    let stages: Vec<String> = peaks
+        .iter()
+        .filter(|(n, _)| n != "total")
+        .map(|(n, b)| format!("{n} {}", human_bytes(*b)))
+        .collect();
+    if !stages.is_empty() {
+        println!("  peak memory per stage: {}", stages.join(", "));
     }
 }
 

@@ -256,6 +256,8 @@ pub struct BuildReport {
     /// glTF specifies: their colour is kept where alpha is 0.
     pub images_alpha_ignored: u64,
     pub peak_rss_bytes: Option<u64>,
+    /// (stage, peak resident memory during it, bytes), where the platform tells (Linux).
+    pub stage_peak_rss: Vec<(String, u64)>,
     pub warnings: Vec<String>,
 }
 
@@ -421,13 +423,25 @@ pub fn build(
 
 /// `(stage, seconds)` of a build, in the order the stages ended.
 #[derive(Default)]
-pub(super) struct Timings(pub(super) Vec<(String, f64)>);
+pub(super) struct Timings(pub(super) Vec<(String, f64)>, pub(super) Vec<(String, u64)>);
 
 impl Timings {
     /// Records stage `name` as begun at `start` and ended now.
+    /// Records stage `name` as begun at `start` and ended now, with the peak memory since the previous
+    /// stage ended (then resets the peak: [`crate::util::reset_peak_rss`]). `total` gets the largest peak.
     pub(super) fn push(&mut self, name: &str, start: Instant) {
         self.0
             .push((name.to_string(), start.elapsed().as_secs_f64()));
+        let peak = if name == "total" {
+            let stages = self.1.iter().map(|p| p.1).max();
+            stages.max(crate::util::peak_rss_bytes())
+        } else {
+            crate::util::peak_rss_bytes()
+        };
+        if let Some(peak) = peak {
+            self.1.push((name.to_string(), peak));
+        }
+        crate::util::reset_peak_rss();
     }
 }
 
@@ -639,6 +653,7 @@ pub(super) fn build_report(
             ));
         }
     }
+    let stage_peak = timings.1.iter().map(|p| p.1).max();
     BuildReport {
         params,
         scene_diagonal,
@@ -648,10 +663,11 @@ pub(super) fn build_report(
         original_blocks: forest.blocks.len() as u64 - atlas_blocks,
         file_bytes,
         timings: timings.0,
+        stage_peak_rss: timings.1,
         images_decoded: cache.decodes.load(Ordering::Relaxed),
         image_fallbacks: cache.fallbacks.load(Ordering::Relaxed),
         images_alpha_ignored: cache.alpha_ignored.load(Ordering::Relaxed),
-        peak_rss_bytes: crate::util::peak_rss_bytes(),
+        peak_rss_bytes: stage_peak,
         warnings,
     }
 }

@@ -43,6 +43,8 @@ pub struct ShardReport {
     pub timings: Vec<(String, f64)>,
     pub images_decoded: u64,
     pub peak_rss_bytes: Option<u64>,
+    /// (stage, peak resident memory during it, bytes), where the platform tells (Linux).
+    pub stage_peak_rss: Vec<(String, u64)>,
 }
 
 /// Builds shard `sharded.spec` of the build of `scene` into `out` and writes `OUT.shard-I-of-N` beside
@@ -127,9 +129,10 @@ pub fn build_shard(
         work: cut.work[spec.index as usize],
         work_mean: cut.work.iter().sum::<u64>() as f64 / f64::from(spec.count),
         file_bytes,
-        timings: timings.0,
+        timings: timings.0.clone(),
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
-        peak_rss_bytes: crate::util::peak_rss_bytes(),
+        peak_rss_bytes: timings.1.iter().map(|p| p.1).max(),
+        stage_peak_rss: timings.1,
     };
     write_sidecar(&path, &report)?;
     Ok(report)
@@ -342,7 +345,29 @@ pub fn merge(
             }
         }
     }
-    let argv: Option<Vec<String>> = opened.iter().flatten().map(|f| f.argv.clone()).next();
+    // The rebuild hint copies the command line of a shard of the build most shards belong to (a foreign
+    // shard's flags would rebuild the wrong thing).
+    let majority = {
+        let prints: Vec<[u64; 2]> = opened
+            .iter()
+            .flatten()
+            .map(|f| f.header.fingerprint)
+            .collect();
+        prints
+            .iter()
+            .max_by_key(|p| {
+                (
+                    prints.iter().filter(|q| q == p).count(),
+                    std::cmp::Reverse(prints.iter().position(|q| q == *p)),
+                )
+            })
+            .copied()
+    };
+    let argv: Option<Vec<String>> = opened
+        .iter()
+        .flatten()
+        .find(|f| Some(f.header.fingerprint) == majority)
+        .map(|f| f.argv.clone());
     let hint = |index| rebuild_hint(argv.as_deref(), ShardSpec { index, count });
     if let Some((shard, path, err)) = failures.into_iter().next() {
         let rebuild = hint(shard);
