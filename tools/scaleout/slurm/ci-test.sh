@@ -6,6 +6,7 @@
 # Needs root (the daemons; installs slurm-wlm and munge with apt-get when missing) and no systemd. Brings up
 # munged (as the munge user, its own socket), slurmctld and slurmd (their own ports, config, state and logs) under
 # one temp dir, so it touches neither /etc/slurm nor /run/munge nor a cluster already running here; then
+#   0. checks the shape of tools/scaleout/k8s/build-job.yaml (when python3 has PyYAML);
 #   1. builds data/city/scene.gltf in one process with FLAGS (a tree of depth ≥ 3: checked from the JSON report);
 #   2. builds it as a 4-shard Slurm array + dependent merge with submit.sh --wait, and compares with cmp;
 #   3. builds it with the one-big-machine recipe (xargs, N = 3) and compares;
@@ -95,10 +96,12 @@ stop_pids() { # NAME:PID…: SIGTERM them all, wait up to 10 s for all to exit, 
     return 0
 }
 
+exec 8>&1 9>&2 # the script's own stdout and stderr, for cleanup: a signal can arrive inside a redirected command
 cleanup() {
     local rc=$?
     set +e
     trap - EXIT INT TERM
+    exec 1>&8 2>&9
     if [[ -n $ctld_pid ]] && kill -0 "$ctld_pid" 2>/dev/null; then
         local jobs i
         jobs=$(squeue -h -o %A 2>/dev/null | sort -u | tr '\n' ' ')
@@ -164,6 +167,23 @@ free_port_pair() { # two consecutive free TCP ports, tried from a PID-dependent 
     done
     return 1
 }
+
+# ---- 0. the Kubernetes manifest (no cluster here: its shape only) ----
+k8s_check=$repo/tools/scaleout/k8s/check.py
+py=""
+for p in python3 /usr/bin/python3; do
+    if command -v "$p" >/dev/null && "$p" -c 'import yaml' 2>/dev/null; then
+        py=$p
+        break
+    fi
+done
+if [[ -z $py ]]; then
+    echo "SKIP k8s manifest: no python3 with PyYAML (apt-get install python3-yaml)"
+elif k8s_out=$("$py" "$k8s_check" 2>&1); then
+    pass "k8s manifest: $k8s_out"
+else
+    fail "k8s manifest: $k8s_out"
+fi
 
 # ---- bring-up ----
 t=$SECONDS
