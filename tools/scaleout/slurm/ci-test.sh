@@ -207,10 +207,11 @@ if [[ -n $cpus ]] && (($(nproc) < cpus)); then
     # A container limited below the hardware: offer Slurm only the CPUs we may use.
     node_line="NodeName=$host CPUs=$(nproc) $(grep -o 'RealMemory=[0-9]*' <<<"$node_line")"
 fi
+# Loopback addresses: a single node, and no reliance on the container resolving its own host name.
 export SLURM_CONF=$tmp/etc/slurm.conf
 cat >"$SLURM_CONF" <<EOF
 ClusterName=atlastree-ci
-SlurmctldHost=$host
+SlurmctldHost=$host(127.0.0.1)
 SlurmctldPort=$port
 SlurmdPort=$((port + 1))
 SlurmUser=root
@@ -235,7 +236,7 @@ SlurmctldPidFile=$tmp/run/slurmctld.pid
 SlurmdPidFile=$tmp/run/slurmd.pid
 SlurmctldLogFile=$tmp/log/slurmctld.log
 SlurmdLogFile=$tmp/log/slurmd.log
-$node_line State=UNKNOWN
+$node_line NodeAddr=127.0.0.1 State=UNKNOWN
 PartitionName=ci Nodes=$host Default=YES MaxTime=INFINITE State=UP
 EOF
 slurmctld -i || {
