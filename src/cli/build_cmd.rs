@@ -1,7 +1,8 @@
 use super::args::BuildParamsArgs;
 use super::{UpArg, load_scene, progress::Bars};
 use anyhow::Context;
-use atlastree::preprocess::{BuildOptions, BuildReport, DMin, build};
+use atlastree::preprocess::shard::{ShardSpec, shard_from_env};
+use atlastree::preprocess::{BuildOptions, BuildReport, DMin, ShardedOptions, build, build_shard};
 use atlastree::texfmt::Compression;
 use atlastree::util::human_bytes;
 use clap::Args;
@@ -58,6 +59,15 @@ pub(crate) struct BuildArgs {
     /// Up axis; `auto` takes the axis of least extent.
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
+    /// Build one shard of a sharded build (city scale, docs/city-scale.md): `I/N` (0-based, e.g. `3/16`)
+    /// writes `OUT.shard-I-of-N` (and its report, `….json`) beside OUT; `atlastree merge OUT` then makes OUT,
+    /// byte-identical to a build without --shard. Every shard plans the whole tree (identically) and
+    /// rasterises about 1/N of the texel work. `auto` takes I and N from the scheduler: Slurm job arrays
+    /// (SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT), Kubernetes Indexed Jobs (JOB_COMPLETION_INDEX and
+    /// ATLASTREE_SHARD_COUNT set to the completions), AWS Batch arrays (AWS_BATCH_JOB_ARRAY_INDEX and
+    /// ATLASTREE_SHARD_COUNT set to the array size).
+    #[arg(long, value_name = "I/N|auto")]
+    pub shard: Option<String>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -125,6 +135,9 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     }
     let import_s = t.elapsed().as_secs_f64();
     let bars = Bars::new(a.quiet || a.json);
+    if let Some(spec) = shard_spec(a.shard.as_deref())? {
+        return run_shard(&a, &scene, spec, import_s, &bars);
+    }
     let mut report = build(&scene, &a.options(), &a.out, &bars)
         .with_context(|| format!("building {} into {}", a.scene.display(), a.out.display()))?;
     report.timings.insert(0, ("import".into(), import_s));
@@ -133,6 +146,72 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     } else {
         print_report(&report, &a.out);
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The shard `--shard` asks for, if any (`auto`: from the scheduler's environment).
+fn shard_spec(arg: Option<&str>) -> anyhow::Result<Option<ShardSpec>> {
+    match arg {
+        None => Ok(None),
+        Some("auto") => {
+            let (spec, scheduler) = shard_from_env(&|k| std::env::var(k).ok())?;
+            eprintln!("--shard auto: shard {spec} from the {scheduler} environment");
+            Ok(Some(spec))
+        }
+        Some(s) => Ok(Some(s.parse::<ShardSpec>()?)),
+    }
+}
+
+fn run_shard(
+    a: &BuildArgs,
+    scene: &atlastree::scene::Scene,
+    spec: ShardSpec,
+    import_s: f64,
+    bars: &Bars,
+) -> anyhow::Result<ExitCode> {
+    let sharded = ShardedOptions {
+        spec,
+        argv: std::env::args().collect(),
+    };
+    let mut report =
+        build_shard(scene, &a.options(), &a.out, &sharded, bars).with_context(|| {
+            format!(
+                "building shard {spec} of {} for {}",
+                a.scene.display(),
+                a.out.display()
+            )
+        })?;
+    report.timings.insert(0, ("import".into(), import_s));
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    let r = &report;
+    println!(
+        "wrote shard {spec}: {} ({}) — {} subtrees, {} nodes, {} blocks, work {:.2}× the mean",
+        r.path.display(),
+        human_bytes(r.file_bytes),
+        r.units,
+        r.nodes,
+        r.blocks,
+        r.work as f64 / r.work_mean.max(1.0)
+    );
+    let times: Vec<String> = r
+        .timings
+        .iter()
+        .map(|(n, s)| format!("{n} {s:.2}s"))
+        .collect();
+    println!("  time: {}", times.join(", "));
+    println!(
+        "  images decoded {}, peak memory {}",
+        r.images_decoded,
+        r.peak_rss_bytes.map_or("?".into(), human_bytes)
+    );
+    println!(
+        "  when all {} shards are written: atlastree merge {}",
+        spec.count,
+        a.out.display()
+    );
     Ok(ExitCode::SUCCESS)
 }
 

@@ -6,6 +6,7 @@ mod args;
 mod build_cmd;
 mod demo;
 mod inspect_cmd;
+mod merge_cmd;
 mod progress;
 mod render_cmd;
 mod scene_info;
@@ -44,6 +45,9 @@ pub(crate) enum Command {
     SceneInfo(scene_info::SceneInfoArgs),
     /// Preprocess a glTF scene into a texture-atlas tree paging file (paper §5).
     Build(build_cmd::BuildArgs),
+    /// Merge the shard files of a sharded build (`build --shard I/N`) into the paging file, byte-identical
+    /// to a one-process build.
+    Merge(merge_cmd::MergeArgs),
     /// Show a paging file's tree shape and per-level statistics; `--verify` checks every checksum and
     /// invariant and exits non-zero on any violation.
     Inspect(inspect_cmd::InspectArgs),
@@ -105,6 +109,7 @@ pub(crate) fn run() -> anyhow::Result<ExitCode> {
         Command::Demo(a) => demo::run(a),
         Command::SceneInfo(a) => scene_info::run(a),
         Command::Build(a) => build_cmd::run(a),
+        Command::Merge(a) => merge_cmd::run(a),
         Command::Inspect(a) => inspect_cmd::run(a),
         Command::Render(a) => render_cmd::run(a),
         Command::Simulate(a) => simulate_cmd::run(a),

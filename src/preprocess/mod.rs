@@ -20,14 +20,18 @@ pub mod originals;
 pub mod pack;
 pub mod prepare;
 pub mod raster;
+pub mod shard;
+mod shard_run;
 pub mod sizing;
+
+pub use shard_run::{MergeError, MergeReport, ShardReport, ShardedOptions, build_shard, merge};
 
 use crate::model::{AtlasForest, BuildParams, TreeKind};
 use crate::scene::Scene;
 use crate::store::{FileWriter, StoreError};
 use serde::Serialize;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 /// How d_min is given.
@@ -188,6 +192,10 @@ pub enum BuildError {
         #[source]
         source: crate::texfmt::TexFormatError,
     },
+    #[error(
+        "internal error: the shard cut of the {tree:?} tree does not cover leaf node {node} (please report)"
+    )]
+    CutUncovered { tree: TreeKind, node: u32 },
     #[error("rasterising the {what}: {source}")]
     Image {
         what: String,
@@ -372,18 +380,25 @@ pub fn build(
     let (forest, mut reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
     check_file_size(&forest, &reports, opts.max_file_bytes)?;
 
+    // One shard, in memory: the cut at the roots, so nothing is left above it (module shard).
     let t = Instant::now();
     let writer = FileWriter::create(out, &forest)?;
     let cache = raster::ImageCache::new(scene, opts.image_cache_bytes);
-    rasterise_forest(
+    let cut = shard::choose_cut(&forest, 1);
+    let units = cut.shards.first().map_or(&[][..], Vec::as_slice);
+    let handoffs = pixel_pass(
         scene,
         opts.mip_filter,
         &forest,
+        units,
         &writer,
         &cache,
         &mut reports,
         progress,
     )?;
+    let none = |_| {};
+    let above = raster::AtlasOut::new(forest.params.atlas_size, opts.mip_filter, &writer, &none);
+    shard::raster_forest_above(&above, &forest, &handoffs)?;
     timings.push("rasterise", t);
 
     let t = Instant::now();
@@ -406,18 +421,18 @@ pub fn build(
 
 /// `(stage, seconds)` of a build, in the order the stages ended.
 #[derive(Default)]
-struct Timings(Vec<(String, f64)>);
+pub(super) struct Timings(pub(super) Vec<(String, f64)>);
 
 impl Timings {
     /// Records stage `name` as begun at `start` and ended now.
-    fn push(&mut self, name: &str, start: Instant) {
+    pub(super) fn push(&mut self, name: &str, start: Instant) {
         self.0
             .push((name.to_string(), start.elapsed().as_secs_f64()));
     }
 }
 
 /// Stages 1–3 for every tree: the forest without pixels (every block's size fixed), with a report per tree.
-fn plan_forest(
+pub(super) fn plan_forest(
     scene: &Scene,
     opts: &BuildOptions,
     params: &BuildParams,
@@ -536,7 +551,7 @@ fn tree_report(
 }
 
 /// Refuses, before anything is written, a forest whose blocks exceed `limit` bytes.
-fn check_file_size(
+pub(super) fn check_file_size(
     forest: &AtlasForest,
     reports: &[TreeReport],
     limit: u64,
@@ -554,43 +569,53 @@ fn check_file_size(
     Ok(())
 }
 
-/// Stage 4: every tree's pixels into `writer`; each report gets its atlases' PSNR against the uncompressed
-/// atlases they were encoded from.
-fn rasterise_forest(
+/// Stage 4 below the cut: the subtrees `units` of every tree into `sink` (the shard's part of the pixel
+/// pass); returns each unit root's level 1. Each tree's report gets the PSNR of the atlases rasterised
+/// here against the uncompressed atlases they were encoded from.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn pixel_pass(
     scene: &Scene,
     mip_filter: image_ops::MipFilter,
     forest: &AtlasForest,
-    writer: &FileWriter,
+    units: &[shard::Unit],
+    sink: &dyn crate::store::BlockSink,
     cache: &raster::ImageCache<'_>,
     reports: &mut [TreeReport],
     progress: &dyn Progress,
-) -> Result<(), BuildError> {
-    let total_nodes: u64 = forest.trees.iter().map(|t| t.nodes.len() as u64).sum();
+) -> Result<std::collections::HashMap<shard::Unit, raster::Handoff>, BuildError> {
+    let mut total_nodes = 0u64;
+    for u in units {
+        let tree = &forest.trees[u.tree as usize];
+        total_nodes += shard::subtree_nodes(tree, crate::ids::NodeId(u.node));
+    }
     progress.stage("rasterise atlases", Some(total_nodes));
     let set = |n: u64| progress.set(n);
     let ctx = raster::RasterCtx {
         scene,
-        params: &forest.params,
-        writer,
         cache,
-        progress: &set,
-        done: AtomicU64::new(0),
-        mip_filter,
-        atlas_sse: AtomicU64::new(0),
-        atlas_samples: AtomicU64::new(0),
+        out: raster::AtlasOut::new(forest.params.atlas_size, mip_filter, sink, &set),
     };
-    for (tree, report) in forest.trees.iter().zip(reports) {
-        raster::raster_tree(&ctx, tree)?;
-        let sse = ctx.atlas_sse.swap(0, Ordering::Relaxed);
-        let samples = ctx.atlas_samples.swap(0, Ordering::Relaxed);
+    let mut handoffs = std::collections::HashMap::new();
+    for (t, (tree, report)) in forest.trees.iter().zip(reports).enumerate() {
+        let mine: Vec<shard::Unit> = units
+            .iter()
+            .filter(|u| u.tree as usize == t)
+            .copied()
+            .collect();
+        let roots: Vec<crate::ids::NodeId> =
+            mine.iter().map(|u| crate::ids::NodeId(u.node)).collect();
+        let levels = raster::raster_subtrees(&ctx, tree, &roots)?;
+        handoffs.extend(mine.into_iter().zip(levels));
+        let sse = ctx.out.atlas_sse.swap(0, Ordering::Relaxed);
+        let samples = ctx.out.atlas_samples.swap(0, Ordering::Relaxed);
         report.atlas_psnr_db = crate::texfmt::psnr(sse, samples);
     }
     progress.finish_stage();
-    Ok(())
+    Ok(handoffs)
 }
 
 /// The report of a finished build, with the warnings of the image cache and of clamped leaves.
-fn build_report(
+pub(super) fn build_report(
     params: BuildParams,
     scene_diagonal: f64,
     forest: &AtlasForest,

@@ -12,9 +12,9 @@ use super::image_ops::{
     mip_chain_rgba8, neutral_fill, resample_rect,
 };
 use crate::ids::{ImageId, NodeId};
-use crate::model::{AtlasTree, BuildParams, Leaf, TreeKind};
+use crate::model::{AtlasTree, Leaf, TreeKind};
 use crate::scene::{DecodedImage, Scene};
-use crate::store::FileWriter;
+use crate::store::BlockSink;
 use crate::texfmt::{Encoded, TexFormat, encode_chain, encode_chain_rect};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -209,27 +209,135 @@ impl ImageCache<'_> {
     }
 }
 
-/// What the pixel pass needs.
-pub struct RasterCtx<'a> {
-    pub scene: &'a Scene,
-    pub params: &'a BuildParams,
-    pub writer: &'a FileWriter,
-    pub cache: &'a ImageCache<'a>,
+/// Where finished atlases go and what is counted of them: all that the atlases above a shard cut need
+/// (the merge has no scene).
+pub struct AtlasOut<'a> {
+    /// Side of every atlas, texels.
+    pub atlas_size: u32,
+    /// The paging file, or a shard file.
+    pub sink: &'a dyn BlockSink,
     /// Called with the number of nodes finished so far.
     pub progress: &'a (dyn Fn(u64) + Sync),
     pub done: AtomicU64,
     /// Kernel of the atlas mip chains (the level 1 handed to the parent included).
     pub mip_filter: MipFilter,
-    /// Compression error of the atlases rasterised so far: sum of squared errors and compared values
+    /// Compression error of the atlases finished so far: sum of squared errors and compared values
     /// ([`crate::texfmt::Encoded`]); the caller reads and resets them per tree.
     pub atlas_sse: AtomicU64,
     pub atlas_samples: AtomicU64,
 }
 
-/// Rasterises every atlas and original-texture block of `tree` into the writer.
-pub fn raster_tree(ctx: &RasterCtx<'_>, tree: &AtlasTree) -> Result<(), BuildError> {
+impl<'a> AtlasOut<'a> {
+    pub fn new(
+        atlas_size: u32,
+        mip_filter: MipFilter,
+        sink: &'a dyn BlockSink,
+        progress: &'a (dyn Fn(u64) + Sync),
+    ) -> Self {
+        AtlasOut {
+            atlas_size,
+            sink,
+            progress,
+            done: AtomicU64::new(0),
+            mip_filter,
+            atlas_sse: AtomicU64::new(0),
+            atlas_samples: AtomicU64::new(0),
+        }
+    }
+}
+
+/// What the pixel pass below the cut needs.
+pub struct RasterCtx<'a> {
+    pub scene: &'a Scene,
+    pub cache: &'a ImageCache<'a>,
+    pub out: AtlasOut<'a>,
+}
+
+/// The level 1 of a subtree's root atlas (premultiplied linear RGBA): all its parent needs (§5.1).
+pub type Handoff = LinearImage;
+
+/// Rasterises the subtrees rooted at `roots` of `tree` (every atlas, and every original-texture block
+/// their leaves own) into the sink, in parallel; returns each root's level 1, in `roots` order.
+pub fn raster_subtrees(
+    ctx: &RasterCtx<'_>,
+    tree: &AtlasTree,
+    roots: &[NodeId],
+) -> Result<Vec<Handoff>, BuildError> {
+    use rayon::prelude::*;
     let owned = owned_blocks(tree);
-    raster_node(ctx, tree, &owned, NodeId(0)).map(|_| ())
+    roots
+        .par_iter()
+        .map(|&r| raster_node(ctx, tree, &owned, r))
+        .collect()
+}
+
+/// Every block a subtree rooted at `root` writes: its nodes' atlases and the original-texture blocks its
+/// leaves own ([`owned_blocks`]). Unsorted.
+pub fn subtree_blocks(tree: &AtlasTree, root: NodeId) -> Vec<crate::ids::BlockId> {
+    let owned = leaf_owned_blocks(tree);
+    let mut out = Vec::new();
+    let mut stack = vec![root];
+    while let Some(id) = stack.pop() {
+        let Some(node) = tree.nodes.get(id.idx()) else {
+            continue;
+        };
+        out.push(node.atlas_block);
+        if let Some(blocks) = node.leaf.and_then(|l| owned.get(l.idx())) {
+            out.extend_from_slice(blocks);
+        }
+        stack.extend(node.children.iter().flatten());
+    }
+    out
+}
+
+/// Per leaf (index) of `tree`, the original-texture blocks it writes ([`owned_blocks`]), ascending.
+pub fn leaf_owned_blocks(tree: &AtlasTree) -> Vec<Vec<crate::ids::BlockId>> {
+    let mut out = vec![Vec::new(); tree.leaves.len()];
+    for (leaf, blocks) in owned_blocks(tree) {
+        if let Some(o) = out.get_mut(leaf) {
+            *o = blocks.iter().map(|b| b.0).collect();
+        }
+    }
+    out
+}
+
+/// The atlases of `tree` above the cut: every node that is neither in `handoffs` nor below one, combined
+/// from its children (four halved, §5.1) and finished into the sink. A leaf reached means the cut did
+/// not cover the tree (an internal error, reported, not a panic).
+pub fn raster_above(
+    out: &AtlasOut<'_>,
+    tree: &AtlasTree,
+    handoffs: &HashMap<NodeId, Handoff>,
+    id: NodeId,
+) -> Result<Handoff, BuildError> {
+    if let Some(h) = handoffs.get(&id) {
+        return Ok(h.clone());
+    }
+    let node = &tree.nodes[id.idx()];
+    if node.leaf.is_some() {
+        return Err(BuildError::CutUncovered {
+            tree: tree.kind,
+            node: id.0,
+        });
+    }
+    use rayon::prelude::*;
+    let kids: Vec<(usize, NodeId)> = node
+        .children
+        .iter()
+        .enumerate()
+        .filter_map(|(q, c)| c.map(|c| (q, c)))
+        .collect();
+    let halves: Vec<(usize, LinearImage)> = kids
+        .par_iter()
+        .map(|&(q, c)| raster_above(out, tree, handoffs, c).map(|img| (q, img)))
+        .collect::<Result<_, _>>()?;
+    let atlas = combine(out, tree, id, &halves)?;
+    finish_atlas(out, tree, id, atlas)
+}
+
+/// Rasterises every atlas and original-texture block of `tree` into the sink.
+pub fn raster_tree(ctx: &RasterCtx<'_>, tree: &AtlasTree) -> Result<(), BuildError> {
+    raster_subtrees(ctx, tree, &[NodeId(0)]).map(|_| ())
 }
 
 /// One original-texture block and its images in slot order (each listed once, however many leaves
@@ -280,13 +388,12 @@ fn raster_node(
     id: NodeId,
 ) -> Result<LinearImage, BuildError> {
     let node = &tree.nodes[id.idx()];
-    let size = ctx.params.atlas_size;
     let atlas = if let Some(leaf_id) = node.leaf {
         let leaf = &tree.leaves[leaf_id.idx()];
         if let Some(blocks) = owned.get(&leaf_id.idx()) {
             write_originals(ctx, tree, blocks)?;
         }
-        leaf_atlas(ctx, leaf, size, fill_for(tree.kind))
+        leaf_atlas(ctx, leaf, ctx.out.atlas_size, fill_for(tree.kind))
             .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
     } else {
         let kids: Vec<(usize, NodeId)> = node
@@ -300,33 +407,57 @@ fn raster_node(
             .par_iter()
             .map(|&(q, c)| raster_node(ctx, tree, owned, c).map(|img| (q, img)))
             .collect::<Result<_, _>>()?;
-        let mut quads: [Option<&LinearImage>; 4] = [None; 4];
-        for (q, img) in &halves {
-            quads[*q] = Some(img);
-        }
-        combine_quadrants(quads, size, fill_for(tree.kind))
-            .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))?
+        combine(&ctx.out, tree, id, &halves)?
     };
+    finish_atlas(&ctx.out, tree, id, atlas)
+}
+
+/// An inner atlas from its children's halves by quadrant (§5.1).
+fn combine(
+    out: &AtlasOut<'_>,
+    tree: &AtlasTree,
+    id: NodeId,
+    halves: &[(usize, LinearImage)],
+) -> Result<LinearImage, BuildError> {
+    let mut quads: [Option<&LinearImage>; 4] = [None; 4];
+    for (q, img) in halves {
+        quads[*q] = Some(img);
+    }
+    combine_quadrants(quads, out.atlas_size, fill_for(tree.kind))
+        .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))
+}
+
+/// Mip chain, encoding and storing of node `id`'s atlas; returns its level 1 for the parent.
+fn finish_atlas(
+    out: &AtlasOut<'_>,
+    tree: &AtlasTree,
+    id: NodeId,
+    atlas: LinearImage,
+) -> Result<LinearImage, BuildError> {
+    let node = &tree.nodes[id.idx()];
     // One mip chain serves both the stored block and the parent, which needs exactly level 1.
     let chain = MipChain::build_with(
         atlas,
         &MipOptions {
-            filter: ctx.mip_filter,
+            filter: out.mip_filter,
             ..MipOptions::default()
         },
     );
-    let enc = encode_chain(tree.format, &chain.to_rgba8(), size, tree.kind.channels()).map_err(
-        |source| BuildError::Encode {
-            what: format!("atlas of node {}", id.0),
-            source,
-        },
-    )?;
-    ctx.writer
-        .write_block_measured(node.atlas_block, &enc.bytes, enc.sse)?;
-    ctx.atlas_sse.fetch_add(enc.sse, Ordering::Relaxed);
-    ctx.atlas_samples.fetch_add(enc.samples, Ordering::Relaxed);
-    let n = ctx.done.fetch_add(1, Ordering::Relaxed) + 1;
-    (ctx.progress)(n);
+    let enc = encode_chain(
+        tree.format,
+        &chain.to_rgba8(),
+        out.atlas_size,
+        tree.kind.channels(),
+    )
+    .map_err(|source| BuildError::Encode {
+        what: format!("atlas of node {}", id.0),
+        source,
+    })?;
+    out.sink.put_block(node.atlas_block, &enc.bytes, enc.sse)?;
+    out.atlas_sse.fetch_add(enc.sse, Ordering::Relaxed);
+    out.atlas_samples.fetch_add(enc.samples, Ordering::Relaxed);
+    let n = out.done.fetch_add(1, Ordering::Relaxed) + 1;
+    (out.progress)(n);
     let mut levels = chain.levels.into_iter();
     let level0 = levels.next();
     Ok(levels
@@ -382,7 +513,7 @@ fn write_originals(
             buf.extend_from_slice(&enc.bytes);
             sse += enc.sse;
         }
-        ctx.writer.write_block_measured(*block, &buf, sse)?;
+        ctx.out.sink.put_block(*block, &buf, sse)?;
     }
     Ok(())
 }

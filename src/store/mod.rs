@@ -12,14 +12,28 @@
 
 pub mod format;
 mod read;
+pub mod shard;
 mod validate;
 mod write;
 
 pub use read::{LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
-pub use write::{FileWriter, WriteSummary};
+pub use write::{FileWriter, WriteSummary, table_prefix};
 
 use crate::ids::BlockId;
 use std::path::PathBuf;
+
+/// Where the pixel pass puts encoded blocks: the paging file itself ([`FileWriter`]) or a shard file
+/// ([`shard::ShardWriter`]) that the merge copies into it.
+pub trait BlockSink: Sync {
+    /// Stores block `id` (exactly its laid-out length, once) with its compression error `sse`.
+    fn put_block(&self, id: BlockId, bytes: &[u8], sse: u64) -> Result<(), StoreError>;
+}
+
+impl BlockSink for FileWriter {
+    fn put_block(&self, id: BlockId, bytes: &[u8], sse: u64) -> Result<(), StoreError> {
+        self.write_block_measured(id, bytes, sse)
+    }
+}
 
 /// Everything that can go wrong writing or reading a paging file. Variants carry the numbers involved.
 #[derive(Debug, thiserror::Error)]
@@ -118,6 +132,21 @@ pub enum StoreError {
     BlockWrittenTwice { block: BlockId },
     #[error("{block} was never written")]
     BlockMissing { block: BlockId },
+    #[error("{path}: the bytes at {offset} were put twice")]
+    ShardPutTwice { path: PathBuf, offset: u64 },
+    #[error("{path}: {block} does not belong to this shard")]
+    ShardForeignBlock { path: PathBuf, block: BlockId },
+    #[error("{path}: tree {tree} node {node} is not a subtree root of this shard")]
+    ShardForeignHandoff { path: PathBuf, tree: u32, node: u32 },
+    #[error("handoff of tree {tree} node {node}: expected {expected} bytes, got {got}")]
+    ShardHandoffSize {
+        tree: u32,
+        node: u32,
+        expected: u64,
+        got: u64,
+    },
+    #[error("the handoff of tree {tree} node {node} was never written")]
+    ShardHandoffMissing { tree: u32, node: u32 },
     #[error("layout overflows 64 bits at {what}")]
     LayoutOverflow { what: &'static str },
     #[error("the paging file is little-endian; this target is big-endian")]

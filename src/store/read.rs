@@ -283,7 +283,7 @@ fn check_file_len(path: &Path, header: &Header, len: u64) -> Result<(), StoreErr
 }
 
 /// End of the last section (the tables), from the header alone; `None` on overflow.
-fn sections_end(header: &Header) -> Option<u64> {
+pub(super) fn sections_end(header: &Header) -> Option<u64> {
     (header.sections.iter()).try_fold(HEADER_SIZE as u64, |end, e| {
         Some(end.max(e.offset.checked_add(e.length)?))
     })

@@ -289,6 +289,159 @@ fn write_all_at(file: &File, lock: &Mutex<()>, offset: u64, bytes: &[u8]) -> std
     }
 }
 
+/// Writes `parts` back to back at `section`'s offset through `put` and records their checksum in `header`.
+fn put_section(
+    header: &mut Header,
+    section: Section,
+    parts: &[&[u8]],
+    put: &mut dyn FnMut(u64, &[u8]),
+) {
+    let mut offset = header.section(section).offset;
+    let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+    for part in parts {
+        put(offset, part);
+        hasher.update(part);
+        offset += part.len() as u64;
+    }
+    header.sections[section as usize].checksum = hasher.digest();
+}
+
+/// Every table but the block table, through `put` (offset, bytes), their checksums into `header`: the one
+/// writer of the tables, behind both [`FileWriter::create`] and [`table_prefix`].
+fn put_tables(
+    header: &mut Header,
+    forest: &AtlasForest,
+    e: &Encoded,
+    put: &mut dyn FnMut(u64, &[u8]),
+) {
+    use bytemuck::{bytes_of, cast_slice};
+    let trees: Vec<TreeRecord> = e.trees.iter().map(|t| t.record).collect();
+    put_section(header, Section::Params, &[bytes_of(&e.params)], put);
+    put_section(header, Section::Materials, &[cast_slice(&e.materials)], put);
+    put_section(header, Section::Strings, &[&e.strings], put);
+    put_section(header, Section::Trees, &[cast_slice(&trees)], put);
+    let per_tree = |f: &dyn for<'a> Fn(&'a EncodedTree) -> &'a [u8]| -> Vec<&[u8]> {
+        e.trees.iter().map(f).collect()
+    };
+    put_section(
+        header,
+        Section::Nodes,
+        &per_tree(&|t| cast_slice(&t.nodes)),
+        put,
+    );
+    put_section(
+        header,
+        Section::Leaves,
+        &per_tree(&|t| cast_slice(&t.leaves)),
+        put,
+    );
+    put_section(
+        header,
+        Section::Rects,
+        &per_tree(&|t| cast_slice(&t.rects)),
+        put,
+    );
+    put_section(
+        header,
+        Section::Originals,
+        &per_tree(&|t| cast_slice(&t.originals)),
+        put,
+    );
+    let of_trees = |f: &dyn for<'a> Fn(&'a AtlasTree) -> &'a [u8]| -> Vec<&[u8]> {
+        forest.trees.iter().map(f).collect()
+    };
+    put_section(
+        header,
+        Section::Vertices,
+        &of_trees(&|t| cast_slice(&t.vertices)),
+        put,
+    );
+    put_section(
+        header,
+        Section::Indices,
+        &of_trees(&|t| cast_slice(&t.indices)),
+        put,
+    );
+    put_section(
+        header,
+        Section::SourceTriangles,
+        &of_trees(&|t| cast_slice(&t.source_triangles)),
+        put,
+    );
+}
+
+/// The layout of a forest's file: header (checksums still 0), block records (checksums 0), tables' end.
+struct Planned {
+    header: Header,
+    blocks: Vec<BlockRecord>,
+    tables_end: u64,
+    encoded: Encoded,
+}
+
+/// Encodes and lays out `forest`, checking its tables as the reader would.
+fn plan_file(forest: &AtlasForest) -> Result<Planned, StoreError> {
+    check_endian()?;
+    let encoded = encode(forest)?;
+    let counts = section_counts(&encoded, forest.blocks.len());
+    let (sections, tables_end, offsets, file_len) =
+        layout(&counts, forest.blocks.iter().map(|b| b.bytes))?;
+    let blocks: Vec<BlockRecord> = forest
+        .blocks
+        .iter()
+        .zip(&offsets)
+        .map(|(d, &o)| BlockRecord::encode(d, o))
+        .collect();
+    validate_encoded(forest, &encoded, &blocks)?;
+    Ok(Planned {
+        header: Header {
+            magic: MAGIC,
+            version: FORMAT_VERSION,
+            flags: KNOWN_FLAGS,
+            file_len,
+            header_size: HEADER_SIZE as u32,
+            section_count: SECTION_COUNT as u32,
+            block_align: BLOCK_ALIGN as u32,
+            section_align: SECTION_ALIGN as u32,
+            sections,
+            checksum: 0,
+        },
+        blocks,
+        tables_end,
+        encoded,
+    })
+}
+
+/// The first bytes of `forest`'s paging file as a table prefix (issue 22: what a sharded build hands to
+/// its merge): header and every table up to the first block's offset (at most the file length), with the
+/// block table's checksums 0 and the header checksum set, so [`crate::store::TreeFile::from_prefix`] opens
+/// it and [`FileWriter::from_prefix`] turns it into the same file [`FileWriter::create`] writes.
+pub fn table_prefix(forest: &AtlasForest) -> Result<Vec<u8>, StoreError> {
+    let Planned {
+        mut header,
+        blocks,
+        tables_end,
+        encoded,
+    } = plan_file(forest)?;
+    let len = align_up(tables_end, BLOCK_ALIGN)
+        .ok_or(overflow("tables"))?
+        .min(header.file_len);
+    let mut bytes = vec![0u8; usize::try_from(len).map_err(|_| overflow("tables"))?];
+    let mut put = |offset: u64, part: &[u8]| {
+        let at = offset as usize;
+        bytes[at..at + part.len()].copy_from_slice(part);
+    };
+    put_tables(&mut header, forest, &encoded, &mut put);
+    put_section(
+        &mut header,
+        Section::Blocks,
+        &[bytemuck::cast_slice(&blocks)],
+        &mut put,
+    );
+    header.checksum = header.compute_checksum();
+    bytes[..HEADER_SIZE].copy_from_slice(bytemuck::bytes_of(&header));
+    Ok(bytes)
+}
+
 impl FileWriter {
     /// Lays out the file for `forest`, creates a temp file next to `path`, sizes it and writes every table
     /// but the block table (whose checksums come with the blocks).
@@ -296,19 +449,56 @@ impl FileWriter {
     /// Fails before touching the disk if the forest's tables are inconsistent (the same checks the reader
     /// applies), so a file that `finish`es always opens.
     pub fn create(path: &Path, forest: &AtlasForest) -> Result<FileWriter, StoreError> {
-        check_endian()?;
-        let encoded = encode(forest)?;
-        let counts = section_counts(&encoded, forest.blocks.len());
-        let (sections, tables_end, offsets, file_len) =
-            layout(&counts, forest.blocks.iter().map(|b| b.bytes))?;
-        let blocks: Vec<BlockRecord> = forest
-            .blocks
-            .iter()
-            .zip(&offsets)
-            .map(|(d, &o)| BlockRecord::encode(d, o))
-            .collect();
-        validate_encoded(forest, &encoded, &blocks)?;
+        let Planned {
+            header,
+            blocks,
+            tables_end,
+            encoded,
+        } = plan_file(forest)?;
+        let mut writer = FileWriter::with_layout(path, header, blocks, tables_end)?;
+        writer.write_tables(forest, &encoded)?;
+        Ok(writer)
+    }
 
+    /// A writer for the file whose [`table_prefix`] is `prefix` (validated as
+    /// [`crate::store::TreeFile::from_prefix`] does, `name` naming it in errors): the tables are copied
+    /// verbatim, so the finished file is the one [`FileWriter::create`] writes for the same forest.
+    pub fn from_prefix(path: &Path, prefix: &[u8], name: &str) -> Result<FileWriter, StoreError> {
+        if prefix.len() < HEADER_SIZE {
+            return Err(StoreError::Truncated {
+                path: PathBuf::from(name),
+                len: prefix.len() as u64,
+                needed: HEADER_SIZE as u64,
+            });
+        }
+        let claimed: Header = bytemuck::pod_read_unaligned(&prefix[..HEADER_SIZE]);
+        // Checks the header (checksum included) and every table against the length it claims.
+        let tf = super::TreeFile::from_prefix(prefix, claimed.file_len, name)?;
+        let mut header = *tf.header();
+        header.checksum = 0;
+        let blocks: Vec<BlockRecord> = tf
+            .blocks()
+            .iter()
+            .map(|b| BlockRecord {
+                checksum: 0,
+                sse: 0,
+                ..*b
+            })
+            .collect();
+        let tables_end = super::read::sections_end(&header).ok_or(overflow("sections"))?;
+        let writer = FileWriter::with_layout(path, header, blocks, tables_end)?;
+        write_all_at(writer.temp.file(), &writer.lock, 0, prefix)
+            .map_err(|e| writer.temp_err(e))?;
+        Ok(writer)
+    }
+
+    /// The temp file sized for `header.file_len`, nothing written yet.
+    fn with_layout(
+        path: &Path,
+        header: Header,
+        blocks: Vec<BlockRecord>,
+        tables_end: u64,
+    ) -> Result<FileWriter, StoreError> {
         // The permissions of a plain `File::create` once renamed (0o666 less the umask); a private 0o600
         // would make a paging file unservable by another user's server.
         let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Write {
@@ -316,24 +506,14 @@ impl FileWriter {
             temp: crate::util::parent_dir(path).to_path_buf(),
             source,
         })?;
-        let mut writer = FileWriter {
+        let file_len = header.file_len;
+        let writer = FileWriter {
             target: path.to_path_buf(),
-            header: Header {
-                magic: MAGIC,
-                version: FORMAT_VERSION,
-                flags: KNOWN_FLAGS,
-                file_len,
-                header_size: HEADER_SIZE as u32,
-                section_count: SECTION_COUNT as u32,
-                block_align: BLOCK_ALIGN as u32,
-                section_align: SECTION_ALIGN as u32,
-                sections,
-                checksum: 0,
-            },
+            summary: summarize(&header.sections, tables_end, &blocks, file_len),
+            header,
             state: blocks.iter().map(|_| AtomicU8::new(UNWRITTEN)).collect(),
             checksums: blocks.iter().map(|_| AtomicU64::new(0)).collect(),
             errors: blocks.iter().map(|_| AtomicU64::new(0)).collect(),
-            summary: summarize(&sections, tables_end, &blocks, file_len),
             blocks,
             temp,
             lock: Mutex::new(()),
@@ -343,7 +523,6 @@ impl FileWriter {
             .file()
             .set_len(file_len)
             .map_err(|e| writer.temp_err(e))?;
-        writer.write_tables(forest, &encoded)?;
         Ok(writer)
     }
 
@@ -356,52 +535,20 @@ impl FileWriter {
         }
     }
 
-    /// Writes `parts` back to back at `section`'s offset and records their checksum in the header.
-    fn write_section(&mut self, section: Section, parts: &[&[u8]]) -> Result<(), StoreError> {
-        let mut offset = self.header.section(section).offset;
-        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
-        for part in parts {
-            write_all_at(self.temp.file(), &self.lock, offset, part)
-                .map_err(|e| self.temp_err(e))?;
-            hasher.update(part);
-            offset += part.len() as u64;
-        }
-        self.header.sections[section as usize].checksum = hasher.digest();
-        Ok(())
-    }
-
     fn write_tables(&mut self, forest: &AtlasForest, e: &Encoded) -> Result<(), StoreError> {
-        use bytemuck::{bytes_of, cast_slice};
-        let trees: Vec<TreeRecord> = e.trees.iter().map(|t| t.record).collect();
-        self.write_section(Section::Params, &[bytes_of(&e.params)])?;
-        self.write_section(Section::Materials, &[cast_slice(&e.materials)])?;
-        self.write_section(Section::Strings, &[&e.strings])?;
-        self.write_section(Section::Trees, &[cast_slice(&trees)])?;
-        let per_tree = |f: &dyn for<'a> Fn(&'a EncodedTree) -> &'a [u8]| -> Vec<&[u8]> {
-            e.trees.iter().map(f).collect()
+        let (file, lock) = (self.temp.file(), &self.lock);
+        let mut failure = None;
+        let mut put = |offset: u64, bytes: &[u8]| {
+            let r = write_all_at(file, lock, offset, bytes);
+            if let Err(err) = r {
+                failure.get_or_insert(err);
+            }
         };
-        self.write_section(Section::Nodes, &per_tree(&|t| cast_slice(&t.nodes)))?;
-        self.write_section(Section::Leaves, &per_tree(&|t| cast_slice(&t.leaves)))?;
-        self.write_section(Section::Rects, &per_tree(&|t| cast_slice(&t.rects)))?;
-        self.write_section(Section::Originals, &per_tree(&|t| cast_slice(&t.originals)))?;
-        let vertices: Vec<&[u8]> = forest
-            .trees
-            .iter()
-            .map(|t| cast_slice(&t.vertices))
-            .collect();
-        let indices: Vec<&[u8]> = forest
-            .trees
-            .iter()
-            .map(|t| cast_slice(&t.indices))
-            .collect();
-        let sources: Vec<&[u8]> = forest
-            .trees
-            .iter()
-            .map(|t| cast_slice(&t.source_triangles))
-            .collect();
-        self.write_section(Section::Vertices, &vertices)?;
-        self.write_section(Section::Indices, &indices)?;
-        self.write_section(Section::SourceTriangles, &sources)
+        put_tables(&mut self.header, forest, e, &mut put);
+        match failure {
+            Some(err) => Err(self.temp_err(err)),
+            None => Ok(()),
+        }
     }
 
     /// The path the file will appear at.
@@ -479,7 +626,21 @@ impl FileWriter {
             b.checksum = sum.load(Ordering::Relaxed);
             b.sse = sse.load(Ordering::Relaxed);
         }
-        self.write_section(Section::Blocks, &[bytemuck::cast_slice(&blocks)])?;
+        let (file, lock) = (self.temp.file(), &self.lock);
+        let mut failure = None;
+        put_section(
+            &mut self.header,
+            Section::Blocks,
+            &[bytemuck::cast_slice(&blocks)],
+            &mut |offset, bytes| {
+                if let Err(e) = write_all_at(file, lock, offset, bytes) {
+                    failure.get_or_insert(e);
+                }
+            },
+        );
+        if let Some(e) = failure {
+            return Err(self.temp_err(e));
+        }
         self.header.checksum = self.header.compute_checksum();
         let header = self.header;
         write_all_at(self.temp.file(), &self.lock, 0, bytemuck::bytes_of(&header))

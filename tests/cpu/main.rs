@@ -35,6 +35,7 @@ mod render;
 mod report;
 mod select;
 mod shaders;
+mod shard;
 mod shared_originals;
 mod sim;
 mod store;

@@ -1,0 +1,77 @@
+//! `atlastree merge OUT`: the shard files of a sharded build into the paging file (issue 22).
+
+use super::progress::Bars;
+use anyhow::Context;
+use atlastree::preprocess::merge;
+use atlastree::util::human_bytes;
+use clap::Args;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Finds `OUT.shard-I-of-N` for I in 0..N beside OUT (written by `atlastree build SCENE -o OUT --shard I/N`
+/// on any machines that share the directory), checks each (present, intact, same scene and flags, the
+/// part of the tree the cut gives it), copies their blocks, makes the atlases above the cut from the
+/// shards' subtree roots (four children halved) and writes OUT atomically: byte-identical to
+/// `atlastree build SCENE -o OUT` with the same flags. A missing or broken shard is named with the command
+/// that rebuilds it; rerunning a merge writes the same file. The shard files are left in place.
+#[derive(Args, Debug)]
+pub(crate) struct MergeArgs {
+    /// The paging file to write (the `-o` of the shards' build).
+    pub out: PathBuf,
+    /// The number of shards N, when shard files of several builds lie beside OUT.
+    #[arg(long)]
+    pub shards: Option<u32>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bars.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+pub(super) fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
+    let bars = Bars::new(a.quiet || a.json);
+    let r = merge(&a.out, a.shards, &bars)
+        .with_context(|| format!("merging the shards of {}", a.out.display()))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "merged {} shards into {} ({}) in {:.2} s; {} atlases made above the cut; peak memory {}",
+        r.count,
+        r.out.display(),
+        human_bytes(r.file_bytes),
+        r.seconds,
+        r.above_cut,
+        r.peak_rss_bytes.map_or("?".into(), human_bytes)
+    );
+    println!(
+        "  {:>5}  {:>10}  {:>7}  {:>8}  {:>9}  {:>11}",
+        "shard", "bytes", "blocks", "subtrees", "time", "peak memory"
+    );
+    for s in &r.shards {
+        println!(
+            "  {:>5}  {:>10}  {:>7}  {:>8}  {:>9}  {:>11}",
+            s.shard,
+            human_bytes(s.file_bytes),
+            s.blocks,
+            s.units,
+            s.seconds.map_or("?".into(), |t| format!("{t:.2} s")),
+            s.peak_rss_bytes.map_or("?".into(), human_bytes)
+        );
+    }
+    let times: Vec<f64> = r.shards.iter().filter_map(|s| s.seconds).collect();
+    if times.len() == r.shards.len() && !times.is_empty() {
+        let max = times.iter().cloned().fold(0.0, f64::max);
+        let mean = times.iter().sum::<f64>() / times.len() as f64;
+        println!(
+            "  slowest shard {max:.2} s, mean {mean:.2} s (max/mean {:.2}); critical path on {} machines ≈ {:.2} s + merge {:.2} s",
+            max / mean.max(1e-9),
+            r.count,
+            max,
+            r.seconds
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,453 @@
+//! Sharded builds (issue 22, docs/DESIGN.md "Sharded builds"): the pixel pass cut into N shards that run
+//! anywhere (an array job of a cluster scheduler), then merged into the file a one-process build writes.
+//!
+//! Stage boundaries: every shard runs the same plan (stages 1–3 of [`super`]: sizing, layout, assembly —
+//! deterministic, so identical everywhere) and the same [`choose_cut`], which splits the forest into
+//! subtrees ("units") and deals them to shards so each carries about the same rasterisation work.
+//! A shard rasterises its units (stage 4, [`super::raster::raster_subtrees`]) into a shard file
+//! ([`crate::store::shard`]) with each unit root's level 1; the merge copies every block into the paging
+//! file and makes the atlases above the cut from those levels ([`super::raster::raster_above`], §5.1:
+//! four children halved). A plain build is the same path with one shard, the cut at the roots, in memory.
+
+use super::raster::{self, AtlasOut, Handoff};
+use crate::ids::{BlockId, NodeId};
+use crate::model::{AtlasForest, AtlasTree};
+use crate::scene::{ImageData, Scene};
+use crate::store::shard::hash128;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Most shards of one build.
+pub const MAX_SHARDS: u32 = 4096;
+
+/// Shard `index` of `count` (0-based).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct ShardSpec {
+    pub index: u32,
+    pub count: u32,
+}
+
+/// Why a `--shard` value or the scheduler's environment gave no shard.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum ShardSpecError {
+    #[error("--shard {0:?}: expected I/N with 0 ≤ I < N ≤ {MAX_SHARDS} (e.g. 3/16), or auto")]
+    Syntax(String),
+    #[error(
+        "--shard auto: no scheduler environment found (Slurm job array: SLURM_ARRAY_TASK_ID and \
+         SLURM_ARRAY_TASK_COUNT; Kubernetes Indexed Job: JOB_COMPLETION_INDEX and ATLASTREE_SHARD_COUNT; \
+         AWS Batch array: AWS_BATCH_JOB_ARRAY_INDEX and ATLASTREE_SHARD_COUNT)"
+    )]
+    NoScheduler,
+    #[error("--shard auto ({scheduler}): {variable}={value:?} is not {expected}")]
+    BadVariable {
+        scheduler: &'static str,
+        variable: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    #[error("--shard auto ({scheduler}): {index_var} is set but {count_var} is not")]
+    NoCount {
+        scheduler: &'static str,
+        index_var: &'static str,
+        count_var: &'static str,
+    },
+    #[error("--shard auto ({scheduler}): shard {index} is outside 0..{count}")]
+    OutOfRange {
+        scheduler: &'static str,
+        index: u32,
+        count: u32,
+    },
+}
+
+impl std::str::FromStr for ShardSpec {
+    type Err = ShardSpecError;
+    fn from_str(s: &str) -> Result<ShardSpec, ShardSpecError> {
+        let bad = || ShardSpecError::Syntax(s.to_string());
+        let (i, n) = s.split_once('/').ok_or_else(bad)?;
+        let index: u32 = i.trim().parse().map_err(|_| bad())?;
+        let count: u32 = n.trim().parse().map_err(|_| bad())?;
+        if count == 0 || count > MAX_SHARDS || index >= count {
+            return Err(bad());
+        }
+        Ok(ShardSpec { index, count })
+    }
+}
+
+impl std::fmt::Display for ShardSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// The shard a scheduler's array task is, from its environment (`get` reads a variable): Slurm job
+/// arrays, Kubernetes Indexed Jobs and AWS Batch array jobs, in that order. Slurm gives both numbers;
+/// the other two give only the index, so their job sets `ATLASTREE_SHARD_COUNT` (the completions or
+/// array size). Returns the shard and the scheduler's name.
+pub fn shard_from_env(
+    get: &dyn Fn(&str) -> Option<String>,
+) -> Result<(ShardSpec, &'static str), ShardSpecError> {
+    let schedulers: [(&'static str, &'static str, &'static str); 3] = [
+        ("Slurm", "SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT"),
+        (
+            "Kubernetes",
+            "JOB_COMPLETION_INDEX",
+            "ATLASTREE_SHARD_COUNT",
+        ),
+        (
+            "AWS Batch",
+            "AWS_BATCH_JOB_ARRAY_INDEX",
+            "ATLASTREE_SHARD_COUNT",
+        ),
+    ];
+    for (scheduler, index_var, count_var) in schedulers {
+        let Some(index) = get(index_var) else {
+            continue;
+        };
+        let number = |variable: &'static str, value: String, expected| {
+            value
+                .trim()
+                .parse::<u32>()
+                .map_err(|_| ShardSpecError::BadVariable {
+                    scheduler,
+                    variable,
+                    value,
+                    expected,
+                })
+        };
+        let index = number(index_var, index, "a shard index")?;
+        let count = get(count_var).ok_or(ShardSpecError::NoCount {
+            scheduler,
+            index_var,
+            count_var,
+        })?;
+        let count = number(count_var, count, "a shard count")?;
+        if count == 0 || count > MAX_SHARDS || index >= count {
+            return Err(ShardSpecError::OutOfRange {
+                scheduler,
+                index,
+                count,
+            });
+        }
+        return Ok((ShardSpec { index, count }, scheduler));
+    }
+    Err(ShardSpecError::NoScheduler)
+}
+
+/// Where shard `spec` of the build of `out` writes: `OUT.shard-I-of-N`, beside `out`.
+pub fn shard_path(out: &Path, spec: ShardSpec) -> PathBuf {
+    let mut name = out.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".shard-{}-of-{}", spec.index, spec.count));
+    out.with_file_name(name)
+}
+
+/// A subtree rasterised by one shard: its root.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+pub struct Unit {
+    /// Tree index in the forest.
+    pub tree: u32,
+    /// Root node of the subtree.
+    pub node: u32,
+}
+
+/// The cut of a forest into shards' units.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Cut {
+    /// Units of each shard, ascending.
+    pub shards: Vec<Vec<Unit>>,
+    /// Estimated work of each shard ([`subtree_work`] units).
+    pub work: Vec<u64>,
+}
+
+/// Relative cost of a leaf atlas texel (resampled from sources in linear light) against an inner one
+/// (2×2 combine) and an original-texture texel (resampled once): measured ratios of the pixel pass on
+/// data/city and SuperTuxKart tracks, rounded.
+const LEAF_WEIGHT: u64 = 4;
+const ORIGINAL_WEIGHT: u64 = 2;
+
+/// Per node of `tree`, the estimated rasterisation work of its subtree: bytes of every atlas (leaf atlases
+/// ×[`LEAF_WEIGHT`]) and of the original-texture blocks its leaves own (×[`ORIGINAL_WEIGHT`]). Block
+/// bytes stand for texels: within one build every block of a tree has the same bytes per texel.
+pub fn subtree_work(forest: &AtlasForest, tree: &AtlasTree) -> Vec<u64> {
+    let bytes = |b: BlockId| forest.blocks.get(b.idx()).map_or(0, |d| d.bytes);
+    let owned = raster::leaf_owned_blocks(tree);
+    let mut work = vec![0u64; tree.nodes.len()];
+    // Pre-order: every child has a larger id than its parent.
+    for i in (0..tree.nodes.len()).rev() {
+        let n = &tree.nodes[i];
+        let mut w = bytes(n.atlas_block);
+        if let Some(leaf) = n.leaf {
+            w *= LEAF_WEIGHT;
+            let orig: u64 = owned
+                .get(leaf.idx())
+                .map_or(0, |bs| bs.iter().map(|&b| bytes(b)).sum());
+            w += orig * ORIGINAL_WEIGHT;
+        }
+        for c in n.children.iter().flatten() {
+            w += work.get(c.idx()).copied().unwrap_or(0);
+        }
+        work[i] = w;
+    }
+    work
+}
+
+/// Splits `forest` into units and deals them to `count` shards: starting from the tree roots, the unit
+/// with the most work is replaced by its children while it holds more than 1/(8·count) of the total and
+/// there are fewer than 32·count units; then the units go, largest first, to the least loaded shard
+/// (ties to the lower index). Deterministic: every shard and the merge compute the same cut. With one
+/// shard the cut is the roots.
+pub fn choose_cut(forest: &AtlasForest, count: u32) -> Cut {
+    let count = count.max(1);
+    let works: Vec<Vec<u64>> = forest
+        .trees
+        .iter()
+        .map(|t| subtree_work(forest, t))
+        .collect();
+    let work_of = |u: &Unit| works[u.tree as usize][u.node as usize];
+    let mut units: Vec<Unit> = (0..forest.trees.len() as u32)
+        .filter(|&t| !forest.trees[t as usize].nodes.is_empty())
+        .map(|tree| Unit { tree, node: 0 })
+        .collect();
+    if count > 1 {
+        let total: u64 = units.iter().map(work_of).sum();
+        let target = total / (8 * u64::from(count));
+        let max_units = 32 * count as usize;
+        while units.len() < max_units {
+            let splittable = units
+                .iter()
+                .enumerate()
+                .filter(|(_, u)| {
+                    let n = &forest.trees[u.tree as usize].nodes[u.node as usize];
+                    n.leaf.is_none() && n.children.iter().any(Option::is_some)
+                })
+                .max_by(|(_, a), (_, b)| work_of(a).cmp(&work_of(b)).then(b.cmp(a)));
+            let Some((i, &u)) = splittable else {
+                break;
+            };
+            if work_of(&u) <= target {
+                break;
+            }
+            units.swap_remove(i);
+            let node = &forest.trees[u.tree as usize].nodes[u.node as usize];
+            units.extend(node.children.iter().flatten().map(|c| Unit {
+                tree: u.tree,
+                node: c.0,
+            }));
+        }
+    }
+    units.sort_by(|a, b| work_of(b).cmp(&work_of(a)).then(a.cmp(b)));
+    let mut shards = vec![Vec::new(); count as usize];
+    let mut work = vec![0u64; count as usize];
+    for u in units {
+        let (i, _) = work
+            .iter()
+            .enumerate()
+            .min_by_key(|(i, w)| (**w, *i))
+            .unwrap_or((0, &0));
+        work[i] += work_of(&u);
+        shards[i].push(u);
+    }
+    for s in &mut shards {
+        s.sort();
+    }
+    Cut { shards, work }
+}
+
+/// Nodes in the subtree of `tree` rooted at `root`.
+pub fn subtree_nodes(tree: &AtlasTree, root: NodeId) -> u64 {
+    let mut n = 0;
+    let mut stack = vec![root];
+    while let Some(id) = stack.pop() {
+        if let Some(node) = tree.nodes.get(id.idx()) {
+            n += 1;
+            stack.extend(node.children.iter().flatten());
+        }
+    }
+    n
+}
+
+/// The blocks shard `units` writes, ascending, with their lengths.
+pub fn shard_blocks(forest: &AtlasForest, units: &[Unit]) -> Vec<(BlockId, u64)> {
+    let mut ids: Vec<BlockId> = units
+        .iter()
+        .flat_map(|u| raster::subtree_blocks(&forest.trees[u.tree as usize], NodeId(u.node)))
+        .collect();
+    ids.sort();
+    ids.dedup();
+    ids.into_iter()
+        .map(|b| (b, forest.blocks.get(b.idx()).map_or(0, |d| d.bytes)))
+        .collect()
+}
+
+/// Side of a handoff (the level 1 of an atlas of side `atlas_size`).
+pub fn handoff_side(atlas_size: u32) -> u32 {
+    (atlas_size / 2).max(1)
+}
+
+/// The code of a mip filter in a shard header (its index in [`super::image_ops::MipFilter::ALL`]).
+pub fn mip_filter_code(f: super::image_ops::MipFilter) -> u32 {
+    super::image_ops::MipFilter::ALL
+        .iter()
+        .position(|&x| x == f)
+        .unwrap_or(0) as u32
+}
+
+/// The mip filter of a shard header's code, if known.
+pub fn mip_filter_of(code: u32) -> Option<super::image_ops::MipFilter> {
+    super::image_ops::MipFilter::ALL.get(code as usize).copied()
+}
+
+/// The fingerprint of scene and flags every shard of one build shares: the table prefix (geometry,
+/// materials, parameters, tree structure, block sizes and formats) by its hash, the pixel options the
+/// tables do not hold (mip filter), and each image's identity (name, size, colour type, and the byte
+/// length of an external file or the hash of embedded bytes — a cheap check, not a content hash of files).
+pub fn fingerprint(
+    prefix_hash: [u64; 2],
+    mip_filter: super::image_ops::MipFilter,
+    scene: &Scene,
+) -> [u64; 2] {
+    let mut s = format!(
+        "atlastree shard v1|{:016x}{:016x}|{}|",
+        prefix_hash[0],
+        prefix_hash[1],
+        mip_filter.name()
+    );
+    for img in &scene.images {
+        let data = match &img.data {
+            ImageData::File(p) => format!(
+                "file:{}",
+                std::fs::metadata(p).map_or(u64::MAX, |m| m.len())
+            ),
+            ImageData::Bytes(b) => format!("bytes:{:?}", hash128(b)),
+            ImageData::Solid(c) => format!("solid:{c:?}"),
+            ImageData::Fallback => "fallback".into(),
+        };
+        s.push_str(&format!(
+            "{}:{}x{}:{}:{data}|",
+            img.name, img.width, img.height, img.color
+        ));
+    }
+    hash128(s.as_bytes())
+}
+
+/// The units of `cut` in shard order as a map from unit to handoff slot (the merge's expectations).
+pub fn units_of(cut: &Cut) -> Vec<(usize, Unit)> {
+    cut.shards
+        .iter()
+        .enumerate()
+        .flat_map(|(i, us)| us.iter().map(move |&u| (i, u)))
+        .collect()
+}
+
+/// The atlases above the cut of every tree, from the units' handoffs (keyed by unit), into `out`.
+pub fn raster_forest_above(
+    out: &AtlasOut<'_>,
+    forest: &AtlasForest,
+    handoffs: &HashMap<Unit, Handoff>,
+) -> Result<(), super::BuildError> {
+    for (t, tree) in forest.trees.iter().enumerate() {
+        if tree.nodes.is_empty() {
+            continue;
+        }
+        let mine: HashMap<NodeId, Handoff> = handoffs
+            .iter()
+            .filter(|(u, _)| u.tree as usize == t)
+            .map(|(u, h)| (NodeId(u.node), h.clone()))
+            .collect();
+        raster::raster_above(out, tree, &mine, NodeId(0))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shard_spec_parses_i_of_n_and_refuses_the_rest() {
+        assert_eq!(
+            "3/16".parse::<ShardSpec>(),
+            Ok(ShardSpec {
+                index: 3,
+                count: 16
+            })
+        );
+        assert_eq!(
+            "0/1".parse::<ShardSpec>(),
+            Ok(ShardSpec { index: 0, count: 1 })
+        );
+        for bad in ["4/4", "0/0", "1", "a/2", "-1/2", "0/4097", "1/2/3", ""] {
+            assert!(bad.parse::<ShardSpec>().is_err(), "{bad:?}");
+        }
+    }
+
+    fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
+        move |k| {
+            vars.iter()
+                .find(|(n, _)| *n == k)
+                .map(|(_, v)| v.to_string())
+        }
+    }
+
+    #[test]
+    fn shard_auto_reads_each_scheduler() {
+        let slurm = [
+            ("SLURM_ARRAY_TASK_ID", "2"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+        ];
+        assert_eq!(
+            shard_from_env(&env(&slurm)),
+            Ok((ShardSpec { index: 2, count: 4 }, "Slurm"))
+        );
+        let k8s = [
+            ("JOB_COMPLETION_INDEX", "7"),
+            ("ATLASTREE_SHARD_COUNT", "8"),
+        ];
+        assert_eq!(
+            shard_from_env(&env(&k8s)),
+            Ok((ShardSpec { index: 7, count: 8 }, "Kubernetes"))
+        );
+        let aws = [
+            ("AWS_BATCH_JOB_ARRAY_INDEX", "0"),
+            ("ATLASTREE_SHARD_COUNT", "3"),
+        ];
+        assert_eq!(
+            shard_from_env(&env(&aws)),
+            Ok((ShardSpec { index: 0, count: 3 }, "AWS Batch"))
+        );
+        assert_eq!(shard_from_env(&env(&[])), Err(ShardSpecError::NoScheduler));
+        assert!(matches!(
+            shard_from_env(&env(&[("JOB_COMPLETION_INDEX", "1")])),
+            Err(ShardSpecError::NoCount { .. })
+        ));
+        assert!(matches!(
+            shard_from_env(&env(&[
+                ("SLURM_ARRAY_TASK_ID", "4"),
+                ("SLURM_ARRAY_TASK_COUNT", "4")
+            ])),
+            Err(ShardSpecError::OutOfRange {
+                index: 4,
+                count: 4,
+                ..
+            })
+        ));
+        assert!(matches!(
+            shard_from_env(&env(&[
+                ("SLURM_ARRAY_TASK_ID", "x"),
+                ("SLURM_ARRAY_TASK_COUNT", "4")
+            ])),
+            Err(ShardSpecError::BadVariable { .. })
+        ));
+    }
+
+    #[test]
+    fn shard_path_sits_beside_the_output() {
+        let p = shard_path(
+            Path::new("/d/city.atlastree"),
+            ShardSpec {
+                index: 1,
+                count: 16,
+            },
+        );
+        assert_eq!(p, Path::new("/d/city.atlastree.shard-1-of-16"));
+    }
+}

@@ -1,0 +1,573 @@
+//! Running a sharded build: one shard ([`build_shard`]) and the merge ([`merge`]). The stages and the cut
+//! are in [`super::shard`]; the shard file in [`crate::store::shard`].
+
+use super::shard::{
+    self, Cut, ShardSpec, Unit, choose_cut, fingerprint, handoff_side, mip_filter_code,
+    mip_filter_of, shard_blocks, shard_path,
+};
+use super::{BuildError, BuildOptions, Progress, Timings, raster};
+use crate::ids::BlockId;
+use crate::preprocess::image_ops::LinearImage;
+use crate::scene::Scene;
+use crate::store::shard::{ShardFile, ShardFileError, ShardLayout, ShardWriter, hash128};
+use crate::store::{FileWriter, StoreError, TreeFile, table_prefix};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What a shard needs beyond the build options.
+pub struct ShardedOptions {
+    /// Which shard.
+    pub spec: ShardSpec,
+    /// The command line that builds this shard, stored for the merge's "rebuild with" hint.
+    pub argv: Vec<String>,
+}
+
+/// What one shard did (printed by `atlastree build --shard`, saved beside the shard file as JSON for the
+/// merge's per-shard table).
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
+pub struct ShardReport {
+    pub shard: u32,
+    pub count: u32,
+    /// The shard file.
+    pub path: PathBuf,
+    /// Subtrees rasterised, their nodes, blocks written and the estimated work against the mean.
+    pub units: u64,
+    pub nodes: u64,
+    pub blocks: u64,
+    pub work: u64,
+    pub work_mean: f64,
+    pub file_bytes: u64,
+    /// (stage, seconds).
+    pub timings: Vec<(String, f64)>,
+    pub images_decoded: u64,
+    pub peak_rss_bytes: Option<u64>,
+}
+
+/// Builds shard `sharded.spec` of the build of `scene` into `out` and writes `OUT.shard-I-of-N` beside
+/// `out` (atomically), with a JSON report beside it (`….json`).
+pub fn build_shard(
+    scene: &Scene,
+    opts: &BuildOptions,
+    out: &Path,
+    sharded: &ShardedOptions,
+    progress: &dyn Progress,
+) -> Result<ShardReport, BuildError> {
+    let t_all = Instant::now();
+    let spec = sharded.spec;
+    let (params, _) = super::resolve_params(scene, opts)?;
+    let parts = super::partition_triangles(scene);
+    if parts.is_empty() {
+        return Err(BuildError::EmptyScene {
+            path: scene.source.display().to_string(),
+        });
+    }
+    let mut timings = Timings::default();
+    let (forest, mut reports) =
+        super::plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
+    super::check_file_size(&forest, &reports, opts.max_file_bytes)?;
+
+    let t = Instant::now();
+    let prefix = table_prefix(&forest)?;
+    let prefix_hash = hash128(&prefix);
+    let cut = choose_cut(&forest, spec.count);
+    let units = cut.shards[spec.index as usize].clone();
+    let side = handoff_side(params.atlas_size);
+    let layout = ShardLayout {
+        shard: spec.index,
+        count: spec.count,
+        mip_filter: mip_filter_code(opts.mip_filter),
+        fingerprint: fingerprint(prefix_hash, opts.mip_filter, scene),
+        prefix_hash,
+        argv: serde_json::to_vec(&sharded.argv).unwrap_or_else(|_| b"[]".to_vec()),
+        prefix: if spec.index == 0 { prefix } else { Vec::new() },
+        blocks: shard_blocks(&forest, &units),
+        handoffs: units.iter().map(|u| (u.tree, u.node, side, side)).collect(),
+    };
+    let blocks = layout.blocks.len() as u64;
+    let path = shard_path(out, spec);
+    let writer = ShardWriter::create(&path, layout)?;
+    timings.push("shard layout", t);
+
+    let t = Instant::now();
+    let cache = raster::ImageCache::new(scene, opts.image_cache_bytes);
+    let handoffs = super::pixel_pass(
+        scene,
+        opts.mip_filter,
+        &forest,
+        &units,
+        &writer,
+        &cache,
+        &mut reports,
+        progress,
+    )?;
+    for (u, h) in &handoffs {
+        writer.put_handoff(u.tree, u.node, &h.data)?;
+    }
+    timings.push("rasterise", t);
+    let t = Instant::now();
+    progress.stage("write shard", None);
+    let file_bytes = writer.finish()?;
+    progress.finish_stage();
+    timings.push("write", t);
+    timings.push("total", t_all);
+
+    let nodes = units
+        .iter()
+        .map(|u| shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node)))
+        .sum();
+    let report = ShardReport {
+        shard: spec.index,
+        count: spec.count,
+        path: path.clone(),
+        units: units.len() as u64,
+        nodes,
+        blocks,
+        work: cut.work[spec.index as usize],
+        work_mean: cut.work.iter().sum::<u64>() as f64 / f64::from(spec.count),
+        file_bytes,
+        timings: timings.0,
+        images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
+        peak_rss_bytes: crate::util::peak_rss_bytes(),
+    };
+    write_sidecar(&path, &report)?;
+    Ok(report)
+}
+
+/// `PATH.json`: the shard's report, written atomically (the merge reads it for its table; the shard file
+/// itself holds nothing that differs between reruns).
+fn write_sidecar(path: &Path, report: &ShardReport) -> Result<(), BuildError> {
+    use std::io::Write;
+    let mut name = path.as_os_str().to_os_string();
+    name.push(".json");
+    let target = PathBuf::from(name);
+    let write_err = |source| {
+        BuildError::Store(StoreError::Write {
+            target: target.clone(),
+            temp: crate::util::parent_dir(&target).to_path_buf(),
+            source,
+        })
+    };
+    let mut f = crate::util::AtomicFile::create(&target, 0o666).map_err(write_err)?;
+    let json = serde_json::to_vec_pretty(report).unwrap_or_default();
+    f.write_all(&json).map_err(write_err)?;
+    f.commit().map_err(write_err)
+}
+
+/// Why a merge failed. Every variant names the shard and, where one can, the command that rebuilds it.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    #[error(
+        "no shard files for {out} (expected {out}.shard-I-of-N beside it, written by `atlastree build … --shard I/N`)"
+    )]
+    NoShards { out: PathBuf },
+    #[error(
+        "shard files of several builds beside {out}: N = {counts:?}; remove the stale ones or say which with --shards N"
+    )]
+    AmbiguousCount { out: PathBuf, counts: Vec<u32> },
+    #[error("shard {shard} of {count} is missing: {path} does not exist{rebuild}")]
+    Missing {
+        shard: u32,
+        count: u32,
+        path: PathBuf,
+        rebuild: String,
+    },
+    #[error("shard {shard} of {count} ({path}) is unreadable or corrupt: {source}{rebuild}")]
+    Corrupt {
+        shard: u32,
+        count: u32,
+        path: PathBuf,
+        rebuild: String,
+        #[source]
+        source: ShardFileError,
+    },
+    #[error("shard {shard} of {count} ({path}) belongs to another build: {why}{rebuild}")]
+    Foreign {
+        shard: u32,
+        count: u32,
+        path: PathBuf,
+        why: String,
+        rebuild: String,
+    },
+    #[error("merging into {out}: {source}")]
+    Store {
+        out: PathBuf,
+        #[source]
+        source: StoreError,
+    },
+    #[error("merging into {out}: {source}")]
+    Build {
+        out: PathBuf,
+        #[source]
+        source: BuildError,
+    },
+}
+
+/// One shard's line of the merge report.
+#[derive(Clone, Debug, Serialize)]
+pub struct MergedShard {
+    pub shard: u32,
+    pub path: PathBuf,
+    pub file_bytes: u64,
+    pub blocks: u64,
+    pub units: u64,
+    /// From the shard's JSON report, if present.
+    pub seconds: Option<f64>,
+    pub peak_rss_bytes: Option<u64>,
+    pub work: Option<u64>,
+}
+
+/// What a merge did.
+#[derive(Clone, Debug, Serialize)]
+pub struct MergeReport {
+    pub out: PathBuf,
+    pub count: u32,
+    pub shards: Vec<MergedShard>,
+    /// Atlases made above the cut.
+    pub above_cut: u64,
+    pub file_bytes: u64,
+    pub seconds: f64,
+    pub peak_rss_bytes: Option<u64>,
+}
+
+/// The shard files beside `out`, by their names: `(index, count, path)`.
+fn shard_files(out: &Path) -> Vec<(u32, u32, PathBuf)> {
+    let dir = crate::util::parent_dir(out);
+    let Some(base) = out.file_name().and_then(|n| n.to_str()) else {
+        return Vec::new();
+    };
+    let prefix = format!("{base}.shard-");
+    let mut found = Vec::new();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return found;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(&prefix)) else {
+            continue;
+        };
+        let Some((i, n)) = rest.split_once("-of-") else {
+            continue;
+        };
+        if let (Ok(i), Ok(n)) = (i.parse::<u32>(), n.parse::<u32>()) {
+            found.push((i, n, out.with_file_name(name)));
+        }
+    }
+    found.sort();
+    found
+}
+
+/// `; rebuild it with: …` from a shard's stored command line, with its `--shard` value replaced.
+fn rebuild_hint(argv: Option<&[String]>, spec: ShardSpec) -> String {
+    let Some(argv) = argv.filter(|a| !a.is_empty()) else {
+        return format!("; rebuild it with `atlastree build … --shard {spec}`");
+    };
+    let mut args: Vec<String> = Vec::with_capacity(argv.len());
+    let mut it = argv.iter();
+    while let Some(a) = it.next() {
+        if a == "--shard" {
+            it.next();
+            args.push("--shard".into());
+            args.push(spec.to_string());
+        } else if a.starts_with("--shard=") {
+            args.push(format!("--shard={spec}"));
+        } else {
+            args.push(a.clone());
+        }
+    }
+    let quoted: Vec<String> = args
+        .iter()
+        .map(|a| {
+            if a.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_./=:,".contains(c))
+            {
+                a.clone()
+            } else {
+                format!("'{}'", a.replace('\'', "'\\''"))
+            }
+        })
+        .collect();
+    format!("; rebuild it with: {}", quoted.join(" "))
+}
+
+/// Merges the shard files of `out`'s build (`count` shards, or the only count found beside `out`) into
+/// `out`, atomically: checks every shard (present, intact, same fingerprint, the blocks and subtree roots
+/// the cut gives it), copies every block, makes the atlases above the cut from the shards' handoffs, and
+/// finishes the paging file. Byte-identical to the one-process build with the same scene and flags.
+pub fn merge(
+    out: &Path,
+    count: Option<u32>,
+    progress: &dyn Progress,
+) -> Result<MergeReport, MergeError> {
+    let t_all = Instant::now();
+    let found = shard_files(out);
+    let count = match count {
+        Some(n) => n,
+        None => {
+            let mut counts: Vec<u32> = found.iter().map(|f| f.1).collect();
+            counts.sort_unstable();
+            counts.dedup();
+            match counts.as_slice() {
+                [] => {
+                    return Err(MergeError::NoShards {
+                        out: out.to_path_buf(),
+                    });
+                }
+                [n] => *n,
+                _ => {
+                    return Err(MergeError::AmbiguousCount {
+                        out: out.to_path_buf(),
+                        counts,
+                    });
+                }
+            }
+        }
+    };
+    // Open every shard: first the ones present (their command lines give the rebuild hints).
+    let mut opened: Vec<Option<ShardFile>> = Vec::with_capacity(count as usize);
+    let mut failures: Vec<(u32, PathBuf, Option<ShardFileError>)> = Vec::new();
+    for index in 0..count {
+        let path = shard_path(out, ShardSpec { index, count });
+        if !path.exists() {
+            failures.push((index, path, None));
+            opened.push(None);
+            continue;
+        }
+        match ShardFile::open(&path) {
+            Ok(f) => opened.push(Some(f)),
+            Err(e) => {
+                failures.push((index, path, Some(e)));
+                opened.push(None);
+            }
+        }
+    }
+    let argv: Option<Vec<String>> = opened.iter().flatten().map(|f| f.argv.clone()).next();
+    let hint = |index| rebuild_hint(argv.as_deref(), ShardSpec { index, count });
+    if let Some((shard, path, err)) = failures.into_iter().next() {
+        let rebuild = hint(shard);
+        return Err(match err {
+            None => MergeError::Missing {
+                shard,
+                count,
+                path,
+                rebuild,
+            },
+            Some(source) => MergeError::Corrupt {
+                shard,
+                count,
+                path,
+                rebuild,
+                source,
+            },
+        });
+    }
+    let shards: Vec<ShardFile> = opened.into_iter().flatten().collect();
+    // Shards are in slot order from here on: slot i is the file named shard i.
+    let slot = |f: &ShardFile| shards.iter().position(|g| std::ptr::eq(f, g)).unwrap_or(0) as u32;
+    let foreign = |f: &ShardFile, why: String| MergeError::Foreign {
+        shard: slot(f),
+        count,
+        path: f.path().to_path_buf(),
+        why,
+        rebuild: hint(slot(f)),
+    };
+    let first = &shards[0];
+    for (i, f) in shards.iter().enumerate() {
+        if f.header.shard != i as u32 || f.header.count != count {
+            return Err(foreign(
+                f,
+                format!(
+                    "it says it is shard {} of {}",
+                    f.header.shard, f.header.count
+                ),
+            ));
+        }
+        if f.header.fingerprint != first.header.fingerprint
+            || f.header.prefix_hash != first.header.prefix_hash
+            || f.header.mip_filter != first.header.mip_filter
+        {
+            return Err(foreign(
+                f,
+                "its fingerprint (scene and flags) differs from shard 0's".into(),
+            ));
+        }
+    }
+    let corrupt = |f: &ShardFile, source| MergeError::Corrupt {
+        shard: slot(f),
+        count,
+        path: f.path().to_path_buf(),
+        rebuild: hint(slot(f)),
+        source,
+    };
+    let prefix = first.prefix().map_err(|e| corrupt(first, e))?;
+    let name = first.path().display().to_string();
+    let store_err = |source| MergeError::Store {
+        out: out.to_path_buf(),
+        source,
+    };
+    let tables = TreeFile::from_prefix(&prefix, prefix_file_len(&prefix), &name)
+        .map_err(|e| foreign(first, format!("its table prefix does not open: {e}")))?;
+    let forest = tables.to_forest();
+    drop(tables);
+    let cut = choose_cut(&forest, count);
+    check_cut(&forest, &cut, &shards, &foreign)?;
+    let mip_filter = mip_filter_of(first.header.mip_filter).ok_or_else(|| {
+        foreign(
+            first,
+            format!("unknown mip filter code {}", first.header.mip_filter),
+        )
+    })?;
+
+    let writer = FileWriter::from_prefix(out, &prefix, &name).map_err(store_err)?;
+    let total: u64 = shards.iter().map(|f| f.blocks.len() as u64).sum();
+    progress.stage("merge: copy blocks", Some(total));
+    let mut copied = 0;
+    let mut handoffs: HashMap<Unit, LinearImage> = HashMap::new();
+    for f in &shards {
+        for (i, e) in f.blocks.iter().enumerate() {
+            let bytes = f.block(i).map_err(|err| corrupt(f, err))?;
+            writer
+                .write_block_measured(BlockId(e.block), &bytes, e.sse)
+                .map_err(store_err)?;
+            copied += 1;
+            progress.set(copied);
+        }
+        for (i, e) in f.handoffs.iter().enumerate() {
+            let data = f.handoff(i).map_err(|err| corrupt(f, err))?;
+            let unit = Unit {
+                tree: e.tree,
+                node: e.node,
+            };
+            handoffs.insert(
+                unit,
+                LinearImage {
+                    width: e.width,
+                    height: e.height,
+                    data,
+                },
+            );
+        }
+    }
+    progress.finish_stage();
+    let above: u64 = forest
+        .trees
+        .iter()
+        .map(|t| t.nodes.len() as u64)
+        .sum::<u64>()
+        - cut
+            .shards
+            .iter()
+            .flatten()
+            .map(|u| {
+                shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node))
+            })
+            .sum::<u64>();
+    progress.stage("merge: atlases above the cut", Some(above));
+    let set = |n: u64| progress.set(n);
+    let atlas_out = raster::AtlasOut::new(forest.params.atlas_size, mip_filter, &writer, &set);
+    shard::raster_forest_above(&atlas_out, &forest, &handoffs).map_err(|source| {
+        MergeError::Build {
+            out: out.to_path_buf(),
+            source,
+        }
+    })?;
+    progress.finish_stage();
+    progress.stage("merge: write", None);
+    let summary = writer.finish().map_err(store_err)?;
+    progress.finish_stage();
+
+    let merged = shards
+        .iter()
+        .map(|f| {
+            let side = read_sidecar(f.path());
+            MergedShard {
+                shard: slot(f),
+                path: f.path().to_path_buf(),
+                file_bytes: f.header.file_len,
+                blocks: f.blocks.len() as u64,
+                units: f.handoffs.len() as u64,
+                seconds: side.as_ref().and_then(|r| {
+                    r.timings
+                        .iter()
+                        .find(|(n, _)| n == "total")
+                        .map(|(_, s)| *s)
+                }),
+                peak_rss_bytes: side.as_ref().and_then(|r| r.peak_rss_bytes),
+                work: side.as_ref().map(|r| r.work),
+            }
+        })
+        .collect();
+    Ok(MergeReport {
+        out: out.to_path_buf(),
+        count,
+        shards: merged,
+        above_cut: above,
+        file_bytes: summary.total,
+        seconds: t_all.elapsed().as_secs_f64(),
+        peak_rss_bytes: crate::util::peak_rss_bytes(),
+    })
+}
+
+/// The file length a table prefix's header claims (checked by the open that follows).
+fn prefix_file_len(prefix: &[u8]) -> u64 {
+    use crate::store::format::{HEADER_SIZE, Header};
+    if prefix.len() < HEADER_SIZE {
+        return prefix.len() as u64;
+    }
+    bytemuck::pod_read_unaligned::<Header>(&prefix[..HEADER_SIZE]).file_len
+}
+
+/// Each shard holds exactly the blocks and subtree roots the cut gives it.
+fn check_cut(
+    forest: &crate::model::AtlasForest,
+    cut: &Cut,
+    shards: &[ShardFile],
+    foreign: &dyn Fn(&ShardFile, String) -> MergeError,
+) -> Result<(), MergeError> {
+    for (f, units) in shards.iter().zip(&cut.shards) {
+        let expected = shard_blocks(forest, units);
+        let got: Vec<(BlockId, u64)> = f
+            .blocks
+            .iter()
+            .map(|e| (BlockId(e.block), e.length))
+            .collect();
+        if got != expected {
+            return Err(foreign(
+                f,
+                format!(
+                    "it holds {} blocks where the cut of shard 0's tables gives it {}",
+                    got.len(),
+                    expected.len()
+                ),
+            ));
+        }
+        let roots: Vec<Unit> = f
+            .handoffs
+            .iter()
+            .map(|h| Unit {
+                tree: h.tree,
+                node: h.node,
+            })
+            .collect();
+        let side = handoff_side(forest.params.atlas_size);
+        if &roots != units
+            || f.handoffs
+                .iter()
+                .any(|h| h.width != side || h.height != side)
+        {
+            return Err(foreign(
+                f,
+                "its subtree roots differ from the cut of shard 0's tables".into(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn read_sidecar(path: &Path) -> Option<ShardReport> {
+    let mut name = path.as_os_str().to_os_string();
+    name.push(".json");
+    let bytes = std::fs::read(PathBuf::from(name)).ok()?;
+    serde_json::from_slice(&bytes).ok()
+}

@@ -1,0 +1,290 @@
+//! Sharded builds (issue 22): `build --shard I/N` + `merge` give the one-process file byte for byte, shard
+//! reruns give the same shard file, and the merge refuses missing, corrupt and foreign shards, naming the
+//! shard and the command that rebuilds it, without writing anything.
+
+use atlastree::preprocess::shard::{ShardSpec, choose_cut, shard_path};
+use atlastree::preprocess::{
+    BuildOptions, MergeError, NoProgress, ShardedOptions, build, build_shard, merge,
+};
+use atlastree::scene::{ImportOptions, Scene, import};
+use atlastree::store::TreeFile;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+fn city() -> &'static Scene {
+    static SCENE: OnceLock<Scene> = OnceLock::new();
+    SCENE.get_or_init(|| {
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+        import(&path, &ImportOptions::default()).unwrap()
+    })
+}
+
+/// The deeper fixture: data/city at 256² atlases, every node that does not fit split (depth 6, 330 + 24
+/// nodes in two trees).
+fn deep_opts() -> BuildOptions {
+    BuildOptions {
+        atlas_size: 256,
+        leaf_originals_atlases: 0.0,
+        ..BuildOptions::default()
+    }
+}
+
+fn argv(spec: ShardSpec) -> Vec<String> {
+    vec![
+        "atlastree".into(),
+        "build".into(),
+        "city.gltf".into(),
+        "--shard".into(),
+        spec.to_string(),
+    ]
+}
+
+/// Builds every shard of `count` into `out`'s directory.
+fn build_shards(opts: &BuildOptions, out: &Path, count: u32) {
+    for index in 0..count {
+        let spec = ShardSpec { index, count };
+        let sharded = ShardedOptions {
+            spec,
+            argv: argv(spec),
+        };
+        let r = build_shard(city(), opts, out, &sharded, &NoProgress).unwrap();
+        assert_eq!((r.shard, r.count), (index, count));
+        assert!(shard_path(out, spec).exists());
+    }
+}
+
+fn one_process(opts: &BuildOptions, dir: &Path) -> Vec<u8> {
+    let path = dir.join("one.atlastree");
+    build(city(), opts, &path, &NoProgress).unwrap();
+    std::fs::read(path).unwrap()
+}
+
+fn identical_for_every_count(opts: &BuildOptions, counts: &[u32]) {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = one_process(opts, dir.path());
+    for &n in counts {
+        let out = dir.path().join(format!("n{n}.atlastree"));
+        build_shards(opts, &out, n);
+        let report = merge(&out, None, &NoProgress).unwrap();
+        assert_eq!(report.count, n);
+        assert_eq!(report.shards.len(), n as usize);
+        let merged = std::fs::read(&out).unwrap();
+        assert_eq!(merged.len(), reference.len(), "N = {n}: file length");
+        assert!(
+            merged == reference,
+            "N = {n}: merged file differs from the one-process build"
+        );
+    }
+}
+
+#[test]
+fn merged_file_is_the_one_process_file_on_data_city() {
+    identical_for_every_count(&BuildOptions::default(), &[1, 2, 3, 4, 16]);
+}
+
+#[test]
+fn merged_file_is_the_one_process_file_on_a_deep_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("deep.atlastree");
+    build(city(), &deep_opts(), &path, &NoProgress).unwrap();
+    let file = TreeFile::open(&path).unwrap();
+    let forest = file.to_forest();
+    let depth = forest.trees[0]
+        .nodes
+        .iter()
+        .map(|n| n.level.0)
+        .max()
+        .unwrap();
+    assert!(depth >= 3, "the deep fixture has depth {depth}");
+    // The cut of 4 and 16 shards lies inside the tree: the merge makes atlases above it.
+    for n in [4, 16] {
+        let cut = choose_cut(&forest, n);
+        assert!(
+            cut.shards.iter().flatten().any(|u| u.node != 0),
+            "N = {n}: cut at the roots"
+        );
+    }
+    identical_for_every_count(&deep_opts(), &[1, 2, 3, 4, 16]);
+}
+
+#[test]
+fn cut_is_deterministic_covers_every_leaf_once_and_balances_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("deep.atlastree");
+    build(city(), &deep_opts(), &path, &NoProgress).unwrap();
+    let forest = TreeFile::open(&path).unwrap().to_forest();
+    for n in [1u32, 2, 3, 4, 16] {
+        let cut = choose_cut(&forest, n);
+        assert_eq!(cut, choose_cut(&forest, n));
+        assert_eq!(cut.shards.len(), n as usize);
+        // Every leaf lies below exactly one unit.
+        for (t, tree) in forest.trees.iter().enumerate() {
+            let mut under = vec![0u32; tree.nodes.len()];
+            for u in cut.shards.iter().flatten().filter(|u| u.tree as usize == t) {
+                let mut stack = vec![u.node as usize];
+                while let Some(i) = stack.pop() {
+                    under[i] += 1;
+                    stack.extend(
+                        tree.nodes[i]
+                            .children
+                            .iter()
+                            .flatten()
+                            .map(|c| c.0 as usize),
+                    );
+                }
+            }
+            for (i, n) in tree.nodes.iter().enumerate() {
+                if n.leaf.is_some() {
+                    assert_eq!(under[i], 1, "tree {t} leaf node {i}");
+                }
+            }
+        }
+        let mean = cut.work.iter().sum::<u64>() as f64 / f64::from(n);
+        let max = *cut.work.iter().max().unwrap() as f64;
+        if n <= 4 {
+            assert!(
+                max / mean <= 1.1,
+                "N = {n}: max/mean work {:.3}",
+                max / mean
+            );
+        }
+    }
+}
+
+#[test]
+fn shard_rerun_writes_the_same_bytes_and_merge_is_idempotent() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    let opts = deep_opts();
+    build_shards(&opts, &out, 3);
+    let spec = ShardSpec { index: 1, count: 3 };
+    let first = std::fs::read(shard_path(&out, spec)).unwrap();
+    let sharded = ShardedOptions {
+        spec,
+        argv: argv(spec),
+    };
+    build_shard(city(), &opts, &out, &sharded, &NoProgress).unwrap();
+    assert!(std::fs::read(shard_path(&out, spec)).unwrap() == first);
+    merge(&out, None, &NoProgress).unwrap();
+    let once = std::fs::read(&out).unwrap();
+    merge(&out, Some(3), &NoProgress).unwrap();
+    assert!(std::fs::read(&out).unwrap() == once);
+}
+
+/// A directory with the 4 shards of the deep build and an existing output the failed merges must leave.
+fn four_shards() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    build_shards(&deep_opts(), &out, 4);
+    std::fs::write(&out, b"previous output").unwrap();
+    (dir, out)
+}
+
+/// The merge fails, leaves the previous output and no temp file, and the message names `shard` and a
+/// rebuild command with `--shard shard/4`.
+fn refused(out: &Path, shard: u32) -> MergeError {
+    let e = merge(out, None, &NoProgress).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains(&format!("shard {shard} of 4")), "{msg}");
+    assert!(msg.contains(&format!("--shard {shard}/4")), "{msg}");
+    assert_eq!(std::fs::read(out).unwrap(), b"previous output");
+    let stray: Vec<_> = std::fs::read_dir(out.parent().unwrap())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.starts_with("city.atlastree"))
+        .collect();
+    assert!(stray.is_empty(), "left behind: {stray:?}");
+    e
+}
+
+#[test]
+fn merge_refuses_a_missing_shard() {
+    let (_dir, out) = four_shards();
+    std::fs::remove_file(shard_path(&out, ShardSpec { index: 2, count: 4 })).unwrap();
+    assert!(matches!(
+        refused(&out, 2),
+        MergeError::Missing { shard: 2, .. }
+    ));
+}
+
+#[test]
+fn merge_refuses_corrupt_and_truncated_shards() {
+    let (_dir, out) = four_shards();
+    let path = shard_path(&out, ShardSpec { index: 3, count: 4 });
+    let good = std::fs::read(&path).unwrap();
+    // A flipped byte in the header, in the tables, in a block payload and in the last (handoff) byte.
+    for at in [40, 200, good.len() / 2, good.len() - 1] {
+        let mut bad = good.clone();
+        bad[at] ^= 0x10;
+        std::fs::write(&path, &bad).unwrap();
+        assert!(
+            matches!(refused(&out, 3), MergeError::Corrupt { shard: 3, .. }),
+            "flip at {at}"
+        );
+    }
+    std::fs::write(&path, &good[..good.len() - 7]).unwrap();
+    assert!(matches!(
+        refused(&out, 3),
+        MergeError::Corrupt { shard: 3, .. }
+    ));
+    std::fs::write(&path, b"").unwrap();
+    assert!(matches!(
+        refused(&out, 3),
+        MergeError::Corrupt { shard: 3, .. }
+    ));
+}
+
+#[test]
+fn merge_refuses_a_shard_of_another_build() {
+    let (_dir, out) = four_shards();
+    // Shard 1 rebuilt with other flags (a sharper mip filter): same tables, other pixels.
+    let spec = ShardSpec { index: 1, count: 4 };
+    let other = BuildOptions {
+        mip_filter: atlastree::preprocess::image_ops::MipFilter::Kaiser,
+        ..deep_opts()
+    };
+    let sharded = ShardedOptions {
+        spec,
+        argv: argv(spec),
+    };
+    build_shard(city(), &other, &out, &sharded, &NoProgress).unwrap();
+    assert!(matches!(
+        refused(&out, 1),
+        MergeError::Foreign { shard: 1, .. }
+    ));
+    // A shard of a 3-shard build renamed into slot 1.
+    let (_dir3, out3) = {
+        let dir = tempfile::tempdir().unwrap();
+        let o = dir.path().join("city.atlastree");
+        build_shards(&deep_opts(), &o, 3);
+        (dir, o)
+    };
+    std::fs::copy(
+        shard_path(&out3, ShardSpec { index: 1, count: 3 }),
+        shard_path(&out, spec),
+    )
+    .unwrap();
+    assert!(matches!(
+        refused(&out, 1),
+        MergeError::Foreign { shard: 1, .. }
+    ));
+}
+
+#[test]
+fn merge_without_shards_or_with_two_counts_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    assert!(matches!(
+        merge(&out, None, &NoProgress),
+        Err(MergeError::NoShards { .. })
+    ));
+    build_shards(&BuildOptions::default(), &out, 2);
+    build_shards(&BuildOptions::default(), &out, 3);
+    match merge(&out, None, &NoProgress) {
+        Err(MergeError::AmbiguousCount { counts, .. }) => assert_eq!(counts, vec![2, 3]),
+        other => panic!("expected AmbiguousCount, got {other:?}"),
+    }
+    merge(&out, Some(3), &NoProgress).unwrap();
+    assert!(TreeFile::open(&out).is_ok());
+}
