@@ -272,7 +272,7 @@ timed() { # LABEL CMD…: run, print its time
     local label=$1 t=$SECONDS rc=0
     shift
     "$@" || rc=$?
-    say "$label: exit $rc in $((SECONDS - t)) s"
+    say "$label: exit $rc in $((SECONDS - t)) s" >&8 # the script's stdout, also when the command's is redirected
     return "$rc"
 }
 ref=$tmp/ref/city.atlastree

@@ -8,8 +8,8 @@
 # What it submits
 #   - an array job `--array=0-(N-1)` of build.sbatch: task I runs `atlastree build SCENE -o OUT --shard auto FLAGS`
 #     (atlastree takes I and N from SLURM_ARRAY_TASK_ID / SLURM_ARRAY_TASK_COUNT) and writes OUT.shard-I-of-N;
-#   - merge.sbatch with `--dependency=afterok:<array job> --kill-on-invalid-dep=yes`: `atlastree merge OUT` runs once
-#     every shard succeeded, and is cancelled as soon as one fails.
+#   - merge.sbatch with `--dependency=afterok:<array job> --kill-on-invalid-dep=yes`: `atlastree merge --shards N OUT`
+#     runs once every shard succeeded, and is cancelled as soon as one fails.
 #   Each task writes its exit status to STATE/<array job>.shard-<I>.rc, the merge to STATE/<array job>.merge.rc;
 #   sbatch logs go to STATE/<array job>.shard-<I>.log and STATE/<array job>.merge.log. STATE defaults to OUT.slurm.
 #
@@ -183,7 +183,8 @@ check_run() {
         echo "FAIL merge (job $mid) exited 0 but $out does not exist" >&2
         exit 1
     }
-    echo "$prog: OK: all $n shards and the merge succeeded: $out"
+    echo "$prog: OK: all $n shards and the merge succeeded: $out (merge report: $log)"
+    grep -E '^ *(merged|slowest)' "$log" 2>/dev/null | sed 's/^ */    /' || true
 }
 
 if [[ -n $attach ]]; then
@@ -260,7 +261,7 @@ aid=${aid%%;*}
 [[ $aid =~ ^[0-9]+$ ]] || die "sbatch did not return a job id: $aid"
 mid=$(sbatch --parsable --dependency="afterok:$aid" --kill-on-invalid-dep=yes --job-name="atlastree-merge:$name" \
     --chdir="$state" --output="$state/$aid.merge.log" "${sbatch_extra[@]}" \
-    "$here/merge.sbatch" "$state" "$aid" "$bin" "$out") || {
+    "$here/merge.sbatch" "$state" "$aid" "$bin" "$out" "$n") || {
     echo "$prog: submitting the merge failed; cancelling the shards (job $aid)" >&2
     scancel "$aid" || true
     exit 1
