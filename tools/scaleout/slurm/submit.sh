@@ -222,10 +222,10 @@ fi
 bin=$(realpath "$bin")
 scene=$(realpath "$scene")
 out=$(realpath "$out_dir")/$(basename "$out")
+command -v sbatch >/dev/null || die "no sbatch in PATH (is this a Slurm submit host?)"
 [[ -n $state ]] || state=$out.slurm
 mkdir -p "$state"
 state=$(realpath "$state")
-command -v sbatch >/dev/null || die "no sbatch in PATH (is this a Slurm submit host?)"
 
 if [[ -n $only ]]; then
     [[ $only =~ ^[0-9]+(,[0-9]+)*$ ]] || die "--only: not a comma-separated list of shard numbers: $only"
@@ -256,7 +256,8 @@ rerun_args=${rerun_args% }
 name=$(basename "$out")
 aid=$(sbatch --parsable --array="$array" --job-name="atlastree-shards:$name" --chdir="$state" \
     --output="$state/%A.shard-%a.log" "${sbatch_extra[@]}" \
-    "$here/build.sbatch" "$state" "$bin" "$scene" "$out" "$n" "$mode" "${flags[@]}")
+    "$here/build.sbatch" "$state" "$bin" "$scene" "$out" "$n" "$mode" "${flags[@]}") ||
+    die "submitting the shard array failed (sbatch's message above); nothing was submitted"
 aid=${aid%%;*}
 [[ $aid =~ ^[0-9]+$ ]] || die "sbatch did not return a job id: $aid"
 mid=$(sbatch --parsable --dependency="afterok:$aid" --kill-on-invalid-dep=yes --job-name="atlastree-merge:$name" \
