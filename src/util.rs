@@ -168,6 +168,14 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// The machine's physical memory (Linux `MemTotal`), bytes; `None` where the platform does not tell.
+pub fn machine_memory_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
 /// Resets the peak resident set size ([`peak_rss_bytes`]) to the current one (Linux: `5` into
 /// `/proc/self/clear_refs`), so the next reading is the peak of what follows. False where unsupported.
 pub fn reset_peak_rss() -> bool {

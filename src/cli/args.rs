@@ -259,9 +259,15 @@ pub(crate) struct BuildParamsArgs {
     /// Allow more texels per texture repetition than the source image has (by default capped).
     #[arg(long)]
     pub no_source_cap: bool,
-    /// Bound on decoded source images held in memory at once, MiB.
+    /// Bound on decoded source images held in memory at once, MiB (lowered to fit --max-memory).
     #[arg(long, default_value_t = 2048)]
     pub image_cache_mib: u64,
+    /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
+    /// a build that cannot fit (the plan holds ~400 bytes per triangle, the rasteriser a few atlases per
+    /// thread, the cache at least the largest image per thread) is refused before any work, with the
+    /// number it needs. Default: half of the machine's memory.
+    #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
+    pub max_memory: Option<MemoryArg>,
     /// Split a triangle too big for one atlas (a ground quad with a tile repeated hundreds of times) into at
     /// most this many pieces; beyond that its leaf's resolution is clamped. 1 disables splitting.
     #[arg(long, default_value_t = 4096)]
@@ -284,10 +290,27 @@ pub(crate) struct BuildParamsArgs {
     pub split: atlastree::preprocess::layout::SplitRule,
 }
 
+/// `--max-memory`: a size, or `none`.
+#[derive(Copy, Clone, Debug)]
+pub(crate) struct MemoryArg(Option<u64>);
+
+fn parse_memory(s: &str) -> Result<MemoryArg, String> {
+    if s.eq_ignore_ascii_case("none") {
+        return Ok(MemoryArg(None));
+    }
+    match atlastree::util::parse_bytes(s) {
+        Some(b) if b > 0 => Ok(MemoryArg(Some(b))),
+        _ => Err(format!(
+            "{s:?} is not a size (e.g. 2GiB, 512MiB, 8GB) or none"
+        )),
+    }
+}
+
 impl BuildParamsArgs {
     /// `base` with these parameters.
     pub(crate) fn apply(&self, base: BuildOptions) -> BuildOptions {
         BuildOptions {
+            max_memory_bytes: self.max_memory.map_or(base.max_memory_bytes, |m| m.0),
             screen_width: self.screen_width,
             fov_deg: self.fov,
             texel_ratio: self.texel_ratio,

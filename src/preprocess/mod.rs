@@ -16,6 +16,7 @@ pub mod cover;
 pub mod demand;
 pub mod image_ops;
 pub mod layout;
+pub mod memory;
 pub mod originals;
 pub mod pack;
 pub mod prepare;
@@ -90,8 +91,11 @@ pub struct BuildOptions {
     pub max_depth: u8,
     /// Never store more texels per texture repetition than the source has.
     pub cap_to_source: bool,
-    /// Bound on decoded images held at once, bytes.
+    /// Bound on decoded images held at once, bytes (lowered to fit `max_memory_bytes`).
     pub image_cache_bytes: u64,
+    /// Memory budget of the whole build, bytes ([`memory`]): it sizes the image cache, and a build that
+    /// cannot fit is refused before any work with the number it needs. `None`: no budget.
+    pub max_memory_bytes: Option<u64>,
     /// At most this many pieces per scene triangle when splitting triangles too big for one atlas
     /// (1 = never split: such triangles are clamped instead).
     pub max_pieces: u32,
@@ -126,6 +130,7 @@ impl Default for BuildOptions {
             max_depth: 24,
             cap_to_source: true,
             image_cache_bytes: 2 << 30,
+            max_memory_bytes: memory::default_budget(),
             max_pieces: 4096,
             max_file_bytes: 64 << 30,
             mip_filter: image_ops::MipFilter::Box,
@@ -186,6 +191,8 @@ pub enum BuildError {
     },
     #[error(transparent)]
     Store(#[from] StoreError),
+    #[error(transparent)]
+    Memory(#[from] memory::MemoryError),
     #[error("encoding the {what}: {source}")]
     Encode {
         what: String,
@@ -258,6 +265,8 @@ pub struct BuildReport {
     pub peak_rss_bytes: Option<u64>,
     /// (stage, peak resident memory during it, bytes), where the platform tells (Linux).
     pub stage_peak_rss: Vec<(String, u64)>,
+    /// How the memory budget was split, if there was one.
+    pub memory: Option<memory::MemoryPlan>,
     pub warnings: Vec<String>,
 }
 
@@ -378,6 +387,7 @@ pub fn build(
             path: scene.source.display().to_string(),
         });
     }
+    let memory_plan = plan_memory(scene, opts, &params)?;
     let mut timings = Timings::default();
     let (forest, mut reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
     check_file_size(&forest, &reports, opts.max_file_bytes)?;
@@ -385,7 +395,7 @@ pub fn build(
     // One shard, in memory: the cut at the roots, so nothing is left above it (module shard).
     let t = Instant::now();
     let writer = FileWriter::create(out, &forest)?;
-    let cache = raster::ImageCache::new(scene, opts.image_cache_bytes);
+    let cache = raster::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
     let cut = shard::choose_cut(&forest, 1);
     let units = cut.shards.first().map_or(&[][..], Vec::as_slice);
     let handoffs = pixel_pass(
@@ -410,7 +420,7 @@ pub fn build(
     timings.push("write", t);
     timings.push("total", t_all);
 
-    Ok(build_report(
+    let mut report = build_report(
         params,
         diagonal,
         &forest,
@@ -418,7 +428,45 @@ pub fn build(
         summary.total,
         timings,
         &cache,
-    ))
+    );
+    report.memory = memory_plan;
+    Ok(report)
+}
+
+/// The memory budget's split for `scene` ([`memory::plan_memory`]), or `None` without a budget.
+pub(super) fn plan_memory(
+    scene: &Scene,
+    opts: &BuildOptions,
+    params: &BuildParams,
+) -> Result<Option<memory::MemoryPlan>, BuildError> {
+    let Some(budget) = opts.max_memory_bytes else {
+        return Ok(None);
+    };
+    let largest = (scene.images.iter())
+        .map(|i| u64::from(i.width) * u64::from(i.height))
+        .max()
+        .unwrap_or(0);
+    let plan = memory::plan_memory(
+        budget,
+        scene.triangles.len() as u64,
+        params.atlas_size,
+        rayon::current_num_threads() as u64,
+        largest,
+        opts.image_cache_bytes,
+    )?;
+    Ok(Some(plan))
+}
+
+/// The image cache bound of a build: the memory plan's, or the option's without a budget.
+pub(super) trait CacheBound {
+    fn image_cache_bytes(&self, opts: &BuildOptions) -> u64;
+}
+
+impl CacheBound for Option<memory::MemoryPlan> {
+    fn image_cache_bytes(&self, opts: &BuildOptions) -> u64 {
+        self.as_ref()
+            .map_or(opts.image_cache_bytes, |m| m.image_cache_bytes)
+    }
 }
 
 /// `(stage, seconds)` of a build, in the order the stages ended.
@@ -668,6 +716,7 @@ pub(super) fn build_report(
         image_fallbacks: cache.fallbacks.load(Ordering::Relaxed),
         images_alpha_ignored: cache.alpha_ignored.load(Ordering::Relaxed),
         peak_rss_bytes: stage_peak,
+        memory: None,
         warnings,
     }
 }

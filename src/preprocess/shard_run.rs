@@ -5,7 +5,7 @@ use super::shard::{
     self, Cut, ShardSpec, Unit, choose_cut, fingerprint, handoff_side, mip_filter_code,
     mip_filter_of, shard_blocks, shard_path,
 };
-use super::{BuildError, BuildOptions, Progress, Timings, raster};
+use super::{BuildError, BuildOptions, CacheBound, Progress, Timings, raster};
 use crate::ids::BlockId;
 use crate::preprocess::image_ops::LinearImage;
 use crate::scene::Scene;
@@ -45,6 +45,8 @@ pub struct ShardReport {
     pub peak_rss_bytes: Option<u64>,
     /// (stage, peak resident memory during it, bytes), where the platform tells (Linux).
     pub stage_peak_rss: Vec<(String, u64)>,
+    /// How the memory budget was split, if there was one.
+    pub memory: Option<super::memory::MemoryPlan>,
 }
 
 /// Builds shard `sharded.spec` of the build of `scene` into `out` and writes `OUT.shard-I-of-N` beside
@@ -65,6 +67,7 @@ pub fn build_shard(
             path: scene.source.display().to_string(),
         });
     }
+    let memory_plan = super::plan_memory(scene, opts, &params)?;
     let mut timings = Timings::default();
     let (forest, mut reports) =
         super::plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
@@ -93,7 +96,7 @@ pub fn build_shard(
     timings.push("shard layout", t);
 
     let t = Instant::now();
-    let cache = raster::ImageCache::new(scene, opts.image_cache_bytes);
+    let cache = raster::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
     let handoffs = super::pixel_pass(
         scene,
         opts.mip_filter,
@@ -133,6 +136,7 @@ pub fn build_shard(
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
         peak_rss_bytes: timings.1.iter().map(|p| p.1).max(),
         stage_peak_rss: timings.1,
+        memory: memory_plan,
     };
     write_sidecar(&path, &report)?;
     Ok(report)

@@ -288,3 +288,46 @@ fn merge_without_shards_or_with_two_counts_says_so() {
     merge(&out, Some(3), &NoProgress).unwrap();
     assert!(TreeFile::open(&out).is_ok());
 }
+
+#[test]
+fn memory_budget_sizes_the_cache_or_refuses_up_front_with_the_number_needed() {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = one_process(&BuildOptions::default(), dir.path());
+    let out = dir.path().join("budget.atlastree");
+    let tight = BuildOptions {
+        max_memory_bytes: Some(100 << 20),
+        ..BuildOptions::default()
+    };
+    match build(city(), &tight, &out, &NoProgress) {
+        Err(atlastree::preprocess::BuildError::Memory(e)) => {
+            assert_eq!(e.budget_mib, 100);
+            assert!(e.needed_mib > 100, "{e}");
+            assert_eq!(e.triangles, city().triangles.len() as u64);
+        }
+        other => panic!("expected a memory error, got {other:?}"),
+    }
+    assert!(!out.exists(), "a refused build wrote {}", out.display());
+    let fits = BuildOptions {
+        max_memory_bytes: Some(300 << 20),
+        ..BuildOptions::default()
+    };
+    let report = build(city(), &fits, &out, &NoProgress).unwrap();
+    let plan = report.memory.expect("a budget gives a memory plan");
+    assert_eq!(plan.budget, 300 << 20);
+    assert!(
+        plan.image_cache_bytes < 2 << 30,
+        "the cache was lowered to fit"
+    );
+    assert!(plan.plan_bytes + plan.raster_bytes + plan.image_cache_bytes * 5 / 4 <= 300 << 20);
+    // The budget changes what is held at once, not what is written.
+    assert!(std::fs::read(&out).unwrap() == reference);
+    // Peak memory per stage: each stage of the build reported once, in order (Linux).
+    if cfg!(target_os = "linux") {
+        let stages: Vec<&str> = report.stage_peak_rss.iter().map(|s| s.0.as_str()).collect();
+        assert_eq!(stages.first(), Some(&"sizing Opaque"));
+        assert_eq!(
+            &stages[stages.len() - 3..],
+            &["rasterise", "write", "total"]
+        );
+    }
+}

@@ -1,0 +1,133 @@
+//! The memory budget of a build (issue 22, `--max-memory`): what the stages need, told up front, and the
+//! image cache sized to what is left.
+//!
+//! A build's peak is the plan (the scene's triangles and the per-triangle sizing, layout and assembly data,
+//! all held at once: [`PLAN_BYTES_PER_TRIANGLE`]) or the pixel pass (decoded images in the bounded
+//! [`super::raster::ImageCache`], whose originals cache may add a quarter, plus a few atlases in f32 per
+//! rasteriser thread). The budget fixes the cache; a budget below what the plan and one pass need is an
+//! error before any work, with the number needed. Not bounded yet: the plan's share grows with the
+//! triangles (no streaming or spilling), in every shard as in one process.
+
+use serde::Serialize;
+
+/// Bytes per scene triangle the import and plan hold at their peak: measured 330 B on
+/// stk_cornfield_crossing (330 k triangles, plan peak 109 MiB) and 170–250 B on larger worlds; rounded up.
+pub const PLAN_BYTES_PER_TRIANGLE: u64 = 400;
+/// The process itself, its libraries and small tables.
+pub const BASE_BYTES: u64 = 64 << 20;
+/// Decoded bytes per source texel in the image cache: RGBA8 (4) and the linear f32 mip chain (16 × 4/3).
+pub const CACHE_BYTES_PER_TEXEL: u64 = 26;
+/// Atlases' worth of f32 RGBA texels one rasteriser thread holds (the atlas, its mip chain, the halves of
+/// its children waiting to be combined, the encoded block).
+pub const ATLASES_PER_THREAD: u64 = 4;
+/// Smallest image cache worth running with.
+pub const MIN_IMAGE_CACHE: u64 = 64 << 20;
+
+/// How a build spends its memory budget (bytes).
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq, Eq)]
+pub struct MemoryPlan {
+    /// `--max-memory`.
+    pub budget: u64,
+    /// Import and plan: triangles × [`PLAN_BYTES_PER_TRIANGLE`] + [`BASE_BYTES`].
+    pub plan_bytes: u64,
+    /// Rasteriser threads' working atlases.
+    pub raster_bytes: u64,
+    /// The image cache's bound (the originals cache may add a quarter of it).
+    pub image_cache_bytes: u64,
+    /// The least budget this build runs in: plan, raster and a cache that holds the largest image once
+    /// per thread (at least [`MIN_IMAGE_CACHE`]).
+    pub needed_bytes: u64,
+}
+
+/// Why a budget is too small.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+#[error(
+    "the build needs about {needed_mib} MiB ({triangles} triangles: {plan_mib} MiB for the plan; {raster_mib} MiB \
+     for {threads} rasteriser threads; {cache_mib} MiB of image cache for the largest image, {largest_texels} texels, \
+     once per thread), over --max-memory {budget_mib} MiB: raise --max-memory (the plan's share does not shrink \
+     with --shard yet)"
+)]
+pub struct MemoryError {
+    pub budget_mib: u64,
+    pub needed_mib: u64,
+    pub triangles: u64,
+    pub plan_mib: u64,
+    pub raster_mib: u64,
+    pub threads: u64,
+    pub cache_mib: u64,
+    pub largest_texels: u64,
+}
+
+/// Splits `budget` between plan, rasteriser threads and the image cache (at most `cache_wanted`); fails when
+/// even the smallest cache does not fit.
+pub fn plan_memory(
+    budget: u64,
+    triangles: u64,
+    atlas_size: u32,
+    threads: u64,
+    largest_image_texels: u64,
+    cache_wanted: u64,
+) -> Result<MemoryPlan, MemoryError> {
+    let plan_bytes = BASE_BYTES.saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE));
+    let atlas = u64::from(atlas_size).pow(2) * 16;
+    let raster_bytes = threads.max(1) * ATLASES_PER_THREAD * atlas;
+    let floor =
+        (largest_image_texels * CACHE_BYTES_PER_TEXEL * threads.max(1)).max(MIN_IMAGE_CACHE);
+    // The originals cache may hold a quarter of the image cache's bound on top of it.
+    let needed_bytes = plan_bytes
+        .saturating_add(raster_bytes)
+        .saturating_add(floor + floor / 4);
+    if needed_bytes > budget {
+        let mib = |b: u64| b.div_ceil(1 << 20);
+        return Err(MemoryError {
+            budget_mib: budget >> 20,
+            needed_mib: mib(needed_bytes),
+            triangles,
+            plan_mib: mib(plan_bytes),
+            raster_mib: mib(raster_bytes),
+            threads,
+            cache_mib: mib(floor + floor / 4),
+            largest_texels: largest_image_texels,
+        });
+    }
+    let left = budget - plan_bytes - raster_bytes;
+    Ok(MemoryPlan {
+        budget,
+        plan_bytes,
+        raster_bytes,
+        image_cache_bytes: (left / 5 * 4).min(cache_wanted).max(floor),
+        needed_bytes,
+    })
+}
+
+/// The default budget: half of the machine's memory where the platform tells (Linux `MemTotal`), else none.
+pub fn default_budget() -> Option<u64> {
+    crate::util::machine_memory_bytes().map(|m| m / 2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn budget_fixes_the_cache_and_refuses_what_cannot_fit() {
+        // 1 M triangles, 1024² atlases, 2 threads, a 2048² largest image, 2 GiB wanted.
+        let p = plan_memory(2 << 30, 1_000_000, 1024, 2, 2048 * 2048, 2 << 30).unwrap();
+        assert_eq!(p.plan_bytes, (64 << 20) + 400_000_000);
+        assert_eq!(p.raster_bytes, 2 * 4 * 1024 * 1024 * 16);
+        let left = (2u64 << 30) - p.plan_bytes - p.raster_bytes;
+        assert_eq!(p.image_cache_bytes, left / 5 * 4);
+        assert!(p.plan_bytes + p.raster_bytes + p.image_cache_bytes * 5 / 4 <= 2 << 30);
+        // A generous budget keeps the wanted cache.
+        let p = plan_memory(64 << 30, 1000, 1024, 2, 1 << 20, 2 << 30).unwrap();
+        assert_eq!(p.image_cache_bytes, 2 << 30);
+        // 20 M triangles do not fit 2 GiB: the error gives the number needed.
+        let e = plan_memory(2 << 30, 20_000_000, 1024, 2, 2048 * 2048, 2 << 30).unwrap_err();
+        assert_eq!(
+            e.plan_mib,
+            ((64u64 << 20) + 8_000_000_000).div_ceil(1 << 20)
+        );
+        assert!(e.needed_mib > 2048);
+        assert!(e.to_string().contains("raise --max-memory"));
+    }
+}

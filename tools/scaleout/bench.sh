@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Sharded-build benchmark (issue 22): the one-process build of SCENE, then the same build as N shards run one
+# after another on this machine and the merge, each under /usr/bin/time (wall seconds, peak RSS); checks the
+# merged file is byte-identical and prints a Markdown table plus the critical path on N machines
+# (max shard + merge) against the one-process time.
+#
+#   tools/scaleout/bench.sh BIN SCENE WORKDIR N [build flags…]
+#   e.g. tools/scaleout/bench.sh target/release/atlastree /tmp/berlin4/scene.gltf /tmp/bench 4 --compress bc1
+set -euo pipefail
+bin=$1 scene=$2 work=$3 n=$4
+shift 4
+mkdir -p "$work"
+one="$work/one.atlastree" out="$work/sharded.atlastree"
+rm -f "$one" "$out" "$out".shard-*
+
+# Runs a command under GNU time; prints "seconds peak_kib".
+timed() {
+    local log
+    log=$(mktemp)
+    /usr/bin/time -f '%e %M' -o "$log" "$@" >/dev/null
+    cat "$log"
+    rm -f "$log"
+}
+
+read -r one_s one_kib < <(timed "$bin" build "$scene" -o "$one" -q "$@")
+echo "| step | wall s | peak RSS MiB |"
+echo "|---|---|---|"
+echo "| one process | $one_s | $((one_kib / 1024)) |"
+max_s=0 sum_s=0 max_kib=0
+for ((i = 0; i < n; i++)); do
+    read -r s kib < <(timed "$bin" build "$scene" -o "$out" -q "$@" --shard "$i/$n")
+    echo "| shard $i/$n | $s | $((kib / 1024)) |"
+    max_s=$(python3 -c "print(max($max_s, $s))")
+    sum_s=$(python3 -c "print($sum_s + $s)")
+    ((kib > max_kib)) && max_kib=$kib
+done
+read -r merge_s merge_kib < <(timed "$bin" merge "$out" -q)
+echo "| merge | $merge_s | $((merge_kib / 1024)) |"
+if cmp -s "$one" "$out"; then ident="byte-identical"; else ident="DIFFERENT"; fi
+python3 - "$one_s" "$max_s" "$sum_s" "$merge_s" "$n" "$ident" <<'PY'
+import sys
+one, mx, total, merge, n, ident = float(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]), sys.argv[6]
+mean = total / n
+print(f"\nmerged file: {ident}; critical path on {n} machines = max shard + merge = {mx:.1f} + {merge:.1f} s = "
+      f"{(mx + merge) / one:.2f}× the one-process {one:.1f} s; merge {merge / one:.1%} of it; max/mean shard {mx / mean:.2f}; "
+      f"all shards together {total / one:.2f}× the one-process CPU time")
+PY
+[[ $ident == byte-identical ]]
