@@ -331,3 +331,58 @@ fn memory_budget_sizes_the_cache_or_refuses_up_front_with_the_number_needed() {
         );
     }
 }
+
+/// `atlastree merge OUT -q` as a child process.
+fn merge_cmd(out: &Path) -> std::process::Command {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_atlastree"));
+    c.arg("merge").arg(out).arg("-q");
+    c
+}
+
+#[test]
+fn killed_merge_leaves_nothing_or_the_whole_file_and_a_rerun_succeeds() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    build_shards(&deep_opts(), &out, 4);
+    let start = std::time::Instant::now();
+    assert!(merge_cmd(&out).status().unwrap().success());
+    let took = start.elapsed();
+    let reference = std::fs::read(&out).unwrap();
+    let (mut absent, mut complete) = (0, 0);
+    let points = 16u32;
+    for k in 0..points {
+        std::fs::remove_file(&out).unwrap();
+        let delay = took.mul_f64(1.2 * f64::from(k) / f64::from(points));
+        let mut child = merge_cmd(&out)
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(delay);
+        let _ = child.kill();
+        child.wait().unwrap();
+        match std::fs::read(&out) {
+            Ok(bytes) => {
+                assert!(
+                    bytes == reference,
+                    "kill at {delay:?}: a partial or different file"
+                );
+                complete += 1;
+            }
+            Err(_) => absent += 1,
+        }
+        // The rerun writes the same bytes and leaves no temp file.
+        assert!(merge_cmd(&out).status().unwrap().success());
+        assert!(std::fs::read(&out).unwrap() == reference);
+        let temps: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| !n.starts_with("city.atlastree"))
+            .collect();
+        assert!(temps.is_empty(), "kill at {delay:?}: left {temps:?}");
+    }
+    println!(
+        "merge kill test: {points} kill points over 1.2 × {took:?}: {absent} no file, {complete} complete"
+    );
+    assert!(absent > 0, "no kill landed before the rename");
+}
