@@ -437,7 +437,7 @@ pub fn merge(
     };
     let tables = TreeFile::from_prefix(&prefix, prefix_file_len(&prefix), &name)
         .map_err(|e| foreign(first, format!("its table prefix does not open: {e}")))?;
-    let forest = tables.to_forest();
+    let forest = tables.to_skeleton();
     drop(tables);
     let cut = choose_cut(&forest, count);
     check_cut(&forest, &cut, &shards, &foreign)?;

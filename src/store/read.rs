@@ -141,6 +141,16 @@ impl TreeView<'_> {
 
     /// Decodes the tree into its in-memory form.
     pub fn to_tree(&self) -> Option<AtlasTree> {
+        let mut tree = self.to_skeleton()?;
+        tree.vertices = self.vertices.to_vec();
+        tree.indices = self.indices.to_vec();
+        tree.source_triangles = self.source_triangles.to_vec();
+        Some(tree)
+    }
+
+    /// The tree without its geometry (vertices, indices and source triangles empty): nodes, leaves, rects
+    /// and originals, all a merge of shards needs (a few bytes per node, none per triangle).
+    pub fn to_skeleton(&self) -> Option<AtlasTree> {
         Some(AtlasTree {
             kind: self.kind,
             format: self.format(),
@@ -154,9 +164,9 @@ impl TreeView<'_> {
                 .iter()
                 .map(|l| l.decode(self.leaf_rects(l), self.leaf_originals(l)))
                 .collect(),
-            vertices: self.vertices.to_vec(),
-            indices: self.indices.to_vec(),
-            source_triangles: self.source_triangles.to_vec(),
+            vertices: Vec::new(),
+            indices: Vec::new(),
+            source_triangles: Vec::new(),
         })
     }
 }
@@ -759,6 +769,15 @@ impl TreeFile {
 
     /// Decodes the whole file back into an [`AtlasForest`] (tables only; blocks stay in the file).
     pub fn to_forest(&self) -> AtlasForest {
+        self.decode_forest(|t| t.to_tree())
+    }
+
+    /// [`TreeFile::to_forest`] without the trees' geometry ([`TreeView::to_skeleton`]).
+    pub fn to_skeleton(&self) -> AtlasForest {
+        self.decode_forest(|t| t.to_skeleton())
+    }
+
+    fn decode_forest(&self, tree: fn(&TreeView<'_>) -> Option<AtlasTree>) -> AtlasForest {
         let materials: Vec<Material> = (self.materials().iter().enumerate())
             .filter_map(|(i, m)| m.decode(self.material_name(i).unwrap_or("")))
             .collect();
@@ -766,7 +785,7 @@ impl TreeFile {
             params: self.to_params(),
             materials,
             trees: (0..self.trees())
-                .filter_map(|i| self.tree(i)?.to_tree())
+                .filter_map(|i| tree(&self.tree(i)?))
                 .collect(),
             blocks: self
                 .blocks()
