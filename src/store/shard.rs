@@ -473,14 +473,13 @@ impl ShardFile {
                 expected: header.file_len,
             });
         }
-        let entries = header
+        let aligned = |x: u64| x.checked_next_multiple_of(ALIGN);
+        let head = header
             .blocks
             .checked_add(header.handoffs)
-            .and_then(|n| n.checked_mul(40));
-        let head = align(header.argv_len)
-            .checked_add(align(header.prefix_len))
-            .zip(entries)
-            .and_then(|(h, e)| h.checked_add(e))
+            .and_then(|n| n.checked_mul(40))
+            .zip(aligned(header.argv_len).zip(aligned(header.prefix_len)))
+            .and_then(|(e, (a, p))| a.checked_add(p)?.checked_add(e))
             .filter(|&t| t <= len - HEADER_BYTES)
             .ok_or_else(|| layout("tables larger than the file".into()))?;
         let tables = read_at(&file, HEADER_BYTES, head).map_err(io)?;
