@@ -1,7 +1,7 @@
 //! [`LinearImage`]: the working format of every filter, linear RGB premultiplied by linear alpha.
 
 use super::ImageOpsError;
-use super::srgb::{linear_to_srgb8, srgb8_to_linear};
+use super::srgb::{Encoder, srgb8_to_linear};
 use crate::scene::DecodedImage;
 use rayon::prelude::*;
 use std::collections::VecDeque;
@@ -122,20 +122,23 @@ impl LinearImage {
     /// the stored straight-alpha texture does not pull black into alpha-tested edges. A fully transparent
     /// image stays transparent black.
     pub fn to_rgba8(&self) -> Vec<u8> {
+        // Runs of texels per task: the per-texel work is a few table lookups, too little for a task each.
+        const RUN: usize = 4096;
         let n = self.texel_count();
         let mut out = vec![0u8; n.saturating_mul(4)];
+        let enc = Encoder::get();
+        let run = |(px, texels): (&mut [u8], &[[f32; 4]])| {
+            for (p, &t) in px.chunks_exact_mut(4).zip(texels) {
+                p.copy_from_slice(&encode_texel(enc, t));
+            }
+        };
+        let data = &self.data[..n.min(self.data.len())];
         if n >= PAR_TEXELS {
-            out.par_chunks_exact_mut(4)
-                .zip(self.data.par_iter())
-                .for_each(|(px, &t)| {
-                    px.copy_from_slice(&encode_texel(t));
-                });
+            out.par_chunks_mut(RUN * 4)
+                .zip(data.par_chunks(RUN))
+                .for_each(run);
         } else {
-            out.chunks_exact_mut(4)
-                .zip(self.data.iter())
-                .for_each(|(px, &t)| {
-                    px.copy_from_slice(&encode_texel(t));
-                });
+            run((&mut out, data));
         }
         if out.chunks_exact(4).any(|px| px[3] == 0) {
             bleed_into_transparent(&mut out, self.width as usize, self.height as usize);
@@ -158,17 +161,21 @@ fn decode_texel(p: [u8; 4]) -> [f32; 4] {
 
 /// Linear premultiplied → sRGB8 straight; alpha is clamped to `[0, 1]`, 8-bit alpha 0 → `[0, 0, 0, 0]`.
 #[inline]
-fn encode_texel(t: [f32; 4]) -> [u8; 4] {
-    let a = if t[3] > 0.0 { t[3].min(1.0) } else { 0.0 };
+fn encode_texel(enc: Encoder, t: [f32; 4]) -> [u8; 4] {
+    // Opaque: a = 1, a8 = 255 and colour × (1 / 1) is the colour itself (the general path's exact result).
+    if t[3] >= 1.0 {
+        return [enc.encode(t[0]), enc.encode(t[1]), enc.encode(t[2]), 255];
+    }
+    let a = if t[3] > 0.0 { t[3] } else { 0.0 };
     let a8 = (a * 255.0).round() as u8;
     if a8 == 0 {
         return [0; 4];
     }
     let inv = 1.0 / a;
     [
-        linear_to_srgb8(t[0] * inv),
-        linear_to_srgb8(t[1] * inv),
-        linear_to_srgb8(t[2] * inv),
+        enc.encode(t[0] * inv),
+        enc.encode(t[1] * inv),
+        enc.encode(t[2] * inv),
         a8,
     ]
 }

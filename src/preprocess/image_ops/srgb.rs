@@ -66,7 +66,29 @@ pub fn srgb8_to_linear(c: u8) -> f32 {
 /// Exact inverse of [`srgb8_to_linear`] on its 256 values.
 #[inline]
 pub fn linear_to_srgb8(v: f32) -> u8 {
-    let t = &*TABLES;
+    Encoder::get().encode(v)
+}
+
+/// [`linear_to_srgb8`] with the tables looked up once (for loops over many texels).
+#[derive(Copy, Clone)]
+pub struct Encoder(&'static Tables);
+
+impl Encoder {
+    /// The encoder over the shared tables.
+    #[inline]
+    pub fn get() -> Encoder {
+        Encoder(&TABLES)
+    }
+
+    /// [`linear_to_srgb8`].
+    #[inline]
+    pub fn encode(self, v: f32) -> u8 {
+        encode_with(self.0, v)
+    }
+}
+
+#[inline]
+fn encode_with(t: &Tables, v: f32) -> u8 {
     if v.is_nan() || v <= 0.0 {
         return 0;
     }
