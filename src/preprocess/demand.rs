@@ -31,7 +31,7 @@ pub struct DemandModel {
 }
 
 /// Running per-material maxima of a set of triangles.
-#[derive(Copy, Clone, Debug)]
+#[derive(Copy, Clone, Debug, PartialEq)]
 struct Acc {
     w: f64,
     h: f64,
@@ -130,23 +130,68 @@ impl DemandModel {
 /// The demand of every prefix of `items` (indices into `infos`): `out[k]` is the demand of `items[..k]`,
 /// `k = 0..=items.len()` (so `out[0] = 0`). `O(n)` after one map of the materials in `items`.
 pub fn prefix_demands(model: &DemandModel, infos: &[TriInfo], items: &[u32]) -> Vec<u64> {
-    let mut acc: Vec<Acc> = vec![Acc::default(); model.sources.len()];
-    let mut area: Vec<u64> = vec![0; model.sources.len()];
-    let mut total: u64 = 0;
-    let mut out = Vec::with_capacity(items.len() + 1);
-    out.push(0);
-    for &i in items {
-        let t = &infos[i as usize];
-        let m = t.material.idx();
-        if let Some(a) = acc.get_mut(m) {
-            a.add(t);
-            let new = model.area(m, a);
-            total = total.saturating_sub(area[m]).saturating_add(new);
-            area[m] = new;
+    SCRATCH.with(|scratch| {
+        let mut scratch = scratch.borrow_mut();
+        scratch.prefix_demands(model, infos, items)
+    })
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// Per-thread accumulators of [`prefix_demands`], sparse over the materials a call meets: a call costs
+/// O(items), not O(materials of the scene) (which dominated the layout of scenes with thousands of
+/// materials, where most nodes hold a few).
+#[derive(Default)]
+struct Scratch {
+    /// Per scene material: the call that last used it, and its slot in `accs` for that call.
+    stamp: Vec<u64>,
+    slot: Vec<u32>,
+    call: u64,
+    accs: Vec<(Acc, u64)>,
+}
+
+impl Scratch {
+    fn prefix_demands(
+        &mut self,
+        model: &DemandModel,
+        infos: &[TriInfo],
+        items: &[u32],
+    ) -> Vec<u64> {
+        let materials = model.sources.len();
+        if self.stamp.len() < materials {
+            self.stamp.resize(materials, 0);
+            self.slot.resize(materials, 0);
         }
-        out.push(total);
+        self.call += 1;
+        self.accs.clear();
+        let mut total: u64 = 0;
+        let mut out = Vec::with_capacity(items.len() + 1);
+        out.push(0);
+        for &i in items {
+            let t = &infos[i as usize];
+            let m = t.material.idx();
+            if m < materials {
+                if self.stamp[m] != self.call {
+                    self.stamp[m] = self.call;
+                    self.slot[m] = self.accs.len() as u32;
+                    self.accs.push((Acc::default(), 0));
+                }
+                let (acc, area) = &mut self.accs[self.slot[m] as usize];
+                let before = *acc;
+                acc.add(t);
+                // Unchanged maxima give the same area: skip recomputing it.
+                if *acc != before {
+                    let new = model.area(m, acc);
+                    total = total.saturating_sub(*area).saturating_add(new);
+                    *area = new;
+                }
+            }
+            out.push(total);
+        }
+        out
     }
-    out
 }
 
 /// The demand of a whole set (analyzer twin of [`prefix_demands`]: its last entry).
