@@ -172,11 +172,15 @@ impl RenderArgs {
 }
 
 pub(super) fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
-    execute(&a.validate()?)
+    execute(&a.validate()?)?;
+    Ok(ExitCode::SUCCESS)
 }
 
-/// Runs a checked configuration.
-pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<ExitCode> {
+/// What a run measured: per mode, in `--mode` order, every frame's counters.
+pub(super) type Measured = Vec<(Mode, Vec<FrameStats>)>;
+
+/// Runs a checked configuration; returns what it measured.
+pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     let (file, http) = open_tree(&cfg.tree)?;
     let cameras = sample_cameras(cfg, &file)?;
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
@@ -191,7 +195,7 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<ExitCode> {
         );
     }
     write_and_report(&runs)?;
-    Ok(ExitCode::SUCCESS)
+    Ok(runs.into_iter().map(|r| (r.mode, r.stats)).collect())
 }
 
 /// Phase 1: the tree's tables, from the file or over HTTP (with the HTTP source for its blocks).

@@ -41,4 +41,5 @@ mod store;
 mod store_bytes;
 mod sweep;
 mod texfmt;
+mod tour;
 mod views;
