@@ -36,7 +36,7 @@ pub(crate) struct RenderArgs {
     /// Output directory (one subdirectory per mode when several modes are given).
     #[arg(long, default_value = "out/render")]
     pub out: PathBuf,
-    /// tree (the product), original (naive per-texture draws), dummy (one 1×1 texture), tree-levels (colour
+    /// tree (the product), original (naive per-texture draws), dummy (the tree's draws with one texture and a trivial fragment shader), tree-levels (colour
     /// by level). Comma-separated to measure several modes in one run on the same frames.
     #[arg(long, default_value = "tree", value_delimiter = ',')]
     pub mode: Vec<Mode>,
@@ -194,7 +194,7 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
             "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
         );
     }
-    write_and_report(&runs)?;
+    write_and_report(&cfg.out, &runs)?;
     Ok(runs.into_iter().map(|r| (r.mode, r.stats)).collect())
 }
 
@@ -395,9 +395,10 @@ fn fly(
     Ok(())
 }
 
-/// Phase 7: per mode `stats.csv`, the contact sheet and a summary on stdout; then the frame-time ratios
-/// between modes.
-fn write_and_report(runs: &[ModeRun]) -> anyhow::Result<()> {
+/// Phase 7: per mode `stats.csv`, the contact sheet and a summary on stdout; then the median frame times
+/// of the modes and their ratios (tree ÷ dummy, original ÷ dummy, tree ÷ original: the paper's
+/// comparison), on stdout and in `OUT/summary.json`.
+fn write_and_report(out: &Path, runs: &[ModeRun]) -> anyhow::Result<()> {
     let mut medians = Vec::new();
     for run in runs {
         write_stats_csv(&run.dir.join("stats.csv"), &run.stats)?;
@@ -406,18 +407,72 @@ fn write_and_report(runs: &[ModeRun]) -> anyhow::Result<()> {
                 .save(run.dir.join("contact_sheet.png"))
                 .context("writing the contact sheet")?;
         }
-        let frame = median(run.stats.iter().map(|s| s.frame_ms));
-        medians.push((run.mode, frame));
+        medians.push(ModeMedians::of(run.mode, &run.stats));
         print_summary(run.mode, &run.stats, &run.dir);
     }
-    let median_of = |m: Mode| medians.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
-    if let (Some(t), Some(d)) = (median_of(Mode::Tree), median_of(Mode::Dummy)) {
-        println!("median frame time tree / dummy: {:.3}", t / d);
+    let ratios = frame_ratios(&medians);
+    for (name, r) in &ratios {
+        println!("median frame time {name}: {r:.3}");
     }
-    if let (Some(t), Some(o)) = (median_of(Mode::Tree), median_of(Mode::Original)) {
-        println!("median frame time original / tree: {:.3}", o / t);
-    }
+    let json = serde_json::json!({
+        "modes": medians.iter().map(|m| (m.mode.name().to_string(), serde_json::json!({
+            "frames": m.frames,
+            "median_frame_ms": m.frame_ms,
+            "median_gpu_ms": m.gpu_ms,
+        }))).collect::<serde_json::Map<String, serde_json::Value>>(),
+        "ratios": ratios.iter().map(|(name, r)| (ratio_key(name), serde_json::json!(r)))
+            .collect::<serde_json::Map<String, serde_json::Value>>(),
+    });
+    let path = out.join("summary.json");
+    atlastree::util::write_atomic(
+        &path,
+        (serde_json::to_string_pretty(&json)? + "\n").as_bytes(),
+    )
+    .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+/// One mode's medians over the run.
+struct ModeMedians {
+    mode: Mode,
+    frames: usize,
+    frame_ms: f64,
+    /// `None` without GPU timestamps.
+    gpu_ms: Option<f64>,
+}
+
+impl ModeMedians {
+    fn of(mode: Mode, stats: &[FrameStats]) -> ModeMedians {
+        let gpu: Vec<f64> = stats.iter().filter_map(|s| s.gpu_ms).collect();
+        ModeMedians {
+            mode,
+            frames: stats.len(),
+            frame_ms: median(stats.iter().map(|s| s.frame_ms)),
+            gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
+        }
+    }
+}
+
+/// The ratios of median frame times between the modes measured: `tree ÷ dummy`, `original ÷ dummy`,
+/// `tree ÷ original` (those whose two modes ran).
+fn frame_ratios(medians: &[ModeMedians]) -> Vec<(String, f64)> {
+    let of = |m: Mode| medians.iter().find(|k| k.mode == m).map(|k| k.frame_ms);
+    [
+        (Mode::Tree, Mode::Dummy),
+        (Mode::Original, Mode::Dummy),
+        (Mode::Tree, Mode::Original),
+    ]
+    .into_iter()
+    .filter_map(|(a, b)| {
+        let (x, y) = (of(a)?, of(b)?);
+        Some((format!("{} ÷ {}", a.name(), b.name()), x / y))
+    })
+    .collect()
+}
+
+/// `tree ÷ dummy` → `tree_over_dummy`.
+fn ratio_key(name: &str) -> String {
+    name.replace(" ÷ ", "_over_")
 }
 
 /// Mean and max of a column.
