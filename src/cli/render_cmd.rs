@@ -7,9 +7,11 @@ use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
 use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource};
 use atlastree::plan::PagingSetup;
+use atlastree::render::reference::Reference;
 use atlastree::render::{FrameLoop, FrameStats, Mode, RendererOptions};
 use atlastree::report::columns;
 use atlastree::report::csv::CsvWriter;
+use atlastree::report::metrics;
 use atlastree::store::TreeFile;
 use atlastree::sweep::summary::median;
 use clap::Args;
@@ -60,6 +62,12 @@ pub(crate) struct RenderArgs {
     /// wrapped atlas UVs costs ~100× per pixel). Lower values trade sharpness at grazing angles for time.
     #[arg(long, default_value = "auto", value_parser = parse_anisotropy)]
     pub anisotropy: u16,
+    /// Measure every frame of modes tree, dummy and original against a reference (PSNR and SSIM, printed
+    /// and in summary.json): `original` (the original textures at the frame's resolution) or
+    /// `supersampled[:S]` (the original textures at S × S the pixels, box-filtered in linear light; S = 4
+    /// by default): ground truth where the original itself aliases. Needs every block resident.
+    #[arg(long)]
+    pub reference: Option<Reference>,
     #[command(flatten, next_help_heading = "Viewport")]
     pub viewport: ViewportArgs,
     #[command(flatten, next_help_heading = "Paging")]
@@ -91,6 +99,8 @@ pub(crate) struct RenderConfig {
     pub warmup: usize,
     pub gpu_timing: bool,
     pub anisotropy: u16,
+    /// Frames measured against this reference (never with paging).
+    pub reference: Option<Reference>,
     /// `None`: every block uploaded at start.
     pub paging: Option<RenderPaging>,
 }
@@ -148,6 +158,14 @@ impl RenderArgs {
         } else {
             None
         };
+        if paging.is_some()
+            && let Some(r) = self.reference
+        {
+            bail!(
+                "--reference {} draws the original textures and needs every block resident: not with paging",
+                r.name()
+            );
+        }
         if paging.is_some() && modes.contains(&Mode::Original) {
             bail!(
                 "--mode original draws every original texture naively and needs every block resident: \
@@ -166,6 +184,7 @@ impl RenderArgs {
             warmup: self.warmup,
             gpu_timing: !self.no_gpu_timing,
             anisotropy: self.anisotropy,
+            reference: self.reference,
             paging,
         })
     }
@@ -194,7 +213,7 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
             "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
         );
     }
-    write_and_report(&cfg.out, &runs)?;
+    write_and_report(&cfg.out, cfg.reference, &runs)?;
     Ok(runs.into_iter().map(|r| (r.mode, r.stats)).collect())
 }
 
@@ -337,6 +356,7 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
             mode,
             dir,
             stats: Vec::with_capacity(frames),
+            quality: Vec::new(),
             thumbs: Vec::new(),
         });
     }
@@ -384,8 +404,26 @@ fn fly(
         let plan = fl
             .planner
             .plan(cam, i as f64 / cfg.fps, scale, &mut fl.renderer.residency())?;
+        let truth = match cfg.reference {
+            None => None,
+            Some(Reference::Supersampled(k)) => Some(fl.renderer.execute_supersampled(plan, k)?),
+            Some(Reference::Original) => {
+                fl.renderer.execute(plan, Mode::Original)?;
+                Some(fl.renderer.read_frame()?)
+            }
+        };
         for run in runs.iter_mut() {
             let s = fl.renderer.execute(plan, run.mode)?;
+            if let Some(truth) = &truth
+                && measured(run.mode, cfg.reference)
+            {
+                let rgba = fl.renderer.read_frame()?;
+                let (w, h) = (cfg.viewport.width, cfg.viewport.height);
+                run.quality.push((
+                    metrics::psnr(&rgba, truth, w, h)?,
+                    metrics::ssim(&rgba, truth, w, h)?,
+                ));
+            }
             run.stats.push(s);
             if cfg.every > 0 && i % cfg.every == 0 {
                 run.save_frame(&fl.renderer, &cfg.viewport, i)?;
@@ -395,10 +433,23 @@ fn fly(
     Ok(())
 }
 
+/// Whether frames of `mode` are measured against `reference`: tree, dummy and original (not original
+/// against itself), not the flat level colours.
+fn measured(mode: Mode, reference: Option<Reference>) -> bool {
+    !matches!(
+        (mode, reference),
+        (_, None) | (Mode::TreeLevels, _) | (Mode::Original, Some(Reference::Original))
+    )
+}
+
 /// Phase 7: per mode `stats.csv`, the contact sheet and a summary on stdout; then the median frame times
 /// of the modes and their ratios (tree ÷ dummy, original ÷ dummy, tree ÷ original: the paper's
 /// comparison), on stdout and in `OUT/summary.json`.
-fn write_and_report(out: &Path, runs: &[ModeRun]) -> anyhow::Result<()> {
+fn write_and_report(
+    out: &Path,
+    reference: Option<Reference>,
+    runs: &[ModeRun],
+) -> anyhow::Result<()> {
     let mut medians = Vec::new();
     for run in runs {
         write_stats_csv(&run.dir.join("stats.csv"), &run.stats)?;
@@ -409,6 +460,16 @@ fn write_and_report(out: &Path, runs: &[ModeRun]) -> anyhow::Result<()> {
         }
         medians.push(ModeMedians::of(run.mode, &run.stats));
         print_summary(run.mode, &run.stats, &run.dir);
+        if let (Some(r), Some(q)) = (reference, Quality::of(&run.quality)) {
+            println!(
+                "  against the {} reference: PSNR mean {:.2} dB (min {:.2}), SSIM mean {:.4} (min {:.4})",
+                r.name(),
+                q.psnr_mean,
+                q.psnr_min,
+                q.ssim_mean,
+                q.ssim_min
+            );
+        }
     }
     let ratios = frame_ratios(&medians);
     for (name, r) in &ratios {
@@ -419,7 +480,16 @@ fn write_and_report(out: &Path, runs: &[ModeRun]) -> anyhow::Result<()> {
             "frames": m.frames,
             "median_frame_ms": m.frame_ms,
             "median_gpu_ms": m.gpu_ms,
+            "reference": runs.iter().find(|r| r.mode == m.mode).and_then(|r| Quality::of(&r.quality)).map(|q| serde_json::json!({
+                "psnr_db_mean": q.psnr_mean,
+                "psnr_db_min": q.psnr_min,
+                "ssim_mean": q.ssim_mean,
+                "ssim_min": q.ssim_min,
+                "psnr_db": q.psnr,
+                "ssim": q.ssim,
+            })),
         }))).collect::<serde_json::Map<String, serde_json::Value>>(),
+        "reference": reference.map(|r| r.name()),
         "ratios": ratios.iter().map(|(name, r)| (ratio_key(name), serde_json::json!(r)))
             .collect::<serde_json::Map<String, serde_json::Value>>(),
     });
@@ -430,6 +500,36 @@ fn write_and_report(out: &Path, runs: &[ModeRun]) -> anyhow::Result<()> {
     )
     .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+/// A mode's frames against the reference.
+struct Quality {
+    psnr_mean: f64,
+    psnr_min: f64,
+    ssim_mean: f64,
+    ssim_min: f64,
+    psnr: Vec<f64>,
+    ssim: Vec<f64>,
+}
+
+impl Quality {
+    /// `None` when no frame was measured.
+    fn of(frames: &[(f64, f64)]) -> Option<Quality> {
+        if frames.is_empty() {
+            return None;
+        }
+        let n = frames.len() as f64;
+        let psnr: Vec<f64> = frames.iter().map(|q| q.0).collect();
+        let ssim: Vec<f64> = frames.iter().map(|q| q.1).collect();
+        Some(Quality {
+            psnr_mean: psnr.iter().sum::<f64>() / n,
+            psnr_min: psnr.iter().copied().fold(f64::INFINITY, f64::min),
+            ssim_mean: ssim.iter().sum::<f64>() / n,
+            ssim_min: ssim.iter().copied().fold(f64::INFINITY, f64::min),
+            psnr,
+            ssim,
+        })
+    }
 }
 
 /// One mode's medians over the run.
@@ -496,6 +596,8 @@ struct ModeRun {
     dir: PathBuf,
     stats: Vec<FrameStats>,
     thumbs: Vec<image::RgbaImage>,
+    /// Per frame (PSNR dB, SSIM) against `--reference`, for the modes measured.
+    quality: Vec<(f64, f64)>,
 }
 
 impl ModeRun {

@@ -10,6 +10,7 @@ use super::pipeline::{
     COLOR_FORMAT, DEPTH_FORMAT, PassPipelines, Specialisation, sampler, tree_bind_group_layout,
     vertex_layout,
 };
+use super::reference::Supersample;
 use super::resident::Resident;
 use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
 use super::wgsl::tree::{self, Globals, MODE_LEVELS, MODE_TEXTURED};
@@ -191,6 +192,8 @@ pub struct Renderer<'f> {
     pub(super) naive: Option<Naive>,
     /// The dummy baseline's pipelines and texture, created on the first dummy frame.
     pub(super) dummy: Option<Dummy>,
+    /// The supersampled reference's targets and pass, created on first use.
+    pub(super) supersample: Option<Supersample>,
     pub color: wgpu::Texture,
     pub(super) color_view: wgpu::TextureView,
     pub(super) depth_view: wgpu::TextureView,
@@ -325,6 +328,7 @@ impl<'f> Renderer<'f> {
             samplers,
             naive: None,
             dummy: None,
+            supersample: None,
             color,
             color_view,
             depth_view,

@@ -15,6 +15,9 @@
 //!
 //! Debug: [`Renderer::execute_density`] writes texels per pixel instead of colours ([`density`]).
 //!
+//! Ground truth: [`Renderer::execute_supersampled`] draws a plan with the original textures at S × S the
+//! pixels and box-filters it in linear light ([`reference`]).
+//!
 //! Shaders: `shaders/tree.wgsl` (tree, levels, density), `shaders/naive.wgsl` (original),
 //! `shaders/dummy.wgsl` (dummy); their Rust twins (buffer structs, bindings, overrides, codes) are
 //! [`wgsl::tree`], [`wgsl::naive`] and [`wgsl::dummy`].
@@ -28,6 +31,7 @@ mod frame_loop;
 mod naive;
 pub mod naive_batch;
 pub mod pipeline;
+pub mod reference;
 pub mod resident;
 pub mod textures;
 pub mod wgsl;

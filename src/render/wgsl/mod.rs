@@ -15,6 +15,7 @@
 //! - [`dummy`]: `shaders/dummy.wgsl`, the paper's dummy baseline (`--mode dummy`): the tree's draws, one
 //!   texture, a trivial fragment shader.
 //! - [`blit`]: `shaders/blit.wgsl`, the viewer's present pass.
+//! - [`downsample`]: `shaders/downsample.wgsl`, the supersampled reference's box filter in linear light.
 //! - [`smoke_tab`]: `shaders/smoke_tab.wgsl`, the texture-array batching smoke test (`tests/gpu`).
 //!
 //! `shaders/smoke.wgsl` shares nothing with the host but a vertex buffer, so it has no module.
@@ -53,6 +54,7 @@ macro_rules! wgsl_overrides {
 }
 
 pub mod blit;
+pub mod downsample;
 pub mod dummy;
 pub mod naive;
 pub mod smoke_tab;
