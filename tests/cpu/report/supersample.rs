@@ -33,7 +33,13 @@ fn reference_values_parse() {
     assert_eq!("original".parse(), Ok(Reference::Original));
     assert_eq!("supersampled".parse(), Ok(Reference::Supersampled(4)));
     assert_eq!("supersampled:2".parse(), Ok(Reference::Supersampled(2)));
-    for bad in ["supersampled:0", "supersampled:9", "supersampled:x", "truth", ""] {
+    for bad in [
+        "supersampled:0",
+        "supersampled:9",
+        "supersampled:x",
+        "truth",
+        "",
+    ] {
         assert!(bad.parse::<Reference>().is_err(), "{bad}");
     }
     assert_eq!(Reference::Supersampled(3).name(), "supersampled:3");
