@@ -1,6 +1,7 @@
 use super::{UpArg, build_cmd, inspect_cmd, load_scene, progress::Bars, render_cmd, simulate_cmd};
 use anyhow::Context;
-use atlastree::preprocess::{BuildOptions, DMin, build};
+use atlastree::preprocess::build;
+use atlastree::sim::tour::{DemoTour, TreeLevels, levels_along};
 use clap::Args;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
@@ -19,39 +20,64 @@ pub(crate) struct DemoArgs {
     /// Output directory.
     #[arg(long, default_value = "out/demo")]
     pub out: PathBuf,
-    /// Atlas size for the demo build (small, so the default scene makes a multi-level tree).
-    #[arg(long, default_value_t = 512)]
+    /// Atlas size for the demo build: 256, not the default 1024, so that the embedded 2-Mtexel district
+    /// needs many atlases and splits into a quadtree of depth ≥ 3 (at 1024 it is one scaled leaf).
+    #[arg(long, default_value_t = DemoTour::DEFAULT.atlas_size)]
     pub atlas_size: u32,
     /// d_min = scene diagonal / R. The default scene is a 600 m district, not a 10 km city, so its d_min is
-    /// D/10 (61 m) rather than the paper's D/151 for Berlin.
-    #[arg(long, default_value_t = 10.0)]
+    /// D/8 (76 m) rather than the paper's D/151 for Berlin: the root's min_distance (610 m) is then within
+    /// the overview's height, and the dive draws every level.
+    #[arg(long, default_value_t = DemoTour::DEFAULT.d_min_ratio)]
     pub d_min_ratio: f64,
     /// `build --leaf-originals` for the demo: the default scene holds only 2 Mtexels of textures, which the
-    /// default budget (16 atlases) keeps in one scaled leaf; 2 atlases give a multi-level tree to page.
-    #[arg(long, default_value_t = 2.0)]
+    /// default budget (16 atlases) keeps in one scaled leaf; 2 atlases split it down to small leaves.
+    #[arg(long, default_value_t = DemoTour::DEFAULT.leaf_originals)]
     pub leaf_originals: f64,
-    /// Frames of the rendered overview-dive (every 10th is written as PNG).
-    #[arg(long, default_value_t = 60)]
+    /// Frames of the rendered overview-dive, spread evenly over the whole path (first to last keyframe).
+    #[arg(long, default_value_t = DemoTour::DEFAULT.frames)]
     pub frames: usize,
+    /// Blocks resident at most in the paged flight: well below the file's block count, so that the flight
+    /// draws missing blocks with their ancestors while they load.
+    #[arg(long, default_value_t = DemoTour::DEFAULT.capacity)]
+    pub capacity: u32,
     /// No progress bars.
     #[arg(short, long)]
     pub quiet: bool,
 }
 
+impl DemoArgs {
+    fn tour(&self) -> DemoTour {
+        DemoTour {
+            atlas_size: self.atlas_size,
+            d_min_ratio: self.d_min_ratio,
+            leaf_originals: self.leaf_originals,
+            frames: self.frames.max(1),
+            capacity: self.capacity.max(1),
+            ..DemoTour::DEFAULT
+        }
+    }
+}
+
 pub(super) fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
+    let started = std::time::Instant::now();
     let scene_path = a.scene.clone().unwrap_or_else(default_scene);
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let scene = import_scene(&scene_path)?;
     let file = build_tree(&a, &scene)?;
     let (tf, verified) = inspect_and_verify(&file)?;
     let mut pictures = write_pictures(&a.out, &tf)?;
+    let shown = show_tour(&a.tour(), &tf)?;
+    let blocks = tf.blocks().len();
     drop(tf);
-    pictures.extend(render_flights(&a, &file)?);
-    pictures.extend(simulate_grid(&a.out, &file)?);
+    let flights = render_flights(&a, &file, &shown, blocks)?;
+    pictures.extend(flights.pictures.iter().cloned());
+    pictures.extend(simulate_grid(&a, &file, &shown)?);
+    print_summary(&a, &shown, blocks, flights.fallback.as_ref());
     println!("\npictures:");
     for p in &pictures {
         println!("  {}", p.display());
     }
+    println!("demo took {:.1} s", started.elapsed().as_secs_f64());
     Ok(if verified {
         ExitCode::SUCCESS
     } else {
@@ -71,12 +97,13 @@ fn import_scene(path: &Path) -> anyhow::Result<atlastree::scene::Scene> {
 fn build_tree(a: &DemoArgs, scene: &atlastree::scene::Scene) -> anyhow::Result<PathBuf> {
     println!("\n== 2. build the texture-atlas tree (Buchholz & Döllner 2005, §5)");
     let file = a.out.join("city.atlastree");
-    let opts = BuildOptions {
-        d_min: DMin::Ratio(a.d_min_ratio),
-        atlas_size: a.atlas_size,
-        leaf_originals_atlases: a.leaf_originals,
-        ..BuildOptions::default()
-    };
+    let tour = a.tour();
+    println!(
+        "demo settings (not the build defaults, so that the small embedded scene makes a deep tree): \
+         --atlas-size {} --d-min-ratio {} --leaf-originals {}",
+        tour.atlas_size, tour.d_min_ratio, tour.leaf_originals
+    );
+    let opts = tour.build_options();
     let report =
         build(scene, &opts, &file, &Bars::new(a.quiet)).context("building the demo tree")?;
     build_cmd::print_report(&report, &file);
@@ -136,11 +163,98 @@ fn parse<A: clap::Args + clap::FromArgMatches>(
     Ok(A::from_arg_matches(&matches)?)
 }
 
-/// Stages 4 and 5: the overview-dive rendered with texture-array batching and the naive baseline, then
-/// flown again paged; skipped (with the reason) without a GPU adapter.
-fn render_flights(a: &DemoArgs, file: &Path) -> anyhow::Result<Vec<PathBuf>> {
+/// What the tour shows, decided on the CPU before anything is drawn: its cameras, their min-distance
+/// scale and the levels the planner draws per tree.
+struct Shown {
+    cameras: Vec<atlastree::camera::Camera>,
+    fps: f64,
+    duration: f64,
+    levels: Vec<TreeLevels>,
+    /// Saved-frame interval of the rendered flights and the saved frame that draws the most levels.
+    every: usize,
+    best_frame: usize,
+}
+
+/// Stage 4: the tour's frames planned on the CPU (every block resident): which levels of every tree the
+/// whole overview-dive draws.
+fn show_tour(tour: &DemoTour, tf: &atlastree::store::TreeFile) -> anyhow::Result<Shown> {
     println!(
-        "\n== 4. render an overview-dive with texture-array batching (tree) and the naive baseline (original)"
+        "\n== 4. what the overview-dive draws of the tree (the frame planner on the CPU, all blocks resident)"
+    );
+    let path = DemoTour::path(tf).context("the demo's camera path")?;
+    let cameras = tour.cameras(&path);
+    let fov = cameras.first().map_or(60.0, |c| c.fov_x_deg);
+    let scale = tour.scale(tf, fov)?;
+    let levels = levels_along(tf, &cameras, scale)?;
+    let fps = tour.fps(&path);
+    println!(
+        "{} frames over the whole path ({:.1} s of path time, one frame every {:.2} s), {}×{}",
+        cameras.len(),
+        path.duration(),
+        1.0 / fps,
+        tour.width,
+        tour.height
+    );
+    for (t, lv) in levels.iter().enumerate() {
+        let kind = tf.tree(t).map_or("tree".to_string(), |v| {
+            format!("{:?}", v.kind).to_lowercase()
+        });
+        let per_level: Vec<String> = lv
+            .atlas_frames
+            .iter()
+            .enumerate()
+            .map(|(l, f)| format!("L{l} {f}"))
+            .collect();
+        println!(
+            "  {kind} tree: depth {}, {} nodes; frames drawing each level's atlases: {}; originals in {} frames",
+            lv.depth,
+            lv.nodes,
+            per_level.join(", "),
+            lv.original_frames
+        );
+    }
+    let every = (tour.frames / 8).max(1);
+    let best_frame = levels
+        .first()
+        .map(|lv| {
+            let mut best = 0;
+            for i in (0..lv.frame_levels.len()).step_by(every) {
+                if lv.frame_levels[i] >= lv.frame_levels[best] {
+                    best = i;
+                }
+            }
+            best
+        })
+        .unwrap_or(0);
+    Ok(Shown {
+        cameras,
+        fps,
+        duration: path.duration(),
+        levels,
+        every,
+        best_frame,
+    })
+}
+
+/// The rendered flights' pictures and, for the paged flight, its frames drawn coarser.
+struct Flights {
+    pictures: Vec<PathBuf>,
+    /// (frames with a fallback to an ancestor, frames, largest coarser screen share), when rendered.
+    fallback: Option<(usize, usize, f64)>,
+}
+
+/// Stages 5 and 6: the whole overview-dive rendered with texture-array batching, coloured by level and
+/// with the naive baseline, then flown again paged under capacity k; skipped (with the reason) without a
+/// GPU adapter.
+fn render_flights(
+    a: &DemoArgs,
+    file: &Path,
+    shown: &Shown,
+    blocks: usize,
+) -> anyhow::Result<Flights> {
+    let tour = a.tour();
+    println!(
+        "\n== 5. render the whole overview-dive with texture-array batching (tree), coloured by level (tree-levels) and with the naive baseline (original)"
     );
     if let Err(e) = atlastree::gpu::GpuContext::new_headless(&atlastree::gpu::GpuOptions::default())
     {
@@ -148,42 +262,52 @@ fn render_flights(a: &DemoArgs, file: &Path) -> anyhow::Result<Vec<PathBuf>> {
             "SKIPPED (no GPU adapter): {e}. Any wgpu adapter works; on a headless Linux box \
              `apt-get install mesa-vulkan-drivers` gives the CPU driver lavapipe."
         );
-        return Ok(Vec::new());
+        return Ok(Flights {
+            pictures: Vec::new(),
+            fallback: None,
+        });
     }
-    let frames = a.frames.to_string();
+    let (frames, fps, every) = (
+        shown.cameras.len().to_string(),
+        shown.fps.to_string(),
+        shown.every.to_string(),
+    );
+    let (width, height) = (tour.width.to_string(), tour.height.to_string());
     let common = |out: &Path| -> Vec<std::ffi::OsString> {
-        [
-            file.as_os_str(),
-            OsStr::new("--out"),
-            out.as_os_str(),
-            OsStr::new("--width"),
-            OsStr::new("640"),
-            OsStr::new("--height"),
-            OsStr::new("480"),
-            OsStr::new("--frames"),
-            OsStr::new(&frames),
-        ]
-        .iter()
-        .map(|s| s.to_os_string())
-        .collect()
+        let mut v: Vec<std::ffi::OsString> = vec![file.into(), "--out".into(), out.into()];
+        for (flag, value) in [
+            ("--width", &width),
+            ("--height", &height),
+            ("--frames", &frames),
+            ("--fps", &fps),
+            ("--every", &every),
+        ] {
+            v.push(flag.into());
+            v.push(value.into());
+        }
+        v
     };
     let out = a.out.join("render");
     let mut args = common(&out);
-    args.extend(["--mode", "tree,original", "--warmup", "2"].map(Into::into));
+    args.extend(["--mode", "tree,tree-levels,original", "--warmup", "1"].map(Into::into));
     let refs: Vec<&OsStr> = args.iter().map(|s| s.as_os_str()).collect();
-    render_cmd::run(parse("render", &refs)?)?;
-    let blocks = atlastree::store::TreeFile::open(file).map_or(0, |f| f.blocks().len());
+    render_cmd::execute(&parse::<render_cmd::RenderArgs>("render", &refs)?.validate()?)?;
+    let frame = out_frame_pair(&a.out, &out, shown.best_frame)?;
+    let k = tour.capacity;
     println!(
-        "\n== 5. the same flight paged (paper §6): at most k = 24 of {blocks} blocks resident, one block per frame"
+        "\n== 6. the same flight paged (paper §6): at most k = {k} of {blocks} blocks resident, one block uploaded per frame; missing blocks are drawn with their nearest resident ancestor"
     );
     let paged = a.out.join("paged");
     let mut args = common(&paged);
+    let k_arg = k.to_string();
     args.extend(
         [
+            "--mode",
+            "tree-levels",
             "--warmup",
             "0",
             "--capacity",
-            "24",
+            &k_arg,
             "--upload-budget",
             "1",
             "--max-queue",
@@ -194,25 +318,71 @@ fn render_flights(a: &DemoArgs, file: &Path) -> anyhow::Result<Vec<PathBuf>> {
         .map(Into::into),
     );
     let refs: Vec<&OsStr> = args.iter().map(|s| s.as_os_str()).collect();
-    render_cmd::run(parse("render", &refs)?)?;
-    Ok(vec![
-        out.join("tree").join("contact_sheet.png"),
-        paged.join("contact_sheet.png"),
-    ])
+    let measured =
+        render_cmd::execute(&parse::<render_cmd::RenderArgs>("render", &refs)?.validate()?)?;
+    let fallback = measured.first().map(|(_, stats)| {
+        let shares: Vec<f64> = stats
+            .iter()
+            .map(|s| s.paging().map_or(0.0, |p| p.coarse.share()))
+            .collect();
+        let coarser = shares.iter().filter(|&&x| x > 0.0).count();
+        (
+            coarser,
+            shares.len(),
+            shares.iter().copied().fold(0.0, f64::max),
+        )
+    });
+    Ok(Flights {
+        pictures: vec![
+            frame,
+            out.join("tree").join("contact_sheet.png"),
+            out.join("tree-levels").join("contact_sheet.png"),
+            paged.join("contact_sheet.png"),
+        ],
+        fallback,
+    })
 }
 
-/// Stage 6: the paging-budget experiment without a GPU on the same path.
-fn simulate_grid(out: &Path, file: &Path) -> anyhow::Result<Vec<PathBuf>> {
+/// `OUT/frame.png`: frame `i` of the flight drawn with the tree beside the same frame coloured by level
+/// (the README's picture).
+fn out_frame_pair(out: &Path, render: &Path, i: usize) -> anyhow::Result<PathBuf> {
+    let open = |mode: &str| -> anyhow::Result<image::RgbaImage> {
+        let p = render.join(mode).join(format!("frame_{i:04}.png"));
+        Ok(image::open(&p)
+            .with_context(|| format!("reading {}", p.display()))?
+            .to_rgba8())
+    };
+    let pair = atlastree::inspect::side_by_side(&open("tree")?, &open("tree-levels")?, 8);
+    let path = out.join("frame.png");
+    pair.save(&path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(path)
+}
+
+/// Stage 7: the paging-budget experiment without a GPU on the same frames.
+fn simulate_grid(a: &DemoArgs, file: &Path, shown: &Shown) -> anyhow::Result<Vec<PathBuf>> {
     println!(
-        "\n== 6. paging-budget experiment without a GPU: capacity × bandwidth × latency on the same path"
+        "\n== 7. paging-budget experiment without a GPU: capacity × bandwidth × latency on the same frames"
     );
-    let sim = out.join("simulate");
+    let k = a.tour().capacity;
+    let capacities = format!("{},{},{},all", (k / 2).max(1), k, 2 * k);
+    let (frames, fps) = (shown.cameras.len().to_string(), shown.fps.to_string());
+    let (width, height) = (a.tour().width.to_string(), a.tour().height.to_string());
+    let sim = a.out.join("simulate");
     let args: Vec<&OsStr> = vec![
         file.as_os_str(),
         OsStr::new("--capacity"),
-        OsStr::new("12,24,48,all"),
+        OsStr::new(&capacities),
         OsStr::new("--policy"),
         OsStr::new("paper,ours"),
+        OsStr::new("--frames"),
+        OsStr::new(&frames),
+        OsStr::new("--fps"),
+        OsStr::new(&fps),
+        OsStr::new("--width"),
+        OsStr::new(&width),
+        OsStr::new("--height"),
+        OsStr::new(&height),
         OsStr::new("--out"),
         sim.as_os_str(),
     ];
@@ -221,4 +391,41 @@ fn simulate_grid(out: &Path, file: &Path) -> anyhow::Result<Vec<PathBuf>> {
         sim.join("heatmap_0ms_paper.png"),
         sim.join("coarser_over_time.png"),
     ])
+}
+
+/// What the demo showed, in a few lines.
+fn print_summary(
+    a: &DemoArgs,
+    shown: &Shown,
+    blocks: usize,
+    fallback: Option<&(usize, usize, f64)>,
+) {
+    println!("\n== what the demo showed");
+    for (t, lv) in shown.levels.iter().enumerate() {
+        let drawn: Vec<String> = lv.levels_drawn().iter().map(u8::to_string).collect();
+        println!(
+            "  tree {t}: depth {}, {} nodes; levels drawn along the path: {} of 0..={}{}",
+            lv.depth,
+            lv.nodes,
+            drawn.join(","),
+            lv.depth,
+            if lv.all_levels_drawn() { " (all)" } else { "" }
+        );
+    }
+    println!(
+        "  path: the whole overview-dive, {:.1} s in {} frames",
+        shown.duration,
+        shown.cameras.len()
+    );
+    match fallback {
+        Some(&(coarser, frames, max)) => println!(
+            "  paging: k = {} of {blocks} blocks; {coarser} of {frames} frames drew part of the screen with an ancestor's atlas while blocks loaded (largest share {:.2})",
+            a.tour().capacity,
+            max
+        ),
+        None => println!(
+            "  paging: k = {} of {blocks} blocks (not rendered: no GPU adapter)",
+            a.tour().capacity
+        ),
+    }
 }

@@ -7,9 +7,11 @@ use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
 use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource};
 use atlastree::plan::PagingSetup;
+use atlastree::render::reference::Reference;
 use atlastree::render::{FrameLoop, FrameStats, Mode, RendererOptions};
 use atlastree::report::columns;
 use atlastree::report::csv::CsvWriter;
+use atlastree::report::metrics;
 use atlastree::store::TreeFile;
 use atlastree::sweep::summary::median;
 use clap::Args;
@@ -36,7 +38,7 @@ pub(crate) struct RenderArgs {
     /// Output directory (one subdirectory per mode when several modes are given).
     #[arg(long, default_value = "out/render")]
     pub out: PathBuf,
-    /// tree (the product), original (naive per-texture draws), dummy (one 1×1 texture), tree-levels (colour
+    /// tree (the product), original (naive per-texture draws), dummy (the tree's draws with one texture and a trivial fragment shader), tree-levels (colour
     /// by level). Comma-separated to measure several modes in one run on the same frames.
     #[arg(long, default_value = "tree", value_delimiter = ',')]
     pub mode: Vec<Mode>,
@@ -60,6 +62,12 @@ pub(crate) struct RenderArgs {
     /// wrapped atlas UVs costs ~100× per pixel). Lower values trade sharpness at grazing angles for time.
     #[arg(long, default_value = "auto", value_parser = parse_anisotropy)]
     pub anisotropy: u16,
+    /// Measure every frame of modes tree, dummy and original against a reference (PSNR and SSIM, printed
+    /// and in summary.json): `original` (the original textures at the frame's resolution) or
+    /// `supersampled[:S]` (the original textures at S × S the pixels, box-filtered in linear light; S = 4
+    /// by default): ground truth where the original itself aliases. Needs every block resident.
+    #[arg(long)]
+    pub reference: Option<Reference>,
     #[command(flatten, next_help_heading = "Viewport")]
     pub viewport: ViewportArgs,
     #[command(flatten, next_help_heading = "Paging")]
@@ -91,6 +99,8 @@ pub(crate) struct RenderConfig {
     pub warmup: usize,
     pub gpu_timing: bool,
     pub anisotropy: u16,
+    /// Frames measured against this reference (never with paging).
+    pub reference: Option<Reference>,
     /// `None`: every block uploaded at start.
     pub paging: Option<RenderPaging>,
 }
@@ -148,6 +158,14 @@ impl RenderArgs {
         } else {
             None
         };
+        if paging.is_some()
+            && let Some(r) = self.reference
+        {
+            bail!(
+                "--reference {} draws the original textures and needs every block resident: not with paging",
+                r.name()
+            );
+        }
         if paging.is_some() && modes.contains(&Mode::Original) {
             bail!(
                 "--mode original draws every original texture naively and needs every block resident: \
@@ -166,17 +184,22 @@ impl RenderArgs {
             warmup: self.warmup,
             gpu_timing: !self.no_gpu_timing,
             anisotropy: self.anisotropy,
+            reference: self.reference,
             paging,
         })
     }
 }
 
 pub(super) fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
-    execute(&a.validate()?)
+    execute(&a.validate()?)?;
+    Ok(ExitCode::SUCCESS)
 }
 
-/// Runs a checked configuration.
-pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<ExitCode> {
+/// What a run measured: per mode, in `--mode` order, every frame's counters.
+pub(super) type Measured = Vec<(Mode, Vec<FrameStats>)>;
+
+/// Runs a checked configuration; returns what it measured.
+pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     let (file, http) = open_tree(&cfg.tree)?;
     let cameras = sample_cameras(cfg, &file)?;
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
@@ -190,8 +213,8 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<ExitCode> {
             "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
         );
     }
-    write_and_report(&runs)?;
-    Ok(ExitCode::SUCCESS)
+    write_and_report(&cfg.out, cfg.reference, &runs)?;
+    Ok(runs.into_iter().map(|r| (r.mode, r.stats)).collect())
 }
 
 /// Phase 1: the tree's tables, from the file or over HTTP (with the HTTP source for its blocks).
@@ -333,6 +356,7 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
             mode,
             dir,
             stats: Vec::with_capacity(frames),
+            quality: Vec::new(),
             thumbs: Vec::new(),
         });
     }
@@ -380,8 +404,26 @@ fn fly(
         let plan = fl
             .planner
             .plan(cam, i as f64 / cfg.fps, scale, &mut fl.renderer.residency())?;
+        let truth = match cfg.reference {
+            None => None,
+            Some(Reference::Supersampled(k)) => Some(fl.renderer.execute_supersampled(plan, k)?),
+            Some(Reference::Original) => {
+                fl.renderer.execute(plan, Mode::Original)?;
+                Some(fl.renderer.read_frame()?)
+            }
+        };
         for run in runs.iter_mut() {
             let s = fl.renderer.execute(plan, run.mode)?;
+            if let Some(truth) = &truth
+                && measured(run.mode, cfg.reference)
+            {
+                let rgba = fl.renderer.read_frame()?;
+                let (w, h) = (cfg.viewport.width, cfg.viewport.height);
+                run.quality.push((
+                    metrics::psnr(&rgba, truth, w, h)?,
+                    metrics::ssim(&rgba, truth, w, h)?,
+                ));
+            }
             run.stats.push(s);
             if cfg.every > 0 && i % cfg.every == 0 {
                 run.save_frame(&fl.renderer, &cfg.viewport, i)?;
@@ -391,9 +433,23 @@ fn fly(
     Ok(())
 }
 
-/// Phase 7: per mode `stats.csv`, the contact sheet and a summary on stdout; then the frame-time ratios
-/// between modes.
-fn write_and_report(runs: &[ModeRun]) -> anyhow::Result<()> {
+/// Whether frames of `mode` are measured against `reference`: tree, dummy and original (not original
+/// against itself), not the flat level colours.
+fn measured(mode: Mode, reference: Option<Reference>) -> bool {
+    !matches!(
+        (mode, reference),
+        (_, None) | (Mode::TreeLevels, _) | (Mode::Original, Some(Reference::Original))
+    )
+}
+
+/// Phase 7: per mode `stats.csv`, the contact sheet and a summary on stdout; then the median frame times
+/// of the modes and their ratios (tree ÷ dummy, original ÷ dummy, tree ÷ original: the paper's
+/// comparison), on stdout and in `OUT/summary.json`.
+fn write_and_report(
+    out: &Path,
+    reference: Option<Reference>,
+    runs: &[ModeRun],
+) -> anyhow::Result<()> {
     let mut medians = Vec::new();
     for run in runs {
         write_stats_csv(&run.dir.join("stats.csv"), &run.stats)?;
@@ -402,18 +458,121 @@ fn write_and_report(runs: &[ModeRun]) -> anyhow::Result<()> {
                 .save(run.dir.join("contact_sheet.png"))
                 .context("writing the contact sheet")?;
         }
-        let frame = median(run.stats.iter().map(|s| s.frame_ms));
-        medians.push((run.mode, frame));
+        medians.push(ModeMedians::of(run.mode, &run.stats));
         print_summary(run.mode, &run.stats, &run.dir);
+        if let (Some(r), Some(q)) = (reference, Quality::of(&run.quality)) {
+            println!(
+                "  against the {} reference: PSNR mean {:.2} dB (min {:.2}), SSIM mean {:.4} (min {:.4})",
+                r.name(),
+                q.psnr_mean,
+                q.psnr_min,
+                q.ssim_mean,
+                q.ssim_min
+            );
+        }
     }
-    let median_of = |m: Mode| medians.iter().find(|(k, _)| *k == m).map(|(_, v)| *v);
-    if let (Some(t), Some(d)) = (median_of(Mode::Tree), median_of(Mode::Dummy)) {
-        println!("median frame time tree / dummy: {:.3}", t / d);
+    let ratios = frame_ratios(&medians);
+    for (name, r) in &ratios {
+        println!("median frame time {name}: {r:.3}");
     }
-    if let (Some(t), Some(o)) = (median_of(Mode::Tree), median_of(Mode::Original)) {
-        println!("median frame time original / tree: {:.3}", o / t);
-    }
+    let json = serde_json::json!({
+        "modes": medians.iter().map(|m| (m.mode.name().to_string(), serde_json::json!({
+            "frames": m.frames,
+            "median_frame_ms": m.frame_ms,
+            "median_gpu_ms": m.gpu_ms,
+            "reference": runs.iter().find(|r| r.mode == m.mode).and_then(|r| Quality::of(&r.quality)).map(|q| serde_json::json!({
+                "psnr_db_mean": q.psnr_mean,
+                "psnr_db_min": q.psnr_min,
+                "ssim_mean": q.ssim_mean,
+                "ssim_min": q.ssim_min,
+                "psnr_db": q.psnr,
+                "ssim": q.ssim,
+            })),
+        }))).collect::<serde_json::Map<String, serde_json::Value>>(),
+        "reference": reference.map(|r| r.name()),
+        "ratios": ratios.iter().map(|(name, r)| (ratio_key(name), serde_json::json!(r)))
+            .collect::<serde_json::Map<String, serde_json::Value>>(),
+    });
+    let path = out.join("summary.json");
+    atlastree::util::write_atomic(
+        &path,
+        (serde_json::to_string_pretty(&json)? + "\n").as_bytes(),
+    )
+    .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+/// A mode's frames against the reference.
+struct Quality {
+    psnr_mean: f64,
+    psnr_min: f64,
+    ssim_mean: f64,
+    ssim_min: f64,
+    psnr: Vec<f64>,
+    ssim: Vec<f64>,
+}
+
+impl Quality {
+    /// `None` when no frame was measured.
+    fn of(frames: &[(f64, f64)]) -> Option<Quality> {
+        if frames.is_empty() {
+            return None;
+        }
+        let n = frames.len() as f64;
+        let psnr: Vec<f64> = frames.iter().map(|q| q.0).collect();
+        let ssim: Vec<f64> = frames.iter().map(|q| q.1).collect();
+        Some(Quality {
+            psnr_mean: psnr.iter().sum::<f64>() / n,
+            psnr_min: psnr.iter().copied().fold(f64::INFINITY, f64::min),
+            ssim_mean: ssim.iter().sum::<f64>() / n,
+            ssim_min: ssim.iter().copied().fold(f64::INFINITY, f64::min),
+            psnr,
+            ssim,
+        })
+    }
+}
+
+/// One mode's medians over the run.
+struct ModeMedians {
+    mode: Mode,
+    frames: usize,
+    frame_ms: f64,
+    /// `None` without GPU timestamps.
+    gpu_ms: Option<f64>,
+}
+
+impl ModeMedians {
+    fn of(mode: Mode, stats: &[FrameStats]) -> ModeMedians {
+        let gpu: Vec<f64> = stats.iter().filter_map(|s| s.gpu_ms).collect();
+        ModeMedians {
+            mode,
+            frames: stats.len(),
+            frame_ms: median(stats.iter().map(|s| s.frame_ms)),
+            gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
+        }
+    }
+}
+
+/// The ratios of median frame times between the modes measured: `tree ÷ dummy`, `original ÷ dummy`,
+/// `tree ÷ original` (those whose two modes ran).
+fn frame_ratios(medians: &[ModeMedians]) -> Vec<(String, f64)> {
+    let of = |m: Mode| medians.iter().find(|k| k.mode == m).map(|k| k.frame_ms);
+    [
+        (Mode::Tree, Mode::Dummy),
+        (Mode::Original, Mode::Dummy),
+        (Mode::Tree, Mode::Original),
+    ]
+    .into_iter()
+    .filter_map(|(a, b)| {
+        let (x, y) = (of(a)?, of(b)?);
+        Some((format!("{} ÷ {}", a.name(), b.name()), x / y))
+    })
+    .collect()
+}
+
+/// `tree ÷ dummy` → `tree_over_dummy`.
+fn ratio_key(name: &str) -> String {
+    name.replace(" ÷ ", "_over_")
 }
 
 /// Mean and max of a column.
@@ -437,6 +596,8 @@ struct ModeRun {
     dir: PathBuf,
     stats: Vec<FrameStats>,
     thumbs: Vec<image::RgbaImage>,
+    /// Per frame (PSNR dB, SSIM) against `--reference`, for the modes measured.
+    quality: Vec<(f64, f64)>,
 }
 
 impl ModeRun {

@@ -4,6 +4,7 @@ use anyhow::{Context, bail};
 use atlastree::camera::{Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
 use atlastree::preprocess::BuildOptions;
+use atlastree::render::reference::Reference;
 use atlastree::sweep::output::write_outputs;
 use atlastree::sweep::summary::{PSNR_TOLERANCE_DB, recommend};
 use atlastree::sweep::{Grid, Plan, SweepOptions, SweepProgress, run_sweep, sample_path};
@@ -59,6 +60,12 @@ pub(crate) struct SweepArgs {
     /// explicit-gradient path costs ~100× per pixel: 1 isolates the atlas tree's own error.
     #[arg(long, default_value = "auto", value_parser = super::render_cmd::parse_anisotropy)]
     pub anisotropy: u16,
+    /// What every frame is compared with: `original` (the original textures at the frame's resolution,
+    /// the default) or `supersampled[:S]` (ground truth: the original textures at S × S the pixels, S = 4
+    /// by default, box-filtered in linear light); against the latter the original textures are measured
+    /// too, per build, so the report shows where they fall short as well.
+    #[arg(long, default_value = "original")]
+    pub reference: Reference,
     /// Up axis; `auto` takes the axis of least extent.
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
@@ -114,6 +121,7 @@ pub(crate) struct SweepConfig {
     pub plan: Plan,
     pub keep_builds: bool,
     pub anisotropy: u16,
+    pub reference: Reference,
     /// Options of every build beside the grid's knobs.
     pub build: BuildOptions,
     pub json: bool,
@@ -142,6 +150,7 @@ impl SweepArgs {
             plan: grid.plan(),
             keep_builds: self.keep_builds,
             anisotropy: self.anisotropy,
+            reference: self.reference,
             build: self.build.apply(BuildOptions::default()),
             json: self.json,
             quiet: self.quiet,
@@ -192,6 +201,7 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
         builds_dir: cfg.out.join("builds"),
         keep_builds: cfg.keep_builds,
         anisotropy: cfg.anisotropy,
+        reference: cfg.reference,
         build: cfg.build.clone(),
         ..SweepOptions::default()
     };
@@ -214,9 +224,17 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     println!("done in {:.1} s", t.elapsed().as_secs_f64());
+    println!("reference: {}", cfg.reference.name());
     for r in &rows {
+        let original = match cfg.reference {
+            Reference::Original => String::new(),
+            Reference::Supersampled(_) => format!(
+                "  original: covered PSNR {:>6.2} dB  SSIM {:.4}",
+                r.original_psnr_covered_db, r.original_ssim
+            ),
+        };
         println!(
-            "  {:<32} covered PSNR {:>6.2} dB  SSIM {:.4}  frame {:>7.2} ms  file {}",
+            "  {:<32} covered PSNR {:>6.2} dB  SSIM {:.4}  frame {:>7.2} ms  file {}{original}",
             r.id,
             r.psnr_covered_db,
             r.ssim,

@@ -23,7 +23,7 @@ use std::process::ExitCode;
 pub(crate) struct ViewArgs {
     /// The paging file.
     pub file: PathBuf,
-    /// Start mode: tree (the product), original (naive per-texture draws), dummy (one 1×1 texture),
+    /// Start mode: tree (the product), original (naive per-texture draws), dummy (the tree's draws with one texture and a trivial fragment shader),
     /// tree-levels (tree with level colouring).
     #[arg(long, default_value = "tree")]
     pub mode: Mode,

@@ -227,7 +227,6 @@ impl FrameBatch {
         nodes: &[NodeRecord],
         cut: &Cut,
         resolved: Option<&[Resolved]>,
-        opts: BatchOptions,
     ) -> u32 {
         let mut skipped = 0;
         for (i, item) in cut.items.iter().enumerate() {
@@ -240,9 +239,8 @@ impl FrameBatch {
                 Some(r) => r.atlas_node,
                 None => (item.source == Source::Atlas).then_some(item.node),
             };
-            let atlas = match (draw_with, opts.dummy) {
-                (_, true) => Some((AtlasSlot { array: 0, layer: 0 }, node.level)),
-                (Some(a), false) => {
+            let atlas = match draw_with {
+                Some(a) => {
                     let slot = info.atlas_slots.get(a.idx()).copied().flatten();
                     match (slot, nodes.get(a.idx())) {
                         (Some(s), Some(an)) => Some((s, an.level)),
@@ -252,7 +250,7 @@ impl FrameBatch {
                         }
                     }
                 }
-                (None, false) => None,
+                None => None,
             };
             let record = NodeDraw {
                 atlas_layer: atlas.map_or(NONE, |(s, _)| s.layer),

@@ -2,7 +2,8 @@
 //! one `multi_draw_indexed_indirect` per non-empty pipeline) and the naive per-texture baseline, and the
 //! GPU timestamps around them.
 
-use super::batch::{BatchOptions, DrawIndexedIndirect, Group, Pass};
+use super::batch::{DrawIndexedIndirect, Group, Pass};
+use super::dummy::Dummy;
 use super::frame::{FrameStats, Renderer, tree_bind_group};
 use super::naive::Naive;
 use super::naive_batch::visible_draws;
@@ -104,14 +105,9 @@ impl Renderer<'_> {
         let device = &ctx.device;
         let queue = &ctx.queue;
         self.batch.clear();
-        let opts = BatchOptions {
-            dummy: mode == Mode::Dummy,
-        };
         for (t, (info, cut)) in self.resident.infos.iter().zip(&plan.cuts).enumerate() {
             if let Some(view) = self.file.tree(t) {
-                stats.skipped_draws +=
-                    self.batch
-                        .add_cut(info, view.nodes, cut, plan.resolved(t), opts);
+                stats.skipped_draws += self.batch.add_cut(info, view.nodes, cut, plan.resolved(t));
             }
         }
         self.batch.finish();
@@ -129,19 +125,21 @@ impl Renderer<'_> {
             bytemuck::cast_slice::<DrawIndexedIndirect, u8>(&self.batch.indirect),
         );
         if grew {
-            let make = |dummy| {
-                tree_bind_group(
-                    device,
-                    &self.layout,
-                    &self.resident,
-                    &self.globals,
-                    &self.records.buffer,
-                    &self.samplers,
-                    dummy,
-                )
-            };
-            self.bind_group = make(false);
-            self.dummy_bind_group = make(true);
+            self.bind_group = tree_bind_group(
+                device,
+                &self.layout,
+                &self.resident,
+                &self.globals,
+                &self.records.buffer,
+                &self.samplers,
+            );
+            if let Some(d) = &mut self.dummy {
+                d.buffers_replaced();
+            }
+        }
+        let dummy = mode == Mode::Dummy && !density;
+        if dummy && self.dummy.is_none() {
+            self.dummy = Some(Dummy::new(ctx, self.opts.device_anisotropy(ctx)));
         }
         let passes: Vec<(Group, u32, u32)> = Group::ALL
             .iter()
@@ -151,21 +149,37 @@ impl Renderer<'_> {
             })
             .filter(|&(_, _, count)| count > 0)
             .collect();
-        let pipelines = match (&mut self.density, density) {
-            (Some(d), true) => &mut d.pipelines,
-            _ => &mut self.pipelines,
-        };
-        for &(p, _, _) in &passes {
-            pipelines.get(device, p);
-        }
-        let group = if mode == Mode::Dummy {
-            &self.dummy_bind_group
+        if let (true, Some(d)) = (dummy, &mut self.dummy) {
+            d.prepare(
+                device,
+                &self.globals,
+                &self.records.buffer,
+                &self.resident.offsets_buffer,
+            );
+            for &(p, _, _) in &passes {
+                d.pipelines.get(device, p);
+            }
         } else {
-            &self.bind_group
-        };
-        let pipelines = match (&self.density, density) {
-            (Some(d), true) => &d.pipelines,
-            _ => &self.pipelines,
+            let pipelines = match (&mut self.density, density) {
+                (Some(d), true) => &mut d.pipelines,
+                _ => &mut self.pipelines,
+            };
+            for &(p, _, _) in &passes {
+                pipelines.get(device, p);
+            }
+        }
+        let (pipelines, group) = match (&self.density, density, &self.dummy) {
+            (Some(d), true, _) => (&d.pipelines, &self.bind_group),
+            (
+                _,
+                false,
+                Some(Dummy {
+                    pipelines,
+                    group: Some(group),
+                    ..
+                }),
+            ) if dummy => (pipelines, group),
+            _ => (&self.pipelines, &self.bind_group),
         };
         let mut rp = self.pass(encoder, density);
         rp.set_bind_group(0, group, &[]);

@@ -4,11 +4,13 @@
 
 use super::batch::FrameBatch;
 use super::density::{DensityFrame, DensityTarget};
+use super::dummy::Dummy;
 use super::naive::Naive;
 use super::pipeline::{
     COLOR_FORMAT, DEPTH_FORMAT, PassPipelines, Specialisation, sampler, tree_bind_group_layout,
     vertex_layout,
 };
+use super::reference::Supersample;
 use super::resident::Resident;
 use super::textures::{CLASS_COUNT, MAX_ATLAS_ARRAYS};
 use super::wgsl::tree::{self, Globals, MODE_LEVELS, MODE_TEXTURED};
@@ -185,10 +187,13 @@ pub struct Renderer<'f> {
     pub(super) records: Growable,
     pub(super) indirect: Growable,
     pub(super) bind_group: wgpu::BindGroup,
-    pub(super) dummy_bind_group: wgpu::BindGroup,
     /// Atlas and original-texture samplers (the shader's bindings in that order).
     pub(super) samplers: [wgpu::Sampler; 2],
     pub(super) naive: Option<Naive>,
+    /// The dummy baseline's pipelines and texture, created on the first dummy frame.
+    pub(super) dummy: Option<Dummy>,
+    /// The supersampled reference's targets and pass, created on first use.
+    pub(super) supersample: Option<Supersample>,
     pub color: wgpu::Texture,
     pub(super) color_view: wgpu::TextureView,
     pub(super) depth_view: wgpu::TextureView,
@@ -281,19 +286,14 @@ impl<'f> Renderer<'f> {
             sampler(device, "original sampler", repeat, aniso),
         ];
         let (color, color_view, depth_view) = targets(device, opts.width, opts.height);
-        let make = |dummy: bool| {
-            tree_bind_group(
-                device,
-                &layout,
-                &resident,
-                &globals,
-                &records.buffer,
-                &samplers,
-                dummy,
-            )
-        };
-        let bind_group = make(false);
-        let dummy_bind_group = make(true);
+        let bind_group = tree_bind_group(
+            device,
+            &layout,
+            &resident,
+            &globals,
+            &records.buffer,
+            &samplers,
+        );
         let timestamps = (opts.gpu_timing && ctx.features.timestamp_query).then(|| Timestamps {
             set: device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("frame timestamps"),
@@ -325,9 +325,10 @@ impl<'f> Renderer<'f> {
             records,
             indirect,
             bind_group,
-            dummy_bind_group,
             samplers,
             naive: None,
+            dummy: None,
+            supersample: None,
             color,
             color_view,
             depth_view,
@@ -553,7 +554,7 @@ fn targets(
 }
 
 /// The frame's one bind group: buffers, samplers, the atlas arrays and the class arrays (missing arrays
-/// bound to the 1×1 dummy). `dummy`: every texture binding is the dummy (dummy mode).
+/// bound to the 1×1 placeholder).
 pub(super) fn tree_bind_group(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
@@ -561,7 +562,6 @@ pub(super) fn tree_bind_group(
     globals: &wgpu::Buffer,
     records: &wgpu::Buffer,
     samplers: &[wgpu::Sampler; 2],
-    dummy: bool,
 ) -> wgpu::BindGroup {
     let mut entries = vec![
         wgpu::BindGroupEntry {
@@ -599,8 +599,8 @@ pub(super) fn tree_bind_group(
     ];
     for i in 0..MAX_ATLAS_ARRAYS {
         let view = match res.atlas_arrays.get(i) {
-            Some(a) if !dummy => &a.view,
-            _ => &res.dummy.view,
+            Some(a) => &a.view,
+            None => &res.dummy.view,
         };
         entries.push(wgpu::BindGroupEntry {
             binding: tree::binding::ATLAS0 + i as u32,
@@ -609,8 +609,8 @@ pub(super) fn tree_bind_group(
     }
     for k in 0..CLASS_COUNT {
         let view = match res.class_arrays.get(k).and_then(|a| a.as_ref()) {
-            Some(a) if !dummy => &a.view,
-            _ => &res.dummy.view,
+            Some(a) => &a.view,
+            None => &res.dummy.view,
         };
         entries.push(wgpu::BindGroupEntry {
             binding: tree::binding::CLASS0 + k as u32,
@@ -618,11 +618,7 @@ pub(super) fn tree_bind_group(
         });
     }
     device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some(if dummy {
-            "tree frame (dummy)"
-        } else {
-            "tree frame"
-        }),
+        label: Some("tree frame"),
         layout,
         entries: &entries,
     })

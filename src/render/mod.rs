@@ -10,21 +10,28 @@
 //! frame.
 //!
 //! Modes ([`Mode`]) on the same cut: the product (`Tree`), the naive per-texture baseline (`Original`), the
-//! upper bound with one 1×1 texture (`Dummy`), and colour-by-level (`TreeLevels`).
+//! paper's dummy with one texture and a trivial fragment shader (`Dummy`, [`dummy`]), and colour-by-level
+//! (`TreeLevels`).
 //!
 //! Debug: [`Renderer::execute_density`] writes texels per pixel instead of colours ([`density`]).
 //!
-//! Shaders: `shaders/tree.wgsl` (tree, dummy, levels, density), `shaders/naive.wgsl` (original); their
-//! Rust twins (buffer structs, bindings, overrides, codes) are [`wgsl::tree`] and [`wgsl::naive`].
+//! Ground truth: [`Renderer::execute_supersampled`] draws a plan with the original textures at S × S the
+//! pixels and box-filters it in linear light ([`reference`]).
+//!
+//! Shaders: `shaders/tree.wgsl` (tree, levels, density), `shaders/naive.wgsl` (original),
+//! `shaders/dummy.wgsl` (dummy); their Rust twins (buffer structs, bindings, overrides, codes) are
+//! [`wgsl::tree`], [`wgsl::naive`] and [`wgsl::dummy`].
 
 pub mod batch;
 pub mod density;
+pub mod dummy;
 mod encode;
 mod frame;
 mod frame_loop;
 mod naive;
 pub mod naive_batch;
 pub mod pipeline;
+pub mod reference;
 pub mod resident;
 pub mod textures;
 pub mod wgsl;
@@ -44,7 +51,8 @@ pub enum Mode {
     Tree,
     /// Naive: every (leaf, original texture) its own bind group and draw call; no atlases.
     Original,
-    /// The tree's draws with one 1×1 texture bound for everything (upper bound on speed).
+    /// The paper's dummy: the tree's draws (same cut, records, passes and multi-draws) with one texture
+    /// and a trivial fragment shader ([`dummy`]); tree ÷ dummy is what the tree's texturing costs.
     Dummy,
     /// The tree's draws coloured by the level of the atlas used (white: original textures).
     TreeLevels,

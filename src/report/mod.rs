@@ -2,6 +2,7 @@
 //!
 //! - [`metrics`]: PSNR and SSIM of RGBA8 frames, shares and log2 histograms of the texel-per-pixel
 //!   density pass ([`crate::render::density`]), the Pareto front of (cost, accuracy) points. Pure CPU.
+//! - [`supersample`]: the supersampled reference's box filter in linear light (CPU twin of the GPU pass).
 //! - [`columns`]: the one schema of per-frame counters (plan, renderer, paging) every per-frame CSV writes.
 //! - [`csv`]: deterministic CSV tables (fixed float formatting), written atomically; a reader for tests.
 //! - [`plot`]: line charts, heat maps, scatter plots with a marked Pareto front and bar charts, each
@@ -15,6 +16,7 @@ pub mod columns;
 pub mod csv;
 pub mod metrics;
 pub mod plot;
+pub mod supersample;
 
 use std::path::{Path, PathBuf};
 

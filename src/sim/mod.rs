@@ -18,6 +18,7 @@ use crate::store::format::NodeRecord;
 use serde::Serialize;
 
 pub mod grid;
+pub mod tour;
 
 /// A transfer model: one pipe of `bandwidth` bytes/s shared by all requests (transfers are serialised in
 /// start order), a fixed `latency` per request (overlapping: requests in flight wait in parallel), an extra

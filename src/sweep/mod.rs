@@ -5,8 +5,10 @@
 //!   and `full`, JSON files), expanded into builds and runtime variants ([`Plan`]).
 //! - `run.rs` ([`run_sweep`]): builds each build-time variant once, renders each runtime variant over the same frames and
 //!   compares every frame with the reference: the same view drawn with the original textures at their
-//!   stored full resolution ([`crate::render::Mode::Original`], the naive renderer), on the base build.
-//!   Produces plain rows ([`BuildRow`], [`FrameRow`]).
+//!   stored full resolution ([`crate::render::Mode::Original`], the naive renderer), on the base build,
+//!   or ground truth (`SweepOptions::reference`: the same at S × S the pixels, box-filtered in linear
+//!   light), against which each build's original textures are scored too. Produces plain rows
+//!   ([`BuildRow`], [`FrameRow`]).
 //! - [`summary`]: pure functions over the rows: per-variant means ([`summary::VariantRow`]), the Pareto
 //!   front of accuracy against frame time, recommended defaults, the markdown report.
 //! - [`output`]: `sweep.csv`, `frames.csv`, `builds.csv`, `report.md` and the plots (SVG + PNG).

@@ -5,6 +5,7 @@ use super::SweepError;
 use super::run::{BuildRow, FrameRow, SweepData};
 use super::summary::{ReportContext, VariantRow, markdown, summarise};
 use crate::render::FrameStats;
+use crate::render::reference::Reference;
 use crate::report::columns;
 use crate::report::csv::{Cell, write_csv};
 use crate::report::plot::{
@@ -15,7 +16,7 @@ use crate::report::write_atomic;
 use std::path::{Path, PathBuf};
 
 /// Columns of `sweep.csv`.
-pub const SWEEP_HEADER: [&str; 26] = [
+pub const SWEEP_HEADER: [&str; 29] = [
     "variant",
     "d_min_ratio",
     "atlas_size",
@@ -29,6 +30,9 @@ pub const SWEEP_HEADER: [&str; 26] = [
     "psnr_db",
     "psnr_covered_db",
     "ssim",
+    "original_psnr_db",
+    "original_psnr_covered_db",
+    "original_ssim",
     "magnified_share",
     "below_target_share",
     "coarser_share",
@@ -45,7 +49,7 @@ pub const SWEEP_HEADER: [&str; 26] = [
 ];
 
 /// The columns of `frames.csv` before the per-frame counters: the variant and what it was compared with.
-const FRAME_KEY_HEADER: [&str; 12] = [
+const FRAME_KEY_HEADER: [&str; 15] = [
     "variant",
     "build",
     "texel_ratio",
@@ -56,6 +60,9 @@ const FRAME_KEY_HEADER: [&str; 12] = [
     "psnr_covered_db",
     "covered_pixels",
     "ssim",
+    "original_psnr_db",
+    "original_psnr_covered_db",
+    "original_ssim",
     "magnified_share",
     "below_target_share",
 ];
@@ -94,6 +101,9 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
         Cell::Float(r.psnr_db),
         Cell::Float(r.psnr_covered_db),
         Cell::Float(r.ssim),
+        Cell::Float(r.original_psnr_db),
+        Cell::Float(r.original_psnr_covered_db),
+        Cell::Float(r.original_ssim),
         Cell::Float(r.magnified_share),
         Cell::Float(r.below_target_share),
         Cell::Float(r.coarser_share),
@@ -123,6 +133,9 @@ fn frame_row(f: &FrameRow) -> Vec<Cell> {
         Cell::Float(f.psnr_covered_db),
         Cell::UInt(f.covered_pixels),
         Cell::Float(f.ssim),
+        Cell::Float(f.original_psnr_db),
+        Cell::Float(f.original_psnr_covered_db),
+        Cell::Float(f.original_ssim),
         Cell::Float(f.magnified_share),
         Cell::Float(f.below_target_share),
     ];
@@ -220,7 +233,10 @@ fn write_plots(
     rows: &[VariantRow],
 ) -> Result<Vec<(String, String)>, SweepError> {
     let mut plots = Vec::new();
-    let psnr = "covered PSNR vs original textures (dB)";
+    let psnr = match data.reference {
+        Reference::Original => "covered PSNR vs original textures (dB)",
+        Reference::Supersampled(_) => "covered PSNR vs supersampled reference (dB)",
+    };
     let scatter = |stem: &str, title: &str, x: &str, cost: &dyn Fn(&VariantRow) -> f64| {
         let mut o = PlotOptions::new(title, x, psnr);
         o.log_x = true;

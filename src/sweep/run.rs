@@ -8,6 +8,7 @@ use crate::gpu::{GpuContext, GpuError};
 use crate::paging::{FileSource, PagerOptions};
 use crate::plan::{FramePlanner, PagingSetup};
 use crate::preprocess::{BuildOptions, NoProgress, build};
+use crate::render::reference::Reference;
 use crate::render::{FrameLoop, FrameStats, Mode, RenderError, Renderer, RendererOptions};
 use crate::report::metrics::{Histogram, magnified_share, psnr, psnr_masked, ssim};
 use crate::scene::Scene;
@@ -37,6 +38,10 @@ pub struct SweepOptions {
     pub gpu_timing: bool,
     /// Sampler anisotropy of every render, the reference included ([`RendererOptions::anisotropy`]).
     pub anisotropy: u16,
+    /// What every frame is compared with: the original textures at the frame's resolution (the default),
+    /// or the supersampled ground truth ([`Reference::Supersampled`]), against which the original textures
+    /// are measured too.
+    pub reference: Reference,
     /// The options of every build beside the grid's knobs ([`BuildKnobs`] replace d_min, atlas size,
     /// border, filter, compression and repeat mode).
     pub build: BuildOptions,
@@ -63,6 +68,7 @@ impl Default for SweepOptions {
             max_queue: 8,
             gpu_timing: true,
             anisotropy: RendererOptions::ANISOTROPY,
+            reference: Reference::Original,
             build: BuildOptions::default(),
         }
     }
@@ -123,6 +129,11 @@ pub struct FrameRow {
     pub covered_pixels: u64,
     /// SSIM of the luma (Gaussian 11×11 window), 1 = identical.
     pub ssim: f64,
+    /// The build's original textures (drawn naively at the frame's resolution) against the supersampled
+    /// reference: PSNR, covered PSNR, SSIM; NaN when the reference is the original textures themselves.
+    pub original_psnr_db: f64,
+    pub original_psnr_covered_db: f64,
+    pub original_ssim: f64,
     /// Share of drawn pixels with fewer than 1 texel per pixel along the least-sampled direction (paged
     /// variants too: the density pass executes the frame's plan again without stepping the pager).
     pub magnified_share: f64,
@@ -153,6 +164,8 @@ pub struct SweepData {
     pub adapter: String,
     /// Sampler anisotropy of every render, as the device applies it (1 without anisotropic filtering).
     pub anisotropy: u16,
+    /// What the frames were compared with.
+    pub reference: Reference,
     /// The adapter is a software rasteriser (timings are CPU timings; see the report's note).
     pub software: bool,
     /// Builds whose variants could not be rendered with every block resident (the device ran out of
@@ -162,11 +175,16 @@ pub struct SweepData {
     pub skipped: Vec<(String, String)>,
 }
 
-/// The reference of one frame: the original-texture render and the covered pixels.
-struct Reference {
+/// The reference of one frame (the original-texture render, or the supersampled one) and the covered
+/// pixels.
+struct RefFrame {
     rgba: Vec<u8>,
     covered: Vec<bool>,
 }
+
+/// The original textures' own accuracy on one frame against a supersampled reference: (PSNR dB, covered
+/// PSNR dB, SSIM).
+type OriginalQuality = (f64, f64, f64);
 
 /// `count` cameras spread evenly over the whole path (first and last keyframe included when
 /// `count ≥ 2`; the middle when 1), with the given aspect, and their path times.
@@ -218,9 +236,10 @@ pub fn run_sweep(
         adapter: ctx.adapter_summary(),
         anisotropy: opts.renderer(plan).device_anisotropy(ctx),
         software: ctx.info.is_software(),
+        reference: opts.reference,
         skipped: Vec::new(),
     };
-    let mut reference: Vec<Reference> = Vec::new();
+    let mut reference: Vec<RefFrame> = Vec::new();
     for pb in &plan.builds {
         let path = opts.builds_dir.join(format!("{}.atlastree", pb.knobs.id()));
         progress.message(&format!("build {}", pb.knobs.id()));
@@ -326,7 +345,7 @@ fn run_build(
     cameras: &[(f64, Camera)],
     opts: &SweepOptions,
     progress: &dyn SweepProgress,
-    reference: &mut Vec<Reference>,
+    reference: &mut Vec<RefFrame>,
     data: &mut SweepData,
 ) -> Result<(), SweepError> {
     let ropts = opts.renderer(plan);
@@ -365,6 +384,20 @@ fn run_build(
             progress,
         )?;
     }
+    let originals = match opts.reference {
+        Reference::Original => Vec::new(),
+        Reference::Supersampled(_) => {
+            progress.message("original textures against the supersampled reference");
+            original_quality(
+                &mut full.planner,
+                &mut full.renderer,
+                file,
+                plan,
+                cameras,
+                reference,
+            )?
+        }
+    };
     for rt in &pb.runtimes {
         let id = variant_id(&pb.knobs, rt);
         progress.message(&id);
@@ -377,6 +410,7 @@ fn run_build(
                     knobs: (pb.knobs, *rt),
                     id: &id,
                     reference,
+                    originals: &originals,
                 };
                 for k in 0..opts.warmup.min(cameras.len()) {
                     let (_, cam) = &cameras[k * cameras.len() / opts.warmup.max(1)];
@@ -427,6 +461,7 @@ fn run_build(
                     knobs: (pb.knobs, *rt),
                     id: &id,
                     reference,
+                    originals: &originals,
                 };
                 for (i, (t, cam)) in cameras.iter().enumerate() {
                     let row =
@@ -450,7 +485,7 @@ fn reference_frames(
     cameras: &[(f64, Camera)],
     opts: &SweepOptions,
     progress: &dyn SweepProgress,
-) -> Result<Vec<Reference>, SweepError> {
+) -> Result<Vec<RefFrame>, SweepError> {
     let err = |frame: usize| {
         move |source| SweepError::Render {
             variant: "reference".into(),
@@ -476,8 +511,54 @@ fn reference_frames(
         let rgba = r.read_frame().map_err(err(i))?;
         let (_, density) = r.execute_density(frame).map_err(err(i))?;
         let covered = density.pixels.iter().map(Option::is_some).collect();
-        out.push(Reference { rgba, covered });
+        let rgba = match opts.reference {
+            Reference::Original => rgba,
+            Reference::Supersampled(k) => r.execute_supersampled(frame, k).map_err(err(i))?,
+        };
+        out.push(RefFrame { rgba, covered });
         progress.advance(1);
+    }
+    Ok(out)
+}
+
+/// The build's original textures against the (supersampled) reference on every frame: the frame planned
+/// still (all blocks resident, texel ratio 1), drawn in [`Mode::Original`] at the frame's resolution.
+fn original_quality(
+    planner: &mut FramePlanner<'_>,
+    r: &mut Renderer<'_>,
+    file: &TreeFile,
+    plan: &Plan,
+    cameras: &[(f64, Camera)],
+    reference: &[RefFrame],
+) -> Result<Vec<OriginalQuality>, SweepError> {
+    let (w, h) = (plan.width, plan.height);
+    let render_err = |frame: usize| {
+        move |source| SweepError::Render {
+            variant: "original textures".into(),
+            frame,
+            source: Box::new(source),
+        }
+    };
+    let metric_err = |frame: usize| {
+        move |source| SweepError::Metric {
+            variant: "original textures".into(),
+            frame,
+            source,
+        }
+    };
+    let mut out = Vec::with_capacity(cameras.len());
+    for (i, ((_, cam), truth)) in cameras.iter().zip(reference).enumerate() {
+        let s = scale(file, plan, 1.0, cam)?;
+        let frame = planner
+            .plan_still(cam, s, &mut r.residency())
+            .map_err(|e| render_err(i)(e.into()))?;
+        r.execute(frame, Mode::Original).map_err(render_err(i))?;
+        let rgba = r.read_frame().map_err(render_err(i))?;
+        let full = psnr(&rgba, &truth.rgba, w, h).map_err(metric_err(i))?;
+        let (covered, _) =
+            psnr_masked(&rgba, &truth.rgba, w, h, &truth.covered).map_err(metric_err(i))?;
+        let ssim = ssim(&rgba, &truth.rgba, w, h).map_err(metric_err(i))?;
+        out.push((full, covered, ssim));
     }
     Ok(out)
 }
@@ -488,7 +569,9 @@ struct VariantCtx<'a> {
     plan: &'a Plan,
     knobs: (BuildKnobs, RuntimeKnobs),
     id: &'a str,
-    reference: &'a [Reference],
+    reference: &'a [RefFrame],
+    /// Per frame, the build's original textures against a supersampled reference (empty otherwise).
+    originals: &'a [OriginalQuality],
 }
 
 impl VariantCtx<'_> {
@@ -530,6 +613,11 @@ impl VariantCtx<'_> {
         let (covered_db, covered) =
             psnr_masked(&rgba, &reference.rgba, w, h, &reference.covered).map_err(metric_err)?;
         let ssim = ssim(&rgba, &reference.rgba, w, h).map_err(metric_err)?;
+        let original = self
+            .originals
+            .get(i)
+            .copied()
+            .unwrap_or((f64::NAN, f64::NAN, f64::NAN));
         // The density pass executes the same plan: it steps no pager, so paged variants get it too.
         let (_, density) = r.execute_density(frame).map_err(render_err)?;
         let d = density.min_density();
@@ -547,6 +635,9 @@ impl VariantCtx<'_> {
             psnr_covered_db: covered_db,
             covered_pixels: covered as u64,
             ssim,
+            original_psnr_db: original.0,
+            original_psnr_covered_db: original.1,
+            original_ssim: original.2,
             magnified_share: magnified,
             below_target_share: below,
             stats,

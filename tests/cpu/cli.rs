@@ -377,6 +377,17 @@ fn flags_that_mean_nothing_are_refused() {
         &["--mode original", "paging"],
     );
     refused(
+        &[
+            "render",
+            "nope.atlastree",
+            "--capacity",
+            "8",
+            "--reference",
+            "supersampled",
+        ],
+        &["--reference supersampled:4", "paging"],
+    );
+    refused(
         &["render", "nope.atlastree", "--mode", "tree,tree"],
         &["--mode tree is given twice"],
     );

@@ -42,4 +42,5 @@ mod store;
 mod store_bytes;
 mod sweep;
 mod texfmt;
+mod tour;
 mod views;

@@ -6,9 +6,7 @@
 use atlastree::camera::CameraPath;
 use atlastree::ids::NONE;
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
-use atlastree::render::batch::{
-    AtlasSlot, BatchOptions, FrameBatch, Group, LeafOffsets, Pass, leaf_ranges,
-};
+use atlastree::render::batch::{AtlasSlot, FrameBatch, Group, LeafOffsets, Pass, leaf_ranges};
 use atlastree::render::resident::gather_tables;
 use atlastree::select::{Cut, Source, select};
 use atlastree::store::TreeFile;
@@ -100,7 +98,7 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
         let scale = [0.5, 1.0, 4.0][i % 3];
         select(view.nodes, &cam, &cam.frustum(), scale, &mut cut);
         batch.clear();
-        let skipped = batch.add_cut(info, view.nodes, &cut, None, BatchOptions::default());
+        let skipped = batch.add_cut(info, view.nodes, &cut, None);
         batch.finish();
         assert_eq!(skipped, 0);
         assert_eq!(batch.len(), cut.items.len());
@@ -180,16 +178,7 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
     let (min, max) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
     assert!(max > &(min + 3), "cuts should vary in size: {sizes:?}");
 
-    // Dummy mode: every record an atlas draw of layer 0; a missing atlas skips the item.
-    batch.clear();
-    batch.add_cut(info, view.nodes, &cut, None, BatchOptions { dummy: true });
-    batch.finish();
-    assert!(
-        batch
-            .records
-            .iter()
-            .all(|r| r.atlas_layer == 0 && r.atlas_array == 0)
-    );
+    // A missing atlas skips the item.
     p.infos[0].atlas_slots.iter_mut().for_each(|s| *s = None);
     batch.clear();
     let atlas_items = cut
@@ -197,7 +186,7 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
         .iter()
         .filter(|i| i.source == Source::Atlas)
         .count();
-    let skipped = batch.add_cut(&p.infos[0], view.nodes, &cut, None, BatchOptions::default());
+    let skipped = batch.add_cut(&p.infos[0], view.nodes, &cut, None);
     batch.finish();
     assert_eq!(skipped as usize, atlas_items);
     assert_eq!(batch.len(), cut.items.len() - atlas_items);

@@ -18,7 +18,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use atlastree::render::wgsl::{Binding, ConstValue, blit, naive, smoke_tab, tree};
+use atlastree::render::wgsl::{
+    Binding, ConstValue, blit, downsample, dummy, naive, smoke_tab, tree,
+};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
 /// Shader capabilities the renderer may use: what wgpu grants a device opened by `atlastree::gpu` (the naga
@@ -193,6 +195,45 @@ fn all_twins() -> Vec<Twins> {
                     _p1
                 }),
             ],
+        },
+        Twins {
+            file: "dummy.wgsl",
+            source: dummy::WGSL,
+            consts: dummy::CONSTS,
+            overrides: dummy::overrides::ALL,
+            bindings: dummy::binding::ALL,
+            structs: vec![
+                twin!(dummy::Globals {
+                    view_proj,
+                    mode,
+                    atlas_texels,
+                    _p1,
+                    _p2
+                }),
+                twin!(dummy::NodeDraw {
+                    atlas_layer,
+                    atlas_array,
+                    level,
+                    leaf_base,
+                    alpha_cutoff,
+                    node,
+                    tree,
+                    _pad
+                }),
+            ],
+        },
+        Twins {
+            file: "downsample.wgsl",
+            source: downsample::WGSL,
+            consts: downsample::CONSTS,
+            overrides: downsample::overrides::ALL,
+            bindings: downsample::binding::ALL,
+            structs: vec![twin!(downsample::Params {
+                factor,
+                _p0,
+                _p1,
+                _p2
+            })],
         },
         Twins {
             file: "blit.wgsl",
@@ -463,7 +504,13 @@ fn the_smoke_shaders_are_found() {
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .collect();
-    for expected in ["smoke.wgsl", "smoke_tab.wgsl", "blit.wgsl"] {
+    for expected in [
+        "smoke.wgsl",
+        "smoke_tab.wgsl",
+        "blit.wgsl",
+        "dummy.wgsl",
+        "downsample.wgsl",
+    ] {
         assert!(
             names.iter().any(|n| n == expected),
             "{expected} missing from {names:?}"

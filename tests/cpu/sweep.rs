@@ -126,6 +126,9 @@ fn frame(b: BuildKnobs, t: f64, i: usize, psnr: f64, ms: f64) -> FrameRow {
         psnr_covered_db: psnr,
         covered_pixels: 100,
         ssim: 0.9,
+        original_psnr_db: f64::NAN,
+        original_psnr_covered_db: f64::NAN,
+        original_ssim: f64::NAN,
         magnified_share: 0.1,
         below_target_share: 0.2,
         stats: FrameStats {
@@ -259,6 +262,7 @@ fn report_names_roles_once_effects_and_skipped_builds() {
         adapter: "test".into(),
         anisotropy: 16,
         software: false,
+        reference: atlastree::render::reference::Reference::Original,
         skipped: vec![("r10_a2048_b8_box".into(), "out of memory".into())],
     };
     let cx = ReportContext {

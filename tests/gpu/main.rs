@@ -19,6 +19,7 @@ mod golden;
 mod harness;
 mod paging;
 mod planner;
+mod reference;
 mod render;
 mod residency;
 mod shader_math;
@@ -37,6 +38,7 @@ fn main() -> ExitCode {
         device::tests(),
         extent::tests(),
         render::tests(),
+        reference::tests(),
         golden::tests(),
         paging::tests(),
         planner::tests(),

@@ -165,6 +165,22 @@ fn warm_up_and_extra_modes_step_no_pager(_: &GpuContext) -> Result<(), String> {
     if base.windows(2).all(|w| w[0] == w[1]) {
         return Err("the paging columns never change: the test proves nothing".into());
     }
+    // summary.json: the modes' medians and tree ÷ dummy from them; no original, so no ratio with it.
+    let text = std::fs::read_to_string(warm.join("summary.json")).map_err(e)?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(e)?;
+    let median = |m: &str| v["modes"][m]["median_frame_ms"].as_f64();
+    let (Some(t), Some(d)) = (median("tree"), median("dummy")) else {
+        return Err(format!("summary.json lacks the medians: {v}"));
+    };
+    // serde_json's default float parser may be 1 ulp off: compare to 1e-12 relative.
+    let ratio = v["ratios"]["tree_over_dummy"].as_f64();
+    if ratio.is_none_or(|r| (r - t / d).abs() > 1e-12 * (t / d))
+        || v["ratios"].get("original_over_dummy").is_some()
+    {
+        return Err(format!(
+            "summary.json ratios wrong (tree {t}, dummy {d}): {v}"
+        ));
+    }
     for mode in ["tree", "dummy"] {
         let other = paging_columns(&warm.join(mode))?;
         if let Some(i) = (0..base.len().max(other.len())).find(|&i| base.get(i) != other.get(i)) {

@@ -16,6 +16,7 @@
 //! - the paged variant: coarser share in [0, 1], some bytes paged;
 //! - the report and every plot (SVG + PNG) exist.
 
+use atlastree::render::reference::Reference;
 use atlastree::report::csv::{CsvTable, read_csv};
 use atlastree::sweep::output::write_outputs;
 use atlastree::sweep::{Grid, SweepOptions, run_sweep};
@@ -26,10 +27,92 @@ use crate::harness::GpuTest;
 use crate::render::e;
 
 pub fn tests() -> Vec<GpuTest> {
-    vec![GpuTest {
-        name: "sweep::small_grid_on_city_csv_is_sane",
-        run: small_grid_on_city_csv_is_sane,
-    }]
+    vec![
+        GpuTest {
+            name: "sweep::small_grid_on_city_csv_is_sane",
+            run: small_grid_on_city_csv_is_sane,
+        },
+        GpuTest {
+            name: "sweep::supersampled_reference_measures_tree_and_original",
+            run: supersampled_reference_measures_tree_and_original,
+        },
+    ]
+}
+
+/// `--reference supersampled:2` on a two-build grid (atlas 512 and 1024, texel ratio 1, a paged variant),
+/// 3 frames of 160×120: every variant row and frame row has the original textures' PSNR and SSIM against
+/// the ground truth, finite, and below identity on some frame (the originals at 1× are not the
+/// 2×-supersampled truth; the street-level frame, all magnified, matches it exactly),
+/// equal for the variants of one build on each frame (the originals are the build's), and the report
+/// names the reference and shows the original columns.
+fn supersampled_reference_measures_tree_and_original(
+    ctx: &atlastree::gpu::GpuContext,
+) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+    let scene = atlastree::scene::import(&scene_path, &Default::default()).map_err(e)?;
+    let mut grid = Grid::preset("small").ok_or("no small preset")?;
+    grid.atlas_size = vec![512, 1024];
+    grid.filter = vec![];
+    grid.repeat = vec![];
+    grid.texel_ratio = vec![];
+    grid.capacity = vec![24];
+    grid.frames = 3;
+    grid.width = 160;
+    grid.height = 120;
+    grid.validate("tiny").map_err(e)?;
+    let plan = grid.plan();
+    let (lo, hi) = scene.bounds().ok_or("empty scene")?;
+    let path = atlastree::camera::CameraPath::overview_dive(lo, hi, scene.up).map_err(e)?;
+    let cameras = sample_path(&path, plan.frames, 160.0 / 120.0);
+    let opts = SweepOptions {
+        builds_dir: dir.path().join("builds"),
+        reference: Reference::Supersampled(2),
+        ..SweepOptions::default()
+    };
+    let data = run_sweep(ctx, &scene, &plan, &cameras, &opts, &NoSweepProgress).map_err(e)?;
+    write_outputs(dir.path(), &data, "data/city", "overview-dive").map_err(e)?;
+    let sweep = read_csv(&dir.path().join("sweep.csv")).map_err(e)?;
+    let frames = read_csv(&dir.path().join("frames.csv")).map_err(e)?;
+    check_complete(&sweep, &frames, plan.variants(), plan.frames)?;
+    for (table, name) in [(&sweep, "sweep.csv"), (&frames, "frames.csv")] {
+        for c in [
+            "original_psnr_db",
+            "original_psnr_covered_db",
+            "original_ssim",
+        ] {
+            let v = num(table, c)?;
+            if let Some(i) = v.iter().position(|x| !x.is_finite() || *x <= 0.0) {
+                return Err(format!("{name} row {i}: {c} = {}", v[i]));
+            }
+        }
+        let psnr = num(table, "original_psnr_db")?;
+        if psnr.iter().all(|&x| x >= 99.0) {
+            return Err(format!(
+                "{name}: the originals equal the supersampled truth: {psnr:?}"
+            ));
+        }
+    }
+    // Per build and frame, every variant carries the same original scores.
+    let (builds, frame_ids) = (col(&frames, "build")?, col(&frames, "frame")?);
+    let orig = num(&frames, "original_psnr_covered_db")?;
+    for i in 0..orig.len() {
+        for j in 0..i {
+            if builds[i] == builds[j] && frame_ids[i] == frame_ids[j] && orig[i] != orig[j] {
+                return Err(format!(
+                    "build {} frame {}: original scores differ between variants ({} vs {})",
+                    builds[i], frame_ids[i], orig[i], orig[j]
+                ));
+            }
+        }
+    }
+    let report = std::fs::read_to_string(dir.path().join("report.md")).map_err(e)?;
+    if !report.contains("supersampled:2") || !report.contains("original covered PSNR dB") {
+        return Err(
+            "report.md does not name the supersampled reference and its original columns".into(),
+        );
+    }
+    Ok(())
 }
 
 /// Tolerance of the per-frame monotonicity of PSNR in the texel ratio, dB.

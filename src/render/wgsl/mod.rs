@@ -10,9 +10,12 @@
 //! member names, offsets and sizes (naga's layouter against `size_of`/`offset_of!`), every binding, every
 //! override name and every `const` value ([`CONSTS`](tree::CONSTS) lists them with their WGSL names).
 //!
-//! - [`tree`]: `shaders/tree.wgsl`, the renderer (modes tree, dummy, tree-levels; the density variant).
+//! - [`tree`]: `shaders/tree.wgsl`, the renderer (modes tree, tree-levels; the density variant).
 //! - [`naive`]: `shaders/naive.wgsl`, the per-texture baseline (`--mode original`).
+//! - [`dummy`]: `shaders/dummy.wgsl`, the paper's dummy baseline (`--mode dummy`): the tree's draws, one
+//!   texture, a trivial fragment shader.
 //! - [`blit`]: `shaders/blit.wgsl`, the viewer's present pass.
+//! - [`downsample`]: `shaders/downsample.wgsl`, the supersampled reference's box filter in linear light.
 //! - [`smoke_tab`]: `shaders/smoke_tab.wgsl`, the texture-array batching smoke test (`tests/gpu`).
 //!
 //! `shaders/smoke.wgsl` shares nothing with the host but a vertex buffer, so it has no module.
@@ -51,6 +54,8 @@ macro_rules! wgsl_overrides {
 }
 
 pub mod blit;
+pub mod downsample;
+pub mod dummy;
 pub mod naive;
 pub mod smoke_tab;
 pub mod tree;
