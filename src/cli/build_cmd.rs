@@ -207,12 +207,7 @@ fn run_shard(
         r.blocks,
         r.work as f64 / r.work_mean.max(1.0)
     );
-    let times: Vec<String> = r
-        .timings
-        .iter()
-        .map(|(n, s)| format!("{n} {s:.2}s"))
-        .collect();
-    println!("  time: {}", times.join(", "));
+    print_times(&r.timings);
     println!(
         "  images decoded {}, peak memory {}",
         r.images_decoded,
@@ -314,12 +309,7 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
         "  blocks: {} ({} atlases, {} original-texture blocks)",
         r.blocks, r.atlas_blocks, r.original_blocks
     );
-    let times: Vec<String> = r
-        .timings
-        .iter()
-        .map(|(n, s)| format!("{n} {s:.2}s"))
-        .collect();
-    println!("  time: {}", times.join(", "));
+    print_times(&r.timings);
     println!(
         "  images decoded {} ({} fallbacks, alpha ignored in {} used only by OPAQUE materials), peak memory {}",
         r.images_decoded,
@@ -331,6 +321,15 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
     for w in &r.warnings {
         println!("  warning: {w}");
     }
+}
+
+/// `  time: import 0.10s, sizing Opaque 0.20s, …`
+fn print_times(timings: &[(String, f64)]) {
+    let times: Vec<String> = timings
+        .iter()
+        .map(|(n, s)| format!("{n} {s:.2}s"))
+        .collect();
+    println!("  time: {}", times.join(", "));
 }
 
 /// `  peak memory per stage: import 12 MiB, …` (nothing where the platform does not tell).

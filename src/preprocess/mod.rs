@@ -380,17 +380,14 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<BuildReport, BuildError> {
     let t_all = Instant::now();
-    let (params, diagonal) = resolve_params(scene, opts)?;
-    let parts = partition_triangles(scene);
-    if parts.is_empty() {
-        return Err(BuildError::EmptyScene {
-            path: scene.source.display().to_string(),
-        });
-    }
-    let memory_plan = plan_memory(scene, opts, &params)?;
-    let mut timings = Timings::default();
-    let (forest, mut reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
-    check_file_size(&forest, &reports, opts.max_file_bytes)?;
+    let Planned {
+        params,
+        diagonal,
+        memory_plan,
+        mut timings,
+        forest,
+        mut reports,
+    } = plan_build(scene, opts, progress)?;
 
     // One shard, in memory: the cut at the roots, so nothing is left above it (module shard).
     let t = Instant::now();
@@ -469,6 +466,45 @@ impl CacheBound for Option<memory::MemoryPlan> {
     }
 }
 
+/// Stages 1–3 of a build (the plan every shard runs identically): parameters, memory budget, the forest
+/// without pixels and its reports.
+pub(super) struct Planned {
+    pub(super) params: BuildParams,
+    pub(super) diagonal: f64,
+    pub(super) memory_plan: Option<memory::MemoryPlan>,
+    pub(super) timings: Timings,
+    pub(super) forest: AtlasForest,
+    pub(super) reports: Vec<TreeReport>,
+}
+
+/// Checks `opts` against `scene`, splits the budget, plans the forest and refuses an oversized file, all
+/// before any pixel.
+pub(super) fn plan_build(
+    scene: &Scene,
+    opts: &BuildOptions,
+    progress: &dyn Progress,
+) -> Result<Planned, BuildError> {
+    let (params, diagonal) = resolve_params(scene, opts)?;
+    let parts = partition_triangles(scene);
+    if parts.is_empty() {
+        return Err(BuildError::EmptyScene {
+            path: scene.source.display().to_string(),
+        });
+    }
+    let memory_plan = plan_memory(scene, opts, &params)?;
+    let mut timings = Timings::default();
+    let (forest, reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
+    check_file_size(&forest, &reports, opts.max_file_bytes)?;
+    Ok(Planned {
+        params,
+        diagonal,
+        memory_plan,
+        timings,
+        forest,
+        reports,
+    })
+}
+
 /// `(stage, seconds)` of a build, in the order the stages ended.
 #[derive(Default)]
 pub(super) struct Timings(pub(super) Vec<(String, f64)>, pub(super) Vec<(String, u64)>);
@@ -494,7 +530,7 @@ impl Timings {
 }
 
 /// Stages 1–3 for every tree: the forest without pixels (every block's size fixed), with a report per tree.
-pub(super) fn plan_forest(
+fn plan_forest(
     scene: &Scene,
     opts: &BuildOptions,
     params: &BuildParams,
@@ -613,7 +649,7 @@ fn tree_report(
 }
 
 /// Refuses, before anything is written, a forest whose blocks exceed `limit` bytes.
-pub(super) fn check_file_size(
+fn check_file_size(
     forest: &AtlasForest,
     reports: &[TreeReport],
     limit: u64,

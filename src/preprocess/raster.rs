@@ -320,18 +320,7 @@ pub fn raster_above(
             node: id.0,
         });
     }
-    use rayon::prelude::*;
-    let kids: Vec<(usize, NodeId)> = node
-        .children
-        .iter()
-        .enumerate()
-        .filter_map(|(q, c)| c.map(|c| (q, c)))
-        .collect();
-    let halves: Vec<(usize, LinearImage)> = kids
-        .par_iter()
-        .map(|&(q, c)| raster_above(out, tree, handoffs, c).map(|img| (q, img)))
-        .collect::<Result<_, _>>()?;
-    let atlas = combine(out, tree, id, &halves)?;
+    let atlas = combine_children(out, tree, id, &|c| raster_above(out, tree, handoffs, c))?;
     finish_atlas(out, tree, id, atlas)
 }
 
@@ -396,31 +385,31 @@ fn raster_node(
         leaf_atlas(ctx, leaf, ctx.out.atlas_size, fill_for(tree.kind))
             .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
     } else {
-        let kids: Vec<(usize, NodeId)> = node
-            .children
-            .iter()
-            .enumerate()
-            .filter_map(|(q, c)| c.map(|c| (q, c)))
-            .collect();
-        use rayon::prelude::*;
-        let halves: Vec<(usize, LinearImage)> = kids
-            .par_iter()
-            .map(|&(q, c)| raster_node(ctx, tree, owned, c).map(|img| (q, img)))
-            .collect::<Result<_, _>>()?;
-        combine(&ctx.out, tree, id, &halves)?
+        combine_children(&ctx.out, tree, id, &|c| raster_node(ctx, tree, owned, c))?
     };
     finish_atlas(&ctx.out, tree, id, atlas)
 }
 
-/// An inner atlas from its children's halves by quadrant (§5.1).
-fn combine(
+/// Inner node `id`'s atlas: each child's level 1 from `child` (in parallel), combined by quadrant (§5.1).
+fn combine_children(
     out: &AtlasOut<'_>,
     tree: &AtlasTree,
     id: NodeId,
-    halves: &[(usize, LinearImage)],
+    child: &(dyn Fn(NodeId) -> Result<LinearImage, BuildError> + Sync),
 ) -> Result<LinearImage, BuildError> {
+    use rayon::prelude::*;
+    let kids: Vec<(usize, NodeId)> = tree.nodes[id.idx()]
+        .children
+        .iter()
+        .enumerate()
+        .filter_map(|(q, c)| c.map(|c| (q, c)))
+        .collect();
+    let halves: Vec<(usize, LinearImage)> = kids
+        .par_iter()
+        .map(|&(q, c)| child(c).map(|img| (q, img)))
+        .collect::<Result<_, _>>()?;
     let mut quads: [Option<&LinearImage>; 4] = [None; 4];
-    for (q, img) in halves {
+    for (q, img) in &halves {
         quads[*q] = Some(img);
     }
     combine_quadrants(quads, out.atlas_size, fill_for(tree.kind))

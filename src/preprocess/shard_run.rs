@@ -5,7 +5,7 @@ use super::shard::{
     self, Cut, ShardSpec, Unit, choose_cut, fingerprint, handoff_side, mip_filter_code,
     mip_filter_of, shard_blocks, shard_path,
 };
-use super::{BuildError, BuildOptions, CacheBound, Progress, Timings, raster};
+use super::{BuildError, BuildOptions, CacheBound, Progress, raster};
 use crate::ids::BlockId;
 use crate::preprocess::image_ops::LinearImage;
 use crate::scene::Scene;
@@ -60,18 +60,14 @@ pub fn build_shard(
 ) -> Result<ShardReport, BuildError> {
     let t_all = Instant::now();
     let spec = sharded.spec;
-    let (params, _) = super::resolve_params(scene, opts)?;
-    let parts = super::partition_triangles(scene);
-    if parts.is_empty() {
-        return Err(BuildError::EmptyScene {
-            path: scene.source.display().to_string(),
-        });
-    }
-    let memory_plan = super::plan_memory(scene, opts, &params)?;
-    let mut timings = Timings::default();
-    let (forest, mut reports) =
-        super::plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
-    super::check_file_size(&forest, &reports, opts.max_file_bytes)?;
+    let super::Planned {
+        params,
+        memory_plan,
+        mut timings,
+        forest,
+        mut reports,
+        ..
+    } = super::plan_build(scene, opts, progress)?;
 
     let t = Instant::now();
     let prefix = table_prefix(&forest)?;

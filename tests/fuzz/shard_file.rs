@@ -11,9 +11,7 @@
 use super::harness::{self, Verdict};
 use arbitrary::Unstructured;
 use atlastree::preprocess::shard::{ShardSpec, shard_path};
-use atlastree::preprocess::{
-    BuildOptions, DMin, NoProgress, ShardedOptions, build, build_shard, merge,
-};
+use atlastree::preprocess::{NoProgress, ShardedOptions, build, build_shard, merge};
 use atlastree::store::shard::ShardHeader;
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -31,14 +29,10 @@ struct Base {
 fn base() -> &'static Base {
     static BASE: OnceLock<Base> = OnceLock::new();
     BASE.get_or_init(|| {
-        let scene = atlastree::scene::synthetic::small_city(2, 32);
-        let opts = BuildOptions {
-            d_min: DMin::Ratio(40.0),
-            atlas_size: 64,
-            border: 4,
-            leaf_originals_atlases: 0.0,
-            ..Default::default()
-        };
+        let (scene, opts) = (
+            super::tiny_store::tiny_scene(),
+            super::tiny_store::tiny_options(),
+        );
         let dir = tempfile::tempdir().expect("temp dir");
         let one = dir.path().join("one.atlastree");
         build(&scene, &opts, &one, &NoProgress).expect("the small city builds");
