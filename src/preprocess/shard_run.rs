@@ -169,6 +169,8 @@ pub enum MergeError {
         "shard files of several builds beside {out}: N = {counts:?}; remove the stale ones or say which with --shards N"
     )]
     AmbiguousCount { out: PathBuf, counts: Vec<u32> },
+    #[error("--shards {count}: expected a shard count from 1 to {max}", max = shard::MAX_SHARDS)]
+    BadCount { count: u32 },
     #[error("shard {shard} of {count} is missing: {path} does not exist{rebuild}")]
     Missing {
         shard: u32,
@@ -304,193 +306,34 @@ pub fn merge(
     progress: &dyn Progress,
 ) -> Result<MergeReport, MergeError> {
     let t_all = Instant::now();
-    let found = shard_files(out);
-    let count = match count {
-        Some(n) => n,
-        None => {
-            let mut counts: Vec<u32> = found.iter().map(|f| f.1).collect();
-            counts.sort_unstable();
-            counts.dedup();
-            match counts.as_slice() {
-                [] => {
-                    return Err(MergeError::NoShards {
-                        out: out.to_path_buf(),
-                    });
-                }
-                [n] => *n,
-                _ => {
-                    return Err(MergeError::AmbiguousCount {
-                        out: out.to_path_buf(),
-                        counts,
-                    });
-                }
-            }
-        }
-    };
-    // Open every shard: first the ones present (their command lines give the rebuild hints).
-    let mut opened: Vec<Option<ShardFile>> = Vec::with_capacity(count as usize);
-    let mut failures: Vec<(u32, PathBuf, Option<ShardFileError>)> = Vec::new();
-    for index in 0..count {
-        let path = shard_path(out, ShardSpec { index, count });
-        if !path.exists() {
-            failures.push((index, path, None));
-            opened.push(None);
-            continue;
-        }
-        match ShardFile::open(&path) {
-            Ok(f) => opened.push(Some(f)),
-            Err(e) => {
-                failures.push((index, path, Some(e)));
-                opened.push(None);
-            }
-        }
-    }
-    // The rebuild hint copies the command line of a shard of the build most shards belong to (a foreign
-    // shard's flags would rebuild the wrong thing).
-    let majority = {
-        let prints: Vec<[u64; 2]> = opened
-            .iter()
-            .flatten()
-            .map(|f| f.header.fingerprint)
-            .collect();
-        prints
-            .iter()
-            .max_by_key(|p| {
-                (
-                    prints.iter().filter(|q| q == p).count(),
-                    std::cmp::Reverse(prints.iter().position(|q| q == *p)),
-                )
-            })
-            .copied()
-    };
-    let argv: Option<Vec<String>> = opened
-        .iter()
-        .flatten()
-        .find(|f| Some(f.header.fingerprint) == majority)
-        .map(|f| f.argv.clone());
-    let hint = |index| rebuild_hint(argv.as_deref(), ShardSpec { index, count });
-    if let Some((shard, path, err)) = failures.into_iter().next() {
-        let rebuild = hint(shard);
-        return Err(match err {
-            None => MergeError::Missing {
-                shard,
-                count,
-                path,
-                rebuild,
-            },
-            Some(source) => MergeError::Corrupt {
-                shard,
-                count,
-                path,
-                rebuild,
-                source,
-            },
-        });
-    }
-    let shards: Vec<ShardFile> = opened.into_iter().flatten().collect();
-    // Shards are in slot order from here on: slot i is the file named shard i.
-    let slot = |f: &ShardFile| shards.iter().position(|g| std::ptr::eq(f, g)).unwrap_or(0) as u32;
-    let foreign = |f: &ShardFile, why: String| MergeError::Foreign {
-        shard: slot(f),
-        count,
-        path: f.path().to_path_buf(),
-        why,
-        rebuild: hint(slot(f)),
-    };
-    let first = &shards[0];
-    for (i, f) in shards.iter().enumerate() {
-        if f.header.shard != i as u32 || f.header.count != count {
-            return Err(foreign(
-                f,
-                format!(
-                    "it says it is shard {} of {}",
-                    f.header.shard, f.header.count
-                ),
-            ));
-        }
-        if f.header.fingerprint != first.header.fingerprint
-            || f.header.prefix_hash != first.header.prefix_hash
-            || f.header.mip_filter != first.header.mip_filter
-        {
-            return Err(foreign(
-                f,
-                "its fingerprint (scene and flags) differs from shard 0's".into(),
-            ));
-        }
-    }
-    let corrupt = |f: &ShardFile, source| MergeError::Corrupt {
-        shard: slot(f),
-        count,
-        path: f.path().to_path_buf(),
-        rebuild: hint(slot(f)),
-        source,
-    };
-    let prefix = first.prefix().map_err(|e| corrupt(first, e))?;
+    let set = ShardSet::open(out, count)?;
+    set.check_headers()?;
+    let first = &set.shards[0];
+    let prefix = first.prefix().map_err(|e| set.corrupt(0, e))?;
     let name = first.path().display().to_string();
+    let tables = TreeFile::from_prefix(&prefix, prefix_file_len(&prefix), &name)
+        .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
+    let forest = tables.to_skeleton();
+    drop(tables);
+    let cut = choose_cut(&forest, set.count);
+    set.check_cut(&forest, &cut)?;
+    let mip_filter = mip_filter_of(first.header.mip_filter).ok_or_else(|| {
+        set.foreign(0, format!("unknown mip filter code {}", first.header.mip_filter))
+    })?;
+
     let store_err = |source| MergeError::Store {
         out: out.to_path_buf(),
         source,
     };
-    let tables = TreeFile::from_prefix(&prefix, prefix_file_len(&prefix), &name)
-        .map_err(|e| foreign(first, format!("its table prefix does not open: {e}")))?;
-    let forest = tables.to_skeleton();
-    drop(tables);
-    let cut = choose_cut(&forest, count);
-    check_cut(&forest, &cut, &shards, &foreign)?;
-    let mip_filter = mip_filter_of(first.header.mip_filter).ok_or_else(|| {
-        foreign(
-            first,
-            format!("unknown mip filter code {}", first.header.mip_filter),
-        )
-    })?;
-
     let writer = FileWriter::from_prefix(out, &prefix, &name).map_err(store_err)?;
-    let total: u64 = shards.iter().map(|f| f.blocks.len() as u64).sum();
-    progress.stage("merge: copy blocks", Some(total));
-    let mut copied = 0;
-    let mut handoffs: HashMap<Unit, LinearImage> = HashMap::new();
-    for f in &shards {
-        for (i, e) in f.blocks.iter().enumerate() {
-            let bytes = f.block(i).map_err(|err| corrupt(f, err))?;
-            writer
-                .write_block_measured(BlockId(e.block), &bytes, e.sse)
-                .map_err(store_err)?;
-            copied += 1;
-            progress.set(copied);
-        }
-        for (i, e) in f.handoffs.iter().enumerate() {
-            let data = f.handoff(i).map_err(|err| corrupt(f, err))?;
-            let unit = Unit {
-                tree: e.tree,
-                node: e.node,
-            };
-            handoffs.insert(
-                unit,
-                LinearImage {
-                    width: e.width,
-                    height: e.height,
-                    data,
-                },
-            );
-        }
-    }
-    progress.finish_stage();
-    let above: u64 = forest
-        .trees
-        .iter()
-        .map(|t| t.nodes.len() as u64)
-        .sum::<u64>()
-        - cut
-            .shards
-            .iter()
-            .flatten()
-            .map(|u| {
-                shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node))
-            })
-            .sum::<u64>();
+    let handoffs = set.copy_blocks(&writer, progress)?;
+    let below: u64 = (cut.shards.iter().flatten())
+        .map(|u| shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node)))
+        .sum();
+    let above = forest.trees.iter().map(|t| t.nodes.len() as u64).sum::<u64>() - below;
     progress.stage("merge: atlases above the cut", Some(above));
-    let set = |n: u64| progress.set(n);
-    let atlas_out = raster::AtlasOut::new(forest.params.atlas_size, mip_filter, &writer, &set);
+    let done = |n: u64| progress.set(n);
+    let atlas_out = raster::AtlasOut::new(forest.params.atlas_size, mip_filter, &writer, &done);
     shard::raster_forest_above(&atlas_out, &forest, &handoffs).map_err(|source| {
         MergeError::Build {
             out: out.to_path_buf(),
@@ -501,37 +344,256 @@ pub fn merge(
     progress.stage("merge: write", None);
     let summary = writer.finish().map_err(store_err)?;
     progress.finish_stage();
-
-    let merged = shards
-        .iter()
-        .map(|f| {
-            let side = read_sidecar(f.path());
-            MergedShard {
-                shard: slot(f),
-                path: f.path().to_path_buf(),
-                file_bytes: f.header.file_len,
-                blocks: f.blocks.len() as u64,
-                units: f.handoffs.len() as u64,
-                seconds: side.as_ref().and_then(|r| {
-                    r.timings
-                        .iter()
-                        .find(|(n, _)| n == "total")
-                        .map(|(_, s)| *s)
-                }),
-                peak_rss_bytes: side.as_ref().and_then(|r| r.peak_rss_bytes),
-                work: side.as_ref().map(|r| r.work),
-            }
-        })
-        .collect();
     Ok(MergeReport {
         out: out.to_path_buf(),
-        count,
-        shards: merged,
+        count: set.count,
+        shards: set.report_lines(),
         above_cut: above,
         file_bytes: summary.total,
         seconds: t_all.elapsed().as_secs_f64(),
         peak_rss_bytes: crate::util::peak_rss_bytes(),
     })
+}
+
+/// The N shard files of one build, opened, in slot order (slot i is the file named shard i), with the
+/// command line the rebuild hints copy.
+struct ShardSet {
+    count: u32,
+    shards: Vec<ShardFile>,
+    /// The stored command line of a shard of the build most shards belong to (a foreign shard's flags
+    /// would rebuild the wrong thing).
+    argv: Option<Vec<String>>,
+}
+
+impl ShardSet {
+    /// Finds and opens every shard of `out` (`count`, or the only count found beside it); fails on the
+    /// first missing or unreadable one.
+    fn open(out: &Path, count: Option<u32>) -> Result<ShardSet, MergeError> {
+        let count = match count {
+            Some(n) if n == 0 || n > shard::MAX_SHARDS => return Err(MergeError::BadCount { count: n }),
+            Some(n) => n,
+            None => only_count(out)?,
+        };
+        let mut opened: Vec<Option<ShardFile>> = Vec::with_capacity(count as usize);
+        let mut failures: Vec<(u32, PathBuf, Option<ShardFileError>)> = Vec::new();
+        for index in 0..count {
+            let path = shard_path(out, ShardSpec { index, count });
+            let file = if path.exists() {
+                ShardFile::open(&path).map_err(Some)
+            } else {
+                Err(None)
+            };
+            match file {
+                Ok(f) => opened.push(Some(f)),
+                Err(e) => {
+                    failures.push((index, path, e));
+                    opened.push(None);
+                }
+            }
+        }
+        let prints: Vec<[u64; 2]> = (opened.iter().flatten())
+            .map(|f| f.header.fingerprint)
+            .collect();
+        let majority = prints.iter().max_by_key(|p| {
+            (
+                prints.iter().filter(|q| q == p).count(),
+                std::cmp::Reverse(prints.iter().position(|q| q == *p)),
+            )
+        });
+        let argv = (opened.iter().flatten())
+            .find(|f| Some(&f.header.fingerprint) == majority)
+            .map(|f| f.argv.clone());
+        let mut set = ShardSet {
+            count,
+            shards: Vec::new(),
+            argv,
+        };
+        if let Some((shard, path, err)) = failures.into_iter().next() {
+            let rebuild = set.hint(shard);
+            return Err(match err {
+                None => MergeError::Missing {
+                    shard,
+                    count,
+                    path,
+                    rebuild,
+                },
+                Some(source) => MergeError::Corrupt {
+                    shard,
+                    count,
+                    path,
+                    rebuild,
+                    source,
+                },
+            });
+        }
+        set.shards = opened.into_iter().flatten().collect();
+        Ok(set)
+    }
+
+    fn hint(&self, index: u32) -> String {
+        rebuild_hint(
+            self.argv.as_deref(),
+            ShardSpec {
+                index,
+                count: self.count,
+            },
+        )
+    }
+
+    fn foreign(&self, slot: usize, why: String) -> MergeError {
+        MergeError::Foreign {
+            shard: slot as u32,
+            count: self.count,
+            path: self.shards[slot].path().to_path_buf(),
+            why,
+            rebuild: self.hint(slot as u32),
+        }
+    }
+
+    fn corrupt(&self, slot: usize, source: ShardFileError) -> MergeError {
+        MergeError::Corrupt {
+            shard: slot as u32,
+            count: self.count,
+            path: self.shards[slot].path().to_path_buf(),
+            rebuild: self.hint(slot as u32),
+            source,
+        }
+    }
+
+    /// Every shard says it is its slot of `count`, with shard 0's fingerprint, prefix and mip filter.
+    fn check_headers(&self) -> Result<(), MergeError> {
+        let first = &self.shards[0].header;
+        for (i, f) in self.shards.iter().enumerate() {
+            let h = &f.header;
+            if h.shard != i as u32 || h.count != self.count {
+                let why = format!("it says it is shard {} of {}", h.shard, h.count);
+                return Err(self.foreign(i, why));
+            }
+            if h.fingerprint != first.fingerprint
+                || h.prefix_hash != first.prefix_hash
+                || h.mip_filter != first.mip_filter
+            {
+                let why = "its fingerprint (scene and flags) differs from shard 0's".to_string();
+                return Err(self.foreign(i, why));
+            }
+        }
+        Ok(())
+    }
+
+    /// Each shard holds exactly the blocks and subtree roots the cut gives it.
+    fn check_cut(&self, forest: &crate::model::AtlasForest, cut: &Cut) -> Result<(), MergeError> {
+        let side = handoff_side(forest.params.atlas_size);
+        for (i, (f, units)) in self.shards.iter().zip(&cut.shards).enumerate() {
+            let expected = shard_blocks(forest, units);
+            let got: Vec<(BlockId, u64)> = (f.blocks.iter())
+                .map(|e| (BlockId(e.block), e.length))
+                .collect();
+            if got != expected {
+                let why = format!(
+                    "it holds {} blocks where the cut of shard 0's tables gives it {}",
+                    got.len(),
+                    expected.len()
+                );
+                return Err(self.foreign(i, why));
+            }
+            let roots: Vec<Unit> = (f.handoffs.iter())
+                .map(|h| Unit {
+                    tree: h.tree,
+                    node: h.node,
+                })
+                .collect();
+            if &roots != units || f.handoffs.iter().any(|h| h.width != side || h.height != side) {
+                let why = "its subtree roots differ from the cut of shard 0's tables".to_string();
+                return Err(self.foreign(i, why));
+            }
+        }
+        Ok(())
+    }
+
+    /// Copies every shard's blocks into `writer` (checksums verified on the way) and returns the
+    /// handoffs by unit.
+    fn copy_blocks(
+        &self,
+        writer: &FileWriter,
+        progress: &dyn Progress,
+    ) -> Result<HashMap<Unit, LinearImage>, MergeError> {
+        let total: u64 = self.shards.iter().map(|f| f.blocks.len() as u64).sum();
+        progress.stage("merge: copy blocks", Some(total));
+        let mut copied = 0;
+        let mut handoffs = HashMap::new();
+        for (slot, f) in self.shards.iter().enumerate() {
+            for (i, e) in f.blocks.iter().enumerate() {
+                let bytes = f.block(i).map_err(|err| self.corrupt(slot, err))?;
+                writer
+                    .write_block_measured(BlockId(e.block), &bytes, e.sse)
+                    .map_err(|source| MergeError::Store {
+                        out: writer.target().to_path_buf(),
+                        source,
+                    })?;
+                copied += 1;
+                progress.set(copied);
+            }
+            for (i, e) in f.handoffs.iter().enumerate() {
+                let data = f.handoff(i).map_err(|err| self.corrupt(slot, err))?;
+                let unit = Unit {
+                    tree: e.tree,
+                    node: e.node,
+                };
+                let (width, height) = (e.width, e.height);
+                handoffs.insert(
+                    unit,
+                    LinearImage {
+                        width,
+                        height,
+                        data,
+                    },
+                );
+            }
+        }
+        progress.finish_stage();
+        Ok(handoffs)
+    }
+
+    /// The merge report's line of every shard (time and peak memory from its JSON report, if present).
+    fn report_lines(&self) -> Vec<MergedShard> {
+        (self.shards.iter().enumerate())
+            .map(|(slot, f)| {
+                let side = read_sidecar(f.path());
+                let total = |r: &ShardReport| {
+                    (r.timings.iter())
+                        .find(|(n, _)| n == "total")
+                        .map(|(_, s)| *s)
+                };
+                MergedShard {
+                    shard: slot as u32,
+                    path: f.path().to_path_buf(),
+                    file_bytes: f.header.file_len,
+                    blocks: f.blocks.len() as u64,
+                    units: f.handoffs.len() as u64,
+                    seconds: side.as_ref().and_then(total),
+                    peak_rss_bytes: side.as_ref().and_then(|r| r.peak_rss_bytes),
+                    work: side.as_ref().map(|r| r.work),
+                }
+            })
+            .collect()
+    }
+}
+
+/// The shard count of the only build whose shard files lie beside `out`.
+fn only_count(out: &Path) -> Result<u32, MergeError> {
+    let mut counts: Vec<u32> = shard_files(out).iter().map(|f| f.1).collect();
+    counts.sort_unstable();
+    counts.dedup();
+    match counts.as_slice() {
+        [] => Err(MergeError::NoShards {
+            out: out.to_path_buf(),
+        }),
+        [n] => Ok(*n),
+        _ => Err(MergeError::AmbiguousCount {
+            out: out.to_path_buf(),
+            counts,
+        }),
+    }
 }
 
 /// The file length a table prefix's header claims (checked by the open that follows).
@@ -541,53 +603,6 @@ fn prefix_file_len(prefix: &[u8]) -> u64 {
         return prefix.len() as u64;
     }
     bytemuck::pod_read_unaligned::<Header>(&prefix[..HEADER_SIZE]).file_len
-}
-
-/// Each shard holds exactly the blocks and subtree roots the cut gives it.
-fn check_cut(
-    forest: &crate::model::AtlasForest,
-    cut: &Cut,
-    shards: &[ShardFile],
-    foreign: &dyn Fn(&ShardFile, String) -> MergeError,
-) -> Result<(), MergeError> {
-    for (f, units) in shards.iter().zip(&cut.shards) {
-        let expected = shard_blocks(forest, units);
-        let got: Vec<(BlockId, u64)> = f
-            .blocks
-            .iter()
-            .map(|e| (BlockId(e.block), e.length))
-            .collect();
-        if got != expected {
-            return Err(foreign(
-                f,
-                format!(
-                    "it holds {} blocks where the cut of shard 0's tables gives it {}",
-                    got.len(),
-                    expected.len()
-                ),
-            ));
-        }
-        let roots: Vec<Unit> = f
-            .handoffs
-            .iter()
-            .map(|h| Unit {
-                tree: h.tree,
-                node: h.node,
-            })
-            .collect();
-        let side = handoff_side(forest.params.atlas_size);
-        if &roots != units
-            || f.handoffs
-                .iter()
-                .any(|h| h.width != side || h.height != side)
-        {
-            return Err(foreign(
-                f,
-                "its subtree roots differ from the cut of shard 0's tables".into(),
-            ));
-        }
-    }
-    Ok(())
 }
 
 fn read_sidecar(path: &Path) -> Option<ShardReport> {

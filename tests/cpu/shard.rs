@@ -287,6 +287,10 @@ fn merge_without_shards_or_with_two_counts_says_so() {
     }
     merge(&out, Some(3), &NoProgress).unwrap();
     assert!(TreeFile::open(&out).is_ok());
+    assert!(matches!(
+        merge(&out, Some(0), &NoProgress),
+        Err(MergeError::BadCount { count: 0 })
+    ));
 }
 
 #[test]
