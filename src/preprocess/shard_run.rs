@@ -318,7 +318,10 @@ pub fn merge(
     let cut = choose_cut(&forest, set.count);
     set.check_cut(&forest, &cut)?;
     let mip_filter = mip_filter_of(first.header.mip_filter).ok_or_else(|| {
-        set.foreign(0, format!("unknown mip filter code {}", first.header.mip_filter))
+        set.foreign(
+            0,
+            format!("unknown mip filter code {}", first.header.mip_filter),
+        )
     })?;
 
     let store_err = |source| MergeError::Store {
@@ -330,7 +333,12 @@ pub fn merge(
     let below: u64 = (cut.shards.iter().flatten())
         .map(|u| shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node)))
         .sum();
-    let above = forest.trees.iter().map(|t| t.nodes.len() as u64).sum::<u64>() - below;
+    let above = forest
+        .trees
+        .iter()
+        .map(|t| t.nodes.len() as u64)
+        .sum::<u64>()
+        - below;
     progress.stage("merge: atlases above the cut", Some(above));
     let done = |n: u64| progress.set(n);
     let atlas_out = raster::AtlasOut::new(forest.params.atlas_size, mip_filter, &writer, &done);
@@ -370,7 +378,9 @@ impl ShardSet {
     /// first missing or unreadable one.
     fn open(out: &Path, count: Option<u32>) -> Result<ShardSet, MergeError> {
         let count = match count {
-            Some(n) if n == 0 || n > shard::MAX_SHARDS => return Err(MergeError::BadCount { count: n }),
+            Some(n) if n == 0 || n > shard::MAX_SHARDS => {
+                return Err(MergeError::BadCount { count: n });
+            }
             Some(n) => n,
             None => only_count(out)?,
         };
@@ -502,7 +512,11 @@ impl ShardSet {
                     node: h.node,
                 })
                 .collect();
-            if &roots != units || f.handoffs.iter().any(|h| h.width != side || h.height != side) {
+            if &roots != units
+                || f.handoffs
+                    .iter()
+                    .any(|h| h.width != side || h.height != side)
+            {
                 let why = "its subtree roots differ from the cut of shard 0's tables".to_string();
                 return Err(self.foreign(i, why));
             }
