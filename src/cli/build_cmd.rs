@@ -143,11 +143,13 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     }
     let mut report = build(&scene, &a.options(), &a.out, &bars)
         .with_context(|| format!("building {} into {}", a.scene.display(), a.out.display()))?;
-    report.timings.insert(0, ("import".into(), import_s));
-    if let Some(p) = import_peak {
-        report.stage_peak_rss.insert(0, ("import".into(), p));
-        report.peak_rss_bytes = report.peak_rss_bytes.max(Some(p));
-    }
+    add_import(
+        &mut report.timings,
+        &mut report.stage_peak_rss,
+        &mut report.peak_rss_bytes,
+        import_s,
+        import_peak,
+    );
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -188,11 +190,13 @@ fn run_shard(
                 a.out.display()
             )
         })?;
-    report.timings.insert(0, ("import".into(), import_s));
-    if let Some(p) = import_peak {
-        report.stage_peak_rss.insert(0, ("import".into(), p));
-        report.peak_rss_bytes = report.peak_rss_bytes.max(Some(p));
-    }
+    add_import(
+        &mut report.timings,
+        &mut report.stage_peak_rss,
+        &mut report.peak_rss_bytes,
+        import_s,
+        import_peak,
+    );
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(ExitCode::SUCCESS);
@@ -320,6 +324,22 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
     print_stage_peaks(&r.stage_peak_rss);
     for w in &r.warnings {
         println!("  warning: {w}");
+    }
+}
+
+/// Puts the import (timed by the CLI, before the library's stages) first in a report's timings and
+/// per-stage peaks, and into its overall peak.
+fn add_import(
+    timings: &mut Vec<(String, f64)>,
+    peaks: &mut Vec<(String, u64)>,
+    peak: &mut Option<u64>,
+    seconds: f64,
+    import_peak: Option<u64>,
+) {
+    timings.insert(0, ("import".into(), seconds));
+    if let Some(p) = import_peak {
+        peaks.insert(0, ("import".into(), p));
+        *peak = (*peak).max(Some(p));
     }
 }
 
