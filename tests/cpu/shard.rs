@@ -298,31 +298,47 @@ fn memory_budget_sizes_the_cache_or_refuses_up_front_with_the_number_needed() {
     let dir = tempfile::tempdir().unwrap();
     let reference = one_process(&BuildOptions::default(), dir.path());
     let out = dir.path().join("budget.atlastree");
+    // What this machine's rasteriser threads need for this scene: the refusal and the fit are set around it.
+    let largest = (city().images.iter())
+        .map(|i| u64::from(i.width) * u64::from(i.height))
+        .max()
+        .unwrap();
+    let needed = atlastree::preprocess::memory::plan_memory(
+        u64::MAX,
+        city().triangles.len() as u64,
+        1024,
+        rayon::current_num_threads() as u64,
+        largest,
+        2 << 30,
+    )
+    .unwrap()
+    .needed_bytes;
     let tight = BuildOptions {
-        max_memory_bytes: Some(100 << 20),
+        max_memory_bytes: Some(needed - (1 << 20)),
         ..BuildOptions::default()
     };
     match build(city(), &tight, &out, &NoProgress) {
         Err(atlastree::preprocess::BuildError::Memory(e)) => {
-            assert_eq!(e.budget_mib, 100);
-            assert!(e.needed_mib > 100, "{e}");
+            assert_eq!(e.budget_mib, (needed - (1 << 20)) >> 20);
+            assert_eq!(e.needed_mib, needed.div_ceil(1 << 20), "{e}");
             assert_eq!(e.triangles, city().triangles.len() as u64);
         }
         other => panic!("expected a memory error, got {other:?}"),
     }
     assert!(!out.exists(), "a refused build wrote {}", out.display());
+    let budget = needed + (32 << 20);
     let fits = BuildOptions {
-        max_memory_bytes: Some(300 << 20),
+        max_memory_bytes: Some(budget),
         ..BuildOptions::default()
     };
     let report = build(city(), &fits, &out, &NoProgress).unwrap();
     let plan = report.memory.expect("a budget gives a memory plan");
-    assert_eq!(plan.budget, 300 << 20);
+    assert_eq!(plan.budget, budget);
     assert!(
         plan.image_cache_bytes < 2 << 30,
         "the cache was lowered to fit"
     );
-    assert!(plan.plan_bytes + plan.raster_bytes + plan.image_cache_bytes * 5 / 4 <= 300 << 20);
+    assert!(plan.plan_bytes + plan.raster_bytes + plan.image_cache_bytes * 5 / 4 <= budget);
     // The budget changes what is held at once, not what is written.
     assert!(std::fs::read(&out).unwrap() == reference);
     // Peak memory per stage: each stage of the build reported once, in order (Linux).
