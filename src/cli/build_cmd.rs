@@ -143,13 +143,7 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     }
     let mut report = build(&scene, &a.options(), &a.out, &bars)
         .with_context(|| format!("building {} into {}", a.scene.display(), a.out.display()))?;
-    add_import(
-        &mut report.timings,
-        &mut report.stage_peak_rss,
-        &mut report.peak_rss_bytes,
-        import_s,
-        import_peak,
-    );
+    report.stages.prepend("import", import_s, import_peak);
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -190,13 +184,7 @@ fn run_shard(
                 a.out.display()
             )
         })?;
-    add_import(
-        &mut report.timings,
-        &mut report.stage_peak_rss,
-        &mut report.peak_rss_bytes,
-        import_s,
-        import_peak,
-    );
+    report.stages.prepend("import", import_s, import_peak);
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(ExitCode::SUCCESS);
@@ -211,13 +199,13 @@ fn run_shard(
         r.blocks,
         r.work as f64 / r.work_mean.max(1.0)
     );
-    print_times(&r.timings);
+    print_times(&r.stages.timings);
     println!(
         "  images decoded {}, peak memory {}",
         r.images_decoded,
-        r.peak_rss_bytes.map_or("?".into(), human_bytes)
+        r.stages.peak_rss_bytes.map_or("?".into(), human_bytes)
     );
-    print_stage_peaks(&r.stage_peak_rss);
+    print_stage_peaks(&r.stages.stage_peak_rss);
     println!(
         "  when all {} shards are written: atlastree merge {}",
         spec.count,
@@ -313,33 +301,17 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
         "  blocks: {} ({} atlases, {} original-texture blocks)",
         r.blocks, r.atlas_blocks, r.original_blocks
     );
-    print_times(&r.timings);
+    print_times(&r.stages.timings);
     println!(
         "  images decoded {} ({} fallbacks, alpha ignored in {} used only by OPAQUE materials), peak memory {}",
         r.images_decoded,
         r.image_fallbacks,
         r.images_alpha_ignored,
-        r.peak_rss_bytes.map_or("?".into(), human_bytes)
+        r.stages.peak_rss_bytes.map_or("?".into(), human_bytes)
     );
-    print_stage_peaks(&r.stage_peak_rss);
+    print_stage_peaks(&r.stages.stage_peak_rss);
     for w in &r.warnings {
         println!("  warning: {w}");
-    }
-}
-
-/// Puts the import (timed by the CLI, before the library's stages) first in a report's timings and
-/// per-stage peaks, and into its overall peak.
-fn add_import(
-    timings: &mut Vec<(String, f64)>,
-    peaks: &mut Vec<(String, u64)>,
-    peak: &mut Option<u64>,
-    seconds: f64,
-    import_peak: Option<u64>,
-) {
-    timings.insert(0, ("import".into(), seconds));
-    if let Some(p) = import_peak {
-        peaks.insert(0, ("import".into(), p));
-        *peak = (*peak).max(Some(p));
     }
 }
 

@@ -255,16 +255,14 @@ pub struct BuildReport {
     pub atlas_blocks: u64,
     pub original_blocks: u64,
     pub file_bytes: u64,
-    /// (stage, seconds).
-    pub timings: Vec<(String, f64)>,
+    /// Seconds and peak memory of each stage (flattened: `timings`, `stage_peak_rss`, `peak_rss_bytes`).
+    #[serde(flatten)]
+    pub stages: StageLog,
     pub images_decoded: u64,
     pub image_fallbacks: u64,
     /// Images used only by OPAQUE materials whose alpha channel (some texel below 255) was ignored, as
     /// glTF specifies: their colour is kept where alpha is 0.
     pub images_alpha_ignored: u64,
-    pub peak_rss_bytes: Option<u64>,
-    /// (stage, peak resident memory during it, bytes), where the platform tells (Linux).
-    pub stage_peak_rss: Vec<(String, u64)>,
     /// How the memory budget was split, if there was one.
     pub memory: Option<memory::MemoryPlan>,
     pub warnings: Vec<String>,
@@ -407,7 +405,7 @@ pub fn build(
     )?;
     let none = |_| {};
     let above = raster::AtlasOut::new(forest.params.atlas_size, opts.mip_filter, &writer, &none);
-    shard::raster_forest_above(&above, &forest, &handoffs)?;
+    shard::raster_forest_above(&above, &forest, handoffs)?;
     timings.push("rasterise", t);
 
     let t = Instant::now();
@@ -472,7 +470,7 @@ pub(super) struct Planned {
     pub(super) params: BuildParams,
     pub(super) diagonal: f64,
     pub(super) memory_plan: Option<memory::MemoryPlan>,
-    pub(super) timings: Timings,
+    pub(super) timings: StageLog,
     pub(super) forest: AtlasForest,
     pub(super) reports: Vec<TreeReport>,
 }
@@ -492,7 +490,7 @@ pub(super) fn plan_build(
         });
     }
     let memory_plan = plan_memory(scene, opts, &params)?;
-    let mut timings = Timings::default();
+    let mut timings = StageLog::default();
     let (forest, reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
     check_file_size(&forest, &reports, opts.max_file_bytes)?;
     Ok(Planned {
@@ -505,27 +503,46 @@ pub(super) fn plan_build(
     })
 }
 
-/// `(stage, seconds)` of a build, in the order the stages ended.
-#[derive(Default)]
-pub(super) struct Timings(pub(super) Vec<(String, f64)>, pub(super) Vec<(String, u64)>);
+/// What each stage of a build, a shard or a merge took, in the order the stages ended: its seconds and
+/// its peak resident memory. Build and shard reports carry one (flattened into their JSON).
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
+pub struct StageLog {
+    /// (stage, seconds).
+    pub timings: Vec<(String, f64)>,
+    /// (stage, peak resident memory during it, bytes), where the platform tells (Linux).
+    pub stage_peak_rss: Vec<(String, u64)>,
+    /// The largest of those peaks.
+    pub peak_rss_bytes: Option<u64>,
+}
 
-impl Timings {
-    /// Records stage `name` as begun at `start` and ended now.
+impl StageLog {
     /// Records stage `name` as begun at `start` and ended now, with the peak memory since the previous
     /// stage ended (then resets the peak: [`crate::util::reset_peak_rss`]). `total` gets the largest peak.
     pub(super) fn push(&mut self, name: &str, start: Instant) {
-        self.0
-            .push((name.to_string(), start.elapsed().as_secs_f64()));
+        let now = crate::util::peak_rss_bytes();
         let peak = if name == "total" {
-            let stages = self.1.iter().map(|p| p.1).max();
-            stages.max(crate::util::peak_rss_bytes())
+            self.peak_rss_bytes.max(now)
         } else {
-            crate::util::peak_rss_bytes()
+            now
         };
-        if let Some(peak) = peak {
-            self.1.push((name.to_string(), peak));
-        }
+        self.record(name, start.elapsed().as_secs_f64(), peak, false);
         crate::util::reset_peak_rss();
+    }
+
+    /// Puts a stage that ran before the library's (the CLI's import) first.
+    pub fn prepend(&mut self, name: &str, seconds: f64, peak: Option<u64>) {
+        self.record(name, seconds, peak, true);
+    }
+
+    fn record(&mut self, name: &str, seconds: f64, peak: Option<u64>, first: bool) {
+        let at = |len: usize| if first { 0 } else { len };
+        self.timings
+            .insert(at(self.timings.len()), (name.to_string(), seconds));
+        if let Some(p) = peak {
+            self.stage_peak_rss
+                .insert(at(self.stage_peak_rss.len()), (name.to_string(), p));
+            self.peak_rss_bytes = self.peak_rss_bytes.max(Some(p));
+        }
     }
 }
 
@@ -536,7 +553,7 @@ fn plan_forest(
     params: &BuildParams,
     parts: &[(TreeKind, Vec<u32>)],
     progress: &dyn Progress,
-    timings: &mut Timings,
+    timings: &mut StageLog,
 ) -> Result<(AtlasForest, Vec<TreeReport>), BuildError> {
     let mut forest = AtlasForest {
         params: params.clone(),
@@ -568,7 +585,7 @@ fn plan_tree(
     tris: &[u32],
     slot: assemble::TreeSlot,
     progress: &dyn Progress,
-    timings: &mut Timings,
+    timings: &mut StageLog,
 ) -> Result<(assemble::Assembled, TreeReport), BuildError> {
     let kind = slot.kind;
     let wrap = opts.repeat == RepeatMode::Wrap;
@@ -719,7 +736,7 @@ pub(super) fn build_report(
     forest: &AtlasForest,
     trees: Vec<TreeReport>,
     file_bytes: u64,
-    timings: Timings,
+    timings: StageLog,
     cache: &raster::ImageCache<'_>,
 ) -> BuildReport {
     let atlas_blocks = forest
@@ -737,7 +754,6 @@ pub(super) fn build_report(
             ));
         }
     }
-    let stage_peak = timings.1.iter().map(|p| p.1).max();
     BuildReport {
         params,
         scene_diagonal,
@@ -746,12 +762,10 @@ pub(super) fn build_report(
         atlas_blocks,
         original_blocks: forest.blocks.len() as u64 - atlas_blocks,
         file_bytes,
-        timings: timings.0,
-        stage_peak_rss: timings.1,
+        stages: timings,
         images_decoded: cache.decodes.load(Ordering::Relaxed),
         image_fallbacks: cache.fallbacks.load(Ordering::Relaxed),
         images_alpha_ignored: cache.alpha_ignored.load(Ordering::Relaxed),
-        peak_rss_bytes: stage_peak,
         memory: None,
         warnings,
     }

@@ -272,9 +272,12 @@ pub fn raster_subtrees(
 }
 
 /// Every block a subtree rooted at `root` writes: its nodes' atlases and the original-texture blocks its
-/// leaves own ([`owned_blocks`]). Unsorted.
-pub fn subtree_blocks(tree: &AtlasTree, root: NodeId) -> Vec<crate::ids::BlockId> {
-    let owned = leaf_owned_blocks(tree);
+/// leaves own (`owned`: [`leaf_owned_blocks`] of `tree`, computed once per tree by the caller). Unsorted.
+pub fn subtree_blocks(
+    tree: &AtlasTree,
+    owned: &[Vec<crate::ids::BlockId>],
+    root: NodeId,
+) -> Vec<crate::ids::BlockId> {
     let mut out = Vec::new();
     let mut stack = vec![root];
     while let Some(id) = stack.pop() {

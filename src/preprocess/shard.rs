@@ -267,9 +267,15 @@ pub fn subtree_nodes(tree: &AtlasTree, root: NodeId) -> u64 {
 
 /// The blocks shard `units` writes, ascending, with their lengths.
 pub fn shard_blocks(forest: &AtlasForest, units: &[Unit]) -> Vec<(BlockId, u64)> {
+    let owned: Vec<Vec<Vec<BlockId>>> = (forest.trees.iter())
+        .map(raster::leaf_owned_blocks)
+        .collect();
     let mut ids: Vec<BlockId> = units
         .iter()
-        .flat_map(|u| raster::subtree_blocks(&forest.trees[u.tree as usize], NodeId(u.node)))
+        .flat_map(|u| {
+            let t = u.tree as usize;
+            raster::subtree_blocks(&forest.trees[t], &owned[t], NodeId(u.node))
+        })
         .collect();
     ids.sort();
     ids.dedup();
@@ -338,22 +344,22 @@ pub fn units_of(cut: &Cut) -> Vec<(usize, Unit)> {
         .collect()
 }
 
-/// The atlases above the cut of every tree, from the units' handoffs (keyed by unit), into `out`.
+/// The atlases above the cut of every tree, from the units' handoffs (keyed by unit, taken), into `out`.
 pub fn raster_forest_above(
     out: &AtlasOut<'_>,
     forest: &AtlasForest,
-    handoffs: &HashMap<Unit, Handoff>,
+    handoffs: HashMap<Unit, Handoff>,
 ) -> Result<(), super::BuildError> {
-    for (t, tree) in forest.trees.iter().enumerate() {
-        if tree.nodes.is_empty() {
-            continue;
+    let mut by_tree: Vec<HashMap<NodeId, Handoff>> = vec![HashMap::new(); forest.trees.len()];
+    for (u, h) in handoffs {
+        if let Some(m) = by_tree.get_mut(u.tree as usize) {
+            m.insert(NodeId(u.node), h);
         }
-        let mine: HashMap<NodeId, Handoff> = handoffs
-            .iter()
-            .filter(|(u, _)| u.tree as usize == t)
-            .map(|(u, h)| (NodeId(u.node), h.clone()))
-            .collect();
-        raster::raster_above(out, tree, &mine, NodeId(0))?;
+    }
+    for (tree, mine) in forest.trees.iter().zip(&by_tree) {
+        if !tree.nodes.is_empty() {
+            raster::raster_above(out, tree, mine, NodeId(0))?;
+        }
     }
     Ok(())
 }

@@ -39,12 +39,10 @@ pub struct ShardReport {
     pub work: u64,
     pub work_mean: f64,
     pub file_bytes: u64,
-    /// (stage, seconds).
-    pub timings: Vec<(String, f64)>,
+    /// Seconds and peak memory of each stage (flattened: `timings`, `stage_peak_rss`, `peak_rss_bytes`).
+    #[serde(flatten)]
+    pub stages: super::StageLog,
     pub images_decoded: u64,
-    pub peak_rss_bytes: Option<u64>,
-    /// (stage, peak resident memory during it, bytes), where the platform tells (Linux).
-    pub stage_peak_rss: Vec<(String, u64)>,
     /// How the memory budget was split, if there was one.
     pub memory: Option<super::memory::MemoryPlan>,
 }
@@ -128,10 +126,8 @@ pub fn build_shard(
         work: cut.work[spec.index as usize],
         work_mean: cut.work.iter().sum::<u64>() as f64 / f64::from(spec.count),
         file_bytes,
-        timings: timings.0.clone(),
+        stages: timings,
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
-        peak_rss_bytes: timings.1.iter().map(|p| p.1).max(),
-        stage_peak_rss: timings.1,
         memory: memory_plan,
     };
     write_sidecar(&path, &report)?;
@@ -311,10 +307,9 @@ pub fn merge(
     let first = &set.shards[0];
     let prefix = first.prefix().map_err(|e| set.corrupt(0, e))?;
     let name = first.path().display().to_string();
-    let tables = TreeFile::from_prefix(&prefix, prefix_file_len(&prefix), &name)
+    let tables = TreeFile::from_table_prefix(&prefix, &name)
         .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
     let forest = tables.to_skeleton();
-    drop(tables);
     let cut = choose_cut(&forest, set.count);
     set.check_cut(&forest, &cut)?;
     let mip_filter = mip_filter_of(first.header.mip_filter).ok_or_else(|| {
@@ -328,7 +323,8 @@ pub fn merge(
         out: out.to_path_buf(),
         source,
     };
-    let writer = FileWriter::from_prefix(out, &prefix, &name).map_err(store_err)?;
+    let writer = FileWriter::from_prefix(out, &tables, &prefix).map_err(store_err)?;
+    drop((tables, prefix));
     let handoffs = set.copy_blocks(&writer, progress)?;
     let below: u64 = (cut.shards.iter().flatten())
         .map(|u| shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node)))
@@ -342,7 +338,7 @@ pub fn merge(
     progress.stage("merge: atlases above the cut", Some(above));
     let done = |n: u64| progress.set(n);
     let atlas_out = raster::AtlasOut::new(forest.params.atlas_size, mip_filter, &writer, &done);
-    shard::raster_forest_above(&atlas_out, &forest, &handoffs).map_err(|source| {
+    shard::raster_forest_above(&atlas_out, &forest, handoffs).map_err(|source| {
         MergeError::Build {
             out: out.to_path_buf(),
             source,
@@ -574,7 +570,7 @@ impl ShardSet {
             .map(|(slot, f)| {
                 let side = read_sidecar(f.path());
                 let total = |r: &ShardReport| {
-                    (r.timings.iter())
+                    (r.stages.timings.iter())
                         .find(|(n, _)| n == "total")
                         .map(|(_, s)| *s)
                 };
@@ -585,7 +581,7 @@ impl ShardSet {
                     blocks: f.blocks.len() as u64,
                     units: f.handoffs.len() as u64,
                     seconds: side.as_ref().and_then(total),
-                    peak_rss_bytes: side.as_ref().and_then(|r| r.peak_rss_bytes),
+                    peak_rss_bytes: side.as_ref().and_then(|r| r.stages.peak_rss_bytes),
                     work: side.as_ref().map(|r| r.work),
                 }
             })
@@ -608,15 +604,6 @@ fn only_count(out: &Path) -> Result<u32, MergeError> {
             counts,
         }),
     }
-}
-
-/// The file length a table prefix's header claims (checked by the open that follows).
-fn prefix_file_len(prefix: &[u8]) -> u64 {
-    use crate::store::format::{HEADER_SIZE, Header};
-    if prefix.len() < HEADER_SIZE {
-        return prefix.len() as u64;
-    }
-    bytemuck::pod_read_unaligned::<Header>(&prefix[..HEADER_SIZE]).file_len
 }
 
 fn read_sidecar(path: &Path) -> Option<ShardReport> {

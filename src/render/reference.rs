@@ -220,22 +220,8 @@ impl Renderer<'_> {
                         label: Some("downsample"),
                     });
             {
-                let mut rp = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("downsample"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &ss.out_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+                let mut rp =
+                    crate::gpu::begin_fullscreen_pass(&mut encoder, "downsample", &ss.out_view);
                 rp.set_pipeline(&ss.pipeline);
                 rp.set_bind_group(0, &ss.group, &[]);
                 rp.draw(0..3, 0..1);

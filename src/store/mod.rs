@@ -132,6 +132,10 @@ pub enum StoreError {
     BlockWrittenTwice { block: BlockId },
     #[error("{block} was never written")]
     BlockMissing { block: BlockId },
+    #[error(
+        "{path}: the table prefix handed to the writer is not the one these tables were opened from"
+    )]
+    PrefixMismatch { path: PathBuf },
     #[error("{path}: the bytes at {offset} were put twice")]
     ShardPutTwice { path: PathBuf, offset: u64 },
     #[error("{path}: {block} does not belong to this shard")]

@@ -515,6 +515,20 @@ impl TreeFile {
         Self::validate(path, Backing::copy_of(bytes), file_len, false)
     }
 
+    /// [`TreeFile::from_prefix`] of a table prefix that is the whole file's ([`crate::store::table_prefix`]):
+    /// the file length is the one its header claims (checked with everything else).
+    pub fn from_table_prefix(bytes: &[u8], name: &str) -> Result<TreeFile, StoreError> {
+        let Some(head) = bytes.get(..HEADER_SIZE) else {
+            return Err(StoreError::Truncated {
+                path: PathBuf::from(name),
+                len: bytes.len() as u64,
+                needed: HEADER_SIZE as u64,
+            });
+        };
+        let claimed: Header = bytemuck::pod_read_unaligned(head);
+        Self::from_prefix(bytes, claimed.file_len, name)
+    }
+
     /// How many leading bytes of a file [`TreeFile::from_prefix`] needs, from its first [`HEADER_SIZE`]
     /// bytes (checked: magic, version, checksum, constants): the end of the tables rounded up to
     /// [`BLOCK_ALIGN`] (where the writer puts the first block, so the zero gap is checked too), at most the

@@ -148,7 +148,8 @@ pub struct ShardWriter {
 impl ShardWriter {
     /// Lays out the shard file and creates its temp file beside `path`.
     pub fn create(path: &Path, layout: ShardLayout) -> Result<ShardWriter, StoreError> {
-        let mut head = layout.argv.clone();
+        let argv_len = layout.argv.len() as u64;
+        let mut head = layout.argv;
         head.resize(align(head.len() as u64) as usize, 0);
         head.extend_from_slice(&layout.prefix);
         head.resize(align(head.len() as u64) as usize, 0);
@@ -189,7 +190,7 @@ impl ShardWriter {
             mip_filter: layout.mip_filter,
             fingerprint: layout.fingerprint,
             prefix_hash: layout.prefix_hash,
-            argv_len: layout.argv.len() as u64,
+            argv_len,
             prefix_len: layout.prefix.len() as u64,
             blocks: blocks.len() as u64,
             handoffs: handoffs.len() as u64,

@@ -371,7 +371,7 @@ fn put_tables(
 }
 
 /// The layout of a forest's file: header (checksums still 0), block records (checksums 0), tables' end.
-struct Planned {
+struct FileLayout {
     header: Header,
     blocks: Vec<BlockRecord>,
     tables_end: u64,
@@ -379,7 +379,7 @@ struct Planned {
 }
 
 /// Encodes and lays out `forest`, checking its tables as the reader would.
-fn plan_file(forest: &AtlasForest) -> Result<Planned, StoreError> {
+fn plan_file(forest: &AtlasForest) -> Result<FileLayout, StoreError> {
     check_endian()?;
     let encoded = encode(forest)?;
     let counts = section_counts(&encoded, forest.blocks.len());
@@ -392,7 +392,7 @@ fn plan_file(forest: &AtlasForest) -> Result<Planned, StoreError> {
         .map(|(d, &o)| BlockRecord::encode(d, o))
         .collect();
     validate_encoded(forest, &encoded, &blocks)?;
-    Ok(Planned {
+    Ok(FileLayout {
         header: Header {
             magic: MAGIC,
             version: FORMAT_VERSION,
@@ -416,7 +416,7 @@ fn plan_file(forest: &AtlasForest) -> Result<Planned, StoreError> {
 /// block table's checksums 0 and the header checksum set, so [`crate::store::TreeFile::from_prefix`] opens
 /// it and [`FileWriter::from_prefix`] turns it into the same file [`FileWriter::create`] writes.
 pub fn table_prefix(forest: &AtlasForest) -> Result<Vec<u8>, StoreError> {
-    let Planned {
+    let FileLayout {
         mut header,
         blocks,
         tables_end,
@@ -449,7 +449,7 @@ impl FileWriter {
     /// Fails before touching the disk if the forest's tables are inconsistent (the same checks the reader
     /// applies), so a file that `finish`es always opens.
     pub fn create(path: &Path, forest: &AtlasForest) -> Result<FileWriter, StoreError> {
-        let Planned {
+        let FileLayout {
             header,
             blocks,
             tables_end,
@@ -460,25 +460,22 @@ impl FileWriter {
         Ok(writer)
     }
 
-    /// A writer for the file whose [`table_prefix`] is `prefix` (validated as
-    /// [`crate::store::TreeFile::from_prefix`] does, `name` naming it in errors): the tables are copied
-    /// verbatim, so the finished file is the one [`FileWriter::create`] writes for the same forest.
-    pub fn from_prefix(path: &Path, prefix: &[u8], name: &str) -> Result<FileWriter, StoreError> {
-        if prefix.len() < HEADER_SIZE {
-            return Err(StoreError::Truncated {
-                path: PathBuf::from(name),
-                len: prefix.len() as u64,
-                needed: HEADER_SIZE as u64,
+    /// A writer for the file whose [`table_prefix`] is `prefix`, opened (and so validated) as `tables`
+    /// ([`super::TreeFile::from_table_prefix`]): the tables are copied verbatim, so the finished file is the
+    /// one [`FileWriter::create`] writes for the same forest.
+    pub fn from_prefix(
+        path: &Path,
+        tables: &super::TreeFile,
+        prefix: &[u8],
+    ) -> Result<FileWriter, StoreError> {
+        let mut header = *tables.header();
+        if prefix.get(..HEADER_SIZE) != Some(bytemuck::bytes_of(&header)) {
+            return Err(StoreError::PrefixMismatch {
+                path: tables.path().to_path_buf(),
             });
         }
-        let claimed: Header = bytemuck::pod_read_unaligned(&prefix[..HEADER_SIZE]);
-        // Checks the header (checksum included) and every table against the length it claims.
-        let tf = super::TreeFile::from_prefix(prefix, claimed.file_len, name)?;
-        let mut header = *tf.header();
         header.checksum = 0;
-        let blocks: Vec<BlockRecord> = tf
-            .blocks()
-            .iter()
+        let blocks: Vec<BlockRecord> = (tables.blocks().iter())
             .map(|b| BlockRecord {
                 checksum: 0,
                 sse: 0,

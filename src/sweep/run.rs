@@ -205,11 +205,6 @@ pub fn sample_path(path: &CameraPath, count: usize, aspect: f64) -> Vec<(f64, Ca
         .collect()
 }
 
-/// Resets the process's peak-RSS counter (Linux `clear_refs` 5); false where unsupported.
-fn reset_peak_rss() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
-}
-
 /// Runs the whole plan: for each build (base first), build it into `opts.builds_dir`, render its
 /// runtime variants on `cameras`, and (base build) render the reference frames first.
 pub fn run_sweep(
@@ -292,7 +287,7 @@ fn build_one(
     base: &BuildOptions,
     out: &Path,
 ) -> Result<BuildRow, SweepError> {
-    let reset = reset_peak_rss();
+    let reset = crate::util::reset_peak_rss();
     let t = std::time::Instant::now();
     let r = build(scene, &build_options(knobs, base), out, &NoProgress).map_err(|source| {
         SweepError::Build {
@@ -309,12 +304,13 @@ fn build_one(
         depth: r.trees.iter().map(|t| t.depth).max().unwrap_or(0),
         blocks: r.blocks,
         stage_s: r
+            .stages
             .timings
             .into_iter()
             .filter(|(n, _)| n != "total")
             .collect(),
         build_s,
-        peak_rss_bytes: r.peak_rss_bytes,
+        peak_rss_bytes: r.stages.peak_rss_bytes,
         peak_rss_reset: reset,
     })
 }

@@ -194,22 +194,7 @@ impl<'w> Presenter<'w> {
             format: Some(self.target_format),
             ..Default::default()
         });
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("blit"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = crate::gpu::begin_fullscreen_pass(encoder, "blit", &view);
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.composite.group, &[]);
         pass.draw(0..3, 0..1);

@@ -343,7 +343,12 @@ fn memory_budget_sizes_the_cache_or_refuses_up_front_with_the_number_needed() {
     assert!(std::fs::read(&out).unwrap() == reference);
     // Peak memory per stage: each stage of the build reported once, in order (Linux).
     if cfg!(target_os = "linux") {
-        let stages: Vec<&str> = report.stage_peak_rss.iter().map(|s| s.0.as_str()).collect();
+        let stages: Vec<&str> = report
+            .stages
+            .stage_peak_rss
+            .iter()
+            .map(|s| s.0.as_str())
+            .collect();
         assert_eq!(stages.first(), Some(&"sizing Opaque"));
         assert_eq!(
             &stages[stages.len() - 3..],
