@@ -59,6 +59,7 @@
 #![warn(unreachable_pub)]
 
 pub mod camera;
+pub mod export;
 pub mod gpu;
 pub mod ids;
 pub mod inspect;

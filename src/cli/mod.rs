@@ -5,6 +5,7 @@
 mod args;
 mod build_cmd;
 mod demo;
+mod export_cmd;
 mod inspect_cmd;
 mod merge_cmd;
 mod progress;
@@ -55,6 +56,10 @@ pub(crate) enum Command {
     Render(render_cmd::RenderArgs),
     /// Paging-budget experiments without a GPU: capacity × bandwidth × latency × policy over a camera path.
     Simulate(simulate_cmd::SimulateArgs),
+    /// Export a paging file for other viewers: `export 3dtiles FILE -o DIR` writes a 3D Tiles 1.1
+    /// tileset (CesiumJS, 3DTilesRendererJS, …) with one tile per node and the original textures below the
+    /// leaves.
+    Export(export_cmd::ExportArgs),
     /// Serve a paging file over HTTP with range requests (for `render --source http://…`); Ctrl-C stops.
     ///
     /// Any static file server that answers `Range: bytes=a-b` with `206 Partial Content` works as well
@@ -114,6 +119,7 @@ pub(crate) fn run() -> anyhow::Result<ExitCode> {
         Command::Render(a) => render_cmd::run(a),
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Serve(a) => serve_cmd::run(a),
+        Command::Export(a) => export_cmd::run(a),
         Command::View(a) => view_cmd::run(a),
         Command::Sweep(a) => sweep_cmd::run(a),
     }

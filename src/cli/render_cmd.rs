@@ -68,6 +68,11 @@ pub(crate) struct RenderArgs {
     /// by default): ground truth where the original itself aliases. Needs every block resident.
     #[arg(long)]
     pub reference: Option<Reference>,
+    /// Write OUT/selection.json: per frame, the nodes the selection draws in every tree (node, level,
+    /// atlas or original, distance), e.g. to compare with the tiles a 3D Tiles viewer shows for the same
+    /// camera (`atlastree export 3dtiles`).
+    #[arg(long)]
+    pub selection: bool,
     #[command(flatten, next_help_heading = "Viewport")]
     pub viewport: ViewportArgs,
     #[command(flatten, next_help_heading = "Paging")]
@@ -101,6 +106,8 @@ pub(crate) struct RenderConfig {
     pub anisotropy: u16,
     /// Frames measured against this reference (never with paging).
     pub reference: Option<Reference>,
+    /// Write `OUT/selection.json`.
+    pub selection: bool,
     /// `None`: every block uploaded at start.
     pub paging: Option<RenderPaging>,
 }
@@ -185,6 +192,7 @@ impl RenderArgs {
             gpu_timing: !self.no_gpu_timing,
             anisotropy: self.anisotropy,
             reference: self.reference,
+            selection: self.selection,
             paging,
         })
     }
@@ -399,11 +407,15 @@ fn fly(
     runs: &mut [ModeRun],
 ) -> anyhow::Result<()> {
     let params = file.to_params();
+    let mut selections = Vec::new();
     for (i, cam) in cameras.iter().enumerate() {
         let scale = cfg.viewport.scale(&params, cam.fov_x_deg)?;
         let plan = fl
             .planner
             .plan(cam, i as f64 / cfg.fps, scale, &mut fl.renderer.residency())?;
+        if cfg.selection {
+            selections.push(selection_json(i, plan));
+        }
         let truth = match cfg.reference {
             None => None,
             Some(Reference::Supersampled(k)) => Some(fl.renderer.execute_supersampled(plan, k)?),
@@ -430,7 +442,37 @@ fn fly(
             }
         }
     }
+    if cfg.selection {
+        std::fs::create_dir_all(&cfg.out)
+            .with_context(|| format!("creating {}", cfg.out.display()))?;
+        let path = cfg.out.join("selection.json");
+        let text = serde_json::to_string_pretty(&serde_json::json!({ "frames": selections }))?;
+        atlastree::util::write_atomic(&path, text.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     Ok(())
+}
+
+/// One frame's selection: every tree's cut items, as drawn (a missing block's item is listed as
+/// selected; `--selection` is for comparing cuts).
+fn selection_json(frame: usize, plan: &atlastree::plan::FramePlan) -> serde_json::Value {
+    let items: Vec<serde_json::Value> = plan
+        .cuts
+        .iter()
+        .enumerate()
+        .flat_map(|(t, cut)| {
+            cut.items.iter().map(move |i| {
+                serde_json::json!({
+                    "tree": t, "node": i.node.0, "level": i.level, "distance": i.distance,
+                    "source": match i.source {
+                        atlastree::select::Source::Atlas => "atlas",
+                        atlastree::select::Source::Original => "original",
+                    },
+                })
+            })
+        })
+        .collect();
+    serde_json::json!({ "frame": frame, "scale": plan.scale, "items": items })
 }
 
 /// Whether frames of `mode` are measured against `reference`: tree, dummy and original (not original

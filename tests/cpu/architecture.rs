@@ -153,7 +153,7 @@ fn no_folder_imports_a_folder_that_imports_it_back() {
 fn the_stages_that_read_a_tree_read_the_model_not_the_preprocessor() {
     let graph = module_graph();
     for reader in [
-        "select", "plan", "render", "inspect", "store", "paging", "model",
+        "select", "plan", "render", "inspect", "store", "paging", "model", "export",
     ] {
         let edges = graph
             .get(reader)

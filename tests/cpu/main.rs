@@ -27,6 +27,7 @@ mod camera;
 mod citygen;
 mod cli;
 mod docs;
+mod export;
 mod import;
 mod paging;
 mod plan;

@@ -1,0 +1,343 @@
+//! One leaf's geometry as a glTF binary buffer, written once and shared by every tile that draws the leaf
+//! (issue 25 "geometry once"): positions relative to the leaf origin (as stored), the original UV
+//! (`TEXCOORD_0`), the leaf-atlas UV (`TEXCOORD_1`, in units of the atlas side) and index lists grouped
+//! the two ways a tile draws them: by atlas material (atlas tiles) and by original texture (the originals
+//! tile below the leaf).
+//!
+//! A standard viewer cannot wrap a UV inside an atlas rect per fragment as `shaders/tree.wgsl` does, so
+//! each rect is classified ([`rect_is_affine`]): where every triangle of the rect reaches its rect by one
+//! affine map per axis (slope ±1, no seam inside a triangle) the per-vertex leaf-atlas UV
+//! ([`crate::model::transform::rect_texel`], margin 0) is exact and the triangles join the tile's atlas
+//! material; a rect with a triangle across a wrap seam becomes a *period* group drawn with its own image
+//! (the rect's inner rectangle at the tile's resolution) and the sampler's own wrap mode.
+
+use crate::model::transform::rect_t;
+use crate::model::{AtlasRect, AtlasTree, Leaf, RectWrap};
+use crate::scene::{AlphaMode, Material};
+use glam::DVec2;
+
+/// Which triangles one index list holds.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub(super) enum GroupKey {
+    /// Triangles of affine rects drawn from the tile's atlas, by alpha mode (`alpha`: 0 opaque, 1 mask, 2
+    /// blend; `cutoff`: the MASK cutoff's bits, 0 otherwise).
+    Atlas { alpha: u8, cutoff: u32 },
+    /// The triangles of one wrapping rect (index into the leaf's rects), drawn with its own period image.
+    Period { rect: u32 },
+    /// The triangles drawn with one of the leaf's original textures (index into the leaf's originals).
+    Original { original: u32 },
+}
+
+/// One index list inside the leaf's buffer.
+#[derive(Clone, Debug)]
+pub(super) struct IndexGroup {
+    pub(super) key: GroupKey,
+    /// Byte offset of the first index within the index section of the buffer.
+    pub(super) offset: u64,
+    /// Number of indices (3 per triangle).
+    pub(super) count: u32,
+}
+
+/// A leaf's buffer and what is in it. Sections, tightly packed in this order, each 4-byte aligned:
+/// positions (`f32 × 3`), `TEXCOORD_0` (`f32 × 2`), `TEXCOORD_1` (`f32 × 2`), indices (`u16` when the leaf
+/// has fewer than 65,536 vertices, else `u32`).
+pub(super) struct LeafMesh {
+    /// The buffer (taken out once written; [`LeafMesh::bin_len`] stays).
+    pub(super) bin: Vec<u8>,
+    pub(super) bin_len: u64,
+    pub(super) vertices: u32,
+    pub(super) pos_min: [f32; 3],
+    pub(super) pos_max: [f32; 3],
+    /// Byte size of one index (2 or 4).
+    pub(super) index_size: u32,
+    pub(super) atlas_groups: Vec<IndexGroup>,
+    pub(super) original_groups: Vec<IndexGroup>,
+    /// Rects drawn as period groups (index into the leaf's rects), ascending.
+    pub(super) period_rects: Vec<u32>,
+}
+
+impl LeafMesh {
+    pub(super) fn positions_offset(&self) -> u64 {
+        0
+    }
+    pub(super) fn uv0_offset(&self) -> u64 {
+        12 * u64::from(self.vertices)
+    }
+    pub(super) fn uv1_offset(&self) -> u64 {
+        20 * u64::from(self.vertices)
+    }
+    pub(super) fn index_offset(&self) -> u64 {
+        28 * u64::from(self.vertices)
+    }
+    pub(super) fn index_bytes(&self) -> u64 {
+        self.bin_len - self.index_offset()
+    }
+}
+
+/// A broken invariant of the tables (they were validated at open, so this is a bug or a corrupt file that
+/// passed its checksums).
+#[derive(Debug, thiserror::Error)]
+pub enum GeometryError {
+    #[error("leaf {leaf}: index {index} outside its vertex range {first}..{end}")]
+    IndexOutsideLeaf {
+        leaf: usize,
+        index: u32,
+        first: u32,
+        end: u32,
+    },
+    #[error(
+        "leaf {leaf}: vertex {vertex} names rect {rect} of {rects} or original {original} of {originals}"
+    )]
+    BadReference {
+        leaf: usize,
+        vertex: u32,
+        rect: u32,
+        rects: usize,
+        original: u32,
+        originals: usize,
+    },
+    #[error("leaf {leaf}: material {material} of {materials}")]
+    BadMaterial {
+        leaf: usize,
+        material: u32,
+        materials: usize,
+    },
+}
+
+/// The alpha key of a material ([`GroupKey::Atlas`]).
+pub(super) fn alpha_key(m: &Material) -> (u8, u32) {
+    match m.alpha {
+        AlphaMode::Opaque => (0, 0),
+        AlphaMode::Mask { cutoff } => (1, cutoff.to_bits()),
+        AlphaMode::Blend => (2, 0),
+    }
+}
+
+/// Whether one axis of a triangle maps into its rect by one affine function `t = a·u + b` with `a = ±1`
+/// (see the module doc). `us`: the vertices' UVs on the axis; `ts`: their [`rect_t`].
+fn axis_is_affine(us: [f64; 3], ts: [f64; 3]) -> bool {
+    let eps = |u: f64| 1e-6 * (1.0 + u.abs());
+    [1.0, -1.0].iter().any(|&a| {
+        let b = ts[0] - a * us[0];
+        (0..3).all(|i| (a * us[i] + b - ts[i]).abs() <= eps(us[i]))
+    })
+}
+
+/// Whether every triangle (vertex UV triples) of a rect reaches it affinely on both axes: then per-vertex
+/// leaf-atlas UVs are exact (linear interpolation of them is what the shader's per-fragment wrap gives).
+pub(super) fn rect_is_affine(rect: &AtlasRect, triangles: &[[[f32; 2]; 3]]) -> bool {
+    triangles.iter().all(|tri| {
+        (0..2).all(|k| {
+            if rect.wrap[k] == RectWrap::Linear {
+                return true;
+            }
+            let us = tri.map(|uv| f64::from(uv[k]));
+            let ts = us.map(|u| rect_t(u, rect.wrap[k], rect.uv_min[k], rect.uv_max[k]));
+            axis_is_affine(us, ts)
+        })
+    })
+}
+
+/// A triangle of a leaf: its vertices (leaf-local), rect and original.
+type Triangle = ([u32; 3], u32, u32);
+
+/// Builds leaf `leaf_index`'s buffer (see [`LeafMesh`]). `atlas_size`: texels per atlas side.
+pub(super) fn leaf_mesh(
+    tree: &AtlasTree,
+    leaf_index: usize,
+    materials: &[Material],
+    atlas_size: u32,
+) -> Result<LeafMesh, GeometryError> {
+    let leaf: &Leaf = &tree.leaves[leaf_index];
+    let first = leaf.first_vertex;
+    let end = first + leaf.vertex_count;
+    let verts = &tree.vertices[first as usize..end as usize];
+    let tris =
+        &tree.indices[leaf.first_index as usize..(leaf.first_index + leaf.index_count) as usize];
+    // Per triangle: local vertex indices, rect and original (a triangle's vertices share them).
+    let mut triangles: Vec<Triangle> = Vec::with_capacity(tris.len() / 3);
+    for t in tris.chunks_exact(3) {
+        let mut local = [0u32; 3];
+        for (l, &i) in local.iter_mut().zip(t) {
+            if i < first || i >= end {
+                return Err(GeometryError::IndexOutsideLeaf {
+                    leaf: leaf_index,
+                    index: i,
+                    first,
+                    end,
+                });
+            }
+            *l = i - first;
+        }
+        let v = verts[local[0] as usize];
+        if v.rect as usize >= leaf.rects.len() || v.original as usize >= leaf.originals.len() {
+            return Err(GeometryError::BadReference {
+                leaf: leaf_index,
+                vertex: t[0],
+                rect: v.rect,
+                rects: leaf.rects.len(),
+                original: v.original,
+                originals: leaf.originals.len(),
+            });
+        }
+        triangles.push((local, v.rect, v.original));
+    }
+    // Rect classification.
+    let mut per_rect: Vec<Vec<[[f32; 2]; 3]>> = vec![Vec::new(); leaf.rects.len()];
+    for (local, rect, _) in &triangles {
+        per_rect[*rect as usize].push(local.map(|i| verts[i as usize].orig_uv));
+    }
+    let affine: Vec<bool> = leaf
+        .rects
+        .iter()
+        .zip(&per_rect)
+        .map(|(r, t)| rect_is_affine(r, t))
+        .collect();
+    let mut rect_alpha = Vec::with_capacity(leaf.rects.len());
+    for r in &leaf.rects {
+        let m = materials
+            .get(r.material.0 as usize)
+            .ok_or(GeometryError::BadMaterial {
+                leaf: leaf_index,
+                material: r.material.0,
+                materials: materials.len(),
+            })?;
+        rect_alpha.push(alpha_key(m));
+    }
+    // Vertex sections.
+    let n = verts.len();
+    let index_size: u32 = if n < 65_536 { 2 } else { 4 };
+    let mut bin = Vec::with_capacity(n * 28 + tris.len() * index_size as usize);
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for v in verts {
+        for k in 0..3 {
+            lo[k] = lo[k].min(v.pos[k]);
+            hi[k] = hi[k].max(v.pos[k]);
+            bin.extend_from_slice(&v.pos[k].to_le_bytes());
+        }
+    }
+    for v in verts {
+        bin.extend_from_slice(&v.orig_uv[0].to_le_bytes());
+        bin.extend_from_slice(&v.orig_uv[1].to_le_bytes());
+    }
+    let size = f64::from(atlas_size);
+    for v in verts {
+        let r = &leaf.rects[v.rect as usize];
+        let uv = if affine[v.rect as usize] {
+            let p = crate::model::transform::rect_texel(
+                DVec2::new(f64::from(v.orig_uv[0]), f64::from(v.orig_uv[1])),
+                r,
+                DVec2::ZERO,
+            );
+            [(p.x / size) as f32, (p.y / size) as f32]
+        } else {
+            [0.0, 0.0]
+        };
+        bin.extend_from_slice(&uv[0].to_le_bytes());
+        bin.extend_from_slice(&uv[1].to_le_bytes());
+    }
+    // Index sections: atlas groups then original groups, each group's triangles in stored order.
+    let atlas_key = |rect: u32| {
+        if affine[rect as usize] {
+            let (alpha, cutoff) = rect_alpha[rect as usize];
+            GroupKey::Atlas { alpha, cutoff }
+        } else {
+            GroupKey::Period { rect }
+        }
+    };
+    let write_groups = |keys: &dyn Fn(&Triangle) -> GroupKey, bin: &mut Vec<u8>| {
+        let mut order: Vec<(GroupKey, usize)> = triangles
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (keys(t), i))
+            .collect();
+        order.sort_unstable();
+        let base = 28 * n as u64;
+        let mut groups: Vec<IndexGroup> = Vec::new();
+        for (key, i) in order {
+            if groups.last().is_none_or(|g| g.key != key) {
+                groups.push(IndexGroup {
+                    key,
+                    offset: bin.len() as u64 - base,
+                    count: 0,
+                });
+            }
+            if let Some(g) = groups.last_mut() {
+                g.count += 3;
+            }
+            for &l in &triangles[i].0 {
+                if index_size == 2 {
+                    bin.extend_from_slice(&(l as u16).to_le_bytes());
+                } else {
+                    bin.extend_from_slice(&l.to_le_bytes());
+                }
+            }
+        }
+        // Keep the next section 4-byte aligned.
+        while !bin.len().is_multiple_of(4) {
+            bin.push(0);
+        }
+        groups
+    };
+    let atlas_groups = write_groups(&|t| atlas_key(t.1), &mut bin);
+    let original_groups = write_groups(&|t| GroupKey::Original { original: t.2 }, &mut bin);
+    let period_rects = (0..leaf.rects.len() as u32)
+        .filter(|&r| !affine[r as usize] && !per_rect[r as usize].is_empty())
+        .collect();
+    if n == 0 {
+        (lo, hi) = ([0.0; 3], [0.0; 3]);
+    }
+    Ok(LeafMesh {
+        bin_len: bin.len() as u64,
+        bin,
+        vertices: n as u32,
+        pos_min: lo,
+        pos_max: hi,
+        index_size,
+        atlas_groups,
+        original_groups,
+        period_rects,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rect(wrap: RectWrap, lo: f64, hi: f64) -> AtlasRect {
+        AtlasRect {
+            material: crate::ids::MaterialId(0),
+            outer: [0, 0, 72, 72],
+            inner: [4, 4, 64, 64],
+            uv_min: [lo, lo],
+            uv_max: [hi, hi],
+            wrap: [wrap, wrap],
+            capped: [false, false],
+        }
+    }
+
+    #[test]
+    fn a_triangle_across_a_repeat_seam_is_not_affine() {
+        let r = rect(RectWrap::Repeat, 0.0, 1.0);
+        assert!(rect_is_affine(&r, &[[[0.1, 0.1], [0.8, 0.1], [0.5, 0.9]]]));
+        assert!(!rect_is_affine(
+            &r,
+            &[[[0.9, 0.1], [1.05, 0.1], [0.95, 0.5]]]
+        ));
+    }
+
+    #[test]
+    fn a_mirrored_triangle_is_affine_with_slope_minus_one() {
+        let r = rect(RectWrap::Mirror, 0.0, 1.0);
+        // [1.0, 1.5] folds backwards onto [0.5, 1.0]: one affine piece, the vertex at the fold included.
+        assert!(rect_is_affine(&r, &[[[1.0, 0.2], [1.5, 0.2], [1.2, 0.6]]]));
+        assert!(!rect_is_affine(&r, &[[[0.9, 0.2], [1.1, 0.2], [1.0, 0.6]]]));
+    }
+
+    #[test]
+    fn clamped_vertices_outside_the_unit_range_are_not_affine() {
+        let r = rect(RectWrap::Clamp, 0.0, 1.0);
+        assert!(rect_is_affine(&r, &[[[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]]]));
+        assert!(!rect_is_affine(&r, &[[[0.5, 0.0], [1.5, 0.0], [0.5, 1.0]]]));
+    }
+}

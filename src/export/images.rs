@@ -1,0 +1,158 @@
+//! Texels out of the paging file and into the image files a glTF viewer reads: a node's atlas (mip 0), a
+//! rect's inner rectangle cropped from it (a period image), an original texture (mip 0 of its stored
+//! chain); encoded as JPEG where the tree is opaque and PNG where it has alpha.
+//!
+//! Viewers decode these to RGBA8 and build their own mip chains, so the GPU holds `4 · w · h · 4/3`
+//! bytes per image ([`gpu_bytes`]) where atlastree's own renderer holds the BC1/BC3 blocks (0.5 / 1 byte
+//! per texel, `docs/3dtiles.md`).
+
+use crate::ids::BlockId;
+use crate::store::{StoreError, TreeFile};
+use crate::texfmt::TexFormat;
+use image::RgbaImage;
+
+/// How an image is encoded.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ImageCodec {
+    /// JPEG at [`JPEG_QUALITY`] (opaque trees: alpha is 255 everywhere).
+    Jpeg,
+    /// PNG (alpha trees).
+    Png,
+}
+
+/// JPEG quality of opaque images (0–100).
+pub const JPEG_QUALITY: u8 = 90;
+
+impl ImageCodec {
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageCodec::Jpeg => "jpg",
+            ImageCodec::Png => "png",
+        }
+    }
+
+    /// The codec for a tree: PNG where alpha matters.
+    pub fn for_alpha(alpha: bool) -> ImageCodec {
+        if alpha {
+            ImageCodec::Png
+        } else {
+            ImageCodec::Jpeg
+        }
+    }
+
+    /// Encodes `img` (RGBA8; JPEG drops alpha).
+    pub fn encode(self, img: &RgbaImage) -> Result<Vec<u8>, image::ImageError> {
+        let mut out = Vec::new();
+        match self {
+            ImageCodec::Jpeg => {
+                let rgb = image::DynamicImage::ImageRgba8(img.clone()).to_rgb8();
+                let enc =
+                    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY);
+                rgb.write_with_encoder(enc)?;
+            }
+            ImageCodec::Png => {
+                let enc = image::codecs::png::PngEncoder::new_with_quality(
+                    &mut out,
+                    image::codecs::png::CompressionType::Fast,
+                    image::codecs::png::FilterType::Adaptive,
+                );
+                img.write_with_encoder(enc)?;
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Bytes a viewer's GPU holds for a `w × h` RGBA8 image with a full mip chain (4/3 of level 0).
+pub fn gpu_bytes(w: u32, h: u32) -> u64 {
+    u64::from(w) * u64::from(h) * 4 * 4 / 3
+}
+
+/// Mip 0 of the `size²` atlas in `block`, decoded to RGBA8.
+pub(super) fn atlas_level0(
+    file: &TreeFile,
+    block: BlockId,
+    format: TexFormat,
+    size: u32,
+) -> Result<RgbaImage, StoreError> {
+    let bytes = file.block(block)?;
+    level0(bytes, block, format, size, size, 0)
+}
+
+/// Mip 0 of the `w × h` original at byte `offset` of `block` (images of one block lie back to back, each a
+/// full chain), decoded to RGBA8.
+pub(super) fn original_level0(
+    file: &TreeFile,
+    block: BlockId,
+    format: TexFormat,
+    [w, h]: [u32; 2],
+    offset: u64,
+) -> Result<RgbaImage, StoreError> {
+    let bytes = file.block(block)?;
+    level0(bytes, block, format, w, h, offset)
+}
+
+fn level0(
+    bytes: &[u8],
+    block: BlockId,
+    format: TexFormat,
+    w: u32,
+    h: u32,
+    offset: u64,
+) -> Result<RgbaImage, StoreError> {
+    let len = format.level_bytes_rect(w, h);
+    let short = || StoreError::BlockLength {
+        block,
+        expected: offset + len,
+        got: bytes.len() as u64,
+    };
+    let start = usize::try_from(offset).map_err(|_| short())?;
+    let end = usize::try_from(offset + len).map_err(|_| short())?;
+    let level = bytes.get(start..end).ok_or_else(short)?;
+    let rgba = crate::texfmt::decode_level_rect(format, level, w, h);
+    RgbaImage::from_raw(w, h, rgba).ok_or_else(short)
+}
+
+/// The texels of `[x, y, w, h]` (leaf-atlas texels of a leaf `d` levels below the atlas's node, whose cell
+/// offset inside the node is `(ox, oy)` leaf atlases) in the node's atlas `img`: the rectangle scaled by
+/// `2^−d` and rounded to whole texels, at least one texel per side.
+pub(super) fn crop_scaled(
+    img: &RgbaImage,
+    [x, y, w, h]: [u32; 4],
+    (ox, oy, d): (u32, u32, u32),
+) -> RgbaImage {
+    let size = f64::from(img.width());
+    let s = (-(f64::from(d))).exp2();
+    let to_node = |o: u32, p: u32| (f64::from(o) * size + f64::from(p)) * s;
+    let x0 = to_node(ox, x).round().clamp(0.0, size - 1.0) as u32;
+    let y0 = to_node(oy, y).round().clamp(0.0, size - 1.0) as u32;
+    let x1 = (to_node(ox, x + w).round() as u32).clamp(x0 + 1, img.width());
+    let y1 = (to_node(oy, y + h).round() as u32).clamp(y0 + 1, img.height());
+    image::imageops::crop_imm(img, x0, y0, x1 - x0, y1 - y0).to_image()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_crop_two_levels_up_is_a_quarter_at_its_cell() {
+        let img = RgbaImage::from_fn(64, 64, |x, y| image::Rgba([x as u8, y as u8, 0, 255]));
+        // Leaf cell (1, 2) of 4 × 4 under the node: its texel (8, 4) is node texel (16 + 2, 32 + 1).
+        let c = crop_scaled(&img, [8, 4, 16, 8], (1, 2, 2));
+        assert_eq!((c.width(), c.height()), (4, 2));
+        assert_eq!(c.get_pixel(0, 0).0, [18, 33, 0, 255]);
+    }
+
+    #[test]
+    fn jpeg_and_png_round_trip_sizes() {
+        let img = RgbaImage::from_pixel(8, 4, image::Rgba([10, 200, 30, 128]));
+        for codec in [ImageCodec::Jpeg, ImageCodec::Png] {
+            let bytes = codec.encode(&img).unwrap();
+            let back = image::load_from_memory(&bytes).unwrap();
+            assert_eq!((back.width(), back.height()), (8, 4));
+        }
+        assert_eq!(gpu_bytes(256, 256), 349_525);
+    }
+}

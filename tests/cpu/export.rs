@@ -1,0 +1,423 @@
+//! `atlastree export 3dtiles` (issue 25) on `data/city` built with the demo's settings (two trees, depth 3,
+//! repeat, mirror and clamp samplers, MASK and BLEND): the tileset mirrors the tree (one tile per node and
+//! one original-texture tile per leaf, errors from min_distance, refine on the root, children's errors
+//! ≤ parents'), every URI resolves, every content lies inside its box, and — the CPU twin of what a 3D Tiles
+//! viewer samples — at points inside every triangle the UV a standard viewer computes (TEXCOORD_n,
+//! KHR_texture_transform, the sampler's wrap) lands where `shaders/tree.wgsl` samples the same atlas.
+//! Faults: an existing directory is refused and kept; a corrupt block fails the export and leaves nothing.
+
+use atlastree::export::{ExportOptions, ExportSummary, export_3dtiles, geometric_error};
+use atlastree::model::transform::{atlas_uv_at, cell_offset, rect_texel};
+use atlastree::model::{AtlasForest, RectWrap};
+use atlastree::preprocess::{NoProgress, build};
+use atlastree::sim::tour::DemoTour;
+use atlastree::store::TreeFile;
+use glam::{DVec2, DVec3};
+use serde_json::Value;
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+const NO_PROGRESS: &(dyn Fn(u64, u64) + Sync) = &|_, _| {};
+
+/// data/city built with the demo's settings, once per test binary.
+fn city() -> &'static (tempfile::TempDir, PathBuf) {
+    static CITY: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    CITY.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = atlastree::scene::import(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf"),
+            &Default::default(),
+        )
+        .unwrap();
+        let out = dir.path().join("city.atlastree");
+        build(
+            &scene,
+            &DemoTour::DEFAULT.build_options(),
+            &out,
+            &NoProgress,
+        )
+        .unwrap();
+        (dir, out)
+    })
+}
+
+fn export(naive: bool) -> (tempfile::TempDir, PathBuf, ExportSummary, TreeFile) {
+    let file = TreeFile::open(&city().1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tiles");
+    let opts = ExportOptions {
+        naive,
+        ..ExportOptions::default()
+    };
+    let s = export_3dtiles(&file, &out, &opts, NO_PROGRESS).unwrap();
+    (dir, out, s, file)
+}
+
+/// Every tile with its parent's geometricError and the accumulated transform's translation.
+fn walk(tile: &Value, parent_error: f64, offset: DVec3, out: &mut Vec<(Value, f64, DVec3)>) {
+    let mut offset = offset;
+    if let Some(t) = tile["transform"].as_array() {
+        let m: Vec<f64> = t.iter().map(|x| x.as_f64().unwrap()).collect();
+        assert_eq!(m.len(), 16);
+        // Pure translations only.
+        assert_eq!(&m[..12], &[1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0.]);
+        offset += DVec3::new(m[12], m[13], m[14]);
+    }
+    out.push((tile.clone(), parent_error, offset));
+    let e = tile["geometricError"].as_f64().unwrap();
+    for c in tile["children"].as_array().into_iter().flatten() {
+        walk(c, e, offset, out);
+    }
+}
+
+fn read_json(p: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
+}
+
+#[test]
+fn the_tileset_mirrors_the_tree_and_every_uri_resolves() {
+    let (_dir, out, summary, file) = export(false);
+    let forest = file.to_forest();
+    let ts = read_json(&out.join("tileset.json"));
+    assert_eq!(ts["asset"]["version"], "1.1");
+    assert_eq!(ts["root"]["refine"], "REPLACE");
+    let mut tiles = Vec::new();
+    walk(
+        &ts["root"],
+        ts["geometricError"].as_f64().unwrap(),
+        DVec3::ZERO,
+        &mut tiles,
+    );
+    let p = &forest.params;
+    let mut seen = BTreeSet::new();
+    for (tile, parent_error, _) in &tiles {
+        let e = tile["geometricError"].as_f64().unwrap();
+        assert!(
+            e <= *parent_error,
+            "child error {e} > parent's {parent_error}"
+        );
+        let Some(uri) = tile["content"]["uri"].as_str() else {
+            continue;
+        };
+        let x = &tile["extras"]["atlastree"];
+        let (t, n) = (
+            x["tree"].as_u64().unwrap() as usize,
+            x["node"].as_u64().unwrap() as usize,
+        );
+        let node = &forest.trees[t].nodes[n];
+        let source = x["source"].as_str().unwrap();
+        let want_uri = match source {
+            "atlas" => {
+                assert_eq!(
+                    e,
+                    geometric_error(node.min_distance, p.screen_width, p.fov_deg)
+                );
+                format!("t{t}/n{n}.gltf")
+            }
+            "original" => {
+                assert!(node.is_leaf());
+                assert_eq!(e, 0.0);
+                format!("t{t}/n{n}-orig.gltf")
+            }
+            s => panic!("source {s}"),
+        };
+        assert_eq!(uri, want_uri);
+        assert!(seen.insert((t, n, source.to_string())), "{uri} twice");
+        // Every URI inside the content resolves, buffers at their stated length.
+        let gltf_path = out.join(uri);
+        let doc = read_json(&gltf_path);
+        let base = gltf_path.parent().unwrap();
+        for b in doc["buffers"].as_array().unwrap() {
+            let len = std::fs::metadata(base.join(b["uri"].as_str().unwrap()))
+                .unwrap()
+                .len();
+            assert_eq!(len, b["byteLength"].as_u64().unwrap(), "{uri}");
+        }
+        for i in doc["images"].as_array().unwrap() {
+            assert!(
+                base.join(i["uri"].as_str().unwrap()).is_file(),
+                "{uri}: {i}"
+            );
+        }
+    }
+    let nodes: usize = forest.trees.iter().map(|t| t.nodes.len()).sum();
+    let leaves: usize = forest.trees.iter().map(|t| t.leaves.len()).sum();
+    assert_eq!(seen.len(), nodes + leaves);
+    assert_eq!(summary.tiles, nodes + leaves);
+    assert!(
+        forest.trees[0].nodes.iter().any(|n| n.level.0 >= 3),
+        "a deep tree"
+    );
+    // The summary's byte count is what is on disk.
+    let on_disk: u64 = walkdir(&out)
+        .iter()
+        .filter(|p| p.file_name().unwrap() != "atlastree-export.json")
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
+    assert_eq!(on_disk, summary.total_bytes);
+}
+
+fn walkdir(d: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(d).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(walkdir(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// The content of a tile as the viewer places it: glTF nodes (leaf buffers) with their translation.
+struct Content {
+    doc: gltf::Document,
+    bins: Vec<Vec<u8>>,
+    /// Leaf of each buffer (from its `geom/l{L}.bin` URI).
+    buffer_leaf: Vec<usize>,
+}
+
+fn load(path: &Path) -> Content {
+    let g = gltf::Gltf::from_slice(&std::fs::read(path).unwrap()).expect("valid glTF");
+    let base = path.parent().unwrap();
+    let mut bins = Vec::new();
+    let mut buffer_leaf = Vec::new();
+    for b in g.document.buffers() {
+        let gltf::buffer::Source::Uri(uri) = b.source() else {
+            panic!("external buffers only")
+        };
+        bins.push(std::fs::read(base.join(uri)).unwrap());
+        let leaf = uri.trim_start_matches("geom/l").trim_end_matches(".bin");
+        buffer_leaf.push(leaf.parse().unwrap());
+    }
+    Content {
+        doc: g.document,
+        bins,
+        buffer_leaf,
+    }
+}
+
+#[test]
+fn every_content_lies_inside_its_box() {
+    let (_dir, out, _, _) = export(false);
+    let ts = read_json(&out.join("tileset.json"));
+    let mut tiles = Vec::new();
+    walk(&ts["root"], f64::INFINITY, DVec3::ZERO, &mut tiles);
+    for (tile, _, offset) in &tiles {
+        let Some(uri) = tile["content"]["uri"].as_str() else {
+            continue;
+        };
+        let b: Vec<f64> = tile["boundingVolume"]["box"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        let (c, h) = (DVec3::new(b[0], b[1], b[2]), DVec3::new(b[3], b[7], b[11]));
+        let content = load(&out.join(uri));
+        for node in content.doc.nodes() {
+            let t = DVec3::from(node.transform().decomposed().0.map(f64::from));
+            for prim in node.mesh().unwrap().primitives() {
+                let pos = prim.get(&gltf::Semantic::Positions).unwrap();
+                let reader = prim.reader(|buf| Some(&content.bins[buf.index()]));
+                for p in reader.read_positions().unwrap() {
+                    let y_up = DVec3::from(p.map(f64::from)) + t;
+                    // glTF y-up → tile frame z-up, then the ancestors' transforms.
+                    let z_up = DVec3::new(y_up.x, -y_up.z, y_up.y) + *offset;
+                    let d = (z_up - (c + *offset)).abs() - h;
+                    let tol = 1e-3 * (1.0 + h.max_element());
+                    assert!(
+                        d.max_element() <= tol,
+                        "{uri}: {z_up} outside box {c} ± {h} ({})",
+                        pos.count()
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The sampler's wrap on one axis (glTF codes), as the viewer applies it.
+fn wrap(u: f64, mode: gltf::texture::WrappingMode) -> f64 {
+    use gltf::texture::WrappingMode::*;
+    match mode {
+        Repeat => u - u.floor(),
+        MirroredRepeat => atlastree::model::transform::mirror(u),
+        ClampToEdge => u.clamp(0.0, 1.0),
+    }
+}
+
+#[test]
+fn a_viewer_samples_every_triangle_where_the_tree_shader_does() {
+    let (_dir, out, summary, file) = export(false);
+    let forest: AtlasForest = file.to_forest();
+    let size = f64::from(forest.params.atlas_size);
+    let bary = [
+        [1.0 / 3.0; 3],
+        [0.7, 0.2, 0.1],
+        [0.1, 0.7, 0.2],
+        [0.2, 0.1, 0.7],
+    ];
+    let (mut samples, mut period_samples) = (0usize, 0usize);
+    for t in summary.tile_list.iter().filter(|t| t.source == "atlas") {
+        let tree = &forest.trees[t.tree];
+        let node = &tree.nodes[t.node as usize];
+        let content = load(&out.join(&t.uri));
+        for gnode in content.doc.nodes() {
+            for prim in gnode.mesh().unwrap().primitives() {
+                let buffer = prim.indices().unwrap().view().unwrap().buffer().index();
+                let l = content.buffer_leaf[buffer];
+                let leaf = &tree.leaves[l];
+                let leaf_node = &tree.nodes[leaf.node.0 as usize];
+                let reader = prim.reader(|buf| Some(&content.bins[buf.index()]));
+                let uv0: Vec<[f32; 2]> = reader.read_tex_coords(0).unwrap().into_f32().collect();
+                let uv1: Option<Vec<[f32; 2]>> =
+                    reader.read_tex_coords(1).map(|r| r.into_f32().collect());
+                let idx: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+                let info = prim
+                    .material()
+                    .pbr_metallic_roughness()
+                    .base_color_texture()
+                    .unwrap();
+                let sampler = info.texture().sampler();
+                let (offset, scale) = info
+                    .texture_transform()
+                    .map_or(([0.0, 0.0], [1.0, 1.0]), |x| (x.offset(), x.scale()));
+                let (ox, oy, d) = cell_offset(leaf_node.cell, leaf_node.level, node.level);
+                for tri in idx.chunks_exact(3) {
+                    let v = tree.vertices[leaf.first_vertex as usize + tri[0] as usize];
+                    let rect = &leaf.rects[v.rect as usize];
+                    for w in &bary {
+                        let at = |uv: &[[f32; 2]]| {
+                            (0..3).fold(DVec2::ZERO, |acc, k| {
+                                acc + DVec2::from(uv[tri[k] as usize].map(f64::from)) * w[k]
+                            })
+                        };
+                        let orig = at(&uv0);
+                        // What tree.wgsl samples (margin 0: inside the rect, no footprint).
+                        let texel = rect_texel(orig, rect, DVec2::ZERO);
+                        let want =
+                            atlas_uv_at(texel / size, leaf_node.cell, leaf_node.level, node.level);
+                        let got = if info.tex_coord() == 1 {
+                            let a = at(uv1.as_ref().unwrap());
+                            DVec2::new(
+                                a.x * f64::from(scale[0]) + f64::from(offset[0]),
+                                a.y * f64::from(scale[1]) + f64::from(offset[1]),
+                            )
+                        } else {
+                            // A period image: the rect's inner rectangle at this level, wrapped by the sampler.
+                            period_samples += 1;
+                            let u = orig.x * f64::from(scale[0]) + f64::from(offset[0]);
+                            let v = orig.y * f64::from(scale[1]) + f64::from(offset[1]);
+                            let p =
+                                DVec2::new(wrap(u, sampler.wrap_s()), wrap(v, sampler.wrap_t()));
+                            let inner =
+                                DVec2::new(f64::from(rect.inner[0]), f64::from(rect.inner[1]));
+                            let extent =
+                                DVec2::new(f64::from(rect.inner[2]), f64::from(rect.inner[3]));
+                            atlas_uv_at(
+                                (inner + p * extent) / size,
+                                leaf_node.cell,
+                                leaf_node.level,
+                                node.level,
+                            )
+                        };
+                        // f32 UVs: a few 1e-6 of the atlas; seams: a sample on a period's edge may be
+                        // reached from either side (u and u ± 1 sample the same texel under REPEAT).
+                        let err = (got - want).abs();
+                        let s = (-(f64::from(d))).exp2();
+                        let period = DVec2::new(f64::from(rect.inner[2]), f64::from(rect.inner[3]))
+                            * s
+                            / size;
+                        let on_seam = (err - period).abs().max_element() < 1e-4;
+                        assert!(
+                            err.max_element() < 1e-4 || on_seam,
+                            "{}: leaf {l} rect {:?} wrap {:?} uv {orig}: viewer {got}, shader {want} (node level {}, cell offset {ox},{oy})",
+                            t.uri,
+                            rect.inner,
+                            rect.wrap,
+                            node.level.0
+                        );
+                        samples += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(samples > 1000, "{samples} samples");
+    assert!(
+        period_samples > 100,
+        "{period_samples} samples of period images"
+    );
+    // The fixture has every wrap mode, so every period sampler kind was exercised above.
+    let modes: std::collections::HashSet<RectWrap> = forest
+        .trees
+        .iter()
+        .flat_map(|t| {
+            t.leaves
+                .iter()
+                .flat_map(|l| l.rects.iter().flat_map(|r| r.wrap))
+        })
+        .collect();
+    assert!(
+        modes.contains(&RectWrap::Repeat)
+            && modes.contains(&RectWrap::Mirror)
+            && modes.contains(&RectWrap::Clamp)
+    );
+}
+
+#[test]
+fn the_naive_export_draws_original_textures_on_every_tile() {
+    let (_dir, out, summary, _) = export(true);
+    assert!(summary.naive);
+    for t in &summary.tile_list {
+        for i in &t.images {
+            assert!(i.uri.starts_with("img/o"), "{}: {}", t.uri, i.uri);
+        }
+    }
+    let atlases = walkdir(&out)
+        .into_iter()
+        .filter(|p| {
+            p.file_name().unwrap().to_string_lossy().starts_with('n')
+                && p.parent().unwrap().ends_with("img")
+        })
+        .count();
+    assert_eq!(atlases, 0);
+}
+
+#[test]
+fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
+    let file = TreeFile::open(&city().1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tiles");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("keep.txt"), b"mine").unwrap();
+    let e = export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap_err();
+    assert!(e.to_string().contains("--force"), "{e}");
+    assert_eq!(std::fs::read(out.join("keep.txt")).unwrap(), b"mine");
+
+    // A paging file whose last atlas block is corrupt (checksums are checked on every block load).
+    let bad = dir.path().join("bad.atlastree");
+    std::fs::copy(&city().1, &bad).unwrap();
+    let f = TreeFile::open(&bad).unwrap();
+    let rec = f.blocks()[f.tree(0).unwrap().nodes[0].atlas_block as usize];
+    drop(f);
+    let mut bytes = std::fs::read(&bad).unwrap();
+    bytes[rec.offset as usize + 100] ^= 0x5a;
+    std::fs::write(&bad, &bytes).unwrap();
+    let f = TreeFile::open(&bad).unwrap();
+    let out2 = dir.path().join("tiles2");
+    let e = export_3dtiles(&f, &out2, &ExportOptions::default(), NO_PROGRESS).unwrap_err();
+    assert!(
+        e.to_string().contains("checksum") || e.to_string().contains("block"),
+        "{e}"
+    );
+    assert!(!out2.exists());
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!left.iter().any(|n| n.contains("partial")), "{left:?}");
+}
