@@ -45,6 +45,8 @@
 //! - [`report`]: experiment reporting: the one per-frame CSV schema, PSNR/SSIM and texel-density measures, Pareto fronts, deterministic
 //!   CSV and SVG + PNG plots (line, heat map, Pareto scatter, bars) with an embedded font.
 //! - [`view`]: the interactive window (winit + egui inspector) over the same renderer.
+//! - [`export`]: the tree as a 3D Tiles 1.1 tileset for CesiumJS, 3DTilesRendererJS and other clients
+//!   (docs/3dtiles.md): one tile per node, geometry once per leaf, levels by `KHR_texture_transform`.
 //! - [`sweep`]: what accuracy costs in time: builds and renders a grid of knob values (d_min, atlas size,
 //!   border, filter, texel ratio, capacity), compares every frame with the original-texture reference and
 //!   writes CSV tables, plots with the Pareto front and a report with recommended defaults.

@@ -46,6 +46,11 @@ pub(crate) struct Tiles3dArgs {
     /// For comparison: every tile drawn with the original textures, as tilers without texture LOD do.
     #[arg(long)]
     pub naive: bool,
+    /// At most this many wrapping rects per tile get their own image holding one period (a draw call
+    /// each); those with the smallest periods at the tile's level are drawn with their period's average
+    /// instead (below 2 texels of the tile's level they always are: atlastree's shader does the same).
+    #[arg(long, default_value_t = 256, value_name = "N")]
+    pub max_period_images: usize,
     /// Print the summary as JSON (the same as OUT/atlastree-export.json without the tile list).
     #[arg(long)]
     pub json: bool,
@@ -61,6 +66,7 @@ pub(super) fn run(a: ExportArgs) -> anyhow::Result<ExitCode> {
     let opts = ExportOptions {
         force: a.force,
         naive: a.naive,
+        max_period_images: a.max_period_images,
     };
     let start = std::time::Instant::now();
     let started = std::sync::atomic::AtomicBool::new(false);
@@ -97,27 +103,35 @@ pub(super) fn run(a: ExportArgs) -> anyhow::Result<ExitCode> {
         s.rects,
     );
     println!(
-        "  bytes: geometry {} (of it the per-texture index lists {}), images {}, glTF {}, tileset.json {}; paging file {}",
+        "  bytes: geometry {} once (of it the per-texture index lists {}; a copy per tile would be {}), images {}, glTF {}, tileset.json {}; paging file {}",
         human_bytes(s.geometry_bytes),
         human_bytes(s.original_index_bytes),
+        human_bytes(s.per_tile_geometry_bytes),
         human_bytes(s.image_bytes),
         human_bytes(s.gltf_bytes),
         human_bytes(s.tileset_json_bytes),
         human_bytes(s.paging_file_bytes),
     );
     println!(
-        "  {:>6}  {:>6}  {:>7}  {:>11}  {:>10}  {:>10}",
-        "level", "tiles", "images", "image bytes", "glTF bytes", "draw calls"
+        "  wrapping rects drawn with their period's average (period under {} texels of the tile's level, or past --max-period-images {}): {} rect-tiles",
+        atlastree::export::MIN_PERIOD_TEXELS,
+        a.max_period_images,
+        s.averaged_rects
+    );
+    println!(
+        "  {:>6}  {:>6}  {:>7}  {:>11}  {:>10}  {:>10}  {:>14}",
+        "level", "tiles", "images", "image bytes", "glTF bytes", "draw calls", "max draws/tile"
     );
     for (level, l) in &s.levels {
         println!(
-            "  {:>6}  {:>6}  {:>7}  {:>11}  {:>10}  {:>10}",
+            "  {:>6}  {:>6}  {:>7}  {:>11}  {:>10}  {:>10}  {:>14}",
             level,
             l.tiles,
             l.images,
             human_bytes(l.image_bytes),
             human_bytes(l.gltf_bytes),
-            l.draw_calls
+            l.draw_calls,
+            l.max_draw_calls
         );
     }
     println!(

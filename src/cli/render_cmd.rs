@@ -472,7 +472,18 @@ fn selection_json(frame: usize, plan: &atlastree::plan::FramePlan) -> serde_json
             })
         })
         .collect();
-    serde_json::json!({ "frame": frame, "scale": plan.scale, "items": items })
+    // The camera as drawn, with the orthonormal frame the view matrix uses (`up` replaced where it is
+    // parallel to the view direction), so another viewer can place the same camera.
+    let cam = &plan.camera;
+    let basis = cam.basis();
+    serde_json::json!({
+        "frame": frame, "scale": plan.scale, "items": items,
+        "camera": {
+            "eye": cam.eye.to_array(), "target": cam.target.to_array(), "up": basis.up.to_array(),
+            "forward": basis.forward.to_array(), "fov_x_deg": cam.fov_x_deg, "aspect": cam.aspect,
+            "near": cam.near, "far": cam.far,
+        },
+    })
 }
 
 /// Whether frames of `mode` are measured against `reference`: tree, dummy and original (not original

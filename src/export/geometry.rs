@@ -22,8 +22,16 @@ pub(super) enum GroupKey {
     /// Triangles of affine rects drawn from the tile's atlas, by alpha mode (`alpha`: 0 opaque, 1 mask, 2
     /// blend; `cutoff`: the MASK cutoff's bits, 0 otherwise).
     Atlas { alpha: u8, cutoff: u32 },
-    /// The triangles of one wrapping rect (index into the leaf's rects), drawn with its own period image.
-    Period { rect: u32 },
+    /// The triangles of one wrapping rect (index into the leaf's rects), drawn with its own period image or,
+    /// where its period is too small at the tile's level, with the period's average. Sorted by alpha, then
+    /// by the inner rectangle's smaller side (leaf texels, ascending): the rects a tile averages are a
+    /// prefix of each alpha's run, drawn as one primitive.
+    Period {
+        alpha: u8,
+        cutoff: u32,
+        side: u32,
+        rect: u32,
+    },
     /// The triangles drawn with one of the leaf's original textures (index into the leaf's originals).
     Original { original: u32 },
 }
@@ -39,8 +47,9 @@ pub(super) struct IndexGroup {
 }
 
 /// A leaf's buffer and what is in it. Sections, tightly packed in this order, each 4-byte aligned:
-/// positions (`f32 × 3`), `TEXCOORD_0` (`f32 × 2`), `TEXCOORD_1` (`f32 × 2`), indices (`u16` when the leaf
-/// has fewer than 65,536 vertices, else `u32`).
+/// positions (`f32 × 3`), `TEXCOORD_0` (`f32 × 2`), `TEXCOORD_1` (`f32 × 2`: the leaf-atlas UV of an affine
+/// rect's vertex, else the centre of the rect's texel in the tree's averages image, [`AverageGrid`]),
+/// indices (`u16` when the leaf has fewer than 65,536 vertices, else `u32`).
 pub(super) struct LeafMesh {
     /// The buffer (taken out once written; [`LeafMesh::bin_len`] stays).
     pub(super) bin: Vec<u8>,
@@ -104,6 +113,38 @@ pub enum GeometryError {
     },
 }
 
+/// Where each rect of a tree keeps its period's average in a tile's averages image: rect `g` (the tree's
+/// running rect index, leaf by leaf) at texel `(g mod COLUMNS, g / COLUMNS)`.
+#[derive(Copy, Clone, Debug)]
+pub(super) struct AverageGrid {
+    pub(super) rows: u32,
+}
+
+impl AverageGrid {
+    pub(super) const COLUMNS: u32 = 128;
+
+    /// The grid of a tree with `rects` rects in all.
+    pub(super) fn for_rects(rects: u64) -> AverageGrid {
+        AverageGrid {
+            rows: (rects.div_ceil(u64::from(Self::COLUMNS)).max(1)) as u32,
+        }
+    }
+
+    /// The texel of rect `g`.
+    pub(super) fn texel(self, g: u32) -> (u32, u32) {
+        (g % Self::COLUMNS, g / Self::COLUMNS)
+    }
+
+    /// The UV of the centre of rect `g`'s texel.
+    pub(super) fn uv(self, g: u32) -> [f32; 2] {
+        let (x, y) = self.texel(g);
+        [
+            (f64::from(x) + 0.5) as f32 / Self::COLUMNS as f32,
+            ((f64::from(y) + 0.5) / f64::from(self.rows)) as f32,
+        ]
+    }
+}
+
 /// The alpha key of a material ([`GroupKey::Atlas`]).
 pub(super) fn alpha_key(m: &Material) -> (u8, u32) {
     match m.alpha {
@@ -142,11 +183,13 @@ pub(super) fn rect_is_affine(rect: &AtlasRect, triangles: &[[[f32; 2]; 3]]) -> b
 type Triangle = ([u32; 3], u32, u32);
 
 /// Builds leaf `leaf_index`'s buffer (see [`LeafMesh`]). `atlas_size`: texels per atlas side.
+/// `rect_base`: the tree's running index of the leaf's first rect ([`AverageGrid`]).
 pub(super) fn leaf_mesh(
     tree: &AtlasTree,
     leaf_index: usize,
     materials: &[Material],
     atlas_size: u32,
+    (rect_base, grid): (u32, AverageGrid),
 ) -> Result<LeafMesh, GeometryError> {
     let leaf: &Leaf = &tree.leaves[leaf_index];
     let first = leaf.first_vertex;
@@ -231,7 +274,7 @@ pub(super) fn leaf_mesh(
             );
             [(p.x / size) as f32, (p.y / size) as f32]
         } else {
-            [0.0, 0.0]
+            grid.uv(rect_base + v.rect)
         };
         bin.extend_from_slice(&uv[0].to_le_bytes());
         bin.extend_from_slice(&uv[1].to_le_bytes());
@@ -242,7 +285,14 @@ pub(super) fn leaf_mesh(
             let (alpha, cutoff) = rect_alpha[rect as usize];
             GroupKey::Atlas { alpha, cutoff }
         } else {
-            GroupKey::Period { rect }
+            let (alpha, cutoff) = rect_alpha[rect as usize];
+            let r = &leaf.rects[rect as usize];
+            GroupKey::Period {
+                alpha,
+                cutoff,
+                side: r.inner[2].min(r.inner[3]),
+                rect,
+            }
         }
     };
     let write_groups = |keys: &dyn Fn(&Triangle) -> GroupKey, bin: &mut Vec<u8>| {

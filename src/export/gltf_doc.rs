@@ -11,6 +11,7 @@ use std::collections::HashMap;
 pub(super) const REPEAT: u32 = 10497;
 pub(super) const CLAMP_TO_EDGE: u32 = 33071;
 pub(super) const MIRRORED_REPEAT: u32 = 33648;
+const NEAREST: u32 = 9728;
 const LINEAR: u32 = 9729;
 const LINEAR_MIPMAP_LINEAR: u32 = 9987;
 const FLOAT: u32 = 5126;
@@ -63,9 +64,9 @@ pub(super) struct GltfDoc {
     nodes: Vec<Value>,
     buffer_of: HashMap<usize, usize>,
     view_of: HashMap<(usize, Section), usize>,
-    accessor_of: HashMap<(usize, Section, u64), usize>,
-    texture_of: HashMap<(String, [u32; 2]), usize>,
-    sampler_of: HashMap<[u32; 2], usize>,
+    accessor_of: HashMap<(usize, Section, u64, u32), usize>,
+    texture_of: HashMap<(String, [u32; 2], bool), usize>,
+    sampler_of: HashMap<([u32; 2], bool), usize>,
     material_of: Vec<MaterialSpec>,
     transform_used: bool,
     /// Primitives (draw calls) so far.
@@ -106,7 +107,7 @@ impl GltfDoc {
 
     /// The accessor of a vertex section (`Positions`, `Uv0`, `Uv1`) of `leaf`.
     fn vertex_accessor(&mut self, leaf: usize, mesh: &LeafMesh, uri: &str, s: Section) -> usize {
-        if let Some(&a) = self.accessor_of.get(&(leaf, s, 0)) {
+        if let Some(&a) = self.accessor_of.get(&(leaf, s, 0, 0)) {
             return a;
         }
         let view = self.view(leaf, mesh, uri, s);
@@ -120,12 +121,15 @@ impl GltfDoc {
         };
         self.accessors.push(acc);
         self.accessor_of
-            .insert((leaf, s, 0), self.accessors.len() - 1);
+            .insert((leaf, s, 0, 0), self.accessors.len() - 1);
         self.accessors.len() - 1
     }
 
     fn index_accessor(&mut self, leaf: usize, mesh: &LeafMesh, uri: &str, g: &IndexGroup) -> usize {
-        if let Some(&a) = self.accessor_of.get(&(leaf, Section::Indices, g.offset)) {
+        if let Some(&a) = self
+            .accessor_of
+            .get(&(leaf, Section::Indices, g.offset, g.count))
+        {
             return a;
         }
         let view = self.view(leaf, mesh, uri, Section::Indices);
@@ -138,34 +142,57 @@ impl GltfDoc {
             "bufferView": view, "byteOffset": g.offset, "componentType": ty, "count": g.count,
             "type": "SCALAR",
         }));
-        self.accessor_of
-            .insert((leaf, Section::Indices, g.offset), self.accessors.len() - 1);
+        self.accessor_of.insert(
+            (leaf, Section::Indices, g.offset, g.count),
+            self.accessors.len() - 1,
+        );
         self.accessors.len() - 1
     }
 
-    /// A texture of image `uri` with wrap modes `[s, t]` (glTF codes), trilinear; shared by equal pairs.
-    pub(super) fn texture(&mut self, uri: &str, wrap: [u32; 2]) -> usize {
-        if let Some(&t) = self.texture_of.get(&(uri.to_string(), wrap)) {
+    /// A texture of the image named `name` (its file path, also for an image embedded as a data URI) at
+    /// `uri`, with wrap modes `[s, t]` (glTF codes), trilinear (or `nearest`, no mips: an image of single
+    /// texels read at their centres); shared by equal triples.
+    pub(super) fn texture(
+        &mut self,
+        (uri, name): (&str, &str),
+        wrap: [u32; 2],
+        nearest: bool,
+    ) -> usize {
+        if let Some(&t) = self.texture_of.get(&(name.to_string(), wrap, nearest)) {
             return t;
         }
-        let image = match self.images.iter().position(|i| i["uri"] == uri) {
+        let image = match self.images.iter().position(|i| i["name"] == name) {
             Some(i) => i,
             None => {
-                self.images.push(json!({ "uri": uri }));
+                self.images.push(json!({ "uri": uri, "name": name }));
                 self.images.len() - 1
             }
         };
-        let sampler = *self.sampler_of.entry(wrap).or_insert_with(|| {
+        let sampler = *self.sampler_of.entry((wrap, nearest)).or_insert_with(|| {
+            let (mag, min) = if nearest {
+                (NEAREST, NEAREST)
+            } else {
+                (LINEAR, LINEAR_MIPMAP_LINEAR)
+            };
             self.samplers.push(json!({
-                "magFilter": LINEAR, "minFilter": LINEAR_MIPMAP_LINEAR, "wrapS": wrap[0], "wrapT": wrap[1],
+                "magFilter": mag, "minFilter": min, "wrapS": wrap[0], "wrapT": wrap[1],
             }));
             self.samplers.len() - 1
         });
         self.textures
             .push(json!({ "source": image, "sampler": sampler }));
         self.texture_of
-            .insert((uri.to_string(), wrap), self.textures.len() - 1);
+            .insert((name.to_string(), wrap, nearest), self.textures.len() - 1);
         self.textures.len() - 1
+    }
+
+    /// Sets the URI of the image named `name` (made before its texels were final).
+    pub(super) fn set_image_uri(&mut self, name: &str, uri: &str) {
+        for i in &mut self.images {
+            if i["name"] == name {
+                i["uri"] = json!(uri);
+            }
+        }
     }
 
     /// An unlit material (`KHR_materials_unlit`, double-sided as atlastree draws); equal specs shared.
@@ -209,14 +236,15 @@ impl GltfDoc {
         mesh: &LeafMesh,
         uri: &str,
         translation: [f32; 3],
-        prims: &[(&IndexGroup, usize, bool)],
+        prims: &[(IndexGroup, usize, bool)],
     ) {
         if prims.is_empty() {
             return;
         }
         let pos = self.vertex_accessor(leaf, mesh, uri, Section::Positions);
         let mut out = Vec::with_capacity(prims.len());
-        for &(g, material, uv1) in prims {
+        for (g, material, uv1) in prims {
+            let (material, uv1) = (*material, *uv1);
             let uv_section = if uv1 { Section::Uv1 } else { Section::Uv0 };
             let uv = self.vertex_accessor(leaf, mesh, uri, uv_section);
             let indices = self.index_accessor(leaf, mesh, uri, g);

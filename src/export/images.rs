@@ -32,6 +32,13 @@ impl ImageCodec {
         }
     }
 
+    pub fn mime(self) -> &'static str {
+        match self {
+            ImageCodec::Jpeg => "image/jpeg",
+            ImageCodec::Png => "image/png",
+        }
+    }
+
     /// The codec for a tree: PNG where alpha matters.
     pub fn for_alpha(alpha: bool) -> ImageCodec {
         if alpha {
@@ -130,6 +137,18 @@ pub(super) fn crop_scaled(
     let x1 = (to_node(ox, x + w).round() as u32).clamp(x0 + 1, img.width());
     let y1 = (to_node(oy, y + h).round() as u32).clamp(y0 + 1, img.height());
     image::imageops::crop_imm(img, x0, y0, x1 - x0, y1 - y0).to_image()
+}
+
+/// The mean of `img`'s texels (sRGB bytes averaged as stored, as a box filter over the image).
+pub(super) fn mean(img: &RgbaImage) -> image::Rgba<u8> {
+    let mut sum = [0u64; 4];
+    for p in img.pixels() {
+        for (s, &c) in sum.iter_mut().zip(&p.0) {
+            *s += u64::from(c);
+        }
+    }
+    let n = u64::from(img.width()) * u64::from(img.height());
+    image::Rgba(sum.map(|s| ((s + n / 2) / n.max(1)) as u8))
 }
 
 #[cfg(test)]

@@ -21,17 +21,21 @@
 mod geometry;
 mod gltf_doc;
 mod images;
+mod tiles;
 mod tileset;
 
 pub use geometry::GeometryError;
+/// Columns of a tile's averages image (`img/n{N}-avg.png`): the tree's rect `g` (running index over its
+/// leaves' rects) keeps its period's average at texel `(g mod AVERAGE_COLUMNS, g / AVERAGE_COLUMNS)`.
+pub const AVERAGE_COLUMNS: u32 = AverageGrid::COLUMNS;
 pub use images::{ImageCodec, JPEG_QUALITY, gpu_bytes};
+pub use tiles::MIN_PERIOD_TEXELS;
 pub use tileset::{SCREEN_SPACE_ERROR, geometric_error, refine_distance};
 
-use crate::model::{AtlasForest, AtlasTree, RectWrap, TreeKind};
+use crate::model::{AtlasForest, AtlasTree, TreeKind};
 use crate::store::{StoreError, TreeFile};
-use geometry::{GroupKey, LeafMesh};
+use geometry::{AverageGrid, LeafMesh};
 use glam::DVec3;
-use gltf_doc::{CLAMP_TO_EDGE, GltfDoc, MIRRORED_REPEAT, MaterialSpec, REPEAT};
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
@@ -39,13 +43,26 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 /// What to export.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct ExportOptions {
     /// Replace an existing, non-empty output directory.
     pub force: bool,
     /// The comparison export of tilers without texture LOD: every tile drawn with the original textures
     /// (no atlases written).
     pub naive: bool,
+    /// At most this many wrapping rects per tile get their own period image (one draw call each); the
+    /// ones with the smallest periods at the tile's level are drawn with their period's average instead.
+    pub max_period_images: usize,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        ExportOptions {
+            force: false,
+            naive: false,
+            max_period_images: 256,
+        }
+    }
 }
 
 /// Why an export failed; nothing is left at the output path then.
@@ -89,6 +106,11 @@ pub struct TileSummary {
     pub draw_calls: usize,
     /// Leaves whose geometry it draws.
     pub leaves: usize,
+    /// Bytes of those leaves' buffers (what the tile would store if it held its own geometry).
+    pub geometry_bytes: u64,
+    /// Wrapping rects drawn with their period's average at this level ([`MIN_PERIOD_TEXELS`],
+    /// [`ExportOptions::max_period_images`]).
+    pub averaged_rects: usize,
     /// Bytes of its `.gltf` JSON.
     pub gltf_bytes: u64,
 }
@@ -103,6 +125,8 @@ pub struct ImageSummary {
     pub bytes: u64,
     /// What a viewer's GPU holds for it (RGBA8 with mips, [`gpu_bytes`]).
     pub gpu_bytes: u64,
+    /// Inside its `.gltf` as a data URI (its bytes counted there, base64), not a file.
+    pub embedded: bool,
 }
 
 /// Per level of the tree (leaf originals counted as level `depth + 1` of their leaf's level).
@@ -113,6 +137,8 @@ pub struct LevelSummary {
     pub image_bytes: u64,
     pub gltf_bytes: u64,
     pub draw_calls: usize,
+    /// The most draw calls of one tile of the level.
+    pub max_draw_calls: usize,
 }
 
 /// What an export wrote (`atlastree-export.json`).
@@ -130,13 +156,18 @@ pub struct ExportSummary {
     pub geometry_bytes: u64,
     /// Of `geometry_bytes`: the second index list per leaf (by original texture).
     pub original_index_bytes: u64,
+    /// What the geometry would take with every tile holding its own copy (Σ over tiles of their leaves'
+    /// buffers): the cost of REPLACE written naively, avoided by sharing.
+    pub per_tile_geometry_bytes: u64,
     pub image_bytes: u64,
     pub gltf_bytes: u64,
     pub tileset_json_bytes: u64,
     /// Unique image files.
     pub images: usize,
-    /// Rects drawn with their own period image (their triangles cross a wrap seam), and all rects.
+    /// Rects drawn with a period image or average (their triangles cross a wrap seam), and all rects.
     pub period_rects: usize,
+    /// Σ over tiles of the wrapping rects drawn with their period's average.
+    pub averaged_rects: usize,
     pub rects: usize,
     pub paging_file_bytes: u64,
     /// Keyed by level ("0", "1", …; `"orig"` for the original-texture tiles).
@@ -206,6 +237,9 @@ struct TreeCtx<'a> {
     meshes: Vec<LeafMesh>,
     /// Leaf range (in tree order) of each node's subtree.
     leaf_ranges: Vec<(usize, usize)>,
+    /// The tree's running index of each leaf's first rect, and where rects keep their averages.
+    rect_base: Vec<u32>,
+    grid: AverageGrid,
     /// Original images by (block, slot).
     originals: HashMap<(u32, u32), ImageSummary>,
     codec: ImageCodec,
@@ -230,11 +264,13 @@ fn write_tileset(
         total_bytes: 0,
         geometry_bytes: 0,
         original_index_bytes: 0,
+        per_tile_geometry_bytes: 0,
         image_bytes: 0,
         gltf_bytes: 0,
         tileset_json_bytes: 0,
         images: 0,
         period_rects: 0,
+        averaged_rects: 0,
         rects: 0,
         paging_file_bytes: file.file_len(),
         levels: BTreeMap::new(),
@@ -256,8 +292,8 @@ fn write_tileset(
     let mut roots = Vec::new();
     for (t, tree) in forest.trees.iter().enumerate() {
         let ctx = prepare_tree(file, &forest, t, dir, &mut summary, &tick)?;
-        let tiles = node_tiles(file, &forest, &ctx, opts, &tick)?;
-        let orig_tiles = original_tiles(&forest, &ctx, &tick)?;
+        let tiles = tiles::node_tiles(file, &forest, &ctx, opts, &tick)?;
+        let orig_tiles = tiles::original_tiles(&forest, &ctx, &tick)?;
         roots.push(tree_tileset(&forest, &ctx, tiles, orig_tiles, &mut summary));
         let _ = tree;
     }
@@ -315,6 +351,7 @@ fn level_summaries(tiles: &[TileSummary]) -> BTreeMap<String, LevelSummary> {
         e.tiles += 1;
         e.gltf_bytes += t.gltf_bytes;
         e.draw_calls += t.draw_calls;
+        e.max_draw_calls = e.max_draw_calls.max(t.draw_calls);
         imgs.extend(&t.images);
     }
     levels
@@ -355,10 +392,17 @@ fn prepare_tree<'a>(
         std::fs::create_dir_all(&d).map_err(io(&d))?;
     }
     let size = forest.params.atlas_size;
+    let mut rect_base = Vec::with_capacity(tree.leaves.len());
+    let mut rects = 0u32;
+    for l in &tree.leaves {
+        rect_base.push(rects);
+        rects += l.rects.len() as u32;
+    }
+    let grid = AverageGrid::for_rects(u64::from(rects));
     let meshes: Vec<LeafMesh> = (0..tree.leaves.len())
         .into_par_iter()
         .map(|l| {
-            let mut m = geometry::leaf_mesh(tree, l, &forest.materials, size)
+            let mut m = geometry::leaf_mesh(tree, l, &forest.materials, size, (rect_base[l], grid))
                 .map_err(|source| ExportError::Geometry { tree: t, source })?;
             let path = tdir.join(format!("geom/l{l}.bin"));
             write_file(&path, &std::mem::take(&mut m.bin))?;
@@ -399,7 +443,7 @@ fn prepare_tree<'a>(
         .map(|&(b, slot, ext, off)| {
             let img = images::original_level0(file, crate::ids::BlockId(b), tree.format, ext, off)?;
             let uri = format!("img/o{b}-{slot}.{}", codec.extension());
-            let image = encode_image(&tdir, &uri, &img, codec)?;
+            let (image, _) = encode_image(&tdir, &uri, &img, codec, false)?;
             Ok(((b, slot), image))
         })
         .collect::<Result<HashMap<_, _>, ExportError>>()?;
@@ -412,30 +456,50 @@ fn prepare_tree<'a>(
         origin: (root.bounds_min + root.bounds_max) * 0.5,
         meshes,
         leaf_ranges: leaf_ranges(tree),
+        rect_base,
+        grid,
         originals,
         codec,
     })
 }
 
+/// Images of at most this many bytes may be embedded in their `.gltf` as data URIs (period and averages
+/// images): a tile of a city holds hundreds of them, and a browser that requests hundreds of tiny files
+/// per tile runs out of connections (Chromium's `ERR_INSUFFICIENT_RESOURCES`, seen with CesiumJS).
+pub const EMBED_MAX_BYTES: usize = 16 << 10;
+
+/// Encodes `img` as `uri` (relative to `dir`): a file, or with `embed` and at most [`EMBED_MAX_BYTES`] a
+/// data URI. Returns the summary and the URI the glTF gives its image.
 fn encode_image(
     dir: &Path,
     uri: &str,
     img: &image::RgbaImage,
     codec: ImageCodec,
-) -> Result<ImageSummary, ExportError> {
+    embed: bool,
+) -> Result<(ImageSummary, String), ExportError> {
     let path = dir.join(uri);
     let bytes = codec.encode(img).map_err(|source| ExportError::Image {
         path: path.clone(),
         source,
     })?;
-    let n = write_file(&path, &bytes)?;
-    Ok(ImageSummary {
+    let embedded = embed && bytes.len() <= EMBED_MAX_BYTES;
+    let source = if embedded {
+        use base64::Engine;
+        let b64 = base64::engine::general_purpose::STANDARD.encode(&bytes);
+        format!("data:{};base64,{b64}", codec.mime())
+    } else {
+        write_file(&path, &bytes)?;
+        uri.to_string()
+    };
+    let summary = ImageSummary {
         uri: uri.to_string(),
         width: img.width(),
         height: img.height(),
-        bytes: n,
+        bytes: bytes.len() as u64,
         gpu_bytes: gpu_bytes(img.width(), img.height()),
-    })
+        embedded,
+    };
+    Ok((summary, source))
 }
 
 /// The leaf range (tree order) of every node's subtree: parents precede children (pre-order), so one
@@ -456,223 +520,6 @@ fn leaf_ranges(tree: &AtlasTree) -> Vec<(usize, usize)> {
         }
     }
     r
-}
-
-/// The glTF wrap code a rect axis gets in its period image.
-fn period_wrap(w: RectWrap) -> u32 {
-    match w {
-        RectWrap::Repeat => REPEAT,
-        RectWrap::Mirror => MIRRORED_REPEAT,
-        RectWrap::Linear | RectWrap::Clamp => CLAMP_TO_EDGE,
-    }
-}
-
-/// The leaf's translation in its tree's frame (scene frame, relative to the tree origin).
-fn leaf_translation(ctx: &TreeCtx<'_>, leaf: usize) -> [f32; 3] {
-    let d = ctx.tree.leaves[leaf].origin - ctx.origin;
-    [d.x as f32, d.y as f32, d.z as f32]
-}
-
-/// The node tiles of a tree: `(content uri, summary)` per node.
-fn node_tiles(
-    file: &TreeFile,
-    forest: &AtlasForest,
-    ctx: &TreeCtx<'_>,
-    opts: &ExportOptions,
-    tick: &(dyn Fn() + Sync),
-) -> Result<Vec<TileSummary>, ExportError> {
-    (0..ctx.tree.nodes.len())
-        .into_par_iter()
-        .map(|n| {
-            let tile = if opts.naive {
-                let (lo, hi) = ctx.leaf_ranges[n];
-                originals_tile(forest, ctx, n, lo..hi, "atlas", format!("n{n}.gltf"))?
-            } else {
-                atlas_tile(file, forest, ctx, n)?
-            };
-            tick();
-            Ok(tile)
-        })
-        .collect()
-}
-
-fn atlas_tile(
-    file: &TreeFile,
-    forest: &AtlasForest,
-    ctx: &TreeCtx<'_>,
-    n: usize,
-) -> Result<TileSummary, ExportError> {
-    let tree = ctx.tree;
-    let node = &tree.nodes[n];
-    let size = forest.params.atlas_size;
-    let atlas = images::atlas_level0(file, node.atlas_block, tree.format, size)?;
-    let atlas_uri = format!("img/n{n}.{}", ctx.codec.extension());
-    let mut images = vec![encode_image(&ctx.dir, &atlas_uri, &atlas, ctx.codec)?];
-    let mut doc = GltfDoc::default();
-    let atlas_tex = doc.texture(&atlas_uri, [CLAMP_TO_EDGE, CLAMP_TO_EDGE]);
-    let (lo, hi) = ctx.leaf_ranges[n];
-    for l in lo..hi {
-        let leaf = &tree.leaves[l];
-        let mesh = &ctx.meshes[l];
-        let leaf_node = &tree.nodes[leaf.node.0 as usize];
-        let (ox, oy, d) =
-            crate::model::transform::cell_offset(leaf_node.cell, leaf_node.level, node.level);
-        let s = (-(f64::from(d))).exp2();
-        let transform = (d > 0).then_some(([f64::from(ox) * s, f64::from(oy) * s], [s, s]));
-        let uri = format!("geom/l{l}.bin");
-        let mut prims = Vec::new();
-        for g in &mesh.atlas_groups {
-            let material = match g.key {
-                GroupKey::Atlas { alpha, cutoff } => doc.material(MaterialSpec {
-                    texture: atlas_tex,
-                    tex_coord: 1,
-                    transform,
-                    factor: [1.0; 4],
-                    alpha,
-                    cutoff: f32::from_bits(cutoff),
-                }),
-                GroupKey::Period { rect } => {
-                    let r = &leaf.rects[rect as usize];
-                    let img = images::crop_scaled(&atlas, r.inner, (ox, oy, d));
-                    let puri = format!("img/n{n}-l{l}-r{rect}.{}", ctx.codec.extension());
-                    images.push(encode_image(&ctx.dir, &puri, &img, ctx.codec)?);
-                    let tex = doc.texture(&puri, [period_wrap(r.wrap[0]), period_wrap(r.wrap[1])]);
-                    let span = |k: usize| {
-                        let s = r.uv_max[k] - r.uv_min[k];
-                        if s > 0.0 { s } else { 1.0 }
-                    };
-                    let scale = [1.0 / span(0), 1.0 / span(1)];
-                    let offset = [-r.uv_min[0] * scale[0], -r.uv_min[1] * scale[1]];
-                    let m = forest.materials.get(r.material.0 as usize);
-                    let (alpha, cutoff) = m.map(geometry::alpha_key).unwrap_or((0, 0));
-                    doc.material(MaterialSpec {
-                        texture: tex,
-                        tex_coord: 0,
-                        transform: Some((offset, scale)),
-                        factor: [1.0; 4],
-                        alpha,
-                        cutoff: f32::from_bits(cutoff),
-                    })
-                }
-                GroupKey::Original { .. } => continue,
-            };
-            prims.push((g, material, matches!(g.key, GroupKey::Atlas { .. })));
-        }
-        doc.leaf_node(l, mesh, &uri, leaf_translation(ctx, l), &prims);
-    }
-    finish_tile(ctx, n, "atlas", format!("n{n}.gltf"), doc, images, hi - lo)
-}
-
-/// A tile drawing leaves `leaves` with their original textures.
-fn originals_tile(
-    forest: &AtlasForest,
-    ctx: &TreeCtx<'_>,
-    n: usize,
-    leaves: std::ops::Range<usize>,
-    source: &'static str,
-    name: String,
-) -> Result<TileSummary, ExportError> {
-    let tree = ctx.tree;
-    let mut doc = GltfDoc::default();
-    let mut images: Vec<ImageSummary> = Vec::new();
-    let count = leaves.len();
-    for l in leaves {
-        let leaf = &tree.leaves[l];
-        let mesh = &ctx.meshes[l];
-        let mut prims = Vec::new();
-        for g in &mesh.original_groups {
-            let GroupKey::Original { original } = g.key else {
-                continue;
-            };
-            let o = &leaf.originals[original as usize];
-            let Some(img) = ctx.originals.get(&(o.block.0, o.slot)) else {
-                continue;
-            };
-            if !images.iter().any(|i| i.uri == img.uri) {
-                images.push(img.clone());
-            }
-            let Some(m) = forest.materials.get(o.material.0 as usize) else {
-                continue;
-            };
-            let wrap = [
-                gltf_doc::wrap_code(m.wrap[0]),
-                gltf_doc::wrap_code(m.wrap[1]),
-            ];
-            let tex = doc.texture(&img.uri, wrap);
-            let (alpha, cutoff) = geometry::alpha_key(m);
-            let material = doc.material(MaterialSpec {
-                texture: tex,
-                tex_coord: 0,
-                transform: None,
-                factor: m.base_color_factor,
-                alpha,
-                cutoff: f32::from_bits(cutoff),
-            });
-            prims.push((g, material, false));
-        }
-        doc.leaf_node(
-            l,
-            mesh,
-            &format!("geom/l{l}.bin"),
-            leaf_translation(ctx, l),
-            &prims,
-        );
-    }
-    finish_tile(ctx, n, source, name, doc, images, count)
-}
-
-fn finish_tile(
-    ctx: &TreeCtx<'_>,
-    n: usize,
-    source: &'static str,
-    name: String,
-    doc: GltfDoc,
-    images: Vec<ImageSummary>,
-    leaves: usize,
-) -> Result<TileSummary, ExportError> {
-    let node = &ctx.tree.nodes[n];
-    let draw_calls = doc.primitives;
-    let text = doc.finish();
-    let gltf_bytes = write_file(&ctx.dir.join(&name), text.as_bytes())?;
-    Ok(TileSummary {
-        tree: ctx.index,
-        node: n as u32,
-        level: node.level.0,
-        source,
-        uri: format!("t{}/{name}", ctx.index),
-        min_distance: node.min_distance,
-        geometric_error: 0.0,
-        bounds_min: node.bounds_min.to_array(),
-        bounds_max: node.bounds_max.to_array(),
-        images,
-        draw_calls,
-        leaves,
-        gltf_bytes,
-    })
-}
-
-/// The original-texture tile below each leaf, in leaf order.
-fn original_tiles(
-    forest: &AtlasForest,
-    ctx: &TreeCtx<'_>,
-    tick: &(dyn Fn() + Sync),
-) -> Result<Vec<TileSummary>, ExportError> {
-    (0..ctx.tree.leaves.len())
-        .into_par_iter()
-        .map(|l| {
-            let n = ctx.tree.leaves[l].node.0 as usize;
-            let t = originals_tile(
-                forest,
-                ctx,
-                n,
-                l..l + 1,
-                "original",
-                format!("n{n}-orig.gltf"),
-            )?;
-            tick();
-            Ok(t)
-        })
-        .collect()
 }
 
 /// The tree's tiles as a tileset subtree (its root carries the translation to the tree origin), and the
@@ -725,9 +572,16 @@ fn tree_tileset(
     let bounds = (tree.nodes[0].bounds_min, tree.nodes[0].bounds_max);
     for t in tiles.iter().chain(orig.iter()) {
         summary.gltf_bytes += t.gltf_bytes;
+        summary.per_tile_geometry_bytes += t.geometry_bytes;
+        summary.averaged_rects += t.averaged_rects;
         if t.source == "atlas" && !summary.naive {
             // Atlas and period images belong to their tile alone; originals were counted when written.
-            summary.image_bytes += t.images.iter().map(|i| i.bytes).sum::<u64>();
+            summary.image_bytes += t
+                .images
+                .iter()
+                .filter(|i| !i.embedded)
+                .map(|i| i.bytes)
+                .sum::<u64>();
         }
     }
     summary.tile_list.append(&mut tiles);
