@@ -454,3 +454,84 @@ fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
         .collect();
     assert!(!left.iter().any(|n| n.contains("partial")), "{left:?}");
 }
+
+/// The same scene at the origin and at UTM-size coordinates exports the same contents byte for byte (every
+/// `.gltf` and `.bin`: positions relative to the leaf, leaves placed relative to the tree origin), the
+/// same boxes relative to the tree origin (within 1e-6 m), and tree transforms that differ by exactly the
+/// shift, in the z-up tile frame.
+#[test]
+fn utm_coordinates_keep_full_precision() {
+    use atlastree::preprocess::{BuildOptions, DMin};
+    let scene = atlastree::scene::synthetic::small_city(4, 64);
+    let shift = DVec3::new(4.5e6, 120.0, 5.5e6);
+    let mut far = scene.clone();
+    for v in &mut far.vertices {
+        v.pos += shift;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let opts = BuildOptions {
+        d_min: DMin::Ratio(20.0),
+        atlas_size: 128,
+        border: 8,
+        max_file_bytes: 1 << 30,
+        leaf_originals_atlases: 0.0,
+        ..BuildOptions::default()
+    };
+    let mut outs = Vec::new();
+    for (name, s) in [("near", &scene), ("far", &far)] {
+        let f = dir.path().join(format!("{name}.atlastree"));
+        build(s, &opts, &f, &NoProgress).unwrap();
+        let out = dir.path().join(name);
+        export_3dtiles(
+            &TreeFile::open(&f).unwrap(),
+            &out,
+            &ExportOptions::default(),
+            NO_PROGRESS,
+        )
+        .unwrap();
+        outs.push(out);
+    }
+    let mut files: Vec<PathBuf> = walkdir(&outs[0])
+        .into_iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "gltf" || e == "bin"))
+        .collect();
+    files.sort();
+    assert!(files.len() > 10, "{} contents", files.len());
+    for a in &files {
+        let b = outs[1].join(a.strip_prefix(&outs[0]).unwrap());
+        assert!(
+            std::fs::read(a).unwrap() == std::fs::read(&b).unwrap(),
+            "{} differs at UTM coordinates",
+            b.display()
+        );
+    }
+    let (ta, tb) = (
+        read_json(&outs[0].join("tileset.json")),
+        read_json(&outs[1].join("tileset.json")),
+    );
+    let (mut la, mut lb) = (Vec::new(), Vec::new());
+    walk(&ta["root"], f64::INFINITY, DVec3::ZERO, &mut la);
+    walk(&tb["root"], f64::INFINITY, DVec3::ZERO, &mut lb);
+    assert_eq!(la.len(), lb.len());
+    for ((a, _, oa), (b, _, ob)) in la.iter().zip(&lb) {
+        assert_eq!(a["content"], b["content"]);
+        assert_eq!(a["geometricError"], b["geometricError"]);
+        let d = *ob - *oa;
+        assert_eq!(
+            d,
+            DVec3::new(shift.x, -shift.z, shift.y),
+            "tree transforms differ by the shift"
+        );
+        for (x, y) in a["boundingVolume"]["box"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(b["boundingVolume"]["box"].as_array().unwrap())
+        {
+            assert!(
+                (x.as_f64().unwrap() - y.as_f64().unwrap()).abs() < 1e-6,
+                "{x} vs {y}"
+            );
+        }
+    }
+}
