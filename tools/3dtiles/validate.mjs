@@ -1,6 +1,6 @@
 // Validates an exported tileset: every .gltf/.glb with the Khronos glTF-Validator (external buffers
 // and images read relative to the .gltf), plus the tileset-level checks the project needs (the
-// official 3d-tiles-validator is not on the npm registry):
+// official 3d-tiles-validator is not on the npm registry): the 3D Tiles 1.1 JSON schema (schema-check.mjs);
 //   asset.version "1.1"; the root has refine; child geometricError <= parent's; every content URI
 //   resolves; extras.atlastree agrees with the URI; each content's positions (accessor min/max through
 //   the glTF node transforms, y-up -> z-up, through the tile transforms) lie inside its tile's box
@@ -11,6 +11,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import { parseArgs } from 'node:util';
 import validator from 'gltf-validator';
+import { schemaErrors } from './schema-check.mjs';
 import { loadTileset, itemKey, exportTiles, trs, mul, apply, corners, yUpToZUp, insideBox, IDENTITY } from './lib.mjs';
 
 const { values: opt, positionals } = parseArgs({
@@ -27,6 +28,8 @@ const warn = (code, where, message) => problems.push({ severity: 'warning', code
 // ---- tileset structure ----
 const { tilesets, tiles } = loadTileset(DIR, { onError: (m) => err('TILESET_UNREADABLE', m, m) });
 for (const { file, json } of tilesets) {
+  // The 3D Tiles 1.1 JSON schema (vendored, schema/NOTICE.md).
+  for (const e of schemaErrors(json)) err('SCHEMA', `${file}${e.where}`, e.message);
   if (json.asset?.version !== '1.1') err('ASSET_VERSION', file, `asset.version is ${JSON.stringify(json.asset?.version)}, want "1.1"`);
   if (json.geometricError == null || json.geometricError < (json.root?.geometricError ?? 0))
     warn('TILESET_ERROR_BELOW_ROOT', file, `top-level geometricError ${json.geometricError} < root's ${json.root?.geometricError}`);
