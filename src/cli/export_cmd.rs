@@ -23,9 +23,10 @@ pub(crate) enum ExportFormat {
     /// the original textures (geometricError 0): what `atlastree render` draws, in any 3D Tiles viewer.
     /// geometricError = min_distance · 2 tan(fov_x/2) · 16 / W (the build's screen width W and field of
     /// view), so a client with maximumScreenSpaceError (CesiumJS) or errorTarget (3DTilesRendererJS) 16
-    /// switches levels where atlastree's selection does at that width. For a texel ratio r instead of the
-    /// build's r0, use 16 · r0 / r. Geometry is written once per leaf (`t*/geom/*.bin`) and shared by every
-    /// tile that draws it; each level reaches its atlas by KHR_texture_transform. Rects whose triangles
+    /// switches levels where atlastree's selection does, at any screen width (both scale with it). For a
+    /// texel ratio r instead of the build's r0, use 16 · r0 / r. Geometry is written once per leaf
+    /// (`t*/geom/*.bin`) and shared by every tile that draws it; each level reaches its atlas by
+    /// KHR_texture_transform. Rects whose triangles
     /// wrap across a texture seam get a small image per tile holding one period, with the sampler's own
     /// wrap mode. Atlases are JPEG (opaque trees) or PNG (alpha trees). `DIR/atlastree-export.json` lists
     /// every tile with its images, draw calls and bytes.
@@ -135,7 +136,7 @@ pub(super) fn run(a: ExportArgs) -> anyhow::Result<ExitCode> {
         );
     }
     println!(
-        "  view with maximumScreenSpaceError (CesiumJS) / errorTarget (3DTilesRendererJS) {SCREEN_SPACE_ERROR} at {} px wide, {}° horizontal field of view",
+        "  view with maximumScreenSpaceError (CesiumJS) / errorTarget (3DTilesRendererJS) {SCREEN_SPACE_ERROR} (built for {} px wide, {}° horizontal field of view; levels switch as atlastree's at any width)",
         s.screen_width, s.fov_x_deg
     );
     Ok(ExitCode::SUCCESS)

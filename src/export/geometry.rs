@@ -179,6 +179,42 @@ pub(super) fn rect_is_affine(rect: &AtlasRect, triangles: &[[[f32; 2]; 3]]) -> b
     })
 }
 
+/// A period rect's triangle's UVs as its period image is read: the image holds the rect's inner rectangle,
+/// `u' = (u − uv_min) / span` per axis, wrapped by the sampler's own mode. Per axis: where the triangle maps
+/// affinely ([`axis_is_affine`]) each vertex takes its value inside the rect (`uv_min + rect_t(u)`: no wrap
+/// needed, mirror's reversed copies included); where it crosses a seam it keeps its shape and is moved by
+/// whole periods so the crossing lies where the image's own wrap reproduces it: REPEAT only crosses in a
+/// full-period rect (any shift), MIRRORED_REPEAT folds at integers, at 0 (the rect starts at 0) or 1 (it
+/// ends at 1) once shifted by an even number, CLAMP_TO_EDGE needs no shift.
+fn period_uvs(rect: &AtlasRect, tri: [[f32; 2]; 3]) -> [[f32; 2]; 3] {
+    let mut out = tri;
+    for k in 0..2 {
+        let us = tri.map(|uv| f64::from(uv[k]));
+        let (wrap, lo, hi) = (rect.wrap[k], rect.uv_min[k], rect.uv_max[k]);
+        let ts = us.map(|u| rect_t(u, wrap, lo, hi));
+        let fixed: [f64; 3] = if wrap == RectWrap::Linear || axis_is_affine(us, ts) {
+            if wrap == RectWrap::Linear {
+                us
+            } else {
+                ts.map(|t| lo + t)
+            }
+        } else if wrap == RectWrap::Mirror {
+            // The fold the triangle crosses: the integer inside its range (several: a full-period rect,
+            // any even shift). An even one sits on 0, an odd one on 1.
+            let min = us.iter().copied().fold(f64::INFINITY, f64::min);
+            let n = (min.floor() + 1.0).max(min.ceil());
+            let shift = if n.rem_euclid(2.0) == 0.0 { n } else { n - 1.0 };
+            us.map(|u| u - shift)
+        } else {
+            us
+        };
+        for (o, f) in out.iter_mut().zip(fixed) {
+            o[k] = f as f32;
+        }
+    }
+    out
+}
+
 /// A triangle of a leaf: its vertices (leaf-local), rect and original.
 type Triangle = ([u32; 3], u32, u32);
 
@@ -247,25 +283,65 @@ pub(super) fn leaf_mesh(
             })?;
         rect_alpha.push(alpha_key(m));
     }
-    // Vertex sections.
-    let n = verts.len();
-    let index_size: u32 = if n < 65_536 { 2 } else { 4 };
-    let mut bin = Vec::with_capacity(n * 28 + tris.len() * index_size as usize);
-    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-    for v in verts {
-        for k in 0..3 {
-            lo[k] = lo[k].min(v.pos[k]);
-            hi[k] = hi[k].max(v.pos[k]);
-            bin.extend_from_slice(&v.pos[k].to_le_bytes());
+    // Every vertex's rect and original belong to this leaf (the file's open-time checks test them against
+    // the leaf a vertex names, `inspect --verify` that it is this one).
+    for (i, v) in verts.iter().enumerate() {
+        if v.rect as usize >= leaf.rects.len() || v.original as usize >= leaf.originals.len() {
+            return Err(GeometryError::BadReference {
+                leaf: leaf_index,
+                vertex: first + i as u32,
+                rect: v.rect,
+                rects: leaf.rects.len(),
+                original: v.original,
+                originals: leaf.originals.len(),
+            });
         }
     }
-    for v in verts {
-        bin.extend_from_slice(&v.orig_uv[0].to_le_bytes());
-        bin.extend_from_slice(&v.orig_uv[1].to_le_bytes());
+    // Vertices: the leaf's own, then three unshared ones per triangle of a period rect, whose TEXCOORD_0
+    // is its UV as the rect's period image is read (`period_uvs`) and TEXCOORD_1 its rect's texel in the
+    // averages image.
+    let mut extra: Vec<([f32; 3], [f32; 2], [f32; 2])> = Vec::new();
+    let mut period_tri: Vec<[u32; 3]> = vec![[0; 3]; triangles.len()];
+    for (t, (local, rect, _)) in triangles.iter().enumerate() {
+        if affine[*rect as usize] {
+            continue;
+        }
+        let r = &leaf.rects[*rect as usize];
+        let uvs = period_uvs(r, local.map(|i| verts[i as usize].orig_uv));
+        for k in 0..3 {
+            period_tri[t][k] = (verts.len() + extra.len()) as u32;
+            extra.push((
+                verts[local[k] as usize].pos,
+                uvs[k],
+                grid.uv(rect_base + rect),
+            ));
+        }
+    }
+    let n = verts.len() + extra.len();
+    let index_size: u32 = if n < 65_536 { 2 } else { 4 };
+    let mut bin = Vec::with_capacity(n * 28 + 2 * tris.len() * index_size as usize);
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    let positions = verts.iter().map(|v| v.pos).chain(extra.iter().map(|e| e.0));
+    for p in positions {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+            bin.extend_from_slice(&p[k].to_le_bytes());
+        }
+    }
+    for uv in verts
+        .iter()
+        .map(|v| v.orig_uv)
+        .chain(extra.iter().map(|e| e.1))
+    {
+        bin.extend_from_slice(&uv[0].to_le_bytes());
+        bin.extend_from_slice(&uv[1].to_le_bytes());
     }
     let size = f64::from(atlas_size);
     for v in verts {
         let r = &leaf.rects[v.rect as usize];
+        // The leaf-atlas UV of an affine rect's vertex; a period rect's own vertices are not drawn with
+        // TEXCOORD_1 (their triangles use the unshared copies), the averages texel keeps it meaningful.
         let uv = if affine[v.rect as usize] {
             let p = crate::model::transform::rect_texel(
                 DVec2::new(f64::from(v.orig_uv[0]), f64::from(v.orig_uv[1])),
@@ -278,6 +354,10 @@ pub(super) fn leaf_mesh(
         };
         bin.extend_from_slice(&uv[0].to_le_bytes());
         bin.extend_from_slice(&uv[1].to_le_bytes());
+    }
+    for e in &extra {
+        bin.extend_from_slice(&e.2[0].to_le_bytes());
+        bin.extend_from_slice(&e.2[1].to_le_bytes());
     }
     // Index sections: atlas groups then original groups, each group's triangles in stored order.
     let atlas_key = |rect: u32| {
@@ -295,7 +375,7 @@ pub(super) fn leaf_mesh(
             }
         }
     };
-    let write_groups = |keys: &dyn Fn(&Triangle) -> GroupKey, bin: &mut Vec<u8>| {
+    let write_groups = |keys: &dyn Fn(&Triangle) -> GroupKey, own: bool, bin: &mut Vec<u8>| {
         let mut order: Vec<(GroupKey, usize)> = triangles
             .iter()
             .enumerate()
@@ -315,7 +395,13 @@ pub(super) fn leaf_mesh(
             if let Some(g) = groups.last_mut() {
                 g.count += 3;
             }
-            for &l in &triangles[i].0 {
+            // Period rects' triangles in atlas tiles draw their unshared vertices.
+            let corners = if own || affine[triangles[i].1 as usize] {
+                triangles[i].0
+            } else {
+                period_tri[i]
+            };
+            for l in corners {
                 if index_size == 2 {
                     bin.extend_from_slice(&(l as u16).to_le_bytes());
                 } else {
@@ -329,8 +415,8 @@ pub(super) fn leaf_mesh(
         }
         groups
     };
-    let atlas_groups = write_groups(&|t| atlas_key(t.1), &mut bin);
-    let original_groups = write_groups(&|t| GroupKey::Original { original: t.2 }, &mut bin);
+    let atlas_groups = write_groups(&|t| atlas_key(t.1), false, &mut bin);
+    let original_groups = write_groups(&|t| GroupKey::Original { original: t.2 }, true, &mut bin);
     let period_rects = (0..leaf.rects.len() as u32)
         .filter(|&r| !affine[r as usize] && !per_rect[r as usize].is_empty())
         .collect();
@@ -382,6 +468,68 @@ mod tests {
         // [1.0, 1.5] folds backwards onto [0.5, 1.0]: one affine piece, the vertex at the fold included.
         assert!(rect_is_affine(&r, &[[[1.0, 0.2], [1.5, 0.2], [1.2, 0.6]]]));
         assert!(!rect_is_affine(&r, &[[[0.9, 0.2], [1.1, 0.2], [1.0, 0.6]]]));
+    }
+
+    /// What a viewer samples for `u` in a period image of `r` (axis 0): `(u − uv_min)/span` wrapped by the
+    /// sampler, back in the rect's UV.
+    fn viewer(r: &AtlasRect, u: f64) -> f64 {
+        let span = r.uv_max[0] - r.uv_min[0];
+        let t = (u - r.uv_min[0]) / span;
+        let w = match r.wrap[0] {
+            RectWrap::Repeat => t - t.floor(),
+            RectWrap::Mirror => crate::model::transform::mirror(t),
+            _ => t.clamp(0.0, 1.0),
+        };
+        r.uv_min[0] + w * span
+    }
+
+    /// Along the triangle's edges, the viewer's value equals the shader's (`uv_min + rect_t`).
+    fn check_period(r: &AtlasRect, tri: [[f32; 2]; 3]) {
+        let fixed = period_uvs(r, tri);
+        for (a, b) in [(0, 1), (1, 2), (2, 0)] {
+            for s in 0..=20 {
+                let w = f64::from(s) / 20.0;
+                let lerp =
+                    |p: [[f32; 2]; 3]| f64::from(p[a][0]) * (1.0 - w) + f64::from(p[b][0]) * w;
+                let want = r.uv_min[0] + rect_t(lerp(tri), r.wrap[0], r.uv_min[0], r.uv_max[0]);
+                let got = viewer(r, lerp(fixed));
+                // A value on a seam may be read from either side (u and u ± period under REPEAT).
+                let span = r.uv_max[0] - r.uv_min[0];
+                let d = (got - want).abs();
+                assert!(
+                    d < 1e-5 || (d - span).abs() < 1e-5,
+                    "{:?} {tri:?}: at {} viewer {got}, shader {want}",
+                    r.wrap,
+                    lerp(tri)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn period_uvs_read_what_the_shader_reads() {
+        let m = |lo, hi| rect(RectWrap::Mirror, lo, hi);
+        // Mirror symmetric about 0, stored around 2 (folds at 2 ≡ 0): the rect [0, 0.3].
+        check_period(&m(0.0, 0.3), [[1.8, 0.0], [2.2, 0.0], [2.0, 0.5]]);
+        // Around 1 with the rect ending at 1.
+        check_period(&m(0.6, 1.0), [[0.7, 0.0], [1.3, 0.0], [1.1, 0.5]]);
+        // A reversed copy not touching a fold, in a rect reaching neither 0 nor 1.
+        check_period(&m(0.2, 0.5), [[1.6, 0.0], [1.7, 0.0], [1.8, 0.5]]);
+        // Repeat: a partial period past 1 ([0.9, 1.2]) with the triangle stored at [0, 0.2].
+        check_period(
+            &rect(RectWrap::Repeat, 0.9, 1.2),
+            [[0.0, 0.0], [0.2, 0.0], [0.1, 0.5]],
+        );
+        // Repeat across a seam of a full period.
+        check_period(
+            &rect(RectWrap::Repeat, 0.0, 1.0),
+            [[0.8, 0.0], [1.3, 0.0], [1.0, 0.5]],
+        );
+        // Clamp beyond 1 with the rect ending at 1.
+        check_period(
+            &rect(RectWrap::Clamp, 0.5, 1.0),
+            [[0.6, 0.0], [1.4, 0.0], [0.9, 0.5]],
+        );
     }
 
     #[test]

@@ -123,7 +123,10 @@ fn level0(
 
 /// The texels of `[x, y, w, h]` (leaf-atlas texels of a leaf `d` levels below the atlas's node, whose cell
 /// offset inside the node is `(ox, oy)` leaf atlases) in the node's atlas `img`: the rectangle scaled by
-/// `2^−d` and rounded to whole texels, at least one texel per side.
+/// `2^−d` exactly (fractional where `d` > 2: inner rectangles are 4-aligned), resampled bilinearly at the
+/// centres of `round(w · 2^−d) × round(h · 2^−d)` texels (at least one): the image spans exactly the rect,
+/// so a wrapping sampler repeats it with the rect's period. Where the scaled rectangle is whole texels the
+/// result is a plain copy.
 pub(super) fn crop_scaled(
     img: &RgbaImage,
     [x, y, w, h]: [u32; 4],
@@ -132,11 +135,41 @@ pub(super) fn crop_scaled(
     let size = f64::from(img.width());
     let s = (-(f64::from(d))).exp2();
     let to_node = |o: u32, p: u32| (f64::from(o) * size + f64::from(p)) * s;
-    let x0 = to_node(ox, x).round().clamp(0.0, size - 1.0) as u32;
-    let y0 = to_node(oy, y).round().clamp(0.0, size - 1.0) as u32;
-    let x1 = (to_node(ox, x + w).round() as u32).clamp(x0 + 1, img.width());
-    let y1 = (to_node(oy, y + h).round() as u32).clamp(y0 + 1, img.height());
-    image::imageops::crop_imm(img, x0, y0, x1 - x0, y1 - y0).to_image()
+    let (x0, y0) = (to_node(ox, x), to_node(oy, y));
+    let (fw, fh) = (f64::from(w) * s, f64::from(h) * s);
+    let (ow, oh) = ((fw.round() as u32).max(1), (fh.round() as u32).max(1));
+    RgbaImage::from_fn(ow, oh, |i, j| {
+        let u = x0 + (f64::from(i) + 0.5) * fw / f64::from(ow);
+        let v = y0 + (f64::from(j) + 0.5) * fh / f64::from(oh);
+        bilinear(img, u, v)
+    })
+}
+
+/// `img` at the point `(u, v)` (texel units, texel centres at half-integers), bilinear, clamped to the
+/// image.
+fn bilinear(img: &RgbaImage, u: f64, v: f64) -> image::Rgba<u8> {
+    let (w, h) = (img.width() as i64, img.height() as i64);
+    let (fx, fy) = (u - 0.5, v - 0.5);
+    let (x0, y0) = (fx.floor(), fy.floor());
+    let (tx, ty) = (fx - x0, fy - y0);
+    let at = |x: f64, y: f64| {
+        let xi = (x as i64).clamp(0, w - 1) as u32;
+        let yi = (y as i64).clamp(0, h - 1) as u32;
+        img.get_pixel(xi, yi).0.map(f64::from)
+    };
+    let (a, b, c, e) = (
+        at(x0, y0),
+        at(x0 + 1.0, y0),
+        at(x0, y0 + 1.0),
+        at(x0 + 1.0, y0 + 1.0),
+    );
+    let mut out = [0u8; 4];
+    for k in 0..4 {
+        let top = a[k] * (1.0 - tx) + b[k] * tx;
+        let bottom = c[k] * (1.0 - tx) + e[k] * tx;
+        out[k] = (top * (1.0 - ty) + bottom * ty).round().clamp(0.0, 255.0) as u8;
+    }
+    image::Rgba(out)
 }
 
 /// The mean of `img`'s texels (sRGB bytes averaged as stored, as a box filter over the image).
@@ -162,6 +195,18 @@ mod tests {
         let c = crop_scaled(&img, [8, 4, 16, 8], (1, 2, 2));
         assert_eq!((c.width(), c.height()), (4, 2));
         assert_eq!(c.get_pixel(0, 0).0, [18, 33, 0, 255]);
+        assert_eq!(c.get_pixel(3, 1).0, [21, 34, 0, 255]);
+    }
+
+    #[test]
+    fn a_fractional_crop_spans_exactly_the_scaled_rect() {
+        // x = 4 leaf texels, 3 levels up: node texel 0.5 .. 0.5 + 16/8 = 2.5: two texels centred on 1.0
+        // and 2.0, each the mean of its two neighbours on a horizontal ramp.
+        let img = RgbaImage::from_fn(64, 64, |x, _| image::Rgba([(10 * x) as u8, 0, 0, 255]));
+        let c = crop_scaled(&img, [4, 0, 16, 16], (0, 0, 3));
+        assert_eq!((c.width(), c.height()), (2, 2));
+        assert_eq!(c.get_pixel(0, 0).0[0], 5);
+        assert_eq!(c.get_pixel(1, 0).0[0], 15);
     }
 
     #[test]

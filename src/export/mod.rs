@@ -70,6 +70,8 @@ impl Default for ExportOptions {
 pub enum ExportError {
     #[error("{}: exists and is not empty (pass --force to replace it)", dir.display())]
     Exists { dir: PathBuf },
+    #[error("{}: {why}", dir.display())]
+    BadOutput { dir: PathBuf, why: &'static str },
     #[error("{}: {source}", path.display())]
     Io {
         path: PathBuf,
@@ -129,7 +131,7 @@ pub struct ImageSummary {
     pub embedded: bool,
 }
 
-/// Per level of the tree (leaf originals counted as level `depth + 1` of their leaf's level).
+/// Per level of the tree (key `"00"`, `"01"`, …), the original-texture tiles below the leaves under `"orig"`.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct LevelSummary {
     pub tiles: usize,
@@ -170,7 +172,7 @@ pub struct ExportSummary {
     pub averaged_rects: usize,
     pub rects: usize,
     pub paging_file_bytes: u64,
-    /// Keyed by level ("0", "1", …; `"orig"` for the original-texture tiles).
+    /// Keyed by level (`"00"`, `"01"`, …; `"orig"` for the original-texture tiles).
     pub levels: BTreeMap<String, LevelSummary>,
     pub tile_list: Vec<TileSummary>,
 }
@@ -198,34 +200,54 @@ pub fn export_3dtiles(
     opts: &ExportOptions,
     progress: ExportProgress<'_>,
 ) -> Result<ExportSummary, ExportError> {
+    // A directory with a name of its own (not `.`, `..` or `/`: it is replaced as a whole at the end),
+    // not a file.
+    let name = match out.file_name() {
+        Some(n)
+            if out
+                .components()
+                .next_back()
+                .is_some_and(|c| matches!(c, std::path::Component::Normal(_))) =>
+        {
+            n.to_string_lossy().into_owned()
+        }
+        _ => {
+            return Err(ExportError::BadOutput {
+                dir: out.to_path_buf(),
+                why: "names no directory of its own",
+            });
+        }
+    };
+    if out.exists() && !out.is_dir() {
+        return Err(ExportError::BadOutput {
+            dir: out.to_path_buf(),
+            why: "exists and is not a directory",
+        });
+    }
     let non_empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_some());
     if non_empty && !opts.force {
         return Err(ExportError::Exists {
             dir: out.to_path_buf(),
         });
     }
-    let name = out
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "tileset".into());
     let temp = crate::util::parent_dir(out).join(format!(".{name}.partial-{}", std::process::id()));
     if temp.exists() {
         std::fs::remove_dir_all(&temp).map_err(io(&temp))?;
     }
     std::fs::create_dir_all(&temp).map_err(io(&temp))?;
-    let result = write_tileset(file, &temp, opts, progress);
-    let summary = match result {
-        Ok(s) => s,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&temp);
-            return Err(e);
+    let finish = || -> Result<ExportSummary, ExportError> {
+        let summary = write_tileset(file, &temp, opts, progress)?;
+        if out.exists() {
+            std::fs::remove_dir_all(out).map_err(io(out))?;
         }
+        std::fs::rename(&temp, out).map_err(io(out))?;
+        Ok(summary)
     };
-    if out.exists() {
-        std::fs::remove_dir_all(out).map_err(io(out))?;
+    let result = finish();
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&temp);
     }
-    std::fs::rename(&temp, out).map_err(io(out))?;
-    Ok(summary)
+    result
 }
 
 /// Per tree: what the tiles of its nodes need.

@@ -298,32 +298,94 @@ fn a_viewer_samples_every_triangle_where_the_tree_shader_does() {
                         sampler.mag_filter(),
                         Some(gltf::texture::MagFilter::Nearest)
                     );
-                    for &i in &idx {
-                        let v = tree.vertices[leaf.first_vertex as usize + i as usize];
-                        let g = rect_base + v.rect as usize;
-                        let want = [
-                            ((g % cols) as f64 + 0.5) / cols as f64,
-                            ((g / cols) as f64 + 0.5) / rows as f64,
-                        ];
-                        let got = uv1.as_ref().unwrap()[i as usize];
+                    // Each triangle reads one texel centre, of a rect of this leaf; the run holds every
+                    // stored triangle of each rect it names.
+                    let mut per_rect = std::collections::BTreeMap::<usize, usize>::new();
+                    for tri in idx.chunks_exact(3) {
+                        let got = [0, 1, 2].map(|k| uv1.as_ref().unwrap()[tri[k] as usize]);
                         assert!(
-                            (f64::from(got[0]) - want[0]).abs() < 1e-6
-                                && (f64::from(got[1]) - want[1]).abs() < 1e-6
+                            got.iter().all(|g| *g == got[0]),
+                            "{}: not one texel per triangle",
+                            t.uri
                         );
+                        let x = (f64::from(got[0][0]) * cols as f64 - 0.5).round() as usize;
+                        let y = (f64::from(got[0][1]) * rows as f64 - 0.5).round() as usize;
+                        let want = [
+                            (x as f64 + 0.5) / cols as f64,
+                            (y as f64 + 0.5) / rows as f64,
+                        ];
+                        assert!(
+                            (f64::from(got[0][0]) - want[0]).abs() < 1e-6
+                                && (f64::from(got[0][1]) - want[1]).abs() < 1e-6
+                        );
+                        let g = y * cols + x;
+                        assert!(
+                            g >= rect_base && g < rect_base + leaf.rects.len(),
+                            "{}: texel of rect {g} outside leaf {l}",
+                            t.uri
+                        );
+                        *per_rect.entry(g - rect_base).or_default() += 1;
                         averaged_samples += 1;
+                    }
+                    let range =
+                        leaf.first_index as usize..(leaf.first_index + leaf.index_count) as usize;
+                    for (r, n) in per_rect {
+                        let stored = tree.indices[range.clone()]
+                            .chunks_exact(3)
+                            .filter(|t| tree.vertices[t[0] as usize].rect as usize == r)
+                            .count();
+                        assert_eq!(n, stored, "{}: rect {r} of leaf {l}", t.uri);
                     }
                     continue;
                 }
-                for tri in idx.chunks_exact(3) {
-                    let v = tree.vertices[leaf.first_vertex as usize + tri[0] as usize];
-                    let rect = &leaf.rects[v.rect as usize];
+                // A period image (`img/n{N}-l{L}-r{R}.*`) draws rect R's triangles through their own
+                // vertices, in stored order: the shader side takes the stored (true) UVs.
+                let period_rect: Option<usize> = image_uri.contains("-l").then(|| {
+                    image_uri
+                        .rsplit_once("-r")
+                        .unwrap()
+                        .1
+                        .split('.')
+                        .next()
+                        .unwrap()
+                        .parse()
+                        .unwrap()
+                });
+                let stored: Vec<[[f32; 2]; 3]> = match period_rect {
+                    Some(r) => {
+                        let range = leaf.first_index as usize
+                            ..(leaf.first_index + leaf.index_count) as usize;
+                        tree.indices[range]
+                            .chunks_exact(3)
+                            .filter(|t| tree.vertices[t[0] as usize].rect as usize == r)
+                            .map(|t| [0, 1, 2].map(|k| tree.vertices[t[k] as usize].orig_uv))
+                            .collect()
+                    }
+                    None => Vec::new(),
+                };
+                if period_rect.is_some() {
+                    assert_eq!(stored.len() * 3, idx.len(), "{}: {image_uri}", t.uri);
+                }
+                for (ti, tri) in idx.chunks_exact(3).enumerate() {
+                    let (rect, truth) = match period_rect {
+                        Some(r) => (&leaf.rects[r], stored[ti]),
+                        None => {
+                            let v = tree.vertices[leaf.first_vertex as usize + tri[0] as usize];
+                            (
+                                &leaf.rects[v.rect as usize],
+                                [0, 1, 2].map(|k| uv0[tri[k] as usize]),
+                            )
+                        }
+                    };
                     for w in &bary {
                         let at = |uv: &[[f32; 2]]| {
                             (0..3).fold(DVec2::ZERO, |acc, k| {
                                 acc + DVec2::from(uv[tri[k] as usize].map(f64::from)) * w[k]
                             })
                         };
-                        let orig = at(&uv0);
+                        let orig = (0..3).fold(DVec2::ZERO, |acc, k| {
+                            acc + DVec2::from(truth[k].map(f64::from)) * w[k]
+                        });
                         // What tree.wgsl samples (margin 0: inside the rect, no footprint).
                         let texel = rect_texel(orig, rect, DVec2::ZERO);
                         let want =
@@ -337,8 +399,9 @@ fn a_viewer_samples_every_triangle_where_the_tree_shader_does() {
                         } else {
                             // A period image: the rect's inner rectangle at this level, wrapped by the sampler.
                             period_samples += 1;
-                            let u = orig.x * f64::from(scale[0]) + f64::from(offset[0]);
-                            let v = orig.y * f64::from(scale[1]) + f64::from(offset[1]);
+                            let seen = at(&uv0);
+                            let u = seen.x * f64::from(scale[0]) + f64::from(offset[0]);
+                            let v = seen.y * f64::from(scale[1]) + f64::from(offset[1]);
                             let p =
                                 DVec2::new(wrap(u, sampler.wrap_s()), wrap(v, sampler.wrap_t()));
                             let inner =
@@ -430,6 +493,30 @@ fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
     let e = export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap_err();
     assert!(e.to_string().contains("--force"), "{e}");
     assert_eq!(std::fs::read(out.join("keep.txt")).unwrap(), b"mine");
+    // --force replaces it as a whole.
+    let forced = ExportOptions {
+        force: true,
+        ..ExportOptions::default()
+    };
+    export_3dtiles(&file, &out, &forced, NO_PROGRESS).unwrap();
+    assert!(!out.join("keep.txt").exists() && out.join("tileset.json").is_file());
+    // Never into a file, nor into a path that names no directory of its own (`.`: replacing it would
+    // remove the user's files).
+    let a_file = dir.path().join("a_file");
+    std::fs::write(&a_file, b"x").unwrap();
+    for bad in [
+        a_file.as_path(),
+        Path::new("."),
+        &dir.path().join("tiles/.."),
+    ] {
+        let e = export_3dtiles(&file, bad, &forced, NO_PROGRESS).unwrap_err();
+        assert!(
+            matches!(e, atlastree::export::ExportError::BadOutput { .. }),
+            "{}: {e}",
+            bad.display()
+        );
+    }
+    assert_eq!(std::fs::read(&a_file).unwrap(), b"x");
 
     // A paging file whose last atlas block is corrupt (checksums are checked on every block load).
     let bad = dir.path().join("bad.atlastree");
