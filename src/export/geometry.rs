@@ -297,11 +297,13 @@ pub(super) fn leaf_mesh(
             });
         }
     }
-    // Vertices: the leaf's own, then three unshared ones per triangle of a period rect, whose TEXCOORD_0
+    // Vertices: the leaf's own, then copies for the triangles of period rects (one per vertex and UV), whose TEXCOORD_0
     // is its UV as the rect's period image is read (`period_uvs`) and TEXCOORD_1 its rect's texel in the
     // averages image.
     let mut extra: Vec<([f32; 3], [f32; 2], [f32; 2])> = Vec::new();
     let mut period_tri: Vec<[u32; 3]> = vec![[0; 3]; triangles.len()];
+    let mut copies: std::collections::HashMap<(u32, u32, u32), u32> =
+        std::collections::HashMap::new();
     for (t, (local, rect, _)) in triangles.iter().enumerate() {
         if affine[*rect as usize] {
             continue;
@@ -309,12 +311,16 @@ pub(super) fn leaf_mesh(
         let r = &leaf.rects[*rect as usize];
         let uvs = period_uvs(r, local.map(|i| verts[i as usize].orig_uv));
         for k in 0..3 {
-            period_tri[t][k] = (verts.len() + extra.len()) as u32;
-            extra.push((
-                verts[local[k] as usize].pos,
-                uvs[k],
-                grid.uv(rect_base + rect),
-            ));
+            // Shared again where triangles of the rect give a vertex the same UV.
+            let key = (local[k], uvs[k][0].to_bits(), uvs[k][1].to_bits());
+            period_tri[t][k] = *copies.entry(key).or_insert_with(|| {
+                extra.push((
+                    verts[local[k] as usize].pos,
+                    uvs[k],
+                    grid.uv(rect_base + rect),
+                ));
+                (verts.len() + extra.len() - 1) as u32
+            });
         }
     }
     let n = verts.len() + extra.len();
