@@ -113,35 +113,52 @@ pub enum GeometryError {
     },
 }
 
-/// Where each rect of a tree keeps its period's average in a tile's averages image: rect `g` (the tree's
-/// running rect index, leaf by leaf) at texel `(g mod COLUMNS, g / COLUMNS)`.
+/// Where each rect of a tree keeps its period's average: rect `g` (the tree's running rect index, leaf by
+/// leaf) at texel `(g mod cols, g / cols)` of a square-ish grid over the whole tree (`cols = max(128,
+/// ⌈√rects⌉)`: 16,384² holds 268 M rects). A tile's averages image is the band of rows its leaves' rects
+/// occupy (they are contiguous), reached from the tree-wide UV by a `KHR_texture_transform` on `v`
+/// ([`AverageGrid::band`]).
 #[derive(Copy, Clone, Debug)]
 pub(super) struct AverageGrid {
+    pub(super) cols: u32,
     pub(super) rows: u32,
 }
 
 impl AverageGrid {
-    pub(super) const COLUMNS: u32 = 128;
-
     /// The grid of a tree with `rects` rects in all.
     pub(super) fn for_rects(rects: u64) -> AverageGrid {
+        let cols = ((rects as f64).sqrt().ceil() as u64).max(128);
         AverageGrid {
-            rows: (rects.div_ceil(u64::from(Self::COLUMNS)).max(1)) as u32,
+            cols: cols as u32,
+            rows: (rects.div_ceil(cols).max(1)) as u32,
         }
     }
 
     /// The texel of rect `g`.
     pub(super) fn texel(self, g: u32) -> (u32, u32) {
-        (g % Self::COLUMNS, g / Self::COLUMNS)
+        (g % self.cols, g / self.cols)
     }
 
     /// The UV of the centre of rect `g`'s texel.
     pub(super) fn uv(self, g: u32) -> [f32; 2] {
         let (x, y) = self.texel(g);
         [
-            (f64::from(x) + 0.5) as f32 / Self::COLUMNS as f32,
+            ((f64::from(x) + 0.5) / f64::from(self.cols)) as f32,
             ((f64::from(y) + 0.5) / f64::from(self.rows)) as f32,
         ]
+    }
+
+    /// The rows holding rects `g0..g1` (`first row`, `row count`), and the transform (offset, scale) that
+    /// takes a tree-wide UV into that band: `v' = v · rows/count − first/count`.
+    pub(super) fn band(self, g0: u32, g1: u32) -> ((u32, u32), ([f64; 2], [f64; 2])) {
+        let first = g0 / self.cols;
+        let last = g1.saturating_sub(1).max(g0) / self.cols;
+        let count = last - first + 1;
+        let (rows, c) = (f64::from(self.rows), f64::from(count));
+        (
+            (first, count),
+            ([0.0, -f64::from(first) / c], [1.0, rows / c]),
+        )
     }
 }
 
@@ -456,6 +473,22 @@ mod tests {
             wrap: [wrap, wrap],
             capped: [false, false],
         }
+    }
+
+    #[test]
+    fn a_tiles_band_of_the_averages_grid_reads_its_own_texels() {
+        let g = AverageGrid::for_rects(300);
+        assert_eq!((g.cols, g.rows), (128, 3));
+        let big = AverageGrid::for_rects(2_000_000);
+        assert!(big.cols <= 16_384 && big.rows <= 16_384, "{big:?}");
+        // Rects 130..140 lie in row 1: a one-row band; rect 135's centre lands in its middle.
+        let ((first, count), (offset, scale)) = g.band(130, 140);
+        assert_eq!((first, count), (1, 1));
+        let [u, v] = g.uv(135);
+        assert_eq!(f64::from(u), 7.5 / 128.0);
+        assert!((f64::from(v) * scale[1] + offset[1] - 0.5).abs() < 1e-6);
+        // The whole tree: every row, the identity.
+        assert_eq!(g.band(0, 300), ((0, 3), ([0.0, 0.0], [1.0, 1.0])));
     }
 
     #[test]

@@ -25,9 +25,13 @@ mod tiles;
 mod tileset;
 
 pub use geometry::GeometryError;
-/// Columns of a tile's averages image (`img/n{N}-avg.png`): the tree's rect `g` (running index over its
-/// leaves' rects) keeps its period's average at texel `(g mod AVERAGE_COLUMNS, g / AVERAGE_COLUMNS)`.
-pub const AVERAGE_COLUMNS: u32 = AverageGrid::COLUMNS;
+/// Columns and rows of a tree's averages grid for `rects` rects in all: rect `g` (running index over the
+/// tree's leaves' rects) keeps its period's average at `(g mod cols, g / cols)`; a tile's image
+/// (`img/n{N}-avg.png`) holds the band of rows of its own rects.
+pub fn average_grid(rects: u64) -> (u32, u32) {
+    let g = AverageGrid::for_rects(rects);
+    (g.cols, g.rows)
+}
 pub use images::{ImageCodec, JPEG_QUALITY, gpu_bytes};
 pub use tiles::MIN_PERIOD_TEXELS;
 pub use tileset::{SCREEN_SPACE_ERROR, geometric_error, refine_distance};

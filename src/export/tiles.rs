@@ -2,7 +2,7 @@
 //! period images or their averages) and leaves drawn with their original textures (module doc of
 //! [`super`]).
 
-use super::geometry::{self, AverageGrid, GroupKey};
+use super::geometry::{self, GroupKey};
 use super::gltf_doc::{self, CLAMP_TO_EDGE, GltfDoc, MIRRORED_REPEAT, MaterialSpec, REPEAT};
 use super::images::{self, ImageCodec};
 use super::{
@@ -74,7 +74,16 @@ fn atlas_tile(
     let (lo, hi) = ctx.leaf_ranges[n];
     let keep = period_threshold(ctx, node, lo..hi, opts.max_period_images);
     // The averages image: every averaged rect's period mean at this level (PNG: exact texels).
-    let mut averages = image::RgbaImage::new(AverageGrid::COLUMNS, ctx.grid.rows);
+    // The band of rows of the tile's rects (contiguous: its leaves are).
+    let g0 = ctx.rect_base.get(lo).copied().unwrap_or(0);
+    let g1 = if hi > lo {
+        ctx.rect_base[hi - 1] + tree.leaves[hi - 1].rects.len() as u32
+    } else {
+        g0
+    };
+    let ((row0, band_rows), band_xf) = ctx.grid.band(g0, g1);
+    let band_xf = (band_rows != ctx.grid.rows).then_some(band_xf);
+    let mut averages = image::RgbaImage::new(ctx.grid.cols, band_rows);
     let (mut averaged, mut avg_tex) = (0usize, None);
     for l in lo..hi {
         let leaf = &tree.leaves[l];
@@ -111,7 +120,7 @@ fn atlas_tile(
                     let (x, y) = ctx.grid.texel(ctx.rect_base[l] + rect);
                     averages.put_pixel(
                         x,
-                        y,
+                        y - row0,
                         images::mean(&images::crop_scaled(&atlas, r.inner, (ox, oy, d))),
                     );
                     averaged += 1;
@@ -122,7 +131,7 @@ fn atlas_tile(
                     let material = doc.material(MaterialSpec {
                         texture: tex,
                         tex_coord: 1,
-                        transform: None,
+                        transform: band_xf,
                         factor: [1.0; 4],
                         alpha,
                         cutoff: f32::from_bits(cutoff),

@@ -292,8 +292,11 @@ fn a_viewer_samples_every_triangle_where_the_tree_shader_does() {
                     // Averaged rects: every vertex at the centre of its rect's texel, read nearest.
                     let rect_base: usize = tree.leaves[..l].iter().map(|x| x.rects.len()).sum();
                     let total: usize = tree.leaves.iter().map(|x| x.rects.len()).sum();
-                    let cols = atlastree::export::AVERAGE_COLUMNS as usize;
-                    let rows = total.div_ceil(cols);
+                    let (cols, rows) = atlastree::export::average_grid(total as u64);
+                    let (cols, rows) = (cols as usize, rows as usize);
+                    // The tile's image is the band of its rows: the transform takes every texel centre
+                    // into it.
+                    let band = |v: f64| v * f64::from(scale[1]) + f64::from(offset[1]);
                     assert_eq!(
                         sampler.mag_filter(),
                         Some(gltf::texture::MagFilter::Nearest)
@@ -319,6 +322,12 @@ fn a_viewer_samples_every_triangle_where_the_tree_shader_does() {
                                 && (f64::from(got[0][1]) - want[1]).abs() < 1e-6
                         );
                         let g = y * cols + x;
+                        let vb = band(f64::from(got[0][1]));
+                        assert!(
+                            vb > 0.0 && vb < 1.0,
+                            "{}: texel row {y} outside the tile's band ({vb})",
+                            t.uri
+                        );
                         assert!(
                             g >= rect_base && g < rect_base + leaf.rects.len(),
                             "{}: texel of rect {g} outside leaf {l}",
