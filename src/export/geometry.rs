@@ -105,6 +105,8 @@ pub enum GeometryError {
         original: u32,
         originals: usize,
     },
+    #[error("leaf {leaf}: original {slot} of block {block} was not decoded")]
+    MissingOriginal { leaf: usize, block: u32, slot: u32 },
     #[error("leaf {leaf}: material {material} of {materials}")]
     BadMaterial {
         leaf: usize,
@@ -209,17 +211,15 @@ fn period_uvs(rect: &AtlasRect, tri: [[f32; 2]; 3]) -> [[f32; 2]; 3] {
         let us = tri.map(|uv| f64::from(uv[k]));
         let (wrap, lo, hi) = (rect.wrap[k], rect.uv_min[k], rect.uv_max[k]);
         let ts = us.map(|u| rect_t(u, wrap, lo, hi));
-        let fixed: [f64; 3] = if wrap == RectWrap::Linear || axis_is_affine(us, ts) {
-            if wrap == RectWrap::Linear {
-                us
-            } else {
-                ts.map(|t| lo + t)
-            }
+        let fixed: [f64; 3] = if wrap == RectWrap::Linear {
+            us
+        } else if axis_is_affine(us, ts) {
+            ts.map(|t| lo + t)
         } else if wrap == RectWrap::Mirror {
-            // The fold the triangle crosses: the integer inside its range (several: a full-period rect,
-            // any even shift). An even one sits on 0, an odd one on 1.
+            // The fold the triangle crosses: the first integer above its lowest UV (several: a full-period
+            // rect, any even shift). An even one sits on 0, an odd one on 1.
             let min = us.iter().copied().fold(f64::INFINITY, f64::min);
-            let n = (min.floor() + 1.0).max(min.ceil());
+            let n = min.floor() + 1.0;
             let shift = if n.rem_euclid(2.0) == 0.0 { n } else { n - 1.0 };
             us.map(|u| u - shift)
         } else {
@@ -250,6 +250,20 @@ pub(super) fn leaf_mesh(
     let verts = &tree.vertices[first as usize..end as usize];
     let tris =
         &tree.indices[leaf.first_index as usize..(leaf.first_index + leaf.index_count) as usize];
+    // Every vertex's rect and original belong to this leaf (the file's open-time checks test them against
+    // the leaf a vertex names, `inspect --verify` that it is this one).
+    for (i, v) in verts.iter().enumerate() {
+        if v.rect as usize >= leaf.rects.len() || v.original as usize >= leaf.originals.len() {
+            return Err(GeometryError::BadReference {
+                leaf: leaf_index,
+                vertex: first + i as u32,
+                rect: v.rect,
+                rects: leaf.rects.len(),
+                original: v.original,
+                originals: leaf.originals.len(),
+            });
+        }
+    }
     // Per triangle: local vertex indices, rect and original (a triangle's vertices share them).
     let mut triangles: Vec<Triangle> = Vec::with_capacity(tris.len() / 3);
     for t in tris.chunks_exact(3) {
@@ -266,16 +280,6 @@ pub(super) fn leaf_mesh(
             *l = i - first;
         }
         let v = verts[local[0] as usize];
-        if v.rect as usize >= leaf.rects.len() || v.original as usize >= leaf.originals.len() {
-            return Err(GeometryError::BadReference {
-                leaf: leaf_index,
-                vertex: t[0],
-                rect: v.rect,
-                rects: leaf.rects.len(),
-                original: v.original,
-                originals: leaf.originals.len(),
-            });
-        }
         triangles.push((local, v.rect, v.original));
     }
     // Rect classification.
@@ -299,20 +303,6 @@ pub(super) fn leaf_mesh(
                 materials: materials.len(),
             })?;
         rect_alpha.push(alpha_key(m));
-    }
-    // Every vertex's rect and original belong to this leaf (the file's open-time checks test them against
-    // the leaf a vertex names, `inspect --verify` that it is this one).
-    for (i, v) in verts.iter().enumerate() {
-        if v.rect as usize >= leaf.rects.len() || v.original as usize >= leaf.originals.len() {
-            return Err(GeometryError::BadReference {
-                leaf: leaf_index,
-                vertex: first + i as u32,
-                rect: v.rect,
-                rects: leaf.rects.len(),
-                original: v.original,
-                originals: leaf.originals.len(),
-            });
-        }
     }
     // Vertices: the leaf's own, then copies for the triangles of period rects (one per vertex and UV), whose TEXCOORD_0
     // is its UV as the rect's period image is read (`period_uvs`) and TEXCOORD_1 its rect's texel in the

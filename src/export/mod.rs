@@ -316,12 +316,11 @@ fn write_tileset(
         )
     };
     let mut roots = Vec::new();
-    for (t, tree) in forest.trees.iter().enumerate() {
+    for t in 0..forest.trees.len() {
         let ctx = prepare_tree(file, &forest, t, dir, &mut summary, &tick)?;
         let tiles = tiles::node_tiles(file, &forest, &ctx, opts, &tick)?;
         let orig_tiles = tiles::original_tiles(&forest, &ctx, &tick)?;
         roots.push(tree_tileset(&forest, &ctx, tiles, orig_tiles, &mut summary));
-        let _ = tree;
     }
     // The top of the tileset: one tree's root, or an empty root over both trees that always refines.
     let far = geometric_error(1e7, params.screen_width, params.fov_deg);
@@ -446,23 +445,13 @@ fn prepare_tree<'a>(
         summary.period_rects += m.period_rects.len();
     }
     summary.rects += tree.leaves.iter().map(|l| l.rects.len()).sum::<usize>();
-    // Every (block, slot) once, with its byte offset in the block (chains back to back in slot order).
-    let mut slots: Vec<(u32, u32, [u32; 2])> = tree
-        .leaves
-        .iter()
-        .flat_map(|l| l.originals.iter().map(|o| (o.block.0, o.slot, o.extent)))
-        .collect();
-    slots.sort_unstable();
-    slots.dedup_by_key(|x| (x.0, x.1));
-    let mut offsets = Vec::with_capacity(slots.len());
-    let (mut block, mut off) = (u32::MAX, 0u64);
-    for &(b, slot, [w, h]) in &slots {
-        if b != block {
-            (block, off) = (b, 0);
-        }
-        offsets.push((b, slot, [w, h], off));
-        off += tree.format.chain_bytes_rect(w, h);
-    }
+    // Every stored original once, at its byte offset in its block.
+    let offsets = crate::model::original_slots(
+        tree.leaves
+            .iter()
+            .flat_map(|l| l.originals.iter().map(|o| (o.block.0, o.slot, o.extent))),
+        tree.format,
+    );
     let codec = ImageCodec::for_alpha(tree.kind == TreeKind::Alpha);
     let originals = offsets
         .par_iter()

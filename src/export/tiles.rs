@@ -148,7 +148,12 @@ fn atlas_tile(
                         _ => prims.push((g.clone(), material, true)),
                     }
                 }
-                GroupKey::Period { rect, .. } => {
+                GroupKey::Period {
+                    alpha,
+                    cutoff,
+                    rect,
+                    ..
+                } => {
                     let r = &leaf.rects[rect as usize];
                     let img = images::crop_scaled(&atlas, r.inner, (ox, oy, d));
                     let puri = format!("img/n{n}-l{l}-r{rect}.{}", ctx.codec.extension());
@@ -162,8 +167,6 @@ fn atlas_tile(
                     };
                     let scale = [1.0 / span(0), 1.0 / span(1)];
                     let offset = [-r.uv_min[0] * scale[0], -r.uv_min[1] * scale[1]];
-                    let m = forest.materials.get(r.material.0 as usize);
-                    let (alpha, cutoff) = m.map(geometry::alpha_key).unwrap_or((0, 0));
                     let material = doc.material(MaterialSpec {
                         texture: tex,
                         tex_coord: 0,
@@ -251,15 +254,27 @@ fn originals_tile(
                 continue;
             };
             let o = &leaf.originals[original as usize];
-            let Some(img) = ctx.originals.get(&(o.block.0, o.slot)) else {
-                continue;
+            let bad = |source| ExportError::Geometry {
+                tree: ctx.index,
+                source,
             };
+            let img = ctx.originals.get(&(o.block.0, o.slot)).ok_or_else(|| {
+                bad(geometry::GeometryError::MissingOriginal {
+                    leaf: l,
+                    block: o.block.0,
+                    slot: o.slot,
+                })
+            })?;
             if !images.iter().any(|i| i.uri == img.uri) {
                 images.push(img.clone());
             }
-            let Some(m) = forest.materials.get(o.material.0 as usize) else {
-                continue;
-            };
+            let m = forest.materials.get(o.material.0 as usize).ok_or_else(|| {
+                bad(geometry::GeometryError::BadMaterial {
+                    leaf: l,
+                    material: o.material.0,
+                    materials: forest.materials.len(),
+                })
+            })?;
             let wrap = [
                 gltf_doc::wrap_code(m.wrap[0]),
                 gltf_doc::wrap_code(m.wrap[1]),

@@ -203,6 +203,31 @@ impl OriginalRef {
     }
 }
 
+/// Every stored original once, in `(block, slot)` order, with its byte offset inside its block: the images
+/// of one block lie back to back in slot order, each a full `extent[0] × extent[1]` mip chain in `format`.
+/// `slots` lists `(block, slot, extent)` in any order, a shared original once per leaf that references it.
+/// Returns `(block, slot, extent, offset)`.
+pub fn original_slots(
+    slots: impl IntoIterator<Item = (u32, u32, [u32; 2])>,
+    format: crate::texfmt::TexFormat,
+) -> Vec<(u32, u32, [u32; 2], u64)> {
+    let mut slots: Vec<(u32, u32, [u32; 2])> = slots.into_iter().collect();
+    slots.sort_unstable();
+    slots.dedup_by_key(|x| (x.0, x.1));
+    let (mut block, mut off) = (u32::MAX, 0u64);
+    slots
+        .into_iter()
+        .map(|(b, slot, [w, h])| {
+            if b != block {
+                (block, off) = (b, 0);
+            }
+            let at = off;
+            off += format.chain_bytes_rect(w, h);
+            (b, slot, [w, h], at)
+        })
+        .collect()
+}
+
 /// A leaf: its triangles, atlas layout and original textures.
 #[derive(Clone, Debug, Serialize)]
 pub struct Leaf {

@@ -1,6 +1,8 @@
 //! Target `paging_file`: structure-aware mutants of a small built paging file (a synthetic city, 64² atlases)
 //! fed to `TreeFile::from_bytes`, the block reads the renderer uses (`FileSource::fetch`, the block table)
-//! and `inspect::verify` (what `atlastree inspect --verify` runs).
+//! and `inspect::verify` (what `atlastree inspect --verify` runs); a resealed mutant that opens is also
+//! exported as 3D Tiles (`atlastree export 3dtiles`, which trusts what open checked and must refuse the
+//! rest with an error, never a panic, and leave nothing behind).
 //!
 //! Mutations, drawn from the case's bytes:
 //! - raw: byte flips (one to eight, most in the header, tables and padding), truncation, appended bytes,
@@ -236,6 +238,21 @@ fn judge(bytes: &[u8]) -> Result<(), String> {
     }
 }
 
+/// Exports a file that opens into a fresh temp dir (`None` when it does not open). An export error is
+/// fine; `Err` when the failed export left its output or temp directory behind.
+fn export(bytes: &[u8]) -> Option<Result<(), String>> {
+    let file = TreeFile::from_bytes(bytes).ok()?;
+    let dir = tempfile::tempdir().ok()?;
+    let out = dir.path().join("tiles");
+    let opts = atlastree::export::ExportOptions::default();
+    let result = atlastree::export::export_3dtiles(&file, &out, &opts, &|_, _| {});
+    let left = std::fs::read_dir(dir.path()).map_or(0, |d| d.count());
+    Some(match result {
+        Err(e) if left > 0 => Err(format!("export failed ({e}) and left {left} entries")),
+        _ => Ok(()),
+    })
+}
+
 fn mutate(data: &[u8]) -> Verdict {
     let (base, file) = (base(), super::tiny_store::tiny_paging_tree());
     let mut u = Unstructured::new(data);
@@ -251,6 +268,9 @@ fn mutate(data: &[u8]) -> Verdict {
     };
     if m == base {
         return Verdict::Accepted; // the edit restored the same bytes: no change
+    }
+    if !is_raw && let Some(Err(why)) = export(&m) {
+        return Verdict::AcceptedCorruption(format!("{what}: {why}"));
     }
     match judge(&m) {
         Err(why) => Verdict::Refused(why),

@@ -13,9 +13,8 @@ import path from 'node:path';
 import { parseArgs } from 'node:util';
 import { execFileSync } from 'node:child_process';
 import puppeteer from 'puppeteer-core';
-import pngjs from 'pngjs';
 import { startServer } from './serve.mjs';
-import { loadTileset, itemKey, exportTiles, aabbDistance, aabbOutsideFrustum, BACKGROUND_SRGB } from './lib.mjs';
+import { loadTileset, itemKey, exportTiles, aabbDistance, aabbOutsideFrustum, BACKGROUND_SRGB, readPng, psnr } from './lib.mjs';
 
 const { values: opt } = parseArgs({
   options: {
@@ -123,15 +122,6 @@ function compareSelection(cam, visible, expectedFile) {
 }
 
 // ---- images ----
-const readPng = (f) => pngjs.PNG.sync.read(fs.readFileSync(f));
-function psnr(a, b) {
-  if (a.width !== b.width || a.height !== b.height) return { error: `size ${a.width}x${a.height} vs ${b.width}x${b.height}` };
-  let se = 0;
-  for (let i = 0; i < a.data.length; i += 4)
-    for (let c = 0; c < 3; c++) { const d = a.data[i + c] - b.data[i + c]; se += d * d; }
-  const mse = se / (a.width * a.height * 3);
-  return { psnr: mse === 0 ? Infinity : +(10 * Math.log10((255 * 255) / mse)).toFixed(2) };
-}
 function nonBackground(img) { // fraction of pixels whose colour differs from the background by > 10
   let n = 0;
   for (let i = 0; i < img.data.length; i += 4)

@@ -1,9 +1,10 @@
-// Shared helpers for check.mjs and validate.mjs: tile identity, tileset walking, camera geometry.
+// Shared helpers for check.mjs, validate.mjs and measure.mjs: tile identity, tileset walking, camera geometry, PNG and PSNR.
 // Frames: the scene (and every camera) is y-up; the 3D Tiles tile frame is z-up.
 // A y-up point (x, y, z) is the tile-frame point (x, -z, y); glTF content is y-up and the clients
 // rotate it +90° about x into the tile frame (the same map).
 import fs from 'node:fs';
 import path from 'node:path';
+import pngjs from 'pngjs';
 
 export const BACKGROUND_SRGB = [149, 180, 218];
 
@@ -144,4 +145,16 @@ export function aabbOutsideFrustum(cam, min, max) {
     if (dot(n, sub(pv, e)) < k) return true;
   }
   return false;
+}
+
+// ---- images --------------------------------------------------------------------------------------
+
+export const readPng = (f) => pngjs.PNG.sync.read(fs.readFileSync(f));
+export function psnr(a, b) {
+  if (a.width !== b.width || a.height !== b.height) return { error: `size ${a.width}x${a.height} vs ${b.width}x${b.height}` };
+  let se = 0;
+  for (let i = 0; i < a.data.length; i += 4)
+    for (let c = 0; c < 3; c++) { const d = a.data[i + c] - b.data[i + c]; se += d * d; }
+  const mse = se / (a.width * a.height * 3);
+  return { psnr: mse === 0 ? Infinity : +(10 * Math.log10((255 * 255) / mse)).toFixed(2) };
 }

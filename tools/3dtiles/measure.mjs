@@ -9,7 +9,7 @@
 import fs from 'node:fs';
 import path from 'node:path';
 import { parseArgs } from 'node:util';
-import pngjs from 'pngjs';
+import { readPng, psnr as psnrOf } from './lib.mjs';
 
 const { values: opt } = parseArgs({ options: { work: { type: 'string' }, naive: { type: 'string' }, json: { type: 'string' } } });
 if (!opt.work || !opt.naive) { console.error('usage: node measure.mjs --work WORK --naive NAIVE_DIR [--json OUT]'); process.exit(2); }
@@ -34,15 +34,10 @@ function held(idx, items) {
   return { tiles: items.length, images: imgs.size, image_bytes: bytes, gpu_bytes: gpu, draw_calls: draws };
 }
 
-const readPng = (f) => pngjs.PNG.sync.read(fs.readFileSync(f));
+// PSNR (RGB, 8-bit) of two PNG files; null when one is missing or the sizes differ.
 function psnr(fa, fb) {
   if (!fs.existsSync(fa) || !fs.existsSync(fb)) return null;
-  const [a, b] = [readPng(fa), readPng(fb)];
-  if (a.width !== b.width || a.height !== b.height) return null;
-  let se = 0;
-  for (let i = 0; i < a.data.length; i += 4) for (let c = 0; c < 3; c++) { const d = a.data[i + c] - b.data[i + c]; se += d * d; }
-  const mse = se / (a.width * a.height * 3);
-  return mse === 0 ? Infinity : +(10 * Math.log10((255 * 255) / mse)).toFixed(2);
+  return psnrOf(readPng(fa), readPng(fb)).psnr ?? null;
 }
 
 const mib = (b) => (b / 1048576).toFixed(2);

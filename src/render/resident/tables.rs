@@ -211,25 +211,11 @@ fn passes_and_cutoffs(
     (passes, cutoffs)
 }
 
-/// Byte offset of each original of a leaf inside its block: images of one block are back to back in slot
-/// order, each a full `width × height` mip chain in the tree's `format`.
+/// Byte offset of each original inside its block ([`crate::model::original_slots`]).
 fn slot_offsets(originals: &[OriginalRecord], format: TexFormat) -> HashMap<(u32, u32), u64> {
-    // Every (block, slot) once (a shared original is listed by every leaf that references it), in slot
-    // order per block: the chains lie back to back.
-    let mut slots: Vec<(u32, u32, [u32; 2])> = originals
-        .iter()
-        .map(|o| (o.block, o.slot, o.extent()))
-        .collect();
-    slots.sort_unstable();
-    slots.dedup_by_key(|x| (x.0, x.1));
-    let mut out = HashMap::with_capacity(slots.len());
-    let (mut block, mut off) = (u32::MAX, 0u64);
-    for (b, slot, [w, h]) in slots {
-        if b != block {
-            (block, off) = (b, 0);
-        }
-        out.insert((b, slot), off);
-        off += format.chain_bytes_rect(w, h);
-    }
-    out
+    let slots = originals.iter().map(|o| (o.block, o.slot, o.extent()));
+    crate::model::original_slots(slots, format)
+        .into_iter()
+        .map(|(b, slot, _, off)| ((b, slot), off))
+        .collect()
 }
