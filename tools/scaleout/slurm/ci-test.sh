@@ -154,12 +154,26 @@ wait_pid_file() { # FILE: print the PID once the file holds one (10 s at most)
     return 1
 }
 
-port_free() { ! (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null; }
+port_free() { # PORT: nothing listens on it and it can be bound (a real bind where python3 is here)
+    (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null && return 1
+    if command -v python3 >/dev/null; then
+        python3 - "$1" <<'PY' 2>/dev/null
+import socket, sys
+s = socket.socket()
+s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+s.bind(("0.0.0.0", int(sys.argv[1])))
+PY
+    fi
+}
 
-free_port_pair() { # two consecutive free TCP ports, tried from a PID-dependent start in 20000..39999
-    local p i
+# Below the kernel's ephemeral range: a port in it can be taken at any moment by an outgoing connection, and
+# slurmctld then dies with "Address already in use" (a CI run on 2026-12-03 lost 45 min that way).
+ephemeral_low=$(awk '{print $1}' /proc/sys/net/ipv4/ip_local_port_range 2>/dev/null || echo 32768)
+[[ $ephemeral_low =~ ^[0-9]+$ ]] && ((ephemeral_low > 12000)) || ephemeral_low=32768
+free_port_pair() { # ATTEMPT: two consecutive free TCP ports in 10000..ephemeral_low-2, from a PID-dependent start
+    local p i span=$(((ephemeral_low - 10002) / 2))
     for ((i = 0; i < 50; i++)); do
-        p=$((20000 + (($$ * 7 + i * 211) % 10000) * 2))
+        p=$((10000 + (($$ * 7 + (i + 50 * $1) * 211) % span) * 2))
         if port_free "$p" && port_free $((p + 1)); then
             echo "$p"
             return 0
@@ -167,6 +181,8 @@ free_port_pair() { # two consecutive free TCP ports, tried from a PID-dependent 
     done
     return 1
 }
+
+alive() { [[ -n $1 ]] && kill -0 "$1" 2>/dev/null; }
 
 # ---- 0. the Kubernetes manifest (no cluster here: its shape only) ----
 k8s_check=$repo/tools/scaleout/k8s/check.py
@@ -199,7 +215,6 @@ runuser -u munge -- /usr/sbin/munged --socket="$munge_socket" --pid-file="$tmp/m
     }
 munge_pid=$(wait_pid_file "$tmp/munge/munged.pid") || fatal "cluster: munged wrote no PID file"
 
-port=$(free_port_pair) || fatal "cluster: found no two free TCP ports for slurmctld and slurmd"
 node_line=$(slurmd -C | head -n1)
 [[ $node_line == NodeName=* ]] || fatal "cluster: slurmd -C printed no node line: $node_line"
 cpus=$(sed -n 's/.* CPUs=\([0-9]*\).*/\1/p' <<<"$node_line")
@@ -207,13 +222,14 @@ if [[ -n $cpus ]] && (($(nproc) < cpus)); then
     # A container limited below the hardware: offer Slurm only the CPUs we may use.
     node_line="NodeName=$host CPUs=$(nproc) $(grep -o 'RealMemory=[0-9]*' <<<"$node_line")"
 fi
-# Loopback addresses: a single node, and no reliance on the container resolving its own host name.
 export SLURM_CONF=$tmp/etc/slurm.conf
-cat >"$SLURM_CONF" <<EOF
+write_conf() { # PORT: slurm.conf with slurmctld on PORT and slurmd on PORT+1
+    # Loopback addresses: a single node, and no reliance on the container resolving its own host name.
+    cat >"$SLURM_CONF" <<EOF
 ClusterName=atlastree-ci
 SlurmctldHost=$host(127.0.0.1)
-SlurmctldPort=$port
-SlurmdPort=$((port + 1))
+SlurmctldPort=$1
+SlurmdPort=$(($1 + 1))
 SlurmUser=root
 SlurmdUser=root
 AuthType=auth/munge
@@ -239,32 +255,68 @@ SlurmdLogFile=$tmp/log/slurmd.log
 $node_line NodeAddr=127.0.0.1 State=UNKNOWN
 PartitionName=ci Nodes=$host Default=YES MaxTime=INFINITE State=UP
 EOF
-slurmctld -i || {
-    show_logs
-    fatal "cluster: slurmctld did not start"
 }
-ctld_pid=$(wait_pid_file "$tmp/run/slurmctld.pid") || {
-    show_logs
-    fatal "cluster: slurmctld wrote no PID file"
+
+listening() { # PID PORT: wait (10 s at most) until PORT accepts connections; fail early if PID exits
+    local i
+    for ((i = 0; i < 100; i++)); do
+        alive "$1" || return 1
+        (exec 3<>"/dev/tcp/127.0.0.1/$2") 2>/dev/null && return 0
+        sleep 0.1
+    done
+    return 1
 }
-slurmd || {
-    show_logs
-    fatal "cluster: slurmd did not start"
-}
-slurmd_pid=$(wait_pid_file "$tmp/run/slurmd.pid") || {
-    show_logs
-    fatal "cluster: slurmd wrote no PID file"
-}
-state=""
-for ((i = 0; i < 300; i++)); do
-    state=$(sinfo -h -n "$host" -o %T 2>/dev/null || true)
+
+# Up to 4 tries, each on a fresh port pair: a port that looked free can still be taken before the daemon binds it.
+# Every wait below has a deadline and stops as soon as a daemon died (Slurm's clients retry a dead controller
+# for ~10 s per call, so polling one for "idle" 300 times took 45 min).
+port="" state=""
+for ((attempt = 0; attempt < 4; attempt++)); do
+    port=$(free_port_pair "$attempt") || fatal "cluster: found no two free TCP ports below $ephemeral_low"
+    write_conf "$port"
+    rm -f "$tmp"/run/*.pid
+    slurmctld -i || {
+        show_logs
+        fatal "cluster: slurmctld did not start"
+    }
+    ctld_pid=$(wait_pid_file "$tmp/run/slurmctld.pid") || {
+        show_logs
+        fatal "cluster: slurmctld wrote no PID file"
+    }
+    if ! listening "$ctld_pid" "$port"; then
+        show_logs
+        echo "$prog: slurmctld (pid $ctld_pid) is not listening on port $port; stopping it, trying other ports" >&2
+        stop_pids "slurmctld:$ctld_pid"
+        ctld_pid=""
+        continue
+    fi
+    slurmd || {
+        show_logs
+        fatal "cluster: slurmd did not start"
+    }
+    slurmd_pid=$(wait_pid_file "$tmp/run/slurmd.pid") || {
+        show_logs
+        fatal "cluster: slurmd wrote no PID file"
+    }
+    if ! listening "$slurmd_pid" $((port + 1)); then
+        show_logs
+        echo "$prog: slurmd (pid $slurmd_pid) is not listening on port $((port + 1)); stopping both, trying other ports" >&2
+        stop_pids "slurmd:$slurmd_pid" "slurmctld:$ctld_pid"
+        slurmd_pid="" ctld_pid=""
+        continue
+    fi
+    t_idle=$SECONDS
+    while ((SECONDS - t_idle < 30)) && alive "$ctld_pid" && alive "$slurmd_pid"; do
+        state=$(timeout 5 sinfo -h -n "$host" -o %T 2>/dev/null || true)
+        [[ $state == idle ]] && break
+        sleep 0.1
+    done
     [[ $state == idle ]] && break
-    sleep 0.1
-done
-if [[ $state != idle ]]; then
     show_logs
-    fatal "cluster: node $host is '${state:-not listed}' after 30 s, not idle"
-fi
+    fatal "cluster: node $host is '${state:-not listed}' after $((SECONDS - t_idle)) s, not idle" \
+        "(slurmctld $(alive "$ctld_pid" && echo running || echo dead), slurmd $(alive "$slurmd_pid" && echo running || echo dead))"
+done
+[[ $state == idle ]] || fatal "cluster: no try of 4 brought slurmctld and slurmd up (see the logs above)"
 pass "cluster: munged $munge_pid, slurmctld $ctld_pid, slurmd $slurmd_pid on $host, ports $port/$((port + 1)), node idle after $((SECONDS - t)) s"
 
 # ---- 1. one-process reference ----
