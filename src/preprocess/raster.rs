@@ -27,6 +27,25 @@ pub struct CachedImage {
 }
 
 impl CachedImage {
+    /// The RGBA8 mip chain of this image stored at its own sides: what [`mip_chain_rgba8`] of
+    /// [`resample_rect`] gives where [`resample_is_identity`] holds, without resampling or a second chain
+    /// (the cached chain is that chain: box-filtered, and the box ignores wrap). Level 0 of an image
+    /// without translucent texels is the decoded bytes themselves: sRGB8 → linear → sRGB8 is the identity
+    /// on opaque texels ([`super::image_ops::srgb8_to_linear`]).
+    fn stored_chain_rgba8(&self) -> Vec<u8> {
+        let total: usize = self.chain.levels.iter().map(|l| l.texel_count() * 4).sum();
+        let mut out = Vec::with_capacity(total);
+        let mut levels = self.chain.levels.iter();
+        if self.decoded.pixels.iter().all(|p| p[3] == 255) {
+            out.extend_from_slice(self.decoded.pixels.as_flattened());
+            levels.next();
+        }
+        for l in levels {
+            out.extend_from_slice(&l.to_rgba8());
+        }
+        out
+    }
+
     fn bytes(&self) -> u64 {
         let chain: u64 = self
             .chain
@@ -188,14 +207,17 @@ impl ImageCache<'_> {
         let [w, h] = key.1;
         let what = || format!("original texture {} at {w}×{h}", key.0.0);
         let img = self.get(key.0);
-        // The cached chain is box-filtered, as resampling wants.
-        let lin = resample_rect(&img.chain, w, h, key.2).map_err(|e| image_err(what(), e))?;
+        let rgba8 = if resample_is_identity(&img.decoded, w, h) {
+            img.stored_chain_rgba8()
+        } else {
+            // The cached chain is box-filtered, as resampling wants.
+            let lin = resample_rect(&img.chain, w, h, key.2).map_err(|e| image_err(what(), e))?;
+            mip_chain_rgba8(&lin)
+        };
         let enc =
-            encode_chain_rect(key.3, &mip_chain_rgba8(&lin), w, h, key.4).map_err(|source| {
-                BuildError::Encode {
-                    what: what(),
-                    source,
-                }
+            encode_chain_rect(key.3, &rgba8, w, h, key.4).map_err(|source| BuildError::Encode {
+                what: what(),
+                source,
             })?;
         let bytes = Arc::new(enc);
         let mut st = self.originals.lock().unwrap_or_else(|e| e.into_inner());
@@ -207,6 +229,14 @@ impl ImageCache<'_> {
         st.0.insert(key, bytes.clone());
         Ok(bytes)
     }
+}
+
+/// True where [`resample_rect`] of `img`'s chain to `w × h` returns level 0 unchanged: the same sides, each a
+/// power of two. Then every destination texel centre `(x + 0.5) / w` maps back onto source texel `x` with
+/// no rounding (division and multiplication by a power of two are exact in f64), so its one bilinear tap
+/// has weights exactly 1 and 0.
+fn resample_is_identity(img: &DecodedImage, w: u32, h: u32) -> bool {
+    img.width == w && img.height == h && w.is_power_of_two() && h.is_power_of_two()
 }
 
 /// Where finished atlases go and what is counted of them: all that the atlases above a shard cut need
@@ -508,4 +538,62 @@ fn write_originals(
         ctx.out.sink.put_block(*block, &buf, sse)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Wrap;
+
+    /// Deterministic pixels: a hash of the index; `alpha` picks opaque, mixed or with transparent texels.
+    fn image(w: u32, h: u32, alpha: u8) -> DecodedImage {
+        let pixels = (0..w * h)
+            .map(|i| {
+                let x = i.wrapping_mul(2_654_435_761).rotate_left(7) ^ 0x9e37_79b9;
+                let [r, g, b, a] = x.to_le_bytes();
+                let a = match alpha {
+                    0 => 255,
+                    1 => a | 1,
+                    _ => a & 0x1f, // many 0s and small alphas
+                };
+                [r, g, b, a]
+            })
+            .collect();
+        DecodedImage {
+            width: w,
+            height: h,
+            pixels,
+        }
+    }
+
+    #[test]
+    fn stored_chain_at_the_source_size_equals_the_resampled_chain() {
+        let wraps = [
+            [Wrap::Repeat, Wrap::MirroredRepeat],
+            [Wrap::ClampToEdge, Wrap::Repeat],
+        ];
+        for (w, h) in [(1, 1), (2, 1), (8, 8), (16, 4), (1, 32), (256, 64)] {
+            for alpha in 0..3 {
+                let decoded = image(w, h, alpha);
+                let chain = MipChain::build(LinearImage::from_decoded(&decoded).unwrap());
+                let img = CachedImage { decoded, chain };
+                assert!(resample_is_identity(&img.decoded, w, h));
+                let fast = img.stored_chain_rgba8();
+                for wrap in wraps {
+                    let lin = resample_rect(&img.chain, w, h, wrap).unwrap();
+                    let slow = mip_chain_rgba8(&lin);
+                    assert_eq!(fast.len(), slow.len(), "{w}×{h} alpha {alpha}");
+                    let diff = fast.iter().zip(&slow).filter(|(a, b)| a != b).count();
+                    assert_eq!(
+                        diff, 0,
+                        "{w}×{h} alpha {alpha} {wrap:?}: {diff} bytes differ"
+                    );
+                }
+            }
+        }
+        // Not the identity: other sides, or sides that are not powers of two.
+        let d = image(6, 4, 0);
+        assert!(!resample_is_identity(&d, 6, 4));
+        assert!(!resample_is_identity(&d, 8, 4));
+    }
 }

@@ -1,7 +1,7 @@
 //! [`LinearImage`]: the working format of every filter, linear RGB premultiplied by linear alpha.
 
 use super::ImageOpsError;
-use super::srgb::{Encoder, srgb8_to_linear};
+use super::srgb::{Encoder, srgb8_to_linear_table};
 use crate::scene::DecodedImage;
 use rayon::prelude::*;
 use std::collections::VecDeque;
@@ -62,10 +62,14 @@ impl LinearImage {
                 pixels: img.pixels.len(),
             });
         }
+        let lut = srgb8_to_linear_table();
         let data = if img.pixels.len() >= PAR_TEXELS {
-            img.pixels.par_iter().map(|&p| decode_texel(p)).collect()
+            img.pixels
+                .par_iter()
+                .map(|&p| decode_texel(lut, p))
+                .collect()
         } else {
-            img.pixels.iter().map(|&p| decode_texel(p)).collect()
+            img.pixels.iter().map(|&p| decode_texel(lut, p)).collect()
         };
         Ok(Self {
             width: img.width,
@@ -147,14 +151,14 @@ impl LinearImage {
     }
 }
 
-/// sRGB8 straight → linear premultiplied.
+/// sRGB8 straight → linear premultiplied, with `lut` = [`srgb8_to_linear_table`].
 #[inline]
-fn decode_texel(p: [u8; 4]) -> [f32; 4] {
+fn decode_texel(lut: &[f32; 256], p: [u8; 4]) -> [f32; 4] {
     let a = p[3] as f32 / 255.0;
     [
-        srgb8_to_linear(p[0]) * a,
-        srgb8_to_linear(p[1]) * a,
-        srgb8_to_linear(p[2]) * a,
+        lut[p[0] as usize] * a,
+        lut[p[1] as usize] * a,
+        lut[p[2] as usize] * a,
         a,
     ]
 }

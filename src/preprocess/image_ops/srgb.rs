@@ -3,21 +3,26 @@
 //! Decoding is a 256-entry table. Encoding rounds in the *encoded* domain: a linear value `v` encodes to
 //! the `i` with `decode((i − 0.5)/255) ≤ v < decode((i + 0.5)/255)`. Those 255 decision thresholds sit
 //! strictly between neighbouring table values, so every table value encodes back to its own index: the
-//! round trip u8 → linear → u8 is the identity for all 256 values. The lookup is a 4096-bucket table that
-//! gives the code at each bucket's lower edge, corrected upwards by at most a couple of threshold steps.
+//! round trip u8 → linear → u8 is the identity for all 256 values. The lookup is branch-free: the top bits
+//! of `v`'s f32 representation (exponent and 8 mantissa bits, so buckets are ≤ 2⁻⁸ of their value wide)
+//! index a table of the code at each bucket's lower edge; no bucket holds more than one threshold
+//! (neighbouring thresholds are ≥ 0.9 % apart), so one comparison finishes it.
 
 use std::sync::LazyLock;
 
-/// Buckets of the encoding start table over linear `[0, 1)`.
-const BUCKETS: usize = 4096;
+/// Low bits of the f32 representation dropped to form the bucket index.
+const BUCKET_SHIFT: u32 = 15;
+/// Buckets over `[0, 1]`: every positive f32 ≤ 1.0 (bits ≤ `0x3F80_0000`) has its own.
+const BUCKETS: usize = (0x3F80_0000 >> BUCKET_SHIFT) as usize + 1;
 
 struct Tables {
     /// `to_linear[i]` = decode(i / 255).
     to_linear: [f32; 256],
-    /// `thresholds[i]` = decode((i + 0.5) / 255): the smallest linear value that encodes to `i + 1`.
-    thresholds: [f32; 255],
-    /// `bucket_start[k]`: the code of the linear value `k / BUCKETS`.
-    bucket_start: [u8; BUCKETS],
+    /// `thresholds[i]` = decode((i + 0.5) / 255): the smallest linear value that encodes to `i + 1`;
+    /// `thresholds[255]` = +∞ (nothing encodes above 255).
+    thresholds: [f32; 256],
+    /// `bucket_start[k]`: the code of the smallest f32 whose bits shifted by [`BUCKET_SHIFT`] are `k`.
+    bucket_start: Vec<u8>,
 }
 
 static TABLES: LazyLock<Tables> = LazyLock::new(build_tables);
@@ -36,15 +41,15 @@ fn build_tables() -> Tables {
     for (i, t) in to_linear.iter_mut().enumerate() {
         *t = decode(i as f64 / 255.0) as f32;
     }
-    let mut thresholds = [0.0f32; 255];
-    for (i, t) in thresholds.iter_mut().enumerate() {
+    let mut thresholds = [f32::INFINITY; 256];
+    for (i, t) in thresholds.iter_mut().take(255).enumerate() {
         *t = decode((i as f64 + 0.5) / 255.0) as f32;
     }
-    let mut bucket_start = [0u8; BUCKETS];
+    let mut bucket_start = vec![0u8; BUCKETS];
     let mut code = 0usize;
     for (k, b) in bucket_start.iter_mut().enumerate() {
-        let v = k as f32 / BUCKETS as f32;
-        while code < 255 && v >= thresholds[code] {
+        let v = f32::from_bits((k as u32) << BUCKET_SHIFT);
+        while v >= thresholds[code] {
             code += 1;
         }
         *b = code as u8;
@@ -60,6 +65,13 @@ fn build_tables() -> Tables {
 #[inline]
 pub fn srgb8_to_linear(c: u8) -> f32 {
     TABLES.to_linear[c as usize]
+}
+
+/// The table behind [`srgb8_to_linear`], for loops over many texels (one lazy-init check, not one per
+/// channel).
+#[inline]
+pub fn srgb8_to_linear_table() -> &'static [f32; 256] {
+    &TABLES.to_linear
 }
 
 /// The sRGB 8-bit code of a linear value, rounded in the encoded domain; clamps to `[0, 255]`, NaN → 0.
@@ -89,19 +101,16 @@ impl Encoder {
 
 #[inline]
 fn encode_with(t: &Tables, v: f32) -> u8 {
-    if v.is_nan() || v <= 0.0 {
-        return 0;
-    }
-    if v >= 1.0 {
-        return 255;
-    }
-    // v·4096 is exact in f32 (power-of-two scale), so the bucket is floor(v·4096) < 4096.
-    let k = ((v * BUCKETS as f32) as usize).min(BUCKETS - 1);
-    let mut code = t.bucket_start[k] as usize;
-    while code < 255 && v >= t.thresholds[code] {
-        code += 1;
-    }
-    code as u8
+    // NaN and v ≤ 0 (−0.0 included) → 0.0; v ≥ 1 → 1.0, whose bucket starts at code 255.
+    let v = if v > 0.0 { v.min(1.0) } else { 0.0 };
+    let k = ((v.to_bits() >> BUCKET_SHIFT) as usize).min(BUCKETS - 1);
+    let code = t.bucket_start.get(k).copied().unwrap_or(255);
+    let next = t
+        .thresholds
+        .get(code as usize)
+        .copied()
+        .unwrap_or(f32::INFINITY);
+    code + u8::from(v >= next)
 }
 
 #[cfg(test)]
@@ -142,6 +151,52 @@ mod tests {
             }
         }
         assert!(mismatches <= 2, "{mismatches} near-tie mismatches");
+    }
+
+    /// The definition: the number of thresholds at or below `v` (NaN and v ≤ 0 → 0).
+    fn encode_by_definition(v: f32) -> u8 {
+        let t = &*TABLES;
+        if v.is_nan() {
+            return 0;
+        }
+        t.thresholds[..255].iter().filter(|&&th| v >= th).count() as u8
+    }
+
+    #[test]
+    fn one_threshold_per_bucket_at_most() {
+        let t = &*TABLES;
+        for k in 0..BUCKETS - 1 {
+            let last = f32::from_bits((((k + 1) as u32) << BUCKET_SHIFT) - 1);
+            let (first, end) = (t.bucket_start[k], encode_by_definition(last));
+            assert!(end - first <= 1, "bucket {k}: codes {first}..={end}");
+        }
+        assert_eq!(t.bucket_start[BUCKETS - 1], 255);
+    }
+
+    #[test]
+    fn encode_equals_its_definition() {
+        let t = &*TABLES;
+        let mut bits: Vec<u32> = (0..=0x3F80_0000u32).step_by(251).collect();
+        // Every bucket edge and every threshold, with their neighbours.
+        for k in 0..BUCKETS as u32 {
+            let b = k << BUCKET_SHIFT;
+            bits.extend([b.saturating_sub(1), b, b + 1]);
+        }
+        for th in &t.thresholds[..255] {
+            let b = th.to_bits();
+            bits.extend(b - 64..=b + 64);
+        }
+        for b in bits {
+            let v = f32::from_bits(b);
+            assert_eq!(
+                linear_to_srgb8(v),
+                encode_by_definition(v),
+                "v = {v:e} (bits {b:#x})"
+            );
+            assert_eq!(linear_to_srgb8(-v), 0);
+        }
+        assert_eq!(linear_to_srgb8(-0.0), 0);
+        assert_eq!(linear_to_srgb8(f32::MIN_POSITIVE / 2.0), 0);
     }
 
     #[test]
