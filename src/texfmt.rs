@@ -261,11 +261,11 @@ pub fn sse_rgba8(a: &[u8], b: &[u8], channels: usize) -> u64 {
         .sum()
 }
 
-/// The `s×s` RGBA8 level `rgba` padded to `ceil4(s)²` by replicating its last column and row.
-fn pad_to_blocks(rgba: &[u8], s: u32) -> (Vec<u8>, u32) {
+/// The `s×s` RGBA8 level `rgba` padded to `ceil4(s)²` by replicating its last column and row (borrowed when `s` is already a multiple of 4).
+fn pad_to_blocks(rgba: &[u8], s: u32) -> (std::borrow::Cow<'_, [u8]>, u32) {
     let p = s.div_ceil(4) * 4;
     if p == s {
-        return (rgba.to_vec(), p);
+        return (std::borrow::Cow::Borrowed(rgba), p);
     }
     let (s, pu) = (s as usize, p as usize);
     let mut out = vec![0u8; pu * pu * 4];
@@ -276,7 +276,7 @@ fn pad_to_blocks(rgba: &[u8], s: u32) -> (Vec<u8>, u32) {
             out[(y * pu + x) * 4..][..4].copy_from_slice(&rgba[(sy * s + sx) * 4..][..4]);
         }
     }
-    (out, p)
+    (std::borrow::Cow::Owned(out), p)
 }
 
 /// Encodes one band of whole 4×4 block rows (`rgba` is `width × 4k` texels, tightly packed) into `out`.
@@ -309,13 +309,76 @@ pub fn encode_level(format: TexFormat, rgba: &[u8], s: u32, alpha: bool) -> Vec<
         return rgba.to_vec();
     }
     let (padded, p) = pad_to_blocks(rgba, s);
-    let row_in = p as usize * 4 * 4;
-    let row_out = (p / 4 * format.bytes_per_block()) as usize;
-    let mut out = vec![0u8; row_out * (p as usize / 4)];
-    out.par_chunks_mut(row_out)
-        .zip(padded.par_chunks(row_in))
-        .for_each(|(dst, src)| encode_band(format, src, p, alpha, dst));
-    out
+    encode_padded(format, &padded, p, alpha, None).0
+}
+
+/// Encodes `padded` (a level padded to whole 4×4 blocks, `pw` texels wide) band by band on the rayon
+/// pool. With `measure = Some((w, h, channels))` each band's blocks are decoded again right after
+/// encoding and compared with the band's texels that lie inside the unpadded `w × h` level, over the first
+/// `channels` channels: the sum of squared differences is returned with the bytes (0 without). Equal to
+/// decoding the whole level and [`sse_rgba8`] against it, without the level-sized decode buffer.
+fn encode_padded(
+    format: TexFormat,
+    padded: &[u8],
+    pw: u32,
+    alpha: bool,
+    measure: Option<(u32, u32, usize)>,
+) -> (Vec<u8>, u64) {
+    let row_in = pw as usize * 4 * 4;
+    let row_out = (pw / 4 * format.bytes_per_block()) as usize;
+    let mut out = vec![0u8; row_out * (padded.len() / row_in.max(1))];
+    let sse = out
+        .par_chunks_mut(row_out.max(1))
+        .zip(padded.par_chunks(row_in.max(1)))
+        .enumerate()
+        .map(|(band, (dst, src))| {
+            encode_band(format, src, pw, alpha, dst);
+            match measure {
+                Some((w, h, channels)) => band_sse(format, dst, src, pw, band, [w, h], channels),
+                None => 0,
+            }
+        })
+        .sum();
+    (out, sse)
+}
+
+/// Squared error of band `band` (block row) of an encoded level: each block of `blocks` decoded and
+/// compared with `src` (the band's 4 texel rows, `pw` wide) where the texel lies inside `extent`.
+fn band_sse(
+    format: TexFormat,
+    blocks: &[u8],
+    src: &[u8],
+    pw: u32,
+    band: usize,
+    extent: [u32; 2],
+    channels: usize,
+) -> u64 {
+    let bb = format.bytes_per_block() as usize;
+    let (pw, w, h) = (pw as usize, extent[0] as usize, extent[1] as usize);
+    let rows = h.saturating_sub(band * 4).min(4);
+    let c = channels.min(4);
+    let mut texels = [0u8; 64];
+    let mut sse = 0u64;
+    for (bx, block) in blocks.chunks_exact(bb).enumerate() {
+        match format {
+            TexFormat::Bc1 => bcdec_rs::bc1(block, &mut texels, 16),
+            TexFormat::Bc3 => bcdec_rs::bc3(block, &mut texels, 16),
+            TexFormat::Bc7 => bcdec_rs::bc7(block, &mut texels, 16),
+            TexFormat::Rgba8 => return 0,
+        }
+        let cols = w.saturating_sub(bx * 4).min(4);
+        for y in 0..rows {
+            let a = &src[(y * pw + bx * 4) * 4..][..cols * 4];
+            let b = &texels[y * 16..][..cols * 4];
+            for (p, q) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+                for k in 0..c {
+                    let d = i32::from(p[k]) - i32::from(q[k]);
+                    sse += (d * d) as u64;
+                }
+            }
+        }
+    }
+    sse
 }
 
 /// Decodes one level of side `s` stored in `format` (`bytes.len() == format.level_bytes(s)`) to `s×s`
@@ -357,9 +420,9 @@ pub fn encode_chain(
             out.bytes.extend_from_slice(level);
             continue;
         }
-        let enc = encode_level(format, level, s, channels == 4);
-        let dec = decode_level(format, &enc, s);
-        out.sse += sse_rgba8(level, &dec, channels);
+        let (padded, p) = pad_to_blocks(level, s);
+        let (enc, sse) = encode_padded(format, &padded, p, channels == 4, Some((s, s, channels)));
+        out.sse += sse;
         out.bytes.extend_from_slice(&enc);
     }
     Ok(out)

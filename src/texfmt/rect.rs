@@ -14,7 +14,7 @@
 //! block of a 2-texel-high level holds two whole periods and tiling stays a copy of whole blocks. Square
 //! images (`w == h`) take the square path unchanged, byte for byte.
 
-use super::{Encoded, TexFormat, TexFormatError, encode_band, encode_level, sse_rgba8};
+use super::{Encoded, TexFormat, TexFormatError, encode_level, encode_padded, pad_to_blocks};
 use rayon::prelude::*;
 
 /// Extents `(w, h)` of the mip levels of a `w × h` image: `(max(1, w >> l), max(1, h >> l))` for
@@ -77,13 +77,7 @@ pub fn encode_level_rect(format: TexFormat, rgba: &[u8], w: u32, h: u32, alpha: 
         return rgba.to_vec();
     }
     let (padded, pw, _) = pad_periodic(rgba, w, h);
-    let row_in = pw as usize * 4 * 4;
-    let row_out = (pw / 4 * format.bytes_per_block()) as usize;
-    let mut out = vec![0u8; row_out * (padded.len() / row_in)];
-    out.par_chunks_mut(row_out)
-        .zip(padded.par_chunks(row_in))
-        .for_each(|(dst, src)| encode_band(format, src, pw, alpha, dst));
-    out
+    encode_padded(format, &padded, pw, alpha, None).0
 }
 
 /// Decodes one `w × h` level stored in `format` (`bytes.len() == format.level_bytes_rect(w, h)`) to
@@ -153,9 +147,14 @@ pub fn encode_chain_rect(
             out.bytes.extend_from_slice(level);
             continue;
         }
-        let enc = encode_level_rect(format, level, a, b, channels == 4);
-        let dec = decode_level_rect(format, &enc, a, b);
-        out.sse += sse_rgba8(level, &dec, channels);
+        let (enc, sse) = if a == b {
+            let (padded, p) = pad_to_blocks(level, a);
+            encode_padded(format, &padded, p, channels == 4, Some((a, b, channels)))
+        } else {
+            let (padded, pw, _) = pad_periodic(level, a, b);
+            encode_padded(format, &padded, pw, channels == 4, Some((a, b, channels)))
+        };
+        out.sse += sse;
         out.bytes.extend_from_slice(&enc);
     }
     Ok(out)
@@ -311,5 +310,30 @@ mod tests {
         }
         // The compression error of a well-behaved gradient stays small.
         assert!(super::super::psnr(enc.sse, enc.samples) > 30.0);
+    }
+
+    #[test]
+    fn recorded_error_equals_an_independent_decode() {
+        for (w, h) in [(16, 4), (4, 32), (8, 2), (64, 16)] {
+            let mut chain = Vec::new();
+            for (a, b) in mip_extents(w, h) {
+                let mut level = gradient(a, b);
+                // Noise in alpha and a channel, so every format has an error to record.
+                for (i, p) in level.chunks_exact_mut(4).enumerate() {
+                    p[1] ^= (i as u8).wrapping_mul(37);
+                    p[3] = (i as u8).wrapping_mul(91);
+                }
+                chain.extend(level);
+            }
+            for f in [TexFormat::Bc1, TexFormat::Bc3, TexFormat::Bc7] {
+                for channels in [3, 4] {
+                    let enc = encode_chain_rect(f, &chain, w, h, channels).expect("encode");
+                    let dec = decode_chain_rect(f, &enc.bytes, w, h).expect("decode");
+                    let want = super::super::sse_rgba8(&chain, &dec, channels);
+                    assert!(want > 0, "{f:?} {w}×{h}: a lossless encode tests nothing");
+                    assert_eq!(enc.sse, want, "{f:?} {w}×{h} over {channels} channels");
+                }
+            }
+        }
     }
 }

@@ -1,6 +1,7 @@
 //! `cargo bench --bench image`: throughput of the image operations of the build
 //! (`preprocess::image_ops`) on 1024² images: `draw_rect` magnifying and minifying a 512² source (wrapped),
-//! one `halve`, a whole RGBA8 mip chain (`mip_chain_rgba8`, 11 levels, encode included) and `to_rgba8`.
+//! one `halve`, a whole RGBA8 mip chain (`mip_chain_rgba8`, 11 levels, encode included), `to_rgba8`
+//! (linear → sRGB8) and `from_decoded` (sRGB8 → linear, the first step after decoding every image).
 //! Criterion prints texels/s next to the time (per destination texel, or per source texel for `halve`).
 //! Their correctness is `tests/cpu/preprocess/image_ops.rs`.
 
@@ -14,7 +15,7 @@
 use atlastree::preprocess::image_ops::{
     LinearImage, MipChain, RectJob, draw_rect, halve, mip_chain_rgba8,
 };
-use atlastree::scene::Wrap;
+use atlastree::scene::{DecodedImage, Wrap};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 
@@ -69,6 +70,18 @@ fn levels(c: &mut Criterion) {
         b.iter(|| black_box(mip_chain_rgba8(&big).len()))
     });
     g.bench_function("to_rgba8", |b| b.iter(|| black_box(big.to_rgba8().len())));
+    let decoded = DecodedImage {
+        width: 1024,
+        height: 1024,
+        pixels: big
+            .to_rgba8()
+            .chunks_exact(4)
+            .map(|p| [p[0], p[1], p[2], p[3]])
+            .collect(),
+    };
+    g.bench_function("from_decoded", |b| {
+        b.iter(|| black_box(LinearImage::from_decoded(&decoded).unwrap().width))
+    });
     g.finish();
 }
 
