@@ -130,21 +130,19 @@ impl AxisTaps {
 }
 
 /// Weighted sum of `img` over the separable tap sets `xs × ys` (texels missing from `data` count as 0).
+///
+/// Every tap is added, zero weights included: weights and premultiplied texels are ≥ 0 and finite, so
+/// adding `0 · t` leaves the sum bit for bit as skipping it would, and the loop has no data-dependent
+/// branches.
 #[inline]
 pub(crate) fn apply_taps(img: &LinearImage, xs: &[(u32, f32)], ys: &[(u32, f32)]) -> [f32; 4] {
     let w = img.width as usize;
     let mut acc = [0.0f32; 4];
     for &(iy, wy) in ys {
-        if wy == 0.0 {
-            continue;
-        }
-        let row = iy as usize * w;
+        let row = img.data.get(iy as usize * w..).unwrap_or(&[]);
         for &(ix, wx) in xs {
             let wt = wx * wy;
-            if wt == 0.0 {
-                continue;
-            }
-            if let Some(t) = img.data.get(row + ix as usize) {
+            if let Some(t) = row.get(ix as usize) {
                 for c in 0..4 {
                     acc[c] += wt * t[c];
                 }

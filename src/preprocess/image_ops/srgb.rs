@@ -22,7 +22,7 @@ struct Tables {
     /// `thresholds[255]` = +∞ (nothing encodes above 255).
     thresholds: [f32; 256],
     /// `bucket_start[k]`: the code of the smallest f32 whose bits shifted by [`BUCKET_SHIFT`] are `k`.
-    bucket_start: Vec<u8>,
+    bucket_start: Box<[u8; BUCKETS]>,
 }
 
 static TABLES: LazyLock<Tables> = LazyLock::new(build_tables);
@@ -45,7 +45,7 @@ fn build_tables() -> Tables {
     for (i, t) in thresholds.iter_mut().take(255).enumerate() {
         *t = decode((i as f64 + 0.5) / 255.0) as f32;
     }
-    let mut bucket_start = vec![0u8; BUCKETS];
+    let mut bucket_start = Box::new([0u8; BUCKETS]);
     let mut code = 0usize;
     for (k, b) in bucket_start.iter_mut().enumerate() {
         let v = f32::from_bits((k as u32) << BUCKET_SHIFT);
@@ -103,14 +103,10 @@ impl Encoder {
 fn encode_with(t: &Tables, v: f32) -> u8 {
     // NaN and v ≤ 0 (−0.0 included) → 0.0; v ≥ 1 → 1.0, whose bucket starts at code 255.
     let v = if v > 0.0 { v.min(1.0) } else { 0.0 };
+    // Both indices are in range by construction (k ≤ BUCKETS − 1, a u8 code < 256): no bounds branches.
     let k = ((v.to_bits() >> BUCKET_SHIFT) as usize).min(BUCKETS - 1);
-    let code = t.bucket_start.get(k).copied().unwrap_or(255);
-    let next = t
-        .thresholds
-        .get(code as usize)
-        .copied()
-        .unwrap_or(f32::INFINITY);
-    code + u8::from(v >= next)
+    let code = t.bucket_start[k];
+    code + u8::from(v >= t.thresholds[usize::from(code)])
 }
 
 #[cfg(test)]
