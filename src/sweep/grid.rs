@@ -35,13 +35,13 @@ pub struct BuildKnobs {
     /// Border around each packed area, texels.
     pub border: u32,
     /// Atlas mip / inner-atlas down-sampling kernel.
-    #[serde(with = "filter_name")]
+    #[serde(with = "named")]
     pub filter: MipFilter,
     /// Block compression of atlases and original textures.
-    #[serde(default, with = "compress_name")]
+    #[serde(default, with = "named")]
     pub compress: Compression,
     /// Repeats wrapped in the shader (one period per rect) or baked into the atlas.
-    #[serde(default, with = "repeat_name")]
+    #[serde(default, with = "named")]
     pub repeat: RepeatMode,
 }
 
@@ -61,11 +61,11 @@ pub struct Base {
     pub d_min_ratio: f64,
     pub atlas_size: u32,
     pub border: u32,
-    #[serde(with = "filter_name")]
+    #[serde(with = "named")]
     pub filter: MipFilter,
-    #[serde(default, with = "compress_name")]
+    #[serde(default, with = "named")]
     pub compress: Compression,
-    #[serde(default, with = "repeat_name")]
+    #[serde(default, with = "named")]
     pub repeat: RepeatMode,
     pub texel_ratio: f64,
     #[serde(default)]
@@ -106,11 +106,11 @@ pub struct Grid {
     pub atlas_size: Vec<u32>,
     #[serde(default)]
     pub border: Vec<u32>,
-    #[serde(default, with = "filter_names")]
+    #[serde(default, with = "named_list")]
     pub filter: Vec<MipFilter>,
-    #[serde(default, with = "compress_names")]
+    #[serde(default, with = "named_list")]
     pub compress: Vec<Compression>,
-    #[serde(default, with = "repeat_names")]
+    #[serde(default, with = "named_list")]
     pub repeat: Vec<RepeatMode>,
     #[serde(default)]
     pub texel_ratio: Vec<f64>,
@@ -452,95 +452,57 @@ impl Grid {
     }
 }
 
-/// serde of a [`MipFilter`] as its lower-case name.
-mod filter_name {
-    use crate::preprocess::image_ops::MipFilter;
-    use serde::{Deserialize, Deserializer, Serializer};
+/// A knob value written in grids and reports by its lower-case name, read back with its `FromStr`.
+trait Named: std::str::FromStr<Err = String> {
+    fn name(&self) -> &'static str;
+}
 
-    pub(super) fn serialize<S: Serializer>(f: &MipFilter, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(f.name())
-    }
-    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<MipFilter, D::Error> {
-        let s = String::deserialize(d)?;
-        s.parse().map_err(serde::de::Error::custom)
+impl Named for crate::preprocess::image_ops::MipFilter {
+    fn name(&self) -> &'static str {
+        crate::preprocess::image_ops::MipFilter::name(*self)
     }
 }
 
-/// serde of a list of [`MipFilter`]s as lower-case names.
-mod filter_names {
-    use crate::preprocess::image_ops::MipFilter;
-    use serde::{Deserialize, Deserializer, Serializer};
-
-    pub(super) fn serialize<S: Serializer>(f: &[MipFilter], s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(f.iter().map(|f| f.name()))
-    }
-    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<MipFilter>, D::Error> {
-        let v = Vec::<String>::deserialize(d)?;
-        v.iter()
-            .map(|s| s.parse().map_err(serde::de::Error::custom))
-            .collect()
+impl Named for crate::preprocess::RepeatMode {
+    fn name(&self) -> &'static str {
+        self.label()
     }
 }
 
-/// serde of a [`RepeatMode`] as its lower-case name.
-mod repeat_name {
-    use crate::preprocess::RepeatMode;
-    use serde::{Deserialize, Deserializer, Serializer};
-
-    pub(super) fn serialize<S: Serializer>(r: &RepeatMode, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(r.label())
-    }
-    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<RepeatMode, D::Error> {
-        let s = String::deserialize(d)?;
-        s.parse().map_err(serde::de::Error::custom)
+impl Named for crate::texfmt::Compression {
+    fn name(&self) -> &'static str {
+        self.label()
     }
 }
 
-/// serde of a list of [`RepeatMode`]s as lower-case names.
-mod repeat_names {
-    use crate::preprocess::RepeatMode;
+/// serde of a [`Named`] value as its name (`#[serde(with = "named")]`).
+mod named {
+    use super::Named;
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub(super) fn serialize<S: Serializer>(r: &[RepeatMode], s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(r.iter().map(|r| r.label()))
+    pub(super) fn serialize<T: Named, S: Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(v.name())
     }
-    pub(super) fn deserialize<'de, D: Deserializer<'de>>(
+    pub(super) fn deserialize<'de, T: Named, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
+        String::deserialize(d)?
+            .parse()
+            .map_err(serde::de::Error::custom)
+    }
+}
+
+/// serde of a list of [`Named`] values as their names (`#[serde(with = "named_list")]`).
+mod named_list {
+    use super::Named;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub(super) fn serialize<T: Named, S: Serializer>(v: &[T], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(v.iter().map(|x| x.name()))
+    }
+    pub(super) fn deserialize<'de, T: Named, D: Deserializer<'de>>(
         d: D,
-    ) -> Result<Vec<RepeatMode>, D::Error> {
-        let v = Vec::<String>::deserialize(d)?;
-        v.iter()
-            .map(|s| s.parse().map_err(serde::de::Error::custom))
-            .collect()
-    }
-}
-
-/// serde of a [`Compression`] as its lower-case name.
-mod compress_name {
-    use crate::texfmt::Compression;
-    use serde::{Deserialize, Deserializer, Serializer};
-
-    pub(super) fn serialize<S: Serializer>(c: &Compression, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(c.label())
-    }
-    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Compression, D::Error> {
-        let s = String::deserialize(d)?;
-        s.parse().map_err(serde::de::Error::custom)
-    }
-}
-
-/// serde of a list of [`Compression`]s as lower-case names.
-mod compress_names {
-    use crate::texfmt::Compression;
-    use serde::{Deserialize, Deserializer, Serializer};
-
-    pub(super) fn serialize<S: Serializer>(c: &[Compression], s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(c.iter().map(|c| c.label()))
-    }
-    pub(super) fn deserialize<'de, D: Deserializer<'de>>(
-        d: D,
-    ) -> Result<Vec<Compression>, D::Error> {
-        let v = Vec::<String>::deserialize(d)?;
-        v.iter()
+    ) -> Result<Vec<T>, D::Error> {
+        Vec::<String>::deserialize(d)?
+            .iter()
             .map(|s| s.parse().map_err(serde::de::Error::custom))
             .collect()
     }
