@@ -259,6 +259,10 @@ pub struct BuildReport {
     #[serde(flatten)]
     pub stages: StageLog,
     pub images_decoded: u64,
+    /// Texels of the images decoded by the pixel pass, and texels of every stored chain (atlases and
+    /// originals, every level): the rasteriser's input and output (the summary's throughput line).
+    pub texels_decoded: u64,
+    pub texels_stored: u64,
     pub image_fallbacks: u64,
     /// Images used only by OPAQUE materials whose alpha channel (some texel below 255) was ignored, as
     /// glTF specifies: their colour is kept where alpha is 0.
@@ -754,6 +758,12 @@ pub(super) fn build_report(
             ));
         }
     }
+    let atlas_texels = crate::texfmt::TexFormat::Rgba8.chain_bytes(forest.params.atlas_size) / 4;
+    let texels_stored = trees
+        .iter()
+        .map(|r| r.originals.texels)
+        .sum::<u64>()
+        .saturating_add(atlas_blocks.saturating_mul(atlas_texels));
     BuildReport {
         params,
         scene_diagonal,
@@ -764,6 +774,8 @@ pub(super) fn build_report(
         file_bytes,
         stages: timings,
         images_decoded: cache.decodes.load(Ordering::Relaxed),
+        texels_decoded: cache.decoded_texels.load(Ordering::Relaxed),
+        texels_stored,
         image_fallbacks: cache.fallbacks.load(Ordering::Relaxed),
         images_alpha_ignored: cache.alpha_ignored.load(Ordering::Relaxed),
         memory: None,

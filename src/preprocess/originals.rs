@@ -171,6 +171,8 @@ pub struct OriginalsCost {
     pub references: u64,
     /// Bytes of the stored chains (every original-texture block of the tree).
     pub bytes: u64,
+    /// Texels of the stored chains (every level of each).
+    pub texels: u64,
     /// What the same chains took as square classes (`max(w, h)²`, format 4 and before).
     pub square_bytes: u64,
     /// Distinct source images behind them, and the bytes of each once at its own size in the tree's
@@ -193,6 +195,10 @@ pub fn originals_cost(tree: &AtlasTree, scene: &Scene) -> OriginalsCost {
     c.bytes = chains
         .values()
         .map(|&[w, h]| tree.format.chain_bytes_rect(w, h))
+        .sum();
+    c.texels = chains
+        .values()
+        .map(|&[w, h]| TexFormat::Rgba8.chain_bytes_rect(w, h) / 4)
         .sum();
     c.square_bytes = chains
         .values()

@@ -66,6 +66,8 @@ pub struct ImageCache<'a> {
     /// Images that failed to decode and were replaced by the visible fallback (counted, reported).
     pub fallbacks: AtomicU64,
     pub decodes: AtomicU64,
+    /// Texels of the images decoded (each decode counted, so re-decodes after eviction too).
+    pub decoded_texels: AtomicU64,
     pub warnings: Mutex<Vec<String>>,
     /// Encoded original textures (stored sides, full mip chain) shared by the leaves that use them.
     originals: Mutex<OriginalCache>,
@@ -112,6 +114,7 @@ impl<'a> ImageCache<'a> {
             state: Mutex::new(CacheState::default()),
             fallbacks: AtomicU64::new(0),
             decodes: AtomicU64::new(0),
+            decoded_texels: AtomicU64::new(0),
             warnings: Mutex::new(Vec::new()),
             originals: Mutex::new((HashMap::new(), 0)),
             original_hits: AtomicU64::new(0),
@@ -148,7 +151,11 @@ impl<'a> ImageCache<'a> {
                 .map_err(|e| e.to_string())
         });
         let (decoded, linear) = match linear {
-            Ok(x) => x,
+            Ok(x) => {
+                let texels = u64::from(x.0.width) * u64::from(x.0.height);
+                self.decoded_texels.fetch_add(texels, Ordering::Relaxed);
+                x
+            }
             Err(e) => {
                 self.fallbacks.fetch_add(1, Ordering::Relaxed);
                 let mut w = self.warnings.lock().unwrap_or_else(|e| e.into_inner());
