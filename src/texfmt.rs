@@ -261,7 +261,8 @@ pub fn sse_rgba8(a: &[u8], b: &[u8], channels: usize) -> u64 {
         .sum()
 }
 
-/// The `s×s` RGBA8 level `rgba` padded to `ceil4(s)²` by replicating its last column and row (borrowed when `s` is already a multiple of 4).
+/// The `s×s` RGBA8 level `rgba` padded to `ceil4(s)²` by replicating its last column and row (borrowed
+/// when `s` is already a multiple of 4).
 fn pad_to_blocks(rgba: &[u8], s: u32) -> (std::borrow::Cow<'_, [u8]>, u32) {
     let p = s.div_ceil(4) * 4;
     if p == s {

@@ -214,7 +214,7 @@ impl ImageCache<'_> {
         let [w, h] = key.1;
         let what = || format!("original texture {} at {w}×{h}", key.0.0);
         let img = self.get(key.0);
-        let rgba8 = if resample_is_identity(&img.decoded, w, h) {
+        let rgba8 = if resample_is_identity(&img, w, h) {
             img.stored_chain_rgba8()
         } else {
             // The cached chain is box-filtered, as resampling wants.
@@ -238,12 +238,17 @@ impl ImageCache<'_> {
     }
 }
 
-/// True where [`resample_rect`] of `img`'s chain to `w × h` returns level 0 unchanged: the same sides, each a
-/// power of two. Then every destination texel centre `(x + 0.5) / w` maps back onto source texel `x` with
+/// True where [`resample_rect`] of `img`'s chain to `w × h` returns level 0 unchanged: the decoded image
+/// and the chain's level 0 have those sides, each a power of two. Then every destination texel centre `(x + 0.5) / w` maps back onto source texel `x` with
 /// no rounding (division and multiplication by a power of two are exact in f64), so its one bilinear tap
 /// has weights exactly 1 and 0.
-fn resample_is_identity(img: &DecodedImage, w: u32, h: u32) -> bool {
-    img.width == w && img.height == h && w.is_power_of_two() && h.is_power_of_two()
+fn resample_is_identity(img: &CachedImage, w: u32, h: u32) -> bool {
+    let level0 = img.chain.levels.first();
+    img.decoded.width == w
+        && img.decoded.height == h
+        && level0.is_some_and(|l| l.width == w && l.height == h)
+        && w.is_power_of_two()
+        && h.is_power_of_two()
 }
 
 /// Where finished atlases go and what is counted of them: all that the atlases above a shard cut need
@@ -584,7 +589,7 @@ mod tests {
                 let decoded = image(w, h, alpha);
                 let chain = MipChain::build(LinearImage::from_decoded(&decoded).unwrap());
                 let img = CachedImage { decoded, chain };
-                assert!(resample_is_identity(&img.decoded, w, h));
+                assert!(resample_is_identity(&img, w, h));
                 let fast = img.stored_chain_rgba8();
                 for wrap in wraps {
                     let lin = resample_rect(&img.chain, w, h, wrap).unwrap();
@@ -598,9 +603,17 @@ mod tests {
                 }
             }
         }
-        // Not the identity: other sides, or sides that are not powers of two.
+        // Not the identity: other sides, sides that are not powers of two, a chain of other sides.
+        let cached = |decoded: DecodedImage, chain: LinearImage| CachedImage {
+            decoded,
+            chain: MipChain::build(chain),
+        };
         let d = image(6, 4, 0);
-        assert!(!resample_is_identity(&d, 6, 4));
-        assert!(!resample_is_identity(&d, 8, 4));
+        let c = cached(d.clone(), LinearImage::from_decoded(&d).unwrap());
+        assert!(!resample_is_identity(&c, 6, 4));
+        assert!(!resample_is_identity(&c, 8, 4));
+        let d = image(8, 4, 0);
+        let c = cached(d, LinearImage::new_filled(1, 1, [1.0; 4]));
+        assert!(!resample_is_identity(&c, 8, 4));
     }
 }
