@@ -92,6 +92,16 @@ pub struct RendererOptions {
 }
 
 impl RendererOptions {
+    /// `width × height` pixels with the defaults: no GPU timing, anisotropy [`RendererOptions::ANISOTROPY`].
+    pub fn sized(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            gpu_timing: false,
+            anisotropy: Self::ANISOTROPY,
+        }
+    }
+
     /// Anisotropy chosen for the device: 16 (the best every desktop GPU offers) on a hardware GPU, 1 on a
     /// software rasteriser. Atlas draws sample with explicit gradients (the UV is wrapped into its rect per
     /// fragment, so implicit derivatives would jump at every seam), and lavapipe's anisotropic path with

@@ -198,10 +198,8 @@ impl<'a> Running<'a> {
         let (w, h) = (size.width.max(1), size.height.max(1));
         let presenter = Presenter::new(ctx, surface, w, h, opts.vsync)?;
         let ropts = RendererOptions {
-            width: w,
-            height: h,
             gpu_timing: opts.gpu_timing,
-            anisotropy: crate::render::RendererOptions::ANISOTROPY,
+            ..RendererOptions::sized(w, h)
         };
         let frame_loop = match opts.capacity {
             None => FrameLoop::new(ctx, file, ropts)?,

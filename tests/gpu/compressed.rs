@@ -60,17 +60,7 @@ type Frames = (Vec<Vec<u8>>, u64, Vec<TexFormat>);
 
 /// The [`Frames`] of `file` along the dive.
 fn frames(ctx: &GpuContext, file: &TreeFile) -> Result<Frames, String> {
-    let mut r = FrameLoop::new(
-        ctx,
-        file,
-        RendererOptions {
-            width: W,
-            height: H,
-            gpu_timing: false,
-            anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
-        },
-    )
-    .map_err(e)?;
+    let mut r = FrameLoop::new(ctx, file, RendererOptions::sized(W, H)).map_err(e)?;
     let (lo, hi) = bounds(file)?;
     let path =
         atlastree::camera::CameraPath::overview_dive(lo, hi, file.to_params().up).map_err(e)?;

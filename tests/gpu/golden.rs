@@ -104,12 +104,7 @@ fn scale_for(file: &TreeFile, cam: &Camera, texel_ratio: f64) -> Result<f64, Str
 }
 
 fn renderer<'f>(ctx: &'f GpuContext, file: &'f TreeFile) -> Result<FrameLoop<'f>, String> {
-    let opts = RendererOptions {
-        width: W,
-        height: H,
-        gpu_timing: false,
-        anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
-    };
+    let opts = RendererOptions::sized(W, H);
     FrameLoop::new(ctx, file, opts).map_err(e)
 }
 

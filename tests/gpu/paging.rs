@@ -58,12 +58,7 @@ pub(crate) fn paged_with<'f>(
     FrameLoop::new_paged(
         ctx,
         file,
-        RendererOptions {
-            width: W,
-            height: H,
-            gpu_timing: false,
-            anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
-        },
+        RendererOptions::sized(W, H),
         PagingSetup {
             pager: PagerOptions {
                 capacity: k,

@@ -198,12 +198,7 @@ fn draws_without_a_gpu_layer_are_skipped_and_counted(ctx: &GpuContext) -> Result
     let path = city_deep()?;
     let file = TreeFile::open(&path).map_err(e)?;
     let blocks = file.blocks().len() as u32;
-    let opts = RendererOptions {
-        width: W,
-        height: H,
-        gpu_timing: false,
-        anisotropy: RendererOptions::ANISOTROPY,
-    };
+    let opts = RendererOptions::sized(W, H);
     let mut planned = paged(
         ctx,
         &file,

@@ -105,10 +105,8 @@ fn open<'f>(ctx: &'f GpuContext, file: &'f TreeFile) -> Result<FrameLoop<'f>, St
         ctx,
         file,
         RendererOptions {
-            width: W,
-            height: H,
-            gpu_timing: false,
             anisotropy: 1,
+            ..RendererOptions::sized(W, H)
         },
     )
     .map_err(e)

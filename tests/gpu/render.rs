@@ -149,10 +149,8 @@ pub(crate) fn renderer_with<'f>(
         ctx,
         file,
         RendererOptions {
-            width: W,
-            height: H,
-            gpu_timing: false,
             anisotropy,
+            ..RendererOptions::sized(W, H)
         },
     )
     .map_err(e)
@@ -438,10 +436,8 @@ fn anisotropy_reaches_the_samplers(ctx: &GpuContext) -> Result<(), String> {
             ctx,
             &file,
             RendererOptions {
-                width: W,
-                height: H,
-                gpu_timing: false,
                 anisotropy,
+                ..RendererOptions::sized(W, H)
             },
         )
         .map_err(e)

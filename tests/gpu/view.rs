@@ -84,17 +84,7 @@ fn renderer<'f>(
     w: u32,
     h: u32,
 ) -> Result<FrameLoop<'f>, String> {
-    FrameLoop::new(
-        ctx,
-        file,
-        RendererOptions {
-            width: w,
-            height: h,
-            gpu_timing: false,
-            anisotropy: atlastree::render::RendererOptions::ANISOTROPY,
-        },
-    )
-    .map_err(e)
+    FrameLoop::new(ctx, file, RendererOptions::sized(w, h)).map_err(e)
 }
 
 fn selection(r: &FrameLoop<'_>) -> Vec<Vec<(NodeId, Source)>> {
