@@ -223,8 +223,6 @@ mod tests {
             },
             class: 0,
             uv: [DVec2::from(uv0), DVec2::from(uv1), DVec2::from(uv0)],
-            lo: DVec3::ZERO,
-            hi: DVec3::ZERO,
         }
     }
 

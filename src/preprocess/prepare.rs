@@ -26,9 +26,19 @@ pub struct TriInfo {
     pub size: SizeEstimate,
     /// The UVs after the period shift (see [`period_shift`]).
     pub uv: [DVec2; 3],
-    /// World bounds of the triangle.
-    pub lo: DVec3,
-    pub hi: DVec3,
+}
+
+impl TriInfo {
+    /// World bounds of the triangle (computed from `pos`, not stored: 48 bytes a triangle less in the plan).
+    #[inline]
+    pub fn lo(&self) -> DVec3 {
+        self.pos[0].min(self.pos[1]).min(self.pos[2])
+    }
+
+    #[inline]
+    pub fn hi(&self) -> DVec3 {
+        self.pos[0].max(self.pos[1]).max(self.pos[2])
+    }
 }
 
 /// Density class of triangles without a density (constant UVs, world-degenerate).
@@ -121,8 +131,6 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInf
                     size,
                     class,
                     uv,
-                    lo: p[0].min(p[1]).min(p[2]),
-                    hi: p[0].max(p[1]).max(p[2]),
                 }
             })
         })

@@ -160,8 +160,8 @@ fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
     for &i in items {
         let t = &infos[i as usize];
-        lo = lo.min(t.lo);
-        hi = hi.max(t.hi);
+        lo = lo.min(t.lo());
+        hi = hi.max(t.hi());
     }
     if items.is_empty() {
         (DVec3::ZERO, DVec3::ZERO)

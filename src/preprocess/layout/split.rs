@@ -151,8 +151,6 @@ mod tests {
             },
             class: 0,
             uv: [DVec2::ZERO, DVec2::X, DVec2::Y],
-            lo: DVec3::ZERO,
-            hi: DVec3::ZERO,
         }
     }
 
