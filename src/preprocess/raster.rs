@@ -239,9 +239,9 @@ impl ImageCache<'_> {
 }
 
 /// True where [`resample_rect`] of `img`'s chain to `w × h` returns level 0 unchanged: the decoded image
-/// and the chain's level 0 have those sides, each a power of two. Then every destination texel centre `(x + 0.5) / w` maps back onto source texel `x` with
-/// no rounding (division and multiplication by a power of two are exact in f64), so its one bilinear tap
-/// has weights exactly 1 and 0.
+/// and the chain's level 0 have those sides, each a power of two. Then every destination texel centre
+/// `(x + 0.5) / w` maps back onto source texel `x` with no rounding (division and multiplication by a
+/// power of two are exact in f64), so its one bilinear tap has weights exactly 1 and 0.
 fn resample_is_identity(img: &CachedImage, w: u32, h: u32) -> bool {
     let level0 = img.chain.levels.first();
     img.decoded.width == w
