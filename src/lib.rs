@@ -65,6 +65,7 @@ pub mod export;
 pub mod gpu;
 pub mod ids;
 pub mod inspect;
+pub mod memory_window;
 pub mod model;
 pub mod paging;
 pub mod plan;

@@ -160,12 +160,23 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     file.commit()
 }
 
-/// Peak resident set size of this process in bytes (Linux `VmHWM`); `None` where unavailable.
-pub fn peak_rss_bytes() -> Option<u64> {
+/// A `kB` field of `/proc/self/status` in bytes; `None` where unavailable.
+fn status_bytes(key: &str) -> Option<u64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = s.lines().find(|l| l.starts_with(key))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
+}
+
+/// Peak resident set size of this process in bytes (Linux `VmHWM`); `None` where unavailable. Never reset
+/// by this crate, so `/usr/bin/time`, Slurm's `MaxRSS` and cgroup accounting see the true peak.
+pub fn peak_rss_bytes() -> Option<u64> {
+    status_bytes("VmHWM:")
+}
+
+/// Resident set size of this process now, bytes (Linux `VmRSS`); `None` where unavailable.
+pub fn rss_bytes() -> Option<u64> {
+    status_bytes("VmRSS:")
 }
 
 /// The machine's physical memory (Linux `MemTotal`), bytes; `None` where the platform does not tell.
@@ -174,12 +185,6 @@ pub fn machine_memory_bytes() -> Option<u64> {
     let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
-}
-
-/// Resets the peak resident set size ([`peak_rss_bytes`]) to the current one (Linux: `5` into
-/// `/proc/self/clear_refs`), so the next reading is the peak of what follows. False where unsupported.
-pub fn reset_peak_rss() -> bool {
-    std::fs::write("/proc/self/clear_refs", b"5").is_ok()
 }
 
 /// Shell-style match of a whole name against `pattern`: `*` any run of characters (also none), `?` one

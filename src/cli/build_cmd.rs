@@ -134,9 +134,9 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         }
     }
     let import_s = t.elapsed().as_secs_f64();
-    // The import's own peak; each stage of the build then reports its own (build summary).
+    // The import's own peak (the process's so far); each stage of the build then reports its own
+    // (build summary, `memory_window::MemoryWindow`).
     let import_peak = atlastree::util::peak_rss_bytes();
-    atlastree::util::reset_peak_rss();
     let bars = Bars::new(a.quiet || a.json);
     if let Some(spec) = shard_spec(a.shard.as_deref())? {
         return run_shard(&a, &scene, spec, (import_s, import_peak), &bars);

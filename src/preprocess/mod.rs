@@ -517,20 +517,23 @@ pub struct StageLog {
     pub stage_peak_rss: Vec<(String, u64)>,
     /// The largest of those peaks.
     pub peak_rss_bytes: Option<u64>,
+    /// The window of the stage under way.
+    #[serde(skip)]
+    window: crate::memory_window::MemoryWindow,
 }
 
 impl StageLog {
     /// Records stage `name` as begun at `start` and ended now, with the peak memory since the previous
-    /// stage ended (then resets the peak: [`crate::util::reset_peak_rss`]). `total` gets the largest peak.
+    /// stage ended ([`crate::memory_window::MemoryWindow`]; the process's own peak is never reset). `total` gets
+    /// the largest peak.
     pub(super) fn push(&mut self, name: &str, start: Instant) {
-        let now = crate::util::peak_rss_bytes();
+        let now = self.window.close();
         let peak = if name == "total" {
             self.peak_rss_bytes.max(now)
         } else {
             now
         };
         self.record(name, start.elapsed().as_secs_f64(), peak, false);
-        crate::util::reset_peak_rss();
     }
 
     /// Puts a stage that ran before the library's (the CLI's import) first.

@@ -107,11 +107,9 @@ pub struct BuildRow {
     pub stage_s: Vec<(String, f64)>,
     /// Wall time of the whole build, seconds.
     pub build_s: f64,
-    /// Peak resident memory of the process during the build, bytes (Linux `VmHWM`, reset before the
-    /// build when the kernel allows it: see `peak_rss_reset`).
+    /// Peak resident memory during the build, bytes: the largest of its stages' peaks
+    /// ([`crate::memory_window::MemoryWindow`]); `None` where the platform does not tell.
     pub peak_rss_bytes: Option<u64>,
-    /// The peak was reset before this build (else it is the process's peak so far).
-    pub peak_rss_reset: bool,
 }
 
 /// One variant on one frame.
@@ -287,7 +285,6 @@ fn build_one(
     base: &BuildOptions,
     out: &Path,
 ) -> Result<BuildRow, SweepError> {
-    let reset = crate::util::reset_peak_rss();
     let t = std::time::Instant::now();
     let r = build(scene, &build_options(knobs, base), out, &NoProgress).map_err(|source| {
         SweepError::Build {
@@ -311,7 +308,6 @@ fn build_one(
             .collect(),
         build_s,
         peak_rss_bytes: r.stages.peak_rss_bytes,
-        peak_rss_reset: reset,
     })
 }
 

@@ -492,7 +492,7 @@ fn builds_table(md: &mut String, builds: &[BuildRow]) {
             .collect();
         let _ = writeln!(
             md,
-            "| `{}` | {} | {} | {} | {} | {} | {:.2} | {} | {}{} |",
+            "| `{}` | {} | {} | {} | {} | {} | {:.2} | {} | {} |",
             b.knobs.id(),
             human_bytes(b.file_bytes),
             b.nodes,
@@ -502,7 +502,6 @@ fn builds_table(md: &mut String, builds: &[BuildRow]) {
             b.build_s,
             stages.join(", "),
             b.peak_rss_bytes.map_or("?".into(), human_bytes),
-            if b.peak_rss_reset { "" } else { " (process)" }
         );
     }
     let _ = writeln!(md);

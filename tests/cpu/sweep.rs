@@ -157,7 +157,6 @@ fn build_row(b: BuildKnobs, bytes: u64, secs: f64) -> BuildRow {
         stage_s: vec![("rasterise".into(), secs)],
         build_s: secs,
         peak_rss_bytes: Some(1),
-        peak_rss_reset: true,
     }
 }
 
