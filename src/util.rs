@@ -160,12 +160,26 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     file.commit()
 }
 
-/// A `kB` field of `/proc/self/status` in bytes; `None` where unavailable.
+/// The `kB` fields `keys` of a Linux `/proc` file (`status`, `meminfo`), in bytes, from one read; `None`
+/// where the file or a field is unavailable.
+fn proc_kb_fields<const N: usize>(path: &str, keys: [&str; N]) -> Option<[u64; N]> {
+    let s = std::fs::read_to_string(path).ok()?;
+    let mut out = [0u64; N];
+    for (o, key) in out.iter_mut().zip(keys) {
+        let line = s.lines().find(|l| l.starts_with(key))?;
+        let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        *o = kb * 1024;
+    }
+    Some(out)
+}
+
 fn status_bytes(key: &str) -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with(key))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    proc_kb_fields("/proc/self/status", [key]).map(|[v]| v)
+}
+
+/// This process's resident set size now and its peak (`VmRSS`, `VmHWM`), bytes, from one read.
+pub fn rss_and_peak_bytes() -> Option<[u64; 2]> {
+    proc_kb_fields("/proc/self/status", ["VmRSS:", "VmHWM:"])
 }
 
 /// Peak resident set size of this process in bytes (Linux `VmHWM`); `None` where unavailable. Never reset
@@ -181,10 +195,7 @@ pub fn rss_bytes() -> Option<u64> {
 
 /// The machine's physical memory (Linux `MemTotal`), bytes; `None` where the platform does not tell.
 pub fn machine_memory_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    proc_kb_fields("/proc/meminfo", ["MemTotal:"]).map(|[v]| v)
 }
 
 /// Shell-style match of a whole name against `pattern`: `*` any run of characters (also none), `?` one

@@ -6,11 +6,10 @@
 //! [`OriginalsCost`] / [`originals_cost`] measure the result against the sources (the analyzer twin; the
 //! file-side twin is `inspect::original_blocks_cost`).
 
-use crate::ids::BlockId;
 use crate::model::{AtlasTree, MAX_ORIGINAL_CLASS, MIN_ORIGINAL_CLASS};
 use crate::scene::Scene;
 use crate::texfmt::TexFormat;
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{BTreeMap, HashSet};
 
 /// Extra bytes a block may make its users load, over the bytes of the textures they draw from it, summed
 /// over the block's users (0.25: together they load at most a quarter more than they draw; one leaf of
@@ -183,27 +182,25 @@ pub struct OriginalsCost {
 
 /// [`OriginalsCost`] of `tree` built from `scene`.
 pub fn originals_cost(tree: &AtlasTree, scene: &Scene) -> OriginalsCost {
-    let mut chains: HashMap<(BlockId, u32), [u32; 2]> = HashMap::new();
     let mut images = HashSet::new();
     let mut c = OriginalsCost::default();
     for o in tree.leaves.iter().flat_map(|l| &l.originals) {
         c.references += 1;
-        chains.insert((o.block, o.slot), o.extent);
         images.insert(o.image);
     }
+    // Every stored chain once.
+    let chains = crate::model::original_slots(
+        tree.leaves
+            .iter()
+            .flat_map(|l| l.originals.iter().map(|o| (o.block.0, o.slot, o.extent))),
+        tree.format,
+    );
     c.stored = chains.len() as u64;
-    c.bytes = chains
-        .values()
-        .map(|&[w, h]| tree.format.chain_bytes_rect(w, h))
-        .sum();
-    c.texels = chains
-        .values()
-        .map(|&[w, h]| TexFormat::Rgba8.chain_bytes_rect(w, h) / 4)
-        .sum();
-    c.square_bytes = chains
-        .values()
-        .map(|&[w, h]| tree.format.chain_bytes(w.max(h)))
-        .sum();
+    for &(_, _, [w, h], _) in &chains {
+        c.bytes += tree.format.chain_bytes_rect(w, h);
+        c.texels += TexFormat::Rgba8.chain_bytes_rect(w, h) / 4;
+        c.square_bytes += tree.format.chain_bytes(w.max(h));
+    }
     c.images = images.len() as u64;
     c.source_bytes = images
         .iter()

@@ -68,8 +68,6 @@ pub struct ImageCache<'a> {
     cap_bytes: u64,
     chains: Mutex<Lru<Arc<CachedImage>>>,
     sources: Mutex<Lru<Arc<DecodedImage>>>,
-    /// Chains built from a source still in the cache (no decode).
-    pub rebuilds: AtomicU64,
     /// Images that failed to decode and were replaced by the visible fallback (counted, reported).
     pub fallbacks: AtomicU64,
     pub decodes: AtomicU64,
@@ -168,7 +166,6 @@ impl<'a> ImageCache<'a> {
             cap_bytes,
             chains: Mutex::new(Lru::new(cap_bytes / 4 * 3)),
             sources: Mutex::new(Lru::new(cap_bytes / 4)),
-            rebuilds: AtomicU64::new(0),
             fallbacks: AtomicU64::new(0),
             decodes: AtomicU64::new(0),
             decoded_texels: AtomicU64::new(0),
@@ -187,17 +184,11 @@ impl<'a> ImageCache<'a> {
             return e;
         }
         let cached_source = lock(&self.sources).get(id);
-        let decoded = match cached_source {
-            Some(d) => {
-                self.rebuilds.fetch_add(1, Ordering::Relaxed);
-                d
-            }
-            None => {
-                let d = Arc::new(self.decode(id));
-                lock(&self.sources).insert(id, d.clone(), d.pixels.len() as u64 * 4);
-                d
-            }
-        };
+        let decoded = cached_source.unwrap_or_else(|| {
+            let d = Arc::new(self.decode(id));
+            lock(&self.sources).insert(id, d.clone(), d.pixels.len() as u64 * 4);
+            d
+        });
         // `decode` checked the pixel count, the only way `from_decoded` fails.
         let linear = LinearImage::from_decoded(&decoded)
             .unwrap_or_else(|_| LinearImage::new_filled(1, 1, [1.0, 0.0, 1.0, 1.0]));
@@ -252,13 +243,7 @@ impl ImageCache<'_> {
     /// then shared (bounded by a quarter of the cache budget; beyond it the map is cleared, which costs
     /// only recomputation).
     pub fn original(&self, key: OriginalKey) -> Result<Arc<Encoded>, BuildError> {
-        if let Some(b) = self
-            .originals
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .0
-            .get(&key)
-        {
+        if let Some(b) = lock(&self.originals).0.get(&key) {
             self.original_hits.fetch_add(1, Ordering::Relaxed);
             return Ok(b.clone());
         }
@@ -278,7 +263,7 @@ impl ImageCache<'_> {
                 source,
             })?;
         let bytes = Arc::new(enc);
-        let mut st = self.originals.lock().unwrap_or_else(|e| e.into_inner());
+        let mut st = lock(&self.originals);
         if st.1 + bytes.bytes.len() as u64 > self.cap_bytes / 4 {
             st.0.clear();
             st.1 = 0;

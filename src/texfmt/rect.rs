@@ -16,6 +16,7 @@
 
 use super::{Encoded, TexFormat, TexFormatError, encode_level, encode_padded, pad_to_blocks};
 use rayon::prelude::*;
+use std::borrow::Cow;
 
 /// Extents `(w, h)` of the mip levels of a `w × h` image: `(max(1, w >> l), max(1, h >> l))` for
 /// `l = 0 ..= log2(max(w, h))`.
@@ -54,8 +55,9 @@ fn chain_err(format: TexFormat, w: u32, h: u32, expected: u64, got: usize) -> Te
     }
 }
 
-/// The `w × h` RGBA8 level padded to whole 4×4 blocks periodically (texel `(x mod w, y mod h)`).
-fn pad_periodic(rgba: &[u8], w: u32, h: u32) -> (Vec<u8>, u32, u32) {
+/// The `w × h` RGBA8 level padded to whole 4×4 blocks periodically (texel `(x mod w, y mod h)`), and the
+/// padded width.
+fn pad_periodic(rgba: &[u8], w: u32, h: u32) -> (Vec<u8>, u32) {
     let (pw, ph) = (w.div_ceil(4) * 4, h.div_ceil(4) * 4);
     let (w, h, pwu) = (w as usize, h as usize, pw as usize);
     let mut out = vec![0u8; pwu * ph as usize * 4];
@@ -64,7 +66,19 @@ fn pad_periodic(rgba: &[u8], w: u32, h: u32) -> (Vec<u8>, u32, u32) {
             t.copy_from_slice(&rgba[((y % h) * w + x % w) * 4..][..4]);
         }
     }
-    (out, pw, ph)
+    (out, pw)
+}
+
+/// A level of a `w × h` chain padded to whole 4×4 blocks as the chain stores it: square levels by edge
+/// replication ([`pad_to_blocks`], borrowed when already whole), the others periodically; and the padded
+/// width.
+fn pad_level(rgba: &[u8], w: u32, h: u32) -> (Cow<'_, [u8]>, u32) {
+    if w == h {
+        pad_to_blocks(rgba, w)
+    } else {
+        let (padded, pw) = pad_periodic(rgba, w, h);
+        (Cow::Owned(padded), pw)
+    }
 }
 
 /// Encodes one `w × h` RGBA8 level (`rgba.len() == w·h·4`) into `format`, padding a side under 4
@@ -76,7 +90,7 @@ pub fn encode_level_rect(format: TexFormat, rgba: &[u8], w: u32, h: u32, alpha: 
     if format == TexFormat::Rgba8 {
         return rgba.to_vec();
     }
-    let (padded, pw, _) = pad_periodic(rgba, w, h);
+    let (padded, pw) = pad_level(rgba, w, h);
     encode_padded(format, &padded, pw, alpha, None).0
 }
 
@@ -147,13 +161,8 @@ pub fn encode_chain_rect(
             out.bytes.extend_from_slice(level);
             continue;
         }
-        let (enc, sse) = if a == b {
-            let (padded, p) = pad_to_blocks(level, a);
-            encode_padded(format, &padded, p, channels == 4, Some((a, b, channels)))
-        } else {
-            let (padded, pw, _) = pad_periodic(level, a, b);
-            encode_padded(format, &padded, pw, channels == 4, Some((a, b, channels)))
-        };
+        let (padded, pw) = pad_level(level, a, b);
+        let (enc, sse) = encode_padded(format, &padded, pw, channels == 4, Some((a, b, channels)));
         out.sse += sse;
         out.bytes.extend_from_slice(&enc);
     }
