@@ -10,6 +10,7 @@
 //! 4. [`raster`]: the pixel pass ([`image_ops`]), streamed into [`crate::store::FileWriter`] at offsets fixed
 //!    in stage 3, then the file is finished atomically.
 
+pub mod alpha_coverage;
 pub mod area;
 pub mod assemble;
 pub mod cover;
@@ -105,6 +106,10 @@ pub struct BuildOptions {
     /// of its children's level 1, §5.1). Original-texture blocks and the source images sampled into leaf
     /// atlases keep the box filter, so `--mode original` stays the same reference for every build.
     pub mip_filter: image_ops::MipFilter,
+    /// Alpha through the mips of the alpha tree's MASK areas, atlases and original textures alike: filtered
+    /// like colour (plain, the default) or rescaled per level to keep level 0's α-test coverage
+    /// ([`image_ops::AlphaMips`]; the original textures then differ from plain builds too).
+    pub alpha_mips: image_ops::AlphaMips,
     /// Block compression of atlases and original textures (every mip level), per tree kind.
     pub compress: crate::texfmt::Compression,
     /// Repeats wrapped in the shader (one period per rect) or baked into the atlas.
@@ -116,6 +121,16 @@ pub struct BuildOptions {
     pub leaf_originals_atlases: f64,
     /// What the split of §5.3 balances (texel demand; world area as the paper).
     pub split: layout::SplitRule,
+}
+
+impl BuildOptions {
+    /// The pixel options of this build that the paging file's tables do not hold.
+    pub fn pixel_options(&self) -> raster::PixelOptions {
+        raster::PixelOptions {
+            mip_filter: self.mip_filter,
+            alpha_mips: self.alpha_mips,
+        }
+    }
 }
 
 impl Default for BuildOptions {
@@ -134,6 +149,7 @@ impl Default for BuildOptions {
             max_pieces: 4096,
             max_file_bytes: 64 << 30,
             mip_filter: image_ops::MipFilter::Box,
+            alpha_mips: image_ops::AlphaMips::Plain,
             compress: crate::texfmt::Compression::None,
             repeat: RepeatMode::Wrap,
             leaf_originals_atlases: 16.0,
@@ -399,7 +415,7 @@ pub fn build(
     let units = cut.shards.first().map_or(&[][..], Vec::as_slice);
     let handoffs = pixel_pass(
         scene,
-        opts.mip_filter,
+        opts.pixel_options(),
         &forest,
         units,
         &writer,
@@ -408,7 +424,7 @@ pub fn build(
         progress,
     )?;
     let none = |_| {};
-    let above = raster::AtlasOut::new(forest.params.atlas_size, opts.mip_filter, &writer, &none);
+    let above = raster::AtlasOut::new(&forest, opts.pixel_options(), &writer, &none);
     shard::raster_forest_above(&above, &forest, handoffs)?;
     timings.push("rasterise", t);
 
@@ -697,7 +713,7 @@ fn check_file_size(
 #[allow(clippy::too_many_arguments)]
 pub(super) fn pixel_pass(
     scene: &Scene,
-    mip_filter: image_ops::MipFilter,
+    pixels: raster::PixelOptions,
     forest: &AtlasForest,
     units: &[shard::Unit],
     sink: &dyn crate::store::BlockSink,
@@ -715,7 +731,7 @@ pub(super) fn pixel_pass(
     let ctx = raster::RasterCtx {
         scene,
         cache,
-        out: raster::AtlasOut::new(forest.params.atlas_size, mip_filter, sink, &set),
+        out: raster::AtlasOut::new(forest, pixels, sink, &set),
     };
     let mut handoffs = std::collections::HashMap::new();
     for (t, (tree, report)) in forest.trees.iter().zip(reports).enumerate() {

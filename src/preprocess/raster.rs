@@ -8,8 +8,8 @@
 use super::BuildError;
 use super::image_ops::ImageOpsError;
 use super::image_ops::{
-    LinearImage, MipChain, MipFilter, MipOptions, RectJob, combine_quadrants, draw_rect,
-    mip_chain_rgba8, neutral_fill, resample_rect,
+    AlphaMips, CoverageRegion, LinearImage, MipChain, MipFilter, MipOptions, RectJob,
+    combine_quadrants, draw_rect, mip_chain_rgba8, neutral_fill, preserve_coverage, resample_rect,
 };
 use crate::ids::{ImageId, NodeId};
 use crate::model::{AtlasTree, Leaf, TreeKind};
@@ -86,8 +86,16 @@ pub struct ImageCache<'a> {
 }
 
 /// An original texture as stored: image, stored `[width, height]`, wrap modes (resampling depends on
-/// them), storage format and compared channels (the encoding depends on them).
-pub type OriginalKey = (ImageId, [u32; 2], [crate::scene::Wrap; 2], TexFormat, usize);
+/// them), storage format and compared channels (the encoding depends on them), and the bits of the MASK
+/// cutoff whose coverage its mips keep ([`AlphaMips::Coverage`]; `None`: plain mips).
+pub type OriginalKey = (
+    ImageId,
+    [u32; 2],
+    [crate::scene::Wrap; 2],
+    TexFormat,
+    usize,
+    Option<u32>,
+);
 /// Per image of `scene`: used by at least one material and by OPAQUE materials only.
 fn opaque_only_images(scene: &Scene) -> Vec<bool> {
     let mut used = vec![false; scene.images.len()];
@@ -250,12 +258,25 @@ impl ImageCache<'_> {
         let [w, h] = key.1;
         let what = || format!("original texture {} at {w}×{h}", key.0.0);
         let img = self.get(key.0);
-        let rgba8 = if resample_is_identity(&img, w, h) {
-            img.stored_chain_rgba8()
-        } else {
-            // The cached chain is box-filtered, as resampling wants.
-            let lin = resample_rect(&img.chain, w, h, key.2).map_err(|e| image_err(what(), e))?;
-            mip_chain_rgba8(&lin)
+        let identity = resample_is_identity(&img, w, h);
+        // The cached chain is box-filtered, as resampling wants; so is the stored chain.
+        let resampled = || resample_rect(&img.chain, w, h, key.2).map_err(|e| image_err(what(), e));
+        let rgba8 = match key.5 {
+            None if identity => img.stored_chain_rgba8(),
+            None => mip_chain_rgba8(&resampled()?),
+            Some(bits) => {
+                let mut levels = if identity {
+                    img.chain.levels.clone()
+                } else {
+                    MipChain::build(resampled()?).levels
+                };
+                let region = CoverageRegion {
+                    rect: [0.0, 0.0, f64::from(w), f64::from(h)],
+                    cutoff: f32::from_bits(bits),
+                };
+                preserve_coverage(&mut levels, &[region]);
+                MipChain { levels }.to_rgba8()
+            }
         };
         let enc =
             encode_chain_rect(key.3, &rgba8, w, h, key.4).map_err(|source| BuildError::Encode {
@@ -287,6 +308,32 @@ fn resample_is_identity(img: &CachedImage, w: u32, h: u32) -> bool {
         && h.is_power_of_two()
 }
 
+/// The pixel options the paging file's tables do not hold: the atlas mip kernel and how alpha is carried
+/// through the mips. Shard headers carry them as one code ([`PixelOptions::code`]).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub struct PixelOptions {
+    pub mip_filter: MipFilter,
+    pub alpha_mips: AlphaMips,
+}
+
+impl PixelOptions {
+    /// `filter index + 256 · alpha-mips index` (indices into [`MipFilter::ALL`], [`AlphaMips::ALL`]), so
+    /// the plain options keep the codes shard files had before the alpha knob.
+    pub fn code(self) -> u32 {
+        let index = |found: Option<usize>| found.unwrap_or(0) as u32;
+        index(MipFilter::ALL.iter().position(|&f| f == self.mip_filter))
+            + 256 * index(AlphaMips::ALL.iter().position(|&m| m == self.alpha_mips))
+    }
+
+    /// The options of a shard header's code, if known.
+    pub fn from_code(code: u32) -> Option<PixelOptions> {
+        Some(PixelOptions {
+            mip_filter: *MipFilter::ALL.get((code % 256) as usize)?,
+            alpha_mips: *AlphaMips::ALL.get((code / 256) as usize)?,
+        })
+    }
+}
+
 /// Where finished atlases go and what is counted of them: all that the atlases above a shard cut need
 /// (the merge has no scene).
 pub struct AtlasOut<'a> {
@@ -299,6 +346,9 @@ pub struct AtlasOut<'a> {
     pub done: AtomicU64,
     /// Kernel of the atlas mip chains (the level 1 handed to the parent included).
     pub mip_filter: MipFilter,
+    /// Per material, the MASK cutoff whose coverage atlas and original mips keep (empty: plain mips;
+    /// [`super::alpha_coverage::mask_cutoffs`]).
+    pub mask_cutoffs: Vec<Option<f32>>,
     /// Compression error of the atlases finished so far: sum of squared errors and compared values
     /// ([`crate::texfmt::Encoded`]); the caller reads and resets them per tree.
     pub atlas_sse: AtomicU64,
@@ -306,18 +356,20 @@ pub struct AtlasOut<'a> {
 }
 
 impl<'a> AtlasOut<'a> {
+    /// The atlases of `forest` (its atlas side and materials) with `pixels` into `sink`.
     pub fn new(
-        atlas_size: u32,
-        mip_filter: MipFilter,
+        forest: &crate::model::AtlasForest,
+        pixels: PixelOptions,
         sink: &'a dyn BlockSink,
         progress: &'a (dyn Fn(u64) + Sync),
     ) -> Self {
         AtlasOut {
-            atlas_size,
+            atlas_size: forest.params.atlas_size,
             sink,
             progress,
             done: AtomicU64::new(0),
-            mip_filter,
+            mip_filter: pixels.mip_filter,
+            mask_cutoffs: super::alpha_coverage::mask_cutoffs(pixels.alpha_mips, &forest.materials),
             atlas_sse: AtomicU64::new(0),
             atlas_samples: AtomicU64::new(0),
         }
@@ -505,14 +557,17 @@ fn finish_atlas(
     atlas: LinearImage,
 ) -> Result<LinearImage, BuildError> {
     let node = &tree.nodes[id.idx()];
-    // One mip chain serves both the stored block and the parent, which needs exactly level 1.
-    let chain = MipChain::build_with(
+    // One mip chain serves both the stored block and the parent, which needs exactly level 1 (with
+    // coverage kept, the rescaled level 1: the parent's level 0 then has the leaves' coverage).
+    let mut chain = MipChain::build_with(
         atlas,
         &MipOptions {
             filter: out.mip_filter,
             ..MipOptions::default()
         },
     );
+    let regions = super::alpha_coverage::node_regions(tree, id, out.atlas_size, &out.mask_cutoffs);
+    preserve_coverage(&mut chain.levels, &regions);
     let enc = encode_chain(
         tree.format,
         &chain.to_rgba8(),
@@ -577,9 +632,23 @@ fn write_originals(
         let (mut buf, mut sse) = (Vec::new(), 0u64);
         for o in slots {
             let mat = &ctx.scene.materials[o.material.idx()];
-            let enc = ctx
-                .cache
-                .original((o.image, o.extent, mat.wrap, tree.format, channels))?;
+            let cutoff = match tree.kind {
+                TreeKind::Alpha => ctx
+                    .out
+                    .mask_cutoffs
+                    .get(o.material.idx())
+                    .copied()
+                    .flatten(),
+                TreeKind::Opaque => None,
+            };
+            let enc = ctx.cache.original((
+                o.image,
+                o.extent,
+                mat.wrap,
+                tree.format,
+                channels,
+                cutoff.map(f32::to_bits),
+            ))?;
             buf.extend_from_slice(&enc.bytes);
             sse += enc.sse;
         }

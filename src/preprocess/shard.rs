@@ -289,34 +289,24 @@ pub fn handoff_side(atlas_size: u32) -> u32 {
     (atlas_size / 2).max(1)
 }
 
-/// The code of a mip filter in a shard header (its index in [`super::image_ops::MipFilter::ALL`]).
-pub fn mip_filter_code(f: super::image_ops::MipFilter) -> u32 {
-    super::image_ops::MipFilter::ALL
-        .iter()
-        .position(|&x| x == f)
-        .unwrap_or(0) as u32
-}
-
-/// The mip filter of a shard header's code, if known.
-pub fn mip_filter_of(code: u32) -> Option<super::image_ops::MipFilter> {
-    super::image_ops::MipFilter::ALL.get(code as usize).copied()
-}
-
 /// The fingerprint of scene and flags every shard of one build shares: the table prefix (geometry,
 /// materials, parameters, tree structure, block sizes and formats) by its hash, the pixel options the
-/// tables do not hold (mip filter), and each image's identity (name, size, colour type, and the byte
+/// tables do not hold (mip filter, alpha mips), and each image's identity (name, size, colour type, and the byte
 /// length of an external file or the hash of embedded bytes — a cheap check, not a content hash of files).
 pub fn fingerprint(
     prefix_hash: [u64; 2],
-    mip_filter: super::image_ops::MipFilter,
+    pixels: super::raster::PixelOptions,
     scene: &Scene,
 ) -> [u64; 2] {
     let mut s = format!(
         "atlastree shard v1|{:016x}{:016x}|{}|",
         prefix_hash[0],
         prefix_hash[1],
-        mip_filter.name()
+        pixels.mip_filter.name()
     );
+    if pixels.alpha_mips != super::image_ops::AlphaMips::Plain {
+        s.push_str(&format!("alpha {}|", pixels.alpha_mips.name()));
+    }
     for img in &scene.images {
         let data = match &img.data {
             ImageData::File(p) => format!(

@@ -2,8 +2,7 @@
 //! are in [`super::shard`]; the shard file in [`crate::store::shard`].
 
 use super::shard::{
-    self, Cut, ShardSpec, Unit, choose_cut, fingerprint, handoff_side, mip_filter_code,
-    mip_filter_of, shard_blocks, shard_path,
+    self, Cut, ShardSpec, Unit, choose_cut, fingerprint, handoff_side, shard_blocks, shard_path,
 };
 use super::{BuildError, BuildOptions, CacheBound, Progress, raster};
 use crate::ids::BlockId;
@@ -76,8 +75,8 @@ pub fn build_shard(
     let layout = ShardLayout {
         shard: spec.index,
         count: spec.count,
-        mip_filter: mip_filter_code(opts.mip_filter),
-        fingerprint: fingerprint(prefix_hash, opts.mip_filter, scene),
+        pixel_options: opts.pixel_options().code(),
+        fingerprint: fingerprint(prefix_hash, opts.pixel_options(), scene),
         prefix_hash,
         argv: serde_json::to_vec(&sharded.argv).unwrap_or_else(|_| b"[]".to_vec()),
         prefix: if spec.index == 0 { prefix } else { Vec::new() },
@@ -93,7 +92,7 @@ pub fn build_shard(
     let cache = raster::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
     let handoffs = super::pixel_pass(
         scene,
-        opts.mip_filter,
+        opts.pixel_options(),
         &forest,
         &units,
         &writer,
@@ -312,10 +311,13 @@ pub fn merge(
     let forest = tables.to_skeleton();
     let cut = choose_cut(&forest, set.count);
     set.check_cut(&forest, &cut)?;
-    let mip_filter = mip_filter_of(first.header.mip_filter).ok_or_else(|| {
+    let pixels = raster::PixelOptions::from_code(first.header.pixel_options).ok_or_else(|| {
         set.foreign(
             0,
-            format!("unknown mip filter code {}", first.header.mip_filter),
+            format!(
+                "unknown pixel options code {} (mip filter, alpha mips)",
+                first.header.pixel_options
+            ),
         )
     })?;
 
@@ -337,7 +339,7 @@ pub fn merge(
         - below;
     progress.stage("merge: atlases above the cut", Some(above));
     let done = |n: u64| progress.set(n);
-    let atlas_out = raster::AtlasOut::new(forest.params.atlas_size, mip_filter, &writer, &done);
+    let atlas_out = raster::AtlasOut::new(&forest, pixels, &writer, &done);
     shard::raster_forest_above(&atlas_out, &forest, handoffs).map_err(|source| {
         MergeError::Build {
             out: out.to_path_buf(),
@@ -466,7 +468,7 @@ impl ShardSet {
         }
     }
 
-    /// Every shard says it is its slot of `count`, with shard 0's fingerprint, prefix and mip filter.
+    /// Every shard says it is its slot of `count`, with shard 0's fingerprint, prefix and pixel options.
     fn check_headers(&self) -> Result<(), MergeError> {
         let first = &self.shards[0].header;
         for (i, f) in self.shards.iter().enumerate() {
@@ -477,7 +479,7 @@ impl ShardSet {
             }
             if h.fingerprint != first.fingerprint
                 || h.prefix_hash != first.prefix_hash
-                || h.mip_filter != first.mip_filter
+                || h.pixel_options != first.pixel_options
             {
                 let why = "its fingerprint (scene and flags) differs from shard 0's".to_string();
                 return Err(self.foreign(i, why));

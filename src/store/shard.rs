@@ -41,9 +41,9 @@ pub struct ShardHeader {
     pub shard: u32,
     /// Number of shards of the build.
     pub count: u32,
-    /// Kernel of the atlas mip chains (`preprocess::shard::mip_filter_code`): the merge makes the atlases
-    /// above the cut with it.
-    pub mip_filter: u32,
+    /// The pixel options (atlas mip kernel, alpha mips: `preprocess::raster::PixelOptions::code`): the
+    /// merge makes the atlases above the cut with them.
+    pub pixel_options: u32,
     /// `xxh3_128` of scene and flags ([`crate::preprocess::shard`]): equal in every shard of one build.
     pub fingerprint: [u64; 2],
     /// `xxh3_128` of the table prefix (which only shard 0 holds).
@@ -108,7 +108,7 @@ pub struct HandoffEntry {
 pub struct ShardLayout {
     pub shard: u32,
     pub count: u32,
-    pub mip_filter: u32,
+    pub pixel_options: u32,
     pub fingerprint: [u64; 2],
     pub prefix_hash: [u64; 2],
     /// The command line that builds this shard (JSON array), for the merge's "rebuild with".
@@ -187,7 +187,7 @@ impl ShardWriter {
             version: SHARD_VERSION,
             shard: layout.shard,
             count: layout.count,
-            mip_filter: layout.mip_filter,
+            pixel_options: layout.pixel_options,
             fingerprint: layout.fingerprint,
             prefix_hash: layout.prefix_hash,
             argv_len,

@@ -12,10 +12,12 @@
 //!   accuracy-vs-ratio curve); capacities run on the base build only.
 //!
 //! - Block compression (`none`, `bc1`, `bc7`) is a build knob like the others; ids carry it only when it is
-//!   not `none`, so uncompressed ids stay as they were.
+//!   not `none`, so uncompressed ids stay as they were. So are repeats (`wrap`, `bake`) and alpha mips
+//!   (`plain`, `coverage`: α-test coverage kept through the mips of MASK textures), named in ids only
+//!   when not the default.
 
 use super::SweepError;
-use crate::preprocess::image_ops::MipFilter;
+use crate::preprocess::image_ops::{AlphaMips, MipFilter};
 use crate::preprocess::{BuildOptions, DMin, RepeatMode};
 use crate::texfmt::Compression;
 use serde::{Deserialize, Serialize};
@@ -43,6 +45,9 @@ pub struct BuildKnobs {
     /// Repeats wrapped in the shader (one period per rect) or baked into the atlas.
     #[serde(default, with = "named")]
     pub repeat: RepeatMode,
+    /// Alpha of MASK textures through the mips: plain, or rescaled to keep level 0's coverage.
+    #[serde(default, with = "named")]
+    pub alpha_mips: AlphaMips,
 }
 
 /// Values of the runtime knobs of one variant.
@@ -67,6 +72,8 @@ pub struct Base {
     pub compress: Compression,
     #[serde(default, with = "named")]
     pub repeat: RepeatMode,
+    #[serde(default, with = "named")]
+    pub alpha_mips: AlphaMips,
     pub texel_ratio: f64,
     #[serde(default)]
     pub capacity: Option<u32>,
@@ -81,6 +88,7 @@ impl Base {
             filter: self.filter,
             compress: self.compress,
             repeat: self.repeat,
+            alpha_mips: self.alpha_mips,
         }
     }
     pub fn runtime(&self) -> RuntimeKnobs {
@@ -112,6 +120,8 @@ pub struct Grid {
     pub compress: Vec<Compression>,
     #[serde(default, with = "named_list")]
     pub repeat: Vec<RepeatMode>,
+    #[serde(default, with = "named_list")]
+    pub alpha_mips: Vec<AlphaMips>,
     #[serde(default)]
     pub texel_ratio: Vec<f64>,
     #[serde(default)]
@@ -178,8 +188,12 @@ impl BuildKnobs {
             RepeatMode::Wrap => String::new(),
             r => format!("_{}", r.label()),
         };
+        let alpha = match self.alpha_mips {
+            AlphaMips::Plain => String::new(),
+            m => format!("_alpha-{}", m.name()),
+        };
         format!(
-            "r{}_a{}_b{}_{}{compress}{repeat}",
+            "r{}_a{}_b{}_{}{compress}{repeat}{alpha}",
             self.d_min_ratio,
             self.atlas_size,
             self.border,
@@ -194,6 +208,7 @@ impl BuildKnobs {
             atlas_size: self.atlas_size,
             border: self.border,
             mip_filter: self.filter,
+            alpha_mips: self.alpha_mips,
             compress: self.compress,
             repeat: self.repeat,
             ..BuildOptions::default()
@@ -219,8 +234,9 @@ pub(super) fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
 impl Grid {
     /// Both around the build defaults (border 16, repeats wrapped). `small`: data/city in CI time (d_min =
     /// diagonal / 15; 4 builds: atlas 512/1024, box/Kaiser, repeats baked; 4 texel ratios, one capacity, 6
-    /// frames of 320×240). `full`: 11 builds (d_min ratio 10/30/60, atlas 512/1024/2048, border 2/8/16 (the
-    /// paper's 8), box/Kaiser, compression none/bc1/bc7, repeats wrap/bake), 4 texel ratios, capacities 32
+    /// frames of 320×240). `full`: 12 builds (d_min ratio 10/30/60, atlas 512/1024/2048, border 2/8/16 (the
+    /// paper's 8), box/Kaiser, compression none/bc1/bc7, repeats wrap/bake, alpha mips plain/coverage),
+    /// 4 texel ratios, capacities 32
     /// and 128, 12 frames of 640×480.
     pub fn preset(name: &str) -> Option<Grid> {
         let ratios = vec![0.25, 0.5, 1.0, 2.0];
@@ -233,6 +249,7 @@ impl Grid {
                     filter: MipFilter::Box,
                     compress: Compression::None,
                     repeat: RepeatMode::Wrap,
+                    alpha_mips: AlphaMips::Plain,
                     texel_ratio: 1.0,
                     capacity: None,
                 },
@@ -242,6 +259,7 @@ impl Grid {
                 filter: vec![MipFilter::Box, MipFilter::Kaiser],
                 compress: vec![],
                 repeat: vec![RepeatMode::Bake],
+                alpha_mips: vec![],
                 texel_ratio: ratios,
                 capacity: vec![24],
                 texel_ratio_on_every_build: true,
@@ -257,6 +275,7 @@ impl Grid {
                     filter: MipFilter::Box,
                     compress: Compression::None,
                     repeat: RepeatMode::Wrap,
+                    alpha_mips: AlphaMips::Plain,
                     texel_ratio: 1.0,
                     capacity: None,
                 },
@@ -266,6 +285,7 @@ impl Grid {
                 filter: vec![MipFilter::Box, MipFilter::Kaiser],
                 compress: vec![Compression::Bc1, Compression::Bc7],
                 repeat: vec![RepeatMode::Bake],
+                alpha_mips: vec![AlphaMips::Coverage],
                 texel_ratio: ratios,
                 capacity: vec![32, 128],
                 texel_ratio_on_every_build: true,
@@ -304,6 +324,7 @@ impl Grid {
             ("filter", self.filter.len()),
             ("compress", self.compress.len()),
             ("repeat", self.repeat.len()),
+            ("alpha_mips", self.alpha_mips.len()),
             ("texel_ratio", self.texel_ratio.len()),
             ("capacity", self.capacity.len()),
         ];
@@ -401,6 +422,12 @@ impl Grid {
         for &r in &self.repeat {
             push(BuildKnobs { repeat: r, ..base });
         }
+        for &m in &self.alpha_mips {
+            push(BuildKnobs {
+                alpha_mips: m,
+                ..base
+            });
+        }
         let builds = builds
             .into_iter()
             .enumerate()
@@ -460,6 +487,12 @@ trait Named: std::str::FromStr<Err = String> {
 impl Named for crate::preprocess::image_ops::MipFilter {
     fn name(&self) -> &'static str {
         crate::preprocess::image_ops::MipFilter::name(*self)
+    }
+}
+
+impl Named for AlphaMips {
+    fn name(&self) -> &'static str {
+        AlphaMips::name(*self)
     }
 }
 

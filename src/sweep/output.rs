@@ -16,7 +16,7 @@ use crate::report::write_atomic;
 use std::path::{Path, PathBuf};
 
 /// Columns of `sweep.csv`.
-pub const SWEEP_HEADER: [&str; 29] = [
+pub const SWEEP_HEADER: [&str; 30] = [
     "variant",
     "d_min_ratio",
     "atlas_size",
@@ -24,6 +24,7 @@ pub const SWEEP_HEADER: [&str; 29] = [
     "filter",
     "compress",
     "repeat",
+    "alpha_mips",
     "texel_ratio",
     "capacity",
     "frames",
@@ -95,6 +96,7 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
         Cell::Text(r.build.filter.name().into()),
         Cell::Text(r.build.compress.label().into()),
         Cell::Text(r.build.repeat.label().into()),
+        Cell::Text(r.build.alpha_mips.name().into()),
         Cell::Float(r.runtime.texel_ratio),
         capacity_cell(r.runtime.capacity),
         Cell::UInt(r.frames as u64),
@@ -165,6 +167,7 @@ fn write_builds(path: &Path, builds: &[BuildRow]) -> Result<(), SweepError> {
         "filter",
         "compress",
         "repeat",
+        "alpha_mips",
         "file_bytes",
         "nodes",
         "leaves",
@@ -185,6 +188,7 @@ fn write_builds(path: &Path, builds: &[BuildRow]) -> Result<(), SweepError> {
                 Cell::Text(b.knobs.filter.name().into()),
                 Cell::Text(b.knobs.compress.label().into()),
                 Cell::Text(b.knobs.repeat.label().into()),
+                Cell::Text(b.knobs.alpha_mips.name().into()),
                 Cell::UInt(b.file_bytes),
                 Cell::UInt(b.nodes),
                 Cell::UInt(b.leaves),

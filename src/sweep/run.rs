@@ -272,6 +272,7 @@ pub(super) fn build_options(knobs: &BuildKnobs, base: &BuildOptions) -> BuildOpt
         atlas_size: k.atlas_size,
         border: k.border,
         mip_filter: k.mip_filter,
+        alpha_mips: k.alpha_mips,
         compress: k.compress,
         repeat: k.repeat,
         ..base.clone()

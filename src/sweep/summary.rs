@@ -213,6 +213,9 @@ fn differing(
     if ab.repeat != bb.repeat {
         d.push(("repeat", bb.repeat.label().to_string()));
     }
+    if ab.alpha_mips != bb.alpha_mips {
+        d.push(("alpha_mips", bb.alpha_mips.name().to_string()));
+    }
     if ar.texel_ratio != br.texel_ratio {
         d.push(("texel_ratio", br.texel_ratio.to_string()));
     }
@@ -280,7 +283,7 @@ fn f(v: f64, decimals: usize) -> String {
 /// One line describing a variant's knobs and its headline numbers.
 fn describe(r: &VariantRow) -> String {
     format!(
-        "`{}`: d_min ratio {}, atlas {}², border {}, filter {}, compression {}, repeats {}, texel ratio {}, {} — covered PSNR {:.2} dB, \
+        "`{}`: d_min ratio {}, atlas {}², border {}, filter {}, compression {}, repeats {}, alpha mips {}, texel ratio {}, {} — covered PSNR {:.2} dB, \
          SSIM {:.4}, median frame {:.2} ms, file {}, build {:.2} s",
         r.id,
         r.build.d_min_ratio,
@@ -289,6 +292,7 @@ fn describe(r: &VariantRow) -> String {
         r.build.filter.name(),
         r.build.compress.label(),
         r.build.repeat.label(),
+        r.build.alpha_mips.name(),
         r.runtime.texel_ratio,
         r.runtime
             .capacity

@@ -82,6 +82,22 @@ fn merged_file_is_the_one_process_file_on_data_city() {
     identical_for_every_count(&BuildOptions::default(), &[1, 2, 3, 4, 16]);
 }
 
+/// Coverage-preserving alpha mips rescale the level 1 handed to the parent, so the merge must make the
+/// atlases above the cut with the same option (carried in the shard header's pixel options).
+#[test]
+fn merged_file_is_the_one_process_file_with_coverage_alpha_mips() {
+    let opts = BuildOptions {
+        alpha_mips: atlastree::preprocess::image_ops::AlphaMips::Coverage,
+        ..deep_opts()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let plain = one_process(&deep_opts(), dir.path());
+    let kept = one_process(&opts, dir.path());
+    assert_eq!(plain.len(), kept.len(), "same tables and block sizes");
+    assert!(plain != kept, "data/city's MASK textures must change");
+    identical_for_every_count(&opts, &[3, 16]);
+}
+
 #[test]
 fn merged_file_is_the_one_process_file_on_a_deep_tree() {
     let dir = tempfile::tempdir().unwrap();

@@ -45,16 +45,17 @@ fn small_preset_is_a_star_of_four_builds_and_seventeen_variants() {
 }
 
 #[test]
-fn full_preset_has_eleven_builds() {
+fn full_preset_has_twelve_builds() {
     let p = Grid::preset("full").expect("preset").plan();
-    // base + d_min 10, 60 + atlas 512, 2048 + border 2, 8 + kaiser + bc1, bc7 + bake.
-    assert_eq!(p.builds.len(), 11);
+    // base + d_min 10, 60 + atlas 512, 2048 + border 2, 8 + kaiser + bc1, bc7 + bake + coverage mips.
+    assert_eq!(p.builds.len(), 12);
     assert_eq!(p.builds[0].runtimes.len(), 6);
-    assert_eq!(p.variants(), 6 + 10 * 4);
+    assert_eq!(p.variants(), 6 + 11 * 4);
     let ids: Vec<String> = p.builds.iter().map(|b| b.knobs.id()).collect();
     assert!(
         ids.contains(&"r30_a1024_b16_box_bc1".to_string())
-            && ids.contains(&"r30_a1024_b16_box_bake".to_string()),
+            && ids.contains(&"r30_a1024_b16_box_bake".to_string())
+            && ids.contains(&"r30_a1024_b16_box_alpha-coverage".to_string()),
         "{ids:?}"
     );
     assert_eq!(ids[0], "r30_a1024_b16_box");
@@ -110,6 +111,7 @@ fn knobs(atlas: u32) -> BuildKnobs {
         filter: MipFilter::Box,
         compress: Default::default(),
         repeat: Default::default(),
+        alpha_mips: Default::default(),
     }
 }
 

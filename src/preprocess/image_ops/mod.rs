@@ -9,6 +9,7 @@
 //!   alpha-tested edges after halving).
 //! - [`halve`], [`downsample`], [`MipChain`], [`mip_chain_rgba8`]: mip generation with a box (default) or a
 //!   Kaiser-windowed sinc kernel ([`MipFilter`]); odd and non-square sizes use exact footprint weights.
+//! - [`preserve_coverage`]: optional α-test coverage kept through the mips of MASK areas ([`AlphaMips`]).
 //! - [`sample_footprint`]: minification-correct sampling of a mip chain with per-axis wrap modes, in f64 UV
 //!   maths (UVs of ±1e5 are reduced by their period first).
 //! - [`draw_rect`]: fill one packed texture area of a leaf atlas, border included (§5.2.2, §5.2.3).
@@ -19,12 +20,14 @@
 //! Conventions: texel `(x, y)` has `y` = row from the top; UV `(0, 0)` is the top-left corner of the image,
 //! `u` runs along `x` and `v` along `y` (glTF); texel centres are at `(x + 0.5) / width`.
 
+mod coverage;
 mod linear;
 mod mip;
 mod raster;
 mod sample;
 pub mod srgb;
 
+pub use coverage::{AlphaMips, CoverageRegion, coverage, preserve_coverage};
 pub use linear::LinearImage;
 pub use mip::{
     MipChain, MipFilter, MipOptions, downsample, halve, mip_chain_rgba8, mip_chain_rgba8_with,

@@ -3,6 +3,7 @@
 //! the image operations, the packer and repeats wrapped in the shader.
 
 mod alpha_atlas;
+mod alpha_coverage;
 mod build_tree;
 mod deep_tree;
 mod degenerate;
