@@ -291,8 +291,10 @@ pub fn handoff_side(atlas_size: u32) -> u32 {
 
 /// The fingerprint of scene and flags every shard of one build shares: the table prefix (geometry,
 /// materials, parameters, tree structure, block sizes and formats) by its hash, the pixel options the
-/// tables do not hold (mip filter, alpha mips), and each image's identity (name, size, colour type, and the byte
-/// length of an external file or the hash of embedded bytes — a cheap check, not a content hash of files).
+/// tables do not hold (mip filter, alpha mips; plain alpha mips add nothing, so plain fingerprints are
+/// those of shard files written before the knob), and each image's identity (name, size, colour type,
+/// and the byte length of an external file or the hash of embedded bytes — a cheap check, not a content
+/// hash of files).
 pub fn fingerprint(
     prefix_hash: [u64; 2],
     pixels: super::raster::PixelOptions,

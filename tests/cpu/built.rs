@@ -40,6 +40,28 @@ pub fn tiny_opts(atlas: u32, d_min: f64) -> BuildOptions {
     }
 }
 
+/// Quad `i` of a field of 20 m ground quads, 25 m apart, three to a row, showing its material's texture
+/// once (UV 0..1).
+pub fn grid_quad(
+    b: &mut atlastree::scene::synthetic::SceneBuilder,
+    i: u32,
+    m: atlastree::ids::MaterialId,
+) {
+    let x = 25.0 * f64::from(i % 3);
+    let z = 25.0 * f64::from(i / 3);
+    b.quad(
+        [
+            DVec3::new(x, 0.0, z),
+            DVec3::new(x + 20.0, 0.0, z),
+            DVec3::new(x + 20.0, 0.0, z + 20.0),
+            DVec3::new(x, 0.0, z + 20.0),
+        ],
+        DVec2::ZERO,
+        DVec2::ONE,
+        m,
+    );
+}
+
 /// Builds `scene` into a fresh temp dir.
 pub fn try_build(
     scene: &Scene,

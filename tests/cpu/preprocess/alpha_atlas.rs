@@ -29,19 +29,7 @@ fn discs() -> Scene {
             }
         });
         let m = b.material(img, [Wrap::ClampToEdge; 2], AlphaMode::Blend);
-        let x = 25.0 * f64::from(i % 3);
-        let z = 25.0 * f64::from(i / 3);
-        b.quad(
-            [
-                DVec3::new(x, 0.0, z),
-                DVec3::new(x + 20.0, 0.0, z),
-                DVec3::new(x + 20.0, 0.0, z + 20.0),
-                DVec3::new(x, 0.0, z + 20.0),
-            ],
-            DVec2::ZERO,
-            DVec2::ONE,
-            m,
-        );
+        grid_quad(&mut b, i, m);
     }
     b.build()
 }

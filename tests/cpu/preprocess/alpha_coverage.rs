@@ -12,7 +12,6 @@ use atlastree::preprocess::image_ops::AlphaMips;
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
 use atlastree::texfmt::mip_extents;
-use glam::{DVec2, DVec3};
 
 /// Nine 20 m quads in a 3 × 3 grid, each with its own 64² texture of scattered opaque texels.
 fn fences(alpha: AlphaMode) -> Scene {
@@ -31,19 +30,7 @@ fn fences(alpha: AlphaMode) -> Scene {
             }
         });
         let m = b.material(img, [Wrap::ClampToEdge; 2], alpha);
-        let x = 25.0 * f64::from(i % 3);
-        let z = 25.0 * f64::from(i / 3);
-        b.quad(
-            [
-                DVec3::new(x, 0.0, z),
-                DVec3::new(x + 20.0, 0.0, z),
-                DVec3::new(x + 20.0, 0.0, z + 20.0),
-                DVec3::new(x, 0.0, z + 20.0),
-            ],
-            DVec2::ZERO,
-            DVec2::ONE,
-            m,
-        );
+        grid_quad(&mut b, i, m);
     }
     b.build()
 }
