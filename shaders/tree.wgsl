@@ -293,6 +293,22 @@ fn vs_main(v: VertexIn) -> VertexOut {
         out.rect = 0u;
         out.level_xf = vec3<f32>(1.0, 0.0, 0.0);
     }
+    // A blend node's MASK triangles were drawn by its depth pre-pass (the mask pipeline, which writes
+    // depth); drawn again here each of their fragments would fail the Greater test against the equal or
+    // nearer depth already stored, or be discarded below the cutoff as it was there. So the blend pass
+    // drops them before rasterisation: every vertex of such a triangle (a triangle's vertices share
+    // their material) goes to one point outside the clip volume. Images are unchanged.
+    if PASS == PASS_BLEND && DENSITY == DENSITY_OFF {
+        var alpha_mode: u32;
+        if d.atlas_layer != NONE {
+            alpha_mode = (rects[out.rect].wrap >> ALPHA_SHIFT) & CODE_MASK;
+        } else {
+            alpha_mode = tam[out.which].alpha_mode;
+        }
+        if alpha_mode == ALPHA_MASK {
+            out.clip = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+        }
+    }
     return out;
 }
 

@@ -81,8 +81,8 @@ pub fn tree_bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
         entry(b::DRAWS, V, storage()),
         entry(b::LEAVES, V, storage()),
         entry(b::OFFSETS, V, storage()),
-        entry(b::TAM, F, storage()),
-        entry(b::RECTS, F, storage()),
+        entry(b::TAM, VF, storage()),
+        entry(b::RECTS, VF, storage()),
         entry(b::ATLAS_SAMPLER, F, filtering()),
         entry(b::ORIGINAL_SAMPLER, F, filtering()),
     ];
