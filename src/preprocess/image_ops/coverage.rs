@@ -7,8 +7,9 @@
 //! share of its texels at or above the material's cutoff is as near as it can be to the share level 0 has
 //! (the α-test coverage Castaño preserves): one factor per region and level, the one that lifts (or
 //! lowers) the right alpha byte just past the cutoff. Colours are premultiplied, so a texel's straight
-//! colour stays; alphas clamp at 1. The chain is still filtered from the *unscaled* levels (the scale is applied after the
-//! chain is built), so each level is the plain filter's result with one factor per region.
+//! colour stays; alphas clamp at 1. The chain is still filtered from the *unscaled* levels (the scale is
+//! applied after the chain is built), so each level is the plain filter's result with one factor per
+//! region.
 //!
 //! Regions are texel rectangles at level 0 (a leaf rect's outer area, mapped into every ancestor atlas;
 //! a whole original texture); a texel belongs to the region its centre lies in, so disjoint regions never
@@ -80,28 +81,12 @@ fn region_rows(
     (y0..y1).map(move |y| y as usize * w + x0 as usize..y as usize * w + x1 as usize)
 }
 
-/// Share of `region`'s texels in `img` at or above its cutoff, with the number of texels; `None` when the
-/// region holds no texel centre.
-pub fn coverage(
-    img: &LinearImage,
-    region: &CoverageRegion,
-    scale: [f64; 2],
-) -> Option<(f64, usize)> {
-    let (mut passed, mut n) = (0usize, 0usize);
-    for r in region_rows((img.width, img.height), region.rect, scale) {
-        let row = img.data.get(r)?;
-        n += row.len();
-        passed += row.iter().filter(|t| t[3] >= region.cutoff).count();
-    }
-    (n > 0).then(|| (passed as f64 / n as f64, n))
-}
-
 /// Regions with fewer texel centres than this at a level are measured and rescaled together with the
 /// other small regions of the same cutoff (one factor for the pool): a handful of texels cannot show a
 /// share (an area of 3 texels passes 0, 1/3, 2/3 or all).
 const MIN_REGION_TEXELS: usize = 64;
 
-/// The texels of every region of `group` (all with `cutoff`) in `img` at `scale`, row by row.
+/// The texels of every region of `group` in `img` (its size and texel count) at `scale`, row by row.
 fn group_rows<'r>(
     img: &LinearImage,
     group: &'r [&'r CoverageRegion],
@@ -112,6 +97,22 @@ fn group_rows<'r>(
         .iter()
         .flat_map(move |r| region_rows(size, r.rect, scale))
         .filter(move |r| r.end <= len)
+}
+
+/// Texels of `group` in `img` at `scale` whose alpha is at or above `cutoff`, and all its texels.
+fn passing(
+    img: &LinearImage,
+    group: &[&CoverageRegion],
+    cutoff: f32,
+    scale: [f64; 2],
+) -> (usize, usize) {
+    group_rows(img, group, scale).fold((0, 0), |(p, n), r| {
+        let row = &img.data[r];
+        (
+            p + row.iter().filter(|t| t[3] >= cutoff).count(),
+            n + row.len(),
+        )
+    })
 }
 
 /// The alpha factor that gives the texels of `group` (regions sharing `cutoff`) in `img` the share at or
@@ -174,6 +175,7 @@ fn coverage_scale(
 
 /// Multiplies the alpha of `group`'s texels by `s` (clamped to 1), keeping each texel's straight colour.
 fn scale_alpha(img: &mut LinearImage, group: &[&CoverageRegion], scale: [f64; 2], s: f32) {
+    // The rows are collected first: they borrow the image that is then written.
     let rows: Vec<_> = group_rows(img, group, scale).collect();
     for r in rows {
         for t in &mut img.data[r] {
@@ -210,11 +212,7 @@ pub fn preserve_coverage(levels: &mut [LinearImage], regions: &[CoverageRegion])
     // Level-0 (passing, texels) of every region.
     let base: Vec<(usize, usize)> = regions
         .iter()
-        .map(|r| {
-            coverage(first, r, [1.0, 1.0]).map_or((0, 0), |(share, n)| {
-                ((share * n as f64).round() as usize, n)
-            })
-        })
+        .map(|r| passing(first, &[r], r.cutoff, [1.0, 1.0]))
         .collect();
     let mut rescaled = 0;
     for level in rest.iter_mut() {
@@ -255,6 +253,17 @@ pub fn preserve_coverage(levels: &mut [LinearImage], regions: &[CoverageRegion])
 mod tests {
     use super::*;
     use crate::preprocess::image_ops::MipChain;
+
+    /// Share of `region`'s texels in `img` at or above its cutoff, with their number; `None` when it holds
+    /// no texel centre.
+    fn coverage(
+        img: &LinearImage,
+        region: &CoverageRegion,
+        scale: [f64; 2],
+    ) -> Option<(f64, usize)> {
+        let (p, n) = passing(img, &[region], region.cutoff, scale);
+        (n > 0).then(|| (p as f64 / n as f64, n))
+    }
 
     /// A `side²` alpha-tested pattern like foliage: scattered opaque texels (one in `one_in`, by a hash
     /// of the position), transparent between, so plain box mips thin it out to nothing within a few

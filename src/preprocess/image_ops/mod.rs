@@ -27,7 +27,7 @@ mod raster;
 mod sample;
 pub mod srgb;
 
-pub use coverage::{AlphaMips, CoverageRegion, coverage, preserve_coverage};
+pub use coverage::{AlphaMips, CoverageRegion, preserve_coverage};
 pub use linear::LinearImage;
 pub use mip::{
     MipChain, MipFilter, MipOptions, downsample, halve, mip_chain_rgba8, mip_chain_rgba8_with,
