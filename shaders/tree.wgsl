@@ -41,6 +41,12 @@ const MAX_ATLAS_ARRAYS: u32 = 4u;
 const CLASS_COUNT: u32 = 10u;
 // The level of an original-texture draw (white in the level colouring; the density target's alpha).
 const LEVEL_ORIGINAL: u32 = 255u;
+// VertexOut.draw.x: atlas layer | atlas array << ARRAY_SHIFT | level << LEVEL_SHIFT | (leaf level − level)
+// << DEPTH_SHIFT; the layer below MAX_LAYERS, the level below 256, the depth below 32.
+const MAX_LAYERS: u32 = 65536u;
+const ARRAY_SHIFT: u32 = 16u;
+const LEVEL_SHIFT: u32 = 18u;
+const DEPTH_SHIFT: u32 = 26u;
 
 // Packed codes (RectMap.wrap, TamEntry.wrap): wrap_s | wrap_t << WRAP_T_SHIFT, and for rects
 // | alpha_mode << ALPHA_SHIFT; every code CODE_MASK wide.
@@ -170,18 +176,28 @@ struct VertexIn {
     @location(4) rect: u32,
 }
 
+// Two locations: a software rasteriser (lavapipe) sets up every location of every triangle, and with
+// millions of triangles smaller than a pixel that setup, not the fragments, is most of a frame (each
+// further location cost 5–6 % of the all-tracks world's tree frame; docs/DESIGN.md "Interpolants").
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     // The original UV (unbounded; atlas draws wrap it into the rect per fragment).
     @location(0) uv: vec2<f32>,
-    // Atlas layer, or NONE for an original-texture draw.
-    @location(1) @interpolate(flat) layer: u32,
-    // Atlas array (atlas draw) or TAM index (original draw).
-    @location(2) @interpolate(flat) which: u32,
-    @location(3) @interpolate(flat) level: u32,
-    // Atlas draws: the rect (global index) and the level transform (2^(j-K), cell offset * 2^(j-K)).
-    @location(5) @interpolate(flat) rect: u32,
-    @location(6) @interpolate(flat) level_xf: vec3<f32>,
+    // x: the draw (atlas layer, atlas array, level, leaf level − level; see DEPTH_SHIFT); y: the rect
+    // (atlas draw, global index) or TAM entry (original draw); zw: the leaf's cell modulo
+    // 2^(leaf level − level), the offset of the level transform (atlas draws).
+    @location(1) @interpolate(flat) draw: vec4<u32>,
+}
+
+// The fields of VertexOut.draw.x.
+fn draw_layer(in: VertexOut) -> u32 {
+    return in.draw.x & (MAX_LAYERS - 1u);
+}
+fn draw_array(in: VertexOut) -> u32 {
+    return (in.draw.x >> ARRAY_SHIFT) & 3u;
+}
+fn draw_level(in: VertexOut) -> u32 {
+    return (in.draw.x >> LEVEL_SHIFT) & 255u;
 }
 
 // 2^-d for 0 <= d <= 31, exactly (built from the exponent bits).
@@ -189,13 +205,38 @@ fn exp2_neg(d: u32) -> f32 {
     return bitcast<f32>((127u - d) << 23u);
 }
 
-// The level transform of model::transform::atlas_uv_at_f32 as (2^(j-K), offset): the leaf-local UV in
-// the atlas of the ancestor at `level` is `uv_leaf * x + offset` (both factors exact).
-fn level_transform(cell: vec2<u32>, leaf_level: u32, level: u32) -> vec3<f32> {
-    let d = min(leaf_level - min(level, leaf_level), 31u);
-    let mask = (1u << d) - 1u;
-    let o = vec2<f32>(f32(cell.x & mask), f32(cell.y & mask));
-    let s = exp2_neg(d);
+// The levels between a leaf and the ancestor at `level` drawn for it (at most 31).
+fn level_depth(leaf_level: u32, level: u32) -> u32 {
+    return min(leaf_level - min(level, leaf_level), 31u);
+}
+
+// The leaf's cell modulo 2^depth: which cell of the ancestor's atlas the leaf's atlas is.
+fn cell_offset(cell: vec2<u32>, depth: u32) -> vec2<u32> {
+    let mask = (1u << depth) - 1u;
+    return cell & vec2<u32>(mask);
+}
+
+// VertexOut.draw of an atlas draw: `layer` of atlas array `array`, drawn at `level` for a leaf at
+// `leaf_level` in `cell`, the fragment's rect `rect` (global index).
+fn atlas_draw(
+    layer: u32,
+    array: u32,
+    level: u32,
+    leaf_level: u32,
+    cell: vec2<u32>,
+    rect: u32,
+) -> vec4<u32> {
+    let depth = level_depth(leaf_level, level);
+    let x = layer | array << ARRAY_SHIFT | level << LEVEL_SHIFT | depth << DEPTH_SHIFT;
+    return vec4<u32>(x, rect, cell_offset(cell, depth));
+}
+
+// The level transform of model::transform::atlas_uv_at_f32 as (2^(j-K), offset), from a draw's
+// VertexOut.draw: the leaf-local UV in the atlas of the ancestor at the drawn level is
+// `uv_leaf * x + offset` (both factors exact).
+fn level_transform(in: VertexOut) -> vec3<f32> {
+    let s = exp2_neg(in.draw.x >> DEPTH_SHIFT);
+    let o = vec2<f32>(f32(in.draw.z), f32(in.draw.w));
     return vec3<f32>(s, o * s);
 }
 
@@ -280,30 +321,25 @@ fn vs_main(v: VertexIn) -> VertexOut {
     let rel = offsets[li].xyz + v.pos;
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(rel, 1.0);
-    out.layer = d.atlas_layer;
-    out.level = d.level;
     out.uv = v.orig_uv;
     if d.atlas_layer != NONE {
-        out.which = d.atlas_array;
-        out.rect = leaf.first_rect + v.rect;
-        out.level_xf = level_transform(leaf.cell, leaf.level, d.level);
+        let rect = leaf.first_rect + v.rect;
+        out.draw = atlas_draw(d.atlas_layer, d.atlas_array, d.level, leaf.level, leaf.cell, rect);
     } else {
-        out.which = leaf.first_tam + v.original;
-        out.level = LEVEL_ORIGINAL;
-        out.rect = 0u;
-        out.level_xf = vec3<f32>(1.0, 0.0, 0.0);
+        out.draw = vec4<u32>(LEVEL_ORIGINAL << LEVEL_SHIFT, leaf.first_tam + v.original, 0u, 0u);
     }
     // A blend node's MASK triangles were drawn by its depth pre-pass (the mask pipeline, which writes
     // depth); drawn again here each of their fragments would fail the Greater test against the equal or
-    // nearer depth already stored, or be discarded below the cutoff as it was there. So the blend pass
-    // drops them before rasterisation: every vertex of such a triangle (a triangle's vertices share
-    // their material) goes to one point outside the clip volume. Images are unchanged.
+    // nearer depth already stored, or be discarded below the cutoff as it was there. The blend pass's
+    // records draw the tree's blend list, which leaves them out (render::batch::blend_list); any that
+    // reach this pass anyway are dropped before rasterisation: every vertex of such a triangle (a
+    // triangle's vertices share their material) goes to one point outside the clip volume.
     if PASS == PASS_BLEND && DENSITY == DENSITY_OFF {
         var alpha_mode: u32;
         if d.atlas_layer != NONE {
-            alpha_mode = (rects[out.rect].wrap >> ALPHA_SHIFT) & CODE_MASK;
+            alpha_mode = (rects[out.draw.y].wrap >> ALPHA_SHIFT) & CODE_MASK;
         } else {
-            alpha_mode = tam[out.which].alpha_mode;
+            alpha_mode = tam[out.draw.y].alpha_mode;
         }
         if alpha_mode == ALPHA_MASK {
             out.clip = vec4<f32>(2.0, 2.0, 2.0, 1.0);
@@ -401,9 +437,9 @@ struct AtlasSample {
 }
 
 fn atlas_sample(in: VertexOut, ddx: vec2<f32>, ddy: vec2<f32>) -> AtlasSample {
-    let x = in.level_xf;
+    let x = level_transform(in);
     let size = globals.atlas_texels;
-    let r = rect_texel(rects[in.rect], in.uv, ddx, ddy, 1.0 / x.x);
+    let r = rect_texel(rects[in.draw.y], in.uv, ddx, ddy, 1.0 / x.x);
     var out: AtlasSample;
     out.uv = (r.texel / size) * x.x + x.yz;
     out.ddx = r.gx * (x.x / size);
@@ -418,29 +454,29 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let ddx = dpdx(in.uv);
     let ddy = dpdy(in.uv);
     if globals.mode == MODE_LEVELS {
-        return vec4<f32>(level_colour(in.level), 1.0);
+        return vec4<f32>(level_colour(draw_level(in)), 1.0);
     }
     if SOURCE == SOURCE_ATLAS {
         let a = atlas_sample(in, ddx, ddy);
         if DENSITY == DENSITY_ON {
             // (texels/pixel min, max, source (SOURCE_ATLAS, SOURCE_ORIGINAL), level; LEVEL_ORIGINAL for
             // originals), from the footprint itself (not the one capped for sampling).
-            let tpu = rects[in.rect].texels_per_uv * (in.level_xf.x / globals.atlas_texels);
+            let tpu = rects[in.draw.y].texels_per_uv * (level_transform(in).x / globals.atlas_texels);
             let sv = singular_values(ddx * tpu, ddy * tpu, globals.atlas_texels);
-            return vec4<f32>(sv.x, sv.y, f32(SOURCE_ATLAS), f32(in.level));
+            return vec4<f32>(sv.x, sv.y, f32(SOURCE_ATLAS), f32(draw_level(in)));
         }
-        let c = sample_atlas(in.which, a.uv, in.layer, a.ddx, a.ddy);
+        let c = sample_atlas(draw_array(in), a.uv, draw_layer(in), a.ddx, a.ddy);
         // Per material, as original draws: MASK tested against its cutoff, BLEND blended (or, in a blend
         // node's depth pre-pass, written where opaque).
-        let rm = rects[in.rect];
+        let rm = rects[in.draw.y];
         return finish(c, rm.cutoff, (rm.wrap >> ALPHA_SHIFT) & CODE_MASK);
     }
-    let e = tam[in.which];
+    let e = tam[in.draw.y];
     // The texture's UV into its tiled layer: one period is extent / class_size of the layer per axis.
     let scale = e.extent / e.class_size;
     if DENSITY == DENSITY_ON {
         let sv = singular_values(ddx * scale, ddy * scale, e.class_size);
-        return vec4<f32>(sv.x, sv.y, f32(SOURCE_ORIGINAL), f32(in.level));
+        return vec4<f32>(sv.x, sv.y, f32(SOURCE_ORIGINAL), f32(draw_level(in)));
     }
     let wrapped = vec2<f32>(
         wrap_axis(in.uv.x, e.wrap & CODE_MASK, e.extent.x),

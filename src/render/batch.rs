@@ -143,6 +143,10 @@ pub struct TreeBatchInfo {
     pub leaf_ranges: Vec<(u32, u32)>,
     /// Per node: the pass its records go to.
     pub passes: Vec<Pass>,
+    /// Per node of an alpha tree: `(first index, index count)` in the shared index buffer of the triangles
+    /// of its subtree that its blend-pass record draws: the tree's blend list ([`blend_list`]). Empty
+    /// (opaque trees, or not built): the blend pass draws the node's whole range.
+    pub blend_ranges: Vec<(u32, u32)>,
     /// Per node: the alpha cutoff of its atlas draws in the mask pass.
     pub cutoffs: Vec<f32>,
     /// Per node: where its atlas is resident (`None`: not resident; such nodes are drawn with originals if
@@ -173,6 +177,39 @@ pub fn leaf_ranges(nodes: &[NodeRecord]) -> Vec<(u32, u32)> {
         .zip(&hi)
         .map(|(&l, &h)| if h > l { (l, h - l) } else { (0, 0) })
         .collect()
+}
+
+/// The blend list of one alpha tree ([`TreeBatchInfo::blend_ranges`]): the tree's indices without the
+/// triangles the blend pass would drop (`drops(t)` for triangle `t` of the index buffer: a MASK triangle,
+/// drawn by its node's depth pre-pass), in index-buffer order, and per node the range of it inside the
+/// node's range `(first_index, index_count)` of the tree's index buffer, relative to the list's start.
+/// Node ranges of a pre-order tree are unions of their leaves' ranges, so each is one run of the list.
+pub fn blend_list(
+    indices: &[u32],
+    node_ranges: impl Iterator<Item = (u32, u32)>,
+    mut drops: impl FnMut(usize) -> bool,
+) -> (Vec<u32>, Vec<(u32, u32)>) {
+    let triangles = indices.len() / 3;
+    let mut list = Vec::new();
+    // kept[t]: triangles of the list before triangle t.
+    let mut kept = Vec::with_capacity(triangles + 1);
+    kept.push(0u32);
+    for (t, tri) in indices.chunks_exact(3).enumerate() {
+        if !drops(t) {
+            list.extend_from_slice(tri);
+        }
+        kept.push((list.len() / 3) as u32);
+    }
+    let ranges = node_ranges
+        .map(|(first, count)| {
+            let lo = (first / 3) as usize;
+            let hi = (first.saturating_add(count) / 3) as usize;
+            let (lo, hi) = (lo.min(triangles), hi.min(triangles));
+            let (a, b) = (kept[lo], kept[hi.max(lo)]);
+            (a * 3, (b - a) * 3)
+        })
+        .collect();
+    (list, ranges)
 }
 
 /// How records are made.
@@ -273,14 +310,28 @@ impl FrameBatch {
                 self.original_records += 1;
             }
             self.triangles += u64::from(item.index_count / 3);
-            if pass == Pass::Blend {
-                // Depth pre-pass of the node's opaque texels (MASK materials above their cutoff, BLEND
-                // ones at full alpha) in the mask pipeline: a node mixing MASK and BLEND materials (one
-                // scaled leaf may hold a whole track's vegetation) keeps MASK occlusion right; the blend
-                // pass then adds only what the pre-pass left (equal depth fails the Greater test).
-                self.pending[Group::new(Pass::Mask, atlas.is_none()).index()].push((draw, record));
+            let group = Group::new(pass, atlas.is_none());
+            if pass != Pass::Blend {
+                self.pending[group.index()].push((draw, record));
+                continue;
             }
-            self.pending[Group::new(pass, atlas.is_none()).index()].push((draw, record));
+            // Depth pre-pass of the node's opaque texels (MASK materials above their cutoff, BLEND ones at
+            // full alpha) in the mask pipeline: a node mixing MASK and BLEND materials (one scaled leaf may
+            // hold a whole track's vegetation) keeps MASK occlusion right; the blend pass then adds only
+            // what the pre-pass left (equal depth fails the Greater test), drawing only the node's range
+            // of the blend list: its MASK triangles could not change a pixel there.
+            self.pending[Group::new(Pass::Mask, atlas.is_none()).index()].push((draw, record));
+            let draw = match info.blend_ranges.get(n) {
+                Some(&(first_index, index_count)) => DrawIndexedIndirect {
+                    index_count,
+                    first_index,
+                    ..draw
+                },
+                None => draw,
+            };
+            if draw.index_count > 0 {
+                self.pending[group.index()].push((draw, record));
+            }
         }
         skipped
     }
@@ -349,3 +400,40 @@ impl LeafOffsets {
 
 /// The vertex stride of [`TreeVertex`] (locations 0–4: pos, orig_uv, leaf, original, rect).
 pub const VERTEX_STRIDE: u64 = size_of::<TreeVertex>() as u64;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blend_list_keeps_order_and_cuts_node_ranges() {
+        // Six triangles (vertex numbers = 10 × triangle + corner); 1 and 4 are dropped.
+        let indices: Vec<u32> = (0..6u32)
+            .flat_map(|t| [10 * t, 10 * t + 1, 10 * t + 2])
+            .collect();
+        // Root (all), two children (triangles 0–2 and 3–5), a leaf holding only the dropped triangle 4,
+        // an empty node, and a range past the end (clamped).
+        let nodes = [(0, 18), (0, 9), (9, 9), (12, 3), (6, 0), (15, 9)];
+        let (list, ranges) = blend_list(&indices, nodes.into_iter(), |t| t == 1 || t == 4);
+        let kept: Vec<u32> = [0u32, 2, 3, 5]
+            .iter()
+            .flat_map(|&t| [10 * t, 10 * t + 1, 10 * t + 2])
+            .collect();
+        assert_eq!(list, kept);
+        assert_eq!(
+            ranges,
+            vec![(0, 12), (0, 6), (6, 6), (9, 0), (3, 0), (9, 3)]
+        );
+        // Every node's run of the list is exactly its kept triangles, in index-buffer order.
+        for (&(first, count), &(lf, lc)) in nodes.iter().zip(&ranges) {
+            let end = (first + count).min(18) as usize;
+            let want: Vec<u32> = indices[first as usize..end.max(first as usize)]
+                .chunks_exact(3)
+                .filter(|t| t[0] / 10 != 1 && t[0] / 10 != 4)
+                .flatten()
+                .copied()
+                .collect();
+            assert_eq!(list[lf as usize..(lf + lc) as usize], want[..]);
+        }
+    }
+}

@@ -6,7 +6,7 @@
 //! decoded on the CPU as they are uploaded ([`texels_for_upload`]); loaders count and report those.
 //!
 //! **Layer limit.** A device allows `max_texture_array_layers` layers per array (2048 on lavapipe, 2048 on
-//! most desktop GPUs). When a file has more atlases than that, they are split over up to
+//! most desktop GPUs; the shader addresses at most 65,536, [`layer_limit`]). When a file has more atlases than that, they are split over up to
 //! [`MAX_ATLAS_ARRAYS`] arrays and each record names its array. A class with more originals than the limit
 //! continues in the class bindings no class uses (`resident::class_slots`: the 4,304 facades of a
 //! Berlin-like city take three 512² bindings; the paged load does not split: its class arrays hold at most
@@ -26,6 +26,12 @@ pub const MAX_ATLAS_ARRAYS: usize = 4;
 pub const CLASS_COUNT: usize = 10;
 /// Smallest class size.
 pub const MIN_CLASS_SIZE: u32 = 4;
+
+/// Layers per texture array the renderer uses: the device's `max_texture_array_layers`, at most what the
+/// tree shader addresses ([`super::wgsl::tree::MAX_LAYERS`]), at least 1.
+pub fn layer_limit(device_max_layers: u32) -> u32 {
+    device_max_layers.clamp(1, super::wgsl::tree::MAX_LAYERS)
+}
 
 /// Class index of a power-of-two class size, `None` outside 4..=2048 or not a power of two.
 pub fn class_index(size: u32) -> Option<u32> {

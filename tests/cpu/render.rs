@@ -1,7 +1,8 @@
 //! `render::batch` and the CPU half of `render::resident` without a GPU: on a real built tree and cuts of
 //! many sizes, the indirect records are exactly the cut (counts, index ranges, base vertex), `first_instance`
 //! numbers the node records, passes partition the records, leaf ranges are the subtrees' leaves, and leaf
-//! offsets are `origin − eye` for exactly the leaves under the cut.
+//! offsets are `origin − eye` for exactly the leaves under the cut, and a blend node's blend-pass record
+//! draws exactly its BLEND triangles.
 
 use atlastree::camera::CameraPath;
 use atlastree::ids::NONE;
@@ -472,4 +473,143 @@ fn texel_f32_agrees_with_f64_reference() {
         "{near} near-branch samples of {}",
         samples.len()
     );
+}
+
+/// A field of MASK plants with a BLEND pane in every fourth cell, over an opaque ground: an alpha tree of
+/// several levels whose nodes are blend nodes with mostly MASK triangles.
+fn plants_and_panes(dir: &std::path::Path) -> TreeFile {
+    use atlastree::scene::synthetic::SceneBuilder;
+    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
+    use glam::DVec2;
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let ground = b.pattern_image("ground", 64, 3);
+    let ground = b.material(ground, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    for i in 0..8u8 {
+        for j in 0..8u8 {
+            let (x, z) = (f64::from(i) * 20.0, f64::from(j) * 20.0);
+            // Every quad its own 64² texture, so the alpha tree needs several atlases.
+            let (g, alpha) = (20 * i + j, (i + j) % 4 == 0);
+            let img = b.image(&format!("plant {i} {j}"), 64, 64, move |x, y| match alpha {
+                true => [200, 220, g, 96],
+                false => [30, g, 40, if (x / 8 + y / 8) % 3 == 0 { 0 } else { 255 }],
+            });
+            let mode = match alpha {
+                true => AlphaMode::Blend,
+                false => AlphaMode::Mask { cutoff: 0.5 },
+            };
+            let m = b.material(img, [Wrap::Repeat; 2], mode);
+            b.quad(
+                [
+                    DVec3::new(x, 0.0, z),
+                    DVec3::new(x + 6.0, 0.0, z),
+                    DVec3::new(x + 6.0, 6.0, z),
+                    DVec3::new(x, 6.0, z),
+                ],
+                DVec2::new(0.0, 1.0),
+                DVec2::new(1.0, 0.0),
+                m,
+            );
+            b.quad(
+                [
+                    DVec3::new(x, 0.0, z),
+                    DVec3::new(x + 20.0, 0.0, z),
+                    DVec3::new(x + 20.0, 0.0, z + 20.0),
+                    DVec3::new(x, 0.0, z + 20.0),
+                ],
+                DVec2::ZERO,
+                DVec2::splat(4.0),
+                ground,
+            );
+        }
+    }
+    let out = dir.join("plants.atlastree");
+    let opts = BuildOptions {
+        d_min: DMin::Ratio(40.0),
+        atlas_size: 128,
+        max_file_bytes: 1 << 30,
+        leaf_originals_atlases: 0.0,
+        ..BuildOptions::default()
+    };
+    build(&b.build(), &opts, &out, &NoProgress).unwrap();
+    TreeFile::open(&out).unwrap()
+}
+
+/// The blend pass draws each blend node's range of its tree's blend list: exactly the node's BLEND
+/// triangles, in index-buffer order (an analyzer twin walks the node's own range and asks each
+/// triangle's material); the depth pre-pass in the mask group keeps the node's whole range.
+#[test]
+fn blend_records_draw_exactly_the_nodes_blend_triangles() {
+    use atlastree::scene::AlphaMode;
+    let dir = tempfile::tempdir().unwrap();
+    let file = plants_and_panes(dir.path());
+    let mut p = gather_tables(&file).unwrap();
+    let materials = file.materials();
+    let alpha = (0..file.trees())
+        .find(|&t| file.tree(t).unwrap().kind == atlastree::model::TreeKind::Alpha)
+        .expect("an alpha tree");
+    let view = file.tree(alpha).unwrap();
+    assert!(
+        view.nodes.len() >= 5,
+        "need a multi-level alpha tree: {} nodes",
+        view.nodes.len()
+    );
+    let is_blend = |t: usize| {
+        let v = view.vertices[view.indices[3 * t] as usize];
+        let leaf = &view.leaves[v.leaf as usize];
+        let m = view.leaf_rects(leaf)[v.rect as usize].material;
+        materials[m as usize].alpha() == Some(AlphaMode::Blend)
+    };
+    let info = &p.infos[alpha as usize];
+    assert_eq!(info.blend_ranges.len(), view.nodes.len());
+    let mut smaller = 0;
+    for (n, (node, &(first, count))) in view.nodes.iter().zip(&info.blend_ranges).enumerate() {
+        let lo = node.first_index as usize / 3;
+        let hi = lo + node.index_count as usize / 3;
+        let want: Vec<u32> = (lo..hi)
+            .filter(|&t| is_blend(t))
+            .flat_map(|t| view.indices[3 * t..3 * t + 3].iter().copied())
+            .collect();
+        assert_eq!(
+            &p.indices[first as usize..(first + count) as usize],
+            &want[..],
+            "node {n}"
+        );
+        if info.passes[n] == Pass::Blend {
+            assert!(count > 0, "blend node {n} has BLEND triangles");
+        }
+        smaller += usize::from(count > 0 && count < node.index_count);
+    }
+    // 16 panes of 2 triangles under the root, among 48 plants.
+    assert_eq!(info.blend_ranges[0].1, 16 * 2 * 3);
+    assert!(smaller >= 2, "blend ranges should cut MASK triangles out");
+
+    // The root drawn from its atlas: the pre-pass record has the whole range, the blend record the list.
+    for slot in p.infos[alpha as usize].atlas_slots.iter_mut() {
+        *slot = Some(AtlasSlot { array: 0, layer: 0 });
+    }
+    let info = &p.infos[alpha as usize];
+    let root = view.nodes[0];
+    let mut cut = Cut::new();
+    cut.items.push(atlastree::select::CutItem {
+        node: atlastree::ids::NodeId(0),
+        source: Source::Atlas,
+        level: 0,
+        first_index: root.first_index,
+        index_count: root.index_count,
+        distance: 1e6,
+    });
+    let mut batch = FrameBatch::new();
+    assert_eq!(batch.add_cut(info, view.nodes, &cut, None), 0);
+    batch.finish();
+    let group = |pass| batch.group_ranges[Group::new(pass, false).index()];
+    let (mask, blend) = (group(Pass::Mask), group(Pass::Blend));
+    assert_eq!((mask.1, blend.1), (1, 1));
+    let pre = batch.indirect[mask.0 as usize];
+    assert_eq!(
+        (pre.first_index, pre.index_count),
+        (info.index_base + root.first_index, root.index_count)
+    );
+    let b = batch.indirect[blend.0 as usize];
+    assert_eq!((b.first_index, b.index_count), info.blend_ranges[0]);
+    assert_eq!(b.base_vertex, info.vertex_base);
 }

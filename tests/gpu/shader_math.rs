@@ -64,17 +64,14 @@ fn probe_main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let p = probe_in[i];
-    // As vs_main and atlas_sample: the level transform, then the rect map at 1 / 2^(j-K) leaf texels.
-    let xf = level_transform(p.cell, p.leaf_level, p.level);
-    let r = rect_texel(rects[p.rect], p.uv, p.ddx, p.ddy, 1.0 / xf.x);
+    // As vs_main and atlas_sample: the draw packed as the vertex stage packs it, the level transform
+    // unpacked from it, then the rect map at 1 / 2^(j-K) leaf texels.
     var v: VertexOut;
     v.clip = vec4<f32>(0.0);
     v.uv = p.uv;
-    v.layer = 0u;
-    v.which = 0u;
-    v.level = p.level;
-    v.rect = p.rect;
-    v.level_xf = xf;
+    v.draw = atlas_draw(0u, 0u, p.level, p.leaf_level, p.cell, p.rect);
+    let xf = level_transform(v);
+    let r = rect_texel(rects[p.rect], p.uv, p.ddx, p.ddy, 1.0 / xf.x);
     let a = atlas_sample(v, p.ddx, p.ddy);
     probe_out[i] = ProbeOut(r.texel, r.gx, r.gy, a.uv, a.ddx, a.ddy, vec4<f32>(xf, 0.0));
 }

@@ -17,7 +17,7 @@ pub(super) fn atlas_arrays_for(
     atlas_size: u32,
     cap: u32,
 ) -> Result<Vec<TextureArray>, RenderError> {
-    let max_layers = ctx.features.max_texture_array_layers.max(1);
+    let max_layers = crate::render::textures::layer_limit(ctx.features.max_texture_array_layers);
     let bc = ctx.features.texture_compression_bc;
     let tree_gpu: Vec<TexFormat> = g.formats.iter().map(|&f| gpu_format(f, bc)).collect();
     let mut per_format: Vec<(TexFormat, u32)> = Vec::new();

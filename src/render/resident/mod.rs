@@ -263,7 +263,8 @@ impl Resident {
     ) -> Result<Resident, RenderError> {
         let materials = file.materials().to_vec();
         let params = file.to_params();
-        let max_layers = ctx.features.max_texture_array_layers.max(1);
+        let max_layers =
+            crate::render::textures::layer_limit(ctx.features.max_texture_array_layers);
         let mut g = gather_tables(file)?;
         let infos = std::mem::take(&mut g.infos);
         // Atlas arrays: per GPU format, each with room for min(capacity, atlases of that format) layers.

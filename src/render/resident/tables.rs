@@ -6,7 +6,7 @@ use super::UniqueOriginal;
 use crate::ids::{BlockId, NONE};
 use crate::model::TreeVertex;
 use crate::render::RenderError;
-use crate::render::batch::{Pass, TreeBatchInfo, leaf_ranges};
+use crate::render::batch::{Pass, TreeBatchInfo, blend_list, leaf_ranges};
 use crate::render::textures::class_index;
 use crate::render::wgsl::tree::{ALPHA_OPAQUE, LeafInfo, RectMap, TamEntry, WRAP_T_SHIFT};
 use crate::scene::{AlphaMode, Wrap};
@@ -45,6 +45,9 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
     let materials = file.materials();
     let mut g = GpuTables::default();
     let mut unique_of: HashMap<(u32, [u32; 2]), u32> = HashMap::new();
+    // Per alpha tree: (its position in `g.infos`, its blend list, per node its range of the list).
+    type BlendList = (usize, Vec<u32>, Vec<(u32, u32)>);
+    let mut blend_lists: Vec<BlendList> = Vec::new();
     for t in 0..file.trees() {
         let view = file.tree(t).ok_or(RenderError::MissingTree { tree: t })?;
         if view.kind == crate::model::TreeKind::Alpha {
@@ -154,6 +157,13 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
             }
         }
         g.formats.push(view.format());
+        if passes.contains(&Pass::Blend) {
+            let ranges = view.nodes.iter().map(|n| (n.first_index, n.index_count));
+            let (list, ranges) = blend_list(view.indices, ranges, |t| {
+                masked_triangle(&view, materials, t)
+            });
+            blend_lists.push((g.infos.len(), list, ranges));
+        }
         g.infos.push(TreeBatchInfo {
             tree: t as u32,
             leaf_base,
@@ -162,12 +172,49 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
             leaf_ranges: ranges,
             passes,
             cutoffs,
+            blend_ranges: Vec::new(),
             atlas_slots: vec![None; view.nodes.len()],
         });
         g.vertices.extend_from_slice(view.vertices);
         g.indices.extend_from_slice(view.indices);
     }
+    // The blend lists after every tree's indices (their values are tree-local vertex numbers, as the
+    // tree's own indices, drawn with the tree's base vertex).
+    for (info, list, ranges) in blend_lists {
+        let base = u32::try_from(g.indices.len())
+            .ok()
+            .filter(|b| b.checked_add(list.len() as u32).is_some())
+            .ok_or(RenderError::TooLarge { what: "indices" })?;
+        g.indices.extend_from_slice(&list);
+        g.infos[info].blend_ranges = ranges.into_iter().map(|(f, c)| (base + f, c)).collect();
+    }
     Ok(g)
+}
+
+/// Triangle `t` of an alpha tree is MASK for the blend pass of tree.wgsl (which drops it, by the alpha
+/// mode of its rect in atlas draws and of its TAM entry in original draws): every vertex's rect and
+/// original are of a MASK material. Anything else, an index or record out of range included, is kept.
+fn masked_triangle(view: &TreeView<'_>, materials: &[MaterialRecord], t: usize) -> bool {
+    let is_mask = |material: u32| {
+        matches!(
+            materials.get(material as usize).and_then(|m| m.alpha()),
+            Some(AlphaMode::Mask { .. })
+        )
+    };
+    let tri = view.indices.get(3 * t..3 * t + 3).unwrap_or(&[]);
+    tri.len() == 3
+        && tri.iter().all(|&i| {
+            let Some(v) = view.vertices.get(i as usize) else {
+                return false;
+            };
+            let Some(leaf) = view.leaves.get(v.leaf as usize) else {
+                return false;
+            };
+            let rect = view.leaf_rects(leaf).get(v.rect as usize);
+            let original = view.leaf_originals(leaf).get(v.original as usize);
+            rect.is_some_and(|r| is_mask(r.material))
+                && original.is_some_and(|o| is_mask(o.material))
+        })
 }
 
 /// Per node of an alpha tree: Blend if any leaf below uses a BLEND material, else Mask; cutoff = smallest

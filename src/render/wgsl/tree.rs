@@ -45,6 +45,18 @@ wgsl_consts! {
     /// The level an original-texture draw reports (white in mode tree-levels; the density target's `a`).
     LEVEL_ORIGINAL: u32 = 255;
 
+    /// Atlas layers per array the shader can address: the vertex stage packs a draw's layer, array, level
+    /// and depth below its leaf into one flat `u32` (one interpolant location fewer per field;
+    /// `VertexOut.draw`), the layer in the bits below [`ARRAY_SHIFT`]. Arrays never get more layers
+    /// ([`crate::render::textures::layer_limit`]).
+    MAX_LAYERS: u32 = 1 << 16;
+    /// The atlas array (< [`MAX_ATLAS_ARRAYS`]) sits this many bits up in `VertexOut.draw.x`.
+    ARRAY_SHIFT: u32 = 16;
+    /// The drawn level (< 256, [`LEVEL_ORIGINAL`] included) sits this many bits up.
+    LEVEL_SHIFT: u32 = 18;
+    /// The levels between the leaf and the drawn level (≤ 31) sit this many bits up.
+    DEPTH_SHIFT: u32 = 26;
+
     /// `wrap_t` sits this many bits above `wrap_s` in [`RectMap::wrap`] and [`TamEntry::wrap`].
     WRAP_T_SHIFT: u32 = 2;
     /// The material's alpha mode sits this many bits up in [`RectMap::wrap`].
