@@ -72,7 +72,7 @@ fn probe_main(@builtin(global_invocation_id) id: vec3<u32>) {
     v.draw = atlas_draw(0u, 0u, p.level, p.leaf_level, p.cell, p.rect);
     let xf = level_transform(v);
     let r = rect_texel(rects[p.rect], p.uv, p.ddx, p.ddy, 1.0 / xf.x);
-    let a = atlas_sample(v, p.ddx, p.ddy);
+    let a = atlas_sample(v, rects[p.rect], p.ddx, p.ddy);
     probe_out[i] = ProbeOut(r.texel, r.gx, r.gy, a.uv, a.ddx, a.ddy, vec4<f32>(xf, 0.0));
 }
 "#;
