@@ -130,6 +130,19 @@ impl DemandModel {
 /// The demand of every prefix of `items` (indices into `infos`): `out[k]` is the demand of `items[..k]`,
 /// `k = 0..=items.len()` (so `out[0] = 0`). `O(n)` after one map of the materials in `items`.
 pub fn prefix_demands(model: &DemandModel, infos: &[TriInfo], items: &[u32]) -> Vec<u64> {
+    prefix_demands_exact(model, infos, items).0
+}
+
+/// [`prefix_demands`], and whether the running sum never saturated. Then the last entry is the sum of the
+/// materials' final areas, and the demand of these items, or of any subset, is the same in every order: a
+/// material's area only grows as its running maxima grow, and those do not depend on the order, so no
+/// other order's running sum saturates either. (Saturation needs areas near `u64::MAX`: sides beyond
+/// 2³² texels.)
+pub fn prefix_demands_exact(
+    model: &DemandModel,
+    infos: &[TriInfo],
+    items: &[u32],
+) -> (Vec<u64>, bool) {
     SCRATCH.with(|scratch| {
         let mut scratch = scratch.borrow_mut();
         scratch.prefix_demands(model, infos, items)
@@ -158,7 +171,7 @@ impl Scratch {
         model: &DemandModel,
         infos: &[TriInfo],
         items: &[u32],
-    ) -> Vec<u64> {
+    ) -> (Vec<u64>, bool) {
         let materials = model.sources.len();
         if self.stamp.len() < materials {
             self.stamp.resize(materials, 0);
@@ -167,6 +180,7 @@ impl Scratch {
         self.call += 1;
         self.accs.clear();
         let mut total: u64 = 0;
+        let mut exact = true;
         let mut out = Vec::with_capacity(items.len() + 1);
         out.push(0);
         for &i in items {
@@ -184,13 +198,15 @@ impl Scratch {
                 // Unchanged maxima give the same area: skip recomputing it.
                 if *acc != before {
                     let new = model.area(m, acc);
-                    total = total.saturating_sub(*area).saturating_add(new);
+                    let rest = total.saturating_sub(*area);
+                    exact &= rest.checked_add(new).is_some();
+                    total = rest.saturating_add(new);
                     *area = new;
                 }
             }
             out.push(total);
         }
-        out
+        (out, exact)
     }
 }
 

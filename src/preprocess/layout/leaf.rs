@@ -60,25 +60,23 @@ impl MatNeed {
 }
 
 pub(super) fn material_needs(ctx: &Ctx<'_>, items: &[u32]) -> BTreeMap<(MaterialId, i32), MatNeed> {
-    let mut m: BTreeMap<(MaterialId, i32), MatNeed> = BTreeMap::new();
+    // Needs in order of first use, found by key; consecutive triangles mostly share their material, so
+    // the last key is tried first.
+    let mut needs: Vec<((MaterialId, i32), MatNeed)> = Vec::new();
+    let mut slot_of: BTreeMap<(MaterialId, i32), usize> = BTreeMap::new();
+    let mut last: Option<((MaterialId, i32), usize)> = None;
     for &i in items {
         let t = &ctx.infos[i as usize];
-        let e = m.entry((t.material, t.class)).or_insert_with(|| {
-            let wrap = ctx.scene.materials[t.material.idx()].wrap;
-            let mode = |k: usize| {
-                if ctx.opts.wrap {
-                    RectWrap::for_sampler(wrap[k])
-                } else {
-                    RectWrap::Linear
-                }
-            };
-            MatNeed {
-                w: 0.0,
-                h: 0.0,
-                cover: [AxisCover::new(mode(0)), AxisCover::new(mode(1))],
-                point_uvs: false,
-            }
-        });
+        let key = (t.material, t.class);
+        let slot = match last {
+            Some((k, slot)) if k == key => slot,
+            _ => *slot_of.entry(key).or_insert_with(|| {
+                needs.push((key, new_need(ctx, t.material)));
+                needs.len() - 1
+            }),
+        };
+        last = Some((key, slot));
+        let e = &mut needs[slot].1;
         for k in 0..2 {
             let (lo, hi) =
                 t.uv.iter()
@@ -101,7 +99,25 @@ pub(super) fn material_needs(ctx: &Ctx<'_>, items: &[u32]) -> BTreeMap<(Material
             SizeMethod::WorldDegenerate => {}
         }
     }
-    m
+    needs.into_iter().collect()
+}
+
+/// A material's need before any triangle: nothing covered, at its sampler's rect wrap.
+fn new_need(ctx: &Ctx<'_>, material: MaterialId) -> MatNeed {
+    let wrap = ctx.scene.materials[material.idx()].wrap;
+    let mode = |k: usize| {
+        if ctx.opts.wrap {
+            RectWrap::for_sampler(wrap[k])
+        } else {
+            RectWrap::Linear
+        }
+    };
+    MatNeed {
+        w: 0.0,
+        h: 0.0,
+        cover: [AxisCover::new(mode(0)), AxisCover::new(mode(1))],
+        point_uvs: false,
+    }
 }
 
 fn source_of(ctx: &Ctx<'_>, mat: MaterialId) -> [u32; 2] {

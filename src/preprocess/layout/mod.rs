@@ -170,6 +170,35 @@ fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
     }
 }
 
+/// The children's texel demands average at least [`FUTILE_SPLIT_SHARE`] of the node's. The demands are the
+/// split's own where it has them exactly, else walked again (the split rule by area, or demands near
+/// saturation); the same numbers either way.
+fn futile_split(
+    ctx: &Ctx<'_>,
+    items: &[u32],
+    groups: [usize; 4],
+    known: Option<split::SplitDemands>,
+) -> bool {
+    let demand = |items: &[u32]| super::demand::demand(ctx.split.model, ctx.leaf.infos, items);
+    let (child, own) = match known {
+        Some(d) => (d.groups, d.total),
+        None => {
+            let mut start = 0;
+            let child = groups.map(|g| {
+                start += g;
+                demand(&items[start - g..start])
+            });
+            (child, demand(items))
+        }
+    };
+    let mut child_demand = 0.0;
+    for d in child {
+        child_demand += d as f64;
+    }
+    let filled = groups.iter().filter(|&&g| g > 0).count().max(1) as f64;
+    child_demand / filled >= FUTILE_SPLIT_SHARE * own as f64
+}
+
 fn build_node(
     ctx: &Ctx<'_>,
     items: &mut [u32],
@@ -228,21 +257,11 @@ fn build_node(
             atlas: ctx.leaf.opts.atlas_size,
         });
     }
-    let groups = ctx.split.split4(items);
-    let model = ctx.split.model;
-    let mut start = 0;
-    let mut child_demand = 0.0;
-    for g in groups {
-        child_demand +=
-            super::demand::demand(model, ctx.leaf.infos, &items[start..start + g]) as f64;
-        start += g;
-    }
-    let filled = groups.iter().filter(|&&g| g > 0).count().max(1) as f64;
-    let own_demand = super::demand::demand(model, ctx.leaf.infos, items) as f64;
+    let (groups, split_demands) = ctx.split.split4_demands(items);
     // Only with repeats wrapped: baked ranges are per-triangle shifted, so one split often leaves every
     // child all the phases while deeper ones do separate them.
     if ctx.leaf.opts.wrap
-        && child_demand / filled >= FUTILE_SPLIT_SHARE * own_demand
+        && futile_split(ctx, items, groups, split_demands)
         && let Some(l) = scaled_leaf(&ctx.leaf, items, &needs, base, LeafReason::Shared)
     {
         return Ok(leaf(l));

@@ -6,7 +6,7 @@
 //! (b) itself), or the summed world area (the paper's approximation). A cut never separates equal keys
 //! and is kept inside `1..n`, so every group of a node with ≥ 2 triangles is smaller than the node.
 
-use crate::preprocess::demand::{DemandModel, prefix_demands};
+use crate::preprocess::demand::{DemandModel, prefix_demands_exact};
 use crate::preprocess::prepare::TriInfo;
 use serde::Serialize;
 
@@ -74,11 +74,27 @@ impl Splitter<'_> {
     /// `items` when `items.len() ≥ 2`: the cut is kept inside `1..n`, so thousands of triangles with one
     /// midpoint still split.
     pub fn split4(&self, items: &mut [u32]) -> [usize; 4] {
-        let k = self.cut_sorted(items, 0);
+        self.split4_demands(items).0
+    }
+
+    /// [`Splitter::split4`], with the texel demands of the four groups and of all `items` where the
+    /// demand rule's passes give them exactly ([`SplitDemands`]).
+    pub fn split4_demands(&self, items: &mut [u32]) -> ([usize; 4], Option<SplitDemands>) {
+        let (k, x) = self.cut(items, 0);
         let (lo, hi) = items.split_at_mut(k);
-        let k0 = self.cut_sorted(lo, 1);
-        let k1 = self.cut_sorted(hi, 1);
-        [k0, lo.len() - k0, k1, hi.len() - k1]
+        let (k0, y0) = self.cut(lo, 1);
+        let (k1, y1) = self.cut(hi, 1);
+        let groups = [k0, lo.len() - k0, k1, hi.len() - k1];
+        let demands = match (x, y0, y1) {
+            (Some(x), Some(y0), Some(y1)) if x.exact && y0.exact && y1.exact => {
+                Some(SplitDemands {
+                    groups: [y0.before, y0.after, y1.before, y1.after],
+                    total: x.total,
+                })
+            }
+            _ => None,
+        };
+        (groups, demands)
     }
 
     /// Sorts `items` by key `axis` (ties by index, deterministic) and returns the cut index: among the
@@ -87,9 +103,24 @@ impl Splitter<'_> {
     /// ties nearest the middle, then the lower. Without such a position (all keys equal) the middle; for
     /// n ≤ 1 it returns n (everything in the low group).
     pub fn cut_sorted(&self, items: &mut [u32], axis: usize) -> usize {
+        self.cut(items, axis).0
+    }
+
+    /// [`Splitter::cut_sorted`], with the demands of both sides under [`SplitRule::Demand`].
+    fn cut(&self, items: &mut [u32], axis: usize) -> (usize, Option<CutDemands>) {
         let n = items.len();
         if n <= 1 {
-            return n;
+            let demands = (self.rule == SplitRule::Demand).then(|| {
+                let (p, exact) = prefix_demands_exact(self.model, self.infos, items);
+                let total = p.last().copied().unwrap_or(0);
+                CutDemands {
+                    before: total,
+                    after: 0,
+                    total,
+                    exact,
+                }
+            });
+            return (n, demands);
         }
         let keys = midpoint_keys(self.infos, items, axis);
         let mut order: Vec<(i64, u32)> = keys.into_iter().zip(items.iter().copied()).collect();
@@ -97,12 +128,14 @@ impl Splitter<'_> {
         for (slot, &(_, it)) in items.iter_mut().zip(&order) {
             *slot = it;
         }
-        let cost_of: Box<dyn Fn(usize) -> f64> = match self.rule {
+        let mut sides: Option<(Vec<u64>, Vec<u64>, bool)> = None;
+        let cost_of: Box<dyn Fn(usize) -> f64 + '_> = match self.rule {
             SplitRule::Demand => {
-                let before = prefix_demands(self.model, self.infos, items);
+                let (before, exact_before) = prefix_demands_exact(self.model, self.infos, items);
                 let rev: Vec<u32> = items.iter().rev().copied().collect();
-                let after = prefix_demands(self.model, self.infos, &rev);
-                Box::new(move |k| before[k].max(after[n - k]) as f64)
+                let (after, exact_after) = prefix_demands_exact(self.model, self.infos, &rev);
+                let sides = sides.insert((before, after, exact_before && exact_after));
+                Box::new(move |k| sides.0[k].max(sides.1[n - k]) as f64)
             }
             SplitRule::Area => {
                 let mut acc = vec![0.0f64; n + 1];
@@ -124,8 +157,35 @@ impl Splitter<'_> {
                 best = Some((cost, off_centre, k));
             }
         }
-        best.map_or(n / 2, |(_, _, k)| k)
+        let k = best.map_or(n / 2, |(_, _, k)| k);
+        drop(cost_of);
+        let demands = sides.map(|(before, after, exact)| CutDemands {
+            before: before[k],
+            after: after[n - k],
+            total: before[n],
+            exact,
+        });
+        (k, demands)
     }
+}
+
+/// The texel demands a demand-rule split computed anyway ([`Splitter::split4_demands`]), when both passes
+/// of every cut were exact ([`prefix_demands_exact`]): `groups[i]` is the demand of group `i` (array
+/// order), `total` that of all items. Each equals the demand of the same triangles in any order, so the
+/// layout need not walk them again.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct SplitDemands {
+    pub groups: [u64; 4],
+    pub total: u64,
+}
+
+/// One cut's demands: of the items before the cut, after it (walked backwards), and of all of them.
+#[derive(Copy, Clone, Debug)]
+struct CutDemands {
+    before: u64,
+    after: u64,
+    total: u64,
+    exact: bool,
 }
 
 #[cfg(test)]
@@ -196,6 +256,53 @@ mod tests {
                 assert_eq!((m.x >= 2.0, m.y >= 2.0), (hx, hy), "triangle {i} at {m}");
             }
         }
+    }
+
+    #[test]
+    fn split_demands_are_the_groups_demands_in_their_own_order() {
+        use crate::preprocess::demand::demand;
+        // 200 triangles of 7 shared materials, scattered midpoints, UV ranges and densities.
+        let infos: Vec<TriInfo> = (0..200u32)
+            .map(|i| {
+                let h = i.wrapping_mul(2654435761);
+                let mut t = tri(
+                    DVec2::new(f64::from(h % 97), f64::from((h >> 8) % 89)),
+                    h % 7,
+                    f64::from(8 + (h >> 16) % 300),
+                    1.0,
+                );
+                t.uv[1] = DVec2::new(f64::from((h >> 4) % 5) + 0.25, 0.5);
+                t
+            })
+            .collect();
+        let model = model(7);
+        let s = Splitter {
+            infos: &infos,
+            model: &model,
+            rule: SplitRule::Demand,
+        };
+        for n in [0usize, 1, 2, 3, 17, 200] {
+            let mut items: Vec<u32> = (0..n as u32).collect();
+            let (g, d) = s.split4_demands(&mut items);
+            let d = d.expect("no saturation here");
+            let mut start = 0;
+            for (i, len) in g.into_iter().enumerate() {
+                let want = demand(&model, &infos, &items[start..start + len]);
+                assert_eq!(d.groups[i], want, "n {n} group {i}");
+                start += len;
+            }
+            assert_eq!(d.total, demand(&model, &infos, &items), "n {n}");
+            assert_eq!(s.split4(&mut items.clone()), g);
+        }
+        // The area rule computes no demands.
+        let area = Splitter {
+            rule: SplitRule::Area,
+            ..s
+        };
+        assert_eq!(
+            area.split4_demands(&mut (0..50).collect::<Vec<u32>>()).1,
+            None
+        );
     }
 
     #[test]
