@@ -236,8 +236,7 @@ impl Grid {
     /// diagonal / 15; 4 builds: atlas 512/1024, box/Kaiser, repeats baked; 4 texel ratios, one capacity, 6
     /// frames of 320×240). `full`: 12 builds (d_min ratio 10/30/60, atlas 512/1024/2048, border 2/8/16 (the
     /// paper's 8), box/Kaiser, compression none/bc1/bc7, repeats wrap/bake, alpha mips plain/coverage),
-    /// 4 texel ratios, capacities 32
-    /// and 128, 12 frames of 640×480.
+    /// 4 texel ratios, capacities 32 and 128, 12 frames of 640×480.
     pub fn preset(name: &str) -> Option<Grid> {
         let ratios = vec![0.25, 0.5, 1.0, 2.0];
         match name {

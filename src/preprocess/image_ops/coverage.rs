@@ -68,15 +68,25 @@ fn centres_in(a: f64, b: f64, n: u32) -> (u32, u32) {
     (clamp((a - 0.5).ceil()), clamp((b - 0.5).ceil()))
 }
 
-/// The texels of a `width × height` image whose centres lie in `rect` (level-0 texels scaled by `scale`
-/// per axis), by row ranges of indices into its data.
+/// The texel columns `[x0, x1)` and rows `[y0, y1)` of a `width × height` image whose centres lie in
+/// `rect` (level-0 texels scaled by `scale` per axis).
+fn region_span(
+    (width, height): (u32, u32),
+    rect: [f64; 4],
+    scale: [f64; 2],
+) -> ((u32, u32), (u32, u32)) {
+    let xs = centres_in(rect[0] * scale[0], rect[2] * scale[0], width);
+    let ys = centres_in(rect[1] * scale[1], rect[3] * scale[1], height);
+    (xs, ys)
+}
+
+/// [`region_span`] as row ranges of indices into the image's data.
 fn region_rows(
     (width, height): (u32, u32),
     rect: [f64; 4],
     scale: [f64; 2],
 ) -> impl Iterator<Item = std::ops::Range<usize>> {
-    let (x0, x1) = centres_in(rect[0] * scale[0], rect[2] * scale[0], width);
-    let (y0, y1) = centres_in(rect[1] * scale[1], rect[3] * scale[1], height);
+    let ((x0, x1), (y0, y1)) = region_span((width, height), rect, scale);
     let w = width as usize;
     (y0..y1).map(move |y| y as usize * w + x0 as usize..y as usize * w + x1 as usize)
 }
@@ -86,7 +96,8 @@ fn region_rows(
 /// share (an area of 3 texels passes 0, 1/3, 2/3 or all).
 const MIN_REGION_TEXELS: usize = 64;
 
-/// The texels of every region of `group` in `img` (its size and texel count) at `scale`, row by row.
+/// The texels of every region of `group` in `img` at `scale`, row by row (the iterator holds the
+/// image's size, not the image, so the image can be written while it runs).
 fn group_rows<'r>(
     img: &LinearImage,
     group: &'r [&'r CoverageRegion],
@@ -175,9 +186,7 @@ fn coverage_scale(
 
 /// Multiplies the alpha of `group`'s texels by `s` (clamped to 1), keeping each texel's straight colour.
 fn scale_alpha(img: &mut LinearImage, group: &[&CoverageRegion], scale: [f64; 2], s: f32) {
-    // The rows are collected first: they borrow the image that is then written.
-    let rows: Vec<_> = group_rows(img, group, scale).collect();
-    for r in rows {
+    for r in group_rows(img, group, scale) {
         for t in &mut img.data[r] {
             let a = t[3];
             if a > 0.0 {
@@ -191,9 +200,8 @@ fn scale_alpha(img: &mut LinearImage, group: &[&CoverageRegion], scale: [f64; 2]
 
 /// Number of texel centres of `region` in a `w × h` level at `scale`.
 fn texels_at(region: &CoverageRegion, w: u32, h: u32, scale: [f64; 2]) -> usize {
-    region_rows((w, h), region.rect, scale)
-        .map(|r| r.len())
-        .sum()
+    let ((x0, x1), (y0, y1)) = region_span((w, h), region.rect, scale);
+    x1.saturating_sub(x0) as usize * y1.saturating_sub(y0) as usize
 }
 
 /// Rescales the alpha of every level `≥ 1` of `levels` (a mip chain, level 0 first) so that each region's

@@ -109,42 +109,34 @@ impl Splitter<'_> {
     /// [`Splitter::cut_sorted`], with the demands of both sides under [`SplitRule::Demand`].
     fn cut(&self, items: &mut [u32], axis: usize) -> (usize, Option<CutDemands>) {
         let n = items.len();
-        if n <= 1 {
-            let demands = (self.rule == SplitRule::Demand).then(|| {
-                let (p, exact) = prefix_demands_exact(self.model, self.infos, items);
-                let total = p.last().copied().unwrap_or(0);
-                CutDemands {
-                    before: total,
-                    after: 0,
-                    total,
-                    exact,
-                }
-            });
-            return (n, demands);
-        }
-        let keys = midpoint_keys(self.infos, items, axis);
-        let mut order: Vec<(i64, u32)> = keys.into_iter().zip(items.iter().copied()).collect();
-        order.sort_unstable();
-        for (slot, &(_, it)) in items.iter_mut().zip(&order) {
-            *slot = it;
-        }
-        let mut sides: Option<(Vec<u64>, Vec<u64>, bool)> = None;
-        let cost_of: Box<dyn Fn(usize) -> f64 + '_> = match self.rule {
-            SplitRule::Demand => {
-                let (before, exact_before) = prefix_demands_exact(self.model, self.infos, items);
-                let rev: Vec<u32> = items.iter().rev().copied().collect();
-                let (after, exact_after) = prefix_demands_exact(self.model, self.infos, &rev);
-                let sides = sides.insert((before, after, exact_before && exact_after));
-                Box::new(move |k| sides.0[k].max(sides.1[n - k]) as f64)
+        let mut order: Vec<(i64, u32)> = Vec::new();
+        if n > 1 {
+            let keys = midpoint_keys(self.infos, items, axis);
+            order = keys.into_iter().zip(items.iter().copied()).collect();
+            order.sort_unstable();
+            for (slot, &(_, it)) in items.iter_mut().zip(&order) {
+                *slot = it;
             }
-            SplitRule::Area => {
-                let mut acc = vec![0.0f64; n + 1];
-                for (i, &it) in items.iter().enumerate() {
-                    acc[i + 1] = acc[i] + self.infos[it as usize].area;
-                }
-                let half = 0.5 * acc[n];
-                Box::new(move |k| (acc[k] - half).abs())
+        }
+        // Demand rule: the demand of every prefix walked forwards and of every suffix walked backwards.
+        let sides = (self.rule == SplitRule::Demand).then(|| {
+            let (before, exact_before) = prefix_demands_exact(self.model, self.infos, items);
+            let rev: Vec<u32> = items.iter().rev().copied().collect();
+            let (after, exact_after) = prefix_demands_exact(self.model, self.infos, &rev);
+            (before, after, exact_before && exact_after)
+        });
+        // Area rule: the world area of every prefix.
+        let mut areas = Vec::new();
+        if sides.is_none() {
+            areas.push(0.0f64);
+            for &it in items.iter() {
+                areas.push(areas[areas.len() - 1] + self.infos[it as usize].area);
             }
+        }
+        let half = 0.5 * areas.last().copied().unwrap_or(0.0);
+        let cost_of = |k: usize| match &sides {
+            Some((before, after, _)) => before[k].max(after[n - k]) as f64,
+            None => (areas[k] - half).abs(),
         };
         let mut best: Option<(f64, usize, usize)> = None;
         for k in 1..n {
@@ -157,8 +149,12 @@ impl Splitter<'_> {
                 best = Some((cost, off_centre, k));
             }
         }
-        let k = best.map_or(n / 2, |(_, _, k)| k);
-        drop(cost_of);
+        // n ≤ 1: everything in the low group.
+        let k = if n <= 1 {
+            n
+        } else {
+            best.map_or(n / 2, |(_, _, k)| k)
+        };
         let demands = sides.map(|(before, after, exact)| CutDemands {
             before: before[k],
             after: after[n - k],
