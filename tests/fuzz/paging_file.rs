@@ -1,8 +1,9 @@
 //! Target `paging_file`: structure-aware mutants of a small built paging file (a synthetic city, 64² atlases)
-//! fed to `TreeFile::from_bytes`, the block reads the renderer uses (`FileSource::fetch`, the block table)
-//! and `inspect::verify` (what `atlastree inspect --verify` runs); a resealed mutant that opens is also
-//! exported as 3D Tiles (`atlastree export 3dtiles`, which trusts what open checked and must refuse the
-//! rest with an error, never a panic, and leave nothing behind).
+//! fed to `TreeFile::from_bytes`, the block reads the renderer uses (`FileSource::fetch`, the block table),
+//! the CPU half of the renderer's load (`render::resident::gather_tables`) and `inspect::verify` (what
+//! `atlastree inspect --verify` runs); a resealed mutant that opens is also exported as 3D Tiles
+//! (`atlastree export 3dtiles`, which trusts what open checked and must refuse the rest with an error,
+//! never a panic, and leave nothing behind).
 //!
 //! Mutations, drawn from the case's bytes:
 //! - raw: byte flips (one to eight, most in the header, tables and padding), truncation, appended bytes,
@@ -230,6 +231,8 @@ fn judge(bytes: &[u8]) -> Result<(), String> {
             .fetch(BlockId(i as u32), record)
             .map_err(|e| format!("fetch: {e}"))?;
     }
+    // The renderer's CPU half of a load (tables, TAM, blend lists): an error is fine, a panic is not.
+    let _ = atlastree::render::resident::gather_tables(&file);
     let v = atlastree::inspect::verify(&file);
     if v.ok() {
         Ok(())
