@@ -2,7 +2,11 @@ use super::args::BuildParamsArgs;
 use super::{UpArg, load_scene, progress::Bars};
 use anyhow::Context;
 use atlastree::preprocess::shard::{ShardSpec, shard_from_env};
-use atlastree::preprocess::{BuildOptions, BuildReport, DMin, ShardedOptions, build, build_shard};
+use atlastree::preprocess::{
+    BuildOptions, BuildReport, DMin, ShardPlanError, ShardReport, ShardedOptions, build,
+    build_shard, build_shard_planned, plan_shards, shard_plan_key,
+};
+use atlastree::store::shard_plan::{PlanFile, plan_path};
 use atlastree::texfmt::Compression;
 use atlastree::util::human_bytes;
 use clap::Args;
@@ -66,14 +70,16 @@ pub(crate) struct BuildArgs {
     /// Up axis; `auto` takes the axis of least extent.
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
-    /// Build one shard of a sharded build (city scale, docs/city-scale.md): `I/N` (0-based, e.g. `3/16`)
-    /// writes `OUT.shard-I-of-N` (and its report, `….json`) beside OUT; `atlastree merge OUT` then makes OUT,
-    /// byte-identical to a build without --shard. Every shard plans the whole tree (identically) and
-    /// rasterises about 1/N of the texel work. `auto` takes I and N from the scheduler: Slurm job arrays
-    /// (SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT), Kubernetes Indexed Jobs (JOB_COMPLETION_INDEX and
-    /// ATLASTREE_SHARD_COUNT set to the completions), AWS Batch arrays (AWS_BATCH_JOB_ARRAY_INDEX and
-    /// ATLASTREE_SHARD_COUNT set to the array size).
-    #[arg(long, value_name = "I/N|auto")]
+    /// One step of a sharded build (city scale, docs/city-scale.md). `plan`: plan the whole tree once
+    /// (every triangle in memory, no pixels) into `OUT.plan` (and its report, `….json`). `I/N` (0-based,
+    /// e.g. `3/16`): rasterise about 1/N of the texel work into `OUT.shard-I-of-N` (and `….json`) beside OUT;
+    /// with `OUT.plan` present (same scene and flags, else refused) the shard reads it and imports only the
+    /// scene's images, without it every shard plans the whole tree itself (identically). `atlastree merge OUT`
+    /// then makes OUT, byte-identical to a build without --shard. `auto` takes I and N from the scheduler:
+    /// Slurm job arrays (SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT), Kubernetes Indexed Jobs
+    /// (JOB_COMPLETION_INDEX and ATLASTREE_SHARD_COUNT set to the completions), AWS Batch arrays
+    /// (AWS_BATCH_JOB_ARRAY_INDEX and ATLASTREE_SHARD_COUNT set to the array size).
+    #[arg(long, value_name = "plan|I/N|auto")]
     pub shard: Option<String>,
     /// Print the report as JSON.
     #[arg(long)]
@@ -128,6 +134,14 @@ impl BuildArgs {
 }
 
 pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
+    let step = shard_step(a.shard.as_deref())?;
+    let bars = Bars::new(a.quiet || a.json);
+    if let ShardStep::Shard(spec) = step {
+        let plan = plan_path(&a.out);
+        if plan.exists() {
+            return run_planned_shard(&a, spec, &plan, &bars);
+        }
+    }
     let t = std::time::Instant::now();
     let mut scene = load_scene(&a.scene, a.up)?;
     if !a.materials.is_empty() {
@@ -145,9 +159,12 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     // The import's own peak (the process's so far); each stage of the build then reports its own
     // (build summary, `memory_window::MemoryWindow`).
     let import_peak = atlastree::util::peak_rss_bytes();
-    let bars = Bars::new(a.quiet || a.json);
-    if let Some(spec) = shard_spec(a.shard.as_deref())? {
-        return run_shard(&a, &scene, spec, (import_s, import_peak), &bars);
+    match step {
+        ShardStep::Shard(spec) => {
+            return run_shard(&a, &scene, spec, (import_s, import_peak), &bars);
+        }
+        ShardStep::Plan => return run_plan(&a, &scene, (import_s, import_peak), &bars),
+        ShardStep::Whole => {}
     }
     let mut report = build(&scene, &a.options(), &a.out, &bars)
         .with_context(|| format!("building {} into {}", a.scene.display(), a.out.display()))?;
@@ -160,17 +177,104 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The shard `--shard` asks for, if any (`auto`: from the scheduler's environment).
-fn shard_spec(arg: Option<&str>) -> anyhow::Result<Option<ShardSpec>> {
+/// Which step of a build `--shard` asks for.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+enum ShardStep {
+    /// No `--shard`: the whole build in this process.
+    Whole,
+    /// `--shard plan`: the plan, once, into `OUT.plan`.
+    Plan,
+    /// `--shard I/N` or `auto` (from the scheduler's environment).
+    Shard(ShardSpec),
+}
+
+fn shard_step(arg: Option<&str>) -> anyhow::Result<ShardStep> {
     match arg {
-        None => Ok(None),
+        None => Ok(ShardStep::Whole),
+        Some("plan") => Ok(ShardStep::Plan),
         Some("auto") => {
             let (spec, scheduler) = shard_from_env(&|k| std::env::var(k).ok())?;
             eprintln!("--shard auto: shard {spec} from the {scheduler} environment");
-            Ok(Some(spec))
+            Ok(ShardStep::Shard(spec))
         }
-        Some(s) => Ok(Some(s.parse::<ShardSpec>()?)),
+        Some(s) => Ok(ShardStep::Shard(s.parse::<ShardSpec>()?)),
     }
+}
+
+/// The scene filters of these flags in words: part of a plan's key, as they change the scene it covers.
+fn selection(a: &BuildArgs) -> String {
+    format!("materials={:?};up={:?}", a.materials, a.up)
+}
+
+fn run_plan(
+    a: &BuildArgs,
+    scene: &atlastree::scene::Scene,
+    (import_s, import_peak): (f64, Option<u64>),
+    bars: &Bars,
+) -> anyhow::Result<ExitCode> {
+    let opts = a.options();
+    let key = shard_plan_key(&opts, &a.scene, &selection(a))?;
+    let argv = std::env::args().collect();
+    let mut report = plan_shards(scene, &opts, &a.out, key, argv, bars)
+        .with_context(|| format!("planning {} for {}", a.scene.display(), a.out.display()))?;
+    report.stages.prepend("import", import_s, import_peak);
+    report.save()?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "wrote plan {} ({}): {} triangles → {} nodes, {} blocks",
+        report.path.display(),
+        human_bytes(report.file_bytes),
+        report.triangles,
+        report.nodes,
+        report.blocks
+    );
+    print_times(&report.stages.timings);
+    println!(
+        "  peak memory {}",
+        report.stages.peak_rss_bytes.map_or("?".into(), human_bytes)
+    );
+    print_stage_peaks(&report.stages.stage_peak_rss);
+    println!(
+        "  next: each shard with the same flags (`--shard I/N` or `auto`) reads this plan instead of planning; then \
+         atlastree merge {}",
+        a.out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A shard whose plan is `OUT.plan`: it imports only the scene's images.
+fn run_planned_shard(
+    a: &BuildArgs,
+    spec: ShardSpec,
+    plan: &std::path::Path,
+    bars: &Bars,
+) -> anyhow::Result<ExitCode> {
+    let opts = a.options();
+    let file = PlanFile::open(plan)
+        .map_err(ShardPlanError::File)
+        .with_context(|| {
+            format!("reading the plan of shard {spec} (remove it to let the shard plan itself)")
+        })?;
+    let key = shard_plan_key(&opts, &a.scene, &selection(a))?;
+    let sharded = ShardedOptions {
+        spec,
+        argv: std::env::args().collect(),
+    };
+    if !(a.quiet || a.json) {
+        println!("shard {spec}: planned by {}", plan.display());
+    }
+    let report = build_shard_planned(&file, key, &a.scene, &opts, &a.out, &sharded, bars)
+        .with_context(|| {
+            format!(
+                "building shard {spec} of {} for {}",
+                a.scene.display(),
+                a.out.display()
+            )
+        })?;
+    print_shard(a, spec, &report)
 }
 
 fn run_shard(
@@ -193,11 +297,15 @@ fn run_shard(
             )
         })?;
     report.stages.prepend("import", import_s, import_peak);
+    print_shard(a, spec, &report)
+}
+
+fn print_shard(a: &BuildArgs, spec: ShardSpec, report: &ShardReport) -> anyhow::Result<ExitCode> {
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        println!("{}", serde_json::to_string_pretty(report)?);
         return Ok(ExitCode::SUCCESS);
     }
-    let r = &report;
+    let r = report;
     println!(
         "wrote shard {spec}: {} ({}) — {} subtrees, {} nodes, {} blocks, work {:.2}× the mean",
         r.path.display(),

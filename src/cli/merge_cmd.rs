@@ -61,12 +61,29 @@ pub(super) fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
             s.peak_rss_bytes.map_or("?".into(), human_bytes)
         );
     }
+    if let Some(p) = &r.plan {
+        println!(
+            "  {:>5}  {:>10}  {:>7}  {:>8}  {:>9}  {:>11}   ({})",
+            "plan",
+            "",
+            "",
+            "",
+            p.seconds.map_or("?".into(), |t| format!("{t:.2} s")),
+            p.peak_rss_bytes.map_or("?".into(), human_bytes),
+            p.path.display()
+        );
+    }
     let times: Vec<f64> = r.shards.iter().filter_map(|s| s.seconds).collect();
     if times.len() == r.shards.len() && !times.is_empty() {
         let max = times.iter().cloned().fold(0.0, f64::max);
         let mean = times.iter().sum::<f64>() / times.len() as f64;
+        let plan = match r.plan.as_ref().map(|p| p.seconds) {
+            Some(Some(s)) => format!("plan {s:.2} s + "),
+            Some(None) => "plan (time unknown) + ".into(),
+            None => String::new(),
+        };
         println!(
-            "  slowest shard {max:.2} s, mean {mean:.2} s (max/mean {:.2}); critical path on {} machines ≈ {:.2} s + merge {:.2} s",
+            "  slowest shard {max:.2} s, mean {mean:.2} s (max/mean {:.2}); critical path on {} machines ≈ {plan}{:.2} s + merge {:.2} s",
             max / mean.max(1e-9),
             r.count,
             max,

@@ -47,10 +47,10 @@ pub struct MemoryPlan {
 /// Why a budget is too small.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error(
-    "the build needs about {needed_mib} MiB ({triangles} triangles: {plan_mib} MiB for the plan; {raster_mib} MiB \
+    "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan, {triangles} triangles held; {raster_mib} MiB \
      for {threads} rasteriser threads; {cache_mib} MiB of image cache for the largest image, {largest_texels} texels, \
-     once per thread), over --max-memory {budget_mib} MiB: raise --max-memory (the plan's share does not shrink \
-     with --shard yet)"
+     once per thread), over --max-memory {budget_mib} MiB: raise --max-memory, or for a sharded build plan once \
+     (`build --shard plan`): its shards then hold no triangles"
 )]
 pub struct MemoryError {
     pub budget_mib: u64,
@@ -73,7 +73,58 @@ pub fn plan_memory(
     largest_image_texels: u64,
     cache_wanted: u64,
 ) -> Result<MemoryPlan, MemoryError> {
-    let plan_bytes = BASE_BYTES.saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE));
+    let plan_bytes = triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE);
+    let pixels = PixelNeeds {
+        atlas_size,
+        threads,
+        largest_image_texels,
+        cache_wanted,
+    };
+    split_budget(budget, plan_bytes, triangles, pixels)
+}
+
+/// [`plan_memory`] for a shard that read a plan file: it holds no triangles, only the plan's table prefix
+/// (`prefix_bytes`, while it decodes the tables it rasterises from).
+pub fn planned_shard_memory(
+    budget: u64,
+    prefix_bytes: u64,
+    atlas_size: u32,
+    threads: u64,
+    largest_image_texels: u64,
+    cache_wanted: u64,
+) -> Result<MemoryPlan, MemoryError> {
+    let pixels = PixelNeeds {
+        atlas_size,
+        threads,
+        largest_image_texels,
+        cache_wanted,
+    };
+    split_budget(budget, prefix_bytes, 0, pixels)
+}
+
+/// What the pixel pass's share of a budget depends on.
+struct PixelNeeds {
+    atlas_size: u32,
+    threads: u64,
+    largest_image_texels: u64,
+    cache_wanted: u64,
+}
+
+/// The split of [`plan_memory`]: `held` bytes of plan data (for `triangles` triangles) besides
+/// [`BASE_BYTES`].
+fn split_budget(
+    budget: u64,
+    held: u64,
+    triangles: u64,
+    pixels: PixelNeeds,
+) -> Result<MemoryPlan, MemoryError> {
+    let PixelNeeds {
+        atlas_size,
+        threads,
+        largest_image_texels,
+        cache_wanted,
+    } = pixels;
+    let plan_bytes = BASE_BYTES.saturating_add(held);
     let atlas = u64::from(atlas_size).pow(2) * 16;
     let raster_bytes = threads.max(1) * ATLASES_PER_THREAD * atlas;
     let floor =

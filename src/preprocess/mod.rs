@@ -23,9 +23,13 @@ pub mod pack;
 pub mod prepare;
 pub mod raster;
 pub mod shard;
+mod shard_plan;
 mod shard_run;
 pub mod sizing;
 
+pub use shard_plan::{
+    ShardPlanError, ShardPlanReport, build_shard_planned, plan_shards, shard_plan_key,
+};
 pub use shard_run::{MergeError, MergeReport, ShardReport, ShardedOptions, build_shard, merge};
 
 use crate::model::{AtlasForest, BuildParams, TreeKind};
@@ -209,6 +213,10 @@ pub enum BuildError {
     Store(#[from] StoreError),
     #[error(transparent)]
     Memory(#[from] memory::MemoryError),
+    #[error(transparent)]
+    Plan(Box<shard_plan::ShardPlanError>),
+    #[error(transparent)]
+    Scene(Box<crate::scene::SceneError>),
     #[error("encoding the {what}: {source}")]
     Encode {
         what: String,
@@ -225,6 +233,18 @@ pub enum BuildError {
         #[source]
         source: image_ops::ImageOpsError,
     },
+}
+
+impl From<shard_plan::ShardPlanError> for BuildError {
+    fn from(e: shard_plan::ShardPlanError) -> Self {
+        BuildError::Plan(Box::new(e))
+    }
+}
+
+impl From<crate::scene::SceneError> for BuildError {
+    fn from(e: crate::scene::SceneError) -> Self {
+        BuildError::Scene(Box::new(e))
+    }
 }
 
 /// Per-tree numbers of a build report.
@@ -413,19 +433,21 @@ pub fn build(
     let cache = raster::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
     let cut = shard::choose_cut(&forest, 1);
     let units = cut.shards.first().map_or(&[][..], Vec::as_slice);
-    let handoffs = pixel_pass(
+    let pass = pixel_pass(
         scene,
         opts.pixel_options(),
         &forest,
         units,
         &writer,
         &cache,
-        &mut reports,
         progress,
     )?;
+    for (report, db) in reports.iter_mut().zip(pass.atlas_psnr_db) {
+        report.atlas_psnr_db = db;
+    }
     let none = |_| {};
     let above = raster::AtlasOut::new(&forest, opts.pixel_options(), &writer, &none);
-    shard::raster_forest_above(&above, &forest, handoffs)?;
+    shard::raster_forest_above(&above, &forest, pass.handoffs)?;
     timings.push("rasterise", t);
 
     let t = Instant::now();
@@ -457,19 +479,20 @@ pub(super) fn plan_memory(
     let Some(budget) = opts.max_memory_bytes else {
         return Ok(None);
     };
-    let largest = (scene.images.iter())
-        .map(|i| u64::from(i.width) * u64::from(i.height))
-        .max()
-        .unwrap_or(0);
     let plan = memory::plan_memory(
         budget,
         scene.triangles.len() as u64,
         params.atlas_size,
         rayon::current_num_threads() as u64,
-        largest,
+        largest_image_texels(&scene.images),
         opts.image_cache_bytes,
     )?;
     Ok(Some(plan))
+}
+
+/// Texels of the largest of `images` (the image cache must hold it once per rasteriser thread).
+pub(super) fn largest_image_texels(images: &[crate::scene::ImageSource]) -> u64 {
+    images.iter().map(|i| i.texels()).max().unwrap_or(0)
 }
 
 /// The image cache bound of a build: the memory plan's, or the option's without a budget.
@@ -550,6 +573,14 @@ impl StageLog {
             now
         };
         self.record(name, start.elapsed().as_secs_f64(), peak, false);
+    }
+
+    /// The seconds of stage `name`, if it ran.
+    pub fn seconds(&self, name: &str) -> Option<f64> {
+        self.timings
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, s)| *s)
     }
 
     /// Puts a stage that ran before the library's (the CLI's import) first.
@@ -718,9 +749,8 @@ pub(super) fn pixel_pass(
     units: &[shard::Unit],
     sink: &dyn crate::store::BlockSink,
     cache: &raster::ImageCache<'_>,
-    reports: &mut [TreeReport],
     progress: &dyn Progress,
-) -> Result<std::collections::HashMap<shard::Unit, raster::Handoff>, BuildError> {
+) -> Result<PixelPass, BuildError> {
     let mut total_nodes = 0u64;
     for u in units {
         let tree = &forest.trees[u.tree as usize];
@@ -734,7 +764,8 @@ pub(super) fn pixel_pass(
         out: raster::AtlasOut::new(forest, pixels, sink, &set),
     };
     let mut handoffs = std::collections::HashMap::new();
-    for (t, (tree, report)) in forest.trees.iter().zip(reports).enumerate() {
+    let mut atlas_psnr_db = Vec::with_capacity(forest.trees.len());
+    for (t, tree) in forest.trees.iter().enumerate() {
         let mine: Vec<shard::Unit> = units
             .iter()
             .filter(|u| u.tree as usize == t)
@@ -746,10 +777,20 @@ pub(super) fn pixel_pass(
         handoffs.extend(mine.into_iter().zip(levels));
         let sse = ctx.out.atlas_sse.swap(0, Ordering::Relaxed);
         let samples = ctx.out.atlas_samples.swap(0, Ordering::Relaxed);
-        report.atlas_psnr_db = crate::texfmt::psnr(sse, samples);
+        atlas_psnr_db.push(crate::texfmt::psnr(sse, samples));
     }
     progress.finish_stage();
-    Ok(handoffs)
+    Ok(PixelPass {
+        handoffs,
+        atlas_psnr_db,
+    })
+}
+
+/// What [`pixel_pass`] hands back: the units' handoffs and each tree's atlas PSNR against the
+/// uncompressed atlases it rasterised.
+pub(super) struct PixelPass {
+    pub(super) handoffs: std::collections::HashMap<shard::Unit, raster::Handoff>,
+    pub(super) atlas_psnr_db: Vec<f64>,
 }
 
 /// The report of a finished build, with the warnings of the image cache and of clamped leaves.

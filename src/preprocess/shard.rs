@@ -309,7 +309,16 @@ pub fn fingerprint(
     if pixels.alpha_mips != super::image_ops::AlphaMips::Plain {
         s.push_str(&format!("alpha {}|", pixels.alpha_mips.name()));
     }
-    for img in &scene.images {
+    s.push_str(&images_identity(&scene.images));
+    hash128(s.as_bytes())
+}
+
+/// Each image's identity, in image-id order (the part of [`fingerprint`] a plan file checks against the
+/// images a shard finds): name, size, colour type, and the byte length of an external file or the hash of
+/// embedded bytes.
+pub fn images_identity(images: &[crate::scene::ImageSource]) -> String {
+    let mut s = String::new();
+    for img in images {
         let data = match &img.data {
             ImageData::File(p) => format!(
                 "file:{}",
@@ -324,7 +333,7 @@ pub fn fingerprint(
             img.name, img.width, img.height, img.color
         ));
     }
-    hash128(s.as_bytes())
+    s
 }
 
 /// The units of `cut` in shard order as a map from unit to handoff slot (the merge's expectations).

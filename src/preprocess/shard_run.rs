@@ -47,7 +47,8 @@ pub struct ShardReport {
 }
 
 /// Builds shard `sharded.spec` of the build of `scene` into `out` and writes `OUT.shard-I-of-N` beside
-/// `out` (atomically), with a JSON report beside it (`….json`).
+/// `out` (atomically), with a JSON report beside it (`….json`). The shard plans the whole scene itself
+/// (identically in every shard); [`super::build_shard_planned`] reads a plan instead.
 pub fn build_shard(
     scene: &Scene,
     opts: &BuildOptions,
@@ -56,22 +57,66 @@ pub fn build_shard(
     progress: &dyn Progress,
 ) -> Result<ShardReport, BuildError> {
     let t_all = Instant::now();
-    let spec = sharded.spec;
     let super::Planned {
-        params,
         memory_plan,
-        mut timings,
+        timings,
         forest,
-        mut reports,
         ..
     } = super::plan_build(scene, opts, progress)?;
-
     let t = Instant::now();
     let prefix = table_prefix(&forest)?;
     let prefix_hash = hash128(&prefix);
-    let cut = choose_cut(&forest, spec.count);
+    let held = if sharded.spec.index == 0 {
+        prefix
+    } else {
+        Vec::new()
+    };
+    let input = ShardInput {
+        scene,
+        forest: &forest,
+        prefix_hash,
+        prefix: held,
+        memory_plan,
+        timings,
+    };
+    rasterise_shard(input, opts, out, sharded, progress, (t, t_all))
+}
+
+/// What a shard rasterises from, however it got its plan.
+pub(super) struct ShardInput<'a> {
+    /// Images and materials (a planned shard's scene has no geometry).
+    pub(super) scene: &'a Scene,
+    /// The whole forest's tables (a planned shard's without geometry).
+    pub(super) forest: &'a crate::model::AtlasForest,
+    pub(super) prefix_hash: [u64; 2],
+    /// The table prefix this shard file carries: shard 0's when no plan file holds it, else empty.
+    pub(super) prefix: Vec<u8>,
+    pub(super) memory_plan: Option<super::memory::MemoryPlan>,
+    pub(super) timings: super::StageLog,
+}
+
+/// The shard's part of the pixel pass into its shard file, and its report; `t` = (start of the shard
+/// layout stage, start of the whole shard).
+pub(super) fn rasterise_shard(
+    input: ShardInput<'_>,
+    opts: &BuildOptions,
+    out: &Path,
+    sharded: &ShardedOptions,
+    progress: &dyn Progress,
+    (t, t_all): (Instant, Instant),
+) -> Result<ShardReport, BuildError> {
+    let ShardInput {
+        scene,
+        forest,
+        prefix_hash,
+        prefix,
+        memory_plan,
+        mut timings,
+    } = input;
+    let spec = sharded.spec;
+    let cut = choose_cut(forest, spec.count);
     let units = cut.shards[spec.index as usize].clone();
-    let side = handoff_side(params.atlas_size);
+    let side = handoff_side(forest.params.atlas_size);
     let layout = ShardLayout {
         shard: spec.index,
         count: spec.count,
@@ -79,8 +124,8 @@ pub fn build_shard(
         fingerprint: fingerprint(prefix_hash, opts.pixel_options(), scene),
         prefix_hash,
         argv: serde_json::to_vec(&sharded.argv).unwrap_or_else(|_| b"[]".to_vec()),
-        prefix: if spec.index == 0 { prefix } else { Vec::new() },
-        blocks: shard_blocks(&forest, &units),
+        prefix,
+        blocks: shard_blocks(forest, &units),
         handoffs: units.iter().map(|u| (u.tree, u.node, side, side)).collect(),
     };
     let blocks = layout.blocks.len() as u64;
@@ -90,17 +135,16 @@ pub fn build_shard(
 
     let t = Instant::now();
     let cache = raster::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
-    let handoffs = super::pixel_pass(
+    let pass = super::pixel_pass(
         scene,
         opts.pixel_options(),
-        &forest,
+        forest,
         &units,
         &writer,
         &cache,
-        &mut reports,
         progress,
     )?;
-    for (u, h) in &handoffs {
+    for (u, h) in &pass.handoffs {
         writer.put_handoff(u.tree, u.node, &h.data)?;
     }
     timings.push("rasterise", t);
@@ -135,7 +179,7 @@ pub fn build_shard(
 
 /// `PATH.json`: the shard's report, written atomically (the merge reads it for its table; the shard file
 /// itself holds nothing that differs between reruns).
-fn write_sidecar(path: &Path, report: &ShardReport) -> Result<(), BuildError> {
+pub(super) fn write_sidecar(path: &Path, report: &impl Serialize) -> Result<(), BuildError> {
     use std::io::Write;
     let mut name = path.as_os_str().to_os_string();
     name.push(".json");
@@ -190,6 +234,11 @@ pub enum MergeError {
         why: String,
         rebuild: String,
     },
+    #[error(
+        "shard 0 holds no table prefix (its shards were built from the plan {plan}), and the plan cannot give it: \
+         {why}; plan again with the shards' flags (`atlastree build SCENE -o OUT FLAGS --shard plan`) and rebuild the shards"
+    )]
+    Plan { plan: PathBuf, why: String },
     #[error("merging into {out}: {source}")]
     Store {
         out: PathBuf,
@@ -228,6 +277,17 @@ pub struct MergeReport {
     pub above_cut: u64,
     pub file_bytes: u64,
     pub seconds: f64,
+    pub peak_rss_bytes: Option<u64>,
+    /// The plan step, when the shards read a plan file: its time and peak memory from its report
+    /// (`OUT.plan.json`), if present.
+    pub plan: Option<MergedPlan>,
+}
+
+/// The plan step of a planned build, as the merge reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct MergedPlan {
+    pub path: PathBuf,
+    pub seconds: Option<f64>,
     pub peak_rss_bytes: Option<u64>,
 }
 
@@ -304,9 +364,21 @@ pub fn merge(
     let set = ShardSet::open(out, count)?;
     set.check_headers()?;
     let first = &set.shards[0];
-    let prefix = first.prefix().map_err(|e| set.corrupt(0, e))?;
-    let name = first.path().display().to_string();
-    let tables = TreeFile::from_table_prefix(&prefix, &name)
+    let (prefix, name, plan) = if first.header.prefix_len > 0 {
+        let prefix = first.prefix().map_err(|e| set.corrupt(0, e))?;
+        (prefix, first.path().display().to_string(), None)
+    } else {
+        let (prefix, name) = planned_prefix(out, first.header.prefix_hash)?;
+        let path = crate::store::shard_plan::plan_path(out);
+        let report: Option<super::ShardPlanReport> = read_sidecar(&path);
+        let plan = MergedPlan {
+            seconds: report.as_ref().and_then(super::ShardPlanReport::seconds),
+            peak_rss_bytes: report.and_then(|r| r.stages.peak_rss_bytes),
+            path,
+        };
+        (prefix, name, Some(plan))
+    };
+    let tables = TreeFile::from_aligned_prefix(prefix, &name)
         .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
     let forest = tables.to_skeleton();
     let cut = choose_cut(&forest, set.count);
@@ -325,8 +397,8 @@ pub fn merge(
         out: out.to_path_buf(),
         source,
     };
-    let writer = FileWriter::from_prefix(out, &tables, &prefix).map_err(store_err)?;
-    drop((tables, prefix));
+    let writer = FileWriter::from_prefix(out, &tables, tables.held_bytes()).map_err(store_err)?;
+    drop(tables);
     let handoffs = set.copy_blocks(&writer, progress)?;
     let below: u64 = (cut.shards.iter().flatten())
         .map(|u| shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node)))
@@ -358,7 +430,33 @@ pub fn merge(
         file_bytes: summary.total,
         seconds: t_all.elapsed().as_secs_f64(),
         peak_rss_bytes: crate::util::peak_rss_bytes(),
+        plan,
     })
+}
+
+/// The table prefix of a planned build, from `OUT.plan` (checked: intact, and the plan the shards say
+/// they were built from), with the name its errors use.
+fn planned_prefix(
+    out: &Path,
+    prefix_hash: [u64; 2],
+) -> Result<(crate::store::AlignedBytes, String), MergeError> {
+    let path = crate::store::shard_plan::plan_path(out);
+    let refuse = |why: String| MergeError::Plan {
+        plan: path.clone(),
+        why,
+    };
+    if !path.exists() {
+        return Err(refuse("it does not exist".into()));
+    }
+    let plan =
+        crate::store::shard_plan::PlanFile::open(&path).map_err(|e| refuse(e.to_string()))?;
+    if plan.header.prefix_hash != prefix_hash {
+        return Err(refuse(
+            "its tables are not the ones the shards were built from (another plan was written since)".into(),
+        ));
+    }
+    let prefix = plan.prefix().map_err(|e| refuse(e.to_string()))?;
+    Ok((prefix, path.display().to_string()))
 }
 
 /// The N shard files of one build, opened, in slot order (slot i is the file named shard i), with the
@@ -608,7 +706,7 @@ fn only_count(out: &Path) -> Result<u32, MergeError> {
     }
 }
 
-fn read_sidecar(path: &Path) -> Option<ShardReport> {
+fn read_sidecar<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
     let mut name = path.as_os_str().to_os_string();
     name.push(".json");
     let bytes = std::fs::read(PathBuf::from(name)).ok()?;

@@ -43,6 +43,31 @@ pub struct ImageSource {
     pub color: String,
     /// Where the pixels come from.
     pub data: ImageData,
+    /// The index of the glTF image it was read from (its fallback too); `None` for solid colours and
+    /// images made in memory. A shard plan file names images by it ([`ImageRef`]).
+    pub gltf_image: Option<u32>,
+}
+
+/// Where a shard of a planned build finds one image of the scene without importing its geometry
+/// (`store::plan`, [`super::import_images`]).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ImageRef {
+    /// The glTF image of this index (loaded, or its fallback when it cannot be read, as the import does).
+    Gltf(u32),
+    /// A 1×1 image of one sRGB RGBA8 colour (an untextured material).
+    Solid([u8; 4]),
+}
+
+impl ImageSource {
+    /// How a plan names this image, `None` for an image made in memory (a synthetic scene).
+    pub fn image_ref(&self) -> Option<ImageRef> {
+        match (&self.data, self.gltf_image) {
+            (ImageData::Solid(c), _) => Some(ImageRef::Solid(*c)),
+            (_, Some(i)) => Some(ImageRef::Gltf(i)),
+            _ => None,
+        }
+    }
 }
 
 /// A decoded image: RGBA8, sRGB colour, straight alpha, row-major, top row first.
@@ -73,6 +98,7 @@ impl ImageSource {
             has_alpha: a < 255,
             color: "Solid".into(),
             data: ImageData::Solid(rgba),
+            gltf_image: None,
         }
     }
 
@@ -85,6 +111,7 @@ impl ImageSource {
             has_alpha: false,
             color: "Fallback".into(),
             data: ImageData::Fallback,
+            gltf_image: None,
         }
     }
 
@@ -344,6 +371,7 @@ mod tests {
             has_alpha: false,
             color: h.color,
             data: ImageData::Bytes(bytes.into()),
+            gltf_image: None,
         };
         let d = src.decode().unwrap();
         // (v + 128) / 257 = round(v / 257): 0 → 0, 128 → 0, 65535 → 255, 257·7+129 → 8, 257·7+128 → 7,

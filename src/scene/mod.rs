@@ -12,8 +12,10 @@ pub mod info;
 pub mod synthetic;
 
 pub use error::SceneError;
-pub use image_source::{DecodedImage, FALLBACK_COLORS, ImageData, ImageSource, fallback_checker};
-pub use import::{ImportOptions, import};
+pub use image_source::{
+    DecodedImage, FALLBACK_COLORS, ImageData, ImageRef, ImageSource, fallback_checker,
+};
+pub use import::{ImportOptions, import, import_images, input_digest};
 
 use crate::ids::{ImageId, MaterialId};
 use glam::{DVec2, DVec3};

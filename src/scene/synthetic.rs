@@ -57,6 +57,7 @@ impl SceneBuilder {
             has_alpha,
             color: "Rgba8".into(),
             data: ImageData::Bytes(Arc::from(bytes.into_boxed_slice())),
+            gltf_image: None,
         });
         ImageId(self.scene.images.len() as u32 - 1)
     }

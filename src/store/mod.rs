@@ -7,16 +7,18 @@
 //! - [`FileWriter`]: computes the layout up front from the block sizes, accepts blocks from many threads,
 //!   and publishes the file atomically (temp file in the same directory, fsync, rename).
 //! - [`TreeFile`]: maps (or reads) and validates a file, then hands out slices in place.
+//! - [`shard`] and [`shard_plan`]: the files a sharded build exchanges (docs/DESIGN.md "Sharded builds").
 //!
 //! [`AtlasForest`]: crate::model::AtlasForest
 
 pub mod format;
 mod read;
 pub mod shard;
+pub mod shard_plan;
 mod validate;
 mod write;
 
-pub use read::{LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
+pub use read::{AlignedBytes, LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
 pub use write::{FileWriter, WriteSummary, table_prefix};
 
 use crate::ids::BlockId;

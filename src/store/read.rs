@@ -39,6 +39,39 @@ enum Backing {
     },
 }
 
+/// Bytes in 8-byte-aligned storage (what the records read in place need), read once and handed to a
+/// [`TreeFile`] without a second copy ([`TreeFile::from_aligned_prefix`]).
+pub struct AlignedBytes {
+    words: Vec<u64>,
+    len: usize,
+}
+
+impl AlignedBytes {
+    /// The `len` bytes at `offset` of `file`.
+    pub fn read_at(file: &File, offset: u64, len: u64) -> std::io::Result<AlignedBytes> {
+        let len =
+            usize::try_from(len).map_err(|_| std::io::Error::other("length beyond memory"))?;
+        let mut words = vec![0u64; len.div_ceil(8)];
+        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
+        #[cfg(unix)]
+        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)?;
+        #[cfg(not(unix))]
+        {
+            use std::io::{Seek, SeekFrom};
+            let mut f = file;
+            f.seek(SeekFrom::Start(offset))?;
+            f.read_exact(buf)?;
+        }
+        Ok(AlignedBytes { words, len })
+    }
+
+    pub fn bytes(&self) -> &[u8] {
+        bytemuck::cast_slice::<u64, u8>(&self.words)
+            .get(..self.len)
+            .unwrap_or(&[])
+    }
+}
+
 impl Backing {
     fn bytes(&self) -> &[u8] {
         match self {
@@ -527,6 +560,37 @@ impl TreeFile {
         };
         let claimed: Header = bytemuck::pod_read_unaligned(head);
         Self::from_prefix(bytes, claimed.file_len, name)
+    }
+
+    /// [`TreeFile::from_table_prefix`] of bytes already in aligned storage, which the file keeps (no copy).
+    pub fn from_aligned_prefix(bytes: AlignedBytes, name: &str) -> Result<TreeFile, StoreError> {
+        check_endian()?;
+        let path = PathBuf::from(name);
+        let Some(head) = bytes.bytes().get(..HEADER_SIZE) else {
+            return Err(StoreError::Truncated {
+                path,
+                len: bytes.len as u64,
+                needed: HEADER_SIZE as u64,
+            });
+        };
+        let file_len = bytemuck::pod_read_unaligned::<Header>(head).file_len;
+        if bytes.len as u64 > file_len {
+            return Err(StoreError::TrailingBytes {
+                path,
+                len: bytes.len as u64,
+                expected: file_len,
+            });
+        }
+        let backing = Backing::Owned {
+            words: bytes.words,
+            len: bytes.len,
+        };
+        Self::validate(path, backing, file_len, false)
+    }
+
+    /// The bytes the file holds or maps: the whole file, or the table prefix it was made from.
+    pub fn held_bytes(&self) -> &[u8] {
+        self.bytes()
     }
 
     /// How many leading bytes of a file [`TreeFile::from_prefix`] needs, from its first [`HEADER_SIZE`]

@@ -352,7 +352,7 @@ impl super::BlockSink for ShardWriter {
     }
 }
 
-fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
+pub(super) fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
     #[cfg(unix)]
     {
         std::os::unix::fs::FileExt::write_all_at(file, bytes, offset)
@@ -366,7 +366,7 @@ fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
     }
 }
 
-fn read_at(file: &File, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
+pub(super) fn read_at(file: &File, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
     let mut buf = vec![0u8; len as usize];
     #[cfg(unix)]
     {
@@ -575,15 +575,14 @@ impl ShardFile {
     }
 
     /// The table prefix (shard 0), checked against the header's `prefix_hash`.
-    pub fn prefix(&self) -> Result<Vec<u8>, ShardFileError> {
+    pub fn prefix(&self) -> Result<super::AlignedBytes, ShardFileError> {
         let bytes =
-            read_at(&self.file, self.prefix_at, self.header.prefix_len).map_err(|source| {
-                ShardFileError::Io {
+            super::AlignedBytes::read_at(&self.file, self.prefix_at, self.header.prefix_len)
+                .map_err(|source| ShardFileError::Io {
                     path: self.path.clone(),
                     source,
-                }
-            })?;
-        let found = hash128(&bytes);
+                })?;
+        let found = hash128(bytes.bytes());
         if found != self.header.prefix_hash {
             return Err(ShardFileError::Checksum {
                 path: self.path.clone(),

@@ -28,6 +28,7 @@ mod gltf;
 mod http;
 mod json_mut;
 mod paging_file;
+mod plan_file;
 mod shard_file;
 mod sweep_grid;
 #[path = "../fixtures/tiny_store.rs"]

@@ -242,23 +242,35 @@ impl<'a> Materials<'a> {
         if let Some(&id) = self.image_ids.get(&img.index()) {
             return id;
         }
-        let (name, loaded) = buffers.load_image(&img);
-        let source = match loaded {
-            Ok(src) => src,
-            Err(reason) => {
-                report.missing_images += 1;
-                report.warn(format!(
-                    "{}: image {} ({name}): {reason}; using the magenta/black fallback checker",
-                    self.file,
-                    img.index()
-                ));
-                ImageSource::fallback(&name)
-            }
-        };
+        let source = image_or_fallback(self.file, &img, buffers, report);
         let id = self.push_image(source);
         self.image_ids.insert(img.index(), id);
         id
     }
+}
+
+/// glTF image `img` by its header, or the fallback checker (counted, with a warning naming the file and
+/// the image) when it cannot be read; either way tagged with its glTF index.
+pub(super) fn image_or_fallback(
+    file: &str,
+    img: &gltf::Image,
+    buffers: &mut Buffers,
+    report: &mut ImportReport,
+) -> ImageSource {
+    let (name, loaded) = buffers.load_image(img);
+    let mut source = match loaded {
+        Ok(src) => src,
+        Err(reason) => {
+            report.missing_images += 1;
+            report.warn(format!(
+                "{file}: image {} ({name}): {reason}; using the magenta/black fallback checker",
+                img.index()
+            ));
+            ImageSource::fallback(&name)
+        }
+    };
+    source.gltf_image = u32::try_from(img.index()).ok();
+    source
 }
 
 fn wrap(w: gltf::texture::WrappingMode) -> Wrap {

@@ -25,6 +25,7 @@
 //! dependency is caught at this boundary and returned as [`SceneError::Internal`] naming the file.
 
 mod accessors;
+mod images_only;
 mod materials;
 mod mesh;
 mod nodes;
@@ -33,6 +34,7 @@ mod uri;
 mod warnings;
 
 pub(super) use crate::scene::error::SceneError;
+pub use images_only::{import_images, input_digest};
 
 use crate::scene::{ImportReport, Scene, UpAxis};
 use glam::DVec3;

@@ -193,6 +193,7 @@ impl<'a> Buffers<'a> {
                         has_alpha: h.has_alpha,
                         color: h.color,
                         data: ImageData::File(path.clone()),
+                        gltf_image: None,
                     });
                 (name, res)
             }
@@ -228,6 +229,7 @@ fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<ImageSource, String> {
         has_alpha: h.has_alpha,
         color: h.color,
         data: ImageData::Bytes(bytes),
+        gltf_image: None,
     })
 }
 

@@ -8,10 +8,11 @@
 # one temp dir, so it touches neither /etc/slurm nor /run/munge nor a cluster already running here; then
 #   0. checks the shape of tools/scaleout/k8s/build-job.yaml (when python3 has PyYAML);
 #   1. builds data/city/scene.gltf in one process with FLAGS (a tree of depth ≥ 3: checked from the JSON report);
-#   2. builds it as a 4-shard Slurm array + dependent merge with submit.sh --wait, and compares with cmp;
+#   2. builds it as a 4-shard Slurm array + dependent merge with submit.sh --wait, and compares with cmp; then
+#      again planned once (--plan: a plan job, the array after it, shards that read the plan) and compares;
 #   3. builds it with the one-big-machine recipe (xargs, N = 3) and compares;
-#   4. makes shard 2 of a 4-shard run fail: submit.sh --wait must exit non-zero naming shard 2, and the merge must
-#      not run; then reruns just shard 2 (--only 2) and compares;
+#   4. makes shard 2 of a 4-shard planned run fail: submit.sh --wait must exit non-zero naming shard 2, and the
+#      merge must not run; then reruns just shard 2 (--only 2, reading the first run's plan) and compares;
 #   5. kills (scancel) shard 1 of a 4-shard run submitted without --wait: submit.sh --attach must exit non-zero
 #      naming shard 1 as killed (no exit status), and the merge must not run;
 #   6. atlastree merge must refuse a shard set with one shard missing.
@@ -359,6 +360,20 @@ if timed "slurm 4 shards + merge" "$here/submit.sh" --wait --timeout 300 --poll 
 else
     fail "slurm array, 4 shards: submit.sh --wait failed"
 fi
+out=$tmp/shared/planned/city.atlastree
+mkdir -p "$(dirname "$out")"
+if timed "slurm plan + 4 shards + merge" "$here/submit.sh" --wait --plan --timeout 300 --poll 0.5 --bin "$bin" \
+    "$scene" "$out" 4 "${FLAGS[@]}" -q >"$tmp/planned.txt" 2>&1; then
+    sed 's/^/    | /' "$tmp/planned.txt"
+    if grep -q '^ok   plan' "$tmp/planned.txt" && [[ -f $out.plan ]]; then
+        compare "slurm plan job + array of 4 planned shards" "$out"
+    else
+        fail "planned run: submit.sh --wait --plan succeeded without a plan job or $(basename "$out").plan"
+    fi
+else
+    sed 's/^/    | /' "$tmp/planned.txt"
+    fail "planned run, 4 shards: submit.sh --wait --plan failed"
+fi
 
 # ---- 3. one big machine: xargs, N = 3 ----
 out=$tmp/shared/xargs/city.atlastree
@@ -392,7 +407,7 @@ exec $(printf %q "$bin") "\$@"
 EOF
 chmod +x "$failing"
 rc=0
-CI_SHARD_FAULT=2:exit timed "slurm 4 shards, shard 2 failing" "$here/submit.sh" --wait --timeout 300 --poll 0.5 --bin "$failing" \
+CI_SHARD_FAULT=2:exit timed "slurm plan + 4 shards, shard 2 failing" "$here/submit.sh" --wait --plan --timeout 300 --poll 0.5 --bin "$failing" \
     "$scene" "$out" 4 "${FLAGS[@]}" -q >"$tmp/fail.txt" 2>&1 || rc=$?
 sed 's/^/    | /' "$tmp/fail.txt"
 if ((rc == 0)); then

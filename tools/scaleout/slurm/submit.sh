@@ -9,8 +9,13 @@
 #   - an array job `--array=0-(N-1)` of build.sbatch: task I runs `atlastree build SCENE -o OUT --shard auto FLAGS`
 #     (atlastree takes I and N from SLURM_ARRAY_TASK_ID / SLURM_ARRAY_TASK_COUNT) and writes OUT.shard-I-of-N;
 #   - merge.sbatch with `--dependency=afterok:<array job> --kill-on-invalid-dep=yes`: `atlastree merge --shards N OUT`
-#     runs once every shard succeeded, and is cancelled as soon as one fails.
-#   Each task writes its exit status to STATE/<array job>.shard-<I>.rc, the merge to STATE/<array job>.merge.rc;
+#     runs once every shard succeeded, and is cancelled as soon as one fails;
+#   - with --plan, first plan.sbatch (`atlastree build SCENE -o OUT --shard plan FLAGS`: the plan, once, into
+#     OUT.plan), and the array depends on it (afterok): the shards read the plan and hold none of the scene's
+#     triangles, so they need far less memory than the plan job (give it more with --plan-sbatch --mem=…).
+#     Without --plan every shard plans the whole tree itself, and a full run removes an OUT.plan left behind.
+#   Each task writes its exit status to STATE/<array job>.shard-<I>.rc, the merge to STATE/<array job>.merge.rc,
+#   the plan to STATE/<plan job>.plan.rc;
 #   sbatch logs go to STATE/<array job>.shard-<I>.log and STATE/<array job>.merge.log. STATE defaults to OUT.slurm.
 #
 # With --wait it polls `squeue` until both jobs have left the queue, then checks every rc file and the merge's,
@@ -40,7 +45,9 @@
 #   --only LIST         rerun only these shards (comma-separated: 2,5) of an earlier run with the same N and flags,
 #                       then merge; they run with `--shard I/N` (a sparse array cannot use --shard auto)
 #   --max-parallel P    at most P shards run at once (--array=…%P)
-#   --sbatch ARG        extra argument for both sbatch calls (repeatable)
+#   --sbatch ARG        extra argument for every sbatch call (repeatable)
+#   --plan              plan once in a job of its own before the shards (see above)
+#   --plan-sbatch ARG   extra argument for the plan job's sbatch only (repeatable), e.g. --mem=64G
 #   --poll S            seconds between squeue polls with --wait (default 2)
 #   --timeout S         with --wait: stop waiting after S seconds, exit 124 (the jobs keep running)
 #   -h, --help
@@ -62,8 +69,9 @@ usage() {
     sed -n '2,/^set -euo/{/^set -euo/d;s/^# \{0,1\}//;p}' "${BASH_SOURCE[0]}"
 }
 
-wait_mode=0 bin=${ATLASTREE_BIN:-} state="" only="" max_parallel="" poll=2 timeout="" attach=""
+wait_mode=0 bin=${ATLASTREE_BIN:-} state="" only="" max_parallel="" poll=2 timeout="" attach="" plan=0
 sbatch_extra=()
+plan_extra=()
 while (($#)); do
     case $1 in
     --wait) wait_mode=1 && shift ;;
@@ -72,6 +80,8 @@ while (($#)); do
     --only) only=${2:?--only needs a list} && shift 2 ;;
     --max-parallel) max_parallel=${2:?--max-parallel needs a number} && shift 2 ;;
     --sbatch) sbatch_extra+=("${2:?--sbatch needs an argument}") && shift 2 ;;
+    --plan) plan=1 && shift ;;
+    --plan-sbatch) plan_extra+=("${2:?--plan-sbatch needs an argument}") && shift 2 ;;
     --poll) poll=${2:?--poll needs seconds} && shift 2 ;;
     --timeout) timeout=${2:?--timeout needs seconds} && shift 2 ;;
     --attach) attach=${2:?--attach needs an .info file} && shift 2 ;;
@@ -90,8 +100,8 @@ rc_grace=${ATLASTREE_RC_GRACE:-10}
 # an id already purged makes it fail with "Invalid job id", which also means done. Any other squeue failure
 # (slurmctld restarting, network) is retried, never taken for "done".
 wait_for_jobs() {
-    local ids="$1,$2" out last="" errors=0 start=$SECONDS
-    local left="the jobs keep running (scancel $1 $2 stops them; $prog --attach $info_file checks them later)"
+    local ids="$1,$2${3:+,$3}" out last="" errors=0 start=$SECONDS
+    local left="the jobs keep running (scancel ${ids//,/ } stops them; $prog --attach $info_file checks them later)"
     # shellcheck disable=SC2064 # expand now: the message is fixed
     trap "echo; echo \"$prog: stopped waiting; $left\" >&2; exit 130" INT TERM
     while :; do
@@ -102,7 +112,7 @@ wait_for_jobs() {
             summary=$(awk '{n[$2]++} END {for (s in n) printf "%s%d %s", (k++ ? ", " : ""), n[s], tolower(s)}' \
                 <<<"$out")
             if [[ $summary != "$last" ]]; then
-                echo "$prog: $(date +%T) shard tasks of job $1 and merge job $2: $summary"
+                echo "$prog: $(date +%T) ${3:+plan job $3, }shard tasks of job $1 and merge job $2: $summary"
                 last=$summary
             fi
         elif [[ $out == *"Invalid job id"* ]]; then
@@ -140,7 +150,18 @@ log_tail() {
 
 # Check every rc file of a finished run; exit non-zero naming each failure.
 check_run() {
-    local aid=$1 mid=$2 n=$3 tasks=$4 out=$5 failed=() t rc log
+    local aid=$1 mid=$2 n=$3 tasks=$4 out=$5 pid=${6:-} failed=() t rc log
+    if [[ -n $pid ]]; then
+        rc=$(read_rc "$state/$pid.plan.rc")
+        log=$state/$pid.plan.log
+        if [[ $rc != 0 ]]; then
+            echo "FAIL plan (job $pid): ${rc:+atlastree build --shard plan exited $rc}${rc:-no exit status (killed," \
+                "cancelled or never ran)}; the shards (job $aid) and the merge (job $mid) were cancelled; log: $log" >&2
+            log_tail "$log" >&2
+            exit 1
+        fi
+        echo "ok   plan"
+    fi
     for t in ${tasks//,/ }; do
         rc=$(read_rc "$state/$aid.shard-$t.rc")
         log=$state/$aid.shard-$t.log
@@ -191,9 +212,10 @@ if [[ -n $attach ]]; then
     info_file=$attach
     [[ -f $info_file ]] || die "no such run file: $info_file"
     # shellcheck disable=SC1090
-    source "$info_file" # aid mid n tasks out state rerun_opts rerun_args (written below with printf %q)
-    wait_for_jobs "$aid" "$mid"
-    check_run "$aid" "$mid" "$n" "$tasks" "$out"
+    pid=""
+    source "$info_file" # aid mid pid n tasks out state rerun_opts rerun_args (written below with printf %q)
+    wait_for_jobs "$aid" "$mid" "$pid"
+    check_run "$aid" "$mid" "$n" "$tasks" "$out" "$pid"
     exit 0
 fi
 
@@ -237,6 +259,7 @@ else
     tasks=$(seq -s, 0 $((n - 1))) mode=auto array=0-$((n - 1))
     shopt -s nullglob
     stale=("$out".shard-*-of-*)
+    ((plan)) || stale+=("$out".plan "$out".plan.json)
     shopt -u nullglob
     if ((${#stale[@]})); then
         echo "$prog: removing ${#stale[@]} shard file(s) of an earlier run: ${stale[*]}"
@@ -254,29 +277,42 @@ rerun_args=$(printf '%q ' "$scene" "$out" "$n" "${flags[@]}")
 rerun_args=${rerun_args% }
 
 name=$(basename "$out")
-aid=$(sbatch --parsable --array="$array" --job-name="atlastree-shards:$name" --chdir="$state" \
+pid="" after=()
+if ((plan)); then
+    [[ -z $only ]] || die "--plan with --only: a rerun of some shards reads the plan of the first run (leave out --plan)"
+    pid=$(sbatch --parsable --job-name="atlastree-plan:$name" --chdir="$state" --output="$state/%j.plan.log" \
+        "${sbatch_extra[@]}" "${plan_extra[@]}" "$here/plan.sbatch" "$state" "$bin" "$scene" "$out" "${flags[@]}") ||
+        die "submitting the plan job failed (sbatch's message above); nothing was submitted"
+    pid=${pid%%;*}
+    [[ $pid =~ ^[0-9]+$ ]] || die "sbatch did not return a job id: $pid"
+    after=(--dependency="afterok:$pid" --kill-on-invalid-dep=yes)
+fi
+aid=$(sbatch --parsable --array="$array" --job-name="atlastree-shards:$name" --chdir="$state" "${after[@]}" \
     --output="$state/%A.shard-%a.log" "${sbatch_extra[@]}" \
-    "$here/build.sbatch" "$state" "$bin" "$scene" "$out" "$n" "$mode" "${flags[@]}") ||
-    die "submitting the shard array failed (sbatch's message above); nothing was submitted"
+    "$here/build.sbatch" "$state" "$bin" "$scene" "$out" "$n" "$mode" "${flags[@]}") || {
+    [[ -z $pid ]] || scancel "$pid" || true
+    die "submitting the shard array failed (sbatch's message above)${pid:+; the plan job $pid was cancelled}"
+}
 aid=${aid%%;*}
 [[ $aid =~ ^[0-9]+$ ]] || die "sbatch did not return a job id: $aid"
 mid=$(sbatch --parsable --dependency="afterok:$aid" --kill-on-invalid-dep=yes --job-name="atlastree-merge:$name" \
     --chdir="$state" --output="$state/$aid.merge.log" "${sbatch_extra[@]}" \
     "$here/merge.sbatch" "$state" "$aid" "$bin" "$out" "$n") || {
-    echo "$prog: submitting the merge failed; cancelling the shards (job $aid)" >&2
-    scancel "$aid" || true
+    echo "$prog: submitting the merge failed; cancelling the shards (job $aid)${pid:+ and the plan (job $pid)}" >&2
+    scancel "$aid" $pid || true
     exit 1
 }
 mid=${mid%%;*}
 
 info_file=$state/$aid.info
 {
-    printf 'aid=%q\nmid=%q\nn=%q\ntasks=%q\nout=%q\nstate=%q\n' "$aid" "$mid" "$n" "$tasks" "$out" "$state"
+    printf 'aid=%q\nmid=%q\npid=%q\nn=%q\ntasks=%q\nout=%q\nstate=%q\n' "$aid" "$mid" "$pid" "$n" "$tasks" "$out" \
+        "$state"
     printf 'rerun_opts=%q\nrerun_args=%q\n' "$rerun_opts" "$rerun_args"
 } >"$info_file"
-echo "$prog: submitted shards $array as array job $aid, merge as job $mid (afterok:$aid)"
+echo "$prog: submitted ${pid:+the plan as job $pid, }shards $array as array job $aid${pid:+ (afterok:$pid)}, merge as job $mid (afterok:$aid)"
 echo "$prog: rc files and logs in $state/$aid.*; check later with: $here/submit.sh --attach $info_file"
 
 ((wait_mode)) || exit 0
-wait_for_jobs "$aid" "$mid"
-check_run "$aid" "$mid" "$n" "$tasks" "$out"
+wait_for_jobs "$aid" "$mid" "$pid"
+check_run "$aid" "$mid" "$n" "$tasks" "$out" "$pid"

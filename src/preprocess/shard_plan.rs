@@ -1,0 +1,221 @@
+//! The plan step of a sharded build (issue 22, docs/DESIGN.md "Sharded builds"): planned once
+//! ([`plan_shards`], `atlastree build --shard plan`) into `OUT.plan`, then read by every shard
+//! ([`build_shard_planned`]) and by the merge. A planned shard imports the scene's images and nothing else:
+//! no triangle of the scene is in its memory, and it does not repeat the plan.
+
+use super::shard::images_identity;
+use super::shard_run::{ShardInput, ShardReport, ShardedOptions, rasterise_shard};
+use super::{BuildError, BuildOptions, Progress, StageLog};
+use crate::scene::Scene;
+use crate::store::shard::hash128;
+use crate::store::shard_plan::{PlanFile, PlanFileError, PlanManifest, plan_path, write_plan};
+use crate::store::{TreeFile, table_prefix};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What the plan step did (printed by `atlastree build --shard plan`).
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
+pub struct ShardPlanReport {
+    /// The plan file (`OUT.plan`).
+    pub path: PathBuf,
+    pub file_bytes: u64,
+    /// Scene triangles planned, nodes and blocks of the forest.
+    pub triangles: u64,
+    pub nodes: u64,
+    pub blocks: u64,
+    #[serde(flatten)]
+    pub stages: StageLog,
+}
+
+impl ShardPlanReport {
+    /// Saves the report beside the plan (`OUT.plan.json`, atomically), where the merge finds its time and
+    /// peak memory for the critical path; the caller first adds what it timed before [`plan_shards`] (the
+    /// CLI's import).
+    pub fn save(&self) -> Result<(), BuildError> {
+        super::shard_run::write_sidecar(&self.path, self)
+    }
+
+    /// Seconds of the whole plan step: its stages' total and the import before them.
+    pub fn seconds(&self) -> Option<f64> {
+        let total = self.stages.seconds("total")?;
+        Some(total + self.stages.seconds("import").unwrap_or(0.0))
+    }
+}
+
+/// Why a plan file cannot serve a shard or a merge.
+#[derive(Debug, thiserror::Error)]
+pub enum ShardPlanError {
+    #[error("{0}")]
+    File(#[from] PlanFileError),
+    #[error(
+        "{path} was planned from another scene or with other flags than this shard's; plan again with this \
+         shard's flags (`atlastree build SCENE -o OUT FLAGS --shard plan`) or remove it (then every shard plans \
+         for itself). The plan was made by: {planned_by}"
+    )]
+    OtherInput { path: PathBuf, planned_by: String },
+    #[error(
+        "{path}: the scene's images changed after the plan (name, size or byte length of at least one of its {images} \
+         images differs); plan again (`--shard plan`)"
+    )]
+    ImagesChanged { path: PathBuf, images: usize },
+    #[error(
+        "{path}: a plan file needs every image to come from the glTF file; image {image} ({name}) was made in memory"
+    )]
+    NotPlannable {
+        path: PathBuf,
+        image: usize,
+        name: String,
+    },
+    #[error("{path}: its table prefix does not open: {why}")]
+    Tables { path: PathBuf, why: String },
+}
+
+/// The key that ties a plan to its input: the scene's bytes ([`crate::scene::input_digest`]: the glTF
+/// file and its buffers), the build options that shape the tables (not the memory budget, the cache, the
+/// file-size limit, or the pixel options, which shards carry in their own headers), and `selection`: the
+/// caller's scene filters in words (the CLI's `--materials` and `--up`), as they change the scene the
+/// plan is made from.
+pub fn shard_plan_key(
+    opts: &BuildOptions,
+    scene_path: &Path,
+    selection: &str,
+) -> Result<[u64; 2], BuildError> {
+    let keyed = BuildOptions {
+        image_cache_bytes: 0,
+        max_memory_bytes: None,
+        max_file_bytes: 0,
+        mip_filter: super::image_ops::MipFilter::Box,
+        alpha_mips: super::image_ops::AlphaMips::Plain,
+        ..opts.clone()
+    };
+    let json = serde_json::to_string(&keyed).unwrap_or_default();
+    let digest = crate::scene::input_digest(scene_path)?;
+    let text = format!(
+        "atlastree plan v1|{json}|{selection}|{:016x}{:016x}",
+        digest[0], digest[1]
+    );
+    Ok(hash128(text.as_bytes()))
+}
+
+/// Plans the build of `scene` (import done, filters applied) and writes `OUT.plan` atomically, keyed by
+/// `key` ([`shard_plan_key`]); `argv` is stored for the hint a refused plan prints.
+pub fn plan_shards(
+    scene: &Scene,
+    opts: &BuildOptions,
+    out: &Path,
+    key: [u64; 2],
+    argv: Vec<String>,
+    progress: &dyn Progress,
+) -> Result<ShardPlanReport, BuildError> {
+    let t_all = Instant::now();
+    let path = plan_path(out);
+    let images = (scene.images.iter().enumerate())
+        .map(|(i, img)| {
+            img.image_ref().ok_or_else(|| ShardPlanError::NotPlannable {
+                path: path.clone(),
+                image: i,
+                name: img.name.clone(),
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let super::Planned {
+        mut timings,
+        forest,
+        ..
+    } = super::plan_build(scene, opts, progress)?;
+    let t = Instant::now();
+    progress.stage("write plan", None);
+    let prefix = table_prefix(&forest)?;
+    let manifest = PlanManifest {
+        argv,
+        images,
+        triangles: scene.triangles.len() as u64,
+    };
+    let identity = hash128(images_identity(&scene.images).as_bytes());
+    let file_bytes = write_plan(&path, key, identity, &manifest, &prefix)?;
+    progress.finish_stage();
+    timings.push("write plan", t);
+    timings.push("total", t_all);
+    let report = ShardPlanReport {
+        path,
+        file_bytes,
+        triangles: manifest.triangles,
+        nodes: forest.trees.iter().map(|t| t.nodes.len() as u64).sum(),
+        blocks: forest.blocks.len() as u64,
+        stages: timings,
+    };
+    Ok(report)
+}
+
+/// Builds shard `sharded.spec` from the plan file `plan` (opened by the caller; its key is checked against
+/// `key`, the shard's own [`shard_plan_key`]): reads the scene's images named by the plan from `scene_path`,
+/// decodes the plan's tables without their geometry, and rasterises its part exactly as
+/// [`super::build_shard`] does. The shard file carries no table prefix: the merge reads it from the plan.
+pub fn build_shard_planned(
+    plan: &PlanFile,
+    key: [u64; 2],
+    scene_path: &Path,
+    opts: &BuildOptions,
+    out: &Path,
+    sharded: &ShardedOptions,
+    progress: &dyn Progress,
+) -> Result<ShardReport, BuildError> {
+    let t_all = Instant::now();
+    let path = plan.path().to_path_buf();
+    if plan.header.key != key {
+        let planned_by = plan.manifest.argv.join(" ");
+        return Err(ShardPlanError::OtherInput { path, planned_by }.into());
+    }
+    let mut timings = StageLog::default();
+    let t = Instant::now();
+    progress.stage("read plan", None);
+    let (images, report) = crate::scene::import_images(scene_path, &plan.manifest.images)?;
+    if hash128(images_identity(&images).as_bytes()) != plan.header.images {
+        let images = images.len();
+        return Err(ShardPlanError::ImagesChanged { path, images }.into());
+    }
+    // Refused before the tables are read: the prefix is the one thing a planned shard holds per triangle.
+    let memory_plan = match opts.max_memory_bytes {
+        None => None,
+        Some(budget) => Some(super::memory::planned_shard_memory(
+            budget,
+            plan.header.prefix_len,
+            opts.atlas_size,
+            rayon::current_num_threads() as u64,
+            super::largest_image_texels(&images),
+            opts.image_cache_bytes,
+        )?),
+    };
+    let prefix = plan.prefix().map_err(ShardPlanError::File)?;
+    let tables =
+        TreeFile::from_aligned_prefix(prefix, &path.display().to_string()).map_err(|e| {
+            ShardPlanError::Tables {
+                path: path.clone(),
+                why: e.to_string(),
+            }
+        })?;
+    let forest = tables.to_skeleton();
+    drop(tables);
+    let scene = Scene {
+        source: scene_path.to_path_buf(),
+        up: forest.params.up,
+        vertices: Vec::new(),
+        triangles: Vec::new(),
+        materials: forest.materials.clone(),
+        images,
+        report,
+    };
+    progress.finish_stage();
+    timings.push("read plan", t);
+    let t = Instant::now();
+    let input = ShardInput {
+        scene: &scene,
+        forest: &forest,
+        prefix_hash: plan.header.prefix_hash,
+        prefix: Vec::new(),
+        memory_plan,
+        timings,
+    };
+    rasterise_shard(input, opts, out, sharded, progress, (t, t_all))
+}

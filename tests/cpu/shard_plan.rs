@@ -1,0 +1,250 @@
+//! Planned sharded builds (issue 22): `build --shard plan` writes `OUT.plan` once; shards read it and
+//! import nothing of the scene but its images; their merge is the one-process file byte for byte. A plan
+//! of other flags, another scene or changed images is refused by the shard; a missing or corrupt plan by
+//! the merge, without writing anything.
+
+use atlastree::preprocess::shard::{ShardSpec, shard_path};
+use atlastree::preprocess::{
+    BuildOptions, MergeError, NoProgress, ShardPlanError, ShardedOptions, build, build_shard,
+    build_shard_planned, merge, plan_shards, shard_plan_key,
+};
+use atlastree::scene::{ImportOptions, import};
+use atlastree::store::shard::ShardFile;
+use atlastree::store::shard_plan::{PlanFile, plan_path};
+use std::path::{Path, PathBuf};
+
+fn city_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf")
+}
+
+/// data/city at 256² atlases, every node that does not fit split: a tree of depth ≥ 3.
+fn deep_opts() -> BuildOptions {
+    BuildOptions {
+        atlas_size: 256,
+        leaf_originals_atlases: 0.0,
+        ..BuildOptions::default()
+    }
+}
+
+/// Plans `scene` (a copy of data/city or data/city itself) into `OUT.plan`.
+fn plan(scene: &Path, opts: &BuildOptions, out: &Path) -> [u64; 2] {
+    let imported = import(scene, &ImportOptions::default()).unwrap();
+    let key = shard_plan_key(opts, scene, "").unwrap();
+    let report = plan_shards(&imported, opts, out, key, vec!["plan".into()], &NoProgress).unwrap();
+    assert_eq!(report.path, plan_path(out));
+    assert_eq!(report.triangles, imported.triangles.len() as u64);
+    key
+}
+
+fn planned_shard(
+    scene: &Path,
+    opts: &BuildOptions,
+    out: &Path,
+    spec: ShardSpec,
+) -> Result<atlastree::preprocess::ShardReport, atlastree::preprocess::BuildError> {
+    let plan = PlanFile::open(&plan_path(out)).unwrap();
+    let key = shard_plan_key(opts, scene, "").unwrap();
+    let sharded = ShardedOptions {
+        spec,
+        argv: vec![
+            "atlastree".into(),
+            "build".into(),
+            "--shard".into(),
+            spec.to_string(),
+        ],
+    };
+    build_shard_planned(&plan, key, scene, opts, out, &sharded, &NoProgress)
+}
+
+#[test]
+fn planned_shards_merge_into_the_one_process_file() {
+    let scene = city_path();
+    let imported = import(&scene, &ImportOptions::default()).unwrap();
+    for opts in [BuildOptions::default(), deep_opts()] {
+        let dir = tempfile::tempdir().unwrap();
+        let one = dir.path().join("one.atlastree");
+        build(&imported, &opts, &one, &NoProgress).unwrap();
+        let reference = std::fs::read(&one).unwrap();
+        for n in [1u32, 2, 3, 4, 16] {
+            let out = dir.path().join(format!("n{n}.atlastree"));
+            plan(&scene, &opts, &out);
+            for index in 0..n {
+                let spec = ShardSpec { index, count: n };
+                let r = planned_shard(&scene, &opts, &out, spec).unwrap();
+                assert_eq!((r.shard, r.count), (index, n));
+                // No shard carries the table prefix: the merge reads it from the plan.
+                let f = ShardFile::open(&shard_path(&out, spec)).unwrap();
+                assert_eq!(f.header.prefix_len, 0, "N = {n}, shard {index}");
+                assert!(r.stages.seconds("read plan").is_some());
+            }
+            let report = merge(&out, None, &NoProgress).unwrap();
+            let p = report.plan.expect("the merge names the plan");
+            assert_eq!(p.path, plan_path(&out));
+            assert!(
+                std::fs::read(&out).unwrap() == reference,
+                "N = {n}: planned merge differs from the one-process build"
+            );
+        }
+    }
+}
+
+#[test]
+fn planned_and_self_planning_shards_write_the_same_blocks() {
+    // A shard that plans for itself and one that reads the plan differ only in the prefix shard 0 carries.
+    let scene = city_path();
+    let imported = import(&scene, &ImportOptions::default()).unwrap();
+    let opts = deep_opts();
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (
+        dir.path().join("a.atlastree"),
+        dir.path().join("b.atlastree"),
+    );
+    plan(&scene, &opts, &b);
+    for index in 0..3 {
+        let spec = ShardSpec { index, count: 3 };
+        let sharded = ShardedOptions {
+            spec,
+            argv: vec!["x".into()],
+        };
+        build_shard(&imported, &opts, &a, &sharded, &NoProgress).unwrap();
+        planned_shard(&scene, &opts, &b, spec).unwrap();
+        let (fa, fb) = (
+            ShardFile::open(&shard_path(&a, spec)).unwrap(),
+            ShardFile::open(&shard_path(&b, spec)).unwrap(),
+        );
+        assert_eq!(fa.header.fingerprint, fb.header.fingerprint);
+        assert_eq!(fa.header.prefix_hash, fb.header.prefix_hash);
+        // Payload offsets differ by shard 0's prefix; blocks and handoffs are the same bytes.
+        let blocks = |f: &ShardFile| -> Vec<(u32, u64, u64, u64)> {
+            (f.blocks.iter())
+                .map(|e| (e.block, e.length, e.checksum, e.sse))
+                .collect()
+        };
+        let handoffs = |f: &ShardFile| -> Vec<(u32, u32, u64)> {
+            (f.handoffs.iter())
+                .map(|h| (h.tree, h.node, h.checksum))
+                .collect()
+        };
+        assert!(blocks(&fa) == blocks(&fb), "shard {index}: blocks differ");
+        assert!(
+            handoffs(&fa) == handoffs(&fb),
+            "shard {index}: handoffs differ"
+        );
+        assert_eq!(fa.header.prefix_len > 0, index == 0);
+    }
+}
+
+/// A copy of data/city in a temp dir (scene, buffer and textures), so a test can change its files.
+fn city_copy(dir: &Path) -> PathBuf {
+    let src = city_path().parent().unwrap().to_path_buf();
+    let copy = |from: &Path, to: &Path| {
+        std::fs::create_dir_all(to).unwrap();
+        for e in std::fs::read_dir(from).unwrap().flatten() {
+            if e.path().is_file() {
+                std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+            }
+        }
+    };
+    copy(&src, &dir.join("city"));
+    copy(&src.join("textures"), &dir.join("city/textures"));
+    dir.join("city/scene.gltf")
+}
+
+#[test]
+fn shard_refuses_a_plan_of_other_flags_another_scene_or_changed_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = city_copy(dir.path());
+    let out = dir.path().join("city.atlastree");
+    let opts = deep_opts();
+    plan(&scene, &opts, &out);
+    let spec = ShardSpec { index: 1, count: 2 };
+    let other_input = |e: atlastree::preprocess::BuildError| {
+        let msg = e.to_string();
+        assert!(msg.contains("city.atlastree.plan"), "{msg}");
+        assert!(msg.contains("--shard plan"), "{msg}");
+        matches!(&e, atlastree::preprocess::BuildError::Plan(p) if matches!(**p, ShardPlanError::OtherInput { .. }))
+    };
+    // Other flags.
+    let border = BuildOptions {
+        border: 8,
+        ..deep_opts()
+    };
+    assert!(other_input(
+        planned_shard(&scene, &border, &out, spec).unwrap_err()
+    ));
+    // Flags that do not shape the plan are not refused: the pixel options travel in the shard headers.
+    let kaiser = BuildOptions {
+        mip_filter: atlastree::preprocess::image_ops::MipFilter::Kaiser,
+        max_memory_bytes: Some(8 << 30),
+        ..deep_opts()
+    };
+    assert_eq!(
+        shard_plan_key(&kaiser, &scene, "").unwrap(),
+        shard_plan_key(&opts, &scene, "").unwrap()
+    );
+    // Another scene: one byte of the buffer changed.
+    let bin = scene.with_file_name("scene.bin");
+    let mut bytes = std::fs::read(&bin).unwrap();
+    bytes[100] ^= 1;
+    std::fs::write(&bin, &bytes).unwrap();
+    assert!(other_input(
+        planned_shard(&scene, &opts, &out, spec).unwrap_err()
+    ));
+    bytes[100] ^= 1;
+    std::fs::write(&bin, &bytes).unwrap();
+    planned_shard(&scene, &opts, &out, spec).unwrap();
+    // An image that grew (same name, another byte length).
+    let texture = std::fs::read_dir(dir.path().join("city/textures"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .min()
+        .unwrap();
+    let mut png = std::fs::read(&texture).unwrap();
+    png.extend_from_slice(&[0; 7]);
+    std::fs::write(&texture, &png).unwrap();
+    let e = planned_shard(&scene, &opts, &out, spec).unwrap_err();
+    assert!(
+        matches!(&e, atlastree::preprocess::BuildError::Plan(p) if matches!(**p, ShardPlanError::ImagesChanged { .. })),
+        "{e}"
+    );
+}
+
+#[test]
+fn merge_refuses_a_missing_corrupt_or_replaced_plan_and_writes_nothing() {
+    let scene = city_path();
+    let opts = deep_opts();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    plan(&scene, &opts, &out);
+    for index in 0..2 {
+        planned_shard(&scene, &opts, &out, ShardSpec { index, count: 2 }).unwrap();
+    }
+    let plan_file = plan_path(&out);
+    let good = std::fs::read(&plan_file).unwrap();
+    let refused = |why: &str| {
+        let e = merge(&out, None, &NoProgress).unwrap_err();
+        assert!(matches!(e, MergeError::Plan { .. }), "{why}: {e}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("city.atlastree.plan") && msg.contains("--shard plan"),
+            "{msg}"
+        );
+        assert!(!out.exists(), "{why}: the merge wrote {}", out.display());
+        msg
+    };
+    std::fs::remove_file(&plan_file).unwrap();
+    assert!(refused("missing").contains("does not exist"));
+    let mut flipped = good.clone();
+    let at = flipped.len() - 100;
+    flipped[at] ^= 0x10;
+    std::fs::write(&plan_file, &flipped).unwrap();
+    assert!(refused("corrupt").contains("checksum"));
+    std::fs::write(&plan_file, &good[..good.len() - 1]).unwrap();
+    refused("truncated");
+    // Another build's plan (other flags): intact, but not the tables the shards were cut from.
+    plan(&scene, &BuildOptions::default(), &out);
+    assert!(refused("replaced").contains("not the ones the shards were built from"));
+    std::fs::write(&plan_file, &good).unwrap();
+    merge(&out, None, &NoProgress).unwrap();
+}
