@@ -21,10 +21,13 @@ pub const CACHE_BYTES_PER_TEXEL: u64 = 26;
 /// its children waiting to be combined, the encoded block).
 pub const ATLASES_PER_THREAD: u64 = 4;
 /// The image cache gets 1/this of what plan and rasteriser leave: with the originals cache's quarter on top,
-/// 5/8 of it. The rest covers what the model leaves out — decode buffers, entries still held by a thread
-/// after eviction, the allocator's retained pages: measured 160–300 MiB over the model's sum on Berlin ×1 and
-/// a Berlin ×4 shard at a 2 GiB budget with a 4/5 share, whose peaks were 2.09 and 2.34 GiB.
-pub const CACHE_SHARE_DIVISOR: u64 = 2;
+/// 5/12 of it. The rest covers what the model leaves out — decode buffers, entries still held by a thread
+/// after eviction (a leaf's images stay held while it is drawn), the allocator's retained pages: measured
+/// 160–300 MiB over the model's sum on Berlin ×1 and a Berlin ×4 shard at a 2 GiB budget with a 4/5 share
+/// (peaks 2.09 and 2.34 GiB), and growing with the cache: a planned shard of the all-tracks world tiled
+/// 2 × 2 at 2 GiB peaked at 0.81, 1.59 and 2.18 GiB with caches of 256, 600 and 971 MiB (the last the 1/2
+/// share), so the share is 1/3.
+pub const CACHE_SHARE_DIVISOR: u64 = 3;
 /// Smallest image cache worth running with.
 pub const MIN_IMAGE_CACHE: u64 = 64 << 20;
 
@@ -83,11 +86,11 @@ pub fn plan_memory(
     split_budget(budget, plan_bytes, triangles, pixels)
 }
 
-/// [`plan_memory`] for a shard that read a plan file: it holds no triangles, only the plan's table prefix
-/// (`prefix_bytes`, while it decodes the tables it rasterises from).
+/// [`plan_memory`] for a shard that read a plan file: it holds no triangle, only the skeleton of the plan's
+/// tables (`skeleton_bytes`: nodes, leaves, rects, originals, blocks).
 pub fn planned_shard_memory(
     budget: u64,
-    prefix_bytes: u64,
+    skeleton_bytes: u64,
     atlas_size: u32,
     threads: u64,
     largest_image_texels: u64,
@@ -99,7 +102,7 @@ pub fn planned_shard_memory(
         largest_image_texels,
         cache_wanted,
     };
-    split_budget(budget, prefix_bytes, 0, pixels)
+    split_budget(budget, skeleton_bytes, 0, pixels)
 }
 
 /// What the pixel pass's share of a budget depends on.

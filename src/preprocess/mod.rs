@@ -217,6 +217,8 @@ pub enum BuildError {
     Plan(Box<shard_plan::ShardPlanError>),
     #[error(transparent)]
     Scene(Box<crate::scene::SceneError>),
+    #[error(transparent)]
+    Shard(Box<crate::store::shard::ShardFileError>),
     #[error("encoding the {what}: {source}")]
     Encode {
         what: String,
@@ -442,12 +444,13 @@ pub fn build(
         &cache,
         progress,
     )?;
-    for (report, db) in reports.iter_mut().zip(pass.atlas_psnr_db) {
-        report.atlas_psnr_db = db;
+    for (report, db) in reports.iter_mut().zip(&pass.atlas_psnr_db) {
+        report.atlas_psnr_db = *db;
     }
     let none = |_| {};
     let above = raster::AtlasOut::new(&forest, opts.pixel_options(), &writer, &none);
-    shard::raster_forest_above(&above, &forest, pass.handoffs)?;
+    let handoffs = |u| pass.handoffs.get(&u).map(|h| Ok(h.clone()));
+    shard::raster_forest_above(&above, &forest, &handoffs)?;
     timings.push("rasterise", t);
 
     let t = Instant::now();

@@ -434,17 +434,21 @@ pub fn leaf_owned_blocks(tree: &AtlasTree) -> Vec<Vec<crate::ids::BlockId>> {
     out
 }
 
-/// The atlases of `tree` above the cut: every node that is neither in `handoffs` nor below one, combined
-/// from its children (four halved, §5.1) and finished into the sink. A leaf reached means the cut did
-/// not cover the tree (an internal error, reported, not a panic).
+/// Where [`raster_above`] finds the handoff of a node of the cut (`None`: the node is above the cut), read
+/// when its parent is combined, so only the handoffs being combined are in memory at once.
+pub type HandoffSource<'a> = dyn Fn(NodeId) -> Option<Result<Handoff, BuildError>> + Sync + 'a;
+
+/// The atlases of `tree` above the cut: every node that `handoffs` does not give and that is not below
+/// one it gives, combined from its children (four halved, §5.1) and finished into the sink. A leaf reached
+/// means the cut did not cover the tree (an internal error, reported, not a panic).
 pub fn raster_above(
     out: &AtlasOut<'_>,
     tree: &AtlasTree,
-    handoffs: &HashMap<NodeId, Handoff>,
+    handoffs: &HandoffSource<'_>,
     id: NodeId,
 ) -> Result<Handoff, BuildError> {
-    if let Some(h) = handoffs.get(&id) {
-        return Ok(h.clone());
+    if let Some(h) = handoffs(id) {
+        return h;
     }
     let node = &tree.nodes[id.idx()];
     if node.leaf.is_some() {

@@ -14,7 +14,6 @@ use crate::ids::{BlockId, NodeId};
 use crate::model::{AtlasForest, AtlasTree};
 use crate::scene::{ImageData, Scene};
 use crate::store::shard::hash128;
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// Most shards of one build.
@@ -349,17 +348,17 @@ pub fn units_of(cut: &Cut) -> Vec<(usize, Unit)> {
 pub fn raster_forest_above(
     out: &AtlasOut<'_>,
     forest: &AtlasForest,
-    handoffs: HashMap<Unit, Handoff>,
+    handoffs: &(dyn Fn(Unit) -> Option<Result<Handoff, super::BuildError>> + Sync),
 ) -> Result<(), super::BuildError> {
-    let mut by_tree: Vec<HashMap<NodeId, Handoff>> = vec![HashMap::new(); forest.trees.len()];
-    for (u, h) in handoffs {
-        if let Some(m) = by_tree.get_mut(u.tree as usize) {
-            m.insert(NodeId(u.node), h);
-        }
-    }
-    for (tree, mine) in forest.trees.iter().zip(&by_tree) {
+    for (t, tree) in forest.trees.iter().enumerate() {
         if !tree.nodes.is_empty() {
-            raster::raster_above(out, tree, mine, NodeId(0))?;
+            let mine = |id: NodeId| {
+                handoffs(Unit {
+                    tree: t as u32,
+                    node: id.0,
+                })
+            };
+            raster::raster_above(out, tree, &mine, NodeId(0))?;
         }
     }
     Ok(())

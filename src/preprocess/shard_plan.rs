@@ -9,7 +9,7 @@ use super::{BuildError, BuildOptions, Progress, StageLog};
 use crate::scene::Scene;
 use crate::store::shard::hash128;
 use crate::store::shard_plan::{PlanFile, PlanFileError, PlanManifest, plan_path, write_plan};
-use crate::store::{TreeFile, table_prefix};
+use crate::store::table_prefix;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -67,8 +67,6 @@ pub enum ShardPlanError {
         image: usize,
         name: String,
     },
-    #[error("{path}: its table prefix does not open: {why}")]
-    Tables { path: PathBuf, why: String },
 }
 
 /// The key that ties a plan to its input: the scene's bytes ([`crate::scene::input_digest`]: the glTF
@@ -175,28 +173,21 @@ pub fn build_shard_planned(
         let images = images.len();
         return Err(ShardPlanError::ImagesChanged { path, images }.into());
     }
-    // Refused before the tables are read: the prefix is the one thing a planned shard holds per triangle.
+    let tables = plan.skeleton().map_err(ShardPlanError::File)?;
+    let forest = tables.to_skeleton();
+    drop(tables);
+    // Refused before any pixel: the shard holds the tables' skeleton, no triangle.
     let memory_plan = match opts.max_memory_bytes {
         None => None,
         Some(budget) => Some(super::memory::planned_shard_memory(
             budget,
-            plan.header.prefix_len,
+            skeleton_bytes(&forest),
             opts.atlas_size,
             rayon::current_num_threads() as u64,
             super::largest_image_texels(&images),
             opts.image_cache_bytes,
         )?),
     };
-    let prefix = plan.prefix().map_err(ShardPlanError::File)?;
-    let tables =
-        TreeFile::from_aligned_prefix(prefix, &path.display().to_string()).map_err(|e| {
-            ShardPlanError::Tables {
-                path: path.clone(),
-                why: e.to_string(),
-            }
-        })?;
-    let forest = tables.to_skeleton();
-    drop(tables);
     let scene = Scene {
         source: scene_path.to_path_buf(),
         up: forest.params.up,
@@ -218,4 +209,22 @@ pub fn build_shard_planned(
         timings,
     };
     rasterise_shard(input, opts, out, sharded, progress, (t, t_all))
+}
+
+/// Bytes of a forest's skeleton in memory: its node, leaf, rect and original records and its blocks.
+fn skeleton_bytes(forest: &crate::model::AtlasForest) -> u64 {
+    use std::mem::size_of_val;
+    let trees: usize = (forest.trees.iter())
+        .map(|t| {
+            size_of_val(t.nodes.as_slice())
+                + (t.leaves.iter())
+                    .map(|l| {
+                        size_of_val(l)
+                            + size_of_val(l.rects.as_slice())
+                            + size_of_val(l.originals.as_slice())
+                    })
+                    .sum::<usize>()
+        })
+        .sum();
+    (trees + size_of_val(forest.blocks.as_slice())) as u64
 }

@@ -364,23 +364,24 @@ pub fn merge(
     let set = ShardSet::open(out, count)?;
     set.check_headers()?;
     let first = &set.shards[0];
-    let (prefix, name, plan) = if first.header.prefix_len > 0 {
+    let (tables, plan) = if first.header.prefix_len > 0 {
         let prefix = first.prefix().map_err(|e| set.corrupt(0, e))?;
-        (prefix, first.path().display().to_string(), None)
+        let name = first.path().display().to_string();
+        let tables = TreeFile::from_aligned_prefix(prefix, &name)
+            .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
+        (Tables::Shard0(tables), None)
     } else {
-        let (prefix, name) = planned_prefix(out, first.header.prefix_hash)?;
-        let path = crate::store::shard_plan::plan_path(out);
+        let (file, tables) = planned_tables(out, first.header.prefix_hash)?;
+        let path = file.path().to_path_buf();
         let report: Option<super::ShardPlanReport> = read_sidecar(&path);
         let plan = MergedPlan {
             seconds: report.as_ref().and_then(super::ShardPlanReport::seconds),
             peak_rss_bytes: report.and_then(|r| r.stages.peak_rss_bytes),
             path,
         };
-        (prefix, name, Some(plan))
+        (Tables::Plan(file, tables), Some(plan))
     };
-    let tables = TreeFile::from_aligned_prefix(prefix, &name)
-        .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
-    let forest = tables.to_skeleton();
+    let forest = tables.file().to_skeleton();
     let cut = choose_cut(&forest, set.count);
     set.check_cut(&forest, &cut)?;
     let pixels = raster::PixelOptions::from_code(first.header.pixel_options).ok_or_else(|| {
@@ -397,7 +398,7 @@ pub fn merge(
         out: out.to_path_buf(),
         source,
     };
-    let writer = FileWriter::from_prefix(out, &tables, tables.held_bytes()).map_err(store_err)?;
+    let writer = tables.writer(out).map_err(store_err)?;
     drop(tables);
     let handoffs = set.copy_blocks(&writer, progress)?;
     let below: u64 = (cut.shards.iter().flatten())
@@ -412,7 +413,8 @@ pub fn merge(
     progress.stage("merge: atlases above the cut", Some(above));
     let done = |n: u64| progress.set(n);
     let atlas_out = raster::AtlasOut::new(&forest, pixels, &writer, &done);
-    shard::raster_forest_above(&atlas_out, &forest, handoffs).map_err(|source| {
+    let fetch = |u| handoffs.get(&u).map(|&(slot, i)| set.handoff(slot, i));
+    shard::raster_forest_above(&atlas_out, &forest, &fetch).map_err(|source| {
         MergeError::Build {
             out: out.to_path_buf(),
             source,
@@ -434,12 +436,35 @@ pub fn merge(
     })
 }
 
-/// The table prefix of a planned build, from `OUT.plan` (checked: intact, and the plan the shards say
-/// they were built from), with the name its errors use.
-fn planned_prefix(
+/// Where the merge's tables come from: shard 0's prefix (held whole), or the plan's (a skeleton; the
+/// prefix is copied from the plan file in pieces).
+enum Tables {
+    Shard0(TreeFile),
+    Plan(crate::store::shard_plan::PlanFile, TreeFile),
+}
+
+impl Tables {
+    fn file(&self) -> &TreeFile {
+        match self {
+            Tables::Shard0(t) | Tables::Plan(_, t) => t,
+        }
+    }
+
+    /// The writer of the paging file, its tables written.
+    fn writer(&self, out: &Path) -> Result<FileWriter, StoreError> {
+        match self {
+            Tables::Shard0(t) => FileWriter::from_prefix(out, t, t.held_bytes()),
+            Tables::Plan(plan, t) => plan.writer(out, t),
+        }
+    }
+}
+
+/// The tables of a planned build, from `OUT.plan` (checked: intact, and the plan the shards say they were
+/// built from), without their geometry.
+fn planned_tables(
     out: &Path,
     prefix_hash: [u64; 2],
-) -> Result<(crate::store::AlignedBytes, String), MergeError> {
+) -> Result<(crate::store::shard_plan::PlanFile, TreeFile), MergeError> {
     let path = crate::store::shard_plan::plan_path(out);
     let refuse = |why: String| MergeError::Plan {
         plan: path.clone(),
@@ -455,8 +480,8 @@ fn planned_prefix(
             "its tables are not the ones the shards were built from (another plan was written since)".into(),
         ));
     }
-    let prefix = plan.prefix().map_err(|e| refuse(e.to_string()))?;
-    Ok((prefix, path.display().to_string()))
+    let tables = plan.skeleton().map_err(|e| refuse(e.to_string()))?;
+    Ok((plan, tables))
 }
 
 /// The N shard files of one build, opened, in slot order (slot i is the file named shard i), with the
@@ -620,13 +645,14 @@ impl ShardSet {
         Ok(())
     }
 
-    /// Copies every shard's blocks into `writer` (checksums verified on the way) and returns the
-    /// handoffs by unit.
+    /// Copies every shard's blocks into `writer` (checksums verified on the way), checks every handoff's
+    /// checksum, and returns where each unit's handoff is: (shard slot, entry), read again when its parent
+    /// is combined ([`ShardSet::handoff`]).
     fn copy_blocks(
         &self,
         writer: &FileWriter,
         progress: &dyn Progress,
-    ) -> Result<HashMap<Unit, LinearImage>, MergeError> {
+    ) -> Result<HashMap<Unit, (usize, usize)>, MergeError> {
         let total: u64 = self.shards.iter().map(|f| f.blocks.len() as u64).sum();
         progress.stage("merge: copy blocks", Some(total));
         let mut copied = 0;
@@ -644,24 +670,28 @@ impl ShardSet {
                 progress.set(copied);
             }
             for (i, e) in f.handoffs.iter().enumerate() {
-                let data = f.handoff(i).map_err(|err| self.corrupt(slot, err))?;
+                drop(f.handoff(i).map_err(|err| self.corrupt(slot, err))?);
                 let unit = Unit {
                     tree: e.tree,
                     node: e.node,
                 };
-                let (width, height) = (e.width, e.height);
-                handoffs.insert(
-                    unit,
-                    LinearImage {
-                        width,
-                        height,
-                        data,
-                    },
-                );
+                handoffs.insert(unit, (slot, i));
             }
         }
         progress.finish_stage();
         Ok(handoffs)
+    }
+
+    /// Handoff `i` of the shard in `slot`, read (and its checksum checked) again.
+    fn handoff(&self, slot: usize, i: usize) -> Result<LinearImage, BuildError> {
+        let f = &self.shards[slot];
+        let e = &f.handoffs[i];
+        let data = f.handoff(i).map_err(|e| BuildError::Shard(Box::new(e)))?;
+        Ok(LinearImage {
+            width: e.width,
+            height: e.height,
+            data,
+        })
     }
 
     /// The merge report's line of every shard (time and peak memory from its JSON report, if present).

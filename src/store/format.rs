@@ -78,6 +78,15 @@ pub enum Section {
 }
 
 impl Section {
+    /// The sections holding per-triangle data (vertices, indices, source triangles): what a table prefix
+    /// read with its geometry vouched for ([`crate::store::TreeFile::skeleton_prefix`]) leaves unread.
+    pub fn is_geometry(self) -> bool {
+        matches!(
+            self,
+            Section::Vertices | Section::Indices | Section::SourceTriangles
+        )
+    }
+
     /// All sections in file order.
     pub const ALL: [Section; SECTION_COUNT] = [
         Section::Params,

@@ -39,6 +39,21 @@ enum Backing {
     },
 }
 
+/// Reads exactly `buf.len()` bytes at `offset` of `file`.
+pub(super) fn read_exact_at(file: &File, buf: &mut [u8], offset: u64) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
+    }
+    #[cfg(not(unix))]
+    {
+        use std::io::{Seek, SeekFrom};
+        let mut f = file;
+        f.seek(SeekFrom::Start(offset))?;
+        f.read_exact(buf)
+    }
+}
+
 /// Bytes in 8-byte-aligned storage (what the records read in place need), read once and handed to a
 /// [`TreeFile`] without a second copy ([`TreeFile::from_aligned_prefix`]).
 pub struct AlignedBytes {
@@ -53,15 +68,7 @@ impl AlignedBytes {
             usize::try_from(len).map_err(|_| std::io::Error::other("length beyond memory"))?;
         let mut words = vec![0u64; len.div_ceil(8)];
         let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
-        #[cfg(unix)]
-        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)?;
-        #[cfg(not(unix))]
-        {
-            use std::io::{Seek, SeekFrom};
-            let mut f = file;
-            f.seek(SeekFrom::Start(offset))?;
-            f.read_exact(buf)?;
-        }
+        read_exact_at(file, buf, offset)?;
         Ok(AlignedBytes { words, len })
     }
 
@@ -133,6 +140,9 @@ pub struct TreeFile {
     header: Header,
     /// False for a table prefix ([`TreeFile::from_prefix`]): blocks come from a `BlockSource`.
     holds_blocks: bool,
+    /// False for a prefix read without its geometry ([`TreeFile::skeleton_prefix`]): the trees' vertices,
+    /// indices and source triangles are empty.
+    holds_geometry: bool,
 }
 
 /// One tree of a file: its tables as slices into the file. Ids are tree-local.
@@ -335,7 +345,15 @@ pub(super) fn sections_end(header: &Header) -> Option<u64> {
 /// Each section: kind, record size, alignment, length = count × record size, order, bounds, zero gaps,
 /// checksum. Returns the end of the tables. `bytes` may be a prefix of the file (see
 /// [`TreeFile::from_prefix`]); a section inside the file but past the prefix is reported as truncation.
-fn check_sections(path: &Path, header: &Header, bytes: &[u8]) -> Result<u64, StoreError> {
+/// Checks every section's placement, the zero gaps and each section's checksum; with `holds_geometry`
+/// false the geometry sections' checksums are not computed (their bytes were not read: a hash over the
+/// whole prefix vouches for them, [`TreeFile::skeleton_prefix`]).
+fn check_sections(
+    path: &Path,
+    header: &Header,
+    bytes: &[u8],
+    holds_geometry: bool,
+) -> Result<u64, StoreError> {
     let file_len = header.file_len;
     let mut prev_end = HEADER_SIZE as u64;
     for (i, s) in Section::ALL.iter().enumerate() {
@@ -398,7 +416,9 @@ fn check_sections(path: &Path, header: &Header, bytes: &[u8]) -> Result<u64, Sto
             }
         };
         check_zero(bytes, prev_end, e.offset)?;
-        checksum(format!("section {section}"), e.checksum, data)?;
+        if holds_geometry || !s.is_geometry() {
+            checksum(format!("section {section}"), e.checksum, data)?;
+        }
         prev_end = e.offset + e.length;
     }
     if header.section(Section::Params).count != 1 {
@@ -611,6 +631,57 @@ impl TreeFile {
         Self::validate(path, backing, len, true)
     }
 
+    /// The table prefix of `len` bytes at `offset` of `file` without its geometry: the header and every
+    /// section but the vertices, indices and source triangles ([`Section::is_geometry`]) are read and
+    /// validated as [`TreeFile::from_table_prefix`] does, the geometry sections only by their placement and
+    /// counts; they stay unread (their slices empty), so the memory held is a few bytes per node, leaf and
+    /// rect, none per triangle.
+    ///
+    /// The caller vouches for the geometry's bytes by other means: a plan file's hash over the whole
+    /// prefix, checked before (`store::shard_plan`). [`TreeFile::to_skeleton`] is what such a file gives.
+    pub fn skeleton_prefix(
+        file: &File,
+        offset: u64,
+        len: u64,
+        name: &str,
+    ) -> Result<TreeFile, StoreError> {
+        check_endian()?;
+        let path = PathBuf::from(name);
+        let io = |e| StoreError::io(&path, e);
+        let head = AlignedBytes::read_at(file, offset, len.min(HEADER_SIZE as u64)).map_err(io)?;
+        let header = parse_header(&path, head.bytes())?;
+        if len > header.file_len {
+            return Err(StoreError::TrailingBytes {
+                path,
+                len,
+                expected: header.file_len,
+            });
+        }
+        let n = usize::try_from(len).map_err(|_| StoreError::LayoutOverflow { what: "prefix" })?;
+        // Zeroed, so the unread geometry is never touched: its pages are not resident.
+        let mut words = vec![0u64; n.div_ceil(8)];
+        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..n];
+        buf[..HEADER_SIZE].copy_from_slice(head.bytes());
+        for s in Section::ALL.into_iter().filter(|s| !s.is_geometry()) {
+            let e = header.section(s);
+            let end = e.offset.checked_add(e.length).filter(|&end| end <= len);
+            let Some(end) = end else {
+                return Err(StoreError::Truncated {
+                    path,
+                    len,
+                    needed: e.offset.saturating_add(e.length),
+                });
+            };
+            let part = &mut buf[e.offset as usize..end as usize];
+            let at = offset
+                .checked_add(e.offset)
+                .ok_or(StoreError::LayoutOverflow { what: "prefix" })?;
+            read_exact_at(file, part, at).map_err(io)?;
+        }
+        let backing = Backing::Owned { words, len: n };
+        Self::validate_with(path, backing, header.file_len, false, false)
+    }
+
     /// The validation shared by whole files and table prefixes; `file_len` is the whole file's length.
     fn validate(
         path: PathBuf,
@@ -618,15 +689,26 @@ impl TreeFile {
         file_len: u64,
         holds_blocks: bool,
     ) -> Result<TreeFile, StoreError> {
+        Self::validate_with(path, backing, file_len, holds_blocks, true)
+    }
+
+    fn validate_with(
+        path: PathBuf,
+        backing: Backing,
+        file_len: u64,
+        holds_blocks: bool,
+        holds_geometry: bool,
+    ) -> Result<TreeFile, StoreError> {
         let bytes = backing.bytes();
         let header = parse_header(&path, bytes)?;
         check_file_len(&path, &header, file_len)?;
-        let tables_end = check_sections(&path, &header, bytes)?;
+        let tables_end = check_sections(&path, &header, bytes, holds_geometry)?;
         let file = TreeFile {
             path,
             backing,
             header,
             holds_blocks,
+            holds_geometry,
         };
         check_block_layout(file.blocks(), tables_end, file.bytes(), file_len)?;
         file.check_tables()?;
@@ -651,6 +733,7 @@ impl TreeFile {
             let tables = TreeTables {
                 tree: i as u32,
                 view: t,
+                geometry_vouched: !self.holds_geometry,
             };
             validate::check_tree(
                 &tables,
@@ -686,13 +769,20 @@ impl TreeFile {
             r: &Range64,
         ) -> Result<&'a [T], StoreError> {
             let all: &[T] = file.records(s);
-            range(all, r).ok_or(StoreError::BadReference {
+            let bad = |limit: u64| StoreError::BadReference {
                 table: "trees",
                 index: i as u64,
                 field: s.name(),
                 value: r.first.saturating_add(r.count),
-                limit: all.len() as u64,
-            })
+                limit,
+            };
+            if s.is_geometry() && !file.holds_geometry {
+                // Not read: the range is checked against the section's record count alone.
+                let count = file.header.section(s).count;
+                let end = r.first.checked_add(r.count).filter(|&end| end <= count);
+                return end.map(|_| &[][..]).ok_or_else(|| bad(count));
+            }
+            range(all, r).ok_or_else(|| bad(all.len() as u64))
         }
         Ok(TreeView {
             kind,

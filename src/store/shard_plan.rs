@@ -12,8 +12,8 @@
 //! flags or another scene refuses the plan), the hash of the scene's image identities (a shard whose images
 //! changed refuses it), the prefix's `xxh3_128`, lengths, and checksums of the manifest and of itself.
 
-use super::StoreError;
 use super::shard::{hash128, read_at, write_at};
+use super::{FileWriter, StoreError, TreeFile};
 use crate::scene::ImageRef;
 use crate::util::AtomicFile;
 use bytemuck::{Pod, Zeroable};
@@ -113,6 +113,12 @@ pub enum PlanFileError {
     },
     #[error("{path}: {what}")]
     Layout { path: PathBuf, what: String },
+    #[error("{path}: its table prefix does not open: {source}")]
+    Tables {
+        path: PathBuf,
+        #[source]
+        source: StoreError,
+    },
 }
 
 /// Writes a plan file to `path` atomically: an interrupted write leaves no file.
@@ -268,6 +274,53 @@ impl PlanFile {
 
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The plan's tables without their geometry ([`TreeFile::skeleton_prefix`]: a few bytes per node, leaf
+    /// and rect in memory, none per triangle), after one streamed pass over the whole prefix checks its
+    /// hash (which vouches for the geometry left unread).
+    pub fn skeleton(&self) -> Result<TreeFile, PlanFileError> {
+        let (at, len) = (self.prefix_at(), self.header.prefix_len);
+        let io = |source| PlanFileError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        let mut buf = vec![0u8; 1 << 20];
+        let mut done = 0u64;
+        while done < len {
+            let n = (len - done).min(buf.len() as u64) as usize;
+            super::read::read_exact_at(&self.file, &mut buf[..n], at + done).map_err(io)?;
+            hasher.update(&buf[..n]);
+            done += n as u64;
+        }
+        let d = hasher.digest128();
+        if [d as u64, (d >> 64) as u64] != self.header.prefix_hash {
+            return Err(PlanFileError::Checksum {
+                path: self.path.clone(),
+                what: "table prefix",
+                expected: self.header.prefix_hash[0],
+                found: d as u64,
+            });
+        }
+        let name = self.path.display().to_string();
+        TreeFile::skeleton_prefix(&self.file, at, len, &name).map_err(|source| {
+            PlanFileError::Tables {
+                path: self.path.clone(),
+                source,
+            }
+        })
+    }
+
+    /// A writer of `out` whose tables are this plan's (`tables`, its [`PlanFile::skeleton`]), the prefix
+    /// copied in pieces and checked against the plan's hash on the way.
+    pub fn writer(&self, out: &Path, tables: &TreeFile) -> Result<FileWriter, StoreError> {
+        let (at, len) = (self.prefix_at(), self.header.prefix_len);
+        FileWriter::from_prefix_file(out, tables, &self.file, at, len, self.header.prefix_hash)
+    }
+
+    fn prefix_at(&self) -> u64 {
+        self.header.prefix_at().unwrap_or(u64::MAX)
     }
 
     /// The table prefix, checked against the header's `prefix_hash`.

@@ -20,6 +20,29 @@ pub(crate) struct TreeTables<'a> {
     /// Index of the tree.
     pub tree: u32,
     pub view: TreeView<'a>,
+    /// The geometry sections were not read (their slices are empty): their bytes are vouched for by a
+    /// hash over the whole prefix (a plan file's), so only their record counts are checked against.
+    pub geometry_vouched: bool,
+}
+
+impl TreeTables<'_> {
+    /// Vertices of the tree: the slice's length, or the record's count when the geometry was not read.
+    fn vertex_count(&self) -> u64 {
+        if self.geometry_vouched {
+            self.record.vertices.count
+        } else {
+            self.vertices.len() as u64
+        }
+    }
+
+    /// Indices of the tree, as [`TreeTables::vertex_count`].
+    fn index_count(&self) -> u64 {
+        if self.geometry_vouched {
+            self.record.indices.count
+        } else {
+            self.indices.len() as u64
+        }
+    }
 }
 
 impl<'a> std::ops::Deref for TreeTables<'a> {
@@ -224,9 +247,14 @@ pub(crate) fn check_tree(
     if t.nodes.is_empty() {
         return Err(bad_value("trees", u64::from(t.tree), "nodes.count", 0));
     }
-    let tris = t.indices.len() / 3;
-    if !t.indices.len().is_multiple_of(3) || t.source_triangles.len() != tris {
-        let value = t.source_triangles.len() as u64;
+    let tris = t.index_count() / 3;
+    let sources = if t.geometry_vouched {
+        t.record.source_triangles.count
+    } else {
+        t.source_triangles.len() as u64
+    };
+    if !t.index_count().is_multiple_of(3) || sources != tris {
+        let value = sources;
         return Err(bad_value(
             "trees",
             u64::from(t.tree),
@@ -238,6 +266,9 @@ pub(crate) fn check_tree(
     check_leaves(t, blocks)?;
     check_rects_originals(t, materials, blocks, atlas_size)?;
     check_original_slots(t, blocks)?;
+    if t.geometry_vouched {
+        return Ok(());
+    }
     check_vertices_indices(t)
 }
 
@@ -320,7 +351,7 @@ fn check_nodes(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreEr
             "index_range",
             u64::from(n.first_index),
             u64::from(n.index_count),
-            t.indices.len() as u64,
+            t.index_count(),
         )?;
         if n.first_index % 3 != 0 || n.index_count % 3 != 0 {
             return Err(bad_value(
@@ -384,25 +415,25 @@ fn check_leaves(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreE
                 "vertex_range",
                 leaf.first_vertex,
                 leaf.vertex_count,
-                t.vertices.len(),
+                t.vertex_count(),
             ),
             (
                 "index_range",
                 leaf.first_index,
                 leaf.index_count,
-                t.indices.len(),
+                t.index_count(),
             ),
             (
                 "rect_range",
                 leaf.first_rect,
                 leaf.rect_count,
-                t.rects.len(),
+                t.rects.len() as u64,
             ),
             (
                 "original_range",
                 leaf.first_original,
                 leaf.original_count,
-                t.originals.len(),
+                t.originals.len() as u64,
             ),
         ];
         for (field, first, count, limit) in ranges {
@@ -412,7 +443,7 @@ fn check_leaves(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreE
                 field,
                 u64::from(first),
                 u64::from(count),
-                limit as u64,
+                limit,
             )?;
         }
         let first = leaf.first_original as usize;

@@ -265,6 +265,7 @@ fn validate_encoded(
                 indices: &src.indices,
                 source_triangles: &src.source_triangles,
             },
+            geometry_vouched: false,
         };
         validate::check_tree(&tables, e.materials.len(), blocks, e.params.atlas_size)?;
     }
@@ -486,6 +487,56 @@ impl FileWriter {
         let writer = FileWriter::with_layout(path, header, blocks, tables_end)?;
         write_all_at(writer.temp.file(), &writer.lock, 0, prefix)
             .map_err(|e| writer.temp_err(e))?;
+        Ok(writer)
+    }
+
+    /// [`FileWriter::from_prefix`] with the prefix copied from `src` (`len` bytes at `src_offset`) in
+    /// pieces, never held whole, and checked on the way: its `xxh3_128` must be `hash` (a plan file's) and
+    /// its header the one `tables` were opened from, else [`StoreError::PrefixMismatch`] and nothing is
+    /// published. `tables` may be a skeleton ([`super::TreeFile::skeleton_prefix`]).
+    pub fn from_prefix_file(
+        path: &Path,
+        tables: &super::TreeFile,
+        src: &File,
+        src_offset: u64,
+        len: u64,
+        hash: [u64; 2],
+    ) -> Result<FileWriter, StoreError> {
+        let mut header = *tables.header();
+        let expected_header = bytemuck::bytes_of(&header).to_vec();
+        header.checksum = 0;
+        let blocks: Vec<BlockRecord> = (tables.blocks().iter())
+            .map(|b| BlockRecord {
+                checksum: 0,
+                sse: 0,
+                ..*b
+            })
+            .collect();
+        let tables_end = super::read::sections_end(&header).ok_or(overflow("sections"))?;
+        let writer = FileWriter::with_layout(path, header, blocks, tables_end)?;
+        let mismatch = || StoreError::PrefixMismatch {
+            path: tables.path().to_path_buf(),
+        };
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        let mut buf = vec![0u8; 1 << 20];
+        let mut at = 0u64;
+        while at < len {
+            let n = (len - at).min(buf.len() as u64) as usize;
+            let piece = &mut buf[..n];
+            super::read::read_exact_at(src, piece, src_offset + at)
+                .map_err(|e| StoreError::io(tables.path(), e))?;
+            if at == 0 && piece.get(..HEADER_SIZE) != Some(&expected_header[..]) {
+                return Err(mismatch());
+            }
+            hasher.update(piece);
+            write_all_at(writer.temp.file(), &writer.lock, at, piece)
+                .map_err(|e| writer.temp_err(e))?;
+            at += n as u64;
+        }
+        let d = hasher.digest128();
+        if [d as u64, (d >> 64) as u64] != hash {
+            return Err(mismatch());
+        }
         Ok(writer)
     }
 

@@ -9,6 +9,7 @@ use atlastree::preprocess::{
     build_shard_planned, merge, plan_shards, shard_plan_key,
 };
 use atlastree::scene::{ImportOptions, import};
+use atlastree::store::TreeFile;
 use atlastree::store::shard::ShardFile;
 use atlastree::store::shard_plan::{PlanFile, plan_path};
 use std::path::{Path, PathBuf};
@@ -86,6 +87,35 @@ fn planned_shards_merge_into_the_one_process_file() {
             );
         }
     }
+}
+
+#[test]
+fn the_plans_skeleton_is_the_tables_without_their_geometry() {
+    // Read without its geometry sections, the plan gives the very skeleton the whole prefix gives.
+    let scene = city_path();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    plan(&scene, &deep_opts(), &out);
+    let file = PlanFile::open(&plan_path(&out)).unwrap();
+    let whole = TreeFile::from_aligned_prefix(file.prefix().unwrap(), "whole").unwrap();
+    let skeleton = file.skeleton().unwrap();
+    let json = |f: &TreeFile| serde_json::to_string(&f.to_skeleton()).unwrap();
+    assert_eq!(json(&skeleton), json(&whole));
+    assert!(!whole.tree(0).unwrap().vertices.is_empty());
+    let t = skeleton.tree(0).unwrap();
+    assert!(t.vertices.is_empty() && t.indices.is_empty() && t.source_triangles.is_empty());
+    // A flipped byte inside the vertices (never read by the skeleton) is caught by the prefix hash.
+    let vertices = whole
+        .header()
+        .section(atlastree::store::format::Section::Vertices);
+    let mut bytes = std::fs::read(plan_path(&out)).unwrap();
+    let prefix_at = bytes.len() as u64 - file.header.prefix_len;
+    bytes[(prefix_at + vertices.offset + vertices.length / 2) as usize] ^= 1;
+    std::fs::write(plan_path(&out), &bytes).unwrap();
+    let Err(e) = PlanFile::open(&plan_path(&out)).unwrap().skeleton() else {
+        panic!("a flipped vertex byte passed the plan's prefix hash");
+    };
+    assert!(e.to_string().contains("table prefix checksum"), "{e}");
 }
 
 #[test]
