@@ -15,6 +15,10 @@ use bytemuck::Pod;
 use rayon::prelude::*;
 use std::fs::File;
 use std::io::Read;
+
+mod prefix;
+pub use prefix::AlignedBytes;
+pub(super) use prefix::read_exact_at;
 use std::path::{Path, PathBuf};
 
 /// How [`TreeFile::open_with`] gets the bytes.
@@ -37,46 +41,6 @@ enum Backing {
         words: Vec<u64>,
         len: usize,
     },
-}
-
-/// Reads exactly `buf.len()` bytes at `offset` of `file`.
-pub(super) fn read_exact_at(file: &File, buf: &mut [u8], offset: u64) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Seek, SeekFrom};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.read_exact(buf)
-    }
-}
-
-/// Bytes in 8-byte-aligned storage (what the records read in place need), read once and handed to a
-/// [`TreeFile`] without a second copy ([`TreeFile::from_aligned_prefix`]).
-pub struct AlignedBytes {
-    words: Vec<u64>,
-    len: usize,
-}
-
-impl AlignedBytes {
-    /// The `len` bytes at `offset` of `file`.
-    pub fn read_at(file: &File, offset: u64, len: u64) -> std::io::Result<AlignedBytes> {
-        let len =
-            usize::try_from(len).map_err(|_| std::io::Error::other("length beyond memory"))?;
-        let mut words = vec![0u64; len.div_ceil(8)];
-        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
-        read_exact_at(file, buf, offset)?;
-        Ok(AlignedBytes { words, len })
-    }
-
-    pub fn bytes(&self) -> &[u8] {
-        bytemuck::cast_slice::<u64, u8>(&self.words)
-            .get(..self.len)
-            .unwrap_or(&[])
-    }
 }
 
 impl Backing {
@@ -345,9 +309,8 @@ pub(super) fn sections_end(header: &Header) -> Option<u64> {
 /// Each section: kind, record size, alignment, length = count × record size, order, bounds, zero gaps,
 /// checksum. Returns the end of the tables. `bytes` may be a prefix of the file (see
 /// [`TreeFile::from_prefix`]); a section inside the file but past the prefix is reported as truncation.
-/// Checks every section's placement, the zero gaps and each section's checksum; with `holds_geometry`
-/// false the geometry sections' checksums are not computed (their bytes were not read: a hash over the
-/// whole prefix vouches for them, [`TreeFile::skeleton_prefix`]).
+/// With `holds_geometry` false the geometry sections' checksums are not computed (their bytes were not
+/// read: a hash over the whole prefix vouches for them, [`TreeFile::skeleton_prefix`]).
 fn check_sections(
     path: &Path,
     header: &Header,
@@ -582,37 +545,6 @@ impl TreeFile {
         Self::from_prefix(bytes, claimed.file_len, name)
     }
 
-    /// [`TreeFile::from_table_prefix`] of bytes already in aligned storage, which the file keeps (no copy).
-    pub fn from_aligned_prefix(bytes: AlignedBytes, name: &str) -> Result<TreeFile, StoreError> {
-        check_endian()?;
-        let path = PathBuf::from(name);
-        let Some(head) = bytes.bytes().get(..HEADER_SIZE) else {
-            return Err(StoreError::Truncated {
-                path,
-                len: bytes.len as u64,
-                needed: HEADER_SIZE as u64,
-            });
-        };
-        let file_len = bytemuck::pod_read_unaligned::<Header>(head).file_len;
-        if bytes.len as u64 > file_len {
-            return Err(StoreError::TrailingBytes {
-                path,
-                len: bytes.len as u64,
-                expected: file_len,
-            });
-        }
-        let backing = Backing::Owned {
-            words: bytes.words,
-            len: bytes.len,
-        };
-        Self::validate(path, backing, file_len, false)
-    }
-
-    /// The bytes the file holds or maps: the whole file, or the table prefix it was made from.
-    pub fn held_bytes(&self) -> &[u8] {
-        self.bytes()
-    }
-
     /// How many leading bytes of a file [`TreeFile::from_prefix`] needs, from its first [`HEADER_SIZE`]
     /// bytes (checked: magic, version, checksum, constants): the end of the tables rounded up to
     /// [`BLOCK_ALIGN`] (where the writer puts the first block, so the zero gap is checked too), at most the
@@ -629,57 +561,6 @@ impl TreeFile {
     fn from_backing(path: PathBuf, backing: Backing) -> Result<TreeFile, StoreError> {
         let len = backing.bytes().len() as u64;
         Self::validate(path, backing, len, true)
-    }
-
-    /// The table prefix of `len` bytes at `offset` of `file` without its geometry: the header and every
-    /// section but the vertices, indices and source triangles ([`Section::is_geometry`]) are read and
-    /// validated as [`TreeFile::from_table_prefix`] does, the geometry sections only by their placement and
-    /// counts; they stay unread (their slices empty), so the memory held is a few bytes per node, leaf and
-    /// rect, none per triangle.
-    ///
-    /// The caller vouches for the geometry's bytes by other means: a plan file's hash over the whole
-    /// prefix, checked before (`store::shard_plan`). [`TreeFile::to_skeleton`] is what such a file gives.
-    pub fn skeleton_prefix(
-        file: &File,
-        offset: u64,
-        len: u64,
-        name: &str,
-    ) -> Result<TreeFile, StoreError> {
-        check_endian()?;
-        let path = PathBuf::from(name);
-        let io = |e| StoreError::io(&path, e);
-        let head = AlignedBytes::read_at(file, offset, len.min(HEADER_SIZE as u64)).map_err(io)?;
-        let header = parse_header(&path, head.bytes())?;
-        if len > header.file_len {
-            return Err(StoreError::TrailingBytes {
-                path,
-                len,
-                expected: header.file_len,
-            });
-        }
-        let n = usize::try_from(len).map_err(|_| StoreError::LayoutOverflow { what: "prefix" })?;
-        // Zeroed, so the unread geometry is never touched: its pages are not resident.
-        let mut words = vec![0u64; n.div_ceil(8)];
-        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..n];
-        buf[..HEADER_SIZE].copy_from_slice(head.bytes());
-        for s in Section::ALL.into_iter().filter(|s| !s.is_geometry()) {
-            let e = header.section(s);
-            let end = e.offset.checked_add(e.length).filter(|&end| end <= len);
-            let Some(end) = end else {
-                return Err(StoreError::Truncated {
-                    path,
-                    len,
-                    needed: e.offset.saturating_add(e.length),
-                });
-            };
-            let part = &mut buf[e.offset as usize..end as usize];
-            let at = offset
-                .checked_add(e.offset)
-                .ok_or(StoreError::LayoutOverflow { what: "prefix" })?;
-            read_exact_at(file, part, at).map_err(io)?;
-        }
-        let backing = Backing::Owned { words, len: n };
-        Self::validate_with(path, backing, header.file_len, false, false)
     }
 
     /// The validation shared by whole files and table prefixes; `file_len` is the whole file's length.
