@@ -263,7 +263,7 @@ pub(crate) struct BuildParamsArgs {
     #[arg(long, default_value_t = 2048)]
     pub image_cache_mib: u64,
     /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
-    /// a build that cannot fit (the plan holds ~400 bytes per triangle, the rasteriser a few atlases per
+    /// a build that cannot fit (the plan holds ~300 bytes per triangle, the rasteriser a few atlases per
     /// thread, the cache at least the largest image per thread) is refused before any work, with the
     /// number it needs. Default: half of the machine's memory.
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]

@@ -10,9 +10,11 @@
 
 use serde::Serialize;
 
-/// Bytes per scene triangle the import and plan hold at their peak: measured 330 B on
-/// stk_cornfield_crossing (330 k triangles, plan peak 109 MiB) and 170–250 B on larger worlds; rounded up.
-pub const PLAN_BYTES_PER_TRIANGLE: u64 = 400;
+/// Bytes per scene triangle the import and plan hold at their peak beyond [`BASE_BYTES`]: measured
+/// 140 B on stk_cornfield_crossing (330 k triangles, plan peak 109 MiB), 170–250 B on larger worlds
+/// (the all-tracks world: 6.0 M triangles, 1.42 GiB; tiled 2 × 2: 23.8 M, 5.21 GiB, both ≈ 235 B);
+/// rounded up.
+pub const PLAN_BYTES_PER_TRIANGLE: u64 = 300;
 /// The process itself, its libraries and small tables.
 pub const BASE_BYTES: u64 = 64 << 20;
 /// Decoded bytes per source texel in the image cache: RGBA8 (4) and the linear f32 mip chain (16 × 4/3).
@@ -84,6 +86,32 @@ pub fn plan_memory(
         cache_wanted,
     };
     split_budget(budget, plan_bytes, triangles, pixels)
+}
+
+/// [`plan_memory`] for the plan step of a sharded build (`build --shard plan`): the plan alone, no pixel
+/// pass and so no image cache.
+pub fn plan_step_memory(budget: u64, triangles: u64) -> Result<MemoryPlan, MemoryError> {
+    let plan_bytes = BASE_BYTES.saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE));
+    if plan_bytes > budget {
+        let mib = |b: u64| b.div_ceil(1 << 20);
+        return Err(MemoryError {
+            budget_mib: budget >> 20,
+            needed_mib: mib(plan_bytes),
+            triangles,
+            plan_mib: mib(plan_bytes),
+            raster_mib: 0,
+            threads: 0,
+            cache_mib: 0,
+            largest_texels: 0,
+        });
+    }
+    Ok(MemoryPlan {
+        budget,
+        plan_bytes,
+        raster_bytes: 0,
+        image_cache_bytes: 0,
+        needed_bytes: plan_bytes,
+    })
 }
 
 /// [`plan_memory`] for a shard that read a plan file: it holds no triangle, only the skeleton of the plan's
@@ -172,7 +200,7 @@ mod tests {
     fn budget_fixes_the_cache_and_refuses_what_cannot_fit() {
         // 1 M triangles, 1024² atlases, 2 threads, a 2048² largest image, 2 GiB wanted.
         let p = plan_memory(2 << 30, 1_000_000, 1024, 2, 2048 * 2048, 2 << 30).unwrap();
-        assert_eq!(p.plan_bytes, (64 << 20) + 400_000_000);
+        assert_eq!(p.plan_bytes, (64 << 20) + 300_000_000);
         assert_eq!(p.raster_bytes, 2 * 4 * 1024 * 1024 * 16);
         let left = (2u64 << 30) - p.plan_bytes - p.raster_bytes;
         assert_eq!(p.image_cache_bytes, left / CACHE_SHARE_DIVISOR);
@@ -184,9 +212,18 @@ mod tests {
         let e = plan_memory(2 << 30, 20_000_000, 1024, 2, 2048 * 2048, 2 << 30).unwrap_err();
         assert_eq!(
             e.plan_mib,
-            ((64u64 << 20) + 8_000_000_000).div_ceil(1 << 20)
+            ((64u64 << 20) + 6_000_000_000).div_ceil(1 << 20)
         );
         assert!(e.needed_mib > 2048);
         assert!(e.to_string().contains("raise --max-memory"));
+        // The plan step needs the plan alone: 6 M triangles fit 2 GiB there, not with a cache beside.
+        let p = plan_step_memory(2 << 30, 6_000_000).unwrap();
+        assert_eq!((p.raster_bytes, p.image_cache_bytes), (0, 0));
+        assert!(plan_memory(2 << 30, 6_000_000, 1024, 2, 4096 * 4096, 2 << 30).is_err());
+        let e = plan_step_memory(2 << 30, 24_000_000).unwrap_err();
+        assert_eq!(
+            e.needed_mib,
+            ((64u64 << 20) + 7_200_000_000).div_ceil(1 << 20)
+        );
     }
 }

@@ -26,6 +26,8 @@ pub struct ShardPlanReport {
     pub blocks: u64,
     #[serde(flatten)]
     pub stages: StageLog,
+    /// The memory budget's check, if there was a budget.
+    pub memory: Option<super::memory::MemoryPlan>,
 }
 
 impl ShardPlanReport {
@@ -117,11 +119,23 @@ pub fn plan_shards(
             })
         })
         .collect::<Result<Vec<_>, _>>()?;
+    // The plan step runs no pixel pass: its budget covers the plan alone.
+    let memory = match opts.max_memory_bytes {
+        Some(budget) => Some(super::memory::plan_step_memory(
+            budget,
+            scene.triangles.len() as u64,
+        )?),
+        None => None,
+    };
+    let unbudgeted = BuildOptions {
+        max_memory_bytes: None,
+        ..opts.clone()
+    };
     let super::Planned {
         mut timings,
         forest,
         ..
-    } = super::plan_build(scene, opts, progress)?;
+    } = super::plan_build(scene, &unbudgeted, progress)?;
     let t = Instant::now();
     progress.stage("write plan", None);
     let prefix = table_prefix(&forest)?;
@@ -142,6 +156,7 @@ pub fn plan_shards(
         nodes: forest.trees.iter().map(|t| t.nodes.len() as u64).sum(),
         blocks: forest.blocks.len() as u64,
         stages: timings,
+        memory,
     };
     Ok(report)
 }
