@@ -68,6 +68,19 @@ pub struct MemoryError {
     pub largest_texels: u64,
 }
 
+/// Why the plan step of a sharded build does not fit its budget.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+#[error(
+    "the plan needs about {needed_mib} MiB ({triangles} triangles, all held at once while planning), over \
+     --max-memory {budget_mib} MiB: plan on a machine with more memory (--max-memory {needed_mib}MiB or more; the \
+     budget is not part of the plan's key, so the shards may keep a small one)"
+)]
+pub struct PlanStepMemoryError {
+    pub budget_mib: u64,
+    pub needed_mib: u64,
+    pub triangles: u64,
+}
+
 /// Splits `budget` between plan, rasteriser threads and the image cache (at most `cache_wanted`); fails when
 /// even the smallest cache does not fit.
 pub fn plan_memory(
@@ -90,19 +103,13 @@ pub fn plan_memory(
 
 /// [`plan_memory`] for the plan step of a sharded build (`build --shard plan`): the plan alone, no pixel
 /// pass and so no image cache.
-pub fn plan_step_memory(budget: u64, triangles: u64) -> Result<MemoryPlan, MemoryError> {
+pub fn plan_step_memory(budget: u64, triangles: u64) -> Result<MemoryPlan, PlanStepMemoryError> {
     let plan_bytes = BASE_BYTES.saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE));
     if plan_bytes > budget {
-        let mib = |b: u64| b.div_ceil(1 << 20);
-        return Err(MemoryError {
+        return Err(PlanStepMemoryError {
             budget_mib: budget >> 20,
-            needed_mib: mib(plan_bytes),
+            needed_mib: plan_bytes.div_ceil(1 << 20),
             triangles,
-            plan_mib: mib(plan_bytes),
-            raster_mib: 0,
-            threads: 0,
-            cache_mib: 0,
-            largest_texels: 0,
         });
     }
     Ok(MemoryPlan {

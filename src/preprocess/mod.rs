@@ -216,6 +216,8 @@ pub enum BuildError {
     #[error(transparent)]
     Memory(#[from] memory::MemoryError),
     #[error(transparent)]
+    PlanStepMemory(#[from] memory::PlanStepMemoryError),
+    #[error(transparent)]
     Plan(Box<shard_plan::ShardPlanError>),
     #[error(transparent)]
     Scene(Box<crate::scene::SceneError>),
