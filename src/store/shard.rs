@@ -368,17 +368,7 @@ pub(super) fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Resul
 
 pub(super) fn read_at(file: &File, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
     let mut buf = vec![0u8; len as usize];
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::read_exact_at(file, &mut buf, offset)?;
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Read, Seek, SeekFrom};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.read_exact(&mut buf)?;
-    }
+    super::read::read_exact_at(file, &mut buf, offset)?;
     Ok(buf)
 }
 

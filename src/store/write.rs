@@ -469,22 +469,12 @@ impl FileWriter {
         tables: &super::TreeFile,
         prefix: &[u8],
     ) -> Result<FileWriter, StoreError> {
-        let mut header = *tables.header();
-        if prefix.get(..HEADER_SIZE) != Some(bytemuck::bytes_of(&header)) {
+        if prefix.get(..HEADER_SIZE) != Some(bytemuck::bytes_of(tables.header())) {
             return Err(StoreError::PrefixMismatch {
                 path: tables.path().to_path_buf(),
             });
         }
-        header.checksum = 0;
-        let blocks: Vec<BlockRecord> = (tables.blocks().iter())
-            .map(|b| BlockRecord {
-                checksum: 0,
-                sse: 0,
-                ..*b
-            })
-            .collect();
-        let tables_end = super::read::sections_end(&header).ok_or(overflow("sections"))?;
-        let writer = FileWriter::with_layout(path, header, blocks, tables_end)?;
+        let writer = FileWriter::for_tables(path, tables)?;
         write_all_at(writer.temp.file(), &writer.lock, 0, prefix)
             .map_err(|e| writer.temp_err(e))?;
         Ok(writer)
@@ -502,18 +492,8 @@ impl FileWriter {
         len: u64,
         hash: [u64; 2],
     ) -> Result<FileWriter, StoreError> {
-        let mut header = *tables.header();
-        let expected_header = bytemuck::bytes_of(&header).to_vec();
-        header.checksum = 0;
-        let blocks: Vec<BlockRecord> = (tables.blocks().iter())
-            .map(|b| BlockRecord {
-                checksum: 0,
-                sse: 0,
-                ..*b
-            })
-            .collect();
-        let tables_end = super::read::sections_end(&header).ok_or(overflow("sections"))?;
-        let writer = FileWriter::with_layout(path, header, blocks, tables_end)?;
+        let expected_header = bytemuck::bytes_of(tables.header());
+        let writer = FileWriter::for_tables(path, tables)?;
         let mismatch = || StoreError::PrefixMismatch {
             path: tables.path().to_path_buf(),
         };
@@ -525,7 +505,7 @@ impl FileWriter {
             let piece = &mut buf[..n];
             super::read::read_exact_at(src, piece, src_offset + at)
                 .map_err(|e| StoreError::io(tables.path(), e))?;
-            if at == 0 && piece.get(..HEADER_SIZE) != Some(&expected_header[..]) {
+            if at == 0 && piece.get(..HEADER_SIZE) != Some(expected_header) {
                 return Err(mismatch());
             }
             hasher.update(piece);
@@ -538,6 +518,22 @@ impl FileWriter {
             return Err(mismatch());
         }
         Ok(writer)
+    }
+
+    /// The writer of the file `tables` were opened from (header and block table as they will be
+    /// finished), nothing written yet: the caller writes the table prefix.
+    fn for_tables(path: &Path, tables: &super::TreeFile) -> Result<FileWriter, StoreError> {
+        let mut header = *tables.header();
+        header.checksum = 0;
+        let blocks: Vec<BlockRecord> = (tables.blocks().iter())
+            .map(|b| BlockRecord {
+                checksum: 0,
+                sse: 0,
+                ..*b
+            })
+            .collect();
+        let tables_end = super::read::sections_end(&header).ok_or(overflow("sections"))?;
+        FileWriter::with_layout(path, header, blocks, tables_end)
     }
 
     /// The temp file sized for `header.file_len`, nothing written yet.
