@@ -365,9 +365,7 @@ pub fn merge(
     set.check_headers()?;
     let first = &set.shards[0];
     let (tables, plan) = if first.header.prefix_len > 0 {
-        let prefix = first.prefix().map_err(|e| set.corrupt(0, e))?;
-        let name = first.path().display().to_string();
-        let tables = TreeFile::from_aligned_prefix(prefix, &name)
+        let tables = (first.skeleton().map_err(|e| set.corrupt(0, e))?)
             .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
         (Tables::Shard0(tables), None)
     } else {
@@ -398,7 +396,7 @@ pub fn merge(
         out: out.to_path_buf(),
         source,
     };
-    let writer = tables.writer(out).map_err(store_err)?;
+    let writer = tables.writer(out, &set.shards[0]).map_err(store_err)?;
     drop(tables);
     let handoffs = set.copy_blocks(&writer, progress)?;
     let below: u64 = (cut.shards.iter().flatten())
@@ -436,8 +434,8 @@ pub fn merge(
     })
 }
 
-/// Where the merge's tables come from: shard 0's prefix (held whole), or the plan's (a skeleton; the
-/// prefix is copied from the plan file in pieces).
+/// Where the merge's tables come from: shard 0's prefix or the plan's, read as a skeleton (no geometry)
+/// and copied into the paging file in pieces.
 enum Tables {
     Shard0(TreeFile),
     Plan(crate::store::shard_plan::PlanFile, TreeFile),
@@ -450,10 +448,10 @@ impl Tables {
         }
     }
 
-    /// The writer of the paging file, its tables written.
-    fn writer(&self, out: &Path) -> Result<FileWriter, StoreError> {
+    /// The writer of the paging file, its tables written; shard 0 is `first`.
+    fn writer(&self, out: &Path, first: &ShardFile) -> Result<FileWriter, StoreError> {
         match self {
-            Tables::Shard0(t) => FileWriter::from_prefix(out, t, t.held_bytes()),
+            Tables::Shard0(t) => first.writer(out, t),
             Tables::Plan(plan, t) => plan.writer(out, t),
         }
     }

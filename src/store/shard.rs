@@ -564,15 +564,17 @@ impl ShardFile {
         Ok(bytes)
     }
 
-    /// The table prefix (shard 0), checked against the header's `prefix_hash`.
-    pub fn prefix(&self) -> Result<super::AlignedBytes, ShardFileError> {
-        let bytes =
-            super::AlignedBytes::read_at(&self.file, self.prefix_at, self.header.prefix_len)
-                .map_err(|source| ShardFileError::Io {
-                    path: self.path.clone(),
-                    source,
-                })?;
-        let found = hash128(bytes.bytes());
+    /// The table prefix's tables without their geometry ([`super::TreeFile::skeleton_prefix`]), after one
+    /// streamed pass checks the prefix against the header's `prefix_hash`; the outer error is the shard
+    /// file's (I/O, checksum), the inner one the tables' (they do not open).
+    pub fn skeleton(&self) -> Result<Result<super::TreeFile, StoreError>, ShardFileError> {
+        let (at, len) = (self.prefix_at, self.header.prefix_len);
+        let found = super::read::stream_hash128(&self.file, at, len).map_err(|source| {
+            ShardFileError::Io {
+                path: self.path.clone(),
+                source,
+            }
+        })?;
         if found != self.header.prefix_hash {
             return Err(ShardFileError::Checksum {
                 path: self.path.clone(),
@@ -581,7 +583,26 @@ impl ShardFile {
                 found: found[0],
             });
         }
-        Ok(bytes)
+        let name = self.path.display().to_string();
+        Ok(super::TreeFile::skeleton_prefix(&self.file, at, len, &name))
+    }
+
+    /// A writer of `out` whose tables are this shard's prefix (`tables`, its [`ShardFile::skeleton`]),
+    /// copied in pieces and checked against the prefix hash on the way.
+    pub fn writer(
+        &self,
+        out: &Path,
+        tables: &super::TreeFile,
+    ) -> Result<super::FileWriter, StoreError> {
+        let (at, len) = (self.prefix_at, self.header.prefix_len);
+        super::FileWriter::from_prefix_file(
+            out,
+            tables,
+            &self.file,
+            at,
+            len,
+            self.header.prefix_hash,
+        )
     }
 
     /// The payload of block entry `i`, checksum verified.

@@ -285,22 +285,13 @@ impl PlanFile {
             path: self.path.clone(),
             source,
         };
-        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
-        let mut buf = vec![0u8; 1 << 20];
-        let mut done = 0u64;
-        while done < len {
-            let n = (len - done).min(buf.len() as u64) as usize;
-            super::read::read_exact_at(&self.file, &mut buf[..n], at + done).map_err(io)?;
-            hasher.update(&buf[..n]);
-            done += n as u64;
-        }
-        let d = hasher.digest128();
-        if [d as u64, (d >> 64) as u64] != self.header.prefix_hash {
+        let found = super::read::stream_hash128(&self.file, at, len).map_err(io)?;
+        if found != self.header.prefix_hash {
             return Err(PlanFileError::Checksum {
                 path: self.path.clone(),
                 what: "table prefix",
                 expected: self.header.prefix_hash[0],
-                found: d as u64,
+                found: found[0],
             });
         }
         let name = self.path.display().to_string();

@@ -415,7 +415,7 @@ fn plan_file(forest: &AtlasForest) -> Result<FileLayout, StoreError> {
 /// The first bytes of `forest`'s paging file as a table prefix (issue 22: what a sharded build hands to
 /// its merge): header and every table up to the first block's offset (at most the file length), with the
 /// block table's checksums 0 and the header checksum set, so [`crate::store::TreeFile::from_prefix`] opens
-/// it and [`FileWriter::from_prefix`] turns it into the same file [`FileWriter::create`] writes.
+/// it and [`FileWriter::from_prefix_file`] turns it into the same file [`FileWriter::create`] writes.
 pub fn table_prefix(forest: &AtlasForest) -> Result<Vec<u8>, StoreError> {
     let FileLayout {
         mut header,
@@ -461,27 +461,10 @@ impl FileWriter {
         Ok(writer)
     }
 
-    /// A writer for the file whose [`table_prefix`] is `prefix`, opened (and so validated) as `tables`
-    /// ([`super::TreeFile::from_table_prefix`]): the tables are copied verbatim, so the finished file is the
-    /// one [`FileWriter::create`] writes for the same forest.
-    pub fn from_prefix(
-        path: &Path,
-        tables: &super::TreeFile,
-        prefix: &[u8],
-    ) -> Result<FileWriter, StoreError> {
-        if prefix.get(..HEADER_SIZE) != Some(bytemuck::bytes_of(tables.header())) {
-            return Err(StoreError::PrefixMismatch {
-                path: tables.path().to_path_buf(),
-            });
-        }
-        let writer = FileWriter::for_tables(path, tables)?;
-        write_all_at(writer.temp.file(), &writer.lock, 0, prefix)
-            .map_err(|e| writer.temp_err(e))?;
-        Ok(writer)
-    }
-
-    /// [`FileWriter::from_prefix`] with the prefix copied from `src` (`len` bytes at `src_offset`) in
-    /// pieces, never held whole, and checked on the way: its `xxh3_128` must be `hash` (a plan file's) and
+    /// A writer for the file whose [`table_prefix`] is the `len` bytes at `src_offset` of `src`, opened (and
+    /// so validated) as `tables`: the prefix is copied verbatim, so the finished file is the one
+    /// [`FileWriter::create`] writes for the same forest. It is copied in pieces, never held whole, and
+    /// checked on the way: its `xxh3_128` must be `hash` (a plan file's) and
     /// its header the one `tables` were opened from, else [`StoreError::PrefixMismatch`] and nothing is
     /// published. `tables` may be a skeleton ([`super::TreeFile::skeleton_prefix`]).
     pub fn from_prefix_file(

@@ -52,6 +52,25 @@ impl AlignedBytes {
     }
 }
 
+/// `xxh3_128` of the `len` bytes at `offset` of `file`, read in 1 MiB pieces (never held whole).
+pub(in crate::store) fn stream_hash128(
+    file: &File,
+    offset: u64,
+    len: u64,
+) -> std::io::Result<[u64; 2]> {
+    let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+    let mut buf = vec![0u8; 1 << 20];
+    let mut done = 0u64;
+    while done < len {
+        let n = (len - done).min(buf.len() as u64) as usize;
+        read_exact_at(file, &mut buf[..n], offset + done)?;
+        hasher.update(&buf[..n]);
+        done += n as u64;
+    }
+    let d = hasher.digest128();
+    Ok([d as u64, (d >> 64) as u64])
+}
+
 impl TreeFile {
     /// [`TreeFile::from_table_prefix`] of bytes already in aligned storage, which the file keeps (no copy).
     pub fn from_aligned_prefix(bytes: AlignedBytes, name: &str) -> Result<TreeFile, StoreError> {
@@ -77,11 +96,6 @@ impl TreeFile {
             len: bytes.len,
         };
         Self::validate(path, backing, file_len, false)
-    }
-
-    /// The bytes the file holds or maps: the whole file, or the table prefix it was made from.
-    pub fn held_bytes(&self) -> &[u8] {
-        self.bytes()
     }
 
     /// The table prefix of `len` bytes at `offset` of `file` without its geometry: the header and every
