@@ -18,7 +18,7 @@ use std::io::Read;
 
 mod prefix;
 pub use prefix::AlignedBytes;
-pub(super) use prefix::{read_exact_at, stream_hash128};
+pub(super) use prefix::{read_exact_at, stream_hash128, stream_update};
 use std::path::{Path, PathBuf};
 
 /// How [`TreeFile::open_with`] gets the bytes.

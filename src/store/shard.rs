@@ -473,8 +473,18 @@ impl ShardFile {
             .and_then(|(e, (a, p))| a.checked_add(p)?.checked_add(e))
             .filter(|&t| t <= len - HEADER_BYTES)
             .ok_or_else(|| layout("tables larger than the file".into()))?;
-        let tables = read_at(&file, HEADER_BYTES, head).map_err(io)?;
-        let sum = xxhash_rust::xxh3::xxh3_64(&tables);
+        // The prefix (shard 0: the paging file's tables, ≈ 50 bytes per triangle) is hashed in pieces,
+        // never held; the command line and the entries are read.
+        let (argv_part, prefix_part) = (align(header.argv_len), align(header.prefix_len));
+        let argv_bytes = read_at(&file, HEADER_BYTES, argv_part).map_err(io)?;
+        let entries_at = HEADER_BYTES + argv_part + prefix_part;
+        let entries = read_at(&file, entries_at, head - argv_part - prefix_part).map_err(io)?;
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        hasher.update(&argv_bytes);
+        super::read::stream_update(&mut hasher, &file, HEADER_BYTES + argv_part, prefix_part)
+            .map_err(io)?;
+        hasher.update(&entries);
+        let sum = hasher.digest();
         if sum != header.tables_checksum {
             return Err(ShardFileError::Checksum {
                 path: path.to_path_buf(),
@@ -483,15 +493,14 @@ impl ShardFile {
                 found: sum,
             });
         }
-        let argv: Vec<String> = serde_json::from_slice(&tables[..header.argv_len as usize])
+        let argv: Vec<String> = serde_json::from_slice(&argv_bytes[..header.argv_len as usize])
             .map_err(|e| layout(format!("command line: {e}")))?;
-        let at = (align(header.argv_len) + align(header.prefix_len)) as usize;
-        let split = at + header.blocks as usize * 40;
-        let blocks: Vec<BlockEntry> = tables[at..split]
+        let split = header.blocks as usize * 40;
+        let blocks: Vec<BlockEntry> = entries[..split]
             .chunks_exact(40)
             .map(bytemuck::pod_read_unaligned)
             .collect();
-        let handoffs: Vec<HandoffEntry> = tables[split..]
+        let handoffs: Vec<HandoffEntry> = entries[split..]
             .chunks_exact(40)
             .map(bytemuck::pod_read_unaligned)
             .collect();

@@ -59,7 +59,19 @@ pub(in crate::store) fn stream_hash128(
     len: u64,
 ) -> std::io::Result<[u64; 2]> {
     let mut hasher = xxhash_rust::xxh3::Xxh3::new();
-    let mut buf = vec![0u8; 1 << 20];
+    stream_update(&mut hasher, file, offset, len)?;
+    let d = hasher.digest128();
+    Ok([d as u64, (d >> 64) as u64])
+}
+
+/// Feeds the `len` bytes at `offset` of `file` to `hasher` in 1 MiB pieces.
+pub(in crate::store) fn stream_update(
+    hasher: &mut xxhash_rust::xxh3::Xxh3,
+    file: &File,
+    offset: u64,
+    len: u64,
+) -> std::io::Result<()> {
+    let mut buf = vec![0u8; len.min(1 << 20) as usize];
     let mut done = 0u64;
     while done < len {
         let n = (len - done).min(buf.len() as u64) as usize;
@@ -67,8 +79,7 @@ pub(in crate::store) fn stream_hash128(
         hasher.update(&buf[..n]);
         done += n as u64;
     }
-    let d = hasher.digest128();
-    Ok([d as u64, (d >> 64) as u64])
+    Ok(())
 }
 
 impl TreeFile {
