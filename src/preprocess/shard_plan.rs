@@ -48,7 +48,7 @@ impl ShardPlanReport {
 /// Why a plan file cannot serve a shard or a merge.
 #[derive(Debug, thiserror::Error)]
 pub enum ShardPlanError {
-    #[error("{0}")]
+    #[error(transparent)]
     File(#[from] PlanFileError),
     #[error(
         "{path} was planned from another scene or with other flags than this shard's; plan again with this \

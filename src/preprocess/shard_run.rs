@@ -365,7 +365,7 @@ pub fn merge(
     set.check_headers()?;
     let first = &set.shards[0];
     let (tables, plan) = if first.header.prefix_len > 0 {
-        let tables = (first.skeleton().map_err(|e| set.corrupt(0, e))?)
+        let tables = (first.skeleton())
             .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
         (Tables::Shard0(tables), None)
     } else {

@@ -18,7 +18,7 @@ pub mod shard_plan;
 mod validate;
 mod write;
 
-pub use read::{AlignedBytes, LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
+pub use read::{LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
 pub use write::{FileWriter, WriteSummary, table_prefix};
 
 use crate::ids::BlockId;

@@ -17,7 +17,6 @@ use std::fs::File;
 use std::io::Read;
 
 mod prefix;
-pub use prefix::AlignedBytes;
 pub(super) use prefix::{read_exact_at, stream_hash128, stream_update};
 use std::path::{Path, PathBuf};
 

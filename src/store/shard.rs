@@ -573,27 +573,12 @@ impl ShardFile {
         Ok(bytes)
     }
 
-    /// The table prefix's tables without their geometry ([`super::TreeFile::skeleton_prefix`]), after one
-    /// streamed pass checks the prefix against the header's `prefix_hash`; the outer error is the shard
-    /// file's (I/O, checksum), the inner one the tables' (they do not open).
-    pub fn skeleton(&self) -> Result<Result<super::TreeFile, StoreError>, ShardFileError> {
-        let (at, len) = (self.prefix_at, self.header.prefix_len);
-        let found = super::read::stream_hash128(&self.file, at, len).map_err(|source| {
-            ShardFileError::Io {
-                path: self.path.clone(),
-                source,
-            }
-        })?;
-        if found != self.header.prefix_hash {
-            return Err(ShardFileError::Checksum {
-                path: self.path.clone(),
-                what: "table prefix".into(),
-                expected: self.header.prefix_hash[0],
-                found: found[0],
-            });
-        }
+    /// The table prefix's tables without their geometry ([`super::TreeFile::skeleton_prefix`]); the prefix's
+    /// bytes were checked when the file was opened (the tables checksum covers them) and are checked again
+    /// against `prefix_hash` when [`ShardFile::writer`] copies them.
+    pub fn skeleton(&self) -> Result<super::TreeFile, StoreError> {
         let name = self.path.display().to_string();
-        Ok(super::TreeFile::skeleton_prefix(&self.file, at, len, &name))
+        super::TreeFile::skeleton_prefix(&self.file, self.prefix_at, self.header.prefix_len, &name)
     }
 
     /// A writer of `out` whose tables are this shard's prefix (`tables`, its [`ShardFile::skeleton`]),

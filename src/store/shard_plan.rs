@@ -280,20 +280,8 @@ impl PlanFile {
     /// and rect in memory, none per triangle), after one streamed pass over the whole prefix checks its
     /// hash (which vouches for the geometry left unread).
     pub fn skeleton(&self) -> Result<TreeFile, PlanFileError> {
+        self.check_prefix()?;
         let (at, len) = (self.prefix_at(), self.header.prefix_len);
-        let io = |source| PlanFileError::Io {
-            path: self.path.clone(),
-            source,
-        };
-        let found = super::read::stream_hash128(&self.file, at, len).map_err(io)?;
-        if found != self.header.prefix_hash {
-            return Err(PlanFileError::Checksum {
-                path: self.path.clone(),
-                what: "table prefix",
-                expected: self.header.prefix_hash[0],
-                found: found[0],
-            });
-        }
         let name = self.path.display().to_string();
         TreeFile::skeleton_prefix(&self.file, at, len, &name).map_err(|source| {
             PlanFileError::Tables {
@@ -310,20 +298,15 @@ impl PlanFile {
         FileWriter::from_prefix_file(out, tables, &self.file, at, len, self.header.prefix_hash)
     }
 
-    fn prefix_at(&self) -> u64 {
-        self.header.prefix_at().unwrap_or(u64::MAX)
-    }
-
-    /// The table prefix, checked against the header's `prefix_hash`.
-    pub fn prefix(&self) -> Result<super::AlignedBytes, PlanFileError> {
-        let at = self.header.prefix_at().unwrap_or(u64::MAX);
-        let bytes = super::AlignedBytes::read_at(&self.file, at, self.header.prefix_len).map_err(
-            |source| PlanFileError::Io {
+    /// Checks the table prefix against the header's `prefix_hash` in one streamed pass.
+    fn check_prefix(&self) -> Result<(), PlanFileError> {
+        let (at, len) = (self.prefix_at(), self.header.prefix_len);
+        let found = super::read::stream_hash128(&self.file, at, len).map_err(|source| {
+            PlanFileError::Io {
                 path: self.path.clone(),
                 source,
-            },
-        )?;
-        let found = hash128(bytes.bytes());
+            }
+        })?;
         if found != self.header.prefix_hash {
             return Err(PlanFileError::Checksum {
                 path: self.path.clone(),
@@ -332,7 +315,11 @@ impl PlanFile {
                 found: found[0],
             });
         }
-        Ok(bytes)
+        Ok(())
+    }
+
+    fn prefix_at(&self) -> u64 {
+        self.header.prefix_at().unwrap_or(u64::MAX)
     }
 }
 
@@ -365,7 +352,9 @@ mod tests {
         let p = PlanFile::open(&path).unwrap();
         assert_eq!(p.manifest, manifest());
         assert_eq!((p.header.key, p.header.images), ([1, 2], [3, 4]));
-        assert_eq!(p.prefix().unwrap().bytes(), prefix);
+        p.check_prefix().unwrap();
+        let written = std::fs::read(&path).unwrap();
+        assert_eq!(&written[written.len() - prefix.len()..], &prefix[..]);
 
         let good = std::fs::read(&path).unwrap();
         // Truncated, extended, a flipped byte in header, manifest and prefix.
@@ -380,7 +369,7 @@ mod tests {
         ];
         for (what, bytes) in cases {
             std::fs::write(&path, &bytes).unwrap();
-            let refused = PlanFile::open(&path).and_then(|p| p.prefix().map(|_| ()));
+            let refused = PlanFile::open(&path).and_then(|p| p.check_prefix());
             let err = refused.expect_err(what).to_string();
             assert!(err.contains("x.plan"), "{what}: {err}");
         }

@@ -1,10 +1,8 @@
-//! Table prefixes read from a file without a second copy: into aligned storage the [`TreeFile`] keeps
-//! ([`TreeFile::from_aligned_prefix`]), or without their geometry ([`TreeFile::skeleton_prefix`], what a
-//! planned shard and its merge read of a plan file, issue 22).
+//! Table prefixes read from a file in pieces: hashed without being held ([`stream_hash128`]), or read
+//! without their geometry ([`TreeFile::skeleton_prefix`]: what a planned shard and a merge hold of the
+//! tables, issue 22).
 
-use super::{
-    Backing, HEADER_SIZE, Header, Section, StoreError, TreeFile, check_endian, parse_header,
-};
+use super::{Backing, HEADER_SIZE, Section, StoreError, TreeFile, check_endian, parse_header};
 use std::fs::File;
 use std::path::PathBuf;
 
@@ -24,31 +22,6 @@ pub(in crate::store) fn read_exact_at(
         let mut f = file;
         f.seek(SeekFrom::Start(offset))?;
         f.read_exact(buf)
-    }
-}
-
-/// Bytes in 8-byte-aligned storage (what the records read in place need), read once and handed to a
-/// [`TreeFile`] without a second copy ([`TreeFile::from_aligned_prefix`]).
-pub struct AlignedBytes {
-    words: Vec<u64>,
-    len: usize,
-}
-
-impl AlignedBytes {
-    /// The `len` bytes at `offset` of `file`.
-    pub fn read_at(file: &File, offset: u64, len: u64) -> std::io::Result<AlignedBytes> {
-        let len =
-            usize::try_from(len).map_err(|_| std::io::Error::other("length beyond memory"))?;
-        let mut words = vec![0u64; len.div_ceil(8)];
-        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
-        read_exact_at(file, buf, offset)?;
-        Ok(AlignedBytes { words, len })
-    }
-
-    pub fn bytes(&self) -> &[u8] {
-        bytemuck::cast_slice::<u64, u8>(&self.words)
-            .get(..self.len)
-            .unwrap_or(&[])
     }
 }
 
@@ -83,32 +56,6 @@ pub(in crate::store) fn stream_update(
 }
 
 impl TreeFile {
-    /// [`TreeFile::from_table_prefix`] of bytes already in aligned storage, which the file keeps (no copy).
-    pub fn from_aligned_prefix(bytes: AlignedBytes, name: &str) -> Result<TreeFile, StoreError> {
-        check_endian()?;
-        let path = PathBuf::from(name);
-        let Some(head) = bytes.bytes().get(..HEADER_SIZE) else {
-            return Err(StoreError::Truncated {
-                path,
-                len: bytes.len as u64,
-                needed: HEADER_SIZE as u64,
-            });
-        };
-        let file_len = bytemuck::pod_read_unaligned::<Header>(head).file_len;
-        if bytes.len as u64 > file_len {
-            return Err(StoreError::TrailingBytes {
-                path,
-                len: bytes.len as u64,
-                expected: file_len,
-            });
-        }
-        let backing = Backing::Owned {
-            words: bytes.words,
-            len: bytes.len,
-        };
-        Self::validate(path, backing, file_len, false)
-    }
-
     /// The table prefix of `len` bytes at `offset` of `file` without its geometry: the header and every
     /// section but the vertices, indices and source triangles ([`Section::is_geometry`]) are read and
     /// validated as [`TreeFile::from_table_prefix`] does, the geometry sections only by their placement and
@@ -126,8 +73,9 @@ impl TreeFile {
         check_endian()?;
         let path = PathBuf::from(name);
         let io = |e| StoreError::io(&path, e);
-        let head = AlignedBytes::read_at(file, offset, len.min(HEADER_SIZE as u64)).map_err(io)?;
-        let header = parse_header(&path, head.bytes())?;
+        let mut head = vec![0u8; len.min(HEADER_SIZE as u64) as usize];
+        read_exact_at(file, &mut head, offset).map_err(io)?;
+        let header = parse_header(&path, &head)?;
         if len > header.file_len {
             return Err(StoreError::TrailingBytes {
                 path,
@@ -139,7 +87,7 @@ impl TreeFile {
         // Zeroed, so the unread geometry is never touched: its pages are not resident.
         let mut words = vec![0u64; n.div_ceil(8)];
         let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..n];
-        buf[..HEADER_SIZE].copy_from_slice(head.bytes());
+        buf[..HEADER_SIZE].copy_from_slice(&head);
         for s in Section::ALL.into_iter().filter(|s| !s.is_geometry()) {
             let e = header.section(s);
             let end = e.offset.checked_add(e.length).filter(|&end| end <= len);
