@@ -14,7 +14,9 @@ use crate::model::{
 use crate::scene::Scene;
 use crate::texfmt::TexFormat;
 use glam::{DVec2, DVec3};
+use rustc_hash::FxHashMap;
 use std::collections::HashMap;
+use std::ops::Range;
 
 pub use super::originals::{original_class, original_extent};
 pub use crate::model::{MAX_ORIGINAL_CLASS, MIN_ORIGINAL_CLASS};
@@ -59,7 +61,34 @@ struct Asm<'a> {
     /// ([`group_by_users`]) when every leaf is known (docs/DESIGN.md "Originals").
     pending: Vec<(MaterialId, OriginalItem)>,
     pending_of: HashMap<MaterialId, usize>,
+    /// Indices of the leaves walked so far (3 per triangle): a node's `first_index` before its geometry
+    /// exists.
+    index_cursor: u32,
+    /// Leaves whose geometry is still to be made, in leaf order ([`Asm::make_geometry`]).
+    geometry: Vec<GeometryJob>,
 }
+
+/// What a leaf's geometry needs besides its triangles ([`leaf_geometry`]).
+struct GeometryJob {
+    leaf: LeafId,
+    range: Range<usize>,
+    origin: DVec3,
+    /// The leaf's rect of each (material, density class) and slot of each material's original texture.
+    rect_of: FxHashMap<(MaterialId, i32), u32>,
+    slot_of: FxHashMap<MaterialId, u32>,
+}
+
+/// One leaf's geometry: its deduplicated vertices in order of first use, indices into them (3 per
+/// triangle, leaf-local) and per rect the UV hull of its triangles.
+struct LeafGeometry {
+    vertices: Vec<TreeVertex>,
+    indices: Vec<u32>,
+    hulls: Vec<(DVec2, DVec2)>,
+}
+
+/// Triangles of the leaves whose geometry is made side by side before it is appended (bounds the copies
+/// held at once to about this many triangles' vertices and indices, ~30 MiB).
+const GEOMETRY_BATCH: usize = 1 << 18;
 
 /// Flattens `root` (a layout over `infos`, permutation `order`) into tree `tree_index` of a forest whose
 /// blocks so far number `first_block`.
@@ -103,9 +132,12 @@ pub fn assemble(
         next_block: first_block,
         pending: Vec::new(),
         pending_of: HashMap::new(),
+        index_cursor: 0,
+        geometry: Vec::new(),
     };
     a.node(root, None);
     a.place_originals();
+    a.make_geometry();
     a.out
 }
 
@@ -164,7 +196,7 @@ impl Asm<'_> {
             BlockKind::Atlas { node: id },
             self.format.chain_bytes(self.params.atlas_size),
         );
-        let first_index = self.out.tree.indices.len() as u32;
+        let first_index = self.index_cursor;
         self.out.tree.nodes.push(Node {
             bounds_min: n.lo,
             bounds_max: n.hi,
@@ -196,7 +228,7 @@ impl Asm<'_> {
                 2.0 * md
             }
         };
-        let end = self.out.tree.indices.len() as u32;
+        let end = self.index_cursor;
         let node = &mut self.out.tree.nodes[id.idx()];
         node.min_distance = min_distance;
         node.index_count = end - first_index;
@@ -216,7 +248,7 @@ impl Asm<'_> {
         // once all leaves are known (`place_originals` fills in `block` and `slot`).
         let mut seen_materials = std::collections::HashSet::new();
         let mut originals: Vec<OriginalRef> = Vec::new();
-        let mut slot_of: HashMap<MaterialId, u32> = HashMap::new();
+        let mut slot_of: FxHashMap<MaterialId, u32> = FxHashMap::default();
         for r in l.rects.iter().filter(|r| seen_materials.insert(r.material)) {
             let mat = &self.scene.materials[r.material.idx()];
             let img = &self.scene.images[mat.image.idx()];
@@ -244,62 +276,37 @@ impl Asm<'_> {
             });
         }
 
-        // Geometry: deduplicated vertices, positions relative to the origin, each naming its rect.
-        let rect_of: HashMap<(MaterialId, i32), usize> = l
+        // Geometry: made later, leaves side by side (`make_geometry`); its index range is known now.
+        let rect_of: FxHashMap<(MaterialId, i32), u32> = l
             .rects
             .iter()
             .enumerate()
-            .map(|(i, r)| ((r.material, r.class), i))
+            .map(|(i, r)| ((r.material, r.class), i as u32))
             .collect();
-        let first_vertex = self.out.tree.vertices.len() as u32;
-        let first_index = self.out.tree.indices.len() as u32;
-        let mut dedup: HashMap<[u32; 8], u32> = HashMap::new();
-        let mut hulls =
-            vec![(DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)); l.rects.len()];
-        for &ti in &self.order[n.range.clone()] {
-            let t = &self.infos[ti as usize];
-            let pos = t.pos;
-            let ri = rect_of[&(t.material, t.class)];
-            for uv in t.uv.iter().filter(|uv| uv.is_finite()) {
-                hulls[ri].0 = hulls[ri].0.min(*uv);
-                hulls[ri].1 = hulls[ri].1.max(*uv);
-            }
-            for (k, p) in pos.iter().enumerate() {
-                let v = TreeVertex {
-                    pos: finite3((*p - origin).as_vec3().to_array()),
-                    orig_uv: finite2(t.uv[k].as_vec2().to_array()),
-                    leaf: leaf_id.0,
-                    original: slot_of[&t.material],
-                    rect: ri as u32,
-                };
-                let key: [u32; 8] = bytemuck::cast(v);
-                let vi = *dedup.entry(key).or_insert_with(|| {
-                    self.out.tree.vertices.push(v);
-                    self.out.tree.vertices.len() as u32 - 1
-                });
-                self.out.tree.indices.push(vi);
-            }
-            self.out.tree.source_triangles.push(t.scene_tri);
-        }
-        let vertex_count = self.out.tree.vertices.len() as u32 - first_vertex;
-        let index_count = self.out.tree.indices.len() as u32 - first_index;
+        let first_index = self.index_cursor;
+        let index_count = 3 * n.range.len() as u32;
+        self.index_cursor += index_count;
+        self.geometry.push(GeometryJob {
+            leaf: leaf_id,
+            range: n.range.clone(),
+            origin,
+            rect_of,
+            slot_of,
+        });
         self.out.occupancy.push(l.occupancy);
         self.out
             .capped
             .push(l.rects.iter().map(|r| r.capped[0] || r.capped[1]).collect());
-        for (r, (lo, hi)) in l.rects.iter().zip(&hulls) {
+        for r in &l.rects {
             let stored = r.uv_max - r.uv_min;
             self.out.periods_stored += stored.x * stored.y;
-            let spanned = (*hi - *lo).max(DVec2::ZERO);
-            if spanned.is_finite() {
-                self.out.periods_spanned += spanned.x * spanned.y;
-            }
         }
         self.out.tree.leaves.push(Leaf {
             node,
             origin,
-            first_vertex,
-            vertex_count,
+            // Filled in when the geometry is appended (`append_geometry`).
+            first_vertex: 0,
+            vertex_count: 0,
             first_index,
             index_count,
             rects: l
@@ -320,6 +327,94 @@ impl Asm<'_> {
         });
         leaf_id
     }
+
+    /// Makes every leaf's geometry ([`leaf_geometry`]) in batches of about [`GEOMETRY_BATCH`] triangles,
+    /// the leaves of a batch on the rayon pool, and appends it in leaf order: the vertices, indices and
+    /// source triangles a leaf-by-leaf walk would give, and the spanned periods summed in the same order.
+    fn make_geometry(&mut self) {
+        use rayon::prelude::*;
+        let jobs = std::mem::take(&mut self.geometry);
+        let mut rest = jobs.as_slice();
+        while !rest.is_empty() {
+            let mut take = 0;
+            let mut triangles = 0;
+            while take < rest.len() && (take == 0 || triangles < GEOMETRY_BATCH) {
+                triangles += rest[take].range.len();
+                take += 1;
+            }
+            let (batch, tail) = rest.split_at(take);
+            rest = tail;
+            let made: Vec<LeafGeometry> = batch
+                .par_iter()
+                .map(|job| leaf_geometry(self.infos, self.order, job))
+                .collect();
+            for (job, g) in batch.iter().zip(made) {
+                self.append_geometry(job, g);
+            }
+        }
+    }
+
+    fn append_geometry(&mut self, job: &GeometryJob, g: LeafGeometry) {
+        let tree = &mut self.out.tree;
+        let first_vertex = tree.vertices.len() as u32;
+        tree.vertices.extend_from_slice(&g.vertices);
+        tree.indices
+            .extend(g.indices.iter().map(|&i| first_vertex + i));
+        tree.source_triangles.extend(
+            self.order[job.range.clone()]
+                .iter()
+                .map(|&ti| self.infos[ti as usize].scene_tri),
+        );
+        let leaf = &mut tree.leaves[job.leaf.idx()];
+        leaf.first_vertex = first_vertex;
+        leaf.vertex_count = g.vertices.len() as u32;
+        for (lo, hi) in &g.hulls {
+            let spanned = (*hi - *lo).max(DVec2::ZERO);
+            if spanned.is_finite() {
+                self.out.periods_spanned += spanned.x * spanned.y;
+            }
+        }
+    }
+}
+
+/// The geometry of one leaf: deduplicated vertices, positions relative to the leaf's origin, each naming
+/// its rect and original-texture slot, in order of first use over the leaf's triangles.
+fn leaf_geometry(infos: &[TriInfo], order: &[u32], job: &GeometryJob) -> LeafGeometry {
+    let tris = &order[job.range.clone()];
+    let mut out = LeafGeometry {
+        vertices: Vec::new(),
+        indices: Vec::with_capacity(3 * tris.len()),
+        hulls: vec![
+            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+            job.rect_of.len()
+        ],
+    };
+    let mut dedup: FxHashMap<[u32; 8], u32> = FxHashMap::default();
+    for &ti in tris {
+        let t = &infos[ti as usize];
+        let ri = job.rect_of[&(t.material, t.class)];
+        let hull = &mut out.hulls[ri as usize];
+        for uv in t.uv.iter().filter(|uv| uv.is_finite()) {
+            hull.0 = hull.0.min(*uv);
+            hull.1 = hull.1.max(*uv);
+        }
+        for (k, p) in t.pos.iter().enumerate() {
+            let v = TreeVertex {
+                pos: finite3((*p - job.origin).as_vec3().to_array()),
+                orig_uv: finite2(t.uv[k].as_vec2().to_array()),
+                leaf: job.leaf.0,
+                original: job.slot_of[&t.material],
+                rect: ri,
+            };
+            let key: [u32; 8] = bytemuck::cast(v);
+            let vi = *dedup.entry(key).or_insert_with(|| {
+                out.vertices.push(v);
+                out.vertices.len() as u32 - 1
+            });
+            out.indices.push(vi);
+        }
+    }
+    out
 }
 
 fn finite2(a: [f32; 2]) -> [f32; 2] {

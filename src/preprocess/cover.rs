@@ -82,6 +82,30 @@ impl AxisCover {
         }
     }
 
+    /// Adds every interval `other` holds (same wrap): the cover of the union of both inputs, whichever
+    /// way they were split. Hulls take min and max; repeat pieces are pooled (an arc of the same set of
+    /// pieces is the same bit for bit in any order, [`shortest_arc`]), so covers of a node's triangles
+    /// accumulated in pieces on several threads and absorbed give the one-pass cover exactly.
+    pub fn absorb(&mut self, other: AxisCover) {
+        debug_assert_eq!(self.wrap, other.wrap);
+        self.any |= other.any;
+        self.hull(other.lo, other.hi);
+        if self.full || other.full {
+            self.full = true;
+            self.pieces = Vec::new();
+            self.merged = 0;
+            return;
+        }
+        self.pieces.extend(other.pieces);
+        // The pooled list is no longer sorted: merge it now (the arc is unchanged) or leave it as added.
+        if self.pieces.len() >= MERGE_MIN {
+            merge_pieces(&mut self.pieces);
+            self.merged = self.pieces.len();
+        } else {
+            self.merged = 0;
+        }
+    }
+
     fn hull(&mut self, lo: f64, hi: f64) {
         self.lo = self.lo.min(lo);
         self.hi = self.hi.max(hi);
@@ -194,11 +218,7 @@ mod tests {
     use crate::model::transform::rect_t;
 
     fn cover(wrap: RectWrap, ivs: &[(f64, f64)]) -> (f64, f64) {
-        let mut c = AxisCover::new(wrap);
-        for &(a, b) in ivs {
-            c.add(a, b);
-        }
-        c.range()
+        cover_of(wrap, ivs).range()
     }
 
     /// Every u of every interval lands in [0, span] (the module contract).
@@ -254,6 +274,85 @@ mod tests {
             );
             assert!(n < MERGE_MIN || c.merged > 0, "n {n}: never merged");
         }
+    }
+
+    #[test]
+    fn absorbed_pieces_give_the_one_pass_cover_bit_for_bit() {
+        // 1 to 3,000 intervals, split into 1–7 runs at arbitrary places, each run accumulated on its own and
+        // absorbed in order: every wrap's range equals the one-pass cover exactly; a full period in one run
+        // makes the whole cover full.
+        let mut h = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            h ^= h << 13;
+            h ^= h >> 7;
+            h ^= h << 17;
+            (h >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let wraps = [
+            RectWrap::Repeat,
+            RectWrap::Mirror,
+            RectWrap::Clamp,
+            RectWrap::Linear,
+        ];
+        let mut checked = 0;
+        for (n, width) in [
+            (1, 0.3),
+            (40, 0.01),
+            (200, 0.002),
+            (3000, 0.0001),
+            (500, 1.2),
+        ] {
+            let ivs: Vec<(f64, f64)> = (0..n)
+                .map(|_| {
+                    let lo = next() * 3.0 - 1.0;
+                    (lo, lo + next() * width)
+                })
+                .collect();
+            for runs in 1..=7usize {
+                let mut cuts: Vec<usize> =
+                    (1..runs).map(|_| (next() * n as f64) as usize).collect();
+                cuts.extend([0, n]);
+                cuts.sort_unstable();
+                for wrap in wraps {
+                    let mut whole = AxisCover::new(wrap);
+                    for &(a, b) in &ivs {
+                        whole.add(a, b);
+                    }
+                    let mut pooled = AxisCover::new(wrap);
+                    for w in cuts.windows(2) {
+                        let mut part = AxisCover::new(wrap);
+                        for &(a, b) in &ivs[w[0]..w[1]] {
+                            part.add(a, b);
+                        }
+                        pooled.absorb(part);
+                    }
+                    let (a, b) = whole.range();
+                    let (c, d) = pooled.range();
+                    assert_eq!(
+                        (a.to_bits(), b.to_bits()),
+                        (c.to_bits(), d.to_bits()),
+                        "{wrap:?} n {n} runs {runs}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 5 * 7 * 4);
+        let mut full = AxisCover::new(RectWrap::Repeat);
+        full.absorb(cover_of(RectWrap::Repeat, &[(0.1, 0.2)]));
+        full.absorb(cover_of(RectWrap::Repeat, &[(0.0, 1.5)]));
+        assert_eq!(full.range(), (0.0, 1.0));
+        let mut empty = AxisCover::new(RectWrap::Clamp);
+        empty.absorb(AxisCover::new(RectWrap::Clamp));
+        assert_eq!(empty.range(), (0.0, 0.0));
+    }
+
+    fn cover_of(wrap: RectWrap, ivs: &[(f64, f64)]) -> AxisCover {
+        let mut c = AxisCover::new(wrap);
+        for &(a, b) in ivs {
+            c.add(a, b);
+        }
+        c
     }
 
     #[test]

@@ -39,6 +39,16 @@ pub(super) struct MatNeed {
 }
 
 impl MatNeed {
+    /// Adds the triangles `other` was accumulated from (same material and class): the need of both runs.
+    fn absorb(&mut self, other: MatNeed) {
+        self.w = self.w.max(other.w);
+        self.h = self.h.max(other.h);
+        self.point_uvs |= other.point_uvs;
+        let [u, v] = other.cover;
+        self.cover[0].absorb(u);
+        self.cover[1].absorb(v);
+    }
+
     /// The area input at the node's requirement (palette textures — several constant-UV triangles —
     /// keep their source resolution over their used area).
     fn input(&self, source: [u32; 2]) -> AreaInput {
@@ -59,7 +69,34 @@ impl MatNeed {
     }
 }
 
+/// Triangles per task of [`material_needs`] on big nodes (the root of a city holds millions).
+const NEEDS_CHUNK: usize = 1 << 16;
+
+/// The needs of a node's triangles (one pass; on big nodes chunks on the rayon pool, absorbed in order:
+/// maxima, flags and covers do not depend on how the triangles were split, [`MatNeed::absorb`]).
 pub(super) fn material_needs(ctx: &Ctx<'_>, items: &[u32]) -> BTreeMap<(MaterialId, i32), MatNeed> {
+    use rayon::prelude::*;
+    if items.len() <= NEEDS_CHUNK {
+        return needs_of_run(ctx, items);
+    }
+    items
+        .par_chunks(NEEDS_CHUNK)
+        .map(|run| needs_of_run(ctx, run))
+        .reduce(BTreeMap::new, |mut a, b| {
+            for (key, need) in b {
+                match a.entry(key) {
+                    std::collections::btree_map::Entry::Occupied(mut e) => e.get_mut().absorb(need),
+                    std::collections::btree_map::Entry::Vacant(e) => {
+                        e.insert(need);
+                    }
+                }
+            }
+            a
+        })
+}
+
+/// [`material_needs`] of one run of triangles, walked in order.
+fn needs_of_run(ctx: &Ctx<'_>, items: &[u32]) -> BTreeMap<(MaterialId, i32), MatNeed> {
     // Needs in order of first use, found by key; consecutive triangles mostly share their material, so
     // the last key is tried first.
     let mut needs: Vec<((MaterialId, i32), MatNeed)> = Vec::new();

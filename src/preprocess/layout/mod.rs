@@ -155,19 +155,32 @@ fn count_leaves(n: &LayoutNode, c: &mut LeafCounts) {
     }
 }
 
+/// Triangles per task of [`bounds`] on big nodes.
+const BOUNDS_CHUNK: usize = 1 << 16;
+
+/// World bounds of `items` (min and max are exact in any order, so big nodes fold chunks in parallel).
 fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for &i in items {
-        let t = &infos[i as usize];
-        lo = lo.min(t.lo());
-        hi = hi.max(t.hi());
-    }
+    use rayon::prelude::*;
     if items.is_empty() {
-        (DVec3::ZERO, DVec3::ZERO)
-    } else {
-        (lo, hi)
+        return (DVec3::ZERO, DVec3::ZERO);
     }
+    let fold = |run: &[u32]| {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for &i in run {
+            let t = &infos[i as usize];
+            lo = lo.min(t.lo());
+            hi = hi.max(t.hi());
+        }
+        (lo, hi)
+    };
+    if items.len() <= BOUNDS_CHUNK {
+        return fold(items);
+    }
+    items.par_chunks(BOUNDS_CHUNK).map(fold).reduce(
+        || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(a, b), (c, d)| (a.min(c), b.max(d)),
+    )
 }
 
 /// The children's texel demands average at least [`FUTILE_SPLIT_SHARE`] of the node's. The demands are the

@@ -42,23 +42,43 @@ pub const MIDPOINT_BITS: i32 = 24;
 /// midpoints within that rounding of a bucket edge; the quantum follows the node, so deep nodes of tiny
 /// triangles still separate them.
 pub fn midpoint_keys(infos: &[TriInfo], items: &[u32], axis: usize) -> Vec<i64> {
-    let (lo, hi) = items
+    use rayon::prelude::*;
+    let mid = |&i: &u32| infos[i as usize].mid[axis];
+    let range = |(a, b): (f64, f64), m: f64| (a.min(m), b.max(m));
+    let empty = (f64::INFINITY, f64::NEG_INFINITY);
+    // Min and max are exact in any order; the keys are per item.
+    if items.len() >= PAR_ITEMS {
+        let (lo, hi) = items
+            .par_iter()
+            .map(mid)
+            .fold(|| empty, range)
+            .reduce(|| empty, |(a, b), (c, d)| (a.min(c), b.max(d)));
+        let q = key_quantum(hi - lo);
+        return items
+            .par_iter()
+            .map(|i| ((mid(i) - lo) / q).floor() as i64)
+            .collect();
+    }
+    let (lo, hi) = items.iter().map(mid).fold(empty, range);
+    let q = key_quantum(hi - lo);
+    items
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &i| {
-            let m = infos[i as usize].mid[axis];
-            (a.min(m), b.max(m))
-        });
-    let extent = hi - lo;
-    let q = if extent.is_finite() && extent > 0.0 {
+        .map(|i| ((mid(i) - lo) / q).floor() as i64)
+        .collect()
+}
+
+/// The key quantum of [`midpoint_keys`] for midpoints spanning `extent`.
+fn key_quantum(extent: f64) -> f64 {
+    if extent.is_finite() && extent > 0.0 {
         (extent.log2().ceil() - f64::from(MIDPOINT_BITS)).exp2()
     } else {
         1.0
-    };
-    items
-        .iter()
-        .map(|&i| ((infos[i as usize].mid[axis] - lo) / q).floor() as i64)
-        .collect()
+    }
 }
+
+/// Items from which a cut sorts and walks its demand passes on the rayon pool (the results are the same
+/// either way; below this the tasks cost more than they save).
+const PAR_ITEMS: usize = 1 << 15;
 
 /// Splits triangle sets in four by texel demand (paper §5.3 with condition (b) itself).
 pub struct Splitter<'a> {
@@ -82,8 +102,12 @@ impl Splitter<'_> {
     pub fn split4_demands(&self, items: &mut [u32]) -> ([usize; 4], Option<SplitDemands>) {
         let (k, x) = self.cut(items, 0);
         let (lo, hi) = items.split_at_mut(k);
-        let (k0, y0) = self.cut(lo, 1);
-        let (k1, y1) = self.cut(hi, 1);
+        // The halves are independent: on big nodes (the top of a city) they run side by side.
+        let ((k0, y0), (k1, y1)) = if lo.len().min(hi.len()) >= PAR_ITEMS {
+            rayon::join(|| self.cut(lo, 1), || self.cut(hi, 1))
+        } else {
+            (self.cut(lo, 1), self.cut(hi, 1))
+        };
         let groups = [k0, lo.len() - k0, k1, hi.len() - k1];
         let demands = match (x, y0, y1) {
             (Some(x), Some(y0), Some(y1)) if x.exact && y0.exact && y1.exact => {
@@ -108,21 +132,36 @@ impl Splitter<'_> {
 
     /// [`Splitter::cut_sorted`], with the demands of both sides under [`SplitRule::Demand`].
     fn cut(&self, items: &mut [u32], axis: usize) -> (usize, Option<CutDemands>) {
+        use rayon::prelude::*;
         let n = items.len();
+        let big = n >= PAR_ITEMS;
         let mut order: Vec<(i64, u32)> = Vec::new();
         if n > 1 {
             let keys = midpoint_keys(self.infos, items, axis);
             order = keys.into_iter().zip(items.iter().copied()).collect();
-            order.sort_unstable();
+            // (key, index) pairs are distinct: every sort gives the one order.
+            if big {
+                order.par_sort_unstable();
+            } else {
+                order.sort_unstable();
+            }
             for (slot, &(_, it)) in items.iter_mut().zip(&order) {
                 *slot = it;
             }
         }
-        // Demand rule: the demand of every prefix walked forwards and of every suffix walked backwards.
+        // Demand rule: the demand of every prefix walked forwards and of every suffix walked backwards
+        // (two independent passes: side by side on big nodes).
         let sides = (self.rule == SplitRule::Demand).then(|| {
-            let (before, exact_before) = prefix_demands_exact(self.model, self.infos, items);
-            let rev: Vec<u32> = items.iter().rev().copied().collect();
-            let (after, exact_after) = prefix_demands_exact(self.model, self.infos, &rev);
+            let forwards = || prefix_demands_exact(self.model, self.infos, items);
+            let backwards = || {
+                let rev: Vec<u32> = items.iter().rev().copied().collect();
+                prefix_demands_exact(self.model, self.infos, &rev)
+            };
+            let ((before, exact_before), (after, exact_after)) = if big {
+                rayon::join(forwards, backwards)
+            } else {
+                (forwards(), backwards())
+            };
             (before, after, exact_before && exact_after)
         });
         // Area rule: the world area of every prefix.
