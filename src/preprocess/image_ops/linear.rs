@@ -139,20 +139,27 @@ impl LinearImage {
         let n = self.texel_count();
         let mut out = vec![0u8; n.saturating_mul(4)];
         let enc = Encoder::get();
+        // Each run also says whether it wrote a transparent texel (no second pass over the bytes).
         let run = |(px, texels): (&mut [u8], &[[f32; 4]])| {
+            let mut transparent = false;
             for (p, &t) in px.chunks_exact_mut(4).zip(texels) {
-                p.copy_from_slice(&encode_texel(enc, t));
+                let e = encode_texel(enc, t);
+                transparent |= e[3] == 0;
+                p.copy_from_slice(&e);
             }
+            transparent
         };
         let data = &self.data[..n.min(self.data.len())];
-        if n >= PAR_TEXELS {
+        let transparent = if n >= PAR_TEXELS {
             out.par_chunks_mut(RUN * 4)
                 .zip(data.par_chunks(RUN))
-                .for_each(run);
+                .map(run)
+                .reduce(|| false, |a, b| a | b)
         } else {
-            run((&mut out, data));
-        }
-        if out.chunks_exact(4).any(|px| px[3] == 0) {
+            run((&mut out, data))
+        };
+        // Texels beyond `data` (a short buffer) stay 0 and count as transparent, as before.
+        if transparent || data.len() < n {
             bleed_into_transparent(&mut out, self.width as usize, self.height as usize);
         }
         out

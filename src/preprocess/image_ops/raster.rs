@@ -4,7 +4,7 @@
 use super::ImageOpsError;
 use super::linear::LinearImage;
 use super::mip::{MipChain, MipFilter, MipOptions};
-use super::sample::{AxisTaps, FootprintPlan, apply_taps, period_shift};
+use super::sample::{AxisTaps, FootprintPlan, apply_fixed, apply_taps, period_shift};
 use super::srgb::srgb8_to_linear;
 use crate::model::AtlasRect;
 use crate::scene::{DecodedImage, Wrap};
@@ -117,13 +117,15 @@ pub fn draw_rect(dst: &mut LinearImage, r: &RectJob, src: &MipChain) -> Result<(
     };
 
     let [ox, oy, ow, oh] = r.outer.map(|v| v as usize);
-    // Per-column taps, computed once: the UV of column x depends on x only.
-    let col_taps: Vec<AxisTaps> = (ox..ox + ow)
-        .map(|x| {
-            let u = lo.x + ((x as f64 + 0.5 - ix as f64) / size.x) * span.x;
-            AxisTaps::new(u, plan.footprint.x, plan.taps[0], level.width, r.wrap[0])
-        })
-        .collect();
+    // Per-column taps, computed once: the UV of column x depends on x only. Every column has the same
+    // number of taps (`2 · plan.taps[0]`), so they are stored flat, `nx` per column.
+    let mut col_taps: Vec<(u32, f32)> = Vec::with_capacity(ow * 2 * plan.taps[0] as usize);
+    for x in ox..ox + ow {
+        let u = lo.x + ((x as f64 + 0.5 - ix as f64) / size.x) * span.x;
+        let taps = AxisTaps::new(u, plan.footprint.x, plan.taps[0], level.width, r.wrap[0]);
+        col_taps.extend_from_slice(taps.as_slice());
+    }
+    let nx = col_taps.len() / ow.max(1);
     let f = r.factor;
     let scale = [f[0] * f[3], f[1] * f[3], f[2] * f[3], f[3]];
     let row_len = dst.width as usize;
@@ -134,15 +136,7 @@ pub fn draw_rect(dst: &mut LinearImage, r: &RectJob, src: &MipChain) -> Result<(
         let Some(seg) = row.get_mut(ox..ox + ow) else {
             return;
         };
-        for (d, xs) in seg.iter_mut().zip(&col_taps) {
-            let s = apply_taps(level, xs.as_slice(), ys.as_slice());
-            *d = [
-                s[0] * scale[0],
-                s[1] * scale[1],
-                s[2] * scale[2],
-                s[3] * scale[3],
-            ];
-        }
+        fill_segment(seg, level, &col_taps, nx, ys.as_slice(), scale);
     };
     let Some(rows) = dst.data.get_mut(oy * row_len..(oy + oh) * row_len) else {
         return Err(ImageOpsError::TexelCount {
@@ -160,6 +154,52 @@ pub fn draw_rect(dst: &mut LinearImage, r: &RectJob, src: &MipChain) -> Result<(
         rows.chunks_mut(row_len).enumerate().for_each(fill_row);
     }
     Ok(())
+}
+
+/// One row segment of [`draw_rect`]: texel `i` is the taps `col_taps[i·nx..(i+1)·nx] × ys` of `level`
+/// times `scale`. The common tap counts run as fixed-size loops ([`apply_fixed`]), chosen once per row.
+fn fill_segment(
+    seg: &mut [[f32; 4]],
+    level: &LinearImage,
+    col_taps: &[(u32, f32)],
+    nx: usize,
+    ys: &[(u32, f32)],
+    scale: [f32; 4],
+) {
+    fn run<const NX: usize, const NY: usize>(
+        seg: &mut [[f32; 4]],
+        level: &LinearImage,
+        col_taps: &[(u32, f32)],
+        ys: [(u32, f32); NY],
+        scale: [f32; 4],
+    ) {
+        for (d, xs) in seg.iter_mut().zip(col_taps.chunks_exact(NX)) {
+            if let Ok(xs) = <[(u32, f32); NX]>::try_from(xs) {
+                *d = scaled(apply_fixed(level, xs, ys), scale);
+            }
+        }
+    }
+    match (nx, ys) {
+        (2, &[a, b]) => run::<2, 2>(seg, level, col_taps, [a, b], scale),
+        (4, &[a, b]) => run::<4, 2>(seg, level, col_taps, [a, b], scale),
+        (2, &[a, b, c, d]) => run::<2, 4>(seg, level, col_taps, [a, b, c, d], scale),
+        (4, &[a, b, c, d]) => run::<4, 4>(seg, level, col_taps, [a, b, c, d], scale),
+        _ => {
+            for (d, xs) in seg.iter_mut().zip(col_taps.chunks_exact(nx.max(1))) {
+                *d = scaled(apply_taps(level, xs, ys), scale);
+            }
+        }
+    }
+}
+
+#[inline]
+fn scaled(s: [f32; 4], scale: [f32; 4]) -> [f32; 4] {
+    [
+        s[0] * scale[0],
+        s[1] * scale[1],
+        s[2] * scale[2],
+        s[3] * scale[3],
+    ]
 }
 
 /// The fill of quadrants without a child: opaque mid-grey, sRGB 128 (linear ≈ 0.2159), so an empty

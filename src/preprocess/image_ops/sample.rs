@@ -134,8 +134,46 @@ impl AxisTaps {
 /// Every tap is added, zero weights included: weights and premultiplied texels are ≥ 0 and finite, so
 /// adding `0 · t` leaves the sum bit for bit as skipping it would, and the loop has no data-dependent
 /// branches.
+///
+/// The common tap counts (one or two bilinear taps per axis: 2 or 4 pairs) run as fixed-size loops the
+/// compiler unrolls ([`apply_fixed`]); they add the same products in the same order, so the sums are the
+/// same bits.
 #[inline]
 pub(crate) fn apply_taps(img: &LinearImage, xs: &[(u32, f32)], ys: &[(u32, f32)]) -> [f32; 4] {
+    match (xs, ys) {
+        (&[a, b], &[c, d]) => apply_fixed(img, [a, b], [c, d]),
+        (&[a, b, e, f], &[c, d]) => apply_fixed(img, [a, b, e, f], [c, d]),
+        (&[a, b], &[c, d, g, h]) => apply_fixed(img, [a, b], [c, d, g, h]),
+        (&[a, b, e, f], &[c, d, g, h]) => apply_fixed(img, [a, b, e, f], [c, d, g, h]),
+        _ => apply_any(img, xs, ys),
+    }
+}
+
+/// [`apply_taps`] for `NX × NY` taps.
+#[inline]
+pub(crate) fn apply_fixed<const NX: usize, const NY: usize>(
+    img: &LinearImage,
+    xs: [(u32, f32); NX],
+    ys: [(u32, f32); NY],
+) -> [f32; 4] {
+    let w = img.width as usize;
+    let mut acc = [0.0f32; 4];
+    for (iy, wy) in ys {
+        let row = img.data.get(iy as usize * w..).unwrap_or(&[]);
+        for (ix, wx) in xs {
+            let wt = wx * wy;
+            if let Some(t) = row.get(ix as usize) {
+                for c in 0..4 {
+                    acc[c] += wt * t[c];
+                }
+            }
+        }
+    }
+    acc
+}
+
+/// [`apply_taps`] for any number of taps.
+fn apply_any(img: &LinearImage, xs: &[(u32, f32)], ys: &[(u32, f32)]) -> [f32; 4] {
     let w = img.width as usize;
     let mut acc = [0.0f32; 4];
     for &(iy, wy) in ys {
@@ -213,6 +251,42 @@ mod tests {
         );
         assert_eq!(-0.75 - period_shift(-0.75, Wrap::Repeat), 0.25);
         assert_eq!(period_shift(f64::NAN, Wrap::Repeat), 0.0);
+    }
+
+    #[test]
+    fn fixed_tap_loops_sum_the_same_bits_as_the_general_one() {
+        // An 8×8 image of irregular values; random taps (indices in and out of range, random weights) in
+        // every shape apply_taps unrolls: apply_taps (fixed loops) and apply_any agree bit for bit.
+        let mut h = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            h ^= h << 13;
+            h ^= h >> 7;
+            h ^= h << 17;
+            h
+        };
+        let img = LinearImage {
+            width: 8,
+            height: 8,
+            data: (0..64)
+                .map(|_| [0, 1, 2, 3].map(|_| (next() % 10_007) as f32 / 997.0))
+                .collect(),
+        };
+        let mut taps = |n: usize| -> Vec<(u32, f32)> {
+            (0..n)
+                .map(|_| ((next() % 10) as u32, (next() % 1_000) as f32 / 1_013.0))
+                .collect()
+        };
+        let mut compared = 0;
+        for (nx, ny) in [(2, 2), (4, 2), (2, 4), (4, 4), (6, 2), (2, 6)] {
+            for _ in 0..500 {
+                let (xs, ys) = (taps(nx), taps(ny));
+                let fixed = apply_taps(&img, &xs, &ys).map(f32::to_bits);
+                let any = apply_any(&img, &xs, &ys).map(f32::to_bits);
+                assert_eq!(fixed, any, "{nx}×{ny}: {xs:?} × {ys:?}");
+                compared += 1;
+            }
+        }
+        assert_eq!(compared, 3_000);
     }
 
     #[test]
