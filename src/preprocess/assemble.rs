@@ -73,7 +73,9 @@ struct GeometryJob {
     leaf: LeafId,
     range: Range<usize>,
     origin: DVec3,
-    /// The leaf's rect of each (material, density class) and slot of each material's original texture.
+    /// The leaf's rects: how many, the one of each (material, density class), and the slot of each
+    /// material's original texture.
+    rects: usize,
     rect_of: FxHashMap<(MaterialId, i32), u32>,
     slot_of: FxHashMap<MaterialId, u32>,
 }
@@ -290,6 +292,7 @@ impl Asm<'_> {
             leaf: leaf_id,
             range: n.range.clone(),
             origin,
+            rects: l.rects.len(),
             rect_of,
             slot_of,
         });
@@ -384,10 +387,7 @@ fn leaf_geometry(infos: &[TriInfo], order: &[u32], job: &GeometryJob) -> LeafGeo
     let mut out = LeafGeometry {
         vertices: Vec::new(),
         indices: Vec::with_capacity(3 * tris.len()),
-        hulls: vec![
-            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-            job.rect_of.len()
-        ],
+        hulls: vec![(DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)); job.rects],
     };
     let mut dedup: FxHashMap<[u32; 8], u32> = FxHashMap::default();
     for &ti in tris {
