@@ -341,6 +341,87 @@ mod tests {
     }
 
     #[test]
+    fn a_big_node_splits_exactly_as_a_serial_twin_does() {
+        use crate::preprocess::demand::prefix_demands;
+        // 3 · PAR_ITEMS triangles of 40 materials (keys, sort, demand passes and y cuts on the rayon
+        // pool): the order and the group sizes are those of a serial twin that sorts (key, index) and
+        // picks each cut by the documented rule from serially walked demands.
+        let n = 3 * PAR_ITEMS as u32;
+        let mut next = crate::util::testing::rng(0x51_7cc1_b727_220a_95u64);
+        let infos: Vec<TriInfo> = (0..n)
+            .map(|_| {
+                let h = next();
+                let mut t = tri(
+                    DVec2::new(
+                        (h % 10_007) as f64 * 0.37,
+                        ((h >> 16) % 9_973) as f64 * 0.41,
+                    ),
+                    ((h >> 32) % 40) as u32,
+                    (8 + (h >> 40) % 300) as f64,
+                    1.0,
+                );
+                t.uv[1] = DVec2::new(((h >> 48) % 5) as f64 + 0.25, 0.5);
+                t
+            })
+            .collect();
+        let model = model(40);
+        let s = Splitter {
+            infos: &infos,
+            model: &model,
+            rule: SplitRule::Demand,
+        };
+        // The twin: keys by the formula of `midpoint_keys`, a serial sort, the cut rule walked serially.
+        let twin_cut = |items: &mut [u32], axis: usize| -> usize {
+            let m = |i: u32| infos[i as usize].mid[axis];
+            let lo = items.iter().map(|&i| m(i)).fold(f64::INFINITY, f64::min);
+            let hi = items
+                .iter()
+                .map(|&i| m(i))
+                .fold(f64::NEG_INFINITY, f64::max);
+            let q = ((hi - lo).log2().ceil() - f64::from(MIDPOINT_BITS)).exp2();
+            let mut keyed: Vec<(i64, u32)> = items
+                .iter()
+                .map(|&i| (((m(i) - lo) / q).floor() as i64, i))
+                .collect();
+            keyed.sort();
+            for (slot, &(_, i)) in items.iter_mut().zip(&keyed) {
+                *slot = i;
+            }
+            let before = prefix_demands(&model, &infos, items);
+            let rev: Vec<u32> = items.iter().rev().copied().collect();
+            let after = prefix_demands(&model, &infos, &rev);
+            let len = items.len();
+            let mut best: Option<(u64, usize, usize)> = None;
+            for k in 1..len {
+                if keyed[k - 1].0 == keyed[k].0 {
+                    continue;
+                }
+                let cand = (before[k].max(after[len - k]), (2 * k).abs_diff(len), k);
+                if best.is_none_or(|b| (cand.0, cand.1) < (b.0, b.1)) {
+                    best = Some(cand);
+                }
+            }
+            best.map_or(len / 2, |b| b.2)
+        };
+        let mut want: Vec<u32> = (0..n).rev().collect();
+        let k = twin_cut(&mut want, 0);
+        let (lo, hi) = want.split_at_mut(k);
+        let (k0, k1) = (twin_cut(lo, 1), twin_cut(hi, 1));
+        let want_groups = [k0, lo.len() - k0, k1, hi.len() - k1];
+        assert!(
+            lo.len().min(hi.len()) >= PAR_ITEMS,
+            "both y cuts run side by side"
+        );
+
+        let mut items: Vec<u32> = (0..n).rev().collect();
+        let (groups, demands) = s.split4_demands(&mut items);
+        assert_eq!(groups, want_groups);
+        assert!(items == want, "the split's order is the twin's");
+        let d = demands.expect("no saturation here");
+        assert_eq!(d.total, prefix_demands(&model, &infos, &items)[n as usize]);
+    }
+
+    #[test]
     fn split_follows_texel_demand_not_world_area() {
         // Left (x = 0..9): ten big triangles (area 100 each) sharing one texture, one period of 60 texels:
         // demand 64² however many there are. Right (x = 10..19): ten small triangles (area 1) with a
