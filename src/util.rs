@@ -293,27 +293,6 @@ pub fn parse_seconds(s: &str) -> Option<f64> {
     (secs.is_finite() && secs >= 0.0).then_some(secs)
 }
 
-/// Helpers shared by unit tests.
-#[cfg(test)]
-pub(crate) mod testing {
-    /// A xorshift64 generator: deterministic pseudo-random `u64`s from `seed` (≠ 0).
-    pub(crate) fn rng(seed: u64) -> impl FnMut() -> u64 {
-        let mut h = seed;
-        move || {
-            h ^= h << 13;
-            h ^= h >> 7;
-            h ^= h << 17;
-            h
-        }
-    }
-
-    /// [`rng`] as uniform `f64`s in `[0, 1)`.
-    pub(crate) fn unit_rng(seed: u64) -> impl FnMut() -> f64 {
-        let mut next = rng(seed);
-        move || (next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 #[cfg(test)]
 mod parse_tests {
     use super::*;
