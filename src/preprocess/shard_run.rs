@@ -646,27 +646,36 @@ impl ShardSet {
     /// Copies every shard's blocks into `writer` (checksums verified on the way), checks every handoff's
     /// checksum, and returns where each unit's handoff is: (shard slot, entry), read again when its parent
     /// is combined ([`ShardSet::handoff`]).
+    ///
+    /// Shards are copied in order, the blocks of one shard on the rayon pool (positional reads and writes:
+    /// a merge of gigabytes is page-cache copies and checksums, which one core did alone); a shard's first
+    /// bad block in entry order is the one reported, as a serial copy would.
     fn copy_blocks(
         &self,
         writer: &FileWriter,
         progress: &dyn Progress,
     ) -> Result<HashMap<Unit, (usize, usize)>, MergeError> {
+        use rayon::prelude::*;
+        use std::sync::atomic::{AtomicU64, Ordering};
         let total: u64 = self.shards.iter().map(|f| f.blocks.len() as u64).sum();
         progress.stage("merge: copy blocks", Some(total));
-        let mut copied = 0;
+        let copied = AtomicU64::new(0);
         let mut handoffs = HashMap::new();
         for (slot, f) in self.shards.iter().enumerate() {
-            for (i, e) in f.blocks.iter().enumerate() {
-                let bytes = f.block(i).map_err(|err| self.corrupt(slot, err))?;
-                writer
-                    .write_block_measured(BlockId(e.block), &bytes, e.sse)
-                    .map_err(|source| MergeError::Store {
-                        out: writer.target().to_path_buf(),
-                        source,
-                    })?;
-                copied += 1;
-                progress.set(copied);
-            }
+            let results: Vec<Result<(), MergeError>> = (f.blocks.par_iter().enumerate())
+                .map(|(i, e)| {
+                    let bytes = f.block(i).map_err(|err| self.corrupt(slot, err))?;
+                    writer
+                        .write_block_measured(BlockId(e.block), &bytes, e.sse)
+                        .map_err(|source| MergeError::Store {
+                            out: writer.target().to_path_buf(),
+                            source,
+                        })?;
+                    progress.set(copied.fetch_add(1, Ordering::Relaxed) + 1);
+                    Ok(())
+                })
+                .collect();
+            results.into_iter().collect::<Result<(), MergeError>>()?;
             for (i, e) in f.handoffs.iter().enumerate() {
                 drop(f.handoff(i).map_err(|err| self.corrupt(slot, err))?);
                 let unit = Unit {
