@@ -293,6 +293,11 @@ pub fn parse_seconds(s: &str) -> Option<f64> {
     (secs.is_finite() && secs >= 0.0).then_some(secs)
 }
 
+/// A 128-bit digest (`xxh3_128`) as the two `u64` words the file formats store, low word first.
+pub fn digest_words(d: u128) -> [u64; 2] {
+    [d as u64, (d >> 64) as u64]
+}
+
 #[cfg(test)]
 mod parse_tests {
     use super::*;

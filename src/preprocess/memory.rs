@@ -81,6 +81,11 @@ pub struct PlanStepMemoryError {
     pub triangles: u64,
 }
 
+/// What the import and plan hold for `triangles` beyond [`BASE_BYTES`].
+fn triangle_bytes(triangles: u64) -> u64 {
+    triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE)
+}
+
 /// Splits `budget` between plan, rasteriser threads and the image cache (at most `cache_wanted`); fails when
 /// even the smallest cache does not fit.
 pub fn plan_memory(
@@ -91,7 +96,7 @@ pub fn plan_memory(
     largest_image_texels: u64,
     cache_wanted: u64,
 ) -> Result<MemoryPlan, MemoryError> {
-    let plan_bytes = triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE);
+    let plan_bytes = triangle_bytes(triangles);
     let pixels = PixelNeeds {
         atlas_size,
         threads,
@@ -104,7 +109,7 @@ pub fn plan_memory(
 /// [`plan_memory`] for the plan step of a sharded build (`build --shard plan`): the plan alone, no pixel
 /// pass and so no image cache.
 pub fn plan_step_memory(budget: u64, triangles: u64) -> Result<MemoryPlan, PlanStepMemoryError> {
-    let plan_bytes = BASE_BYTES.saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE));
+    let plan_bytes = BASE_BYTES.saturating_add(triangle_bytes(triangles));
     if plan_bytes > budget {
         return Err(PlanStepMemoryError {
             budget_mib: budget >> 20,

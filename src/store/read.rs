@@ -17,7 +17,9 @@ use std::fs::File;
 use std::io::Read;
 
 mod prefix;
-pub(super) use prefix::{read_exact_at, stream_hash128, stream_update};
+pub(super) use prefix::{
+    for_each_piece, read_exact_at, stream_hash128, stream_update, write_all_at,
+};
 use std::path::{Path, PathBuf};
 
 /// How [`TreeFile::open_with`] gets the bytes.

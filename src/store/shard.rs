@@ -353,17 +353,7 @@ impl super::BlockSink for ShardWriter {
 }
 
 pub(super) fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::write_all_at(file, bytes, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Seek, SeekFrom, Write};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.write_all(bytes)
-    }
+    super::read::write_all_at(file, bytes, offset)
 }
 
 pub(super) fn read_at(file: &File, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
@@ -623,6 +613,5 @@ impl ShardFile {
 
 /// `xxh3_128` as the two words the header stores.
 pub fn hash128(bytes: &[u8]) -> [u64; 2] {
-    let h = xxhash_rust::xxh3::xxh3_128(bytes);
-    [h as u64, (h >> 64) as u64]
+    crate::util::digest_words(xxhash_rust::xxh3::xxh3_128(bytes))
 }

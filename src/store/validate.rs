@@ -43,6 +43,15 @@ impl TreeTables<'_> {
             self.indices.len() as u64
         }
     }
+
+    /// Source triangles of the tree, as [`TreeTables::vertex_count`].
+    fn source_count(&self) -> u64 {
+        if self.geometry_vouched {
+            self.record.source_triangles.count
+        } else {
+            self.source_triangles.len() as u64
+        }
+    }
 }
 
 impl<'a> std::ops::Deref for TreeTables<'a> {
@@ -248,11 +257,7 @@ pub(crate) fn check_tree(
         return Err(bad_value("trees", u64::from(t.tree), "nodes.count", 0));
     }
     let tris = t.index_count() / 3;
-    let sources = if t.geometry_vouched {
-        t.record.source_triangles.count
-    } else {
-        t.source_triangles.len() as u64
-    };
+    let sources = t.source_count();
     if !t.index_count().is_multiple_of(3) || sources != tris {
         let value = sources;
         return Err(bad_value(

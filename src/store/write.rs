@@ -275,19 +275,10 @@ fn validate_encoded(
 /// Writes `bytes` at `offset`: positional on unix (concurrent writers need no lock), seek + write under
 /// `lock` elsewhere.
 fn write_all_at(file: &File, lock: &Mutex<()>, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        let _ = lock;
-        std::os::unix::fs::FileExt::write_all_at(file, bytes, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Seek, SeekFrom, Write};
-        let _guard = lock.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.write_all(bytes)
-    }
+    // Positional writes need no lock; the seek + write fallback does.
+    let _guard =
+        (!cfg!(unix)).then(|| lock.lock().unwrap_or_else(|poisoned| poisoned.into_inner()));
+    super::read::write_all_at(file, bytes, offset)
 }
 
 /// Writes `parts` back to back at `section`'s offset through `put` and records their checksum in `header`.
@@ -481,23 +472,16 @@ impl FileWriter {
             path: tables.path().to_path_buf(),
         };
         let mut hasher = xxhash_rust::xxh3::Xxh3::new();
-        let mut buf = vec![0u8; 1 << 20];
-        let mut at = 0u64;
-        while at < len {
-            let n = (len - at).min(buf.len() as u64) as usize;
-            let piece = &mut buf[..n];
-            super::read::read_exact_at(src, piece, src_offset + at)
-                .map_err(|e| StoreError::io(tables.path(), e))?;
+        let read_err = |e| StoreError::io(tables.path(), e);
+        super::read::for_each_piece(src, src_offset, len, read_err, |at, piece| {
             if at == 0 && piece.get(..HEADER_SIZE) != Some(expected_header) {
                 return Err(mismatch());
             }
             hasher.update(piece);
             write_all_at(writer.temp.file(), &writer.lock, at, piece)
-                .map_err(|e| writer.temp_err(e))?;
-            at += n as u64;
-        }
-        let d = hasher.digest128();
-        if [d as u64, (d >> 64) as u64] != hash {
+                .map_err(|e| writer.temp_err(e))
+        })?;
+        if crate::util::digest_words(hasher.digest128()) != hash {
             return Err(mismatch());
         }
         Ok(writer)

@@ -105,8 +105,7 @@ pub fn input_digest(path: &Path) -> Result<[u64; 2], SceneError> {
             reason: format!("{}: {source}", buffer.display()),
         })?;
     }
-    let d = hasher.digest128();
-    Ok([d as u64, (d >> 64) as u64])
+    Ok(crate::util::digest_words(hasher.digest128()))
 }
 
 /// Feeds the file at `path` to `hasher` in 1 MiB reads.

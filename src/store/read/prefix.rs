@@ -18,10 +18,30 @@ pub(in crate::store) fn read_exact_at(
     }
     #[cfg(not(unix))]
     {
-        use std::io::{Seek, SeekFrom};
+        use std::io::{Read, Seek, SeekFrom};
         let mut f = file;
         f.seek(SeekFrom::Start(offset))?;
         f.read_exact(buf)
+    }
+}
+
+/// Writes all of `bytes` at `offset` of `file`. Positional on unix; elsewhere seek + write, so callers
+/// that share a file between threads there must hold a lock ([`crate::store::FileWriter`] does).
+pub(in crate::store) fn write_all_at(
+    file: &File,
+    bytes: &[u8],
+    offset: u64,
+) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::FileExt::write_all_at(file, bytes, offset)
+    }
+    #[cfg(not(unix))]
+    {
+        use std::io::{Seek, SeekFrom, Write};
+        let mut f = file;
+        f.seek(SeekFrom::Start(offset))?;
+        f.write_all(bytes)
     }
 }
 
@@ -33,8 +53,7 @@ pub(in crate::store) fn stream_hash128(
 ) -> std::io::Result<[u64; 2]> {
     let mut hasher = xxhash_rust::xxh3::Xxh3::new();
     stream_update(&mut hasher, file, offset, len)?;
-    let d = hasher.digest128();
-    Ok([d as u64, (d >> 64) as u64])
+    Ok(crate::util::digest_words(hasher.digest128()))
 }
 
 /// Feeds the `len` bytes at `offset` of `file` to `hasher` in 1 MiB pieces.
@@ -44,12 +63,34 @@ pub(in crate::store) fn stream_update(
     offset: u64,
     len: u64,
 ) -> std::io::Result<()> {
+    for_each_piece(
+        file,
+        offset,
+        len,
+        |e| e,
+        |_, piece| {
+            hasher.update(piece);
+            Ok(())
+        },
+    )
+}
+
+/// Reads the `len` bytes at `offset` of `file` in 1 MiB pieces and hands each to `f` with its position
+/// (bytes from `offset`); a read error becomes `E` by `read_err`. One buffer, never the whole range.
+pub(in crate::store) fn for_each_piece<E>(
+    file: &File,
+    offset: u64,
+    len: u64,
+    read_err: impl Fn(std::io::Error) -> E,
+    mut f: impl FnMut(u64, &[u8]) -> Result<(), E>,
+) -> Result<(), E> {
     let mut buf = vec![0u8; len.min(1 << 20) as usize];
     let mut done = 0u64;
     while done < len {
         let n = (len - done).min(buf.len() as u64) as usize;
-        read_exact_at(file, &mut buf[..n], offset + done)?;
-        hasher.update(&buf[..n]);
+        let piece = &mut buf[..n];
+        read_exact_at(file, piece, offset + done).map_err(&read_err)?;
+        f(done, piece)?;
         done += n as u64;
     }
     Ok(())
