@@ -1,7 +1,8 @@
 //! `cargo bench --bench image`: throughput of the image operations of the build
 //! (`preprocess::image_ops`) on 1024² images: `draw_rect` magnifying and minifying a 512² source (wrapped),
 //! one `halve`, a whole RGBA8 mip chain (`mip_chain_rgba8`, 11 levels, encode included), `to_rgba8`
-//! (linear → sRGB8) and `from_decoded` (sRGB8 → linear, the first step after decoding every image).
+//! (linear → sRGB8), `from_decoded` (sRGB8 → linear, the first step after decoding every image) and
+//! `encode_chain` (a 1024² RGBA8 chain to BC1 and BC7, each level's error measured as the build does).
 //! Criterion prints texels/s next to the time (per destination texel, or per source texel for `halve`).
 //! Their correctness is `tests/cpu/preprocess/image_ops.rs`.
 
@@ -16,6 +17,7 @@ use atlastree::preprocess::image_ops::{
     LinearImage, MipChain, RectJob, draw_rect, halve, mip_chain_rgba8,
 };
 use atlastree::scene::{DecodedImage, Wrap};
+use atlastree::texfmt::{TexFormat, encode_chain};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 
@@ -85,5 +87,32 @@ fn levels(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, draw, levels);
+/// A photo-like 1024² RGBA8 chain: a gradient with per-texel noise, so blocks are neither flat nor random.
+fn noisy_chain() -> Vec<u8> {
+    let mut img = gradient(1024);
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    for p in &mut img.data {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let n = (state >> 40) as f32 / (1u64 << 24) as f32;
+        p[0] = (p[0] + 0.1 * n).min(1.0);
+        p[1] = (p[1] * (0.9 + 0.1 * n)).min(1.0);
+    }
+    mip_chain_rgba8(&img)
+}
+
+fn encode(c: &mut Criterion) {
+    let chain = noisy_chain();
+    let mut g = c.benchmark_group("encode_chain-1024");
+    g.throughput(Throughput::Elements(TEXELS * 4 / 3));
+    for (name, format) in [("bc1", TexFormat::Bc1), ("bc7", TexFormat::Bc7)] {
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(encode_chain(format, &chain, 1024, 3).unwrap().sse))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, draw, levels, encode);
 criterion_main!(benches);
