@@ -191,8 +191,18 @@ pub enum BuildError {
         value: String,
         why: &'static str,
     },
-    #[error("the scene {path} has no triangles to build a tree from")]
-    EmptyScene { path: String },
+    /// `detail` says why: what the import skipped (counted, with its first warnings), or that nothing
+    /// was skipped.
+    #[error(
+        "the scene {path} has no triangles to build a tree from: the import skipped {skipped_primitives} \
+         primitives and {skipped_triangles} triangles{detail}"
+    )]
+    EmptyScene {
+        path: String,
+        skipped_primitives: u64,
+        skipped_triangles: u64,
+        detail: String,
+    },
     #[error("layout of the {kind:?} tree: {source}")]
     Layout {
         kind: TreeKind,
@@ -365,9 +375,7 @@ pub fn resolve_params(
             "must be from 1 to 30",
         );
     }
-    let (lo, hi) = scene.bounds().ok_or_else(|| BuildError::EmptyScene {
-        path: scene.source.display().to_string(),
-    })?;
+    let (lo, hi) = scene.bounds().ok_or_else(|| empty_scene(scene))?;
     let diagonal = (hi - lo).length();
     let d_min = match opts.d_min {
         DMin::Metres(m) => m,
@@ -527,6 +535,38 @@ pub(super) struct Planned {
 
 /// Checks `opts` against `scene`, splits the budget, plans the forest and refuses an oversized file, all
 /// before any pixel.
+/// How many of the import's warnings [`empty_scene`] quotes.
+const EMPTY_SCENE_WARNINGS: usize = 3;
+
+/// [`BuildError::EmptyScene`] for `scene`: what its import skipped and its first warnings, or, when it
+/// skipped nothing, that the scene (after any filter) draws no triangles.
+fn empty_scene(scene: &Scene) -> BuildError {
+    let report = &scene.report;
+    let detail = if report.warnings.is_empty() {
+        ": the default scene draws no triangle primitives (points and lines are not drawn), or the scene \
+         filters kept none"
+            .to_string()
+    } else {
+        let quoted: Vec<&str> = report
+            .warnings
+            .iter()
+            .take(EMPTY_SCENE_WARNINGS)
+            .map(String::as_str)
+            .collect();
+        format!(
+            "; {} warnings, the first: {}",
+            report.warnings_total,
+            quoted.join("; ")
+        )
+    };
+    BuildError::EmptyScene {
+        path: scene.source.display().to_string(),
+        skipped_primitives: report.skipped_primitives,
+        skipped_triangles: report.skipped_triangles,
+        detail,
+    }
+}
+
 pub(super) fn plan_build(
     scene: &Scene,
     opts: &BuildOptions,
@@ -535,9 +575,7 @@ pub(super) fn plan_build(
     let (params, diagonal) = resolve_params(scene, opts)?;
     let parts = partition_triangles(scene);
     if parts.is_empty() {
-        return Err(BuildError::EmptyScene {
-            path: scene.source.display().to_string(),
-        });
+        return Err(empty_scene(scene));
     }
     let memory_plan = plan_memory(scene, opts, &params)?;
     let mut timings = StageLog::default();

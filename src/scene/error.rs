@@ -42,6 +42,12 @@ pub enum SceneError {
         stage: &'static str,
         message: String,
     },
+    /// A glTF 1.x file (`asset.version`, or the GLB header's version): its JSON layout differs from 2.0's.
+    #[error(
+        "{file}: glTF {version} is not supported, only glTF 2.0: convert it first (e.g. `npx gltf-pipeline -i IN -o \
+         OUT.gltf` upgrades 1.0 files, or re-export from the modelling tool)"
+    )]
+    UnsupportedVersion { file: String, version: String },
     #[error("{file}: required extension {extension} is not supported")]
     UnsupportedExtension { file: String, extension: String },
     #[error("{file}: buffer {buffer} ({uri}): {reason}")]

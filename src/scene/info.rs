@@ -305,13 +305,23 @@ impl fmt::Display for SceneInfo {
             .iter()
             .map(|(k, v)| format!("{k} ×{v}"))
             .collect();
-        writeln!(f, "  wrap modes: {}", wraps.join(", "))?;
+        let wraps = if wraps.is_empty() {
+            "none".to_string()
+        } else {
+            wraps.join(", ")
+        };
+        writeln!(f, "  wrap modes: {wraps}")?;
+        // `+ 0.0` turns the −0.0 of an empty float sum into 0.0.
+        let (spanned, wrapped) = (self.periods_spanned + 0.0, self.periods_wrapped + 0.0);
+        let ratio = if wrapped > 0.0 {
+            format!("{:.1}× less", spanned / wrapped)
+        } else {
+            "none wrapped".to_string()
+        };
         writeln!(
             f,
-            "  periods the UVs span {:.1} (baked, at least); one wrapped copy per material {:.1} ({:.1}× less)",
-            self.periods_spanned,
-            self.periods_wrapped,
-            self.periods_spanned / self.periods_wrapped.max(f64::MIN_POSITIVE)
+            "  periods the UVs span {spanned:.1} (baked, at least); one wrapped copy per material {wrapped:.1} \
+             ({ratio})"
         )?;
         let kinds: Vec<String> = self
             .image_kinds

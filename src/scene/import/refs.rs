@@ -288,6 +288,7 @@ impl JsonPath {
 /// Checks every index of the glTF JSON `root` (see the module docs); `file` names the file in errors.
 /// The first bad reference is the error.
 pub(super) fn check_indices(root: &Value, file: &str) -> Result<(), SceneError> {
+    check_version(root, file)?;
     let mut check = Check { root, file };
     for (steps, target) in RULES {
         check.walk(root, steps, JsonPath::default(), None, *target)?;
@@ -299,6 +300,23 @@ pub(super) fn check_indices(root: &Value, file: &str) -> Result<(), SceneError> 
         }
     }
     Ok(())
+}
+
+/// Refuses a glTF 1.x document (`asset.version` "1.0", "1.0.2", …): its scenes, meshes and materials are
+/// keyed by name, so every later check would report its references as "not an index". A missing or other
+/// version is left to the parser.
+fn check_version(root: &Value, file: &str) -> Result<(), SceneError> {
+    let version = root
+        .get("asset")
+        .and_then(|a| a.get("version"))
+        .and_then(Value::as_str);
+    match version {
+        Some(v) if v.split('.').next() == Some("1") => Err(SceneError::UnsupportedVersion {
+            file: file.to_string(),
+            version: v.to_string(),
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// Material texture references are found by name (`baseColorTexture`, `KHR_materials_clearcoat`'s
@@ -464,6 +482,21 @@ mod tests {
         match check_indices(&v, "f.gltf") {
             Err(e) => e.to_string(),
             Ok(()) => "ok".into(),
+        }
+    }
+
+    #[test]
+    fn gltf_1_is_refused_by_its_version() {
+        for v in ["1.0", "1.0.2", "1"] {
+            let doc = json!({"asset": {"version": v}, "scene": "defaultScene"});
+            match check_indices(&doc, "f.gltf") {
+                Err(SceneError::UnsupportedVersion { version, .. }) => assert_eq!(version, v),
+                other => panic!("version {v}: {other:?}"),
+            }
+        }
+        for v in ["2.0", "2.1", "10.0"] {
+            let doc = json!({"asset": {"version": v}});
+            assert!(check_indices(&doc, "f.gltf").is_ok(), "version {v}");
         }
     }
 

@@ -26,6 +26,16 @@ pub(super) fn split_glb(
         .get(8..12)
         .and_then(|b| <[u8; 4]>::try_from(b).ok())
         .map(u32::from_le_bytes);
+    let version = bytes
+        .get(4..8)
+        .and_then(|b| <[u8; 4]>::try_from(b).ok())
+        .map(u32::from_le_bytes);
+    if let Some(version) = version.filter(|&v| v < 2) {
+        return Err(SceneError::UnsupportedVersion {
+            file: file.to_string(),
+            version: format!("{version}.x (GLB header version {version})"),
+        });
+    }
     if let Some(length) = length.filter(|&n| n < 12) {
         return Err(SceneError::Parse {
             file: file.to_string(),
@@ -280,5 +290,29 @@ mod tests {
         assert_eq!(percent_decode("a%20b%2Fc.png"), "a b/c.png");
         assert_eq!(percent_decode("100%"), "100%");
         assert_eq!(percent_decode("%zz%4"), "%zz%4");
+    }
+
+    #[test]
+    fn a_glb_1_header_is_refused_by_version() {
+        // glTF 1.0 binary (KHR_binary_glTF): magic, version 1, length, content length, content format 0.
+        let mut glb = b"glTF".to_vec();
+        for word in [1u32, 20, 0, 0] {
+            glb.extend(word.to_le_bytes());
+        }
+        match split_glb(glb, "f.glb") {
+            Err(SceneError::UnsupportedVersion { version, .. }) => {
+                assert!(version.starts_with("1.x"))
+            }
+            other => panic!("{other:?}"),
+        }
+        // Version 2 goes on to the GLB parser (which rejects this truncated file on its own terms).
+        let mut glb = b"glTF".to_vec();
+        for word in [2u32, 12] {
+            glb.extend(word.to_le_bytes());
+        }
+        assert!(!matches!(
+            split_glb(glb, "f.glb"),
+            Err(SceneError::UnsupportedVersion { .. })
+        ));
     }
 }

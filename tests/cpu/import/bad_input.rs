@@ -324,6 +324,28 @@ fn glb_header_length_below_twelve_is_refused() {
     );
 }
 
+/// A glTF 1.0 file (name-keyed objects, `"scene": "defaultScene"`) is refused by its version, not with
+/// "not an index" for its first reference.
+#[test]
+fn gltf_1_is_refused_by_version() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v1.gltf");
+    let doc = json!({"asset": {"version": "1.0"}, "scene": "defaultScene", "scenes": {"defaultScene": {"nodes": []}}});
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let e = import(&path, &ImportOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, SceneError::UnsupportedVersion { version, .. } if version == "1.0"),
+        "{e}"
+    );
+    assert!(
+        e.to_string().starts_with(&format!(
+            "{}: glTF 1.0 is not supported, only glTF 2.0",
+            path.display()
+        )),
+        "{e}"
+    );
+}
+
 /// Texture references in a material's `extras` or in an extension the gltf crate does not read are
 /// application data: the file imports. The same reference in a KHR extension it reads is checked.
 #[test]

@@ -633,6 +633,39 @@ fn warnings_are_capped_but_counted() {
     assert_eq!(s.report.warnings[100], "... and 50 more");
 }
 
+/// A scene whose every primitive is skipped on import (lines here) fails the build saying what was skipped
+/// and quoting the warnings, and writes nothing.
+#[test]
+fn a_build_with_no_triangle_left_says_what_the_import_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Bin::default();
+    let pos = b.f32s(&TRI_POS, "VEC3");
+    let prims: Vec<Value> = (0..5)
+        .map(|_| json!({"attributes": {"POSITION": pos}, "mode": 1}))
+        .collect();
+    let doc = json!({"scenes": [{"nodes": [0]}], "scene": 0, "nodes": [{"mesh": 0}], "meshes": [{"primitives": prims}]});
+    let path = b.write(dir.path(), doc);
+    let scene = imp(&path);
+    let out = dir.path().join("out.atlastree");
+    let opts = atlastree::preprocess::BuildOptions::default();
+    let e = atlastree::preprocess::build(&scene, &opts, &out, &atlastree::preprocess::NoProgress)
+        .unwrap_err();
+    let text = e.to_string();
+    let head = format!(
+        "the scene {} has no triangles to build a tree from: the import skipped 5 primitives and 0 triangles; 5 \
+         warnings, the first: ",
+        path.display()
+    );
+    assert!(text.starts_with(&head), "{text}");
+    // The first three warnings, each naming the primitive and its mode.
+    assert_eq!(
+        text.matches("is not triangles; skipped").count(),
+        3,
+        "{text}"
+    );
+    assert!(!out.exists());
+}
+
 #[test]
 fn glb_with_embedded_png_and_data_uri_buffer() {
     let dir = tempfile::tempdir().unwrap();
