@@ -142,6 +142,10 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             return run_planned_shard(&a, spec, &plan, &bars);
         }
     }
+    if step == ShardStep::Whole {
+        // Before the import: `-o` naming the scene or another non-paging file fails at once.
+        atlastree::store::check_replaceable(&a.out)?;
+    }
     let t = std::time::Instant::now();
     let mut scene = load_scene(&a.scene, a.up)?;
     if !a.materials.is_empty() {

@@ -19,7 +19,7 @@ mod validate;
 mod write;
 
 pub use read::{LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
-pub use write::{FileWriter, WriteSummary, table_prefix};
+pub use write::{FileWriter, WriteSummary, check_replaceable, table_prefix};
 
 use crate::ids::BlockId;
 use std::path::PathBuf;
@@ -40,6 +40,14 @@ impl BlockSink for FileWriter {
 /// Everything that can go wrong writing or reading a paging file. Variants carry the numbers involved.
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
+    /// The output exists and is not a paging file: a build or merge never replaces it (`-o` pointing at
+    /// the scene, its buffer or an image would destroy the input). `what` says what it is instead ("a
+    /// directory", or its first bytes as text).
+    #[error(
+        "{path} exists and is not an atlastree paging file ({what}): refusing to replace it; remove it first or \
+         choose another output"
+    )]
+    NotReplaceable { path: PathBuf, what: String },
     #[error("{path}: not an atlastree file (magic {found:02x?})")]
     BadMagic { path: PathBuf, found: Vec<u8> },
     #[error(

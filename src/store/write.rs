@@ -510,6 +510,7 @@ impl FileWriter {
         blocks: Vec<BlockRecord>,
         tables_end: u64,
     ) -> Result<FileWriter, StoreError> {
+        check_replaceable(path)?;
         // The permissions of a plain `File::create` once renamed (0o666 less the umask); a private 0o600
         // would make a paging file unservable by another user's server.
         let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Write {
@@ -690,6 +691,37 @@ fn summarize(
         padding_bytes: file_len - used,
         total: file_len,
     }
+}
+
+/// Whether a paging file may be written at `path`: it does not exist, is empty, or is a paging file (any
+/// format version: [`MAGIC`]). Anything else — the scene, its buffer, an image, a directory — is refused
+/// with [`StoreError::NotReplaceable`] before any work, so a mistyped `-o` cannot destroy an input.
+pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
+    use std::io::Read;
+    let refuse = |what: String| StoreError::NotReplaceable {
+        path: path.to_path_buf(),
+        what,
+    };
+    let meta = match std::fs::metadata(path) {
+        Ok(meta) => meta,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        // Unreadable metadata: the write itself reports the error with its own context.
+        Err(_) => return Ok(()),
+    };
+    if meta.is_dir() {
+        return Err(refuse("a directory".to_string()));
+    }
+    if meta.len() == 0 {
+        return Ok(());
+    }
+    let mut head = Vec::with_capacity(MAGIC.len());
+    // Unreadable: refused too (it is not known to be a paging file); the message shows what was read.
+    let _ = File::open(path).and_then(|f| f.take(MAGIC.len() as u64).read_to_end(&mut head));
+    if head == MAGIC {
+        return Ok(());
+    }
+    let text = String::from_utf8_lossy(&head).escape_debug().to_string();
+    Err(refuse(format!("it starts with \"{text}\"")))
 }
 
 #[cfg(test)]

@@ -248,3 +248,44 @@ fn mapped_reader_keeps_its_file_while_a_build_replaces_it() {
     );
     assert!(passes >= 1);
 }
+
+/// `-o` naming an input (the scene itself, a copy of it, a directory) is refused before any work and
+/// leaves the file as it was; an existing paging file and an empty file are replaced as before.
+#[test]
+fn an_output_that_is_not_a_paging_file_is_never_replaced() {
+    let (reference, _) = reference();
+    let dir = tempfile::tempdir().unwrap();
+    let gltf = dir.path().join("copy.gltf");
+    std::fs::copy(scene(), &gltf).unwrap();
+    let before = std::fs::read(&gltf).unwrap();
+    for target in [gltf.clone(), dir.path().to_path_buf()] {
+        let failed = build_cmd(&target).output().unwrap();
+        let stderr = String::from_utf8_lossy(&failed.stderr);
+        assert_eq!(failed.status.code(), Some(2), "{stderr}");
+        let want = format!(
+            "{} exists and is not an atlastree paging file",
+            target.display()
+        );
+        assert!(stderr.contains(&want), "{stderr}");
+        assert_eq!(temps(&target), Vec::<String>::new());
+    }
+    assert!(
+        std::fs::read(&gltf).unwrap() == before,
+        "the glTF is intact"
+    );
+    // The store's check directly: what it says of each kind of file.
+    let err = atlastree::store::check_replaceable(&gltf).unwrap_err();
+    assert!(err.to_string().contains("it starts with \"{"), "{err}");
+    let empty = dir.path().join("empty.atlastree");
+    std::fs::write(&empty, b"").unwrap();
+    run_ok(&mut build_cmd(&empty));
+    assert!(
+        std::fs::read(&empty).unwrap() == *reference,
+        "empty file replaced"
+    );
+    run_ok(&mut build_cmd(&empty));
+    assert!(
+        std::fs::read(&empty).unwrap() == *reference,
+        "paging file replaced"
+    );
+}
