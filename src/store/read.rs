@@ -803,7 +803,14 @@ impl TreeFile {
                 len: b.length,
                 file_len: self.file_len(),
             })?;
-        checksum(format!("{id}"), b.checksum, bytes)?;
+        let end = b.offset.saturating_add(b.length);
+        let place = format!(
+            "{}: block {} (bytes {}..{end})",
+            self.path.display(),
+            id.0,
+            b.offset
+        );
+        checksum(place, b.checksum, bytes)?;
         let (from, to) = padding_range(b, self.file_len());
         let padding = slice_at(self.bytes(), from, to - from).unwrap_or(&[]);
         check_block_padding(id, b, self.file_len(), padding)?;
