@@ -3,7 +3,6 @@
 use super::progress::Bars;
 use anyhow::Context;
 use atlastree::export::{ExportOptions, SCREEN_SPACE_ERROR, export_3dtiles};
-use atlastree::store::TreeFile;
 use atlastree::util::human_bytes;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
@@ -62,7 +61,7 @@ pub(crate) struct Tiles3dArgs {
 
 pub(super) fn run(a: ExportArgs) -> anyhow::Result<ExitCode> {
     let ExportFormat::Tiles3d(a) = a.format;
-    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let file = super::open_local(&a.file, "export")?;
     let bars = Bars::new(a.quiet || a.json);
     let opts = ExportOptions {
         force: a.force,

@@ -25,6 +25,7 @@ pub(crate) struct InspectArgs {
 }
 
 pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
+    super::reject_url(&a.file, "inspect")?;
     let (rep, ver) = open_and_inspect(&a.file, a.verify, a.reference.as_deref())
         .with_context(|| format!("opening {}", a.file.display()))?;
     if a.json {

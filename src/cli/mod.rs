@@ -153,6 +153,30 @@ pub(crate) fn retain_materials(
     Ok(report)
 }
 
+/// Opens a local paging file for `command` ([`reject_url`] first).
+pub(crate) fn open_local(
+    path: &std::path::Path,
+    command: &str,
+) -> anyhow::Result<atlastree::store::TreeFile> {
+    reject_url(path, command)?;
+    anyhow::Context::with_context(atlastree::store::TreeFile::open(path), || {
+        format!("opening {}", path.display())
+    })
+}
+
+/// An http(s) URL that is not also a local path gets a clear error (only `render` pages over HTTP)
+/// instead of "No such file or directory".
+pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Result<()> {
+    let text = path.to_string_lossy();
+    if (text.starts_with("http://") || text.starts_with("https://")) && !path.exists() {
+        anyhow::bail!(
+            "{text}: `atlastree {command}` reads a local paging file, not a URL (`atlastree render URL` pages \
+             over HTTP; download the file for {command})"
+        );
+    }
+    Ok(())
+}
+
 /// Imports a scene with a clear error naming the file.
 pub(crate) fn load_scene(
     path: &std::path::Path,

@@ -1,6 +1,5 @@
 use anyhow::Context;
 use atlastree::paging::serve;
-use atlastree::store::TreeFile;
 use atlastree::util::human_bytes;
 use clap::Args;
 use std::io::Write;
@@ -45,7 +44,7 @@ pub(crate) struct ServeArgs {
 }
 
 pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
-    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let file = super::open_local(&a.file, "serve")?;
     let (blocks, file_bytes) = (file.blocks().len(), file.file_len());
     drop(file);
     let options = serve::ServeOptions {

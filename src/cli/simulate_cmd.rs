@@ -146,8 +146,7 @@ pub(super) fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
 
 /// Runs a checked configuration.
 pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
-    let file =
-        TreeFile::open(&cfg.file).with_context(|| format!("opening {}", cfg.file.display()))?;
+    let file = super::open_local(&cfg.file, "simulate")?;
     let cameras = sample_cameras(cfg, &file)?;
     let fov = cameras.first().map_or(60.0, |c| c.fov_x_deg);
     let scale = cfg.viewport.scale(&file.to_params(), fov)?;

@@ -175,7 +175,7 @@ impl ViewArgs {
 
 pub(super) fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
     a.check_flags()?;
-    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let file = super::open_local(&a.file, "view")?;
     let opts = a.validate(&file)?;
     let report = atlastree::view::run(&file, opts)?;
     print_report(&report, a.json);

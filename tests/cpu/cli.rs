@@ -310,6 +310,24 @@ fn bad_input_is_a_clear_error() {
         .arg(&out)
         .arg(scene()));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--atlas-size 1000"));
+    // Commands that read a local paging file say so when given a URL (only render pages over HTTP).
+    let url = "http://127.0.0.1:9/city.atlastree";
+    for (command, args) in [
+        ("inspect", vec!["inspect", url]),
+        ("simulate", vec!["simulate", url]),
+        ("export", vec!["export", "3dtiles", url, "-o", "tiles"]),
+        ("serve", vec!["serve", url]),
+    ] {
+        let o = run(bin().current_dir(dir.path()).args(&args));
+        assert_eq!(o.status.code(), Some(2), "{command}");
+        assert_eq!(
+            String::from_utf8_lossy(&o.stderr).trim_end(),
+            format!(
+                "error: {url}: `atlastree {command}` reads a local paging file, not a URL (`atlastree render URL` \
+                 pages over HTTP; download the file for {command})"
+            ),
+        );
+    }
 }
 
 #[test]
