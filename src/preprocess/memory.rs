@@ -53,9 +53,10 @@ pub struct MemoryPlan {
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error(
     "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan, {triangles} triangles held; {raster_mib} MiB \
-     for {threads} rasteriser threads; {cache_mib} MiB of image cache for the largest image, {largest_texels} texels, \
-     once per thread), over --max-memory {budget_mib} MiB: raise --max-memory, or for a sharded build plan once \
-     (`build --shard plan`): its shards then hold no triangles"
+     for {threads} rasteriser threads; {cache_mib} MiB of image cache for the largest image, {largest_image}: \
+     {largest_texels} texels, once per thread), over --max-memory {budget_mib} MiB: raise --max-memory, downscale \
+     that image if it dominates, or for a sharded build plan once (`build --shard plan`): its shards then hold no \
+     triangles"
 )]
 pub struct MemoryError {
     pub budget_mib: u64,
@@ -66,6 +67,16 @@ pub struct MemoryError {
     pub threads: u64,
     pub cache_mib: u64,
     pub largest_texels: u64,
+    /// The largest image's name; filled in by the caller, who knows the images ([`MemoryError::naming`]).
+    pub largest_image: String,
+}
+
+impl MemoryError {
+    /// The error with the largest image named (a forged or absurd image header shows up here).
+    pub fn naming(mut self, largest_image: &str) -> Self {
+        self.largest_image = largest_image.to_string();
+        self
+    }
 }
 
 /// Why the plan step of a sharded build does not fit its budget.
@@ -187,6 +198,7 @@ fn split_budget(
             threads,
             cache_mib: mib(floor + floor / 4),
             largest_texels: largest_image_texels,
+            largest_image: "?".to_string(),
         });
     }
     let left = budget - plan_bytes - raster_bytes;

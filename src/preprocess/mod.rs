@@ -501,13 +501,23 @@ pub(super) fn plan_memory(
         rayon::current_num_threads() as u64,
         largest_image_texels(&scene.images),
         opts.image_cache_bytes,
-    )?;
+    )
+    .map_err(|e| e.naming(largest_image_name(&scene.images)))?;
     Ok(Some(plan))
 }
 
 /// Texels of the largest of `images` (the image cache must hold it once per rasteriser thread).
 pub(super) fn largest_image_texels(images: &[crate::scene::ImageSource]) -> u64 {
     images.iter().map(|i| i.texels()).max().unwrap_or(0)
+}
+
+/// The name of the largest of `images` (the first of equals), for [`memory::MemoryError::naming`].
+pub(super) fn largest_image_name(images: &[crate::scene::ImageSource]) -> &str {
+    let largest = largest_image_texels(images);
+    images
+        .iter()
+        .find(|i| i.texels() == largest)
+        .map_or("none", |i| i.name.as_str())
 }
 
 /// The image cache bound of a build: the memory plan's, or the option's without a budget.

@@ -194,14 +194,17 @@ pub fn build_shard_planned(
     // Refused before any pixel: the shard holds the tables' skeleton, no triangle.
     let memory_plan = match opts.max_memory_bytes {
         None => None,
-        Some(budget) => Some(super::memory::planned_shard_memory(
-            budget,
-            skeleton_bytes(&forest),
-            opts.atlas_size,
-            rayon::current_num_threads() as u64,
-            super::largest_image_texels(&images),
-            opts.image_cache_bytes,
-        )?),
+        Some(budget) => Some(
+            super::memory::planned_shard_memory(
+                budget,
+                skeleton_bytes(&forest),
+                opts.atlas_size,
+                rayon::current_num_threads() as u64,
+                super::largest_image_texels(&images),
+                opts.image_cache_bytes,
+            )
+            .map_err(|e| e.naming(super::largest_image_name(&images)))?,
+        ),
     };
     let scene = Scene {
         source: scene_path.to_path_buf(),

@@ -338,6 +338,17 @@ fn memory_budget_sizes_the_cache_or_refuses_up_front_with_the_number_needed() {
             assert_eq!(e.budget_mib, (needed - (1 << 20)) >> 20);
             assert_eq!(e.needed_mib, needed.div_ceil(1 << 20), "{e}");
             assert_eq!(e.triangles, city().triangles.len() as u64);
+            // The largest image is named (the first of the largest, in scene order).
+            let name = &(city().images.iter())
+                .find(|i| u64::from(i.width) * u64::from(i.height) == largest)
+                .unwrap()
+                .name;
+            assert_eq!(&e.largest_image, name);
+            assert!(
+                e.to_string()
+                    .contains(&format!("the largest image, {name}: {largest} texels")),
+                "{e}"
+            );
         }
         other => panic!("expected a memory error, got {other:?}"),
     }
