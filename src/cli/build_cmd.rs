@@ -431,8 +431,39 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
         r.stages.peak_rss_bytes.map_or("?".into(), human_bytes)
     );
     print_stage_peaks(&r.stages.stage_peak_rss);
+    print_import(&r.import);
     for w in &r.warnings {
         println!("  warning: {w}");
+    }
+}
+
+/// How many of the import's warnings the build summary quotes (`scene-info` lists up to 100).
+const IMPORT_WARNINGS_SHOWN: usize = 5;
+
+/// The import's counts and first warnings, when it skipped or replaced anything.
+fn print_import(r: &atlastree::scene::ImportReport) {
+    if r.warnings_total == 0 {
+        return;
+    }
+    println!(
+        "  import: {} warnings: {} missing images (drawn with the magenta/black checker), {} primitives and {} \
+         triangles skipped, {} primitives without their TEXCOORD, {} triangles with huge UVs",
+        r.warnings_total,
+        r.missing_images,
+        r.skipped_primitives,
+        r.skipped_triangles,
+        r.missing_texcoords,
+        r.large_uv_triangles
+    );
+    for w in r.warnings.iter().take(IMPORT_WARNINGS_SHOWN) {
+        println!("    warning: {w}");
+    }
+    let shown = r.warnings.len().min(IMPORT_WARNINGS_SHOWN) as u64;
+    if r.warnings_total > shown {
+        println!(
+            "    … {} more (`atlastree scene-info` lists them)",
+            r.warnings_total - shown
+        );
     }
 }
 

@@ -322,6 +322,9 @@ pub struct BuildReport {
     /// How the memory budget was split, if there was one.
     pub memory: Option<memory::MemoryPlan>,
     pub warnings: Vec<String>,
+    /// What the import of the scene skipped or replaced (missing images drawn with the fallback checker,
+    /// skipped primitives and triangles), with its warnings: the build's output shows them.
+    pub import: crate::scene::ImportReport,
 }
 
 /// Validates `opts` against `scene` and derives the stored [`BuildParams`].
@@ -482,6 +485,7 @@ pub fn build(
         &cache,
     );
     report.memory = memory_plan;
+    report.import = scene.report.clone();
     Ok(report)
 }
 
@@ -841,5 +845,6 @@ pub(super) fn build_report(
         images_alpha_ignored: cache.alpha_ignored.load(Ordering::Relaxed),
         memory: None,
         warnings,
+        import: crate::scene::ImportReport::default(),
     }
 }

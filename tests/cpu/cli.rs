@@ -330,6 +330,59 @@ fn bad_input_is_a_clear_error() {
     }
 }
 
+/// Images the import replaced with the fallback checker are reported by the build (text and JSON), not
+/// only by `scene-info`.
+#[test]
+fn build_reports_what_the_import_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = scene().parent().unwrap().to_path_buf();
+    let text = std::fs::read(scene()).unwrap();
+    let mut doc: serde_json::Value = serde_json::from_slice(&text).unwrap();
+    for img in doc["images"].as_array_mut().unwrap() {
+        let abs = city.join(img["uri"].as_str().unwrap());
+        img["uri"] = serde_json::json!(abs.display().to_string());
+    }
+    doc["images"][0]["uri"] = serde_json::json!("missing.png");
+    std::fs::copy(city.join("scene.bin"), dir.path().join("scene.bin")).unwrap();
+    let path = dir.path().join("scene.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let out = dir.path().join("x.atlastree");
+    let o = run(bin()
+        .args(["build", "--d-min-ratio", "10", "--atlas-size", "256", "-o"])
+        .arg(&out)
+        .arg(&path));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains(
+            "  import: 1 warnings: 1 missing images (drawn with the magenta/black checker), 0 primitives and 0 \
+             triangles skipped"
+        ),
+        "{stdout}"
+    );
+    assert!(stdout.contains("missing.png"), "{stdout}");
+    let report = build_json(&out, &[]);
+    assert_eq!(
+        report["import"]["missing_images"], 0,
+        "the embedded city itself imports clean"
+    );
+    let o = run(bin()
+        .args([
+            "build",
+            "--d-min-ratio",
+            "10",
+            "--atlas-size",
+            "256",
+            "--json",
+            "-o",
+        ])
+        .arg(&out)
+        .arg(&path));
+    let report = json(&o);
+    assert_eq!(report["import"]["missing_images"], 1);
+    assert_eq!(report["import"]["warnings_total"], 1);
+}
+
 #[test]
 fn demo_runs_and_writes_pictures() {
     let dir = tempfile::tempdir().unwrap();
