@@ -241,6 +241,7 @@ fn run_plan(
         report.stages.peak_rss_bytes.map_or("?".into(), human_bytes)
     );
     print_stage_peaks(&report.stages.stage_peak_rss);
+    print_import(&scene.report);
     println!(
         "  next: each shard with the same flags (`--shard I/N` or `auto`) reads this plan instead of planning; then \
          atlastree merge {}",
@@ -301,7 +302,11 @@ fn run_shard(
             )
         })?;
     report.stages.prepend("import", import_s, import_peak);
-    print_shard(a, spec, &report)
+    let code = print_shard(a, spec, &report)?;
+    if !a.json {
+        print_import(&scene.report);
+    }
+    Ok(code)
 }
 
 fn print_shard(a: &BuildArgs, spec: ShardSpec, report: &ShardReport) -> anyhow::Result<ExitCode> {
