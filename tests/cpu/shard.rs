@@ -192,8 +192,14 @@ fn four_shards() -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
     build_shards(&deep_opts(), &out, 4);
-    std::fs::write(&out, b"previous output").unwrap();
+    // A previous paging file (its magic: a file without it is never replaced).
+    std::fs::write(&out, previous_output()).unwrap();
     (dir, out)
+}
+
+/// The bytes standing in for a previous paging file: its magic, then a marker.
+fn previous_output() -> Vec<u8> {
+    [&atlastree::store::format::MAGIC[..], b"previous output"].concat()
 }
 
 /// The merge fails, leaves the previous output and no temp file, and the message names `shard` and a
@@ -203,7 +209,7 @@ fn refused(out: &Path, shard: u32) -> MergeError {
     let msg = e.to_string();
     assert!(msg.contains(&format!("shard {shard} of 4")), "{msg}");
     assert!(msg.contains(&format!("--shard {shard}/4")), "{msg}");
-    assert_eq!(std::fs::read(out).unwrap(), b"previous output");
+    assert_eq!(std::fs::read(out).unwrap(), previous_output());
     let stray: Vec<_> = std::fs::read_dir(out.parent().unwrap())
         .unwrap()
         .flatten()

@@ -224,7 +224,9 @@ fn flipped_block_byte_fails_only_that_block() {
                     expected,
                     found,
                 }) => {
-                    assert_eq!(what, BlockId(k as u32).to_string());
+                    let b = &file.blocks()[k];
+                    let place = format!("block {k} (bytes {}..{})", b.offset, b.offset + b.length);
+                    assert!(what.ends_with(&place), "{what}");
                     assert_ne!(expected, found);
                 }
                 other => panic!("block {k}: {:?}", other.map(|b| b.len())),
@@ -431,7 +433,9 @@ fn existing_target_replaced_only_on_success() {
     let forest = synth_forest(22, &small_specs());
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("x.atlastree");
-    std::fs::write(&path, b"old").unwrap();
+    // A previous paging file (its magic; a file without it is never replaced: `check_replaceable`).
+    let old = [&atlastree::store::format::MAGIC[..], b" old"].concat();
+    std::fs::write(&path, &old).unwrap();
 
     let w = FileWriter::create(&path, &forest).unwrap();
     let missing = 3;
@@ -448,7 +452,7 @@ fn existing_target_replaced_only_on_success() {
         Err(StoreError::BlockMissing { block }) => assert_eq!(block, BlockId(missing as u32)),
         other => panic!("{other:?}"),
     }
-    assert_eq!(std::fs::read(&path).unwrap(), b"old");
+    assert_eq!(std::fs::read(&path).unwrap(), old);
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 
     write_forest(&path, &forest, 22);
