@@ -617,16 +617,21 @@ fn structural_errors_name_their_source() {
     );
 }
 
-#[test]
-fn warnings_are_capped_but_counted() {
-    let dir = tempfile::tempdir().unwrap();
+/// A scene in `dir` of one mesh with `n` primitives, each a line strip (mode 1), so the import skips all.
+fn lines_only(dir: &Path, n: usize) -> PathBuf {
     let mut b = Bin::default();
     let pos = b.f32s(&TRI_POS, "VEC3");
-    let prims: Vec<Value> = (0..150)
+    let prims: Vec<Value> = (0..n)
         .map(|_| json!({"attributes": {"POSITION": pos}, "mode": 1}))
         .collect();
     let doc = json!({"scenes": [{"nodes": [0]}], "scene": 0, "nodes": [{"mesh": 0}], "meshes": [{"primitives": prims}]});
-    let s = imp(&b.write(dir.path(), doc));
+    b.write(dir, doc)
+}
+
+#[test]
+fn warnings_are_capped_but_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = imp(&lines_only(dir.path(), 150));
     assert_eq!(s.report.skipped_primitives, 150);
     assert_eq!(s.report.warnings_total, 150);
     assert_eq!(s.report.warnings.len(), 101);
@@ -638,13 +643,7 @@ fn warnings_are_capped_but_counted() {
 #[test]
 fn a_build_with_no_triangle_left_says_what_the_import_skipped() {
     let dir = tempfile::tempdir().unwrap();
-    let mut b = Bin::default();
-    let pos = b.f32s(&TRI_POS, "VEC3");
-    let prims: Vec<Value> = (0..5)
-        .map(|_| json!({"attributes": {"POSITION": pos}, "mode": 1}))
-        .collect();
-    let doc = json!({"scenes": [{"nodes": [0]}], "scene": 0, "nodes": [{"mesh": 0}], "meshes": [{"primitives": prims}]});
-    let path = b.write(dir.path(), doc);
+    let path = lines_only(dir.path(), 5);
     let scene = imp(&path);
     let out = dir.path().join("out.atlastree");
     let opts = atlastree::preprocess::BuildOptions::default();
