@@ -547,16 +547,15 @@ pub(super) struct Planned {
     pub(super) reports: Vec<TreeReport>,
 }
 
-/// Checks `opts` against `scene`, splits the budget, plans the forest and refuses an oversized file, all
-/// before any pixel.
 /// How many of the import's warnings [`empty_scene`] quotes.
 const EMPTY_SCENE_WARNINGS: usize = 3;
 
 /// [`BuildError::EmptyScene`] for `scene`: what its import skipped and its first warnings, or, when it
-/// skipped nothing, that the scene (after any filter) draws no triangles.
+/// skipped no primitive or triangle (its warnings are then about something else), that the scene (after
+/// any filter) draws no triangles.
 fn empty_scene(scene: &Scene) -> BuildError {
     let report = &scene.report;
-    let detail = if report.warnings.is_empty() {
+    let detail = if report.skipped_primitives == 0 && report.skipped_triangles == 0 {
         ": the default scene draws no triangle primitives (points and lines are not drawn), or the scene \
          filters kept none"
             .to_string()
@@ -581,6 +580,8 @@ fn empty_scene(scene: &Scene) -> BuildError {
     }
 }
 
+/// Checks `opts` against `scene`, splits the budget, plans the forest and refuses an oversized file, all
+/// before any pixel.
 pub(super) fn plan_build(
     scene: &Scene,
     opts: &BuildOptions,

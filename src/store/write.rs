@@ -715,8 +715,11 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
         return Ok(());
     }
     let mut head = Vec::with_capacity(MAGIC.len());
-    // Unreadable: refused too (it is not known to be a paging file); the message shows what was read.
-    let _ = File::open(path).and_then(|f| f.take(MAGIC.len() as u64).read_to_end(&mut head));
+    // Unreadable: refused too, as it is not known to be a paging file.
+    if let Err(e) = File::open(path).and_then(|f| f.take(MAGIC.len() as u64).read_to_end(&mut head))
+    {
+        return Err(refuse(format!("unreadable: {e}")));
+    }
     if head == MAGIC {
         return Ok(());
     }

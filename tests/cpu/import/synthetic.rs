@@ -663,6 +663,21 @@ fn a_build_with_no_triangle_left_says_what_the_import_skipped() {
         "{text}"
     );
     assert!(!out.exists());
+    // Nothing skipped (a node without a mesh): the error says the scene draws no triangles.
+    let mut b = Bin::default();
+    let _ = b.f32s(&TRI_POS, "VEC3");
+    let doc = json!({"scenes": [{"nodes": [0]}], "scene": 0, "nodes": [{}]});
+    let scene = imp(&b.write(dir.path(), doc));
+    let e = atlastree::preprocess::build(&scene, &opts, &out, &atlastree::preprocess::NoProgress)
+        .unwrap_err();
+    assert!(
+        e.to_string().ends_with(
+            "the import skipped 0 primitives and 0 triangles: the default scene draws no triangle primitives \
+             (points and lines are not drawn), or the scene filters kept none"
+        ),
+        "{e}"
+    );
+    assert!(!out.exists());
 }
 
 #[test]
