@@ -135,16 +135,15 @@ impl BuildArgs {
 
 pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let step = shard_step(a.shard.as_deref())?;
+    // Before any work, in every step: `-o` naming the scene or another file that is not a paging file
+    // fails at once, not after the shards have run (the merge writes OUT).
+    atlastree::store::check_replaceable(&a.out)?;
     let bars = Bars::new(a.quiet || a.json);
     if let ShardStep::Shard(spec) = step {
         let plan = plan_path(&a.out);
         if plan.exists() {
             return run_planned_shard(&a, spec, &plan, &bars);
         }
-    }
-    if step == ShardStep::Whole {
-        // Before the import: `-o` naming the scene or another non-paging file fails at once.
-        atlastree::store::check_replaceable(&a.out)?;
     }
     let t = std::time::Instant::now();
     let mut scene = load_scene(&a.scene, a.up)?;

@@ -269,6 +269,22 @@ fn an_output_that_is_not_a_paging_file_is_never_replaced() {
         assert!(stderr.contains(&want), "{stderr}");
         assert_eq!(temps(&target), Vec::<String>::new());
     }
+    // A shard or the plan step refuses it too, before any work (the merge would write there).
+    for step in ["plan", "0/2"] {
+        let failed = build_cmd(&gltf).args(["--shard", step]).output().unwrap();
+        let stderr = String::from_utf8_lossy(&failed.stderr);
+        assert_eq!(failed.status.code(), Some(2), "--shard {step}: {stderr}");
+        assert!(
+            stderr.contains("is not an atlastree paging file"),
+            "{stderr}"
+        );
+    }
+    let beside: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(beside, ["copy.gltf"], "no plan or shard file written");
     assert!(
         std::fs::read(&gltf).unwrap() == before,
         "the glTF is intact"
