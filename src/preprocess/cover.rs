@@ -241,13 +241,8 @@ mod tests {
     fn merging_pieces_keeps_the_arc_bit_for_bit() {
         // Sets of 1 to 3,000 arcs (merged several times past MERGE_MIN): the cover's range is exactly
         // shortest_arc of all the arcs unmerged, from a few wide arcs (gaps) to many narrow ones.
-        let mut h = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            h ^= h << 13;
-            h ^= h >> 7;
-            h ^= h << 17;
-            (h >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::util::XorShift64::new(0x9e37_79b9_7f4a_7c15u64);
+        let mut next = move || rng.next_f64();
         for (n, width) in [
             (1, 0.3),
             (40, 0.01),
@@ -281,13 +276,8 @@ mod tests {
         // 1 to 3,000 intervals, split into 1–7 runs at arbitrary places, each run accumulated on its own and
         // absorbed in order: every wrap's range equals the one-pass cover exactly; a full period in one run
         // makes the whole cover full.
-        let mut h = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            h ^= h << 13;
-            h ^= h >> 7;
-            h ^= h << 17;
-            (h >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::util::XorShift64::new(0x2545_f491_4f6c_dd1du64);
+        let mut next = move || rng.next_f64();
         let wraps = [
             RectWrap::Repeat,
             RectWrap::Mirror,

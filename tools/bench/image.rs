@@ -90,12 +90,9 @@ fn levels(c: &mut Criterion) {
 /// A photo-like 1024² RGBA8 chain: a gradient with per-texel noise, so blocks are neither flat nor random.
 fn noisy_chain() -> Vec<u8> {
     let mut img = gradient(1024);
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut rng = atlastree::util::XorShift64::new(0x9e37_79b9_7f4a_7c15);
     for p in &mut img.data {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        let n = (state >> 40) as f32 / (1u64 << 24) as f32;
+        let n = (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
         p[0] = (p[0] + 0.1 * n).min(1.0);
         p[1] = (p[1] * (0.9 + 0.1 * n)).min(1.0);
     }

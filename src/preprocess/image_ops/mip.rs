@@ -347,13 +347,8 @@ mod tests {
     use super::*;
 
     fn noise(w: u32, h: u32, seed: u64) -> LinearImage {
-        let mut s = seed;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = crate::util::XorShift64::new(seed);
+        let mut next = || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
         let data = (0..w * h).map(|_| [next(), next(), next(), 1.0]).collect();
         LinearImage {
             width: w,

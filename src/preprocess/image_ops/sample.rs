@@ -257,13 +257,8 @@ mod tests {
     fn fixed_tap_loops_sum_the_same_bits_as_the_general_one() {
         // An 8×8 image of irregular values; random taps (indices in and out of range, random weights) in
         // every shape apply_taps unrolls: apply_taps (fixed loops) and apply_any agree bit for bit.
-        let mut h = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            h ^= h << 13;
-            h ^= h >> 7;
-            h ^= h << 17;
-            h
-        };
+        let mut rng = crate::util::XorShift64::new(0x9e37_79b9_7f4a_7c15);
+        let mut next = move || rng.next_u64();
         let img = LinearImage {
             width: 8,
             height: 8,

@@ -347,13 +347,8 @@ mod tests {
         // pool): the order and the group sizes are those of a serial twin that sorts (key, index) and
         // picks each cut by the documented rule from serially walked demands.
         let n = 3 * PAR_ITEMS as u32;
-        let mut h = 0x517c_c1b7_2722_0a95_u64;
-        let mut next = move || {
-            h ^= h << 13;
-            h ^= h >> 7;
-            h ^= h << 17;
-            h
-        };
+        let mut rng = crate::util::XorShift64::new(0x517c_c1b7_2722_0a95);
+        let mut next = move || rng.next_u64();
         let infos: Vec<TriInfo> = (0..n)
             .map(|_| {
                 let h = next();

@@ -12,15 +12,8 @@ use glam::DVec2;
 
 /// Deterministic xorshift64 bytes.
 fn noise_bytes(n: usize, seed: u64) -> Vec<u8> {
-    let mut s = seed;
-    (0..n)
-        .map(|_| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 56) as u8
-        })
-        .collect()
+    let mut rng = atlastree::util::XorShift64::new(seed);
+    (0..n).map(|_| (rng.next_u64() >> 56) as u8).collect()
 }
 
 fn opaque_noise(w: u32, h: u32, seed: u64) -> DecodedImage {
