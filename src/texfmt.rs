@@ -369,26 +369,14 @@ fn band_sse(
             TexFormat::Rgba8 => return 0,
         }
         let cols = w.saturating_sub(bx * 4).min(4);
-        if rows == 4 && cols == 4 {
-            let mut stored = [0u8; 64];
-            for (y, row) in stored.chunks_exact_mut(16).enumerate() {
-                row.copy_from_slice(&src[(y * pw + bx * 4) * 4..][..16]);
-            }
-            sse += u64::from(full_block_sse(&stored, &texels, &mask));
-            continue;
-        }
+        // The block's texels inside the level, stored and decoded; bytes outside stay 0 in both.
+        let (mut stored, mut decoded) = ([0u8; 64], [0u8; 64]);
         for y in 0..rows {
-            let a = &src[(y * pw + bx * 4) * 4..][..cols * 4];
-            let b = &texels[y * 16..][..cols * 4];
-            // Channel k of a texel counts when k < c: a fixed 0/1 weight per byte, so the loop has no
-            // branch (a row of ≤ 4 texels sums to at most 16 · 255², well inside u32).
-            let mut row = 0u32;
-            for (i, (p, q)) in a.iter().zip(b).enumerate() {
-                let d = i32::from(*p) - i32::from(*q);
-                row += (d * d) as u32 * u32::from(i % 4 < c);
-            }
-            sse += u64::from(row);
+            let n = cols * 4;
+            stored[y * 16..][..n].copy_from_slice(&src[(y * pw + bx * 4) * 4..][..n]);
+            decoded[y * 16..][..n].copy_from_slice(&texels[y * 16..][..n]);
         }
+        sse += u64::from(block_sse(&stored, &decoded, &mask));
     }
     sse
 }
@@ -398,11 +386,12 @@ fn channel_mask(channels: usize) -> [u8; 64] {
     std::array::from_fn(|i| if i % 4 < channels { 0xFF } else { 0 })
 }
 
-/// Squared error of one whole 4×4 block: `a` and `b` are its 16 texels (RGBA8, rows back to back), byte `i`
-/// counted where `mask[i]` is 0xFF ([`channel_mask`]). The absolute differences are masked bytes, then
-/// squared and summed: fixed sizes and no branch, so the compiler vectorises both loops (~7 ns a block,
-/// against ~50 for the per-row loop of [`band_sse`], which it equals). At most 64 · 255² = 4,161,600.
-fn full_block_sse(a: &[u8; 64], b: &[u8; 64], mask: &[u8; 64]) -> u32 {
+/// Squared error of one 4×4 block: `a` and `b` are its 16 texels (RGBA8, rows back to back; an edge
+/// block's texels outside the level are 0 in both), byte `i` counted where `mask[i]` is 0xFF
+/// ([`channel_mask`]). The absolute differences are masked bytes, then squared and summed: fixed sizes and
+/// no branch, so the compiler vectorises both loops (~7 ns a block, against ~50 for the per-row loop it
+/// replaced). At most 64 · 255² = 4,161,600.
+fn block_sse(a: &[u8; 64], b: &[u8; 64], mask: &[u8; 64]) -> u32 {
     let mut diff = [0u8; 64];
     for i in 0..64 {
         diff[i] = a[i].abs_diff(b[i]) & mask[i];

@@ -241,7 +241,7 @@ mod tests {
     fn merging_pieces_keeps_the_arc_bit_for_bit() {
         // Sets of 1 to 3,000 arcs (merged several times past MERGE_MIN): the cover's range is exactly
         // shortest_arc of all the arcs unmerged, from a few wide arcs (gaps) to many narrow ones.
-        let mut rng = crate::util::XorShift64::new(0x9e37_79b9_7f4a_7c15u64);
+        let mut rng = crate::util::XorShift64::new(0x9e37_79b9_7f4a_7c15);
         let mut next = move || rng.next_f64();
         for (n, width) in [
             (1, 0.3),
@@ -276,7 +276,7 @@ mod tests {
         // 1 to 3,000 intervals, split into 1–7 runs at arbitrary places, each run accumulated on its own and
         // absorbed in order: every wrap's range equals the one-pass cover exactly; a full period in one run
         // makes the whole cover full.
-        let mut rng = crate::util::XorShift64::new(0x2545_f491_4f6c_dd1du64);
+        let mut rng = crate::util::XorShift64::new(0x2545_f491_4f6c_dd1d);
         let mut next = move || rng.next_f64();
         let wraps = [
             RectWrap::Repeat,
@@ -304,17 +304,10 @@ mod tests {
                 cuts.extend([0, n]);
                 cuts.sort_unstable();
                 for wrap in wraps {
-                    let mut whole = AxisCover::new(wrap);
-                    for &(a, b) in &ivs {
-                        whole.add(a, b);
-                    }
+                    let whole = cover_of(wrap, &ivs);
                     let mut pooled = AxisCover::new(wrap);
                     for w in cuts.windows(2) {
-                        let mut part = AxisCover::new(wrap);
-                        for &(a, b) in &ivs[w[0]..w[1]] {
-                            part.add(a, b);
-                        }
-                        pooled.absorb(part);
+                        pooled.absorb(cover_of(wrap, &ivs[w[0]..w[1]]));
                     }
                     let (a, b) = whole.range();
                     let (c, d) = pooled.range();

@@ -12,6 +12,7 @@
 //! [`AtlasForest`]: crate::model::AtlasForest
 
 pub mod format;
+mod positional;
 mod read;
 pub mod shard;
 pub mod shard_plan;

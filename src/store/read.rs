@@ -17,9 +17,7 @@ use std::fs::File;
 use std::io::Read;
 
 mod prefix;
-pub(super) use prefix::{
-    for_each_piece, read_exact_at, stream_hash128, stream_update, write_all_at,
-};
+pub(super) use prefix::{for_each_piece, stream_hash128, stream_update};
 use std::path::{Path, PathBuf};
 
 /// How [`TreeFile::open_with`] gets the bytes.

@@ -353,12 +353,12 @@ impl super::BlockSink for ShardWriter {
 }
 
 pub(super) fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
-    super::read::write_all_at(file, bytes, offset)
+    super::positional::write_all_at(file, bytes, offset)
 }
 
 pub(super) fn read_at(file: &File, offset: u64, len: u64) -> std::io::Result<Vec<u8>> {
     let mut buf = vec![0u8; len as usize];
-    super::read::read_exact_at(file, &mut buf, offset)?;
+    super::positional::read_exact_at(file, &mut buf, offset)?;
     Ok(buf)
 }
 

@@ -278,7 +278,7 @@ fn write_all_at(file: &File, lock: &Mutex<()>, offset: u64, bytes: &[u8]) -> std
     // Positional writes need no lock; the seek + write fallback does.
     let _guard =
         (!cfg!(unix)).then(|| lock.lock().unwrap_or_else(|poisoned| poisoned.into_inner()));
-    super::read::write_all_at(file, bytes, offset)
+    super::positional::write_all_at(file, bytes, offset)
 }
 
 /// Writes `parts` back to back at `section`'s offset through `put` and records their checksum in `header`.

@@ -3,47 +3,9 @@
 //! tables, issue 22).
 
 use super::{Backing, HEADER_SIZE, Section, StoreError, TreeFile, check_endian, parse_header};
+use crate::store::positional::read_exact_at;
 use std::fs::File;
 use std::path::PathBuf;
-
-/// Reads exactly `buf.len()` bytes at `offset` of `file`.
-pub(in crate::store) fn read_exact_at(
-    file: &File,
-    buf: &mut [u8],
-    offset: u64,
-) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Read, Seek, SeekFrom};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.read_exact(buf)
-    }
-}
-
-/// Writes all of `bytes` at `offset` of `file`. Positional on unix; elsewhere seek + write, so callers
-/// that share a file between threads there must hold a lock ([`crate::store::FileWriter`] does).
-pub(in crate::store) fn write_all_at(
-    file: &File,
-    bytes: &[u8],
-    offset: u64,
-) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::write_all_at(file, bytes, offset)
-    }
-    #[cfg(not(unix))]
-    {
-        use std::io::{Seek, SeekFrom, Write};
-        let mut f = file;
-        f.seek(SeekFrom::Start(offset))?;
-        f.write_all(bytes)
-    }
-}
 
 /// `xxh3_128` of the `len` bytes at `offset` of `file`, read in 1 MiB pieces (never held whole).
 pub(in crate::store) fn stream_hash128(
