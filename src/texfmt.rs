@@ -43,6 +43,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
+mod bc1;
 mod rect;
 pub use rect::{
     decode_chain_rect, decode_level_rect, encode_chain_rect, encode_level_rect, mip_extents,
@@ -359,23 +360,40 @@ fn band_sse(
     let rows = h.saturating_sub(band * 4).min(4);
     let c = channels.min(4);
     let mask = channel_mask(c);
-    let mut texels = [0u8; 64];
     let mut sse = 0u64;
     for (bx, block) in blocks.chunks_exact(bb).enumerate() {
-        match format {
-            TexFormat::Bc1 => bcdec_rs::bc1(block, &mut texels, 16),
-            TexFormat::Bc3 => bcdec_rs::bc3(block, &mut texels, 16),
-            TexFormat::Bc7 => bcdec_rs::bc7(block, &mut texels, 16),
-            TexFormat::Rgba8 => return 0,
-        }
+        let decoded_block = match format {
+            TexFormat::Bc1 => match block.try_into() {
+                Ok(b) => bc1::texels(b),
+                Err(_) => return 0, // chunks_exact gives 8 bytes: unreachable
+            },
+            other => {
+                let mut texels = [0u8; 64];
+                match other {
+                    TexFormat::Bc3 => bcdec_rs::bc3(block, &mut texels, 16),
+                    TexFormat::Bc7 => bcdec_rs::bc7(block, &mut texels, 16),
+                    TexFormat::Bc1 | TexFormat::Rgba8 => return 0,
+                }
+                texels
+            }
+        };
         let cols = w.saturating_sub(bx * 4).min(4);
         // The block's texels inside the level, stored and decoded; bytes outside stay 0 in both.
-        let (mut stored, mut decoded) = ([0u8; 64], [0u8; 64]);
-        for y in 0..rows {
-            let n = cols * 4;
-            stored[y * 16..][..n].copy_from_slice(&src[(y * pw + bx * 4) * 4..][..n]);
-            decoded[y * 16..][..n].copy_from_slice(&texels[y * 16..][..n]);
-        }
+        let mut stored = [0u8; 64];
+        let decoded = if cols == 4 && rows == 4 {
+            for y in 0..4 {
+                stored[y * 16..][..16].copy_from_slice(&src[(y * pw + bx * 4) * 4..][..16]);
+            }
+            decoded_block
+        } else {
+            let mut decoded = [0u8; 64];
+            for y in 0..rows {
+                let n = cols * 4;
+                stored[y * 16..][..n].copy_from_slice(&src[(y * pw + bx * 4) * 4..][..n]);
+                decoded[y * 16..][..n].copy_from_slice(&decoded_block[y * 16..][..n]);
+            }
+            decoded
+        };
         sse += u64::from(block_sse(&stored, &decoded, &mask));
     }
     sse

@@ -18,6 +18,8 @@ const BUCKETS: usize = (0x3F80_0000 >> BUCKET_SHIFT) as usize + 1;
 struct Tables {
     /// `to_linear[i]` = decode(i / 255).
     to_linear: [f32; 256],
+    /// `unit[i]` = i / 255 in f32 (a straight 8-bit alpha as a fraction, without a division per texel).
+    unit: [f32; 256],
     /// `thresholds[i]` = decode((i + 0.5) / 255): the smallest linear value that encodes to `i + 1`;
     /// `thresholds[255]` = +∞ (nothing encodes above 255).
     thresholds: [f32; 256],
@@ -41,6 +43,7 @@ fn build_tables() -> Tables {
     for (i, t) in to_linear.iter_mut().enumerate() {
         *t = decode(i as f64 / 255.0) as f32;
     }
+    let unit = std::array::from_fn(|i| i as f32 / 255.0);
     let mut thresholds = [f32::INFINITY; 256];
     for (i, t) in thresholds.iter_mut().take(255).enumerate() {
         *t = decode((i as f64 + 0.5) / 255.0) as f32;
@@ -56,9 +59,16 @@ fn build_tables() -> Tables {
     }
     Tables {
         to_linear,
+        unit,
         thresholds,
         bucket_start,
     }
+}
+
+/// `i as f32 / 255.0` for every 8-bit `i`: the same floats as the division (a table of its 256 results).
+#[inline]
+pub fn unit8_table() -> &'static [f32; 256] {
+    &TABLES.unit
 }
 
 /// Linear value in `[0, 1]` of an sRGB-encoded 8-bit channel.
@@ -112,6 +122,13 @@ fn encode_with(t: &Tables, v: f32) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unit_table_is_the_division_bit_for_bit() {
+        for (i, u) in unit8_table().iter().enumerate() {
+            assert_eq!(u.to_bits(), (i as u8 as f32 / 255.0).to_bits(), "{i}");
+        }
+    }
 
     #[test]
     fn thresholds_strictly_between_table_values() {
