@@ -355,30 +355,12 @@ fn band_sse(
     extent: [u32; 2],
     channels: usize,
 ) -> u64 {
-    let bb = format.bytes_per_block() as usize;
     let (pw, w, h) = (pw as usize, extent[0] as usize, extent[1] as usize);
     let rows = h.saturating_sub(band * 4).min(4);
-    let c = channels.min(4);
-    let mask = channel_mask(c);
-    let mut sse = 0u64;
-    for (bx, block) in blocks.chunks_exact(bb).enumerate() {
-        let decoded_block = match format {
-            TexFormat::Bc1 => match block.try_into() {
-                Ok(b) => bc1::texels(b),
-                Err(_) => return 0, // chunks_exact gives 8 bytes: unreachable
-            },
-            other => {
-                let mut texels = [0u8; 64];
-                match other {
-                    TexFormat::Bc3 => bcdec_rs::bc3(block, &mut texels, 16),
-                    TexFormat::Bc7 => bcdec_rs::bc7(block, &mut texels, 16),
-                    TexFormat::Bc1 | TexFormat::Rgba8 => return 0,
-                }
-                texels
-            }
-        };
+    let mask = channel_mask(channels.min(4));
+    // Block `bx` of the band, decoded, against its texels inside the level (bytes outside stay 0 in both).
+    let block_error = |bx: usize, decoded_block: [u8; 64]| {
         let cols = w.saturating_sub(bx * 4).min(4);
-        // The block's texels inside the level, stored and decoded; bytes outside stay 0 in both.
         let mut stored = [0u8; 64];
         let decoded = if cols == 4 && rows == 4 {
             for y in 0..4 {
@@ -387,16 +369,36 @@ fn band_sse(
             decoded_block
         } else {
             let mut decoded = [0u8; 64];
+            let n = cols * 4;
             for y in 0..rows {
-                let n = cols * 4;
                 stored[y * 16..][..n].copy_from_slice(&src[(y * pw + bx * 4) * 4..][..n]);
                 decoded[y * 16..][..n].copy_from_slice(&decoded_block[y * 16..][..n]);
             }
             decoded
         };
-        sse += u64::from(block_sse(&stored, &decoded, &mask));
+        u64::from(block_sse(&stored, &decoded, &mask))
+    };
+    match format {
+        TexFormat::Rgba8 => 0,
+        TexFormat::Bc1 => {
+            let (bc1_blocks, _) = blocks.as_chunks::<8>();
+            let decoded = bc1_blocks.iter().map(bc1::texels);
+            decoded.enumerate().map(|(bx, d)| block_error(bx, d)).sum()
+        }
+        TexFormat::Bc3 | TexFormat::Bc7 => {
+            let bb = format.bytes_per_block() as usize;
+            let decoded = blocks.chunks_exact(bb).map(|block| {
+                let mut texels = [0u8; 64];
+                if format == TexFormat::Bc3 {
+                    bcdec_rs::bc3(block, &mut texels, 16);
+                } else {
+                    bcdec_rs::bc7(block, &mut texels, 16);
+                }
+                texels
+            });
+            decoded.enumerate().map(|(bx, d)| block_error(bx, d)).sum()
+        }
     }
-    sse
 }
 
 /// 0xFF for the bytes of 16 RGBA8 texels that are among the first `channels` channels of their texel, else 0.
