@@ -36,7 +36,7 @@ impl CachedImage {
         let total: usize = self.chain.levels.iter().map(|l| l.texel_count() * 4).sum();
         let mut out = Vec::with_capacity(total);
         let mut levels = self.chain.levels.iter();
-        if self.decoded.pixels.iter().all(|p| p[3] == 255) {
+        if self.decoded.is_opaque() {
             out.extend_from_slice(self.decoded.pixels.as_flattened());
             levels.next();
         }
@@ -225,7 +225,7 @@ impl<'a> ImageCache<'a> {
                     d.height
                 ));
             }
-            if opaque && d.pixels.iter().any(|p| p[3] < 255) {
+            if opaque && !d.is_opaque() {
                 self.alpha_ignored.fetch_add(1, Ordering::Relaxed);
                 d.pixels.iter_mut().for_each(|p| p[3] = 255);
             }
