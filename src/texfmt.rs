@@ -46,8 +46,8 @@ use serde::Serialize;
 mod bc1;
 mod rect;
 pub use rect::{
-    decode_chain_rect, decode_level_rect, encode_chain_rect, encode_level_rect, mip_extents,
-    tile_chain_to_square,
+    decode_chain_rect, decode_level_rect, encode_chain_rect, encode_level_rect, encode_levels_rect,
+    mip_extents, tile_chain_to_square,
 };
 
 /// Storage format of a tree's blocks (atlases and original textures alike). Codes are stored in
@@ -448,26 +448,15 @@ pub fn encode_chain(
             got: chain.len() as u64,
         });
     }
-    let mut out = Encoded {
-        bytes: Vec::with_capacity(format.chain_bytes(size) as usize),
-        ..Encoded::default()
-    };
     let mut offset = 0usize;
-    for s in mip_sizes(size) {
-        let len = (s as usize).pow(2) * 4;
-        let level = &chain[offset..offset + len];
-        offset += len;
-        out.samples += (s as u64).pow(2) * channels as u64;
-        if format == TexFormat::Rgba8 {
-            out.bytes.extend_from_slice(level);
-            continue;
-        }
-        let (padded, p) = pad_to_blocks(level, s);
-        let (enc, sse) = encode_padded(format, &padded, p, channels == 4, Some((s, s, channels)));
-        out.sse += sse;
-        out.bytes.extend_from_slice(&enc);
-    }
-    Ok(out)
+    let levels: Vec<&[u8]> = mip_sizes(size)
+        .map(|s| {
+            let level = &chain[offset..offset + (s as usize).pow(2) * 4];
+            offset += level.len();
+            level
+        })
+        .collect();
+    encode_levels_rect(format, &levels, size, size, channels)
 }
 
 /// Widens BC1 blocks to BC3 (each 8-byte colour block gets an opaque 8-byte alpha block in front), so

@@ -15,7 +15,7 @@ use crate::ids::{ImageId, NodeId};
 use crate::model::{AtlasTree, Leaf, TreeKind};
 use crate::scene::{DecodedImage, Scene};
 use crate::store::BlockSink;
-use crate::texfmt::{Encoded, TexFormat, encode_chain, encode_chain_rect};
+use crate::texfmt::{Encoded, TexFormat, encode_chain, encode_chain_rect, encode_levels_rect};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -27,22 +27,20 @@ pub struct CachedImage {
 }
 
 impl CachedImage {
-    /// The RGBA8 mip chain of this image stored at its own sides: what [`mip_chain_rgba8`] of
+    /// The RGBA8 mip levels of this image stored at its own sides: what [`mip_chain_rgba8`] of
     /// [`resample_rect`] gives where [`resample_is_identity`] holds, without resampling or a second chain
     /// (the cached chain is that chain: box-filtered, and the box ignores wrap). Level 0 of an image
-    /// without translucent texels is the decoded bytes themselves: sRGB8 → linear → sRGB8 is the identity
-    /// on opaque texels ([`super::image_ops::srgb8_to_linear`]).
-    fn stored_chain_rgba8(&self) -> Vec<u8> {
-        let total: usize = self.chain.levels.iter().map(|l| l.texel_count() * 4).sum();
-        let mut out = Vec::with_capacity(total);
+    /// without translucent texels is the decoded bytes themselves, borrowed: sRGB8 → linear → sRGB8 is
+    /// the identity on opaque texels ([`super::image_ops::srgb8_to_linear`]).
+    fn stored_levels_rgba8(&self) -> Vec<std::borrow::Cow<'_, [u8]>> {
+        use std::borrow::Cow;
         let mut levels = self.chain.levels.iter();
+        let mut out = Vec::with_capacity(self.chain.levels.len());
         if self.decoded.is_opaque() {
-            out.extend_from_slice(self.decoded.pixels.as_flattened());
+            out.push(Cow::Borrowed(self.decoded.pixels.as_flattened()));
             levels.next();
         }
-        for l in levels {
-            out.extend_from_slice(&l.to_rgba8());
-        }
+        out.extend(levels.map(|l| Cow::Owned(l.to_rgba8())));
         out
     }
 
@@ -261,9 +259,20 @@ impl ImageCache<'_> {
         let identity = resample_is_identity(&img, w, h);
         // The cached chain is box-filtered, as resampling wants; so is the stored chain.
         let resampled = || resample_rect(&img.chain, w, h, key.2).map_err(|e| image_err(what(), e));
-        let rgba8 = match key.5 {
-            None if identity => img.stored_chain_rgba8(),
-            None => mip_chain_rgba8(&resampled()?),
+        let encode_err = |source| BuildError::Encode {
+            what: what(),
+            source,
+        };
+        let enc = match key.5 {
+            None if identity => {
+                let levels = img.stored_levels_rgba8();
+                let levels: Vec<&[u8]> = levels.iter().map(|l| &**l).collect();
+                encode_levels_rect(key.3, &levels, w, h, key.4).map_err(encode_err)?
+            }
+            None => {
+                let rgba8 = mip_chain_rgba8(&resampled()?);
+                encode_chain_rect(key.3, &rgba8, w, h, key.4).map_err(encode_err)?
+            }
             Some(bits) => {
                 let mut levels = if identity {
                     img.chain.levels.clone()
@@ -275,14 +284,10 @@ impl ImageCache<'_> {
                     cutoff: f32::from_bits(bits),
                 };
                 preserve_coverage(&mut levels, &[region]);
-                MipChain { levels }.to_rgba8()
+                let rgba8 = MipChain { levels }.to_rgba8();
+                encode_chain_rect(key.3, &rgba8, w, h, key.4).map_err(encode_err)?
             }
         };
-        let enc =
-            encode_chain_rect(key.3, &rgba8, w, h, key.4).map_err(|source| BuildError::Encode {
-                what: what(),
-                source,
-            })?;
         let bytes = Arc::new(enc);
         let mut st = lock(&self.originals);
         if st.1 + bytes.bytes.len() as u64 > self.cap_bytes / 4 {
@@ -721,7 +726,7 @@ mod tests {
                     chain,
                 };
                 assert!(resample_is_identity(&img, w, h));
-                let fast = img.stored_chain_rgba8();
+                let fast = img.stored_levels_rgba8().concat();
                 for wrap in wraps {
                     let lin = resample_rect(&img.chain, w, h, wrap).unwrap();
                     let slow = mip_chain_rgba8(&lin);

@@ -147,15 +147,44 @@ pub fn encode_chain_rect(
     if chain.len() as u64 != expected {
         return Err(chain_err(TexFormat::Rgba8, w, h, expected, chain.len()));
     }
+    let mut offset = 0usize;
+    let levels: Vec<&[u8]> = mip_extents(w, h)
+        .map(|(a, b)| {
+            let level = &chain[offset..offset + (a * b) as usize * 4];
+            offset += level.len();
+            level
+        })
+        .collect();
+    encode_levels_rect(format, &levels, w, h, channels)
+}
+
+/// [`encode_chain_rect`] with the chain given level by level (`levels[i]`: the i-th level of
+/// [`mip_extents`]`(w, h)`, RGBA8), so a caller whose level 0 lives in another buffer (an original stored
+/// at its decoded size) need not copy it into one chain first. The same bytes and error as the flat
+/// chain; square or not (a square level is padded by edge replication, as [`super::encode_chain`] does).
+pub fn encode_levels_rect(
+    format: TexFormat,
+    levels: &[&[u8]],
+    w: u32,
+    h: u32,
+    channels: usize,
+) -> Result<Encoded, TexFormatError> {
+    let extents: Vec<(u32, u32)> = mip_extents(w, h).collect();
+    let whole = levels.len() == extents.len()
+        && levels
+            .iter()
+            .zip(&extents)
+            .all(|(l, &(a, b))| l.len() as u64 == u64::from(a) * u64::from(b) * 4);
+    if !whole {
+        let got = levels.iter().map(|l| l.len()).sum();
+        let expected = TexFormat::Rgba8.chain_bytes_rect(w, h);
+        return Err(chain_err(TexFormat::Rgba8, w, h, expected, got));
+    }
     let mut out = Encoded {
         bytes: Vec::with_capacity(format.chain_bytes_rect(w, h) as usize),
         ..Encoded::default()
     };
-    let mut offset = 0usize;
-    for (a, b) in mip_extents(w, h) {
-        let len = (a * b) as usize * 4;
-        let level = &chain[offset..offset + len];
-        offset += len;
+    for (level, (a, b)) in levels.iter().zip(extents) {
         out.samples += u64::from(a * b) * channels as u64;
         if format == TexFormat::Rgba8 {
             out.bytes.extend_from_slice(level);
@@ -247,6 +276,33 @@ mod tests {
                 [(x * 255 / w) as u8, (y * 255 / h) as u8, 60, 255]
             })
             .collect()
+    }
+
+    /// A full chain of `w × h` (each level a gradient of its own sides), level by level.
+    fn gradient_levels(w: u32, h: u32) -> Vec<Vec<u8>> {
+        mip_extents(w, h).map(|(a, b)| gradient(a, b)).collect()
+    }
+
+    #[test]
+    fn levels_encode_as_their_flat_chain_and_bad_lengths_are_errors() {
+        for (w, h) in [(16, 4), (8, 8), (6, 6), (1, 32), (64, 64)] {
+            let levels = gradient_levels(w, h);
+            let refs: Vec<&[u8]> = levels.iter().map(Vec::as_slice).collect();
+            for f in TexFormat::ALL {
+                let flat = encode_chain_rect(f, &levels.concat(), w, h, 4).unwrap();
+                let split = encode_levels_rect(f, &refs, w, h, 4).unwrap();
+                assert_eq!(split.bytes, flat.bytes, "{f:?} {w}×{h}");
+                assert_eq!((split.sse, split.samples), (flat.sse, flat.samples));
+            }
+            // One level too few, and one level a texel short: errors naming the whole chain's size.
+            for bad in [&refs[..refs.len() - 1], &[&refs[0][4..]][..]] {
+                let err = encode_levels_rect(TexFormat::Bc1, bad, w, h, 4).unwrap_err();
+                assert!(
+                    matches!(err, TexFormatError::RectChainLength { width, height, .. } if (width, height) == (w, h)),
+                    "{err:?}"
+                );
+            }
+        }
     }
 
     #[test]
