@@ -48,6 +48,14 @@ pub enum TreeKind {
 }
 
 impl TreeKind {
+    /// 0 for opaque, 1 for alpha: an index into per-kind arrays (a forest has at most one tree of each).
+    pub fn index(self) -> usize {
+        match self {
+            TreeKind::Opaque => 0,
+            TreeKind::Alpha => 1,
+        }
+    }
+
     /// Channels compared for errors: RGB for opaque trees (alpha is always 255), RGBA for alpha trees.
     pub fn channels(self) -> usize {
         match self {

@@ -769,22 +769,35 @@ pub(super) fn pixel_pass(
         cache,
         out: raster::AtlasOut::new(forest, pixels, sink, &set),
     };
-    let mut handoffs = std::collections::HashMap::new();
-    let mut atlas_psnr_db = Vec::with_capacity(forest.trees.len());
-    for (t, tree) in forest.trees.iter().enumerate() {
-        let mine: Vec<shard::Unit> = units
-            .iter()
-            .filter(|u| u.tree as usize == t)
-            .copied()
-            .collect();
-        let roots: Vec<crate::ids::NodeId> =
-            mine.iter().map(|u| crate::ids::NodeId(u.node)).collect();
-        let levels = raster::raster_subtrees(&ctx, tree, &roots)?;
-        handoffs.extend(mine.into_iter().zip(levels));
-        let sse = ctx.out.atlas_sse.swap(0, Ordering::Relaxed);
-        let samples = ctx.out.atlas_samples.swap(0, Ordering::Relaxed);
-        atlas_psnr_db.push(crate::texfmt::psnr(sse, samples));
-    }
+    // The trees side by side: a small alpha tree (one leaf of many originals, each decoded on one
+    // thread) no longer runs alone after the opaque tree. Every block has its offset already, so the
+    // file does not depend on the order.
+    use rayon::prelude::*;
+    let per_tree: Vec<Vec<(shard::Unit, raster::Handoff)>> = forest
+        .trees
+        .par_iter()
+        .enumerate()
+        .map(|(t, tree)| {
+            let mine: Vec<shard::Unit> = units
+                .iter()
+                .filter(|u| u.tree as usize == t)
+                .copied()
+                .collect();
+            let roots: Vec<crate::ids::NodeId> =
+                mine.iter().map(|u| crate::ids::NodeId(u.node)).collect();
+            let levels = raster::raster_subtrees(&ctx, tree, &roots)?;
+            Ok(mine.into_iter().zip(levels).collect())
+        })
+        .collect::<Result<_, BuildError>>()?;
+    let handoffs = per_tree.into_iter().flatten().collect();
+    let atlas_psnr_db = forest
+        .trees
+        .iter()
+        .map(|tree| {
+            let [sse, samples] = &ctx.out.atlas_error[tree.kind.index()];
+            crate::texfmt::psnr(sse.load(Ordering::Relaxed), samples.load(Ordering::Relaxed))
+        })
+        .collect();
     progress.finish_stage();
     Ok(PixelPass {
         handoffs,

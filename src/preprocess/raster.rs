@@ -354,10 +354,10 @@ pub struct AtlasOut<'a> {
     /// Per material, the MASK cutoff whose coverage atlas and original mips keep (empty: plain mips;
     /// [`super::alpha_coverage::mask_cutoffs`]).
     pub mask_cutoffs: Vec<Option<f32>>,
-    /// Compression error of the atlases finished so far: sum of squared errors and compared values
-    /// ([`crate::texfmt::Encoded`]); the caller reads and resets them per tree.
-    pub atlas_sse: AtomicU64,
-    pub atlas_samples: AtomicU64,
+    /// Compression error of the atlases finished so far, per tree kind ([`TreeKind::index`]: a forest
+    /// has at most one tree of each, `super::partition_triangles`): sums of squared errors and of
+    /// compared values ([`crate::texfmt::Encoded`]), kept apart so the trees can be rasterised side by side.
+    pub atlas_error: [[AtomicU64; 2]; 2],
 }
 
 impl<'a> AtlasOut<'a> {
@@ -375,8 +375,7 @@ impl<'a> AtlasOut<'a> {
             done: AtomicU64::new(0),
             mip_filter: pixels.mip_filter,
             mask_cutoffs: super::alpha_coverage::mask_cutoffs(pixels.alpha_mips, &forest.materials),
-            atlas_sse: AtomicU64::new(0),
-            atlas_samples: AtomicU64::new(0),
+            atlas_error: Default::default(),
         }
     }
 }
@@ -588,8 +587,9 @@ fn finish_atlas(
         source,
     })?;
     out.sink.put_block(node.atlas_block, &enc.bytes, enc.sse)?;
-    out.atlas_sse.fetch_add(enc.sse, Ordering::Relaxed);
-    out.atlas_samples.fetch_add(enc.samples, Ordering::Relaxed);
+    let [sse, samples] = &out.atlas_error[tree.kind.index()];
+    sse.fetch_add(enc.sse, Ordering::Relaxed);
+    samples.fetch_add(enc.samples, Ordering::Relaxed);
     let n = out.done.fetch_add(1, Ordering::Relaxed) + 1;
     (out.progress)(n);
     let mut levels = chain.levels.into_iter();
