@@ -294,8 +294,11 @@ mod tests {
                 assert_eq!(split.bytes, flat.bytes, "{f:?} {w}×{h}");
                 assert_eq!((split.sse, split.samples), (flat.sse, flat.samples));
             }
-            // One level too few, and one level a texel short: errors naming the whole chain's size.
-            for bad in [&refs[..refs.len() - 1], &[&refs[0][4..]][..]] {
+            // One level too few, and every level there with level 0 a texel short: errors naming the
+            // whole chain's size.
+            let mut short = refs.clone();
+            short[0] = &refs[0][4..];
+            for bad in [&refs[..refs.len() - 1], &short[..]] {
                 let err = encode_levels_rect(TexFormat::Bc1, bad, w, h, 4).unwrap_err();
                 assert!(
                     matches!(err, TexFormatError::RectChainLength { width, height, .. } if (width, height) == (w, h)),
