@@ -166,6 +166,20 @@ pub enum StoreError {
     LayoutOverflow { what: &'static str },
     #[error("the paging file is little-endian; this target is big-endian")]
     BigEndian,
+    /// The output's filesystem cannot hold the file: found when its space is reserved, before any block is
+    /// written ([`positional::reserve`]); the temp file is removed and nothing appears at `target`.
+    #[error(
+        "{target}: the new file needs {needed} bytes ({needed_h}) on its filesystem, only {available} ({available_h}) \
+         are free: free space there or choose another output (an existing file is replaced only after the new one \
+         is complete, so both must fit)",
+        needed_h = crate::util::human_bytes(*needed),
+        available_h = crate::util::human_bytes(*available)
+    )]
+    NoSpace {
+        target: PathBuf,
+        needed: u64,
+        available: u64,
+    },
     /// Writing the file failed (disk full, file size limit, I/O error); the temp file is removed and
     /// nothing appears at `target`.
     #[error("writing {target} failed, nothing written there: {source} (temp file {temp})")]

@@ -216,6 +216,7 @@ impl ShardWriter {
             head,
         };
         w.temp.file().set_len(at).map_err(|e| w.temp_err(e))?;
+        super::positional::reserve(w.temp.file(), at, path, w.temp.temp_path())?;
         Ok(w)
     }
 

@@ -530,11 +530,9 @@ impl FileWriter {
             temp,
             lock: Mutex::new(()),
         };
-        writer
-            .temp
-            .file()
-            .set_len(file_len)
-            .map_err(|e| writer.temp_err(e))?;
+        let file = writer.temp.file();
+        file.set_len(file_len).map_err(|e| writer.temp_err(e))?;
+        super::positional::reserve(file, file_len, &writer.target, writer.temp.temp_path())?;
         Ok(writer)
     }
 
