@@ -49,6 +49,13 @@ pub enum StoreError {
          choose another output"
     )]
     NotReplaceable { path: PathBuf, what: String },
+    /// The output's folder is missing (or a file): found before any work, not when the file is written.
+    #[error("{path}: its folder {dir} {what}: create it first or choose another output")]
+    NoOutputDir {
+        path: PathBuf,
+        dir: PathBuf,
+        what: &'static str,
+    },
     #[error("{path}: not an atlastree file (magic {found:02x?})")]
     BadMagic { path: PathBuf, found: Vec<u8> },
     #[error(

@@ -693,13 +693,27 @@ fn summarize(
 
 /// Whether a paging file may be written at `path`: it does not exist, is empty, or is a paging file (any
 /// format version: [`MAGIC`]). Anything else — the scene, its buffer, an image, a directory — is refused
-/// with [`StoreError::NotReplaceable`] before any work, so a mistyped `-o` cannot destroy an input.
+/// with [`StoreError::NotReplaceable`] before any work, so a mistyped `-o` cannot destroy an input; a
+/// folder that does not exist is [`StoreError::NoOutputDir`], also before any work.
 pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
     use std::io::Read;
     let refuse = |what: String| StoreError::NotReplaceable {
         path: path.to_path_buf(),
         what,
     };
+    let dir = crate::util::parent_dir(path);
+    if !dir.is_dir() {
+        let what = if dir.exists() {
+            "is not a folder"
+        } else {
+            "does not exist"
+        };
+        return Err(StoreError::NoOutputDir {
+            path: path.to_path_buf(),
+            dir: dir.to_path_buf(),
+            what,
+        });
+    }
     let meta = match std::fs::metadata(path) {
         Ok(meta) => meta,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),

@@ -304,4 +304,33 @@ fn an_output_that_is_not_a_paging_file_is_never_replaced() {
         std::fs::read(&empty).unwrap() == *reference,
         "paging file replaced"
     );
+    // A folder that does not exist, or a file where the folder should be: refused before any work, whole
+    // build, plan step and shard alike.
+    let missing = dir.path().join("no/such/out.atlastree");
+    let under_file = gltf.join("out.atlastree");
+    for (target, what) in [
+        (&missing, "does not exist"),
+        (&under_file, "is not a folder"),
+    ] {
+        for shard in [None, Some("plan"), Some("1/2")] {
+            let mut cmd = build_cmd(target);
+            if let Some(step) = shard {
+                cmd.args(["--shard", step]);
+            }
+            let failed = cmd.output().unwrap();
+            let stderr = String::from_utf8_lossy(&failed.stderr);
+            assert_eq!(failed.status.code(), Some(2), "{shard:?}: {stderr}");
+            let want = format!(
+                "{}: its folder {} {what}: create it first",
+                target.display(),
+                target.parent().unwrap().display()
+            );
+            assert!(stderr.contains(&want), "{shard:?}: {stderr}");
+            assert!(
+                !stderr.contains("rasterise"),
+                "refused before any work: {stderr}"
+            );
+        }
+    }
+    assert!(!dir.path().join("no").exists());
 }
