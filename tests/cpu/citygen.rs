@@ -220,7 +220,10 @@ fn fixture_gltf_parses_with_expected_counts() {
         uris.len() as u64,
         report["textures"]["images"].as_u64().unwrap()
     );
-    let used: BTreeSet<usize> = doc.textures().map(|t| t.source().index()).collect();
+    let used: BTreeSet<usize> = doc
+        .textures()
+        .map(|t| t.source().unwrap().index())
+        .collect();
     assert_eq!(used.len(), doc.images().count(), "unused images");
 
     // 24 labelled facades, one per block building, each its own image; one building is instanced twice.
@@ -233,6 +236,7 @@ fn fixture_gltf_parses_with_expected_counts() {
                 .expect("facade texture")
                 .texture()
                 .source()
+                .expect("facade image")
                 .index()
         })
         .collect();

@@ -287,7 +287,7 @@ fn a_viewer_samples_every_triangle_where_the_tree_shader_does() {
                     .texture_transform()
                     .map_or(([0.0, 0.0], [1.0, 1.0]), |x| (x.offset(), x.scale()));
                 let (ox, oy, d) = cell_offset(leaf_node.cell, leaf_node.level, node.level);
-                let image_uri = info.texture().source().name().unwrap().to_string();
+                let image_uri = info.texture().source().unwrap().name().unwrap().to_string();
                 if image_uri.ends_with("-avg.png") {
                     // Averaged rects: every vertex at the centre of its rect's texel, read nearest.
                     let rect_base: usize = tree.leaves[..l].iter().map(|x| x.rects.len()).sum();

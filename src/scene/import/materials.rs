@@ -6,8 +6,10 @@
 //! ([`AlphaMode`]) and `baseColorFactor` (linear RGBA); its `KHR_texture_transform`, read in f64 from the
 //! raw JSON, is returned as a [`UvTransform`] for the geometry to bake into the UVs. A material without a
 //! texture, or whose `texCoord` set the primitive lacks, gets a deduplicated 1×1 image of its factor
-//! encoded as sRGB8 ([`srgb8`]) and the UV (0.5, 0.5). glTF images are deduplicated by index; one that
-//! cannot be read is replaced by the fallback checker and counted.
+//! encoded as sRGB8 ([`srgb8`]) and the UV (0.5, 0.5). A texture draws the image its `EXT_texture_webp`
+//! names where it names one (PNG, JPEG and WebP all decode), else its core `source`. glTF images are
+//! deduplicated by index; one that cannot be read, or a texture that names none, is replaced by the
+//! fallback checker and counted.
 
 use super::accessors::PrimCtx;
 use super::uri::Buffers;
@@ -42,6 +44,23 @@ struct RawTexInfo {
 struct RawTexExt {
     #[serde(rename = "KHR_texture_transform")]
     texture_transform: Option<RawTexTransform>,
+}
+
+/// A texture's raw JSON: the image its `EXT_texture_webp` names (the core `source` is gltf-json's).
+#[derive(Deserialize, Default)]
+pub(super) struct RawTexture {
+    extensions: Option<RawTextureExt>,
+}
+
+#[derive(Deserialize, Default)]
+struct RawTextureExt {
+    #[serde(rename = "EXT_texture_webp")]
+    webp: Option<RawImageSource>,
+}
+
+#[derive(Deserialize, Default)]
+struct RawImageSource {
+    source: Option<u32>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -100,8 +119,12 @@ pub(super) enum UvSource {
 pub(super) struct Materials<'a> {
     /// The glTF file (for warnings).
     file: &'a str,
+    /// Its images (a texture's `EXT_texture_webp` source is found by index).
+    doc: &'a gltf::Document,
     /// Per glTF material: its raw JSON (for `KHR_texture_transform` in f64).
     raw: Vec<RawMaterial>,
+    /// Per glTF texture: its raw JSON (for `EXT_texture_webp`).
+    raw_textures: Vec<RawTexture>,
     pub(super) materials: Vec<Material>,
     /// Per material: how its vertices get their UVs.
     uv: Vec<UvSource>,
@@ -112,10 +135,17 @@ pub(super) struct Materials<'a> {
 }
 
 impl<'a> Materials<'a> {
-    pub(super) fn new(file: &'a str, raw: Vec<RawMaterial>) -> Self {
+    pub(super) fn new(
+        file: &'a str,
+        doc: &'a gltf::Document,
+        raw: Vec<RawMaterial>,
+        raw_textures: Vec<RawTexture>,
+    ) -> Self {
         Materials {
             file,
+            doc,
             raw,
+            raw_textures,
             materials: Vec::new(),
             uv: Vec::new(),
             images: Vec::new(),
@@ -182,7 +212,22 @@ impl<'a> Materials<'a> {
             (Some(info), Some(s)) if !solid => {
                 let texture = info.texture();
                 let sampler = texture.sampler();
-                let image = self.image_for(texture.source(), buffers, report);
+                let image = match self.texture_image(&texture) {
+                    Some(img) => self.image_for(img, buffers, report),
+                    None => {
+                        report.missing_images += 1;
+                        report.warn(format!(
+                            "{}: texture {} names no image (no source, no EXT_texture_webp source); using \
+                             the magenta/black fallback checker",
+                            self.file,
+                            texture.index()
+                        ));
+                        self.push_image(ImageSource::fallback(&format!(
+                            "texture {}",
+                            texture.index()
+                        )))
+                    }
+                };
                 let xf = raw_tt.map(UvTransform::from);
                 let m = Material {
                     name,
@@ -230,6 +275,21 @@ impl<'a> Materials<'a> {
         let id = ImageId(self.images.len() as u32);
         self.images.push(img);
         id
+    }
+
+    /// The image texture `t` draws: the one its `EXT_texture_webp` names where it names one (this
+    /// importer decodes WebP, and that image is the one the author meant for clients that do; the core
+    /// `source` is then a PNG/JPEG fallback or absent), else its core `source`; `None` with neither.
+    /// Indices were checked by the reference pass (`refs`).
+    fn texture_image(&self, t: &gltf::Texture<'a>) -> Option<gltf::Image<'a>> {
+        let webp = (self.raw_textures.get(t.index()))
+            .and_then(|r| r.extensions.as_ref())
+            .and_then(|e| e.webp.as_ref())
+            .and_then(|w| w.source);
+        match webp.and_then(|i| self.doc.images().nth(i as usize)) {
+            Some(img) => Some(img),
+            None => t.source(),
+        }
     }
 
     /// The image for glTF image `img` (header read once); missing/undecodable → fallback + warning.

@@ -38,7 +38,7 @@ pub use images_only::{import_images, input_digest};
 
 use crate::scene::{ImportReport, Scene, UpAxis};
 use glam::DVec3;
-use materials::{Materials, RawMaterial};
+use materials::{Materials, RawMaterial, RawTexture};
 use mesh::Geometry;
 use nodes::{RawNode, Walk};
 use serde::Deserialize;
@@ -52,6 +52,7 @@ pub(super) const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
     "KHR_mesh_quantization",
     "EXT_mesh_gpu_instancing",
     "KHR_materials_unlit",
+    "EXT_texture_webp",
 ];
 
 /// Import options.
@@ -125,7 +126,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
     .instances()?;
     let mut geometry = Geometry::new(&file, &doc);
     geometry.reserve(&instances)?;
-    let mut materials = Materials::new(&file, raw.materials);
+    let mut materials = Materials::new(&file, &doc, raw.materials, raw.textures);
     for inst in &instances {
         geometry.emit_instance(inst, &mut materials, &mut buffers, &mut report)?;
     }
@@ -196,6 +197,8 @@ struct RawRoot {
     nodes: Vec<RawNode>,
     #[serde(default)]
     materials: Vec<RawMaterial>,
+    #[serde(default)]
+    textures: Vec<RawTexture>,
 }
 
 /// The scene of the built geometry and materials: closes the warning list ("... and N more") and picks

@@ -4,3 +4,4 @@ mod bad_input;
 mod khronos;
 mod synthetic;
 mod tiled;
+mod webp;

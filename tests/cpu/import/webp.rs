@@ -1,0 +1,115 @@
+//! `EXT_texture_webp`: WebP images decode, a texture's WebP source is the image it draws (with or without
+//! a PNG/JPEG `source` beside it), the extension may be required, and a texture naming no image at all is
+//! a counted fallback, not an error.
+
+use atlastree::scene::{ImportOptions, import};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+
+fn city_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city")
+}
+
+/// The city's JSON with absolute image URIs, its first texture's image also written as a lossless WebP
+/// into `dir` and appended as an image; returns the JSON and that image's index.
+fn city_with_webp(dir: &Path) -> (Value, usize) {
+    let mut doc: Value =
+        serde_json::from_slice(&std::fs::read(city_dir().join("scene.gltf")).unwrap()).unwrap();
+    for img in doc["images"].as_array_mut().unwrap() {
+        let abs = city_dir().join(img["uri"].as_str().unwrap());
+        img["uri"] = json!(abs.display().to_string());
+    }
+    let png_uri = doc["images"][0]["uri"].as_str().unwrap().to_string();
+    let rgba = image::open(&png_uri).unwrap().into_rgba8();
+    let webp = dir.join("roof_0.webp");
+    let file = std::fs::File::create(&webp).unwrap();
+    image::codecs::webp::WebPEncoder::new_lossless(file)
+        .encode(
+            &rgba,
+            rgba.width(),
+            rgba.height(),
+            image::ExtendedColorType::Rgba8,
+        )
+        .unwrap();
+    let images = doc["images"].as_array_mut().unwrap();
+    images.push(json!({"mimeType": "image/webp", "uri": webp.display().to_string()}));
+    let index = images.len() - 1;
+    std::fs::copy(city_dir().join("scene.bin"), dir.join("scene.bin")).unwrap();
+    (doc, index)
+}
+
+fn import_doc(dir: &Path, doc: &Value) -> atlastree::scene::Scene {
+    let path = dir.join("scene.gltf");
+    std::fs::write(&path, serde_json::to_vec(doc).unwrap()).unwrap();
+    import(&path, &ImportOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The image that material `roof_0` (the city's only user of texture 0) draws.
+fn roof_0_image(scene: &atlastree::scene::Scene) -> &atlastree::scene::ImageSource {
+    let m = scene.materials.iter().find(|m| m.name == "roof_0").unwrap();
+    &scene.images[m.image.0 as usize]
+}
+
+/// The name and decoded pixels of [`roof_0_image`].
+fn first_material_pixels(scene: &atlastree::scene::Scene) -> (String, Vec<[u8; 4]>) {
+    let src = roof_0_image(scene);
+    (src.name.clone(), src.decode().unwrap().pixels)
+}
+
+#[test]
+fn a_webp_source_is_drawn_whether_required_or_beside_a_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, webp) = city_with_webp(dir.path());
+    let plain = import_doc(dir.path(), &doc);
+    let (png_name, png_pixels) = first_material_pixels(&plain);
+    assert!(png_name.ends_with("roof_0.png"), "{png_name}");
+
+    // Beside the PNG source (extension used, not required): the WebP image is the one drawn.
+    doc["textures"][0]["extensions"] = json!({"EXT_texture_webp": {"source": webp}});
+    doc["extensionsUsed"] = json!(["EXT_texture_webp"]);
+    let beside = import_doc(dir.path(), &doc);
+    let (name, pixels) = first_material_pixels(&beside);
+    assert!(name.ends_with("roof_0.webp"), "{name}");
+    assert_eq!(
+        pixels, png_pixels,
+        "lossless WebP decodes to the PNG's texels"
+    );
+    assert_eq!(
+        beside.report.missing_images, 0,
+        "{:?}",
+        beside.report.warnings
+    );
+
+    // WebP only, the extension required: imports the same.
+    doc["textures"][0].as_object_mut().unwrap().remove("source");
+    doc["extensionsRequired"] = json!(["EXT_texture_webp"]);
+    let only = import_doc(dir.path(), &doc);
+    let (name, pixels) = first_material_pixels(&only);
+    assert!(name.ends_with("roof_0.webp"), "{name}");
+    assert_eq!(pixels, png_pixels);
+    let (img, png) = (roof_0_image(&only), roof_0_image(&plain));
+    assert_eq!((img.width, img.height), (png.width, png.height));
+}
+
+#[test]
+fn a_texture_naming_no_image_is_a_counted_fallback() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, _) = city_with_webp(dir.path());
+    doc["textures"][0].as_object_mut().unwrap().remove("source");
+    let scene = import_doc(dir.path(), &doc);
+    assert_eq!(scene.report.missing_images, 1);
+    let warning = scene
+        .report
+        .warnings
+        .iter()
+        .find(|w| w.contains("texture 0"));
+    assert!(
+        warning.is_some_and(|w| w.ends_with(
+            "texture 0 names no image (no source, no EXT_texture_webp source); using the magenta/black \
+             fallback checker"
+        )),
+        "{:?}",
+        scene.report.warnings
+    );
+    assert_eq!(roof_0_image(&scene).color, "Fallback");
+}
