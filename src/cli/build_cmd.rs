@@ -450,10 +450,11 @@ fn print_import(r: &atlastree::scene::ImportReport) {
         return;
     }
     println!(
-        "  import: {} warnings: {} missing images (drawn with the magenta/black checker), {} primitives and {} \
-         triangles skipped, {} primitives without their TEXCOORD, {} triangles with huge UVs",
+        "  import: {} warnings: {} missing images (drawn with the magenta/black checker), {} truncated JPEGs, {} \
+         primitives and {} triangles skipped, {} primitives without their TEXCOORD, {} triangles with huge UVs",
         r.warnings_total,
         r.missing_images,
+        r.truncated_images,
         r.skipped_primitives,
         r.skipped_triangles,
         r.missing_texcoords,

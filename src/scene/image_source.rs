@@ -97,6 +97,9 @@ pub(super) struct ImageHeader {
     pub height: u32,
     pub has_alpha: bool,
     pub color: String,
+    /// A JPEG without its end-of-image marker near its end (a truncated file, most likely: decoders draw
+    /// what is there and fill the rest), reported by the import as a warning.
+    pub truncated: bool,
 }
 
 impl ImageSource {
@@ -231,6 +234,8 @@ pub(super) fn read_header<R: Read + Seek + std::io::BufRead>(
     if n == 8 && sig == PNG_SIGNATURE {
         return read_png_header(reader);
     }
+    let truncated = sig.starts_with(&[0xFF, 0xD8, 0xFF]) && !jpeg_ends_with_eoi(&mut reader)?;
+    reader.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
     use image::ImageDecoder;
     let decoder = image::ImageReader::new(reader)
         .with_guessed_format()
@@ -247,7 +252,25 @@ pub(super) fn read_header<R: Read + Seek + std::io::BufRead>(
         height,
         has_alpha: ct.has_alpha(),
         color: format!("{ct:?}"),
+        truncated,
     })
+}
+
+/// Bytes at the end of a JPEG searched for its end-of-image marker: encoders may pad after it, and the
+/// marker cannot occur inside entropy-coded data (a 0xFF there is followed by 0x00 or a restart code).
+const JPEG_TAIL: u64 = 4096;
+
+/// Whether the JPEG in `reader` has its end-of-image marker (`FF D9`) in its last [`JPEG_TAIL`] bytes.
+/// Files with a longer trailer after it (e.g. a motion photo's video) read as truncated: a warning only.
+fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
+    let len = reader.seek(SeekFrom::End(0)).map_err(|e| e.to_string())?;
+    let start = len.saturating_sub(JPEG_TAIL);
+    reader
+        .seek(SeekFrom::Start(start))
+        .map_err(|e| e.to_string())?;
+    let mut tail = Vec::with_capacity((len - start) as usize);
+    reader.read_to_end(&mut tail).map_err(|e| e.to_string())?;
+    Ok(tail.windows(2).any(|w| w == [0xFF, 0xD9]))
 }
 
 const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
@@ -330,6 +353,7 @@ fn read_png_header<R: Read + Seek>(mut r: R) -> Result<ImageHeader, String> {
         height,
         has_alpha: alpha_channel || trns,
         color: format!("{base}{depth}"),
+        truncated: false,
     })
 }
 
@@ -388,6 +412,37 @@ mod tests {
     }
 
     #[test]
+    fn a_jpeg_cut_short_reads_as_truncated_and_padding_after_its_end_does_not() {
+        // Noisy, so the scan data (where a cut lands) is most of the file.
+        let img = image::RgbImage::from_fn(256, 192, |x, y| {
+            let h = (x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(40_503)).rotate_left(x % 13);
+            image::Rgb([h as u8, (h >> 8) as u8, (h >> 16) as u8])
+        });
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
+            .encode_image(&img)
+            .unwrap();
+        let header = |bytes: &[u8]| read_header(std::io::Cursor::new(bytes)).unwrap();
+        let whole = header(&jpeg);
+        assert_eq!(
+            (whole.width, whole.height, whole.truncated),
+            (256, 192, false)
+        );
+        let mut padded = jpeg.clone();
+        padded.extend_from_slice(&[0u8; 100]);
+        assert!(!header(&padded).truncated);
+        for cut in [jpeg.len() - 2, jpeg.len() / 2] {
+            let h = header(&jpeg[..cut]);
+            assert!(h.truncated, "cut at {cut} of {}", jpeg.len());
+            assert_eq!(
+                (h.width, h.height),
+                (256, 192),
+                "the header itself is intact"
+            );
+        }
+    }
+
+    #[test]
     fn png_header_and_16_bit_rounding() {
         let mut img = image::ImageBuffer::<image::Rgb<u16>, _>::new(3, 2);
         img.put_pixel(0, 0, image::Rgb([0, 128, 65535]));
@@ -400,7 +455,8 @@ mod tests {
                 width: 3,
                 height: 2,
                 has_alpha: false,
-                color: "Rgb16".into()
+                color: "Rgb16".into(),
+                truncated: false,
             }
         );
         let src = ImageSource {

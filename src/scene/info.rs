@@ -375,12 +375,13 @@ impl fmt::Display for SceneInfo {
         let r = &self.report;
         writeln!(
             f,
-            "  import: {} warnings, {} skipped primitives, {} skipped triangles, {} missing images, {} primitives \
-             without their TEXCOORD, {} triangles with huge UVs",
+            "  import: {} warnings, {} skipped primitives, {} skipped triangles, {} missing images, {} truncated \
+             JPEGs, {} primitives without their TEXCOORD, {} triangles with huge UVs",
             r.warnings_total,
             r.skipped_primitives,
             r.skipped_triangles,
             r.missing_images,
+            r.truncated_images,
             r.missing_texcoords,
             r.large_uv_triangles
         )?;

@@ -131,6 +131,8 @@ pub struct ImportReport {
     pub skipped_primitives: u64,
     pub skipped_triangles: u64,
     pub missing_images: u64,
+    /// JPEG images whose data ends without an end-of-image marker (likely truncated; drawn as decoded).
+    pub truncated_images: u64,
     /// Primitives whose material has a base colour texture on a `TEXCOORD_n` the primitive lacks (drawn
     /// with a solid image of the material's factor instead).
     pub missing_texcoords: u64,

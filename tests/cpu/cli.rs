@@ -343,6 +343,14 @@ fn build_reports_what_the_import_replaced() {
         img["uri"] = serde_json::json!(abs.display().to_string());
     }
     doc["images"][0]["uri"] = serde_json::json!("missing.png");
+    // A JPEG cut to a third (a broken download): drawn as it decodes, and reported.
+    let jpeg = (doc["images"].as_array().unwrap().iter())
+        .position(|i| i["uri"].as_str().unwrap().ends_with(".jpg"))
+        .unwrap();
+    let whole = std::fs::read(doc["images"][jpeg]["uri"].as_str().unwrap()).unwrap();
+    let cut = dir.path().join("cut.jpg");
+    std::fs::write(&cut, &whole[..whole.len() / 3]).unwrap();
+    doc["images"][jpeg]["uri"] = serde_json::json!(cut.display().to_string());
     std::fs::copy(city.join("scene.bin"), dir.path().join("scene.bin")).unwrap();
     let path = dir.path().join("scene.gltf");
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
@@ -355,12 +363,19 @@ fn build_reports_what_the_import_replaced() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
         stdout.contains(
-            "  import: 1 warnings: 1 missing images (drawn with the magenta/black checker), 0 primitives and 0 \
-             triangles skipped"
+            "  import: 2 warnings: 1 missing images (drawn with the magenta/black checker), 1 truncated JPEGs, 0 \
+             primitives and 0 triangles skipped"
         ),
         "{stdout}"
     );
     assert!(stdout.contains("missing.png"), "{stdout}");
+    assert!(
+        stdout.contains(&format!(
+            "({}): the JPEG data ends without its end-of-image marker (a truncated file?)",
+            cut.display()
+        )),
+        "{stdout}"
+    );
     let report = build_json(&out, &[]);
     assert_eq!(
         report["import"]["missing_images"], 0,
@@ -380,7 +395,8 @@ fn build_reports_what_the_import_replaced() {
         .arg(&path));
     let report = json(&o);
     assert_eq!(report["import"]["missing_images"], 1);
-    assert_eq!(report["import"]["warnings_total"], 1);
+    assert_eq!(report["import"]["truncated_images"], 1);
+    assert_eq!(report["import"]["warnings_total"], 2);
 }
 
 #[test]

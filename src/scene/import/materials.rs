@@ -319,7 +319,17 @@ pub(super) fn image_or_fallback(
 ) -> ImageSource {
     let (name, loaded) = buffers.load_image(img);
     let mut source = match loaded {
-        Ok(src) => src,
+        Ok((src, truncated)) => {
+            if truncated {
+                report.truncated_images += 1;
+                report.warn(format!(
+                    "{file}: image {} ({name}): the JPEG data ends without its end-of-image marker (a \
+                     truncated file?); what decodes is drawn, the rest as the decoder fills it",
+                    img.index()
+                ));
+            }
+            src
+        }
         Err(reason) => {
             report.missing_images += 1;
             report.warn(format!(

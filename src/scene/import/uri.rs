@@ -159,7 +159,7 @@ impl<'a> Buffers<'a> {
     pub(super) fn load_image(
         &mut self,
         img: &gltf::Image,
-    ) -> (String, Result<ImageSource, String>) {
+    ) -> (String, Result<(ImageSource, bool), String>) {
         // `gltf::Image::source` unwraps `mimeType`/`uri`, which validation does not guarantee: read
         // the JSON fields directly.
         let json = self.doc.as_json().images.get(img.index());
@@ -196,14 +196,17 @@ impl<'a> Buffers<'a> {
                         image_source::read_header(std::io::BufReader::new(f))
                             .map_err(|e| format!("{}: {e}", path.display()))
                     })
-                    .map(|h| ImageSource {
-                        name: name.clone(),
-                        width: h.width,
-                        height: h.height,
-                        has_alpha: h.has_alpha,
-                        color: h.color,
-                        data: ImageData::File(path.clone()),
-                        gltf_image: None,
+                    .map(|h| {
+                        let source = ImageSource {
+                            name: name.clone(),
+                            width: h.width,
+                            height: h.height,
+                            has_alpha: h.has_alpha,
+                            color: h.color,
+                            data: ImageData::File(path.clone()),
+                            gltf_image: None,
+                        };
+                        (source, h.truncated)
                     });
                 (name, res)
             }
@@ -229,10 +232,11 @@ enum ImgSrc<'a> {
     Uri(&'a str),
 }
 
-/// Header of encoded bytes → an `ImageSource` keeping the bytes.
-fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<ImageSource, String> {
+/// Header of encoded bytes → an `ImageSource` keeping the bytes, and whether they look truncated
+/// ([`image_source::ImageHeader::truncated`]).
+fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<(ImageSource, bool), String> {
     let h = image_source::read_header(std::io::Cursor::new(&bytes[..]))?;
-    Ok(ImageSource {
+    let source = ImageSource {
         name: name.to_string(),
         width: h.width,
         height: h.height,
@@ -240,7 +244,8 @@ fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<ImageSource, String> {
         color: h.color,
         data: ImageData::Bytes(bytes),
         gltf_image: None,
-    })
+    };
+    Ok((source, h.truncated))
 }
 
 /// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).
