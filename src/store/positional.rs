@@ -1,6 +1,7 @@
 //! Positional file I/O, the one pair every store reader and writer uses: `pread`/`pwrite` on unix
 //! (threads share one file without a lock), seek + read/write elsewhere (callers that share a file between
-//! threads there hold a lock: [`super::FileWriter`] does).
+//! threads there hold a lock: [`super::FileWriter`] does); and [`reserve`], which claims a new file's whole
+//! length on its filesystem before the first block is written.
 
 use std::fs::File;
 
