@@ -6,7 +6,10 @@
 //! ([`AlphaMode`]) and `baseColorFactor` (linear RGBA); its `KHR_texture_transform`, read in f64 from the
 //! raw JSON, is returned as a [`UvTransform`] for the geometry to bake into the UVs. A material without a
 //! texture, or whose `texCoord` set the primitive lacks, gets a deduplicated 1×1 image of its factor
-//! encoded as sRGB8 ([`srgb8`]) and the UV (0.5, 0.5). A texture draws the image its `EXT_texture_webp`
+//! encoded as sRGB8 ([`srgb8`]) and the UV (0.5, 0.5). A `KHR_materials_pbrSpecularGlossiness` material
+//! without a metal-rough base colour texture uses its diffuse texture and factor instead (with a base
+//! colour texture, or with a metal-rough block and no diffuse texture, the metal-rough values are its own
+//! fallback and are used). A texture draws the image its `EXT_texture_webp`
 //! names where it names one (PNG, JPEG and WebP all decode), else its core `source`. glTF images are
 //! deduplicated by index; one that cannot be read, or a texture that names none, is replaced by the
 //! fallback checker and counted.
@@ -27,6 +30,19 @@ use std::collections::HashMap;
 #[serde(rename_all = "camelCase")]
 pub(super) struct RawMaterial {
     pbr_metallic_roughness: Option<RawPbr>,
+    extensions: Option<RawMaterialExt>,
+}
+
+#[derive(Deserialize, Default)]
+struct RawMaterialExt {
+    #[serde(rename = "KHR_materials_pbrSpecularGlossiness")]
+    spec_gloss: Option<RawSpecGloss>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "camelCase")]
+struct RawSpecGloss {
+    diffuse_texture: Option<RawTexInfo>,
 }
 
 #[derive(Deserialize, Default)]
@@ -167,13 +183,31 @@ impl<'a> Materials<'a> {
         let gm = prim.material();
         let index = gm.index();
         let pbr = gm.pbr_metallic_roughness();
-        let raw_tt = index
-            .and_then(|i| self.raw.get(i))
-            .and_then(|m| m.pbr_metallic_roughness.as_ref())
-            .and_then(|p| p.base_color_texture.as_ref())
+        let raw = index.and_then(|i| self.raw.get(i));
+        // A material of the (archived, still common) specular-glossiness workflow without a metal-rough
+        // base colour texture draws its diffuse texture and factor, not the default white: the colour
+        // its author saw. Where it has both, the metal-rough one is its own fallback and is used.
+        let diffuse = gm.pbr_specular_glossiness().filter(|sg| {
+            pbr.base_color_texture().is_none()
+                && (sg.diffuse_texture().is_some()
+                    || raw.is_some_and(|m| m.pbr_metallic_roughness.is_none()))
+        });
+        let raw_info = match diffuse {
+            Some(_) => raw
+                .and_then(|m| m.extensions.as_ref())
+                .and_then(|e| e.spec_gloss.as_ref())
+                .and_then(|sg| sg.diffuse_texture.as_ref()),
+            None => raw
+                .and_then(|m| m.pbr_metallic_roughness.as_ref())
+                .and_then(|p| p.base_color_texture.as_ref()),
+        };
+        let raw_tt = raw_info
             .and_then(|t| t.extensions.as_ref())
             .and_then(|e| e.texture_transform);
-        let tex = pbr.base_color_texture();
+        let tex = match &diffuse {
+            Some(sg) => sg.diffuse_texture(),
+            None => pbr.base_color_texture(),
+        };
         let set = tex
             .as_ref()
             .map(|info| raw_tt.and_then(|t| t.tex_coord).unwrap_or(info.tex_coord()));
@@ -195,7 +229,7 @@ impl<'a> Materials<'a> {
             let uv = self.uv.get(id.idx()).copied().unwrap_or(UvSource::Solid);
             return (id, uv);
         }
-        let factor = pbr.base_color_factor();
+        let factor = diffuse.map_or(pbr.base_color_factor(), |sg| sg.diffuse_factor());
         let alpha = match gm.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             gltf::material::AlphaMode::Mask => AlphaMode::Mask {

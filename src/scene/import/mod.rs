@@ -53,6 +53,7 @@ pub(super) const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
     "EXT_mesh_gpu_instancing",
     "KHR_materials_unlit",
     "EXT_texture_webp",
+    "KHR_materials_pbrSpecularGlossiness",
 ];
 
 /// Import options.

@@ -1,6 +1,8 @@
-//! `EXT_texture_webp`: WebP images decode, a texture's WebP source is the image it draws (with or without
-//! a PNG/JPEG `source` beside it), the extension may be required, and a texture naming no image at all is
-//! a counted fallback, not an error.
+//! Texture and material extensions of real files: `EXT_texture_webp` (WebP images decode, a texture's
+//! WebP source is the image it draws, with or without a PNG/JPEG `source` beside it, the extension may be
+//! required, and a texture naming no image at all is a counted fallback, not an error) and
+//! `KHR_materials_pbrSpecularGlossiness` (a material without a metal-rough base colour draws its diffuse
+//! texture and factor).
 
 use atlastree::scene::{ImportOptions, import};
 use serde_json::{Value, json};
@@ -112,4 +114,43 @@ fn a_texture_naming_no_image_is_a_counted_fallback() {
         scene.report.warnings
     );
     assert_eq!(roof_0_image(&scene).color, "Fallback");
+}
+
+#[test]
+fn a_specular_glossiness_material_draws_its_diffuse_texture_and_factor() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut doc, _) = city_with_webp(dir.path());
+    let roof = (doc["materials"].as_array().unwrap().iter())
+        .position(|m| m["name"] == "roof_0")
+        .unwrap();
+    let base = doc["materials"][roof]["pbrMetallicRoughness"]["baseColorTexture"].clone();
+    let plain = import_doc(dir.path(), &doc);
+    let (_, plain_pixels) = first_material_pixels(&plain);
+
+    // Diffuse texture only (no pbrMetallicRoughness): the texture is drawn, not the default white.
+    let m = &mut doc["materials"][roof];
+    m.as_object_mut().unwrap().remove("pbrMetallicRoughness");
+    m["extensions"] = json!({"KHR_materials_pbrSpecularGlossiness": {"diffuseTexture": base}});
+    doc["extensionsUsed"] = json!(["KHR_materials_pbrSpecularGlossiness"]);
+    doc["extensionsRequired"] = json!(["KHR_materials_pbrSpecularGlossiness"]);
+    let spec = import_doc(dir.path(), &doc);
+    let (name, pixels) = first_material_pixels(&spec);
+    assert!(name.ends_with("roof_0.png"), "{name}");
+    assert_eq!(pixels, plain_pixels);
+
+    // A diffuse factor alone: a solid image of that colour (sRGB8 of linear 0.5 red is 188).
+    doc["materials"][roof]["extensions"] =
+        json!({"KHR_materials_pbrSpecularGlossiness": {"diffuseFactor": [0.5, 0.0, 0.0, 1.0]}});
+    let solid = import_doc(dir.path(), &doc);
+    let (_, pixels) = first_material_pixels(&solid);
+    assert_eq!(pixels, vec![[188, 0, 0, 255]]);
+
+    // Both workflows: the metal-rough base colour is the material's own fallback and is drawn.
+    doc["materials"][roof]["pbrMetallicRoughness"] =
+        json!({"baseColorFactor": [0.0, 0.0, 1.0, 1.0]});
+    doc["materials"][roof]["extensions"] = json!({"KHR_materials_pbrSpecularGlossiness": {
+        "diffuseFactor": [0.5, 0.0, 0.0, 1.0]}});
+    let both = import_doc(dir.path(), &doc);
+    let (_, pixels) = first_material_pixels(&both);
+    assert_eq!(pixels, vec![[0, 0, 255, 255]]);
 }
