@@ -19,6 +19,45 @@ use std::path::{Path, PathBuf};
 pub struct AtomicFile {
     target: PathBuf,
     temp: tempfile::NamedTempFile,
+    /// Dropped after `temp` (declaration order): the temp file is removed, then forgotten.
+    _live: LiveTemp,
+}
+
+/// The temp files of this process's live [`AtomicFile`]s, for [`remove_live_temps`].
+static LIVE_TEMPS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn live_temps() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// One entry of [`LIVE_TEMPS`], removed when the [`AtomicFile`] holding it goes (committed or dropped).
+struct LiveTemp(PathBuf);
+
+impl LiveTemp {
+    fn register(path: &Path) -> LiveTemp {
+        live_temps().push(path.to_path_buf());
+        LiveTemp(path.to_path_buf())
+    }
+}
+
+impl Drop for LiveTemp {
+    fn drop(&mut self) {
+        let mut live = live_temps();
+        if let Some(i) = live.iter().position(|p| *p == self.0) {
+            live.swap_remove(i);
+        }
+    }
+}
+
+/// Removes the temp file of every [`AtomicFile`] of this process not yet committed; returns how many. For a
+/// handler of Ctrl-C or SIGTERM (a scheduler cancelling a job) that then ends the process, so an
+/// interrupted build leaves no temp file (a killed one, SIGKILL, still leaves its temp to the next
+/// [`AtomicFile::create`] of the same target: [`remove_stale_temps`]).
+pub fn remove_live_temps() -> usize {
+    live_temps()
+        .iter()
+        .filter(|p| std::fs::remove_file(p).is_ok())
+        .count()
 }
 
 /// The directory `path` lives in (`.` for a bare name).
@@ -100,9 +139,11 @@ impl AtomicFile {
         let temp = builder.tempfile_in(parent_dir(target))?;
         // Best effort: where advisory locks are unsupported the pid alone guards the temp.
         let _ = temp.as_file().try_lock();
+        let live = LiveTemp::register(temp.path());
         Ok(AtomicFile {
             target: target.to_path_buf(),
             temp,
+            _live: live,
         })
     }
 
@@ -126,7 +167,7 @@ impl AtomicFile {
     /// is untouched.
     pub fn commit(self) -> std::io::Result<()> {
         self.temp.as_file().sync_all()?;
-        let AtomicFile { target, temp } = self;
+        let AtomicFile { target, temp, .. } = self;
         temp.persist(&target).map_err(|e| e.error)?;
         sync_dir(parent_dir(&target))
     }

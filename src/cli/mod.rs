@@ -110,6 +110,14 @@ pub(crate) fn init_tracing() {
 
 pub(crate) fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
+    if !matches!(cli.command, Command::Serve(_)) {
+        // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process with 130 and no temp file
+        // left (a paging file's is its whole length, reserved up front). `serve` handles Ctrl-C itself.
+        let _ = ctrlc::set_handler(|| {
+            atlastree::util::remove_live_temps();
+            std::process::exit(130);
+        });
+    }
     match cli.command {
         Command::Demo(a) => demo::run(a),
         Command::SceneInfo(a) => scene_info::run(a),

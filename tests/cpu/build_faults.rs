@@ -151,6 +151,40 @@ fn killed_build_leaves_nothing_or_the_whole_file_and_the_next_build_succeeds() {
     );
 }
 
+/// Ctrl-C or SIGTERM (a scheduler cancelling a job) while the paging file is being written: the process
+/// ends with 130 and removes its temp file itself (a SIGKILLed one leaves it to the next build, above),
+/// and no output appears. The build is BC7 so it is still writing when the signal comes.
+#[test]
+fn interrupted_build_removes_its_temp_file_and_exits_130() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    for signal in ["-INT", "-TERM"] {
+        let mut child = build_cmd(&out)
+            .args(["--compress", "bc7"])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let started = std::time::Instant::now();
+        while temps(&out).is_empty() {
+            assert!(
+                started.elapsed() < std::time::Duration::from_secs(60),
+                "no temp file within 60 s"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        let sent = Command::new("kill")
+            .arg(signal)
+            .arg(child.id().to_string())
+            .status()
+            .unwrap();
+        assert!(sent.success(), "kill {signal}");
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(130), "{signal}: {status}");
+        assert_eq!(temps(&out), Vec::<String>::new(), "{signal}: temp left");
+        assert!(!out.exists(), "{signal}: an output appeared");
+    }
+}
+
 /// Runs the build under `ulimit -f 1024` (1 MiB or 512 KiB, by the shell's unit) with SIGXFSZ ignored, so
 /// the write fails with EFBIG instead of the process being killed.
 fn build_limited(out: &Path) -> Output {
