@@ -174,7 +174,7 @@ pub enum StoreError {
     #[error("the paging file is little-endian; this target is big-endian")]
     BigEndian,
     /// The output's filesystem cannot hold the file: found when its space is reserved, before any block is
-    /// written ([`positional::reserve`]); the temp file is removed and nothing appears at `target`.
+    /// written ([`positional::size_and_reserve`]); the temp file is removed and nothing appears at `target`.
     #[error(
         "{target}: the new file needs {needed} bytes ({needed_h}) on its filesystem, only {available} ({available_h}) \
          are free: free space there or choose another output (an existing file is replaced only after the new one \

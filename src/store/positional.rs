@@ -1,6 +1,6 @@
 //! Positional file I/O, the one pair every store reader and writer uses: `pread`/`pwrite` on unix
 //! (threads share one file without a lock), seek + read/write elsewhere (callers that share a file between
-//! threads there hold a lock: [`super::FileWriter`] does); and [`reserve`], which claims a new file's whole
+//! threads there hold a lock: [`super::FileWriter`] does); and [`size_and_reserve`], which sizes a new file and claims its whole
 //! length on its filesystem before the first block is written.
 
 use std::fs::File;
@@ -36,25 +36,31 @@ pub(super) fn write_all_at(file: &File, bytes: &[u8], offset: u64) -> std::io::R
     }
 }
 
-/// Reserves the first `len` bytes of `file` (`temp`, the temp file of `target`) on its filesystem before any
+/// Sizes `file` (`temp`, the temp file of `target`) to `len` bytes and reserves them on its filesystem before any
 /// block is written, so an output whose disk is too small fails at once with both sizes
 /// ([`super::StoreError::NoSpace`]) instead of after the pixel pass, and a build that started cannot
 /// run out of space half-way. Reserved bytes read as zeros, as the sized file's holes did, so the file is
 /// the same. A filesystem that cannot reserve (some network filesystems: `fallocate` unsupported) is
 /// left to report a full disk when a write fails, as before.
-pub(super) fn reserve(
+pub(super) fn size_and_reserve(
     file: &File,
     len: u64,
     target: &std::path::Path,
     temp: &std::path::Path,
 ) -> Result<(), super::StoreError> {
     use fs4::FileExt;
+    file.set_len(len)
+        .map_err(|source| super::StoreError::Write {
+            target: target.to_path_buf(),
+            temp: temp.to_path_buf(),
+            source,
+        })?;
     // Measured before reserving: a failed reservation may hold part of the space until the temp file goes.
     let available = fs4::available_space(crate::util::parent_dir(temp));
     reservation_outcome(file.allocate(len), len, available, target, temp)
 }
 
-/// What a reservation of `len` bytes that ended in `result` means for the write ([`reserve`]): a full
+/// What a reservation of `len` bytes that ended in `result` means for the write ([`size_and_reserve`]): a full
 /// disk is [`super::StoreError::NoSpace`] with `available` (the free bytes measured before it), a
 /// filesystem that cannot reserve is no error, any other failure is a write error.
 fn reservation_outcome(
@@ -125,8 +131,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("f");
         let file = File::create(&path).unwrap();
-        file.set_len(1 << 20).unwrap();
-        reserve(&file, 1 << 20, &path, &path).unwrap();
-        assert!(file.metadata().unwrap().blocks() * 512 >= 1 << 20);
+        size_and_reserve(&file, 1 << 20, &path, &path).unwrap();
+        let meta = file.metadata().unwrap();
+        assert_eq!(meta.len(), 1 << 20);
+        assert!(meta.blocks() * 512 >= 1 << 20);
     }
 }

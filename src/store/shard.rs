@@ -215,8 +215,7 @@ impl ShardWriter {
             handoffs,
             head,
         };
-        w.temp.file().set_len(at).map_err(|e| w.temp_err(e))?;
-        super::positional::reserve(w.temp.file(), at, path, w.temp.temp_path())?;
+        super::positional::size_and_reserve(w.temp.file(), at, path, w.temp.temp_path())?;
         Ok(w)
     }
 

@@ -530,9 +530,13 @@ impl FileWriter {
             temp,
             lock: Mutex::new(()),
         };
-        let file = writer.temp.file();
-        file.set_len(file_len).map_err(|e| writer.temp_err(e))?;
-        super::positional::reserve(file, file_len, &writer.target, writer.temp.temp_path())?;
+        let temp = &writer.temp;
+        super::positional::size_and_reserve(
+            temp.file(),
+            file_len,
+            &writer.target,
+            temp.temp_path(),
+        )?;
         Ok(writer)
     }
 
@@ -714,11 +718,9 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
             what,
         });
     }
-    let meta = match std::fs::metadata(path) {
-        Ok(meta) => meta,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        // Unreadable metadata: the write itself reports the error with its own context.
-        Err(_) => return Ok(()),
+    // Absent, or metadata unreadable (the write itself then reports the error with its own context).
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(());
     };
     if meta.is_dir() {
         return Err(refuse("a directory".to_string()));

@@ -196,18 +196,7 @@ impl<'a> Buffers<'a> {
                         image_source::read_header(std::io::BufReader::new(f))
                             .map_err(|e| format!("{}: {e}", path.display()))
                     })
-                    .map(|h| {
-                        let source = ImageSource {
-                            name: name.clone(),
-                            width: h.width,
-                            height: h.height,
-                            has_alpha: h.has_alpha,
-                            color: h.color,
-                            data: ImageData::File(path.clone()),
-                            gltf_image: None,
-                        };
-                        (source, h.truncated)
-                    });
+                    .map(|h| from_header(&name, h, ImageData::File(path.clone())));
                 (name, res)
             }
             ImgSrc::View(view) => {
@@ -232,20 +221,25 @@ enum ImgSrc<'a> {
     Uri(&'a str),
 }
 
-/// Header of encoded bytes → an `ImageSource` keeping the bytes, and whether they look truncated
-/// ([`image_source::ImageHeader::truncated`]).
+/// Header of encoded bytes → an `ImageSource` keeping the bytes ([`from_header`]).
 fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<(ImageSource, bool), String> {
     let h = image_source::read_header(std::io::Cursor::new(&bytes[..]))?;
+    Ok(from_header(name, h, ImageData::Bytes(bytes)))
+}
+
+/// The `ImageSource` named `name` that header `h` describes, its pixels in `data`, and whether they look
+/// truncated ([`image_source::ImageHeader::truncated`]).
+fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> (ImageSource, bool) {
     let source = ImageSource {
         name: name.to_string(),
         width: h.width,
         height: h.height,
         has_alpha: h.has_alpha,
         color: h.color,
-        data: ImageData::Bytes(bytes),
+        data,
         gltf_image: None,
     };
-    Ok((source, h.truncated))
+    (source, h.truncated)
 }
 
 /// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).
