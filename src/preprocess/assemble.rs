@@ -5,7 +5,7 @@
 
 use super::layout::{LayoutKind, LayoutNode, LeafLayout};
 use super::originals::{MAX_BLOCK_WASTE, OriginalItem, group_by_users};
-use super::prepare::TriInfo;
+use super::prepare::{TriInfo, walk};
 use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
 use crate::model::{
     AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind,
@@ -390,8 +390,7 @@ fn leaf_geometry(infos: &[TriInfo], order: &[u32], job: &GeometryJob) -> LeafGeo
         hulls: vec![(DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)); job.rects],
     };
     let mut dedup: FxHashMap<[u32; 8], u32> = FxHashMap::default();
-    for &ti in tris {
-        let t = &infos[ti as usize];
+    for t in walk(infos, tris) {
         let ri = job.rect_of[&(t.material, t.class)];
         let hull = &mut out.hulls[ri as usize];
         for uv in t.uv.iter().filter(|uv| uv.is_finite()) {

@@ -183,8 +183,7 @@ impl Scratch {
         let mut exact = true;
         let mut out = Vec::with_capacity(items.len() + 1);
         out.push(0);
-        for &i in items {
-            let t = &infos[i as usize];
+        for t in super::prepare::walk(infos, items) {
             let m = t.material.idx();
             if m < materials {
                 if self.stamp[m] != self.call {

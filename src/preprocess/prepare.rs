@@ -41,6 +41,26 @@ impl TriInfo {
     }
 }
 
+/// How many records ahead of its use [`walk`] prefetches: enough to cover a memory latency (~100 ns)
+/// at the few ns a pass spends per triangle.
+pub const PREFETCH_AHEAD: usize = 16;
+
+/// `infos[i]` for every `i` of `items`, in order, each record prefetched [`PREFETCH_AHEAD`] items
+/// before it is used. The layout visits a node's triangles in midpoint order, which is random in memory:
+/// without the hint its passes wait on ~3 cache misses a triangle (`perf annotate` of the demand pass:
+/// ~80 % of its samples on the loads of `material`, `uv` and `size`).
+pub fn walk<'a>(infos: &'a [TriInfo], items: &'a [u32]) -> impl Iterator<Item = &'a TriInfo> + 'a {
+    items.iter().enumerate().map(move |(k, &i)| {
+        if let Some(ahead) = items
+            .get(k + PREFETCH_AHEAD)
+            .and_then(|&a| infos.get(a as usize))
+        {
+            crate::util::prefetch(ahead);
+        }
+        &infos[i as usize]
+    })
+}
+
 /// Density class of triangles without a density (constant UVs, world-degenerate).
 pub const POINT_CLASS: i32 = i32::MIN;
 
@@ -242,6 +262,34 @@ mod tests {
             tessellate(p, [DVec2::NAN; 3], 48.0, 48.0, 256.0, 4096).len(),
             1
         );
+    }
+
+    #[test]
+    fn walk_yields_the_records_of_the_items_in_their_order() {
+        let info = |k: u32| TriInfo {
+            scene_tri: k,
+            pos: [DVec3::splat(f64::from(k)); 3],
+            material: crate::ids::MaterialId(0),
+            mid: DVec2::ZERO,
+            class: 0,
+            area: 0.0,
+            size: SizeEstimate {
+                w: 0.0,
+                h: 0.0,
+                method: SizeMethod::AllUvEqual,
+            },
+            uv: [DVec2::ZERO; 3],
+        };
+        let infos: Vec<TriInfo> = (0..100).map(info).collect();
+        // Shorter and longer than the prefetch distance; repeats and any order.
+        for items in [
+            vec![],
+            vec![7, 7, 3],
+            (0..100).rev().chain(0..40).collect::<Vec<u32>>(),
+        ] {
+            let walked: Vec<u32> = walk(&infos, &items).map(|t| t.scene_tri).collect();
+            assert_eq!(walked, items);
+        }
     }
 
     #[test]

@@ -167,8 +167,7 @@ fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
     let fold = |run: &[u32]| {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for &i in run {
-            let t = &infos[i as usize];
+        for t in super::prepare::walk(infos, run) {
             lo = lo.min(t.lo());
             hi = hi.max(t.hi());
         }

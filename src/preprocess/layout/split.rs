@@ -7,7 +7,7 @@
 //! and is kept inside `1..n`, so every group of a node with ≥ 2 triangles is smaller than the node.
 
 use crate::preprocess::demand::{DemandModel, prefix_demands_exact};
-use crate::preprocess::prepare::TriInfo;
+use crate::preprocess::prepare::{TriInfo, walk};
 use serde::Serialize;
 
 /// What the split of §5.3 balances.
@@ -43,28 +43,31 @@ pub const MIDPOINT_BITS: i32 = 24;
 /// triangles still separate them.
 pub fn midpoint_keys(infos: &[TriInfo], items: &[u32], axis: usize) -> Vec<i64> {
     use rayon::prelude::*;
-    let mid = |&i: &u32| infos[i as usize].mid[axis];
+    fn along<'a>(
+        infos: &'a [TriInfo],
+        run: &'a [u32],
+        axis: usize,
+    ) -> impl Iterator<Item = f64> + 'a {
+        walk(infos, run).map(move |t| t.mid[axis])
+    }
+    let mids = |run| along(infos, run, axis);
     let range = |(a, b): (f64, f64), m: f64| (a.min(m), b.max(m));
     let empty = (f64::INFINITY, f64::NEG_INFINITY);
-    // Min and max are exact in any order; the keys are per item.
+    // Min and max are exact in any order; the keys are per item (collected in item order).
     if items.len() >= PAR_ITEMS {
         let (lo, hi) = items
-            .par_iter()
-            .map(mid)
-            .fold(|| empty, range)
+            .par_chunks(PAR_CHUNK)
+            .map(|run| mids(run).fold(empty, range))
             .reduce(|| empty, |(a, b), (c, d)| (a.min(c), b.max(d)));
         let q = key_quantum(hi - lo);
         return items
-            .par_iter()
-            .map(|i| ((mid(i) - lo) / q).floor() as i64)
+            .par_chunks(PAR_CHUNK)
+            .flat_map_iter(|run| mids(run).map(move |m| ((m - lo) / q).floor() as i64))
             .collect();
     }
-    let (lo, hi) = items.iter().map(mid).fold(empty, range);
+    let (lo, hi) = mids(items).fold(empty, range);
     let q = key_quantum(hi - lo);
-    items
-        .iter()
-        .map(|i| ((mid(i) - lo) / q).floor() as i64)
-        .collect()
+    mids(items).map(|m| ((m - lo) / q).floor() as i64).collect()
 }
 
 /// The key quantum of [`midpoint_keys`] for midpoints spanning `extent`.
@@ -79,6 +82,9 @@ fn key_quantum(extent: f64) -> f64 {
 /// Items from which a cut sorts and walks its demand passes on the rayon pool (the results are the same
 /// either way; below this the tasks cost more than they save).
 const PAR_ITEMS: usize = 1 << 15;
+
+/// Items per task of the parallel passes over a big node.
+const PAR_CHUNK: usize = 1 << 14;
 
 /// Splits triangle sets in four by texel demand (paper §5.3 with condition (b) itself).
 pub struct Splitter<'a> {
@@ -132,23 +138,15 @@ impl Splitter<'_> {
 
     /// [`Splitter::cut_sorted`], with the demands of both sides under [`SplitRule::Demand`].
     fn cut(&self, items: &mut [u32], axis: usize) -> (usize, Option<CutDemands>) {
-        use rayon::prelude::*;
         let n = items.len();
         let big = n >= PAR_ITEMS;
-        let mut order: Vec<(i64, u32)> = Vec::new();
-        if n > 1 {
-            let keys = midpoint_keys(self.infos, items, axis);
-            order = keys.into_iter().zip(items.iter().copied()).collect();
-            // (key, index) pairs are distinct: every sort gives the one order.
-            if big {
-                order.par_sort_unstable();
-            } else {
-                order.sort_unstable();
-            }
-            for (slot, &(_, it)) in items.iter_mut().zip(&order) {
-                *slot = it;
-            }
-        }
+        let order = if n > 1 {
+            let order = SortedKeys::sort(midpoint_keys(self.infos, items, axis), items, big);
+            order.write_items(items);
+            order
+        } else {
+            SortedKeys::Packed(Vec::new())
+        };
         // Demand rule: the demand of every prefix walked forwards and of every suffix walked backwards
         // (two independent passes: side by side on big nodes).
         let sides = (self.rule == SplitRule::Demand).then(|| {
@@ -168,8 +166,8 @@ impl Splitter<'_> {
         let mut areas = Vec::new();
         if sides.is_none() {
             areas.push(0.0f64);
-            for &it in items.iter() {
-                areas.push(areas[areas.len() - 1] + self.infos[it as usize].area);
+            for t in walk(self.infos, items) {
+                areas.push(areas[areas.len() - 1] + t.area);
             }
         }
         let half = 0.5 * areas.last().copied().unwrap_or(0.0);
@@ -179,7 +177,7 @@ impl Splitter<'_> {
         };
         let mut best: Option<(f64, usize, usize)> = None;
         for k in 1..n {
-            if order[k - 1].0 == order[k].0 {
+            if order.same_key(k) {
                 continue;
             }
             let cost = cost_of(k);
@@ -201,6 +199,70 @@ impl Splitter<'_> {
             exact,
         });
         (k, demands)
+    }
+}
+
+/// A node's items sorted by (midpoint key, index): the pairs are distinct, so every sort gives the one
+/// order. Keys in `0..2³²` (always, but for midpoint extents near the smallest f64, see [`key_quantum`])
+/// are sorted packed with their index into one `u64` (`key << 32 | index`: the same order, half the bytes
+/// to move); other keys as `(i64, u32)` pairs.
+enum SortedKeys {
+    Packed(Vec<u64>),
+    Wide(Vec<(i64, u32)>),
+}
+
+impl SortedKeys {
+    fn sort(keys: Vec<i64>, items: &[u32], big: bool) -> SortedKeys {
+        use rayon::prelude::*;
+        if keys.iter().all(|&k| u32::try_from(k).is_ok()) {
+            let mut packed: Vec<u64> = keys
+                .iter()
+                .zip(items)
+                .map(|(&k, &i)| ((k as u64) << 32) | u64::from(i))
+                .collect();
+            if big {
+                packed.par_sort_unstable();
+            } else {
+                packed.sort_unstable();
+            }
+            return SortedKeys::Packed(packed);
+        }
+        SortedKeys::wide(keys, items, big)
+    }
+
+    fn wide(keys: Vec<i64>, items: &[u32], big: bool) -> SortedKeys {
+        use rayon::prelude::*;
+        let mut pairs: Vec<(i64, u32)> = keys.into_iter().zip(items.iter().copied()).collect();
+        if big {
+            pairs.par_sort_unstable();
+        } else {
+            pairs.sort_unstable();
+        }
+        SortedKeys::Wide(pairs)
+    }
+
+    /// Writes the items in sorted order.
+    fn write_items(&self, items: &mut [u32]) {
+        match self {
+            SortedKeys::Packed(p) => {
+                for (slot, &v) in items.iter_mut().zip(p) {
+                    *slot = v as u32;
+                }
+            }
+            SortedKeys::Wide(p) => {
+                for (slot, &(_, i)) in items.iter_mut().zip(p) {
+                    *slot = i;
+                }
+            }
+        }
+    }
+
+    /// Whether sorted positions `k − 1` and `k` share their key (`1 ≤ k < n`).
+    fn same_key(&self, k: usize) -> bool {
+        match self {
+            SortedKeys::Packed(p) => p[k - 1] >> 32 == p[k] >> 32,
+            SortedKeys::Wide(p) => p[k - 1].0 == p[k].0,
+        }
     }
 }
 
@@ -266,6 +328,34 @@ mod tests {
             rule: SplitRule::Demand,
         }
         .split4(items)
+    }
+
+    #[test]
+    fn packed_and_wide_sorts_give_one_order() {
+        let mut rng = crate::util::XorShift64::new(7);
+        for n in [2usize, 17, 1000, PAR_ITEMS + 3] {
+            let keys: Vec<i64> = (0..n).map(|_| (rng.next_u64() % 300) as i64).collect();
+            let items: Vec<u32> = (0..n as u32)
+                .map(|i| i.wrapping_mul(2_654_435_761) % 1_000_003)
+                .collect();
+            let packed = SortedKeys::sort(keys.clone(), &items, n >= PAR_ITEMS);
+            assert!(matches!(packed, SortedKeys::Packed(_)));
+            let wide = SortedKeys::wide(keys, &items, false);
+            let (mut a, mut b) = (items.clone(), items.clone());
+            packed.write_items(&mut a);
+            wide.write_items(&mut b);
+            assert_eq!(a, b, "n = {n}");
+            for k in 1..n {
+                assert_eq!(packed.same_key(k), wide.same_key(k), "n = {n}, k = {k}");
+            }
+        }
+        // A key beyond u32 (an underflowed quantum) takes the wide path, in (key, index) order.
+        let order = SortedKeys::sort(vec![5, i64::MAX, 5, 0], &[3, 2, 1, 0], false);
+        assert!(matches!(order, SortedKeys::Wide(_)));
+        let mut items = [3, 2, 1, 0];
+        order.write_items(&mut items);
+        assert_eq!(items, [0, 1, 3, 2]);
+        assert!(order.same_key(2) && !order.same_key(1) && !order.same_key(3));
     }
 
     #[test]
