@@ -9,6 +9,9 @@
 //!    (original textures once per tree, cut into blocks by their users in [`originals`]).
 //! 4. [`raster`]: the pixel pass ([`image_ops`]), streamed into [`crate::store::FileWriter`] at offsets fixed
 //!    in stage 3, then the file is finished atomically.
+//!
+//! `plan_forest` runs stages 1–3 for every tree (the plan each shard repeats or reads from a plan file);
+//! [`build`] here adds stage 4 and the write.
 
 pub mod alpha_coverage;
 pub mod area;
@@ -20,6 +23,7 @@ pub mod layout;
 pub mod memory;
 pub mod originals;
 pub mod pack;
+mod plan_forest;
 pub mod prepare;
 pub mod raster;
 pub mod shard;
@@ -33,6 +37,8 @@ pub use shard_plan::{
 };
 pub use shard_run::{MergeError, MergeReport, ShardReport, ShardedOptions, build_shard, merge};
 pub use stage_log::StageLog;
+
+use plan_forest::{Planned, empty_scene, plan_build};
 
 use crate::model::{AtlasForest, BuildParams, TreeKind};
 use crate::scene::Scene;
@@ -517,11 +523,13 @@ pub(super) fn largest_image_texels(images: &[crate::scene::ImageSource]) -> u64 
 
 /// The name of the largest of `images` (the first of equals), for [`memory::MemoryError::naming`].
 pub(super) fn largest_image_name(images: &[crate::scene::ImageSource]) -> &str {
-    let largest = largest_image_texels(images);
-    images
-        .iter()
-        .find(|i| i.texels() == largest)
-        .map_or("none", |i| i.name.as_str())
+    let mut largest: Option<&crate::scene::ImageSource> = None;
+    for image in images {
+        if largest.is_none_or(|l| image.texels() > l.texels()) {
+            largest = Some(image);
+        }
+    }
+    largest.map_or("none", |i| i.name.as_str())
 }
 
 /// The image cache bound of a build: the memory plan's, or the option's without a budget.
@@ -534,214 +542,6 @@ impl CacheBound for Option<memory::MemoryPlan> {
         self.as_ref()
             .map_or(opts.image_cache_bytes, |m| m.image_cache_bytes)
     }
-}
-
-/// Stages 1–3 of a build (the plan every shard runs identically): parameters, memory budget, the forest
-/// without pixels and its reports.
-pub(super) struct Planned {
-    pub(super) params: BuildParams,
-    pub(super) diagonal: f64,
-    pub(super) memory_plan: Option<memory::MemoryPlan>,
-    pub(super) timings: StageLog,
-    pub(super) forest: AtlasForest,
-    pub(super) reports: Vec<TreeReport>,
-}
-
-/// How many of the import's warnings [`empty_scene`] quotes.
-const EMPTY_SCENE_WARNINGS: usize = 3;
-
-/// [`BuildError::EmptyScene`] for `scene`: what its import skipped and its first warnings, or, when it
-/// skipped no primitive or triangle (its warnings are then about something else), that the scene (after
-/// any filter) draws no triangles.
-fn empty_scene(scene: &Scene) -> BuildError {
-    let report = &scene.report;
-    let detail = if report.skipped_primitives == 0 && report.skipped_triangles == 0 {
-        ": the default scene draws no triangle primitives (points and lines are not drawn), or the scene \
-         filters kept none"
-            .to_string()
-    } else {
-        let quoted: Vec<&str> = report
-            .warnings
-            .iter()
-            .take(EMPTY_SCENE_WARNINGS)
-            .map(String::as_str)
-            .collect();
-        format!(
-            "; {} warnings, the first: {}",
-            report.warnings_total,
-            quoted.join("; ")
-        )
-    };
-    BuildError::EmptyScene {
-        path: scene.source.display().to_string(),
-        skipped_primitives: report.skipped_primitives,
-        skipped_triangles: report.skipped_triangles,
-        detail,
-    }
-}
-
-/// Checks `opts` against `scene`, splits the budget, plans the forest and refuses an oversized file, all
-/// before any pixel.
-pub(super) fn plan_build(
-    scene: &Scene,
-    opts: &BuildOptions,
-    progress: &dyn Progress,
-) -> Result<Planned, BuildError> {
-    let (params, diagonal) = resolve_params(scene, opts)?;
-    let parts = partition_triangles(scene);
-    if parts.is_empty() {
-        return Err(empty_scene(scene));
-    }
-    let memory_plan = plan_memory(scene, opts, &params)?;
-    let mut timings = StageLog::default();
-    let (forest, reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
-    check_file_size(&forest, &reports, opts.max_file_bytes)?;
-    Ok(Planned {
-        params,
-        diagonal,
-        memory_plan,
-        timings,
-        forest,
-        reports,
-    })
-}
-
-/// Stages 1–3 for every tree: the forest without pixels (every block's size fixed), with a report per tree.
-fn plan_forest(
-    scene: &Scene,
-    opts: &BuildOptions,
-    params: &BuildParams,
-    parts: &[(TreeKind, Vec<u32>)],
-    progress: &dyn Progress,
-    timings: &mut StageLog,
-) -> Result<(AtlasForest, Vec<TreeReport>), BuildError> {
-    let mut forest = AtlasForest {
-        params: params.clone(),
-        materials: scene.materials.clone(),
-        trees: vec![],
-        blocks: vec![],
-    };
-    let mut reports = Vec::new();
-    for (kind, tris) in parts {
-        let slot = assemble::TreeSlot {
-            kind: *kind,
-            tree_index: forest.trees.len() as u32,
-            first_block: forest.blocks.len() as u32,
-            format: kind.format(opts.compress),
-        };
-        let (asm, report) = plan_tree(scene, opts, params, tris, slot, progress, timings)?;
-        reports.push(report);
-        forest.trees.push(asm.tree);
-        forest.blocks.extend(asm.blocks);
-    }
-    Ok((forest, reports))
-}
-
-/// Stages 1–3 for one tree: sizing, layout, assembly.
-fn plan_tree(
-    scene: &Scene,
-    opts: &BuildOptions,
-    params: &BuildParams,
-    tris: &[u32],
-    slot: assemble::TreeSlot,
-    progress: &dyn Progress,
-    timings: &mut StageLog,
-) -> Result<(assemble::Assembled, TreeReport), BuildError> {
-    let kind = slot.kind;
-    let wrap = opts.repeat == RepeatMode::Wrap;
-
-    let t = Instant::now();
-    progress.stage(&format!("sizing {kind:?}"), None);
-    let popts = prepare::PrepareOptions {
-        f_proj: params.f_proj(),
-        up: params.up,
-        cap_to_source: opts.cap_to_source,
-        split_limit: f64::from(params.atlas_size / 4),
-        max_pieces: opts.max_pieces,
-        wrap,
-    };
-    let infos = prepare::prepare(scene, tris, &popts);
-    let sizing = prepare::analyze(&infos);
-    progress.finish_stage();
-    timings.push(&format!("sizing {kind:?}"), t);
-
-    let t = Instant::now();
-    progress.stage(&format!("layout {kind:?} (nodes)"), None);
-    let lopts = layout::LayoutOptions {
-        atlas_size: params.atlas_size,
-        border: params.border,
-        max_depth: params.max_depth,
-        cap_to_source: opts.cap_to_source,
-        wrap,
-        split: opts.split,
-        leaf_originals: (opts.leaf_originals_atlases.max(0.0)
-            * f64::from(params.atlas_size)
-            * f64::from(params.atlas_size)) as u64,
-    };
-    let lay = layout::layout(scene, &infos, &lopts, &|n| progress.set(n))
-        .map_err(|source| BuildError::Layout { kind, source })?;
-    progress.finish_stage();
-    timings.push(&format!("layout {kind:?}"), t);
-
-    let t = Instant::now();
-    let asm = assemble::assemble(scene, &infos, &lay.order, &lay.root, params, slot);
-    timings.push(&format!("assemble {kind:?}"), t);
-
-    let report = tree_report(scene, tris.len(), infos.len(), &lay, &asm, sizing);
-    Ok((asm, report))
-}
-
-/// The report of one tree after assembly (its atlas PSNR is filled in by the pixel pass).
-fn tree_report(
-    scene: &Scene,
-    triangles: usize,
-    pieces: usize,
-    lay: &layout::Layout,
-    asm: &assemble::Assembled,
-    sizing: prepare::PrepareReport,
-) -> TreeReport {
-    let occ = &asm.occupancy;
-    TreeReport {
-        kind: asm.tree.kind,
-        format: asm.tree.format,
-        atlas_psnr_db: crate::texfmt::PSNR_CAP_DB,
-        triangles: triangles as u64,
-        pieces: pieces as u64,
-        nodes: asm.tree.nodes.len() as u64,
-        leaves: asm.tree.leaves.len() as u64,
-        depth: asm.tree.nodes.iter().map(|n| n.level.0).max().unwrap_or(0),
-        vertices: asm.tree.vertices.len() as u64,
-        clamped_leaves: lay.clamped_leaves as u64,
-        leaf_reasons: lay.leaves.clone(),
-        capped_rects: asm.capped.iter().flatten().filter(|c| **c).count() as u64,
-        periods_stored: asm.periods_stored,
-        periods_spanned: asm.periods_spanned,
-        occupancy_mean: occ.iter().sum::<f64>() / occ.len().max(1) as f64,
-        occupancy_min: occ.iter().copied().fold(f64::INFINITY, f64::min),
-        occupancy_max: occ.iter().copied().fold(0.0, f64::max),
-        root_min_distance: asm.tree.nodes.first().map_or(0.0, |n| n.min_distance),
-        sizing,
-        originals: originals::originals_cost(&asm.tree, scene),
-    }
-}
-
-/// Refuses, before anything is written, a forest whose blocks exceed `limit` bytes.
-fn check_file_size(
-    forest: &AtlasForest,
-    reports: &[TreeReport],
-    limit: u64,
-) -> Result<(), BuildError> {
-    let predicted: u64 = forest.blocks.iter().map(|b| b.bytes).sum();
-    if predicted > limit {
-        return Err(BuildError::TooLarge {
-            nodes: reports.iter().map(|r| r.nodes).sum(),
-            depth: reports.iter().map(|r| r.depth).max().unwrap_or(0),
-            blocks: forest.blocks.len() as u64,
-            predicted,
-            limit,
-        });
-    }
-    Ok(())
 }
 
 /// Stage 4 below the cut: the subtrees `units` of every tree into `sink` (the shard's part of the pixel

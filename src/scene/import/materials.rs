@@ -147,6 +147,8 @@ pub(super) struct Materials<'a> {
     pub(super) images: Vec<ImageSource>,
     image_ids: HashMap<usize, ImageId>,
     solid_ids: HashMap<[u8; 4], ImageId>,
+    /// Per glTF texture that names no image: its fallback checker.
+    sourceless_ids: HashMap<usize, ImageId>,
     material_ids: HashMap<(Option<usize>, bool), MaterialId>,
 }
 
@@ -167,6 +169,7 @@ impl<'a> Materials<'a> {
             images: Vec::new(),
             image_ids: HashMap::new(),
             solid_ids: HashMap::new(),
+            sourceless_ids: HashMap::new(),
             material_ids: HashMap::new(),
         }
     }
@@ -248,19 +251,7 @@ impl<'a> Materials<'a> {
                 let sampler = texture.sampler();
                 let image = match self.texture_image(&texture) {
                     Some(img) => self.image_for(img, buffers, report),
-                    None => {
-                        report.missing_images += 1;
-                        report.warn(format!(
-                            "{}: texture {} names no image (no source, no EXT_texture_webp source); using \
-                             the magenta/black fallback checker",
-                            self.file,
-                            texture.index()
-                        ));
-                        self.push_image(ImageSource::fallback(&format!(
-                            "texture {}",
-                            texture.index()
-                        )))
-                    }
+                    None => self.sourceless_texture_image(texture.index(), report),
                 };
                 let xf = raw_tt.map(UvTransform::from);
                 let m = Material {
@@ -293,6 +284,23 @@ impl<'a> Materials<'a> {
         self.uv.push(uv);
         self.material_ids.insert((index, solid), id);
         (id, uv)
+    }
+
+    /// The fallback checker of glTF texture `texture`, which names no image: made, counted and warned
+    /// about once per texture, however many materials use it.
+    fn sourceless_texture_image(&mut self, texture: usize, report: &mut ImportReport) -> ImageId {
+        if let Some(&id) = self.sourceless_ids.get(&texture) {
+            return id;
+        }
+        report.missing_images += 1;
+        report.warn(format!(
+            "{}: texture {texture} names no image (no source, no EXT_texture_webp source); using the \
+             magenta/black fallback checker",
+            self.file
+        ));
+        let id = self.push_image(ImageSource::fallback(&format!("texture {texture}")));
+        self.sourceless_ids.insert(texture, id);
+        id
     }
 
     /// The deduplicated 1×1 image of an sRGB RGBA8 colour.
@@ -353,7 +361,7 @@ pub(super) fn image_or_fallback(
 ) -> ImageSource {
     let (name, loaded) = buffers.load_image(img);
     let mut source = match loaded {
-        Ok((src, truncated)) => {
+        Ok(super::uri::LoadedImage { source, truncated }) => {
             if truncated {
                 report.truncated_images += 1;
                 report.warn(format!(
@@ -362,7 +370,7 @@ pub(super) fn image_or_fallback(
                     img.index()
                 ));
             }
-            src
+            source
         }
         Err(reason) => {
             report.missing_images += 1;

@@ -159,7 +159,7 @@ impl<'a> Buffers<'a> {
     pub(super) fn load_image(
         &mut self,
         img: &gltf::Image,
-    ) -> (String, Result<(ImageSource, bool), String>) {
+    ) -> (String, Result<LoadedImage, String>) {
         // `gltf::Image::source` unwraps `mimeType`/`uri`, which validation does not guarantee: read
         // the JSON fields directly.
         let json = self.doc.as_json().images.get(img.index());
@@ -215,6 +215,13 @@ impl<'a> Buffers<'a> {
     }
 }
 
+/// An image read by its header.
+pub(super) struct LoadedImage {
+    pub(super) source: ImageSource,
+    /// Its data look cut short ([`image_source::ImageHeader::truncated`]).
+    pub(super) truncated: bool,
+}
+
 /// Where an image's bytes are.
 enum ImgSrc<'a> {
     View(gltf::buffer::View<'a>),
@@ -222,14 +229,13 @@ enum ImgSrc<'a> {
 }
 
 /// Header of encoded bytes → an `ImageSource` keeping the bytes ([`from_header`]).
-fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<(ImageSource, bool), String> {
+fn from_bytes(name: &str, bytes: Arc<[u8]>) -> Result<LoadedImage, String> {
     let h = image_source::read_header(std::io::Cursor::new(&bytes[..]))?;
     Ok(from_header(name, h, ImageData::Bytes(bytes)))
 }
 
-/// The `ImageSource` named `name` that header `h` describes, its pixels in `data`, and whether they look
-/// truncated ([`image_source::ImageHeader::truncated`]).
-fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> (ImageSource, bool) {
+/// The `ImageSource` named `name` that header `h` describes, its pixels in `data`.
+fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> LoadedImage {
     let source = ImageSource {
         name: name.to_string(),
         width: h.width,
@@ -239,7 +245,10 @@ fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> (Im
         data,
         gltf_image: None,
     };
-    (source, h.truncated)
+    LoadedImage {
+        source,
+        truncated: h.truncated,
+    }
 }
 
 /// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).

@@ -98,8 +98,30 @@ fn a_texture_naming_no_image_is_a_counted_fallback() {
     let dir = tempfile::tempdir().unwrap();
     let (mut doc, _) = city_with_webp(dir.path());
     doc["textures"][0].as_object_mut().unwrap().remove("source");
+    // A second material drawing the same texture: one fallback image, one count, one warning.
+    let roof = (doc["materials"].as_array().unwrap().iter())
+        .position(|m| m["name"] == "roof_0")
+        .unwrap();
+    let other = (0..doc["materials"].as_array().unwrap().len())
+        .find(|&m| {
+            m != roof && doc["materials"][m]["pbrMetallicRoughness"]["baseColorTexture"].is_object()
+        })
+        .unwrap();
+    doc["materials"][other]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
     let scene = import_doc(dir.path(), &doc);
     assert_eq!(scene.report.missing_images, 1);
+    let named = |m: usize| {
+        let name = doc["materials"][m]["name"].as_str().unwrap();
+        scene
+            .materials
+            .iter()
+            .find(|x| x.name == name)
+            .unwrap()
+            .image
+    };
+    assert_eq!(named(roof), named(other), "one fallback image per texture");
+    let texture_0 = |w: &&String| w.contains("texture 0 names no image");
+    assert_eq!(scene.report.warnings.iter().filter(texture_0).count(), 1);
     let warning = scene
         .report
         .warnings
