@@ -1,6 +1,6 @@
 //! The file's framing, checked before any table is read: header (magic, version, checksum, constants),
 //! file length, sections in bounds and in order with zero gaps, blocks inside the file on their alignment
-//! with zero padding (docs/DESIGN.md "Paging file").
+//! with zero padding (docs/DESIGN.md "Checksums and alignment").
 
 use super::super::StoreError;
 use super::super::format::{
