@@ -218,19 +218,23 @@ fn build_node(
     level: Level,
     cell: Cell,
 ) -> Result<LayoutNode, LayoutError> {
-    let (lo, hi) = bounds(ctx.leaf.infos, items);
     let range = offset..offset + items.len();
     let n = ctx.nodes.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     (ctx.progress)(n + 1);
     let needs = material_needs(&ctx.leaf, items);
     let base = base_scale(&ctx.leaf, &needs);
-    let leaf = |leaf: LeafLayout| LayoutNode {
-        range: range.clone(),
-        level,
-        cell,
-        lo,
-        hi,
-        kind: LayoutKind::Leaf(leaf),
+    // A leaf's bounds are its triangles'; an inner node's the union of its children's (min and max are
+    // exact, so the same numbers without a walk over its triangles at every level).
+    let leaf = |leaf: LeafLayout, items: &[u32]| {
+        let (lo, hi) = bounds(ctx.leaf.infos, items);
+        LayoutNode {
+            range: range.clone(),
+            level,
+            cell,
+            lo,
+            hi,
+            kind: LayoutKind::Leaf(leaf),
+        }
     };
     let reason = if base < 1.0 {
         LeafReason::Oversized
@@ -238,16 +242,11 @@ fn build_node(
         LeafReason::Fits
     };
     if let Some(l) = try_leaf(&ctx.leaf, &needs, base, reason) {
-        return Ok(leaf(l));
+        return Ok(leaf(l, items));
     }
     if items.len() == 1 {
-        return Ok(leaf(clamp_leaf(
-            &ctx.leaf,
-            items,
-            &needs,
-            base,
-            LeafReason::Clamped,
-        )?));
+        let l = clamp_leaf(&ctx.leaf, items, &needs, base, LeafReason::Clamped)?;
+        return Ok(leaf(l, items));
     }
     let (share, originals) = capped_demand(&ctx.leaf, &needs);
     if originals <= ctx.leaf.opts.leaf_originals {
@@ -257,10 +256,11 @@ fn build_node(
             LeafReason::Scaled
         };
         if let Some(l) = scaled_leaf(&ctx.leaf, items, &needs, base, reason) {
-            return Ok(leaf(l));
+            return Ok(leaf(l, items));
         }
     }
     if level.0 >= ctx.leaf.opts.max_depth {
+        let (lo, hi) = bounds(ctx.leaf.infos, items);
         return Err(LayoutError::DepthExceeded {
             lo,
             hi,
@@ -276,7 +276,7 @@ fn build_node(
         && futile_split(ctx, items, groups, split_demands)
         && let Some(l) = scaled_leaf(&ctx.leaf, items, &needs, base, LeafReason::Shared)
     {
-        return Ok(leaf(l));
+        return Ok(leaf(l, items));
     }
     // Carve the slice into the four groups in array order: q0, q2 (low x), q1, q3 (high x).
     let (a, rest) = items.split_at_mut(groups[0]);
@@ -304,6 +304,11 @@ fn build_node(
     let mut children: [Option<Box<LayoutNode>>; 4] = Default::default();
     for (i, r) in [ra, rb, rc, rd].into_iter().enumerate() {
         children[order[i] as usize] = r?;
+    }
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for child in children.iter().flatten() {
+        lo = lo.min(child.lo);
+        hi = hi.max(child.hi);
     }
     Ok(LayoutNode {
         range,

@@ -43,31 +43,38 @@ pub const MIDPOINT_BITS: i32 = 24;
 /// triangles still separate them.
 pub fn midpoint_keys(infos: &[TriInfo], items: &[u32], axis: usize) -> Vec<i64> {
     use rayon::prelude::*;
-    fn along<'a>(
-        infos: &'a [TriInfo],
-        run: &'a [u32],
-        axis: usize,
-    ) -> impl Iterator<Item = f64> + 'a {
-        walk(infos, run).map(move |t| t.mid[axis])
-    }
-    let mids = |run| along(infos, run, axis);
-    let range = |(a, b): (f64, f64), m: f64| (a.min(m), b.max(m));
+    let big = items.len() >= PAR_ITEMS;
+    // One walk over the records (random in memory) gathers the midpoints, kept as their bits in the
+    // vector whose entries then become the keys in place; min, max and the keys read it in order.
+    let mut keys = vec![0i64; items.len()];
+    let gather = |(out, run): (&mut [i64], &[u32])| {
+        for (key, t) in out.iter_mut().zip(walk(infos, run)) {
+            *key = t.mid[axis].to_bits() as i64;
+        }
+    };
+    let mid = |key: i64| f64::from_bits(key as u64);
+    let range = |(a, b): (f64, f64), &key: &i64| (a.min(mid(key)), b.max(mid(key)));
     let empty = (f64::INFINITY, f64::NEG_INFINITY);
-    // Min and max are exact in any order; the keys are per item (collected in item order).
-    if items.len() >= PAR_ITEMS {
-        let (lo, hi) = items
-            .par_chunks(PAR_CHUNK)
-            .map(|run| mids(run).fold(empty, range))
-            .reduce(|| empty, |(a, b), (c, d)| (a.min(c), b.max(d)));
-        let q = key_quantum(hi - lo);
-        return items
-            .par_chunks(PAR_CHUNK)
-            .flat_map_iter(|run| mids(run).map(move |m| ((m - lo) / q).floor() as i64))
-            .collect();
-    }
-    let (lo, hi) = mids(items).fold(empty, range);
+    // Min and max are exact in any order.
+    let (lo, hi) = if big {
+        keys.par_chunks_mut(PAR_CHUNK)
+            .zip(items.par_chunks(PAR_CHUNK))
+            .for_each(gather);
+        keys.par_chunks(PAR_CHUNK)
+            .map(|run| run.iter().fold(empty, range))
+            .reduce(|| empty, |(a, b), (c, d)| (a.min(c), b.max(d)))
+    } else {
+        gather((&mut keys, items));
+        keys.iter().fold(empty, range)
+    };
     let q = key_quantum(hi - lo);
-    mids(items).map(|m| ((m - lo) / q).floor() as i64).collect()
+    let to_key = |key: &mut i64| *key = ((mid(*key) - lo) / q).floor() as i64;
+    if big {
+        keys.par_iter_mut().for_each(to_key);
+    } else {
+        keys.iter_mut().for_each(to_key);
+    }
+    keys
 }
 
 /// The key quantum of [`midpoint_keys`] for midpoints spanning `extent`.
