@@ -143,7 +143,7 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInf
 /// A scene triangle sized for [`prepare`]: its corners and UVs, material, density and class.
 struct Sized {
     ti: u32,
-    material: crate::ids::MaterialId,
+    material: MaterialId,
     wrap: [Wrap; 2],
     pos: [DVec3; 3],
     uv: [DVec2; 3],
