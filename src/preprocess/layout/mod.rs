@@ -66,6 +66,9 @@ pub const FUTILE_SPLIT_SHARE: f64 = 0.9;
 struct Ctx<'a> {
     leaf: leaf::Ctx<'a>,
     split: Splitter<'a>,
+    /// Every node folds its bounds over its triangles in the order it receives them
+    /// ([`has_negative_zero`]); otherwise an inner node's bounds are its children's union.
+    bounds_on_entry: bool,
     nodes: &'a std::sync::atomic::AtomicU64,
     progress: &'a (dyn Fn(u64) + Sync),
 }
@@ -107,6 +110,7 @@ pub fn layout(
         },
         nodes: &nodes,
         progress,
+        bounds_on_entry: has_negative_zero(infos),
     };
     let root = build_node(&ctx, &mut order, 0, Level(0), Cell::default())?;
     let mut leaves = LeafCounts {
@@ -182,6 +186,29 @@ fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
     )
 }
 
+/// Whether a corner of `infos` has a coordinate −0.0. `min` and `max` are exact, but between −0.0 and +0.0
+/// (equal numbers) they keep the later operand, so with both zeros among the corners a node's bounds depend
+/// on the order its corners are visited in: the layout then folds every node's corners in the order the
+/// node receives them (as before inner nodes took their children's union), and its bounds are the same
+/// bits as ever. Without a −0.0 the order cannot matter. The importer never makes a −0.0 (every world
+/// position ends by adding a translation that is not −0.0), but a scene built in code can hold one, and the
+/// midpoint of a cut between subnormal coordinates can round to one.
+fn has_negative_zero(infos: &[TriInfo]) -> bool {
+    use rayon::prelude::*;
+    const NEGATIVE_ZERO: u64 = 0x8000_0000_0000_0000;
+    infos.par_chunks(BOUNDS_CHUNK).any(|run| {
+        run.iter().fold(false, |found, t| {
+            let mut here = false;
+            for p in &t.pos {
+                here |= (p.x.to_bits() == NEGATIVE_ZERO)
+                    | (p.y.to_bits() == NEGATIVE_ZERO)
+                    | (p.z.to_bits() == NEGATIVE_ZERO);
+            }
+            found | here
+        })
+    })
+}
+
 /// The children's texel demands average at least [`FUTILE_SPLIT_SHARE`] of the node's. The demands are the
 /// split's own where it has them exactly, else walked again (the split rule by area, or demands near
 /// saturation); the same numbers either way.
@@ -221,12 +248,14 @@ fn build_node(
     let range = offset..offset + items.len();
     let n = ctx.nodes.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     (ctx.progress)(n + 1);
+    // A leaf's bounds are its triangles'; an inner node's the union of its children's (min and max are
+    // exact, so the same numbers without a walk over its triangles at every level), except where signed
+    // zeros make the order matter (`has_negative_zero`): then every node's own, in the order received.
+    let on_entry = ctx.bounds_on_entry.then(|| bounds(ctx.leaf.infos, items));
     let needs = material_needs(&ctx.leaf, items);
     let base = base_scale(&ctx.leaf, &needs);
-    // A leaf's bounds are its triangles'; an inner node's the union of its children's (min and max are
-    // exact, so the same numbers without a walk over its triangles at every level).
     let leaf = |leaf: LeafLayout, items: &[u32]| {
-        let (lo, hi) = bounds(ctx.leaf.infos, items);
+        let (lo, hi) = on_entry.unwrap_or_else(|| bounds(ctx.leaf.infos, items));
         LayoutNode {
             range: range.clone(),
             level,
@@ -305,11 +334,14 @@ fn build_node(
     for (i, r) in [ra, rb, rc, rd].into_iter().enumerate() {
         children[order[i] as usize] = r?;
     }
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for child in children.iter().flatten() {
-        lo = lo.min(child.lo);
-        hi = hi.max(child.hi);
-    }
+    let (lo, hi) = on_entry.unwrap_or_else(|| {
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for child in children.iter().flatten() {
+            lo = lo.min(child.lo);
+            hi = hi.max(child.hi);
+        }
+        (lo, hi)
+    });
     Ok(LayoutNode {
         range,
         level,
@@ -318,4 +350,94 @@ fn build_node(
         hi,
         kind: LayoutKind::Inner { children, order },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::preprocess::prepare::{PrepareOptions, prepare};
+    use crate::scene::synthetic::SceneBuilder;
+    use crate::scene::{AlphaMode, UpAxis, Wrap};
+    use glam::DVec2;
+
+    /// Four triangles with a 64² image each (two never share a 128² atlas), on the corners of a 20 × 11 m
+    /// field, z up. Triangle 0 (bottom right) starts at x = `x0`; triangle 1 (bottom left) at x = +0.0.
+    fn four_corners(x0: f64) -> (crate::scene::Scene, Vec<TriInfo>) {
+        let mut b = SceneBuilder::new(UpAxis::Z);
+        let corners = [
+            [
+                DVec3::new(x0, 0.0, 0.0),
+                DVec3::new(20.0, 0.0, 0.0),
+                DVec3::new(20.0, 1.0, 0.0),
+            ],
+            [
+                DVec3::new(0.0, 5.0, 0.0),
+                DVec3::new(1.0, 5.0, 0.0),
+                DVec3::new(1.0, 6.0, 0.0),
+            ],
+            [
+                DVec3::new(2.0, 10.0, 0.0),
+                DVec3::new(3.0, 10.0, 0.0),
+                DVec3::new(3.0, 11.0, 0.0),
+            ],
+            [
+                DVec3::new(18.0, 10.0, 0.0),
+                DVec3::new(19.0, 10.0, 0.0),
+                DVec3::new(19.0, 11.0, 0.0),
+            ],
+        ];
+        for (i, pos) in corners.into_iter().enumerate() {
+            let image = b.pattern_image(&format!("t{i}"), 64, i as u32);
+            let material = b.material(image, [Wrap::ClampToEdge; 2], AlphaMode::Opaque);
+            b.triangle(pos, [DVec2::ZERO, DVec2::X, DVec2::ONE], material);
+        }
+        let scene = b.build();
+        let popts = PrepareOptions {
+            f_proj: 1e6,
+            up: UpAxis::Z,
+            cap_to_source: true,
+            split_limit: 1e9,
+            max_pieces: 1,
+            wrap: true,
+        };
+        let infos = prepare(&scene, &[0, 1, 2, 3], &popts);
+        (scene, infos)
+    }
+
+    fn options() -> LayoutOptions {
+        LayoutOptions {
+            atlas_size: 128,
+            border: 2,
+            max_depth: 8,
+            cap_to_source: true,
+            wrap: true,
+            leaf_originals: 0,
+            split: SplitRule::Demand,
+        }
+    }
+
+    #[test]
+    fn signed_zeros_give_the_bounds_of_the_fold_in_arrival_order() {
+        let (scene, infos) = four_corners(-0.0);
+        assert!(has_negative_zero(&infos));
+        let lay = layout(&scene, &infos, &options(), &|_| {}).unwrap();
+        let LayoutKind::Inner { children, .. } = &lay.root.kind else {
+            panic!("the root must split: no two triangles share an atlas");
+        };
+        // The split puts triangle 1 (x = +0.0) in quadrant 0 and triangle 0 (x = −0.0) in quadrant 1: the
+        // children's union in quadrant order would end on −0.0, the fold over 0, 1, 2, 3 ends on +0.0.
+        assert_eq!(children.iter().flatten().count(), 4);
+        let (lo, hi) = bounds(&infos, &[0, 1, 2, 3]);
+        assert_eq!(lo.x.to_bits(), 0.0f64.to_bits());
+        let bits = |v: DVec3| v.to_array().map(f64::to_bits);
+        assert_eq!(bits(lay.root.lo), bits(lo));
+        assert_eq!(bits(lay.root.hi), bits(hi));
+        // Without a −0.0 the union is used, and is the same bits.
+        let (scene, infos) = four_corners(0.0);
+        assert!(!has_negative_zero(&infos));
+        let lay = layout(&scene, &infos, &options(), &|_| {}).unwrap();
+        let (lo, hi) = bounds(&infos, &[0, 1, 2, 3]);
+        assert_eq!(bits(lay.root.lo), bits(lo));
+        assert_eq!(bits(lay.root.hi), bits(hi));
+    }
 }
