@@ -408,11 +408,9 @@ fn leaf_geometry(infos: &[TriInfo], order: &[u32], job: &GeometryJob) -> LeafGeo
     // A few runs per thread at a time: their copies stay ~10 MiB, not the leaf's size.
     let group = GEOMETRY_RUN * 4 * rayon::current_num_threads();
     let runs = tris.chunks(group).flat_map(|tris| {
-        let made: Vec<LeafGeometry> = tris
-            .par_chunks(GEOMETRY_RUN)
+        tris.par_chunks(GEOMETRY_RUN)
             .map(|run| run_geometry(infos, run, job))
-            .collect();
-        made
+            .collect::<Vec<_>>()
     });
     for run in runs {
         global.clear();

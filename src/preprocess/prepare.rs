@@ -125,14 +125,14 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInf
         return tris
             .par_iter()
             .map(|&ti| {
-                let s = Sized::of(scene, ti, opts);
+                let s = SizedTriangle::of(scene, ti, opts);
                 s.piece(s.pos, s.uv, opts)
             })
             .collect();
     }
     tris.par_iter()
         .flat_map_iter(|&ti| {
-            let s = Sized::of(scene, ti, opts);
+            let s = SizedTriangle::of(scene, ti, opts);
             tessellate(s.pos, s.uv, s.w, s.h, opts.split_limit, max_pieces)
                 .into_iter()
                 .map(move |(p, uv0)| s.piece(p, uv0, opts))
@@ -141,7 +141,7 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInf
 }
 
 /// A scene triangle sized for [`prepare`]: its corners and UVs, material, density and class.
-struct Sized {
+struct SizedTriangle {
     ti: u32,
     material: MaterialId,
     wrap: [Wrap; 2],
@@ -154,8 +154,8 @@ struct Sized {
     class: i32,
 }
 
-impl Sized {
-    fn of(scene: &Scene, ti: u32, opts: &PrepareOptions) -> Sized {
+impl SizedTriangle {
+    fn of(scene: &Scene, ti: u32, opts: &PrepareOptions) -> SizedTriangle {
         let t = &scene.triangles[ti as usize];
         let pos = scene.tri_positions(t);
         let uv = scene.tri_uvs(t);
@@ -172,7 +172,7 @@ impl Sized {
         } else {
             density_class(w, h, size.method)
         };
-        Sized {
+        SizedTriangle {
             ti,
             material: t.material,
             wrap: mat.wrap,

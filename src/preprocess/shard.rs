@@ -236,11 +236,18 @@ pub fn choose_cut(forest: &AtlasForest, count: u32) -> Cut {
         }
     }
     let works: Vec<(Unit, u64)> = units.into_iter().map(|u| (u, work_of(&u))).collect();
-    let regions = deal_in_tree_order(&works, count);
+    deal(&works, count)
+}
+
+/// The units with their works dealt to `count` shards as [`choose_cut`] says: regions in tree order,
+/// largest first where regions would be too unbalanced and largest first does better; each shard's units
+/// sorted.
+fn deal(works: &[(Unit, u64)], count: u32) -> Cut {
+    let regions = deal_in_tree_order(works, count);
     let cut = if max_over_mean(&regions) <= REGION_IMBALANCE {
         regions
     } else {
-        let balanced = deal_largest_first(&works, count);
+        let balanced = deal_largest_first(works, count);
         let max = |c: &Cut| c.work.iter().copied().max().unwrap_or(0);
         if max(&regions) <= max(&balanced) {
             regions
@@ -470,6 +477,10 @@ mod tests {
         let balanced = deal_largest_first(&works, 2);
         assert_eq!(balanced.work, vec![100, 100]);
         assert!(max_over_mean(&regions) > max_over_mean(&balanced));
+        // The cut takes the balanced dealing here, and the regions where they are balanced enough.
+        assert_eq!(deal(&works, 2).work, vec![100, 100]);
+        let even = units(&[10; 16]);
+        assert_eq!(deal(&even, 4).shards, deal_in_tree_order(&even, 4).shards);
     }
 
     #[test]
