@@ -212,7 +212,9 @@ impl Splitter<'_> {
 /// A node's items sorted by (midpoint key, index): the pairs are distinct, so every sort gives the one
 /// order. Keys in `0..2³²` (always, but for midpoint extents near the smallest f64, see [`key_quantum`])
 /// are sorted packed with their index into one `u64` (`key << 32 | index`: the same order, half the bytes
-/// to move; by [`radix_sort`] from [`RADIX_ITEMS`]); other keys as `(i64, u32)` pairs (on the rayon pool
+/// to move; from [`RADIX_ITEMS`] by the `radsort` crate's LSD radix sort, which skips the bytes every
+/// value shares: packed keys vary in about 6 of their 8, and a pass costs ~2 ns a value where a comparison
+/// sort of the same keys took ~24 ns); other keys as `(i64, u32)` pairs (on the rayon pool
 /// for big nodes).
 enum SortedKeys {
     Packed(Vec<u64>),
@@ -228,7 +230,7 @@ impl SortedKeys {
                 .map(|(&k, &i)| ((k as u64) << 32) | u64::from(i))
                 .collect();
             if packed.len() >= RADIX_ITEMS {
-                radix_sort(&mut packed);
+                radsort::sort(&mut packed);
             } else {
                 packed.sort_unstable();
             }
@@ -273,45 +275,8 @@ impl SortedKeys {
     }
 }
 
-/// Items from which packed keys are sorted by [`radix_sort`].
+/// Items from which packed keys are radix-sorted ([`SortedKeys`]).
 const RADIX_ITEMS: usize = 1 << 12;
-
-/// Sorts `values` ascending: least-significant-digit radix sort on bytes, skipping the bytes every value
-/// shares (packed keys vary in about 6 of their 8: the key's ~25 bits and the index's). Each pass is
-/// stable, so the result is the one order of distinct values any sort gives, in ~2 ns a value a pass
-/// where a comparison sort of the same keys took ~24 ns a value.
-fn radix_sort(values: &mut Vec<u64>) {
-    let (mut all, mut any) = (u64::MAX, 0u64);
-    for &v in values.iter() {
-        all &= v;
-        any |= v;
-    }
-    let varying = all ^ any;
-    let mut from = std::mem::take(values);
-    let mut to = vec![0u64; from.len()];
-    for shift in (0..64).step_by(8) {
-        if (varying >> shift) & 0xFF == 0 {
-            continue;
-        }
-        let mut start = [0usize; 256];
-        for &v in &from {
-            start[((v >> shift) & 0xFF) as usize] += 1;
-        }
-        let mut sum = 0;
-        for s in &mut start {
-            let count = *s;
-            *s = sum;
-            sum += count;
-        }
-        for &v in &from {
-            let slot = &mut start[((v >> shift) & 0xFF) as usize];
-            to[*slot] = v;
-            *slot += 1;
-        }
-        std::mem::swap(&mut from, &mut to);
-    }
-    *values = from;
-}
 
 /// The texel demands a demand-rule split computed anyway ([`Splitter::split4_demands`]), when both passes
 /// of every cut were exact ([`prefix_demands_exact`]): `groups[i]` is the demand of group `i` (array
@@ -378,29 +343,9 @@ mod tests {
     }
 
     #[test]
-    fn radix_sort_is_a_sort() {
-        let mut rng = crate::util::XorShift64::new(11);
-        let shapes: [fn(u64) -> u64; 4] = [
-            |r| r,
-            |r| ((r >> 40) << 32) | (r & 0x7F_FFFF),
-            |r| r & 0xFF00,
-            |_| 42,
-        ];
-        for n in [0usize, 1, 2, 100, RADIX_ITEMS + 1, 50_000] {
-            for shape in shapes {
-                let mut values: Vec<u64> = (0..n).map(|_| shape(rng.next_u64())).collect();
-                let mut expected = values.clone();
-                expected.sort_unstable();
-                radix_sort(&mut values);
-                assert_eq!(values, expected, "n = {n}");
-            }
-        }
-    }
-
-    #[test]
     fn packed_and_wide_sorts_give_one_order() {
         let mut rng = crate::util::XorShift64::new(7);
-        for n in [2usize, 17, 1000, PAR_ITEMS + 3] {
+        for n in [2usize, 17, 1000, RADIX_ITEMS + 1, PAR_ITEMS + 3] {
             let keys: Vec<i64> = (0..n).map(|_| (rng.next_u64() % 300) as i64).collect();
             let items: Vec<u32> = (0..n as u32)
                 .map(|i| i.wrapping_mul(2_654_435_761) % 1_000_003)
