@@ -22,7 +22,7 @@ struct Globals {
     _p2: u32,
 }
 
-// tree.wgsl's per-record data, the same buffer (this shader reads only leaf_base).
+// tree.wgsl's per-record data, the same buffer (bound, not read: the vertices carry their global leaf).
 struct NodeDraw {
     atlas_layer: u32,
     atlas_array: u32,
@@ -31,7 +31,7 @@ struct NodeDraw {
     alpha_cutoff: f32,
     node: u32,
     tree: u32,
-    _pad: u32,
+    draw_bits: u32,
 }
 
 @group(0) @binding(0) var<uniform> globals: Globals;
@@ -41,7 +41,6 @@ struct NodeDraw {
 @group(0) @binding(4) var tex_sampler: sampler;
 
 struct VertexIn {
-    @builtin(instance_index) instance: u32,
     @location(0) pos: vec3<f32>,
     @location(1) orig_uv: vec2<f32>,
     @location(2) leaf: u32,
@@ -54,8 +53,7 @@ struct VertexOut {
 
 @vertex
 fn vs_main(v: VertexIn) -> VertexOut {
-    let d = draws[v.instance];
-    let rel = offsets[d.leaf_base + v.leaf].xyz + v.pos;
+    let rel = offsets[v.leaf].xyz + v.pos;
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(rel, 1.0);
     out.uv = v.orig_uv;

@@ -1,7 +1,7 @@
 // The naive baseline (`render --mode original`): every original texture is an ordinary texture_2d with its own
 // bind group (texture, sampler with the material's hardware wrap modes, material parameters), and every
 // (leaf, original texture) pair is its own draw call. Same positions as tree.wgsl: leaf-relative vertices
-// plus per-frame camera-relative leaf offsets; the draw's first instance is the tree's leaf base.
+// plus per-frame camera-relative leaf offsets, indexed by the vertex's leaf (global in the GPU copy).
 //
 // Rust twins (structs, bindings, override names and every `const` below, checked by tests/cpu/shaders.rs):
 // render::wgsl::naive.
@@ -41,7 +41,6 @@ struct Material {
 @group(1) @binding(2) var<uniform> material: Material;
 
 struct VertexIn {
-    @builtin(instance_index) leaf_base: u32,
     @location(0) pos: vec3<f32>,
     @location(1) orig_uv: vec2<f32>,
     @location(2) leaf: u32,
@@ -54,7 +53,8 @@ struct VertexOut {
 
 @vertex
 fn vs_main(v: VertexIn) -> VertexOut {
-    let rel = offsets[v.leaf_base + v.leaf].xyz + v.pos;
+    // `leaf`: global in the GPU copy of the vertices (render::resident::tables).
+    let rel = offsets[v.leaf].xyz + v.pos;
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(rel, 1.0);
     out.uv = v.orig_uv;

@@ -5,7 +5,8 @@
 // Rust twins (structs, bindings, override names and every `const` below, checked by tests/cpu/shaders.rs):
 // render::wgsl::tree.
 //
-// Positions: vertices are relative to their leaf origin (f32); `offsets[leaf]` is `leaf.origin - eye`,
+// Positions: vertices are relative to their leaf origin (f32); `offsets[leaf]` is `leaf.origin - eye`
+// (`leaf`: the vertex's leaf, numbered across trees in the GPU copy, render::resident::tables),
 // computed per frame in f64 on the CPU, so the view-projection matrix has no translation (docs/DESIGN.md
 // "Precision").
 // Atlas UVs (docs/DESIGN.md "Repeats" and "Precision"): per fragment the original UV is wrapped into its rect of
@@ -100,7 +101,9 @@ struct NodeDraw {
     alpha_cutoff: f32,
     node: u32,
     tree: u32,
-    _pad: u32,
+    // atlas_layer | atlas_array << ARRAY_SHIFT | level << LEVEL_SHIFT of an atlas draw (0 for originals):
+    // what the vertex stage reads (each 32-bit storage load a vertex costs on a software rasteriser).
+    draw_bits: u32,
 }
 
 // One per leaf (32 bytes).
@@ -171,6 +174,7 @@ struct VertexIn {
     @builtin(instance_index) instance: u32,
     @location(0) pos: vec3<f32>,
     @location(1) orig_uv: vec2<f32>,
+    // The vertex's leaf in `leaves` and `offsets` (global: the GPU copy adds the tree's leaf base).
     @location(2) leaf: u32,
     @location(3) original: u32,
     @location(4) rect: u32,
@@ -216,19 +220,11 @@ fn cell_offset(cell: vec2<u32>, depth: u32) -> vec2<u32> {
     return cell & vec2<u32>(mask);
 }
 
-// VertexOut.draw of an atlas draw: `layer` of atlas array `array`, drawn at `level` for a leaf at
-// `leaf_level` in `cell`, the fragment's rect `rect` (global index).
-fn atlas_draw(
-    layer: u32,
-    array: u32,
-    level: u32,
-    leaf_level: u32,
-    cell: vec2<u32>,
-    rect: u32,
-) -> vec4<u32> {
-    let depth = level_depth(leaf_level, level);
-    let x = layer | array << ARRAY_SHIFT | level << LEVEL_SHIFT | depth << DEPTH_SHIFT;
-    return vec4<u32>(x, rect, cell_offset(cell, depth));
+// VertexOut.draw of an atlas draw: `bits` = NodeDraw.draw_bits (layer, array and drawn level), for a leaf
+// at `leaf_level` in `cell`, the fragment's rect `rect` (global index).
+fn atlas_draw(bits: u32, leaf_level: u32, cell: vec2<u32>, rect: u32) -> vec4<u32> {
+    let depth = level_depth(leaf_level, (bits >> LEVEL_SHIFT) & 255u);
+    return vec4<u32>(bits | depth << DEPTH_SHIFT, rect, cell_offset(cell, depth));
 }
 
 // The level transform of model::transform::atlas_uv_at_f32 as (2^(j-K), offset), from a draw's
@@ -315,18 +311,19 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
 
 @vertex
 fn vs_main(v: VertexIn) -> VertexOut {
-    let d = draws[v.instance];
-    let li = d.leaf_base + v.leaf;
-    let leaf = leaves[li];
+    // Only the fields this pipeline's source uses are loaded (SOURCE is the records' source: atlas and
+    // original records are separate pipelines); on lavapipe each 32-bit storage load a vertex cost ~4 % of
+    // the all-tracks world's tree frame.
+    let li = v.leaf;
     let rel = offsets[li].xyz + v.pos;
     var out: VertexOut;
     out.clip = globals.view_proj * vec4<f32>(rel, 1.0);
     out.uv = v.orig_uv;
-    if d.atlas_layer != NONE {
-        let rect = leaf.first_rect + v.rect;
-        out.draw = atlas_draw(d.atlas_layer, d.atlas_array, d.level, leaf.level, leaf.cell, rect);
+    if SOURCE == SOURCE_ATLAS {
+        let rect = leaves[li].first_rect + v.rect;
+        out.draw = atlas_draw(draws[v.instance].draw_bits, leaves[li].level, leaves[li].cell, rect);
     } else {
-        out.draw = vec4<u32>(LEVEL_ORIGINAL << LEVEL_SHIFT, leaf.first_tam + v.original, 0u, 0u);
+        out.draw = vec4<u32>(LEVEL_ORIGINAL << LEVEL_SHIFT, leaves[li].first_tam + v.original, 0u, 0u);
     }
     // A blend node's MASK triangles were drawn by its depth pre-pass (the mask pipeline, which writes
     // depth); drawn again here each of their fragments would fail the Greater test against the equal or
@@ -336,7 +333,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
     // triangle's vertices share their material) goes to one point outside the clip volume.
     if PASS == PASS_BLEND && DENSITY == DENSITY_OFF {
         var alpha_mode: u32;
-        if d.atlas_layer != NONE {
+        if SOURCE == SOURCE_ATLAS {
             alpha_mode = (rects[out.draw.y].wrap >> ALPHA_SHIFT) & CODE_MASK;
         } else {
             alpha_mode = tam[out.draw.y].alpha_mode;

@@ -8,8 +8,8 @@
 //!   is the record's `base_vertex` (tree indices are tree-local absolute vertex numbers);
 //! - indices: every tree's indices back to back; tree `t` starts at `index_base[t]`, added to the node's
 //!   `first_index`;
-//! - leaves: every tree's leaves back to back; tree `t` starts at `leaf_base[t]`, stored in the node record so
-//!   the shader finds leaf `leaf_base + vertex.leaf`;
+//! - leaves: every tree's leaves back to back; tree `t` starts at `leaf_base[t]`, which the GPU copy of the
+//!   vertices adds to their tree-local `leaf`, so the shader finds leaf `vertex.leaf`;
 //! - per-frame leaf offsets `leaf.origin − eye` (f64 on the CPU, then f32; docs/DESIGN.md "Precision"): only the
 //!   leaves of drawn nodes are updated ([`LeafOffsets::update`]).
 //!
@@ -297,7 +297,7 @@ impl FrameBatch {
                 alpha_cutoff: info.cutoffs.get(n).copied().unwrap_or(0.5),
                 node: item.node.0,
                 tree: info.tree,
-                _pad: 0,
+                draw_bits: atlas.map_or(0, |(s, l)| NodeDraw::pack(s.layer, s.array, l)),
             };
             let draw = DrawIndexedIndirect {
                 index_count: item.index_count,
@@ -363,7 +363,7 @@ impl FrameBatch {
 }
 
 /// The per-frame, camera-relative leaf origins `leaf.origin − eye`, computed in f64 and stored as f32
-/// (docs/DESIGN.md "Precision"). WGSL: `array<vec4<f32>>` indexed by `leaf_base + vertex.leaf`.
+/// (docs/DESIGN.md "Precision"). WGSL: `array<vec4<f32>>` indexed by the vertex's global `leaf`.
 #[derive(Clone, Debug, Default)]
 pub struct LeafOffsets {
     /// All trees' leaf origins back to back (same numbering as the leaves buffer).

@@ -22,7 +22,7 @@ pub struct NaiveDraw {
     pub index_count: u32,
     /// The tree's first vertex in the shared vertex buffer (indices are tree-local).
     pub base_vertex: i32,
-    /// First instance = the tree's leaf base (the shader adds the vertex's tree-local leaf).
+    /// The tree's leaf base (drawn as the instance; the shader reads the vertex's own global leaf).
     pub leaf_base: u32,
     /// Index into the distinct original textures (`Resident::uniques`, one bind group each).
     pub texture: u32,

@@ -139,7 +139,7 @@ fn all_twins() -> Vec<Twins> {
                     alpha_cutoff,
                     node,
                     tree,
-                    _pad
+                    draw_bits
                 }),
                 twin!(tree::LeafInfo {
                     cell,
@@ -218,7 +218,7 @@ fn all_twins() -> Vec<Twins> {
                     alpha_cutoff,
                     node,
                     tree,
-                    _pad
+                    draw_bits
                 }),
             ],
         },

@@ -64,12 +64,13 @@ fn probe_main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let p = probe_in[i];
-    // As vs_main and atlas_sample: the draw packed as the vertex stage packs it, the level transform
-    // unpacked from it, then the rect map at 1 / 2^(j-K) leaf texels.
+    // As vs_main and atlas_sample: the draw packed as the CPU (NodeDraw::pack, layer 0 of array 0) and
+    // the vertex stage pack it, the level transform unpacked from it, then the rect map at 1 / 2^(j-K)
+    // leaf texels.
     var v: VertexOut;
     v.clip = vec4<f32>(0.0);
     v.uv = p.uv;
-    v.draw = atlas_draw(0u, 0u, p.level, p.leaf_level, p.cell, p.rect);
+    v.draw = atlas_draw(p.level << LEVEL_SHIFT, p.leaf_level, p.cell, p.rect);
     let xf = level_transform(v);
     let r = rect_texel(rects[p.rect], p.uv, p.ddx, p.ddy, 1.0 / xf.x);
     let a = atlas_sample(v, rects[p.rect], p.ddx, p.ddy);

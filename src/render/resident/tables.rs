@@ -175,7 +175,12 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
             blend_ranges: Vec::new(),
             atlas_slots: vec![None; view.nodes.len()],
         });
-        g.vertices.extend_from_slice(view.vertices);
+        // The GPU copy carries global leaf numbers (checked above: every vertex's leaf is its own), so
+        // the vertex stage indexes the leaf and offset buffers without a per-record base.
+        g.vertices.extend(view.vertices.iter().map(|v| TreeVertex {
+            leaf: v.leaf.saturating_add(leaf_base),
+            ..*v
+        }));
         g.indices.extend_from_slice(view.indices);
     }
     // The blend lists after every tree's indices (their values are tree-local vertex numbers, as the

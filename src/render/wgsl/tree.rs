@@ -192,7 +192,8 @@ pub struct NodeDraw {
     pub atlas_array: u32,
     /// The node's level j: vertices map their leaf-local atlas UV into this ancestor's atlas.
     pub level: u32,
-    /// Index of the tree's leaf 0 in the leaves and leaf-offset buffers.
+    /// Index of the tree's leaf 0 in the leaves and leaf-offset buffers (diagnostics: the GPU copy of the
+    /// vertices carries global leaf numbers, render::resident::tables).
     pub leaf_base: u32,
     /// The smallest MASK cutoff below the node (diagnostics; fragments are tested with their material's
     /// cutoff, from its rect or TAM entry).
@@ -201,9 +202,21 @@ pub struct NodeDraw {
     pub node: u32,
     /// Tree index.
     pub tree: u32,
-    pub _pad: u32,
+    /// `atlas_layer | atlas_array << ARRAY_SHIFT | level << LEVEL_SHIFT`, packed once on the CPU
+    /// ([`NodeDraw::pack`]): what the vertex stage reads of an atlas draw (one load a vertex instead of
+    /// three; on lavapipe each 32-bit storage load a vertex costs ~4 % of the all-tracks world's tree
+    /// frame). 0 for an original-texture draw (not read).
+    pub draw_bits: u32,
 }
 const _: () = assert!(size_of::<NodeDraw>() == 32);
+
+impl NodeDraw {
+    /// [`NodeDraw::draw_bits`] of an atlas draw: `layer` (< [`MAX_LAYERS`]) of array `array`
+    /// (< [`MAX_ATLAS_ARRAYS`]) drawn at `level` (< 256): the u32 arithmetic the vertex stage did before.
+    pub fn pack(layer: u32, array: u32, level: u32) -> u32 {
+        layer | array << ARRAY_SHIFT | level << LEVEL_SHIFT
+    }
+}
 
 /// Static per-leaf data.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
