@@ -16,7 +16,8 @@
 // arithmetic of `model::transform::atlas_uv_at_f32`. Sampling uses the gradients of the unwrapped UV
 // carried through the same maps (`textureSampleGrad`), so mip selection and anisotropy are continuous
 // across seams.
-// Originals: the per-vertex `original` indexes the leaf's range of the texture-array mapping (TAM), which
+// Originals: the per-vertex `original` is an entry of the leaf's range of the texture-array mapping (TAM;
+// the GPU copy of the vertices holds it as a global index, as `rect` and `leaf`), which
 // names the class array binding (one per class size, a class past the layer limit continuing in unused
 // bindings when everything is resident; lavapipe has no binding arrays, so the arrays are separate
 // bindings and the shader switches), the layer, the wrap modes and the material factor.
@@ -174,7 +175,8 @@ struct VertexIn {
     @builtin(instance_index) instance: u32,
     @location(0) pos: vec3<f32>,
     @location(1) orig_uv: vec2<f32>,
-    // The vertex's leaf in `leaves` and `offsets` (global: the GPU copy adds the tree's leaf base).
+    // Global in the GPU copy of the vertices (render::resident::tables adds the bases): the vertex's leaf
+    // in `leaves` and `offsets`, its TAM entry in `tam`, its rect in `rects`.
     @location(2) leaf: u32,
     @location(3) original: u32,
     @location(4) rect: u32,
@@ -320,10 +322,9 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.clip = globals.view_proj * vec4<f32>(rel, 1.0);
     out.uv = v.orig_uv;
     if SOURCE == SOURCE_ATLAS {
-        let rect = leaves[li].first_rect + v.rect;
-        out.draw = atlas_draw(draws[v.instance].draw_bits, leaves[li].level, leaves[li].cell, rect);
+        out.draw = atlas_draw(draws[v.instance].draw_bits, leaves[li].level, leaves[li].cell, v.rect);
     } else {
-        out.draw = vec4<u32>(LEVEL_ORIGINAL << LEVEL_SHIFT, leaves[li].first_tam + v.original, 0u, 0u);
+        out.draw = vec4<u32>(LEVEL_ORIGINAL << LEVEL_SHIFT, v.original, 0u, 0u);
     }
     // A blend node's MASK triangles were drawn by its depth pre-pass (the mask pipeline, which writes
     // depth); drawn again here each of their fragments would fail the Greater test against the equal or

@@ -201,6 +201,17 @@ fn plan_maps_every_vertex_original_into_its_leaf_tam_range() {
     let view = file.tree(0).unwrap();
     assert_eq!(p.leaves.len(), view.leaves.len());
     assert_eq!(p.vertices.len(), view.vertices.len());
+    // The GPU copy of the vertices holds global indices (tree 0: leaf base 0): its leaf's rect and TAM
+    // ranges start added, everything else as stored.
+    for (v, g) in view.vertices.iter().zip(&p.vertices) {
+        let leaf = &p.leaves[v.leaf as usize];
+        let want = atlastree::model::TreeVertex {
+            rect: leaf.first_rect + v.rect,
+            original: leaf.first_tam + v.original,
+            ..*v
+        };
+        assert_eq!(*g, want);
+    }
     for (li, (leaf, gpu)) in view.leaves.iter().zip(&p.leaves).enumerate() {
         let node = &view.nodes[leaf.node as usize];
         assert_eq!(

@@ -175,11 +175,18 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
             blend_ranges: Vec::new(),
             atlas_slots: vec![None; view.nodes.len()],
         });
-        // The GPU copy carries global leaf numbers (checked above: every vertex's leaf is its own), so
-        // the vertex stage indexes the leaf and offset buffers without a per-record base.
-        g.vertices.extend(view.vertices.iter().map(|v| TreeVertex {
-            leaf: v.leaf.saturating_add(leaf_base),
-            ..*v
+        // The GPU copy carries global numbers (checked above: every vertex's leaf is its own, its rect
+        // and original inside the leaf's ranges): leaf, rect and TAM entry, so the vertex stage indexes
+        // the buffers without loading a base (docs/DESIGN.md "Storage loads in the vertex stage").
+        let leaves = &g.leaves[leaf_base as usize..];
+        g.vertices.extend(view.vertices.iter().map(|v| {
+            let leaf = leaves.get(v.leaf as usize);
+            TreeVertex {
+                leaf: v.leaf.saturating_add(leaf_base),
+                original: v.original.saturating_add(leaf.map_or(0, |l| l.first_tam)),
+                rect: v.rect.saturating_add(leaf.map_or(0, |l| l.first_rect)),
+                ..*v
+            }
         }));
         g.indices.extend_from_slice(view.indices);
     }
