@@ -49,6 +49,13 @@ const MAX_LAYERS: u32 = 65536u;
 const ARRAY_SHIFT: u32 = 16u;
 const LEVEL_SHIFT: u32 = 18u;
 const DEPTH_SHIFT: u32 = 26u;
+// LeafInfo.cell_level: level, cell.x and cell.y packed (CELL_MASK wide) up to PACKED_LEVELS deep.
+const LEVEL_MASK: u32 = 31u;
+const CELL_X_SHIFT: u32 = 5u;
+const CELL_Y_SHIFT: u32 = 18u;
+const CELL_MASK: u32 = 0x1fffu;
+const PACKED_LEVELS: u32 = 13u;
+const CELL_LEVEL_WIDE: u32 = 0xffffffffu;
 
 // Packed codes (RectMap.wrap, TamEntry.wrap): wrap_s | wrap_t << WRAP_T_SHIFT, and for rects
 // | alpha_mode << ALPHA_SHIFT; every code CODE_MASK wide.
@@ -113,7 +120,9 @@ struct LeafInfo {
     level: u32,
     first_tam: u32,
     first_rect: u32,
-    _p0: u32,
+    // level | cell.x << CELL_X_SHIFT | cell.y << CELL_Y_SHIFT for leaves at most PACKED_LEVELS deep, else
+    // CELL_LEVEL_WIDE (then read cell and level): one load a vertex instead of three.
+    cell_level: u32,
     _p1: u32,
     _p2: u32,
 }
@@ -322,7 +331,14 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.clip = globals.view_proj * vec4<f32>(rel, 1.0);
     out.uv = v.orig_uv;
     if SOURCE == SOURCE_ATLAS {
-        out.draw = atlas_draw(draws[v.instance].draw_bits, leaves[li].level, leaves[li].cell, v.rect);
+        let packed = leaves[li].cell_level;
+        var level = packed & LEVEL_MASK;
+        var cell = vec2<u32>((packed >> CELL_X_SHIFT) & CELL_MASK, (packed >> CELL_Y_SHIFT) & CELL_MASK);
+        if packed == CELL_LEVEL_WIDE {
+            level = leaves[li].level;
+            cell = leaves[li].cell;
+        }
+        out.draw = atlas_draw(draws[v.instance].draw_bits, level, cell, v.rect);
     } else {
         out.draw = vec4<u32>(LEVEL_ORIGINAL << LEVEL_SHIFT, v.original, 0u, 0u);
     }

@@ -218,6 +218,10 @@ fn plan_maps_every_vertex_original_into_its_leaf_tam_range() {
             (gpu.cell, gpu.level),
             ([node.cell.ix, node.cell.iy], node.level)
         );
+        assert_eq!(
+            gpu.cell_level,
+            atlastree::render::wgsl::tree::LeafInfo::pack_cell_level(gpu.level, gpu.cell)
+        );
         assert_eq!(p.origins[li], DVec3::from_array(leaf.origin));
         for (k, o) in view.leaf_originals(leaf).iter().enumerate() {
             let e = &p.tam[gpu.first_tam as usize + k];

@@ -146,7 +146,7 @@ fn all_twins() -> Vec<Twins> {
                     level,
                     first_tam,
                     first_rect,
-                    _p0,
+                    cell_level,
                     _p1,
                     _p2
                 }),

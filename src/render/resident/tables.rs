@@ -66,12 +66,14 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
             let originals = view.leaf_originals(leaf);
             let first_tam = count_u32("tam", g.tam.len())?;
             let first_rect = count_u32("rects", g.rects.len())?;
+            let cell = node.map_or([0, 0], |n| [n.cell.ix, n.cell.iy]);
+            let level = node.map_or(0, |n| n.level);
             g.leaves.push(LeafInfo {
-                cell: node.map_or([0, 0], |n| [n.cell.ix, n.cell.iy]),
-                level: node.map_or(0, |n| n.level),
+                cell,
+                level,
                 first_tam,
                 first_rect,
-                _p0: 0,
+                cell_level: LeafInfo::pack_cell_level(level, cell),
                 _p1: 0,
                 _p2: 0,
             });

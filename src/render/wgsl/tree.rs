@@ -57,6 +57,16 @@ wgsl_consts! {
     /// The levels between the leaf and the drawn level (≤ 31) sit this many bits up.
     DEPTH_SHIFT: u32 = 26;
 
+    /// [`LeafInfo::cell_level`]: the level in the bits below [`CELL_X_SHIFT`] (a mask of them:
+    /// [`LEVEL_MASK`]), the cell's `ix` and `iy` at [`CELL_X_SHIFT`] and [`CELL_Y_SHIFT`], [`CELL_MASK`]
+    /// wide; leaves deeper than [`PACKED_LEVELS`] hold [`CELL_LEVEL_WIDE`] (read `cell` and `level`).
+    LEVEL_MASK: u32 = 31;
+    CELL_X_SHIFT: u32 = 5;
+    CELL_Y_SHIFT: u32 = 18;
+    CELL_MASK: u32 = 0x1fff;
+    PACKED_LEVELS: u32 = 13;
+    CELL_LEVEL_WIDE: u32 = 0xffff_ffff;
+
     /// `wrap_t` sits this many bits above `wrap_s` in [`RectMap::wrap`] and [`TamEntry::wrap`].
     WRAP_T_SHIFT: u32 = 2;
     /// The material's alpha mode sits this many bits up in [`RectMap::wrap`].
@@ -230,11 +240,24 @@ pub struct LeafInfo {
     pub first_tam: u32,
     /// First entry of the leaf's rects in the rect buffer (global index).
     pub first_rect: u32,
-    pub _p0: u32,
+    /// `level | ix << CELL_X_SHIFT | iy << CELL_Y_SHIFT` for leaves at most [`PACKED_LEVELS`] deep (every
+    /// cell coordinate below 2^13), else [`CELL_LEVEL_WIDE`] ([`LeafInfo::pack_cell_level`]): the vertex
+    /// stage loads one word instead of three (docs/DESIGN.md "Storage loads in the vertex stage").
+    pub cell_level: u32,
     pub _p1: u32,
     pub _p2: u32,
 }
 const _: () = assert!(size_of::<LeafInfo>() == 32);
+
+impl LeafInfo {
+    /// [`LeafInfo::cell_level`] of a leaf at `level` in cell `cell`.
+    pub fn pack_cell_level(level: u32, cell: [u32; 2]) -> u32 {
+        if level > PACKED_LEVELS || cell[0] > CELL_MASK || cell[1] > CELL_MASK {
+            return CELL_LEVEL_WIDE;
+        }
+        level | cell[0] << CELL_X_SHIFT | cell[1] << CELL_Y_SHIFT
+    }
+}
 
 /// How a fragment's original UV reaches its texture's rect in its leaf's atlas (docs/DESIGN.md "Repeats"): the
 /// rect's per-axis wrap ([`RectWrap`]), then the linear map onto the inner rectangle, kept inside the
@@ -383,3 +406,55 @@ pub struct TamEntry {
     pub extent: [f32; 2],
 }
 const _: () = assert!(size_of::<TamEntry>() == 48);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What `vs_main` unpacks from [`LeafInfo::cell_level`] (`level`, `cell` of the wide fields where
+    /// it is [`CELL_LEVEL_WIDE`]).
+    fn unpack(packed: u32, level: u32, cell: [u32; 2]) -> (u32, [u32; 2]) {
+        if packed == CELL_LEVEL_WIDE {
+            return (level, cell);
+        }
+        (
+            packed & LEVEL_MASK,
+            [
+                (packed >> CELL_X_SHIFT) & CELL_MASK,
+                (packed >> CELL_Y_SHIFT) & CELL_MASK,
+            ],
+        )
+    }
+
+    #[test]
+    fn cell_level_packs_shallow_leaves_and_defers_deep_ones() {
+        let last = (1u32 << PACKED_LEVELS) - 1;
+        for (level, cell) in [
+            (0, [0, 0]),
+            (1, [1, 0]),
+            (7, [127, 3]),
+            (PACKED_LEVELS, [last, last]),
+            (PACKED_LEVELS, [0, last]),
+        ] {
+            let packed = LeafInfo::pack_cell_level(level, cell);
+            assert_ne!(packed, CELL_LEVEL_WIDE);
+            assert_eq!(
+                unpack(packed, 99, [99, 99]),
+                (level, cell),
+                "{level} {cell:?}"
+            );
+        }
+        // Deeper than PACKED_LEVELS, or a cell past the mask (not a valid cell at its level): the wide
+        // fields.
+        for (level, cell) in [
+            (PACKED_LEVELS + 1, [0, 0]),
+            (31, [1 << 30, 5]),
+            (3, [last + 1, 0]),
+            (3, [0, last + 1]),
+        ] {
+            let packed = LeafInfo::pack_cell_level(level, cell);
+            assert_eq!(packed, CELL_LEVEL_WIDE, "{level} {cell:?}");
+            assert_eq!(unpack(packed, level, cell), (level, cell));
+        }
+    }
+}
