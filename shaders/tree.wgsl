@@ -22,9 +22,6 @@
 // bindings when everything is resident; lavapipe has no binding arrays, so the arrays are separate
 // bindings and the shader switches), the layer, the wrap modes and the material factor.
 
-// NodeDraw.atlas_layer of an original-texture draw.
-const NONE: u32 = 0xffffffffu;
-
 // Values of PASS (render::batch::Pass).
 const PASS_OPAQUE: u32 = 0u;
 const PASS_MASK: u32 = 1u;

@@ -11,9 +11,6 @@ use glam::Vec2;
 pub const WGSL: &str = include_str!("../../../shaders/tree.wgsl");
 
 wgsl_consts! {
-    /// [`NodeDraw::atlas_layer`] of an original-texture draw ([`crate::ids::NONE`]).
-    NONE: u32 = crate::ids::NONE;
-
     /// [`overrides::PASS`] of the opaque pipelines (the discriminants of [`crate::render::batch::Pass`]).
     PASS_OPAQUE: u32 = 0;
     /// [`overrides::PASS`] of the alpha-mask pipelines (and of a blend node's depth pre-pass).
@@ -196,7 +193,7 @@ const _: () = assert!(size_of::<Globals>() == 80);
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub struct NodeDraw {
-    /// Layer of the node's atlas in atlas array `atlas_array`; [`NONE`] for an original-texture draw.
+    /// Layer of the node's atlas in atlas array `atlas_array`; [`crate::ids::NONE`] for an original-texture draw (diagnostics: the shader reads [`NodeDraw::draw_bits`]).
     pub atlas_layer: u32,
     /// Which atlas array (0 unless the layers exceed the device limit, see `render::textures`).
     pub atlas_array: u32,
