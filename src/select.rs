@@ -51,10 +51,19 @@ impl SelectOptions {
 /// Invalid viewing conditions or build parameters, with the offending field and value.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SelectError {
-    #[error("select option {field} is {value}; it must be finite and > 0 (fov < 180°)")]
+    #[error("select option {field} is {value}; it must be {}", rule(.field))]
     BadOption { field: &'static str, value: f64 },
-    #[error("build parameter {field} is {value}; it must be finite and > 0 (fov < 180°)")]
+    #[error("build parameter {field} is {value}; it must be {}", rule(.field))]
     BadBuildParams { field: &'static str, value: f64 },
+}
+
+/// What a field of [`SelectError`] must be.
+fn rule(field: &str) -> &'static str {
+    if field.starts_with("fov") {
+        "in (0, 180) degrees"
+    } else {
+        "finite and > 0"
+    }
 }
 
 fn check(

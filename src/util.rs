@@ -124,7 +124,22 @@ pub fn remove_stale_temps(target: &Path) -> usize {
 impl AtomicFile {
     /// Creates the temp file for `target` (whose directory must exist) with unix permissions `mode` less
     /// the umask, after removing stale temps of `target` ([`remove_stale_temps`]).
+    ///
+    /// A target that exists and is not a regular file (a directory, device, FIFO or socket, also behind a
+    /// symlink) is refused with [`std::io::ErrorKind::InvalidInput`]: the rename would replace the node
+    /// itself (`-o /dev/null` run as root would delete `/dev/null`).
     pub fn create(target: &Path, mode: u32) -> std::io::Result<AtomicFile> {
+        if let Ok(meta) = std::fs::metadata(target)
+            && !meta.is_file()
+        {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!(
+                    "{} exists and is not a regular file: refusing to replace it",
+                    target.display()
+                ),
+            ));
+        }
         remove_stale_temps(target);
         let prefix = format!("{}{}.", temp_prefix(target), std::process::id());
         let mut builder = tempfile::Builder::new();
@@ -438,6 +453,21 @@ mod parse_tests {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn atomic_file_never_replaces_a_device_or_directory() {
+        for target in ["/dev/null", "/tmp"] {
+            let err = AtomicFile::create(Path::new(target), 0o644).err().unwrap();
+            assert_eq!(err.kind(), std::io::ErrorKind::InvalidInput, "{target}");
+        }
+        assert!(
+            !std::fs::metadata("/dev/null")
+                .unwrap()
+                .file_type()
+                .is_file()
+        );
+    }
 
     #[test]
     fn xorshift64_is_the_13_7_17_sequence_and_never_zero() {

@@ -10,6 +10,21 @@ use atlastree::preprocess::BuildOptions;
 use atlastree::select::{SelectOptions, min_distance_scale};
 use clap::Args;
 
+/// Most frames one `render`, `simulate` or `demo` run takes (as `sweep`): 100,000 frames is ~55 min of
+/// path at 30 fps; the per-frame records of more would exhaust memory before the first frame.
+pub(crate) const MAX_FRAMES: usize = 100_000;
+
+/// Most loader threads a paged run starts.
+pub(crate) const MAX_LOADER_THREADS: usize = 64;
+
+/// A frame count of a flag (`flag` names it) is 1 to [`MAX_FRAMES`].
+pub(crate) fn check_frames(flag: &str, frames: usize) -> anyhow::Result<()> {
+    if frames == 0 || frames > MAX_FRAMES {
+        bail!("{flag} must be 1 to {MAX_FRAMES} (got {frames})");
+    }
+    Ok(())
+}
+
 /// Declares a viewport flag group with a command's default frame size (a const-generic struct would
 /// share one default string between its instances: clap keeps it in a static of the generic function).
 macro_rules! viewport_args {
@@ -225,6 +240,12 @@ impl PagingArgs {
             Some(u) if is_url(u) => SourceArg::Url(u.to_string()),
             Some(other) => bail!("unknown --source {other:?}: expected `file` or an http(s) URL"),
         };
+        if self.loader_threads.is_some_and(|n| n > MAX_LOADER_THREADS) {
+            bail!(
+                "--loader-threads must be 0 to {MAX_LOADER_THREADS} (got {})",
+                self.loader_threads.unwrap_or(0)
+            );
+        }
         let base = PagerOptions::default();
         let pager = self.queue.apply(PagerOptions {
             policy: self.policy.unwrap_or(base.policy),
@@ -299,7 +320,10 @@ fn parse_memory(s: &str) -> Result<MemoryArg, String> {
         return Ok(MemoryArg(None));
     }
     match atlastree::util::parse_bytes(s) {
-        Some(b) if b > 0 => Ok(MemoryArg(Some(b))),
+        Some(b) if b >= 1 << 20 => Ok(MemoryArg(Some(b))),
+        Some(b) => Err(format!(
+            "{s:?} is {b} bytes: a build's budget is at least 1MiB (e.g. 2GiB), or none"
+        )),
         _ => Err(format!(
             "{s:?} is not a size (e.g. 2GiB, 512MiB, 8GB) or none"
         )),

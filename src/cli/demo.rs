@@ -60,6 +60,7 @@ impl DemoArgs {
 
 pub(super) fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
+    super::args::check_frames("--frames", a.frames)?;
     let scene_path = a.scene.clone().unwrap_or_else(default_scene);
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let scene = import_scene(&scene_path)?;

@@ -123,8 +123,13 @@ pub(crate) struct RenderPaging {
 impl RenderArgs {
     /// Checks the flags and derives the run.
     pub(crate) fn validate(self) -> anyhow::Result<RenderConfig> {
-        if self.frames == 0 {
-            bail!("--frames must be > 0");
+        super::args::check_frames("--frames", self.frames)?;
+        if self.warmup > super::args::MAX_FRAMES {
+            bail!(
+                "--warmup must be at most {} (got {})",
+                super::args::MAX_FRAMES,
+                self.warmup
+            );
         }
         if !(self.fps.is_finite() && self.fps > 0.0) {
             bail!("--fps must be finite and > 0 (got {})", self.fps);
@@ -292,8 +297,15 @@ fn frame_loop<'f>(
         gpu_timing: cfg.gpu_timing,
         anisotropy: cfg.anisotropy,
     };
+    let what = || {
+        let name = match &cfg.tree {
+            TreeSource::Local(p) => p.display().to_string(),
+            TreeSource::Remote(u) => u.clone(),
+        };
+        format!("setting up the renderer for {name}")
+    };
     let fl = match &cfg.paging {
-        None => FrameLoop::new(ctx, file, ropts)?,
+        None => FrameLoop::new(ctx, file, ropts).with_context(what)?,
         Some(p) => {
             let source = block_source(&p.paging.source, file, http)?;
             let k = p.capacity.unwrap_or(file.blocks().len() as u32);
@@ -310,7 +322,7 @@ fn frame_loop<'f>(
                 source,
                 loader_threads: p.paging.loader_threads,
             };
-            FrameLoop::new_paged(ctx, file, ropts, setup)?
+            FrameLoop::new_paged(ctx, file, ropts, setup).with_context(what)?
         }
     };
     print_resident(ctx, &fl, t.elapsed().as_secs_f64());

@@ -89,8 +89,8 @@ impl SimulateArgs {
         if !(self.fps.is_finite() && self.fps > 0.0) {
             bail!("--fps must be finite and > 0 (got {})", self.fps);
         }
-        if self.frames == Some(0) {
-            bail!("--frames must be > 0");
+        if let Some(frames) = self.frames {
+            super::args::check_frames("--frames", frames)?;
         }
         let capacities = parse_list("capacity", &self.capacity, |s| {
             if s == "all" {
@@ -189,9 +189,23 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
 /// One camera per frame at `i / fps` (default frame count: the path's duration).
 fn sample_cameras(cfg: &SimulateConfig, file: &TreeFile) -> anyhow::Result<Vec<Camera>> {
     let path = cfg.path.resolve_with(|| Ground::from_tree(file))?;
-    let frames = cfg
-        .frames
-        .unwrap_or_else(|| (path.duration() * cfg.spec.fps).ceil().max(1.0) as usize);
+    let frames = match cfg.frames {
+        Some(frames) => frames,
+        None => {
+            // The path's duration at --fps, bounded as --frames is.
+            let n = (path.duration() * cfg.spec.fps).ceil().max(1.0);
+            if n > super::args::MAX_FRAMES as f64 {
+                bail!(
+                    "the path's {:.1} s at --fps {:e} are {n:.3e} frames, over the {} a run takes: lower \
+                     --fps or give --frames",
+                    path.duration(),
+                    cfg.spec.fps,
+                    super::args::MAX_FRAMES
+                );
+            }
+            n as usize
+        }
+    };
     Ok(cfg.viewport.cameras(&path, cfg.spec.fps, frames))
 }
 

@@ -197,6 +197,18 @@ pub enum BuildError {
         value: String,
         why: &'static str,
     },
+    /// d_min from the scene's diagonal (`--d-min-ratio`, the default) where that diagonal is 0 or not
+    /// finite: every position the same point (a zero scale, all-zero positions), or overflowing.
+    #[error(
+        "the scene {path} spans a diagonal of {diagonal} world units, so d_min = diagonal / {ratio} is no \
+         distance: its positions are all one point (a zero scale?) or overflow; give --d-min in metres to \
+         build it anyway"
+    )]
+    DegenerateExtent {
+        path: String,
+        diagonal: f64,
+        ratio: f64,
+    },
     /// `detail` says why: what the import skipped (counted, with its first warnings), or that nothing
     /// was skipped.
     #[error(
@@ -396,6 +408,13 @@ pub fn resolve_params(
         }
     };
     if !(d_min.is_finite() && d_min > 0.0) {
+        if let DMin::Ratio(r) = opts.d_min {
+            return Err(BuildError::DegenerateExtent {
+                path: scene.source.display().to_string(),
+                diagonal,
+                ratio: r,
+            });
+        }
         return bad(
             "d-min",
             d_min.to_string(),

@@ -260,7 +260,7 @@ impl Renderer<'_> {
                 rp.draw_indexed(
                     draw.first_index..draw.first_index + draw.index_count,
                     draw.base_vertex,
-                    draw.leaf_base..draw.leaf_base + 1,
+                    0..1,
                 );
                 stats.draw_calls += 1;
                 stats.triangles += u64::from(draw.index_count / 3);

@@ -222,12 +222,7 @@ impl<'f> Renderer<'f> {
         file: &'f TreeFile,
         opts: RendererOptions,
     ) -> Result<Renderer<'f>, RenderError> {
-        if opts.width == 0 || opts.height == 0 {
-            return Err(RenderError::BadSize {
-                width: opts.width,
-                height: opts.height,
-            });
-        }
+        check_size(ctx, opts.width, opts.height)?;
         // Every block at once: the texture arrays are the largest allocations, and a device out of memory
         // (lavapipe's heap, a small GPU) is an error naming the load, not wgpu's uncaptured-error panic.
         let resident = ctx.scoped("uploading every block (all resident)", |_| {
@@ -245,12 +240,7 @@ impl<'f> Renderer<'f> {
         opts: RendererOptions,
         planner: &mut FramePlanner<'_>,
     ) -> Result<Renderer<'f>, RenderError> {
-        if opts.width == 0 || opts.height == 0 {
-            return Err(RenderError::BadSize {
-                width: opts.width,
-                height: opts.height,
-            });
-        }
+        check_size(ctx, opts.width, opts.height)?;
         let (Some(table), Some(capacity)) = (planner.table(), planner.max_capacity()) else {
             return Err(RenderError::Plan(PlanError::NotPaged));
         };
@@ -360,9 +350,7 @@ impl<'f> Renderer<'f> {
     /// Replaces the colour and depth targets by ones of `width`×`height` pixels (a resized window); the
     /// resident data and pipelines are kept. Errors: [`RenderError::BadSize`] for an empty size.
     pub fn resize(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
-        if width == 0 || height == 0 {
-            return Err(RenderError::BadSize { width, height });
-        }
+        check_size(self.ctx, width, height)?;
         if (width, height) == (self.opts.width, self.opts.height) {
             return Ok(());
         }
@@ -406,6 +394,7 @@ impl<'f> Renderer<'f> {
             return Err(RenderError::BadSize {
                 width: self.opts.width,
                 height: self.opts.height,
+                limit: self.ctx.device.limits().max_texture_dimension_2d,
             });
         };
         Ok((stats, d.read(self.ctx)?))
@@ -503,16 +492,24 @@ pub(super) fn tree_specialisation(res: &Resident) -> Specialisation {
         .filter(|(_, a)| a.is_some())
         .fold(0u32, |m, (k, _)| m | 1 << k);
     Specialisation {
-        constants: vec![
-            (
-                tree::overrides::ATLAS_ARRAYS,
-                f64::from(res.atlas_arrays.len().max(1) as u32),
-            ),
-            (tree::overrides::CLASS_MASK, f64::from(class_mask)),
-        ],
+        constants: vec![(tree::overrides::CLASS_MASK, f64::from(class_mask))],
         source: true,
         density: false,
     }
+}
+
+/// A target of `width`×`height` pixels fits the device: each side 1 to `max_texture_dimension_2d`
+/// (wgpu would otherwise fail texture creation with an uncaptured validation error).
+fn check_size(ctx: &GpuContext, width: u32, height: u32) -> Result<(), RenderError> {
+    let limit = ctx.device.limits().max_texture_dimension_2d;
+    if width == 0 || height == 0 || width > limit || height > limit {
+        return Err(RenderError::BadSize {
+            width,
+            height,
+            limit,
+        });
+    }
+    Ok(())
 }
 
 /// `Camera::view_proj_relative` with depth mapped to reverse Z (`z' = w − z`: near → 1, far → 0), as f32.

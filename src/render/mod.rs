@@ -120,8 +120,22 @@ pub enum RenderError {
         rect: u32,
         rects: u32,
     },
-    #[error("frame size {width}x{height} is empty")]
-    BadSize { width: u32, height: u32 },
+    #[error("tree {tree} vertex {vertex} names leaf {leaf}; the tree has {leaves} leaves")]
+    VertexLeaf {
+        tree: usize,
+        vertex: usize,
+        leaf: u32,
+        leaves: usize,
+    },
+    #[error("tree {tree} leaf {leaf} names node {node}; the tree has {nodes} nodes")]
+    LeafNode {
+        tree: usize,
+        leaf: usize,
+        node: u32,
+        nodes: usize,
+    },
+    #[error("frame size {width}x{height}: each side must be 1 to {limit} pixels on this device")]
+    BadSize { width: u32, height: u32, limit: u32 },
     #[error(
         "{what} is not available when blocks are paged (use a capacity of all blocks or omit it)"
     )]

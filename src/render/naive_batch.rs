@@ -22,7 +22,8 @@ pub struct NaiveDraw {
     pub index_count: u32,
     /// The tree's first vertex in the shared vertex buffer (indices are tree-local).
     pub base_vertex: i32,
-    /// The tree's leaf base (drawn as the instance; the shader reads the vertex's own global leaf).
+    /// The tree's leaf base (which tree's leaves the draw belongs to; not drawn: naive.wgsl reads the
+    /// vertex's own global leaf).
     pub leaf_base: u32,
     /// Index into the distinct original textures (`Resident::uniques`, one bind group each).
     pub texture: u32,

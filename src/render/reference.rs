@@ -203,6 +203,7 @@ impl Renderer<'_> {
             return Err(RenderError::BadSize {
                 width: sw,
                 height: sh,
+                limit,
             });
         }
         let mut ss = match self.supersample.take() {

@@ -404,10 +404,15 @@ pub struct DecodeReport {
     pub encoded_bytes: u64,
     /// Images that failed to decode (each would become the fallback checker in a build).
     pub failures: usize,
+    /// The first [`DECODE_ERRORS_SHOWN`] of those failures' errors (each names its image).
+    pub errors: Vec<String>,
     /// Wall-clock seconds over `threads` threads.
     pub seconds: f64,
     pub threads: usize,
 }
+
+/// Failed decodes whose errors a [`DecodeReport`] keeps.
+pub const DECODE_ERRORS_SHOWN: usize = 5;
 
 /// Decodes every image a triangle of `scene` uses once, in parallel on the rayon pool (the build's pool),
 /// dropping each result at once. Units: seconds of wall time, texels.
@@ -425,18 +430,21 @@ pub fn decode_all(scene: &Scene) -> DecodeReport {
         .map(|(i, _)| i)
         .collect();
     let start = std::time::Instant::now();
-    let (texels, failures) = images
+    let results: Vec<Result<u64, String>> = images
         .par_iter()
         .map(|img| match img.decode() {
-            Ok(d) => (u64::from(d.width) * u64::from(d.height), 0),
-            Err(_) => (0, 1),
+            Ok(d) => Ok(u64::from(d.width) * u64::from(d.height)),
+            Err(e) => Err(e.to_string()),
         })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .collect();
+    let texels = results.iter().filter_map(|r| r.as_ref().ok()).sum();
+    let errors: Vec<String> = results.into_iter().filter_map(Result::err).collect();
     DecodeReport {
         images: images.len(),
         texels,
         encoded_bytes: images.iter().map(|i| i.encoded_bytes()).sum(),
-        failures,
+        failures: errors.len(),
+        errors: errors.into_iter().take(DECODE_ERRORS_SHOWN).collect(),
         seconds: start.elapsed().as_secs_f64(),
         threads: rayon::current_num_threads(),
     }
@@ -458,6 +466,13 @@ impl fmt::Display for DecodeReport {
             } else {
                 String::new()
             }
-        )
+        )?;
+        for e in &self.errors {
+            write!(f, "\n  failed: {e}")?;
+        }
+        if self.failures > self.errors.len() {
+            write!(f, "\n  … and {} more", self.failures - self.errors.len())?;
+        }
+        Ok(())
     }
 }

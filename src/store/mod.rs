@@ -120,6 +120,15 @@ pub enum StoreError {
         field: &'static str,
         value: u64,
     },
+    /// A floating-point field outside what every reader assumes (`rule` says what).
+    #[error("{table}[{index}].{field} is {value}: it must be {rule}")]
+    BadFloat {
+        table: &'static str,
+        index: u64,
+        field: &'static str,
+        value: f64,
+        rule: &'static str,
+    },
     #[error("{block}: bytes {offset}..+{len} outside the file of {file_len} bytes")]
     BlockOutOfBounds {
         block: BlockId,

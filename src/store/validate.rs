@@ -86,6 +86,47 @@ fn bad_value(table: &'static str, index: u64, field: &'static str, value: u64) -
     }
 }
 
+/// Checks that every value of `values` is finite.
+fn finite(
+    table: &'static str,
+    index: u64,
+    field: &'static str,
+    values: &[f64],
+) -> Result<(), StoreError> {
+    match values.iter().find(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(&value) => Err(StoreError::BadFloat {
+            table,
+            index,
+            field,
+            value,
+            rule: "finite",
+        }),
+    }
+}
+
+/// Checks `0 < value < max` (and finite).
+fn positive_below(
+    table: &'static str,
+    index: u64,
+    field: &'static str,
+    value: f64,
+    max: f64,
+    rule: &'static str,
+) -> Result<(), StoreError> {
+    if value.is_finite() && value > 0.0 && value < max {
+        Ok(())
+    } else {
+        Err(StoreError::BadFloat {
+            table,
+            index,
+            field,
+            value,
+            rule,
+        })
+    }
+}
+
 /// Checks `value < limit`.
 fn in_range(
     table: &'static str,
@@ -137,6 +178,34 @@ pub(crate) fn check_params(p: &ParamsRecord) -> Result<(), StoreError> {
             u64::from(p.atlas_size),
         ));
     }
+    // What selection and export divide by and take tangents of.
+    positive_below(
+        "params",
+        0,
+        "d_min",
+        p.d_min,
+        f64::INFINITY,
+        "finite and > 0",
+    )?;
+    positive_below(
+        "params",
+        0,
+        "fov_deg",
+        p.fov_deg,
+        180.0,
+        "in (0, 180) degrees",
+    )?;
+    positive_below(
+        "params",
+        0,
+        "texel_ratio",
+        p.texel_ratio,
+        f64::INFINITY,
+        "finite and > 0",
+    )?;
+    if p.screen_width == 0 {
+        return Err(bad_value("params", 0, "screen_width", 0));
+    }
     if p.decode().is_none() {
         let (field, value) = if p.up > 2 {
             ("up", p.up)
@@ -166,6 +235,9 @@ pub(crate) fn check_materials(
                 u64::from(m.alpha_mode),
             ));
         }
+        let factor = m.base_color_factor.map(f64::from);
+        finite("materials", i, "base_color_factor", &factor)?;
+        finite("materials", i, "alpha_cutoff", &[f64::from(m.alpha_cutoff)])?;
         if m.wraps().is_none() {
             return Err(bad_value(
                 "materials",
@@ -319,6 +391,29 @@ fn check_nodes(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreEr
     let count = t.nodes.len() as u64;
     for (i, n) in t.nodes.iter().enumerate() {
         let gi = base + i as u64;
+        finite("nodes", gi, "bounds_min", &n.bounds_min)?;
+        finite("nodes", gi, "bounds_max", &n.bounds_max)?;
+        if (0..3).any(|k| n.bounds_min[k] > n.bounds_max[k]) {
+            let k = (0..3)
+                .find(|&k| n.bounds_min[k] > n.bounds_max[k])
+                .unwrap_or(0);
+            return Err(StoreError::BadFloat {
+                table: "nodes",
+                index: gi,
+                field: "bounds_min",
+                value: n.bounds_min[k],
+                rule: "at most bounds_max",
+            });
+        }
+        if !(n.min_distance.is_finite() && n.min_distance >= 0.0) {
+            return Err(StoreError::BadFloat {
+                table: "nodes",
+                index: gi,
+                field: "min_distance",
+                value: n.min_distance,
+                rule: "finite and >= 0",
+            });
+        }
         if n.level >= 32 || (n.cell.ix >> n.level) != 0 || (n.cell.iy >> n.level) != 0 {
             return Err(bad_value(
                 "nodes",
@@ -405,6 +500,15 @@ fn check_leaves(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreE
         if leaf._pad != 0 {
             return Err(bad_value("leaves", gl, "_pad", u64::from(leaf._pad)));
         }
+        finite("leaves", gl, "origin", &leaf.origin)?;
+        positive_below(
+            "leaves",
+            gl,
+            "clamp_scale",
+            leaf.clamp_scale,
+            f64::INFINITY,
+            "finite and > 0",
+        )?;
         in_range(
             "leaves",
             gl,
@@ -565,6 +669,26 @@ fn check_vertices_indices(t: &TreeTables<'_>) -> Result<(), StoreError> {
             u64::from(t.leaves[v.leaf as usize].rect_count),
         ));
     }
+    // Positions and UVs every reader draws or exports as they are.
+    if let Some(i) = t.vertices.iter().position(|v| {
+        !(v.pos.iter().all(|c| c.is_finite()) && v.orig_uv.iter().all(|c| c.is_finite()))
+    }) {
+        let v = &t.vertices[i];
+        let value = v
+            .pos
+            .iter()
+            .chain(&v.orig_uv)
+            .find(|c| !c.is_finite())
+            .copied()
+            .unwrap_or(f32::NAN);
+        return Err(StoreError::BadFloat {
+            table: "vertices",
+            index: t.record.vertices.first + i as u64,
+            field: "pos/orig_uv",
+            value: f64::from(value),
+            rule: "finite",
+        });
+    }
     let limit = t.vertices.len() as u64;
     if let Some(i) = t.indices.iter().position(|&x| u64::from(x) >= limit) {
         let value = u64::from(t.indices[i]);
@@ -575,6 +699,48 @@ fn check_vertices_indices(t: &TreeTables<'_>) -> Result<(), StoreError> {
             value,
             limit,
         ));
+    }
+    check_leaf_geometry(t)
+}
+
+/// Every leaf's vertices are its own (their `leaf` is the leaf, their `original` one of its originals)
+/// and its triangles index only them: what the renderer and the exporter assume of a leaf's ranges. Runs
+/// after the ranges, the vertices' leaves and rects and the index values are checked.
+fn check_leaf_geometry(t: &TreeTables<'_>) -> Result<(), StoreError> {
+    for (l, leaf) in t.leaves.iter().enumerate() {
+        let first = leaf.first_vertex as usize;
+        let verts = &t.vertices[first..first + leaf.vertex_count as usize];
+        if let Some(k) = verts
+            .iter()
+            .position(|v| v.leaf != l as u32 || v.original >= leaf.original_count)
+        {
+            let v = &verts[k];
+            let gv = t.record.vertices.first + (first + k) as u64;
+            return Err(if v.leaf != l as u32 {
+                bad_value("vertices", gv, "leaf", u64::from(v.leaf))
+            } else {
+                bad_ref(
+                    "vertices",
+                    gv,
+                    "original",
+                    u64::from(v.original),
+                    u64::from(leaf.original_count),
+                )
+            });
+        }
+        let fi = leaf.first_index as usize;
+        let indices = &t.indices[fi..fi + leaf.index_count as usize];
+        if let Some(k) = indices
+            .iter()
+            .position(|&x| t.vertices[x as usize].leaf != l as u32)
+        {
+            return Err(bad_value(
+                "indices",
+                t.record.indices.first + (fi + k) as u64,
+                "value",
+                u64::from(indices[k]),
+            ));
+        }
     }
     Ok(())
 }

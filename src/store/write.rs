@@ -725,6 +725,13 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
     if meta.is_dir() {
         return Err(refuse("a directory".to_string()));
     }
+    // A device, FIFO or socket (`-o /dev/null` as root): the atomic rename would replace the node itself.
+    if !meta.is_file() {
+        return Err(refuse(format!(
+            "{}, not a regular file",
+            special_kind(&meta)
+        )));
+    }
     if meta.len() == 0 {
         return Ok(());
     }
@@ -741,9 +748,43 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
     Err(refuse(format!("it starts with \"{text}\"")))
 }
 
+/// What a path that is neither a file nor a directory is, in words.
+fn special_kind(meta: &std::fs::Metadata) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let t = meta.file_type();
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    let _ = meta;
+    "a special file"
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn device_outputs_are_refused() {
+        let err = check_replaceable(Path::new("/dev/null")).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("a character device, not a regular file"),
+            "{err}"
+        );
+    }
 
     #[test]
     fn layout_aligns_sections_and_blocks() {

@@ -156,8 +156,17 @@ fn resize_matches_a_fresh_renderer(ctx: &GpuContext) -> Result<(), String> {
         Err(RenderError::BadSize {
             width: 0,
             height: 10,
+            ..
         }) => {}
         other => return Err(format!("resize(0, 10) gave {other:?}")),
+    }
+    // Past the device's largest texture: an error, not wgpu's uncaptured validation panic.
+    let limit = ctx.device.limits().max_texture_dimension_2d;
+    match r.renderer.resize(limit + 1, 1) {
+        Err(RenderError::BadSize {
+            width, limit: l, ..
+        }) if width == limit + 1 && l == limit => {}
+        other => return Err(format!("resize({}, 1) gave {other:?}", limit + 1)),
     }
     r.renderer.resize(w2, h2).map_err(e)?;
     r.render(&cam, scale(&file, w2, &cam)?, Mode::Tree)

@@ -62,12 +62,20 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
         let vertex_base = i32::try_from(g.vertices.len())
             .map_err(|_| RenderError::TooLarge { what: "vertices" })?;
         for (li, leaf) in view.leaves.iter().enumerate() {
-            let node = view.nodes.get(leaf.node as usize);
+            let node = view
+                .nodes
+                .get(leaf.node as usize)
+                .ok_or(RenderError::LeafNode {
+                    tree: t,
+                    leaf: li,
+                    node: leaf.node,
+                    nodes: view.nodes.len(),
+                })?;
             let originals = view.leaf_originals(leaf);
             let first_tam = count_u32("tam", g.tam.len())?;
             let first_rect = count_u32("rects", g.rects.len())?;
-            let cell = node.map_or([0, 0], |n| [n.cell.ix, n.cell.iy]);
-            let level = node.map_or(0, |n| n.level);
+            let cell = [node.cell.ix, node.cell.iy];
+            let level = node.level;
             g.leaves.push(LeafInfo {
                 cell,
                 level,
@@ -180,16 +188,23 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
         // The GPU copy carries global numbers (checked above: every vertex's leaf is its own, its rect
         // and original inside the leaf's ranges): leaf, rect and TAM entry, so the vertex stage indexes
         // the buffers without loading a base (docs/DESIGN.md "Storage loads in the vertex stage").
+        // A vertex outside every leaf's range was not checked there: its leaf must still exist.
         let leaves = &g.leaves[leaf_base as usize..];
-        g.vertices.extend(view.vertices.iter().map(|v| {
-            let leaf = leaves.get(v.leaf as usize);
-            TreeVertex {
+        g.vertices.reserve(view.vertices.len());
+        for (vi, v) in view.vertices.iter().enumerate() {
+            let leaf = leaves.get(v.leaf as usize).ok_or(RenderError::VertexLeaf {
+                tree: t,
+                vertex: vi,
+                leaf: v.leaf,
+                leaves: leaves.len(),
+            })?;
+            g.vertices.push(TreeVertex {
                 leaf: v.leaf.saturating_add(leaf_base),
-                original: v.original.saturating_add(leaf.map_or(0, |l| l.first_tam)),
-                rect: v.rect.saturating_add(leaf.map_or(0, |l| l.first_rect)),
+                original: v.original.saturating_add(leaf.first_tam),
+                rect: v.rect.saturating_add(leaf.first_rect),
                 ..*v
-            }
-        }));
+            });
+        }
         g.indices.extend_from_slice(view.indices);
     }
     // The blend lists after every tree's indices (their values are tree-local vertex numbers, as the

@@ -237,10 +237,11 @@ fn a_point_footprint_terminates_and_a_point_scene_is_refused() {
         panic!("a point scene built with a d_min derived from its size")
     };
     assert!(
-        matches!(e, BuildError::InvalidParam { name: "d-min", .. }),
+        matches!(e, BuildError::DegenerateExtent { diagonal, ratio, .. } if diagonal == 0.0 && ratio == 20.0),
         "{e}"
     );
-    assert!(e.to_string().contains("single point"), "{e}");
+    assert!(e.to_string().contains("all one point"), "{e}");
+    assert!(e.to_string().contains("give --d-min"), "{e}");
     // With d_min given in metres it builds: one leaf, the paper's 1×1 area.
     let built = build_ok(&point, &tiny_opts(64, 10.0));
     assert_sound(&built.file);
