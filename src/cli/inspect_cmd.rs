@@ -165,6 +165,27 @@ pub(super) fn print_verify(v: &VerifyReport) {
     for m in &v.violations {
         println!("  violation: {m}");
     }
+    if v.periods_checked > 0 {
+        println!(
+            "  texels per period: {} (triangle, axis) pairs checked, smallest ratio to the need {:.6}{}",
+            v.periods_checked,
+            v.period_ratio_min,
+            if v.periods_undecidable > 0 {
+                format!(
+                    "; {} not decidable from the file's f32 geometry (sized in f64 by the build)",
+                    v.periods_undecidable
+                )
+            } else {
+                String::new()
+            }
+        );
+    }
+    if v.wrap_borders_checked > 0 {
+        println!(
+            "  wrap borders: {} sides checked, largest mean difference {:.2} sRGB levels (premultiplied)",
+            v.wrap_borders_checked, v.wrap_border_mean_max
+        );
+    }
     if !v.atlas_psnr.is_empty() {
         let n = v.atlas_psnr.len();
         let mut worst: Vec<_> = v.atlas_psnr.iter().collect();

@@ -316,9 +316,13 @@ pub struct VerifyReport {
     /// The smallest ratio found of a rect's texels per period to what one of its (uncapped) triangles
     /// needs at the leaf's min_distance (≥ 1 − 1e-6 holds the d_min guarantee).
     pub period_ratio_min: f64,
+    /// (triangle, axis) pairs not checked because the f32 storage of the file could move their need by
+    /// more than the need itself (a centimetre triangle kilometres from its leaf's origin; the build sized
+    /// them in f64).
+    pub periods_undecidable: u64,
     /// Wrap borders of leaf atlases compared with what the sampler rule puts there (periodic partner,
     /// reflection, edge texel), level 0 decoded: sides checked and the largest mean difference of one
-    /// side, sRGB8 levels.
+    /// side, sRGB8 levels (colour premultiplied by alpha).
     pub wrap_borders_checked: u64,
     pub wrap_border_mean_max: f64,
     /// Triangles that are extra pieces of split scene triangles.

@@ -192,14 +192,23 @@ fn check_periods(
     if sliver || uv.iter().any(|u| u.abs().max_element() > 1e4) {
         return;
     }
-    let need = texels_per_uv(pos, uv, f_proj * leaf.clamp_scale);
+    let f = f_proj * leaf.clamp_scale;
+    let need = texels_per_uv(pos, uv, f);
     if need.method != SizeMethod::Exact {
         return;
     }
+    let slack = storage_slack(pos, uv, f, [need.w, need.h]);
     let a = rect.decode();
     let tpu = a.texels_per_uv();
     for (k, want) in [need.w, need.h].into_iter().enumerate() {
         if a.capped[k] || want <= 0.0 {
+            continue;
+        }
+        // What the file's f32 storage can tell: the build sized the f64 triangle, which may need up to
+        // `slack` less. A need within the slack is not decidable from the file.
+        let want = want - slack[k];
+        if want <= 0.0 {
+            r.periods_undecidable += 1;
             continue;
         }
         let ratio = tpu[k] / want;
@@ -217,6 +226,37 @@ fn check_periods(
             ));
         }
     }
+}
+
+/// Per UV axis, a bound on how much the f32 storage of the leaf-relative positions and the shifted UVs
+/// (each coordinate within 2⁻²⁴ of its magnitude) can change [`texels_per_uv`]'s texels per period
+/// (times `f`): first-order perturbation of `J = E·D⁻¹` (world edges `E`, UV edges `D`), column `k`:
+/// `|ΔE·D⁻¹e_k| + |J|·|ΔD·D⁻¹e_k|`. Negligible for ordinary triangles; for a centimetre triangle two
+/// kilometres from its leaf's origin with near-parallel UV edges (the all-tracks world's scaled leaves
+/// span kilometres) it exceeds the need itself.
+fn storage_slack(pos: [DVec3; 3], uv: [DVec2; 3], f: f64, need: [f64; 2]) -> [f64; 2] {
+    let unit = 2f64.powi(-24);
+    let m = pos
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(0.0, f64::max);
+    let mu = uv.iter().map(|t| t.abs().max_element()).fold(0.0, f64::max);
+    let (d1, d2) = (uv[1] - uv[0], uv[2] - uv[0]);
+    let det = d1.perp_dot(d2).abs();
+    if det == 0.0 {
+        return [f64::INFINITY; 2];
+    }
+    // D⁻¹ = [[d2.y, −d2.x], [−d1.y, d1.x]] / det: column k weights edge 1 and edge 2.
+    let cols = [
+        (d2.y.abs() + d1.y.abs()) / det,
+        (d2.x.abs() + d1.x.abs()) / det,
+    ];
+    // An edge is a difference of two rounded corners: per component ≤ 2·m·u, per edge ≤ 2√3·m·u.
+    let de = 2.0 * 3f64.sqrt() * m * unit;
+    let dd = 2.0 * 2f64.sqrt() * mu.max(1.0) * unit;
+    // |J|_F times f.
+    let j = need[0].hypot(need[1]);
+    [0, 1].map(|k| (f * de + j * dd) * cols[k])
 }
 
 /// Compares every wrap border of every leaf atlas (level 0) with what the sampler's rule puts there.
@@ -291,12 +331,18 @@ struct BorderSide {
 }
 
 impl BorderSide {
+    /// Mean difference per channel, sRGB8 levels, of each border line against its partner: colour
+    /// premultiplied by alpha (`|c₀·a₀ − c₁·a₁| / 255`: what blending or the alpha test can show; fully
+    /// transparent texels carry the colour bled in from their nearest visible texel, which depends on the
+    /// neighbourhood and shows nowhere), alpha as stored. Block compression's colour error under low alpha
+    /// (a semi-transparent foliage period of 19 texels in BC3: 16.1 levels straight, the border itself
+    /// exact uncompressed) does not count beyond what it shows.
     fn mean_difference(&self, img: &[u8], size: u32) -> f64 {
-        let (mut sum, mut n) = (0u64, 0u64);
-        let at = |x: u32, y: u32, c: usize| {
-            img.get(((y as usize * size as usize) + x as usize) * 4 + c)
-                .copied()
-                .unwrap_or(0)
+        let (mut sum, mut n) = (0.0f64, 0u64);
+        let at = |x: u32, y: u32| -> [i32; 4] {
+            let i = ((y as usize * size as usize) + x as usize) * 4;
+            let t = img.get(i..i + 4).unwrap_or(&[0; 4]);
+            [t[0], t[1], t[2], t[3]].map(i32::from)
         };
         for &(b, p) in &self.pairs {
             for o in self.span.0..self.span.1 {
@@ -305,18 +351,15 @@ impl BorderSide {
                 } else {
                     (o, b, o, p)
                 };
-                // Fully transparent texels carry the colour bled in from their nearest visible texel
-                // (alpha trees), which depends on the neighbourhood: only their alpha is compared.
-                let transparent = at(x0, y0, 3) == 0 && at(x1, y1, 3) == 0;
-                for c in 0..4 {
-                    if !(transparent && c < 3) {
-                        sum += u64::from(at(x0, y0, c).abs_diff(at(x1, y1, c)));
-                    }
-                    n += 1;
+                let (u, v) = (at(x0, y0), at(x1, y1));
+                for c in 0..3 {
+                    sum += f64::from((u[c] * u[3] - v[c] * v[3]).abs()) / 255.0;
                 }
+                sum += f64::from((u[3] - v[3]).abs());
+                n += 4;
             }
         }
-        if n == 0 { 0.0 } else { sum as f64 / n as f64 }
+        if n == 0 { 0.0 } else { sum / n as f64 }
     }
 }
 
@@ -440,4 +483,111 @@ fn border_sides(rect: &RectRecord) -> Vec<BorderSide> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Three triangles of the all-tracks world as its file stores them (leaf-relative f32 positions,
+    /// shifted UVs), each a few centimetres wide and 0.4–2.1 km from its leaf's origin, whose need
+    /// recomputed from the file was 0.3–43 % above what the build sized in f64.
+    fn stored() -> [([DVec3; 3], [DVec2; 3]); 3] {
+        [
+            (
+                [
+                    DVec3::new(388.7140808105469, 66.60296630859375, 17.29596710205078),
+                    DVec3::new(388.6571044921875, 66.66885375976563, 17.276039123535156),
+                    DVec3::new(388.6639099121094, 66.66108703613281, 17.278223037719727),
+                ],
+                [
+                    DVec2::new(0.6416015625, 0.572265625),
+                    DVec2::new(0.646484375, 0.54443359375),
+                    DVec2::new(0.64599609375, 0.54736328125),
+                ],
+            ),
+            (
+                [
+                    DVec3::new(586.8795776367188, 72.95427703857422, -168.85842895507813),
+                    DVec3::new(586.8032836914063, 72.97328186035156, -168.85308837890625),
+                    DVec3::new(586.789306640625, 72.97584533691406, -168.8524169921875),
+                ],
+                [
+                    DVec2::new(0.2841796875, 0.529296875),
+                    DVec2::new(0.288330078125, 0.50830078125),
+                    DVec2::new(0.2890625, 0.5048828125),
+                ],
+            ),
+            (
+                [
+                    DVec3::new(2102.824462890625, -38.294010162353516, -111.39128112792969),
+                    DVec3::new(2102.798828125, -38.29388427734375, -111.39128112792969),
+                    DVec3::new(2102.79931640625, -38.29386520385742, -111.39128112792969),
+                ],
+                [
+                    DVec2::new(0.233642578125, 0.20166015625),
+                    DVec2::new(0.247314453125, 0.2015380859375),
+                    DVec2::new(0.2471923828125, 0.2015380859375),
+                ],
+            ),
+        ]
+    }
+
+    /// Any f64 triangle that rounds to the stored one needs within `storage_slack` of what the stored
+    /// one needs (checked on random such triangles: every coordinate moved by up to half an f32 ulp).
+    #[test]
+    fn storage_slack_bounds_what_f32_rounding_moves() {
+        let f = 3.04;
+        let mut rng = crate::util::XorShift64::new(7);
+        let mut unit = || (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+        let half_ulp = |x: f64| (x as f32).abs() as f64 * 2f64.powi(-24);
+        let mut worst = 0.0f64;
+        for (pos, uv) in stored() {
+            let need = texels_per_uv(pos, uv, f);
+            let slack = storage_slack(pos, uv, f, [need.w, need.h]);
+            for _ in 0..2000 {
+                let p = pos.map(|v| {
+                    DVec3::new(
+                        v.x + unit() * half_ulp(v.x),
+                        v.y + unit() * half_ulp(v.y),
+                        v.z + unit() * half_ulp(v.z),
+                    )
+                });
+                let t = uv.map(|v| {
+                    DVec2::new(v.x + unit() * half_ulp(v.x), v.y + unit() * half_ulp(v.y))
+                });
+                let truth = texels_per_uv(p, t, f);
+                for (k, (a, b)) in [(need.w, truth.w), (need.h, truth.h)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    assert!(
+                        (a - b).abs() <= slack[k],
+                        "axis {k}: {a} vs {b}, slack {}",
+                        slack[k]
+                    );
+                    worst = worst.max((a - b).abs() / slack[k]);
+                }
+            }
+        }
+        // The bound is not vacuous: random roundings reach a good share of it.
+        assert!(worst > 0.05, "worst share of the slack {worst}");
+    }
+
+    /// An ordinary triangle near its leaf's origin keeps a slack far below the 1e-3 tolerance.
+    #[test]
+    fn storage_slack_is_negligible_for_ordinary_triangles() {
+        let pos = [
+            DVec3::new(1.0, 0.0, 2.0),
+            DVec3::new(3.0, 0.0, 2.0),
+            DVec3::new(1.0, 0.0, 4.0),
+        ];
+        let uv = [DVec2::ZERO, DVec2::new(1.0, 0.0), DVec2::new(0.0, 1.0)];
+        let need = texels_per_uv(pos, uv, 100.0);
+        let slack = storage_slack(pos, uv, 100.0, [need.w, need.h]);
+        assert!(
+            slack[0] < 1e-5 * need.w && slack[1] < 1e-5 * need.h,
+            "{slack:?} {need:?}"
+        );
+    }
 }
