@@ -79,9 +79,11 @@ override PASS: u32 = PASS_OPAQUE;
 // separate pipelines (render::batch::Group): software rasterisers run every texture fetch of a shader
 // under an execution mask, so one shader able to sample every array would pay for all on every pixel.
 override SOURCE: u32 = SOURCE_ATLAS;
-// Atlas arrays in use (1..=MAX_ATLAS_ARRAYS) and the class arrays present (bit k: class 4 << k); the rest
-// is compiled out.
-override ATLAS_ARRAYS: u32 = MAX_ATLAS_ARRAYS;
+// The one atlas array (< MAX_ATLAS_ARRAYS) an atlas pipeline's records sample: records are grouped by
+// array too (render::batch::Group), so an atlas fragment runs one texture fetch (lavapipe runs every fetch
+// of a shader under an execution mask: a chain over two arrays cost 15–25 % of cornfield_crossing's tree
+// frame along the whole path). The class arrays present (bit k: class 4 << k); the rest is compiled out.
+override ATLAS_ARRAY: u32 = 0u;
 override CLASS_MASK: u32 = (1u << CLASS_COUNT) - 1u;
 // DENSITY_ON: the texel-density debug pipeline (render::density): instead of the colour, write the texels
 // of mip 0 per screen pixel of the sampled texture (Rgba32Float target, no blending).
@@ -204,9 +206,6 @@ struct VertexOut {
 // The fields of VertexOut.draw.x.
 fn draw_layer(in: VertexOut) -> u32 {
     return in.draw.x & (MAX_LAYERS - 1u);
-}
-fn draw_array(in: VertexOut) -> u32 {
-    return (in.draw.x >> ARRAY_SHIFT) & 3u;
 }
 fn draw_level(in: VertexOut) -> u32 {
     return (in.draw.x >> LEVEL_SHIFT) & 255u;
@@ -359,18 +358,18 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-fn sample_atlas(array: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
-    var c = textureSampleGrad(atlas0, atlas_sampler, uv, layer, ddx, ddy);
-    if ATLAS_ARRAYS > 1u && array == 1u {
-        c = textureSampleGrad(atlas1, atlas_sampler, uv, layer, ddx, ddy);
+// The pipeline's atlas array (ATLAS_ARRAY, a constant: one fetch is compiled in).
+fn sample_atlas(uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy: vec2<f32>) -> vec4<f32> {
+    if ATLAS_ARRAY == 1u {
+        return textureSampleGrad(atlas1, atlas_sampler, uv, layer, ddx, ddy);
     }
-    if ATLAS_ARRAYS > 2u && array == 2u {
-        c = textureSampleGrad(atlas2, atlas_sampler, uv, layer, ddx, ddy);
+    if ATLAS_ARRAY == 2u {
+        return textureSampleGrad(atlas2, atlas_sampler, uv, layer, ddx, ddy);
     }
-    if ATLAS_ARRAYS > 3u && array == 3u {
-        c = textureSampleGrad(atlas3, atlas_sampler, uv, layer, ddx, ddy);
+    if ATLAS_ARRAY == 3u {
+        return textureSampleGrad(atlas3, atlas_sampler, uv, layer, ddx, ddy);
     }
-    return c;
+    return textureSampleGrad(atlas0, atlas_sampler, uv, layer, ddx, ddy);
 }
 
 // Bit k of CLASS_MASK is set and the entry's class is k.
@@ -479,7 +478,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             let sv = singular_values(ddx * tpu, ddy * tpu, globals.atlas_texels);
             return vec4<f32>(sv.x, sv.y, f32(SOURCE_ATLAS), f32(draw_level(in)));
         }
-        let c = sample_atlas(draw_array(in), a.uv, draw_layer(in), a.ddx, a.ddy);
+        let c = sample_atlas(a.uv, draw_layer(in), a.ddx, a.ddy);
         // Per material, as original draws: MASK tested against its cutoff, BLEND blended (or, in a blend
         // node's depth pre-pass, written where opaque).
         return finish(c, rm.cutoff, (rm.wrap >> ALPHA_SHIFT) & CODE_MASK);

@@ -19,6 +19,7 @@
 //! The records themselves ([`NodeDraw`], [`RectMap`], and the leaf and TAM records) are the shader's
 //! twins in [`crate::render::wgsl::tree`].
 
+use super::textures::MAX_ATLAS_ARRAYS;
 use super::wgsl::tree::{
     ALPHA_BLEND, ALPHA_MASK, ALPHA_OPAQUE, ALPHA_SHIFT, NodeDraw, PASS_BLEND, PASS_MASK,
     PASS_OPAQUE, RectMap, WRAP_T_SHIFT,
@@ -89,38 +90,72 @@ impl Pass {
     pub const ALL: [Pass; 3] = [Pass::Opaque, Pass::Mask, Pass::Blend];
 }
 
-/// A pipeline of the tree renderer: pass × texture source. Atlas and original-texture records are drawn
-/// by separate pipelines (each one `multi_draw_indexed_indirect`): a software rasteriser such as lavapipe
-/// executes every texture fetch of a shader under an execution mask, so a fragment shader that can sample
-/// both the atlas arrays and every class array pays for all of them on every pixel.
+/// A pipeline of the tree renderer: pass × texture source, atlas records also by atlas array. Each is one
+/// `multi_draw_indexed_indirect`: a software rasteriser such as lavapipe executes every texture fetch of
+/// a shader under an execution mask, so a fragment shader able to sample both the atlas arrays and every
+/// class array would pay for all of them on every pixel; with one pipeline per atlas array an atlas
+/// fragment runs exactly one fetch (`ATLAS_ARRAY` in tree.wgsl).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Group {
     pub pass: Pass,
     /// Original textures (else atlases).
     pub original: bool,
+    /// The atlas array the records sample (below [`MAX_ATLAS_ARRAYS`]; 0 for originals).
+    pub array: u8,
 }
 
+/// Groups a pass has: one per atlas array, then the originals.
+const GROUPS_PER_PASS: usize = MAX_ATLAS_ARRAYS + 1;
+
 /// Number of [`Group`]s.
-pub const GROUPS: usize = 6;
+pub const GROUPS: usize = 3 * GROUPS_PER_PASS;
 
 impl Group {
-    /// All groups in draw order: opaque atlas, opaque originals, mask atlas, mask originals, blend …
-    pub const ALL: [Group; GROUPS] = [
-        Group::new(Pass::Opaque, false),
-        Group::new(Pass::Opaque, true),
-        Group::new(Pass::Mask, false),
-        Group::new(Pass::Mask, true),
-        Group::new(Pass::Blend, false),
-        Group::new(Pass::Blend, true),
-    ];
+    /// All groups in draw order: opaque atlas arrays 0 … 3, opaque originals, mask atlas arrays …, mask
+    /// originals, blend ….
+    pub const ALL: [Group; GROUPS] = {
+        let mut all = [Group::new(Pass::Opaque, false); GROUPS];
+        let passes = [Pass::Opaque, Pass::Mask, Pass::Blend];
+        let mut i = 0;
+        while i < GROUPS {
+            let pass = passes[i / GROUPS_PER_PASS];
+            let k = i % GROUPS_PER_PASS;
+            all[i] = if k == MAX_ATLAS_ARRAYS {
+                Group::new(pass, true)
+            } else {
+                Group::atlas(pass, k as u8)
+            };
+            i += 1;
+        }
+        all
+    };
 
+    /// Atlas array 0 (`original == false`) or the original textures of `pass`.
     pub const fn new(pass: Pass, original: bool) -> Group {
-        Group { pass, original }
+        Group {
+            pass,
+            original,
+            array: 0,
+        }
+    }
+
+    /// Atlas array `array` of `pass`.
+    pub const fn atlas(pass: Pass, array: u8) -> Group {
+        Group {
+            pass,
+            original: false,
+            array,
+        }
     }
 
     /// Position in [`Group::ALL`].
     pub fn index(self) -> usize {
-        self.pass as usize * 2 + usize::from(self.original)
+        let k = if self.original {
+            MAX_ATLAS_ARRAYS
+        } else {
+            usize::from(self.array).min(MAX_ATLAS_ARRAYS - 1)
+        };
+        self.pass as usize * GROUPS_PER_PASS + k
     }
 }
 
@@ -310,7 +345,10 @@ impl FrameBatch {
                 self.original_records += 1;
             }
             self.triangles += u64::from(item.index_count / 3);
-            let group = Group::new(pass, atlas.is_none());
+            let group = match atlas {
+                Some((s, _)) => Group::atlas(pass, s.array as u8),
+                None => Group::new(pass, true),
+            };
             if pass != Pass::Blend {
                 self.pending[group.index()].push((draw, record));
                 continue;
@@ -320,7 +358,11 @@ impl FrameBatch {
             // hold a whole track's vegetation) keeps MASK occlusion right; the blend pass then adds only
             // what the pre-pass left (equal depth fails the Greater test), drawing only the node's range
             // of the blend list: its MASK triangles could not change a pixel there.
-            self.pending[Group::new(Pass::Mask, atlas.is_none()).index()].push((draw, record));
+            let pre_pass = Group {
+                pass: Pass::Mask,
+                ..group
+            };
+            self.pending[pre_pass.index()].push((draw, record));
             let draw = match info.blend_ranges.get(n) {
                 Some(&(first_index, index_count)) => DrawIndexedIndirect {
                     index_count,

@@ -153,7 +153,8 @@ pub fn sampler(
 pub struct Specialisation {
     /// Constants every pipeline gets (besides `PASS`).
     pub constants: Vec<(&'static str, f64)>,
-    /// The shader has `override SOURCE` ([`tree::SOURCE_ATLAS`], [`tree::SOURCE_ORIGINAL`]).
+    /// The shader has `override SOURCE` ([`tree::SOURCE_ATLAS`], [`tree::SOURCE_ORIGINAL`]) and `override
+    /// ATLAS_ARRAY` ([`Group::array`]).
     pub source: bool,
     /// The texel-density variant: `DENSITY` = [`tree::DENSITY_ON`], target [`DENSITY_FORMAT`], no
     /// blending.
@@ -202,13 +203,25 @@ impl PassPipelines {
         p
     }
 
+    /// The group whose pipeline `group` draws with: itself, or for a shader without the `SOURCE` and
+    /// `ATLAS_ARRAY` overrides (the dummy) the same pass and source on atlas array 0 (one pipeline for
+    /// every array).
+    fn key(&self, group: Group) -> Group {
+        if self.spec.source {
+            group
+        } else {
+            Group::new(group.pass, group.original)
+        }
+    }
+
     /// The pipeline of `group` if it was created.
     pub fn existing(&self, group: Group) -> Option<&wgpu::RenderPipeline> {
-        self.pipelines[group.index()].as_ref()
+        self.pipelines[self.key(group).index()].as_ref()
     }
 
     /// The pipeline of `group`, created on first use.
     pub fn get(&mut self, device: &wgpu::Device, group: Group) -> &wgpu::RenderPipeline {
+        let group = self.key(group);
         let slot = &mut self.pipelines[group.index()];
         let spec = &self.spec;
         slot.get_or_insert_with(|| {
@@ -243,6 +256,7 @@ fn create_pipeline(
             tree::SOURCE_ATLAS
         };
         constants.push((tree::overrides::SOURCE, f64::from(source)));
+        constants.push((tree::overrides::ATLAS_ARRAY, f64::from(group.array)));
     }
     if spec.density {
         constants.push((tree::overrides::DENSITY, f64::from(tree::DENSITY_ON)));

@@ -117,7 +117,15 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
             r[Group::new(Pass::Opaque, true).index()],
             (atlas, batch.len() as u32 - atlas)
         );
-        assert!(r[2..].iter().all(|&(_, n)| n == 0));
+        let (opaque_atlas, opaque_originals) = (
+            Group::new(Pass::Opaque, false).index(),
+            Group::new(Pass::Opaque, true).index(),
+        );
+        assert!(
+            r.iter()
+                .enumerate()
+                .all(|(g, &(_, n))| g == opaque_atlas || g == opaque_originals || n == 0)
+        );
         let mut triangles = 0u64;
         let mut originals = 0;
         // Records are the cut's items, atlas items first (each group keeps tree order).
@@ -191,6 +199,68 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
     batch.finish();
     assert_eq!(skipped as usize, atlas_items);
     assert_eq!(batch.len(), cut.items.len() - atlas_items);
+}
+
+#[test]
+fn groups_are_numbered_in_draw_order() {
+    for (i, g) in Group::ALL.iter().enumerate() {
+        assert_eq!(g.index(), i, "{g:?}");
+        assert!(g.array == 0 || !g.original, "{g:?}");
+    }
+    // Per pass: atlas arrays 0 … 3, then the originals; passes opaque, mask, blend.
+    assert_eq!(Group::ALL[3], Group::atlas(Pass::Opaque, 3));
+    assert_eq!(Group::ALL[4], Group::new(Pass::Opaque, true));
+    assert_eq!(Group::ALL[5], Group::atlas(Pass::Mask, 0));
+}
+
+#[test]
+fn atlas_records_are_grouped_by_their_array() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = city_file(dir.path());
+    let mut p = gather_tables(&file).unwrap();
+    let view = file.tree(0).unwrap();
+    // Atlases spread over three arrays (as past a device's layer limit).
+    for (n, slot) in p.infos[0].atlas_slots.iter_mut().enumerate() {
+        *slot = Some(AtlasSlot {
+            array: n as u32 % 3,
+            layer: n as u32 / 3,
+        });
+    }
+    let root = view.nodes[0];
+    let path = CameraPath::overview_dive(
+        root.bounds_min.into(),
+        root.bounds_max.into(),
+        file.to_params().up,
+    )
+    .unwrap();
+    let mut cut = Cut::new();
+    let mut batch = FrameBatch::new();
+    let mut arrays_seen = [false; 3];
+    for cam in path.frames(2.0, 40) {
+        select(view.nodes, &cam, &cam.frustum(), 4.0, &mut cut);
+        batch.clear();
+        assert_eq!(batch.add_cut(&p.infos[0], view.nodes, &cut, None), 0);
+        batch.finish();
+        let mut drawn = 0;
+        for g in Group::ALL {
+            let (first, count) = batch.group_ranges[g.index()];
+            drawn += count;
+            for r in &batch.records[first as usize..(first + count) as usize] {
+                if g.original {
+                    assert_eq!(r.atlas_layer, NONE, "{g:?}");
+                } else {
+                    assert_eq!(r.atlas_array, u32::from(g.array), "{g:?}");
+                    assert_eq!(r.atlas_array, r.node % 3, "node {}", r.node);
+                    arrays_seen[r.atlas_array as usize] = true;
+                }
+            }
+        }
+        assert_eq!(drawn as usize, cut.items.len());
+    }
+    assert_eq!(
+        arrays_seen, [true; 3],
+        "the path draws atlases of every array"
+    );
 }
 
 #[test]

@@ -123,9 +123,9 @@ wgsl_overrides! {
     /// The texture source of the pipeline's records: [`SOURCE_ATLAS`](super::SOURCE_ATLAS) or
     /// [`SOURCE_ORIGINAL`](super::SOURCE_ORIGINAL).
     SOURCE,
-    /// Atlas arrays in use (1 ..= [`MAX_ATLAS_ARRAYS`](super::MAX_ATLAS_ARRAYS)); the others are compiled
-    /// out.
-    ATLAS_ARRAYS,
+    /// The one atlas array (below [`MAX_ATLAS_ARRAYS`](super::MAX_ATLAS_ARRAYS)) an atlas pipeline's
+    /// records sample ([`crate::render::batch::Group::array`]); the other arrays are compiled out.
+    ATLAS_ARRAY,
     /// Class arrays present: bit `k` for class `4 << k`; the others are compiled out.
     CLASS_MASK,
     /// [`DENSITY_ON`](super::DENSITY_ON): the texel-density variant.
