@@ -7,7 +7,8 @@
 //! [`MemoryWindow`] reads the process peak at its start and end: if the peak rose inside the window, that
 //! new peak is the window's, exactly; otherwise the window's peak is the largest resident size a sampler
 //! thread saw during it (every [`SAMPLE_PERIOD`]; a spike shorter than that can be missed), or the
-//! resident size at its ends. Windows may overlap or nest (each holds one of [`SLOTS`] sampler slots).
+//! resident size at its ends, never more than the process peak at its end. Windows may overlap or nest (each
+//! holds one of [`SLOTS`] sampler slots).
 
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
@@ -110,7 +111,10 @@ impl MemoryWindow {
             .max(now.map(|[rss, _]| rss));
         let result = match (now, self.peak_at_start) {
             (Some([_, p]), Some(s)) if p > s => Some(p),
-            (Some(_), _) => sampled,
+            // The kernel's resident counters are per-CPU and summed lazily, so a sampled resident size can
+            // exceed the peak the kernel records by a few dozen pages (seen: 37); a window never reports
+            // more than the process peak read at its end.
+            (Some([_, p]), _) => sampled.map(|s| s.min(p)),
             (None, _) => None,
         };
         self.restart(now);
