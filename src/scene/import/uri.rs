@@ -102,10 +102,15 @@ impl<'a> Buffers<'a> {
             })?;
         let (uri, data) = match buffer.source() {
             gltf::buffer::Source::Bin => {
-                let data = self
-                    .blob
-                    .take()
-                    .ok_or_else(|| "GLB BIN chunk missing or already used".to_string());
+                // glTF 2.0 §4.4 (GLB-stored buffer): only the first buffer may use the BIN chunk.
+                // Buffer 0 is loaded once, so the chunk is taken at most once.
+                let data = match index {
+                    0 => self.blob.take().ok_or_else(|| {
+                        "the file has no GLB BIN chunk (truncated after its JSON chunk?)"
+                            .to_string()
+                    }),
+                    _ => Err("has no uri, and only buffer 0 may use the GLB BIN chunk".into()),
+                };
                 ("<GLB BIN chunk>".to_string(), data)
             }
             gltf::buffer::Source::Uri(uri) => (uri.to_string(), self.read_uri(uri)),

@@ -202,6 +202,47 @@ fn glb_bytes(doc: &Value, bin: &[u8]) -> Vec<u8> {
     glb
 }
 
+/// A GLB cut after its JSON chunk, and one whose second buffer also claims the BIN chunk (glTF 2.0 allows
+/// it the first only): each error names the buffer and says which it is (was "missing or already used").
+#[test]
+fn glb_bin_chunk_absent_or_claimed_twice() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = std::fs::read(city_dir().join("scene.bin")).unwrap();
+    let mut doc = city_json();
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    let glb = glb_bytes(&doc, &bin);
+    let json_end = 20 + u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut cut = glb[..json_end].to_vec();
+    cut[8..12].copy_from_slice(&(json_end as u32).to_le_bytes());
+    let path = dir.path().join("cut.glb");
+    std::fs::write(&path, &cut).unwrap();
+    let e = import(&path, &ImportOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: buffer 0 (<GLB BIN chunk>): the file has no GLB BIN chunk (truncated after its JSON chunk?)",
+            path.display()
+        )
+    );
+
+    let views = doc["bufferViews"].as_array().unwrap().len();
+    doc["buffers"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"byteLength": bin.len()}));
+    doc["bufferViews"][views - 1]["buffer"] = json!(1);
+    let path = dir.path().join("twice.glb");
+    std::fs::write(&path, glb_bytes(&doc, &bin)).unwrap();
+    let e = import(&path, &ImportOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: buffer 1 (<GLB BIN chunk>): has no uri, and only buffer 0 may use the GLB BIN chunk",
+            path.display()
+        )
+    );
+}
+
 fn city_triangles() -> usize {
     import(&city_dir().join("scene.gltf"), &ImportOptions::default())
         .unwrap()
