@@ -30,6 +30,17 @@ fn city_file(dir: &std::path::Path) -> TreeFile {
 }
 
 /// The leaves of the subtree of `node`, by walking child links.
+/// The overview-dive over tree 0's root bounds.
+fn dive_over(file: &TreeFile, nodes: &[atlastree::store::format::NodeRecord]) -> CameraPath {
+    let root = nodes[0];
+    CameraPath::overview_dive(
+        root.bounds_min.into(),
+        root.bounds_max.into(),
+        file.to_params().up,
+    )
+    .unwrap()
+}
+
 fn subtree_leaves(nodes: &[atlastree::store::format::NodeRecord], node: usize) -> Vec<u32> {
     let mut out = Vec::new();
     let mut stack = vec![node];
@@ -84,13 +95,7 @@ fn records_match_the_cut_and_first_instance_numbers_them() {
     );
     assert!(info.passes.iter().all(|&q| q == Pass::Opaque));
 
-    let root = view.nodes[0];
-    let path = CameraPath::overview_dive(
-        root.bounds_min.into(),
-        root.bounds_max.into(),
-        file.to_params().up,
-    )
-    .unwrap();
+    let path = dive_over(&file, view.nodes);
     let mut cut = Cut::new();
     let mut batch = FrameBatch::new();
     let mut offsets = LeafOffsets::new(p.origins.clone());
@@ -226,13 +231,7 @@ fn atlas_records_are_grouped_by_their_array() {
             layer: n as u32 / 3,
         });
     }
-    let root = view.nodes[0];
-    let path = CameraPath::overview_dive(
-        root.bounds_min.into(),
-        root.bounds_max.into(),
-        file.to_params().up,
-    )
-    .unwrap();
+    let path = dive_over(&file, view.nodes);
     let mut cut = Cut::new();
     let mut batch = FrameBatch::new();
     let mut arrays_seen = [false; 3];
