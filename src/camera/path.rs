@@ -171,7 +171,7 @@ pub struct CameraPath {
 impl CameraPath {
     /// Reads and validates a path file.
     pub fn load(path: &Path) -> Result<CameraPath, CameraError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CameraError::Io {
+        let text = crate::util::read_text_file(path).map_err(|source| CameraError::Io {
             path: path.to_owned(),
             source,
         })?;

@@ -108,7 +108,8 @@ fn load_grid(spec: &str) -> anyhow::Result<Grid> {
     if !spec.to_ascii_lowercase().ends_with(".json") {
         bail!("unknown --grid {spec:?}: expected small, full or a .json file");
     }
-    let text = std::fs::read_to_string(spec).with_context(|| format!("reading grid {spec}"))?;
+    let text = atlastree::util::read_text_file(std::path::Path::new(spec))
+        .with_context(|| format!("reading grid {spec}"))?;
     Ok(Grid::from_json(&text, spec)?)
 }
 

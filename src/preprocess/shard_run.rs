@@ -746,6 +746,6 @@ fn only_count(out: &Path) -> Result<u32, MergeError> {
 fn read_sidecar<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
     let mut name = path.as_os_str().to_os_string();
     name.push(".json");
-    let bytes = std::fs::read(PathBuf::from(name)).ok()?;
+    let bytes = crate::util::read_regular(&PathBuf::from(name), None).ok()?;
     serde_json::from_slice(&bytes).ok()
 }

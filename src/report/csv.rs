@@ -220,7 +220,7 @@ impl CsvTable {
 /// Reads a CSV file written by this module (RFC 4180 quoting, `\n` or `\r\n` line ends). Every row must
 /// have as many cells as the header.
 pub fn read_csv(path: &Path) -> Result<CsvTable, ReportError> {
-    let text = std::fs::read_to_string(path).map_err(|e| ReportError::io(path, e))?;
+    let text = crate::util::read_text_file(path).map_err(|e| ReportError::io(path, e))?;
     parse_csv(&text).map_err(|(line, message)| ReportError::Csv {
         path: path.to_path_buf(),
         line,

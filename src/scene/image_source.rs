@@ -165,10 +165,11 @@ impl ImageSource {
                 decode_encoded(std::io::Cursor::new(&bytes[..]), &self.name)?
             }
             ImageData::File(path) => {
-                let file = std::fs::File::open(path).map_err(|e| SceneError::ImageDecode {
-                    image: self.name.clone(),
-                    reason: format!("{}: {e}", path.display()),
-                })?;
+                let file =
+                    crate::util::open_regular(path).map_err(|e| SceneError::ImageDecode {
+                        image: self.name.clone(),
+                        reason: format!("{}: {e}", path.display()),
+                    })?;
                 decode_encoded(std::io::BufReader::new(file), &self.name)?
             }
         };

@@ -208,7 +208,7 @@ impl TreeFile {
     /// values). Block contents are checked later, per load.
     pub fn open_with(path: &Path, mode: LoadMode) -> Result<TreeFile, StoreError> {
         check_endian()?;
-        let mut file = File::open(path).map_err(|e| StoreError::io(path, e))?;
+        let mut file = crate::util::open_regular(path).map_err(|e| StoreError::io(path, e))?;
         let no_mmap = std::env::var_os("ATLASTREE_NO_MMAP").is_some_and(|v| v == "1");
         let backing = match mode {
             LoadMode::Mmap => Backing::map(&file, path)?,

@@ -415,7 +415,7 @@ impl ShardFile {
             path: path.to_path_buf(),
             what,
         };
-        let file = File::open(path).map_err(io)?;
+        let file = crate::util::open_regular(path).map_err(io)?;
         let len = file.metadata().map_err(io)?.len();
         if len < HEADER_BYTES {
             return Err(ShardFileError::Length {

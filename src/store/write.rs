@@ -729,7 +729,7 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
     if !meta.is_file() {
         return Err(refuse(format!(
             "{}, not a regular file",
-            special_kind(&meta)
+            crate::util::node_kind(&meta)
         )));
     }
     if meta.len() == 0 {
@@ -746,29 +746,6 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
     }
     let text = String::from_utf8_lossy(&head).escape_debug().to_string();
     Err(refuse(format!("it starts with \"{text}\"")))
-}
-
-/// What a path that is neither a file nor a directory is, in words.
-fn special_kind(meta: &std::fs::Metadata) -> &'static str {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::FileTypeExt;
-        let t = meta.file_type();
-        if t.is_char_device() {
-            return "a character device";
-        }
-        if t.is_block_device() {
-            return "a block device";
-        }
-        if t.is_fifo() {
-            return "a FIFO";
-        }
-        if t.is_socket() {
-            return "a socket";
-        }
-    }
-    let _ = meta;
-    "a special file"
 }
 
 #[cfg(test)]

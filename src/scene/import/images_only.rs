@@ -34,7 +34,7 @@ fn images_unguarded(
     wanted: &[ImageRef],
     file: &str,
 ) -> Result<(Vec<ImageSource>, ImportReport), SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+    let bytes = crate::util::read_regular(path, None).map_err(|source| SceneError::Io {
         file: file.to_string(),
         source,
     })?;
@@ -110,7 +110,7 @@ pub fn input_digest(path: &Path) -> Result<[u64; 2], SceneError> {
 
 /// Feeds the file at `path` to `hasher` in 1 MiB reads.
 fn stream_into(hasher: &mut xxhash_rust::xxh3::Xxh3, path: &Path) -> std::io::Result<()> {
-    let mut f = std::fs::File::open(path)?;
+    let mut f = crate::util::open_regular(path)?;
     let mut buf = vec![0u8; 1 << 20];
     loop {
         let n = f.read(&mut buf)?;
@@ -123,11 +123,11 @@ fn stream_into(hasher: &mut xxhash_rust::xxh3::Xxh3, path: &Path) -> std::io::Re
 
 /// The JSON of a `.gltf`, or the JSON chunk of a `.glb` (read by its header, not the whole file).
 fn json_chunk(path: &Path) -> std::io::Result<Vec<u8>> {
-    let mut f = std::fs::File::open(path)?;
+    let mut f = crate::util::open_regular(path)?;
     let mut head = [0u8; 20];
     let n = read_up_to(&mut f, &mut head)?;
     if n < 20 || &head[..4] != b"glTF" {
-        return std::fs::read(path);
+        return crate::util::read_regular(path, None);
     }
     let len = u64::from(u32::from_le_bytes([head[12], head[13], head[14], head[15]]));
     if len > f.metadata()?.len() {

@@ -86,7 +86,7 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
 /// [`import`] without the panic guard.
 fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Scene, SceneError> {
     let file = file.to_string();
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+    let bytes = crate::util::read_regular(path, None).map_err(|source| SceneError::Io {
         file: file.clone(),
         source,
     })?;

@@ -113,7 +113,9 @@ impl<'a> Buffers<'a> {
                 };
                 ("<GLB BIN chunk>".to_string(), data)
             }
-            gltf::buffer::Source::Uri(uri) => (uri.to_string(), self.read_uri(uri)),
+            gltf::buffer::Source::Uri(uri) => {
+                (uri.to_string(), self.read_uri(uri, buffer.length() as u64))
+            }
         };
         let err = |reason: String| SceneError::Buffer {
             file: self.file.to_string(),
@@ -135,13 +137,15 @@ impl<'a> Buffers<'a> {
         Ok(())
     }
 
-    /// Reads a URI: `data:` (base64) or a path relative to the glTF file (percent-decoded).
-    fn read_uri(&self, uri: &str) -> Result<Vec<u8>, String> {
+    /// Reads a URI: `data:` (base64) or a path relative to the glTF file (percent-decoded): a regular file,
+    /// of which the first `length` bytes (the buffer's `byteLength`; a longer file's tail is not read).
+    fn read_uri(&self, uri: &str, length: u64) -> Result<Vec<u8>, String> {
         if uri.starts_with("data:") {
             return decode_data_uri(uri);
         }
         let path = self.base_dir.join(percent_decode(uri));
-        std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))
+        crate::util::read_regular(&path, Some(length))
+            .map_err(|e| format!("{}: {e}", path.display()))
     }
 
     /// Loads every buffer accessor `acc` reads from (its view and sparse views).
@@ -195,7 +199,7 @@ impl<'a> Buffers<'a> {
                 let rel = percent_decode(uri);
                 let path = self.base_dir.join(&rel);
                 let name = img.name().map_or_else(|| rel.clone(), str::to_string);
-                let res = std::fs::File::open(&path)
+                let res = crate::util::open_regular(&path)
                     .map_err(|e| format!("{}: {e}", path.display()))
                     .and_then(|f| {
                         image_source::read_header(std::io::BufReader::new(f))

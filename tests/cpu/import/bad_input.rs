@@ -267,6 +267,43 @@ fn missing_buffer_file_names_buffer_and_path() {
     );
 }
 
+/// Files that are not regular files are refused before they are opened: a buffer at `/dev/zero` was read
+/// until memory ran out, an image at a FIFO blocked the import forever. The buffer is an error naming it;
+/// the image, like a missing one, is a counted fallback with a warning that says what it is.
+#[cfg(unix)]
+#[test]
+fn buffers_and_images_that_are_devices_or_fifos_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["buffers"][0]["uri"] = json!("/dev/zero");
+    let (path, r) = import_city(dir.path(), &doc);
+    assert_eq!(
+        r.unwrap_err().to_string(),
+        format!(
+            "{}: buffer 0 (/dev/zero): /dev/zero: a character device, not a regular file",
+            path.display()
+        )
+    );
+
+    let fifo = dir.path().join("tex.png");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("SKIP (FIFO half): mkfifo is not available");
+        return;
+    }
+    let mut doc = city_json();
+    doc["images"][0]["uri"] = json!("tex.png");
+    let (path, r) = import_city(dir.path(), &doc);
+    let s = r.unwrap();
+    assert_eq!(s.report.missing_images, 1);
+    let want = format!(
+        "{}: image 0 (tex.png): {}: a FIFO, not a regular file; using the magenta/black fallback checker",
+        path.display(),
+        fifo.display()
+    );
+    assert!(s.report.warnings.contains(&want), "{:?}", s.report.warnings);
+}
+
 /// A PNG cut inside its header is replaced at import by the fallback checker (counted, one warning);
 /// one cut inside its pixel data imports by its header and is replaced when the build decodes it.
 #[test]
