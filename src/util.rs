@@ -56,8 +56,28 @@ impl Drop for LiveTemp {
 pub fn remove_live_temps() -> usize {
     live_temps()
         .iter()
-        .filter(|p| std::fs::remove_file(p).is_ok())
+        .filter(|p| {
+            if p.is_dir() {
+                std::fs::remove_dir_all(p).is_ok()
+            } else {
+                std::fs::remove_file(p).is_ok()
+            }
+        })
         .count()
+}
+
+/// A temp directory (an export being written) that [`remove_live_temps`] removes with its contents if the
+/// process is interrupted while this guard lives. Dropping the guard only forgets the directory.
+pub struct LiveTempDir {
+    _live: LiveTemp,
+}
+
+impl LiveTempDir {
+    pub fn register(path: &Path) -> LiveTempDir {
+        LiveTempDir {
+            _live: LiveTemp::register(path),
+        }
+    }
 }
 
 /// The directory `path` lives in (`.` for a bare name).
@@ -539,6 +559,21 @@ mod tests {
     use super::*;
 
     #[cfg(unix)]
+    #[test]
+    fn live_temp_dirs_are_removed_with_their_contents_while_registered() {
+        let dir = tempfile::tempdir().unwrap();
+        let partial = dir.path().join(".tiles.partial-1");
+        std::fs::create_dir_all(partial.join("a/b")).unwrap();
+        std::fs::write(partial.join("a/b/c.glb"), b"x").unwrap();
+        let guard = LiveTempDir::register(&partial);
+        assert!(remove_live_temps() >= 1);
+        assert!(!partial.exists());
+        drop(guard);
+        std::fs::create_dir(&partial).unwrap();
+        remove_live_temps();
+        assert!(partial.exists(), "a dropped guard forgets its folder");
+    }
+
     #[cfg(unix)]
     #[test]
     fn only_regular_files_are_read() {

@@ -118,20 +118,26 @@ impl SimulateArgs {
         }
         let budget = self.queue.byte_budget()?;
         let pager = self.queue.apply(PagerOptions::default())?;
+        let spec = GridSpec {
+            capacities,
+            bandwidths,
+            latencies,
+            policies: self.policy,
+            fps: self.fps,
+            max_queue: pager.max_queue,
+            budget,
+            max_in_flight: self.in_flight,
+            overhead,
+        };
+        if let Some(label) = spec.duplicate_label() {
+            anyhow::bail!(
+                "two runs of the grid are the same, {label}: a capacity, bandwidth, latency or policy is given twice"
+            );
+        }
         Ok(SimulateConfig {
             file: self.file,
             path: self.path,
-            spec: GridSpec {
-                capacities,
-                bandwidths,
-                latencies,
-                policies: self.policy,
-                fps: self.fps,
-                max_queue: pager.max_queue,
-                budget,
-                max_in_flight: self.in_flight,
-                overhead,
-            },
+            spec,
             frames: self.frames,
             viewport: self.viewport.validate()?,
             out: self.out,

@@ -170,7 +170,8 @@ pub struct ExportSummary {
     pub tileset_json_bytes: u64,
     /// Unique image files.
     pub images: usize,
-    /// Rects drawn with a period image or average (their triangles cross a wrap seam), and all rects.
+    /// Rects drawn with a period image or average (their triangles cross a wrap seam; 0 in a naive
+    /// export, which writes none), and all rects.
     pub period_rects: usize,
     /// Σ over tiles of the wrapping rects drawn with their period's average.
     pub averaged_rects: usize,
@@ -196,8 +197,10 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<u64, ExportError> {
 /// Progress of an export: `(files done, files in all)`, called from worker threads.
 pub type ExportProgress<'a> = &'a (dyn Fn(u64, u64) + Sync);
 
-/// Exports `file` into the directory `out` (see the module doc). On error nothing is left at `out` (an existing directory is untouched unless replaced at the
-/// very end with `force`).
+/// Exports `file` into the directory `out` (see the module doc). It is written beside `out` and renamed
+/// into place at the end; on error, or when interrupted (Ctrl-C, SIGTERM), nothing is left: no partial
+/// folder, no parent folder it created, and an existing `out` is untouched (with `force` it is replaced
+/// only once the new export is complete, and never when it holds `file`).
 pub fn export_3dtiles(
     file: &TreeFile,
     out: &Path,
@@ -205,16 +208,12 @@ pub fn export_3dtiles(
     progress: ExportProgress<'_>,
 ) -> Result<ExportSummary, ExportError> {
     // A directory with a name of its own (not `.`, `..` or `/`: it is replaced as a whole at the end),
-    // not a file.
-    let name = match out.file_name() {
-        Some(n)
-            if out
-                .components()
-                .next_back()
-                .is_some_and(|c| matches!(c, std::path::Component::Normal(_))) =>
-        {
-            n.to_string_lossy().into_owned()
-        }
+    // not a file. `exp/.` is `exp` (the components drop the trailing `.`; `remove_dir_all("exp/.")`
+    // emptied the old export and then failed).
+    let out: PathBuf = out.components().collect();
+    let out = out.as_path();
+    let name = match (out.file_name(), out.components().next_back()) {
+        (Some(n), Some(std::path::Component::Normal(_))) => n.to_string_lossy().into_owned(),
         _ => {
             return Err(ExportError::BadOutput {
                 dir: out.to_path_buf(),
@@ -234,24 +233,87 @@ pub fn export_3dtiles(
             dir: out.to_path_buf(),
         });
     }
-    let temp = crate::util::parent_dir(out).join(format!(".{name}.partial-{}", std::process::id()));
+    // `--force` replaces the directory as a whole: never one that holds the input.
+    if non_empty
+        && let (Ok(input), Ok(dir)) = (file.path().canonicalize(), out.canonicalize())
+        && input.starts_with(&dir)
+    {
+        return Err(ExportError::BadOutput {
+            dir: out.to_path_buf(),
+            why: "holds the paging file being exported (--force would delete it)",
+        });
+    }
+    let parent = crate::util::parent_dir(out);
+    remove_stale_partials(parent, &name);
+    // The folders above OUT that this export creates, deepest first: removed again if it fails.
+    let created: Vec<PathBuf> = parent
+        .ancestors()
+        .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+        .map(Path::to_path_buf)
+        .collect();
+    let temp = parent.join(format!(".{name}.partial-{}", std::process::id()));
     if temp.exists() {
         std::fs::remove_dir_all(&temp).map_err(io(&temp))?;
     }
-    std::fs::create_dir_all(&temp).map_err(io(&temp))?;
-    let finish = || -> Result<ExportSummary, ExportError> {
-        let summary = write_tileset(file, &temp, opts, progress)?;
-        if out.exists() {
-            std::fs::remove_dir_all(out).map_err(io(out))?;
-        }
-        std::fs::rename(&temp, out).map_err(io(out))?;
-        Ok(summary)
-    };
-    let result = finish();
+    let live = crate::util::LiveTempDir::register(&temp);
+    let result = std::fs::create_dir_all(&temp)
+        .map_err(io(&temp))
+        .and_then(|()| write_tileset(file, &temp, opts, progress))
+        .and_then(|summary| replace_dir(&temp, out, &name).map(|()| summary));
     if result.is_err() {
         let _ = std::fs::remove_dir_all(&temp);
+        for dir in &created {
+            let _ = std::fs::remove_dir(dir);
+        }
     }
+    drop(live);
     result
+}
+
+/// Puts the finished export `temp` at `out`: an old `out` is renamed aside first and deleted only once the
+/// new one is in place (put back if that rename fails), so a failure never leaves `out` empty.
+fn replace_dir(temp: &Path, out: &Path, name: &str) -> Result<(), ExportError> {
+    if !out.exists() {
+        return std::fs::rename(temp, out).map_err(io(out));
+    }
+    let parent = crate::util::parent_dir(out);
+    let old = parent.join(format!(".{name}.old-{}", std::process::id()));
+    if old.exists() {
+        std::fs::remove_dir_all(&old).map_err(io(&old))?;
+    }
+    std::fs::rename(out, &old).map_err(io(out))?;
+    if let Err(e) = std::fs::rename(temp, out) {
+        let _ = std::fs::rename(&old, out);
+        return Err(io(out)(e));
+    }
+    std::fs::remove_dir_all(&old).map_err(io(&old))
+}
+
+/// Removes `.NAME.partial-PID` and `.NAME.old-PID` folders in `parent` whose process is gone (an export
+/// killed by SIGKILL leaves one; Ctrl-C and SIGTERM remove their own). Linux only (`/proc`); elsewhere
+/// nothing is removed.
+fn remove_stale_partials(parent: &Path, name: &str) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file_name = entry.file_name();
+        let file_name = file_name.to_string_lossy();
+        let pid = [".partial-", ".old-"].iter().find_map(|tag| {
+            file_name
+                .strip_prefix(&format!(".{name}{tag}"))
+                .and_then(|pid| pid.parse::<u32>().ok())
+        });
+        if let Some(pid) = pid
+            && pid != std::process::id()
+            && !Path::new(&format!("/proc/{pid}")).exists()
+        {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
 }
 
 /// Per tree: what the tiles of its nodes need.
@@ -442,7 +504,10 @@ fn prepare_tree<'a>(
             .iter()
             .map(|g| u64::from(g.count) * u64::from(m.index_size))
             .sum::<u64>();
-        summary.period_rects += m.period_rects.len();
+        // A naive export draws original textures only: no period images.
+        if !summary.naive {
+            summary.period_rects += m.period_rects.len();
+        }
     }
     summary.rects += tree.leaves.iter().map(|l| l.rects.len()).sum::<usize>();
     // Every stored original once, at its byte offset in its block.

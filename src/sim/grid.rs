@@ -56,15 +56,45 @@ impl RunKey {
     }
 }
 
+/// A number for a label: 12 significant digits, trailing zeros dropped (`80`, `80.5`), in exponent form
+/// outside `[0.001, 10¹⁵)` (`1e-4`, `1e303`). Values that round alike get one label;
+/// [`GridSpec::duplicate_label`] finds them.
 fn fmt_num(v: f64) -> String {
-    if (v - v.round()).abs() < 1e-9 {
-        format!("{}", v.round() as i64)
+    fn trim(m: &str) -> &str {
+        if m.contains('.') {
+            m.trim_end_matches('0').trim_end_matches('.')
+        } else {
+            m
+        }
+    }
+    let a = v.abs();
+    if (1e-3..1e15).contains(&a) || v == 0.0 {
+        let decimals = if v == 0.0 {
+            0
+        } else {
+            (11 - a.log10().floor() as i32).max(0) as usize
+        };
+        trim(&format!("{v:.decimals$}")).to_string()
     } else {
-        format!("{v:.3}").trim_end_matches('0').to_string()
+        let text = format!("{v:.11e}");
+        match text.split_once('e') {
+            Some((m, e)) => format!("{}e{e}", trim(m)),
+            None => text,
+        }
     }
 }
 
 impl GridSpec {
+    /// The first two cells with the same [`RunKey::label`] (a value given twice: the runs' rows would be
+    /// mixed in the CSVs under one key), if any.
+    pub fn duplicate_label(&self) -> Option<String> {
+        let mut seen = std::collections::HashSet::new();
+        self.cells()
+            .iter()
+            .map(RunKey::label)
+            .find(|l| !seen.insert(l.clone()))
+    }
+
     /// The cells in a fixed order (capacity, bandwidth, latency, policy; each in the order given).
     pub fn cells(&self) -> Vec<RunKey> {
         let mut out = Vec::new();

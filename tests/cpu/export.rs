@@ -477,6 +477,11 @@ fn a_viewer_samples_every_triangle_where_the_tree_shader_does() {
 fn the_naive_export_draws_original_textures_on_every_tile() {
     let (_dir, out, summary, _) = export(true);
     assert!(summary.naive);
+    assert_eq!(
+        summary.period_rects, 0,
+        "a naive export writes no period image"
+    );
+    assert!(summary.rects > 0);
     for t in &summary.tile_list {
         for i in &t.images {
             assert!(i.uri.starts_with("img/o"), "{}: {}", t.uri, i.uri);
@@ -544,11 +549,48 @@ fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
         "{e}"
     );
     assert!(!out2.exists());
+    // Nor the folders it made above a nested OUT.
+    let nested = dir.path().join("n1/n2/tiles");
+    export_3dtiles(&f, &nested, &ExportOptions::default(), NO_PROGRESS).unwrap_err();
+    assert!(!dir.path().join("n1").exists());
     let left: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     assert!(!left.iter().any(|n| n.contains("partial")), "{left:?}");
+}
+
+/// `--force` onto `DIR/.` replaces DIR (it emptied DIR and then failed on `rmdir("DIR/.")`); onto a folder
+/// that holds the paging file being exported it is refused (it deleted the input).
+#[test]
+fn force_replaces_dir_dot_and_never_the_folder_of_the_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let forced = ExportOptions {
+        force: true,
+        ..ExportOptions::default()
+    };
+    let file = TreeFile::open(&city().1).unwrap();
+    let out = dir.path().join("tiles");
+    export_3dtiles(&file, &out, &forced, NO_PROGRESS).unwrap();
+    std::fs::write(out.join("old.txt"), b"old").unwrap();
+    export_3dtiles(&file, &out.join("."), &forced, NO_PROGRESS).unwrap();
+    assert!(out.join("tileset.json").is_file() && !out.join("old.txt").exists());
+    let hidden: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(hidden, ["tiles"], "no partial or old folder left");
+
+    let input = out.join("city.atlastree");
+    std::fs::copy(&city().1, &input).unwrap();
+    let inside = TreeFile::open(&input).unwrap();
+    let e = export_3dtiles(&inside, &out, &forced, NO_PROGRESS).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("holds the paging file being exported"),
+        "{e}"
+    );
+    assert!(input.is_file() && out.join("tileset.json").is_file());
 }
 
 /// The same scene at the origin and at UTM-size coordinates exports the same contents byte for byte (every

@@ -66,6 +66,38 @@ fn spec(capacities: Vec<Option<u32>>, bandwidths: Vec<Option<f64>>, policy: Poli
     }
 }
 
+/// Run labels are the `run` key of the CSVs: distinct values give distinct labels (100 B/s and 200 B/s
+/// were both `0.MBps`), tiny and huge values stay short, and a value given twice is found.
+#[test]
+fn run_labels_are_distinct_short_and_duplicates_found() {
+    let mut g = spec(
+        vec![Some(40)],
+        vec![Some(100.0), Some(200.0)],
+        Policy::Paper,
+    );
+    g.latencies = vec![1e-7, 1e300, 0.08, 0.0805];
+    let labels: Vec<String> = g.cells().iter().map(|c| c.label()).collect();
+    assert_eq!(
+        labels,
+        [
+            "k40_1e-4MBps_1e-4ms_paper",
+            "k40_1e-4MBps_1e303ms_paper",
+            "k40_1e-4MBps_80ms_paper",
+            "k40_1e-4MBps_80.5ms_paper",
+            "k40_2e-4MBps_1e-4ms_paper",
+            "k40_2e-4MBps_1e303ms_paper",
+            "k40_2e-4MBps_80ms_paper",
+            "k40_2e-4MBps_80.5ms_paper",
+        ]
+    );
+    assert_eq!(g.duplicate_label(), None);
+    g.bandwidths.push(Some(100.0));
+    assert_eq!(
+        g.duplicate_label().as_deref(),
+        Some("k40_1e-4MBps_1e-4ms_paper")
+    );
+}
+
 #[test]
 fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
     let dir = tempfile::tempdir().unwrap();
