@@ -1,6 +1,7 @@
 use super::build_cmd::fmt_psnr;
 use anyhow::Context;
-use atlastree::inspect::{InspectReport, VerifyReport, open_and_inspect};
+use atlastree::inspect::{InspectReport, VerifyReport, inspect, verify_with};
+use atlastree::store::TreeFile;
 use atlastree::util::human_bytes;
 use clap::Args;
 use std::path::PathBuf;
@@ -26,8 +27,15 @@ pub(crate) struct InspectArgs {
 
 pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     super::reject_url(&a.file, "inspect")?;
-    let (rep, ver) = open_and_inspect(&a.file, a.verify, a.reference.as_deref())
-        .with_context(|| format!("opening {}", a.file.display()))?;
+    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let reference = match a.reference.as_deref() {
+        Some(p) if a.verify => Some(
+            TreeFile::open(p).with_context(|| format!("opening the reference {}", p.display()))?,
+        ),
+        _ => None,
+    };
+    let rep = inspect(&file);
+    let ver = a.verify.then(|| verify_with(&file, reference.as_ref()));
     if a.json {
         println!(
             "{}",

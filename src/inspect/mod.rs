@@ -443,32 +443,45 @@ fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyRepo
                 }
                 continue;
             }
-            let measured = reference_tree.and_then(|rt| {
-                let id = crate::ids::BlockId(rt.nodes.get(ni)?.atlas_block);
-                let stored = file.block(crate::ids::BlockId(n.atlas_block)).ok()?;
-                let exact = reference?.block(id).ok()?;
-                let decoded = crate::texfmt::decode_chain(format, stored, size).ok()?;
-                (exact.len() == decoded.len())
-                    .then(|| crate::texfmt::sse_rgba8(exact, &decoded, channels))
-            });
-            if reference_tree.is_some() {
-                match measured {
-                    Some(sse) if sse == b.sse => {}
-                    Some(sse) => r.fail(format!(
-                        "tree {ti} node {ni}: recorded error {} but {sse} measured against the reference",
-                        b.sse
-                    )),
-                    None => r.fail(format!(
-                        "tree {ti} node {ni}: atlas not comparable with the reference"
-                    )),
+            let measured = reference.zip(reference_tree).map(|(rf, rt)| {
+                let rn = rt
+                    .nodes
+                    .get(ni)
+                    .ok_or_else(|| "the reference's tree has no such node".to_string())?;
+                let stored = file
+                    .block(crate::ids::BlockId(n.atlas_block))
+                    .map_err(|e| format!("this file's block {}: {e}", n.atlas_block))?;
+                let exact = rf
+                    .block(crate::ids::BlockId(rn.atlas_block))
+                    .map_err(|e| format!("the reference's block {}: {e}", rn.atlas_block))?;
+                let decoded = crate::texfmt::decode_chain(format, stored, size)
+                    .map_err(|e| format!("decoding block {}: {e}", n.atlas_block))?;
+                if exact.len() != decoded.len() {
+                    return Err(format!(
+                        "the reference's atlas has {} bytes, this one decodes to {}",
+                        exact.len(),
+                        decoded.len()
+                    ));
                 }
+                Ok(crate::texfmt::sse_rgba8(exact, &decoded, channels))
+            });
+            match &measured {
+                None => {}
+                Some(Ok(sse)) if *sse == b.sse => {}
+                Some(Ok(sse)) => r.fail(format!(
+                    "tree {ti} node {ni}: recorded error {} but {sse} measured against the reference",
+                    b.sse
+                )),
+                Some(Err(why)) => r.fail(format!(
+                    "tree {ti} node {ni}: atlas not comparable with the reference: {why}"
+                )),
             }
             r.atlas_psnr.push(AtlasPsnr {
                 tree: ti as u32,
                 node: ni as u32,
                 block: n.atlas_block,
                 recorded_db: psnr(b.sse, samples),
-                measured_db: measured.map(|sse| psnr(sse, samples)),
+                measured_db: measured.and_then(Result::ok).map(|sse| psnr(sse, samples)),
             });
         }
     }
@@ -598,24 +611,6 @@ fn verify_structure(file: &TreeFile) -> VerifyReport {
         }
     }
     r
-}
-
-/// Opens, inspects and (optionally) verifies a file in one call (the CLI's job).
-///
-/// `reference` (with `verify_all`): an uncompressed build of the same scene to re-measure PSNRs against.
-pub fn open_and_inspect(
-    path: &std::path::Path,
-    verify_all: bool,
-    reference: Option<&std::path::Path>,
-) -> Result<(InspectReport, Option<VerifyReport>), StoreError> {
-    let file = TreeFile::open(path)?;
-    let rep = inspect(&file);
-    let reference = match reference {
-        Some(p) if verify_all => Some(TreeFile::open(p)?),
-        _ => None,
-    };
-    let ver = verify_all.then(|| verify_with(&file, reference.as_ref()));
-    Ok((rep, ver))
 }
 
 /// Level 0 of a node's atlas as an RGBA8 image (reads and checksums its block, decodes BC formats).

@@ -137,6 +137,18 @@ pub enum RenderError {
     #[error("frame size {width}x{height}: each side must be 1 to {limit} pixels on this device")]
     BadSize { width: u32, height: u32, limit: u32 },
     #[error(
+        "the supersampled reference at {factor}x{factor} of {width}x{height} pixels needs \
+         {}x{} pixels; this device allows at most {limit} a side: lower S (supersampled:S) or the frame size",
+        u64::from(*width) * u64::from(*factor),
+        u64::from(*height) * u64::from(*factor)
+    )]
+    BadSupersample {
+        width: u32,
+        height: u32,
+        factor: u32,
+        limit: u32,
+    },
+    #[error(
         "{what} is not available when blocks are paged (use a capacity of all blocks or omit it)"
     )]
     NotWhenPaged { what: &'static str },

@@ -189,7 +189,7 @@ impl Renderer<'_> {
     /// original textures ([`Mode::Original`], all blocks resident) at `factor` times the frame's width and
     /// height, box-filtered in linear light to the frame size and read back (`width · height · 4` sRGB
     /// RGBA bytes, rows top to bottom). The colour target keeps the last ordinary frame. Errors: those of
-    /// [`Renderer::execute`] in original mode (paged renderers refuse it), and [`RenderError::BadSize`]
+    /// [`Renderer::execute`] in original mode (paged renderers refuse it), and [`RenderError::BadSupersample`]
     /// when the supersampled frame exceeds the device's texture size or `factor` is 0.
     pub fn execute_supersampled(
         &mut self,
@@ -200,9 +200,10 @@ impl Renderer<'_> {
         let limit = self.ctx.device.limits().max_texture_dimension_2d;
         let (sw, sh) = (w.saturating_mul(factor), h.saturating_mul(factor));
         if factor == 0 || sw > limit || sh > limit {
-            return Err(RenderError::BadSize {
-                width: sw,
-                height: sh,
+            return Err(RenderError::BadSupersample {
+                width: w,
+                height: h,
+                factor,
                 limit,
             });
         }

@@ -268,6 +268,35 @@ fn build_compress_bc1_then_inspect_verify_reference() {
         "{}",
         String::from_utf8_lossy(&o.stdout)
     );
+    // A reference with a corrupt block: the violation says why (it said only "not comparable"); one that
+    // cannot be opened is named as the reference, not as FILE.
+    let corrupt = dir.path().join("corrupt.atlastree");
+    let mut bytes = std::fs::read(&plain).unwrap();
+    let block0 = atlastree::store::TreeFile::open(&plain).unwrap().blocks()[0].offset as usize;
+    bytes[block0 + 64] ^= 0x5a;
+    std::fs::write(&corrupt, &bytes).unwrap();
+    let o = run(bin()
+        .args(["inspect", "--verify", "--reference"])
+        .arg(&corrupt)
+        .arg(&bc1));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        out.contains(
+            "not comparable with the reference: the reference's block 0: checksum mismatch"
+        ),
+        "{out}"
+    );
+    std::fs::write(&corrupt, &bytes[..4096]).unwrap();
+    let o = run(bin()
+        .args(["inspect", "--verify", "--reference"])
+        .arg(&corrupt)
+        .arg(&bc1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&format!("opening the reference {}", corrupt.display())),
+        "{err}"
+    );
 }
 
 #[test]

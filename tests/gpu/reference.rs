@@ -13,7 +13,7 @@
 use atlastree::camera::Camera;
 use atlastree::gpu::GpuContext;
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
-use atlastree::render::{FrameLoop, Mode, RendererOptions};
+use atlastree::render::{FrameLoop, Mode, RenderError, RendererOptions};
 use atlastree::report::metrics::psnr;
 use atlastree::report::supersample::box_downsample_linear;
 use atlastree::scene::synthetic::SceneBuilder;
@@ -118,6 +118,25 @@ fn supersampled_agrees_where_nothing_is_minified(ctx: &GpuContext) -> Result<(),
     let mut fl = open(ctx, &file)?;
     // 10 m up: the view is 11.5 m wide, 320 px, so one 0.625 m texel covers ~17 px; the quad fills it.
     let (plain, truth) = frames(&mut fl, &file, &down(10.0))?;
+    // A factor past the device's texture size is an error that names S, not the frame size.
+    let limit = ctx.device.limits().max_texture_dimension_2d;
+    let too_big = limit / W + 1;
+    let cam = down(10.0);
+    let plan = fl
+        .planner
+        .plan_still(&cam, scale_for(&file, &cam)?, &mut fl.renderer.residency())
+        .map_err(e)?;
+    match fl.renderer.execute_supersampled(plan, too_big) {
+        Err(RenderError::BadSupersample {
+            factor, limit: l, ..
+        }) if factor == too_big && l == limit => {}
+        other => {
+            return Err(format!(
+                "supersampled:{too_big} gave {:?}",
+                other.map(|b| b.len())
+            ));
+        }
+    }
     let db = psnr(&plain, &truth, W, H).map_err(e)?;
     // Not a flat frame: the checker's black and white are both in view.
     let (dark, light) = (
