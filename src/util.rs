@@ -263,6 +263,34 @@ pub fn read_regular(path: &Path, limit: Option<u64>) -> std::io::Result<Vec<u8>>
     Ok(bytes)
 }
 
+/// A number for a label or a file name: 12 significant digits, trailing zeros dropped (`80`, `80.5`), in exponent form
+/// outside `[0.001, 10¹⁵)` (`1e-4`, `1e303`). Values that round alike get one label
+/// (`sim::grid::GridSpec::duplicate_label` finds them).
+pub fn short_number(v: f64) -> String {
+    fn trim(m: &str) -> &str {
+        if m.contains('.') {
+            m.trim_end_matches('0').trim_end_matches('.')
+        } else {
+            m
+        }
+    }
+    let a = v.abs();
+    if (1e-3..1e15).contains(&a) || v == 0.0 {
+        let decimals = if v == 0.0 {
+            0
+        } else {
+            (11 - a.log10().floor() as i32).max(0) as usize
+        };
+        trim(&format!("{v:.decimals$}")).to_string()
+    } else {
+        let text = format!("{v:.11e}");
+        match text.split_once('e') {
+            Some((m, e)) => format!("{}e{e}", trim(m)),
+            None => text,
+        }
+    }
+}
+
 /// Largest text file [`read_text_file`] reads (camera paths, sweep grids, CSV reports).
 pub const MAX_TEXT_FILE_BYTES: u64 = 256 << 20;
 
@@ -559,6 +587,32 @@ mod tests {
     use super::*;
 
     #[cfg(unix)]
+    #[test]
+    fn short_numbers_are_short_and_read_back_within_12_digits() {
+        for (v, text) in [
+            (0.0, "0"),
+            (151.0, "151"),
+            (0.5, "0.5"),
+            (80.5, "80.5"),
+            (1e-7 * 1e3, "1e-4"),
+            (1e300, "1e300"),
+            (-2.25, "-2.25"),
+            (123456789012345.0, "123456789012345"),
+            (1e15, "1e15"),
+        ] {
+            assert_eq!(short_number(v), text, "{v:e}");
+        }
+        for v in [
+            0.001234567891234,
+            987.654321987654,
+            5e-320,
+            1.7976931348623157e308,
+        ] {
+            let back: f64 = short_number(v).parse().unwrap();
+            assert!((back - v).abs() <= v.abs() * 1e-11, "{v:e} -> {back:e}");
+        }
+    }
+
     #[test]
     fn live_temp_dirs_are_removed_with_their_contents_while_registered() {
         let dir = tempfile::tempdir().unwrap();

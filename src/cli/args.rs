@@ -123,8 +123,9 @@ impl Viewport {
 /// the defaults of [`PagerOptions`].
 #[derive(Args, Debug, Clone, Default)]
 pub(crate) struct QueueArgs {
-    /// Upload budget per frame: `unlimited`, bytes (`8MB`, `512KiB`) or, for `render`, time (`2ms`; at
-    /// least one block per frame is always accepted) [default: unlimited]
+    /// Upload budget per frame: `unlimited` (or a bare `0`), bytes (`8MB`, `512KiB`) or, for `render`,
+    /// time (`2ms`); at least one block per frame is always accepted, so a zero size with a unit (`0B`) is
+    /// refused as meaningless [default: unlimited]
     #[arg(long, value_name = "BUDGET")]
     pub upload_budget: Option<UploadBudget>,
     /// Maximum outstanding block requests [default: 8]

@@ -28,7 +28,8 @@ pub(crate) struct ServeArgs {
     #[arg(long, default_value = "127.0.0.1")]
     pub bind: IpAddr,
     /// Connections served at once; one more waits up to 2 s for a free slot, then gets 503.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1 << 20))]
     pub max_connections: usize,
     /// A request head must arrive within this time (slow clients are closed; also the keep-alive idle
     /// limit), e.g. `10s`, `500ms`.
@@ -44,6 +45,14 @@ pub(crate) struct ServeArgs {
 }
 
 pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
+    for (flag, t) in [
+        ("--header-timeout", a.header_timeout),
+        ("--io-timeout", a.io_timeout),
+    ] {
+        if t < Duration::from_millis(1) {
+            anyhow::bail!("{flag} {t:?} is below 1ms: every transfer would be cut short");
+        }
+    }
     let file = super::open_local(&a.file, "serve")?;
     let (blocks, file_bytes) = (file.blocks().len(), file.file_len());
     drop(file);

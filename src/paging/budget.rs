@@ -18,7 +18,8 @@ pub enum UploadBudget {
 
 impl std::str::FromStr for UploadBudget {
     type Err = String;
-    /// `unlimited`, a byte size per frame (`8MB`, `512KiB`), or a time per frame (`2ms`).
+    /// `unlimited` (or a bare `0`, as in other tools' "0 = no limit"), a byte size per frame (`8MB`,
+    /// `512KiB`), or a time per frame (`2ms`); zero sizes and times with a unit are refused.
     fn from_str(s: &str) -> Result<UploadBudget, String> {
         let t = s.trim();
         if t.eq_ignore_ascii_case("unlimited") || t == "0" {

@@ -48,39 +48,11 @@ impl RunKey {
             self.capacity.map_or("all".to_string(), |k| k.to_string()),
             self.bandwidth.map_or("instant".to_string(), |b| format!(
                 "{}MBps",
-                fmt_num(b / 1e6)
+                crate::util::short_number(b / 1e6)
             )),
-            fmt_num(self.latency * 1e3),
+            crate::util::short_number(self.latency * 1e3),
             self.policy.name()
         )
-    }
-}
-
-/// A number for a label: 12 significant digits, trailing zeros dropped (`80`, `80.5`), in exponent form
-/// outside `[0.001, 10¹⁵)` (`1e-4`, `1e303`). Values that round alike get one label;
-/// [`GridSpec::duplicate_label`] finds them.
-fn fmt_num(v: f64) -> String {
-    fn trim(m: &str) -> &str {
-        if m.contains('.') {
-            m.trim_end_matches('0').trim_end_matches('.')
-        } else {
-            m
-        }
-    }
-    let a = v.abs();
-    if (1e-3..1e15).contains(&a) || v == 0.0 {
-        let decimals = if v == 0.0 {
-            0
-        } else {
-            (11 - a.log10().floor() as i32).max(0) as usize
-        };
-        trim(&format!("{v:.decimals$}")).to_string()
-    } else {
-        let text = format!("{v:.11e}");
-        match text.split_once('e') {
-            Some((m, e)) => format!("{}e{e}", trim(m)),
-            None => text,
-        }
     }
 }
 
@@ -338,20 +310,28 @@ pub fn write_plots(
                 col_labels: spec
                     .bandwidths
                     .iter()
-                    .map(|b| b.map_or("instant".into(), |b| format!("{} MB/s", fmt_num(b / 1e6))))
+                    .map(|b| {
+                        b.map_or("instant".into(), |b| {
+                            format!("{} MB/s", crate::util::short_number(b / 1e6))
+                        })
+                    })
                     .collect(),
                 values,
                 decimals: 3,
                 value_range: Some((0.0, 1.0)),
                 value_label: "mean coarser share".into(),
             };
-            let name = format!("heatmap_{}ms_{}", fmt_num(lat * 1e3), pol.name());
+            let name = format!(
+                "heatmap_{}ms_{}",
+                crate::util::short_number(lat * 1e3),
+                pol.name()
+            );
             let p = heat_map(
                 &dir.join(&name),
                 &PlotOptions::new(
                     format!(
                         "Mean screen share coarser than target ({} ms latency, {} policy)",
-                        fmt_num(lat * 1e3),
+                        crate::util::short_number(lat * 1e3),
                         pol.name()
                     ),
                     "bandwidth",

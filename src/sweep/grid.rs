@@ -194,7 +194,7 @@ impl BuildKnobs {
         };
         format!(
             "r{}_a{}_b{}_{}{compress}{repeat}{alpha}",
-            self.d_min_ratio,
+            crate::util::short_number(self.d_min_ratio),
             self.atlas_size,
             self.border,
             self.filter.name()
@@ -220,8 +220,8 @@ impl RuntimeKnobs {
     /// Stable short name, e.g. `t0.5_all` or `t1_k32`.
     pub fn id(&self) -> String {
         match self.capacity {
-            None => format!("t{}_all", self.texel_ratio),
-            Some(k) => format!("t{}_k{k}", self.texel_ratio),
+            None => format!("t{}_all", crate::util::short_number(self.texel_ratio)),
+            Some(k) => format!("t{}_k{k}", crate::util::short_number(self.texel_ratio)),
         }
     }
 }

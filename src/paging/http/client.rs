@@ -493,7 +493,12 @@ fn check_content_range(
     last: u64,
 ) -> Result<Option<u64>, Failure> {
     let wrong = |file_shorter: bool| Failure::WrongRange {
-        message: format!("206 with Content-Range {header:?}, expected bytes {first}-{last}/…"),
+        message: format!(
+            "206 with {}, expected bytes {first}-{last}/…",
+            header.map_or("no Content-Range".to_string(), |h| format!(
+                "Content-Range \"{h}\""
+            ))
+        ),
         file_shorter,
     };
     let spec = header
