@@ -153,6 +153,10 @@ pub(super) fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
 /// Runs a checked configuration.
 pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     let file = super::open_local(&cfg.file, "simulate")?;
+    // Before the runs, not after them: an --out that cannot be a folder.
+    if cfg.out.exists() && !cfg.out.is_dir() {
+        anyhow::bail!("--out {}: exists and is not a folder", cfg.out.display());
+    }
     let cameras = sample_cameras(cfg, &file)?;
     let fov = cameras.first().map_or(60.0, |c| c.fov_x_deg);
     let scale = cfg.viewport.scale(&file.to_params(), fov)?;

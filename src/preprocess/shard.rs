@@ -50,6 +50,16 @@ pub enum ShardSpecError {
         index_var: &'static str,
         count_var: &'static str,
     },
+    #[error(
+        "--shard auto (Slurm): the array runs from {min} to {max}; shards are numbered from 0, so submit \
+         it as --array=0-{last} (N = {count})"
+    )]
+    SlurmArrayRange {
+        min: u32,
+        max: u32,
+        last: u32,
+        count: u32,
+    },
     #[error("--shard auto ({scheduler}): shard {index} is outside 0..{count}")]
     OutOfRange {
         scheduler: &'static str,
@@ -120,6 +130,22 @@ pub fn shard_from_env(
             count_var,
         })?;
         let count = number(count_var, count, "a shard count")?;
+        // `--array=1-4` numbers tasks 1..=4 with a count of 4: task 4 would be out of range and shard 0
+        // never built. The array must be 0-(N-1).
+        if scheduler == "Slurm"
+            && let (Some(min), Some(max)) = (
+                get("SLURM_ARRAY_TASK_MIN").and_then(|v| v.trim().parse::<u32>().ok()),
+                get("SLURM_ARRAY_TASK_MAX").and_then(|v| v.trim().parse::<u32>().ok()),
+            )
+            && (min != 0 || max.checked_add(1) != Some(count))
+        {
+            return Err(ShardSpecError::SlurmArrayRange {
+                min,
+                max,
+                last: count.saturating_sub(1),
+                count,
+            });
+        }
         if count == 0 || count > MAX_SHARDS || index >= count {
             return Err(ShardSpecError::OutOfRange {
                 scheduler,
@@ -558,6 +584,33 @@ mod tests {
             ])),
             Err(ShardSpecError::BadVariable { .. })
         ));
+        // An array submitted as --array=1-4: refused in every task (task 1 built shard 1 and task 4 failed).
+        let one_based = |id| {
+            [
+                ("SLURM_ARRAY_TASK_ID", id),
+                ("SLURM_ARRAY_TASK_COUNT", "4"),
+                ("SLURM_ARRAY_TASK_MIN", "1"),
+                ("SLURM_ARRAY_TASK_MAX", "4"),
+            ]
+        };
+        for id in ["1", "4"] {
+            let e = shard_from_env(&env(&one_based(id))).unwrap_err();
+            assert_eq!(
+                e.to_string(),
+                "--shard auto (Slurm): the array runs from 1 to 4; shards are numbered from 0, so submit \
+                 it as --array=0-3 (N = 4)"
+            );
+        }
+        let zero_based = [
+            ("SLURM_ARRAY_TASK_ID", "3"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_MAX", "3"),
+        ];
+        assert_eq!(
+            shard_from_env(&env(&zero_based)),
+            Ok((ShardSpec { index: 3, count: 4 }, "Slurm"))
+        );
     }
 
     #[test]

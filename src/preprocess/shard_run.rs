@@ -361,6 +361,12 @@ pub fn merge(
     progress: &dyn Progress,
 ) -> Result<MergeReport, MergeError> {
     let t_all = Instant::now();
+    // Before any work: an OUT that may not be replaced (the scene, `OUT/`, a device) is refused now, not
+    // after every block is copied.
+    crate::store::check_replaceable(out).map_err(|source| MergeError::Store {
+        out: out.to_path_buf(),
+        source,
+    })?;
     let set = ShardSet::open(out, count)?;
     set.check_headers()?;
     let first = &set.shards[0];

@@ -705,6 +705,12 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
         path: path.to_path_buf(),
         what,
     };
+    // `OUT/` names a folder: the rename at the end would fail with ENOTDIR after all the work.
+    if path.as_os_str().as_encoded_bytes().last() == Some(&b'/') {
+        return Err(StoreError::FolderName {
+            path: path.to_path_buf(),
+        });
+    }
     let dir = crate::util::parent_dir(path);
     if !dir.is_dir() {
         let what = if dir.exists() {
@@ -751,6 +757,15 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn folder_names_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = format!("{}/city.atlastree/", dir.path().display());
+        let err = check_replaceable(Path::new(&out)).unwrap_err();
+        assert!(err.to_string().contains("drop the trailing /"), "{err}");
+    }
 
     #[cfg(unix)]
     #[test]
