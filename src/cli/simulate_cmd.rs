@@ -168,7 +168,7 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
         input.table.len(),
         atlastree::util::human_bytes(input.table.total_bytes()),
         cameras.len(),
-        cfg.spec.fps,
+        atlastree::util::short_number(cfg.spec.fps),
         cells
     );
     let bar = indicatif::ProgressBar::new(cells as u64);
