@@ -241,11 +241,8 @@ impl PagingArgs {
             Some(u) if is_url(u) => SourceArg::Url(u.to_string()),
             Some(other) => bail!("unknown --source {other:?}: expected `file` or an http(s) URL"),
         };
-        if self.loader_threads.is_some_and(|n| n > MAX_LOADER_THREADS) {
-            bail!(
-                "--loader-threads must be 0 to {MAX_LOADER_THREADS} (got {})",
-                self.loader_threads.unwrap_or(0)
-            );
+        if let Some(n) = self.loader_threads.filter(|&n| n > MAX_LOADER_THREADS) {
+            bail!("--loader-threads must be 0 to {MAX_LOADER_THREADS} (got {n})");
         }
         let base = PagerOptions::default();
         let pager = self.queue.apply(PagerOptions {

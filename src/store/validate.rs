@@ -393,10 +393,7 @@ fn check_nodes(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreEr
         let gi = base + i as u64;
         finite("nodes", gi, "bounds_min", &n.bounds_min)?;
         finite("nodes", gi, "bounds_max", &n.bounds_max)?;
-        if (0..3).any(|k| n.bounds_min[k] > n.bounds_max[k]) {
-            let k = (0..3)
-                .find(|&k| n.bounds_min[k] > n.bounds_max[k])
-                .unwrap_or(0);
+        if let Some(k) = (0..3).find(|&k| n.bounds_min[k] > n.bounds_max[k]) {
             return Err(StoreError::BadFloat {
                 table: "nodes",
                 index: gi,
@@ -670,17 +667,11 @@ fn check_vertices_indices(t: &TreeTables<'_>) -> Result<(), StoreError> {
         ));
     }
     // Positions and UVs every reader draws or exports as they are.
-    if let Some(i) = t.vertices.iter().position(|v| {
-        !(v.pos.iter().all(|c| c.is_finite()) && v.orig_uv.iter().all(|c| c.is_finite()))
-    }) {
-        let v = &t.vertices[i];
-        let value = v
-            .pos
-            .iter()
-            .chain(&v.orig_uv)
-            .find(|c| !c.is_finite())
-            .copied()
-            .unwrap_or(f32::NAN);
+    let not_finite = t.vertices.iter().enumerate().find_map(|(i, v)| {
+        let c = v.pos.iter().chain(&v.orig_uv).find(|c| !c.is_finite())?;
+        Some((i, *c))
+    });
+    if let Some((i, value)) = not_finite {
         return Err(StoreError::BadFloat {
             table: "vertices",
             index: t.record.vertices.first + i as u64,
