@@ -148,12 +148,14 @@ impl Group {
         }
     }
 
-    /// Position in [`Group::ALL`].
+    /// Position in [`Group::ALL`]. Contract: `array < MAX_ATLAS_ARRAYS` ([`FrameBatch::add_cut`] skips
+    /// and counts a slot past it), so every group has its own position.
     pub fn index(self) -> usize {
+        debug_assert!(usize::from(self.array) < MAX_ATLAS_ARRAYS, "{self:?}");
         let k = if self.original {
             MAX_ATLAS_ARRAYS
         } else {
-            usize::from(self.array).min(MAX_ATLAS_ARRAYS - 1)
+            usize::from(self.array)
         };
         self.pass as usize * GROUPS_PER_PASS + k
     }
@@ -291,7 +293,8 @@ impl FrameBatch {
     /// Adds the records of one tree's cut. `resolved[i]` says how item `i` is drawn this frame (its own
     /// atlas, an ancestor's atlas because blocks are missing, or the leaf's originals; see
     /// [`crate::paging::resolve`](mod@crate::paging::resolve)); pass `None` when everything is resident (every item as selected). Items
-    /// whose node is out of range, or whose atlas holds no GPU layer, are skipped; returns how many were
+    /// whose node is out of range, or whose atlas holds no GPU layer (or one in an array past
+    /// [`MAX_ATLAS_ARRAYS`]), are skipped; returns how many were
     /// (the renderer reports them as `FrameStats::skipped_draws`).
     pub fn add_cut(
         &mut self,
@@ -315,7 +318,11 @@ impl FrameBatch {
                 Some(a) => {
                     let slot = info.atlas_slots.get(a.idx()).copied().flatten();
                     match (slot, nodes.get(a.idx())) {
-                        (Some(s), Some(an)) => Some((s, an.level)),
+                        // An array past the pipelines' (a broken slot table) is skipped and counted,
+                        // never drawn from another array.
+                        (Some(s), Some(an)) if (s.array as usize) < MAX_ATLAS_ARRAYS => {
+                            Some((s, an.level))
+                        }
                         _ => {
                             skipped += 1;
                             continue;

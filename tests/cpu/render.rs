@@ -9,6 +9,7 @@ use atlastree::ids::NONE;
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::render::batch::{AtlasSlot, FrameBatch, Group, LeafOffsets, Pass, leaf_ranges};
 use atlastree::render::resident::gather_tables;
+use atlastree::render::textures::MAX_ATLAS_ARRAYS;
 use atlastree::select::{Cut, Source, select};
 use atlastree::store::TreeFile;
 use glam::DVec3;
@@ -260,6 +261,37 @@ fn atlas_records_are_grouped_by_their_array() {
         arrays_seen, [true; 3],
         "the path draws atlases of every array"
     );
+
+    // A slot in an array past the pipelines' (a broken slot table) is skipped and counted, never
+    // clamped into the last array.
+    let past = MAX_ATLAS_ARRAYS as u32;
+    for slot in p.infos[0].atlas_slots.iter_mut().flatten() {
+        if slot.array == 2 {
+            slot.array = past;
+        }
+    }
+    let mut skipped_total = 0;
+    for cam in path.frames(2.0, 40) {
+        select(view.nodes, &cam, &cam.frustum(), 4.0, &mut cut);
+        batch.clear();
+        let want = cut
+            .items
+            .iter()
+            .filter(|i| i.source == Source::Atlas && i.node.0 % 3 == 2)
+            .count();
+        let skipped = batch.add_cut(&p.infos[0], view.nodes, &cut, None);
+        batch.finish();
+        assert_eq!(skipped as usize, want);
+        skipped_total += want;
+        assert!(
+            batch
+                .records
+                .iter()
+                .all(|r| r.atlas_array < 2 || r.atlas_layer == NONE)
+        );
+        assert_eq!(batch.len(), cut.items.len() - want);
+    }
+    assert!(skipped_total > 0, "the path selects atlases of array 2");
 }
 
 #[test]

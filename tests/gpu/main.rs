@@ -11,6 +11,7 @@
 
 mod alpha;
 mod compressed;
+mod deep;
 mod device;
 mod extent;
 #[path = "../fixtures/corners.rs"]
@@ -18,6 +19,8 @@ mod fixtures;
 mod golden;
 mod harness;
 mod paging;
+#[path = "../fixtures/peel_strip.rs"]
+mod peel_strip;
 mod planner;
 mod reference;
 mod render;
@@ -37,6 +40,7 @@ fn main() -> ExitCode {
         smoke::tests(),
         device::tests(),
         extent::tests(),
+        deep::tests(),
         render::tests(),
         reference::tests(),
         golden::tests(),

@@ -7,53 +7,23 @@
 //! every node must tile its atlas square exactly (no gap, no overlap) at every level down to 24, and
 //! against a depth cap that is not enforced.
 //!
-//! The scene forcing the depth is small: a strip of right triangles whose areas halve from one to the
+//! The scene forcing the depth is small (`tests/fixtures/peel_strip.rs`, shared with the GPU suite): a strip of right triangles whose areas halve from one to the
 //! next, each with its own 4×4 texture. §5.3 cuts where the summed area is closest to half, so every split
 //! peels off the two largest triangles (quadrants 0 and 1) and keeps all the others in quadrant 3; a node
 //! fits one 64² atlas only when it has at most 9 textures (9 areas of 20×20 incl. the 8-texel border).
 //! With `2D + 9` triangles the tree has depth exactly D and `3D + 1` nodes (≈ 1.5 MB at D = 22).
 
 use crate::built::*;
+use crate::fixtures::peel_strip::{peel_strip, strip_options};
 use atlastree::ids::{Cell, Level, NONE};
 use atlastree::model::transform::{atlas_uv_at, atlas_uv_at_f32, atlas_uv_naive_f32};
 use atlastree::preprocess::BuildError;
 use atlastree::preprocess::layout::LayoutError;
-use atlastree::scene::synthetic::SceneBuilder;
-use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
-use glam::{DVec2, DVec3, Vec2};
-
-/// The peeling strip: `2·depth + 9` triangles, triangle i with legs `1024 · 2^(−i/2)` m.
-fn peel_strip(depth: u32) -> Scene {
-    let mut b = SceneBuilder::new(UpAxis::Y);
-    let n = 2 * depth + 9;
-    let mut x = 0.0;
-    for i in 0..n {
-        let s = 1024.0 * (-(i as f64) / 2.0).exp2();
-        let img = b.image(&format!("t{i}"), 4, 4, move |_, _| {
-            [(i * 37 % 256) as u8, (i * 91 % 256) as u8, 200, 255]
-        });
-        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
-        // Pointing to −z: the centroid z = −s/3 puts the larger triangles first in the y sort as well.
-        b.triangle(
-            [
-                DVec3::new(x, 0.0, 0.0),
-                DVec3::new(x + s, 0.0, 0.0),
-                DVec3::new(x, 0.0, -s),
-            ],
-            [DVec2::ZERO, DVec2::X, DVec2::Y],
-            m,
-        );
-        x += s;
-    }
-    b.build()
-}
-
-/// d_min so large that a 1024 m triangle needs < 1 texel per repetition: every area is 1×1 inside.
-const D_MIN: f64 = 1e6;
+use glam::{DVec2, Vec2};
 
 #[test]
 fn depth_22_builds_verifies_and_the_depth_cap_is_enforced() {
-    let built = build_ok(&peel_strip(22), &tiny_opts(64, D_MIN));
+    let built = build_ok(&peel_strip(22), &strip_options());
     let r = &built.report.trees[0];
     assert_eq!(r.depth, 22, "{r:?}");
     assert_eq!(r.nodes, 3 * 22 + 1);
@@ -83,7 +53,7 @@ fn depth_22_builds_verifies_and_the_depth_cap_is_enforced() {
     // --max-depth is respected: the same scene with a cap of 21 is refused, naming the region and cap.
     let o = atlastree::preprocess::BuildOptions {
         max_depth: 21,
-        ..tiny_opts(64, D_MIN)
+        ..strip_options()
     };
     let Err((dir, e)) = try_build(&peel_strip(22), &o) else {
         panic!("depth 22 built under --max-depth 21")
@@ -121,7 +91,7 @@ fn depth_22_builds_verifies_and_the_depth_cap_is_enforced() {
     );
 
     // The default cap is 24: a scene that needs depth 25 is refused by default, 24 builds.
-    let Err((_, e)) = try_build(&peel_strip(25), &tiny_opts(64, D_MIN)) else {
+    let Err((_, e)) = try_build(&peel_strip(25), &strip_options()) else {
         panic!("depth 25 built under the default --max-depth 24")
     };
     assert!(e.to_string().contains("--max-depth 24"), "{e}");
@@ -149,7 +119,7 @@ fn same_texel(want: DVec2, got: DVec2, tol: f64) -> bool {
 
 #[test]
 fn deep_leaves_sample_the_same_texel_as_f64_at_every_level() {
-    let built = build_ok(&peel_strip(24), &tiny_opts(64, D_MIN));
+    let built = build_ok(&peel_strip(24), &strip_options());
     assert_eq!(built.report.trees[0].depth, 24);
     let t = built.file.tree(0).unwrap();
     let size = f64::from(built.file.to_params().atlas_size);
@@ -213,7 +183,7 @@ fn deep_leaves_sample_the_same_texel_as_f64_at_every_level() {
 
 #[test]
 fn children_tile_their_parent_exactly_at_every_level() {
-    let built = build_ok(&peel_strip(24), &tiny_opts(64, D_MIN));
+    let built = build_ok(&peel_strip(24), &strip_options());
     let t = built.file.tree(0).unwrap();
     let mut squares = 0;
     for (ni, n) in t.nodes.iter().enumerate() {
