@@ -225,9 +225,10 @@ impl<'f> Renderer<'f> {
         check_size(ctx, opts.width, opts.height)?;
         // Every block at once: the texture arrays are the largest allocations, and a device out of memory
         // (lavapipe's heap, a small GPU) is an error naming the load, not wgpu's uncaptured-error panic.
-        let resident = ctx.scoped("uploading every block (all resident)", |_| {
-            Resident::load(ctx, file)
-        })??;
+        let resident = ctx.scoped(
+            "uploading every block (all resident; `--capacity K` pages K blocks instead)",
+            |_| Resident::load(ctx, file),
+        )??;
         Self::with_resident(ctx, file, opts, resident, false)
     }
 
@@ -244,9 +245,10 @@ impl<'f> Renderer<'f> {
         let (Some(table), Some(capacity)) = (planner.table(), planner.max_capacity()) else {
             return Err(RenderError::Plan(PlanError::NotPaged));
         };
-        let mut resident = ctx.scoped("allocating the paged texture arrays", |_| {
-            Resident::load_paged(ctx, file, table, capacity)
-        })??;
+        let mut resident = ctx.scoped(
+            "allocating the paged texture arrays (a smaller `--capacity` needs less)",
+            |_| Resident::load_paged(ctx, file, table, capacity),
+        )??;
         for e in &planner.take_bootstrap() {
             resident.apply(&ctx.queue, e)?;
         }

@@ -9,11 +9,15 @@
 //! most desktop GPUs; the shader addresses at most 65,536, [`layer_limit`]). When a file has more atlases than that, they are split over up to
 //! [`MAX_ATLAS_ARRAYS`] arrays and each record names its array. A class with more originals than the limit
 //! continues in the class bindings no class uses (`resident::class_slots`: the 4,304 facades of a
-//! Berlin-like city take three 512² bindings; the paged load does not split: its class arrays hold at most
-//! the layers the capacity needs, and a class needing more than the limit is refused). Beyond that
-//! loading fails with
+//! Berlin-like city take three 512² bindings). Beyond that loading fails with
 //! [`super::RenderError::TooManyLayers`] — with all blocks resident that is ≥ 8,192 atlases, past what the
 //! all-resident renderer is for; paging keeps residency under a capacity instead.
+//!
+//! **Byte limit.** An array is one allocation, and a device bounds those (`maxMemoryAllocationSize`, which
+//! wgpu reports as `max_buffer_size`: 2 GiB − 1 on lavapipe, which refuses an array of 384 RGBA8 atlases of
+//! 1024², 2,147,483,136 bytes before its alignment padding). An array holds at most [`array_byte_limit`]
+//! bytes ([`layers_per_array`]), so the 790 RGBA8 atlases of the all-tracks world take three arrays
+//! instead of one that no allocation holds.
 //!
 //! [`LayerAllocator`] hands out layers (paging slots) from a free list; the paging issue reuses it.
 
@@ -31,6 +35,19 @@ pub const MIN_CLASS_SIZE: u32 = 4;
 /// tree shader addresses ([`super::wgsl::tree::MAX_LAYERS`]), at least 1.
 pub fn layer_limit(device_max_layers: u32) -> u32 {
     device_max_layers.clamp(1, super::wgsl::tree::MAX_LAYERS)
+}
+
+/// Bytes one texture array may take: the device's largest allocation (`max_buffer_size`) less 1/64 of
+/// it for the driver's alignment padding of layers and mip levels.
+pub fn array_byte_limit(device_max_buffer_size: u64) -> u64 {
+    device_max_buffer_size - device_max_buffer_size / 64
+}
+
+/// Layers an array of `size²` textures of `format` (full mip chains) may hold: at most `max_layers`
+/// ([`layer_limit`]) and `byte_limit` bytes ([`array_byte_limit`]), at least 1.
+pub fn layers_per_array(max_layers: u32, byte_limit: u64, format: TexFormat, size: u32) -> u32 {
+    let per_layer = format.chain_bytes(size).max(1);
+    (byte_limit / per_layer).clamp(1, u64::from(max_layers.max(1))) as u32
 }
 
 /// Class index of a power-of-two class size, `None` outside 4..=2048 or not a power of two.

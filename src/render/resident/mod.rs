@@ -20,7 +20,9 @@ pub use tables::{GpuTables, gather_tables};
 
 use super::RenderError;
 use super::batch::{LeafOffsets, TreeBatchInfo};
-use super::textures::{CLASS_COUNT, TextureArray, common_format, gpu_format};
+use super::textures::{
+    CLASS_COUNT, TextureArray, array_byte_limit, common_format, gpu_format, layers_per_array,
+};
 use super::wgsl::tree::{LeafInfo, TamEntry};
 use crate::gpu::GpuContext;
 use crate::ids::BlockId;
@@ -296,17 +298,24 @@ impl Resident {
             let bound: u32 = per_block.iter().take(capacity as usize).sum();
             *layers = total.min(bound);
         }
-        let slots = class_slots(&per_class, max_layers)?;
+        let class_formats: [TexFormat; CLASS_COUNT] = std::array::from_fn(|k| {
+            common_format(
+                g.uniques
+                    .iter()
+                    .filter(|u| u.class as usize == k)
+                    .map(|u| gpu_format(u.format, bc)),
+            )
+        });
+        let byte_limit = array_byte_limit(ctx.features.max_buffer_size);
+        let class_layers: [u32; CLASS_COUNT] = std::array::from_fn(|k| {
+            layers_per_array(max_layers, byte_limit, class_formats[k], 4 << k)
+        });
+        let slots = class_slots(&per_class, &class_layers)?;
         let class_arrays: Vec<Option<TextureArray>> = slots
             .iter()
             .map(|s| {
                 s.map(|(k, layers)| {
-                    let format = common_format(
-                        g.uniques
-                            .iter()
-                            .filter(|u| u.class == k)
-                            .map(|u| gpu_format(u.format, bc)),
-                    );
+                    let format = class_formats[k as usize];
                     let label = format!("class {} ({})", 4u32 << k, format.name());
                     TextureArray::new(&ctx.device, &label, 4 << k, layers, format)
                 })
