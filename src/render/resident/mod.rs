@@ -160,10 +160,24 @@ impl Resident {
             u32::try_from(table.len()).map_err(|_| RenderError::TooLarge { what: "blocks" })?;
         let mut r = Resident::load_paged(ctx, file, &table, all)?;
         // Parents before children is not needed here (nothing is drawn until all are in), block order is.
+        // Each `write_texture` stages its bytes until the next submit: flushed every FLUSH_BYTES, the
+        // staging memory is that much, not the whole file again (the all-tracks world on lavapipe: peak RSS
+        // 19.8 → 14 GB for 6.2 GiB of textures).
+        const FLUSH_BYTES: u64 = 256 << 20;
+        let mut staged = 0;
         for b in 0..all {
             let block = BlockId(b);
             let bytes = file.block(block)?;
-            r.stats.texture_bytes += r.upload_block(&ctx.queue, block, bytes)?;
+            let uploaded = r.upload_block(&ctx.queue, block, bytes)?;
+            r.stats.texture_bytes += uploaded;
+            staged += uploaded;
+            if staged >= FLUSH_BYTES {
+                ctx.queue.submit(std::iter::empty());
+                ctx.device
+                    .poll(wgpu::PollType::wait_indefinitely())
+                    .map_err(|e| RenderError::Gpu(e.into()))?;
+                staged = 0;
+            }
         }
         let p = &r.residency;
         r.stats.decoded_on_load = p.decoded_on_load;
