@@ -1,5 +1,5 @@
 use super::args::BuildParamsArgs;
-use super::{UpArg, load_scene, progress::Bars};
+use super::{UpArg, load_scene_within, progress::Bars};
 use anyhow::Context;
 use atlastree::preprocess::shard::{ShardSpec, shard_from_env};
 use atlastree::preprocess::{
@@ -146,7 +146,11 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         }
     }
     let t = std::time::Instant::now();
-    let mut scene = load_scene(&a.scene, a.up)?;
+    // A scene past what the budget's plan holds is refused while its nodes are walked, not after a
+    // node graph sharing children has instanced gigabytes of triangles.
+    let max_triangles =
+        (a.params.memory_budget()).map(atlastree::preprocess::memory::max_plan_triangles);
+    let mut scene = load_scene_within(&a.scene, a.up, max_triangles)?;
     if !a.materials.is_empty() {
         let kept = super::retain_materials(&mut scene, &a.materials)?;
         if !(a.quiet || a.json) {

@@ -190,7 +190,20 @@ pub(crate) fn load_scene(
     path: &std::path::Path,
     up: UpArg,
 ) -> anyhow::Result<atlastree::scene::Scene> {
-    let opts = atlastree::scene::ImportOptions { up: up.to_option() };
+    load_scene_within(path, up, None)
+}
+
+/// [`load_scene`] refusing, during the node walk, a scene of more than `max_triangles`
+/// ([`atlastree::scene::ImportOptions::max_triangles`]).
+pub(crate) fn load_scene_within(
+    path: &std::path::Path,
+    up: UpArg,
+    max_triangles: Option<u64>,
+) -> anyhow::Result<atlastree::scene::Scene> {
+    let opts = atlastree::scene::ImportOptions {
+        up: up.to_option(),
+        max_triangles,
+    };
     atlastree::scene::import(path, &opts).map_err(|e| {
         // Most scene errors already start with the file; name it once.
         let file = path.display().to_string();

@@ -773,6 +773,22 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
             max_share,
             failures
         );
+        if failures > 0 {
+            println!(
+                "  warning: {failures} block loads failed (those nodes drew a coarser resident atlas; see stats.csv failures)"
+            );
+        }
+        // Requests the source never answered by the last frame (a server that stopped responding holds
+        // them up to its timeout × attempts; they are abandoned at exit, not counted as failures).
+        let waiting = paged
+            .last()
+            .map_or(0, |p| p.session.in_flight + p.session.queued);
+        if waiting > 0 {
+            println!(
+                "  warning: {waiting} block requests still unanswered after the last frame ({} in flight; is the source responding?)",
+                paged.last().map_or(0, |p| p.session.in_flight)
+            );
+        }
     }
     // Medians: robust against one-off stalls (a software rasteriser compiles shader variants on first use).
     let frame: Vec<f64> = stats.iter().map(|s| s.frame_ms).collect();

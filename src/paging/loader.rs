@@ -185,15 +185,87 @@ impl Loader for ThreadedLoader {
     }
 }
 
+/// How long [`ThreadedLoader`]'s drop waits for workers still in a request before it leaves them behind.
+const DROP_GRACE: std::time::Duration = std::time::Duration::from_millis(200);
+
 impl Drop for ThreadedLoader {
+    /// Stops the workers: idle ones exit at once; one still in a request (a stalled server holds it up to
+    /// the source's timeout × attempts, minutes over HTTP) is waited for [`DROP_GRACE`], then left to
+    /// finish on its own — its result is dropped, and a process that exits takes it along. `render` over a
+    /// server that stopped answering used to sit two minutes after its last frame.
     fn drop(&mut self) {
         {
             let (m, cv) = &*self.shared;
             lock(m).shutdown = true;
             cv.notify_all();
         }
-        for w in self.workers.drain(..) {
-            let _ = w.join();
+        let deadline = std::time::Instant::now() + DROP_GRACE;
+        while self.workers.iter().any(|w| !w.is_finished()) && std::time::Instant::now() < deadline
+        {
+            std::thread::sleep(std::time::Duration::from_millis(2));
         }
+        for w in self.workers.drain(..) {
+            if w.is_finished() {
+                let _ = w.join();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bytemuck::Zeroable;
+    use std::time::{Duration, Instant};
+
+    /// A source whose every fetch takes `stall` (a server that stopped answering, up to its timeout).
+    struct Stalled {
+        stall: Duration,
+    }
+
+    impl BlockSource for Stalled {
+        fn name(&self) -> String {
+            "stalled".into()
+        }
+
+        fn fetch(&self, _: BlockId, _: &BlockRecord) -> Result<Vec<u8>, SourceError> {
+            std::thread::sleep(self.stall);
+            Ok(Vec::new())
+        }
+    }
+
+    #[test]
+    fn drop_leaves_workers_stuck_in_a_request_behind() {
+        let record = BlockRecord::zeroed();
+        let mut loader = ThreadedLoader::new(
+            Arc::new(Stalled {
+                stall: Duration::from_secs(5),
+            }),
+            vec![record; 4],
+            2,
+        )
+        .unwrap();
+        let wanted: Vec<Request> = (0..4)
+            .map(|b| Request {
+                block: BlockId(b),
+                bytes: 1,
+            })
+            .collect();
+        loader.set_requests(&wanted);
+        let start = Instant::now();
+        while loader.in_flight() < 2 {
+            assert!(
+                start.elapsed() < Duration::from_secs(5),
+                "workers never started"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let start = Instant::now();
+        drop(loader);
+        let waited = start.elapsed();
+        assert!(
+            waited >= DROP_GRACE && waited < Duration::from_secs(2),
+            "drop waited {waited:?}"
+        );
     }
 }

@@ -62,6 +62,14 @@ pub enum SourceError {
         /// help.
         file_shorter: bool,
     },
+    /// Opening a remote file: its header claims more bytes of tables than the client holds in memory
+    /// ([`crate::paging::http::HttpOptions::max_table_bytes`]); nothing past the header was fetched.
+    #[error(
+        "{url}: the header claims {} of tables, more than this client holds ({}: a quarter of the machine's memory)",
+        crate::util::human_bytes(*.bytes),
+        crate::util::human_bytes(*.limit)
+    )]
+    TablesTooLarge { url: String, bytes: u64, limit: u64 },
     /// Opening a remote file: its header or tables could not be fetched (after all retries).
     #[error(
         "{url}: reading the tables (bytes {offset}..+{len}) failed after {attempts} attempts: {message}"
@@ -114,11 +122,13 @@ impl SourceError {
             | SourceError::Checksum { .. } => true,
             SourceError::NotInTable { .. }
             | SourceError::Request { .. }
-            | SourceError::Tables { .. } => false,
+            | SourceError::Tables { .. }
+            | SourceError::TablesTooLarge { .. } => false,
         }
     }
 
-    /// Attempts made before this error was returned (1 for sources that do not retry).
+    /// Attempts made before this error was returned (1 for sources that do not retry; 0 for tables refused
+    /// before they were asked for).
     pub fn attempts(&self) -> u32 {
         match self {
             SourceError::Status { attempts, .. }
@@ -130,6 +140,7 @@ impl SourceError {
             SourceError::Store { .. }
             | SourceError::NotInTable { .. }
             | SourceError::Request { .. } => 1,
+            SourceError::TablesTooLarge { .. } => 0,
         }
     }
 }

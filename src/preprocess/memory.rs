@@ -211,6 +211,13 @@ fn split_budget(
     })
 }
 
+/// The most triangles a plan holds within `budget` bytes ([`PLAN_BYTES_PER_TRIANGLE`] each beyond
+/// [`BASE_BYTES`]): the import refuses a scene past it during its node walk, before reading a vertex
+/// (`scene::ImportOptions::max_triangles`). The full check, with the pixel pass, follows the import.
+pub fn max_plan_triangles(budget: u64) -> u64 {
+    budget.saturating_sub(BASE_BYTES) / PLAN_BYTES_PER_TRIANGLE
+}
+
 /// The default budget: half of the machine's memory where the platform tells (Linux `MemTotal`), else none.
 pub fn default_budget() -> Option<u64> {
     crate::util::machine_memory_bytes().map(|m| m / 2)

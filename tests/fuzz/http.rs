@@ -320,6 +320,7 @@ fn case(bytes: &[u8]) -> Verdict {
         retries,
         backoff_initial: Duration::from_millis(1),
         backoff_max: Duration::from_millis(2),
+        ..HttpOptions::default()
     };
     let (remote, src) = match HttpSource::open(&server.url, options) {
         Ok(x) => x,

@@ -248,6 +248,7 @@ fn over_http_with_the_server_stopped_and_restarted(ctx: &GpuContext) -> Result<(
         retries: 1,
         backoff_initial: Duration::from_millis(10),
         backoff_max: Duration::from_millis(40),
+        ..HttpOptions::default()
     };
     let (tables, http) = HttpSource::open(&url, opts).map_err(e)?;
     if tables.blocks() != file.blocks() {

@@ -42,6 +42,11 @@ pub struct HttpOptions {
     pub backoff_initial: Duration,
     /// Upper bound on one wait.
     pub backoff_max: Duration,
+    /// The most bytes of tables [`HttpSource::open`] fetches (they are held in memory, beside the
+    /// renderer's textures): a header claiming more is refused before they are asked for. Default: a
+    /// quarter of the machine's memory (2 GiB where the platform does not tell); the tables of a 6 M-triangle
+    /// world are ~0.3 GB.
+    pub max_table_bytes: u64,
 }
 
 impl Default for HttpOptions {
@@ -53,6 +58,7 @@ impl Default for HttpOptions {
             retries: 3,
             backoff_initial: Duration::from_millis(100),
             backoff_max: Duration::from_secs(2),
+            max_table_bytes: crate::util::machine_memory_bytes().map_or(2 << 30, |m| m / 4),
         }
     }
 }
@@ -211,6 +217,13 @@ impl HttpSource {
         let mut source = HttpSource::new(url, options);
         let (prefix_len, head) =
             source.get_tables(0, HEADER_SIZE as u64, |r| TreeFile::prefix_len(&r.bytes))?;
+        if prefix_len > source.options.max_table_bytes {
+            return Err(SourceError::TablesTooLarge {
+                url: url.to_string(),
+                bytes: prefix_len,
+                limit: source.options.max_table_bytes,
+            });
+        }
         let header: Header = bytemuck::pod_read_unaligned(&head.bytes[..HEADER_SIZE]);
         let file_len = |r: &Ranged| r.total.or(head.total).unwrap_or(header.file_len);
         let (file, prefix) = source.get_tables(0, prefix_len, |r| {
@@ -369,10 +382,16 @@ impl HttpSource {
 
     /// Exactly `len` bytes of `body` (a longer body is cut: its extra bytes are never read).
     fn read_len(&self, body: &mut impl Read, len: u64) -> Result<Vec<u8>, Failure> {
-        // `len` comes from the server's own tables: reserve at most 1 MiB up front and grow with what
-        // actually arrives (a lying header must not allocate gigabytes or abort).
-        let reserve = usize::try_from(len.min(1 << 20)).unwrap_or(0);
-        let mut bytes = Vec::with_capacity(reserve);
+        // `len` is bounded before any request: a block's by the checked tables, the tables' by
+        // `max_table_bytes`. Reserved exactly, so the body is read without the doublings of a growing
+        // vector (a 6 GiB table peaked at 12 GiB); an allocation the machine refuses is an error, not an
+        // abort.
+        let mut bytes = Vec::new();
+        let reserve = usize::try_from(len)
+            .map_err(|_| Failure::Request(format!("{len} bytes do not fit in memory")))?;
+        bytes
+            .try_reserve_exact(reserve)
+            .map_err(|e| Failure::Request(format!("allocating {len} bytes: {e}")))?;
         let read = body.take(len).read_to_end(&mut bytes);
         bump(&self.counters.bytes, bytes.len() as u64);
         read.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;

@@ -44,6 +44,18 @@ struct TriCounts {
     large_uv: u64,
 }
 
+/// `(triangles, vertices)` of one instance of `mesh`, from its accessors' counts (capped by their buffer
+/// views' sizes: [`plausible_count`]); no data is read.
+pub(super) fn mesh_counts(mesh: &gltf::Mesh<'_>) -> (u64, u64) {
+    mesh.primitives().fold((0, 0), |(t, v), p| {
+        let nv = p
+            .get(&Semantic::Positions)
+            .map_or(0, |a| plausible_count(&a)) as u64;
+        let ni = p.indices().map_or(nv, |a| plausible_count(&a) as u64);
+        (t + ni / 3, v + nv)
+    })
+}
+
 /// The triangle soup built so far.
 pub(super) struct Geometry<'a> {
     /// The glTF file (for errors and warnings).
@@ -72,18 +84,9 @@ impl<'a> Geometry<'a> {
         let mut per_mesh: HashMap<usize, (u64, u64)> = HashMap::new();
         let (mut tris, mut verts) = (0u64, 0u64);
         for inst in instances {
-            let (t, v) = *per_mesh.entry(inst.mesh).or_insert_with(|| {
-                let Some(mesh) = meshes.get(inst.mesh) else {
-                    return (0, 0);
-                };
-                mesh.primitives().fold((0, 0), |(t, v), p| {
-                    let nv = p
-                        .get(&Semantic::Positions)
-                        .map_or(0, |a| plausible_count(&a)) as u64;
-                    let ni = p.indices().map_or(nv, |a| plausible_count(&a) as u64);
-                    (t + ni / 3, v + nv)
-                })
-            });
+            let (t, v) = *per_mesh
+                .entry(inst.mesh)
+                .or_insert_with(|| meshes.get(inst.mesh).map_or((0, 0), mesh_counts));
             tris = tris.saturating_add(t);
             verts = verts.saturating_add(v);
         }

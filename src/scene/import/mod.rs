@@ -61,6 +61,11 @@ pub(super) const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
 pub struct ImportOptions {
     /// `None` = auto (the axis of least extent of the world bounds; ties prefer Y, then Z).
     pub up: Option<UpAxis>,
+    /// The most triangles the caller's memory budget holds (`build --max-memory`: the plan keeps ~300
+    /// bytes a triangle). The node walk counts triangles as it meets mesh instances and refuses the scene
+    /// ([`SceneError::TooLarge`]) as soon as they exceed it, before any vertex is read: a few KB of JSON
+    /// sharing nodes can instance millions of triangles. `None`: only the importer's own cap.
+    pub max_triangles: Option<u64>,
 }
 
 /// Imports a `.gltf` (external files and/or data URIs) or `.glb` file into a world-space [`Scene`].
@@ -123,6 +128,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
         accessors: &accessors,
         buffers: &mut buffers,
         report: &mut report,
+        max_triangles: opts.max_triangles,
     }
     .instances()?;
     let mut geometry = Geometry::new(&file, &doc);

@@ -47,6 +47,8 @@ pub(super) struct Walk<'a, 'b> {
     /// Instancing attributes are read through these.
     pub(super) buffers: &'b mut Buffers<'a>,
     pub(super) report: &'b mut ImportReport,
+    /// [`super::ImportOptions::max_triangles`].
+    pub(super) max_triangles: Option<u64>,
 }
 
 impl<'a> Walk<'a, '_> {
@@ -84,6 +86,9 @@ impl<'a> Walk<'a, '_> {
             .collect();
         let mut instances = Vec::new();
         let mut visits: u64 = 0;
+        // Triangles of the instances met so far, against the caller's budget.
+        let mut per_mesh: std::collections::HashMap<usize, u64> = Default::default();
+        let mut triangles: u64 = 0;
         while let Some(step) = stack.pop() {
             let (i, parent) = match step {
                 Step::Exit(i) => {
@@ -135,6 +140,23 @@ impl<'a> Walk<'a, '_> {
                             "more than {MAX_INSTANCES} mesh instances (node visits × GPU instances)"
                         ),
                     });
+                }
+                if let Some(max) = self.max_triangles {
+                    let per = *per_mesh
+                        .entry(mesh.index())
+                        .or_insert_with(|| super::mesh::mesh_counts(&mesh).0);
+                    triangles = triangles.saturating_add(per.saturating_mul(adding as u64));
+                    if triangles > max {
+                        return Err(SceneError::TooLarge {
+                            file: self.file.to_string(),
+                            what: format!(
+                                "more than {max} triangles over the mesh instances met so far ({} instances, \
+                                 node {i}): more than the memory budget holds (`--max-memory`; the plan \
+                                 keeps ~300 bytes a triangle)",
+                                instances.len().saturating_add(adding)
+                            ),
+                        });
+                    }
                 }
                 match list {
                     Some(list) => instances.extend(list.into_iter().map(|m| Instance {

@@ -447,3 +447,29 @@ fn material_extras_and_unknown_extensions_are_not_checked() {
         )
     );
 }
+
+/// `ImportOptions::max_triangles` (`build --max-memory`): the walk refuses a scene of one triangle more
+/// than the budget, naming the budget, and imports it at exactly its triangle count. A few KB of JSON
+/// sharing nodes once instanced gigabytes before the budget was checked after the import.
+#[test]
+fn a_scene_past_the_triangle_budget_is_refused_in_the_node_walk() {
+    let path = city_dir().join("scene.gltf");
+    let n = city_triangles() as u64;
+    let within = |max| {
+        import(
+            &path,
+            &ImportOptions {
+                max_triangles: Some(max),
+                ..ImportOptions::default()
+            },
+        )
+    };
+    let e = within(n - 1).err().expect("one triangle over the budget");
+    let msg = e.to_string();
+    assert!(matches!(e, SceneError::TooLarge { .. }), "{msg}");
+    assert!(
+        msg.contains(&format!("more than {} triangles", n - 1)) && msg.contains("--max-memory"),
+        "{msg}"
+    );
+    assert_eq!(within(n).unwrap().triangles.len() as u64, n);
+}

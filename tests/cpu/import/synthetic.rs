@@ -760,6 +760,7 @@ fn auto_and_forced_up_axis() {
         &path,
         &ImportOptions {
             up: Some(UpAxis::X),
+            ..ImportOptions::default()
         },
     )
     .unwrap();

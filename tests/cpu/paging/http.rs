@@ -75,6 +75,7 @@ pub(super) fn quick() -> HttpOptions {
         retries: 3,
         backoff_initial: Duration::from_millis(10),
         backoff_max: Duration::from_millis(40),
+        ..HttpOptions::default()
     }
 }
 
@@ -234,6 +235,34 @@ fn every_block_over_a_hand_written_server_equals_the_file() {
     let seen = server.seen();
     assert_eq!(seen.requests, 2 + fx.file.blocks().len() as u64);
     assert_eq!(seen.partial, seen.requests);
+}
+
+#[test]
+fn tables_past_the_clients_memory_are_refused_before_they_are_fetched() {
+    let fx = fixture();
+    let server = fault_server(&fx);
+    let prefix = TreeFile::prefix_len(&fx.bytes[..HEADER_SIZE]).unwrap();
+    let options = HttpOptions {
+        max_table_bytes: prefix - 1,
+        ..quick()
+    };
+    let e = HttpSource::open(&server.url(), options).err().unwrap();
+    match &e {
+        SourceError::TablesTooLarge { bytes, limit, .. } => {
+            assert_eq!((*bytes, *limit), (prefix, prefix - 1));
+        }
+        other => panic!("expected TablesTooLarge, got {other}"),
+    }
+    assert!(e.to_string().contains("of tables, more than"), "{e}");
+    // Only the header was asked for.
+    assert_eq!(server.seen().requests, 1);
+    // At the limit the tables are fetched.
+    let options = HttpOptions {
+        max_table_bytes: prefix,
+        ..quick()
+    };
+    let (remote, _) = HttpSource::open(&server.url(), options).unwrap();
+    assert_same_tables(&fx.file, &remote);
 }
 
 #[test]
