@@ -464,7 +464,9 @@ fn a_scene_past_the_triangle_budget_is_refused_in_the_node_walk() {
             },
         )
     };
-    let e = within(n - 1).err().expect("one triangle over the budget");
+    let Err(e) = within(n - 1) else {
+        panic!("one triangle over the budget imported")
+    };
     let msg = e.to_string();
     assert!(matches!(e, SceneError::TooLarge { .. }), "{msg}");
     assert!(
