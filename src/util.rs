@@ -171,7 +171,17 @@ impl AtomicFile {
         }
         #[cfg(not(unix))]
         let _ = mode;
-        let temp = builder.tempfile_in(parent_dir(target))?;
+        let dir = parent_dir(target);
+        let temp = builder.tempfile_in(dir).map_err(|e| {
+            // tempfile's error names the random temp path (`at path ".x.tmp.123.AbC"`), which means
+            // nothing to a user: say which folder refused, with the OS's own words.
+            let text = e.to_string();
+            let cause = text.split(" at path \"").next().unwrap_or(&text);
+            std::io::Error::new(
+                e.kind(),
+                format!("cannot create a file in {}: {cause}", dir.display()),
+            )
+        })?;
         // Best effort: where advisory locks are unsupported the pid alone guards the temp.
         let _ = temp.as_file().try_lock();
         let live = LiveTemp::register(temp.path());
@@ -297,6 +307,7 @@ pub const MAX_TEXT_FILE_BYTES: u64 = 256 << 20;
 /// The UTF-8 text of a file a user names on the command line: a regular file, or a FIFO (`--path
 /// <(make-path)`, read to its end); at most [`MAX_TEXT_FILE_BYTES`] (a longer one, `/dev/zero` included,
 /// is [`std::io::ErrorKind::InvalidData`]); directories and devices are refused as [`open_regular`] does.
+/// A leading UTF-8 byte-order mark is dropped.
 pub fn read_text_file(path: &Path) -> std::io::Result<String> {
     use std::io::Read;
     let meta = std::fs::metadata(path)?;
@@ -317,7 +328,13 @@ pub fn read_text_file(path: &Path) -> std::io::Result<String> {
             format!("longer than {}", human_bytes(MAX_TEXT_FILE_BYTES)),
         ));
     }
-    String::from_utf8(bytes).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
+    let mut text = String::from_utf8(bytes)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))?;
+    // A byte-order mark some editors write is not text (JSON and CSV parsers refuse it).
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
 }
 
 /// Writes go to the temp file (so a `BufWriter<AtomicFile>` streams into it).
@@ -346,6 +363,18 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let file = AtomicFile::create(path, 0o644)?;
     file.file().write_all(bytes)?;
     file.commit()
+}
+
+/// Writes `img` as a PNG at `path` atomically (encoded in memory, then [`write_atomic`]): a failed write
+/// (a full disk, Ctrl-C) leaves the old file or none, never a truncated picture.
+pub fn save_png(path: &Path, img: &image::RgbaImage) -> std::io::Result<()> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(std::io::Error::other)?;
+    write_atomic(path, &bytes)
 }
 
 /// The `kB` fields `keys` of a Linux `/proc` file (`status`, `meminfo`), in bytes, from one read; `None`
@@ -641,6 +670,12 @@ mod tests {
         assert_eq!(read_regular(&f, Some(4)).unwrap(), b"0123");
         assert_eq!(read_regular(&f, Some(40)).unwrap(), b"0123456789");
         assert_eq!(read_text_file(&f).unwrap(), "0123456789");
+        std::fs::write(&f, b"\xef\xbb\xbf{\"a\": 1}").unwrap();
+        assert_eq!(
+            read_text_file(&f).unwrap(),
+            "{\"a\": 1}",
+            "the byte-order mark dropped"
+        );
         let e = read_text_file(Path::new("/dev/zero")).unwrap_err();
         assert_eq!(e.to_string(), "a character device, not a regular file");
         // A FIFO a user names is read to its end (process substitution).
@@ -658,6 +693,23 @@ mod tests {
             writer.join().unwrap().unwrap();
             assert!(open_regular(&fifo).is_err());
         }
+    }
+
+    #[test]
+    fn a_temp_file_that_cannot_be_created_names_the_folder_not_the_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("gone");
+        let err = AtomicFile::create(&missing.join("x.atlastree"), 0o644)
+            .err()
+            .unwrap();
+        let msg = err.to_string();
+        assert_eq!(err.kind(), std::io::ErrorKind::NotFound, "{msg}");
+        assert!(
+            msg.starts_with(&format!("cannot create a file in {}: ", missing.display()))
+                && !msg.contains("at path")
+                && !msg.contains(".tmp."),
+            "{msg}"
+        );
     }
 
     #[test]

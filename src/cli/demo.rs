@@ -62,6 +62,7 @@ pub(super) fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
     super::args::check_frames("--frames", a.frames)?;
     let scene_path = a.scene.clone().unwrap_or_else(default_scene);
+    super::check_out_folder(&a.out)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let scene = import_scene(&scene_path)?;
     let file = build_tree(&a, &scene)?;
@@ -131,8 +132,7 @@ fn write_pictures(out: &Path, tf: &atlastree::store::TreeFile) -> anyhow::Result
         16,
     );
     let path = out.join("overview.png");
-    overview
-        .save(&path)
+    atlastree::util::save_png(&path, &overview)
         .with_context(|| format!("writing {}", path.display()))?;
     pictures.push(path);
     for ti in 0..tf.trees() {
@@ -140,12 +140,10 @@ fn write_pictures(out: &Path, tf: &atlastree::store::TreeFile) -> anyhow::Result
             format!("{:?}", t.kind).to_lowercase()
         });
         let atlas = out.join(format!("{kind}-root-atlas.png"));
-        atlastree::inspect::atlas_image(tf, ti, 0)?
-            .save(&atlas)
+        atlastree::util::save_png(&atlas, &atlastree::inspect::atlas_image(tf, ti, 0)?)
             .with_context(|| format!("writing {}", atlas.display()))?;
         let map = out.join(format!("{kind}-leaves.png"));
-        atlastree::inspect::leaf_map_image(tf, ti, 512)
-            .save(&map)
+        atlastree::util::save_png(&map, &atlastree::inspect::leaf_map_image(tf, ti, 512))
             .with_context(|| format!("writing {}", map.display()))?;
         pictures.push(atlas);
         pictures.push(map);
@@ -355,7 +353,7 @@ fn out_frame_pair(out: &Path, render: &Path, i: usize) -> anyhow::Result<PathBuf
     };
     let pair = atlastree::inspect::side_by_side(&open("tree")?, &open("tree-levels")?, 8);
     let path = out.join("frame.png");
-    pair.save(&path)
+    atlastree::util::save_png(&path, &pair)
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(path)
 }

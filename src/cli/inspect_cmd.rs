@@ -11,7 +11,8 @@ use std::process::ExitCode;
 pub(crate) struct InspectArgs {
     /// A paging file written by `atlastree build`.
     pub file: PathBuf,
-    /// Check every block checksum and every tree invariant; exit with status 1 on any violation. For
+    /// Check every block checksum and every tree invariant; exit with status 1 on any violation (a file
+    /// whose header or tables break the format included; 2 when it cannot be read at all). For
     /// compressed trees also lists each atlas's PSNR against its uncompressed version (recorded at build
     /// time; the file holds only the compressed texels).
     #[arg(long)]
@@ -27,7 +28,29 @@ pub(crate) struct InspectArgs {
 
 pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     super::reject_url(&a.file, "inspect")?;
-    let file = TreeFile::open(&a.file).with_context(|| format!("opening {}", a.file.display()))?;
+    let file = match TreeFile::open(&a.file) {
+        Ok(file) => file,
+        // With --verify a file that opens but breaks the format (a checksum, a bad header, table or value)
+        // is a violation like a corrupt block: status 1. An unreadable one is an error (status 2).
+        Err(e) if a.verify && !matches!(e, atlastree::store::StoreError::Io { .. }) => {
+            let message = format!("opening {}: {e}", a.file.display());
+            if a.json {
+                let verify =
+                    serde_json::json!({ "ok": false, "violation_count": 1, "open_error": message });
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&serde_json::json!({ "verify": verify }))?
+                );
+            } else {
+                eprintln!("error: {message}");
+                println!("verify: 1 violation: the file is not a valid paging file");
+            }
+            return Ok(ExitCode::from(1));
+        }
+        Err(e) => {
+            return Err(anyhow::Error::new(e).context(format!("opening {}", a.file.display())));
+        }
+    };
     let reference = match a.reference.as_deref() {
         Some(p) if a.verify => Some(
             TreeFile::open(p).with_context(|| format!("opening the reference {}", p.display()))?,

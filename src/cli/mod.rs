@@ -185,6 +185,18 @@ pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Resul
     Ok(())
 }
 
+/// Before any work: `--out` must be a folder or not exist yet (a file there failed only when the outputs
+/// were written, as "File exists (os error 17)" or "Not a directory").
+pub(crate) fn check_out_folder(out: &std::path::Path) -> anyhow::Result<()> {
+    if out.exists() && !out.is_dir() {
+        anyhow::bail!(
+            "--out {}: exists and is not a folder (the outputs go into a folder: name a new or existing one)",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
 /// Imports a scene with a clear error naming the file.
 pub(crate) fn load_scene(
     path: &std::path::Path,

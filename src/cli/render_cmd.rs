@@ -213,6 +213,7 @@ pub(super) type Measured = Vec<(Mode, Vec<FrameStats>)>;
 
 /// Runs a checked configuration; returns what it measured.
 pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
+    super::check_out_folder(&cfg.out)?;
     let (file, http) = open_tree(&cfg.tree)?;
     let cameras = sample_cameras(cfg, &file)?;
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
@@ -519,9 +520,9 @@ fn write_and_report(
     for run in runs {
         write_stats_csv(&run.dir.join("stats.csv"), &run.stats)?;
         if !run.thumbs.is_empty() {
-            contact_sheet(&run.thumbs)
-                .save(run.dir.join("contact_sheet.png"))
-                .context("writing the contact sheet")?;
+            let sheet = run.dir.join("contact_sheet.png");
+            atlastree::util::save_png(&sheet, &contact_sheet(&run.thumbs))
+                .with_context(|| format!("writing {}", sheet.display()))?;
         }
         medians.push(ModeMedians::of(run.mode, &run.stats));
         print_summary(run.mode, &run.stats, &run.dir);
@@ -677,7 +678,7 @@ impl ModeRun {
         let img = image::RgbaImage::from_raw(v.width, v.height, rgba)
             .context("frame readback has the wrong size")?;
         let png = self.dir.join(format!("frame_{i:04}.png"));
-        img.save(&png)
+        atlastree::util::save_png(&png, &img)
             .with_context(|| format!("writing {}", png.display()))?;
         self.thumbs.push(image::imageops::resize(
             &img,

@@ -92,6 +92,9 @@ impl SimulateArgs {
         if let Some(frames) = self.frames {
             super::args::check_frames("--frames", frames)?;
         }
+        if self.in_flight == 0 {
+            bail!("--in-flight must be at least 1 (requests in flight at once)");
+        }
         let capacities = parse_list("capacity", &self.capacity, |s| {
             if s == "all" {
                 Some(None)
@@ -154,15 +157,21 @@ pub(super) fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
 pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     let file = super::open_local(&cfg.file, "simulate")?;
     // Before the runs, not after them: an --out that cannot be a folder.
-    if cfg.out.exists() && !cfg.out.is_dir() {
-        anyhow::bail!("--out {}: exists and is not a folder", cfg.out.display());
-    }
+    super::check_out_folder(&cfg.out)?;
     let cameras = sample_cameras(cfg, &file)?;
     let fov = cameras.first().map_or(60.0, |c| c.fov_x_deg);
     let scale = cfg.viewport.scale(&file.to_params(), fov)?;
     let input = SimInput::from_file(&file)?;
     let cells = cfg.spec.cells().len();
-    println!(
+    // With --json, stdout holds the JSON alone; what people read goes to stderr.
+    let say = |line: String| {
+        if cfg.json {
+            eprintln!("{line}");
+        } else {
+            println!("{line}");
+        }
+    };
+    say(format!(
         "{}: {} blocks ({}), {} frames at {} fps, {} runs",
         cfg.file.display(),
         input.table.len(),
@@ -170,7 +179,7 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
         cameras.len(),
         atlastree::util::short_number(cfg.spec.fps),
         cells
-    );
+    ));
     let bar = indicatif::ProgressBar::new(cells as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} (ETA {eta})")
@@ -185,13 +194,13 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     written.extend(write_plots(&cfg.out, &cfg.spec, &results)?);
     print_results(&results, cfg.json)?;
     let per_cell = results.iter().map(|r| r.seconds).fold(0.0, f64::max);
-    println!(
+    say(format!(
         "{cells} runs in {wall:.2} s wall (slowest run {per_cell:.2} s for {} frames)",
         cameras.len()
-    );
-    println!("wrote:");
+    ));
+    say("wrote:".to_string());
     for p in written {
-        println!("  {}", p.display());
+        say(format!("  {}", p.display()));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -206,10 +215,10 @@ fn sample_cameras(cfg: &SimulateConfig, file: &TreeFile) -> anyhow::Result<Vec<C
             let n = (path.duration() * cfg.spec.fps).ceil().max(1.0);
             if n > super::args::MAX_FRAMES as f64 {
                 bail!(
-                    "the path's {:.1} s at --fps {:e} are {n:.3e} frames, over the {} a run takes: lower \
+                    "the path's {:.1} s at --fps {} are {n:.3e} frames, over the {} a run takes: lower \
                      --fps or give --frames",
                     path.duration(),
-                    cfg.spec.fps,
+                    atlastree::util::short_number(cfg.spec.fps),
                     super::args::MAX_FRAMES
                 );
             }

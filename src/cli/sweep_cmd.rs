@@ -182,6 +182,7 @@ fn progress_bar(cfg: &SweepConfig) -> ProgressBar {
 /// Runs a checked configuration: import, sample the path, build and measure, write and report.
 pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     let plan = &cfg.plan;
+    super::check_out_folder(&cfg.out)?;
     let scene = load_scene(&cfg.scene, cfg.up)?;
     let path = cfg.path.resolve_with(|| Ground::from_scene(&scene))?;
     let aspect = f64::from(plan.width) / f64::from(plan.height);

@@ -595,24 +595,51 @@ impl ShardSet {
         }
     }
 
-    /// Every shard says it is its slot of `count`, with shard 0's fingerprint, prefix and pixel options.
+    /// Every shard says it is its slot of `count`, and all carry one fingerprint, prefix and pixel options.
+    /// Where they differ, the shard named is one outside the largest group that agrees (shard 0 may be
+    /// the stale one: naming whichever differs from shard 0 sent the user rebuilding a good shard); with
+    /// no strict majority the message says so.
     fn check_headers(&self) -> Result<(), MergeError> {
-        let first = &self.shards[0].header;
         for (i, f) in self.shards.iter().enumerate() {
             let h = &f.header;
             if h.shard != i as u32 || h.count != self.count {
                 let why = format!("it says it is shard {} of {}", h.shard, h.count);
                 return Err(self.foreign(i, why));
             }
-            if h.fingerprint != first.fingerprint
-                || h.prefix_hash != first.prefix_hash
-                || h.pixel_options != first.pixel_options
-            {
-                let why = "its fingerprint (scene and flags) differs from shard 0's".to_string();
-                return Err(self.foreign(i, why));
-            }
         }
-        Ok(())
+        let same = |a: usize, b: usize| {
+            let (x, y) = (&self.shards[a].header, &self.shards[b].header);
+            x.fingerprint == y.fingerprint
+                && x.prefix_hash == y.prefix_hash
+                && x.pixel_options == y.pixel_options
+        };
+        let n = self.shards.len();
+        let agreeing = |i: usize| (0..n).filter(|&j| same(i, j)).count();
+        // The first shard of the largest group (shard 0's group on a tie).
+        let reference = (0..n).fold(0, |best, i| {
+            if agreeing(i) > agreeing(best) {
+                i
+            } else {
+                best
+            }
+        });
+        let Some(odd) = (0..n).find(|&i| !same(reference, i)) else {
+            return Ok(());
+        };
+        let group = agreeing(reference);
+        let why = if 2 * group > n {
+            format!(
+                "its fingerprint (scene and flags) differs from the other {group} of {n} shards' (shard \
+                 {reference}'s)"
+            )
+        } else {
+            format!(
+                "its fingerprint (scene and flags) differs from shard {reference}'s, and no fingerprint is \
+                 held by most shards ({group} of {n} share shard {reference}'s): rebuild the shards built \
+                 from another scene or other flags"
+            )
+        };
+        Err(self.foreign(odd, why))
     }
 
     /// Each shard holds exactly the blocks and subtree roots the cut gives it.

@@ -58,7 +58,9 @@ pub enum StoreError {
         dir: PathBuf,
         what: &'static str,
     },
-    #[error("{path}: not an atlastree file (magic {found:02x?})")]
+    /// The file does not start with [`format::MAGIC`]; the message says what it looks like instead
+    /// ([`describe_start`]: a shard or plan file, a scene, an image, text).
+    #[error("{path}: not an atlastree paging file ({})", describe_start(found))]
     BadMagic { path: PathBuf, found: Vec<u8> },
     #[error(
         "unsupported format version {found} (this build reads version {supported}; files of older versions \
@@ -207,6 +209,13 @@ pub enum StoreError {
         #[source]
         source: std::io::Error,
     },
+    /// The output's temp file could not be created (a read-only folder, a full disk): nothing was written.
+    #[error("creating {target} failed, nothing written: {source}")]
+    Create {
+        target: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
@@ -230,5 +239,31 @@ pub(crate) fn check_endian() -> Result<(), StoreError> {
         Err(StoreError::BigEndian)
     } else {
         Ok(())
+    }
+}
+
+/// What a file that is not a paging file looks like, from its first bytes: the tool's own shard and plan
+/// files (with what to do with them), a glTF or GLB scene, an image, or its start as text.
+pub fn describe_start(head: &[u8]) -> String {
+    let starts = |m: &[u8]| head.starts_with(m) || (!head.is_empty() && m.starts_with(head));
+    if head.starts_with(&shard::SHARD_MAGIC[..6]) {
+        "a shard of a sharded build: `atlastree merge OUT` makes the paging file from its shards"
+            .into()
+    } else if head.starts_with(&shard_plan::PLAN_MAGIC[..6]) {
+        "the plan of a sharded build: build the shards with `--shard I/N`, then `atlastree merge OUT`".into()
+    } else if starts(b"glTF") {
+        "a GLB scene: `atlastree build SCENE -o OUT.atlastree` makes a paging file of it".into()
+    } else if starts(b"\x89PNG") {
+        "a PNG image".into()
+    } else if starts(&[0xff, 0xd8, 0xff]) {
+        "a JPEG image".into()
+    } else if head.trim_ascii_start().starts_with(b"{") || head.trim_ascii_start().starts_with(b"[")
+    {
+        "JSON text: a glTF scene (`atlastree build` it), a camera path or a report?".into()
+    } else {
+        format!(
+            "it starts with \"{}\"",
+            String::from_utf8_lossy(head).escape_debug()
+        )
     }
 }

@@ -198,9 +198,8 @@ impl ShardWriter {
             tables_checksum: 0,
             checksum: 0,
         };
-        let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Write {
+        let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Create {
             target: path.to_path_buf(),
-            temp: crate::util::parent_dir(path).to_path_buf(),
             source,
         })?;
         let w = ShardWriter {

@@ -153,9 +153,8 @@ pub fn write_plan(
         .ok_or(StoreError::LayoutOverflow { what: "plan" })?;
     header.file_len = prefix_at + header.prefix_len;
     header.checksum = header.compute_checksum();
-    let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Write {
+    let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Create {
         target: path.to_path_buf(),
-        temp: path.to_path_buf(),
         source,
     })?;
     let write_err = |source| StoreError::Write {

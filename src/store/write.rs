@@ -513,9 +513,8 @@ impl FileWriter {
         check_replaceable(path)?;
         // The permissions of a plain `File::create` once renamed (0o666 less the umask); a private 0o600
         // would make a paging file unservable by another user's server.
-        let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Write {
+        let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Create {
             target: path.to_path_buf(),
-            temp: crate::util::parent_dir(path).to_path_buf(),
             source,
         })?;
         let file_len = header.file_len;
@@ -750,8 +749,7 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
     if head == MAGIC {
         return Ok(());
     }
-    let text = String::from_utf8_lossy(&head).escape_debug().to_string();
-    Err(refuse(format!("it starts with \"{text}\"")))
+    Err(refuse(super::describe_start(&head)))
 }
 
 #[cfg(test)]

@@ -83,14 +83,43 @@ pub struct ViewReport {
     pub fps: f64,
 }
 
+/// winit's reason without where in winit it was raised: its `OsError` prints
+/// "os error at …/winit-0.30.13/src/platform_impl/linux/mod.rs:765: why", a path on the machine that built
+/// the binary.
+fn winit_reason(text: &str) -> String {
+    match text.find(".rs:") {
+        Some(i) => text[i..]
+            .split_once(": ")
+            .map_or(text, |(_, why)| why)
+            .to_string(),
+        None => text.to_string(),
+    }
+}
+
+impl From<winit::error::EventLoopError> for ViewError {
+    fn from(e: winit::error::EventLoopError) -> Self {
+        ViewError::EventLoop {
+            reason: winit_reason(&e.to_string()),
+        }
+    }
+}
+
+impl From<winit::error::OsError> for ViewError {
+    fn from(e: winit::error::OsError) -> Self {
+        ViewError::Window {
+            reason: winit_reason(&e.to_string()),
+        }
+    }
+}
+
 /// Errors of the viewer.
 #[derive(Debug, thiserror::Error)]
 pub enum ViewError {
     /// No window system: no `DISPLAY`/`WAYLAND_DISPLAY`, or the connection failed.
-    #[error("cannot open the window system (is DISPLAY or WAYLAND_DISPLAY set?)")]
-    EventLoop(#[from] winit::error::EventLoopError),
-    #[error("cannot create the window")]
-    Window(#[from] winit::error::OsError),
+    #[error("cannot open the window system (is DISPLAY or WAYLAND_DISPLAY set?): {reason}")]
+    EventLoop { reason: String },
+    #[error("cannot create the window: {reason}")]
+    Window { reason: String },
     #[error(transparent)]
     Gpu(#[from] GpuError),
     #[error(transparent)]
@@ -118,4 +147,20 @@ pub fn scene_bounds(file: &TreeFile) -> Option<(DVec3, DVec3)> {
             )
         })
         .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn winit_reasons_drop_the_source_location() {
+        let raw = "os error at /root/.cargo/registry/src/index.crates.io-1/winit-0.30.13/src/platform_impl/linux/\
+                   mod.rs:765: neither WAYLAND_DISPLAY nor DISPLAY is set";
+        assert_eq!(
+            winit_reason(raw),
+            "neither WAYLAND_DISPLAY nor DISPLAY is set"
+        );
+        assert_eq!(winit_reason("no display"), "no display");
+    }
 }

@@ -325,7 +325,7 @@ fn an_output_that_is_not_a_paging_file_is_never_replaced() {
     );
     // The store's check directly: what it says of each kind of file.
     let err = atlastree::store::check_replaceable(&gltf).unwrap_err();
-    assert!(err.to_string().contains("it starts with \"{"), "{err}");
+    assert!(err.to_string().contains("JSON text: a glTF scene"), "{err}");
     let empty = dir.path().join("empty.atlastree");
     std::fs::write(&empty, b"").unwrap();
     run_ok(&mut build_cmd(&empty));

@@ -96,6 +96,16 @@ fn build_then_inspect_verify() {
         .args(["inspect", "--verify", "--json"])
         .arg(&out)));
     assert_eq!(v["verify"]["violation_count"], 0, "{v}");
+    // simulate --json: stdout is the JSON alone (the header and the files written go to stderr).
+    let sim = json(&run(bin()
+        .args(["simulate", "--json", "--out"])
+        .arg(dir.path().join("sim"))
+        .arg(&out)));
+    let runs = sim.as_array().expect("an array of runs");
+    assert!(
+        !runs.is_empty() && runs.iter().all(|r| r["run"].is_string()),
+        "{sim}"
+    );
     assert_eq!(v["inspect"]["blocks"], b["blocks"]);
     let enabled = v["inspect"]["enabled"].to_string();
     assert!(enabled.contains("alpha tree: on"), "{enabled}");
@@ -469,6 +479,11 @@ fn flags_that_mean_nothing_are_refused() {
         &["simulate", "nope.atlastree", "--upload-budget", "2ms"],
         &["--upload-budget", "simulate has no uploads to time", "8MB"],
     );
+    // Zero requests in flight would never load a block (it ran as 1).
+    refused(
+        &["simulate", "nope.atlastree", "--in-flight", "0"],
+        &["--in-flight must be at least 1"],
+    );
     for (flag, value) in [
         ("--upload-budget", "8MB"),
         ("--max-queue", "4"),
@@ -578,4 +593,30 @@ fn help_shows_the_flag_groups() {
         !help("sweep").contains("--atlas-size"),
         "the grid sets the atlas size"
     );
+}
+
+/// `--out` naming a file is refused before any work by every command that writes a folder of outputs
+/// (render and demo failed with "File exists (os error 17)" after the work, sweep with "Not a directory").
+#[test]
+fn out_naming_a_file_is_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("taken");
+    std::fs::write(&file, b"x").unwrap();
+    let out = file.to_str().unwrap();
+    let scene = scene();
+    let scene = scene.to_str().unwrap();
+    for args in [
+        vec!["render", "nope.atlastree", "--out", out],
+        vec!["demo", "--out", out],
+        vec!["sweep", scene, "--out", out],
+    ] {
+        let o = run(bin().args(&args));
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(
+            e.contains(&format!("--out {out}: exists and is not a folder")),
+            "{args:?}: {e}"
+        );
+    }
+    assert_eq!(std::fs::read(&file).unwrap(), b"x");
 }

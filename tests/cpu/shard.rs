@@ -275,6 +275,23 @@ fn merge_refuses_a_shard_of_another_build() {
         refused(&out, 1),
         MergeError::Foreign { shard: 1, .. }
     ));
+    // Shard 0 the odd one out (shard 1 rebuilt as the others, shard 0 with the other flags): shard 0 is
+    // named, not the first shard that differs from it.
+    let good = ShardedOptions {
+        spec,
+        argv: argv(spec),
+    };
+    build_shard(city(), &deep_opts(), &out, &good, &NoProgress).unwrap();
+    let spec0 = ShardSpec { index: 0, count: 4 };
+    let stale0 = ShardedOptions {
+        spec: spec0,
+        argv: argv(spec0),
+    };
+    build_shard(city(), &other, &out, &stale0, &NoProgress).unwrap();
+    let e = refused(&out, 0);
+    assert!(matches!(e, MergeError::Foreign { shard: 0, .. }), "{e}");
+    assert!(e.to_string().contains("the other 3 of 4 shards'"), "{e}");
+    build_shard(city(), &deep_opts(), &out, &stale0, &NoProgress).unwrap();
     // A shard of a 3-shard build renamed into slot 1.
     let (_dir3, out3) = {
         let dir = tempfile::tempdir().unwrap();

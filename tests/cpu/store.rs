@@ -412,6 +412,36 @@ fn resealed_bad_references_are_named() {
         TreeFile::from_bytes(&b),
         Err(StoreError::BadMagic { .. })
     ));
+    // What it looks like instead, not its bytes in hex: the tool's own shard and plan files say what to do.
+    use atlastree::store::describe_start;
+    for (head, says) in [
+        (
+            &atlastree::store::shard::SHARD_MAGIC[..],
+            "`atlastree merge OUT`",
+        ),
+        (
+            &atlastree::store::shard_plan::PLAN_MAGIC[..],
+            "build the shards",
+        ),
+        (b"glTF\x02\0\0\0".as_slice(), "a GLB scene"),
+        (b"\x89PNG\r\n\x1a\n", "a PNG image"),
+        (b"\n  {\"asse", "JSON text"),
+        (b"ATLTREX\0", "it starts with \"ATLTREX\\0\""),
+    ] {
+        assert!(
+            describe_start(head).contains(says),
+            "{head:?}: {}",
+            describe_start(head)
+        );
+    }
+    let e = TreeFile::from_bytes(b"{\"asset\": {}}       ")
+        .err()
+        .unwrap();
+    assert!(
+        e.to_string()
+            .contains("not an atlastree paging file (JSON text"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -172,6 +172,21 @@ impl Dense<'_> {
 
 /// Reads accessor `acc` as `count × dims` f64 into `out` (sparse substitution applied). The accessor
 /// must have exactly `dims` components per element.
+/// Refuses an `UNSIGNED_INT` vertex attribute: glTF allows FLOAT positions and texture coordinates, and
+/// with `KHR_mesh_quantization` 8- and 16-bit integers, never 32-bit ones (read as integers, float bits
+/// made a 10 m quad a billion metres wide, silently).
+pub(super) fn check_vertex_attribute(acc: &gltf::Accessor) -> Result<(), AccErr> {
+    if acc.data_type() == DataType::U32 {
+        return Err(AccErr {
+            accessor: acc.index(),
+            reason: "is UNSIGNED_INT (5125): vertex attributes are FLOAT, or 8- or 16-bit integers with \
+                     KHR_mesh_quantization"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
 pub(super) fn read_floats(
     buffers: &[Option<Vec<u8>>],
     acc: &gltf::Accessor,

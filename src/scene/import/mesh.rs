@@ -7,7 +7,9 @@
 //! or UV are skipped, UVs beyond ±[`LARGE_UV`] kept; both counted. Non-triangle modes and primitives
 //! without POSITION are skipped (counted warning). Bad accessors and out-of-range indices are errors.
 
-use super::accessors::{PrimCtx, plausible_count, read_floats, read_indices};
+use super::accessors::{
+    PrimCtx, check_vertex_attribute, plausible_count, read_floats, read_indices,
+};
 use super::materials::{Materials, UvSource};
 use super::nodes::Instance;
 use super::uri::Buffers;
@@ -172,7 +174,8 @@ impl<'a> Geometry<'a> {
         // Positions → world space.
         buffers.load_accessor(&pos_acc)?;
         let s = &mut self.scratch;
-        read_floats(buffers.data(), &pos_acc, 3, &mut s.floats, &mut s.tmp)
+        check_vertex_attribute(&pos_acc)
+            .and_then(|()| read_floats(buffers.data(), &pos_acc, 3, &mut s.floats, &mut s.tmp))
             .map_err(|e| ctx.error(self.file, "POSITION", e))?;
         let n = pos_acc.count();
         let s = &mut self.scratch;
@@ -209,7 +212,8 @@ impl<'a> Geometry<'a> {
             }
             buffers.load_accessor(&uv_acc)?;
             let s = &mut self.scratch;
-            read_floats(buffers.data(), &uv_acc, 2, &mut s.floats, &mut s.tmp)
+            check_vertex_attribute(&uv_acc)
+                .and_then(|()| read_floats(buffers.data(), &uv_acc, 2, &mut s.floats, &mut s.tmp))
                 .map_err(|e| ctx.error(self.file, &semantic, e))?;
             let s = &mut self.scratch;
             match xf {

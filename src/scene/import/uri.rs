@@ -19,6 +19,10 @@ pub(super) fn split_glb(
     file: &str,
 ) -> Result<(Vec<u8>, Option<Vec<u8>>), SceneError> {
     if !bytes.starts_with(b"glTF") {
+        // A UTF-8 byte-order mark before the JSON: glTF 2.0 §3.2 lets readers ignore it (JSON parsers do not).
+        if let Some(json) = bytes.strip_prefix(b"\xef\xbb\xbf") {
+            return Ok((json.to_vec(), None));
+        }
         return Ok((bytes, None));
     }
     // gltf 1.4.1 computes `length - 12` before comparing (an overflow, a panic in debug builds).
@@ -113,9 +117,10 @@ impl<'a> Buffers<'a> {
                 };
                 ("<GLB BIN chunk>".to_string(), data)
             }
-            gltf::buffer::Source::Uri(uri) => {
-                (uri.to_string(), self.read_uri(uri, buffer.length() as u64))
-            }
+            gltf::buffer::Source::Uri(uri) => (
+                uri_for_messages(uri),
+                self.read_uri(uri, buffer.length() as u64),
+            ),
         };
         let err = |reason: String| SceneError::Buffer {
             file: self.file.to_string(),
@@ -298,9 +303,32 @@ fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
         .map_err(|e| format!("data URI base64: {e}"))
 }
 
+/// A URI as messages name it: a `data:` URI by its media type and length (a 2 MB embedded buffer once
+/// made a 2.7 MB error message), any other as written.
+fn uri_for_messages(uri: &str) -> String {
+    match uri.strip_prefix("data:") {
+        Some(rest) => {
+            let head = rest.split(',').next().unwrap_or("");
+            format!("data URI, {head}, {} characters", uri.len())
+        }
+        None => uri.to_string(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn data_uris_are_named_by_type_and_length() {
+        let uri = format!("data:application/octet-stream;base64,{}", "A".repeat(4000));
+        let named = uri_for_messages(&uri);
+        assert_eq!(
+            named,
+            "data URI, application/octet-stream;base64, 4037 characters"
+        );
+        assert_eq!(uri_for_messages("scene.bin"), "scene.bin");
+    }
 
     #[test]
     fn percent_decoding() {

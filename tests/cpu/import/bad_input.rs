@@ -475,3 +475,37 @@ fn a_scene_past_the_triangle_budget_is_refused_in_the_node_walk() {
     );
     assert_eq!(within(n).unwrap().triangles.len() as u64, n);
 }
+
+/// A `.gltf` saved with a UTF-8 byte-order mark imports as without it (glTF 2.0 §3.2: readers may ignore
+/// it; the JSON parser refused it at "line 1 column 1").
+#[test]
+fn a_byte_order_mark_before_the_json_is_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(city_dir().join("scene.bin"), dir.path().join("scene.bin")).unwrap();
+    let path = dir.path().join("scene.gltf");
+    let mut bytes = b"\xef\xbb\xbf".to_vec();
+    bytes.extend(serde_json::to_vec(&city_json()).unwrap());
+    std::fs::write(&path, bytes).unwrap();
+    let s = import(&path, &ImportOptions::default()).unwrap();
+    assert_eq!(s.triangles.len(), city_triangles());
+}
+
+/// A POSITION or TEXCOORD accessor of UNSIGNED_INT is refused, naming the accessor (read as integers, the
+/// float bits of a 10 m quad made it a billion metres wide, silently).
+#[test]
+fn unsigned_int_vertex_attributes_are_refused() {
+    let doc = city_json();
+    for semantic in ["POSITION", "TEXCOORD_0"] {
+        let acc = doc["meshes"][0]["primitives"][0]["attributes"][semantic]
+            .as_u64()
+            .unwrap();
+        let (file, msg) = city_error(&format!("/accessors/{acc}/componentType"), json!(5125));
+        assert!(
+            msg.contains(&file)
+                && msg.contains(&format!("accessor {acc}"))
+                && msg.contains(semantic)
+                && msg.contains("is UNSIGNED_INT (5125)"),
+            "{msg}"
+        );
+    }
+}
