@@ -490,6 +490,39 @@ fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyRepo
 /// Block checksums and padding, and the tree invariants `TreeFile::open` does not check (see [`verify`]).
 /// What open checks (ranges, links between records, levels and cells, counts, every table byte) is not
 /// repeated here: one place per check.
+/// A leaf node's bounds hold its vertices (origin + f32 position: selection and culling trust the
+/// bounds; the bounds of inner nodes hold their children's, checked in [`verify_structure`]). Slack: the
+/// f32 rounding of each position relative to the origin (2⁻²⁴ of it, twice over) and 10⁻⁹ of the bounds'
+/// magnitude.
+fn verify_leaf_bounds(t: &crate::store::TreeView<'_>, ti: usize, li: usize, r: &mut VerifyReport) {
+    let Some(l) = t.leaves.get(li) else { return };
+    let Some(n) = t.nodes.get(l.node as usize) else {
+        return;
+    };
+    let first = l.first_vertex as usize;
+    let Some(verts) = t.vertices.get(first..first + l.vertex_count as usize) else {
+        return;
+    };
+    for (k, v) in verts.iter().enumerate() {
+        for a in 0..3 {
+            let p = l.origin[a] + f64::from(v.pos[a]);
+            let magnitude = n.bounds_min[a].abs().max(n.bounds_max[a].abs()).max(1.0);
+            let slack = f64::from(v.pos[a]).abs() * 2f64.powi(-23) + 1e-9 * magnitude;
+            if p < n.bounds_min[a] - slack || p > n.bounds_max[a] + slack {
+                r.fail(format!(
+                    "tree {ti} leaf {li} (node {}): vertex {} at {p} on axis {a} lies outside the node's \
+                     bounds [{}, {}]",
+                    l.node,
+                    first + k,
+                    n.bounds_min[a],
+                    n.bounds_max[a]
+                ));
+                return;
+            }
+        }
+    }
+}
+
 fn verify_structure(file: &TreeFile) -> VerifyReport {
     let mut r = VerifyReport::default();
     for (i, _) in file.blocks().iter().enumerate() {
@@ -586,6 +619,7 @@ fn verify_structure(file: &TreeFile) -> VerifyReport {
             }
             next_index = l.first_index + l.index_count;
             rects::verify_leaf(&t, ti, li, &params, &mut r);
+            verify_leaf_bounds(&t, ti, li, &mut r);
         }
         if next_index as usize != t.indices.len() {
             r.fail(format!(

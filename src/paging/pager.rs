@@ -212,6 +212,9 @@ pub struct Pager {
     order: Vec<u32>,
     /// Frame at which the block was requested (LRU's FIFO order).
     requested_at: Vec<u64>,
+    /// Per block: the frame whose ideal set last left it out as an originals block whose leaf's group
+    /// did not fit in k (its eviction is then no priority violation).
+    group_left_out: Vec<u64>,
     failed_until: Vec<u64>,
     fail_count: Vec<u8>,
     is_root: Vec<bool>,
@@ -255,6 +258,7 @@ impl Pager {
             rank: vec![u32::MAX; n],
             order: vec![u32::MAX; n],
             requested_at: vec![0; n],
+            group_left_out: vec![0; n],
             failed_until: vec![0; n],
             fail_count: vec![0; n],
             is_root,
@@ -424,6 +428,8 @@ impl Pager {
                     self.order[b.idx()] = self.order[b.idx()].min(lead);
                     self.ideal.push(b);
                 }
+            } else {
+                self.group_left_out[c.block.idx()] = self.frame;
             }
         }
         self.candidates = candidates;
@@ -566,7 +572,12 @@ impl Pager {
                     keep.push((block, data));
                     continue;
                 };
-                if self.order[victim.idx()] < self.order[i] {
+                // A victim ranked before the block it makes room for is a violation, unless it is an
+                // originals block this frame's ideal set left out because its leaf's group did not fit
+                // in k: that room goes to the blocks after it by design (`choose_ideal_set`).
+                if self.order[victim.idx()] < self.order[i]
+                    && self.group_left_out[victim.idx()] != self.frame
+                {
                     self.stats.priority_violations += 1;
                 }
                 self.evict(victim);

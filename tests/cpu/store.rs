@@ -602,3 +602,35 @@ fn tree_file_is_send_and_sync() {
     check::<TreeFile>();
     check::<FileWriter>();
 }
+
+/// `inspect --verify` checks that a leaf node's bounds hold its vertices: selection and culling trust the
+/// bounds, and a writer that shrank them (the file resealed, every checksum right) verified clean.
+#[test]
+fn verify_finds_vertices_outside_their_leaf_bounds() {
+    use crate::built::build_ok;
+    use crate::fixtures::peel_strip::{peel_strip, strip_options};
+    let built = build_ok(&peel_strip(3), &strip_options());
+    assert!(atlastree::inspect::verify(&built.file).ok());
+    let t = built.file.tree(0).unwrap();
+    let (ni, node) = (t.nodes.iter().enumerate())
+        .find(|(_, n)| n.leaf != atlastree::ids::NONE)
+        .unwrap();
+    let mut bytes = std::fs::read(&built.path).unwrap();
+    // bounds_max.x (NodeRecord bytes 24..32) pulled halfway in.
+    let x = (node.bounds_min[0] + node.bounds_max[0]) / 2.0;
+    let at = record_at(&bytes, Section::Nodes, ni) + 24;
+    bytes[at..at + 8].copy_from_slice(&x.to_le_bytes());
+    reseal(&mut bytes);
+    let file = TreeFile::from_bytes(&bytes).unwrap();
+    let v = atlastree::inspect::verify(&file);
+    assert!(!v.ok());
+    let leaf = node.leaf;
+    assert!(
+        v.violations
+            .iter()
+            .any(|m| m.contains(&format!("leaf {leaf} (node {ni})"))
+                && m.contains("lies outside the node's bounds")),
+        "{:?}",
+        v.violations
+    );
+}
