@@ -284,7 +284,8 @@ pub(crate) struct BuildParamsArgs {
     /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
     /// a build that cannot fit (the plan holds ~300 bytes per triangle, the rasteriser a few atlases per
     /// thread, the cache at least the largest image per thread) is refused before any work, with the
-    /// number it needs. Default: half of the machine's memory.
+    /// number it needs. Default: half of the memory this process may use (the machine's, or its cgroup's
+    /// limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's limit).
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
     pub max_memory: Option<MemoryArg>,
     /// Split a triangle too big for one atlas (a ground quad with a tile repeated hundreds of times) into at

@@ -65,7 +65,7 @@ pub enum SourceError {
     /// Opening a remote file: its header claims more bytes of tables than the client holds in memory
     /// ([`crate::paging::http::HttpOptions::max_table_bytes`]); nothing past the header was fetched.
     #[error(
-        "{url}: the header claims {} of tables, more than this client holds ({}: a quarter of the machine's memory)",
+        "{url}: the header claims {} of tables, more than this client holds ({}: a quarter of the memory this process may use)",
         crate::util::human_bytes(*.bytes),
         crate::util::human_bytes(*.limit)
     )]

@@ -218,9 +218,10 @@ pub fn max_plan_triangles(budget: u64) -> u64 {
     budget.saturating_sub(BASE_BYTES) / PLAN_BYTES_PER_TRIANGLE
 }
 
-/// The default budget: half of the machine's memory where the platform tells (Linux `MemTotal`), else none.
+/// The default budget: half of the memory this process may use where the platform tells (Linux
+/// `MemTotal`, or its cgroup's limit where smaller: a Slurm job, a Kubernetes pod), else none.
 pub fn default_budget() -> Option<u64> {
-    crate::util::machine_memory_bytes().map(|m| m / 2)
+    crate::util::memory_limit_bytes().map(|m| m / 2)
 }
 
 #[cfg(test)]

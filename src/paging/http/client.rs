@@ -44,7 +44,7 @@ pub struct HttpOptions {
     pub backoff_max: Duration,
     /// The most bytes of tables [`HttpSource::open`] fetches (they are held in memory, beside the
     /// renderer's textures): a header claiming more is refused before they are asked for. Default: a
-    /// quarter of the machine's memory (2 GiB where the platform does not tell); the tables of a 6 M-triangle
+    /// quarter of the memory this process may use ([`crate::util::memory_limit_bytes`]) (2 GiB where the platform does not tell); the tables of a 6 M-triangle
     /// world are ~0.3 GB.
     pub max_table_bytes: u64,
 }
@@ -58,7 +58,7 @@ impl Default for HttpOptions {
             retries: 3,
             backoff_initial: Duration::from_millis(100),
             backoff_max: Duration::from_secs(2),
-            max_table_bytes: crate::util::machine_memory_bytes().map_or(2 << 30, |m| m / 4),
+            max_table_bytes: crate::util::memory_limit_bytes().map_or(2 << 30, |m| m / 4),
         }
     }
 }
