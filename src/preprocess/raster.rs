@@ -81,6 +81,10 @@ pub struct ImageCache<'a> {
     opaque_only: Vec<bool>,
     /// Images whose alpha was ignored this way although some texel had alpha < 255 (reported).
     pub alpha_ignored: AtomicU64,
+    /// Per image: held while it is decoded, so threads that miss it together decode it once (the others
+    /// wait and take the result). Decoding runs no rayon work, so no task stolen under the lock can ask
+    /// for the same image on the same thread.
+    decode_locks: Vec<Mutex<()>>,
 }
 
 /// An original texture as stored: image, stored `[width, height]`, wrap modes (resampling depends on
@@ -180,6 +184,7 @@ impl<'a> ImageCache<'a> {
             original_hits: AtomicU64::new(0),
             opaque_only: opaque_only_images(scene),
             alpha_ignored: AtomicU64::new(0),
+            decode_locks: scene.images.iter().map(|_| Mutex::new(())).collect(),
         }
     }
 
@@ -191,9 +196,14 @@ impl<'a> ImageCache<'a> {
         }
         let cached_source = lock(&self.sources).get(id);
         let decoded = cached_source.unwrap_or_else(|| {
-            let d = Arc::new(self.decode(id));
-            lock(&self.sources).insert(id, d.clone(), d.pixels.len() as u64 * 4);
-            d
+            let _decoding = self.decode_locks.get(id.idx()).map(lock);
+            // Another thread may have decoded it while this one waited.
+            let again = lock(&self.sources).get(id);
+            again.unwrap_or_else(|| {
+                let d = Arc::new(self.decode(id));
+                lock(&self.sources).insert(id, d.clone(), d.pixels.len() as u64 * 4);
+                d
+            })
         });
         // `decode` checked the pixel count, the only way `from_decoded` fails.
         let linear = LinearImage::from_decoded(&decoded)
