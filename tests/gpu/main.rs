@@ -10,6 +10,7 @@
 )]
 
 mod alpha;
+mod arrays;
 mod compressed;
 mod deep;
 mod device;
@@ -41,6 +42,7 @@ fn main() -> ExitCode {
         device::tests(),
         extent::tests(),
         deep::tests(),
+        arrays::tests(),
         render::tests(),
         reference::tests(),
         golden::tests(),
