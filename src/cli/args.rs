@@ -330,7 +330,8 @@ fn parse_memory(s: &str) -> Result<MemoryArg, String> {
 }
 
 impl BuildParamsArgs {
-    /// The memory budget in force: `--max-memory`, else the default ([`atlastree::preprocess::memory::default_budget`]).
+    /// The memory budget in force: `--max-memory`, else the default
+    /// ([`atlastree::preprocess::memory::default_budget`]).
     pub(crate) fn memory_budget(&self) -> Option<u64> {
         self.max_memory
             .map_or_else(atlastree::preprocess::memory::default_budget, |m| m.0)

@@ -44,8 +44,8 @@ pub struct HttpOptions {
     pub backoff_max: Duration,
     /// The most bytes of tables [`HttpSource::open`] fetches (they are held in memory, beside the
     /// renderer's textures): a header claiming more is refused before they are asked for. Default: a
-    /// quarter of the memory this process may use ([`crate::util::memory_limit_bytes`]) (2 GiB where the platform does not tell); the tables of a 6 M-triangle
-    /// world are ~0.3 GB.
+    /// quarter of the memory this process may use ([`crate::util::memory_limit_bytes`]; 2 GiB where the
+    /// platform does not tell). The tables of a 6 M-triangle world are ~0.3 GB.
     pub max_table_bytes: u64,
 }
 
