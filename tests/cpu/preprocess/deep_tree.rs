@@ -9,8 +9,9 @@
 //!
 //! The scene forcing the depth is small (`tests/fixtures/peel_strip.rs`, shared with the GPU suite): a
 //! strip of right triangles whose areas halve from one to the next, each with its own 4×4 texture. §5.3
-//! cuts where the summed area is closest to half, so every split peels off the two largest triangles (quadrants 0 and 1) and keeps all the others in quadrant 3; a node
-//! fits one 64² atlas only when it has at most 9 textures (9 areas of 20×20 incl. the 8-texel border).
+//! cuts where the summed area is closest to half, so every split peels off the two largest triangles
+//! (quadrants 0 and 1) and keeps all the others in quadrant 3; a node fits one 64² atlas only when it
+//! has at most 9 textures (9 areas of 20×20 incl. the 8-texel border).
 //! With `2D + 9` triangles the tree has depth exactly D and `3D + 1` nodes (≈ 1.5 MB at D = 22).
 
 use crate::built::*;
