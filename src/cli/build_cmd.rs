@@ -275,6 +275,22 @@ fn run_planned_shard(
         println!("shard {spec}: planned by {}", plan.display());
     }
     let report = build_shard_planned(&file, key, &a.scene, &opts, &a.out, &sharded, bars)
+        .map_err(|e| {
+            // A plan file whose bytes fail their checks (found only by the streamed pass over its
+            // tables) says what to do, as a truncated one does.
+            let corrupt = matches!(&e, atlastree::preprocess::BuildError::Plan(p)
+                if matches!(**p, ShardPlanError::File(_)));
+            let e = anyhow::Error::new(e);
+            if corrupt {
+                e.context(format!(
+                    "the plan {} is corrupt: make it again with `--shard plan`, or remove it to let the \
+                     shard plan itself",
+                    plan.display()
+                ))
+            } else {
+                e
+            }
+        })
         .with_context(|| {
             format!(
                 "building shard {spec} of {} for {}",

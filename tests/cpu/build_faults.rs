@@ -368,3 +368,30 @@ fn an_output_that_is_not_a_paging_file_is_never_replaced() {
     }
     assert!(!dir.path().join("no").exists());
 }
+
+/// A plan file whose tables fail their hash (found by the shard's streamed pass, after the header checks
+/// a truncated plan fails) says what to do with it, as a truncated one does; removing it lets the shard plan
+/// itself.
+#[test]
+fn a_corrupt_plan_says_to_make_it_again_or_remove_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    run_ok(build_cmd(&out).args(["--shard", "plan"]));
+    let plan = dir.path().join("city.atlastree.plan");
+    let mut bytes = std::fs::read(&plan).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x10;
+    std::fs::write(&plan, &bytes).unwrap();
+    let failed = build_cmd(&out).args(["--shard", "0/2"]).output().unwrap();
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert_eq!(failed.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "the plan {} is corrupt: make it again with `--shard plan`, or remove it",
+            plan.display()
+        )) && stderr.contains("checksum mismatch"),
+        "{stderr}"
+    );
+    std::fs::remove_file(&plan).unwrap();
+    run_ok(build_cmd(&out).args(["--shard", "0/2"]));
+}
