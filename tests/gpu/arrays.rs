@@ -21,17 +21,13 @@ pub fn tests() -> Vec<GpuTest> {
 
 /// `ctx` as a device whose largest allocation is `max_buffer_size` bytes would present it.
 fn with_allocation_limit(ctx: &GpuContext, max_buffer_size: u64) -> GpuContext {
-    GpuContext {
-        instance: ctx.instance.clone(),
-        adapter: ctx.adapter.clone(),
-        device: ctx.device.clone(),
-        queue: ctx.queue.clone(),
-        info: ctx.info.clone(),
-        features: GpuFeatures {
+    crate::harness::with_features(
+        ctx,
+        GpuFeatures {
             max_buffer_size,
             ..ctx.features
         },
-    }
+    )
 }
 
 /// The deep city (RGBA8 atlases of 512²) with every atlas resident: in one array on the real device, in

@@ -93,17 +93,13 @@ fn frames(ctx: &GpuContext, file: &TreeFile) -> Result<Frames, String> {
 
 /// `ctx` as an adapter without BC support would present it (same device; the loader must decode).
 fn without_bc(ctx: &GpuContext) -> GpuContext {
-    GpuContext {
-        instance: ctx.instance.clone(),
-        adapter: ctx.adapter.clone(),
-        device: ctx.device.clone(),
-        queue: ctx.queue.clone(),
-        info: ctx.info.clone(),
-        features: GpuFeatures {
+    crate::harness::with_features(
+        ctx,
+        GpuFeatures {
             texture_compression_bc: false,
             ..ctx.features
         },
-    }
+    )
 }
 
 fn bc_trees_render_like_uncompressed(ctx: &GpuContext) -> Result<(), String> {

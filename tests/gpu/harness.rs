@@ -201,3 +201,19 @@ fn report_no_adapter(err: &GpuError, tests: &[&GpuTest], require: bool, counts: 
         counts.skipped += n;
     }
 }
+
+/// `ctx` as an adapter with `features` would present it (same instance, adapter, device and queue): how a
+/// test sees what the renderer does on a device without BC support or with a smaller allocation limit.
+pub(crate) fn with_features(
+    ctx: &atlastree::gpu::GpuContext,
+    features: atlastree::gpu::GpuFeatures,
+) -> atlastree::gpu::GpuContext {
+    atlastree::gpu::GpuContext {
+        instance: ctx.instance.clone(),
+        adapter: ctx.adapter.clone(),
+        device: ctx.device.clone(),
+        queue: ctx.queue.clone(),
+        info: ctx.info.clone(),
+        features,
+    }
+}
