@@ -251,14 +251,19 @@ pub fn node_kind(meta: &std::fs::Metadata) -> &'static str {
 /// a FIFO (whose `open` would block until a writer comes), a device (`/dev/zero` never ends) or a
 /// socket — is refused with [`std::io::ErrorKind::InvalidInput`] naming what it is, before it is opened.
 pub fn open_regular(path: &Path) -> std::io::Result<File> {
-    let meta = std::fs::metadata(path)?;
-    if !meta.is_file() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            format!("{}, not a regular file", node_kind(&meta)),
-        ));
-    }
+    refuse_non_regular(&std::fs::metadata(path)?)?;
     File::open(path)
+}
+
+/// [`std::io::ErrorKind::InvalidInput`] naming what `meta` is, unless it is a regular file.
+fn refuse_non_regular(meta: &std::fs::Metadata) -> std::io::Result<()> {
+    if meta.is_file() {
+        return Ok(());
+    }
+    Err(std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        format!("{}, not a regular file", node_kind(meta)),
+    ))
 }
 
 /// The bytes of regular file `path` ([`open_regular`]), at most `limit` of them.
@@ -315,11 +320,10 @@ pub fn read_text_file(path: &Path) -> std::io::Result<String> {
     let fifo = std::os::unix::fs::FileTypeExt::is_fifo(&meta.file_type());
     #[cfg(not(unix))]
     let fifo = false;
-    let file = if fifo {
-        File::open(path)?
-    } else {
-        open_regular(path)?
-    };
+    if !fifo {
+        refuse_non_regular(&meta)?;
+    }
+    let file = File::open(path)?;
     let mut bytes = Vec::new();
     file.take(MAX_TEXT_FILE_BYTES + 1).read_to_end(&mut bytes)?;
     if bytes.len() as u64 > MAX_TEXT_FILE_BYTES {
@@ -663,7 +667,6 @@ mod parse_tests {
 mod tests {
     use super::*;
 
-    #[cfg(unix)]
     #[test]
     fn short_numbers_are_short_and_read_back_within_12_digits() {
         for (v, text) in [
@@ -728,19 +731,15 @@ mod tests {
         assert_eq!(e.to_string(), "a character device, not a regular file");
         // A FIFO a user names is read to its end (process substitution).
         let fifo = dir.path().join("p");
-        if std::process::Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .is_ok_and(|s| s.success())
-        {
-            let writer = {
-                let fifo = fifo.clone();
-                std::thread::spawn(move || std::fs::write(fifo, b"{\"a\": 1}"))
-            };
-            assert_eq!(read_text_file(&fifo).unwrap(), "{\"a\": 1}");
-            writer.join().unwrap().unwrap();
-            assert!(open_regular(&fifo).is_err());
-        }
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo {}", fifo.display());
+        let writer = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::write(fifo, b"{\"a\": 1}"))
+        };
+        assert_eq!(read_text_file(&fifo).unwrap(), "{\"a\": 1}");
+        writer.join().unwrap().unwrap();
+        assert!(open_regular(&fifo).is_err());
     }
 
     #[test]
@@ -787,6 +786,7 @@ mod tests {
         );
     }
 
+    #[cfg(unix)]
     #[test]
     fn atomic_file_never_replaces_a_device_or_directory() {
         for target in ["/dev/null", "/tmp"] {

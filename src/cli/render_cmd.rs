@@ -781,13 +781,13 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         }
         // Requests the source never answered by the last frame (a server that stopped responding holds
         // them up to its timeout × attempts; they are abandoned at exit, not counted as failures).
-        let waiting = paged
-            .last()
-            .map_or(0, |p| p.session.in_flight + p.session.queued);
-        if waiting > 0 {
+        if let Some(last) = paged.last()
+            && last.session.in_flight + last.session.queued > 0
+        {
             println!(
-                "  warning: {waiting} block requests still unanswered after the last frame ({} in flight; is the source responding?)",
-                paged.last().map_or(0, |p| p.session.in_flight)
+                "  warning: {} block requests still unanswered after the last frame ({} in flight; is the source responding?)",
+                last.session.in_flight + last.session.queued,
+                last.session.in_flight
             );
         }
     }

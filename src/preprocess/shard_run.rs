@@ -614,10 +614,12 @@ impl ShardSet {
                 && x.pixel_options == y.pixel_options
         };
         let n = self.shards.len();
-        let agreeing = |i: usize| (0..n).filter(|&j| same(i, j)).count();
-        // The first shard of the largest group (shard 0's group on a tie).
+        // Per shard, how many shards agree with it; the first of the largest group (shard 0's on a tie).
+        let agreeing: Vec<usize> = (0..n)
+            .map(|i| (0..n).filter(|&j| same(i, j)).count())
+            .collect();
         let reference = (0..n).fold(0, |best, i| {
-            if agreeing(i) > agreeing(best) {
+            if agreeing[i] > agreeing[best] {
                 i
             } else {
                 best
@@ -626,7 +628,7 @@ impl ShardSet {
         let Some(odd) = (0..n).find(|&i| !same(reference, i)) else {
             return Ok(());
         };
-        let group = agreeing(reference);
+        let group = agreeing[reference];
         let why = if 2 * group > n {
             format!(
                 "its fingerprint (scene and flags) differs from the other {group} of {n} shards' (shard \

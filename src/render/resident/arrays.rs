@@ -20,9 +20,7 @@ pub(super) fn atlas_arrays_for(
     atlas_size: u32,
     cap: u32,
 ) -> Result<Vec<TextureArray>, RenderError> {
-    let max_layers = layer_limit(ctx.features.max_texture_array_layers);
-    let byte_limit = array_byte_limit(ctx.features.max_buffer_size);
-    let per_array = |f: TexFormat| layers_per_array(max_layers, byte_limit, f, atlas_size);
+    let per_array = |f: TexFormat| device_layers_per_array(ctx, f, atlas_size);
     let bc = ctx.features.texture_compression_bc;
     let tree_gpu: Vec<TexFormat> = g.formats.iter().map(|&f| gpu_format(f, bc)).collect();
     let mut per_format: Vec<(TexFormat, u32)> = Vec::new();
@@ -47,7 +45,7 @@ pub(super) fn atlas_arrays_for(
         return Err(RenderError::TooManyLayers {
             what: "atlases".into(),
             layers: u64::from(layers),
-            limit: u64::from(fewest.unwrap_or(max_layers)) * MAX_ATLAS_ARRAYS as u64,
+            limit: u64::from(fewest.unwrap_or(1)) * MAX_ATLAS_ARRAYS as u64,
         });
     }
     let mut arrays = Vec::with_capacity(arrays_needed);
@@ -67,6 +65,17 @@ pub(super) fn atlas_arrays_for(
         }
     }
     Ok(arrays)
+}
+
+/// Layers one array of `size²` textures of `format` holds on this device: [`layers_per_array`] under
+/// its layer limit and its largest allocation.
+pub(super) fn device_layers_per_array(ctx: &GpuContext, format: TexFormat, size: u32) -> u32 {
+    layers_per_array(
+        layer_limit(ctx.features.max_texture_array_layers),
+        array_byte_limit(ctx.features.max_buffer_size),
+        format,
+        size,
+    )
 }
 
 /// Texture-array slots (bindings `class0..`): slot `k` holds class `k` (`4 << k` texels), up to

@@ -20,9 +20,7 @@ pub use tables::{GpuTables, gather_tables};
 
 use super::RenderError;
 use super::batch::{LeafOffsets, TreeBatchInfo};
-use super::textures::{
-    CLASS_COUNT, TextureArray, array_byte_limit, common_format, gpu_format, layers_per_array,
-};
+use super::textures::{CLASS_COUNT, TextureArray, common_format, gpu_format};
 use super::wgsl::tree::{LeafInfo, TamEntry};
 use crate::gpu::GpuContext;
 use crate::ids::BlockId;
@@ -30,7 +28,7 @@ use crate::paging::BlockTable;
 use crate::store::TreeFile;
 use crate::store::format::MaterialRecord;
 use crate::texfmt::TexFormat;
-use arrays::atlas_arrays_for;
+use arrays::{atlas_arrays_for, device_layers_per_array};
 use wgpu::util::DeviceExt;
 
 /// One distinct original texture: where its pixels are in the file and where they live on the GPU.
@@ -162,7 +160,7 @@ impl Resident {
         // Parents before children is not needed here (nothing is drawn until all are in), block order is.
         // Each `write_texture` stages its bytes until the next submit: flushed every FLUSH_BYTES, the
         // staging memory is that much, not the whole file again (the all-tracks world on lavapipe: peak RSS
-        // 19.8 → 14 GB for 6.2 GiB of textures).
+        // 19.8 → 13.3 GB for 6.2 GiB of textures).
         const FLUSH_BYTES: u64 = 256 << 20;
         let mut staged = 0;
         for b in 0..all {
@@ -279,8 +277,6 @@ impl Resident {
     ) -> Result<Resident, RenderError> {
         let materials = file.materials().to_vec();
         let params = file.to_params();
-        let max_layers =
-            crate::render::textures::layer_limit(ctx.features.max_texture_array_layers);
         let mut g = gather_tables(file)?;
         let infos = std::mem::take(&mut g.infos);
         // Atlas arrays: per GPU format, each with room for min(capacity, atlases of that format) layers.
@@ -320,10 +316,8 @@ impl Resident {
                     .map(|u| gpu_format(u.format, bc)),
             )
         });
-        let byte_limit = array_byte_limit(ctx.features.max_buffer_size);
-        let class_layers: [u32; CLASS_COUNT] = std::array::from_fn(|k| {
-            layers_per_array(max_layers, byte_limit, class_formats[k], 4 << k)
-        });
+        let class_layers: [u32; CLASS_COUNT] =
+            std::array::from_fn(|k| device_layers_per_array(ctx, class_formats[k], 4 << k));
         let slots = class_slots(&per_class, &class_layers)?;
         let class_arrays: Vec<Option<TextureArray>> = slots
             .iter()
