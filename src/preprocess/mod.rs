@@ -261,6 +261,12 @@ pub enum BuildError {
         "internal error: the shard cut of the {tree:?} tree does not cover leaf node {node} (please report)"
     )]
     CutUncovered { tree: TreeKind, node: u32 },
+    /// A second decode of an image (after the cache evicted it) gave other pixels than the first.
+    #[error(
+        "image {image} ({name}) decoded to other pixels the second time: its file changed during the \
+         build, so the atlases would mix two versions of it; nothing written, build again"
+    )]
+    ImageChanged { image: u32, name: String },
     #[error("rasterising the {what}: {source}")]
     Image {
         what: String,
@@ -608,6 +614,7 @@ pub(super) fn pixel_pass(
             Ok(mine.into_iter().zip(levels).collect())
         })
         .collect::<Result<_, BuildError>>()?;
+    cache.changed_image()?;
     let handoffs = per_tree.into_iter().flatten().collect();
     let atlas_psnr_db = forest
         .trees

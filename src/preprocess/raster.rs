@@ -85,6 +85,13 @@ pub struct ImageCache<'a> {
     /// wait and take the result). Decoding runs no rayon work, so no task stolen under the lock can ask
     /// for the same image on the same thread.
     decode_locks: Vec<Mutex<()>>,
+    /// Per image: `xxh3_128` of the pixels its first decode gave (after any alpha drop; the fallback's
+    /// own when it failed). A shard file carries them, so the merge refuses shards that decoded one image
+    /// to different pixels ([`Self::pixel_hashes`]).
+    pixel_hashes: Vec<std::sync::OnceLock<[u64; 2]>>,
+    /// Images a later decode (after eviction) gave other pixels than the first: the file changed during
+    /// the build ([`Self::changed_image`]).
+    changed: Mutex<Vec<ImageId>>,
 }
 
 /// An original texture as stored: image, stored `[width, height]`, wrap modes (resampling depends on
@@ -185,6 +192,38 @@ impl<'a> ImageCache<'a> {
             opaque_only: opaque_only_images(scene),
             alpha_ignored: AtomicU64::new(0),
             decode_locks: scene.images.iter().map(|_| Mutex::new(())).collect(),
+            pixel_hashes: scene.images.iter().map(|_| Default::default()).collect(),
+            changed: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// Per image of the scene, the hash of the pixels this cache decoded, `None` for one it never
+    /// decoded.
+    pub fn pixel_hashes(&self) -> Vec<Option<[u64; 2]>> {
+        self.pixel_hashes.iter().map(|h| h.get().copied()).collect()
+    }
+
+    /// The first image whose pixels changed between two decodes of this build (its file was rewritten
+    /// meanwhile), as an error naming it: the atlases drawn from it would mix two versions.
+    pub fn changed_image(&self) -> Result<(), BuildError> {
+        let Some(&id) = lock(&self.changed).iter().min() else {
+            return Ok(());
+        };
+        let name = self.scene.images.get(id.idx()).map_or("?", |i| &i.name);
+        Err(BuildError::ImageChanged {
+            image: id.0,
+            name: name.to_string(),
+        })
+    }
+
+    /// Records the pixels of a decode of `id`; a second decode with other pixels marks it changed.
+    fn record_pixels(&self, id: ImageId, d: &DecodedImage) {
+        let Some(slot) = self.pixel_hashes.get(id.idx()) else {
+            return;
+        };
+        let hash = crate::store::shard::hash128(bytemuck::cast_slice(&d.pixels));
+        if *slot.get_or_init(|| hash) != hash {
+            lock(&self.changed).push(id);
         }
     }
 
@@ -240,7 +279,7 @@ impl<'a> ImageCache<'a> {
             self.decoded_texels.fetch_add(texels, Ordering::Relaxed);
             Ok(d)
         });
-        decoded.unwrap_or_else(|e| {
+        let decoded = decoded.unwrap_or_else(|e| {
             self.fallbacks.fetch_add(1, Ordering::Relaxed);
             let mut w = lock(&self.warnings);
             if w.len() < 100 {
@@ -250,7 +289,9 @@ impl<'a> ImageCache<'a> {
                 ));
             }
             crate::scene::fallback_checker()
-        })
+        });
+        self.record_pixels(id, &decoded);
+        decoded
     }
 }
 

@@ -127,6 +127,9 @@ pub(super) fn rasterise_shard(
         prefix,
         blocks: shard_blocks(forest, &units),
         handoffs: units.iter().map(|u| (u.tree, u.node, side, side)).collect(),
+        images: (scene.images.iter())
+            .map(|i| i.gltf_image.unwrap_or(u32::MAX))
+            .collect(),
     };
     let blocks = layout.blocks.len() as u64;
     let path = shard_path(out, spec);
@@ -150,7 +153,7 @@ pub(super) fn rasterise_shard(
     timings.push("rasterise", t);
     let t = Instant::now();
     progress.stage("write shard", None);
-    let file_bytes = writer.finish()?;
+    let file_bytes = writer.finish(&cache.pixel_hashes())?;
     progress.finish_stage();
     timings.push("write", t);
     timings.push("total", t_all);
@@ -233,6 +236,20 @@ pub enum MergeError {
         path: PathBuf,
         why: String,
         rebuild: String,
+    },
+    /// Two shards decoded one image to different pixels: its file changed between their builds, and the
+    /// fingerprint (name, size, byte length) did not show it.
+    #[error(
+        "shards {first} and {second} of {count} decoded {image} to different pixels: the file changed \
+         between their builds (same name, size and byte length), so their atlases would mix two versions \
+         of it; rebuild the shards built before the change (if unsure, all {count}) from the scene as it \
+         is now, then merge again"
+    )]
+    ImagesDiffer {
+        image: String,
+        first: u32,
+        second: u32,
+        count: u32,
     },
     #[error(
         "shard 0 holds no table prefix (its shards were built from the plan {plan}), and the plan cannot give it: \
@@ -369,6 +386,7 @@ pub fn merge(
     })?;
     let set = ShardSet::open(out, count)?;
     set.check_headers()?;
+    set.check_images()?;
     let first = &set.shards[0];
     let (tables, plan) = if first.header.prefix_len > 0 {
         let tables = (first.skeleton())
@@ -642,6 +660,42 @@ impl ShardSet {
             )
         };
         Err(self.foreign(odd, why))
+    }
+
+    /// Every image two shards decoded has one pixel hash in both (the fingerprint, equal by now, gives
+    /// every shard the same image count).
+    fn check_images(&self) -> Result<(), MergeError> {
+        let images = self
+            .shards
+            .iter()
+            .map(|f| f.images.len())
+            .max()
+            .unwrap_or(0);
+        for i in 0..images {
+            let mut first: Option<(usize, &crate::store::shard::ImageEntry)> = None;
+            for (slot, f) in self.shards.iter().enumerate() {
+                let Some(e) = f.images.get(i).filter(|e| e.decoded == 1) else {
+                    continue;
+                };
+                match first {
+                    None => first = Some((slot, e)),
+                    Some((a, ea)) if ea.pixels != e.pixels => {
+                        let image = match e.gltf_image {
+                            u32::MAX => format!("image {i}"),
+                            g => format!("image {i} (glTF image {g})"),
+                        };
+                        return Err(MergeError::ImagesDiffer {
+                            image,
+                            first: a as u32,
+                            second: slot as u32,
+                            count: self.count,
+                        });
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Each shard holds exactly the blocks and subtree roots the cut gives it.

@@ -167,6 +167,12 @@ pub enum StoreError {
         "{path}: the table prefix handed to the writer is not the one these tables were opened from"
     )]
     PrefixMismatch { path: PathBuf },
+    #[error("{path}: pixel hashes of {got} images handed to the writer, the scene has {expected}")]
+    ShardImages {
+        path: PathBuf,
+        expected: usize,
+        got: usize,
+    },
     #[error("{path}: the bytes at {offset} were put twice")]
     ShardPutTwice { path: PathBuf, offset: u64 },
     #[error("{path}: {block} does not belong to this shard")]

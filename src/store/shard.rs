@@ -8,11 +8,15 @@
 //!
 //! ```text
 //! ShardHeader | command line (JSON) | table prefix | BlockEntry × blocks | HandoffEntry × handoffs
-//!             | block payloads (entry order) | handoff payloads (entry order, RGBA f32 texels)
+//!             | ImageEntry × images | block payloads (entry order)
+//!             | handoff payloads (entry order, RGBA f32 texels)
 //! ```
 //!
 //! The header carries the fingerprint of scene and flags (the merge refuses a mix), an `xxh3_64` of itself
-//! and one of everything up to the payloads; each payload has its own checksum in its entry.
+//! and one of everything up to the payloads; each payload has its own checksum in its entry. The image
+//! entries hold the hash of the pixels each scene image decoded to in this shard (version 2): the
+//! fingerprint names an image by name, size and byte length only, so the merge compares these to refuse
+//! shards that read two versions of one image.
 
 use super::StoreError;
 use crate::ids::BlockId;
@@ -25,7 +29,7 @@ use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
 /// First bytes of every shard file.
 pub const SHARD_MAGIC: [u8; 8] = *b"ATSHARD\x01";
 /// Version of the layout above.
-pub const SHARD_VERSION: u32 = 1;
+pub const SHARD_VERSION: u32 = 2;
 /// Alignment of every part, bytes.
 const ALIGN: u64 = 16;
 
@@ -56,6 +60,9 @@ pub struct ShardHeader {
     pub blocks: u64,
     /// Number of [`HandoffEntry`]s.
     pub handoffs: u64,
+    /// Number of [`ImageEntry`]s: the scene's images.
+    pub images: u64,
+    pub _reserved: u64,
     /// Exact file length, bytes.
     pub file_len: u64,
     /// `xxh3_64` of every byte from the end of the header to the first payload.
@@ -64,7 +71,7 @@ pub struct ShardHeader {
     pub checksum: u64,
 }
 const HEADER_BYTES: u64 = size_of::<ShardHeader>() as u64;
-const _: () = assert!(size_of::<ShardHeader>() == 112);
+const _: () = assert!(size_of::<ShardHeader>() == 128);
 
 impl ShardHeader {
     fn compute_checksum(&self) -> u64 {
@@ -104,6 +111,28 @@ pub struct HandoffEntry {
     pub checksum: u64,
 }
 
+/// Bytes of a [`BlockEntry`] or a [`HandoffEntry`].
+const ENTRY_BYTES: u64 = 40;
+const _: () = assert!(size_of::<BlockEntry>() == 40 && size_of::<HandoffEntry>() == 40);
+
+/// One scene image as this shard decoded it (or did not need it).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Pod, Zeroable, PartialEq, Eq)]
+pub struct ImageEntry {
+    /// `xxh3_128` of the decoded RGBA8 pixels (`preprocess::raster::ImageCache::pixel_hashes`); 0 when
+    /// not decoded.
+    pub pixels: [u64; 2],
+    /// Index of the image in the scene.
+    pub image: u32,
+    /// Its glTF image index, `u32::MAX` for none (a solid colour), for messages.
+    pub gltf_image: u32,
+    /// 1 when this shard decoded the image, else 0.
+    pub decoded: u32,
+    pub _pad: u32,
+}
+const IMAGE_ENTRY_BYTES: u64 = size_of::<ImageEntry>() as u64;
+const _: () = assert!(IMAGE_ENTRY_BYTES == 32);
+
 /// What a shard file holds, known before any pixel: the input of [`ShardWriter::create`].
 pub struct ShardLayout {
     pub shard: u32,
@@ -119,6 +148,9 @@ pub struct ShardLayout {
     pub blocks: Vec<(BlockId, u64)>,
     /// `(tree, node, width, height)` of each handoff, ascending by (tree, node).
     pub handoffs: Vec<(u32, u32, u32, u32)>,
+    /// The glTF image index of each scene image (`u32::MAX`: none); their pixel hashes come at
+    /// [`ShardWriter::finish`].
+    pub images: Vec<u32>,
 }
 
 fn align(x: u64) -> u64 {
@@ -141,6 +173,8 @@ pub struct ShardWriter {
     block_sse: Vec<AtomicU64>,
     handoff_state: Vec<AtomicU8>,
     handoff_sums: Vec<AtomicU64>,
+    /// Each scene image's glTF index ([`ShardLayout::images`]).
+    images: Vec<u32>,
     /// The command line and the prefix, written at finish with the tables.
     head: Vec<u8>,
 }
@@ -154,7 +188,8 @@ impl ShardWriter {
         head.extend_from_slice(&layout.prefix);
         head.resize(align(head.len() as u64) as usize, 0);
         let tables_start = HEADER_BYTES + head.len() as u64;
-        let entries = (layout.blocks.len() + layout.handoffs.len()) as u64 * 40;
+        let entries = (layout.blocks.len() + layout.handoffs.len()) as u64 * ENTRY_BYTES
+            + layout.images.len() as u64 * IMAGE_ENTRY_BYTES;
         let mut at = align(tables_start + entries);
         let mut blocks = Vec::with_capacity(layout.blocks.len());
         for &(id, length) in &layout.blocks {
@@ -194,6 +229,8 @@ impl ShardWriter {
             prefix_len: layout.prefix.len() as u64,
             blocks: blocks.len() as u64,
             handoffs: handoffs.len() as u64,
+            images: layout.images.len() as u64,
+            _reserved: 0,
             file_len: at,
             tables_checksum: 0,
             checksum: 0,
@@ -212,6 +249,7 @@ impl ShardWriter {
             header,
             blocks,
             handoffs,
+            images: layout.images,
             head,
         };
         super::positional::size_and_reserve(w.temp.file(), at, path, w.temp.temp_path())?;
@@ -294,9 +332,17 @@ impl ShardWriter {
         Ok(())
     }
 
-    /// Writes the tables and the header and publishes the file; fails naming the first block or handoff
-    /// never written (then nothing appears). Returns the file length.
-    pub fn finish(mut self) -> Result<u64, StoreError> {
+    /// Writes the tables (with `pixels`, the hash of each scene image this shard decoded, `None` for one
+    /// it did not) and the header and publishes the file; fails naming the first block or handoff never
+    /// written (then nothing appears). Returns the file length.
+    pub fn finish(mut self, pixels: &[Option<[u64; 2]>]) -> Result<u64, StoreError> {
+        if pixels.len() != self.images.len() {
+            return Err(StoreError::ShardImages {
+                path: self.temp.target().to_path_buf(),
+                expected: self.images.len(),
+                got: pixels.len(),
+            });
+        }
         for (i, s) in self.block_state.iter().enumerate() {
             if s.load(Ordering::Acquire) != WRITTEN {
                 return Err(StoreError::BlockMissing {
@@ -328,6 +374,16 @@ impl ShardWriter {
         let mut tables = std::mem::take(&mut self.head);
         tables.extend_from_slice(bytemuck::cast_slice(&self.blocks));
         tables.extend_from_slice(bytemuck::cast_slice(&self.handoffs));
+        for (i, (&gltf_image, hash)) in self.images.iter().zip(pixels).enumerate() {
+            let entry = ImageEntry {
+                pixels: hash.unwrap_or([0; 2]),
+                image: i as u32,
+                gltf_image,
+                decoded: u32::from(hash.is_some()),
+                _pad: 0,
+            };
+            tables.extend_from_slice(bytemuck::bytes_of(&entry));
+        }
         self.header.tables_checksum = xxhash_rust::xxh3::xxh3_64(&tables);
         self.header.checksum = self.header.compute_checksum();
         let file = self.temp.file();
@@ -399,6 +455,8 @@ pub struct ShardFile {
     pub argv: Vec<String>,
     pub blocks: Vec<BlockEntry>,
     pub handoffs: Vec<HandoffEntry>,
+    /// Each scene image's pixel hash as this shard decoded it.
+    pub images: Vec<ImageEntry>,
     prefix_at: u64,
 }
 
@@ -457,7 +515,9 @@ impl ShardFile {
         let head = header
             .blocks
             .checked_add(header.handoffs)
-            .and_then(|n| n.checked_mul(40))
+            .and_then(|n| n.checked_mul(ENTRY_BYTES))
+            .zip(header.images.checked_mul(IMAGE_ENTRY_BYTES))
+            .and_then(|(a, b)| a.checked_add(b))
             .zip(aligned(header.argv_len).zip(aligned(header.prefix_len)))
             .and_then(|(e, (a, p))| a.checked_add(p)?.checked_add(e))
             .filter(|&t| t <= len - HEADER_BYTES)
@@ -484,15 +544,25 @@ impl ShardFile {
         }
         let argv: Vec<String> = serde_json::from_slice(&argv_bytes[..header.argv_len as usize])
             .map_err(|e| layout(format!("command line: {e}")))?;
-        let split = header.blocks as usize * 40;
+        let split = (header.blocks * ENTRY_BYTES) as usize;
+        let split_images = ((header.blocks + header.handoffs) * ENTRY_BYTES) as usize;
         let blocks: Vec<BlockEntry> = entries[..split]
-            .chunks_exact(40)
+            .chunks_exact(ENTRY_BYTES as usize)
             .map(bytemuck::pod_read_unaligned)
             .collect();
-        let handoffs: Vec<HandoffEntry> = entries[split..]
-            .chunks_exact(40)
+        let handoffs: Vec<HandoffEntry> = entries[split..split_images]
+            .chunks_exact(ENTRY_BYTES as usize)
             .map(bytemuck::pod_read_unaligned)
             .collect();
+        let images: Vec<ImageEntry> = entries[split_images..]
+            .chunks_exact(IMAGE_ENTRY_BYTES as usize)
+            .map(bytemuck::pod_read_unaligned)
+            .collect();
+        for (i, e) in images.iter().enumerate() {
+            if e.image != i as u32 || e.decoded > 1 || (e.decoded == 0 && e.pixels != [0; 2]) {
+                return Err(layout(format!("image entry {i} is malformed")));
+            }
+        }
         let mut end = align(HEADER_BYTES + head);
         for (what, offset, length) in blocks
             .iter()
@@ -530,6 +600,7 @@ impl ShardFile {
             argv,
             blocks,
             handoffs,
+            images,
             prefix_at: HEADER_BYTES + align(header.argv_len),
         })
     }

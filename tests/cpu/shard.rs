@@ -461,3 +461,139 @@ fn killed_merge_leaves_nothing_or_the_whole_file_and_a_rerun_succeeds() {
     );
     assert!(absent > 0, "no kill landed before the rename");
 }
+
+/// data/city copied into `dir` (its images are external files the test may rewrite) and imported.
+fn city_copy(dir: &Path) -> Scene {
+    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/city");
+    std::fs::create_dir_all(dir.join("textures")).unwrap();
+    for entry in std::fs::read_dir(&src)
+        .unwrap()
+        .chain(std::fs::read_dir(src.join("textures")).unwrap())
+    {
+        let p = entry.unwrap().path();
+        if p.is_file() {
+            let rel = p.strip_prefix(&src).unwrap();
+            std::fs::copy(&p, dir.join(rel)).unwrap();
+        }
+    }
+    import(&dir.join("scene.gltf"), &ImportOptions::default()).unwrap()
+}
+
+/// Rewrites the image file at `path` with other pixels (one flat colour, `w × h` as before) and its byte
+/// length kept (a PNG padded after its end), so the shard fingerprint (name, size, byte length) cannot
+/// tell the versions apart. False when the flat PNG does not fit the old length.
+fn rewrite_keeping_length(path: &Path, w: u32, h: u32) -> bool {
+    let len = std::fs::metadata(path).unwrap().len() as usize;
+    let flat = image::RgbaImage::from_pixel(w, h, image::Rgba([255, 0, 255, 255]));
+    let mut bytes = Vec::new();
+    flat.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .unwrap();
+    if bytes.len() > len {
+        return false;
+    }
+    bytes.resize(len, 0);
+    std::fs::write(path, bytes).unwrap();
+    true
+}
+
+/// Issue 22, robustness: an image rewritten between two shards' builds with its name, size and byte length
+/// kept passes the fingerprint; the pixel hashes the shards carry make the merge refuse the mix, naming the
+/// image and both shards. Rebuilding the shards that decoded it gives the one-process file of the scene as
+/// it is now.
+#[test]
+fn merge_refuses_shards_that_decoded_two_versions_of_an_image() {
+    use atlastree::scene::ImageData;
+    use atlastree::store::shard::ShardFile;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = city_copy(&dir.path().join("city"));
+    let out = dir.path().join("city.atlastree");
+    let opts = deep_opts();
+    let count = 4;
+    let shard = |index: u32| {
+        let spec = ShardSpec { index, count };
+        let sharded = ShardedOptions {
+            spec,
+            argv: argv(spec),
+        };
+        build_shard(&scene, &opts, &out, &sharded, &NoProgress).unwrap();
+    };
+    (0..count).for_each(shard);
+    let files: Vec<ShardFile> = (0..count)
+        .map(|index| ShardFile::open(&shard_path(&out, ShardSpec { index, count })).unwrap())
+        .collect();
+    // An external image at least two shards decoded, whose flat version fits its byte length.
+    let decoders = |i: usize| -> Vec<u32> {
+        (0..count)
+            .filter(|&s| files[s as usize].images[i].decoded == 1)
+            .collect()
+    };
+    let (image, users) = (0..scene.images.len())
+        .filter(|&i| decoders(i).len() >= 2)
+        .find(|&i| {
+            let img = &scene.images[i];
+            matches!(&img.data, ImageData::File(p) if rewrite_keeping_length(p, img.width, img.height))
+        })
+        .map(|i| (i, decoders(i)))
+        .expect("data/city at 256² atlases in 4 shards: an image two shards decode");
+    drop(files);
+    // The last of its users rebuilt after the change.
+    let last = *users.last().unwrap();
+    shard(last);
+    let e = merge(&out, None, &NoProgress).unwrap_err();
+    match &e {
+        MergeError::ImagesDiffer {
+            image: what,
+            first,
+            second,
+            count: 4,
+        } => {
+            assert_eq!((*first, *second), (users[0], last), "{e}");
+            assert!(what.starts_with(&format!("image {image} ")), "{e}");
+        }
+        other => panic!("expected ImagesDiffer, got {other}"),
+    }
+    assert!(!out.exists(), "a refused merge writes nothing");
+    // Every user rebuilt: the file of the scene as it is now.
+    users.iter().for_each(|&s| shard(s));
+    merge(&out, None, &NoProgress).unwrap();
+    let one = dir.path().join("one.atlastree");
+    build(&scene, &opts, &one, &NoProgress).unwrap();
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(&one).unwrap());
+}
+
+/// An image whose file changes while one build runs (decoded again after the cache evicted it) fails the
+/// build, naming it, instead of atlases that mix its two versions.
+#[test]
+fn an_image_changed_during_a_build_is_an_error_naming_it() {
+    use atlastree::ids::ImageId;
+    use atlastree::preprocess::raster::ImageCache;
+    use atlastree::scene::ImageData;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = city_copy(&dir.path().join("city"));
+    let files: Vec<usize> = (0..scene.images.len())
+        .filter(|&i| matches!(scene.images[i].data, ImageData::File(_)))
+        .collect();
+    let (a, b) = (files[0], files[1]);
+    // A cache of 1 byte keeps one image per tier: reading b evicts a.
+    let cache = ImageCache::new(&scene, 1);
+    cache.get(ImageId(a as u32));
+    cache.get(ImageId(b as u32));
+    cache.get(ImageId(a as u32));
+    assert_eq!(cache.decodes.load(std::sync::atomic::Ordering::Relaxed), 3);
+    cache.changed_image().unwrap();
+    cache.get(ImageId(b as u32));
+    let img = &scene.images[a];
+    let ImageData::File(path) = &img.data else {
+        unreachable!()
+    };
+    assert!(rewrite_keeping_length(path, img.width, img.height));
+    cache.get(ImageId(a as u32));
+    let e = cache.changed_image().unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("image {a} ({})", img.name)) && e.contains("changed during the build"),
+        "{e}"
+    );
+}
