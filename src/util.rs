@@ -306,6 +306,37 @@ pub fn short_number(v: f64) -> String {
     }
 }
 
+/// A measured number for a summary line: `decimals` places in `[0.001, 10¹⁵)` (`227.878`), else
+/// [`short_number`]'s exponent form (`1e-300`), so an absurd flag value never prints hundreds of digits.
+pub fn fixed_number(v: f64, decimals: usize) -> String {
+    if (1e-3..1e15).contains(&v.abs()) || v == 0.0 {
+        format!("{v:.decimals$}")
+    } else {
+        short_number(v)
+    }
+}
+
+/// Removes the files directly in `dir` whose names `stale` picks (an earlier run's outputs that this run
+/// may not overwrite: frames past its count, plots it does not draw), so the folder holds one run's
+/// outputs. Returns how many were removed; a missing folder removes nothing.
+pub fn remove_stale_outputs(dir: &Path, stale: impl Fn(&str) -> bool) -> std::io::Result<usize> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(e),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry?;
+        let name = entry.file_name();
+        if entry.file_type()?.is_file() && name.to_str().is_some_and(&stale) {
+            std::fs::remove_file(entry.path())?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// Largest text file [`read_text_file`] reads (camera paths, sweep grids, CSV reports).
 pub const MAX_TEXT_FILE_BYTES: u64 = 256 << 20;
 
@@ -666,6 +697,32 @@ mod parse_tests {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stale_outputs_are_the_picked_files_only() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in [
+            "frame_0000.png",
+            "frame_0005.png",
+            "stats.csv",
+            "frame_notes.txt",
+        ] {
+            std::fs::write(dir.path().join(name), b"x").unwrap();
+        }
+        std::fs::create_dir(dir.path().join("frame_dir.png")).unwrap();
+        let is_frame = |n: &str| n.starts_with("frame_") && n.ends_with(".png");
+        assert_eq!(remove_stale_outputs(dir.path(), is_frame).unwrap(), 2);
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["frame_dir.png", "frame_notes.txt", "stats.csv"]);
+        assert_eq!(
+            remove_stale_outputs(&dir.path().join("none"), is_frame).unwrap(),
+            0
+        );
+    }
 
     #[test]
     fn short_numbers_are_short_and_read_back_within_12_digits() {

@@ -72,7 +72,8 @@ pub enum CameraError {
         fov: f64,
     },
     #[error(
-        "{path}: keyframe {keyframe}: eye and target coincide, the view direction is undefined"
+        "{path}: keyframe {keyframe}: eye and target coincide (or lie so close that their difference has no \
+         length in f64), the view direction is undefined"
     )]
     DegenerateView { path: PathBuf, keyframe: usize },
     #[error("{path}: {field} is {value}, it must be finite and > 0 (and near < far)")]
@@ -81,7 +82,10 @@ pub enum CameraError {
         field: &'static str,
         value: f64,
     },
-    #[error("{path}: up vector {up:?} must be finite and non-zero")]
+    #[error(
+        "{path}: up vector {up:?} must be finite and non-zero, and long enough that its length is a number \
+         (not below ~1e-154)"
+    )]
     BadUp { path: PathBuf, up: [f64; 3] },
     #[error(
         "scene bounds {lo:?}..{hi:?} are not finite or not ordered; cannot generate a {kind} path"
@@ -218,7 +222,8 @@ impl CameraPath {
             return Err(CameraError::NoKeyframes { path: path() });
         }
         let up = DVec3::from_array(self.up);
-        if !up.is_finite() || up.length_squared() == 0.0 {
+        // `try_normalize` fails where the length underflows too (`[0, 1e-300, 0]`), not only at zero.
+        if up.try_normalize().is_none() {
             return Err(CameraError::BadUp {
                 path: path(),
                 up: self.up,
@@ -287,7 +292,8 @@ impl CameraPath {
                     fov: k.fov,
                 });
             }
-            if k.eye == k.target {
+            let (eye, target) = (DVec3::from_array(k.eye), DVec3::from_array(k.target));
+            if (target - eye).try_normalize().is_none() {
                 return Err(CameraError::DegenerateView {
                     path: path(),
                     keyframe: i,

@@ -356,15 +356,17 @@ impl BuildParamsArgs {
     }
 }
 
-/// Parses a comma-separated list flag's values with `f`, naming the flag and value on failure.
+/// Parses a comma-separated list flag's values with `f`, naming the flag, the value and `why` (what a
+/// value must be) on failure.
 pub(super) fn parse_list<T>(
     what: &str,
+    why: &str,
     items: &[String],
     f: impl Fn(&str) -> Option<T>,
 ) -> anyhow::Result<Vec<T>> {
     items
         .iter()
-        .map(|s| f(s.trim()).with_context(|| format!("bad --{what} value {s:?}")))
+        .map(|s| f(s.trim()).with_context(|| format!("bad --{what} value {s}: {why}")))
         .collect()
 }
 

@@ -8,7 +8,7 @@ use atlastree::preprocess::{
 };
 use atlastree::store::shard_plan::{PlanFile, plan_path};
 use atlastree::texfmt::Compression;
-use atlastree::util::human_bytes;
+use atlastree::util::{fixed_number, human_bytes, short_number};
 use clap::Args;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -374,8 +374,14 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
     let p = &r.params;
     println!("wrote {} ({})", out.display(), human_bytes(r.file_bytes));
     println!(
-        "  d_min {:.3} m (scene diagonal {:.1} m), screen {} px, fov {}°, texel ratio {}, atlas {}², border {}",
-        p.d_min, r.scene_diagonal, p.screen_width, p.fov_deg, p.texel_ratio, p.atlas_size, p.border
+        "  d_min {} m (scene diagonal {} m), screen {} px, fov {}°, texel ratio {}, atlas {}², border {}",
+        fixed_number(p.d_min, 3),
+        fixed_number(r.scene_diagonal, 1),
+        p.screen_width,
+        short_number(p.fov_deg),
+        short_number(p.texel_ratio),
+        p.atlas_size,
+        p.border
     );
     for t in &r.trees {
         println!(

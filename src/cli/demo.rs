@@ -34,11 +34,13 @@ pub(crate) struct DemoArgs {
     #[arg(long, default_value_t = DemoTour::DEFAULT.leaf_originals)]
     pub leaf_originals: f64,
     /// Frames of the rendered overview-dive, spread evenly over the whole path (first to last keyframe).
-    #[arg(long, default_value_t = DemoTour::DEFAULT.frames)]
+    #[arg(long, default_value_t = DemoTour::DEFAULT.frames,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub frames: usize,
     /// Blocks resident at most in the paged flight: well below the file's block count, so that the flight
     /// draws missing blocks with their ancestors while they load.
-    #[arg(long, default_value_t = DemoTour::DEFAULT.capacity)]
+    #[arg(long, default_value_t = DemoTour::DEFAULT.capacity,
+          value_parser = clap::value_parser!(u32).range(1..))]
     pub capacity: u32,
     /// No progress bars.
     #[arg(short, long)]
@@ -51,8 +53,8 @@ impl DemoArgs {
             atlas_size: self.atlas_size,
             d_min_ratio: self.d_min_ratio,
             leaf_originals: self.leaf_originals,
-            frames: self.frames.max(1),
-            capacity: self.capacity.max(1),
+            frames: self.frames,
+            capacity: self.capacity,
             ..DemoTour::DEFAULT
         }
     }

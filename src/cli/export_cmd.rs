@@ -88,7 +88,7 @@ pub(super) fn run(a: ExportArgs) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     println!(
-        "wrote {} and its tiles ({} in all{}) in {secs:.2} s: {} tiles in {} tree(s), {} images, {} of {} rects with their own period image",
+        "wrote {} and its tiles ({} in all{}) in {secs:.2} s: {} tiles in {} tree(s), {} images, {} of {} rects drawn per period (a period image, or its average past --max-period-images)",
         a.out.join("tileset.json").display(),
         human_bytes(s.total_bytes),
         if s.naive {

@@ -1,8 +1,8 @@
 use super::build_cmd::fmt_psnr;
 use anyhow::Context;
-use atlastree::inspect::{InspectReport, VerifyReport, inspect, verify_with};
+use atlastree::inspect::{InspectReport, VerifyReport, inspect, reference_mismatch, verify_with};
 use atlastree::store::TreeFile;
-use atlastree::util::human_bytes;
+use atlastree::util::{fixed_number, human_bytes, short_number};
 use clap::Args;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -26,6 +26,17 @@ pub(crate) struct InspectArgs {
     pub json: bool,
 }
 
+/// "opening FILE: why", without FILE twice where the error names it already.
+fn opening_message(file: &std::path::Path, e: &atlastree::store::StoreError) -> String {
+    let why = e.to_string();
+    let name = file.display().to_string();
+    if why.starts_with(&name) {
+        format!("opening {why}")
+    } else {
+        format!("opening {name}: {why}")
+    }
+}
+
 pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     super::reject_url(&a.file, "inspect")?;
     let file = match TreeFile::open(&a.file) {
@@ -33,7 +44,7 @@ pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
         // With --verify a file that opens but breaks the format (a checksum, a bad header, table or value)
         // is a violation like a corrupt block: status 1. An unreadable one is an error (status 2).
         Err(e) if a.verify && !matches!(e, atlastree::store::StoreError::Io { .. }) => {
-            let message = format!("opening {}: {e}", a.file.display());
+            let message = opening_message(&a.file, &e);
             if a.json {
                 let verify =
                     serde_json::json!({ "ok": false, "violation_count": 1, "open_error": message });
@@ -48,7 +59,7 @@ pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
             return Ok(ExitCode::from(1));
         }
         Err(e) => {
-            return Err(anyhow::Error::new(e).context(format!("opening {}", a.file.display())));
+            return Err(anyhow::anyhow!(opening_message(&a.file, &e)));
         }
     };
     let reference = match a.reference.as_deref() {
@@ -57,6 +68,10 @@ pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
         ),
         _ => None,
     };
+    // A reference of other parameters is a usage error (exit 2), not a violation of this file.
+    if let Some(why) = (reference.as_ref()).and_then(|rf| reference_mismatch(&file, rf)) {
+        anyhow::bail!("--reference: {why}");
+    }
     let rep = inspect(&file);
     let ver = a.verify.then(|| verify_with(&file, reference.as_ref()));
     if a.json {
@@ -80,8 +95,14 @@ pub(super) fn print_inspect(r: &InspectReport) {
     let p = &r.params;
     println!("{} — {}", r.path, human_bytes(r.file_bytes));
     println!(
-        "  built with d_min {:.3} m, screen {} px, fov {}°, texel ratio {}, atlas {}², border {}, up {:?}",
-        p.d_min, p.screen_width, p.fov_deg, p.texel_ratio, p.atlas_size, p.border, p.up
+        "  built with d_min {} m, screen {} px, fov {}°, texel ratio {}, atlas {}², border {}, up {:?}",
+        fixed_number(p.d_min, 3),
+        p.screen_width,
+        short_number(p.fov_deg),
+        short_number(p.texel_ratio),
+        p.atlas_size,
+        p.border,
+        p.up
     );
     println!(
         "  {} materials, {} blocks ({})",

@@ -373,6 +373,16 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
             cfg.out.clone()
         };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        // An earlier run's frames would sit beside this run's stats as if they were its own.
+        let is_frame = |n: &str| n.starts_with("frame_") && n.ends_with(".png");
+        let removed = atlastree::util::remove_stale_outputs(&dir, is_frame)
+            .with_context(|| format!("removing an earlier run's frames from {}", dir.display()))?;
+        if removed > 0 {
+            eprintln!(
+                "note: removed {removed} frame PNGs of an earlier run from {}",
+                dir.display()
+            );
+        }
         runs.push(ModeRun {
             mode,
             dir,

@@ -95,21 +95,36 @@ impl SimulateArgs {
         if self.in_flight == 0 {
             bail!("--in-flight must be at least 1 (requests in flight at once)");
         }
-        let capacities = parse_list("capacity", &self.capacity, |s| {
-            if s == "all" {
-                Some(None)
-            } else {
-                s.parse::<u32>().ok().filter(|&k| k > 0).map(Some)
-            }
-        })?;
-        let bandwidths = parse_list("bandwidth", &self.bandwidth, |s| {
-            if s == "instant" {
-                Some(None)
-            } else {
-                atlastree::util::parse_rate(s).map(Some)
-            }
-        })?;
-        let latencies = parse_list("latency", &self.latency, atlastree::util::parse_seconds)?;
+        let capacities = parse_list(
+            "capacity",
+            "a block count ≥ 1, or all (every block resident)",
+            &self.capacity,
+            |s| {
+                if s == "all" {
+                    Some(None)
+                } else {
+                    s.parse::<u32>().ok().filter(|&k| k > 0).map(Some)
+                }
+            },
+        )?;
+        let bandwidths = parse_list(
+            "bandwidth",
+            "a rate > 0 such as 40MB/s, or instant",
+            &self.bandwidth,
+            |s| {
+                if s == "instant" {
+                    Some(None)
+                } else {
+                    atlastree::util::parse_rate(s).map(Some)
+                }
+            },
+        )?;
+        let latencies = parse_list(
+            "latency",
+            "a duration ≥ 0 such as 8ms",
+            &self.latency,
+            atlastree::util::parse_seconds,
+        )?;
         let overhead = atlastree::util::parse_seconds(&self.overhead)
             .with_context(|| format!("bad --overhead {:?}", self.overhead))?;
         if self.policy.is_empty()

@@ -143,7 +143,21 @@ impl SweepArgs {
         if let Some(h) = self.height {
             grid.height = h;
         }
-        grid.validate(&self.grid)?;
+        // Values from flags are named as flags, not blamed on the grid file.
+        let flags: Vec<String> = [
+            ("--frames", self.frames.map(|f| f.to_string())),
+            ("--width", self.width.map(|w| w.to_string())),
+            ("--height", self.height.map(|h| h.to_string())),
+        ]
+        .into_iter()
+        .filter_map(|(flag, v)| v.map(|v| format!("{flag} {v}")))
+        .collect();
+        let given = if flags.is_empty() {
+            self.grid.clone()
+        } else {
+            format!("{} with {}", self.grid, flags.join(" "))
+        };
+        grid.validate(&given)?;
         Ok(SweepConfig {
             scene: self.scene,
             up: self.up,

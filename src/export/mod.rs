@@ -385,7 +385,15 @@ fn write_tileset(
         roots.push(tree_tileset(&forest, &ctx, tiles, orig_tiles, &mut summary));
     }
     // The top of the tileset: one tree's root, or an empty root over both trees that always refines.
-    let far = geometric_error(1e7, params.screen_width, params.fov_deg);
+    // Its error is that of a tile refined from 10,000 km, or a root's where a tree's root refines farther
+    // (a huge d_min): a parent's error is never below its children's.
+    let far = roots
+        .iter()
+        .filter_map(|r| r.0["geometricError"].as_f64())
+        .fold(
+            geometric_error(1e7, params.screen_width, params.fov_deg),
+            f64::max,
+        );
     let root = if roots.len() == 1 {
         roots.pop().map(|(tile, _)| tile).unwrap_or_default()
     } else {

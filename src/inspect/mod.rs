@@ -382,24 +382,65 @@ pub fn verify_with(file: &TreeFile, reference: Option<&TreeFile>) -> VerifyRepor
     r
 }
 
+/// Why `reference` cannot be the uncompressed twin of `file` for [`verify_with`]: every build parameter,
+/// the tree count and the block count that differ, each with both values; `None` when they all agree.
+pub fn reference_mismatch(file: &TreeFile, reference: &TreeFile) -> Option<String> {
+    use crate::util::short_number as n;
+    let (a, b) = (file.params(), reference.params());
+    let mut diffs = Vec::new();
+    let mut differ = |what: &str, mine: String, theirs: String| {
+        if mine != theirs {
+            diffs.push(format!("{what} {theirs} (this file: {mine})"));
+        }
+    };
+    differ("d_min", n(a.d_min), n(b.d_min));
+    differ(
+        "screen width",
+        a.screen_width.to_string(),
+        b.screen_width.to_string(),
+    );
+    differ("fov", n(a.fov_deg), n(b.fov_deg));
+    differ("texel ratio", n(a.texel_ratio), n(b.texel_ratio));
+    differ(
+        "atlas size",
+        a.atlas_size.to_string(),
+        b.atlas_size.to_string(),
+    );
+    differ("border", a.border.to_string(), b.border.to_string());
+    differ(
+        "max depth",
+        a.max_depth.to_string(),
+        b.max_depth.to_string(),
+    );
+    differ("up axis", format!("{:?}", a.up), format!("{:?}", b.up));
+    differ(
+        "trees",
+        file.trees().to_string(),
+        reference.trees().to_string(),
+    );
+    let blocks = |f: &TreeFile| f.blocks().len().to_string();
+    differ("blocks", blocks(file), blocks(reference));
+    // Parameters that print alike but differ in their bits (a d_min beyond 12 digits).
+    if diffs.is_empty() && a != b {
+        diffs.push("build parameters that differ beyond 12 significant digits".into());
+    }
+    (!diffs.is_empty()).then(|| {
+        format!(
+            "reference {} is not this file built with --compress none: its {}",
+            reference.path().display(),
+            diffs.join(", ")
+        )
+    })
+}
+
 /// Block lengths of compressed atlases, the recorded PSNR of each, and (with `reference`) its re-measured
 /// PSNR.
 fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyReport) {
     let size = file.params().atlas_size;
     r.reference = reference.map(|f| f.path().display().to_string());
     if let Some(rf) = reference {
-        let (a, b) = (file.params(), rf.params());
-        if rf.trees() != file.trees() || rf.blocks().len() != file.blocks().len() || a != b {
-            r.fail(format!(
-                "reference {}: {} trees, {} blocks, atlas {}² do not match this file's {} trees, {} blocks, atlas {}²",
-                rf.path().display(),
-                rf.trees(),
-                rf.blocks().len(),
-                b.atlas_size,
-                file.trees(),
-                file.blocks().len(),
-                size
-            ));
+        if let Some(why) = reference_mismatch(file, rf) {
+            r.fail(why);
             return;
         }
     }

@@ -200,9 +200,11 @@ pub enum BuildError {
     /// d_min from the scene's diagonal (`--d-min-ratio`, the default) where that diagonal is 0 or not
     /// finite: every position the same point (a zero scale, all-zero positions), or overflowing.
     #[error(
-        "the scene {path} spans a diagonal of {diagonal} world units, so d_min = diagonal / {ratio} is no \
+        "the scene {path} spans a diagonal of {d} world units, so d_min = diagonal / {r} is no \
          distance: its positions are all one point (a zero scale?) or overflow; give --d-min in metres to \
-         build it anyway"
+         build it anyway",
+        d = crate::util::short_number(*.diagonal),
+        r = crate::util::short_number(*.ratio)
     )]
     DegenerateExtent {
         path: String,
@@ -374,14 +376,14 @@ pub fn resolve_params(
     if !(opts.fov_deg > 0.0 && opts.fov_deg < 180.0) {
         return bad(
             "fov",
-            opts.fov_deg.to_string(),
+            crate::util::short_number(opts.fov_deg),
             "must be between 0 and 180 degrees",
         );
     }
     if !(opts.texel_ratio.is_finite() && opts.texel_ratio > 0.0) {
         return bad(
             "texel-ratio",
-            opts.texel_ratio.to_string(),
+            crate::util::short_number(opts.texel_ratio),
             "must be a positive number",
         );
     }
@@ -391,7 +393,7 @@ pub fn resolve_params(
     if !(opts.leaf_originals_atlases.is_finite() && opts.leaf_originals_atlases >= 0.0) {
         return bad(
             "leaf-originals",
-            opts.leaf_originals_atlases.to_string(),
+            crate::util::short_number(opts.leaf_originals_atlases),
             "must be a number of atlases ≥ 0",
         );
     }
@@ -408,7 +410,11 @@ pub fn resolve_params(
         DMin::Metres(m) => m,
         DMin::Ratio(r) => {
             if !(r.is_finite() && r > 0.0) {
-                return bad("d-min-ratio", r.to_string(), "must be a positive number");
+                return bad(
+                    "d-min-ratio",
+                    crate::util::short_number(r),
+                    "must be a positive number",
+                );
             }
             diagonal / r
         }
@@ -423,7 +429,7 @@ pub fn resolve_params(
         }
         return bad(
             "d-min",
-            d_min.to_string(),
+            crate::util::short_number(d_min),
             "must be a positive distance (is the scene a single point?)",
         );
     }
@@ -437,6 +443,18 @@ pub fn resolve_params(
         max_depth: opts.max_depth,
         up: scene.up,
     };
+    // Texels per world unit at d_min (§5.2.1): overflowing (a d_min near the smallest f64, or a huge
+    // --texel-ratio × --screen-width) it would size every triangle at 0 texels, the coarsest tree.
+    let f_proj = params.f_proj();
+    if !(f_proj.is_finite() && f_proj > 0.0) {
+        return bad(
+            "d-min",
+            crate::util::short_number(d_min),
+            "gives no finite texel density with these --screen-width, --fov and --texel-ratio \
+             (screen width × texel ratio / (2 d_min tan(fov/2)) overflows): raise --d-min or lower \
+             --texel-ratio",
+        );
+    }
     Ok((params, diagonal))
 }
 

@@ -29,7 +29,7 @@ pub struct ShardSpec {
 /// Why a `--shard` value or the scheduler's environment gave no shard.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum ShardSpecError {
-    #[error("--shard {0:?}: expected I/N with 0 ≤ I < N ≤ {MAX_SHARDS} (e.g. 3/16), or auto")]
+    #[error("--shard {0}: expected I/N with 0 ≤ I < N ≤ {MAX_SHARDS} (e.g. 3/16), or auto")]
     Syntax(String),
     #[error(
         "--shard auto: no scheduler environment found (Slurm job array: SLURM_ARRAY_TASK_ID and \
@@ -58,6 +58,14 @@ pub enum ShardSpecError {
         min: u32,
         max: u32,
         last: u32,
+        count: u32,
+    },
+    #[error(
+        "--shard auto ({scheduler}): {count_var}={count} shards, a build takes 1 to {MAX_SHARDS}"
+    )]
+    BadCount {
+        scheduler: &'static str,
+        count_var: &'static str,
         count: u32,
     },
     #[error("--shard auto ({scheduler}): shard {index} is outside 0..{count}")]
@@ -146,7 +154,14 @@ pub fn shard_from_env(
                 count,
             });
         }
-        if count == 0 || count > MAX_SHARDS || index >= count {
+        if count == 0 || count > MAX_SHARDS {
+            return Err(ShardSpecError::BadCount {
+                scheduler,
+                count_var,
+                count,
+            });
+        }
+        if index >= count {
             return Err(ShardSpecError::OutOfRange {
                 scheduler,
                 index,
@@ -577,6 +592,16 @@ mod tests {
                 ..
             })
         ));
+        let e = shard_from_env(&env(&[
+            ("JOB_COMPLETION_INDEX", "1"),
+            ("ATLASTREE_SHARD_COUNT", "5000"),
+        ]))
+        .unwrap_err();
+        assert!(
+            matches!(e, ShardSpecError::BadCount { count: 5000, .. }),
+            "{e}"
+        );
+        assert!(e.to_string().contains("ATLASTREE_SHARD_COUNT=5000"), "{e}");
         assert!(matches!(
             shard_from_env(&env(&[
                 ("SLURM_ARRAY_TASK_ID", "x"),

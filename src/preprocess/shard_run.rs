@@ -208,7 +208,8 @@ pub enum MergeError {
     )]
     NoShards { out: PathBuf },
     #[error(
-        "shard files of several builds beside {out}: N = {counts:?}; remove the stale ones or say which with --shards N"
+        "shard files of several builds beside {out}: N = {}; remove the stale ones or say which with --shards N",
+        counts.iter().map(u32::to_string).collect::<Vec<_>>().join(" and ")
     )]
     AmbiguousCount { out: PathBuf, counts: Vec<u32> },
     #[error("--shards {count}: expected a shard count from 1 to {max}", max = shard::MAX_SHARDS)]

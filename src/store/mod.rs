@@ -266,10 +266,20 @@ pub fn describe_start(head: &[u8]) -> String {
     } else if head.trim_ascii_start().starts_with(b"{") || head.trim_ascii_start().starts_with(b"[")
     {
         "JSON text: a glTF scene (`atlastree build` it), a camera path or a report?".into()
-    } else {
+    } else if starts(b"\x7fELF") {
+        "an executable program".into()
+    } else if !head.is_empty()
+        && head
+            .iter()
+            .all(|&b| b.is_ascii_graphic() || b.is_ascii_whitespace())
+    {
         format!(
-            "it starts with \"{}\"",
-            String::from_utf8_lossy(head).escape_debug()
+            "text starting \"{}\"",
+            String::from_utf8_lossy(head).trim_end().escape_debug()
         )
+    } else {
+        // Binary of no known kind: its first bytes in hex (escaped text of control bytes reads as noise).
+        let hex: Vec<String> = head.iter().take(8).map(|b| format!("{b:02x}")).collect();
+        format!("binary data starting {}", hex.join(" "))
     }
 }

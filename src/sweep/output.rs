@@ -299,7 +299,7 @@ fn write_plots(
     if !series.is_empty() {
         let mut o = PlotOptions::new("Accuracy vs texel ratio", "texel ratio (log)", psnr);
         o.log_x = true;
-        line_chart(&dir.join("accuracy_vs_texel_ratio"), &o, &series)?;
+        line_chart(&dir.join(OPTIONAL_PLOTS[0]), &o, &series)?;
         plots.push((
             "accuracy_vs_texel_ratio".into(),
             "Covered PSNR against the runtime texel ratio, per build".into(),
@@ -307,19 +307,7 @@ fn write_plots(
     }
     // Texel-per-pixel histograms of the base build's non-paged variants.
     if let Some(base) = data.builds.first() {
-        let hists: Vec<(String, &crate::report::metrics::Histogram)> = data
-            .histograms
-            .iter()
-            .filter(|(id, _)| id.starts_with(&base.knobs.id()))
-            .map(|(id, h)| {
-                (
-                    id.trim_start_matches(&base.knobs.id())
-                        .trim_start_matches('_')
-                        .to_string(),
-                    h,
-                )
-            })
-            .collect();
+        let hists = base_histograms(&base.knobs.id(), &data.histograms);
         if !hists.is_empty() {
             let o = PlotOptions::new(
                 format!(
@@ -329,7 +317,7 @@ fn write_plots(
                 "texels per pixel (log2 bins)",
                 "share of drawn pixels",
             );
-            histogram_chart(&dir.join("texel_density_histograms"), &o, &hists)?;
+            histogram_chart(&dir.join(OPTIONAL_PLOTS[1]), &o, &hists)?;
             plots.push((
                 "texel_density_histograms".into(),
                 "Texel-per-pixel histograms of the base build per texel ratio".into(),
@@ -338,6 +326,57 @@ fn write_plots(
     }
     Ok(plots)
 }
+
+/// The histograms of build `base` (variant id `{base}_{runtime id}`), labelled by their runtime id. Another
+/// build whose id extends the base's (`{base}_bc1`) is not one of them.
+fn base_histograms<'a>(
+    base: &str,
+    histograms: &'a [(String, crate::report::metrics::Histogram)],
+) -> Vec<(String, &'a crate::report::metrics::Histogram)> {
+    // A runtime id: `t{ratio}_all` or `t{ratio}_k{capacity}` (`grid::RuntimeKnobs::id`).
+    let is_runtime = |id: &str| {
+        id.split_once('_').is_some_and(|(t, k)| {
+            t.strip_prefix('t')
+                .is_some_and(|r| r.parse::<f64>().is_ok())
+                && (k == "all"
+                    || k.strip_prefix('k')
+                        .is_some_and(|c| c.parse::<u64>().is_ok()))
+        })
+    };
+    histograms
+        .iter()
+        .filter_map(|(id, h)| {
+            let runtime = id.strip_prefix(base)?.strip_prefix('_')?;
+            is_runtime(runtime).then(|| (runtime.to_string(), h))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base_histograms_are_the_base_builds_own() {
+        let h = crate::report::metrics::Histogram::log2(&[1.0], 0, 2);
+        let ids = [
+            "r15_a512_b16_box_t0.5_all",
+            "r15_a512_b16_box_t1_k32",
+            "r15_a512_b16_box_bc1_t0.5_all",
+            "r15_a512_b16_box_bake_t1_all",
+            "r15_a512_b16_kaiser_t1_all",
+        ];
+        let hists: Vec<_> = ids.iter().map(|id| (id.to_string(), h.clone())).collect();
+        let labels: Vec<String> = base_histograms("r15_a512_b16_box", &hists)
+            .into_iter()
+            .map(|(l, _)| l)
+            .collect();
+        assert_eq!(labels, ["t0.5_all", "t1_k32"]);
+    }
+}
+
+/// The plots [`write_outputs`] draws only when the grid has their data.
+const OPTIONAL_PLOTS: [&str; 2] = ["accuracy_vs_texel_ratio", "texel_density_histograms"];
 
 /// Writes every output file of a sweep into `dir` (created if missing); returns the variant rows and the
 /// paths written.
@@ -348,6 +387,18 @@ pub fn write_outputs(
     path: &str,
 ) -> Result<(Vec<VariantRow>, Vec<PathBuf>), SweepError> {
     std::fs::create_dir_all(dir).map_err(|e| SweepError::Io {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
+    // The plots a grid may not draw (one texel ratio, no histogram): an earlier sweep's would stay beside
+    // this report.
+    let optional = |n: &str| {
+        OPTIONAL_PLOTS.iter().any(|p| {
+            n.strip_prefix(p)
+                .is_some_and(|ext| ext == ".png" || ext == ".svg")
+        })
+    };
+    crate::util::remove_stale_outputs(dir, optional).map_err(|e| SweepError::Io {
         path: dir.to_path_buf(),
         source: e,
     })?;

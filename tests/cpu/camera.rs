@@ -186,6 +186,23 @@ fn bad_files_give_clear_errors() {
         kf(0.0, 60.0)
     ));
     assert!(matches!(e, CameraError::BadUp { .. }), "{e}");
+    // Eye and target 1e-300 apart, an up of length 1e-300: their lengths underflow, so no direction.
+    let e = err_of(
+        r#"{ "keyframes": [ { "time": 0, "eye": [0,5,0], "target": [1e-300,5,1e-300], "fov": 60 } ] }"#,
+    );
+    assert!(
+        matches!(e, CameraError::DegenerateView { keyframe: 0, .. }),
+        "{e}"
+    );
+    let e = err_of(&format!(
+        r#"{{ "keyframes": [ {} ], "up": [0, 1e-300, 0] }}"#,
+        kf(0.0, 60.0)
+    ));
+    assert!(matches!(e, CameraError::BadUp { .. }), "{e}");
+    // A short but representable direction is a view.
+    let ok = r#"{ "keyframes": [ { "time": 0, "eye": [0,5,0], "target": [1e-100,5,0], "fov": 60 } ], "up": [0, 1e-100, 0] }"#;
+    let p: atlastree::camera::CameraPath = serde_json::from_str(ok).unwrap();
+    p.validate(Path::new("code")).unwrap();
 
     // NaN cannot be written in JSON; a path built in code is validated the same way.
     let mut p = sample_path();

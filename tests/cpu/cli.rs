@@ -297,6 +297,31 @@ fn build_compress_bc1_then_inspect_verify_reference() {
         ),
         "{out}"
     );
+    // A reference built with another screen width: a usage error (exit 2) naming that parameter.
+    let other = dir.path().join("other.atlastree");
+    run(bin()
+        .args([
+            "build",
+            "--d-min-ratio",
+            "10",
+            "--atlas-size",
+            "256",
+            "--screen-width",
+            "801",
+        ])
+        .args(["--compress", "none", "-q", "-o"])
+        .arg(&other)
+        .arg(scene()));
+    let o = run(bin()
+        .args(["inspect", "--verify", "--reference"])
+        .arg(&other)
+        .arg(&bc1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("its screen width 801 (this file: 800)") && !err.contains("d_min"),
+        "{err}"
+    );
     std::fs::write(&corrupt, &bytes[..4096]).unwrap();
     let o = run(bin()
         .args(["inspect", "--verify", "--reference"])

@@ -673,3 +673,41 @@ fn utm_coordinates_keep_full_precision() {
         }
     }
 }
+
+/// Roots that refine farther than 10,000 km (a huge d_min): the tileset's own error and the empty root
+/// over both trees are never below a tree root's, so clients refine into them.
+#[test]
+fn a_root_refined_from_beyond_ten_thousand_km_keeps_errors_monotone() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = atlastree::scene::import(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf"),
+        &Default::default(),
+    )
+    .unwrap();
+    let opts = atlastree::preprocess::BuildOptions {
+        d_min: atlastree::preprocess::DMin::Metres(2e7),
+        ..Default::default()
+    };
+    let path = dir.path().join("far.atlastree");
+    build(&scene, &opts, &path, &NoProgress).unwrap();
+    let file = TreeFile::open(&path).unwrap();
+    let out = dir.path().join("tiles");
+    export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap();
+    let ts = read_json(&out.join("tileset.json"));
+    let top = ts["geometricError"].as_f64().unwrap();
+    let p = &file.to_forest().params;
+    assert!(
+        top > geometric_error(1e7, p.screen_width, p.fov_deg),
+        "{top}"
+    );
+    let mut tiles = Vec::new();
+    walk(&ts["root"], top, DVec3::ZERO, &mut tiles);
+    assert!(tiles.len() > 2, "both trees and their tiles");
+    for (tile, parent_error, _) in &tiles {
+        let e = tile["geometricError"].as_f64().unwrap();
+        assert!(
+            e <= *parent_error,
+            "child error {e} > parent's {parent_error}"
+        );
+    }
+}

@@ -426,7 +426,9 @@ fn resealed_bad_references_are_named() {
         (b"glTF\x02\0\0\0".as_slice(), "a GLB scene"),
         (b"\x89PNG\r\n\x1a\n", "a PNG image"),
         (b"\n  {\"asse", "JSON text"),
-        (b"ATLTREX\0", "it starts with \"ATLTREX\\0\""),
+        (b"ATLTREX\0", "binary data starting 41 54 4c 54 52 45 58 00"),
+        (b"\x7fELF\x02\x01\x01\0", "an executable program"),
+        (b"hello, w", "text starting \"hello, w\""),
     ] {
         assert!(
             describe_start(head).contains(says),

@@ -247,3 +247,44 @@ fn a_point_footprint_terminates_and_a_point_scene_is_refused() {
     assert_sound(&built.file);
     assert_eq!(built.report.trees[0].leaves, 1);
 }
+
+/// A d_min so small that the texel density at it, `screen width × texel ratio / (2 d_min tan(fov/2))`,
+/// overflows would size every triangle at 0 texels (the coarsest tree, labelled the finest): it is
+/// refused naming --d-min, in short numbers. Just above the overflow it builds the finest tree.
+#[test]
+fn a_d_min_whose_texel_density_overflows_is_refused() {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.pattern_image("p", 16, 0);
+    let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    let (p, q, r) = (DVec3::ZERO, DVec3::X, DVec3::Z);
+    b.triangle([p, q, r], [DVec2::ZERO, DVec2::X, DVec2::Y], m);
+    let scene = b.build();
+    let Err((_, e)) = try_build(&scene, &tiny_opts(64, 1e-307)) else {
+        panic!("d_min 1e-307 built")
+    };
+    let msg = e.to_string();
+    assert!(
+        matches!(&e, BuildError::InvalidParam { name: "d-min", value, .. } if value == "1e-307"),
+        "{msg}"
+    );
+    assert!(msg.contains("no finite texel density"), "{msg}");
+    // 1e-300: f_proj ≈ 1.4e302, finite; every rect is capped to its 16² source.
+    let fine = build_ok(&scene, &tiny_opts(64, 1e-300));
+    assert_sound(&fine.file);
+    assert_eq!(fine.report.trees[0].leaves, 1);
+    // A ratio that makes d_min overflow: the message prints its numbers short (the subnormal 1e-320 is
+    // stored as 9.99988867183e-321).
+    let o = BuildOptions {
+        d_min: atlastree::preprocess::DMin::Ratio(1e-320),
+        ..tiny_opts(64, 1.0)
+    };
+    let Err((_, e)) = try_build(&scene, &o) else {
+        panic!("d_min = diagonal / 1e-320 built")
+    };
+    let msg = e.to_string();
+    assert!(
+        msg.contains("diagonal / 9.99988867183e-321 is no distance"),
+        "{msg}"
+    );
+    assert!(msg.len() < 400, "{} characters: {msg}", msg.len());
+}
