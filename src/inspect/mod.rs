@@ -438,11 +438,9 @@ pub fn reference_mismatch(file: &TreeFile, reference: &TreeFile) -> Option<Strin
 fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyReport) {
     let size = file.params().atlas_size;
     r.reference = reference.map(|f| f.path().display().to_string());
-    if let Some(rf) = reference {
-        if let Some(why) = reference_mismatch(file, rf) {
-            r.fail(why);
-            return;
-        }
+    if let Some(why) = reference.and_then(|rf| reference_mismatch(file, rf)) {
+        r.fail(why);
+        return;
     }
     for ti in 0..file.trees() {
         let Some(t) = file.tree(ti) else { continue };

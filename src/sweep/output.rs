@@ -352,29 +352,6 @@ fn base_histograms<'a>(
         .collect()
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn base_histograms_are_the_base_builds_own() {
-        let h = crate::report::metrics::Histogram::log2(&[1.0], 0, 2);
-        let ids = [
-            "r15_a512_b16_box_t0.5_all",
-            "r15_a512_b16_box_t1_k32",
-            "r15_a512_b16_box_bc1_t0.5_all",
-            "r15_a512_b16_box_bake_t1_all",
-            "r15_a512_b16_kaiser_t1_all",
-        ];
-        let hists: Vec<_> = ids.iter().map(|id| (id.to_string(), h.clone())).collect();
-        let labels: Vec<String> = base_histograms("r15_a512_b16_box", &hists)
-            .into_iter()
-            .map(|(l, _)| l)
-            .collect();
-        assert_eq!(labels, ["t0.5_all", "t1_k32"]);
-    }
-}
-
 /// The plots [`write_outputs`] draws only when the grid has their data.
 const OPTIONAL_PLOTS: [&str; 2] = ["accuracy_vs_texel_ratio", "texel_density_histograms"];
 
@@ -431,4 +408,27 @@ pub fn write_outputs(
         written.push(dir.join(format!("{stem}.svg")));
     }
     Ok((rows, written))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base_histograms_are_the_base_builds_own() {
+        let h = crate::report::metrics::Histogram::log2(&[1.0], 0, 2);
+        let ids = [
+            "r15_a512_b16_box_t0.5_all",
+            "r15_a512_b16_box_t1_k32",
+            "r15_a512_b16_box_bc1_t0.5_all",
+            "r15_a512_b16_box_bake_t1_all",
+            "r15_a512_b16_kaiser_t1_all",
+        ];
+        let hists: Vec<_> = ids.iter().map(|id| (id.to_string(), h.clone())).collect();
+        let labels: Vec<String> = base_histograms("r15_a512_b16_box", &hists)
+            .into_iter()
+            .map(|(l, _)| l)
+            .collect();
+        assert_eq!(labels, ["t0.5_all", "t1_k32"]);
+    }
 }
