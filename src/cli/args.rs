@@ -290,11 +290,12 @@ pub(crate) struct BuildParamsArgs {
     pub max_memory: Option<MemoryArg>,
     /// Split a triangle too big for one atlas (a ground quad with a tile repeated hundreds of times) into at
     /// most this many pieces; beyond that its leaf's resolution is clamped. 1 disables splitting.
-    #[arg(long, default_value_t = 4096)]
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(1..))]
     pub max_pieces: u32,
-    /// Refuse, before writing anything, a build whose paging file would exceed this size (GiB).
-    #[arg(long, default_value_t = 64)]
-    pub max_file_gib: u64,
+    /// Refuse, before writing anything, a build whose paging file would exceed this size (GiB; fractions
+    /// allowed, e.g. 0.5).
+    #[arg(long, default_value_t = 64.0, value_parser = parse_gib)]
+    pub max_file_gib: f64,
     /// A node that does not fit one atlas is not split when its original textures need at most this many
     /// atlases' worth of texels: it becomes a leaf whose atlas holds its content scaled to fit
     /// (min_distance raised by that scale), and nearer than that its original textures are drawn. Deeper
@@ -348,11 +349,19 @@ impl BuildParamsArgs {
             cap_to_source: !self.no_source_cap,
             image_cache_bytes: self.image_cache_mib << 20,
             max_pieces: self.max_pieces,
-            max_file_bytes: self.max_file_gib << 30,
+            max_file_bytes: (self.max_file_gib * (1u64 << 30) as f64) as u64,
             leaf_originals_atlases: self.leaf_originals,
             split: self.split,
             ..base
         }
+    }
+}
+
+/// A size in GiB for `--max-file-gib`: a finite number > 0 of at most 2²⁴ GiB (16 PiB).
+fn parse_gib(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(g) if g.is_finite() && g > 0.0 && g <= f64::from(1u32 << 24) => Ok(g),
+        _ => Err(format!("{s} is not a size in GiB > 0 (e.g. 64 or 0.5)")),
     }
 }
 

@@ -252,7 +252,9 @@ pub(crate) fn check_endian() -> Result<(), StoreError> {
 /// files (with what to do with them), a glTF or GLB scene, an image, or its start as text.
 pub fn describe_start(head: &[u8]) -> String {
     let starts = |m: &[u8]| head.starts_with(m) || (!head.is_empty() && m.starts_with(head));
-    if head.starts_with(&shard::SHARD_MAGIC[..6]) {
+    if head.starts_with(&format::MAGIC) {
+        "an atlastree paging file, already whole: open it with `inspect`, `render` or `view`".into()
+    } else if head.starts_with(&shard::SHARD_MAGIC[..6]) {
         "a shard of a sharded build: `atlastree merge OUT` makes the paging file from its shards"
             .into()
     } else if head.starts_with(&shard_plan::PLAN_MAGIC[..6]) {

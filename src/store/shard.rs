@@ -426,7 +426,10 @@ pub enum ShardFileError {
         #[source]
         source: std::io::Error,
     },
-    #[error("{path}: not an atlastree shard file (magic {found:02x?})")]
+    #[error(
+        "{path}: not an atlastree shard file ({})",
+        super::describe_start(found)
+    )]
     BadMagic { path: PathBuf, found: Vec<u8> },
     #[error("{path}: shard format version {found}, this build reads {SHARD_VERSION}")]
     Version { path: PathBuf, found: u32 },

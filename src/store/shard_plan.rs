@@ -94,7 +94,10 @@ pub enum PlanFileError {
         #[source]
         source: std::io::Error,
     },
-    #[error("{path}: not an atlastree plan file (magic {found:02x?})")]
+    #[error(
+        "{path}: not an atlastree plan file ({})",
+        super::describe_start(found)
+    )]
     BadMagic { path: PathBuf, found: Vec<u8> },
     #[error("{path}: plan format version {found}, this build reads {PLAN_VERSION}")]
     Version { path: PathBuf, found: u32 },

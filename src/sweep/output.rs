@@ -103,9 +103,9 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
         Cell::Float(r.psnr_db),
         Cell::Float(r.psnr_covered_db),
         Cell::Float(r.ssim),
-        Cell::Float(r.original_psnr_db),
-        Cell::Float(r.original_psnr_covered_db),
-        Cell::Float(r.original_ssim),
+        measured(r.original_psnr_db),
+        measured(r.original_psnr_covered_db),
+        measured(r.original_ssim),
         Cell::Float(r.magnified_share),
         Cell::Float(r.below_target_share),
         Cell::Float(r.coarser_share),
@@ -123,6 +123,16 @@ fn sweep_row(r: &VariantRow) -> Vec<Cell> {
     ]
 }
 
+/// A measure that is NaN where it was not taken (the original's, without a reference): an empty cell, as
+/// other columns write what they lack, not `nan`.
+fn measured(v: f64) -> Cell {
+    if v.is_nan() {
+        Cell::Text(String::new())
+    } else {
+        Cell::Float(v)
+    }
+}
+
 fn frame_row(f: &FrameRow) -> Vec<Cell> {
     let mut row = vec![
         Cell::Text(f.variant_id()),
@@ -135,9 +145,9 @@ fn frame_row(f: &FrameRow) -> Vec<Cell> {
         Cell::Float(f.psnr_covered_db),
         Cell::UInt(f.covered_pixels),
         Cell::Float(f.ssim),
-        Cell::Float(f.original_psnr_db),
-        Cell::Float(f.original_psnr_covered_db),
-        Cell::Float(f.original_ssim),
+        measured(f.original_psnr_db),
+        measured(f.original_psnr_covered_db),
+        measured(f.original_ssim),
         Cell::Float(f.magnified_share),
         Cell::Float(f.below_target_share),
     ];

@@ -423,6 +423,7 @@ fn resealed_bad_references_are_named() {
             &atlastree::store::shard_plan::PLAN_MAGIC[..],
             "build the shards",
         ),
+        (&atlastree::store::format::MAGIC[..], "already whole"),
         (b"glTF\x02\0\0\0".as_slice(), "a GLB scene"),
         (b"\x89PNG\r\n\x1a\n", "a PNG image"),
         (b"\n  {\"asse", "JSON text"),
