@@ -5,7 +5,7 @@ use super::args::{Paging, PagingArgs, SourceArg, Viewport, ViewportArgs, is_url}
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
-use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource};
+use atlastree::paging::{BlockSource, FileSource, HttpOptions, HttpSource, HttpStats};
 use atlastree::plan::PagingSetup;
 use atlastree::render::reference::Reference;
 use atlastree::render::{FrameLoop, FrameStats, Mode, RendererOptions};
@@ -218,7 +218,7 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     let cameras = sample_cameras(cfg, &file)?;
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
     println!("adapter: {}", ctx.adapter_summary());
-    let mut fl = frame_loop(&ctx, &file, cfg, http)?;
+    let (mut fl, http) = frame_loop(&ctx, &file, cfg, http)?;
     let mut runs = mode_runs(cfg, cameras.len())?;
     warm_up(&mut fl, cfg, &file, &cameras, &runs)?;
     fly(&mut fl, cfg, &file, &cameras, &mut runs)?;
@@ -227,7 +227,8 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
             "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
         );
     }
-    write_and_report(&cfg.out, cfg.reference, &runs)?;
+    let http = http.map(|h| h.stats());
+    write_and_report(&cfg.out, cfg.reference, &runs, http)?;
     Ok(runs.into_iter().map(|r| (r.mode, r.stats)).collect())
 }
 
@@ -252,20 +253,24 @@ fn sample_cameras(cfg: &RenderConfig, file: &TreeFile) -> anyhow::Result<Vec<Cam
     Ok(cfg.viewport.cameras(&path, cfg.fps, cfg.frames))
 }
 
-/// The block source of a paged run: the HTTP source of a remote tree, else `--source`.
+/// A paged run's block source, and the same source as HTTP where it is one.
+type PagedSource = (Arc<dyn BlockSource>, Option<Arc<HttpSource>>);
+
+/// The block source of a paged run: the HTTP source of a remote tree, else `--source`; with the HTTP
+/// source again where it is one (its counters are reported at the end).
 fn block_source(
     source: &SourceArg,
     file: &TreeFile,
     http: Option<Arc<HttpSource>>,
-) -> anyhow::Result<Arc<dyn BlockSource>> {
+) -> anyhow::Result<PagedSource> {
     if let Some(h) = http {
-        return Ok(h);
+        return Ok((h.clone(), Some(h)));
     }
     match source {
         SourceArg::File => {
             let reopened = TreeFile::open(file.path())
                 .with_context(|| format!("reopening {}", file.path().display()))?;
-            Ok(Arc::new(FileSource::new(Arc::new(reopened))))
+            Ok((Arc::new(FileSource::new(Arc::new(reopened))), None))
         }
         SourceArg::Url(url) => {
             let (tables, http) = HttpSource::open(url, HttpOptions::default())
@@ -278,19 +283,20 @@ fn block_source(
                     file.path().display()
                 );
             }
-            Ok(Arc::new(http))
+            let http = Arc::new(http);
+            Ok((http.clone(), Some(http)))
         }
     }
 }
 
 /// Phase 3: the planner and the renderer ([`FrameLoop`]), all blocks resident or paged; prints what
-/// became resident.
+/// became resident. Returns the HTTP source blocks are paged from, if any.
 fn frame_loop<'f>(
     ctx: &'f GpuContext,
     file: &'f TreeFile,
     cfg: &RenderConfig,
     http: Option<Arc<HttpSource>>,
-) -> anyhow::Result<FrameLoop<'f>> {
+) -> anyhow::Result<(FrameLoop<'f>, Option<Arc<HttpSource>>)> {
     let t = std::time::Instant::now();
     let ropts = RendererOptions {
         width: cfg.viewport.width,
@@ -305,10 +311,12 @@ fn frame_loop<'f>(
         };
         format!("setting up the renderer for {name}")
     };
+    let mut paged_from = None;
     let fl = match &cfg.paging {
         None => FrameLoop::new(ctx, file, ropts).with_context(what)?,
         Some(p) => {
-            let source = block_source(&p.paging.source, file, http)?;
+            let (source, from) = block_source(&p.paging.source, file, http)?;
+            paged_from = from;
             let k = p.capacity.unwrap_or(file.blocks().len() as u32);
             println!(
                 "paging: k = {k}, source {}, policy {}",
@@ -327,7 +335,7 @@ fn frame_loop<'f>(
         }
     };
     print_resident(ctx, &fl, t.elapsed().as_secs_f64());
-    Ok(fl)
+    Ok((fl, paged_from))
 }
 
 /// What the frame loop made resident at start, and how the atlas arrays are stored.
@@ -525,6 +533,7 @@ fn write_and_report(
     out: &Path,
     reference: Option<Reference>,
     runs: &[ModeRun],
+    http: Option<HttpStats>,
 ) -> anyhow::Result<()> {
     let mut medians = Vec::new();
     for run in runs {
@@ -551,6 +560,9 @@ fn write_and_report(
     for (name, r) in &ratios {
         println!("median frame time {name}: {r:.3}");
     }
+    if let Some(h) = &http {
+        print_http(h);
+    }
     let json = serde_json::json!({
         "modes": medians.iter().map(|m| (m.mode.name().to_string(), serde_json::json!({
             "frames": m.frames,
@@ -566,6 +578,7 @@ fn write_and_report(
             })),
         }))).collect::<serde_json::Map<String, serde_json::Value>>(),
         "reference": reference.map(|r| r.name()),
+        "http": http,
         "ratios": ratios.iter().map(|(name, r)| (ratio_key(name), serde_json::json!(r)))
             .collect::<serde_json::Map<String, serde_json::Value>>(),
     });
@@ -576,6 +589,35 @@ fn write_and_report(
     )
     .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+/// What the HTTP client did over the whole run (tables, warm-up and every mode), with warnings for a
+/// server that ignores `Range` (each block then costs the whole file) and for answers that failed their
+/// checksum (the served file changed, or bytes were corrupted on the way).
+fn print_http(h: &HttpStats) {
+    use atlastree::util::human_bytes;
+    println!(
+        "http: {} requests ({} retries, {} fetches failed), {} received for {} blocks",
+        h.requests,
+        h.retries,
+        h.failures,
+        human_bytes(h.bytes),
+        h.blocks
+    );
+    if h.full_responses > 0 {
+        println!(
+            "  warning: {} answers ignored Range and sent the whole file (the blocks were cut from it): serve \
+             it with a server that honours Range, e.g. `atlastree serve`",
+            h.full_responses
+        );
+    }
+    if h.checksum_failures > 0 {
+        println!(
+            "  warning: {} answers failed their block checksum and were asked again: the served file changed \
+             during the run, or bytes were corrupted on the way",
+            h.checksum_failures
+        );
+    }
 }
 
 /// A mode's frames against the reference.
@@ -791,14 +833,24 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         }
         // Requests the source never answered by the last frame (a server that stopped responding holds
         // them up to its timeout × attempts; they are abandoned at exit, not counted as failures).
+        // Only a run in which nothing arrived at all hints at a dead source; otherwise the run simply
+        // ended before a slow source answered (its latency × the requests per frame).
         if let Some(last) = paged.last()
             && last.session.in_flight + last.session.queued > 0
         {
-            println!(
-                "  warning: {} block requests still unanswered after the last frame ({} in flight; is the source responding?)",
-                last.session.in_flight + last.session.queued,
-                last.session.in_flight
-            );
+            let (in_flight, queued) = (last.session.in_flight, last.session.queued);
+            let loaded = paged.iter().map(|p| p.pager().loaded).sum::<u32>();
+            if loaded == 0 && failures == 0 {
+                println!(
+                    "  warning: no block request was answered during the run ({in_flight} in flight, {queued} queued \
+                     at the end): is the source responding?"
+                );
+            } else {
+                println!(
+                    "  note: the run ended with {in_flight} block requests in flight and {queued} queued (a source \
+                     slower than the frames: more frames, or --loader-threads 0 to wait for each load, let them arrive)"
+                );
+            }
         }
     }
     // Medians: robust against one-off stalls (a software rasteriser compiles shader variants on first use).

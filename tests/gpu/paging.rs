@@ -32,6 +32,10 @@ pub fn tests() -> Vec<GpuTest> {
             name: "paging::over_http_with_the_server_stopped_and_restarted",
             run: over_http_with_the_server_stopped_and_restarted,
         },
+        GpuTest {
+            name: "paging::render_over_http_reports_what_the_client_did",
+            run: render_over_http_reports_what_the_client_did,
+        },
     ]
 }
 
@@ -314,5 +318,54 @@ fn over_http_with_the_server_stopped_and_restarted(ctx: &GpuContext) -> Result<(
         "    server down from frame 8: {failures} failed loads, {coarser_while_down} coarser frames while down; converged {j} frames after restart; http {:?}",
         http.stats()
     );
+    Ok(())
+}
+
+/// `render URL` (a tree served by `atlastree serve`'s server) prints and writes what its HTTP client did:
+/// requests, bytes, blocks, and no answer that ignored `Range`; a local render writes `"http": null`.
+fn render_over_http_reports_what_the_client_did(_ctx: &GpuContext) -> Result<(), String> {
+    use atlastree::paging::serve;
+    let path = city_deep()?;
+    let server = serve::spawn(&path, "127.0.0.1:0".parse().map_err(e)?).map_err(e)?;
+    let dir = tempfile::tempdir().map_err(e)?;
+    let render =
+        |tree: &str, out: &std::path::Path| -> Result<(String, serde_json::Value), String> {
+            let o = std::process::Command::new(env!("CARGO_BIN_EXE_atlastree"))
+                .args(["render", tree, "--capacity", "24", "--loader-threads", "0"])
+                .args([
+                    "--frames", "4", "--width", "64", "--height", "48", "--every", "0",
+                ])
+                .arg("--out")
+                .arg(out)
+                .output()
+                .map_err(e)?;
+            let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+            if !o.status.success() {
+                return Err(format!(
+                    "render {tree} failed: {}",
+                    String::from_utf8_lossy(&o.stderr)
+                ));
+            }
+            let text = std::fs::read_to_string(out.join("summary.json")).map_err(e)?;
+            Ok((stdout, serde_json::from_str(&text).map_err(e)?))
+        };
+    let (stdout, v) = render(server.url(), &dir.path().join("remote"))?;
+    let h = &v["http"];
+    let n = |k: &str| h[k].as_u64().ok_or(format!("http.{k} missing: {v}"));
+    if n("blocks")? == 0 || n("requests")? <= n("blocks")? || n("bytes")? == 0 {
+        return Err(format!("the client's counters say nothing was paged: {h}"));
+    }
+    if n("full_responses")? != 0 || n("checksum_failures")? != 0 || n("failures")? != 0 {
+        return Err(format!("a healthy server's run reports trouble: {h}"));
+    }
+    if !stdout.contains(&format!("http: {} requests", n("requests")?)) || stdout.contains("warning")
+    {
+        return Err(format!("stdout does not report the client: {stdout}"));
+    }
+    let local = path.display().to_string();
+    let (_, v) = render(&local, &dir.path().join("local"))?;
+    if !v["http"].is_null() {
+        return Err(format!("a local render reports HTTP: {v}"));
+    }
     Ok(())
 }

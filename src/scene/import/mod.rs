@@ -119,6 +119,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
     for w in tolerated {
         report.warn(w);
     }
+    warnings::warn_undrawn_features(&file, &doc, &mut report);
     let accessors: Vec<gltf::Accessor> = doc.accessors().collect();
     let mut buffers = Buffers::new(&file, base_dir, &doc, blob);
     let instances = Walk {

@@ -27,3 +27,57 @@ impl ImportReport {
         }
     }
 }
+
+/// What the glTF asks for that atlastree does not draw, one counted warning per feature (not per
+/// instance): vertex colours (`COLOR_0`), NEAREST sampler filters (atlases and originals are sampled
+/// linearly, in linear light), and MASK cutoffs below glTF's minimum of 0.
+pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &mut ImportReport) {
+    use gltf::texture::{MagFilter, MinFilter};
+    let coloured: Vec<(usize, usize)> = doc
+        .meshes()
+        .flat_map(|m| {
+            m.primitives()
+                .filter(|p| p.get(&gltf::Semantic::Colors(0)).is_some())
+                .map(move |p| (m.index(), p.index()))
+        })
+        .collect();
+    if let Some(&(mesh, prim)) = coloured.first() {
+        report.warn(format!(
+            "{file}: {} primitives carry vertex colours (COLOR_0), which are not drawn: their base colour \
+             and texture show untinted (first: mesh {mesh} primitive {prim})",
+            coloured.len()
+        ));
+    }
+    let nearest: Vec<usize> = doc
+        .samplers()
+        .filter(|s| {
+            s.mag_filter() == Some(MagFilter::Nearest)
+                || matches!(
+                    s.min_filter(),
+                    Some(
+                        MinFilter::Nearest
+                            | MinFilter::NearestMipmapNearest
+                            | MinFilter::NearestMipmapLinear
+                    )
+                )
+        })
+        .filter_map(|s| s.index())
+        .collect();
+    if let Some(&first) = nearest.first() {
+        report.warn(format!(
+            "{file}: {} samplers ask for NEAREST filtering, drawn with linear filtering (texels blur when \
+             magnified; first: sampler {first})",
+            nearest.len()
+        ));
+    }
+    for m in doc.materials() {
+        if let Some(c) = m.alpha_cutoff().filter(|c| *c < 0.0) {
+            report.warn(format!(
+                "{file}: material {} ({}): alphaCutoff {c} is below glTF's minimum 0; every texel passes \
+                 the MASK test",
+                m.index().map_or("default".into(), |i| i.to_string()),
+                m.name().unwrap_or("unnamed")
+            ));
+        }
+    }
+}

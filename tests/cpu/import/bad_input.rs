@@ -501,3 +501,45 @@ fn unsigned_int_vertex_attributes_are_refused() {
         );
     }
 }
+
+/// What the glTF asks for that is not drawn (vertex colours, NEAREST filters, a MASK cutoff below 0) is
+/// one counted warning per feature naming the first place, not per instance; the geometry is unchanged.
+#[test]
+fn undrawn_features_are_one_counted_warning_each() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    let plain = import_city(dir.path(), &doc).1.unwrap();
+    assert_eq!(
+        plain.report.warnings_total, 0,
+        "{:?}",
+        plain.report.warnings
+    );
+    // COLOR_0 on two primitives (the NORMAL accessor has the vec3 float shape COLOR_0 allows).
+    for m in [0, 3] {
+        let attrs = &mut doc["meshes"][m]["primitives"][0]["attributes"];
+        attrs["COLOR_0"] = attrs["NORMAL"].clone();
+    }
+    doc["samplers"][1]["magFilter"] = json!(9728);
+    doc["samplers"][2]["minFilter"] = json!(9984);
+    doc["materials"][4]["alphaMode"] = json!("MASK");
+    doc["materials"][4]["alphaCutoff"] = json!(-1.0);
+    let (path, r) = import_city(dir.path(), &doc);
+    let s = r.unwrap();
+    let w = &s.report.warnings;
+    assert_eq!(s.report.warnings_total, 3, "{w:?}");
+    let file = path.display().to_string();
+    assert!(
+        w[0].starts_with(&file) && w[0].contains("2 primitives carry vertex colours (COLOR_0)"),
+        "{w:?}"
+    );
+    assert!(w[0].contains("first: mesh 0 primitive 0"), "{w:?}");
+    assert!(
+        w[1].contains("2 samplers ask for NEAREST") && w[1].contains("sampler 1"),
+        "{w:?}"
+    );
+    assert!(
+        w[2].contains("material 4") && w[2].contains("alphaCutoff -1"),
+        "{w:?}"
+    );
+    assert_eq!(s.triangles.len(), plain.triangles.len());
+}
