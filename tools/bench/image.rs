@@ -72,6 +72,15 @@ fn levels(c: &mut Criterion) {
         b.iter(|| black_box(mip_chain_rgba8(&big).len()))
     });
     g.bench_function("to_rgba8", |b| b.iter(|| black_box(big.to_rgba8().len())));
+    // 128² (256 KiB of f32 texels, cache-resident, one task): the conversion itself, without memory traffic.
+    let small = gradient(128);
+    g.bench_function("to_rgba8-128x64", |b| {
+        b.iter(|| {
+            (0..64)
+                .map(|_| black_box(small.to_rgba8().len()))
+                .sum::<usize>()
+        })
+    });
     let decoded = DecodedImage {
         width: 1024,
         height: 1024,
