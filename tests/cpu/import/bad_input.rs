@@ -520,7 +520,8 @@ fn undrawn_features_are_one_counted_warning_each() {
         attrs["COLOR_0"] = attrs["NORMAL"].clone();
     }
     doc["samplers"][1]["magFilter"] = json!(9728);
-    doc["samplers"][2]["minFilter"] = json!(9984);
+    doc["samplers"][2]["magFilter"] = json!(9728);
+    doc["samplers"][3]["minFilter"] = json!(9984);
     doc["materials"][4]["alphaMode"] = json!("MASK");
     doc["materials"][4]["alphaCutoff"] = json!(-1.0);
     let (path, r) = import_city(dir.path(), &doc);
@@ -534,7 +535,7 @@ fn undrawn_features_are_one_counted_warning_each() {
     );
     assert!(w[0].contains("first: mesh 0 primitive 0"), "{w:?}");
     assert!(
-        w[1].contains("2 samplers ask for NEAREST") && w[1].contains("sampler 1"),
+        w[1].contains("2 samplers ask for NEAREST magnification") && w[1].contains("sampler 1"),
         "{w:?}"
     );
     assert!(
