@@ -231,6 +231,9 @@ pub(super) fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
     format!("{}_{}", b.id(), r.id())
 }
 
+/// Largest `d_min_ratio` a grid takes ([`Grid::validate`]).
+pub(crate) const MAX_D_MIN_RATIO: f64 = 1e9;
+
 impl Grid {
     /// Both around the build defaults (border 16, repeats wrapped). `small`: data/city in CI time (d_min =
     /// diagonal / 15; 4 builds: atlas 512/1024, box/Kaiser, repeats baked; 4 texel ratios, one capacity, 6
@@ -334,8 +337,16 @@ impl Grid {
         }
         let b = &self.base;
         let ratios = self.d_min_ratio.iter().chain([&b.d_min_ratio]);
-        if let Some(r) = ratios.into_iter().find(|r| !(r.is_finite() && **r > 0.0)) {
-            return bad(format!("d_min_ratio {r} must be a positive number"));
+        // Beyond 10⁹ d_min is a billionth of the scene's diagonal: on small scenes the texel density at it
+        // overflows, which the preprocessor refuses.
+        if let Some(r) =
+            (ratios.into_iter()).find(|r| !(r.is_finite() && **r > 0.0 && **r <= MAX_D_MIN_RATIO))
+        {
+            return bad(format!(
+                "d_min_ratio {} must be a number in (0, {}]",
+                crate::util::short_number(*r),
+                crate::util::short_number(MAX_D_MIN_RATIO)
+            ));
         }
         let sizes = self.atlas_size.iter().chain([&b.atlas_size]);
         if let Some(s) = sizes
@@ -348,7 +359,10 @@ impl Grid {
         }
         let texel = self.texel_ratio.iter().chain([&b.texel_ratio]);
         if let Some(t) = texel.into_iter().find(|t| !(t.is_finite() && **t > 0.0)) {
-            return bad(format!("texel_ratio {t} must be a positive number"));
+            return bad(format!(
+                "texel_ratio {} must be a positive number",
+                crate::util::short_number(*t)
+            ));
         }
         let caps = self.capacity.iter().chain(b.capacity.as_ref());
         if caps.into_iter().any(|k| *k == 0) {

@@ -63,7 +63,12 @@ fn header_of(b: &[u8]) -> ShardHeader {
 fn tables_range(b: &[u8]) -> (usize, usize) {
     let h = header_of(b);
     let a = |x: u64| x.saturating_add(15) / 16 * 16;
-    let entries = h.blocks.saturating_add(h.handoffs).saturating_mul(40);
+    // Block and handoff entries (40 bytes), then one image entry (32 bytes) per scene image.
+    let entries = h
+        .blocks
+        .saturating_add(h.handoffs)
+        .saturating_mul(40)
+        .saturating_add(h.images.saturating_mul(32));
     let end = (HEADER as u64)
         .saturating_add(a(h.argv_len))
         .saturating_add(a(h.prefix_len))
