@@ -222,10 +222,34 @@ fn check_complete(
     let cap = frames
         .column_index("capacity")
         .ok_or("no capacity column")?;
+    // The original's scores are empty exactly where they were not measured (the reference is the original
+    // itself): in every row or in none.
+    let originals: Vec<usize> = [
+        "original_psnr_db",
+        "original_psnr_covered_db",
+        "original_ssim",
+    ]
+    .iter()
+    .map(|c| {
+        frames
+            .column_index(c)
+            .ok_or(format!("frames.csv has no {c}"))
+    })
+    .collect::<Result<_, _>>()?;
+    for &j in &originals {
+        let empty = frames.rows.iter().filter(|r| r[j].is_empty()).count();
+        if empty != 0 && empty != frames.rows.len() {
+            return Err(format!(
+                "frames.csv column {j}: {empty} of {} rows empty",
+                frames.rows.len()
+            ));
+        }
+    }
     if let Some((i, _)) = frames.rows.iter().enumerate().find(|(_, r)| {
         let all = r[cap] == "all";
         r.iter()
             .enumerate()
+            .filter(|(j, _)| !originals.contains(j))
             .any(|(j, c)| c.is_empty() != (all && j >= paging))
     }) {
         return Err(format!("frames.csv row {i} has an empty cell"));
