@@ -58,8 +58,8 @@ pub(crate) struct BuildArgs {
     /// How repeated textures are stored. `wrap`: each atlas rect holds at most one period of its texture
     /// (the used range when shorter) at the texels per period d_min needs, with a border filled by the
     /// sampler's own rule, and the fragment shader wraps the UV into it: the file no longer grows with how
-    /// often a texture repeats. `bake`: every repetition the UVs span is copied into the atlas and big
-    /// triangles are cut into pieces (the paper's §5.2.2; the sweep's reference for what wrapping costs).
+    /// often a texture repeats. `bake`: every period a triangle's UVs span is copied into the atlas
+    /// (triangles shifted by whole periods share them) and big triangles are cut into pieces (the paper's §5.2.2; the sweep's reference for what wrapping costs).
     #[arg(long, default_value = "wrap")]
     pub repeat: atlastree::preprocess::RepeatMode,
     /// Build the tree over the triangles of these materials only (comma-separated glob patterns on glTF

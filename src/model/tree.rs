@@ -104,8 +104,9 @@ impl Node {
 /// ([`crate::model::transform::rect_t`]) apply it to the unbounded, interpolated original UV.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Hash, Serialize)]
 pub enum RectWrap {
-    /// Baked (the paper's §5.2.2): `inner` shows `[uv_min, uv_max]`, every repetition the UVs span copied
-    /// into the atlas; the UV reaches the rect unchanged.
+    /// Baked (the paper's §5.2.2): `inner` shows `[uv_min, uv_max]`, every period a triangle's UVs span
+    /// copied into the atlas (triangles shifted by whole periods share them); the UV reaches the rect
+    /// unchanged.
     #[default]
     Linear,
     /// REPEAT sampler: `inner` shows at most one period, `[uv_min, uv_max]` with `uv_max − uv_min ≤ 1`; the

@@ -32,8 +32,9 @@ pub struct SceneInfo {
     pub texture_texels: u64,
     /// Images per kind: "file", "embedded", "solid", "fallback".
     pub image_kinds: BTreeMap<String, u64>,
-    /// Periods (texture copies, in UV² units) the triangles' UVs unroll: Σ over triangles of the UV area.
-    /// What baking repeats into atlases stores at the least (`--repeat bake`).
+    /// Periods (texture copies, in UV² units) the triangles' UVs unroll: Σ over triangles of the UV area,
+    /// every repetition of the scene once. Not what `--repeat bake` stores: it shifts triangles by whole
+    /// periods, so triangles share periods, and holds each rect's hull.
     pub periods_spanned: f64,
     /// Periods one copy per material holds: Σ over materials of the UV box area with every REPEAT /
     /// MIRRORED_REPEAT axis capped at one period — what a node holding the whole scene stores with
@@ -320,7 +321,7 @@ impl fmt::Display for SceneInfo {
         };
         writeln!(
             f,
-            "  periods the UVs span {spanned:.1} (baked, at least); one wrapped copy per material {wrapped:.1} \
+            "  periods the UVs span {spanned:.1} (Σ triangle UV areas); one wrapped copy per material {wrapped:.1} \
              ({ratio})"
         )?;
         let kinds: Vec<String> = self
