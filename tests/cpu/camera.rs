@@ -166,13 +166,16 @@ fn bad_files_give_clear_errors() {
         kf(1.0, 180.0)
     ));
     assert!(matches!(e, CameraError::BadFov { keyframe: 1, .. }), "{e}");
-    let e = err_of(
-        r#"{ "keyframes": [ { "time": 0, "eye": [1,1,1], "target": [1,1,1], "fov": 60 } ] }"#,
-    );
-    assert!(
-        matches!(e, CameraError::DegenerateView { keyframe: 0, .. }),
-        "{e}"
-    );
+    // Eye and target equal, or 1e-300 apart (the difference's length underflows): no direction.
+    for target in ["[0,1,0]", "[1e-300,1,1e-300]"] {
+        let e = err_of(&format!(
+            r#"{{ "keyframes": [ {{ "time": 0, "eye": [0,1,0], "target": {target}, "fov": 60 }} ] }}"#
+        ));
+        assert!(
+            matches!(e, CameraError::DegenerateView { keyframe: 0, .. }),
+            "{target}: {e}"
+        );
+    }
     let e = err_of(&format!(
         r#"{{ "keyframes": [ {} ], "near": 10, "far": 5 }}"#,
         kf(0.0, 60.0)
@@ -181,24 +184,14 @@ fn bad_files_give_clear_errors() {
         matches!(e, CameraError::BadLens { field: "near", .. }),
         "{e}"
     );
-    let e = err_of(&format!(
-        r#"{{ "keyframes": [ {} ], "up": [0, 0, 0] }}"#,
-        kf(0.0, 60.0)
-    ));
-    assert!(matches!(e, CameraError::BadUp { .. }), "{e}");
-    // Eye and target 1e-300 apart, an up of length 1e-300: their lengths underflow, so no direction.
-    let e = err_of(
-        r#"{ "keyframes": [ { "time": 0, "eye": [0,5,0], "target": [1e-300,5,1e-300], "fov": 60 } ] }"#,
-    );
-    assert!(
-        matches!(e, CameraError::DegenerateView { keyframe: 0, .. }),
-        "{e}"
-    );
-    let e = err_of(&format!(
-        r#"{{ "keyframes": [ {} ], "up": [0, 1e-300, 0] }}"#,
-        kf(0.0, 60.0)
-    ));
-    assert!(matches!(e, CameraError::BadUp { .. }), "{e}");
+    // An up of length 0, or of a length that underflows.
+    for up in ["[0, 0, 0]", "[0, 1e-300, 0]"] {
+        let e = err_of(&format!(
+            r#"{{ "keyframes": [ {} ], "up": {up} }}"#,
+            kf(0.0, 60.0)
+        ));
+        assert!(matches!(e, CameraError::BadUp { .. }), "{up}: {e}");
+    }
     // A short but representable direction is a view.
     let ok = r#"{ "keyframes": [ { "time": 0, "eye": [0,5,0], "target": [1e-100,5,0], "fov": 60 } ], "up": [0, 1e-100, 0] }"#;
     let p: atlastree::camera::CameraPath = serde_json::from_str(ok).unwrap();
