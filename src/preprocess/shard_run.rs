@@ -241,15 +241,19 @@ pub enum MergeError {
     /// Two shards decoded one image to different pixels: its file changed between their builds, and the
     /// fingerprint (name, size, byte length) did not show it.
     #[error(
-        "shards {first} and {second} of {count} decoded {image} to different pixels: the file changed \
-         between their builds (same name, size and byte length), so their atlases would mix two versions \
-         of it; rebuild the shards built before the change (if unsure, all {count}) from the scene as it \
-         is now, then merge again"
+        "shards {first} ({p1}) and {second} ({p2}) of {count} decoded {image} to different pixels: the \
+         file changed between their builds (same name, size and byte length), so their atlases would mix \
+         two versions of it; rebuild the shards built before the change (if unsure, all {count}) from the scene as it \
+         is now, then merge again",
+        p1 = .first_path.display(),
+        p2 = .second_path.display()
     )]
     ImagesDiffer {
         image: String,
         first: u32,
+        first_path: PathBuf,
         second: u32,
+        second_path: PathBuf,
         count: u32,
     },
     #[error(
@@ -688,7 +692,9 @@ impl ShardSet {
                         return Err(MergeError::ImagesDiffer {
                             image,
                             first: a as u32,
+                            first_path: self.shards[a].path().to_path_buf(),
                             second: slot as u32,
+                            second_path: f.path().to_path_buf(),
                             count: self.count,
                         });
                     }

@@ -549,8 +549,14 @@ fn merge_refuses_shards_that_decoded_two_versions_of_an_image() {
             first,
             second,
             count: 4,
+            ..
         } => {
             assert_eq!((*first, *second), (users[0], last), "{e}");
+            let path = shard_path(&out, ShardSpec { index: last, count });
+            assert!(
+                e.to_string().contains(&format!("({})", path.display())),
+                "{e}"
+            );
             assert!(what.starts_with(&format!("image {image} ")), "{e}");
         }
         other => panic!("expected ImagesDiffer, got {other}"),
