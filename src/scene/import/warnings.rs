@@ -62,6 +62,7 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
             nearest.len()
         ));
     }
+    warn_undeclared_quantization(file, doc, report);
     for m in doc.materials() {
         if let Some(c) = m.alpha_cutoff().filter(|c| *c < 0.0) {
             report.warn(format!(
@@ -71,5 +72,45 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
                 m.name().unwrap_or("unnamed")
             ));
         }
+    }
+}
+
+/// Integer POSITION, or integer TEXCOORD that is not normalized, is glTF 2.0 only with
+/// KHR_mesh_quantization (§3.7.2.1); a file that does not declare it is read as the data says (integer
+/// values), with one counted warning naming the first such attribute.
+fn warn_undeclared_quantization(file: &str, doc: &gltf::Document, report: &mut ImportReport) {
+    use gltf::accessor::DataType;
+    if doc.extensions_used().any(|e| e == "KHR_mesh_quantization") {
+        return;
+    }
+    let mut found: Vec<String> = Vec::new();
+    for m in doc.meshes() {
+        for p in m.primitives() {
+            for (semantic, acc) in p.attributes() {
+                let integer = acc.data_type() != DataType::F32;
+                let bad = match semantic {
+                    gltf::Semantic::Positions => integer,
+                    gltf::Semantic::TexCoords(_) => integer && !acc.normalized(),
+                    _ => false,
+                };
+                if bad {
+                    found.push(format!(
+                        "mesh {} primitive {} {} (accessor {}, {:?})",
+                        m.index(),
+                        p.index(),
+                        semantic.to_string(),
+                        acc.index(),
+                        acc.data_type()
+                    ));
+                }
+            }
+        }
+    }
+    if let Some(first) = found.first() {
+        report.warn(format!(
+            "{file}: {} vertex attributes are integers that glTF 2.0 allows only with KHR_mesh_quantization, \
+             which the file does not declare in extensionsUsed; read as their integer values (first: {first})",
+            found.len()
+        ));
     }
 }

@@ -544,3 +544,32 @@ fn undrawn_features_are_one_counted_warning_each() {
     );
     assert_eq!(s.triangles.len(), plain.triangles.len());
 }
+
+/// An integer TEXCOORD that is not normalized is glTF only with KHR_mesh_quantization: without it declared
+/// the import reads the integers as they are, with one counted warning naming the first attribute; with
+/// it declared, no warning.
+#[test]
+fn integer_uvs_without_the_quantization_extension_are_a_counted_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    let uv = doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"]
+        .as_u64()
+        .unwrap() as usize;
+    doc["accessors"][uv]["componentType"] = json!(5123);
+    for key in ["min", "max"] {
+        doc["accessors"][uv].as_object_mut().unwrap().remove(key);
+    }
+    let s = import_city(dir.path(), &doc).1.unwrap();
+    let w = &s.report.warnings;
+    assert_eq!(s.report.warnings_total, 1, "{w:?}");
+    assert!(
+        w[0].contains("KHR_mesh_quantization")
+            && w[0].contains(&format!(
+                "first: mesh 0 primitive 0 TEXCOORD_0 (accessor {uv}, U16)"
+            )),
+        "{w:?}"
+    );
+    doc["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    let s = import_city(dir.path(), &doc).1.unwrap();
+    assert_eq!(s.report.warnings_total, 0, "{:?}", s.report.warnings);
+}
