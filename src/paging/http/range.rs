@@ -4,7 +4,8 @@
 //!   non-UTF-8, longer than [`MAX_RANGE_HEADER`] bytes or more than [`MAX_RANGES`] ranges): **ignored**,
 //!   the whole file is sent with `200` (RFC 9110 §14.2: "a server MAY ignore the Range header field"; we
 //!   do not answer `400`, so a client that sent junk still gets correct bytes);
-//! - well-formed, no range satisfiable (every first byte at or past the end, `-0`, an empty file):
+//! - well-formed, no range satisfiable (every first byte at or past the end, `-0`, an empty file;
+//!   numbers past `u64::MAX` are well-formed and saturate, so such a last byte clamps to the file):
 //!   `416` with `Content-Range: bytes */LEN`;
 //! - well-formed: the satisfiable ranges are clamped to the file, sorted and coalesced (overlapping or
 //!   adjacent); one left → `206` for it; several disjoint ones → the whole file with `200` (we send no
@@ -91,12 +92,14 @@ enum Spec {
     Suffix(u64),
 }
 
+/// A decimal number; one past `u64::MAX` (still well-formed: RFC 9110 bounds no digit count) saturates,
+/// so a last byte past 2⁶⁴ clamps to the file's end and a first byte there is unsatisfiable.
 fn digits(s: &str) -> Option<u64> {
     let s = s.trim();
     if s.is_empty() || !s.bytes().all(|b| b.is_ascii_digit()) {
         return None;
     }
-    s.parse().ok()
+    Some(s.parse().unwrap_or(u64::MAX))
 }
 
 fn parse_spec(spec: &str) -> Option<Spec> {
@@ -134,6 +137,13 @@ mod tests {
 
     #[test]
     fn single_ranges_clamp_to_the_file() {
+        // Numbers past 2⁶⁴ are well-formed: the last byte clamps, a first byte there is past the end.
+        let huge = b"bytes=0-99999999999999999999999";
+        assert_eq!(answer(Some(huge), 100), Partial { first: 0, last: 99 });
+        assert_eq!(
+            answer(Some(b"bytes=99999999999999999999999-"), 100),
+            Unsatisfiable
+        );
         assert_eq!(answer(None, 100), Full);
         assert_eq!(a("bytes=0-9", 100), Partial { first: 0, last: 9 });
         assert_eq!(
@@ -176,13 +186,14 @@ mod tests {
             assert_eq!(a(h, 100), Unsatisfiable, "{h}");
         }
         assert_eq!(a("bytes=0-", 0), Unsatisfiable);
+        // A first byte past 2⁶⁴ is a well-formed range past the end, not junk.
+        assert_eq!(a("bytes=18446744073709551616-", 100), Unsatisfiable);
         for h in [
             "bytes=5-1",
             "bytes=a-b",
             "bytes=-",
             "bytes=1-2-3",
             "bytes=+1-2",
-            "bytes=18446744073709551616-",
             "items=0-1",
             "bytes",
             "bytes=",

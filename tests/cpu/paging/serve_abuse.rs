@@ -150,11 +150,15 @@ fn serve_answers_ranges_as_rfc_9110_allows() {
     assert_eq!((a.status, a.body.as_slice()), (206, &fx.bytes[len - 5..]));
     let a = range(addr, "bytes=-7");
     assert_eq!((a.status, a.body.as_slice()), (206, &fx.bytes[len - 7..]));
+    // A last byte past 2⁶⁴ is well-formed (RFC 9110 bounds no digit count): clamped like any other.
+    let a = range(addr, "bytes=0-99999999999999999999999");
+    assert_eq!((a.status, a.body.as_slice()), (206, &fx.bytes[..]));
     // Unsatisfiable: 416 with the length.
     for spec in [
         format!("bytes={len}-"),
         "bytes=-0".into(),
         format!("bytes={}-{}", len + 10, len + 20),
+        "bytes=18446744073709551616-".into(),
     ] {
         let a = range(addr, &spec);
         assert_eq!(a.status, 416, "{spec}");
@@ -171,7 +175,6 @@ fn serve_answers_ranges_as_rfc_9110_allows() {
         "lines=0-1",
         "bytes",
         "bytes=1-2-3",
-        "bytes=18446744073709551616-",
     ] {
         assert!(whole(&range(addr, spec)), "{spec}");
     }
@@ -185,7 +188,7 @@ fn serve_answers_ranges_as_rfc_9110_allows() {
     let huge = format!("bytes=0-0{}", ",0-0".repeat(6000));
     assert_eq!(range(addr, &huge).status, 431);
     let s = server.stats();
-    assert_eq!((s.partial, s.unsatisfiable), (4, 3), "{s:?}");
+    assert_eq!((s.partial, s.unsatisfiable), (5, 4), "{s:?}");
     assert_eq!(range(addr, "bytes=0-0").status, 206);
 }
 
