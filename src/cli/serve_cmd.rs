@@ -10,10 +10,18 @@ use std::time::Duration;
 
 /// `10s`, `500ms`, `2` (seconds): a positive, finite duration.
 fn parse_duration(s: &str) -> Result<Duration, String> {
-    atlastree::util::parse_seconds(s)
-        .filter(|v| v.is_finite() && *v > 0.0 && *v < 1e9)
-        .map(Duration::from_secs_f64)
-        .ok_or_else(|| format!("bad duration {s:?}: expected e.g. 10s or 500ms"))
+    let Some(v) = atlastree::util::parse_seconds(s) else {
+        return Err(format!("{s} is not a duration: expected e.g. 10s or 500ms"));
+    };
+    if v.is_nan() || v <= 0.0 {
+        return Err(format!("{s}: a timeout must be longer than 0 (e.g. 10s)"));
+    }
+    if !v.is_finite() || v >= 1e9 {
+        return Err(format!(
+            "{s}: at most 1e9 s (about 32 years); a connection is never meant to wait that long"
+        ));
+    }
+    Ok(Duration::from_secs_f64(v))
 }
 
 // The command's help text is the doc comment of `Command::Serve` (src/cli/mod.rs).
@@ -98,4 +106,20 @@ fn wait_for_ctrl_c() -> anyhow::Result<()> {
     runtime
         .block_on(tokio::signal::ctrl_c())
         .context("waiting for Ctrl-C")
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn durations_say_what_is_wrong() {
+        use super::parse_duration;
+        assert_eq!(parse_duration("500ms").unwrap().as_millis(), 500);
+        assert!(parse_duration("x").unwrap_err().contains("not a duration"));
+        assert!(parse_duration("0s").unwrap_err().contains("longer than 0"));
+        assert!(
+            parse_duration("99999999999s")
+                .unwrap_err()
+                .contains("at most 1e9 s")
+        );
+    }
 }
