@@ -170,18 +170,25 @@ impl RenderArgs {
         } else {
             None
         };
+        // Why this run pages: a URL always does (its blocks come over HTTP), a local file with --capacity.
+        let why_paged = match &tree {
+            TreeSource::Remote(url) => {
+                format!("a tree read from {url} is always paged over HTTP; render a local copy")
+            }
+            TreeSource::Local(_) => "not with --capacity".to_string(),
+        };
         if paging.is_some()
             && let Some(r) = self.reference
         {
             bail!(
-                "--reference {} draws the original textures and needs every block resident: not with paging",
+                "--reference {} draws the original textures and needs every block resident: {why_paged}",
                 r.name()
             );
         }
         if paging.is_some() && modes.contains(&Mode::Original) {
             bail!(
                 "--mode original draws every original texture naively and needs every block resident: \
-                 not with paging"
+                 {why_paged}"
             );
         }
         Ok(RenderConfig {
@@ -871,5 +878,44 @@ pub(super) fn parse_anisotropy(s: &str) -> Result<u16, String> {
     match s.parse::<u16>() {
         Ok(v) if (1..=16).contains(&v) => Ok(v),
         _ => Err(format!("{s:?}: expected auto or an integer from 1 to 16")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::RenderArgs;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Render {
+        #[command(flatten)]
+        args: RenderArgs,
+    }
+
+    fn refusal(argv: &[&str]) -> String {
+        let args = Render::parse_from([&["render"], argv].concat()).args;
+        match args.validate() {
+            Ok(_) => panic!("{argv:?} accepted"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    /// A reference or original mode needs every block resident; the refusal says why this run pages.
+    #[test]
+    fn a_paged_reference_is_refused_saying_why_the_run_pages() {
+        let url = "http://127.0.0.1:9/city.atlastree";
+        let e = refusal(&[url, "--reference", "original"]);
+        assert!(
+            e.contains(&format!("a tree read from {url} is always paged")),
+            "{e}"
+        );
+        let e = refusal(&[
+            "city.atlastree",
+            "--capacity",
+            "8",
+            "--mode",
+            "tree,original",
+        ]);
+        assert!(e.ends_with("not with --capacity"), "{e}");
     }
 }
