@@ -10,6 +10,7 @@ mod inspect_cmd;
 mod merge_cmd;
 mod progress;
 mod render_cmd;
+mod render_report;
 mod scene_info;
 mod serve_cmd;
 mod simulate_cmd;

@@ -1,0 +1,315 @@
+//! Phase 7 of `render` (docs in [`super::render_cmd`]): each mode's `stats.csv`, contact sheet and
+//! summary lines, the median frame times and their ratios, what the HTTP client did, and `summary.json`.
+
+use super::render_cmd::ModeRun;
+use anyhow::Context;
+use atlastree::paging::HttpStats;
+use atlastree::render::reference::Reference;
+use atlastree::render::{FrameStats, Mode};
+use atlastree::report::columns;
+use atlastree::report::csv::CsvWriter;
+use atlastree::sweep::summary::median;
+use std::path::Path;
+
+/// Phase 7: per mode `stats.csv`, the contact sheet and a summary on stdout; then the median frame times
+/// of the modes and their ratios (tree ÷ dummy, original ÷ dummy, tree ÷ original: the paper's
+/// comparison), on stdout and in `OUT/summary.json`.
+pub(super) fn write_and_report(
+    out: &Path,
+    reference: Option<Reference>,
+    runs: &[ModeRun],
+    http: Option<HttpStats>,
+) -> anyhow::Result<()> {
+    let mut medians = Vec::new();
+    for run in runs {
+        write_stats_csv(&run.dir.join("stats.csv"), &run.stats)?;
+        if !run.thumbs.is_empty() {
+            let sheet = run.dir.join("contact_sheet.png");
+            atlastree::util::save_png(&sheet, &contact_sheet(&run.thumbs))
+                .with_context(|| format!("writing {}", sheet.display()))?;
+        }
+        medians.push(ModeMedians::of(run.mode, &run.stats));
+        print_summary(run.mode, &run.stats, &run.dir);
+        if let (Some(r), Some(q)) = (reference, Quality::of(&run.quality)) {
+            println!(
+                "  against the {} reference: PSNR mean {:.2} dB (min {:.2}), SSIM mean {:.4} (min {:.4})",
+                r.name(),
+                q.psnr_mean,
+                q.psnr_min,
+                q.ssim_mean,
+                q.ssim_min
+            );
+        }
+    }
+    let ratios = frame_ratios(&medians);
+    for (name, r) in &ratios {
+        println!("median frame time {name}: {r:.3}");
+    }
+    if let Some(h) = &http {
+        print_http(h);
+    }
+    let json = serde_json::json!({
+        "modes": medians.iter().map(|m| (m.mode.name().to_string(), serde_json::json!({
+            "frames": m.frames,
+            "median_frame_ms": m.frame_ms,
+            "median_gpu_ms": m.gpu_ms,
+            "reference": runs.iter().find(|r| r.mode == m.mode).and_then(|r| Quality::of(&r.quality)).map(|q| serde_json::json!({
+                "psnr_db_mean": q.psnr_mean,
+                "psnr_db_min": q.psnr_min,
+                "ssim_mean": q.ssim_mean,
+                "ssim_min": q.ssim_min,
+                "psnr_db": q.psnr,
+                "ssim": q.ssim,
+            })),
+        }))).collect::<serde_json::Map<String, serde_json::Value>>(),
+        "reference": reference.map(|r| r.name()),
+        "http": http,
+        "ratios": ratios.iter().map(|(name, r)| (ratio_key(name), serde_json::json!(r)))
+            .collect::<serde_json::Map<String, serde_json::Value>>(),
+    });
+    let path = out.join("summary.json");
+    atlastree::util::write_atomic(
+        &path,
+        (serde_json::to_string_pretty(&json)? + "\n").as_bytes(),
+    )
+    .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// What the HTTP client did over the whole run (tables, warm-up and every mode), with warnings for a
+/// server that ignores `Range` (each block then costs the whole file) and for answers that failed their
+/// checksum (the served file changed, or bytes were corrupted on the way).
+fn print_http(h: &HttpStats) {
+    use atlastree::util::human_bytes;
+    println!(
+        "http: {} requests ({} retries, {} fetches failed), {} received for {} blocks",
+        h.requests,
+        h.retries,
+        h.failures,
+        human_bytes(h.bytes),
+        h.blocks
+    );
+    if h.full_responses > 0 {
+        println!(
+            "  warning: {} answers ignored Range and sent the whole file (the blocks were cut from it): serve \
+             it with a server that honours Range, e.g. `atlastree serve`",
+            h.full_responses
+        );
+    }
+    if h.checksum_failures > 0 {
+        println!(
+            "  warning: {} answers failed their block checksum and were asked again: the served file changed \
+             during the run, or bytes were corrupted on the way",
+            h.checksum_failures
+        );
+    }
+}
+
+/// A mode's frames against the reference.
+struct Quality {
+    psnr_mean: f64,
+    psnr_min: f64,
+    ssim_mean: f64,
+    ssim_min: f64,
+    psnr: Vec<f64>,
+    ssim: Vec<f64>,
+}
+
+impl Quality {
+    /// `None` when no frame was measured.
+    fn of(frames: &[(f64, f64)]) -> Option<Quality> {
+        if frames.is_empty() {
+            return None;
+        }
+        let n = frames.len() as f64;
+        let psnr: Vec<f64> = frames.iter().map(|q| q.0).collect();
+        let ssim: Vec<f64> = frames.iter().map(|q| q.1).collect();
+        Some(Quality {
+            psnr_mean: psnr.iter().sum::<f64>() / n,
+            psnr_min: psnr.iter().copied().fold(f64::INFINITY, f64::min),
+            ssim_mean: ssim.iter().sum::<f64>() / n,
+            ssim_min: ssim.iter().copied().fold(f64::INFINITY, f64::min),
+            psnr,
+            ssim,
+        })
+    }
+}
+
+/// One mode's medians over the run.
+struct ModeMedians {
+    mode: Mode,
+    frames: usize,
+    frame_ms: f64,
+    /// `None` without GPU timestamps.
+    gpu_ms: Option<f64>,
+}
+
+impl ModeMedians {
+    fn of(mode: Mode, stats: &[FrameStats]) -> ModeMedians {
+        let gpu: Vec<f64> = stats.iter().filter_map(|s| s.gpu_ms).collect();
+        ModeMedians {
+            mode,
+            frames: stats.len(),
+            frame_ms: median(stats.iter().map(|s| s.frame_ms)),
+            gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
+        }
+    }
+}
+
+/// The ratios of median frame times between the modes measured: `tree ÷ dummy`, `original ÷ dummy`,
+/// `tree ÷ original` (those whose two modes ran).
+fn frame_ratios(medians: &[ModeMedians]) -> Vec<(String, f64)> {
+    let of = |m: Mode| medians.iter().find(|k| k.mode == m).map(|k| k.frame_ms);
+    [
+        (Mode::Tree, Mode::Dummy),
+        (Mode::Original, Mode::Dummy),
+        (Mode::Tree, Mode::Original),
+    ]
+    .into_iter()
+    .filter_map(|(a, b)| {
+        let (x, y) = (of(a)?, of(b)?);
+        Some((format!("{} ÷ {}", a.name(), b.name()), x / y))
+    })
+    .collect()
+}
+
+/// `tree ÷ dummy` → `tree_over_dummy`.
+fn ratio_key(name: &str) -> String {
+    name.replace(" ÷ ", "_over_")
+}
+
+/// Mean and max of a column.
+fn mean_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut n, mut sum, mut max) = (0usize, 0.0, f64::NEG_INFINITY);
+    for v in values {
+        n += 1;
+        sum += v;
+        max = max.max(v);
+    }
+    if n == 0 {
+        (0.0, 0.0)
+    } else {
+        (sum / n as f64, max)
+    }
+}
+
+fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
+    let cols = (thumbs.len() as f64).sqrt().ceil().max(1.0) as u32;
+    let rows = (thumbs.len() as u32).div_ceil(cols);
+    let (tw, th) = thumbs.first().map_or((1, 1), |t| t.dimensions());
+    let mut sheet = image::RgbaImage::from_pixel(cols * tw, rows * th, image::Rgba([0, 0, 0, 255]));
+    for (i, t) in thumbs.iter().enumerate() {
+        let (x, y) = ((i as u32 % cols) * tw, (i as u32 / cols) * th);
+        image::imageops::replace(&mut sheet, t, i64::from(x), i64::from(y));
+    }
+    sheet
+}
+
+/// `stats.csv`: `frame`, the frame's counters and timings ([`atlastree::render::frame_columns`]) and, when paged,
+/// the paging columns ([`columns::paging_columns`]).
+fn write_stats_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
+    let paged = stats.iter().any(|s| s.paging().is_some());
+    let row = |s: &FrameStats| {
+        let mut c = atlastree::render::frame_columns(s);
+        if paged {
+            c.extend(columns::paging_columns_or_empty(s.paging()));
+        }
+        c
+    };
+    let mut header = vec!["frame"];
+    header.extend(columns::names(&row(&FrameStats::default())));
+    let mut w = CsvWriter::create(path, &header)?;
+    for (i, s) in stats.iter().enumerate() {
+        let mut cells = vec![atlastree::report::csv::Cell::from(i)];
+        cells.extend(columns::cells(row(s)));
+        w.row(&cells)?;
+    }
+    w.finish()?;
+    Ok(())
+}
+
+fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
+    let col = |f: &dyn Fn(&FrameStats) -> f64| mean_max(stats.iter().map(f));
+    let rows: [(&str, (f64, f64)); 9] = [
+        ("nodes visited", col(&|s| f64::from(s.plan.nodes_visited))),
+        ("nodes drawn", col(&|s| f64::from(s.plan.nodes_drawn))),
+        ("indirect records", col(&|s| f64::from(s.indirect_records))),
+        ("draw calls", col(&|s| f64::from(s.draw_calls))),
+        (
+            "bind-group changes",
+            col(&|s| f64::from(s.bind_group_changes)),
+        ),
+        ("triangles", col(&|s| s.triangles as f64)),
+        ("select µs", col(&|s| s.plan.select_us)),
+        ("encode µs", col(&|s| s.encode_us)),
+        ("frame ms", col(&|s| s.frame_ms)),
+    ];
+    println!(
+        "mode {} ({} frames, {}):",
+        mode.name(),
+        stats.len(),
+        dir.display()
+    );
+    for (name, (mean, max)) in rows {
+        println!("  {name:<20} mean {mean:>10.2}  max {max:>10.2}");
+    }
+    let skipped: u64 = stats.iter().map(|s| u64::from(s.skipped_draws)).sum();
+    if skipped > 0 {
+        println!(
+            "  warning: {skipped} draws skipped over the run (their atlas held no GPU layer; see stats.csv skipped_draws)"
+        );
+    }
+    let gpu: Vec<f64> = stats.iter().filter_map(|s| s.gpu_ms).collect();
+    if !gpu.is_empty() {
+        let (mean, max) = mean_max(gpu.iter().copied());
+        println!("  {:<20} mean {mean:>10.2}  max {max:>10.2}", "GPU ms");
+    }
+    let paged: Vec<_> = stats.iter().filter_map(FrameStats::paging).collect();
+    if !paged.is_empty() {
+        let peak = paged.iter().map(|p| p.pager().resident).max().unwrap_or(0);
+        let bytes: u64 = paged.iter().map(|p| p.pager().bytes_loaded).sum();
+        let (share, max_share) = mean_max(paged.iter().map(|p| p.coarse.share()));
+        let failures: u32 = paged.iter().map(|p| p.pager().failures).sum();
+        println!(
+            "  paging: peak resident {peak}, {} loaded, coarser share mean {:.3} max {:.3}, {} load failures",
+            atlastree::util::human_bytes(bytes),
+            share,
+            max_share,
+            failures
+        );
+        if failures > 0 {
+            println!(
+                "  warning: {failures} block loads failed (those nodes drew a coarser resident atlas; see stats.csv failures)"
+            );
+        }
+        // Requests the source never answered by the last frame (a server that stopped responding holds
+        // them up to its timeout × attempts; they are abandoned at exit, not counted as failures).
+        // Only a run in which nothing arrived at all hints at a dead source; otherwise the run simply
+        // ended before a slow source answered (its latency × the requests per frame).
+        if let Some(last) = paged.last()
+            && last.session.in_flight + last.session.queued > 0
+        {
+            let (in_flight, queued) = (last.session.in_flight, last.session.queued);
+            let loaded = paged.iter().map(|p| p.pager().loaded).sum::<u32>();
+            if loaded == 0 && failures == 0 {
+                println!(
+                    "  warning: no block request was answered during the run ({in_flight} in flight, {queued} queued \
+                     at the end): is the source responding?"
+                );
+            } else {
+                println!(
+                    "  note: the run ended with {in_flight} block requests in flight and {queued} queued (a source \
+                     slower than the frames: more frames, or --loader-threads 0 to wait for each load, let them arrive)"
+                );
+            }
+        }
+    }
+    // Medians: robust against one-off stalls (a software rasteriser compiles shader variants on first use).
+    let frame: Vec<f64> = stats.iter().map(|s| s.frame_ms).collect();
+    println!(
+        "  {:<20} median {:>8.2}  GPU median {:>8.2}",
+        "frame ms",
+        median(frame),
+        median(gpu)
+    );
+}
