@@ -172,7 +172,7 @@ impl RenderArgs {
             TreeSource::Remote(url) => {
                 format!("a tree read from {url} is always paged over HTTP; render a local copy")
             }
-            TreeSource::Local(_) => "not with --capacity".to_string(),
+            TreeSource::Local(_) => "not when paging (--capacity)".to_string(),
         };
         if paging.is_some()
             && let Some(r) = self.reference
@@ -610,6 +610,6 @@ mod tests {
             "--mode",
             "tree,original",
         ]);
-        assert!(e.ends_with("not with --capacity"), "{e}");
+        assert!(e.ends_with("not when paging (--capacity)"), "{e}");
     }
 }
