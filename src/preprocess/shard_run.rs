@@ -670,13 +670,7 @@ impl ShardSet {
     /// Every image two shards decoded has one pixel hash in both (the fingerprint, equal by now, gives
     /// every shard the same image count).
     fn check_images(&self) -> Result<(), MergeError> {
-        let images = self
-            .shards
-            .iter()
-            .map(|f| f.images.len())
-            .max()
-            .unwrap_or(0);
-        for i in 0..images {
+        for i in 0..self.shards[0].images.len() {
             let mut first: Option<(usize, &crate::store::shard::ImageEntry)> = None;
             for (slot, f) in self.shards.iter().enumerate() {
                 let Some(e) = f.images.get(i).filter(|e| e.decoded == 1) else {

@@ -248,6 +248,15 @@ pub(crate) fn check_endian() -> Result<(), StoreError> {
     }
 }
 
+/// The temp file beside `path` that an atomic write of it fills ([`crate::util::AtomicFile`]); a failure
+/// (a read-only folder, a full disk) is [`StoreError::Create`] naming `path`, not the temp file.
+pub(crate) fn create_output(path: &std::path::Path) -> Result<crate::util::AtomicFile, StoreError> {
+    crate::util::AtomicFile::create(path, 0o666).map_err(|source| StoreError::Create {
+        target: path.to_path_buf(),
+        source,
+    })
+}
+
 /// What a file that is not a paging file looks like, from its first bytes: the tool's own shard and plan
 /// files (with what to do with them), a glTF or GLB scene, an image, or its start as text.
 pub fn describe_start(head: &[u8]) -> String {

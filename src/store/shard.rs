@@ -235,10 +235,7 @@ impl ShardWriter {
             tables_checksum: 0,
             checksum: 0,
         };
-        let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Create {
-            target: path.to_path_buf(),
-            source,
-        })?;
+        let temp = super::create_output(path)?;
         let w = ShardWriter {
             block_state: blocks.iter().map(|_| AtomicU8::new(UNWRITTEN)).collect(),
             block_sums: blocks.iter().map(|_| AtomicU64::new(0)).collect(),

@@ -15,7 +15,6 @@
 use super::shard::{hash128, read_at, write_at};
 use super::{FileWriter, StoreError, TreeFile};
 use crate::scene::ImageRef;
-use crate::util::AtomicFile;
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 use std::fs::File;
@@ -156,10 +155,7 @@ pub fn write_plan(
         .ok_or(StoreError::LayoutOverflow { what: "plan" })?;
     header.file_len = prefix_at + header.prefix_len;
     header.checksum = header.compute_checksum();
-    let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Create {
-        target: path.to_path_buf(),
-        source,
-    })?;
+    let temp = super::create_output(path)?;
     let write_err = |source| StoreError::Write {
         target: path.to_path_buf(),
         temp: temp.temp_path().to_path_buf(),

@@ -513,10 +513,7 @@ impl FileWriter {
         check_replaceable(path)?;
         // The permissions of a plain `File::create` once renamed (0o666 less the umask); a private 0o600
         // would make a paging file unservable by another user's server.
-        let temp = AtomicFile::create(path, 0o666).map_err(|source| StoreError::Create {
-            target: path.to_path_buf(),
-            source,
-        })?;
+        let temp = super::create_output(path)?;
         let file_len = header.file_len;
         let writer = FileWriter {
             target: path.to_path_buf(),

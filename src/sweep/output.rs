@@ -317,7 +317,7 @@ fn write_plots(
     }
     // Texel-per-pixel histograms of the base build's non-paged variants.
     if let Some(base) = data.builds.first() {
-        let hists = base_histograms(&base.knobs.id(), &data.histograms);
+        let hists = base_histograms(&base.knobs, &data.histograms);
         if !hists.is_empty() {
             let o = PlotOptions::new(
                 format!(
@@ -337,28 +337,18 @@ fn write_plots(
     Ok(plots)
 }
 
-/// The histograms of build `base` (variant id `{base}_{runtime id}`), labelled by their runtime id. Another
-/// build whose id extends the base's (`{base}_bc1`) is not one of them.
+/// The histograms of build `base`'s variants, labelled by their runtime id.
 fn base_histograms<'a>(
-    base: &str,
-    histograms: &'a [(String, crate::report::metrics::Histogram)],
+    base: &super::BuildKnobs,
+    histograms: &'a [(
+        super::BuildKnobs,
+        super::RuntimeKnobs,
+        crate::report::metrics::Histogram,
+    )],
 ) -> Vec<(String, &'a crate::report::metrics::Histogram)> {
-    // A runtime id: `t{ratio}_all` or `t{ratio}_k{capacity}` (`grid::RuntimeKnobs::id`).
-    let is_runtime = |id: &str| {
-        id.split_once('_').is_some_and(|(t, k)| {
-            t.strip_prefix('t')
-                .is_some_and(|r| r.parse::<f64>().is_ok())
-                && (k == "all"
-                    || k.strip_prefix('k')
-                        .is_some_and(|c| c.parse::<u64>().is_ok()))
-        })
-    };
-    histograms
-        .iter()
-        .filter_map(|(id, h)| {
-            let runtime = id.strip_prefix(base)?.strip_prefix('_')?;
-            is_runtime(runtime).then(|| (runtime.to_string(), h))
-        })
+    (histograms.iter())
+        .filter(|(b, _, _)| b == base)
+        .map(|(_, r, h)| (r.id(), h))
         .collect()
 }
 
@@ -424,21 +414,22 @@ pub fn write_outputs(
 mod tests {
     use super::*;
 
+    /// The histogram chart of the base build holds its own variants only, not those of a build whose id
+    /// extends the base's (`…_bc1`, `…_bake`).
     #[test]
     fn base_histograms_are_the_base_builds_own() {
+        let plan = super::super::Grid::preset("small").unwrap().plan();
         let h = crate::report::metrics::Histogram::log2(&[1.0], 0, 2);
-        let ids = [
-            "r15_a512_b16_box_t0.5_all",
-            "r15_a512_b16_box_t1_k32",
-            "r15_a512_b16_box_bc1_t0.5_all",
-            "r15_a512_b16_box_bake_t1_all",
-            "r15_a512_b16_kaiser_t1_all",
-        ];
-        let hists: Vec<_> = ids.iter().map(|id| (id.to_string(), h.clone())).collect();
-        let labels: Vec<String> = base_histograms("r15_a512_b16_box", &hists)
+        let all: Vec<_> = (plan.builds.iter())
+            .flat_map(|b| b.runtimes.iter().map(|r| (b.knobs, *r, h.clone())))
+            .collect();
+        let base = &plan.builds[0];
+        assert!(plan.builds.len() > 1 && all.len() > base.runtimes.len());
+        let labels: Vec<String> = base_histograms(&base.knobs, &all)
             .into_iter()
             .map(|(l, _)| l)
             .collect();
-        assert_eq!(labels, ["t0.5_all", "t1_k32"]);
+        let want: Vec<String> = base.runtimes.iter().map(|r| r.id()).collect();
+        assert_eq!(labels, want);
     }
 }

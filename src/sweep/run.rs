@@ -155,8 +155,9 @@ pub struct SweepData {
     pub builds: Vec<BuildRow>,
     /// Per variant (in plan order) and frame.
     pub frames: Vec<FrameRow>,
-    /// Texel-density histogram (least-sampled direction) per non-paged variant, over all its frames.
-    pub histograms: Vec<(String, Histogram)>,
+    /// Texel-density histogram (least-sampled direction) per non-paged variant, over all its frames, with
+    /// the variant's build and runtime knobs.
+    pub histograms: Vec<(BuildKnobs, RuntimeKnobs, Histogram)>,
     /// Bytes of textures uploaded by the non-paged renderer of each build (everything resident).
     pub resident_bytes: Vec<u64>,
     pub adapter: String,
@@ -428,7 +429,7 @@ fn run_build(
                     data.frames.push(row);
                     progress.advance(1);
                 }
-                data.histograms.push((id.clone(), hist));
+                data.histograms.push((pb.knobs, *rt, hist));
             }
             Some(k) => {
                 let source = Arc::new(FileSource::new(Arc::new(

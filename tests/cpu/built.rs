@@ -238,3 +238,19 @@ pub fn assert_cut_covers(
     }
     drawn.iter().map(|&d| usize::from(d)).sum()
 }
+
+/// A copy of data/city in a temp dir (scene, buffer and textures), so a test can change its files.
+pub fn city_copy(dir: &std::path::Path) -> std::path::PathBuf {
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city");
+    let copy = |from: &std::path::Path, to: &std::path::Path| {
+        std::fs::create_dir_all(to).unwrap();
+        for e in std::fs::read_dir(from).unwrap().flatten() {
+            if e.path().is_file() {
+                std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+            }
+        }
+    };
+    copy(&src, &dir.join("city"));
+    copy(&src.join("textures"), &dir.join("city/textures"));
+    dir.join("city/scene.gltf")
+}

@@ -462,21 +462,9 @@ fn killed_merge_leaves_nothing_or_the_whole_file_and_a_rerun_succeeds() {
     assert!(absent > 0, "no kill landed before the rename");
 }
 
-/// data/city copied into `dir` (its images are external files the test may rewrite) and imported.
+/// data/city copied under `dir` (its images are external files the test may rewrite) and imported.
 fn city_copy(dir: &Path) -> Scene {
-    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/city");
-    std::fs::create_dir_all(dir.join("textures")).unwrap();
-    for entry in std::fs::read_dir(&src)
-        .unwrap()
-        .chain(std::fs::read_dir(src.join("textures")).unwrap())
-    {
-        let p = entry.unwrap().path();
-        if p.is_file() {
-            let rel = p.strip_prefix(&src).unwrap();
-            std::fs::copy(&p, dir.join(rel)).unwrap();
-        }
-    }
-    import(&dir.join("scene.gltf"), &ImportOptions::default()).unwrap()
+    import(&crate::built::city_copy(dir), &ImportOptions::default()).unwrap()
 }
 
 /// Rewrites the image file at `path` with other pixels (one flat colour, `w × h` as before) and its byte
@@ -508,7 +496,7 @@ fn merge_refuses_shards_that_decoded_two_versions_of_an_image() {
     use atlastree::scene::ImageData;
     use atlastree::store::shard::ShardFile;
     let dir = tempfile::tempdir().unwrap();
-    let scene = city_copy(&dir.path().join("city"));
+    let scene = city_copy(dir.path());
     let out = dir.path().join("city.atlastree");
     let opts = deep_opts();
     let count = 4;
@@ -570,15 +558,15 @@ fn merge_refuses_shards_that_decoded_two_versions_of_an_image() {
     assert!(std::fs::read(&out).unwrap() == std::fs::read(&one).unwrap());
 }
 
-/// An image whose file changes while one build runs (decoded again after the cache evicted it) fails the
-/// build, naming it, instead of atlases that mix its two versions.
+/// An image whose file changes while one build runs (decoded again after the cache evicted it): the cache
+/// names it (`pixel_pass` returns that error, so the build fails instead of mixing the two versions).
 #[test]
-fn an_image_changed_during_a_build_is_an_error_naming_it() {
+fn the_image_cache_names_an_image_whose_pixels_changed_between_two_decodes() {
     use atlastree::ids::ImageId;
     use atlastree::preprocess::raster::ImageCache;
     use atlastree::scene::ImageData;
     let dir = tempfile::tempdir().unwrap();
-    let scene = city_copy(&dir.path().join("city"));
+    let scene = city_copy(dir.path());
     let files: Vec<usize> = (0..scene.images.len())
         .filter(|&i| matches!(scene.images[i].data, ImageData::File(_)))
         .collect();

@@ -165,26 +165,10 @@ fn planned_and_self_planning_shards_write_the_same_blocks() {
     }
 }
 
-/// A copy of data/city in a temp dir (scene, buffer and textures), so a test can change its files.
-fn city_copy(dir: &Path) -> PathBuf {
-    let src = city_path().parent().unwrap().to_path_buf();
-    let copy = |from: &Path, to: &Path| {
-        std::fs::create_dir_all(to).unwrap();
-        for e in std::fs::read_dir(from).unwrap().flatten() {
-            if e.path().is_file() {
-                std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-            }
-        }
-    };
-    copy(&src, &dir.join("city"));
-    copy(&src.join("textures"), &dir.join("city/textures"));
-    dir.join("city/scene.gltf")
-}
-
 #[test]
 fn shard_refuses_a_plan_of_other_flags_another_scene_or_changed_images() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = city_copy(dir.path());
+    let scene = crate::built::city_copy(dir.path());
     let out = dir.path().join("city.atlastree");
     let opts = deep_opts();
     plan(&scene, &opts, &out);

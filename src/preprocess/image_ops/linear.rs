@@ -142,29 +142,7 @@ impl LinearImage {
         // Each run also says whether it wrote a transparent texel (no second pass over the bytes).
         let run = |(px, texels): (&mut [u8], &[[f32; 4]])| {
             let mut transparent = false;
-            // Four opaque texels at once (most of an opaque tree): their twelve channel encodes are
-            // independent, so the table lookups overlap instead of waiting on the alpha branch per texel.
-            let mut quads = px.chunks_exact_mut(16).zip(texels.chunks_exact(4));
-            for (p, q) in &mut quads {
-                if q.iter().all(|t| t[3] >= 1.0) {
-                    for (o, t) in p.chunks_exact_mut(4).zip(q) {
-                        o.copy_from_slice(&[
-                            enc.encode(t[0]),
-                            enc.encode(t[1]),
-                            enc.encode(t[2]),
-                            255,
-                        ]);
-                    }
-                } else {
-                    for (o, &t) in p.chunks_exact_mut(4).zip(q) {
-                        let e = encode_texel(enc, t);
-                        transparent |= e[3] == 0;
-                        o.copy_from_slice(&e);
-                    }
-                }
-            }
-            let done = texels.len() / 4 * 4;
-            for (p, &t) in px[done * 4..].chunks_exact_mut(4).zip(&texels[done..]) {
+            for (p, &t) in px.chunks_exact_mut(4).zip(texels) {
                 let e = encode_texel(enc, t);
                 transparent |= e[3] == 0;
                 p.copy_from_slice(&e);
