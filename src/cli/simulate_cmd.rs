@@ -83,6 +83,20 @@ pub(crate) struct SimulateConfig {
     pub json: bool,
 }
 
+/// A list value that is `word` (`None`: no limit) or what `f` parses.
+fn or_word<T>(
+    word: &'static str,
+    f: impl Fn(&str) -> Option<T>,
+) -> impl Fn(&str) -> Option<Option<T>> {
+    move |s| {
+        if s == word {
+            Some(None)
+        } else {
+            f(s).map(Some)
+        }
+    }
+}
+
 impl SimulateArgs {
     /// Checks the flags and derives the grid.
     pub(crate) fn validate(self) -> anyhow::Result<SimulateConfig> {
@@ -99,25 +113,13 @@ impl SimulateArgs {
             "capacity",
             "a block count ≥ 1, or all (every block resident)",
             &self.capacity,
-            |s| {
-                if s == "all" {
-                    Some(None)
-                } else {
-                    s.parse::<u32>().ok().filter(|&k| k > 0).map(Some)
-                }
-            },
+            or_word("all", |s| s.parse::<u32>().ok().filter(|&k| k > 0)),
         )?;
         let bandwidths = parse_list(
             "bandwidth",
             "a rate > 0 such as 40MB/s, or instant",
             &self.bandwidth,
-            |s| {
-                if s == "instant" {
-                    Some(None)
-                } else {
-                    atlastree::util::parse_rate(s).map(Some)
-                }
-            },
+            or_word("instant", atlastree::util::parse_rate),
         )?;
         let latencies = parse_list(
             "latency",

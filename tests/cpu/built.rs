@@ -254,3 +254,12 @@ pub fn city_copy(dir: &std::path::Path) -> std::path::PathBuf {
     copy(&src.join("textures"), &dir.join("city/textures"));
     dir.join("city/scene.gltf")
 }
+
+/// data/city imported once per test binary (read-only: tests that change its files take [`city_copy`]).
+pub fn city_scene() -> &'static atlastree::scene::Scene {
+    static SCENE: std::sync::OnceLock<atlastree::scene::Scene> = std::sync::OnceLock::new();
+    SCENE.get_or_init(|| {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+        atlastree::scene::import(&path, &Default::default()).unwrap()
+    })
+}

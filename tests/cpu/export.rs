@@ -679,17 +679,13 @@ fn utm_coordinates_keep_full_precision() {
 #[test]
 fn a_root_refined_from_beyond_ten_thousand_km_keeps_errors_monotone() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = atlastree::scene::import(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf"),
-        &Default::default(),
-    )
-    .unwrap();
+    let scene = crate::built::city_scene();
     let opts = atlastree::preprocess::BuildOptions {
         d_min: atlastree::preprocess::DMin::Metres(2e7),
         ..Default::default()
     };
     let path = dir.path().join("far.atlastree");
-    build(&scene, &opts, &path, &NoProgress).unwrap();
+    build(scene, &opts, &path, &NoProgress).unwrap();
     let file = TreeFile::open(&path).unwrap();
     let out = dir.path().join("tiles");
     export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap();

@@ -9,14 +9,9 @@ use atlastree::preprocess::{
 use atlastree::scene::{ImportOptions, Scene, import};
 use atlastree::store::TreeFile;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 fn city() -> &'static Scene {
-    static SCENE: OnceLock<Scene> = OnceLock::new();
-    SCENE.get_or_init(|| {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
-        import(&path, &ImportOptions::default()).unwrap()
-    })
+    crate::built::city_scene()
 }
 
 /// The deeper fixture: data/city at 256² atlases, every node that does not fit split (depth 6, 330 + 24

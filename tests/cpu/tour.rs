@@ -6,19 +6,14 @@
 use atlastree::preprocess::{NoProgress, build};
 use atlastree::sim::tour::{DemoTour, levels_along};
 use atlastree::store::TreeFile;
-use std::path::Path;
 
 #[test]
 fn the_demo_tour_draws_every_level_of_a_deep_tree() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = atlastree::scene::import(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf"),
-        &Default::default(),
-    )
-    .unwrap();
+    let scene = crate::built::city_scene();
     let tour = DemoTour::DEFAULT;
     let out = dir.path().join("city.atlastree");
-    build(&scene, &tour.build_options(), &out, &NoProgress).unwrap();
+    build(scene, &tour.build_options(), &out, &NoProgress).unwrap();
     let file = TreeFile::open(&out).unwrap();
     let path = DemoTour::path(&file).unwrap();
     let cameras = tour.cameras(&path);
