@@ -232,7 +232,7 @@ impl<'a> Materials<'a> {
             let uv = self.uv.get(id.idx()).copied().unwrap_or(UvSource::Solid);
             return (id, uv);
         }
-        let factor = diffuse.map_or(pbr.base_color_factor(), |sg| sg.diffuse_factor());
+        let mut factor = diffuse.map_or(pbr.base_color_factor(), |sg| sg.diffuse_factor());
         let alpha = match gm.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             gltf::material::AlphaMode::Mask => AlphaMode::Mask {
@@ -240,6 +240,11 @@ impl<'a> Materials<'a> {
             },
             gltf::material::AlphaMode::Blend => AlphaMode::Blend,
         };
+        // glTF 2.0 §3.9.4: an OPAQUE material's alpha is ignored, its factor's included. Kept, a factor
+        // alpha of 0 would premultiply the atlas texels (and a solid colour) to black.
+        if alpha == AlphaMode::Opaque {
+            factor[3] = 1.0;
+        }
         let name = match (gm.name(), index) {
             (Some(n), _) => n.to_string(),
             (None, Some(i)) => format!("material {i}"),
@@ -251,7 +256,7 @@ impl<'a> Materials<'a> {
                 let sampler = texture.sampler();
                 let image = match self.texture_image(&texture) {
                     Some(img) => self.image_for(img, buffers, report),
-                    None => self.sourceless_texture_image(texture.index(), report),
+                    None => self.sourceless_texture_image(&texture, report),
                 };
                 let xf = raw_tt.map(UvTransform::from);
                 let m = Material {
@@ -288,18 +293,39 @@ impl<'a> Materials<'a> {
 
     /// The fallback checker of glTF texture `texture`, which names no image: made, counted and warned
     /// about once per texture, however many materials use it.
-    fn sourceless_texture_image(&mut self, texture: usize, report: &mut ImportReport) -> ImageId {
-        if let Some(&id) = self.sourceless_ids.get(&texture) {
+    /// Its other extensions (`KHR_texture_basisu`, `MSFT_texture_dds`, …) name image kinds atlastree
+    /// does not decode: the warning names them.
+    fn sourceless_texture_image(
+        &mut self,
+        texture: &gltf::Texture<'_>,
+        report: &mut ImportReport,
+    ) -> ImageId {
+        let index = texture.index();
+        if let Some(&id) = self.sourceless_ids.get(&index) {
             return id;
         }
+        let unread: Vec<&str> = texture
+            .extensions()
+            .into_iter()
+            .flat_map(|e| e.keys())
+            .map(String::as_str)
+            .filter(|&name| name != "EXT_texture_webp")
+            .collect();
+        let unread = match unread.as_slice() {
+            [] => String::new(),
+            names => format!(
+                "; its {} source is not read (images: PNG, JPEG, WebP)",
+                names.join(", ")
+            ),
+        };
         report.missing_images += 1;
         report.warn(format!(
-            "{}: texture {texture} names no image (no source, no EXT_texture_webp source); using the \
-             magenta/black fallback checker",
+            "{}: texture {index} names no image (no source, no EXT_texture_webp source{unread}); using \
+             the magenta/black fallback checker",
             self.file
         ));
-        let id = self.push_image(ImageSource::fallback(&format!("texture {texture}")));
-        self.sourceless_ids.insert(texture, id);
+        let id = self.push_image(ImageSource::fallback(&format!("texture {index}")));
+        self.sourceless_ids.insert(index, id);
         id
     }
 

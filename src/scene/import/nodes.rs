@@ -52,11 +52,21 @@ pub(super) struct Walk<'a, 'b> {
 }
 
 impl<'a> Walk<'a, '_> {
-    /// Walks the default scene (or all root nodes) iteratively and returns every mesh instance with its
+    /// Walks the default scene (`scenes[0]` without one; all root nodes without scenes) iteratively and returns every mesh instance with its
     /// world matrix. A node met again while it is on the current path is a cycle: error.
     pub(super) fn instances(&mut self) -> Result<Vec<Instance>, SceneError> {
         let n = self.doc.nodes().len();
-        let roots: Vec<usize> = match self.doc.default_scene() {
+        // No `scene` index: `scenes[0]`, as three.js and Blender draw (glTF leaves it to the viewer);
+        // warned when there are others, which are not drawn. No scene at all: every root node.
+        let first = self.doc.scenes().next();
+        let scenes = self.doc.scenes().len();
+        if self.doc.default_scene().is_none() && scenes > 1 {
+            self.report.warn(format!(
+                "{}: no `scene` index among {scenes} scenes: drawing scenes[0] only",
+                self.file
+            ));
+        }
+        let roots: Vec<usize> = match self.doc.default_scene().or(first) {
             Some(s) => s.nodes().map(|nd| nd.index()).collect(),
             None => {
                 let mut is_child = vec![false; n];

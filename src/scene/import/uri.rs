@@ -122,19 +122,25 @@ impl<'a> Buffers<'a> {
                 self.read_uri(uri, buffer.length() as u64),
             ),
         };
-        let err = |reason: String| SceneError::Buffer {
-            file: self.file.to_string(),
+        let err = |file: &str, reason: String| SceneError::Buffer {
+            file: file.to_string(),
             buffer: index,
             uri: uri.clone(),
             reason,
         };
-        let data = data.map_err(err)?;
+        let data = data.map_err(|reason| err(self.file, reason))?;
         if data.len() < buffer.length() {
-            return Err(err(format!(
+            let reason = format!(
                 "has {} bytes, byteLength says {}",
                 data.len(),
                 buffer.length()
-            )));
+            );
+            // The BIN chunk goes back: a later reader of buffer 0 (an image's view failed first, and
+            // fell back) gets this error again, not "no BIN chunk".
+            if index == 0 && matches!(buffer.source(), gltf::buffer::Source::Bin) {
+                self.blob = Some(data);
+            }
+            return Err(err(self.file, reason));
         }
         if let Some(slot) = self.data.get_mut(index) {
             *slot = Some(data);

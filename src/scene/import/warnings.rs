@@ -30,7 +30,9 @@ impl ImportReport {
 
 /// What the glTF asks for that atlastree does not draw, one counted warning per feature (not per
 /// instance): vertex colours (`COLOR_0`), NEAREST magnification filters (atlases and originals are
-/// sampled linearly, in linear light), and MASK cutoffs below glTF's minimum of 0.
+/// sampled linearly, in linear light), emission (atlases hold the base colour only), and MASK cutoffs
+/// below glTF's minimum of 0. Not warned: `doubleSided: false`, the default of most files — every
+/// triangle is drawn from both sides (README, "Bad input and faults").
 pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &mut ImportReport) {
     use gltf::texture::MagFilter;
     let coloured: Vec<(usize, usize)> = doc
@@ -60,6 +62,18 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
             "{file}: {} samplers ask for NEAREST magnification, drawn with linear filtering (texels blur when \
              magnified; first: sampler {first})",
             nearest.len()
+        ));
+    }
+    let emissive: Vec<usize> = doc
+        .materials()
+        .filter(|m| m.emissive_texture().is_some() || m.emissive_factor().iter().any(|&c| c > 0.0))
+        .filter_map(|m| m.index())
+        .collect();
+    if let Some(&first) = emissive.first() {
+        report.warn(format!(
+            "{file}: {} materials are emissive (emissiveTexture or emissiveFactor), drawn without their \
+             emission: only the base colour shows (first: material {first})",
+            emissive.len()
         ));
     }
     warn_undeclared_quantization(file, doc, report);

@@ -574,3 +574,139 @@ fn integer_uvs_without_the_quantization_extension_are_a_counted_warning() {
     let s = import_city(dir.path(), &doc).1.unwrap();
     assert_eq!(s.report.warnings_total, 0, "{:?}", s.report.warnings);
 }
+
+/// glTF 2.0 §3.9.4: an OPAQUE material's alpha is ignored, its factor's too. A factor alpha of 0 kept
+/// premultiplied the atlas texels (and an untextured material's solid colour) to black: the tree drew a
+/// textured quad flat grey. MASK keeps its factor's alpha.
+#[test]
+fn an_opaque_materials_factor_alpha_is_ignored() {
+    use atlastree::scene::ImageData;
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    let pbr = "pbrMetallicRoughness";
+    doc["materials"][0][pbr]["baseColorFactor"] = json!([1.0, 0.5, 1.0, 0.0]);
+    doc["materials"][1][pbr]["baseColorFactor"] = json!([1.0, 0.0, 0.0, 0.0]);
+    let roof_1 = doc["materials"][1][pbr].as_object_mut().unwrap();
+    roof_1.remove("baseColorTexture");
+    doc["materials"][2][pbr]["baseColorFactor"] = json!([1.0, 1.0, 1.0, 0.25]);
+    doc["materials"][2]["alphaMode"] = json!("MASK");
+    let s = import_city(dir.path(), &doc).1.unwrap();
+    let by_name = |name: &str| s.materials.iter().find(|m| m.name == name).unwrap();
+    assert_eq!(by_name("roof_0").base_color_factor, [1.0, 0.5, 1.0, 1.0]);
+    let solid = &s.images[by_name("roof_1").image.idx()];
+    assert!(
+        matches!(solid.data, ImageData::Solid([255, 0, 0, 255])),
+        "{solid:?}"
+    );
+    assert_eq!(by_name("roof_2").base_color_factor[3], 0.25);
+}
+
+/// Emission is not drawn: one counted warning naming the first emissive material.
+#[test]
+fn emissive_materials_are_one_counted_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["materials"][3]["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+    doc["materials"][5]["emissiveTexture"] = json!({"index": 0});
+    let s = import_city(dir.path(), &doc).1.unwrap();
+    let w = &s.report.warnings;
+    assert_eq!(s.report.warnings_total, 1, "{w:?}");
+    assert!(
+        w[0].contains("2 materials are emissive") && w[0].contains("first: material 3"),
+        "{w:?}"
+    );
+}
+
+/// Without a `scene` index the import draws `scenes[0]` (as three.js and Blender), warning when there
+/// are others; it drew every parentless node, so a second scene's nodes were drawn over the first's.
+#[test]
+fn without_a_scene_index_scenes_0_is_drawn() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = import_city(dir.path(), &city_json()).1.unwrap();
+    let mut doc = city_json();
+    let nodes = doc["nodes"].as_array().unwrap().len();
+    let mesh = (doc["nodes"].as_array().unwrap().iter())
+        .find_map(|n| n.get("mesh").cloned())
+        .unwrap();
+    doc["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"mesh": mesh, "translation": [500.0, 0.0, 0.0]}));
+    doc["scenes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"nodes": [nodes]}));
+    doc.as_object_mut().unwrap().remove("scene");
+    let (path, r) = import_city(dir.path(), &doc);
+    let s = r.unwrap();
+    assert_eq!(s.triangles.len(), plain.triangles.len());
+    assert_eq!(
+        s.report.warnings,
+        [format!(
+            "{}: no `scene` index among 2 scenes: drawing scenes[0] only",
+            path.display()
+        )]
+    );
+    doc["scene"] = json!(1);
+    let one = import_city(dir.path(), &doc).1.unwrap();
+    assert!(one.triangles.len() < plain.triangles.len());
+    assert_eq!(one.report.warnings_total, 0);
+}
+
+/// A GLB whose BIN chunk is shorter than buffer 0's byteLength, with an image in a bufferView: the
+/// image falls back first, and the geometry's error names the short chunk (it said "no GLB BIN chunk",
+/// the chunk having been taken by the image's failed load).
+#[test]
+fn a_short_glb_bin_chunk_is_named_after_an_image_read_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut bin = std::fs::read(city_dir().join("scene.bin")).unwrap();
+    let png = std::fs::read(city_dir().join("textures/roof_0.png")).unwrap();
+    let mut doc = city_json();
+    let offset = bin.len();
+    bin.extend_from_slice(&png);
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    doc["buffers"][0] = json!({"byteLength": bin.len()});
+    let view = doc["bufferViews"].as_array().unwrap().len();
+    doc["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": png.len()}));
+    doc["images"][0] = json!({"bufferView": view, "mimeType": "image/png"});
+    let full = bin.len();
+    bin.truncate(full - 8);
+    let path = dir.path().join("short.glb");
+    std::fs::write(&path, glb_bytes(&doc, &bin)).unwrap();
+    let e = import(&path, &ImportOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: buffer 0 (<GLB BIN chunk>): has {} bytes, byteLength says {full}",
+            path.display(),
+            full - 8
+        )
+    );
+}
+
+/// A texture whose only source is an extension atlastree does not decode (`KHR_texture_basisu`) is
+/// the counted fallback checker, and the warning names the extension.
+#[test]
+fn a_texture_with_only_a_basisu_source_names_the_extension() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["textures"][0] = json!({"sampler": 0, "extensions": {"KHR_texture_basisu": {"source": 0}}});
+    doc["extensionsUsed"] = json!(["KHR_texture_basisu"]);
+    let (path, r) = import_city(dir.path(), &doc);
+    let s = r.unwrap();
+    assert_eq!(s.report.missing_images, 1);
+    assert_eq!(
+        s.report.warnings,
+        [format!(
+            "{}: texture 0 names no image (no source, no EXT_texture_webp source; its \
+             KHR_texture_basisu source is not read (images: PNG, JPEG, WebP)); using the \
+             magenta/black fallback checker",
+            path.display()
+        )]
+    );
+}

@@ -331,9 +331,10 @@ fn solid_colours_default_material_and_missing_texcoord() {
         img(3),
         "default material = white, same as the explicit white one"
     );
+    // OPAQUE: the factor's alpha 0.5 is ignored (glTF §3.9.4), so the solid colour is opaque.
     let grey = &s.images[img(0).idx()];
-    assert!(matches!(grey.data, ImageData::Solid([188, 188, 188, 128])));
-    assert!(grey.has_alpha);
+    assert!(matches!(grey.data, ImageData::Solid([188, 188, 188, 255])));
+    assert!(!grey.has_alpha);
     assert_eq!(s.materials[0].base_color_factor, [1.0; 4]);
     assert!(matches!(
         s.images[img(2).idx()].data,
