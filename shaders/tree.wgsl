@@ -277,8 +277,9 @@ const SHARPEN_MIN: f32 = 0.25;
 
 // RectMap::texel_f32: the fragment's texel in its leaf's atlas. Where the filter would reach past the
 // rect's border the gradients are sharpened by k <= 1 to what the border protects. A footprint of more than
-// FLAT_SHARE of the inner rectangle, or k < SHARPEN_MIN, covers (about) a period: it gets the period's
-// average, at the rect's centre on the mip where the inner rectangle is CELLS texels wide. Otherwise the
+// FLAT_SHARE of the inner rectangle along both axes, or k < SHARPEN_MIN, covers (about) a period: it gets the
+// period's average, at the rect's centre on the mip where the inner rectangle is CELLS texels wide; one
+// covered axis alone is sampled at its centre, the other keeps its detail. Otherwise the
 // sample is kept half the footprint plus half a drawn texel (`level_texels` leaf texels) inside the outer
 // rectangle.
 fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32) -> RectSample {
@@ -298,8 +299,13 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     // An axis the footprint does not extend along reaches past nothing (fit 1): a constant UV would
     // otherwise take the period branch with a zero footprint and NaN gradients.
     let fit = select(room / max(half_box, vec2<f32>(1e-30)), vec2<f32>(1.0), half_box == vec2<f32>(0.0));
-    let k = min(1.0, min(fit.x, fit.y));
-    if footprint > period * FLAT_SHARE || k < SHARPEN_MIN {
+    // An axis the footprint covers (an elongated rect's short one) is averaged: sampled at its centre,
+    // the footprint kept inside the outer rectangle there (the sampler's box is footprint wide both ways).
+    let covered = vec2<f32>(footprint) > r.inner_size * FLAT_SHARE;
+    let centred_room = 0.5 * (r.outer_hi - r.outer_lo) - vec2<f32>(0.5 * level_texels);
+    let fit_all = select(fit, centred_room / (0.5 * footprint), covered);
+    let k = min(1.0, min(fit_all.x, fit_all.y));
+    if all(covered) || k < SHARPEN_MIN {
         let kk = period / CELLS / footprint;
         out.gx = out.gx * kk;
         out.gy = out.gy * kk;
@@ -312,7 +318,7 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     let lo = r.outer_lo + margin;
     let hi = r.outer_hi - margin;
     let p = r.inner_lo + vec2<f32>(s.x, t.x) * r.texels_per_uv;
-    out.texel = select(clamp(p, lo, hi), r.inner_lo + 0.5 * r.inner_size, lo > hi);
+    out.texel = select(clamp(p, min(lo, hi), hi), r.inner_lo + 0.5 * r.inner_size, covered | (lo > hi));
     return out;
 }
 

@@ -591,6 +591,38 @@ fn texel_f32_agrees_with_f64_reference() {
     );
 }
 
+/// A footprint that covers an elongated rect's short side alone (992 × 16 texels, ~20 texels a pixel
+/// along the strip) averages that side only: the strip keeps its detail along its length. (It was
+/// flattened whole, so a 1024 × 16 gradient texture seen from a few metres drew as one colour.) A
+/// footprint over both sides still gives the period's average at the centre.
+#[test]
+fn a_footprint_over_a_strips_short_side_keeps_its_length() {
+    use crate::fixtures::shader_math::rects;
+    use atlastree::render::wgsl::tree::RectMap;
+    use atlastree::scene::AlphaMode;
+    use glam::Vec2;
+    let rects = rects();
+    let strip = rects
+        .iter()
+        .find(|r| r.inner[2] == 992 && r.inner[3] == 16)
+        .unwrap();
+    let map = RectMap::new(strip, AlphaMode::Opaque);
+    let centre = Vec2::new(16.0 + 496.0, 596.0 + 8.0);
+    let (ddx, ddy) = (Vec2::new(0.02, 0.0), Vec2::new(0.0, 0.005));
+    for u in [0.25f32, 0.75] {
+        let (texel, gx, gy) = map.texel_f32(Vec2::new(u, 0.3), ddx, ddy, 1.0);
+        assert!(
+            (texel.x - (16.0 + u * 992.0)).abs() < 1e-3,
+            "u {u}: {texel}"
+        );
+        assert_eq!(texel.y, centre.y, "u {u}: {texel}");
+        // Not sharpened: the centred footprint fits the strip's border.
+        assert_eq!((gx, gy), (ddx * 992.0, ddy * 16.0), "u {u}");
+    }
+    let (texel, ..) = map.texel_f32(Vec2::new(0.25, 0.3), ddx * 100.0, ddy * 100.0, 1.0);
+    assert_eq!(texel, centre);
+}
+
 /// A field of MASK plants with a BLEND pane in every fourth cell, over an opaque ground: an alpha tree of
 /// several levels whose nodes are blend nodes with mostly MASK triangles.
 fn plants_and_panes(dir: &std::path::Path) -> TreeFile {

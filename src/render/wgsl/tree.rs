@@ -316,11 +316,14 @@ impl RectMap {
     /// - Where the filter footprint (half the gradient box plus half a drawn texel) would reach past the
     ///   rect's border, the gradients are scaled by `k = room / half box ≤ 1`, so the filter reads the
     ///   rect's border (the sampler's rule) and never a neighbouring rect.
-    /// - A pixel whose footprint exceeds [`FLAT_SHARE`] of the inner rectangle's smaller side, or whose
+    /// - A pixel whose footprint exceeds [`FLAT_SHARE`] of the inner rectangle along both axes, or whose
     ///   `k` is below [`SHARPEN_MIN`], covers (about) a period: it gets the period's average, which the
-    ///   mip level where the inner rectangle is [`CELLS`] texels wide holds at its centre (the gradients
-    ///   are scaled to that level, the sample moved to the centre) — no neighbour bleeds in, no aliasing,
-    ///   and every such pixel of the rect reads the same texels.
+    ///   mip level where the inner rectangle's smaller side is [`CELLS`] texels wide holds at its centre
+    ///   (the gradients are scaled to that level, the sample moved to the centre) — no neighbour bleeds
+    ///   in, no aliasing, and every such pixel of the rect reads the same texels.
+    /// - A footprint that covers one axis only (the short side of an elongated rect, say 992 × 16 texels
+    ///   seen from afar) averages that axis alone: the sample sits at the inner centre there and `k` also
+    ///   keeps the footprint, centred, inside the outer rectangle; the other axis keeps its detail.
     /// - Otherwise the sample is kept half the (sharpened) footprint plus half a drawn texel inside the
     ///   outer rectangle; at the inner centre where the rectangle is narrower than that.
     pub fn texel_f32(
@@ -352,8 +355,14 @@ impl RectMap {
             Vec2::ONE,
             room / half_box.max(Vec2::splat(1e-30)),
         );
+        // An axis the footprint covers (an elongated rect's short one) is averaged: sampled at its
+        // centre, with the footprint kept inside the outer rectangle there (the sampler's box is the
+        // footprint wide along both axes).
+        let covered = Vec2::splat(footprint).cmpgt(inner * FLAT_SHARE);
+        let centred_room = 0.5 * (outer_hi - outer_lo) - Vec2::splat(0.5 * level_texels);
+        let fit = Vec2::select(covered, centred_room / (0.5 * footprint), fit);
         let k = fit.min_element().min(1.0);
-        if footprint > period * FLAT_SHARE || k < SHARPEN_MIN {
+        if covered.all() || k < SHARPEN_MIN {
             let kk = period / CELLS / footprint;
             return (centre, gx * kk, gy * kk);
         }
@@ -362,18 +371,8 @@ impl RectMap {
         let lo = outer_lo + margin;
         let hi = outer_hi - margin;
         let t = inner_lo + Vec2::new(ts, tt) * Vec2::from(self.texels_per_uv);
-        let texel = Vec2::new(
-            if lo.x > hi.x {
-                centre.x
-            } else {
-                t.x.clamp(lo.x, hi.x)
-            },
-            if lo.y > hi.y {
-                centre.y
-            } else {
-                t.y.clamp(lo.y, hi.y)
-            },
-        );
+        let centred = covered | lo.cmpgt(hi);
+        let texel = Vec2::select(centred, centre, t.clamp(lo.min(hi), hi));
         (texel, gx, gy)
     }
 }
