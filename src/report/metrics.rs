@@ -49,6 +49,23 @@ pub fn psnr(a: &[u8], b: &[u8], width: u32, height: u32) -> Result<f64, ReportEr
     Ok(crate::texfmt::psnr(sse, 3 * width as u64 * height as u64))
 }
 
+/// The PSNR of several equal-sized frames together (dB): their mean squared errors averaged, then
+/// `10 · log10(255² / MSE)` — not the mean of the per-frame dB, in which one identical frame (capped at
+/// [`PSNR_CAP_DB`]) among 30–45 dB ones lifted an overview's "mean" to 62 dB. Non-finite values (frames
+/// not measured) are skipped; none left gives NaN. The result is at most the cap.
+pub fn psnr_over_frames(frames_db: impl IntoIterator<Item = f64>) -> f64 {
+    let (mut n, mut mse) = (0usize, 0.0f64);
+    for db in frames_db.into_iter().filter(|d| d.is_finite()) {
+        n += 1;
+        // The frame's MSE / 255².
+        mse += 10f64.powf(-db / 10.0);
+    }
+    if n == 0 {
+        return f64::NAN;
+    }
+    (-10.0 * (mse / n as f64).log10()).min(PSNR_CAP_DB)
+}
+
 /// [`psnr`] over the pixels where `mask` is true (row-major, one entry per pixel); also returns how many
 /// pixels that was. No masked pixel gives the cap and 0.
 pub fn psnr_masked(
@@ -358,6 +375,27 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Frames together: their MSEs averaged, so an identical frame (99 dB) among 30 dB ones adds
+    /// 10·log10(2) dB, not 34.5; the same as the PSNR of the frames stacked into one image.
+    #[test]
+    fn psnr_over_frames_averages_the_squared_errors() {
+        assert!((psnr_over_frames([30.0, 30.0]) - 30.0).abs() < 1e-9);
+        let with_identical = psnr_over_frames([30.0, PSNR_CAP_DB]);
+        assert!(
+            (with_identical - (30.0 + 10.0 * 2f64.log10())).abs() < 1e-6,
+            "{with_identical}"
+        );
+        assert_eq!(psnr_over_frames([PSNR_CAP_DB; 3]), PSNR_CAP_DB);
+        assert_eq!(psnr_over_frames([f64::NAN, 40.0]), 40.0);
+        assert!(psnr_over_frames([]).is_nan());
+        let frame = |v: u8| [v, v, v, 255].repeat(16);
+        let (a, b, c) = (frame(10), frame(13), frame(90));
+        let one = psnr(&a, &b, 4, 4).unwrap();
+        let two = psnr(&a, &c, 4, 4).unwrap();
+        let stacked = psnr(&[a.clone(), a].concat(), &[b, c].concat(), 4, 8).unwrap();
+        assert!((psnr_over_frames([one, two]) - stacked).abs() < 1e-9);
+    }
 
     #[test]
     fn superscripts() {

@@ -179,14 +179,24 @@ fn summary_means_front_and_recommendation() {
     assert_eq!(rows.len(), 3);
     assert_eq!(rows[0].id, "r10_a512_b8_box_t0.5_all");
     assert_eq!(rows[0].frames, 3);
-    assert_eq!(rows[0].psnr_db, 32.0);
+    // PSNR over frames: their squared errors averaged (30, 32 and 34 dB → 31.70 dB), not their dB.
+    let over = |dbs: &[f64]| {
+        let mse = dbs.iter().map(|d| 10f64.powf(-d / 10.0)).sum::<f64>() / dbs.len() as f64;
+        -10.0 * mse.log10()
+    };
+    assert!((rows[0].psnr_db - over(&[30.0, 32.0, 34.0])).abs() < 1e-9);
+    assert!(
+        (rows[0].psnr_db - 31.698).abs() < 1e-3,
+        "{}",
+        rows[0].psnr_db
+    );
     assert_eq!(rows[0].frame_ms, 20.0);
     assert_eq!(rows[0].frame_ms_median, 20.0);
     assert!(rows[0].gpu_ms.is_nan(), "all-NaN column stays NaN");
-    assert!((rows[1].psnr_covered_db - 40.2).abs() < 1e-12);
+    assert!((rows[1].psnr_covered_db - over(&[40.0, 40.4])).abs() < 1e-9);
     assert_eq!(rows[1].frame_ms_median, 60.0);
     assert_eq!((rows[2].file_bytes, rows[2].build_s), (100, 5.0));
-    // Front over (median ms, PSNR): a/0.5 is 20 ms at 32 dB, b/1 20 ms at 40.0 dB (dominates a/0.5),
+    // Front over (median ms, PSNR): a/0.5 is 20 ms at 31.7 dB, b/1 20 ms at 40.0 dB (dominates a/0.5),
     // a/1 60 ms at 40.2 dB (slower but more accurate): the front is b/1 then a/1.
     assert_eq!(frame_time_front(&rows), vec![2, 1]);
     let rec = recommend(&rows, 0.5).expect("some rows");
