@@ -268,12 +268,29 @@ struct RectSample {
     // Their screen derivatives.
     gx: vec2<f32>,
     gy: vec2<f32>,
+    // A flat sample's taps: `texel ± tap` averaged (leaf texels; zero: one tap at `texel`).
+    tap: vec2<f32>,
 }
 
-// See render::wgsl::tree::CELLS, FLAT_SHARE and SHARPEN_MIN.
+// See render::wgsl::tree::CELLS, FLAT_SHARE, SHARPEN_MIN and FLAT_TAPS_ASPECT.
 const CELLS: f32 = 2.0;
 const FLAT_SHARE: f32 = 1.0;
 const SHARPEN_MIN: f32 = 0.25;
+const FLAT_TAPS_ASPECT: f32 = 1.5;
+
+// RectMap::flat_tap: on the mip a flat sample reads, an inner rectangle of aspect a is CELLS × CELLS·a
+// texels; one tap at its centre reads the middle CELLS × CELLS (the middle half of a 1:2 sprite, which
+// alpha-tested turned sparse firs into solid sheets). From FLAT_TAPS_ASPECT on, two taps a quarter of
+// the length either side of the centre read it all (1:2) or evenly (longer).
+fn flat_tap(inner: vec2<f32>) -> vec2<f32> {
+    if inner.x >= FLAT_TAPS_ASPECT * inner.y {
+        return vec2<f32>(0.25 * inner.x, 0.0);
+    }
+    if inner.y >= FLAT_TAPS_ASPECT * inner.x {
+        return vec2<f32>(0.0, 0.25 * inner.y);
+    }
+    return vec2<f32>(0.0);
+}
 
 // RectMap::texel_f32: the fragment's texel in its leaf's atlas. Where the filter would reach past the
 // rect's border the gradients are sharpened by k <= 1 to what the border protects. A footprint of more than
@@ -310,6 +327,7 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
         out.gx = out.gx * kk;
         out.gy = out.gy * kk;
         out.texel = r.inner_lo + 0.5 * r.inner_size;
+        out.tap = flat_tap(r.inner_size);
         return out;
     }
     out.gx = out.gx * k;
@@ -450,6 +468,8 @@ struct AtlasSample {
     uv: vec2<f32>,
     ddx: vec2<f32>,
     ddy: vec2<f32>,
+    // RectSample::tap in UV units of that atlas.
+    tap: vec2<f32>,
 }
 
 // `rm`: the draw's rect map, `rects[in.draw.y]`, read once per fragment by the caller (lavapipe does not
@@ -462,6 +482,7 @@ fn atlas_sample(in: VertexOut, rm: RectMap, ddx: vec2<f32>, ddy: vec2<f32>) -> A
     out.uv = (r.texel / size) * x.x + x.yz;
     out.ddx = r.gx * (x.x / size);
     out.ddy = r.gy * (x.x / size);
+    out.tap = r.tap * (x.x / size);
     return out;
 }
 
@@ -484,7 +505,14 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             let sv = singular_values(ddx * tpu, ddy * tpu, globals.atlas_texels);
             return vec4<f32>(sv.x, sv.y, f32(SOURCE_ATLAS), f32(draw_level(in)));
         }
-        let c = sample_atlas(a.uv, draw_layer(in), a.ddx, a.ddy);
+        let layer = draw_layer(in);
+        var c: vec4<f32>;
+        if all(a.tap == vec2<f32>(0.0)) {
+            c = sample_atlas(a.uv, layer, a.ddx, a.ddy);
+        } else {
+            c = 0.5 * (sample_atlas(a.uv - a.tap, layer, a.ddx, a.ddy)
+                + sample_atlas(a.uv + a.tap, layer, a.ddx, a.ddy));
+        }
         // Per material, as original draws: MASK tested against its cutoff, BLEND blended (or, in a blend
         // node's depth pre-pass, written where opaque).
         return finish(c, rm.cutoff, (rm.wrap >> ALPHA_SHIFT) & CODE_MASK);

@@ -114,6 +114,9 @@ wgsl_consts! {
     /// the gradients are sharpened by `k ≤ 1` to what the border protects; below this `k` the sharpened
     /// sample would alias, and the pixel gets the period's average instead.
     SHARPEN_MIN: f32 = 0.25;
+    /// An inner rectangle at least this elongated takes two taps where it is flat
+    /// ([`RectMap::flat_tap`]).
+    FLAT_TAPS_ASPECT: f32 = 1.5;
 }
 
 wgsl_overrides! {
@@ -307,6 +310,23 @@ impl RectMap {
             return (u.clamp(0.0, 1.0) - lo, 1.0);
         }
         (u - lo, 1.0)
+    }
+
+    /// The shader's `flat_tap`: where [`Self::texel_f32`] gives the period's average (the inner centre
+    /// on the mip where the inner rectangle's smaller side is [`CELLS`] texels), the shader averages two
+    /// taps at `centre ± flat_tap()` (leaf texels), a quarter of the rect's length either side, when the
+    /// rect is at least [`FLAT_TAPS_ASPECT`] times as long as wide; zero (one tap) otherwise. On that mip
+    /// a 1:2 rect is CELLS × 2·CELLS texels: one centre tap reads its middle half only (sparse
+    /// alpha-tested sprites became solid sheets), two read all of it.
+    pub fn flat_tap(&self) -> Vec2 {
+        let inner = Vec2::from(self.inner_size);
+        if inner.x >= FLAT_TAPS_ASPECT * inner.y {
+            Vec2::new(0.25 * inner.x, 0.0)
+        } else if inner.y >= FLAT_TAPS_ASPECT * inner.x {
+            Vec2::new(0.0, 0.25 * inner.y)
+        } else {
+            Vec2::ZERO
+        }
     }
 
     /// The shader's `rect_texel`: leaf-atlas texel coordinates of UV `uv` with screen derivatives `ddx`,

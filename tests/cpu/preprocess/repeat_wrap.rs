@@ -215,6 +215,64 @@ fn rect_sampling_matches_the_original_per_mode_level_and_edge() {
 /// texture each. Equal world areas put almost everything east of the cut into one half; equal demand cuts
 /// among the plates. The first split (x) of the demand tree keeps the shared-texture tiles and part of
 /// the plates together, the area tree separates the tiles from every plate.
+/// A 1:2 sprite far away (the footprint covers its rect: the period's average). Its alpha is 1 in the
+/// middle half of each axis, a quarter of its area; on the mip where its rect is 2 × 4 texels a tap at
+/// the centre reads the middle 2 × 2 (alpha 0.5, above a 0.5 cutoff: black_forest's firs drew as solid
+/// sheets), the shader's two taps at `centre ± flat_tap` read all 8 (the sprite's mean, 0.25).
+#[test]
+fn a_flat_sprite_is_averaged_over_its_whole_rect() {
+    let (w, h) = (64u32, 128u32);
+    let pixels = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let inside = (16..48).contains(&x) && (32..96).contains(&y);
+            [90, 140, 60, if inside { 255 } else { 0 }]
+        })
+        .collect();
+    let sprite = DecodedImage {
+        width: w,
+        height: h,
+        pixels,
+    };
+    let chain = MipChain::build(LinearImage::from_decoded(&sprite).unwrap());
+    let rect = AtlasRect {
+        material: MaterialId(0),
+        outer: [16, 16, w + 32, h + 32],
+        inner: [32, 32, w, h],
+        uv_min: [0.0; 2],
+        uv_max: [1.0; 2],
+        wrap: [RectWrap::Clamp; 2],
+        capped: [false; 2],
+    };
+    let mut atlas = LinearImage::new_filled(256, 256, neutral_fill());
+    let job = RectJob::from_atlas_rect(&rect, [Wrap::ClampToEdge; 2], [1.0; 4]);
+    draw_rect(&mut atlas, &job, &chain).unwrap();
+    let atlas = MipChain::build(atlas);
+    let map = RectMap::new(&rect, AlphaMode::Mask { cutoff: 0.5 });
+    let (ddx, ddy) = (Vec2::new(3.0, 0.0), Vec2::new(0.0, 3.0));
+    let (centre, gx, gy) = map.texel_f32(Vec2::new(0.3, 0.6), ddx, ddy, 1.0);
+    assert_eq!(centre, Vec2::new(64.0, 96.0));
+    // The flat branch's gradients pick the mip where the rect's smaller side is 2 texels: mip 5.
+    let lod = (gx.length().max(gy.length())).log2();
+    assert!((lod - 5.0).abs() < 1e-5, "{lod}");
+    let level = &atlas.levels[5];
+    let alpha = |p: Vec2| bilinear(level, p.as_dvec2() / 32.0)[3];
+    assert!((alpha(centre) - 0.5).abs() < 0.02, "{}", alpha(centre));
+    let tap = map.flat_tap();
+    assert_eq!(tap, Vec2::new(0.0, 32.0));
+    let two = 0.5 * (alpha(centre - tap) + alpha(centre + tap));
+    assert!((two - 0.25).abs() < 0.02, "{two}");
+    // Square rects keep one tap.
+    let square = AtlasRect {
+        inner: [32, 32, 64, 64],
+        ..rect
+    };
+    assert_eq!(
+        RectMap::new(&square, AlphaMode::Opaque).flat_tap(),
+        Vec2::ZERO
+    );
+}
+
 #[test]
 fn the_split_balances_texel_demand_not_world_area() {
     let mut b = SceneBuilder::new(UpAxis::Y);
