@@ -21,6 +21,7 @@ pub mod demand;
 pub mod image_ops;
 pub mod layout;
 pub mod memory;
+mod merge;
 pub mod originals;
 pub mod pack;
 mod plan_forest;
@@ -32,10 +33,11 @@ mod shard_run;
 pub mod sizing;
 mod stage_log;
 
+pub use merge::{MergeError, MergeReport, merge};
 pub use shard_plan::{
     ShardPlanError, ShardPlanReport, build_shard_planned, plan_shards, shard_plan_key,
 };
-pub use shard_run::{MergeError, MergeReport, ShardReport, ShardedOptions, build_shard, merge};
+pub use shard_run::{ShardReport, ShardedOptions, build_shard};
 pub use stage_log::StageLog;
 
 use plan_forest::{Planned, empty_scene, plan_build};

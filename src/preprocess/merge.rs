@@ -1,0 +1,657 @@
+//! The merge of a sharded build ([`merge`], docs/DESIGN.md "Sharded builds", step 4): checks every
+//! shard file against the others and the cut, copies their blocks into the paging file, makes the atlases
+//! above the cut from the shards' handoffs and finishes the file atomically.
+
+use super::shard::{
+    self, Cut, ShardSpec, Unit, choose_cut, handoff_side, shard_blocks, shard_path,
+};
+use super::shard_run::ShardReport;
+use super::{BuildError, Progress, raster};
+use crate::ids::BlockId;
+use crate::preprocess::image_ops::LinearImage;
+use crate::store::shard::{ShardFile, ShardFileError};
+use crate::store::{FileWriter, StoreError, TreeFile};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Why a merge failed. Every variant names the shard and, where one can, the command that rebuilds it.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    #[error(
+        "no shard files for {out} (expected {out}.shard-I-of-N beside it, written by `atlastree build … --shard I/N`)"
+    )]
+    NoShards { out: PathBuf },
+    #[error(
+        "shard files of several builds beside {out}: N = {}; remove the stale ones or say which with --shards N",
+        counts.iter().map(u32::to_string).collect::<Vec<_>>().join(" and ")
+    )]
+    AmbiguousCount { out: PathBuf, counts: Vec<u32> },
+    #[error("--shards {count}: expected a shard count from 1 to {max}", max = shard::MAX_SHARDS)]
+    BadCount { count: u32 },
+    #[error("shard {shard} of {count} is missing: {path} does not exist{rebuild}")]
+    Missing {
+        shard: u32,
+        count: u32,
+        path: PathBuf,
+        rebuild: String,
+    },
+    #[error("shard {shard} of {count} ({path}) is unreadable or corrupt: {source}{rebuild}")]
+    Corrupt {
+        shard: u32,
+        count: u32,
+        path: PathBuf,
+        rebuild: String,
+        #[source]
+        source: ShardFileError,
+    },
+    #[error("shard {shard} of {count} ({path}) belongs to another build: {why}{rebuild}")]
+    Foreign {
+        shard: u32,
+        count: u32,
+        path: PathBuf,
+        why: String,
+        rebuild: String,
+    },
+    /// Two shards decoded one image to different pixels: its file changed between their builds, and the
+    /// fingerprint (name, size, byte length) did not show it.
+    #[error(
+        "shards {first} ({p1}) and {second} ({p2}) of {count} decoded {image} to different pixels: the \
+         file changed between their builds (same name, size and byte length), so their atlases would mix \
+         two versions of it; rebuild the shards built before the change (if unsure, all {count}) from the scene as it \
+         is now, then merge again",
+        p1 = .first_path.display(),
+        p2 = .second_path.display()
+    )]
+    ImagesDiffer {
+        image: String,
+        first: u32,
+        first_path: PathBuf,
+        second: u32,
+        second_path: PathBuf,
+        count: u32,
+    },
+    #[error(
+        "shard 0 holds no table prefix (its shards were built from the plan {plan}), and the plan cannot give it: \
+         {why}; plan again with the shards' flags (`atlastree build SCENE -o OUT FLAGS --shard plan`) and rebuild the shards"
+    )]
+    Plan { plan: PathBuf, why: String },
+    #[error("merging into {out}: {source}")]
+    Store {
+        out: PathBuf,
+        #[source]
+        source: StoreError,
+    },
+    #[error("merging into {out}: {source}")]
+    Build {
+        out: PathBuf,
+        #[source]
+        source: BuildError,
+    },
+}
+
+/// One shard's line of the merge report.
+#[derive(Clone, Debug, Serialize)]
+pub struct MergedShard {
+    pub shard: u32,
+    pub path: PathBuf,
+    pub file_bytes: u64,
+    pub blocks: u64,
+    pub units: u64,
+    /// From the shard's JSON report, if present.
+    pub seconds: Option<f64>,
+    pub peak_rss_bytes: Option<u64>,
+    pub work: Option<u64>,
+}
+
+/// What a merge did.
+#[derive(Clone, Debug, Serialize)]
+pub struct MergeReport {
+    pub out: PathBuf,
+    pub count: u32,
+    pub shards: Vec<MergedShard>,
+    /// Atlases made above the cut.
+    pub above_cut: u64,
+    pub file_bytes: u64,
+    pub seconds: f64,
+    pub peak_rss_bytes: Option<u64>,
+    /// The plan step, when the shards read a plan file: its time and peak memory from its report
+    /// (`OUT.plan.json`), if present.
+    pub plan: Option<MergedPlan>,
+}
+
+/// The plan step of a planned build, as the merge reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct MergedPlan {
+    pub path: PathBuf,
+    pub seconds: Option<f64>,
+    pub peak_rss_bytes: Option<u64>,
+}
+
+/// The shard files beside `out`, by their names: `(index, count, path)`.
+fn shard_files(out: &Path) -> Vec<(u32, u32, PathBuf)> {
+    let dir = crate::util::parent_dir(out);
+    let Some(base) = out.file_name().and_then(|n| n.to_str()) else {
+        return Vec::new();
+    };
+    let prefix = format!("{base}.shard-");
+    let mut found = Vec::new();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return found;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(&prefix)) else {
+            continue;
+        };
+        let Some((i, n)) = rest.split_once("-of-") else {
+            continue;
+        };
+        if let (Ok(i), Ok(n)) = (i.parse::<u32>(), n.parse::<u32>()) {
+            found.push((i, n, out.with_file_name(name)));
+        }
+    }
+    found.sort();
+    found
+}
+
+/// `; rebuild it with: …` from a shard's stored command line, with its `--shard` value replaced.
+fn rebuild_hint(argv: Option<&[String]>, spec: ShardSpec) -> String {
+    let Some(argv) = argv.filter(|a| !a.is_empty()) else {
+        return format!("; rebuild it with `atlastree build … --shard {spec}`");
+    };
+    let mut args: Vec<String> = Vec::with_capacity(argv.len());
+    let mut it = argv.iter();
+    while let Some(a) = it.next() {
+        if a == "--shard" {
+            it.next();
+            args.push("--shard".into());
+            args.push(spec.to_string());
+        } else if a.starts_with("--shard=") {
+            args.push(format!("--shard={spec}"));
+        } else {
+            args.push(a.clone());
+        }
+    }
+    let quoted: Vec<String> = args
+        .iter()
+        .map(|a| {
+            if a.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_./=:,".contains(c))
+            {
+                a.clone()
+            } else {
+                format!("'{}'", a.replace('\'', "'\\''"))
+            }
+        })
+        .collect();
+    format!("; rebuild it with: {}", quoted.join(" "))
+}
+
+/// Merges the shard files of `out`'s build (`count` shards, or the only count found beside `out`) into
+/// `out`, atomically: checks every shard (present, intact, same fingerprint, the blocks and subtree roots
+/// the cut gives it), copies every block, makes the atlases above the cut from the shards' handoffs, and
+/// finishes the paging file. Byte-identical to the one-process build with the same scene and flags.
+pub fn merge(
+    out: &Path,
+    count: Option<u32>,
+    progress: &dyn Progress,
+) -> Result<MergeReport, MergeError> {
+    let t_all = Instant::now();
+    // Before any work: an OUT that may not be replaced (the scene, `OUT/`, a device) is refused now, not
+    // after every block is copied.
+    crate::store::check_replaceable(out).map_err(|source| MergeError::Store {
+        out: out.to_path_buf(),
+        source,
+    })?;
+    let set = ShardSet::open(out, count)?;
+    set.check_headers()?;
+    set.check_images()?;
+    let first = &set.shards[0];
+    let (tables, plan) = if first.header.prefix_len > 0 {
+        let tables = (first.skeleton())
+            .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
+        (Tables::Shard0(tables), None)
+    } else {
+        let (file, tables) = planned_tables(out, first.header.prefix_hash)?;
+        let path = file.path().to_path_buf();
+        let report: Option<super::ShardPlanReport> = read_sidecar(&path);
+        let plan = MergedPlan {
+            seconds: report.as_ref().and_then(super::ShardPlanReport::seconds),
+            peak_rss_bytes: report.and_then(|r| r.stages.peak_rss_bytes),
+            path,
+        };
+        (Tables::Plan(file, tables), Some(plan))
+    };
+    let forest = tables.file().to_skeleton();
+    let cut = choose_cut(&forest, set.count);
+    set.check_cut(&forest, &cut)?;
+    let pixels = raster::PixelOptions::from_code(first.header.pixel_options).ok_or_else(|| {
+        set.foreign(
+            0,
+            format!(
+                "unknown pixel options code {} (mip filter, alpha mips)",
+                first.header.pixel_options
+            ),
+        )
+    })?;
+
+    let store_err = |source| MergeError::Store {
+        out: out.to_path_buf(),
+        source,
+    };
+    let writer = tables.writer(out, &set.shards[0]).map_err(store_err)?;
+    drop(tables);
+    let handoffs = set.copy_blocks(&writer, progress)?;
+    let below: u64 = (cut.shards.iter().flatten())
+        .map(|u| shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node)))
+        .sum();
+    let above = forest
+        .trees
+        .iter()
+        .map(|t| t.nodes.len() as u64)
+        .sum::<u64>()
+        - below;
+    progress.stage("merge: atlases above the cut", Some(above));
+    let done = |n: u64| progress.set(n);
+    let atlas_out = raster::AtlasOut::new(&forest, pixels, &writer, &done);
+    let fetch = |u| handoffs.get(&u).map(|&(slot, i)| set.handoff(slot, i));
+    shard::raster_forest_above(&atlas_out, &forest, &fetch).map_err(|source| {
+        MergeError::Build {
+            out: out.to_path_buf(),
+            source,
+        }
+    })?;
+    progress.finish_stage();
+    progress.stage("merge: write", None);
+    let summary = writer.finish().map_err(store_err)?;
+    progress.finish_stage();
+    Ok(MergeReport {
+        out: out.to_path_buf(),
+        count: set.count,
+        shards: set.report_lines(),
+        above_cut: above,
+        file_bytes: summary.total,
+        seconds: t_all.elapsed().as_secs_f64(),
+        peak_rss_bytes: crate::util::peak_rss_bytes(),
+        plan,
+    })
+}
+
+/// Where the merge's tables come from: shard 0's prefix or the plan's, read as a skeleton (no geometry)
+/// and copied into the paging file in pieces.
+enum Tables {
+    Shard0(TreeFile),
+    Plan(crate::store::shard_plan::PlanFile, TreeFile),
+}
+
+impl Tables {
+    fn file(&self) -> &TreeFile {
+        match self {
+            Tables::Shard0(t) | Tables::Plan(_, t) => t,
+        }
+    }
+
+    /// The writer of the paging file, its tables written; shard 0 is `first`.
+    fn writer(&self, out: &Path, first: &ShardFile) -> Result<FileWriter, StoreError> {
+        match self {
+            Tables::Shard0(t) => first.writer(out, t),
+            Tables::Plan(plan, t) => plan.writer(out, t),
+        }
+    }
+}
+
+/// The tables of a planned build, from `OUT.plan` (checked: intact, and the plan the shards say they were
+/// built from), without their geometry.
+fn planned_tables(
+    out: &Path,
+    prefix_hash: [u64; 2],
+) -> Result<(crate::store::shard_plan::PlanFile, TreeFile), MergeError> {
+    let path = crate::store::shard_plan::plan_path(out);
+    let refuse = |why: String| MergeError::Plan {
+        plan: path.clone(),
+        why,
+    };
+    if !path.exists() {
+        return Err(refuse("it does not exist".into()));
+    }
+    let plan =
+        crate::store::shard_plan::PlanFile::open(&path).map_err(|e| refuse(e.to_string()))?;
+    if plan.header.prefix_hash != prefix_hash {
+        return Err(refuse(
+            "its tables are not the ones the shards were built from (another plan was written since)".into(),
+        ));
+    }
+    let tables = plan.skeleton().map_err(|e| refuse(e.to_string()))?;
+    Ok((plan, tables))
+}
+
+/// The N shard files of one build, opened, in slot order (slot i is the file named shard i), with the
+/// command line the rebuild hints copy.
+struct ShardSet {
+    count: u32,
+    shards: Vec<ShardFile>,
+    /// The stored command line of a shard of the build most shards belong to (a foreign shard's flags
+    /// would rebuild the wrong thing).
+    argv: Option<Vec<String>>,
+}
+
+impl ShardSet {
+    /// Finds and opens every shard of `out` (`count`, or the only count found beside it); fails on the
+    /// first missing or unreadable one.
+    fn open(out: &Path, count: Option<u32>) -> Result<ShardSet, MergeError> {
+        let count = match count {
+            Some(n) if n == 0 || n > shard::MAX_SHARDS => {
+                return Err(MergeError::BadCount { count: n });
+            }
+            Some(n) => n,
+            None => only_count(out)?,
+        };
+        let mut opened: Vec<Option<ShardFile>> = Vec::with_capacity(count as usize);
+        let mut failures: Vec<(u32, PathBuf, Option<ShardFileError>)> = Vec::new();
+        for index in 0..count {
+            let path = shard_path(out, ShardSpec { index, count });
+            let file = if path.exists() {
+                ShardFile::open(&path).map_err(Some)
+            } else {
+                Err(None)
+            };
+            match file {
+                Ok(f) => opened.push(Some(f)),
+                Err(e) => {
+                    failures.push((index, path, e));
+                    opened.push(None);
+                }
+            }
+        }
+        let prints: Vec<[u64; 2]> = (opened.iter().flatten())
+            .map(|f| f.header.fingerprint)
+            .collect();
+        let majority = prints.iter().max_by_key(|p| {
+            (
+                prints.iter().filter(|q| q == p).count(),
+                std::cmp::Reverse(prints.iter().position(|q| q == *p)),
+            )
+        });
+        let argv = (opened.iter().flatten())
+            .find(|f| Some(&f.header.fingerprint) == majority)
+            .map(|f| f.argv.clone());
+        let mut set = ShardSet {
+            count,
+            shards: Vec::new(),
+            argv,
+        };
+        if let Some((shard, path, err)) = failures.into_iter().next() {
+            let rebuild = set.hint(shard);
+            return Err(match err {
+                None => MergeError::Missing {
+                    shard,
+                    count,
+                    path,
+                    rebuild,
+                },
+                Some(source) => MergeError::Corrupt {
+                    shard,
+                    count,
+                    path,
+                    rebuild,
+                    source,
+                },
+            });
+        }
+        set.shards = opened.into_iter().flatten().collect();
+        Ok(set)
+    }
+
+    fn hint(&self, index: u32) -> String {
+        rebuild_hint(
+            self.argv.as_deref(),
+            ShardSpec {
+                index,
+                count: self.count,
+            },
+        )
+    }
+
+    fn foreign(&self, slot: usize, why: String) -> MergeError {
+        MergeError::Foreign {
+            shard: slot as u32,
+            count: self.count,
+            path: self.shards[slot].path().to_path_buf(),
+            why,
+            rebuild: self.hint(slot as u32),
+        }
+    }
+
+    fn corrupt(&self, slot: usize, source: ShardFileError) -> MergeError {
+        MergeError::Corrupt {
+            shard: slot as u32,
+            count: self.count,
+            path: self.shards[slot].path().to_path_buf(),
+            rebuild: self.hint(slot as u32),
+            source,
+        }
+    }
+
+    /// Every shard says it is its slot of `count`, and all carry one fingerprint, prefix and pixel options.
+    /// Where they differ, the shard named is one outside the largest group that agrees (shard 0 may be
+    /// the stale one: naming whichever differs from shard 0 sent the user rebuilding a good shard); with
+    /// no strict majority the message says so.
+    fn check_headers(&self) -> Result<(), MergeError> {
+        for (i, f) in self.shards.iter().enumerate() {
+            let h = &f.header;
+            if h.shard != i as u32 || h.count != self.count {
+                let why = format!("it says it is shard {} of {}", h.shard, h.count);
+                return Err(self.foreign(i, why));
+            }
+        }
+        let same = |a: usize, b: usize| {
+            let (x, y) = (&self.shards[a].header, &self.shards[b].header);
+            x.fingerprint == y.fingerprint
+                && x.prefix_hash == y.prefix_hash
+                && x.pixel_options == y.pixel_options
+        };
+        let n = self.shards.len();
+        // Per shard, how many shards agree with it; the first of the largest group (shard 0's on a tie).
+        let agreeing: Vec<usize> = (0..n)
+            .map(|i| (0..n).filter(|&j| same(i, j)).count())
+            .collect();
+        let reference = (0..n).fold(0, |best, i| {
+            if agreeing[i] > agreeing[best] {
+                i
+            } else {
+                best
+            }
+        });
+        let Some(odd) = (0..n).find(|&i| !same(reference, i)) else {
+            return Ok(());
+        };
+        let group = agreeing[reference];
+        let why = if 2 * group > n {
+            format!(
+                "its fingerprint (scene and flags) differs from the other {group} of {n} shards' (shard \
+                 {reference}'s)"
+            )
+        } else {
+            format!(
+                "its fingerprint (scene and flags) differs from shard {reference}'s, and no fingerprint is \
+                 held by most shards ({group} of {n} share shard {reference}'s): rebuild the shards built \
+                 from another scene or other flags"
+            )
+        };
+        Err(self.foreign(odd, why))
+    }
+
+    /// Every image two shards decoded has one pixel hash in both (the fingerprint, equal by now, gives
+    /// every shard the same image count).
+    fn check_images(&self) -> Result<(), MergeError> {
+        for i in 0..self.shards[0].images.len() {
+            let mut first: Option<(usize, &crate::store::shard::ImageEntry)> = None;
+            for (slot, f) in self.shards.iter().enumerate() {
+                let Some(e) = f.images.get(i).filter(|e| e.decoded == 1) else {
+                    continue;
+                };
+                match first {
+                    None => first = Some((slot, e)),
+                    Some((a, ea)) if ea.pixels != e.pixels => {
+                        let image = match e.gltf_image {
+                            u32::MAX => format!("image {i}"),
+                            g => format!("image {i} (glTF image {g})"),
+                        };
+                        return Err(MergeError::ImagesDiffer {
+                            image,
+                            first: a as u32,
+                            first_path: self.shards[a].path().to_path_buf(),
+                            second: slot as u32,
+                            second_path: f.path().to_path_buf(),
+                            count: self.count,
+                        });
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Each shard holds exactly the blocks and subtree roots the cut gives it.
+    fn check_cut(&self, forest: &crate::model::AtlasForest, cut: &Cut) -> Result<(), MergeError> {
+        let side = handoff_side(forest.params.atlas_size);
+        for (i, (f, units)) in self.shards.iter().zip(&cut.shards).enumerate() {
+            let expected = shard_blocks(forest, units);
+            let got: Vec<(BlockId, u64)> = (f.blocks.iter())
+                .map(|e| (BlockId(e.block), e.length))
+                .collect();
+            if got != expected {
+                let why = format!(
+                    "it holds {} blocks where the cut of shard 0's tables gives it {}",
+                    got.len(),
+                    expected.len()
+                );
+                return Err(self.foreign(i, why));
+            }
+            let roots: Vec<Unit> = (f.handoffs.iter())
+                .map(|h| Unit {
+                    tree: h.tree,
+                    node: h.node,
+                })
+                .collect();
+            if &roots != units
+                || f.handoffs
+                    .iter()
+                    .any(|h| h.width != side || h.height != side)
+            {
+                let why = "its subtree roots differ from the cut of shard 0's tables".to_string();
+                return Err(self.foreign(i, why));
+            }
+        }
+        Ok(())
+    }
+
+    /// Copies every shard's blocks into `writer` (checksums verified on the way), checks every handoff's
+    /// checksum, and returns where each unit's handoff is: (shard slot, entry), read again when its parent
+    /// is combined ([`ShardSet::handoff`]).
+    ///
+    /// Shards are copied in order, the blocks of one shard on the rayon pool (positional reads and writes:
+    /// a merge of gigabytes is page-cache copies and checksums, which one core did alone); a shard's first
+    /// bad block in entry order is the one reported, as a serial copy would.
+    fn copy_blocks(
+        &self,
+        writer: &FileWriter,
+        progress: &dyn Progress,
+    ) -> Result<HashMap<Unit, (usize, usize)>, MergeError> {
+        use rayon::prelude::*;
+        use std::sync::atomic::{AtomicU64, Ordering};
+        let total: u64 = self.shards.iter().map(|f| f.blocks.len() as u64).sum();
+        progress.stage("merge: copy blocks", Some(total));
+        let copied = AtomicU64::new(0);
+        let mut handoffs = HashMap::new();
+        for (slot, f) in self.shards.iter().enumerate() {
+            let results: Vec<Result<(), MergeError>> = (f.blocks.par_iter().enumerate())
+                .map(|(i, e)| {
+                    let bytes = f.block(i).map_err(|err| self.corrupt(slot, err))?;
+                    writer
+                        .write_block_measured(BlockId(e.block), &bytes, e.sse)
+                        .map_err(|source| MergeError::Store {
+                            out: writer.target().to_path_buf(),
+                            source,
+                        })?;
+                    progress.set(copied.fetch_add(1, Ordering::Relaxed) + 1);
+                    Ok(())
+                })
+                .collect();
+            results.into_iter().collect::<Result<(), MergeError>>()?;
+            for (i, e) in f.handoffs.iter().enumerate() {
+                drop(f.handoff(i).map_err(|err| self.corrupt(slot, err))?);
+                let unit = Unit {
+                    tree: e.tree,
+                    node: e.node,
+                };
+                handoffs.insert(unit, (slot, i));
+            }
+        }
+        progress.finish_stage();
+        Ok(handoffs)
+    }
+
+    /// Handoff `i` of the shard in `slot`, read (and its checksum checked) again.
+    fn handoff(&self, slot: usize, i: usize) -> Result<LinearImage, BuildError> {
+        let f = &self.shards[slot];
+        let e = &f.handoffs[i];
+        let data = f.handoff(i).map_err(|e| BuildError::Shard(Box::new(e)))?;
+        Ok(LinearImage {
+            width: e.width,
+            height: e.height,
+            data,
+        })
+    }
+
+    /// The merge report's line of every shard (time and peak memory from its JSON report, if present).
+    fn report_lines(&self) -> Vec<MergedShard> {
+        (self.shards.iter().enumerate())
+            .map(|(slot, f)| {
+                let side = read_sidecar(f.path());
+                let total = |r: &ShardReport| {
+                    (r.stages.timings.iter())
+                        .find(|(n, _)| n == "total")
+                        .map(|(_, s)| *s)
+                };
+                MergedShard {
+                    shard: slot as u32,
+                    path: f.path().to_path_buf(),
+                    file_bytes: f.header.file_len,
+                    blocks: f.blocks.len() as u64,
+                    units: f.handoffs.len() as u64,
+                    seconds: side.as_ref().and_then(total),
+                    peak_rss_bytes: side.as_ref().and_then(|r| r.stages.peak_rss_bytes),
+                    work: side.as_ref().map(|r| r.work),
+                }
+            })
+            .collect()
+    }
+}
+
+/// The shard count of the only build whose shard files lie beside `out`.
+fn only_count(out: &Path) -> Result<u32, MergeError> {
+    let mut counts: Vec<u32> = shard_files(out).iter().map(|f| f.1).collect();
+    counts.sort_unstable();
+    counts.dedup();
+    match counts.as_slice() {
+        [] => Err(MergeError::NoShards {
+            out: out.to_path_buf(),
+        }),
+        [n] => Ok(*n),
+        _ => Err(MergeError::AmbiguousCount {
+            out: out.to_path_buf(),
+            counts,
+        }),
+    }
+}
+
+fn read_sidecar<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
+    let mut name = path.as_os_str().to_os_string();
+    name.push(".json");
+    let bytes = crate::util::read_regular(&PathBuf::from(name), None).ok()?;
+    serde_json::from_slice(&bytes).ok()
+}

@@ -1,0 +1,122 @@
+//! What memory this process uses and may use (Linux `/proc` and cgroups): the build's per-stage peaks and
+//! the default `--max-memory` budget.
+
+use std::path::Path;
+
+/// The `kB` fields `keys` of a Linux `/proc` file (`status`, `meminfo`), in bytes, from one read; `None`
+/// where the file or a field is unavailable.
+fn proc_kb_fields<const N: usize>(path: &str, keys: [&str; N]) -> Option<[u64; N]> {
+    let s = std::fs::read_to_string(path).ok()?;
+    let mut out = [0u64; N];
+    for (o, key) in out.iter_mut().zip(keys) {
+        let line = s.lines().find(|l| l.starts_with(key))?;
+        let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        *o = kb * 1024;
+    }
+    Some(out)
+}
+
+fn status_bytes(key: &str) -> Option<u64> {
+    proc_kb_fields("/proc/self/status", [key]).map(|[v]| v)
+}
+
+/// This process's resident set size now and its peak (`VmRSS`, `VmHWM`), bytes, from one read.
+pub fn rss_and_peak_bytes() -> Option<[u64; 2]> {
+    proc_kb_fields("/proc/self/status", ["VmRSS:", "VmHWM:"])
+}
+
+/// Peak resident set size of this process in bytes (Linux `VmHWM`); `None` where unavailable. Never reset
+/// by this crate, so `/usr/bin/time`, Slurm's `MaxRSS` and cgroup accounting see the true peak.
+pub fn peak_rss_bytes() -> Option<u64> {
+    status_bytes("VmHWM:")
+}
+
+/// Resident set size of this process now, bytes (Linux `VmRSS`); `None` where unavailable.
+pub fn rss_bytes() -> Option<u64> {
+    status_bytes("VmRSS:")
+}
+
+/// The machine's physical memory (Linux `MemTotal`), bytes; `None` where the platform does not tell.
+pub fn machine_memory_bytes() -> Option<u64> {
+    proc_kb_fields("/proc/meminfo", ["MemTotal:"]).map(|[v]| v)
+}
+
+/// The memory this process may use, bytes: the machine's ([`machine_memory_bytes`]), or the memory limit
+/// of its cgroup where that is smaller (a Slurm job, a Kubernetes pod, a container: half of a 256 GiB
+/// node is no budget for a job allowed 8 GiB, which the kernel kills past its limit). `None` where the
+/// platform tells neither.
+pub fn memory_limit_bytes() -> Option<u64> {
+    let cgroup = cgroup_memory_limit(Path::new("/proc/self/cgroup"), Path::new("/sys/fs/cgroup"));
+    match (machine_memory_bytes(), cgroup) {
+        (Some(machine), Some(limit)) => Some(machine.min(limit)),
+        (machine, limit) => machine.or(limit),
+    }
+}
+
+/// The smallest memory limit on the way from this process's cgroups (`proc_cgroup`: lines
+/// `id:controllers:path`) up to the hierarchy's root under `root`: cgroup v2 (`0::/path`,
+/// `memory.max`; "max" is no limit) and v1 (the `memory` controller, `memory/…/memory.limit_in_bytes`;
+/// "unlimited" is a huge number, which the machine's memory undercuts).
+fn cgroup_memory_limit(proc_cgroup: &Path, root: &Path) -> Option<u64> {
+    let text = std::fs::read_to_string(proc_cgroup).ok()?;
+    let mut smallest: Option<u64> = None;
+    for line in text.lines() {
+        let mut parts = line.splitn(3, ':');
+        let (Some(_), Some(controllers), Some(path)) = (parts.next(), parts.next(), parts.next())
+        else {
+            continue;
+        };
+        let (base, file) = if controllers.is_empty() {
+            (root.to_path_buf(), "memory.max")
+        } else if controllers.split(',').any(|c| c == "memory") {
+            (root.join("memory"), "memory.limit_in_bytes")
+        } else {
+            continue;
+        };
+        let mut dir = base.join(path.trim_start_matches('/'));
+        while dir.starts_with(&base) {
+            let limit = std::fs::read_to_string(dir.join(file))
+                .ok()
+                .and_then(|v| v.trim().parse::<u64>().ok());
+            if let Some(limit) = limit {
+                smallest = Some(smallest.map_or(limit, |s| s.min(limit)));
+            }
+            if !dir.pop() {
+                break;
+            }
+        }
+    }
+    smallest
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cgroup_limits_are_the_smallest_on_the_way_up() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join("cg");
+        let write = |rel: &str, text: &str| {
+            let p = root.join(rel);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, text).unwrap();
+        };
+        // v2: a Slurm step under a job limited to 8 GiB, the step itself unlimited.
+        write("memory.max", "max\n");
+        write("system.slice/job_7/memory.max", "8589934592\n");
+        write("system.slice/job_7/step_0/memory.max", "max\n");
+        let proc = dir.path().join("cgroup");
+        std::fs::write(&proc, "0::/system.slice/job_7/step_0\n").unwrap();
+        assert_eq!(cgroup_memory_limit(&proc, &root), Some(8 << 30));
+        // v1: the memory controller's limit (unlimited is a huge number), other controllers ignored.
+        write("memory/pod/memory.limit_in_bytes", "2147483648\n");
+        write("memory/memory.limit_in_bytes", "9223372036854771712\n");
+        std::fs::write(&proc, "4:memory:/pod\n3:cpuset:/\n").unwrap();
+        assert_eq!(cgroup_memory_limit(&proc, &root), Some(2 << 30));
+        // No limit anywhere: none.
+        std::fs::write(&proc, "0::/\n").unwrap();
+        assert_eq!(cgroup_memory_limit(&proc, &root), None);
+        assert_eq!(cgroup_memory_limit(&dir.path().join("absent"), &root), None);
+    }
+}
