@@ -117,6 +117,19 @@ impl Viewport {
             },
         )?)
     }
+
+    /// [`Self::scale`] for each of `cameras` at its own field of view (a path may change it: the
+    /// overview-dive's street part is at 75°).
+    pub(crate) fn scales(
+        &self,
+        params: &BuildParams,
+        cameras: &[atlastree::camera::Camera],
+    ) -> anyhow::Result<Vec<f64>> {
+        cameras
+            .iter()
+            .map(|c| self.scale(params, c.fov_x_deg))
+            .collect()
+    }
 }
 
 /// How blocks queue and become resident per frame (`render --capacity`, `simulate`). Unset flags take

@@ -184,9 +184,8 @@ fn show_tour(tour: &DemoTour, tf: &atlastree::store::TreeFile) -> anyhow::Result
     );
     let path = DemoTour::path(tf).context("the demo's camera path")?;
     let cameras = tour.cameras(&path);
-    let fov = cameras.first().map_or(60.0, |c| c.fov_x_deg);
-    let scale = tour.scale(tf, fov)?;
-    let levels = levels_along(tf, &cameras, scale)?;
+    let scales = tour.scales(tf, &cameras)?;
+    let levels = levels_along(tf, &cameras, &scales)?;
     let fps = tour.fps(&path);
     println!(
         "{} frames over the whole path ({:.1} s of path time, one frame every {:.2} s), {}×{}",

@@ -176,8 +176,7 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     // Before the runs, not after them: an --out that cannot be a folder.
     super::check_out_folder(&cfg.out)?;
     let cameras = sample_cameras(cfg, &file)?;
-    let fov = cameras.first().map_or(60.0, |c| c.fov_x_deg);
-    let scale = cfg.viewport.scale(&file.to_params(), fov)?;
+    let scales = cfg.viewport.scales(&file.to_params(), &cameras)?;
     let input = SimInput::from_file(&file)?;
     let cells = cfg.spec.cells().len();
     // With --json, stdout holds the JSON alone; what people read goes to stderr.
@@ -197,13 +196,20 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
         atlastree::util::short_number(cfg.spec.fps),
         cells
     ));
+    if cfg.spec.bandwidths.contains(&None) && cfg.spec.latencies.len() > 1 {
+        say(format!(
+            "note: --bandwidth instant models no I/O, so --latency changes nothing there: one instant run \
+             per capacity and policy (labelled at {} ms)",
+            atlastree::util::short_number(cfg.spec.latencies[0] * 1e3)
+        ));
+    }
     let bar = indicatif::ProgressBar::new(cells as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} (ETA {eta})")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let t = std::time::Instant::now();
-    let results = run_grid(&input, &cameras, scale, &cfg.spec, &|| bar.inc(1))?;
+    let results = run_grid(&input, &cameras, &scales, &cfg.spec, &|| bar.inc(1))?;
     bar.finish_and_clear();
     let wall = t.elapsed().as_secs_f64();
     std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;

@@ -81,6 +81,8 @@ pub enum PlanError {
     TimeNotFinite { time: f64 },
     #[error("the frame clock ran backwards: {time} s after {last} s")]
     TimeBackwards { time: f64, last: f64 },
+    #[error("{cameras} cameras but {scales} min-distance scales (one per camera)")]
+    ScaleCount { cameras: usize, scales: usize },
 }
 
 /// How a paged planner gets its blocks.

@@ -41,6 +41,16 @@ pub struct RunKey {
 }
 
 impl RunKey {
+    /// Whether the run of `self` answers for the cell `cell`: the same capacity, bandwidth and policy, and
+    /// the same latency unless the bandwidth is instant (run at the first latency only:
+    /// [`GridSpec::cells`]).
+    pub fn answers(&self, cell: &RunKey) -> bool {
+        self.capacity == cell.capacity
+            && self.bandwidth == cell.bandwidth
+            && self.policy == cell.policy
+            && (self.latency == cell.latency || self.bandwidth.is_none())
+    }
+
     /// A short, file-name-safe label, e.g. `k160_50MBps_80ms_paper`.
     pub fn label(&self) -> String {
         format!(
@@ -67,12 +77,19 @@ impl GridSpec {
             .find(|l| !seen.insert(l.clone()))
     }
 
-    /// The cells in a fixed order (capacity, bandwidth, latency, policy; each in the order given).
+    /// The cells in a fixed order (capacity, bandwidth, latency, policy; each in the order given). An
+    /// instant bandwidth (no I/O model) runs at the first latency only.
     pub fn cells(&self) -> Vec<RunKey> {
         let mut out = Vec::new();
         for &capacity in &self.capacities {
             for &bandwidth in &self.bandwidths {
-                for &latency in &self.latencies {
+                // Instant loads model no I/O, so latency changes nothing: one run, at the first latency
+                // (two identical runs under two labels read as "80 ms had no effect").
+                let latencies = match bandwidth {
+                    None => &self.latencies[..self.latencies.len().min(1)],
+                    Some(_) => &self.latencies[..],
+                };
+                for &latency in latencies {
                     for &policy in &self.policies {
                         out.push(RunKey {
                             capacity,
@@ -123,7 +140,7 @@ pub struct RunResult {
 pub fn run_grid(
     input: &SimInput,
     cameras: &[Camera],
-    scale: f64,
+    scales: &[f64],
     spec: &GridSpec,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Vec<RunResult>, PlanError> {
@@ -131,7 +148,7 @@ pub fn run_grid(
         .into_par_iter()
         .map(|key| {
             let t = std::time::Instant::now();
-            let (rows, summary) = simulate(input, cameras, scale, &spec.options(&key))?;
+            let (rows, summary) = simulate(input, cameras, scales, &spec.options(&key))?;
             tick();
             Ok(RunResult {
                 key,
@@ -292,10 +309,12 @@ pub fn write_plots(
                     let v = results
                         .iter()
                         .find(|r| {
-                            r.key.capacity == k
-                                && r.key.bandwidth == b
-                                && r.key.latency == lat
-                                && r.key.policy == pol
+                            r.key.answers(&RunKey {
+                                capacity: k,
+                                bandwidth: b,
+                                latency: lat,
+                                policy: pol,
+                            })
                         })
                         .map_or(f64::NAN, |r| r.summary.mean_coarser);
                     values.push(v);

@@ -211,15 +211,16 @@ impl<'a> SimInput<'a> {
     }
 }
 
-/// Runs `cameras` (one per frame, clock `i / fps`) with the min-distance `scale`; returns one row per
-/// frame and the summary.
+/// Runs `cameras` (one per frame, clock `i / fps`), camera `i` at min-distance scale `scales[i]` (it
+/// follows the camera's field of view, as the renderer's does); returns one row per frame and the
+/// summary. `scales` of another length than `cameras`: [`PlanError::ScaleCount`].
 pub fn simulate(
     input: &SimInput,
     cameras: &[Camera],
-    scale: f64,
+    scales: &[f64],
     opts: &SimOptions,
 ) -> Result<(Vec<FrameRow>, RunSummary), PlanError> {
-    simulate_with(input, cameras, scale, opts, &mut |_, _| {})
+    simulate_with(input, cameras, scales, opts, &mut |_, _| {})
 }
 
 /// [`simulate`], reporting every residency change (`frame`, event) to `events` — the log the renderer
@@ -227,10 +228,16 @@ pub fn simulate(
 pub fn simulate_with(
     input: &SimInput,
     cameras: &[Camera],
-    scale: f64,
+    scales: &[f64],
     opts: &SimOptions,
     events: &mut dyn FnMut(u32, &crate::paging::Event),
 ) -> Result<(Vec<FrameRow>, RunSummary), PlanError> {
+    if scales.len() != cameras.len() {
+        return Err(PlanError::ScaleCount {
+            cameras: cameras.len(),
+            scales: scales.len(),
+        });
+    }
     let loader: Box<dyn Loader> = match opts.io {
         Some(m) => Box::new(ModelLoader::new(m)),
         None => Box::new(InstantLoader::default()),
@@ -245,7 +252,7 @@ pub fn simulate_with(
     // The roots are resident before the first frame; the log starts with frame 0's changes.
     planner.take_bootstrap();
     let mut rows = Vec::with_capacity(cameras.len());
-    for (i, cam) in cameras.iter().enumerate() {
+    for (i, (cam, &scale)) in cameras.iter().zip(scales).enumerate() {
         let now = i as f64 / opts.fps;
         let frame = i as u32;
         let plan = planner.plan(

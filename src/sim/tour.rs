@@ -82,16 +82,23 @@ impl DemoTour {
             .collect()
     }
 
-    /// The min-distance scale of `file`'s trees at the tour's width (texel ratio 1) and `fov_x_deg`.
-    pub fn scale(&self, file: &TreeFile, fov_x_deg: f64) -> Result<f64, SelectError> {
-        min_distance_scale(
-            &file.to_params(),
-            &SelectOptions {
-                screen_width: self.width,
-                texel_ratio: 1.0,
-                fov_x_deg,
-            },
-        )
+    /// The min-distance scale of `file`'s trees for each of `cameras`, at the tour's width (texel ratio 1)
+    /// and the camera's own field of view.
+    pub fn scales(&self, file: &TreeFile, cameras: &[Camera]) -> Result<Vec<f64>, SelectError> {
+        let params = file.to_params();
+        cameras
+            .iter()
+            .map(|c| {
+                min_distance_scale(
+                    &params,
+                    &SelectOptions {
+                        screen_width: self.width,
+                        texel_ratio: 1.0,
+                        fov_x_deg: c.fov_x_deg,
+                    },
+                )
+            })
+            .collect()
     }
 }
 
@@ -149,17 +156,23 @@ fn depth_of(nodes: &[NodeRecord]) -> u8 {
         .map_or(0, |l| u8::try_from(l).unwrap_or(u8::MAX))
 }
 
-/// What `cameras` draw of every tree of `file` with every block resident, at min-distance `scale`: the
-/// planner's cut per frame, counted by level.
+/// What `cameras` draw of every tree of `file` with every block resident, camera `i` at min-distance
+/// scale `scales[i]`: the planner's cut per frame, counted by level.
 pub fn levels_along(
     file: &TreeFile,
     cameras: &[Camera],
-    scale: f64,
+    scales: &[f64],
 ) -> Result<Vec<TreeLevels>, PlanError> {
+    if scales.len() != cameras.len() {
+        return Err(PlanError::ScaleCount {
+            cameras: cameras.len(),
+            scales: scales.len(),
+        });
+    }
     let trees = crate::plan::file_trees(file);
     let mut out: Vec<TreeLevels> = trees.iter().map(|t| TreeLevels::new(t)).collect();
     let mut planner = FramePlanner::new(trees);
-    for cam in cameras {
+    for (cam, &scale) in cameras.iter().zip(scales) {
         let plan = planner.plan_still(cam, scale, &mut NoResidency)?;
         for (cut, lv) in plan.cuts.iter().zip(out.iter_mut()) {
             let mut seen = vec![false; lv.atlas_draws.len()];

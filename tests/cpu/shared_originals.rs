@@ -154,11 +154,17 @@ fn the_pager_ranks_a_shared_block_by_its_best_leaf_and_a_flight_loads_it_once() 
         io: None,
     };
     let mut loads: HashMap<u32, u32> = HashMap::new();
-    simulate_with(&input, &cams, scale, &opts, &mut |_, e| {
-        if let Event::Loaded { block, .. } = e {
-            *loads.entry(block.0).or_default() += 1;
-        }
-    })
+    simulate_with(
+        &input,
+        &cams,
+        &vec![scale; cams.len()],
+        &opts,
+        &mut |_, e| {
+            if let Event::Loaded { block, .. } = e {
+                *loads.entry(block.0).or_default() += 1;
+            }
+        },
+    )
     .unwrap();
     assert_eq!(loads.get(&poster.0), Some(&1), "{loads:?}");
     assert!(loads.values().all(|&n| n == 1), "{loads:?}");
@@ -369,22 +375,28 @@ fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
         };
         let (mut loads, mut evicted_after, mut nw_evicted) = (0, 0, false);
         let mut resident_at_end = false;
-        simulate_with(&input, &cams, scale, &opts, &mut |frame, e| match e {
-            Event::Loaded { block, .. } if block.0 == poster => {
-                loads += 1;
-                resident_at_end = true;
-            }
-            Event::Evicted { block } if block.0 == poster => {
-                resident_at_end = false;
-                if frame >= 60 {
-                    evicted_after += 1;
+        simulate_with(
+            &input,
+            &cams,
+            &vec![scale; cams.len()],
+            &opts,
+            &mut |frame, e| match e {
+                Event::Loaded { block, .. } if block.0 == poster => {
+                    loads += 1;
+                    resident_at_end = true;
                 }
-            }
-            Event::Evicted { block } if frame >= 60 && nw_only.contains(&block.0) => {
-                nw_evicted = true;
-            }
-            _ => {}
-        })
+                Event::Evicted { block } if block.0 == poster => {
+                    resident_at_end = false;
+                    if frame >= 60 {
+                        evicted_after += 1;
+                    }
+                }
+                Event::Evicted { block } if frame >= 60 && nw_only.contains(&block.0) => {
+                    nw_evicted = true;
+                }
+                _ => {}
+            },
+        )
         .unwrap();
         if loads == 0 {
             // k too small to hold the poster with its parents at all: only the smallest capacities.

@@ -6,8 +6,8 @@
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::paging::{Event, Policy, UploadBudget};
 use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
-use atlastree::sim::grid::{GridSpec, run_grid, write_csvs};
-use atlastree::sim::{SimInput, simulate_with};
+use atlastree::sim::grid::{GridSpec, RunKey, run_grid, write_csvs};
+use atlastree::sim::{SimInput, simulate, simulate_with};
 use atlastree::store::TreeFile;
 use glam::DVec3;
 use std::path::{Path, PathBuf};
@@ -48,8 +48,11 @@ fn cameras(file: &TreeFile, fps: f64, n: usize) -> Vec<Camera> {
         .collect()
 }
 
-fn scale(file: &TreeFile, cam: &Camera) -> f64 {
-    crate::views::scale_800(&file.to_params(), cam.fov_x_deg)
+/// Each camera's min-distance scale at 800 px (its own field of view).
+fn scales(file: &TreeFile, cams: &[Camera]) -> Vec<f64> {
+    cams.iter()
+        .map(|c| crate::views::scale_800(&file.to_params(), c.fov_x_deg))
+        .collect()
 }
 
 fn spec(capacities: Vec<Option<u32>>, bandwidths: Vec<Option<f64>>, policy: Policy) -> GridSpec {
@@ -104,15 +107,15 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
     let path = city(dir.path());
     let file = TreeFile::open(&path).unwrap();
     let cams = cameras(&file, 60.0, 600);
-    let s = scale(&file, &cams[0]);
+    let s = scales(&file, &cams);
     let input = SimInput::from_file(&file).unwrap();
     let grid = spec(
         vec![Some(8), Some(24), None],
         vec![None, Some(5e6), Some(50e6)],
         Policy::Paper,
     );
-    let a = run_grid(&input, &cams, s, &grid, &|| {}).unwrap();
-    let b = run_grid(&input, &cams, s, &grid, &|| {}).unwrap();
+    let a = run_grid(&input, &cams, &s, &grid, &|| {}).unwrap();
+    let b = run_grid(&input, &cams, &s, &grid, &|| {}).unwrap();
     let (da, db) = (dir.path().join("a"), dir.path().join("b"));
     std::fs::create_dir_all(&da).unwrap();
     std::fs::create_dir_all(&db).unwrap();
@@ -184,7 +187,7 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
         let (rows, _) = simulate_with(
             &input,
             &cams,
-            s,
+            &s,
             &grid.options(&r.key),
             &mut |_, e| match e {
                 Event::Loaded { block, .. } => {
@@ -252,15 +255,22 @@ fn paper_policy_is_monotone_in_capacity_and_bandwidth() {
     let path = city(dir.path());
     let file = TreeFile::open(&path).unwrap();
     let cams = cameras(&file, 60.0, 900);
-    let s = scale(&file, &cams[0]);
+    let s = scales(&file, &cams);
     let input = SimInput::from_file(&file).unwrap();
     let caps = vec![Some(6), Some(12), Some(24), Some(48), None];
     let bws = vec![Some(2e6), Some(20e6), Some(200e6), None];
     let grid = spec(caps.clone(), bws.clone(), Policy::Paper);
-    let res = run_grid(&input, &cams, s, &grid, &|| {}).unwrap();
+    let res = run_grid(&input, &cams, &s, &grid, &|| {}).unwrap();
     let mean = |c: Option<u32>, b: Option<f64>, l: f64| {
         res.iter()
-            .find(|r| r.key.capacity == c && r.key.bandwidth == b && r.key.latency == l)
+            .find(|r| {
+                r.key.answers(&RunKey {
+                    capacity: c,
+                    bandwidth: b,
+                    latency: l,
+                    policy: Policy::Paper,
+                })
+            })
             .unwrap()
             .summary
             .mean_coarser
@@ -308,5 +318,64 @@ fn paper_policy_is_monotone_in_capacity_and_bandwidth() {
     assert!(
         material.is_empty(),
         "not monotone beyond 0.025:\n{material:?}"
+    );
+}
+
+/// A frame's needs follow its own field of view, as the renderer's do (simulate took the first
+/// camera's for the whole path: the overview-dive's street part, at 75°, needed other blocks in
+/// `render` than in `simulate`). Two cameras at one pose, 30° and 100°: each frame of the pair needs
+/// what it needs alone; scales of another count than the cameras are refused.
+#[test]
+fn simulate_scales_each_frame_by_its_own_field_of_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = city(dir.path());
+    let file = TreeFile::open(&path).unwrap();
+    let input = SimInput::from_file(&file).unwrap();
+    let grid = spec(vec![None], vec![None], Policy::Paper);
+    let opts = grid.options(&grid.cells()[0]);
+    // Blocks needed, and the resident set after the frame (every load instant, nothing evicted).
+    let needed = |cams: &[Camera]| -> Vec<(u32, u64)> {
+        let (rows, _) = simulate(&input, cams, &scales(&file, cams), &opts).unwrap();
+        rows.iter()
+            .map(|r| (r.paging.pager().usage.needed, r.paging.resident_hash))
+            .collect()
+    };
+    let at = |pose: Camera, fov: f64| Camera {
+        fov_x_deg: fov,
+        ..pose
+    };
+    // The first pose of the overview-dive where the two fields of view need other blocks.
+    let (narrow, wide, pose) = cameras(&file, 60.0, 120)
+        .into_iter()
+        .find_map(|pose| {
+            let (n, w) = (needed(&[at(pose, 30.0)]), needed(&[at(pose, 100.0)]));
+            (n != w).then_some((n, w, pose))
+        })
+        .expect("a pose that needs other blocks at 30° and 100°");
+    let pair = [at(pose, 30.0), at(pose, 100.0)];
+    // (The pair's second resident set also holds the first frame's blocks: the counts are compared.)
+    let counts: Vec<u32> = needed(&pair).iter().map(|n| n.0).collect();
+    assert_eq!(counts, [narrow[0].0, wide[0].0]);
+    let e = simulate(&input, &pair, &[1.0], &opts).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "2 cameras but 1 min-distance scales (one per camera)"
+    );
+}
+
+/// Instant loads model no I/O: a grid runs them at its first latency only (two identical runs under
+/// `_0ms` and `_80ms` labels read as "latency had no effect").
+#[test]
+fn instant_bandwidth_runs_once_whatever_the_latencies() {
+    let grid = spec(vec![Some(8)], vec![None, Some(5e6)], Policy::Paper);
+    let labels: Vec<String> = grid.cells().iter().map(|k| k.label()).collect();
+    assert_eq!(
+        labels,
+        [
+            "k8_instant_0ms_paper",
+            "k8_5MBps_0ms_paper",
+            "k8_5MBps_80ms_paper"
+        ],
+        "{labels:?}"
     );
 }

@@ -28,8 +28,8 @@ fn the_demo_tour_draws_every_level_of_a_deep_tree() {
         last.eye
     );
 
-    let scale = tour.scale(&file, first.fov_x_deg).unwrap();
-    let levels = levels_along(&file, &cameras, scale).unwrap();
+    let scales = tour.scales(&file, &cameras).unwrap();
+    let levels = levels_along(&file, &cameras, &scales).unwrap();
     assert_eq!(levels.len(), file.trees());
     let opaque = &levels[0];
     assert!(opaque.depth >= 3, "depth {}", opaque.depth);

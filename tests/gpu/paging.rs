@@ -216,7 +216,7 @@ fn simulator_resident_sets_match_the_renderer(ctx: &GpuContext) -> Result<(), St
             io: None,
         };
         let input = SimInput::from_file(&file).map_err(e)?;
-        let (rows, _) = simulate(&input, &cams, scale, &opts).map_err(e)?;
+        let (rows, _) = simulate(&input, &cams, &vec![scale; cams.len()], &opts).map_err(e)?;
         let sim_hashes: Vec<u64> = rows.iter().map(|r| r.paging.resident_hash).collect();
         if sim_hashes != gpu_hashes {
             let first = sim_hashes.iter().zip(&gpu_hashes).position(|(a, b)| a != b);
