@@ -66,8 +66,9 @@ pub(crate) enum Command {
     /// Any static file server that answers `Range: bytes=a-b` with `206 Partial Content` works as well
     /// (one that ignores ranges works too, slowly: the client cuts each block out of the whole file and
     /// counts it); this one needs no setup. The file is checked (header, tables, block layout) before
-    /// serving, then served read-only at `http://BIND:PORT/<file name>` until Ctrl-C. Do not rewrite the
-    /// file while it is served.
+    /// serving, then served read-only at `http://BIND:PORT/<file name>` until Ctrl-C. The server keeps
+    /// the file it checked: one renamed over it (as `build -o` publishes a new file) is not served until
+    /// a restart. Do not rewrite the file in place while it is served.
     Serve(serve_cmd::ServeArgs),
     /// Fly through a paging file in a window with a live inspector (egui): fps, counters, knobs, node
     /// bounds, frozen selection, screenshots, path recording.

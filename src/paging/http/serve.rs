@@ -222,6 +222,10 @@ pub fn spawn_with(
             path: path.to_path_buf(),
         });
     }
+    let held = std::fs::File::open(path).map_err(|source| ServeError::File {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let bind_err = |source| ServeError::Bind { addr, source };
     let listener = std::net::TcpListener::bind(addr).map_err(bind_err)?;
     listener.set_nonblocking(true).map_err(bind_err)?;
@@ -238,6 +242,7 @@ pub fn spawn_with(
     let counters = Arc::new(Counters::default());
     let server = Server {
         file: path.to_path_buf(),
+        held,
         options,
         counters: counters.clone(),
     };
@@ -257,6 +262,9 @@ pub fn spawn_with(
 /// What every connection and request handler shares.
 struct Server {
     file: PathBuf,
+    /// The file opened at start: every answer reads it, so a file renamed over `file` (as `build -o`
+    /// publishes a new one) does not change what a running server serves.
+    held: std::fs::File,
     options: ServeOptions,
     counters: Arc<Counters>,
 }
@@ -407,12 +415,26 @@ async fn serve_file(
     }
 }
 
+/// A fresh open of the file held since start (Linux: `/proc/self/fd/N`, an open file description of
+/// its own, so concurrent answers seek independently); elsewhere the path.
+async fn open_held(server: &Server) -> io::Result<tokio::fs::File> {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let fd = format!("/proc/self/fd/{}", server.held.as_raw_fd());
+        if let Ok(f) = tokio::fs::File::open(&fd).await {
+            return Ok(f);
+        }
+    }
+    tokio::fs::File::open(&server.file).await
+}
+
 async fn answer_file(
     server: &Server,
     method: &Method,
     headers: &HeaderMap,
 ) -> io::Result<Response> {
-    let mut file = tokio::fs::File::open(&server.file).await?;
+    let mut file = open_held(server).await?;
     let len = file.metadata().await?.len();
     bump(&server.counters.requests);
     // Ranges are defined for GET only, and with `If-Range` only when its validator matches; this server

@@ -193,6 +193,27 @@ fn serve_answers_ranges_as_rfc_9110_allows() {
 }
 
 /// Opens a connection that sends a request head one byte per `every` and never finishes it.
+/// A file renamed over the served path (as `build -o` publishes a new one) is not served: the server
+/// keeps the file it checked at start (it re-opened the path per request, so a running `render URL`
+/// got another file's bytes, failed every block's checksum and drew coarser to the end).
+#[test]
+fn a_file_renamed_over_the_served_path_is_not_served() {
+    let fx = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("city.atlastree");
+    std::fs::copy(&fx.path, &path).unwrap();
+    let server = serve::spawn(&path, any_port()).unwrap();
+    let addr = server.addr();
+    assert_eq!(range(addr, "bytes=0-4095").body, fx.bytes[..4096]);
+    let other = dir.path().join("other.tmp");
+    std::fs::write(&other, vec![0xA5u8; fx.bytes.len()]).unwrap();
+    std::fs::rename(&other, &path).unwrap();
+    let a = range(addr, "bytes=0-4095");
+    assert_eq!((a.status, &a.body[..]), (206, &fx.bytes[..4096]));
+    let whole = request(addr, "GET", "/city.atlastree", "");
+    assert!(whole.body == *fx.bytes, "the whole file is the one checked");
+}
+
 fn slowloris(
     addr: SocketAddr,
     every: Duration,
