@@ -255,7 +255,7 @@ pub fn export_3dtiles(
     if temp.exists() {
         std::fs::remove_dir_all(&temp).map_err(io(&temp))?;
     }
-    let live = crate::util::LiveTempDir::register(&temp);
+    let live = crate::util::LiveTempDir::register_with_parents(&temp, &created);
     let result = std::fs::create_dir_all(&temp)
         .map_err(io(&temp))
         .and_then(|()| write_tileset(file, &temp, opts, progress))

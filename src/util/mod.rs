@@ -29,27 +29,33 @@ pub struct AtomicFile {
     _live: LiveTemp,
 }
 
-/// The temp files of this process's live [`AtomicFile`]s, for [`remove_live_temps`].
-static LIVE_TEMPS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+/// The temp files and folders of this process's live [`AtomicFile`]s and [`LiveTempDir`]s, for
+/// [`remove_live_temps`]; `true` marks a folder the work created above its temp folder, removed only if
+/// empty.
+static LIVE_TEMPS: std::sync::Mutex<Vec<(PathBuf, bool)>> = std::sync::Mutex::new(Vec::new());
 
-fn live_temps() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+fn live_temps() -> std::sync::MutexGuard<'static, Vec<(PathBuf, bool)>> {
     LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// One entry of [`LIVE_TEMPS`], removed when the [`AtomicFile`] holding it goes (committed or dropped).
-struct LiveTemp(PathBuf);
+struct LiveTemp(PathBuf, bool);
 
 impl LiveTemp {
     fn register(path: &Path) -> LiveTemp {
-        live_temps().push(path.to_path_buf());
-        LiveTemp(path.to_path_buf())
+        Self::register_as(path, false)
+    }
+
+    fn register_as(path: &Path, if_empty: bool) -> LiveTemp {
+        live_temps().push((path.to_path_buf(), if_empty));
+        LiveTemp(path.to_path_buf(), if_empty)
     }
 }
 
 impl Drop for LiveTemp {
     fn drop(&mut self) {
         let mut live = live_temps();
-        if let Some(i) = live.iter().position(|p| *p == self.0) {
+        if let Some(i) = live.iter().position(|(p, e)| *p == self.0 && *e == self.1) {
             live.swap_remove(i);
         }
     }
@@ -59,29 +65,64 @@ impl Drop for LiveTemp {
 /// handler of Ctrl-C or SIGTERM (a scheduler cancelling a job) that then ends the process, so an
 /// interrupted build leaves no temp file (a killed one, SIGKILL, still leaves its temp to the next
 /// [`AtomicFile::create`] of the same target: [`remove_stale_temps`]).
+/// Folders created above a temp folder go last, deepest first, and only if empty.
 pub fn remove_live_temps() -> usize {
-    live_temps()
+    let live = live_temps();
+    let removed = live
         .iter()
-        .filter(|p| {
-            if p.is_dir() {
-                std::fs::remove_dir_all(p).is_ok()
+        .filter(|(p, if_empty)| {
+            if *if_empty {
+                false
+            } else if p.is_dir() {
+                remove_dir_under_writers(p)
             } else {
                 std::fs::remove_file(p).is_ok()
             }
         })
-        .count()
+        .count();
+    let mut parents: Vec<&PathBuf> = live.iter().filter(|e| e.1).map(|e| &e.0).collect();
+    parents.sort_by_key(|p| std::cmp::Reverse(p.components().count()));
+    for p in parents {
+        let _ = std::fs::remove_dir(p);
+    }
+    removed
+}
+
+/// Removes folder `p` while other threads may still be writing into it (an export interrupted by a
+/// signal): renamed aside first, so writers that create files by path fail instead of refilling it
+/// (`remove_dir_all` of the live folder could meet new entries and give up, leaving it), then removed.
+fn remove_dir_under_writers(p: &Path) -> bool {
+    let mut aside = p.as_os_str().to_owned();
+    aside.push(".removing");
+    let target = if std::fs::rename(p, &aside).is_ok() {
+        PathBuf::from(aside)
+    } else {
+        p.to_path_buf()
+    };
+    (0..3).any(|_| std::fs::remove_dir_all(&target).is_ok() || !target.exists())
 }
 
 /// A temp directory (an export being written) that [`remove_live_temps`] removes with its contents if the
 /// process is interrupted while this guard lives. Dropping the guard only forgets the directory.
 pub struct LiveTempDir {
     _live: LiveTemp,
+    _parents: Vec<LiveTemp>,
 }
 
 impl LiveTempDir {
     pub fn register(path: &Path) -> LiveTempDir {
+        Self::register_with_parents(path, &[])
+    }
+
+    /// [`Self::register`], and `parents`: folders the work created above `path`, removed after it
+    /// (deepest first) if they are empty then.
+    pub fn register_with_parents(path: &Path, parents: &[PathBuf]) -> LiveTempDir {
         LiveTempDir {
             _live: LiveTemp::register(path),
+            _parents: parents
+                .iter()
+                .map(|p| LiveTemp::register_as(p, true))
+                .collect(),
         }
     }
 }
@@ -683,6 +724,26 @@ mod tests {
         std::fs::create_dir(&partial).unwrap();
         remove_live_temps();
         assert!(partial.exists(), "a dropped guard forgets its folder");
+    }
+
+    /// An export interrupted by a signal leaves no folder it created above its temp folder (SIGTERM left
+    /// `new/deep/` behind: only the error path removed them); a parent that holds something else stays.
+    #[test]
+    fn live_temp_dirs_take_the_empty_parents_they_created() {
+        let dir = tempfile::tempdir().unwrap();
+        let (new, deep) = (dir.path().join("new"), dir.path().join("new/deep"));
+        let partial = deep.join(".out.partial-1");
+        std::fs::create_dir_all(partial.join("x")).unwrap();
+        let guard = LiveTempDir::register_with_parents(&partial, &[deep.clone(), new.clone()]);
+        remove_live_temps();
+        assert!(!new.exists(), "{}", new.display());
+        drop(guard);
+        std::fs::create_dir_all(partial.join("x")).unwrap();
+        std::fs::write(new.join("keep.txt"), b"x").unwrap();
+        let guard = LiveTempDir::register_with_parents(&partial, &[deep.clone(), new.clone()]);
+        remove_live_temps();
+        assert!(!deep.exists() && new.join("keep.txt").exists());
+        drop(guard);
     }
 
     #[cfg(unix)]
