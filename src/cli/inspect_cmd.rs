@@ -203,7 +203,7 @@ pub(super) fn print_inspect(r: &InspectReport) {
 
 pub(super) fn print_verify(v: &VerifyReport) {
     println!(
-        "verify: {} blocks, {} nodes, {} triangles, {} vertices checked: {}",
+        "verify: {} blocks, {} nodes, {} triangles ({} corners) checked: {}",
         v.blocks_checked,
         v.nodes_checked,
         v.triangles_checked,

@@ -207,6 +207,44 @@ fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
     sheet
 }
 
+/// What the run's end says of the requests still unanswered at its last frame (`None`: there were
+/// none). A server that stopped responding holds them up to its timeout × attempts; they are abandoned
+/// at exit, not counted as failures. Nothing arrived all run and nothing failed: a dead source from the
+/// start. Nothing arrived in the last frames while loads failed there: a source that died mid-run (more
+/// frames or a synchronous loader cannot help). Otherwise the run simply ended before a slow source
+/// answered (its latency × the requests per frame).
+fn unanswered_requests(paged: &[&atlastree::plan::PagingFrame], failures: u32) -> Option<String> {
+    let last = paged.last()?;
+    let (in_flight, queued) = (last.session.in_flight, last.session.queued);
+    if in_flight + queued == 0 {
+        return None;
+    }
+    let loaded = paged.iter().map(|p| p.pager().loaded).sum::<u32>();
+    let quiet: Vec<_> = paged
+        .iter()
+        .rev()
+        .take_while(|p| p.pager().loaded == 0)
+        .collect();
+    let quiet_failures: u32 = quiet.iter().map(|p| p.pager().failures).sum();
+    Some(if loaded == 0 && failures == 0 {
+        format!(
+            "warning: no block request was answered during the run ({in_flight} in flight, {queued} queued at \
+             the end): is the source responding?"
+        )
+    } else if quiet_failures > 0 {
+        format!(
+            "warning: the source stopped answering: nothing arrived in the last {} frames and {quiet_failures} \
+             loads failed there ({in_flight} requests in flight and {queued} queued at the end)",
+            quiet.len()
+        )
+    } else {
+        format!(
+            "note: the run ended with {in_flight} block requests in flight and {queued} queued (a source slower \
+             than the frames: more frames, or --loader-threads 0 to wait for each load, let them arrive)"
+        )
+    })
+}
+
 /// `stats.csv`: `frame`, the frame's counters and timings ([`atlastree::render::frame_columns`]) and, when paged,
 /// the paging columns ([`columns::paging_columns`]).
 fn write_stats_csv(path: &Path, stats: &[FrameStats]) -> anyhow::Result<()> {
@@ -284,26 +322,8 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
                 "  warning: {failures} block loads failed (those nodes drew a coarser resident atlas; see stats.csv failures)"
             );
         }
-        // Requests the source never answered by the last frame (a server that stopped responding holds
-        // them up to its timeout × attempts; they are abandoned at exit, not counted as failures).
-        // Only a run in which nothing arrived at all hints at a dead source; otherwise the run simply
-        // ended before a slow source answered (its latency × the requests per frame).
-        if let Some(last) = paged.last()
-            && last.session.in_flight + last.session.queued > 0
-        {
-            let (in_flight, queued) = (last.session.in_flight, last.session.queued);
-            let loaded = paged.iter().map(|p| p.pager().loaded).sum::<u32>();
-            if loaded == 0 && failures == 0 {
-                println!(
-                    "  warning: no block request was answered during the run ({in_flight} in flight, {queued} queued \
-                     at the end): is the source responding?"
-                );
-            } else {
-                println!(
-                    "  note: the run ended with {in_flight} block requests in flight and {queued} queued (a source \
-                     slower than the frames: more frames, or --loader-threads 0 to wait for each load, let them arrive)"
-                );
-            }
+        if let Some(line) = unanswered_requests(&paged, failures) {
+            println!("  {line}");
         }
     }
     // Medians: robust against one-off stalls (a software rasteriser compiles shader variants on first use).
@@ -314,4 +334,47 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         median(frame),
         median(gpu)
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use atlastree::plan::PagingFrame;
+
+    fn frame(loaded: u32, failures: u32, in_flight: u32) -> PagingFrame {
+        let mut f = PagingFrame::default();
+        f.session.pager.loaded = loaded;
+        f.session.pager.failures = failures;
+        f.session.in_flight = in_flight;
+        f
+    }
+
+    /// A source that died mid-run is named as such (the note said "slower than the frames: more
+    /// frames, or --loader-threads 0", which cannot help); a slow one and a dead-from-the-start one keep
+    /// their messages; nothing unanswered, nothing said.
+    #[test]
+    fn the_end_of_run_line_tells_a_dead_source_from_a_slow_one() {
+        let run = |frames: &[PagingFrame]| {
+            let refs: Vec<&PagingFrame> = frames.iter().collect();
+            let failures = frames.iter().map(|f| f.session.pager.failures).sum();
+            unanswered_requests(&refs, failures)
+        };
+        let died = [frame(5, 0, 0), frame(0, 2, 1), frame(0, 1, 2)];
+        let line = run(&died).unwrap();
+        assert!(
+            line.starts_with(
+                "warning: the source stopped answering: nothing arrived in the last 2 frames and 3"
+            ),
+            "{line}"
+        );
+        let slow = [frame(5, 0, 0), frame(0, 0, 2)];
+        assert!(
+            run(&slow)
+                .unwrap()
+                .starts_with("note: the run ended with 2 block requests")
+        );
+        let dead = [frame(0, 0, 1), frame(0, 0, 2)];
+        assert!(run(&dead).unwrap().contains("is the source responding?"));
+        assert_eq!(run(&[frame(5, 0, 0)]), None);
+    }
 }

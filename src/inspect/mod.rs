@@ -308,6 +308,7 @@ pub struct VerifyReport {
     pub blocks_checked: u64,
     pub nodes_checked: u64,
     pub triangles_checked: u64,
+    /// Triangle corners checked (vertex references: three a triangle, a shared vertex once per use).
     pub vertices_checked: u64,
     /// Rects checked (range per wrap mode, texels per period against every triangle's requirement).
     pub rects_checked: u64,
