@@ -52,8 +52,9 @@ pub(super) struct Walk<'a, 'b> {
 }
 
 impl<'a> Walk<'a, '_> {
-    /// Walks the default scene (`scenes[0]` without one; all root nodes without scenes) iteratively and returns every mesh instance with its
-    /// world matrix. A node met again while it is on the current path is a cycle: error.
+    /// Walks the default scene (`scenes[0]` without one; every root node without scenes) iteratively and
+    /// returns every mesh instance with its world matrix. A node met again while it is on the current
+    /// path is a cycle: error.
     pub(super) fn instances(&mut self) -> Result<Vec<Instance>, SceneError> {
         let n = self.doc.nodes().len();
         // No `scene` index: `scenes[0]`, as three.js and Blender draw (glTF leaves it to the viewer);

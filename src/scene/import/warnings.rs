@@ -64,14 +64,16 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
             nearest.len()
         ));
     }
+    // Emission is emissiveTexture × emissiveFactor, the factor [0, 0, 0] by default: a texture alone emits
+    // nothing.
     let emissive: Vec<usize> = doc
         .materials()
-        .filter(|m| m.emissive_texture().is_some() || m.emissive_factor().iter().any(|&c| c > 0.0))
+        .filter(|m| m.emissive_factor().iter().any(|&c| c > 0.0))
         .filter_map(|m| m.index())
         .collect();
     if let Some(&first) = emissive.first() {
         report.warn(format!(
-            "{file}: {} materials are emissive (emissiveTexture or emissiveFactor), drawn without their \
+            "{file}: {} materials are emissive (emissiveFactor above 0), drawn without their \
              emission: only the base colour shows (first: material {first})",
             emissive.len()
         ));

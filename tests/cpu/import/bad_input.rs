@@ -601,13 +601,16 @@ fn an_opaque_materials_factor_alpha_is_ignored() {
     assert_eq!(by_name("roof_2").base_color_factor[3], 0.25);
 }
 
-/// Emission is not drawn: one counted warning naming the first emissive material.
+/// Emission is not drawn: one counted warning naming the first emissive material (an emissive texture
+/// with the default factor [0, 0, 0] emits nothing and is not counted).
 #[test]
 fn emissive_materials_are_one_counted_warning() {
     let dir = tempfile::tempdir().unwrap();
     let mut doc = city_json();
     doc["materials"][3]["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
     doc["materials"][5]["emissiveTexture"] = json!({"index": 0});
+    doc["materials"][5]["emissiveFactor"] = json!([0.0, 0.5, 0.0]);
+    doc["materials"][6]["emissiveTexture"] = json!({"index": 1});
     let s = import_city(dir.path(), &doc).1.unwrap();
     let w = &s.report.warnings;
     assert_eq!(s.report.warnings_total, 1, "{w:?}");
