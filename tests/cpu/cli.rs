@@ -633,3 +633,49 @@ fn out_naming_a_file_is_refused_before_any_work() {
     }
     assert_eq!(std::fs::read(&file).unwrap(), b"x");
 }
+
+/// A border over 1/16 of the atlas side is warned about before the build (it built 3.2 GiB at
+/// `--border 255`, atlas 1024, without a word); the default border is not.
+#[test]
+fn a_wide_border_is_warned_about_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("b.atlastree");
+    let wide = run(bin()
+        .args([
+            "build",
+            "--d-min-ratio",
+            "4",
+            "--atlas-size",
+            "256",
+            "--border",
+            "20",
+            "-q",
+            "-o",
+        ])
+        .arg(&out)
+        .arg(scene()));
+    assert!(
+        wide.status.success(),
+        "{}",
+        String::from_utf8_lossy(&wide.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&wide.stderr);
+    assert!(
+        stderr.contains("warning: --border 20 is more than 1/16 of --atlas-size 256"),
+        "{stderr}"
+    );
+    let plain = run(bin()
+        .args([
+            "build",
+            "--d-min-ratio",
+            "4",
+            "--atlas-size",
+            "256",
+            "-q",
+            "-o",
+        ])
+        .arg(&out)
+        .arg(scene()));
+    assert!(plain.status.success());
+    assert!(!String::from_utf8_lossy(&plain.stderr).contains("--border"));
+}
