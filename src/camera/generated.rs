@@ -147,8 +147,10 @@ impl CameraPath {
     }
 
     /// A low flight across the scene along its footprint's diagonal from 5 % to 95 %, the eye
-    /// alternating between 1.7 m and 10 m above the ground, looking ahead along the line, at about
-    /// 15 m/s (at least 10 s). Nine keyframes; the plane motion is a straight line.
+    /// alternating between 1.7 m and 10 m above the ground, looking ahead towards the next keyframe, at
+    /// about 15 m/s (at least 10 s). Nine keyframes, each over the content nearest its point of the
+    /// diagonal ([`Ground::content_near`]; on a ground without content the diagonal itself, a straight
+    /// line).
     ///
     /// Documented bounds: eye inside the footprint; at every time at least 1.7 m above the ground under
     /// it; at each keyframe its listed height (1.7–10 m) above the highest ground along its two segments
@@ -166,19 +168,41 @@ impl CameraPath {
             let n = heights.len() - 1;
             let dir = (b - a).try_normalize().unwrap_or(DVec2::X);
             let fraction = |i: usize| i as f64 / n as f64;
+            // Each keyframe over the content nearest its point of the diagonal: a track's diagonal crosses
+            // empty corners, where a low eye looking ahead saw only sky (zengarden: 9 of 30 frames).
+            let diagonal = |i: usize| a.lerp(b, fraction(i));
             let eyes: Vec<DVec2> = (0..=n)
-                .map(|i| f.clamp_plane(a.lerp(b, fraction(i))))
+                .map(|i| {
+                    let p = diagonal(i);
+                    let near = ground.content_near(p);
+                    if near == p { p } else { f.clamp_plane(near) }
+                })
                 .collect();
             let grounds = segment_grounds(&eyes, |p, q| ground.max_along(p, q));
+            // Looking ahead along the flight: towards the next keyframe (the last along the one before;
+            // the diagonal where two keyframes share a spot).
+            let ahead = |i: usize| {
+                let j = if i < n { i } else { i - 1 };
+                if eyes[j] == diagonal(j) && eyes[j + 1] == diagonal(j + 1) {
+                    return dir;
+                }
+                (eyes[j + 1] - eyes[j]).try_normalize().unwrap_or(dir)
+            };
             let ks = heights
                 .iter()
                 .zip(grounds)
                 .enumerate()
                 .map(|(i, (&h, g))| {
-                    let s = fraction(i);
-                    let eye = a.lerp(b, s);
-                    let target = eye + dir * 50.0;
-                    f.key(duration * s, eye, g + h, target, g + h * 0.5, 70.0)
+                    let eye = eyes[i];
+                    let target = eye + ahead(i) * 50.0;
+                    f.key(
+                        duration * fraction(i),
+                        eye,
+                        g + h,
+                        target,
+                        g + h * 0.5,
+                        70.0,
+                    )
                 })
                 .collect();
             (ks, f.far(ground.highest() + 10.0))
