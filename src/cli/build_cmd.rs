@@ -440,7 +440,7 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
             human_texels(lr.scaled_original_texels_max)
         );
         println!(
-            "    periods stored {:.1} of the {:.1} the UVs span ({:.0}× fewer)",
+            "    periods stored {:.1} of the {:.1} the rects' UV boxes span ({:.0}× fewer)",
             t.periods_stored,
             t.periods_spanned,
             t.periods_spanned / t.periods_stored.max(1e-9)

@@ -201,6 +201,19 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     let path = cfg.path.resolve_with(|| Ground::from_scene(&scene))?;
     let aspect = f64::from(plan.width) / f64::from(plan.height);
     let cameras = sample_path(&path, plan.frames, aspect);
+    for (i, j) in atlastree::sweep::repeated_views(&cameras) {
+        eprintln!(
+            "note: frames {i} and {j} (path times {:.1} s and {:.1} s) see almost the same view, which \
+             counts twice in every mean{}",
+            cameras[i].0,
+            cameras[j].0,
+            if cameras.len() == 2 {
+                " and is the only view measured: more --frames measure the path's other views"
+            } else {
+                ""
+            }
+        );
+    }
 
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
     if !cfg.json {

@@ -29,7 +29,7 @@ pub mod summary;
 pub use grid::{BuildKnobs, Grid, Plan, RuntimeKnobs};
 pub use run::{
     BuildRow, FrameRow, NoSweepProgress, SweepData, SweepOptions, SweepProgress, merge_histogram,
-    run_sweep, sample_path,
+    repeated_views, run_sweep, sample_path,
 };
 
 use crate::camera::CameraError;

@@ -204,6 +204,26 @@ pub fn sample_path(path: &CameraPath, count: usize, aspect: f64) -> Vec<(f64, Ca
         .collect()
 }
 
+/// Pairs `(i, j)`, `i < j`, of `cameras` that see almost the same view: eyes and targets within 5 % of
+/// the eye–target distance, the same field of view. A closed path's first and last keyframe are such a
+/// pair (the overview-dive starts and ends at the overview): with `--frames 2` every variant measured one
+/// view twice, and a knob seemed to change nothing.
+pub fn repeated_views(cameras: &[(f64, Camera)]) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    for (i, (_, a)) in cameras.iter().enumerate() {
+        for (j, (_, b)) in cameras.iter().enumerate().skip(i + 1) {
+            let reach = 0.05 * (a.target - a.eye).length();
+            if (a.eye - b.eye).length() <= reach
+                && (a.target - b.target).length() <= reach
+                && a.fov_x_deg == b.fov_x_deg
+            {
+                out.push((i, j));
+            }
+        }
+    }
+    out
+}
+
 /// Runs the whole plan: for each build (base first), build it into `opts.builds_dir`, render its
 /// runtime variants on `cameras`, and (base build) render the reference frames first.
 pub fn run_sweep(

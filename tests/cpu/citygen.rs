@@ -356,3 +356,35 @@ fn berlin_counts_follow_the_arguments() {
     assert_eq!(u32::from_be_bytes(png[16..20].try_into().unwrap()), 32);
     assert_eq!(u32::from_be_bytes(png[20..24].try_into().unwrap()), 32);
 }
+
+/// Counts past what one run makes are refused before anything is written (`--textures 4000000000`
+/// aborted on a 128 GB allocation, `--scale 1e30` ran out of memory; both left a half-made folder).
+#[test]
+fn absurd_counts_are_refused_before_anything_is_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (args, want) in [
+        (
+            &["chemnitz", "--scale", "0.002", "--textures", "4000000000"][..],
+            "4000000000 pool textures (--textures, or --scale 0.002); at most 1000000",
+        ),
+        (
+            &["berlin", "--scale", "1e30"][..],
+            "--scale 1000000000000000000000000000000 gives 4294967295 buildings; at most 2000000",
+        ),
+    ] {
+        let out = tmp.path().join("x");
+        let o = Command::new(env!("CARGO_BIN_EXE_citygen"))
+            .args(args)
+            .arg("--quiet")
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .expect("spawn citygen");
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && stderr.contains(want),
+            "{args:?}: {stderr}"
+        );
+        assert!(!out.exists(), "{args:?} left {}", out.display());
+    }
+}

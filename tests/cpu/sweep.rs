@@ -383,3 +383,24 @@ fn a_knob_with_too_many_values_is_refused() {
     g.d_min_ratio.truncate(64);
     g.validate("test").unwrap();
 }
+
+/// A closed path's start and end see one view: `repeated_views` finds the pair the sweep warns about
+/// (with `--frames 2` on the overview-dive every variant measured the overview twice, and the texel ratio
+/// seemed to change nothing); a street flight repeats no view.
+#[test]
+fn repeated_views_find_a_closed_paths_start_and_end() {
+    use atlastree::camera::CameraPath;
+    use atlastree::scene::UpAxis;
+    use atlastree::sweep::{repeated_views, sample_path};
+    use glam::DVec3;
+    let (lo, hi) = (DVec3::ZERO, DVec3::new(800.0, 60.0, 500.0));
+    let dive = CameraPath::overview_dive(lo, hi, UpAxis::Y).unwrap();
+    assert_eq!(repeated_views(&sample_path(&dive, 2, 4.0 / 3.0)), [(0, 1)]);
+    // Five frames: the start and end, and the descent's and the climb's mirrored halfway views.
+    assert_eq!(
+        repeated_views(&sample_path(&dive, 5, 4.0 / 3.0)),
+        [(0, 4), (1, 3)]
+    );
+    let street = CameraPath::street(lo, hi, UpAxis::Y).unwrap();
+    assert!(repeated_views(&sample_path(&street, 5, 4.0 / 3.0)).is_empty());
+}

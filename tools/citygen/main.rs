@@ -125,8 +125,39 @@ fn scaled(base: f64, scale: f64) -> u32 {
     (base * scale).round().clamp(1.0, f64::from(u32::MAX)) as u32
 }
 
-/// The resolved district parameters for `cli`.
+/// Most buildings and pool textures one run makes (a city of 500,000 buildings fits; `--scale 1e30` or
+/// `--textures 4000000000` aborted on a 128 GB allocation, leaving a half-made folder).
+const MAX_BUILDINGS: u32 = 2_000_000;
+const MAX_TEXTURES: u32 = 1_000_000;
+
+/// The resolved district parameters for `cli`, refused past [`MAX_BUILDINGS`] and [`MAX_TEXTURES`]
+/// before anything is written.
 fn params(cli: &Cli) -> Result<(Option<city::BerlinParams>, Option<city::ChemnitzParams>)> {
+    let resolved = district_params(cli)?;
+    let (berlin, chemnitz) = &resolved;
+    let buildings = berlin.as_ref().map_or(0, |b| b.buildings) as u64
+        + chemnitz.as_ref().map_or(0, |c| c.buildings) as u64;
+    if buildings > u64::from(MAX_BUILDINGS) {
+        bail!(
+            "--scale {} gives {buildings} buildings; at most {MAX_BUILDINGS} (--buildings sets the count)",
+            cli.scale
+        );
+    }
+    if let Some(c) = chemnitz
+        && c.textures > MAX_TEXTURES
+    {
+        bail!(
+            "{} pool textures (--textures, or --scale {}); at most {MAX_TEXTURES}",
+            c.textures,
+            cli.scale
+        );
+    }
+    Ok(resolved)
+}
+
+fn district_params(
+    cli: &Cli,
+) -> Result<(Option<city::BerlinParams>, Option<city::ChemnitzParams>)> {
     if !(cli.scale.is_finite() && cli.scale > 0.0) {
         bail!(
             "--scale must be a positive finite number, got {}",
