@@ -211,6 +211,21 @@ impl<'a> SimInput<'a> {
     }
 }
 
+/// `cameras` each with its min-distance scale, `scales[i]`; [`PlanError::ScaleCount`] when the counts
+/// differ.
+pub(crate) fn with_scales<'a>(
+    cameras: &'a [Camera],
+    scales: &'a [f64],
+) -> Result<impl Iterator<Item = (&'a Camera, f64)> + 'a, PlanError> {
+    if scales.len() != cameras.len() {
+        return Err(PlanError::ScaleCount {
+            cameras: cameras.len(),
+            scales: scales.len(),
+        });
+    }
+    Ok(cameras.iter().zip(scales.iter().copied()))
+}
+
 /// Runs `cameras` (one per frame, clock `i / fps`), camera `i` at min-distance scale `scales[i]` (it
 /// follows the camera's field of view, as the renderer's does); returns one row per frame and the
 /// summary. `scales` of another length than `cameras`: [`PlanError::ScaleCount`].
@@ -232,12 +247,7 @@ pub fn simulate_with(
     opts: &SimOptions,
     events: &mut dyn FnMut(u32, &crate::paging::Event),
 ) -> Result<(Vec<FrameRow>, RunSummary), PlanError> {
-    if scales.len() != cameras.len() {
-        return Err(PlanError::ScaleCount {
-            cameras: cameras.len(),
-            scales: scales.len(),
-        });
-    }
+    let views = with_scales(cameras, scales)?;
     let loader: Box<dyn Loader> = match opts.io {
         Some(m) => Box::new(ModelLoader::new(m)),
         None => Box::new(InstantLoader::default()),
@@ -252,7 +262,7 @@ pub fn simulate_with(
     // The roots are resident before the first frame; the log starts with frame 0's changes.
     planner.take_bootstrap();
     let mut rows = Vec::with_capacity(cameras.len());
-    for (i, (cam, &scale)) in cameras.iter().zip(scales).enumerate() {
+    for (i, (cam, scale)) in views.enumerate() {
         let now = i as f64 / opts.fps;
         let frame = i as u32;
         let plan = planner.plan(

@@ -163,16 +163,11 @@ pub fn levels_along(
     cameras: &[Camera],
     scales: &[f64],
 ) -> Result<Vec<TreeLevels>, PlanError> {
-    if scales.len() != cameras.len() {
-        return Err(PlanError::ScaleCount {
-            cameras: cameras.len(),
-            scales: scales.len(),
-        });
-    }
+    let views = super::with_scales(cameras, scales)?;
     let trees = crate::plan::file_trees(file);
     let mut out: Vec<TreeLevels> = trees.iter().map(|t| TreeLevels::new(t)).collect();
     let mut planner = FramePlanner::new(trees);
-    for (cam, &scale) in cameras.iter().zip(scales) {
+    for (cam, scale) in views {
         let plan = planner.plan_still(cam, scale, &mut NoResidency)?;
         for (cut, lv) in plan.cuts.iter().zip(out.iter_mut()) {
             let mut seen = vec![false; lv.atlas_draws.len()];

@@ -204,12 +204,20 @@ pub fn sample_path(path: &CameraPath, count: usize, aspect: f64) -> Vec<(f64, Ca
         .collect()
 }
 
+/// Most frames [`repeated_views`] compares (all pairs: ~32,000 at this count).
+const REPEAT_CHECK_MAX: usize = 256;
+
 /// Pairs `(i, j)`, `i < j`, of `cameras` that see almost the same view: eyes and targets within 5 % of
 /// the eye–target distance, the same field of view. A closed path's first and last keyframe are such a
 /// pair (the overview-dive starts and ends at the overview): with `--frames 2` every variant measured one
-/// view twice, and a knob seemed to change nothing.
+/// view twice, and a knob seemed to change nothing. A repeat weighs in a small sample only: past
+/// [`REPEAT_CHECK_MAX`] frames none is looked for (the pairs grow with the square of the count, and a
+/// sweep may take 100,000 frames).
 pub fn repeated_views(cameras: &[(f64, Camera)]) -> Vec<(usize, usize)> {
     let mut out = Vec::new();
+    if cameras.len() > REPEAT_CHECK_MAX {
+        return out;
+    }
     for (i, (_, a)) in cameras.iter().enumerate() {
         for (j, (_, b)) in cameras.iter().enumerate().skip(i + 1) {
             let reach = 0.05 * (a.target - a.eye).length();

@@ -640,42 +640,21 @@ fn out_naming_a_file_is_refused_before_any_work() {
 fn a_wide_border_is_warned_about_up_front() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("b.atlastree");
-    let wide = run(bin()
-        .args([
-            "build",
-            "--d-min-ratio",
-            "4",
-            "--atlas-size",
-            "256",
-            "--border",
-            "20",
-            "-q",
-            "-o",
-        ])
-        .arg(&out)
-        .arg(scene()));
+    let build = |extra: &[&str]| {
+        let o = run(bin()
+            .args(["build", "--d-min-ratio", "4", "--atlas-size", "256", "-q"])
+            .args(extra)
+            .arg("-o")
+            .arg(&out)
+            .arg(scene()));
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stderr}");
+        stderr
+    };
+    let wide = build(&["--border", "20"]);
     assert!(
-        wide.status.success(),
-        "{}",
-        String::from_utf8_lossy(&wide.stderr)
+        wide.contains("warning: --border 20 is more than 1/16 of --atlas-size 256"),
+        "{wide}"
     );
-    let stderr = String::from_utf8_lossy(&wide.stderr);
-    assert!(
-        stderr.contains("warning: --border 20 is more than 1/16 of --atlas-size 256"),
-        "{stderr}"
-    );
-    let plain = run(bin()
-        .args([
-            "build",
-            "--d-min-ratio",
-            "4",
-            "--atlas-size",
-            "256",
-            "-q",
-            "-o",
-        ])
-        .arg(&out)
-        .arg(scene()));
-    assert!(plain.status.success());
-    assert!(!String::from_utf8_lossy(&plain.stderr).contains("--border"));
+    assert!(!build(&[]).contains("--border"));
 }
