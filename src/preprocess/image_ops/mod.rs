@@ -21,6 +21,7 @@
 //! `u` runs along `x` and `v` along `y` (glTF); texel centres are at `(x + 0.5) / width`.
 
 mod coverage;
+mod encode_simd;
 mod linear;
 mod mip;
 mod raster;

@@ -14,6 +14,11 @@ use std::sync::LazyLock;
 const BUCKET_SHIFT: u32 = 15;
 /// Buckets over `[0, 1]`: every positive f32 ≤ 1.0 (bits ≤ `0x3F80_0000`) has its own.
 const BUCKETS: usize = (0x3F80_0000 >> BUCKET_SHIFT) as usize + 1;
+/// The bucket of 2⁻¹³: every f32 below it encodes to 0 (the first threshold, decode(0.5/255) ≈ 1.5·10⁻⁴,
+/// lies above), so the packed table starts there.
+pub(super) const PACKED_FIRST: usize = (0x3900_0000 >> BUCKET_SHIFT) as usize;
+/// Buckets of the packed table: [`PACKED_FIRST`] up to 1.0's.
+pub(super) const PACKED: usize = BUCKETS - PACKED_FIRST;
 
 struct Tables {
     /// `to_linear[i]` = decode(i / 255).
@@ -25,6 +30,10 @@ struct Tables {
     thresholds: [f32; 256],
     /// `bucket_start[k]`: the code of the smallest f32 whose bits shifted by [`BUCKET_SHIFT`] are `k`.
     bucket_start: Box<[u8; BUCKETS]>,
+    /// The buckets from [`PACKED_FIRST`] on, one `u32` each for a single SIMD gather
+    /// ([`super::encode_simd`]): `bucket_start[k] << 16 | o`, `o` the low [`BUCKET_SHIFT`] bits of the
+    /// threshold inside bucket `k`, or `1 << BUCKET_SHIFT` (above every offset) where none is.
+    packed: Box<[u32; PACKED]>,
 }
 
 static TABLES: LazyLock<Tables> = LazyLock::new(build_tables);
@@ -57,11 +66,24 @@ fn build_tables() -> Tables {
         }
         *b = code as u8;
     }
+    let mut packed = Box::new([0u32; PACKED]);
+    for (j, p) in packed.iter_mut().enumerate() {
+        let k = PACKED_FIRST + j;
+        let code = bucket_start[k];
+        let th = thresholds[usize::from(code)].to_bits();
+        let offset = if (th >> BUCKET_SHIFT) as usize == k {
+            th & ((1 << BUCKET_SHIFT) - 1)
+        } else {
+            1 << BUCKET_SHIFT
+        };
+        *p = u32::from(code) << 16 | offset;
+    }
     Tables {
         to_linear,
         unit,
         thresholds,
         bucket_start,
+        packed,
     }
 }
 
@@ -106,6 +128,14 @@ impl Encoder {
     #[inline]
     pub fn encode(self, v: f32) -> u8 {
         encode_with(self.0, v)
+    }
+
+    /// Linear premultiplied `texels` → sRGB8 straight bytes in `out` (4 a texel) with AVX2, the same
+    /// bytes as the per-texel rule ([`super::encode_simd`]); returns whether a written alpha is 0, or
+    /// `None` (nothing written) where the CPU lacks AVX2 or `out` is not 4 bytes a texel.
+    #[inline]
+    pub(super) fn encode_run_simd(self, texels: &[[f32; 4]], out: &mut [u8]) -> Option<bool> {
+        super::encode_simd::encode_run(texels, out, &self.0.packed)
     }
 }
 
@@ -173,6 +203,28 @@ mod tests {
             return 0;
         }
         t.thresholds[..255].iter().filter(|&&th| v >= th).count() as u8
+    }
+
+    #[test]
+    fn the_packed_table_is_the_bucket_rule() {
+        let t = &*TABLES;
+        // Below its first bucket every f32 encodes to 0.
+        assert!(t.thresholds[0] > f32::from_bits((PACKED_FIRST as u32) << BUCKET_SHIFT));
+        assert!(t.bucket_start[..PACKED_FIRST].iter().all(|&c| c == 0));
+        // Each packed bucket: its code, and the offset where the next code starts (if inside it).
+        let mask = (1u32 << BUCKET_SHIFT) - 1;
+        for (j, &p) in t.packed.iter().enumerate() {
+            let k = (PACKED_FIRST + j) as u32;
+            for low in [0, 1, mask / 2, mask - 1, mask] {
+                let v = f32::from_bits(k << BUCKET_SHIFT | low);
+                let packed_code = (p >> 16) + u32::from(low >= (p & 0xFFFF));
+                assert_eq!(
+                    packed_code,
+                    u32::from(encode_with(t, v)),
+                    "bucket {k}, low bits {low}"
+                );
+            }
+        }
     }
 
     #[test]
