@@ -4,7 +4,7 @@
 use super::ImageOpsError;
 use super::linear::LinearImage;
 use super::mip::{MipChain, MipFilter, MipOptions};
-use super::sample::{AxisTaps, FootprintPlan, apply_fixed, apply_taps, period_shift};
+use super::sample::{AxisTaps, FootprintPlan, apply_rows, period_shift, tap_row, tap_rows};
 use super::srgb::srgb8_to_linear;
 use crate::model::AtlasRect;
 use crate::scene::{DecodedImage, Wrap};
@@ -157,7 +157,8 @@ pub fn draw_rect(dst: &mut LinearImage, r: &RectJob, src: &MipChain) -> Result<(
 }
 
 /// One row segment of [`draw_rect`]: texel `i` is the taps `col_taps[i·nx..(i+1)·nx] × ys` of `level`
-/// times `scale`. The common tap counts run as fixed-size loops ([`apply_fixed`]), chosen once per row.
+/// times `scale`. The rows `ys` selects are sliced once for the segment; the common tap counts run as
+/// fixed-size loops ([`apply_rows`] over arrays), chosen once per row.
 fn fill_segment(
     seg: &mut [[f32; 4]],
     level: &LinearImage,
@@ -173,9 +174,11 @@ fn fill_segment(
         ys: [(u32, f32); NY],
         scale: [f32; 4],
     ) {
+        // The rows are the same for the whole segment: sliced once, not per texel.
+        let rows = tap_rows(level, ys);
         for (d, xs) in seg.iter_mut().zip(col_taps.chunks_exact(NX)) {
-            if let Ok(xs) = <[(u32, f32); NX]>::try_from(xs) {
-                *d = scaled(apply_fixed(level, xs, ys), scale);
+            if let Ok(xs) = <&[(u32, f32); NX]>::try_from(xs) {
+                *d = scaled(apply_rows(&rows, xs), scale);
             }
         }
     }
@@ -185,8 +188,10 @@ fn fill_segment(
         (2, &[a, b, c, d]) => run::<2, 4>(seg, level, col_taps, [a, b, c, d], scale),
         (4, &[a, b, c, d]) => run::<4, 4>(seg, level, col_taps, [a, b, c, d], scale),
         _ => {
+            let rows: Vec<(&[[f32; 4]], f32)> =
+                ys.iter().map(|&(iy, wy)| tap_row(level, iy, wy)).collect();
             for (d, xs) in seg.iter_mut().zip(col_taps.chunks_exact(nx.max(1))) {
-                *d = scaled(apply_taps(level, xs, ys), scale);
+                *d = scaled(apply_rows(&rows, xs), scale);
             }
         }
     }

@@ -156,11 +156,34 @@ pub(crate) fn apply_fixed<const NX: usize, const NY: usize>(
     xs: [(u32, f32); NX],
     ys: [(u32, f32); NY],
 ) -> [f32; 4] {
+    apply_rows(&tap_rows(img, ys), &xs)
+}
+
+/// The rows `ys` select (each from its first texel to the end of `img.data`, empty past it) with their
+/// weights: what [`apply_rows`] reads, made once for a whole row of destination texels.
+#[inline]
+pub(crate) fn tap_rows<const NY: usize>(
+    img: &LinearImage,
+    ys: [(u32, f32); NY],
+) -> [(&[[f32; 4]], f32); NY] {
+    ys.map(|(iy, wy)| tap_row(img, iy, wy))
+}
+
+/// Row `iy` of `img` from its first texel to the end of `img.data` (empty past it), with weight `wy`.
+#[inline]
+pub(crate) fn tap_row(img: &LinearImage, iy: u32, wy: f32) -> (&[[f32; 4]], f32) {
     let w = img.width as usize;
+    (img.data.get(iy as usize * w..).unwrap_or(&[]), wy)
+}
+
+/// The weighted sum over `rows × xs`: rows outer, taps inner, each product `(wx · wy) · t` added in that
+/// order (texels past a row's slice count as 0).
+/// Inlined, so fixed-size `rows` and `xs` (arrays) become unrolled loops.
+#[inline(always)]
+pub(crate) fn apply_rows(rows: &[(&[[f32; 4]], f32)], xs: &[(u32, f32)]) -> [f32; 4] {
     let mut acc = [0.0f32; 4];
-    for (iy, wy) in ys {
-        let row = img.data.get(iy as usize * w..).unwrap_or(&[]);
-        for (ix, wx) in xs {
+    for &(row, wy) in rows {
+        for &(ix, wx) in xs {
             let wt = wx * wy;
             if let Some(t) = row.get(ix as usize) {
                 for c in 0..4 {
