@@ -459,6 +459,20 @@ pub fn save_png(path: &Path, img: &image::RgbaImage) -> std::io::Result<()> {
     write_atomic(path, &bytes)
 }
 
+/// Whether this CPU has AVX2 (asked at run time; std caches the answer): the SIMD kernels' twins
+/// (`image_ops::srgb_simd`, `texfmt::bc1::interior_sse`) run only where it is true.
+#[inline]
+pub fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// Asks the CPU to bring the cache lines of `value` in (x86-64 `prefetcht0`; elsewhere nothing): a hint
 /// for passes that visit records in an order memory does not predict, issued some records ahead of use.
 /// Reads nothing and has no effect on results.

@@ -21,12 +21,12 @@
 //! `u` runs along `x` and `v` along `y` (glTF); texel centres are at `(x + 0.5) / width`.
 
 mod coverage;
-mod encode_simd;
 mod linear;
 mod mip;
 mod raster;
 mod sample;
 pub mod srgb;
+mod srgb_simd;
 
 pub use coverage::{AlphaMips, CoverageRegion, preserve_coverage};
 pub use linear::LinearImage;

@@ -31,9 +31,12 @@ struct Tables {
     /// `bucket_start[k]`: the code of the smallest f32 whose bits shifted by [`BUCKET_SHIFT`] are `k`.
     bucket_start: Box<[u8; BUCKETS]>,
     /// The buckets from [`PACKED_FIRST`] on, one `u32` each for a single SIMD gather
-    /// ([`super::encode_simd`]): `bucket_start[k] << 16 | o`, `o` the low [`BUCKET_SHIFT`] bits of the
+    /// ([`super::srgb_simd`]): `bucket_start[k] << 16 | o`, `o` the low [`BUCKET_SHIFT`] bits of the
     /// threshold inside bucket `k`, or `1 << BUCKET_SHIFT` (above every offset) where none is.
     packed: Box<[u32; PACKED]>,
+    /// `to_linear` then `unit`: a texel's RGB index the first half, its alpha index + 256 the second
+    /// (one SIMD gather per two texels, [`super::srgb_simd`]).
+    decode_pair: [f32; 512],
 }
 
 static TABLES: LazyLock<Tables> = LazyLock::new(build_tables);
@@ -78,12 +81,14 @@ fn build_tables() -> Tables {
         };
         *p = u32::from(code) << 16 | offset;
     }
+    let decode_pair = std::array::from_fn(|i| if i < 256 { to_linear[i] } else { unit[i - 256] });
     Tables {
         to_linear,
         unit,
         thresholds,
         bucket_start,
         packed,
+        decode_pair,
     }
 }
 
@@ -131,11 +136,24 @@ impl Encoder {
     }
 
     /// Linear premultiplied `texels` → sRGB8 straight bytes in `out` (4 a texel) with AVX2, the same
-    /// bytes as the per-texel rule ([`super::encode_simd`]); returns whether a written alpha is 0, or
+    /// bytes as the per-texel rule ([`super::srgb_simd`]); returns whether a written alpha is 0, or
     /// `None` (nothing written) where the CPU lacks AVX2 or `out` is not 4 bytes a texel.
     #[inline]
     pub(super) fn encode_run_simd(self, texels: &[[f32; 4]], out: &mut [u8]) -> Option<bool> {
-        super::encode_simd::encode_run(texels, out, &self.0.packed)
+        super::srgb_simd::encode_run(texels, out, &self.0.packed)
+    }
+
+    /// sRGB8 straight `pixels` → linear premultiplied texels in `out` with AVX2, the same floats as
+    /// [`srgb8_to_linear`] of each colour times alpha / 255 ([`super::srgb_simd`]); `true` when every
+    /// element of `out` was written, `false` (nothing written) where the CPU lacks AVX2 or the lengths
+    /// differ.
+    #[inline]
+    pub(super) fn decode_run_simd(
+        self,
+        pixels: &[[u8; 4]],
+        out: &mut [std::mem::MaybeUninit<[f32; 4]>],
+    ) -> bool {
+        super::srgb_simd::decode_run(pixels, out, &self.0.decode_pair)
     }
 }
 
