@@ -459,18 +459,20 @@ pub fn save_png(path: &Path, img: &image::RgbaImage) -> std::io::Result<()> {
     write_atomic(path, &bytes)
 }
 
-/// Whether this CPU has AVX2 (asked at run time; std caches the answer): the SIMD kernels' twins
-/// (`image_ops::srgb_simd`, `texfmt::bc1::interior_sse`) run only where it is true.
+/// Whether the AVX2 kernels run: the CPU has AVX2 (asked at run time) and the environment variable
+/// `ATLASTREE_SCALAR` is not set (it makes every pass take its scalar rule, so a test can check that
+/// both write the same file). Asked once per process. The kernels (`image_ops::srgb_simd`,
+/// `texfmt::bc1::interior_band_sse`) are twins of scalar rules that run everywhere else.
 #[inline]
 pub fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    static AVX2: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *AVX2.get_or_init(|| {
+        #[cfg(target_arch = "x86_64")]
+        let cpu = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let cpu = false;
+        cpu && std::env::var_os("ATLASTREE_SCALAR").is_none()
+    })
 }
 
 /// Asks the CPU to bring the cache lines of `value` in (x86-64 `prefetcht0`; elsewhere nothing): a hint

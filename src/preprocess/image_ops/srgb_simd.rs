@@ -223,8 +223,8 @@ mod avx2 {
 #[cfg(test)]
 mod tests {
     use super::super::linear::encode_texel;
-    use std::mem::MaybeUninit;
     use super::super::srgb::{Encoder, srgb8_to_linear};
+    use std::mem::MaybeUninit;
 
     /// The scalar rule over `texels`: bytes and whether an alpha is 0.
     fn scalar(texels: &[[f32; 4]]) -> (Vec<u8>, bool) {
