@@ -178,6 +178,7 @@ pub(crate) fn tap_row(img: &LinearImage, iy: u32, wy: f32) -> (&[[f32; 4]], f32)
 
 /// The weighted sum over `rows × xs`: rows outer, taps inner, each product `(wx · wy) · t` added in that
 /// order (texels past a row's slice count as 0).
+///
 /// Inlined, so fixed-size `rows` and `xs` (arrays) become unrolled loops.
 #[inline(always)]
 pub(crate) fn apply_rows(rows: &[(&[[f32; 4]], f32)], xs: &[(u32, f32)]) -> [f32; 4] {
