@@ -5,17 +5,16 @@
 //! table entries at once (colour channels from the sRGB table, alpha from the `i / 255` table) and
 //! multiplies by `[a, a, a, 1]`: the scalar rule's products, and `a · 1 = a` exactly.
 //!
-//! `to_rgba8` is the build's largest single cost (~20 % of an all-tracks build: every stored level of
-//! every atlas and original passes through it). The scalar rule is two table lookups per channel
-//! and a branch on alpha; here one AVX2 gather per 8 channels reads a packed table (a bucket's code
-//! and where inside it the next code starts), the clamps are
-//! `max`/`min` (NaN → 0 as the scalar `v > 0` test gives), and the opaque and general paths are both
-//! computed and blended per texel. Every step is the same IEEE operation as the scalar code (one
-//! division `1 / a`, then products), so results are equal bit for bit; the unit tests compare the two
-//! on edge values (NaN, ±∞, ±0, denormals, every threshold and its neighbours) and on random texels.
+//! Encoding (`to_rgba8`, every stored level of every atlas and original: ~20 % of an all-tracks build)
+//! is two table lookups per channel and a branch on alpha in the scalar rule. Here one gather per 8
+//! channels reads a packed table (a bucket's code and the offset inside it where the next code starts);
+//! the clamps are `max`/`min` (NaN → 0, as the scalar `v > 0` test gives); a pair of opaque texels
+//! takes the opaque rule alone, any other pair both rules blended per texel. Every step is the same
+//! IEEE operation as the scalar code (one division `1 / a`, then products), so the bytes are equal; the
+//! unit tests compare the two on every f32 in `[0, 1]`, on edge values (NaN, ±∞, ±0, denormals, every
+//! threshold and its neighbours) and on random texels.
 //!
-//! Used only where the CPU reports AVX2 at run time ([`crate::util::has_avx2`]); elsewhere the scalar rule
-//! runs.
+//! Used only where [`crate::util::has_avx2`] says so; elsewhere the scalar rules run.
 
 use super::srgb::PACKED;
 use std::mem::MaybeUninit;
@@ -51,8 +50,8 @@ pub(super) fn encode_run(
 }
 
 /// Decodes `pixels` (sRGB8 straight) into `out` (linear premultiplied), every element of it, and returns
-/// true; `false` (nothing written) where the CPU lacks AVX2 or the lengths differ. `table` is [`super::srgb`]'s sRGB table then its `i / 255`
-/// table.
+/// true; `false` (nothing written) where the CPU lacks AVX2 or the lengths differ. `table` is
+/// [`super::srgb`]'s sRGB table, then its `i / 255` table.
 pub(super) fn decode_run(
     pixels: &[[u8; 4]],
     out: &mut [MaybeUninit<[f32; 4]>],
