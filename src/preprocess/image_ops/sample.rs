@@ -196,22 +196,18 @@ pub(crate) fn apply_rows(rows: &[(&[[f32; 4]], f32)], xs: &[(u32, f32)]) -> [f32
     acc
 }
 
-/// [`apply_taps`] for any number of taps.
+/// [`apply_taps`] for any number of taps: [`apply_rows`] over the rows `ys` selects.
 fn apply_any(img: &LinearImage, xs: &[(u32, f32)], ys: &[(u32, f32)]) -> [f32; 4] {
-    let w = img.width as usize;
-    let mut acc = [0.0f32; 4];
-    for &(iy, wy) in ys {
-        let row = img.data.get(iy as usize * w..).unwrap_or(&[]);
-        for &(ix, wx) in xs {
-            let wt = wx * wy;
-            if let Some(t) = row.get(ix as usize) {
-                for c in 0..4 {
-                    acc[c] += wt * t[c];
-                }
-            }
+    // Up to `2 · MAX_TAPS` rows ([`AxisTaps`]) without an allocation per sample.
+    let mut rows = [(&[][..], 0.0f32); 2 * MAX_TAPS as usize];
+    if let Some(rows) = rows.get_mut(..ys.len()) {
+        for (r, &(iy, wy)) in rows.iter_mut().zip(ys) {
+            *r = tap_row(img, iy, wy);
         }
+        return apply_rows(rows, xs);
     }
-    acc
+    let rows: Vec<_> = ys.iter().map(|&(iy, wy)| tap_row(img, iy, wy)).collect();
+    apply_rows(&rows, xs)
 }
 
 /// Sample `chain` at `uv` with an already computed plan. Premultiplied linear RGBA; transparent black for
