@@ -183,7 +183,7 @@ impl Scratch {
         let mut exact = true;
         let mut out = Vec::with_capacity(items.len() + 1);
         out.push(0);
-        for t in super::prepare::walk(infos, items) {
+        for t in super::prepare::walk_prefix(infos, items, TriInfo::SPLIT_BYTES) {
             let m = t.material.idx();
             if m < materials {
                 if self.stamp[m] != self.call {

@@ -7,28 +7,45 @@ use crate::scene::{Scene, UpAxis, Wrap};
 use glam::{DVec2, DVec3};
 
 /// What the builder knows about one triangle (or one piece of a tessellated scene triangle).
+///
+/// Laid out for the layout's passes, which visit the records in midpoint order (random in memory): the
+/// fields the split and the leaf needs read ([`TriInfo::SPLIT_BYTES`]: midpoint, material, class, size,
+/// UVs) come first, and 32-byte alignment (192-byte records, 8 bytes of padding) keeps them within two
+/// cache lines of every record, the midpoint within one; [`walk_prefix`] fetches only those lines.
 #[derive(Copy, Clone, Debug)]
+#[repr(C, align(32))]
 pub struct TriInfo {
-    /// Index of the triangle in `Scene::triangles` this triangle is (a piece of).
-    pub scene_tri: u32,
-    /// World positions (a piece's own corners).
-    pub pos: [DVec3; 3],
-    pub material: MaterialId,
     /// Midpoint in the distribution plane (the split sorts on it, §5.3).
     pub mid: DVec2,
+    pub material: MaterialId,
     /// Density class: `floor(log2(texels per repetition))` after the source cap, [`POINT_CLASS`] for
     /// triangles with no density (constant UVs, world-degenerate). A node atlas gets one area per
     /// (material, class), so a few dense triangles cannot inflate the area of a material's many sparse ones.
     pub class: i32,
-    /// World-space area (the split balances it, §5.3).
-    pub area: f64,
     /// Required texels per UV unit at d_min (already multiplied by f_proj).
     pub size: SizeEstimate,
     /// The UVs after the period shift (see [`period_shift`]).
     pub uv: [DVec2; 3],
+    /// World-space area (the split balances it, §5.3).
+    pub area: f64,
+    /// Index of the triangle in `Scene::triangles` this triangle is (a piece of).
+    pub scene_tri: u32,
+    /// World positions (a piece's own corners).
+    pub pos: [DVec3; 3],
 }
 
+const _: () = {
+    assert!(std::mem::size_of::<TriInfo>() == 192);
+    assert!(TriInfo::SPLIT_BYTES == 96 && TriInfo::MID_BYTES == 16);
+};
+
 impl TriInfo {
+    /// Bytes from a record's start that the demand passes and the leaf needs read: midpoint, material,
+    /// class, size and UVs.
+    pub const SPLIT_BYTES: usize = std::mem::offset_of!(TriInfo, area);
+    /// Bytes from a record's start that hold the midpoint.
+    pub const MID_BYTES: usize = std::mem::offset_of!(TriInfo, material);
+
     /// World bounds of the triangle (computed from `pos`, not stored: 48 bytes a triangle less in the plan).
     #[inline]
     pub fn lo(&self) -> DVec3 {
@@ -50,12 +67,23 @@ pub const PREFETCH_AHEAD: usize = 16;
 /// without the hint its passes wait on ~3 cache misses a triangle (`perf annotate` of the demand pass:
 /// ~80 % of its samples on the loads of `material`, `uv` and `size`).
 pub fn walk<'a>(infos: &'a [TriInfo], items: &'a [u32]) -> impl Iterator<Item = &'a TriInfo> + 'a {
+    walk_prefix(infos, items, std::mem::size_of::<TriInfo>())
+}
+
+/// [`walk`] for a pass that reads only the first `bytes` of each record ([`TriInfo::SPLIT_BYTES`],
+/// [`TriInfo::MID_BYTES`]): only their cache lines are prefetched (2 and 1 of a record's 3–4), so the
+/// memory system carries what the pass reads.
+pub fn walk_prefix<'a>(
+    infos: &'a [TriInfo],
+    items: &'a [u32],
+    bytes: usize,
+) -> impl Iterator<Item = &'a TriInfo> + 'a {
     items.iter().enumerate().map(move |(k, &i)| {
         if let Some(ahead) = items
             .get(k + PREFETCH_AHEAD)
             .and_then(|&a| infos.get(a as usize))
         {
-            crate::util::prefetch(ahead);
+            crate::util::prefetch_prefix(ahead, bytes);
         }
         &infos[i as usize]
     })

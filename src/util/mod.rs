@@ -480,14 +480,23 @@ pub fn has_avx2() -> bool {
 /// Reads nothing and has no effect on results.
 #[inline(always)]
 pub fn prefetch<T>(value: &T) {
+    prefetch_prefix(value, std::mem::size_of::<T>());
+}
+
+/// [`prefetch`] of the cache lines that hold the first `bytes` of `value` (at most its size): for passes
+/// that read only the leading fields of a record.
+#[inline(always)]
+pub fn prefetch_prefix<T>(value: &T, bytes: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
         let start = (value as *const T).cast::<i8>();
-        let lines = std::mem::size_of::<T>().div_ceil(64) + 1;
+        let bytes = bytes.min(std::mem::size_of::<T>());
+        let lines = (start as usize % 64 + bytes).div_ceil(64);
         for line in 0..lines {
             // SAFETY: a prefetch is a hint that never faults and reads nothing architecturally, so any
-            // address is sound; this one lies within or one line past `value`, which the borrow keeps alive.
+            // address is sound; this one lies within the line of `value`'s last requested byte, which the
+            // borrow keeps alive.
             #[allow(
                 unsafe_code,
                 reason = "prefetch hint: the intrinsic takes a raw pointer"
@@ -498,7 +507,7 @@ pub fn prefetch<T>(value: &T) {
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
+    let _ = (value, bytes);
 }
 
 /// Shell-style match of a whole name against `pattern`: `*` any run of characters (also none), `?` one

@@ -16,7 +16,7 @@ use crate::preprocess::area::{AreaInput, AreaOptions, required_area, scale_to_fi
 use crate::preprocess::cover::AxisCover;
 use crate::preprocess::originals::original_class;
 use crate::preprocess::pack::{PackOptions, pack};
-use crate::preprocess::prepare::{TriInfo, walk};
+use crate::preprocess::prepare::{TriInfo, walk_prefix};
 use crate::scene::Scene;
 use glam::DVec2;
 use std::collections::{BTreeMap, HashSet};
@@ -102,7 +102,7 @@ fn needs_of_run(ctx: &Ctx<'_>, items: &[u32]) -> BTreeMap<(MaterialId, i32), Mat
     let mut needs: Vec<((MaterialId, i32), MatNeed)> = Vec::new();
     let mut slot_of: BTreeMap<(MaterialId, i32), usize> = BTreeMap::new();
     let mut last: Option<((MaterialId, i32), usize)> = None;
-    for t in walk(ctx.infos, items) {
+    for t in walk_prefix(ctx.infos, items, TriInfo::SPLIT_BYTES) {
         let key = (t.material, t.class);
         let slot = match last {
             Some((k, slot)) if k == key => slot,

@@ -7,7 +7,7 @@
 //! and is kept inside `1..n`, so every group of a node with ≥ 2 triangles is smaller than the node.
 
 use crate::preprocess::demand::{DemandModel, prefix_demands_exact};
-use crate::preprocess::prepare::{TriInfo, walk};
+use crate::preprocess::prepare::{TriInfo, walk, walk_prefix};
 use serde::Serialize;
 
 /// What the split of §5.3 balances.
@@ -48,7 +48,10 @@ pub fn midpoint_keys(infos: &[TriInfo], items: &[u32], axis: usize) -> Vec<i64> 
     // vector whose entries then become the keys in place; min, max and the keys read it in order.
     let mut keys = vec![0i64; items.len()];
     let gather = |(out, run): (&mut [i64], &[u32])| {
-        for (key, t) in out.iter_mut().zip(walk(infos, run)) {
+        for (key, t) in out
+            .iter_mut()
+            .zip(walk_prefix(infos, run, TriInfo::MID_BYTES))
+        {
             *key = t.mid[axis].to_bits() as i64;
         }
     };
@@ -113,13 +116,17 @@ impl Splitter<'_> {
     /// [`Splitter::split4`], with the texel demands of the four groups and of all `items` where the
     /// demand rule's passes give them exactly ([`SplitDemands`]).
     pub fn split4_demands(&self, items: &mut [u32]) -> ([usize; 4], Option<SplitDemands>) {
-        let (k, x) = self.cut(items, 0);
+        // The x cut's ties may come in any order: each half is then sorted by (y key, index), an order
+        // that does not depend on the one it arrives in, and the x cut itself depends only on which items
+        // lie before each key boundary (demands are of sets, and a cut never separates equal keys).
+        let (k, x) = self.cut(items, 0, Ties::Any);
         let (lo, hi) = items.split_at_mut(k);
         // The halves are independent: on big nodes (the top of a city) they run side by side.
+        let y_cut = |half: &mut [u32]| self.cut(half, 1, Ties::ByIndex);
         let ((k0, y0), (k1, y1)) = if lo.len().min(hi.len()) >= PAR_ITEMS {
-            rayon::join(|| self.cut(lo, 1), || self.cut(hi, 1))
+            rayon::join(|| y_cut(lo), || y_cut(hi))
         } else {
-            (self.cut(lo, 1), self.cut(hi, 1))
+            (y_cut(lo), y_cut(hi))
         };
         let groups = [k0, lo.len() - k0, k1, hi.len() - k1];
         let demands = match (x, y0, y1) {
@@ -140,15 +147,17 @@ impl Splitter<'_> {
     /// ties nearest the middle, then the lower. Without such a position (all keys equal) the middle; for
     /// n ≤ 1 it returns n (everything in the low group).
     pub fn cut_sorted(&self, items: &mut [u32], axis: usize) -> usize {
-        self.cut(items, axis).0
+        self.cut(items, axis, Ties::ByIndex).0
     }
 
-    /// [`Splitter::cut_sorted`], with the demands of both sides under [`SplitRule::Demand`].
-    fn cut(&self, items: &mut [u32], axis: usize) -> (usize, Option<CutDemands>) {
+    /// [`Splitter::cut_sorted`], with the demands of both sides under [`SplitRule::Demand`]; with
+    /// [`Ties::Any`] items of equal keys may stay in any order (the cut and the demands are the same).
+    fn cut(&self, items: &mut [u32], axis: usize, ties: Ties) -> (usize, Option<CutDemands>) {
         let n = items.len();
         let big = n >= PAR_ITEMS;
         let order = if n > 1 {
-            let order = SortedKeys::sort(midpoint_keys(self.infos, items, axis), items, big);
+            let keys = midpoint_keys(self.infos, items, axis);
+            let order = SortedKeys::sort(keys, items, big, ties);
             order.write_items(items);
             order
         } else {
@@ -209,8 +218,18 @@ impl Splitter<'_> {
     }
 }
 
+/// How a sort orders items of equal keys.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+enum Ties {
+    /// By index: the pairs are distinct, so every sort gives the one order.
+    ByIndex,
+    /// In any order (deterministic for a given input): the radix sort then passes over the key's bytes
+    /// only, 3 of the packed value's 6 varying bytes.
+    Any,
+}
+
 /// A node's items sorted by (midpoint key, index): the pairs are distinct, so every sort gives the one
-/// order. Keys in `0..2³²` (always, but for midpoint extents near the smallest f64, see [`key_quantum`])
+/// order (with [`Ties::Any`], by key alone). Keys in `0..2³²` (always, but for midpoint extents near the smallest f64, see [`key_quantum`])
 /// are sorted packed with their index into one `u64` (`key << 32 | index`: the same order, half the bytes
 /// to move; from [`RADIX_ITEMS`] by the `radsort` crate's LSD radix sort, which skips the bytes every
 /// value shares: packed keys vary in about 6 of their 8, and a pass costs ~2 ns a value where a comparison
@@ -222,14 +241,16 @@ enum SortedKeys {
 }
 
 impl SortedKeys {
-    fn sort(keys: Vec<i64>, items: &[u32], big: bool) -> SortedKeys {
+    fn sort(keys: Vec<i64>, items: &[u32], big: bool, ties: Ties) -> SortedKeys {
         if keys.iter().all(|&k| u32::try_from(k).is_ok()) {
             let mut packed: Vec<u64> = keys
                 .iter()
                 .zip(items)
                 .map(|(&k, &i)| ((k as u64) << 32) | u64::from(i))
                 .collect();
-            if packed.len() >= RADIX_ITEMS {
+            if packed.len() >= RADIX_ITEMS && ties == Ties::Any {
+                radsort::sort_by_key(&mut packed, |&v| (v >> 32) as u32);
+            } else if packed.len() >= RADIX_ITEMS {
                 radsort::sort(&mut packed);
             } else {
                 packed.sort_unstable();
@@ -350,8 +371,9 @@ mod tests {
             let items: Vec<u32> = (0..n as u32)
                 .map(|i| i.wrapping_mul(2_654_435_761) % 1_000_003)
                 .collect();
-            let packed = SortedKeys::sort(keys.clone(), &items, n >= PAR_ITEMS);
+            let packed = SortedKeys::sort(keys.clone(), &items, n >= PAR_ITEMS, Ties::ByIndex);
             assert!(matches!(packed, SortedKeys::Packed(_)));
+            let any = SortedKeys::sort(keys.clone(), &items, n >= PAR_ITEMS, Ties::Any);
             let wide = SortedKeys::wide(keys, &items, false);
             let (mut a, mut b) = (items.clone(), items.clone());
             packed.write_items(&mut a);
@@ -359,10 +381,22 @@ mod tests {
             assert_eq!(a, b, "n = {n}");
             for k in 1..n {
                 assert_eq!(packed.same_key(k), wide.same_key(k), "n = {n}, k = {k}");
+                assert_eq!(any.same_key(k), wide.same_key(k), "n = {n}, k = {k}");
             }
+            // Ties in any order: the same runs of equal keys, each holding the same items.
+            let mut c = items.clone();
+            any.write_items(&mut c);
+            let mut start = 0;
+            for k in 1..=n {
+                if k == n || !any.same_key(k) {
+                    c[start..k].sort_unstable();
+                    start = k;
+                }
+            }
+            assert_eq!(c, a, "n = {n}");
         }
         // A key beyond u32 (an underflowed quantum) takes the wide path, in (key, index) order.
-        let order = SortedKeys::sort(vec![5, i64::MAX, 5, 0], &[3, 2, 1, 0], false);
+        let order = SortedKeys::sort(vec![5, i64::MAX, 5, 0], &[3, 2, 1, 0], false, Ties::ByIndex);
         assert!(matches!(order, SortedKeys::Wide(_)));
         let mut items = [3, 2, 1, 0];
         order.write_items(&mut items);
