@@ -155,10 +155,21 @@ impl LinearImage {
     /// the stored straight-alpha texture does not pull black into alpha-tested edges. A fully transparent
     /// image stays transparent black.
     pub fn to_rgba8(&self) -> Vec<u8> {
+        let mut out = vec![0u8; self.texel_count().saturating_mul(4)];
+        self.to_rgba8_into(&mut out);
+        out
+    }
+
+    /// [`LinearImage::to_rgba8`] into `out`, which the caller sized to `4 · width · height` bytes (zeroed:
+    /// texels beyond a short `data` stay 0); a chain encodes its levels into one buffer this way, without
+    /// a buffer and a copy per level. An `out` of another length is left as it is.
+    pub fn to_rgba8_into(&self, out: &mut [u8]) {
         // Runs of texels per task: the per-texel work is a few table lookups, too little for a task each.
         const RUN: usize = 4096;
         let n = self.texel_count();
-        let mut out = vec![0u8; n.saturating_mul(4)];
+        if out.len() != n.saturating_mul(4) {
+            return;
+        }
         let enc = Encoder::get();
         // Each run also says whether it wrote a transparent texel (no second pass over the bytes).
         let run = |(px, texels): (&mut [u8], &[[f32; 4]])| {
@@ -180,13 +191,12 @@ impl LinearImage {
                 .map(run)
                 .reduce(|| false, |a, b| a | b)
         } else {
-            run((&mut out, data))
+            run((&mut *out, data))
         };
         // Texels beyond `data` (a short buffer) stay 0 and count as transparent, as before.
         if transparent || data.len() < n {
-            bleed_into_transparent(&mut out, self.width as usize, self.height as usize);
+            bleed_into_transparent(out, self.width as usize, self.height as usize);
         }
-        out
     }
 }
 

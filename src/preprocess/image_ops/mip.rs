@@ -98,9 +98,12 @@ impl MipChain {
     /// All levels as RGBA8 sRGB straight alpha ([`LinearImage::to_rgba8`]), level 0 first, back to back.
     pub fn to_rgba8(&self) -> Vec<u8> {
         let total = self.levels.iter().map(|l| l.texel_count() * 4).sum();
-        let mut out = Vec::with_capacity(total);
+        let mut out = vec![0u8; total];
+        let mut rest = &mut out[..];
         for l in &self.levels {
-            out.extend_from_slice(&l.to_rgba8());
+            let (level, tail) = rest.split_at_mut(l.texel_count() * 4);
+            l.to_rgba8_into(level);
+            rest = tail;
         }
         out
     }
