@@ -44,10 +44,12 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 mod bc1;
+mod quadrants;
 mod rect;
+pub use quadrants::{StoredLevel, cell_side, combine_stored_quadrants};
 pub use rect::{
-    decode_chain_rect, decode_level_rect, encode_chain_rect, encode_level_rect, encode_levels_rect,
-    mip_extents, tile_chain_to_square,
+    decode_chain_rect, decode_level_rect, encode_chain_rect, encode_level_measured,
+    encode_level_rect, encode_levels_rect, mip_extents, tile_chain_to_square,
 };
 
 /// Storage format of a tree's blocks (atlases and original textures alike). Codes are stored in

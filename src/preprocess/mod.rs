@@ -18,6 +18,7 @@ pub mod area;
 pub mod assemble;
 pub mod cover;
 pub mod demand;
+mod finish;
 pub mod image_ops;
 pub mod layout;
 pub mod memory;

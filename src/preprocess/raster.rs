@@ -3,19 +3,21 @@
 //! encoded with its full mip chain and streamed into the paging file at its pre-assigned offset.
 //!
 //! Post-order and parallel over subtrees (rayon); each call returns its atlas halved, which is all the
-//! parent needs, so memory stays at a few atlases per tree level and thread.
+//! parent's level 0 needs, and where they can be reused its stored levels from 1 on, which the parent
+//! copies instead of encoding ([`super::finish`]); memory stays at a few atlases per tree level and thread.
 
 use super::BuildError;
+use super::finish::{NodeOut, finish_atlas};
 use super::image_ops::ImageOpsError;
 use super::image_ops::{
-    AlphaMips, CoverageRegion, LinearImage, MipChain, MipFilter, MipOptions, RectJob,
-    combine_quadrants, draw_rect, mip_chain_rgba8, neutral_fill, preserve_coverage, resample_rect,
+    AlphaMips, CoverageRegion, LinearImage, MipChain, MipFilter, RectJob, combine_quadrants,
+    draw_rect, mip_chain_rgba8, neutral_fill, preserve_coverage, resample_rect,
 };
 use crate::ids::{ImageId, NodeId};
 use crate::model::{AtlasTree, Leaf, TreeKind};
 use crate::scene::{DecodedImage, Scene};
 use crate::store::BlockSink;
-use crate::texfmt::{Encoded, TexFormat, encode_chain, encode_chain_rect, encode_levels_rect};
+use crate::texfmt::{Encoded, TexFormat, encode_chain_rect, encode_levels_rect};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -452,7 +454,7 @@ pub fn raster_subtrees(
     let owned = owned_blocks(tree);
     roots
         .par_iter()
-        .map(|&r| raster_node(ctx, tree, &owned, r))
+        .map(|&r| raster_node(ctx, tree, &owned, r).map(|n| n.level1))
         .collect()
 }
 
@@ -512,8 +514,12 @@ pub fn raster_above(
             node: id.0,
         });
     }
-    let atlas = combine_children(out, tree, id, &|c| raster_above(out, tree, handoffs, c))?;
-    finish_atlas(out, tree, id, atlas)
+    // Children known by their level 1 only: every level of this atlas is encoded here.
+    let kids = children_of(tree, id, &|c| {
+        raster_above(out, tree, handoffs, c).map(NodeOut::level1_only)
+    })?;
+    let atlas = combine_children(out, tree, id, &kids)?;
+    finish_atlas(out, tree, id, atlas, Some(quadrants(&kids))).map(|n| n.level1)
 }
 
 /// Rasterises every atlas and original-texture block of `tree` into the sink.
@@ -553,7 +559,7 @@ fn owned_blocks(tree: &AtlasTree) -> HashMap<usize, Vec<BlockSlots<'_>>> {
 }
 
 /// The colour of atlas space no texture occupies (unused leaf space, missing quadrants of inner atlases).
-fn fill_for(kind: TreeKind) -> [f32; 4] {
+pub(super) fn fill_for(kind: TreeKind) -> [f32; 4] {
     match kind {
         // Mid grey, opaque: unused atlas space is never sampled at the levels borders protect.
         TreeKind::Opaque => neutral_fill(),
@@ -567,28 +573,28 @@ fn raster_node(
     tree: &AtlasTree,
     owned: &HashMap<usize, Vec<BlockSlots<'_>>>,
     id: NodeId,
-) -> Result<LinearImage, BuildError> {
+) -> Result<NodeOut, BuildError> {
     let node = &tree.nodes[id.idx()];
-    let atlas = if let Some(leaf_id) = node.leaf {
+    if let Some(leaf_id) = node.leaf {
         let leaf = &tree.leaves[leaf_id.idx()];
         if let Some(blocks) = owned.get(&leaf_id.idx()) {
             write_originals(ctx, tree, blocks)?;
         }
-        leaf_atlas(ctx, leaf, ctx.out.atlas_size, fill_for(tree.kind))
-            .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?
-    } else {
-        combine_children(&ctx.out, tree, id, &|c| raster_node(ctx, tree, owned, c))?
-    };
-    finish_atlas(&ctx.out, tree, id, atlas)
+        let atlas = leaf_atlas(ctx, leaf, ctx.out.atlas_size, fill_for(tree.kind))
+            .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?;
+        return finish_atlas(&ctx.out, tree, id, atlas, None);
+    }
+    let kids = children_of(tree, id, &|c| raster_node(ctx, tree, owned, c))?;
+    let atlas = combine_children(&ctx.out, tree, id, &kids)?;
+    finish_atlas(&ctx.out, tree, id, atlas, Some(quadrants(&kids)))
 }
 
-/// Inner node `id`'s atlas: each child's level 1 from `child` (in parallel), combined by quadrant (§5.1).
-fn combine_children(
-    out: &AtlasOut<'_>,
+/// Inner node `id`'s children's outputs from `child` (in parallel), with their quadrants.
+fn children_of(
     tree: &AtlasTree,
     id: NodeId,
-    child: &(dyn Fn(NodeId) -> Result<LinearImage, BuildError> + Sync),
-) -> Result<LinearImage, BuildError> {
+    child: &(dyn Fn(NodeId) -> Result<NodeOut, BuildError> + Sync),
+) -> Result<Vec<(usize, NodeOut)>, BuildError> {
     use rayon::prelude::*;
     let kids: Vec<(usize, NodeId)> = tree.nodes[id.idx()]
         .children
@@ -596,59 +602,32 @@ fn combine_children(
         .enumerate()
         .filter_map(|(q, c)| c.map(|c| (q, c)))
         .collect();
-    let halves: Vec<(usize, LinearImage)> = kids
-        .par_iter()
-        .map(|&(q, c)| child(c).map(|img| (q, img)))
-        .collect::<Result<_, _>>()?;
-    let mut quads: [Option<&LinearImage>; 4] = [None; 4];
-    for (q, img) in &halves {
-        quads[*q] = Some(img);
-    }
-    combine_quadrants(quads, out.atlas_size, fill_for(tree.kind))
-        .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))
+    kids.par_iter()
+        .map(|&(q, c)| child(c).map(|out| (q, out)))
+        .collect()
 }
 
-/// Mip chain, encoding and storing of node `id`'s atlas; returns its level 1 for the parent.
-fn finish_atlas(
+/// The children's outputs by quadrant.
+fn quadrants(kids: &[(usize, NodeOut)]) -> [Option<&NodeOut>; 4] {
+    let mut quads = [None; 4];
+    for (q, out) in kids {
+        if let Some(slot) = quads.get_mut(*q) {
+            *slot = Some(out);
+        }
+    }
+    quads
+}
+
+/// Inner node `id`'s atlas: its children's levels 1 combined by quadrant (§5.1).
+fn combine_children(
     out: &AtlasOut<'_>,
     tree: &AtlasTree,
     id: NodeId,
-    atlas: LinearImage,
+    kids: &[(usize, NodeOut)],
 ) -> Result<LinearImage, BuildError> {
-    let node = &tree.nodes[id.idx()];
-    // One mip chain serves both the stored block and the parent, which needs exactly level 1 (with
-    // coverage kept, the rescaled level 1: the parent's level 0 then has the leaves' coverage).
-    let mut chain = MipChain::build_with(
-        atlas,
-        &MipOptions {
-            filter: out.mip_filter,
-            ..MipOptions::default()
-        },
-    );
-    let regions = super::alpha_coverage::node_regions(tree, id, out.atlas_size, &out.mask_cutoffs);
-    preserve_coverage(&mut chain.levels, &regions);
-    let enc = encode_chain(
-        tree.format,
-        &chain.to_rgba8(),
-        out.atlas_size,
-        tree.kind.channels(),
-    )
-    .map_err(|source| BuildError::Encode {
-        what: format!("atlas of node {}", id.0),
-        source,
-    })?;
-    out.sink.put_block(node.atlas_block, &enc.bytes, enc.sse)?;
-    let [sse, samples] = &out.atlas_error[tree.kind.index()];
-    sse.fetch_add(enc.sse, Ordering::Relaxed);
-    samples.fetch_add(enc.samples, Ordering::Relaxed);
-    let n = out.done.fetch_add(1, Ordering::Relaxed) + 1;
-    (out.progress)(n);
-    let mut levels = chain.levels.into_iter();
-    let level0 = levels.next();
-    Ok(levels
-        .next()
-        .or(level0)
-        .unwrap_or_else(|| LinearImage::new_filled(1, 1, [0.0; 4])))
+    let quads = quadrants(kids).map(|k| k.map(|k| &k.level1));
+    combine_quadrants(quads, out.atlas_size, fill_for(tree.kind))
+        .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))
 }
 
 /// A leaf atlas: every material's area drawn from its source (§5.2.3; the paper renders textured quads on

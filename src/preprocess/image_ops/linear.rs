@@ -162,13 +162,15 @@ impl LinearImage {
 
     /// [`LinearImage::to_rgba8`] into `out`, which the caller sized to `4 · width · height` bytes (zeroed:
     /// texels beyond a short `data` stay 0); a chain encodes its levels into one buffer this way, without
-    /// a buffer and a copy per level. An `out` of another length is left as it is.
-    pub fn to_rgba8_into(&self, out: &mut [u8]) {
+    /// a buffer and a copy per level. Returns whether a texel was transparent (8-bit alpha 0), so colour
+    /// was bled into it from its neighbours: without, every texel's bytes are its own encoding alone. An
+    /// `out` of another length is left as it is (and `true` returned: nothing is known of it).
+    pub fn to_rgba8_into(&self, out: &mut [u8]) -> bool {
         // Runs of texels per task: the per-texel work is a few table lookups, too little for a task each.
         const RUN: usize = 4096;
         let n = self.texel_count();
         if out.len() != n.saturating_mul(4) {
-            return;
+            return true;
         }
         let enc = Encoder::get();
         // Each run also says whether it wrote a transparent texel (no second pass over the bytes).
@@ -194,9 +196,11 @@ impl LinearImage {
             run((&mut *out, data))
         };
         // Texels beyond `data` (a short buffer) stay 0 and count as transparent, as before.
-        if transparent || data.len() < n {
+        let bled = transparent || data.len() < n;
+        if bled {
             bleed_into_transparent(out, self.width as usize, self.height as usize);
         }
+        bled
     }
 }
 
