@@ -230,6 +230,34 @@ fn selection(a: &BuildArgs) -> String {
     format!("materials={:?};up={:?}", a.materials, a.up)
 }
 
+/// The command line a shard or plan records for the "rebuild it with: …" hints of merge and of a refused
+/// plan: as typed, but with the program, the scene and the output as absolute paths (resolved against this
+/// process's working directory, without touching the file system), so the hint works from wherever merge
+/// runs. A program named without a `/` is left for the shell's search path.
+fn recorded_argv(
+    args: impl Iterator<Item = String>,
+    scene: &std::path::Path,
+    out: &std::path::Path,
+) -> Vec<String> {
+    let absolute = |p: &std::path::Path| {
+        std::path::absolute(p).map_or_else(|_| p.display().to_string(), |a| a.display().to_string())
+    };
+    let (scene_arg, out_arg) = (scene.display().to_string(), out.display().to_string());
+    args.enumerate()
+        .map(|(i, arg)| {
+            let program = i == 0 && arg.contains('/');
+            let path = i > 0 && (arg == scene_arg || arg == out_arg);
+            if program || path {
+                return absolute(std::path::Path::new(&arg));
+            }
+            match arg.strip_prefix("--out=") {
+                Some(rest) if rest == out_arg => format!("--out={}", absolute(out)),
+                _ => arg,
+            }
+        })
+        .collect()
+}
+
 fn run_plan(
     a: &BuildArgs,
     scene: &atlastree::scene::Scene,
@@ -238,7 +266,7 @@ fn run_plan(
 ) -> anyhow::Result<ExitCode> {
     let opts = a.options();
     let key = shard_plan_key(&opts, &a.scene, &selection(a))?;
-    let argv = std::env::args().collect();
+    let argv = recorded_argv(std::env::args(), &a.scene, &a.out);
     let mut report = plan_shards(scene, &opts, &a.out, key, argv, bars)
         .with_context(|| format!("planning {} for {}", a.scene.display(), a.out.display()))?;
     report.stages.prepend("import", import_s, import_peak);
@@ -286,7 +314,7 @@ fn run_planned_shard(
     let key = shard_plan_key(&opts, &a.scene, &selection(a))?;
     let sharded = ShardedOptions {
         spec,
-        argv: std::env::args().collect(),
+        argv: recorded_argv(std::env::args(), &a.scene, &a.out),
     };
     if !(a.quiet || a.json) {
         println!("shard {spec}: planned by {}", plan.display());
@@ -327,7 +355,7 @@ fn run_shard(
 ) -> anyhow::Result<ExitCode> {
     let sharded = ShardedOptions {
         spec,
-        argv: std::env::args().collect(),
+        argv: recorded_argv(std::env::args(), &a.scene, &a.out),
     };
     let mut report =
         build_shard(scene, &a.options(), &a.out, &sharded, bars).with_context(|| {
@@ -566,5 +594,64 @@ pub(super) fn fmt_psnr(db: f64) -> String {
         "lossless".into()
     } else {
         format!("{db:.2} dB")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::recorded_argv;
+    use std::path::Path;
+
+    #[test]
+    fn the_recorded_command_line_names_program_scene_and_output_absolutely() {
+        let cwd = std::env::current_dir().unwrap();
+        let args = [
+            "target/release/atlastree",
+            "build",
+            "scn/scene.gltf",
+            "-o",
+            "out/x.atlastree",
+            "--shard",
+            "0/2",
+            "--compress",
+            "bc1",
+        ]
+        .map(String::from);
+        let got = recorded_argv(
+            args.into_iter(),
+            Path::new("scn/scene.gltf"),
+            Path::new("out/x.atlastree"),
+        );
+        let abs = |p: &str| cwd.join(p).display().to_string();
+        assert_eq!(
+            got,
+            [
+                abs("target/release/atlastree"),
+                "build".into(),
+                abs("scn/scene.gltf"),
+                "-o".into(),
+                abs("out/x.atlastree"),
+                "--shard".into(),
+                "0/2".into(),
+                "--compress".into(),
+                "bc1".into(),
+            ]
+        );
+        // `--out=`, an absolute scene and a program found on the search path are kept or made absolute.
+        let args = ["atlastree", "build", "/data/s.glb", "--out=o.atlastree"].map(String::from);
+        let got = recorded_argv(
+            args.into_iter(),
+            Path::new("/data/s.glb"),
+            Path::new("o.atlastree"),
+        );
+        assert_eq!(
+            got,
+            [
+                "atlastree".to_string(),
+                "build".into(),
+                "/data/s.glb".into(),
+                format!("--out={}", abs("o.atlastree")),
+            ]
+        );
     }
 }
