@@ -10,8 +10,9 @@ use glam::{DVec2, DVec3};
 ///
 /// Laid out for the layout's passes, which visit the records in midpoint order (random in memory): the
 /// fields the split and the leaf needs read ([`TriInfo::SPLIT_BYTES`]: midpoint, material, class, size,
-/// UVs) come first, and 32-byte alignment (192-byte records, 8 bytes of padding) keeps them within two
-/// cache lines of every record, the midpoint within one; [`walk_prefix`] fetches only those lines.
+/// UVs) come first, and 32-byte alignment (192-byte records, 8 bytes more than the unaligned layout)
+/// keeps them within two cache lines of every record, the midpoint within one; [`walk_prefix`] fetches
+/// only those lines.
 #[derive(Copy, Clone, Debug)]
 #[repr(C, align(32))]
 pub struct TriInfo {

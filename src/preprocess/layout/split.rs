@@ -229,12 +229,12 @@ enum Ties {
 }
 
 /// A node's items sorted by (midpoint key, index): the pairs are distinct, so every sort gives the one
-/// order (with [`Ties::Any`], by key alone). Keys in `0..2³²` (always, but for midpoint extents near the smallest f64, see [`key_quantum`])
-/// are sorted packed with their index into one `u64` (`key << 32 | index`: the same order, half the bytes
-/// to move; from [`RADIX_ITEMS`] by the `radsort` crate's LSD radix sort, which skips the bytes every
-/// value shares: packed keys vary in about 6 of their 8, and a pass costs ~2 ns a value where a comparison
-/// sort of the same keys took ~24 ns); other keys as `(i64, u32)` pairs (on the rayon pool
-/// for big nodes).
+/// order (with [`Ties::Any`], by key alone). Keys in `0..2³²` (always, but for midpoint extents near the
+/// smallest f64, see [`key_quantum`]) are sorted packed with their index into one `u64` (`key << 32 |
+/// index`: the same order, half the bytes to move; from [`RADIX_ITEMS`] by the `radsort` crate's LSD
+/// radix sort, which skips the bytes every value shares: packed keys vary in about 6 of their 8, and a
+/// pass costs ~2 ns a value where a comparison sort of the same keys took ~24 ns); other keys as
+/// `(i64, u32)` pairs (on the rayon pool for big nodes).
 enum SortedKeys {
     Packed(Vec<u64>),
     Wide(Vec<(i64, u32)>),
