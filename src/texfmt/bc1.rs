@@ -185,7 +185,7 @@ mod tests {
             };
             let rows: [&[u8]; 4] = std::array::from_fn(|y| &source[16 * y..16 * y + 16]);
             let channels = 1 + (case % 4) as usize;
-            let mask: [u8; 64] = std::array::from_fn(|i| if i % 4 < channels { 0xFF } else { 0 });
+            let mask = super::super::channel_mask(channels);
             let want: u64 = (0..64)
                 .filter(|&i| mask[i] != 0)
                 .map(|i| u64::from(source[i].abs_diff(decoded[i])).pow(2))

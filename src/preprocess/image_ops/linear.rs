@@ -345,13 +345,8 @@ mod tests {
 
     #[test]
     fn the_layered_bleed_is_the_queue_over_every_visible_texel() {
-        let mut s = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            s
-        };
+        let mut rng = crate::util::XorShift64::new(0x2545_F491_4F6C_DD1D);
+        let mut next = move || rng.next_u64();
         for &(w, h) in &[(1, 1), (1, 7), (9, 1), (16, 16), (37, 23), (64, 5)] {
             // Sparse, half and dense visibility, and blobs (runs of visible texels).
             for density in [2u64, 50, 97] {

@@ -151,7 +151,7 @@ pub(crate) fn apply_taps(img: &LinearImage, xs: &[(u32, f32)], ys: &[(u32, f32)]
 
 /// [`apply_taps`] for `NX × NY` taps.
 #[inline]
-pub(crate) fn apply_fixed<const NX: usize, const NY: usize>(
+fn apply_fixed<const NX: usize, const NY: usize>(
     img: &LinearImage,
     xs: [(u32, f32); NX],
     ys: [(u32, f32); NY],

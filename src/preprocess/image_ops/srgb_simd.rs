@@ -373,14 +373,9 @@ mod tests {
 
     #[test]
     fn random_texels_encode_as_the_scalar_rule() {
-        // xorshift: premultiplied texels (colour ≤ alpha), straight ones beyond it, and raw bit patterns.
-        let mut s = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            s
-        };
+        // Premultiplied texels (colour ≤ alpha), straight ones beyond it, and raw bit patterns.
+        let mut rng = crate::util::XorShift64::new(0x9E37_79B9_7F4A_7C15);
+        let mut next = move || rng.next_u64();
         let mut texels = Vec::with_capacity(300_000);
         for i in 0..300_000 {
             let r = next();
