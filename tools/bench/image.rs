@@ -35,6 +35,21 @@ fn gradient(n: u32) -> LinearImage {
 
 const TEXELS: u64 = 1024 * 1024;
 
+/// `img` premultiplied by a blob pattern of alpha 1 and 0 (a cutout texture's leaves and gaps).
+fn with_leaves(img: &LinearImage) -> LinearImage {
+    let w = img.width as usize;
+    let data = img.data.iter().enumerate().map(|(i, &[r, g, b, _])| {
+        let (x, y) = ((i % w) as f32, (i / w) as f32);
+        let leaf = (x * 0.05).sin() * (y * 0.07).cos() + (x * 0.013 + y * 0.021).sin() > 0.6;
+        if leaf { [r, g, b, 1.0] } else { [0.0; 4] }
+    });
+    LinearImage {
+        width: img.width,
+        height: img.height,
+        data: data.collect(),
+    }
+}
+
 fn draw(c: &mut Criterion) {
     let src = MipChain::build(gradient(512));
     let mut dst = LinearImage::new_filled(1024, 1024, [0.0; 4]);
@@ -72,6 +87,12 @@ fn levels(c: &mut Criterion) {
         b.iter(|| black_box(mip_chain_rgba8(&big).len()))
     });
     g.bench_function("to_rgba8", |b| b.iter(|| black_box(big.to_rgba8().len())));
+    // Foliage: leaves of a cutout texture in blobs, ~60 % of the texels transparent, so the colour
+    // bleed into them runs over most of the level.
+    let foliage = with_leaves(&big);
+    g.bench_function("to_rgba8-foliage", |b| {
+        b.iter(|| black_box(foliage.to_rgba8().len()))
+    });
     // 128² (256 KiB of f32 texels, cache-resident, one task): the conversion itself, without memory traffic.
     let small = gradient(128);
     g.bench_function("to_rgba8-128x64", |b| {
