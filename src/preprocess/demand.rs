@@ -172,6 +172,25 @@ impl Scratch {
         infos: &[TriInfo],
         items: &[u32],
     ) -> (Vec<u64>, bool) {
+        let mut out = Vec::with_capacity(items.len() + 1);
+        out.push(0);
+        let exact = self.walk(model, infos, items, |total| {
+            out.push(total);
+            true
+        });
+        (out, exact)
+    }
+
+    /// Walks `items` in order, handing `visit` the demand of every prefix after its last item (the
+    /// entries 1.. of [`prefix_demands`]) until `visit` returns false. Returns whether the running sum
+    /// never saturated over the items walked.
+    fn walk(
+        &mut self,
+        model: &DemandModel,
+        infos: &[TriInfo],
+        items: &[u32],
+        mut visit: impl FnMut(u64) -> bool,
+    ) -> bool {
         let materials = model.sources.len();
         if self.stamp.len() < materials {
             self.stamp.resize(materials, 0);
@@ -181,8 +200,6 @@ impl Scratch {
         self.accs.clear();
         let mut total: u64 = 0;
         let mut exact = true;
-        let mut out = Vec::with_capacity(items.len() + 1);
-        out.push(0);
         for t in super::prepare::walk_prefix(infos, items, TriInfo::SPLIT_BYTES) {
             let m = t.material.idx();
             if m < materials {
@@ -203,10 +220,32 @@ impl Scratch {
                     *area = new;
                 }
             }
-            out.push(total);
+            if !visit(total) {
+                break;
+            }
         }
-        (out, exact)
+        exact
     }
+}
+
+/// Walks the prefixes of `items` in order with their demands, as [`prefix_demands`] gives them, while
+/// `visit(k, demand of items[..k])` (k = 1, 2, …) returns true: the demand of a prefix without the
+/// longer ones. The demand of a prefix never falls as it grows (a material's area only grows with its
+/// maxima; saturation keeps it at `u64::MAX`), so a caller looking for a balance can stop once it is past.
+/// Returns whether the running sum never saturated over the prefixes walked.
+pub fn walk_prefix_demands(
+    model: &DemandModel,
+    infos: &[TriInfo],
+    items: &[u32],
+    mut visit: impl FnMut(usize, u64) -> bool,
+) -> bool {
+    SCRATCH.with(|scratch| {
+        let mut k = 0;
+        scratch.borrow_mut().walk(model, infos, items, |total| {
+            k += 1;
+            visit(k, total)
+        })
+    })
 }
 
 /// The demand of a whole set (analyzer twin of [`prefix_demands`]: its last entry).

@@ -6,7 +6,7 @@
 //! (b) itself), or the summed world area (the paper's approximation). A cut never separates equal keys
 //! and is kept inside `1..n`, so every group of a node with ≥ 2 triangles is smaller than the node.
 
-use crate::preprocess::demand::{DemandModel, prefix_demands_exact};
+use crate::preprocess::demand::{DemandModel, prefix_demands_exact, walk_prefix_demands};
 use crate::preprocess::prepare::{TriInfo, walk, walk_prefix};
 use serde::Serialize;
 
@@ -89,6 +89,12 @@ fn key_quantum(extent: f64) -> f64 {
     }
 }
 
+/// Items from which a demand cut walks every suffix beside the prefixes, on the rayon pool; below it
+/// ([`Splitter::demand_cut_serial`]) the suffixes are walked after the prefixes, and only as far as they
+/// can matter: about 1.5 walks of the node where two ran side by side, which is less work once the
+/// recursion below the top has several nodes in flight.
+const PAR_DEMAND_ITEMS: usize = 1 << 20;
+
 /// Items from which a cut sorts and walks its demand passes on the rayon pool (the results are the same
 /// either way; below this the tasks cost more than they save).
 const PAR_ITEMS: usize = 1 << 15;
@@ -153,6 +159,18 @@ impl Splitter<'_> {
     /// [`Splitter::cut_sorted`], with the demands of both sides under [`SplitRule::Demand`]; with
     /// [`Ties::Any`] items of equal keys may stay in any order (the cut and the demands are the same).
     fn cut(&self, items: &mut [u32], axis: usize, ties: Ties) -> (usize, Option<CutDemands>) {
+        self.cut_walking_both_from(items, axis, ties, PAR_DEMAND_ITEMS)
+    }
+
+    /// [`Splitter::cut`], walking every suffix beside the prefixes from `both_from` items (else
+    /// [`Splitter::demand_cut_serial`]); the same cut and demands either way (unit test).
+    fn cut_walking_both_from(
+        &self,
+        items: &mut [u32],
+        axis: usize,
+        ties: Ties,
+        both_from: usize,
+    ) -> (usize, Option<CutDemands>) {
         let n = items.len();
         let big = n >= PAR_ITEMS;
         let order = if n > 1 {
@@ -163,19 +181,20 @@ impl Splitter<'_> {
         } else {
             SortedKeys::Packed(Vec::new())
         };
-        // Demand rule: the demand of every prefix walked forwards and of every suffix walked backwards
-        // (two independent passes: side by side on big nodes).
+        if self.rule == SplitRule::Demand && n < both_from {
+            let (k, demands) = self.demand_cut_serial(items, &order);
+            return (k, Some(demands));
+        }
+        // Demand rule on the biggest nodes (the top of a city, where the rest of the pool has little to
+        // do): the demand of every prefix walked forwards and of every suffix walked backwards, two
+        // independent passes side by side.
         let sides = (self.rule == SplitRule::Demand).then(|| {
             let forwards = || prefix_demands_exact(self.model, self.infos, items);
             let backwards = || {
                 let rev: Vec<u32> = items.iter().rev().copied().collect();
                 prefix_demands_exact(self.model, self.infos, &rev)
             };
-            let ((before, exact_before), (after, exact_after)) = if big {
-                rayon::join(forwards, backwards)
-            } else {
-                (forwards(), backwards())
-            };
+            let ((before, exact_before), (after, exact_after)) = rayon::join(forwards, backwards);
             (before, after, exact_before && exact_after)
         });
         // Area rule: the world area of every prefix.
@@ -214,6 +233,63 @@ impl Splitter<'_> {
             total: before[n],
             exact,
         });
+        (k, demands)
+    }
+
+    /// The demand rule's cut of sorted `items` on one thread: the demand of every prefix, then the
+    /// suffixes walked backwards only while they can still give the cut. The cost `max(before,
+    /// after)` of a cut at `k` is at least the demand after it, which only grows as `k` falls: once that
+    /// exceeds the best cost so far, no lower `k` can match it. The same cut and demands as walking
+    /// every suffix (the big-node branch of [`Splitter::cut`], the same order of preference: lowest
+    /// cost, then nearest the middle, then the lower `k`), in about half the second walk.
+    fn demand_cut_serial(&self, items: &[u32], order: &SortedKeys) -> (usize, CutDemands) {
+        let n = items.len();
+        let (before, exact_before) = prefix_demands_exact(self.model, self.infos, items);
+        if n <= 1 {
+            // Everything in the low group: the demand after the cut is that of nothing.
+            let demands = CutDemands {
+                before: before[n],
+                after: 0,
+                total: before[n],
+                exact: exact_before,
+            };
+            return (n, demands);
+        }
+        let rev: Vec<u32> = items.iter().rev().copied().collect();
+        // (cost, distance from the middle, k, demand after k)
+        let mut best: Option<(f64, usize, usize, u64)> = None;
+        let middle = n / 2;
+        let mut after_middle = 0;
+        let exact_after = walk_prefix_demands(self.model, self.infos, &rev, |j, after| {
+            if j >= n {
+                return false;
+            }
+            let k = n - j;
+            if k == middle {
+                after_middle = after;
+            }
+            if best.is_some_and(|(c, ..)| after as f64 > c) {
+                return false;
+            }
+            if !order.same_key(k) {
+                let cost = before[k].max(after) as f64;
+                let off_centre = (2 * k).abs_diff(n);
+                // `k` falls: an equal cost and distance replaces the best, so the lowest `k` stays.
+                if best.is_none_or(|(c, o, ..)| (cost, off_centre) <= (c, o)) {
+                    best = Some((cost, off_centre, k, after));
+                }
+            }
+            true
+        });
+        // No position between different keys (all keys equal): the middle, walked past since nothing
+        // stopped the walk.
+        let (k, after) = best.map_or((middle, after_middle), |(_, _, k, after)| (k, after));
+        let demands = CutDemands {
+            before: before[k],
+            after,
+            total: before[n],
+            exact: exact_before && exact_after,
+        };
         (k, demands)
     }
 }
@@ -556,6 +632,87 @@ mod tests {
         assert!(items == want, "the split's order is the twin's");
         let d = demands.expect("no saturation here");
         assert_eq!(d.total, prefix_demands(&model, &infos, &items)[n as usize]);
+    }
+
+    #[test]
+    fn the_serial_cut_stops_its_backward_walk_without_changing_the_cut() {
+        use crate::preprocess::demand::prefix_demands;
+        // Small nodes with few keys and materials, so costs, distances and keys tie often: the cut and
+        // its demands, with the suffixes walked only as far as they matter, equal those of the branch
+        // that walks both passes whole side by side, and those of the full search over every suffix.
+        let mut rng = crate::util::XorShift64::new(0x2f1e_77a9_c3d4_0b15);
+        let mut next = move || rng.next_u64();
+        let model = model(6);
+        let mut stopped_early = 0;
+        for case in 0..400 {
+            let n = 1 + (next() % 120) as u32;
+            let keys = 1 + next() % 12;
+            let infos: Vec<TriInfo> = (0..n)
+                .map(|_| {
+                    let h = next();
+                    let mut t = tri(
+                        DVec2::new((h % keys) as f64, ((h >> 8) % keys) as f64),
+                        ((h >> 16) % 6) as u32,
+                        (4 + (h >> 24) % (4 + case % 200)) as f64,
+                        1.0,
+                    );
+                    t.uv[1] = DVec2::new(((h >> 40) % 3) as f64 + 0.5, 0.5);
+                    t
+                })
+                .collect();
+            let s = Splitter {
+                infos: &infos,
+                model: &model,
+                rule: SplitRule::Demand,
+            };
+            let mut items: Vec<u32> = (0..n).collect();
+            let mut both: Vec<u32> = items.clone();
+            let (k, demands) = s.cut_walking_both_from(&mut items, 0, Ties::ByIndex, usize::MAX);
+            let d = demands.expect("the demand rule reports its demands");
+            let (k_both, d_both) = s.cut_walking_both_from(&mut both, 0, Ties::ByIndex, 0);
+            assert_eq!((k, items.clone()), (k_both, both), "case {case}");
+            let d_both = d_both.expect("the demand rule reports its demands");
+            assert_eq!(
+                (d.before, d.after, d.total),
+                (d_both.before, d_both.after, d_both.total),
+                "case {case}"
+            );
+            // The full search over the order the cut left.
+            let n = n as usize;
+            let keys = midpoint_keys(&infos, &items, 0);
+            let before = prefix_demands(&model, &infos, &items);
+            let rev: Vec<u32> = items.iter().rev().copied().collect();
+            let after = prefix_demands(&model, &infos, &rev);
+            let mut best: Option<(u64, usize, usize)> = None;
+            for k in 1..n {
+                if keys[k - 1] == keys[k] {
+                    continue;
+                }
+                let cand = (before[k].max(after[n - k]), (2 * k).abs_diff(n), k);
+                if best.is_none_or(|b| (cand.0, cand.1) < (b.0, b.1)) {
+                    best = Some(cand);
+                }
+            }
+            let want = if n <= 1 {
+                n
+            } else {
+                best.map_or(n / 2, |b| b.2)
+            };
+            assert_eq!(k, want, "case {case}: n {n}");
+            assert_eq!(
+                (d.before, d.after, d.total),
+                (before[k], after[n - k], before[n]),
+                "case {case}"
+            );
+            // The walk stopped before the last suffix where some suffix already cost more than the cut.
+            if (1..k).any(|j| after[n - j] > before[k].max(after[n - k])) {
+                stopped_early += 1;
+            }
+        }
+        assert!(
+            stopped_early > 100,
+            "{stopped_early} of 400 cases stop early"
+        );
     }
 
     #[test]
