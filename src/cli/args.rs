@@ -295,7 +295,7 @@ pub(crate) struct BuildParamsArgs {
     #[arg(long, default_value_t = 2048)]
     pub image_cache_mib: u64,
     /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
-    /// a build that cannot fit (the plan holds ~300 bytes per triangle, the rasteriser a few atlases per
+    /// a build that cannot fit (the plan holds ~250 bytes per triangle, the rasteriser a few atlases per
     /// thread, the cache at least the largest image per thread) is refused before any work, with the
     /// number it needs. Default: half of the memory this process may use (the machine's, or its cgroup's
     /// limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's limit).

@@ -5,7 +5,7 @@
 
 use super::layout::{LayoutKind, LayoutNode, LeafLayout};
 use super::originals::{MAX_BLOCK_WASTE, OriginalItem, group_by_users};
-use super::prepare::{TriInfo, walk};
+use super::prepare::{Corners, TriInfo, walk};
 use crate::ids::{BlockId, LeafId, MaterialId, NodeId};
 use crate::model::{
     AtlasRect, AtlasTree, BlockDesc, BlockKind, BuildParams, Leaf, Node, OriginalRef, TreeKind,
@@ -50,6 +50,7 @@ pub struct Assembled {
 struct Asm<'a> {
     scene: &'a Scene,
     infos: &'a [TriInfo],
+    corners: Corners<'a>,
     order: &'a [u32],
     params: &'a BuildParams,
     tree_index: u32,
@@ -97,6 +98,7 @@ const GEOMETRY_BATCH: usize = 1 << 18;
 pub fn assemble(
     scene: &Scene,
     infos: &[TriInfo],
+    corners: Corners<'_>,
     order: &[u32],
     root: &LayoutNode,
     params: &BuildParams,
@@ -111,6 +113,7 @@ pub fn assemble(
     let mut a = Asm {
         scene,
         infos,
+        corners,
         order,
         params,
         tree_index,
@@ -349,7 +352,7 @@ impl Asm<'_> {
             rest = tail;
             let made: Vec<LeafGeometry> = batch
                 .par_iter()
-                .map(|job| leaf_geometry(self.infos, self.order, job))
+                .map(|job| leaf_geometry(self.infos, self.corners, self.order, job))
                 .collect();
             for (job, g) in batch.iter().zip(made) {
                 self.append_geometry(job, g);
@@ -392,11 +395,16 @@ const GEOMETRY_RUN: usize = 1 << 16;
 /// the next number exactly when no earlier run met it, which is the order of first use over the whole
 /// leaf, so the vertices and indices are the ones one walk gives; the hulls' min and max do not depend on
 /// the order. The merge looks up each run's distinct vertices (about a third of its corners).
-fn leaf_geometry(infos: &[TriInfo], order: &[u32], job: &GeometryJob) -> LeafGeometry {
+fn leaf_geometry(
+    infos: &[TriInfo],
+    corners: Corners<'_>,
+    order: &[u32],
+    job: &GeometryJob,
+) -> LeafGeometry {
     use rayon::prelude::*;
     let tris = &order[job.range.clone()];
     if tris.len() <= GEOMETRY_RUN {
-        return run_geometry(infos, tris, job);
+        return run_geometry(infos, corners, tris, job);
     }
     let mut out = LeafGeometry {
         vertices: Vec::new(),
@@ -409,7 +417,7 @@ fn leaf_geometry(infos: &[TriInfo], order: &[u32], job: &GeometryJob) -> LeafGeo
     let group = GEOMETRY_RUN * 4 * rayon::current_num_threads();
     let runs = tris.chunks(group).flat_map(|tris| {
         tris.par_chunks(GEOMETRY_RUN)
-            .map(|run| run_geometry(infos, run, job))
+            .map(|run| run_geometry(infos, corners, run, job))
             .collect::<Vec<_>>()
     });
     for run in runs {
@@ -433,21 +441,26 @@ fn leaf_geometry(infos: &[TriInfo], order: &[u32], job: &GeometryJob) -> LeafGeo
 }
 
 /// [`leaf_geometry`] of the triangles `tris` walked in order, deduplicated among themselves.
-fn run_geometry(infos: &[TriInfo], tris: &[u32], job: &GeometryJob) -> LeafGeometry {
+fn run_geometry(
+    infos: &[TriInfo],
+    corners: Corners<'_>,
+    tris: &[u32],
+    job: &GeometryJob,
+) -> LeafGeometry {
     let mut out = LeafGeometry {
         vertices: Vec::new(),
         indices: Vec::with_capacity(3 * tris.len()),
         hulls: vec![(DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)); job.rects],
     };
     let mut dedup: FxHashMap<[u32; 8], u32> = FxHashMap::default();
-    for t in walk(infos, tris) {
+    for (&i, t) in tris.iter().zip(walk(infos, tris)) {
         let ri = job.rect_of[&(t.material, t.class)];
         let hull = &mut out.hulls[ri as usize];
         for uv in t.uv.iter().filter(|uv| uv.is_finite()) {
             hull.0 = hull.0.min(*uv);
             hull.1 = hull.1.max(*uv);
         }
-        for (k, p) in t.pos.iter().enumerate() {
+        for (k, p) in corners.of(i, t).iter().enumerate() {
             let v = TreeVertex {
                 pos: finite3((*p - job.origin).as_vec3().to_array()),
                 orig_uv: finite2(t.uv[k].as_vec2().to_array()),
@@ -477,14 +490,15 @@ fn finite3(a: [f32; 3]) -> [f32; 3] {
 mod tests {
     use super::*;
     use crate::model::sizing::{SizeEstimate, SizeMethod};
+    use crate::preprocess::prepare::Prepared;
 
     /// A grid of `cells × cells` quads (two triangles each, sharing corners with their neighbours).
-    fn grid(cells: u32) -> Vec<TriInfo> {
+    /// Records of a `cells²` grid of quads (two triangles each), with their corners as cut pieces.
+    fn grid(cells: u32) -> Prepared {
         let corner = |x: u32, y: u32| DVec3::new(f64::from(x), 0.0, f64::from(y));
         let uv = |p: DVec3| DVec2::new(p.x / 7.0, p.z / 5.0);
         let tri = |pos: [DVec3; 3]| TriInfo {
             scene_tri: 0,
-            pos,
             material: MaterialId(0),
             mid: DVec2::ZERO,
             class: 0,
@@ -496,22 +510,27 @@ mod tests {
             },
             uv: pos.map(uv),
         };
-        let mut out = Vec::new();
+        let mut pieces = Vec::new();
         for y in 0..cells {
             for x in 0..cells {
                 let (a, b) = (corner(x, y), corner(x + 1, y));
                 let (c, d) = (corner(x, y + 1), corner(x + 1, y + 1));
-                out.push(tri([a, b, c]));
-                out.push(tri([b, d, c]));
+                pieces.push([a, b, c]);
+                pieces.push([b, d, c]);
             }
         }
-        out
+        Prepared {
+            infos: pieces.iter().map(|&p| tri(p)).collect(),
+            pieces,
+        }
     }
 
     #[test]
     fn a_leaf_made_in_runs_equals_one_walk() {
         // 2 · 190² = 72,200 triangles: two runs; a scrambled order puts shared corners in both.
-        let infos = grid(190);
+        let prepared = grid(190);
+        let scene = crate::scene::synthetic::SceneBuilder::new(crate::scene::UpAxis::Y).build();
+        let (infos, corners) = (&prepared.infos, prepared.corners(&scene));
         let n = infos.len() as u32;
         assert!(n as usize > GEOMETRY_RUN);
         let order: Vec<u32> = (0..n).map(|i| (i * 7919) % n).collect();
@@ -523,15 +542,15 @@ mod tests {
             rect_of: [((MaterialId(0), 0), 0)].into_iter().collect(),
             slot_of: [(MaterialId(0), 0)].into_iter().collect(),
         };
-        let runs = leaf_geometry(&infos, &order, &job);
-        let walk = run_geometry(&infos, &order, &job);
+        let runs = leaf_geometry(infos, corners, &order, &job);
+        let walk = run_geometry(infos, corners, &order, &job);
         assert_eq!(runs.vertices, walk.vertices);
         assert_eq!(runs.indices, walk.indices);
         assert_eq!(runs.hulls, walk.hulls);
         // Each grid corner once: the runs' shared corners were merged.
         assert_eq!(walk.vertices.len(), 191 * 191);
         let split = order.split_at(GEOMETRY_RUN);
-        let distinct = |tris: &[u32]| run_geometry(&infos, tris, &job).vertices.len();
+        let distinct = |tris: &[u32]| run_geometry(infos, corners, tris, &job).vertices.len();
         assert!(distinct(split.0) + distinct(split.1) > walk.vertices.len());
     }
 }

@@ -261,12 +261,10 @@ mod tests {
     use super::*;
     use crate::ids::MaterialId;
     use crate::model::sizing::SizeEstimate;
-    use glam::DVec3;
 
     fn tri(material: u32, w: f64, uv0: [f64; 2], uv1: [f64; 2]) -> TriInfo {
         TriInfo {
             scene_tri: 0,
-            pos: [DVec3::ZERO; 3],
             material: MaterialId(material),
             mid: DVec2::ZERO,
             area: 1.0,

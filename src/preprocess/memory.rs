@@ -11,10 +11,10 @@
 use serde::Serialize;
 
 /// Bytes per scene triangle the import and plan hold at their peak beyond [`BASE_BYTES`]: measured
-/// 140 B on stk_cornfield_crossing (330 k triangles, plan peak 109 MiB), 170–250 B on larger worlds
-/// (the all-tracks world: 6.0 M triangles, 1.42 GiB; tiled 2 × 2: 23.8 M, 5.21 GiB, both ≈ 235 B);
-/// rounded up.
-pub const PLAN_BYTES_PER_TRIANGLE: u64 = 300;
+/// (`build --shard plan`, peak RSS) 150 B on stk_cornfield_crossing (330 k triangles, 111 MiB), 195 B
+/// on stk_black_forest (929 k, 245 MiB), 207 B on the all-tracks world (6.0 M, 1.21 GiB; 235 B before
+/// the prepared records stopped holding their corners); rounded up, with the margin the old 300 B had.
+pub const PLAN_BYTES_PER_TRIANGLE: u64 = 250;
 /// The process itself, its libraries and small tables.
 pub const BASE_BYTES: u64 = 64 << 20;
 /// Decoded bytes per source texel in the image cache: RGBA8 (4) and the linear f32 mip chain (16 × 4/3).

@@ -136,8 +136,9 @@ fn plan_tree(
         max_pieces: opts.max_pieces,
         wrap,
     };
-    let infos = prepare::prepare(scene, tris, &popts);
-    let sizing = prepare::analyze(&infos);
+    let prepared = prepare::prepare(scene, tris, &popts);
+    let (infos, corners) = (&prepared.infos, prepared.corners(scene));
+    let sizing = prepare::analyze(infos);
     progress.finish_stage();
     timings.push(&format!("sizing {kind:?}"), t);
 
@@ -154,13 +155,13 @@ fn plan_tree(
             * f64::from(params.atlas_size)
             * f64::from(params.atlas_size)) as u64,
     };
-    let lay = layout::layout(scene, &infos, &lopts, &|n| progress.set(n))
+    let lay = layout::layout(scene, infos, corners, &lopts, &|n| progress.set(n))
         .map_err(|source| BuildError::Layout { kind, source })?;
     progress.finish_stage();
     timings.push(&format!("layout {kind:?}"), t);
 
     let t = Instant::now();
-    let asm = assemble::assemble(scene, &infos, &lay.order, &lay.root, params, slot);
+    let asm = assemble::assemble(scene, infos, corners, &lay.order, &lay.root, params, slot);
     timings.push(&format!("assemble {kind:?}"), t);
 
     let report = tree_report(scene, tris.len(), infos.len(), &lay, &asm, sizing);

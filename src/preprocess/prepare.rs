@@ -10,9 +10,10 @@ use glam::{DVec2, DVec3};
 ///
 /// Laid out for the layout's passes, which visit the records in midpoint order (random in memory): the
 /// fields the split and the leaf needs read ([`TriInfo::SPLIT_BYTES`]: midpoint, material, class, size,
-/// UVs) come first, and 32-byte alignment (192-byte records, 8 bytes more than the unaligned layout)
-/// keeps them within two cache lines of every record, the midpoint within one; [`walk_prefix`] fetches
-/// only those lines.
+/// UVs) come first, and 32-byte alignment (128-byte records) keeps them within two cache lines of every
+/// record, the midpoint within one; [`walk_prefix`] fetches only those lines. The corners are not stored
+/// here: a whole scene triangle's are the scene's, a cut piece's are [`Prepared::pieces`] ([`Corners`]:
+/// 64 bytes a triangle less in the plan, where every triangle is whole).
 #[derive(Copy, Clone, Debug)]
 #[repr(C, align(32))]
 pub struct TriInfo {
@@ -31,12 +32,10 @@ pub struct TriInfo {
     pub area: f64,
     /// Index of the triangle in `Scene::triangles` this triangle is (a piece of).
     pub scene_tri: u32,
-    /// World positions (a piece's own corners).
-    pub pos: [DVec3; 3],
 }
 
 const _: () = {
-    assert!(std::mem::size_of::<TriInfo>() == 192);
+    assert!(std::mem::size_of::<TriInfo>() == 128);
     assert!(TriInfo::SPLIT_BYTES == 96 && TriInfo::MID_BYTES == 16);
 };
 
@@ -46,17 +45,6 @@ impl TriInfo {
     pub const SPLIT_BYTES: usize = std::mem::offset_of!(TriInfo, area);
     /// Bytes from a record's start that hold the midpoint.
     pub const MID_BYTES: usize = std::mem::offset_of!(TriInfo, material);
-
-    /// World bounds of the triangle (computed from `pos`, not stored: 48 bytes a triangle less in the plan).
-    #[inline]
-    pub fn lo(&self) -> DVec3 {
-        self.pos[0].min(self.pos[1]).min(self.pos[2])
-    }
-
-    #[inline]
-    pub fn hi(&self) -> DVec3 {
-        self.pos[0].max(self.pos[1]).max(self.pos[2])
-    }
 }
 
 /// How many records ahead of its use [`walk`] prefetches: enough to cover a memory latency (~100 ns)
@@ -144,29 +132,74 @@ pub struct PrepareOptions {
 /// (positions and UVs are affine on a triangle), keeps `min_distance = d_min` for their leaves, and lets the
 /// pieces spread over several leaves. Without it the paper loops forever, and plain clamping would coarsen
 /// every ancestor of that leaf (`min_distance` doubles upwards from the clamped value).
-pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Vec<TriInfo> {
+pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Prepared {
     use rayon::prelude::*;
     let max_pieces = if opts.wrap { 1 } else { opts.max_pieces };
     if max_pieces <= 1 {
         // One piece a triangle (`tessellate` returns its input): an indexed map collects in place, where
         // the flat map below collects per task and then copies every record once more (~1 s and 4.4 GB
         // moved for the 24 M triangles of the all-tracks world tiled 2 × 2).
-        return tris
+        let infos = tris
             .par_iter()
             .map(|&ti| {
                 let s = SizedTriangle::of(scene, ti, opts);
                 s.piece(s.pos, s.uv, opts)
             })
             .collect();
+        return Prepared {
+            infos,
+            pieces: Vec::new(),
+        };
     }
-    tris.par_iter()
+    let (infos, pieces) = tris
+        .par_iter()
         .flat_map_iter(|&ti| {
             let s = SizedTriangle::of(scene, ti, opts);
             tessellate(s.pos, s.uv, s.w, s.h, opts.split_limit, max_pieces)
                 .into_iter()
-                .map(move |(p, uv0)| s.piece(p, uv0, opts))
+                .map(move |(p, uv0)| (s.piece(p, uv0, opts), p))
         })
-        .collect()
+        .unzip();
+    Prepared { infos, pieces }
+}
+
+/// The prepared triangles of a tree ([`prepare`]).
+pub struct Prepared {
+    pub infos: Vec<TriInfo>,
+    /// Each record's own corners where triangles may be cut into pieces (repeats baked); empty where
+    /// every record is a whole scene triangle, whose corners the scene holds.
+    pub pieces: Vec<[DVec3; 3]>,
+}
+
+impl Prepared {
+    /// Where the corners of these records are read.
+    pub fn corners<'a>(&'a self, scene: &'a Scene) -> Corners<'a> {
+        Corners {
+            scene,
+            pieces: &self.pieces,
+        }
+    }
+}
+
+/// The world corners of prepared records: the scene triangle's, or the cut piece's own.
+#[derive(Copy, Clone)]
+pub struct Corners<'a> {
+    scene: &'a Scene,
+    /// Per record (indexed like the records), or empty: every record is its whole scene triangle.
+    pieces: &'a [[DVec3; 3]],
+}
+
+impl Corners<'_> {
+    /// The corners of record `i`, `t`.
+    #[inline]
+    pub fn of(&self, i: u32, t: &TriInfo) -> [DVec3; 3] {
+        if self.pieces.is_empty() {
+            self.scene
+                .tri_positions(&self.scene.triangles[t.scene_tri as usize])
+        } else {
+            self.pieces[i as usize]
+        }
+    }
 }
 
 /// A scene triangle sized for [`prepare`]: its corners and UVs, material, density and class.
@@ -222,7 +255,6 @@ impl SizedTriangle {
         let mid = opts.up.plane((p[0] + p[1] + p[2]) / 3.0);
         TriInfo {
             scene_tri: self.ti,
-            pos: p,
             material: self.material,
             mid: if mid.is_finite() { mid } else { DVec2::ZERO },
             area: if area.is_finite() { area } else { 0.0 },
@@ -344,7 +376,6 @@ mod tests {
     fn walk_yields_the_records_of_the_items_in_their_order() {
         let info = |k: u32| TriInfo {
             scene_tri: k,
-            pos: [DVec3::splat(f64::from(k)); 3],
             material: crate::ids::MaterialId(0),
             mid: DVec2::ZERO,
             class: 0,

@@ -69,7 +69,7 @@ fn sizing(c: &mut Criterion) {
     let mut g = c.benchmark_group("sizing");
     g.throughput(Throughput::Elements(tris.len() as u64));
     g.bench_function("data-city", |b| {
-        b.iter(|| black_box(prepare(&scene, &tris, &opts).len()))
+        b.iter(|| black_box(prepare(&scene, &tris, &opts).infos.len()))
     });
     g.finish();
 }

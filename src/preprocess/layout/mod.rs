@@ -46,7 +46,7 @@ pub use tree::{
 };
 
 use super::demand::DemandModel;
-use super::prepare::TriInfo;
+use super::prepare::{Corners, TriInfo};
 use crate::ids::{Cell, Level};
 use crate::scene::Scene;
 use glam::DVec3;
@@ -65,6 +65,7 @@ pub const FUTILE_SPLIT_SHARE: f64 = 0.9;
 /// progress callback.
 struct Ctx<'a> {
     leaf: leaf::Ctx<'a>,
+    corners: Corners<'a>,
     split: Splitter<'a>,
     /// Every node folds its bounds over its triangles in the order it receives them
     /// ([`has_negative_zero`]); otherwise an inner node's bounds are its children's union.
@@ -95,6 +96,7 @@ pub fn demand_model(scene: &Scene, opts: &LayoutOptions) -> DemandModel {
 pub fn layout(
     scene: &Scene,
     infos: &[TriInfo],
+    corners: Corners<'_>,
     opts: &LayoutOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Layout, LayoutError> {
@@ -103,6 +105,7 @@ pub fn layout(
     let model = demand_model(scene, opts);
     let ctx = Ctx {
         leaf: leaf::Ctx { scene, infos, opts },
+        corners,
         split: Splitter {
             infos,
             model: &model,
@@ -110,7 +113,7 @@ pub fn layout(
         },
         nodes: &nodes,
         progress,
-        bounds_on_entry: has_negative_zero(infos),
+        bounds_on_entry: has_negative_zero(corners, infos),
     };
     let root = build_node(&ctx, &mut order, 0, Level(0), Cell::default())?;
     let mut leaves = LeafCounts {
@@ -163,7 +166,7 @@ fn count_leaves(n: &LayoutNode, c: &mut LeafCounts) {
 const BOUNDS_CHUNK: usize = 1 << 16;
 
 /// World bounds of `items` (min and max are exact in any order, so big nodes fold chunks in parallel).
-fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
+fn bounds(corners: Corners<'_>, infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
     use rayon::prelude::*;
     if items.is_empty() {
         return (DVec3::ZERO, DVec3::ZERO);
@@ -171,9 +174,10 @@ fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
     let fold = |run: &[u32]| {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for t in super::prepare::walk(infos, run) {
-            lo = lo.min(t.lo());
-            hi = hi.max(t.hi());
+        for &i in run {
+            let p = corners.of(i, &infos[i as usize]);
+            lo = lo.min(p[0].min(p[1]).min(p[2]));
+            hi = hi.max(p[0].max(p[1]).max(p[2]));
         }
         (lo, hi)
     };
@@ -193,20 +197,24 @@ fn bounds(infos: &[TriInfo], items: &[u32]) -> (DVec3, DVec3) {
 /// bits as ever. Without a −0.0 the order cannot matter. The importer never makes a −0.0 (every world
 /// position ends by adding a translation that is not −0.0), but a scene built in code can hold one, and the
 /// midpoint of a cut between subnormal coordinates can round to one.
-fn has_negative_zero(infos: &[TriInfo]) -> bool {
+fn has_negative_zero(corners: Corners<'_>, infos: &[TriInfo]) -> bool {
     use rayon::prelude::*;
     const NEGATIVE_ZERO: u64 = 0x8000_0000_0000_0000;
-    infos.par_chunks(BOUNDS_CHUNK).any(|run| {
-        run.iter().fold(false, |found, t| {
-            let mut here = false;
-            for p in &t.pos {
-                here |= (p.x.to_bits() == NEGATIVE_ZERO)
-                    | (p.y.to_bits() == NEGATIVE_ZERO)
-                    | (p.z.to_bits() == NEGATIVE_ZERO);
-            }
-            found | here
+    infos
+        .par_chunks(BOUNDS_CHUNK)
+        .enumerate()
+        .any(|(chunk, run)| {
+            run.iter().enumerate().fold(false, |found, (k, t)| {
+                let i = (chunk * BOUNDS_CHUNK + k) as u32;
+                let mut here = false;
+                for p in &corners.of(i, t) {
+                    here |= (p.x.to_bits() == NEGATIVE_ZERO)
+                        | (p.y.to_bits() == NEGATIVE_ZERO)
+                        | (p.z.to_bits() == NEGATIVE_ZERO);
+                }
+                found | here
+            })
         })
-    })
 }
 
 /// The children's texel demands average at least [`FUTILE_SPLIT_SHARE`] of the node's. The demands are the
@@ -251,11 +259,13 @@ fn build_node(
     // A leaf's bounds are its triangles'; an inner node's the union of its children's (min and max are
     // exact, so the same numbers without a walk over its triangles at every level), except where signed
     // zeros make the order matter (`has_negative_zero`): then every node's own, in the order received.
-    let on_entry = ctx.bounds_on_entry.then(|| bounds(ctx.leaf.infos, items));
+    let on_entry = ctx
+        .bounds_on_entry
+        .then(|| bounds(ctx.corners, ctx.leaf.infos, items));
     let needs = material_needs(&ctx.leaf, items);
     let base = base_scale(&ctx.leaf, &needs);
     let leaf = |leaf: LeafLayout, items: &[u32]| {
-        let (lo, hi) = on_entry.unwrap_or_else(|| bounds(ctx.leaf.infos, items));
+        let (lo, hi) = on_entry.unwrap_or_else(|| bounds(ctx.corners, ctx.leaf.infos, items));
         LayoutNode {
             range: range.clone(),
             level,
@@ -289,7 +299,7 @@ fn build_node(
         }
     }
     if level.0 >= ctx.leaf.opts.max_depth {
-        let (lo, hi) = bounds(ctx.leaf.infos, items);
+        let (lo, hi) = bounds(ctx.corners, ctx.leaf.infos, items);
         return Err(LayoutError::DepthExceeded {
             lo,
             hi,
@@ -362,7 +372,7 @@ mod tests {
 
     /// Four triangles with a 64² image each (two never share a 128² atlas), on the corners of a 20 × 11 m
     /// field, z up. Triangle 0 (bottom right) starts at x = `x0`; triangle 1 (bottom left) at x = +0.0.
-    fn four_corners(x0: f64) -> (crate::scene::Scene, Vec<TriInfo>) {
+    fn four_corners(x0: f64) -> (crate::scene::Scene, super::super::prepare::Prepared) {
         let mut b = SceneBuilder::new(UpAxis::Z);
         let corners = [
             [
@@ -400,8 +410,8 @@ mod tests {
             max_pieces: 1,
             wrap: true,
         };
-        let infos = prepare(&scene, &[0, 1, 2, 3], &popts);
-        (scene, infos)
+        let prepared = prepare(&scene, &[0, 1, 2, 3], &popts);
+        (scene, prepared)
     }
 
     fn options() -> LayoutOptions {
@@ -418,25 +428,27 @@ mod tests {
 
     #[test]
     fn signed_zeros_give_the_bounds_of_the_fold_in_arrival_order() {
-        let (scene, infos) = four_corners(-0.0);
-        assert!(has_negative_zero(&infos));
-        let lay = layout(&scene, &infos, &options(), &|_| {}).unwrap();
+        let (scene, prepared) = four_corners(-0.0);
+        let (infos, corners) = (&prepared.infos, prepared.corners(&scene));
+        assert!(has_negative_zero(corners, infos));
+        let lay = layout(&scene, infos, corners, &options(), &|_| {}).unwrap();
         let LayoutKind::Inner { children, .. } = &lay.root.kind else {
             panic!("the root must split: no two triangles share an atlas");
         };
         // The split puts triangle 1 (x = +0.0) in quadrant 0 and triangle 0 (x = −0.0) in quadrant 1: the
         // children's union in quadrant order would end on −0.0, the fold over 0, 1, 2, 3 ends on +0.0.
         assert_eq!(children.iter().flatten().count(), 4);
-        let (lo, hi) = bounds(&infos, &[0, 1, 2, 3]);
+        let (lo, hi) = bounds(corners, infos, &[0, 1, 2, 3]);
         assert_eq!(lo.x.to_bits(), 0.0f64.to_bits());
         let bits = |v: DVec3| v.to_array().map(f64::to_bits);
         assert_eq!(bits(lay.root.lo), bits(lo));
         assert_eq!(bits(lay.root.hi), bits(hi));
         // Without a −0.0 the union is used, and is the same bits.
-        let (scene, infos) = four_corners(0.0);
-        assert!(!has_negative_zero(&infos));
-        let lay = layout(&scene, &infos, &options(), &|_| {}).unwrap();
-        let (lo, hi) = bounds(&infos, &[0, 1, 2, 3]);
+        let (scene, prepared) = four_corners(0.0);
+        let (infos, corners) = (&prepared.infos, prepared.corners(&scene));
+        assert!(!has_negative_zero(corners, infos));
+        let lay = layout(&scene, infos, corners, &options(), &|_| {}).unwrap();
+        let (lo, hi) = bounds(corners, infos, &[0, 1, 2, 3]);
         assert_eq!(bits(lay.root.lo), bits(lo));
         assert_eq!(bits(lay.root.hi), bits(hi));
     }

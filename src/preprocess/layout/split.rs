@@ -400,13 +400,12 @@ mod tests {
     use crate::ids::MaterialId;
     use crate::model::sizing::{SizeEstimate, SizeMethod};
     use crate::scene::Wrap;
-    use glam::{DVec2, DVec3};
+    use glam::DVec2;
 
     /// A triangle of `material` at plane midpoint `mid` needing `w` texels per period over UV `[0, 1]²`.
     fn tri(mid: DVec2, material: u32, w: f64, area: f64) -> TriInfo {
         TriInfo {
             scene_tri: 0,
-            pos: [DVec3::ZERO; 3],
             material: MaterialId(material),
             mid,
             area,

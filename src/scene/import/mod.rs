@@ -61,7 +61,7 @@ pub(super) const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
 pub struct ImportOptions {
     /// `None` = auto (the axis of least extent of the world bounds; ties prefer Y, then Z).
     pub up: Option<UpAxis>,
-    /// The most triangles the caller's memory budget holds (`build --max-memory`: the plan keeps ~300
+    /// The most triangles the caller's memory budget holds (`build --max-memory`: the plan keeps ~250
     /// bytes a triangle). The node walk counts triangles as it meets mesh instances and refuses the scene
     /// ([`SceneError::TooLarge`]) as soon as they exceed it, before any vertex is read: a few KB of JSON
     /// sharing nodes can instance millions of triangles. `None`: only the importer's own cap.

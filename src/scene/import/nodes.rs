@@ -163,7 +163,7 @@ impl<'a> Walk<'a, '_> {
                             what: format!(
                                 "more than {max} triangles over the mesh instances met so far ({} instances, \
                                  node {i}): more than the memory budget holds (`--max-memory`; the plan \
-                                 keeps ~300 bytes a triangle)",
+                                 keeps ~250 bytes a triangle)",
                                 instances.len().saturating_add(adding)
                             ),
                         });

@@ -153,7 +153,7 @@ fn thousands_of_triangles_with_one_midpoint_terminate() {
         max_pieces: 4096,
         wrap: true,
     };
-    let infos = prepare(&scene, &(0..n).collect::<Vec<_>>(), &popts);
+    let infos = prepare(&scene, &(0..n).collect::<Vec<_>>(), &popts).infos;
     let mid = infos[0].mid;
     assert!(
         infos.iter().all(|t| t.mid == mid),
