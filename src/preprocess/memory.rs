@@ -232,7 +232,7 @@ mod tests {
     fn budget_fixes_the_cache_and_refuses_what_cannot_fit() {
         // 1 M triangles, 1024² atlases, 2 threads, a 2048² largest image, 2 GiB wanted.
         let p = plan_memory(2 << 30, 1_000_000, 1024, 2, 2048 * 2048, 2 << 30).unwrap();
-        assert_eq!(p.plan_bytes, (64 << 20) + 300_000_000);
+        assert_eq!(p.plan_bytes, (64 << 20) + 250_000_000);
         assert_eq!(p.raster_bytes, 2 * 4 * 1024 * 1024 * 16);
         let left = (2u64 << 30) - p.plan_bytes - p.raster_bytes;
         assert_eq!(p.image_cache_bytes, left / CACHE_SHARE_DIVISOR);
@@ -244,7 +244,7 @@ mod tests {
         let e = plan_memory(2 << 30, 20_000_000, 1024, 2, 2048 * 2048, 2 << 30).unwrap_err();
         assert_eq!(
             e.plan_mib,
-            ((64u64 << 20) + 6_000_000_000).div_ceil(1 << 20)
+            ((64u64 << 20) + 5_000_000_000).div_ceil(1 << 20)
         );
         assert!(e.needed_mib > 2048);
         assert!(e.to_string().contains("raise --max-memory"));
@@ -255,7 +255,7 @@ mod tests {
         let e = plan_step_memory(2 << 30, 24_000_000).unwrap_err();
         assert_eq!(
             e.needed_mib,
-            ((64u64 << 20) + 7_200_000_000).div_ceil(1 << 20)
+            ((64u64 << 20) + 6_000_000_000).div_ceil(1 << 20)
         );
     }
 }

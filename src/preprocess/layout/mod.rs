@@ -372,7 +372,7 @@ mod tests {
 
     /// Four triangles with a 64² image each (two never share a 128² atlas), on the corners of a 20 × 11 m
     /// field, z up. Triangle 0 (bottom right) starts at x = `x0`; triangle 1 (bottom left) at x = +0.0.
-    fn four_corners(x0: f64) -> (crate::scene::Scene, super::super::prepare::Prepared) {
+    fn four_corners(x0: f64) -> (crate::scene::Scene, crate::preprocess::prepare::Prepared) {
         let mut b = SceneBuilder::new(UpAxis::Z);
         let corners = [
             [
