@@ -453,14 +453,14 @@ fn run_geometry(
         hulls: vec![(DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)); job.rects],
     };
     let mut dedup: FxHashMap<[u32; 8], u32> = FxHashMap::default();
-    for (&i, t) in tris.iter().zip(walk(infos, tris)) {
+    for t in walk(infos, tris) {
         let ri = job.rect_of[&(t.material, t.class)];
         let hull = &mut out.hulls[ri as usize];
         for uv in t.uv.iter().filter(|uv| uv.is_finite()) {
             hull.0 = hull.0.min(*uv);
             hull.1 = hull.1.max(*uv);
         }
-        for (k, p) in corners.of(i, t).iter().enumerate() {
+        for (k, p) in corners.of(t).iter().enumerate() {
             let v = TreeVertex {
                 pos: finite3((*p - job.origin).as_vec3().to_array()),
                 orig_uv: finite2(t.uv[k].as_vec2().to_array()),
@@ -497,8 +497,9 @@ mod tests {
     fn grid(cells: u32) -> Prepared {
         let corner = |x: u32, y: u32| DVec3::new(f64::from(x), 0.0, f64::from(y));
         let uv = |p: DVec3| DVec2::new(p.x / 7.0, p.z / 5.0);
-        let tri = |pos: [DVec3; 3]| TriInfo {
+        let tri = |(piece, pos): (usize, [DVec3; 3])| TriInfo {
             scene_tri: 0,
+            piece: piece as u32,
             material: MaterialId(0),
             mid: DVec2::ZERO,
             class: 0,
@@ -520,7 +521,7 @@ mod tests {
             }
         }
         Prepared {
-            infos: pieces.iter().map(|&p| tri(p)).collect(),
+            infos: pieces.iter().copied().enumerate().map(tri).collect(),
             pieces,
         }
     }

@@ -119,13 +119,18 @@ impl DemandModel {
             cap_to_source: self.cap_to_source,
             max_side: u32::MAX,
         };
+        // Beyond u32 sides: saturate (such a set never fits; only the order of demands matters). An area
+        // within u32 sides can exceed the saturated value (both sides past 2³¹): it saturates too, so a
+        // material's area never falls as its maxima grow (what the split's early stop relies on).
         match required_area(&input, &opts) {
-            Ok(r) => r.outer_texels(),
-            // Beyond u32 sides: saturate (such a set never fits; only the order of demands matters).
-            Err(_) => u64::MAX / 4,
+            Ok(r) => r.outer_texels().min(SATURATED_AREA),
+            Err(_) => SATURATED_AREA,
         }
     }
 }
+
+/// A material's demand where its rect is beyond any atlas (texels²).
+const SATURATED_AREA: u64 = u64::MAX / 4;
 
 /// The demand of every prefix of `items` (indices into `infos`): `out[k]` is the demand of `items[..k]`,
 /// `k = 0..=items.len()` (so `out[0] = 0`). `O(n)` after one map of the materials in `items`.
@@ -232,7 +237,8 @@ impl Scratch {
 /// `visit(k, demand of items[..k])` (k = 1, 2, …) returns true: the demand of a prefix without the
 /// longer ones. The demand of a prefix never falls as it grows (a material's area only grows with its
 /// maxima; saturation keeps it at `u64::MAX`), so a caller looking for a balance can stop once it is past.
-/// Returns whether the running sum never saturated over the prefixes walked.
+/// Returns whether the running sum never saturated over the prefixes walked. `visit` runs while this
+/// thread's demand scratch is borrowed: it must not compute demands itself.
 pub fn walk_prefix_demands(
     model: &DemandModel,
     infos: &[TriInfo],
@@ -265,6 +271,7 @@ mod tests {
     fn tri(material: u32, w: f64, uv0: [f64; 2], uv1: [f64; 2]) -> TriInfo {
         TriInfo {
             scene_tri: 0,
+            piece: crate::preprocess::prepare::WHOLE,
             material: MaterialId(material),
             mid: DVec2::ZERO,
             area: 1.0,
@@ -299,6 +306,22 @@ mod tests {
         let p = prefix_demands(&model(true), &infos, &[0, 1]);
         assert_eq!(p, vec![0, 104 * 104, 104 * 104]);
         assert_eq!(demand(&model(false), &infos, &[0, 1]), 4004 * 104);
+    }
+
+    #[test]
+    fn a_demand_never_falls_as_its_set_grows_even_past_any_atlas() {
+        // Baked, uncapped, 3·10⁹ texels a UV unit: [0, 1]² has u32 sides and an area past the saturated
+        // value, [0, 2]² sides past u32. Both saturate; the second must not fall below the first.
+        let model = DemandModel {
+            cap_to_source: false,
+            ..model(false)
+        };
+        let infos = vec![
+            tri(0, 3e9, [0.0, 0.0], [1.0, 1.0]),
+            tri(0, 3e9, [0.0, 0.0], [2.0, 2.0]),
+        ];
+        let p = prefix_demands(&model, &infos, &[0, 1]);
+        assert_eq!(p, vec![0, SATURATED_AREA, SATURATED_AREA]);
     }
 
     #[test]

@@ -13,14 +13,18 @@ use serde::Serialize;
 /// Bytes per scene triangle the import and plan hold at their peak beyond [`BASE_BYTES`]: measured
 /// (`build --shard plan`, peak RSS) 150 B on stk_cornfield_crossing (330 k triangles, 111 MiB), 195 B
 /// on stk_black_forest (929 k, 245 MiB), 207 B on the all-tracks world (6.0 M, 1.21 GiB; 235 B before
-/// the prepared records stopped holding their corners); rounded up, with the margin the old 300 B had.
+/// the prepared records stopped holding their corners); rounded up, ~1.2× the largest (the old 300 B was
+/// ~1.3× its 235 B). Measured with repeats wrapped; baked, a cut piece is a record of its own and keeps
+/// its corners (72 bytes more).
 pub const PLAN_BYTES_PER_TRIANGLE: u64 = 250;
 /// The process itself, its libraries and small tables.
 pub const BASE_BYTES: u64 = 64 << 20;
 /// Decoded bytes per source texel in the image cache: RGBA8 (4) and the linear f32 mip chain (16 × 4/3).
 pub const CACHE_BYTES_PER_TEXEL: u64 = 26;
 /// Atlases' worth of f32 RGBA texels one rasteriser thread holds (the atlas, its mip chain, the halves of
-/// its children waiting to be combined, the encoded block).
+/// its children waiting to be combined, the encoded block). Beside them, not counted: the colour bleed's
+/// 8 bytes a texel of the level it converts (kept between levels up to 16 MiB a thread; a 4096²
+/// original's level 0 takes 128 MiB while it is converted), which the slack below the cache covers.
 pub const ATLASES_PER_THREAD: u64 = 4;
 /// The image cache gets 1/this of what plan and rasteriser leave: with the originals cache's quarter on top,
 /// 5/12 of it. The rest covers what the model leaves out — decode buffers, entries still held by a thread

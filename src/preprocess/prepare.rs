@@ -12,8 +12,8 @@ use glam::{DVec2, DVec3};
 /// fields the split and the leaf needs read ([`TriInfo::SPLIT_BYTES`]: midpoint, material, class, size,
 /// UVs) come first, and 32-byte alignment (128-byte records) keeps them within two cache lines of every
 /// record, the midpoint within one; [`walk_prefix`] fetches only those lines. The corners are not stored
-/// here: a whole scene triangle's are the scene's, a cut piece's are [`Prepared::pieces`] ([`Corners`]:
-/// 64 bytes a triangle less in the plan, where every triangle is whole).
+/// here: a whole scene triangle's are the scene's, a cut piece's are in [`Prepared::pieces`] ([`Corners`]:
+/// 64 bytes a triangle less in the plan).
 #[derive(Copy, Clone, Debug)]
 #[repr(C, align(32))]
 pub struct TriInfo {
@@ -32,7 +32,13 @@ pub struct TriInfo {
     pub area: f64,
     /// Index of the triangle in `Scene::triangles` this triangle is (a piece of).
     pub scene_tri: u32,
+    /// Where a cut piece's own corners are in [`Prepared::pieces`]; [`WHOLE`] for a whole scene triangle
+    /// (its corners are the scene's). In the record's padding: no byte more.
+    pub piece: u32,
 }
+
+/// [`TriInfo::piece`] of a whole scene triangle.
+pub const WHOLE: u32 = u32::MAX;
 
 const _: () = {
     assert!(std::mem::size_of::<TriInfo>() == 128);
@@ -151,23 +157,37 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Prepared {
             pieces: Vec::new(),
         };
     }
-    let (infos, pieces) = tris
+    // Records with the corners of cut pieces (a triangle `tessellate` returns whole has the scene's).
+    let cut: Vec<(TriInfo, Option<[DVec3; 3]>)> = tris
         .par_iter()
         .flat_map_iter(|&ti| {
             let s = SizedTriangle::of(scene, ti, opts);
-            tessellate(s.pos, s.uv, s.w, s.h, opts.split_limit, max_pieces)
+            let parts = tessellate(s.pos, s.uv, s.w, s.h, opts.split_limit, max_pieces);
+            let whole = parts.len() == 1;
+            parts
                 .into_iter()
-                .map(move |(p, uv0)| (s.piece(p, uv0, opts), p))
+                .map(move |(p, uv0)| (s.piece(p, uv0, opts), (!whole).then_some(p)))
         })
-        .unzip();
+        .collect();
+    let mut pieces = Vec::new();
+    let infos = cut
+        .into_iter()
+        .map(|(mut t, corners)| {
+            if let Some(p) = corners {
+                t.piece = pieces.len() as u32;
+                pieces.push(p);
+            }
+            t
+        })
+        .collect();
     Prepared { infos, pieces }
 }
 
 /// The prepared triangles of a tree ([`prepare`]).
 pub struct Prepared {
     pub infos: Vec<TriInfo>,
-    /// Each record's own corners where triangles may be cut into pieces (repeats baked); empty where
-    /// every record is a whole scene triangle, whose corners the scene holds.
+    /// The corners of the cut pieces (repeats baked), where [`TriInfo::piece`] says; a whole scene
+    /// triangle's corners are the scene's.
     pub pieces: Vec<[DVec3; 3]>,
 }
 
@@ -185,19 +205,18 @@ impl Prepared {
 #[derive(Copy, Clone)]
 pub struct Corners<'a> {
     scene: &'a Scene,
-    /// Per record (indexed like the records), or empty: every record is its whole scene triangle.
     pieces: &'a [[DVec3; 3]],
 }
 
 impl Corners<'_> {
-    /// The corners of record `i`, `t`.
+    /// The corners of record `t`.
     #[inline]
-    pub fn of(&self, i: u32, t: &TriInfo) -> [DVec3; 3] {
-        if self.pieces.is_empty() {
+    pub fn of(&self, t: &TriInfo) -> [DVec3; 3] {
+        if t.piece == WHOLE {
             self.scene
                 .tri_positions(&self.scene.triangles[t.scene_tri as usize])
         } else {
-            self.pieces[i as usize]
+            self.pieces[t.piece as usize]
         }
     }
 }
@@ -255,6 +274,7 @@ impl SizedTriangle {
         let mid = opts.up.plane((p[0] + p[1] + p[2]) / 3.0);
         TriInfo {
             scene_tri: self.ti,
+            piece: WHOLE,
             material: self.material,
             mid: if mid.is_finite() { mid } else { DVec2::ZERO },
             area: if area.is_finite() { area } else { 0.0 },
@@ -373,9 +393,71 @@ mod tests {
     }
 
     #[test]
+    fn corners_of_whole_triangles_are_the_scenes_and_of_cut_pieces_their_own() {
+        use crate::scene::AlphaMode;
+        use crate::scene::synthetic::SceneBuilder;
+        // Baked repeats: a big triangle over 40 periods is cut, a small one over one period is not.
+        let mut b = SceneBuilder::new(UpAxis::Z);
+        let image = b.pattern_image("t", 64, 0);
+        let material = b.material(image, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let big = [
+            DVec3::ZERO,
+            DVec3::new(40.0, 0.0, 0.0),
+            DVec3::new(0.0, 40.0, 0.0),
+        ];
+        b.triangle(
+            big,
+            [DVec2::ZERO, DVec2::new(40.0, 0.0), DVec2::new(0.0, 40.0)],
+            material,
+        );
+        let small = [
+            DVec3::new(50.0, 0.0, 0.0),
+            DVec3::new(51.0, 0.0, 0.0),
+            DVec3::new(50.0, 1.0, 0.0),
+        ];
+        b.triangle(small, [DVec2::ZERO, DVec2::X, DVec2::Y], material);
+        let scene = b.build();
+        let opts = PrepareOptions {
+            f_proj: 64.0,
+            up: UpAxis::Z,
+            cap_to_source: true,
+            split_limit: 256.0,
+            max_pieces: 4096,
+            wrap: false,
+        };
+        let prepared = prepare(&scene, &[0, 1], &opts);
+        let corners = prepared.corners(&scene);
+        let (cut, whole): (Vec<&TriInfo>, Vec<&TriInfo>) =
+            prepared.infos.iter().partition(|t| t.scene_tri == 0);
+        assert!(cut.len() > 1, "the big triangle is cut");
+        assert_eq!(
+            prepared.pieces.len(),
+            cut.len(),
+            "only cut pieces keep corners"
+        );
+        assert_eq!(whole.len(), 1);
+        assert_eq!(whole[0].piece, WHOLE);
+        assert_eq!(corners.of(whole[0]), small);
+        // The pieces tile the big triangle: their areas sum to its area, every corner inside it.
+        let area = |p: [DVec3; 3]| 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
+        let sum: f64 = cut.iter().map(|t| area(corners.of(t))).sum();
+        assert!((sum - area(big)).abs() < 1e-6, "{sum}");
+        for t in &cut {
+            assert!(t.piece != WHOLE);
+            for p in corners.of(t) {
+                assert!(
+                    p.x >= -1e-9 && p.y >= -1e-9 && p.x + p.y <= 40.0 + 1e-9,
+                    "{p}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn walk_yields_the_records_of_the_items_in_their_order() {
         let info = |k: u32| TriInfo {
             scene_tri: k,
+            piece: WHOLE,
             material: crate::ids::MaterialId(0),
             mid: DVec2::ZERO,
             class: 0,

@@ -253,13 +253,14 @@ fn round_unit255(a: f32) -> u8 {
 /// Give every alpha-0 texel of `rgba` the colour of a nearest texel with alpha > 0 (breadth-first over
 /// 4-neighbours from all such texels, in index order); alpha stays 0. O(texels).
 ///
-/// What that search gives, in any order it visits a layer: the colour of the visible texel nearest in
-/// city-block distance, the lowest index among equally near ones. (A layer of the FIFO search is
-/// grouped by the visible texel its texels descend from, in index order, and every texel of a group has
-/// its colour; a texel at distance `d` is claimed by the first group with a neighbour at `d − 1`, the
-/// lowest root. The roots a texel can reach down such neighbours are exactly its nearest visible texels:
-/// a monotone path to one has every texel at its distance from it. Unit tests against the queue and
-/// against this rule by brute force.)
+/// What that search gives: the colour of the visible texel nearest in city-block distance, the lowest
+/// index among equally near ones. (On a grid with nothing in the way a texel's layer is its city-block
+/// distance to the nearest visible texel. A layer of the FIFO search is grouped by the visible texel its
+/// texels descend from, in that texel's index order, and every texel of a group has its colour, so the
+/// order within a group and the order of the neighbours do not matter; a texel at distance `d` is
+/// claimed by the first group with a neighbour at `d − 1`, the lowest root. The roots a texel can reach
+/// down such neighbours are exactly its nearest visible texels: a monotone path to one has every texel
+/// at its distance from it. Unit tests against the queue and against this rule by brute force.)
 ///
 /// So it is a nearest-feature transform: `(distance, index)` per texel as one `u64`, minimised along
 /// the rows and then along the columns (city-block distance is separable: the nearest texel of each
@@ -428,6 +429,8 @@ mod tests {
         ] {
             // Sparse (deep layers on the big image), half and dense visibility.
             for density in [0u64, 1, 2, 50, 97] {
+                // The brute force is O(transparent × visible): small images, or sparse ones.
+                let brute = w * h <= 4096 || density <= 2;
                 let mut rgba = vec![0u8; w * h * 4];
                 for p in rgba.chunks_exact_mut(4) {
                     let r = next();
@@ -439,11 +442,13 @@ mod tests {
                 }
                 let mut want = rgba.clone();
                 bleed_by_queue(&mut want, w, h);
-                assert_eq!(
-                    nearest_by_brute_force(&rgba, w, h),
-                    want,
-                    "{w}×{h}, density {density}"
-                );
+                if brute {
+                    assert_eq!(
+                        nearest_by_brute_force(&rgba, w, h),
+                        want,
+                        "{w}×{h}, density {density}"
+                    );
+                }
                 bleed_into_transparent(&mut rgba, w, h);
                 assert_eq!(rgba, want, "{w}×{h}, density {density}");
             }

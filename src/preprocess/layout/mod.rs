@@ -174,8 +174,8 @@ fn bounds(corners: Corners<'_>, infos: &[TriInfo], items: &[u32]) -> (DVec3, DVe
     let fold = |run: &[u32]| {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for &i in run {
-            let p = corners.of(i, &infos[i as usize]);
+        for t in super::prepare::walk(infos, run) {
+            let p = corners.of(t);
             lo = lo.min(p[0].min(p[1]).min(p[2]));
             hi = hi.max(p[0].max(p[1]).max(p[2]));
         }
@@ -200,21 +200,17 @@ fn bounds(corners: Corners<'_>, infos: &[TriInfo], items: &[u32]) -> (DVec3, DVe
 fn has_negative_zero(corners: Corners<'_>, infos: &[TriInfo]) -> bool {
     use rayon::prelude::*;
     const NEGATIVE_ZERO: u64 = 0x8000_0000_0000_0000;
-    infos
-        .par_chunks(BOUNDS_CHUNK)
-        .enumerate()
-        .any(|(chunk, run)| {
-            run.iter().enumerate().fold(false, |found, (k, t)| {
-                let i = (chunk * BOUNDS_CHUNK + k) as u32;
-                let mut here = false;
-                for p in &corners.of(i, t) {
-                    here |= (p.x.to_bits() == NEGATIVE_ZERO)
-                        | (p.y.to_bits() == NEGATIVE_ZERO)
-                        | (p.z.to_bits() == NEGATIVE_ZERO);
-                }
-                found | here
-            })
+    infos.par_chunks(BOUNDS_CHUNK).any(|run| {
+        run.iter().fold(false, |found, t| {
+            let mut here = false;
+            for p in &corners.of(t) {
+                here |= (p.x.to_bits() == NEGATIVE_ZERO)
+                    | (p.y.to_bits() == NEGATIVE_ZERO)
+                    | (p.z.to_bits() == NEGATIVE_ZERO);
+            }
+            found | here
         })
+    })
 }
 
 /// The children's texel demands average at least [`FUTILE_SPLIT_SHARE`] of the node's. The demands are the
