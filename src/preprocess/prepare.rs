@@ -157,29 +157,33 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Prepared {
             pieces: Vec::new(),
         };
     }
-    // Records with the corners of cut pieces (a triangle `tessellate` returns whole has the scene's).
-    let cut: Vec<(TriInfo, Option<[DVec3; 3]>)> = tris
+    // Every record with its corners, a cut piece's marked (`piece` 0 for now); then only the cut
+    // pieces' corners are kept, in order (a triangle `tessellate` returns whole has the scene's).
+    let (mut infos, mut pieces): (Vec<TriInfo>, Vec<[DVec3; 3]>) = tris
         .par_iter()
         .flat_map_iter(|&ti| {
             let s = SizedTriangle::of(scene, ti, opts);
             let parts = tessellate(s.pos, s.uv, s.w, s.h, opts.split_limit, max_pieces);
-            let whole = parts.len() == 1;
-            parts
-                .into_iter()
-                .map(move |(p, uv0)| (s.piece(p, uv0, opts), (!whole).then_some(p)))
+            let cut = parts.len() > 1;
+            parts.into_iter().map(move |(p, uv0)| {
+                let mut t = s.piece(p, uv0, opts);
+                if cut {
+                    t.piece = 0;
+                }
+                (t, p)
+            })
         })
-        .collect();
-    let mut pieces = Vec::new();
-    let infos = cut
-        .into_iter()
-        .map(|(mut t, corners)| {
-            if let Some(p) = corners {
-                t.piece = pieces.len() as u32;
-                pieces.push(p);
-            }
-            t
-        })
-        .collect();
+        .unzip();
+    let mut kept = 0;
+    for (i, t) in infos.iter_mut().enumerate() {
+        if t.piece != WHOLE {
+            pieces[kept] = pieces[i];
+            t.piece = kept as u32;
+            kept += 1;
+        }
+    }
+    pieces.truncate(kept);
+    pieces.shrink_to_fit();
     Prepared { infos, pieces }
 }
 
