@@ -30,7 +30,7 @@
 //! than its parent (the cut index is kept inside `1..n`), and `max_depth` bounds the depth with an error
 //! naming the region.
 //!
-//! Where things are: `tree.rs` holds the options and the tree a layout produces; `split.rs` the split
+//! Where things are: `tree.rs` holds the options and the tree a layout produces; `split/` the split
 //! of a node's triangles in four; `leaf.rs` the planning of one node's atlas; this file the recursion
 //! that tries a leaf, else splits.
 
