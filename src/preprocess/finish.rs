@@ -79,7 +79,10 @@ pub(super) fn finish_atlas(
     let channels = tree.kind.channels();
     // The fill's stored cell, for missing quadrants: encoded once per inner atlas that combines.
     let fill = from_children.map(|_| stored_fill(tree, channels));
-    let mut levels: Vec<StoredLevel> = Vec::with_capacity(chain.levels.len());
+    // The block is built in place, each level's bytes moved or appended once; `levels` are their ranges
+    // and errors.
+    let mut block: Vec<u8> = Vec::with_capacity(format.chain_bytes(out.atlas_size) as usize);
+    let mut levels: Vec<(std::ops::Range<usize>, u64)> = Vec::with_capacity(chain.levels.len());
     let mut bled = false;
     let mut samples = 0u64;
     for (k, level) in chain.levels.iter().enumerate() {
@@ -102,25 +105,28 @@ pub(super) fn finish_atlas(
                 let mut rgba = vec![0u8; level.texel_count() * 4];
                 bled |= level.to_rgba8_into(&mut rgba);
                 let (bytes, sse) =
-                    encode_level_measured(format, &rgba, side, level.height, channels);
+                    encode_level_measured(format, rgba.into(), side, level.height, channels);
                 StoredLevel { bytes, sse }
             }
         };
-        levels.push(stored);
+        let start = block.len();
+        block.extend_from_slice(&stored.bytes);
+        levels.push((start..block.len(), stored.sse));
     }
-    let sse: u64 = levels.iter().map(|l| l.sse).sum();
-    let bytes = levels
-        .iter()
-        .map(|l| l.bytes.as_slice())
-        .collect::<Vec<_>>()
-        .concat();
-    out.sink.put_block(node.atlas_block, &bytes, sse)?;
+    let sse: u64 = levels.iter().map(|l| l.1).sum();
+    out.sink.put_block(node.atlas_block, &block, sse)?;
     let [sse_sum, samples_sum] = &out.atlas_error[tree.kind.index()];
     sse_sum.fetch_add(sse, Ordering::Relaxed);
     samples_sum.fetch_add(samples, Ordering::Relaxed);
     let n = out.done.fetch_add(1, Ordering::Relaxed) + 1;
     (out.progress)(n);
-    let stored = (reusable && !bled).then(|| levels.split_off(1.min(levels.len())));
+    let stored = (reusable && !bled).then(|| {
+        let level = |(range, sse): &(std::ops::Range<usize>, u64)| StoredLevel {
+            bytes: block[range.clone()].to_vec(),
+            sse: *sse,
+        };
+        levels.iter().skip(1).map(level).collect()
+    });
     let mut chain_levels = chain.levels.into_iter();
     let level0 = chain_levels.next();
     let level1 = chain_levels
@@ -134,6 +140,6 @@ pub(super) fn finish_atlas(
 fn stored_fill(tree: &AtlasTree, channels: usize) -> StoredLevel {
     let side = cell_side(tree.format);
     let rgba = LinearImage::new_filled(side, side, fill_for(tree.kind)).to_rgba8();
-    let (bytes, sse) = encode_level_measured(tree.format, &rgba, side, side, channels);
+    let (bytes, sse) = encode_level_measured(tree.format, rgba.into(), side, side, channels);
     StoredLevel { bytes, sse }
 }

@@ -122,7 +122,7 @@ mod tests {
             let c = cell_side(format);
             let fill_cell = {
                 let t: Vec<u8> = fill.repeat((c * c) as usize);
-                let (bytes, sse) = encode_level_measured(format, &t, c, c, channels);
+                let (bytes, sse) = encode_level_measured(format, t.into(), c, c, channels);
                 StoredLevel { bytes, sse }
             };
             for half in [c, 2 * c, 3 * c] {
@@ -135,7 +135,7 @@ mod tests {
                         .map(|t| {
                             t.as_ref().map(|t| {
                                 let (bytes, sse) =
-                                    encode_level_measured(format, t, half, half, channels);
+                                    encode_level_measured(format, t.into(), half, half, channels);
                                 StoredLevel { bytes, sse }
                             })
                         })
@@ -145,7 +145,7 @@ mod tests {
                         .expect("whole cells");
                     let whole = joined(&quads, half, fill);
                     let (bytes, sse) =
-                        encode_level_measured(format, &whole, 2 * half, 2 * half, channels);
+                        encode_level_measured(format, whole.into(), 2 * half, 2 * half, channels);
                     assert_eq!(
                         got,
                         StoredLevel { bytes, sse },

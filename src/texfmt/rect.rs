@@ -190,7 +190,7 @@ pub fn encode_levels_rect(
             out.bytes.extend_from_slice(level);
             continue;
         }
-        let (enc, sse) = encode_level_measured(format, level, a, b, channels);
+        let (enc, sse) = encode_level_measured(format, Cow::Borrowed(level), a, b, channels);
         out.sse += sse;
         out.bytes.extend_from_slice(&enc);
     }
@@ -199,18 +199,18 @@ pub fn encode_levels_rect(
 
 /// One `w × h` RGBA8 level of a chain (`level.len() == w·h·4`) encoded into `format` as
 /// [`encode_levels_rect`] encodes it, with its squared error over `channels` channels (0 for RGBA8, which
-/// is stored as is).
+/// is stored as is: an owned level is returned without a copy).
 pub fn encode_level_measured(
     format: TexFormat,
-    level: &[u8],
+    level: Cow<'_, [u8]>,
     w: u32,
     h: u32,
     channels: usize,
 ) -> (Vec<u8>, u64) {
     if format == TexFormat::Rgba8 {
-        return (level.to_vec(), 0);
+        return (level.into_owned(), 0);
     }
-    let (padded, pw) = pad_level(level, w, h);
+    let (padded, pw) = pad_level(&level, w, h);
     encode_padded(format, &padded, pw, channels == 4, Some((w, h, channels)))
 }
 

@@ -34,13 +34,17 @@ fn model(materials: usize) -> DemandModel {
     }
 }
 
-fn split(infos: &[TriInfo], model: &DemandModel, items: &mut [u32]) -> [usize; 4] {
+/// A splitter by the demand rule.
+fn demand_splitter<'a>(infos: &'a [TriInfo], model: &'a DemandModel) -> Splitter<'a> {
     Splitter {
         infos,
         model,
         rule: SplitRule::Demand,
     }
-    .split4(items)
+}
+
+fn split(infos: &[TriInfo], model: &DemandModel, items: &mut [u32]) -> [usize; 4] {
+    demand_splitter(infos, model).split4(items)
 }
 
 #[test]
@@ -127,11 +131,7 @@ fn split_demands_are_the_groups_demands_in_their_own_order() {
         })
         .collect();
     let model = model(7);
-    let s = Splitter {
-        infos: &infos,
-        model: &model,
-        rule: SplitRule::Demand,
-    };
+    let s = demand_splitter(&infos, &model);
     for n in [0usize, 1, 2, 3, 17, 200] {
         let mut items: Vec<u32> = (0..n as u32).collect();
         let (g, d) = s.split4_demands(&mut items);
@@ -182,11 +182,7 @@ fn a_big_node_splits_exactly_as_a_serial_twin_does() {
         })
         .collect();
     let model = model(40);
-    let s = Splitter {
-        infos: &infos,
-        model: &model,
-        rule: SplitRule::Demand,
-    };
+    let s = demand_splitter(&infos, &model);
     // The twin: keys by the formula of `midpoint_keys`, a serial sort, the cut rule walked serially.
     let twin_cut = |items: &mut [u32], axis: usize| -> usize {
         let m = |i: u32| infos[i as usize].mid[axis];
@@ -269,11 +265,7 @@ fn the_serial_cut_stops_its_backward_walk_without_changing_the_cut() {
                 t
             })
             .collect();
-        let s = Splitter {
-            infos: &infos,
-            model: &model,
-            rule: SplitRule::Demand,
-        };
+        let s = demand_splitter(&infos, &model);
         let mut items: Vec<u32> = (0..n).collect();
         let mut both: Vec<u32> = items.clone();
         let (k, demands) = s.cut_walking_both_from(&mut items, 0, Ties::ByIndex, usize::MAX);
@@ -337,11 +329,7 @@ fn split_follows_texel_demand_not_world_area() {
     infos.extend((0..10).map(|i| tri(DVec2::new(f64::from(10 + i), 0.0), 1 + i, 60.0, 1.0)));
     let mut items: Vec<u32> = (0..20).collect();
     let m = model(11);
-    let s = Splitter {
-        infos: &infos,
-        model: &m,
-        rule: SplitRule::Demand,
-    };
+    let s = demand_splitter(&infos, &m);
     let k = s.cut_sorted(&mut items, 0);
     // At a cut k ≥ 10 the low half needs 64² · (1 + k − 10), the high half 64² · (20 − k): the larger is
     // smallest (6 · 64²) at k = 14 and 15, and the tie goes to the cut nearer the middle.
@@ -387,11 +375,7 @@ fn split_terminates_on_identical_midpoints_and_never_separates_equal_keys() {
     assert_eq!(keys[0], keys[1]);
     assert_ne!(keys[1], keys[2]);
     let m = model(4);
-    let s = Splitter {
-        infos: &infos,
-        model: &m,
-        rule: SplitRule::Demand,
-    };
+    let s = demand_splitter(&infos, &m);
     let mut items = vec![0, 1, 2, 3];
     let k = s.cut_sorted(&mut items, 0);
     assert!(
