@@ -1,0 +1,550 @@
+//! Files written atomically ([`AtomicFile`], [`write_atomic`]) and the temps they leave, and files
+//! read only where they are regular ([`open_regular`]).
+
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use super::human_bytes;
+
+/// A file being written beside its target and published by rename, so a reader of `target` sees the old
+/// file or the complete new one, never a part (also when the writer is killed, or two write at once).
+///
+/// - The temp file is `.<target name>.tmp.<pid>.<random>` in the target's directory, created exclusively
+///   (`O_EXCL`): concurrent writers of one target never share a temp file. It is locked (advisory,
+///   `flock`) for the writer's life.
+/// - Dropping an uncommitted `AtomicFile` (an error, a panic) removes the temp file. A writer that was
+///   killed leaves it; the next [`AtomicFile::create`] for the same target removes such stale temps (those
+///   whose process is gone and whose lock is free) before creating its own.
+/// - [`AtomicFile::commit`] fsyncs the file, renames it over the target and fsyncs the directory (unix),
+///   so after it returns the new file survives a crash.
+pub struct AtomicFile {
+    target: PathBuf,
+    temp: tempfile::NamedTempFile,
+    /// Dropped after `temp` (declaration order): the temp file is removed, then forgotten.
+    _live: LiveTemp,
+}
+
+/// The temp files and folders of this process's live [`AtomicFile`]s and [`LiveTempDir`]s, for
+/// [`remove_live_temps`]; `true` marks a folder the work created above its temp folder, removed only if
+/// empty.
+static LIVE_TEMPS: std::sync::Mutex<Vec<(PathBuf, bool)>> = std::sync::Mutex::new(Vec::new());
+
+fn live_temps() -> std::sync::MutexGuard<'static, Vec<(PathBuf, bool)>> {
+    LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// One entry of [`LIVE_TEMPS`], removed when the [`AtomicFile`] holding it goes (committed or dropped).
+struct LiveTemp(PathBuf, bool);
+
+impl LiveTemp {
+    fn register(path: &Path) -> LiveTemp {
+        Self::register_as(path, false)
+    }
+
+    fn register_as(path: &Path, if_empty: bool) -> LiveTemp {
+        live_temps().push((path.to_path_buf(), if_empty));
+        LiveTemp(path.to_path_buf(), if_empty)
+    }
+}
+
+impl Drop for LiveTemp {
+    fn drop(&mut self) {
+        let mut live = live_temps();
+        if let Some(i) = live.iter().position(|(p, e)| *p == self.0 && *e == self.1) {
+            live.swap_remove(i);
+        }
+    }
+}
+
+/// Removes the temp file of every [`AtomicFile`] of this process not yet committed; returns how many. For a
+/// handler of Ctrl-C or SIGTERM (a scheduler cancelling a job) that then ends the process, so an
+/// interrupted build leaves no temp file (a killed one, SIGKILL, still leaves its temp to the next
+/// [`AtomicFile::create`] of the same target: [`remove_stale_temps`]).
+/// Folders created above a temp folder go last, deepest first, and only if empty.
+pub fn remove_live_temps() -> usize {
+    let live = live_temps();
+    let removed = live
+        .iter()
+        .filter(|(p, if_empty)| {
+            if *if_empty {
+                false
+            } else if p.is_dir() {
+                remove_dir_under_writers(p)
+            } else {
+                std::fs::remove_file(p).is_ok()
+            }
+        })
+        .count();
+    let mut parents: Vec<&PathBuf> = live.iter().filter(|e| e.1).map(|e| &e.0).collect();
+    parents.sort_by_key(|p| std::cmp::Reverse(p.components().count()));
+    for p in parents {
+        let _ = std::fs::remove_dir(p);
+    }
+    removed
+}
+
+/// Removes folder `p` while other threads may still be writing into it (an export interrupted by a
+/// signal): renamed aside first, so writers that create files by path fail instead of refilling it
+/// (`remove_dir_all` of the live folder could meet new entries and give up, leaving it), then removed.
+fn remove_dir_under_writers(p: &Path) -> bool {
+    let mut aside = p.as_os_str().to_owned();
+    aside.push(".removing");
+    let target = if std::fs::rename(p, &aside).is_ok() {
+        PathBuf::from(aside)
+    } else {
+        p.to_path_buf()
+    };
+    (0..3).any(|_| std::fs::remove_dir_all(&target).is_ok() || !target.exists())
+}
+
+/// A temp directory (an export being written) that [`remove_live_temps`] removes with its contents if the
+/// process is interrupted while this guard lives. Dropping the guard only forgets the directory.
+pub struct LiveTempDir {
+    _live: LiveTemp,
+    _parents: Vec<LiveTemp>,
+}
+
+impl LiveTempDir {
+    pub fn register(path: &Path) -> LiveTempDir {
+        Self::register_with_parents(path, &[])
+    }
+
+    /// [`Self::register`], and `parents`: folders the work created above `path`, removed after it
+    /// (deepest first) if they are empty then.
+    pub fn register_with_parents(path: &Path, parents: &[PathBuf]) -> LiveTempDir {
+        LiveTempDir {
+            _live: LiveTemp::register(path),
+            _parents: parents
+                .iter()
+                .map(|p| LiveTemp::register_as(p, true))
+                .collect(),
+        }
+    }
+}
+
+/// The directory `path` lives in (`.` for a bare name).
+pub fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// The prefix of every temp file of `target`: `.<name>.tmp.`.
+fn temp_prefix(target: &Path) -> String {
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    format!(".{name}.tmp.")
+}
+
+/// Whether process `pid` may still run: `/proc/<pid>` exists (Linux); elsewhere always `true` (then a
+/// stale temp is left for the user, never a live one removed).
+fn process_may_run(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    let proc = Path::new("/proc");
+    if proc.join("self").exists() {
+        proc.join(pid.to_string()).exists()
+    } else {
+        true
+    }
+}
+
+/// Removes the temp files of `target` left by writers that were killed: named by [`temp_prefix`], their
+/// pid gone and their lock free. Returns how many were removed. Errors (a racing remover, permissions)
+/// only leave a temp in place.
+pub fn remove_stale_temps(target: &Path) -> usize {
+    let prefix = temp_prefix(target);
+    let Ok(entries) = std::fs::read_dir(parent_dir(target)) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = name.strip_prefix(&prefix) else {
+            continue;
+        };
+        let Some(pid) = rest.split('.').next().and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        if process_may_run(pid) {
+            continue;
+        }
+        let path = entry.path();
+        // A free lock confirms the owner is gone (another pid namespace may share the directory).
+        let free = File::open(&path).is_ok_and(|f| f.try_lock().is_ok());
+        if free && std::fs::remove_file(&path).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
+impl AtomicFile {
+    /// Creates the temp file for `target` (whose directory must exist) with unix permissions `mode` less
+    /// the umask, after removing stale temps of `target` ([`remove_stale_temps`]).
+    ///
+    /// A target that exists and is not a regular file (a directory, device, FIFO or socket, also behind a
+    /// symlink) is refused with [`std::io::ErrorKind::InvalidInput`]: the rename would replace the node
+    /// itself (`-o /dev/null` run as root would delete `/dev/null`).
+    pub fn create(target: &Path, mode: u32) -> std::io::Result<AtomicFile> {
+        if let Ok(meta) = std::fs::metadata(target)
+            && !meta.is_file()
+        {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!(
+                    "{} exists and is not a regular file: refusing to replace it",
+                    target.display()
+                ),
+            ));
+        }
+        remove_stale_temps(target);
+        let prefix = format!("{}{}.", temp_prefix(target), std::process::id());
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).rand_bytes(8);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            builder.permissions(std::fs::Permissions::from_mode(mode));
+        }
+        #[cfg(not(unix))]
+        let _ = mode;
+        let dir = parent_dir(target);
+        let temp = builder.tempfile_in(dir).map_err(|e| {
+            // tempfile's error names the random temp path (`at path ".x.tmp.123.AbC"`), which means
+            // nothing to a user: say which folder refused, with the OS's own words.
+            let text = e.to_string();
+            let cause = text.split(" at path \"").next().unwrap_or(&text);
+            std::io::Error::new(
+                e.kind(),
+                format!("cannot create a file in {}: {cause}", dir.display()),
+            )
+        })?;
+        // Best effort: where advisory locks are unsupported the pid alone guards the temp.
+        let _ = temp.as_file().try_lock();
+        let live = LiveTemp::register(temp.path());
+        Ok(AtomicFile {
+            target: target.to_path_buf(),
+            temp,
+            _live: live,
+        })
+    }
+
+    /// The open temp file (write through it: `Write for &File`, or positional writes).
+    pub fn file(&self) -> &File {
+        self.temp.as_file()
+    }
+
+    /// The temp file's path.
+    pub fn temp_path(&self) -> &Path {
+        self.temp.path()
+    }
+
+    /// The path the file will appear at.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Fsyncs the temp file, renames it over the target (replacing any file there: readers that hold the
+    /// old one open keep it) and fsyncs the directory. On error the temp file is removed and the target
+    /// is untouched.
+    pub fn commit(self) -> std::io::Result<()> {
+        self.temp.as_file().sync_all()?;
+        let AtomicFile { target, temp, .. } = self;
+        temp.persist(&target).map_err(|e| e.error)?;
+        sync_dir(parent_dir(&target))
+    }
+}
+
+/// What a file-system node is, for messages: "a directory", "a FIFO", "a character device", … ("a regular
+/// file" for one).
+pub fn node_kind(meta: &std::fs::Metadata) -> &'static str {
+    if meta.is_file() {
+        return "a regular file";
+    }
+    if meta.is_dir() {
+        return "a directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let t = meta.file_type();
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "a special file"
+}
+
+/// Opens `path` for reading if it is a regular file (also behind a symlink). Anything else — a directory,
+/// a FIFO (whose `open` would block until a writer comes), a device (`/dev/zero` never ends) or a
+/// socket — is refused with [`std::io::ErrorKind::InvalidInput`] naming what it is, before it is opened.
+pub fn open_regular(path: &Path) -> std::io::Result<File> {
+    refuse_non_regular(&std::fs::metadata(path)?)?;
+    File::open(path)
+}
+
+/// [`std::io::ErrorKind::InvalidInput`] naming what `meta` is, unless it is a regular file.
+fn refuse_non_regular(meta: &std::fs::Metadata) -> std::io::Result<()> {
+    if meta.is_file() {
+        return Ok(());
+    }
+    Err(std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        format!("{}, not a regular file", node_kind(meta)),
+    ))
+}
+
+/// The bytes of regular file `path` ([`open_regular`]), at most `limit` of them.
+pub fn read_regular(path: &Path, limit: Option<u64>) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let file = open_regular(path)?;
+    let len = file.metadata()?.len();
+    let want = limit.map_or(len, |l| l.min(len));
+    let mut bytes = Vec::with_capacity(usize::try_from(want).unwrap_or(0));
+    file.take(limit.unwrap_or(u64::MAX))
+        .read_to_end(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// Removes the files directly in `dir` whose names `stale` picks (an earlier run's outputs that this run
+/// may not overwrite: frames past its count, plots it does not draw), so the folder holds one run's
+/// outputs. Returns how many were removed; a missing folder removes nothing.
+pub fn remove_stale_outputs(dir: &Path, stale: impl Fn(&str) -> bool) -> std::io::Result<usize> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(e),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry?;
+        let name = entry.file_name();
+        if entry.file_type()?.is_file() && name.to_str().is_some_and(&stale) {
+            std::fs::remove_file(entry.path())?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
+/// Largest text file [`read_text_file`] reads (camera paths, sweep grids, CSV reports).
+pub const MAX_TEXT_FILE_BYTES: u64 = 256 << 20;
+
+/// The UTF-8 text of a file a user names on the command line: a regular file, or a FIFO (`--path
+/// <(make-path)`, read to its end); at most [`MAX_TEXT_FILE_BYTES`] (a longer one, `/dev/zero` included,
+/// is [`std::io::ErrorKind::InvalidData`]); directories and devices are refused as [`open_regular`] does.
+/// A leading UTF-8 byte-order mark is dropped.
+pub fn read_text_file(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path)?;
+    #[cfg(unix)]
+    let fifo = std::os::unix::fs::FileTypeExt::is_fifo(&meta.file_type());
+    #[cfg(not(unix))]
+    let fifo = false;
+    if !fifo {
+        refuse_non_regular(&meta)?;
+    }
+    let file = File::open(path)?;
+    let mut bytes = Vec::new();
+    file.take(MAX_TEXT_FILE_BYTES + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > MAX_TEXT_FILE_BYTES {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("longer than {}", human_bytes(MAX_TEXT_FILE_BYTES)),
+        ));
+    }
+    let mut text = String::from_utf8(bytes)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))?;
+    // A byte-order mark some editors write is not text (JSON and CSV parsers refuse it).
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
+}
+
+/// Writes go to the temp file (so a `BufWriter<AtomicFile>` streams into it).
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.temp.as_file().write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.temp.as_file().flush()
+    }
+}
+
+/// Makes a rename in `dir` durable (unix: fsync the directory). A no-op elsewhere.
+fn sync_dir(dir: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    File::open(dir)?.sync_all()?;
+    #[cfg(not(unix))]
+    let _ = dir;
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically ([`AtomicFile`]), readable by all (0o644 less the umask, like a
+/// plain `File::create`). The parent directory must exist.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let file = AtomicFile::create(path, 0o644)?;
+    file.file().write_all(bytes)?;
+    file.commit()
+}
+
+/// Writes `img` as a PNG at `path` atomically (encoded in memory, then [`write_atomic`]): a failed write
+/// (a full disk, Ctrl-C) leaves the old file or none, never a truncated picture.
+pub fn save_png(path: &Path, img: &image::RgbaImage) -> std::io::Result<()> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(std::io::Error::other)?;
+    write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_outputs_are_the_picked_files_only() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in [
+            "frame_0000.png",
+            "frame_0005.png",
+            "stats.csv",
+            "frame_notes.txt",
+        ] {
+            std::fs::write(dir.path().join(name), b"x").unwrap();
+        }
+        std::fs::create_dir(dir.path().join("frame_dir.png")).unwrap();
+        let is_frame = |n: &str| n.starts_with("frame_") && n.ends_with(".png");
+        assert_eq!(remove_stale_outputs(dir.path(), is_frame).unwrap(), 2);
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["frame_dir.png", "frame_notes.txt", "stats.csv"]);
+        assert_eq!(
+            remove_stale_outputs(&dir.path().join("none"), is_frame).unwrap(),
+            0
+        );
+    }
+
+    #[test]
+    fn live_temp_dirs_are_removed_with_their_contents_while_registered() {
+        let dir = tempfile::tempdir().unwrap();
+        let partial = dir.path().join(".tiles.partial-1");
+        std::fs::create_dir_all(partial.join("a/b")).unwrap();
+        std::fs::write(partial.join("a/b/c.glb"), b"x").unwrap();
+        let guard = LiveTempDir::register(&partial);
+        assert!(remove_live_temps() >= 1);
+        assert!(!partial.exists());
+        drop(guard);
+        std::fs::create_dir(&partial).unwrap();
+        remove_live_temps();
+        assert!(partial.exists(), "a dropped guard forgets its folder");
+    }
+
+    /// An export interrupted by a signal leaves no folder it created above its temp folder (SIGTERM left
+    /// `new/deep/` behind: only the error path removed them); a parent that holds something else stays.
+    #[test]
+    fn live_temp_dirs_take_the_empty_parents_they_created() {
+        let dir = tempfile::tempdir().unwrap();
+        let (new, deep) = (dir.path().join("new"), dir.path().join("new/deep"));
+        let partial = deep.join(".out.partial-1");
+        std::fs::create_dir_all(partial.join("x")).unwrap();
+        let guard = LiveTempDir::register_with_parents(&partial, &[deep.clone(), new.clone()]);
+        remove_live_temps();
+        assert!(!new.exists(), "{}", new.display());
+        drop(guard);
+        std::fs::create_dir_all(partial.join("x")).unwrap();
+        std::fs::write(new.join("keep.txt"), b"x").unwrap();
+        let guard = LiveTempDir::register_with_parents(&partial, &[deep.clone(), new.clone()]);
+        remove_live_temps();
+        assert!(!deep.exists() && new.join("keep.txt").exists());
+        drop(guard);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn only_regular_files_are_read() {
+        let e = open_regular(Path::new("/dev/zero")).unwrap_err();
+        assert_eq!(e.to_string(), "a character device, not a regular file");
+        let dir = tempfile::tempdir().unwrap();
+        let e = read_regular(dir.path(), None).unwrap_err();
+        assert_eq!(e.to_string(), "a directory, not a regular file");
+        let f = dir.path().join("f");
+        std::fs::write(&f, b"0123456789").unwrap();
+        assert_eq!(read_regular(&f, Some(4)).unwrap(), b"0123");
+        assert_eq!(read_regular(&f, Some(40)).unwrap(), b"0123456789");
+        assert_eq!(read_text_file(&f).unwrap(), "0123456789");
+        std::fs::write(&f, b"\xef\xbb\xbf{\"a\": 1}").unwrap();
+        assert_eq!(
+            read_text_file(&f).unwrap(),
+            "{\"a\": 1}",
+            "the byte-order mark dropped"
+        );
+        let e = read_text_file(Path::new("/dev/zero")).unwrap_err();
+        assert_eq!(e.to_string(), "a character device, not a regular file");
+        // A FIFO a user names is read to its end (process substitution).
+        let fifo = dir.path().join("p");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo {}", fifo.display());
+        let writer = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::write(fifo, b"{\"a\": 1}"))
+        };
+        assert_eq!(read_text_file(&fifo).unwrap(), "{\"a\": 1}");
+        writer.join().unwrap().unwrap();
+        assert!(open_regular(&fifo).is_err());
+    }
+
+    #[test]
+    fn a_temp_file_that_cannot_be_created_names_the_folder_not_the_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("gone");
+        let err = AtomicFile::create(&missing.join("x.atlastree"), 0o644)
+            .err()
+            .unwrap();
+        let msg = err.to_string();
+        assert_eq!(err.kind(), std::io::ErrorKind::NotFound, "{msg}");
+        assert!(
+            msg.starts_with(&format!("cannot create a file in {}: ", missing.display()))
+                && !msg.contains("at path")
+                && !msg.contains(".tmp."),
+            "{msg}"
+        );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn atomic_file_never_replaces_a_device_or_directory() {
+        for target in ["/dev/null", "/tmp"] {
+            let err = AtomicFile::create(Path::new(target), 0o644).err().unwrap();
+            assert_eq!(err.kind(), std::io::ErrorKind::InvalidInput, "{target}");
+        }
+        assert!(
+            !std::fs::metadata("/dev/null")
+                .unwrap()
+                .file_type()
+                .is_file()
+        );
+    }
+}
