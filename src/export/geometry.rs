@@ -173,11 +173,19 @@ pub(super) fn alpha_key(m: &Material) -> (u8, u32) {
     }
 }
 
-/// Whether one axis of a triangle maps into its rect by one affine function `t = a·u + b` with `a = ±1`
-/// (see the module doc). `us`: the vertices' UVs on the axis; `ts`: their [`rect_t`].
-fn axis_is_affine(us: [f64; 3], ts: [f64; 3]) -> bool {
+/// Whether one axis of a triangle maps into its rect by one affine function `t = a·u + b` (see the module
+/// doc). `us`: the vertices' UVs on the axis; `ts`: their [`rect_t`] under `wrap`. The slope is 1, or −1
+/// under MIRRORED_REPEAT only (a reversed copy): under REPEAT a triangle whose UVs end on the period's
+/// seam (`u` ∈ {0.5, 1} in a full-period rect: `t` ∈ {0.5, 0}) also fits `t = 1 − u`, which would draw
+/// the other half of the period, mirrored.
+fn axis_is_affine(us: [f64; 3], ts: [f64; 3], wrap: RectWrap) -> bool {
     let eps = |u: f64| 1e-6 * (1.0 + u.abs());
-    [1.0, -1.0].iter().any(|&a| {
+    let slopes: &[f64] = if wrap == RectWrap::Mirror {
+        &[1.0, -1.0]
+    } else {
+        &[1.0]
+    };
+    slopes.iter().any(|&a| {
         let b = ts[0] - a * us[0];
         (0..3).all(|i| (a * us[i] + b - ts[i]).abs() <= eps(us[i]))
     })
@@ -193,7 +201,7 @@ pub(super) fn rect_is_affine(rect: &AtlasRect, triangles: &[[[f32; 2]; 3]]) -> b
             }
             let us = tri.map(|uv| f64::from(uv[k]));
             let ts = us.map(|u| rect_t(u, rect.wrap[k], rect.uv_min[k], rect.uv_max[k]));
-            axis_is_affine(us, ts)
+            axis_is_affine(us, ts, rect.wrap[k])
         })
     })
 }
@@ -213,7 +221,7 @@ fn period_uvs(rect: &AtlasRect, tri: [[f32; 2]; 3]) -> [[f32; 2]; 3] {
         let ts = us.map(|u| rect_t(u, wrap, lo, hi));
         let fixed: [f64; 3] = if wrap == RectWrap::Linear {
             us
-        } else if axis_is_affine(us, ts) {
+        } else if axis_is_affine(us, ts, wrap) {
             ts.map(|t| lo + t)
         } else if wrap == RectWrap::Mirror {
             // The fold the triangle crosses: the first integer above its lowest UV (several: a full-period
@@ -489,6 +497,11 @@ mod tests {
             &r,
             &[[[0.9, 0.1], [1.05, 0.1], [0.95, 0.5]]]
         ));
+        // The period's second half, ending on the seam: `t` runs 0.5 → 0 there, which slope −1 would fit
+        // (the first half, mirrored); only MIRRORED_REPEAT reverses.
+        let half = [[[0.5, 0.1], [1.0, 0.1], [1.0, 0.5]]];
+        assert!(!rect_is_affine(&r, &half));
+        assert!(rect_is_affine(&rect(RectWrap::Mirror, 0.0, 1.0), &half));
     }
 
     #[test]
@@ -548,6 +561,11 @@ mod tests {
         check_period(
             &rect(RectWrap::Repeat, 0.9, 1.2),
             [[0.0, 0.0], [0.2, 0.0], [0.1, 0.5]],
+        );
+        // Repeat: the period's second half, ending on the seam.
+        check_period(
+            &rect(RectWrap::Repeat, 0.0, 1.0),
+            [[0.5, 0.0], [1.0, 0.0], [1.0, 0.5]],
         );
         // Repeat across a seam of a full period.
         check_period(

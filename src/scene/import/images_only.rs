@@ -50,19 +50,26 @@ fn images_unguarded(
     let mut buffers = Buffers::new(file, base_dir, &doc, blob);
     let mut report = ImportReport::default();
     let mut images = Vec::with_capacity(wanted.len());
+    // A glTF image drawn by OPAQUE and alpha materials is named twice (`Materials::image_for`): read once.
+    let mut read: std::collections::HashMap<u32, ImageSource> = std::collections::HashMap::new();
     for r in wanted {
         let image = match *r {
             ImageRef::Solid(rgba) => ImageSource::solid(rgba),
-            ImageRef::Gltf(i) => {
-                let img = doc.images().nth(i as usize).ok_or_else(|| SceneError::Parse {
-                    file: file.to_string(),
-                    reason: format!(
-                        "the plan names glTF image {i}, the file has {}: was the scene changed after the plan?",
-                        doc.images().len()
-                    ),
-                })?;
-                image_or_fallback(file, &img, &mut buffers, &mut report)
-            }
+            ImageRef::Gltf(i) => match read.get(&i) {
+                Some(known) => known.clone(),
+                None => {
+                    let img = doc.images().nth(i as usize).ok_or_else(|| SceneError::Parse {
+                        file: file.to_string(),
+                        reason: format!(
+                            "the plan names glTF image {i}, the file has {}: was the scene changed after the plan?",
+                            doc.images().len()
+                        ),
+                    })?;
+                    let image = image_or_fallback(file, &img, &mut buffers, &mut report);
+                    read.insert(i, image.clone());
+                    image
+                }
+            },
         };
         images.push(image);
     }

@@ -145,7 +145,10 @@ pub(super) struct Materials<'a> {
     /// Per material: how its vertices get their UVs.
     uv: Vec<UvSource>,
     pub(super) images: Vec<ImageSource>,
-    image_ids: HashMap<usize, ImageId>,
+    /// Per glTF image and whether OPAQUE materials draw it: its image. An image drawn by OPAQUE and by
+    /// alpha materials is two images, one decoded with its alpha dropped (`raster::opaque_only_images`),
+    /// one premultiplied and bled: the bleed would otherwise colour the OPAQUE material's alpha-0 texels.
+    image_ids: HashMap<(usize, bool), ImageId>,
     solid_ids: HashMap<[u8; 4], ImageId>,
     /// Per glTF texture that names no image: its fallback checker.
     sourceless_ids: HashMap<usize, ImageId>,
@@ -235,8 +238,12 @@ impl<'a> Materials<'a> {
         let mut factor = diffuse.map_or(pbr.base_color_factor(), |sg| sg.diffuse_factor());
         let alpha = match gm.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
-            gltf::material::AlphaMode::Mask => AlphaMode::Mask {
-                cutoff: gm.alpha_cutoff().unwrap_or(0.5),
+            // glTF 2.0 §3.9.4 draws a texel whose alpha is ≥ the cutoff opaque, in its own colour: with a
+            // cutoff ≤ 0 every texel passes, which is OPAQUE (a MASK material's texels below alpha 1 are
+            // premultiplied and those at 0 bled over, losing the colour this cutoff keeps).
+            gltf::material::AlphaMode::Mask => match gm.alpha_cutoff().unwrap_or(0.5) {
+                c if c <= 0.0 => AlphaMode::Opaque,
+                cutoff => AlphaMode::Mask { cutoff },
             },
             gltf::material::AlphaMode::Blend => AlphaMode::Blend,
         };
@@ -255,7 +262,7 @@ impl<'a> Materials<'a> {
                 let texture = info.texture();
                 let sampler = texture.sampler();
                 let image = match self.texture_image(&texture) {
-                    Some(img) => self.image_for(img, buffers, report),
+                    Some(img) => self.image_for(img, alpha == AlphaMode::Opaque, buffers, report),
                     None => self.sourceless_texture_image(&texture, report),
                 };
                 let xf = raw_tt.map(UvTransform::from);
@@ -360,19 +367,27 @@ impl<'a> Materials<'a> {
         }
     }
 
-    /// The image for glTF image `img` (header read once); missing/undecodable → fallback + warning.
+    /// The image for glTF image `img` as OPAQUE materials (`opaque`) or alpha materials draw it (header
+    /// read once for both); missing/undecodable → fallback + warning.
     fn image_for(
         &mut self,
         img: gltf::Image,
+        opaque: bool,
         buffers: &mut Buffers,
         report: &mut ImportReport,
     ) -> ImageId {
-        if let Some(&id) = self.image_ids.get(&img.index()) {
+        if let Some(&id) = self.image_ids.get(&(img.index(), opaque)) {
             return id;
         }
-        let source = image_or_fallback(self.file, &img, buffers, report);
+        let known = (self.image_ids.get(&(img.index(), !opaque)))
+            .and_then(|other| self.images.get(other.idx()))
+            .cloned();
+        let source = match known {
+            Some(source) => source,
+            None => image_or_fallback(self.file, &img, buffers, report),
+        };
         let id = self.push_image(source);
-        self.image_ids.insert(img.index(), id);
+        self.image_ids.insert((img.index(), opaque), id);
         id
     }
 }

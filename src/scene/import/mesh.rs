@@ -1,7 +1,8 @@
 //! Geometry: the primitives of each mesh instance → world-space vertices and triangles.
 //!
 //! Positions (f64, after the instance's world matrix) and UVs (f64, `KHR_texture_transform` baked in,
-//! or the solid texel centre) are read per primitive into reused scratch buffers; indices (or `0..n`)
+//! or the solid texel centre) are read per primitive into reused scratch buffers, positions with their
+//! morph targets added by the default weights (the pose a viewer draws without animation); indices (or `0..n`)
 //! are checked against the vertex count and assembled for triangle lists, strips and fans. Only
 //! vertices used by kept triangles are emitted, once per instance. Triangles with a non-finite position
 //! or UV are skipped, UVs beyond ±[`LARGE_UV`] kept; both counted. Non-triangle modes and primitives
@@ -31,6 +32,8 @@ pub(super) const MAX_TRIANGLES: u64 = 1 << 28;
 #[derive(Default)]
 struct Scratch {
     floats: Vec<f64>,
+    /// One morph target's POSITION deltas.
+    morph: Vec<f64>,
     tmp: Vec<f64>,
     world: Vec<DVec3>,
     uvs: Vec<DVec2>,
@@ -63,6 +66,7 @@ pub(super) struct Geometry<'a> {
     /// The glTF file (for errors and warnings).
     file: &'a str,
     meshes: Vec<gltf::Mesh<'a>>,
+    nodes: Vec<gltf::Node<'a>>,
     pub(super) vertices: Vec<Vertex>,
     pub(super) triangles: Vec<Triangle>,
     scratch: Scratch,
@@ -73,6 +77,7 @@ impl<'a> Geometry<'a> {
         Geometry {
             file,
             meshes: doc.meshes().collect(),
+            nodes: doc.nodes().collect(),
             vertices: Vec::new(),
             triangles: Vec::new(),
             scratch: Scratch::default(),
@@ -127,24 +132,33 @@ impl<'a> Geometry<'a> {
             return Ok(());
         };
         let mesh_name = mesh.name().unwrap_or("").to_string();
+        // Morph weights (glTF 2.0 §3.7.2.2): the node's, else the mesh's, else 0 (the pose drawn without
+        // animation).
+        let node_weights = self.nodes.get(inst.node).and_then(|n| n.weights());
+        let weights: Vec<f64> = (node_weights.or(mesh.weights()).unwrap_or(&[]).iter())
+            .map(|&w| f64::from(w))
+            .collect();
         for prim in mesh.primitives() {
             let ctx = PrimCtx {
                 mesh: inst.mesh,
                 mesh_name: mesh_name.clone(),
                 primitive: prim.index(),
             };
-            self.emit_primitive(inst, &prim, &ctx, materials, buffers, report)?;
+            self.emit_primitive(inst, &prim, &ctx, &weights, materials, buffers, report)?;
         }
         Ok(())
     }
 
     /// Emits one primitive of one instance: world-space vertices (only those used by kept triangles)
-    /// and triangles. See the module docs for what is skipped and counted.
+    /// and triangles, its morph targets' positions added by `weights`. See the module docs for what is
+    /// skipped and counted.
+    #[allow(clippy::too_many_arguments)]
     fn emit_primitive(
         &mut self,
         inst: &Instance,
         prim: &gltf::Primitive<'a>,
         ctx: &PrimCtx,
+        weights: &[f64],
         materials: &mut Materials,
         buffers: &mut Buffers,
         report: &mut ImportReport,
@@ -178,6 +192,7 @@ impl<'a> Geometry<'a> {
             .and_then(|()| read_floats(buffers.data(), &pos_acc, 3, &mut s.floats, &mut s.tmp))
             .map_err(|e| ctx.error(self.file, "POSITION", e))?;
         let n = pos_acc.count();
+        self.add_morph_positions(prim, weights, (pos_acc.index(), n), ctx, buffers)?;
         let s = &mut self.scratch;
         s.world.clear();
         s.world.extend(
@@ -282,6 +297,50 @@ impl<'a> Geometry<'a> {
         }
         let counts = self.assemble(mode, material, n)?;
         self.report_counts(ctx, &counts, report);
+        Ok(())
+    }
+
+    /// Adds to the primitive's local positions (`scratch.floats`, `n` of them, from accessor `base`) each
+    /// morph target's POSITION deltas times its weight (glTF 2.0 §3.7.2.2: the static pose is the base
+    /// plus the weighted targets). Targets of weight 0, and their other attributes (normals and tangents,
+    /// which are not drawn), are not read.
+    fn add_morph_positions(
+        &mut self,
+        prim: &gltf::Primitive<'a>,
+        weights: &[f64],
+        (base, n): (usize, usize),
+        ctx: &PrimCtx,
+        buffers: &mut Buffers,
+    ) -> Result<(), SceneError> {
+        for (i, target) in prim.morph_targets().enumerate() {
+            let w = weights.get(i).copied().unwrap_or(0.0);
+            let Some(acc) = target.positions().filter(|_| w != 0.0) else {
+                continue;
+            };
+            let semantic = format!("morph target {i} POSITION");
+            if acc.count() != n {
+                return Err(SceneError::Accessor {
+                    file: self.file.to_string(),
+                    mesh: ctx.mesh,
+                    mesh_name: ctx.mesh_name.clone(),
+                    primitive: ctx.primitive,
+                    accessor: acc.index(),
+                    reason: format!(
+                        "{semantic} has {} elements but POSITION (accessor {base}) has {n}",
+                        acc.count()
+                    ),
+                });
+            }
+            buffers.load_accessor(&acc)?;
+            let s = &mut self.scratch;
+            check_vertex_attribute(&acc)
+                .and_then(|()| read_floats(buffers.data(), &acc, 3, &mut s.morph, &mut s.tmp))
+                .map_err(|e| ctx.error(self.file, &semantic, e))?;
+            let s = &mut self.scratch;
+            for (p, d) in s.floats.iter_mut().zip(&s.morph) {
+                *p += w * d;
+            }
+        }
         Ok(())
     }
 

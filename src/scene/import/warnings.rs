@@ -30,8 +30,8 @@ impl ImportReport {
 
 /// What the glTF asks for that atlastree does not draw, one counted warning per feature (not per
 /// instance): vertex colours (`COLOR_0`), NEAREST magnification filters (atlases and originals are
-/// sampled linearly, in linear light), emission (atlases hold the base colour only), and MASK cutoffs
-/// below glTF's minimum of 0. Not warned: `doubleSided: false`, the default of most files — every
+/// sampled linearly, in linear light), emission (atlases hold the base colour only), skins (meshes are
+/// placed by their nodes' transforms), and MASK cutoffs below glTF's minimum of 0 (drawn as OPAQUE). Not warned: `doubleSided: false`, the default of most files — every
 /// triangle is drawn from both sides (README, "Bad input and faults").
 pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &mut ImportReport) {
     use gltf::texture::MagFilter;
@@ -78,12 +78,31 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
             emissive.len()
         ));
     }
+    // A skinned mesh is posed by its joints (glTF 2.0 §3.7.3), the node's own transform ignored; here it
+    // is placed by the node's transform, as if unskinned.
+    let skinned: Vec<usize> = doc
+        .nodes()
+        .filter(|n| n.skin().is_some() && n.mesh().is_some())
+        .map(|n| n.index())
+        .collect();
+    if let Some(&first) = skinned.first() {
+        let n = skinned.len();
+        let nodes = if n == 1 {
+            "node draws a skinned mesh"
+        } else {
+            "nodes draw skinned meshes"
+        };
+        report.warn(format!(
+            "{file}: {n} {nodes}; skins are not applied: each mesh is placed by its node's transform, \
+             as if unskinned (first: node {first})"
+        ));
+    }
     warn_undeclared_quantization(file, doc, report);
     for m in doc.materials() {
         if let Some(c) = m.alpha_cutoff().filter(|c| *c < 0.0) {
             report.warn(format!(
                 "{file}: material {} ({}): alphaCutoff {c} is below glTF's minimum 0; every texel passes \
-                 the MASK test",
+                 the MASK test, so it is drawn as OPAQUE",
                 m.index().map_or("default".into(), |i| i.to_string()),
                 m.name().unwrap_or("unnamed")
             ));

@@ -713,3 +713,109 @@ fn a_texture_with_only_a_basisu_source_names_the_extension() {
         )]
     );
 }
+
+/// A MASK cutoff ≤ 0 lets every texel pass (glTF 2.0 §3.9.4: alpha ≥ cutoff is drawn opaque, in its own
+/// colour): the material is imported OPAQUE. As MASK its alpha-0 texels were premultiplied and bled over,
+/// so they showed a neighbour's colour instead of their own.
+#[test]
+fn a_mask_cutoff_of_zero_is_opaque() {
+    use atlastree::scene::AlphaMode;
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["materials"][0]["alphaMode"] = json!("MASK");
+    doc["materials"][0]["alphaCutoff"] = json!(0.0);
+    doc["materials"][1]["alphaMode"] = json!("MASK");
+    doc["materials"][1]["alphaCutoff"] = json!(0.25);
+    let s = import_city(dir.path(), &doc).1.unwrap();
+    let by_name = |name: &str| s.materials.iter().find(|m| m.name == name).unwrap();
+    assert_eq!(by_name("roof_0").alpha, AlphaMode::Opaque);
+    assert_eq!(by_name("roof_1").alpha, AlphaMode::Mask { cutoff: 0.25 });
+    assert_eq!(s.report.warnings_total, 0, "{:?}", s.report.warnings);
+}
+
+/// An image drawn by an OPAQUE and a MASK material is two images of the scene, both naming the one glTF
+/// image (read once): the OPAQUE material's is decoded with its alpha dropped, the MASK material's
+/// premultiplied and bled. One image for both gave the OPAQUE material's alpha-0 texels the bleed's colour.
+#[test]
+fn an_image_drawn_by_opaque_and_mask_materials_is_two_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = import_city(dir.path(), &city_json()).1.unwrap();
+    let mut doc = city_json();
+    let pbr = "pbrMetallicRoughness";
+    doc["materials"][1][pbr]["baseColorTexture"] = json!({"index": 0});
+    doc["materials"][2][pbr]["baseColorTexture"] = json!({"index": 0});
+    doc["materials"][2]["alphaMode"] = json!("MASK");
+    let s = import_city(dir.path(), &doc).1.unwrap();
+    let image = |name: &str| s.materials.iter().find(|m| m.name == name).unwrap().image;
+    // roof_0 and roof_1 (OPAQUE) share one image, roof_2 (MASK) has its own of the same glTF image.
+    assert_eq!(image("roof_0"), image("roof_1"));
+    assert_ne!(image("roof_0"), image("roof_2"));
+    let (a, b) = (
+        &s.images[image("roof_0").idx()],
+        &s.images[image("roof_2").idx()],
+    );
+    assert_eq!((a.gltf_image, b.gltf_image), (Some(0), Some(0)));
+    assert_eq!((&a.name, a.width, a.height), (&b.name, b.width, b.height));
+    // glTF images 1 and 2 are no longer drawn; texture 0's image is drawn twice.
+    assert_eq!(s.images.len(), plain.images.len() - 1);
+    assert_eq!(s.report.warnings_total, 0, "{:?}", s.report.warnings);
+}
+
+/// Morph targets are drawn in the pose without animation (glTF 2.0 §3.7.2.2): the base positions plus
+/// each target's POSITION deltas times the node's weights, else the mesh's. They were ignored silently.
+#[test]
+fn morph_targets_are_drawn_at_their_default_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    // The heights of the ground's (mesh 0, material asphalt) triangle corners.
+    let ground = |doc: &Value| -> Vec<f64> {
+        let s = import_city(dir.path(), doc).1.unwrap();
+        assert_eq!(s.report.warnings_total, 0, "{:?}", s.report.warnings);
+        let asphalt = s
+            .materials
+            .iter()
+            .position(|m| m.name == "asphalt")
+            .unwrap();
+        (s.triangles.iter())
+            .filter(|t| t.material.idx() == asphalt)
+            .flat_map(|t| t.v)
+            .map(|v| s.vertices[v as usize].pos.y)
+            .collect()
+    };
+    let mut doc = city_json();
+    let flat = ground(&doc);
+    assert!(
+        flat.len() == 6 && flat.iter().all(|&y| y == 0.0),
+        "{flat:?}"
+    );
+    // A target moving every vertex by its NORMAL, (0, 1, 0), weighted 30 by the mesh, then 0 and 2.5 by the
+    // node, which overrides the mesh's weights.
+    let normal = doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"].clone();
+    doc["meshes"][0]["primitives"][0]["targets"] = json!([{"POSITION": normal}]);
+    doc["meshes"][0]["weights"] = json!([30.0]);
+    assert_eq!(ground(&doc), vec![30.0; 6]);
+    assert_eq!(doc["nodes"][2]["mesh"], json!(0));
+    doc["nodes"][2]["weights"] = json!([0.0]);
+    assert_eq!(ground(&doc), vec![0.0; 6]);
+    doc["nodes"][2]["weights"] = json!([2.5]);
+    assert_eq!(ground(&doc), vec![2.5; 6]);
+    // A target of another length is an error naming it.
+    doc["meshes"][0]["primitives"][0]["targets"] = json!([{"POSITION": 4}]);
+    let e = import_city(dir.path(), &doc).1.err().unwrap().to_string();
+    assert!(e.contains("morph target 0 POSITION has"), "{e}");
+}
+
+/// A skinned mesh is one counted warning naming the first node: skins are not applied.
+#[test]
+fn skinned_meshes_are_one_counted_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["skins"] = json!([{"joints": [0]}]);
+    doc["nodes"][2]["skin"] = json!(0);
+    let s = import_city(dir.path(), &doc).1.unwrap();
+    let w = &s.report.warnings;
+    assert_eq!(s.report.warnings_total, 1, "{w:?}");
+    assert!(
+        w[0].contains("1 node draws a skinned mesh") && w[0].contains("first: node 2"),
+        "{w:?}"
+    );
+}
