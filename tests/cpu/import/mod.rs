@@ -1,7 +1,9 @@
 //! `scene::import`: glTF 2.0 in, a flat scene out.
 
 mod bad_input;
+mod city;
 mod extensions;
+mod features;
 mod khronos;
 mod synthetic;
 mod tiled;
