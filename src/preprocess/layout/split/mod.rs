@@ -210,23 +210,12 @@ impl Splitter<'_> {
             Some((before, after, _)) => before[k].max(after[n - k]) as f64,
             None => (areas[k] - half).abs(),
         };
-        let mut best: Option<(f64, usize, usize)> = None;
-        for k in 1..n {
-            if order.same_key(k) {
-                continue;
-            }
-            let cost = cost_of(k);
-            let off_centre = (2 * k).abs_diff(n);
-            if best.is_none_or(|(c, o, _)| (cost, off_centre) < (c, o)) {
-                best = Some((cost, off_centre, k));
-            }
+        let mut best = BestCut::new(n);
+        for k in (1..n).filter(|&k| !order.same_key(k)) {
+            best.offer(k, cost_of(k));
         }
         // n ≤ 1: everything in the low group.
-        let k = if n <= 1 {
-            n
-        } else {
-            best.map_or(n / 2, |(_, _, k)| k)
-        };
+        let k = if n <= 1 { n } else { best.k().unwrap_or(n / 2) };
         let demands = sides.map(|(before, after, exact)| CutDemands {
             before: before[k],
             after: after[n - k],
@@ -240,8 +229,8 @@ impl Splitter<'_> {
     /// suffixes walked backwards only while they can still give the cut. The cost `max(before,
     /// after)` of a cut at `k` is at least the demand after it, which only grows as `k` falls: once that
     /// exceeds the best cost so far, no lower `k` can match it. The same cut and demands as walking
-    /// every suffix (the big-node branch of [`Splitter::cut`], the same order of preference: lowest
-    /// cost, then nearest the middle, then the lower `k`), in about half the second walk.
+    /// every suffix (the big-node branch of [`Splitter::cut`], the same [`BestCut`]), in about half the
+    /// second walk.
     fn demand_cut_serial(&self, items: &[u32], order: &SortedKeys) -> (usize, CutDemands) {
         let n = items.len();
         let (before, exact_before) = prefix_demands_exact(self.model, self.infos, items);
@@ -256,10 +245,10 @@ impl Splitter<'_> {
             return (n, demands);
         }
         let rev: Vec<u32> = items.iter().rev().copied().collect();
-        // (cost, distance from the middle, k, demand after k)
-        let mut best: Option<(f64, usize, usize, u64)> = None;
+        let mut best = BestCut::new(n);
+        // The demand after the best cut so far, and after the middle.
+        let (mut after_best, mut after_middle) = (0, 0);
         let middle = n / 2;
-        let mut after_middle = 0;
         let exact_after = walk_prefix_demands(self.model, self.infos, &rev, |j, after| {
             if j >= n {
                 return false;
@@ -268,22 +257,17 @@ impl Splitter<'_> {
             if k == middle {
                 after_middle = after;
             }
-            if best.is_some_and(|(c, ..)| after as f64 > c) {
+            if best.cost().is_some_and(|c| after as f64 > c) {
                 return false;
             }
-            if !order.same_key(k) {
-                let cost = before[k].max(after) as f64;
-                let off_centre = (2 * k).abs_diff(n);
-                // `k` falls: an equal cost and distance replaces the best, so the lowest `k` stays.
-                if best.is_none_or(|(c, o, ..)| (cost, off_centre) <= (c, o)) {
-                    best = Some((cost, off_centre, k, after));
-                }
+            if !order.same_key(k) && best.offer(k, before[k].max(after) as f64) {
+                after_best = after;
             }
             true
         });
         // No position between different keys (all keys equal): the middle, walked past since nothing
         // stopped the walk.
-        let (k, after) = best.map_or((middle, after_middle), |(_, _, k, after)| (k, after));
+        let (k, after) = best.k().map_or((middle, after_middle), |k| (k, after_best));
         let demands = CutDemands {
             before: before[k],
             after,
@@ -291,6 +275,39 @@ impl Splitter<'_> {
             exact: exact_before && exact_after,
         };
         (k, demands)
+    }
+}
+
+/// The cut a split takes among the positions offered: the lowest cost, then the nearest the middle of
+/// `n` items, then the lowest `k`, in whatever order they are offered (the big-node walk offers them
+/// upwards, the serial demand cut downwards).
+struct BestCut {
+    n: usize,
+    /// (cost, distance from the middle, k)
+    best: Option<(f64, usize, usize)>,
+}
+
+impl BestCut {
+    fn new(n: usize) -> Self {
+        BestCut { n, best: None }
+    }
+
+    /// Offers the cut at `k` of cost `cost`; true where it is now the best.
+    fn offer(&mut self, k: usize, cost: f64) -> bool {
+        let candidate = (cost, (2 * k).abs_diff(self.n), k);
+        let better = self.best.is_none_or(|b| candidate < b);
+        if better {
+            self.best = Some(candidate);
+        }
+        better
+    }
+
+    fn cost(&self) -> Option<f64> {
+        self.best.map(|(c, ..)| c)
+    }
+
+    fn k(&self) -> Option<usize> {
+        self.best.map(|(.., k)| k)
     }
 }
 
