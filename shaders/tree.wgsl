@@ -272,11 +272,12 @@ struct RectSample {
     tap: vec2<f32>,
 }
 
-// See render::wgsl::tree::CELLS, FLAT_SHARE, SHARPEN_MIN and FLAT_TAPS_ASPECT.
+// See render::wgsl::tree::CELLS, FLAT_SHARE, SHARPEN_MIN, FLAT_TAPS_ASPECT and REACH_SAFETY.
 const CELLS: f32 = 2.0;
 const FLAT_SHARE: f32 = 1.0;
 const SHARPEN_MIN: f32 = 0.25;
 const FLAT_TAPS_ASPECT: f32 = 1.5;
+const REACH_SAFETY: f32 = 0.99;
 
 // RectMap::flat_tap: on the mip a flat sample reads, an inner rectangle of aspect a is CELLS × CELLS·a
 // texels; one tap at its centre reads the middle CELLS × CELLS (the middle half of a 1:2 sprite, which
@@ -292,13 +293,24 @@ fn flat_tap(inner: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(0.0);
 }
 
-// RectMap::texel_f32: the fragment's texel in its leaf's atlas. Where the filter would reach past the
-// rect's border the gradients are sharpened by k <= 1 to what the border protects. A footprint of more than
-// FLAT_SHARE of the inner rectangle along both axes, or k < SHARPEN_MIN, covers (about) a period: it gets the
-// period's average, at the rect's centre on the mip where the inner rectangle is CELLS texels wide; one
-// covered axis alone is sampled at its centre, the other keeps its detail. Otherwise the
-// sample is kept half the footprint plus half a drawn texel (`level_texels` leaf texels) inside the outer
-// rectangle.
+// RectMap::footprint_cap: the largest footprint (leaf texels) whose filter stays within `room` leaf texels
+// of the sample. The sampler is isotropic trilinear: the longer gradient sets its mip along both axes, and
+// at lod > 0 its bilinear taps on the coarser of the two mips it blends (2^(floor(lod)+1) drawn texels of
+// `level_texels` leaf texels, box-filtered blocks not aligned to the rect) read up to 1.5 of its texels
+// either side; at lod <= 0 it reads half a drawn texel. REACH_SAFETY keeps the lod off the power of two.
+fn footprint_cap(room: f32, level_texels: f32) -> f32 {
+    if room < 0.5 * level_texels {
+        return 0.0;
+    }
+    let m = max(floor(log2(max(room / (1.5 * level_texels), 1.0))), 0.0);
+    return level_texels * exp2(m) * REACH_SAFETY;
+}
+
+// RectMap::texel_f32: the fragment's texel in its leaf's atlas. The gradients are sharpened by k <= 1 so
+// that the sampler's filter (footprint_cap) stays inside the outer rectangle around the sample: a footprint
+// of more than FLAT_SHARE of the inner rectangle along both axes, or k < SHARPEN_MIN, covers (about) a
+// period: it gets the period's average, at the rect's centre on the mip where the inner rectangle is CELLS
+// texels wide; one covered axis alone is sampled at its centre, the other keeps its detail.
 fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32) -> RectSample {
     let s = rect_axis(uv.x, r.wrap & CODE_MASK, r.uv_min.x, r.half_gap.x);
     let t = rect_axis(uv.y, (r.wrap >> WRAP_T_SHIFT) & CODE_MASK, r.uv_min.y, r.half_gap.y);
@@ -308,35 +320,29 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     out.gy = ddy * tpu;
     let period = min(r.inner_size.x, r.inner_size.y);
     let footprint = max(length(out.gx), length(out.gy));
-    let half_box = 0.5 * (abs(out.gx) + abs(out.gy));
-    let inner_hi = r.inner_lo + r.inner_size;
-    let border = min(r.inner_lo - r.outer_lo, r.outer_hi - inner_hi);
-    // Where the footprint reaches past the border, sharpen it to what the border protects.
-    let room = max(border - vec2<f32>(0.5 * level_texels), vec2<f32>(0.0));
-    // An axis the footprint does not extend along reaches past nothing (fit 1): a constant UV would
-    // otherwise take the period branch with a zero footprint and NaN gradients.
-    let fit = select(room / max(half_box, vec2<f32>(1e-30)), vec2<f32>(1.0), half_box == vec2<f32>(0.0));
-    // An axis the footprint covers (an elongated rect's short one) is averaged: sampled at its centre,
-    // the footprint kept inside the outer rectangle there (the sampler's box is footprint wide both ways).
+    let centre = r.inner_lo + 0.5 * r.inner_size;
+    // An axis the footprint covers (an elongated rect's short one) is averaged: sampled at its centre.
     let covered = vec2<f32>(footprint) > r.inner_size * FLAT_SHARE;
-    let centred_room = 0.5 * (r.outer_hi - r.outer_lo) - vec2<f32>(0.5 * level_texels);
-    let fit_all = select(fit, centred_room / (0.5 * footprint), covered);
-    let k = min(1.0, min(fit_all.x, fit_all.y));
+    let lo = r.outer_lo + vec2<f32>(0.5 * level_texels);
+    let hi = r.outer_hi - vec2<f32>(0.5 * level_texels);
+    let p = clamp(r.inner_lo + vec2<f32>(s.x, t.x) * r.texels_per_uv, lo, max(lo, hi));
+    let q = select(p, centre, covered | (lo > hi));
+    // The filter is isotropic: the nearer outer edge, along either axis, bounds it.
+    let d = min(q - r.outer_lo, r.outer_hi - q);
+    let cap = footprint_cap(min(d.x, d.y), level_texels);
+    // A constant UV (zero footprint) reaches past nothing.
+    let k = select(min(1.0, cap / footprint), 1.0, footprint == 0.0);
     if all(covered) || k < SHARPEN_MIN {
         let kk = period / CELLS / footprint;
         out.gx = out.gx * kk;
         out.gy = out.gy * kk;
-        out.texel = r.inner_lo + 0.5 * r.inner_size;
+        out.texel = centre;
         out.tap = flat_tap(r.inner_size);
         return out;
     }
     out.gx = out.gx * k;
     out.gy = out.gy * k;
-    let margin = half_box * k + vec2<f32>(0.5 * level_texels);
-    let lo = r.outer_lo + margin;
-    let hi = r.outer_hi - margin;
-    let p = r.inner_lo + vec2<f32>(s.x, t.x) * r.texels_per_uv;
-    out.texel = select(clamp(p, min(lo, hi), hi), r.inner_lo + 0.5 * r.inner_size, covered | (lo > hi));
+    out.texel = q;
     return out;
 }
 

@@ -117,6 +117,9 @@ wgsl_consts! {
     /// An inner rectangle at least this elongated takes two taps where it is flat
     /// ([`RectMap::flat_tap`]).
     FLAT_TAPS_ASPECT: f32 = 1.5;
+    /// [`RectMap::footprint_cap`] stays this much below the power of two whose coarser mip would reach
+    /// too far, so the sampler's rounding of the lod never blends that mip in.
+    REACH_SAFETY: f32 = 0.99;
 }
 
 wgsl_overrides! {
@@ -329,23 +332,42 @@ impl RectMap {
         }
     }
 
+    /// The shader's `footprint_cap`: the largest footprint (leaf texels, the longer gradient) whose
+    /// filter stays within `room` leaf texels of the sample. The sampler is isotropic trilinear: the
+    /// longer gradient sets its mip along both axes, and at lod > 0 its bilinear taps on the coarser of
+    /// the two mips it blends — texels of `2^(floor(lod)+1)` drawn texels, box-filtered blocks that need
+    /// not be aligned to the rect — read up to 1.5 of those texels either side of the sample; at lod ≤ 0
+    /// it reads half a drawn texel. 0 where `room` is less than half a drawn texel.
+    pub fn footprint_cap(room: f32, level_texels: f32) -> f32 {
+        if room < 0.5 * level_texels {
+            return 0.0;
+        }
+        let m = (room / (1.5 * level_texels))
+            .max(1.0)
+            .log2()
+            .floor()
+            .max(0.0);
+        level_texels * m.exp2() * REACH_SAFETY
+    }
+
     /// The shader's `rect_texel`: leaf-atlas texel coordinates of UV `uv` with screen derivatives `ddx`,
     /// `ddy` drawn at a level `level_texels` leaf texels per texel of the drawn atlas (`2^(K − j)`), and the
     /// derivatives the sampler is given.
     ///
-    /// - Where the filter footprint (half the gradient box plus half a drawn texel) would reach past the
-    ///   rect's border, the gradients are scaled by `k = room / half box ≤ 1`, so the filter reads the
-    ///   rect's border (the sampler's rule) and never a neighbouring rect.
+    /// - The gradients are scaled by `k ≤ 1` so that the sampler's filter ([`Self::footprint_cap`]:
+    ///   isotropic, so the nearer outer edge along either axis bounds it) stays inside the outer
+    ///   rectangle around the sample: it reads the rect's border (the sampler's rule) and never a
+    ///   neighbouring rect. Only samples near the border are sharpened.
     /// - A pixel whose footprint exceeds [`FLAT_SHARE`] of the inner rectangle along both axes, or whose
     ///   `k` is below [`SHARPEN_MIN`], covers (about) a period: it gets the period's average, which the
     ///   mip level where the inner rectangle's smaller side is [`CELLS`] texels wide holds at its centre
-    ///   (the gradients are scaled to that level, the sample moved to the centre) — no neighbour bleeds
-    ///   in, no aliasing, and every such pixel of the rect reads the same texels.
+    ///   (the gradients are scaled to that level, the sample moved to the centre) — no aliasing, and
+    ///   every such pixel of the rect reads the same texels.
     /// - A footprint that covers one axis only (the short side of an elongated rect, say 992 × 16 texels
-    ///   seen from afar) averages that axis alone: the sample sits at the inner centre there and `k` also
-    ///   keeps the footprint, centred, inside the outer rectangle; the other axis keeps its detail.
-    /// - Otherwise the sample is kept half the (sharpened) footprint plus half a drawn texel inside the
-    ///   outer rectangle; at the inner centre where the rectangle is narrower than that.
+    ///   seen from afar) averages that axis alone: the sample sits at the inner centre there; the other
+    ///   axis keeps its detail.
+    /// - The sample is kept half a drawn texel inside the outer rectangle; at the inner centre where the
+    ///   rectangle is narrower than that.
     pub fn texel_f32(
         &self,
         uv: Vec2,
@@ -363,37 +385,29 @@ impl RectMap {
         let centre = inner_lo + 0.5 * inner;
         let period = inner.x.min(inner.y);
         let footprint = gx.length().max(gy.length());
-        let half_box = 0.5 * (gx.abs() + gy.abs());
         let (outer_lo, outer_hi) = (Vec2::from(self.outer_lo), Vec2::from(self.outer_hi));
-        let border = (inner_lo - outer_lo).min(outer_hi - (inner_lo + inner));
-        let room = (border - Vec2::splat(0.5 * level_texels)).max(Vec2::ZERO);
-        // An axis the footprint does not extend along reaches past nothing (fit 1, not room / 0 = 0: a
-        // constant UV, as on a triangle with degenerate UVs, would take the period branch with a zero
-        // footprint and scale its gradients by ∞, giving NaN).
-        let fit = Vec2::select(
-            half_box.cmpeq(Vec2::ZERO),
-            Vec2::ONE,
-            room / half_box.max(Vec2::splat(1e-30)),
-        );
-        // An axis the footprint covers (an elongated rect's short one) is averaged: sampled at its
-        // centre, with the footprint kept inside the outer rectangle there (the sampler's box is the
-        // footprint wide along both axes).
+        // An axis the footprint covers (an elongated rect's short one) is averaged: sampled at its centre.
         let covered = Vec2::splat(footprint).cmpgt(inner * FLAT_SHARE);
-        let centred_room = 0.5 * (outer_hi - outer_lo) - Vec2::splat(0.5 * level_texels);
-        let fit = Vec2::select(covered, centred_room / (0.5 * footprint), fit);
-        let k = fit.min_element().min(1.0);
+        let lo = outer_lo + Vec2::splat(0.5 * level_texels);
+        let hi = outer_hi - Vec2::splat(0.5 * level_texels);
+        let p =
+            (inner_lo + Vec2::new(ts, tt) * Vec2::from(self.texels_per_uv)).clamp(lo, lo.max(hi));
+        let q = Vec2::select(covered | lo.cmpgt(hi), centre, p);
+        // The filter is isotropic: the nearer outer edge, along either axis, bounds it.
+        let d = (q - outer_lo).min(outer_hi - q);
+        let cap = Self::footprint_cap(d.min_element(), level_texels);
+        // A constant UV (zero footprint, as on a triangle with degenerate UVs) reaches past nothing: k 1,
+        // not the period branch with gradients scaled by ∞ (NaN).
+        let k = if footprint == 0.0 {
+            1.0
+        } else {
+            (cap / footprint).min(1.0)
+        };
         if covered.all() || k < SHARPEN_MIN {
             let kk = period / CELLS / footprint;
             return (centre, gx * kk, gy * kk);
         }
-        let (gx, gy) = (gx * k, gy * k);
-        let margin = half_box * k + Vec2::splat(0.5 * level_texels);
-        let lo = outer_lo + margin;
-        let hi = outer_hi - margin;
-        let t = inner_lo + Vec2::new(ts, tt) * Vec2::from(self.texels_per_uv);
-        let centred = covered | lo.cmpgt(hi);
-        let texel = Vec2::select(centred, centre, t.clamp(lo.min(hi), hi));
-        (texel, gx, gy)
+        (q, gx * k, gy * k)
     }
 }
 

@@ -7,7 +7,7 @@ use crate::built::*;
 use atlastree::ids::MaterialId;
 use atlastree::model::{AtlasRect, RectWrap};
 use atlastree::preprocess::image_ops::{
-    LinearImage, MipChain, RectJob, draw_rect, neutral_fill, sample_footprint,
+    LinearImage, MipChain, RectJob, draw_rect, neutral_fill, sample_footprint, srgb8_to_linear,
 };
 use atlastree::preprocess::{BuildOptions, DMin};
 use atlastree::render::wgsl::tree::RectMap;
@@ -270,6 +270,94 @@ fn a_flat_sprite_is_averaged_over_its_whole_rect() {
     assert_eq!(
         RectMap::new(&square, AlphaMode::Opaque).flat_tap(),
         Vec2::ZERO
+    );
+}
+
+/// An isotropic trilinear sampler (anisotropy 1, as lavapipe's `auto`) at `texel` with gradients `gx`,
+/// `gy` (texels of mip 0 of `atlas`): the longer gradient picks the lod on both axes, and the two mips
+/// around it are blended.
+fn trilinear(atlas: &MipChain, texel: Vec2, gx: Vec2, gy: Vec2) -> [f32; 4] {
+    let lod = gx.length().max(gy.length()).max(1e-30).log2().max(0.0);
+    let top = atlas.levels.len() - 1;
+    let m = (lod.floor() as usize).min(top);
+    let f = if m == top { 0.0 } else { lod - m as f32 };
+    let at = |l: usize| bilinear(&atlas.levels[l], texel.as_dvec2() / f64::from(1u32 << l));
+    let (a, b) = (at(m), at((m + 1).min(top)));
+    std::array::from_fn(|c| a[c] * (1.0 - f) + b[c] * f)
+}
+
+/// The lighthouse sea (stk_lighthouse, default build): a REPEAT rect of 120 × 60 inner texels with a
+/// 16-texel border between two bright neighbours, seen at a grazing angle, so the footprint along v is
+/// many times the one along u (up to several periods). Whatever the footprint, the rect's texels sampled
+/// through the shader's mapping by an isotropic trilinear sampler (whose lod the longer gradient sets on
+/// both axes, and whose coarser mip's texels straddle the rect's edges) read nothing of a neighbour: the
+/// neighbours are pure blue, the rect's source has a constant blue of 40/255, so any bleed raises blue.
+/// Before the fix the sharpening modelled the filter per axis as half the gradient box: at the u seams
+/// lod ≈ 6 reached ~96 texels past a 16-texel border (bright streaks across the sea).
+#[test]
+fn an_isotropic_trilinear_filter_never_reads_a_neighbouring_rect() {
+    let src = source(true);
+    let chain = MipChain::build(LinearImage::from_decoded(&src).unwrap());
+    let own_blue = srgb8_to_linear(40);
+    let rect = AtlasRect {
+        material: MaterialId(0),
+        outer: [64, 36, 152, 92],
+        inner: [80, 52, 120, 60],
+        uv_min: [0.0; 2],
+        uv_max: [1.0; 2],
+        wrap: [RectWrap::Repeat; 2],
+        capped: [false; 2],
+    };
+    let mut atlas = LinearImage::new_filled(256, 128, [0.0, 0.0, 1.0, 1.0]);
+    draw_rect(
+        &mut atlas,
+        &RectJob::from_atlas_rect(&rect, [Wrap::Repeat; 2], [1.0; 4]),
+        &chain,
+    )
+    .unwrap();
+    let atlas = MipChain::build(atlas);
+    let map = RectMap::new(&rect, AlphaMode::Blend);
+    let (mut worst, mut at) = (0.0f32, String::new());
+    let mut sharpened = 0;
+    // Footprints in leaf texels along u (across) and v (along the view), and the transposed case.
+    for &(fu, fv) in &[
+        (1.0f32, 1.0f32),
+        (3.0, 8.0),
+        (3.0, 20.0),
+        (3.0, 40.0),
+        (3.0, 55.0),
+        (3.0, 64.0),
+        (6.0, 130.0),
+        (20.0, 20.0),
+        (40.0, 3.0),
+        (100.0, 4.0),
+    ] {
+        for transpose in [false, true] {
+            let (a, b) = if transpose { (fv, fu) } else { (fu, fv) };
+            let ddx = Vec2::new(a / 120.0, 0.0);
+            let ddy = Vec2::new(0.0, b / 60.0);
+            for i in 0..=240 {
+                for j in 0..=24 {
+                    let uv = Vec2::new(-0.5 + i as f32 / 80.0, 3.0 + j as f32 / 8.0);
+                    let (texel, gx, gy) = map.texel_f32(uv, ddx, ddy, 1.0);
+                    if gx.length().max(gy.length()) < a.max(b) * 0.999 {
+                        sharpened += 1;
+                    }
+                    let blue = trilinear(&atlas, texel, gx, gy)[2];
+                    if blue - own_blue > worst {
+                        worst = blue - own_blue;
+                        at = format!(
+                            "uv {uv} footprint ({a}, {b}) → texel {texel}, gradients {gx} {gy}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(sharpened > 0, "the grid never needed sharpening");
+    assert!(
+        worst <= 1e-4,
+        "a neighbouring rect bled in: blue {worst} above the rect's own at {at}"
     );
 }
 
