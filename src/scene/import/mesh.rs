@@ -32,8 +32,8 @@ pub(super) const MAX_TRIANGLES: u64 = 1 << 28;
 #[derive(Default)]
 struct Scratch {
     floats: Vec<f64>,
-    /// One morph target's POSITION deltas.
-    morph: Vec<f64>,
+    /// A vertex attribute beside POSITION (UVs, a morph target's POSITION deltas).
+    attribute: Vec<f64>,
     tmp: Vec<f64>,
     world: Vec<DVec3>,
     uvs: Vec<DVec2>,
@@ -211,35 +211,17 @@ impl<'a> Geometry<'a> {
                     self.file
                 )));
             };
-            if uv_acc.count() != n {
-                return Err(SceneError::Accessor {
-                    file: self.file.to_string(),
-                    mesh: ctx.mesh,
-                    mesh_name: ctx.mesh_name.clone(),
-                    primitive: ctx.primitive,
-                    accessor: uv_acc.index(),
-                    reason: format!(
-                        "{semantic} has {} elements but POSITION (accessor {}) has {n}",
-                        uv_acc.count(),
-                        pos_acc.index()
-                    ),
-                });
-            }
-            buffers.load_accessor(&uv_acc)?;
-            let s = &mut self.scratch;
-            check_vertex_attribute(&uv_acc)
-                .and_then(|()| read_floats(buffers.data(), &uv_acc, 2, &mut s.floats, &mut s.tmp))
-                .map_err(|e| ctx.error(self.file, &semantic, e))?;
+            self.read_beside_positions(&uv_acc, &semantic, 2, (pos_acc.index(), n), ctx, buffers)?;
             let s = &mut self.scratch;
             match xf {
                 Some(t) => s.uvs.extend(
-                    s.floats
+                    s.attribute
                         .chunks_exact(2)
                         .map(|c| t.apply(DVec2::new(c[0], c[1]))),
                 ),
                 None => s
                     .uvs
-                    .extend(s.floats.chunks_exact(2).map(|c| DVec2::new(c[0], c[1]))),
+                    .extend(s.attribute.chunks_exact(2).map(|c| DVec2::new(c[0], c[1]))),
             }
         }
 
@@ -318,30 +300,44 @@ impl<'a> Geometry<'a> {
                 continue;
             };
             let semantic = format!("morph target {i} POSITION");
-            if acc.count() != n {
-                return Err(SceneError::Accessor {
-                    file: self.file.to_string(),
-                    mesh: ctx.mesh,
-                    mesh_name: ctx.mesh_name.clone(),
-                    primitive: ctx.primitive,
-                    accessor: acc.index(),
-                    reason: format!(
-                        "{semantic} has {} elements but POSITION (accessor {base}) has {n}",
-                        acc.count()
-                    ),
-                });
-            }
-            buffers.load_accessor(&acc)?;
+            self.read_beside_positions(&acc, &semantic, 3, (base, n), ctx, buffers)?;
             let s = &mut self.scratch;
-            check_vertex_attribute(&acc)
-                .and_then(|()| read_floats(buffers.data(), &acc, 3, &mut s.morph, &mut s.tmp))
-                .map_err(|e| ctx.error(self.file, &semantic, e))?;
-            let s = &mut self.scratch;
-            for (p, d) in s.floats.iter_mut().zip(&s.morph) {
+            for (p, d) in s.floats.iter_mut().zip(&s.attribute) {
                 *p += w * d;
             }
         }
         Ok(())
+    }
+
+    /// Reads vertex attribute `acc` (`dims` floats a vertex) into `scratch.attribute`, after checking that
+    /// it has the `n` elements of the primitive's POSITION (accessor `base`); errors name `semantic`.
+    fn read_beside_positions(
+        &mut self,
+        acc: &gltf::Accessor<'a>,
+        semantic: &str,
+        dims: usize,
+        (base, n): (usize, usize),
+        ctx: &PrimCtx,
+        buffers: &mut Buffers,
+    ) -> Result<(), SceneError> {
+        if acc.count() != n {
+            return Err(SceneError::Accessor {
+                file: self.file.to_string(),
+                mesh: ctx.mesh,
+                mesh_name: ctx.mesh_name.clone(),
+                primitive: ctx.primitive,
+                accessor: acc.index(),
+                reason: format!(
+                    "{semantic} has {} elements but POSITION (accessor {base}) has {n}",
+                    acc.count()
+                ),
+            });
+        }
+        buffers.load_accessor(acc)?;
+        let s = &mut self.scratch;
+        check_vertex_attribute(acc)
+            .and_then(|()| read_floats(buffers.data(), acc, dims, &mut s.attribute, &mut s.tmp))
+            .map_err(|e| ctx.error(self.file, semantic, e))
     }
 
     /// Builds the triangles of the current primitive from `scratch` (world positions, UVs, indices).
