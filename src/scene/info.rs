@@ -82,6 +82,9 @@ pub struct TextureInfo {
     pub materials: u64,
     /// Triangles whose material uses this image.
     pub triangles: u64,
+    /// The earlier image read from the same glTF image: one drawn by OPAQUE materials and by alpha
+    /// materials is two images, one decoded with its alpha dropped.
+    pub same_as: Option<u32>,
 }
 
 /// Material counts per alpha mode.
@@ -200,6 +203,7 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
         })
         .collect();
     let mut image_kinds = BTreeMap::new();
+    let mut first_of_gltf: BTreeMap<u32, u32> = BTreeMap::new();
     let textures: Vec<TextureInfo> = scene
         .images
         .iter()
@@ -213,6 +217,13 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
                 ImageData::Fallback => "fallback",
             };
             *image_kinds.entry(kind.to_string()).or_insert(0) += 1;
+            let same_as = img.gltf_image.and_then(|g| match first_of_gltf.entry(g) {
+                std::collections::btree_map::Entry::Occupied(e) => Some(*e.get()),
+                std::collections::btree_map::Entry::Vacant(e) => {
+                    e.insert(i as u32);
+                    None
+                }
+            });
             TextureInfo {
                 id: i as u32,
                 name: img.name.clone(),
@@ -223,6 +234,7 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
                 kind: kind.to_string(),
                 materials: u.0,
                 triangles: u.1,
+                same_as,
             }
         })
         .collect();
@@ -337,9 +349,12 @@ impl fmt::Display for SceneInfo {
             self.texture_texels
         )?;
         for t in &self.textures {
+            let again = t.same_as.map_or(String::new(), |first| {
+                format!(" (the image of #{first} again: OPAQUE and alpha materials draw it, one of the two with its alpha dropped)")
+            });
             writeln!(
                 f,
-                "    #{:<4} {:>5}x{:<5} {:<9} alpha={:<5} {:<8} mats {:<3} tris {:<8} {}",
+                "    #{:<4} {:>5}x{:<5} {:<9} alpha={:<5} {:<8} mats {:<3} tris {:<8} {}{again}",
                 t.id,
                 t.width,
                 t.height,

@@ -203,6 +203,16 @@ fn an_image_drawn_by_opaque_and_mask_materials_is_two_images() {
     assert_eq!((&a.name, a.width, a.height), (&b.name, b.width, b.height));
     // glTF images 1 and 2 are no longer drawn; texture 0's image is drawn twice.
     assert_eq!(s.images.len(), plain.images.len() - 1);
+    // scene-info names the second as the first's image again.
+    let info = atlastree::scene::info::analyze(&s);
+    let (first, second) = (image("roof_0").0, image("roof_2").0);
+    let same_as: Vec<Option<u32>> = info.textures.iter().map(|t| t.same_as).collect();
+    assert_eq!(same_as[second.max(first) as usize], Some(second.min(first)));
+    assert_eq!(same_as.iter().flatten().count(), 1, "{same_as:?}");
+    assert!(
+        info.to_string()
+            .contains(&format!("the image of #{} again", second.min(first)))
+    );
     assert_eq!(s.report.warnings_total, 0, "{:?}", s.report.warnings);
 }
 
