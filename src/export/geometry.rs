@@ -6,7 +6,7 @@
 //!
 //! A standard viewer cannot wrap a UV inside an atlas rect per fragment as `shaders/tree.wgsl` does, so
 //! each rect is classified ([`rect_is_affine`]): where every triangle of the rect reaches its rect by one
-//! affine map per axis (slope ±1, no seam inside a triangle) the per-vertex leaf-atlas UV
+//! affine map per axis (slope 1, or −1 under MIRRORED_REPEAT; no seam inside a triangle) the per-vertex leaf-atlas UV
 //! ([`crate::model::transform::rect_texel`], margin 0) is exact and the triangles join the tile's atlas
 //! material; a rect with a triangle across a wrap seam becomes a *period* group drawn with its own image
 //! (the rect's inner rectangle at the tile's resolution) and the sampler's own wrap mode.

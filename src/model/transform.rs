@@ -73,8 +73,8 @@ pub fn rect_t(u: f64, wrap: RectWrap, uv_min: f64, uv_max: f64) -> f64 {
 /// Leaf-atlas texel coordinates (x right, y down, texel units, not centres) of UV `uv` in `rect`:
 /// [`rect_t`] per axis scaled onto the inner rectangle, then kept `margin` texels inside the outer
 /// rectangle (the inner rectangle's centre where the outer rectangle is narrower than twice the margin,
-/// as the shader). The shader uses the filter footprint as the margin, so no sample reaches a neighbouring
-/// rect; its f32 twin, `render::wgsl::tree::RectMap::texel_f32`, agrees with this within f32 precision
+/// as the shader). The shader keeps its sample half a drawn texel inside and sharpens its gradients so the
+/// sampler's filter never reaches a neighbouring rect (`RectMap::footprint_cap`); its f32 twin, `render::wgsl::tree::RectMap::texel_f32`, agrees with this within f32 precision
 /// (tests/cpu/render.rs and, on the GPU, tests/gpu/shader_math.rs).
 pub fn rect_texel(uv: DVec2, rect: &AtlasRect, margin: DVec2) -> DVec2 {
     let tpu = rect.texels_per_uv();

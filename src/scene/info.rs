@@ -412,7 +412,8 @@ impl fmt::Display for SceneInfo {
 /// baseline of the preprocessor's throughput target (a build within 3× of it).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct DecodeReport {
-    /// Distinct images used by at least one triangle (solid 1×1 images included, they cost nothing).
+    /// Distinct images used by at least one triangle (solid 1×1 images included, they cost nothing; a
+    /// glTF image that OPAQUE and alpha materials draw is two, decoded twice, as the build does).
     pub images: usize,
     /// Texels decoded (width × height summed).
     pub texels: u64,

@@ -31,8 +31,9 @@ impl ImportReport {
 /// What the glTF asks for that atlastree does not draw, one counted warning per feature (not per
 /// instance): vertex colours (`COLOR_0`), NEAREST magnification filters (atlases and originals are
 /// sampled linearly, in linear light), emission (atlases hold the base colour only), skins (meshes are
-/// placed by their nodes' transforms), and MASK cutoffs below glTF's minimum of 0 (drawn as OPAQUE). Not warned: `doubleSided: false`, the default of most files — every
-/// triangle is drawn from both sides (README, "Bad input and faults").
+/// placed by their nodes' transforms), and MASK cutoffs below glTF's minimum of 0 (drawn as OPAQUE),
+/// counted over the whole file, drawn scene or not. Not warned: `doubleSided: false`, the default of most
+/// files — every triangle is drawn from both sides (README, "Bad input and faults").
 pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &mut ImportReport) {
     use gltf::texture::MagFilter;
     let coloured: Vec<(usize, usize)> = doc
