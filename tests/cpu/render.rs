@@ -552,7 +552,7 @@ fn texel_f32_agrees_with_f64_reference() {
     let rects = rects();
     let maps = maps(&rects);
     let samples = samples(&rects);
-    let (mut agree, mut near) = (0usize, 0usize);
+    let (mut agree, mut near, mut near_step) = (0usize, 0usize, 0usize);
     let mut failures = Vec::new();
     for s in &samples {
         let (texel, gx, gy) = maps[s.rect].texel_f32(s.uv, s.ddx, s.ddy, s.level_texels());
@@ -569,7 +569,12 @@ fn texel_f32_agrees_with_f64_reference() {
             failures.push(format!("{s:?}: atlas uv {f32_uv} in f32, {f64_uv} in f64"));
         }
         match check_f64(&rects[s.rect], s, texel) {
-            Ok(F64Check::Agrees | F64Check::AgreesTexelNearStep) => agree += 1,
+            Ok(F64Check::Agrees) => agree += 1,
+            // The texel agreed; the GPU test allows its gradients the step's factor.
+            Ok(F64Check::AgreesTexelNearStep) => {
+                agree += 1;
+                near_step += 1;
+            }
             Ok(F64Check::NearBranch) => near += 1,
             Err(e) => failures.push(e),
         }
@@ -589,6 +594,7 @@ fn texel_f32_agrees_with_f64_reference() {
         "{near} near-branch samples of {}",
         samples.len()
     );
+    println!("{agree} agree, {near} near a branch, {near_step} near a step of the footprint cap");
 }
 
 /// A footprint that covers an elongated rect's short side alone (992 × 16 texels, ~20 texels a pixel
