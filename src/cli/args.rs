@@ -228,6 +228,18 @@ pub(super) fn is_url(s: &str) -> bool {
     s.starts_with("http://") || s.starts_with("https://")
 }
 
+/// Refuses, before any request, an https URL where this build has no TLS (the `https` cargo feature):
+/// every attempt would fail the same way.
+pub(super) fn check_url(u: &str) -> anyhow::Result<()> {
+    if !cfg!(feature = "https") && u.starts_with("https://") {
+        bail!(
+            "{u}: this atlastree was built without TLS (cargo feature `https`), so it pages over plain \
+             http:// only; serve the file with `atlastree serve` (http) or rebuild with `--features https`"
+        );
+    }
+    Ok(())
+}
+
 impl PagingArgs {
     /// The first flag given besides `--capacity`, for "means nothing here" messages.
     pub(crate) fn given_beyond_capacity(&self) -> Option<&'static str> {
@@ -251,7 +263,10 @@ impl PagingArgs {
         }
         let source = match self.source.as_deref() {
             None | Some("file") => SourceArg::File,
-            Some(u) if is_url(u) => SourceArg::Url(u.to_string()),
+            Some(u) if is_url(u) => {
+                check_url(u)?;
+                SourceArg::Url(u.to_string())
+            }
             Some(other) => bail!("unknown --source {other:?}: expected `file` or an http(s) URL"),
         };
         if let Some(n) = self.loader_threads.filter(|&n| n > MAX_LOADER_THREADS) {
@@ -292,7 +307,7 @@ pub(crate) struct BuildParamsArgs {
     #[arg(long)]
     pub no_source_cap: bool,
     /// Bound on decoded source images held in memory at once, MiB (lowered to fit --max-memory).
-    #[arg(long, default_value_t = 2048)]
+    #[arg(long, default_value_t = 2048, value_parser = clap::value_parser!(u64).range(1..=u64::MAX >> 20))]
     pub image_cache_mib: u64,
     /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
     /// a build that cannot fit (the plan holds ~250 bytes per triangle, the rasteriser a few atlases per

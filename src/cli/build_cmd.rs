@@ -151,7 +151,8 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     // node graph sharing children has instanced gigabytes of triangles.
     let max_triangles =
         (a.params.memory_budget()).map(atlastree::preprocess::memory::max_plan_triangles);
-    let mut scene = load_scene_within(&a.scene, a.up, max_triangles)?;
+    let mut scene = load_scene_within(&a.scene, a.up, max_triangles)
+        .map_err(|e| over_budget(e, a.params.memory_budget()))?;
     if !a.materials.is_empty() {
         let kept = super::retain_materials(&mut scene, &a.materials)?;
         if !(a.quiet || a.json) {
@@ -225,6 +226,21 @@ fn shard_step(arg: Option<&str>) -> anyhow::Result<ShardStep> {
     }
 }
 
+/// A scene refused in the node walk for the memory budget, with what its plan needs (the plan step's
+/// rule: every triangle held at once; a whole build needs the pixel pass's share on top).
+fn over_budget(e: anyhow::Error, budget: Option<u64>) -> anyhow::Error {
+    use atlastree::scene::SceneError;
+    let (Some(&SceneError::OverTriangleBudget { triangles, .. }), Some(budget)) =
+        (e.downcast_ref(), budget)
+    else {
+        return e;
+    };
+    match atlastree::preprocess::memory::plan_step_memory(budget, triangles) {
+        Err(need) => e.context(format!("the budget is too small: {need}")),
+        Ok(_) => e,
+    }
+}
+
 /// The scene filters of these flags in words: part of a plan's key, as they change the scene it covers.
 fn selection(a: &BuildArgs) -> String {
     format!("materials={:?};up={:?}", a.materials, a.up)
@@ -234,6 +250,12 @@ fn selection(a: &BuildArgs) -> String {
 /// plan: as typed, but with the program, the scene and the output as absolute paths (resolved against this
 /// process's working directory, without touching the file system), so the hint works from wherever merge
 /// runs. A program named without a `/` is left for the shell's search path.
+/// This process's arguments as text: a name that is not UTF-8 (a valid file name on Unix) shows as
+/// U+FFFD in the hint, where `std::env::args` would panic.
+fn lossy_args() -> impl Iterator<Item = String> {
+    std::env::args_os().map(|a| a.to_string_lossy().into_owned())
+}
+
 fn recorded_argv(
     args: impl Iterator<Item = String>,
     scene: &std::path::Path,
@@ -250,10 +272,13 @@ fn recorded_argv(
             if program || path {
                 return absolute(std::path::Path::new(&arg));
             }
-            match arg.strip_prefix("--out=") {
-                Some(rest) if rest == out_arg => format!("--out={}", absolute(out)),
-                _ => arg,
+            // The output attached to its flag: `--out=PATH`, `-oPATH`.
+            for flag in ["--out=", "-o"] {
+                if arg.strip_prefix(flag) == Some(out_arg.as_str()) {
+                    return format!("{flag}{}", absolute(out));
+                }
             }
+            arg
         })
         .collect()
 }
@@ -266,7 +291,7 @@ fn run_plan(
 ) -> anyhow::Result<ExitCode> {
     let opts = a.options();
     let key = shard_plan_key(&opts, &a.scene, &selection(a))?;
-    let argv = recorded_argv(std::env::args(), &a.scene, &a.out);
+    let argv = recorded_argv(lossy_args(), &a.scene, &a.out);
     let mut report = plan_shards(scene, &opts, &a.out, key, argv, bars)
         .with_context(|| format!("planning {} for {}", a.scene.display(), a.out.display()))?;
     report.stages.prepend("import", import_s, import_peak);
@@ -314,7 +339,7 @@ fn run_planned_shard(
     let key = shard_plan_key(&opts, &a.scene, &selection(a))?;
     let sharded = ShardedOptions {
         spec,
-        argv: recorded_argv(std::env::args(), &a.scene, &a.out),
+        argv: recorded_argv(lossy_args(), &a.scene, &a.out),
     };
     if !(a.quiet || a.json) {
         println!("shard {spec}: planned by {}", plan.display());
@@ -355,7 +380,7 @@ fn run_shard(
 ) -> anyhow::Result<ExitCode> {
     let sharded = ShardedOptions {
         spec,
-        argv: recorded_argv(std::env::args(), &a.scene, &a.out),
+        argv: recorded_argv(lossy_args(), &a.scene, &a.out),
     };
     let mut report =
         build_shard(scene, &a.options(), &a.out, &sharded, bars).with_context(|| {
@@ -599,8 +624,39 @@ pub(super) fn fmt_psnr(db: f64) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::recorded_argv;
+    use super::{over_budget, recorded_argv};
     use std::path::Path;
+
+    /// A scene the node walk refused for `--max-memory` says what its plan needs, from the whole
+    /// scene's count, against the budget given (not one rebuilt from the triangle cap).
+    #[test]
+    fn a_scene_over_the_triangle_budget_says_what_it_needs() {
+        let refused = || {
+            anyhow::Error::new(atlastree::scene::SceneError::OverTriangleBudget {
+                file: "s.gltf".into(),
+                triangles: 1_000_000,
+                instances: 3,
+                max: 0,
+            })
+        };
+        // 64 MiB + 10⁶ × 250 bytes = 302.4 MiB.
+        let msg = format!("{:#}", over_budget(refused(), Some(32 << 20)));
+        assert!(
+            msg.contains("needs about 303 MiB") && msg.contains("--max-memory 32 MiB"),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("1000000 triangles over 3 mesh instances"),
+            "{msg}"
+        );
+        // No budget, or another error: unchanged.
+        assert_eq!(
+            format!("{:#}", over_budget(refused(), None)),
+            format!("{:#}", refused())
+        );
+        let other = over_budget(anyhow::anyhow!("x"), Some(1));
+        assert_eq!(format!("{other:#}"), "x");
+    }
 
     #[test]
     fn the_recorded_command_line_names_program_scene_and_output_absolutely() {
@@ -653,5 +709,10 @@ mod tests {
                 format!("--out={}", abs("o.atlastree")),
             ]
         );
+        // `-oPATH` (clap's attached short form) too; another flag's value equal to no path is kept.
+        let args = ["atlastree", "build", "s.glb", "-oout/x.at", "-q"].map(String::from);
+        let got = recorded_argv(args.into_iter(), Path::new("s.glb"), Path::new("out/x.at"));
+        assert_eq!(got[3], format!("-o{}", abs("out/x.at")));
+        assert_eq!(got[4], "-q");
     }
 }

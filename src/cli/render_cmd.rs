@@ -1,7 +1,7 @@
 //! `atlastree render`: flags → [`RenderConfig`] ([`RenderArgs::validate`]) → [`execute`], a run in named
 //! phases: open the source, sample the cameras, set up the frame loop, warm up, fly, write and report.
 
-use super::args::{Paging, PagingArgs, SourceArg, Viewport, ViewportArgs, is_url};
+use super::args::{Paging, PagingArgs, SourceArg, Viewport, ViewportArgs, check_url, is_url};
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
@@ -27,7 +27,9 @@ use std::sync::Arc;
 #[derive(Args, Debug)]
 pub(crate) struct RenderArgs {
     /// The paging file, or an http(s) URL of one (then blocks are paged over HTTP; `--capacity` defaults
-    /// to all blocks).
+    /// to all blocks). A local file is memory-mapped: rewriting it in place while it renders (`cp` over
+    /// it, `truncate`) stops the run with SIGBUS; publish a new file by renaming it over the old one (as
+    /// `build` does), or set ATLASTREE_NO_MMAP=1 to read it into memory instead.
     pub file: PathBuf,
     /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
     #[arg(long, default_value = "overview-dive")]
@@ -143,6 +145,7 @@ impl RenderArgs {
         }
         let name = self.file.to_string_lossy();
         let tree = if is_url(&name) {
+            check_url(&name)?;
             TreeSource::Remote(name.into_owned())
         } else {
             TreeSource::Local(self.file.clone())
@@ -272,7 +275,8 @@ fn block_source(
     }
     match source {
         SourceArg::File => {
-            let reopened = TreeFile::open(file.path())
+            let reopened = file
+                .reopen()
                 .with_context(|| format!("reopening {}", file.path().display()))?;
             Ok((Arc::new(FileSource::new(Arc::new(reopened))), None))
         }
@@ -338,15 +342,23 @@ fn frame_loop<'f>(
             FrameLoop::new_paged(ctx, file, ropts, setup).with_context(what)?
         }
     };
-    print_resident(ctx, &fl, t.elapsed().as_secs_f64());
+    print_resident(ctx, &fl, cfg.paging.is_some(), t.elapsed().as_secs_f64());
     Ok((fl, paged_from))
 }
 
 /// What the frame loop made resident at start, and how the atlas arrays are stored.
-fn print_resident(ctx: &GpuContext, fl: &FrameLoop<'_>, seconds: f64) {
+fn print_resident(ctx: &GpuContext, fl: &FrameLoop<'_>, paged: bool, seconds: f64) {
     let s = &fl.renderer.resident.stats;
+    let textures = if paged {
+        "textures paged in from the first frame on (stats.csv: resident_bytes_atlases, resident_bytes_originals)".to_string()
+    } else {
+        format!(
+            "{:.1} MiB of textures",
+            s.texture_bytes as f64 / (1 << 20) as f64
+        )
+    };
     println!(
-        "resident: {} trees, {} nodes, {} leaves, {} vertices; {} atlas layers in {} array(s), {} original layers in {} class arrays, {:.1} MiB of textures ({:.2} s)",
+        "resident: {} trees, {} nodes, {} leaves, {} vertices; {} atlas layers in {} array(s), {} original layers in {} class arrays, {textures} ({:.2} s)",
         s.trees,
         s.nodes,
         s.leaves,
@@ -355,7 +367,6 @@ fn print_resident(ctx: &GpuContext, fl: &FrameLoop<'_>, seconds: f64) {
         s.atlas_arrays,
         s.original_layers,
         s.class_arrays,
-        s.texture_bytes as f64 / (1 << 20) as f64,
         seconds
     );
     let formats: Vec<&str> = fl
@@ -377,6 +388,37 @@ fn print_resident(ctx: &GpuContext, fl: &FrameLoop<'_>, seconds: f64) {
 /// Phase 4: one output directory per mode (the output directory itself for a single mode).
 fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> {
     std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
+    if !cfg.selection {
+        let selection = |n: &str| n == "selection.json";
+        atlastree::util::remove_stale_outputs(&cfg.out, selection).with_context(|| {
+            format!(
+                "removing an earlier run's selection.json from {}",
+                cfg.out.display()
+            )
+        })?;
+    }
+    // Another mode set's folders (an earlier `--mode tree,dummy`): their frames, sheet and stats go
+    // (the folder too where nothing else is in it), so OUT holds this run's outputs only.
+    let drawn_into = |m: Mode| cfg.modes.len() > 1 && cfg.modes.contains(&m);
+    let ours = |n: &str| {
+        (n.starts_with("frame_") && n.ends_with(".png"))
+            || matches!(n, "contact_sheet.png" | "stats.csv")
+    };
+    for m in Mode::ALL.into_iter().filter(|&m| !drawn_into(m)) {
+        let dir = cfg.out.join(m.name());
+        if !dir.join("stats.csv").is_file() {
+            continue;
+        }
+        let removed = atlastree::util::remove_stale_outputs(&dir, ours)
+            .with_context(|| format!("removing an earlier run's outputs from {}", dir.display()))?;
+        let gone = std::fs::remove_dir(&dir).is_ok();
+        eprintln!(
+            "note: removed {removed} file(s) of an earlier run's mode {} from {}{}",
+            m.name(),
+            dir.display(),
+            if gone { " (and the folder)" } else { "" }
+        );
+    }
     let mut runs = Vec::new();
     for &mode in &cfg.modes {
         let dir = if cfg.modes.len() > 1 {
@@ -385,13 +427,15 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
             cfg.out.clone()
         };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        // An earlier run's frames would sit beside this run's stats as if they were its own.
-        let is_frame = |n: &str| n.starts_with("frame_") && n.ends_with(".png");
+        // An earlier run's frames (and contact sheet, where this run saves none) would sit beside
+        // this run's stats as if they were its own.
+        let is_frame =
+            |n: &str| (n.starts_with("frame_") && n.ends_with(".png")) || n == "contact_sheet.png";
         let removed = atlastree::util::remove_stale_outputs(&dir, is_frame)
             .with_context(|| format!("removing an earlier run's frames from {}", dir.display()))?;
         if removed > 0 {
             eprintln!(
-                "note: removed {removed} frame PNGs of an earlier run from {}",
+                "note: removed {removed} frame PNG(s) or contact sheet of an earlier run from {}",
                 dir.display()
             );
         }

@@ -83,7 +83,7 @@ pub(super) fn write_and_report(
 fn print_http(h: &HttpStats) {
     use atlastree::util::human_bytes;
     println!(
-        "http: {} requests ({} retries, {} fetches failed), {} received for {} blocks",
+        "http: {} requests ({} retries, {} fetches failed, counting loads still queued when the frames ended), {} received for {} blocks",
         h.requests,
         h.retries,
         h.failures,

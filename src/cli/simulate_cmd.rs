@@ -173,8 +173,9 @@ pub(super) fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
 /// Runs a checked configuration.
 pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     let file = super::open_local(&cfg.file, "simulate")?;
-    // Before the runs, not after them: an --out that cannot be a folder.
+    // Before the runs, not after them: an --out that cannot be a folder (or made one).
     super::check_out_folder(&cfg.out)?;
+    std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
     let cameras = sample_cameras(cfg, &file)?;
     let scales = cfg.viewport.scales(&file.to_params(), &cameras)?;
     let input = SimInput::from_file(&file)?;
@@ -212,7 +213,16 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     let results = run_grid(&input, &cameras, &scales, &cfg.spec, &|| bar.inc(1))?;
     bar.finish_and_clear();
     let wall = t.elapsed().as_secs_f64();
-    std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
+    // An earlier grid's plots that this one does not draw (other latencies or policies) would sit
+    // beside this run's summary as if they were its own.
+    let plot = |n: &str| {
+        let stem = n.strip_suffix(".png").or_else(|| n.strip_suffix(".svg"));
+        stem.is_some_and(|s| {
+            s.starts_with("heatmap_") || s == "coarser_over_time" || s == "bytes_per_frame"
+        })
+    };
+    atlastree::util::remove_stale_outputs(&cfg.out, plot)
+        .with_context(|| format!("removing an earlier run's plots from {}", cfg.out.display()))?;
     let mut written = write_csvs(&cfg.out, &results)?;
     written.extend(write_plots(&cfg.out, &cfg.spec, &results)?);
     print_results(&results, cfg.json)?;

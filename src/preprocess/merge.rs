@@ -132,23 +132,29 @@ pub struct MergedPlan {
 /// The shard files beside `out`, by their names: `(index, count, path)`.
 fn shard_files(out: &Path) -> Vec<(u32, u32, PathBuf)> {
     let dir = crate::util::parent_dir(out);
-    let Some(base) = out.file_name().and_then(|n| n.to_str()) else {
+    let Some(base) = out.file_name() else {
         return Vec::new();
     };
-    let prefix = format!("{base}.shard-");
+    // Bytes, not UTF-8: any name the OS takes is a name a build may have written.
+    let prefix = [base.as_encoded_bytes(), b".shard-"].concat();
     let mut found = Vec::new();
     let Ok(entries) = std::fs::read_dir(dir) else {
         return found;
     };
     for e in entries.flatten() {
         let name = e.file_name();
-        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(&prefix)) else {
+        let rest = name.as_encoded_bytes().strip_prefix(prefix.as_slice());
+        let Some((i, n)) = rest
+            .and_then(|r| std::str::from_utf8(r).ok())
+            .and_then(|r| r.split_once("-of-"))
+        else {
             continue;
         };
-        let Some((i, n)) = rest.split_once("-of-") else {
-            continue;
-        };
-        if let (Ok(i), Ok(n)) = (i.parse::<u32>(), n.parse::<u32>()) {
+        // Only names a build writes: a stray `-of-0` or `-of-4294967295` is no shard count.
+        if let (Ok(i), Ok(n)) = (i.parse::<u32>(), n.parse::<u32>())
+            && (1..=shard::MAX_SHARDS).contains(&n)
+            && i < n
+        {
             found.push((i, n, out.with_file_name(name)));
         }
     }

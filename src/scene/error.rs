@@ -99,6 +99,17 @@ pub enum SceneError {
     },
     #[error("{file}: scene too large: {what}")]
     TooLarge { file: String, what: String },
+    /// More triangles than `ImportOptions::max_triangles` (the memory budget's plan): all of them
+    /// counted (the node walk goes on counting, keeping nothing), so the caller can say what is needed.
+    #[error(
+        "{file}: {triangles} triangles over {instances} mesh instances, more than the {max} the memory budget's plan holds"
+    )]
+    OverTriangleBudget {
+        file: String,
+        triangles: u64,
+        instances: u64,
+        max: u64,
+    },
     #[error("image {image}: {reason}")]
     ImageDecode { image: String, reason: String },
     #[error("{0}")]

@@ -58,6 +58,12 @@ pub enum StoreError {
         dir: PathBuf,
         what: &'static str,
     },
+    /// Opened twice ([`TreeFile::reopen`]), the path held another paging file the second time.
+    #[error(
+        "{path} was replaced while it was being opened (its tables differ between two reads: another build \
+         published over it?); run again once it stays put"
+    )]
+    Replaced { path: PathBuf },
     /// The file does not start with [`format::MAGIC`]; the message says what it looks like instead
     /// ([`describe_start`]: a shard or plan file, a scene, an image, text).
     #[error("{path}: not an atlastree paging file ({})", describe_start(found))]

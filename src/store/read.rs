@@ -222,6 +222,20 @@ impl TreeFile {
         Self::from_backing(path.to_path_buf(), backing)
     }
 
+    /// Opens this file's path again (a second handle for the pager's loader threads) and checks that it
+    /// still holds the same file: header (every table's checksum in it) and block table equal. A file
+    /// published over the path in between (a build's atomic rename) is refused with
+    /// [`StoreError::Replaced`], never drawn with its blocks under these tables.
+    pub fn reopen(&self) -> Result<TreeFile, StoreError> {
+        let again = Self::open(&self.path)?;
+        if again.header() != self.header() || again.blocks() != self.blocks() {
+            return Err(StoreError::Replaced {
+                path: self.path.clone(),
+            });
+        }
+        Ok(again)
+    }
+
     /// Validates a file held in memory (tests, HTTP). The bytes are copied into an aligned buffer.
     pub fn from_bytes(bytes: &[u8]) -> Result<TreeFile, StoreError> {
         check_endian()?;

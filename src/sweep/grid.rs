@@ -396,6 +396,19 @@ impl Grid {
                 k.id()
             ));
         }
+        // Values that differ past the ids' 12 significant digits would be two rows under one id.
+        let mut seen = std::collections::HashSet::new();
+        let plan = self.plan();
+        let variants = plan
+            .builds
+            .iter()
+            .flat_map(|b| (b.runtimes.iter()).map(move |r| variant_id(&b.knobs, r)));
+        if let Some(id) = variants.into_iter().find(|id| !seen.insert(id.clone())) {
+            return bad(format!(
+                "two variants print as {id}: values that agree to 12 significant digits are one value \
+                 here; give it once"
+            ));
+        }
         Ok(())
     }
 

@@ -28,8 +28,8 @@ pub mod summary;
 
 pub use grid::{BuildKnobs, Grid, Plan, RuntimeKnobs};
 pub use run::{
-    BuildRow, FrameRow, NoSweepProgress, SweepData, SweepOptions, SweepProgress, merge_histogram,
-    repeated_views, run_sweep, sample_path,
+    BuildRow, FrameRow, NoSweepProgress, SweepData, SweepOptions, SweepProgress, check_capacities,
+    merge_histogram, repeated_views, run_sweep, sample_path,
 };
 
 use crate::camera::CameraError;

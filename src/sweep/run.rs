@@ -242,6 +242,7 @@ pub fn run_sweep(
     opts: &SweepOptions,
     progress: &dyn SweepProgress,
 ) -> Result<SweepData, SweepError> {
+    check_capacities(scene, plan)?;
     std::fs::create_dir_all(&opts.builds_dir).map_err(|e| SweepError::Io {
         path: opts.builds_dir.clone(),
         source: e,
@@ -291,6 +292,28 @@ pub fn run_sweep(
     }
     progress.finish();
     Ok(data)
+}
+
+/// Refuses, before any build, a capacity below the root atlases every build of `scene` has (one per
+/// tree: opaque, and alpha where a material uses alpha), which no paged renderer can run with.
+pub fn check_capacities(scene: &Scene, plan: &Plan) -> Result<(), SweepError> {
+    let alpha = |t: &crate::scene::Triangle| {
+        (scene.materials.get(t.material.idx())).is_some_and(|m| m.alpha.uses_alpha())
+    };
+    let has_alpha = scene.triangles.iter().any(alpha);
+    let has_opaque = scene.triangles.iter().any(|t| !alpha(t));
+    let roots = u32::from(has_alpha) + u32::from(has_opaque);
+    let caps = plan.builds.iter().flat_map(|b| &b.runtimes);
+    match caps.filter_map(|r| r.capacity).min() {
+        Some(k) if k < roots => Err(SweepError::Grid {
+            origin: "capacity".into(),
+            message: format!(
+                "capacity {k} is below the {roots} root atlases of every build of this scene (one per \
+                 tree): a paged renderer needs at least {roots}"
+            ),
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// The options of the build of `knobs`: the knobs over `base`.
@@ -460,12 +483,12 @@ fn run_build(
                 data.histograms.push((pb.knobs, *rt, hist));
             }
             Some(k) => {
-                let source = Arc::new(FileSource::new(Arc::new(
-                    TreeFile::open(file.path()).map_err(|source| SweepError::Open {
+                let source = Arc::new(FileSource::new(Arc::new(file.reopen().map_err(
+                    |source| SweepError::Open {
                         path: file.path().to_path_buf(),
                         source,
-                    })?,
-                )));
+                    },
+                )?)));
                 let setup = PagingSetup {
                     pager: PagerOptions {
                         capacity: k,

@@ -144,9 +144,9 @@ pub fn human_bytes(b: u64) -> String {
     }
 }
 
-/// Parses a byte size: a number with an optional unit `B`, `KB`, `MB`, `GB` (powers of 1000) or `KiB`,
-/// `MiB`, `GiB` (powers of 1024), case-insensitive, e.g. `8MB`, `512KiB`, `1e6`. `None` if malformed,
-/// negative or not finite.
+/// Parses a byte size: a number with an optional unit `B`, `KB`, `MB`, `GB`, `TB` (powers of 1000) or
+/// `KiB`, `MiB`, `GiB`, `TiB` (powers of 1024), case-insensitive, e.g. `8MB`, `512KiB`, `1e6`, `1TiB`.
+/// `None` if malformed, negative, not finite or past `u64`.
 pub fn parse_bytes(s: &str) -> Option<u64> {
     let t = s.trim();
     let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
@@ -161,9 +161,11 @@ pub fn parse_bytes(s: &str) -> Option<u64> {
         "kb" | "k" => 1e3,
         "mb" | "m" => 1e6,
         "gb" | "g" => 1e9,
+        "tb" | "t" => 1e12,
         "kib" => 1024.0,
         "mib" => 1024.0 * 1024.0,
         "gib" => 1024.0 * 1024.0 * 1024.0,
+        "tib" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
         _ => return None,
     };
     let b = v * mul;
@@ -248,6 +250,9 @@ mod parse_tests {
         assert_eq!(parse_bytes("12"), Some(12));
         assert_eq!(parse_bytes("-1MB"), None);
         assert_eq!(parse_bytes("5XB"), None);
+        assert_eq!(parse_bytes("1TiB"), Some(1 << 40));
+        assert_eq!(parse_bytes("2 TB"), Some(2_000_000_000_000));
+        assert_eq!(parse_bytes("20000000TiB"), None);
         assert_eq!(parse_rate("5MB/s"), Some(5e6));
         assert_eq!(parse_rate("0MB/s"), None);
         assert_eq!(parse_seconds("80ms"), Some(0.08));

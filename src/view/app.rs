@@ -205,8 +205,7 @@ impl<'a> Running<'a> {
             None => FrameLoop::new(ctx, file, ropts)?,
             Some(k) => {
                 // Blocks from the same file through the pager's loader threads (paper §6).
-                let reopened =
-                    TreeFile::open(file.path()).map_err(crate::render::RenderError::from)?;
+                let reopened = file.reopen().map_err(crate::render::RenderError::from)?;
                 let source = std::sync::Arc::new(crate::paging::FileSource::new(
                     std::sync::Arc::new(reopened),
                 ));

@@ -521,6 +521,52 @@ fn refused(args: &[&str], says: &[&str]) {
     }
 }
 
+/// Values a flag cannot mean are refused by the parser, before any file is opened: an image cache whose
+/// bytes overflow (it wrapped to the smallest cache), and an https URL in a build without TLS (every
+/// attempt failed the same way, four times). `--max-memory` takes TiB.
+#[test]
+fn values_past_what_a_flag_holds_are_refused() {
+    refused(
+        &[
+            "build",
+            "nope.gltf",
+            "-o",
+            "x.atlastree",
+            "--image-cache-mib",
+            "17592186044416",
+        ],
+        &["--image-cache-mib", "17592186044416"],
+    );
+    if !cfg!(feature = "https") {
+        refused(
+            &["render", "https://127.0.0.1:9/x.atlastree"],
+            &["built without TLS", "atlastree serve"],
+        );
+        refused(
+            &[
+                "render",
+                "nope.atlastree",
+                "--capacity",
+                "4",
+                "--source",
+                "https://127.0.0.1:9/x",
+            ],
+            &["built without TLS"],
+        );
+    }
+    // 1 TiB parses (the scene is then missing: exit 1, not a usage error).
+    let o = run(bin().args([
+        "build",
+        "nope.gltf",
+        "-o",
+        "x.atlastree",
+        "--max-memory",
+        "1TiB",
+    ]));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!e.contains("is not a size"), "{e}");
+}
+
 /// A flag that means nothing for a command is refused there with a message, before any file is opened
 /// (the files named here do not exist): a time upload budget in `simulate` (it has no uploads to time),
 /// paging flags without `--capacity` in `render`, paging flags beyond `--capacity` in `view`.

@@ -637,3 +637,25 @@ fn verify_finds_vertices_outside_their_leaf_bounds() {
         v.violations
     );
 }
+
+/// `render`, `sweep` and `view` open a paging file for its tables, then again for the loader threads: a
+/// file published over the path in between (another build's atomic rename) is refused, not drawn as the
+/// first file's tables with the second file's blocks.
+#[test]
+fn a_file_replaced_between_two_opens_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("x.atlastree");
+    write_forest(&path, &synth_forest(31, &small_specs()), 31);
+    let first = TreeFile::open(&path).unwrap();
+    let again = first.reopen().unwrap();
+    assert_eq!(again.header(), first.header());
+    // Another file of the same shape (other block bytes, so other checksums), published over the path.
+    let other = dir.path().join("y.atlastree");
+    write_forest(&other, &synth_forest(31, &small_specs()), 32);
+    std::fs::rename(&other, &path).unwrap();
+    match first.reopen() {
+        Err(e @ StoreError::Replaced { .. }) => assert!(e.to_string().contains("x.atlastree")),
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("a replaced file was accepted"),
+    }
+}

@@ -382,6 +382,14 @@ fn a_knob_with_too_many_values_is_refused() {
     );
     g.d_min_ratio.truncate(64);
     g.validate("test").unwrap();
+    // Two values that print alike (ids keep 12 significant digits) would be two rows under one id.
+    let mut g = Grid::preset("small").expect("preset");
+    g.texel_ratio = vec![1.0000000000001, 2.0];
+    let e = g.validate("test").unwrap_err().to_string();
+    assert!(
+        e.contains("two variants print as") && e.contains("t1_"),
+        "{e}"
+    );
 }
 
 /// A closed path's start and end see one view: `repeated_views` finds the pair the sweep warns about
@@ -403,4 +411,44 @@ fn repeated_views_find_a_closed_paths_start_and_end() {
     );
     let street = CameraPath::street(lo, hi, UpAxis::Y).unwrap();
     assert!(repeated_views(&sample_path(&street, 5, 4.0 / 3.0)).is_empty());
+}
+
+/// A capacity below the scene's root atlases (one per tree) is refused before any build, naming the
+/// number needed; the grid alone cannot tell (one root without alpha materials, two with).
+#[test]
+fn a_capacity_below_the_root_atlases_is_refused_before_any_build() {
+    use atlastree::scene::synthetic::SceneBuilder;
+    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
+    use glam::{DVec2, DVec3};
+    let scene = |alpha: bool| {
+        let mut b = SceneBuilder::new(UpAxis::Y);
+        let img = b.pattern_image("ground", 16, 0);
+        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let quad = |x: f64| {
+            [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+                .map(|(dx, dz)| DVec3::new(x + dx, 0.0, dz))
+        };
+        b.quad(quad(0.0), DVec2::ZERO, DVec2::ONE, m);
+        if alpha {
+            let leaves = b.pattern_image("leaves", 16, 1);
+            let m = b.material(leaves, [Wrap::Repeat; 2], AlphaMode::Mask { cutoff: 0.5 });
+            b.quad(quad(2.0), DVec2::ZERO, DVec2::ONE, m);
+        }
+        b.build()
+    };
+    let grid = |k: u32| {
+        let text = format!(
+            r#"{{"base": {{"d_min_ratio": 8, "atlas_size": 1024, "border": 8, "filter": "box",
+            "texel_ratio": 1, "capacity": {k}}}, "frames": 2}}"#
+        );
+        let g = Grid::from_json(&text, "g.json").expect("parses");
+        g.validate("g.json").expect("valid");
+        g.plan()
+    };
+    let refused = atlastree::sweep::check_capacities(&scene(true), &grid(1))
+        .expect_err("k 1 with two trees")
+        .to_string();
+    assert!(refused.contains("needs at least 2"), "{refused}");
+    atlastree::sweep::check_capacities(&scene(true), &grid(2)).expect("k 2, two trees");
+    atlastree::sweep::check_capacities(&scene(false), &grid(1)).expect("k 1, one tree");
 }

@@ -63,8 +63,9 @@ pub struct ImportOptions {
     pub up: Option<UpAxis>,
     /// The most triangles the caller's memory budget holds (`build --max-memory`: the plan keeps ~250
     /// bytes a triangle). The node walk counts triangles as it meets mesh instances and refuses the scene
-    /// ([`SceneError::TooLarge`]) as soon as they exceed it, before any vertex is read: a few KB of JSON
-    /// sharing nodes can instance millions of triangles. `None`: only the importer's own cap.
+    /// ([`SceneError::OverTriangleBudget`], with the whole scene's count: past the budget the walk keeps
+    /// no instance) before any vertex is read: a few KB of JSON sharing nodes can instance millions of
+    /// triangles. `None`: only the importer's own cap.
     pub max_triangles: Option<u64>,
 }
 

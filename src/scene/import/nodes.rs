@@ -100,6 +100,7 @@ impl<'a> Walk<'a, '_> {
         // Triangles of the instances met so far, against the caller's budget.
         let mut per_mesh: std::collections::HashMap<usize, u64> = Default::default();
         let mut triangles: u64 = 0;
+        let mut counted_instances: u64 = 0;
         while let Some(step) = stack.pop() {
             let (i, parent) = match step {
                 Step::Exit(i) => {
@@ -152,24 +153,18 @@ impl<'a> Walk<'a, '_> {
                         ),
                     });
                 }
-                if let Some(max) = self.max_triangles {
+                if self.max_triangles.is_some() {
                     let per = *per_mesh
                         .entry(mesh.index())
                         .or_insert_with(|| super::mesh::mesh_counts(&mesh).0);
                     triangles = triangles.saturating_add(per.saturating_mul(adding as u64));
-                    if triangles > max {
-                        return Err(SceneError::TooLarge {
-                            file: self.file.to_string(),
-                            what: format!(
-                                "more than {max} triangles over the mesh instances met so far ({} instances, \
-                                 node {i}): more than the memory budget holds (`--max-memory`; the plan \
-                                 keeps ~250 bytes a triangle)",
-                                instances.len().saturating_add(adding)
-                            ),
-                        });
-                    }
+                    counted_instances = counted_instances.saturating_add(adding as u64);
                 }
+                // Past the budget the walk only counts (no instance kept), so the error can say
+                // how much the whole scene needs.
+                let over = self.max_triangles.is_some_and(|max| triangles > max);
                 match list {
+                    _ if over => {}
                     Some(list) => instances.extend(list.into_iter().map(|m| Instance {
                         node: i,
                         mesh: mesh.index(),
@@ -185,6 +180,14 @@ impl<'a> Walk<'a, '_> {
             for c in node.children().collect::<Vec<_>>().into_iter().rev() {
                 stack.push(Step::Enter(c.index(), world));
             }
+        }
+        if let Some(max) = self.max_triangles.filter(|&max| triangles > max) {
+            return Err(SceneError::OverTriangleBudget {
+                file: self.file.to_string(),
+                triangles,
+                instances: counted_instances,
+                max,
+            });
         }
         self.report.nodes = visits;
         self.report.instances = instances.len() as u64;
