@@ -307,7 +307,7 @@ pub(crate) struct BuildParamsArgs {
     #[arg(long)]
     pub no_source_cap: bool,
     /// Bound on decoded source images held in memory at once, MiB (lowered to fit --max-memory).
-    #[arg(long, default_value_t = 2048, value_parser = clap::value_parser!(u64).range(1..=u64::MAX >> 20))]
+    #[arg(long, default_value_t = 2048, value_parser = clap::value_parser!(u64).range(0..=u64::MAX >> 20))]
     pub image_cache_mib: u64,
     /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
     /// a build that cannot fit (the plan holds ~250 bytes per triangle, the rasteriser a few atlases per

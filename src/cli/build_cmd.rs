@@ -151,8 +151,10 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     // node graph sharing children has instanced gigabytes of triangles.
     let max_triangles =
         (a.params.memory_budget()).map(atlastree::preprocess::memory::max_plan_triangles);
-    let mut scene = load_scene_within(&a.scene, a.up, max_triangles)
-        .map_err(|e| over_budget(e, a.params.memory_budget()))?;
+    let mut scene = load_scene_within(&a.scene, a.up, max_triangles).map_err(|e| {
+        let budget = a.params.memory_budget();
+        over_budget(e, budget, a.params.max_memory.is_some())
+    })?;
     if !a.materials.is_empty() {
         let kept = super::retain_materials(&mut scene, &a.materials)?;
         if !(a.quiet || a.json) {
@@ -226,19 +228,30 @@ fn shard_step(arg: Option<&str>) -> anyhow::Result<ShardStep> {
     }
 }
 
-/// A scene refused in the node walk for the memory budget, with what its plan needs (the plan step's
-/// rule: every triangle held at once; a whole build needs the pixel pass's share on top).
-fn over_budget(e: anyhow::Error, budget: Option<u64>) -> anyhow::Error {
+/// A scene refused in the node walk for the memory budget, with what its plan alone needs (every
+/// triangle held at once; a whole build needs the pixel pass's share on top). `given`: the budget is
+/// `--max-memory`'s, else the default.
+fn over_budget(e: anyhow::Error, budget: Option<u64>, given: bool) -> anyhow::Error {
+    use atlastree::preprocess::memory::{BASE_BYTES, PLAN_BYTES_PER_TRIANGLE};
     use atlastree::scene::SceneError;
     let (Some(&SceneError::OverTriangleBudget { triangles, .. }), Some(budget)) =
         (e.downcast_ref(), budget)
     else {
         return e;
     };
-    match atlastree::preprocess::memory::plan_step_memory(budget, triangles) {
-        Err(need) => e.context(format!("the budget is too small: {need}")),
-        Ok(_) => e,
-    }
+    let plan = BASE_BYTES.saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE));
+    let source = if given {
+        "--max-memory"
+    } else {
+        "the default budget (half of this machine's or cgroup's memory)"
+    };
+    e.context(format!(
+        "the budget is too small: {triangles} triangles need at least {} MiB for the plan alone \
+         (~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle, all held at once) and the pixel pass more, over \
+         {source} of {} MiB: give a larger --max-memory",
+        plan.div_ceil(1 << 20),
+        budget >> 20
+    ))
 }
 
 /// The scene filters of these flags in words: part of a plan's key, as they change the scene it covers.
@@ -246,16 +259,16 @@ fn selection(a: &BuildArgs) -> String {
     format!("materials={:?};up={:?}", a.materials, a.up)
 }
 
-/// The command line a shard or plan records for the "rebuild it with: …" hints of merge and of a refused
-/// plan: as typed, but with the program, the scene and the output as absolute paths (resolved against this
-/// process's working directory, without touching the file system), so the hint works from wherever merge
-/// runs. A program named without a `/` is left for the shell's search path.
 /// This process's arguments as text: a name that is not UTF-8 (a valid file name on Unix) shows as
 /// U+FFFD in the hint, where `std::env::args` would panic.
 fn lossy_args() -> impl Iterator<Item = String> {
     std::env::args_os().map(|a| a.to_string_lossy().into_owned())
 }
 
+/// The command line a shard or plan records for the "rebuild it with: …" hints of merge and of a refused
+/// plan: as typed, but with the program, the scene and the output as absolute paths (resolved against this
+/// process's working directory, without touching the file system), so the hint works from wherever merge
+/// runs. A program named without a `/` is left for the shell's search path.
 fn recorded_argv(
     args: impl Iterator<Item = String>,
     scene: &std::path::Path,
@@ -272,8 +285,8 @@ fn recorded_argv(
             if program || path {
                 return absolute(std::path::Path::new(&arg));
             }
-            // The output attached to its flag: `--out=PATH`, `-oPATH`.
-            for flag in ["--out=", "-o"] {
+            // The output attached to its flag: `--out=PATH`, `-o=PATH`, `-oPATH`.
+            for flag in ["--out=", "-o=", "-o"] {
                 if arg.strip_prefix(flag) == Some(out_arg.as_str()) {
                     return format!("{flag}{}", absolute(out));
                 }
@@ -640,21 +653,22 @@ mod tests {
             })
         };
         // 64 MiB + 10⁶ × 250 bytes = 302.4 MiB.
-        let msg = format!("{:#}", over_budget(refused(), Some(32 << 20)));
+        let msg = format!("{:#}", over_budget(refused(), Some(32 << 20), true));
         assert!(
-            msg.contains("needs about 303 MiB") && msg.contains("--max-memory 32 MiB"),
+            msg.contains("at least 303 MiB for the plan alone")
+                && msg.contains("--max-memory of 32 MiB"),
             "{msg}"
         );
         assert!(
             msg.contains("1000000 triangles over 3 mesh instances"),
             "{msg}"
         );
+        let msg = format!("{:#}", over_budget(refused(), Some(32 << 20), false));
+        assert!(msg.contains("the default budget (half of"), "{msg}");
         // No budget, or another error: unchanged.
-        assert_eq!(
-            format!("{:#}", over_budget(refused(), None)),
-            format!("{:#}", refused())
-        );
-        let other = over_budget(anyhow::anyhow!("x"), Some(1));
+        let none = over_budget(refused(), None, false);
+        assert_eq!(format!("{none:#}"), format!("{:#}", refused()));
+        let other = over_budget(anyhow::anyhow!("x"), Some(1), true);
         assert_eq!(format!("{other:#}"), "x");
     }
 
@@ -713,6 +727,10 @@ mod tests {
         let args = ["atlastree", "build", "s.glb", "-oout/x.at", "-q"].map(String::from);
         let got = recorded_argv(args.into_iter(), Path::new("s.glb"), Path::new("out/x.at"));
         assert_eq!(got[3], format!("-o{}", abs("out/x.at")));
+
         assert_eq!(got[4], "-q");
+        let args = ["atlastree", "build", "s.glb", "-o=out/x.at"].map(String::from);
+        let got = recorded_argv(args.into_iter(), Path::new("s.glb"), Path::new("out/x.at"));
+        assert_eq!(got[3], format!("-o={}", abs("out/x.at")));
     }
 }

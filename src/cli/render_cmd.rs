@@ -350,7 +350,7 @@ fn frame_loop<'f>(
 fn print_resident(ctx: &GpuContext, fl: &FrameLoop<'_>, paged: bool, seconds: f64) {
     let s = &fl.renderer.resident.stats;
     let textures = if paged {
-        "textures paged in from the first frame on (stats.csv: resident_bytes_atlases, resident_bytes_originals)".to_string()
+        "root atlases uploaded, the rest paged in per frame (stats.csv: resident_bytes_atlases, resident_bytes_originals)".to_string()
     } else {
         format!(
             "{:.1} MiB of textures",
@@ -385,40 +385,71 @@ fn print_resident(ctx: &GpuContext, fl: &FrameLoop<'_>, paged: bool, seconds: f6
     );
 }
 
+/// Render's own outputs in a folder: frame PNGs, the contact sheet and `stats.csv`.
+fn is_render_output(n: &str) -> bool {
+    (n.starts_with("frame_") && n.ends_with(".png"))
+        || matches!(n, "contact_sheet.png" | "stats.csv")
+}
+
+/// The modes an earlier run into `out` drew, from its `summary.json` (none where it has none).
+fn earlier_modes(out: &std::path::Path) -> Vec<Mode> {
+    let Ok(bytes) = atlastree::util::read_regular(&out.join("summary.json"), Some(1 << 20)) else {
+        return Vec::new();
+    };
+    let json: serde_json::Value = serde_json::from_slice(&bytes).unwrap_or_default();
+    let Some(modes) = json.get("modes").and_then(|m| m.as_object()) else {
+        return Vec::new();
+    };
+    modes.keys().filter_map(|k| k.parse().ok()).collect()
+}
+
+/// Removes what an earlier run (which drew `earlier`) left in `out` that a run drawing `now` will not
+/// overwrite, so `out` holds one run's outputs: `selection.json` where this run writes none; the mode
+/// folders of an earlier multi-mode run that this run does not draw into (the folder too once empty);
+/// the top-level outputs of an earlier single-mode run where this run draws into mode folders. Only
+/// render's own file names, and only where `summary.json` says a render wrote them; a note says what.
+fn clear_earlier_run(
+    out: &std::path::Path,
+    earlier: &[Mode],
+    now: &[Mode],
+    selection: bool,
+) -> anyhow::Result<()> {
+    let mut notes = Vec::new();
+    let mut remove = |dir: &std::path::Path, pick: &dyn Fn(&str) -> bool| -> anyhow::Result<()> {
+        let n = atlastree::util::remove_stale_outputs(dir, pick)
+            .with_context(|| format!("removing an earlier run's outputs from {}", dir.display()))?;
+        if n > 0 {
+            notes.push(format!("{n} from {}", dir.display()));
+        }
+        Ok(())
+    };
+    if !selection {
+        remove(out, &|n| n == "selection.json")?;
+    }
+    let folders_now = now.len() > 1;
+    if earlier.len() > 1 {
+        for &m in earlier.iter().filter(|m| !(folders_now && now.contains(m))) {
+            let dir = out.join(m.name());
+            remove(&dir, &is_render_output)?;
+            let _ = std::fs::remove_dir(&dir);
+        }
+    } else if !earlier.is_empty() && folders_now {
+        remove(out, &is_render_output)?;
+    }
+    if !notes.is_empty() {
+        eprintln!(
+            "note: removed an earlier run's outputs: {}",
+            notes.join(", ")
+        );
+    }
+    Ok(())
+}
+
 /// Phase 4: one output directory per mode (the output directory itself for a single mode).
 fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> {
     std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
-    if !cfg.selection {
-        let selection = |n: &str| n == "selection.json";
-        atlastree::util::remove_stale_outputs(&cfg.out, selection).with_context(|| {
-            format!(
-                "removing an earlier run's selection.json from {}",
-                cfg.out.display()
-            )
-        })?;
-    }
-    // Another mode set's folders (an earlier `--mode tree,dummy`): their frames, sheet and stats go
-    // (the folder too where nothing else is in it), so OUT holds this run's outputs only.
-    let drawn_into = |m: Mode| cfg.modes.len() > 1 && cfg.modes.contains(&m);
-    let ours = |n: &str| {
-        (n.starts_with("frame_") && n.ends_with(".png"))
-            || matches!(n, "contact_sheet.png" | "stats.csv")
-    };
-    for m in Mode::ALL.into_iter().filter(|&m| !drawn_into(m)) {
-        let dir = cfg.out.join(m.name());
-        if !dir.join("stats.csv").is_file() {
-            continue;
-        }
-        let removed = atlastree::util::remove_stale_outputs(&dir, ours)
-            .with_context(|| format!("removing an earlier run's outputs from {}", dir.display()))?;
-        let gone = std::fs::remove_dir(&dir).is_ok();
-        eprintln!(
-            "note: removed {removed} file(s) of an earlier run's mode {} from {}{}",
-            m.name(),
-            dir.display(),
-            if gone { " (and the folder)" } else { "" }
-        );
-    }
+    let earlier = earlier_modes(&cfg.out);
+    clear_earlier_run(&cfg.out, &earlier, &cfg.modes, cfg.selection)?;
     let mut runs = Vec::new();
     for &mode in &cfg.modes {
         let dir = if cfg.modes.len() > 1 {
@@ -429,8 +460,7 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         // An earlier run's frames (and contact sheet, where this run saves none) would sit beside
         // this run's stats as if they were its own.
-        let is_frame =
-            |n: &str| (n.starts_with("frame_") && n.ends_with(".png")) || n == "contact_sheet.png";
+        let is_frame = |n: &str| is_render_output(n) && n != "stats.csv";
         let removed = atlastree::util::remove_stale_outputs(&dir, is_frame)
             .with_context(|| format!("removing an earlier run's frames from {}", dir.display()))?;
         if removed > 0 {
@@ -621,6 +651,48 @@ pub(super) fn parse_anisotropy(s: &str) -> Result<u16, String> {
 
 #[cfg(test)]
 mod tests {
+    /// An earlier run's outputs that this run does not overwrite go, and only those: mode folders an
+    /// earlier multi-mode run's summary names, top-level outputs of a single-mode run when this run
+    /// draws into folders; a user's file, or a folder the summary does not name, stays.
+    #[test]
+    fn an_earlier_runs_outputs_are_removed_and_nothing_else() {
+        use super::{Mode, clear_earlier_run, earlier_modes};
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let touch = |p: &str| {
+            let p = out.join(p);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, b"x").unwrap();
+        };
+        for f in [
+            "tree/frame_0000.png",
+            "tree/stats.csv",
+            "dummy/stats.csv",
+            "dummy/notes.txt",
+        ] {
+            touch(f);
+        }
+        touch("original/stats.csv");
+        touch("selection.json");
+        let summary = r#"{"modes": {"tree": {}, "dummy": {}}}"#;
+        std::fs::write(out.join("summary.json"), summary).unwrap();
+        // In the JSON object's order (by name).
+        assert_eq!(earlier_modes(out), [Mode::Dummy, Mode::Tree]);
+        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree], false).unwrap();
+        assert!(!out.join("tree").exists() && !out.join("selection.json").exists());
+        assert!(!out.join("dummy/stats.csv").exists() && out.join("dummy/notes.txt").exists());
+        // Not named by the summary: not render's to remove.
+        assert!(out.join("original/stats.csv").exists());
+        // A single-mode run's top-level outputs, then a multi-mode run.
+        touch("frame_0003.png");
+        touch("stats.csv");
+        touch("mine.png");
+        std::fs::write(out.join("summary.json"), r#"{"modes": {"tree": {}}}"#).unwrap();
+        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree, Mode::Dummy], true).unwrap();
+        assert!(!out.join("frame_0003.png").exists() && !out.join("stats.csv").exists());
+        assert!(out.join("mine.png").exists());
+    }
+
     use super::RenderArgs;
     use clap::Parser;
 

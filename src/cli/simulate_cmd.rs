@@ -221,8 +221,14 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
             s.starts_with("heatmap_") || s == "coarser_over_time" || s == "bytes_per_frame"
         })
     };
-    atlastree::util::remove_stale_outputs(&cfg.out, plot)
+    let removed = atlastree::util::remove_stale_outputs(&cfg.out, plot)
         .with_context(|| format!("removing an earlier run's plots from {}", cfg.out.display()))?;
+    if removed > 0 {
+        say(format!(
+            "note: removed {removed} plot file(s) of an earlier run from {}",
+            cfg.out.display()
+        ));
+    }
     let mut written = write_csvs(&cfg.out, &results)?;
     written.extend(write_plots(&cfg.out, &cfg.spec, &results)?);
     print_results(&results, cfg.json)?;

@@ -150,12 +150,14 @@ fn shard_files(out: &Path) -> Vec<(u32, u32, PathBuf)> {
         else {
             continue;
         };
-        // Only names a build writes: a stray `-of-0` or `-of-4294967295` is no shard count.
-        if let (Ok(i), Ok(n)) = (i.parse::<u32>(), n.parse::<u32>())
-            && (1..=shard::MAX_SHARDS).contains(&n)
-            && i < n
+        // Only names a build writes (`shard_path`'s own): a stray `-of-0`, `-of-4294967295` or
+        // `-of-04` is no shard count.
+        if let (Ok(index), Ok(count)) = (i.parse::<u32>(), n.parse::<u32>())
+            && (1..=shard::MAX_SHARDS).contains(&count)
+            && index < count
+            && shard_path(out, ShardSpec { index, count }).file_name() == Some(name.as_os_str())
         {
-            found.push((i, n, out.with_file_name(name)));
+            found.push((index, count, out.with_file_name(name)));
         }
     }
     found.sort();

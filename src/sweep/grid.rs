@@ -382,8 +382,8 @@ impl Grid {
         }
         // Every build of the star, as the preprocessor will check it (border < atlas / 4), in u64 so no
         // border overflows the comparison.
-        if let Some(k) = self
-            .plan()
+        let plan = self.plan();
+        if let Some(k) = plan
             .builds
             .iter()
             .map(|b| b.knobs)
@@ -398,12 +398,9 @@ impl Grid {
         }
         // Values that differ past the ids' 12 significant digits would be two rows under one id.
         let mut seen = std::collections::HashSet::new();
-        let plan = self.plan();
-        let variants = plan
-            .builds
-            .iter()
+        let mut variants = (plan.builds.iter())
             .flat_map(|b| (b.runtimes.iter()).map(move |r| variant_id(&b.knobs, r)));
-        if let Some(id) = variants.into_iter().find(|id| !seen.insert(id.clone())) {
+        if let Some(id) = variants.find(|id| !seen.insert(id.clone())) {
             return bad(format!(
                 "two variants print as {id}: values that agree to 12 significant digits are one value \
                  here; give it once"

@@ -297,12 +297,8 @@ pub fn run_sweep(
 /// Refuses, before any build, a capacity below the root atlases every build of `scene` has (one per
 /// tree: opaque, and alpha where a material uses alpha), which no paged renderer can run with.
 pub fn check_capacities(scene: &Scene, plan: &Plan) -> Result<(), SweepError> {
-    let alpha = |t: &crate::scene::Triangle| {
-        (scene.materials.get(t.material.idx())).is_some_and(|m| m.alpha.uses_alpha())
-    };
-    let has_alpha = scene.triangles.iter().any(alpha);
-    let has_opaque = scene.triangles.iter().any(|t| !alpha(t));
-    let roots = u32::from(has_alpha) + u32::from(has_opaque);
+    // The build's own split into trees, so the two cannot drift apart.
+    let roots = crate::preprocess::partition_triangles(scene).len() as u32;
     let caps = plan.builds.iter().flat_map(|b| &b.runtimes);
     match caps.filter_map(|r| r.capacity).min() {
         Some(k) if k < roots => Err(SweepError::Grid {

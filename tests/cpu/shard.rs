@@ -315,7 +315,15 @@ fn merge_without_shards_or_with_two_counts_says_so() {
     ));
     // Stray names no build writes (a count of 0 once panicked the merge, one of 2³²−1 aborted it
     // allocating a shard list, an index past its count) are no shards.
-    for stray in ["0-of-0", "0-of-4294967295", "5-of-4", "0-of-4097", "x-of-2"] {
+    for stray in [
+        "0-of-0",
+        "0-of-4294967295",
+        "5-of-4",
+        "0-of-4097",
+        "x-of-2",
+        "0-of-04",
+        "+1-of-2",
+    ] {
         std::fs::write(
             dir.path().join(format!("city.atlastree.shard-{stray}")),
             b"",

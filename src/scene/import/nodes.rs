@@ -100,7 +100,8 @@ impl<'a> Walk<'a, '_> {
         // Triangles of the instances met so far, against the caller's budget.
         let mut per_mesh: std::collections::HashMap<usize, u64> = Default::default();
         let mut triangles: u64 = 0;
-        let mut counted_instances: u64 = 0;
+        // Every instance met, kept or (past the budget) only counted: the cap bounds the walk's work.
+        let mut met: usize = 0;
         while let Some(step) = stack.pop() {
             let (i, parent) = match step {
                 Step::Exit(i) => {
@@ -145,7 +146,8 @@ impl<'a> Walk<'a, '_> {
             if let Some(mesh) = node.mesh() {
                 let list = self.gpu_instances(node)?;
                 let adding = list.as_ref().map_or(1, Vec::len);
-                if instances.len().saturating_add(adding) > MAX_INSTANCES {
+                met = met.saturating_add(adding);
+                if met > MAX_INSTANCES {
                     return Err(SceneError::TooLarge {
                         file: self.file.to_string(),
                         what: format!(
@@ -158,7 +160,6 @@ impl<'a> Walk<'a, '_> {
                         .entry(mesh.index())
                         .or_insert_with(|| super::mesh::mesh_counts(&mesh).0);
                     triangles = triangles.saturating_add(per.saturating_mul(adding as u64));
-                    counted_instances = counted_instances.saturating_add(adding as u64);
                 }
                 // Past the budget the walk only counts (no instance kept), so the error can say
                 // how much the whole scene needs.
@@ -185,7 +186,7 @@ impl<'a> Walk<'a, '_> {
             return Err(SceneError::OverTriangleBudget {
                 file: self.file.to_string(),
                 triangles,
-                instances: counted_instances,
+                instances: met as u64,
                 max,
             });
         }
