@@ -153,7 +153,8 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         (a.params.memory_budget()).map(atlastree::preprocess::memory::max_plan_triangles);
     let mut scene = load_scene_within(&a.scene, a.up, max_triangles).map_err(|e| {
         let budget = a.params.memory_budget();
-        over_budget(e, budget, a.params.max_memory.is_some())
+        let plan_step = matches!(step, ShardStep::Plan);
+        over_budget(e, budget, a.params.max_memory.is_some(), plan_step)
     })?;
     if !a.materials.is_empty() {
         let kept = super::retain_materials(&mut scene, &a.materials)?;
@@ -229,9 +230,14 @@ fn shard_step(arg: Option<&str>) -> anyhow::Result<ShardStep> {
 }
 
 /// A scene refused in the node walk for the memory budget, with what its plan alone needs (every
-/// triangle held at once; a whole build needs the pixel pass's share on top). `given`: the budget is
-/// `--max-memory`'s, else the default.
-fn over_budget(e: anyhow::Error, budget: Option<u64>, given: bool) -> anyhow::Error {
+/// triangle held at once; a whole build or shard needs the pixel pass's share on top, the plan step
+/// nothing more). `given`: the budget is `--max-memory`'s, else the default.
+fn over_budget(
+    e: anyhow::Error,
+    budget: Option<u64>,
+    given: bool,
+    plan_step: bool,
+) -> anyhow::Error {
     use atlastree::preprocess::memory::{BASE_BYTES, PLAN_BYTES_PER_TRIANGLE};
     use atlastree::scene::SceneError;
     let (Some(&SceneError::OverTriangleBudget { triangles, .. }), Some(budget)) =
@@ -245,10 +251,15 @@ fn over_budget(e: anyhow::Error, budget: Option<u64>, given: bool) -> anyhow::Er
     } else {
         "the default budget (half of this machine's or cgroup's memory)"
     };
+    let pixels = if plan_step {
+        ""
+    } else {
+        " and the pixel pass more"
+    };
     e.context(format!(
         "the budget is too small: {triangles} triangles need at least {} MiB for the plan alone \
-         (~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle, all held at once) and the pixel pass more, over \
-         {source} of {} MiB: give a larger --max-memory",
+         (~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle, all held at once){pixels}, over {source} of {} MiB: \
+         give a larger --max-memory",
         plan.div_ceil(1 << 20),
         budget >> 20
     ))
@@ -653,7 +664,7 @@ mod tests {
             })
         };
         // 64 MiB + 10⁶ × 250 bytes = 302.4 MiB.
-        let msg = format!("{:#}", over_budget(refused(), Some(32 << 20), true));
+        let msg = format!("{:#}", over_budget(refused(), Some(32 << 20), true, false));
         assert!(
             msg.contains("at least 303 MiB for the plan alone")
                 && msg.contains("--max-memory of 32 MiB"),
@@ -663,12 +674,14 @@ mod tests {
             msg.contains("1000000 triangles over 3 mesh instances"),
             "{msg}"
         );
-        let msg = format!("{:#}", over_budget(refused(), Some(32 << 20), false));
+        let msg = format!("{:#}", over_budget(refused(), Some(32 << 20), false, true));
         assert!(msg.contains("the default budget (half of"), "{msg}");
+        // The plan step has no pixel pass.
+        assert!(!msg.contains("pixel pass"), "{msg}");
         // No budget, or another error: unchanged.
-        let none = over_budget(refused(), None, false);
+        let none = over_budget(refused(), None, false, false);
         assert_eq!(format!("{none:#}"), format!("{:#}", refused()));
-        let other = over_budget(anyhow::anyhow!("x"), Some(1), true);
+        let other = over_budget(anyhow::anyhow!("x"), Some(1), true, false);
         assert_eq!(format!("{other:#}"), "x");
     }
 
