@@ -745,3 +745,43 @@ fn a_wide_border_is_warned_about_up_front() {
     );
     assert!(!build(&[]).contains("--border"));
 }
+
+/// A shard's output named by bytes that are not UTF-8 (a valid Unix file name) builds and merges (the
+/// recorded command line panicked in `std::env::args`), and `simulate` with an `--out` under a regular
+/// file is refused before its runs (it ran the whole grid, then failed).
+#[cfg(unix)]
+#[test]
+fn a_non_utf8_shard_output_builds_and_simulate_refuses_its_out_early() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir
+        .path()
+        .join(std::ffi::OsStr::from_bytes(b"n\xffm.atlastree"));
+    let o = run(bin()
+        .args(["build", "--d-min-ratio", "10", "-q", "--shard", "0/1", "-o"])
+        .arg(&out)
+        .arg(scene()));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run(bin().args(["merge", "-q"]).arg(&out));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(atlastree::store::TreeFile::open(&out).is_ok());
+    let taken = dir.path().join("taken");
+    std::fs::write(&taken, b"x").unwrap();
+    let o = run(bin()
+        .args(["simulate", "--frames", "100000", "--out"])
+        .arg(taken.join("x"))
+        .arg(&out));
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(
+        !o.status.success() && stderr.contains("creating"),
+        "{stderr}"
+    );
+    // Refused before the grid's header (then its runs) is printed.
+    assert!(
+        !stdout.contains(" frames at "),
+        "the grid started first: {stdout}"
+    );
+}
