@@ -27,9 +27,10 @@ use std::sync::Arc;
 #[derive(Args, Debug)]
 pub(crate) struct RenderArgs {
     /// The paging file, or an http(s) URL of one (then blocks are paged over HTTP; `--capacity` defaults
-    /// to all blocks). A local file is memory-mapped: rewriting it in place while it renders (`cp` over
-    /// it, `truncate`) stops the run with SIGBUS; publish a new file by renaming it over the old one (as
-    /// `build` does), or set ATLASTREE_NO_MMAP=1 to read it into memory instead.
+    /// to all blocks). A local file's tables are memory-mapped: truncating it while it renders can stop
+    /// the run with SIGBUS (paged blocks are read through a handle of their own, so there a file rewritten
+    /// in place costs counted load failures). Publish a new file by renaming it over the old one (as
+    /// `build` does), or set ATLASTREE_NO_MMAP=1 to read the file into memory.
     pub file: PathBuf,
     /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
     #[arg(long, default_value = "overview-dive")]

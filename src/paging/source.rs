@@ -156,14 +156,20 @@ pub trait BlockSource: Send + Sync {
     fn fetch(&self, id: BlockId, record: &BlockRecord) -> Result<Vec<u8>, SourceError>;
 }
 
-/// Blocks from an open (memory-mapped or read) paging file.
+/// Blocks from an open paging file: where it is memory-mapped, read through a handle of their own
+/// ([`crate::store::BlockReader`]: a file truncated in place gives counted load failures, not SIGBUS);
+/// where it was read into memory (or the path cannot be opened again), from its bytes.
 pub struct FileSource {
     file: Arc<TreeFile>,
+    reader: Option<crate::store::BlockReader>,
 }
 
 impl FileSource {
     pub fn new(file: Arc<TreeFile>) -> FileSource {
-        FileSource { file }
+        let reader = (file.is_mapped())
+            .then(|| crate::store::BlockReader::open(file.path()).ok())
+            .flatten();
+        FileSource { file, reader }
     }
 }
 
@@ -172,14 +178,17 @@ impl BlockSource for FileSource {
         self.file.path().display().to_string()
     }
 
-    fn fetch(&self, id: BlockId, _record: &BlockRecord) -> Result<Vec<u8>, SourceError> {
-        self.file
-            .block(id)
-            .map(<[u8]>::to_vec)
-            .map_err(|error| SourceError::Store {
-                source_name: self.name(),
-                error,
-            })
+    fn fetch(&self, id: BlockId, record: &BlockRecord) -> Result<Vec<u8>, SourceError> {
+        let store = |error| SourceError::Store {
+            source_name: self.name(),
+            error,
+        };
+        let Some(reader) = &self.reader else {
+            return self.file.block(id).map(<[u8]>::to_vec).map_err(store);
+        };
+        let bytes = reader.read(record.offset, record.length).map_err(store)?;
+        verify(&self.name(), id, record, &bytes)?;
+        Ok(bytes)
     }
 }
 

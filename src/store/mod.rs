@@ -19,7 +19,7 @@ pub mod shard_plan;
 mod validate;
 mod write;
 
-pub use read::{LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
+pub use read::{BlockReader, LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
 pub use write::{FileWriter, WriteSummary, check_replaceable, table_prefix};
 
 use crate::ids::BlockId;

@@ -90,6 +90,38 @@ impl Backing {
     }
 }
 
+/// A paging file's blocks read with positional reads through a handle of their own, not the memory map:
+/// a file truncated or rewritten in place while it is paged from gives an error for each block it lost
+/// (counted by the pager, drawn coarser), where a read through the map would end the process with SIGBUS.
+/// A file renamed over the path keeps being read from the file this handle opened.
+pub struct BlockReader {
+    file: File,
+    path: PathBuf,
+}
+
+impl BlockReader {
+    pub fn open(path: &Path) -> Result<BlockReader, StoreError> {
+        let file = crate::util::open_regular(path).map_err(|e| StoreError::io(path, e))?;
+        Ok(BlockReader {
+            file,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// The `length` bytes at `offset` (a block's record); unchecked (the caller verifies the checksum).
+    pub fn read(&self, offset: u64, length: u64) -> Result<Vec<u8>, StoreError> {
+        let len = usize::try_from(length).map_err(|_| {
+            StoreError::io(&self.path, std::io::Error::other("block length past usize"))
+        })?;
+        let mut bytes = vec![0u8; len];
+        super::positional::read_exact_at(&self.file, &mut bytes, offset).map_err(|e| {
+            let e = std::io::Error::new(e.kind(), format!("bytes {offset}..+{length}: {e}"));
+            StoreError::io(&self.path, e)
+        })?;
+        Ok(bytes)
+    }
+}
+
 /// An open, validated paging file.
 ///
 /// # Safety contract of the memory map
