@@ -217,11 +217,11 @@ pub(super) fn print_verify(v: &VerifyReport) {
     for m in &v.violations {
         println!("  violation: {m}");
     }
-    if v.periods_checked > 0 {
+    if let Some(ratio_min) = v.period_ratio_min {
         println!(
             "  texels per period: {} (triangle, axis) pairs checked, smallest ratio to the need {:.6}{}",
             v.periods_checked,
-            v.period_ratio_min,
+            ratio_min,
             if v.periods_undecidable > 0 {
                 format!(
                     "; {} not decidable from the file's f32 geometry (sized in f64 by the build)",

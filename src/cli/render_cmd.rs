@@ -186,6 +186,16 @@ impl RenderArgs {
                 r.name()
             );
         }
+        if let Some(r) = self.reference
+            && !modes.iter().any(|&m| measured(m, Some(r)))
+        {
+            bail!(
+                "--reference {} measures modes tree, dummy and original (original only against a \
+                 supersampled reference); --mode {} draws none of them",
+                r.name(),
+                modes.iter().map(|m| m.name()).collect::<Vec<_>>().join(",")
+            );
+        }
         if paging.is_some() && modes.contains(&Mode::Original) {
             bail!(
                 "--mode original draws every original texture naively and needs every block resident: \
@@ -728,5 +738,14 @@ mod tests {
             "tree,original",
         ]);
         assert!(e.ends_with("not when paging (--capacity)"), "{e}");
+        // A reference no chosen mode is measured against (it was rendered for nothing).
+        let e = refusal(&[
+            "city.atlastree",
+            "--mode",
+            "tree-levels",
+            "--reference",
+            "supersampled:2",
+        ]);
+        assert!(e.contains("draws none of them"), "{e}");
     }
 }

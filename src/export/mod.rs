@@ -139,6 +139,8 @@ pub struct ImageSummary {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct LevelSummary {
     pub tiles: usize,
+    /// Image files (and their bytes) of the level's tiles; images embedded as data URIs are counted in
+    /// `gltf_bytes`, as the export's totals count them.
     pub images: usize,
     pub image_bytes: u64,
     pub gltf_bytes: u64,
@@ -454,6 +456,8 @@ fn level_summaries(tiles: &[TileSummary]) -> BTreeMap<String, LevelSummary> {
         .map(|(k, (mut e, mut imgs))| {
             imgs.sort_unstable_by(|a, b| a.uri.cmp(&b.uri));
             imgs.dedup_by(|a, b| a.uri == b.uri);
+            // Image files: an embedded image's bytes are in its tile's glTF bytes (base64).
+            imgs.retain(|i| !i.embedded);
             e.images = imgs.len();
             e.image_bytes = imgs.iter().map(|i| i.bytes).sum();
             (k, e)
@@ -464,7 +468,7 @@ fn level_summaries(tiles: &[TileSummary]) -> BTreeMap<String, LevelSummary> {
 fn count_images(tiles: &[TileSummary]) -> usize {
     let mut uris: Vec<&str> = tiles
         .iter()
-        .flat_map(|t| t.images.iter().map(|i| i.uri.as_str()))
+        .flat_map(|t| (t.images.iter().filter(|i| !i.embedded)).map(|i| i.uri.as_str()))
         .collect();
     uris.sort_unstable();
     uris.dedup();

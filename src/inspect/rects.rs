@@ -213,11 +213,7 @@ fn check_periods(
         }
         let ratio = tpu[k] / want;
         r.periods_checked += 1;
-        r.period_ratio_min = if r.periods_checked == 1 {
-            ratio
-        } else {
-            r.period_ratio_min.min(ratio)
-        };
+        r.period_ratio_min = Some(r.period_ratio_min.map_or(ratio, |m| m.min(ratio)));
         if ratio < 1.0 - PERIOD_TOLERANCE {
             r.fail(format!(
                 "rect of material {} axis {k}: {:.3} texels per period but a triangle needs {want:.3} at the \

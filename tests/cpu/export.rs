@@ -79,6 +79,22 @@ fn read_json(p: &Path) -> Value {
 fn the_tileset_mirrors_the_tree_and_every_uri_resolves() {
     let (_dir, out, summary, file) = export(false);
     let forest = file.to_forest();
+    // The summary counts image files (embedded images are in the glTF bytes), in total and per level.
+    let files: Vec<PathBuf> = (walkdir(&out).into_iter())
+        .filter(|p| p.parent().unwrap().ends_with("img"))
+        .collect();
+    assert_eq!(summary.images, files.len());
+    let on_disk: u64 = files
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
+    assert_eq!(summary.image_bytes, on_disk);
+    for (level, l) in &summary.levels {
+        assert!(
+            l.image_bytes <= on_disk && l.images <= files.len(),
+            "level {level}"
+        );
+    }
     let ts = read_json(&out.join("tileset.json"));
     assert_eq!(ts["asset"]["version"], "1.1");
     assert_eq!(ts["root"]["refine"], "REPLACE");
