@@ -659,6 +659,11 @@ pub(super) struct PixelPass {
     pub(super) atlas_psnr_db: Vec<f64>,
 }
 
+/// Below this scale, leaves scaled for an oversized rect are warned about: the whole leaf shrinks with
+/// its one oversized texture (`--no-source-cap` took hacienda's opaque root to one leaf at 770 m, its
+/// alpha tree to scale 0.001, 5.6× the scene's diagonal, without a word).
+const OVERSIZED_WARN_SCALE: f64 = 0.125;
+
 /// The report of a finished build, with the warnings of the image cache and of clamped leaves.
 pub(super) fn build_report(
     params: BuildParams,
@@ -676,6 +681,16 @@ pub(super) fn build_report(
         .count() as u64;
     let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
     for r in &trees {
+        let lr = &r.leaf_reasons;
+        if lr.oversized > 0 && lr.scale_min < OVERSIZED_WARN_SCALE {
+            warnings.push(format!(
+                "{:?} tree: {} leaves scaled for an oversized rect, down to scale {:.3} (root min_distance {:.1} \
+                 m): one texture's period alone needs more than an atlas (--no-source-cap, a large --texel-ratio) \
+                 and every texture of such a leaf is shrunk with it, so the tree serves from far away only; \
+                 keep textures capped to their source or raise --atlas-size",
+                r.kind, lr.oversized, lr.scale_min, r.root_min_distance
+            ));
+        }
         if r.leaf_reasons.clamped > 0 {
             warnings.push(format!(
                 "{:?} tree: {} leaves hold a triangle that alone needs more than one atlas; their resolution was \

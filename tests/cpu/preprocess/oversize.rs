@@ -288,3 +288,44 @@ fn a_d_min_whose_texel_density_overflows_is_refused() {
     );
     assert!(msg.len() < 400, "{} characters: {msg}", msg.len());
 }
+
+/// A texture whose single period needs far more than an atlas (no source cap) shrinks every texture of its
+/// leaf with it; below scale 1/8 the build says so (`--no-source-cap` took hacienda's alpha tree to one
+/// leaf at scale 0.001, 5.6× the scene's diagonal, without a word). Capped to its 64² source the period
+/// fits, and nothing is said.
+#[test]
+fn a_leaf_shrunk_far_for_an_oversized_rect_is_warned_about() {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.pattern_image("fine", 64, 4);
+    let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    let corners = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)];
+    b.quad(
+        corners.map(|(x, z)| DVec3::new(x, 0.0, z)),
+        DVec2::ZERO,
+        DVec2::ONE,
+        m,
+    );
+    let scene = b.build();
+    let build = |cap_to_source| {
+        build_ok(
+            &scene,
+            &BuildOptions {
+                cap_to_source,
+                ..tiny_opts(256, 0.05)
+            },
+        )
+    };
+    let uncapped = build(false);
+    let lr = &uncapped.report.trees[0].leaf_reasons;
+    assert!(lr.oversized > 0 && lr.scale_min < 0.125, "{lr:?}");
+    let warned =
+        (uncapped.report.warnings.iter()).any(|w| w.contains("scaled for an oversized rect"));
+    assert!(warned, "{:?}", uncapped.report.warnings);
+    let capped = build(true);
+    assert_eq!(capped.report.trees[0].leaf_reasons.oversized, 0);
+    assert!(
+        capped.report.warnings.is_empty(),
+        "{:?}",
+        capped.report.warnings
+    );
+}
