@@ -21,7 +21,7 @@ pub(crate) struct DemoArgs {
     #[arg(long, default_value = "out/demo")]
     pub out: PathBuf,
     /// Atlas size for the demo build: 256, not the default 1024, so that the embedded 2-Mtexel district
-    /// needs many atlases and splits into a quadtree of depth ≥ 3 (at 1024 it is one scaled leaf).
+    /// needs many atlases and splits into a quadtree of depth ≥ 3 (at 1024 it fits one leaf).
     #[arg(long, default_value_t = DemoTour::DEFAULT.atlas_size)]
     pub atlas_size: u32,
     /// d_min = scene diagonal / R. The default scene is a 600 m district, not a 10 km city, so its d_min is
@@ -30,7 +30,8 @@ pub(crate) struct DemoArgs {
     #[arg(long, default_value_t = DemoTour::DEFAULT.d_min_ratio)]
     pub d_min_ratio: f64,
     /// `build --leaf-originals` for the demo: the default scene holds only 2 Mtexels of textures, which the
-    /// default budget (16 atlases) keeps in one scaled leaf; 2 atlases split it down to small leaves.
+    /// default budget (16 atlases) keeps in a few scaled leaves (depth 1 at atlas 256); 2 atlases split it
+    /// down to small leaves.
     #[arg(long, default_value_t = DemoTour::DEFAULT.leaf_originals)]
     pub leaf_originals: f64,
     /// Frames of the rendered overview-dive, spread evenly over the whole path (first to last keyframe).

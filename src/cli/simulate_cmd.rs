@@ -212,6 +212,15 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     let t = std::time::Instant::now();
     let results = run_grid(&input, &cameras, &scales, &cfg.spec, &|| bar.inc(1))?;
     bar.finish_and_clear();
+    // A path that never looks at the scene pages only the roots: every run would read as ideal.
+    let drawn =
+        |r: &atlastree::sim::grid::RunResult| r.rows.iter().any(|f| f.paging.coarse.items > 0);
+    if !results.iter().any(drawn) {
+        eprintln!(
+            "warning: no frame of the path draws any node of the tree (does it look at the scene?): the \
+             runs measure nothing, and their coarser shares of 0 mean nothing drawn, not ideal paging"
+        );
+    }
     let wall = t.elapsed().as_secs_f64();
     // An earlier grid's plots that this one does not draw (other latencies or policies) would sit
     // beside this run's summary as if they were its own.

@@ -246,6 +246,14 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
         &cfg.scene.display().to_string(),
         &cfg.path.to_string(),
     )?;
+    // A path that never looks at the scene covers no pixel: every PSNR is the 99 dB cap of nothing.
+    if !data.frames.is_empty() && data.frames.iter().all(|f| f.covered_pixels == 0) {
+        eprintln!(
+            "warning: no frame of the path covers any pixel of the scene (does it look at it?): PSNR and \
+             SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and neither does \
+             the recommendation"
+        );
+    }
     let rec = recommend(&rows, PSNR_TOLERANCE_DB);
     if cfg.json {
         let out =

@@ -20,6 +20,14 @@ use std::process::ExitCode;
 /// Scripted: `--screenshot-after N --exit` writes the N-th frame to --screenshot and quits, e.g. under
 /// `xvfb-run -a` on a machine without a display (any wgpu backend; lavapipe works).
 #[derive(Args, Debug)]
+// `render`'s paging flags beyond --capacity are refused here ("means nothing for view"): not listed.
+#[command(
+    mut_arg("source", |a| a.hide(true)),
+    mut_arg("upload_budget", |a| a.hide(true)),
+    mut_arg("max_queue", |a| a.hide(true)),
+    mut_arg("policy", |a| a.hide(true)),
+    mut_arg("loader_threads", |a| a.hide(true))
+)]
 pub(crate) struct ViewArgs {
     /// The paging file.
     pub file: PathBuf,

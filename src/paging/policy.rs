@@ -6,8 +6,9 @@ use super::usage::{Candidate, Usage};
 use serde::Serialize;
 use std::cmp::Ordering;
 
-/// A paging policy (`--policy`).
+/// A paging policy (`--policy`); JSON writes it as `--policy` takes it (`paper`, …).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Default)]
+#[serde(rename_all = "lowercase")]
 pub enum Policy {
     /// Buchholz & Döllner §6: rank by (usage, distance, level); the ideal set is the first `k`; requests
     /// that leave the ideal set are cancelled; the lowest-ranked resident block outside it is evicted.
@@ -103,5 +104,20 @@ impl std::str::FromStr for Policy {
     fn from_str(s: &str) -> Result<Policy, String> {
         Policy::parse(s)
             .ok_or_else(|| format!("unknown policy {s:?}: expected paper, distance, lru or ours"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Policy;
+
+    /// JSON names a policy as `--policy` takes it (`simulate --json` wrote `"Paper"`).
+    #[test]
+    fn json_spells_a_policy_as_the_flag_does() {
+        for p in Policy::ALL {
+            let json = serde_json::to_string(&p).unwrap();
+            assert_eq!(json, format!("\"{}\"", p.name()));
+            assert_eq!(Policy::parse(p.name()), Some(p));
+        }
     }
 }

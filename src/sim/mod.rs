@@ -39,6 +39,8 @@ pub struct IoModel {
 pub struct ModelLoader {
     model: IoModel,
     wanted: Vec<Request>,
+    /// Requests the last poll found no free slot for (the frame's `queued`; the pager asks again).
+    waiting: u32,
     /// `(block, finish time)` in start order.
     in_flight: Vec<(BlockId, f64)>,
     pipe_free_at: f64,
@@ -49,6 +51,7 @@ impl ModelLoader {
         ModelLoader {
             model,
             wanted: Vec::new(),
+            waiting: 0,
             in_flight: Vec::new(),
             pipe_free_at: 0.0,
         }
@@ -72,6 +75,7 @@ impl Loader for ModelLoader {
     fn poll(&mut self, now: f64, out: &mut Vec<Arrival>) {
         let m = self.model;
         let slots = (m.max_in_flight.max(1) as usize).saturating_sub(self.in_flight.len());
+        self.waiting = self.wanted.len().saturating_sub(slots) as u32;
         for r in self.wanted.drain(..).take(slots) {
             let start_transfer = (now + m.latency + m.overhead).max(self.pipe_free_at);
             let finish = start_transfer + r.bytes as f64 / m.bandwidth;
@@ -94,7 +98,7 @@ impl Loader for ModelLoader {
     }
 
     fn queued(&self) -> u32 {
-        self.wanted.len() as u32
+        self.waiting
     }
 
     fn in_flight(&self) -> u32 {
@@ -342,5 +346,33 @@ pub fn summarise(rows: &[FrameRow], cancelled: u64, discarded: u64) -> RunSummar
         stalls: rows.iter().filter(|r| r.coarser_share() >= 0.5).count() as u32,
         cancelled,
         discarded,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Requests beyond the free transfer slots are the frame's `queued` (frames.csv), as a real loader's
+    /// waiting requests are; it read 0 always (the poll had cleared them).
+    #[test]
+    fn requests_past_the_free_slots_are_queued() {
+        let mut l = ModelLoader::new(IoModel {
+            bandwidth: 1e6,
+            latency: 0.0,
+            overhead: 0.0,
+            max_in_flight: 4,
+        });
+        let wanted: Vec<Request> = (0..7)
+            .map(|i| Request {
+                block: BlockId(i),
+                bytes: 1_000_000,
+            })
+            .collect();
+        l.set_requests(&wanted);
+        let mut out = Vec::new();
+        l.poll(0.0, &mut out);
+        assert_eq!((l.in_flight(), l.queued()), (4, 3));
+        assert!(out.is_empty());
     }
 }

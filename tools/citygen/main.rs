@@ -34,8 +34,8 @@ enum Kind {
     /// triangles with u, v up to ±300, MIRRORED_REPEAT and CLAMP_TO_EDGE samplers, fences (MASK 0.5),
     /// crossed-quad trees (BLEND), palette signs, JPEG photos, untextured roofs.
     Chemnitz,
-    /// A small blend: 24·S Berlin buildings (256² facades) next to a Chemnitz district with ⌈N/3⌉
-    /// buildings and a 24·S-texture pool capped at 256² (the committed fixture `data/city`).
+    /// A small blend: 24·S Berlin buildings (256² facades) next to a Chemnitz district with at least ⌈N/3⌉
+    /// buildings (as many as its facade and roof sets need) and a 24·S-texture pool capped at 256² (the committed fixture `data/city`).
     Mixed,
 }
 
