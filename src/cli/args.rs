@@ -137,8 +137,9 @@ impl Viewport {
 #[derive(Args, Debug, Clone, Default)]
 pub(crate) struct QueueArgs {
     /// Upload budget per frame: `unlimited` (or a bare `0`), bytes (`8MB`, `512KiB`) or, for `render`,
-    /// time (`2ms`); at least one block per frame is always accepted, so a zero size with a unit (`0B`) is
-    /// refused as meaningless [default: unlimited]
+    /// time (`2ms`): blocks are accepted while the frame's total is below it (the block that crosses it
+    /// too, so a frame may exceed it by one block); at least one block per frame is always accepted, so a
+    /// zero size with a unit (`0B`) is refused as meaningless [default: unlimited]
     #[arg(long, value_name = "BUDGET")]
     pub upload_budget: Option<UploadBudget>,
     /// Maximum outstanding block requests [default: 8]

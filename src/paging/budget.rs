@@ -9,8 +9,10 @@ pub enum UploadBudget {
     #[default]
     Unlimited,
     /// Bytes uploaded per frame, as [`crate::paging::BlockMeta::upload_bytes`] counts them (original
-    /// textures as their class layers); at least one block per frame is always accepted, so a block
-    /// larger than the budget still loads.
+    /// textures as their class layers): blocks are accepted while the frame's accepted bytes are below
+    /// the budget, so the block that crosses it is accepted too (a frame can upload up to the budget plus
+    /// one block), and at least one block per frame always is, so a block larger than the budget still
+    /// loads.
     Bytes(u64),
     /// Milliseconds of upload work per frame, measured around the upload callback (same minimum).
     Millis(f64),
