@@ -740,7 +740,6 @@ mod tests {
         let args = ["atlastree", "build", "s.glb", "-oout/x.at", "-q"].map(String::from);
         let got = recorded_argv(args.into_iter(), Path::new("s.glb"), Path::new("out/x.at"));
         assert_eq!(got[3], format!("-o{}", abs("out/x.at")));
-
         assert_eq!(got[4], "-q");
         let args = ["atlastree", "build", "s.glb", "-o=out/x.at"].map(String::from);
         let got = recorded_argv(args.into_iter(), Path::new("s.glb"), Path::new("out/x.at"));

@@ -662,6 +662,9 @@ pub(super) fn parse_anisotropy(s: &str) -> Result<u16, String> {
 
 #[cfg(test)]
 mod tests {
+    use super::RenderArgs;
+    use clap::Parser;
+
     /// An earlier run's outputs that this run does not overwrite go, and only those: mode folders an
     /// earlier multi-mode run's summary names, top-level outputs of a single-mode run when this run
     /// draws into folders; a user's file, or a folder the summary does not name, stays.
@@ -703,9 +706,6 @@ mod tests {
         assert!(!out.join("frame_0003.png").exists() && !out.join("stats.csv").exists());
         assert!(out.join("mine.png").exists());
     }
-
-    use super::RenderArgs;
-    use clap::Parser;
 
     #[derive(Parser)]
     struct Render {

@@ -691,11 +691,11 @@ pub(super) fn build_report(
                 r.kind, lr.oversized, lr.scale_min, r.root_min_distance
             ));
         }
-        if r.leaf_reasons.clamped > 0 {
+        if lr.clamped > 0 {
             warnings.push(format!(
                 "{:?} tree: {} leaves hold a triangle that alone needs more than one atlas; their resolution was \
                  scaled down and their min_distance raised accordingly",
-                r.kind, r.leaf_reasons.clamped
+                r.kind, lr.clamped
             ));
         }
     }
