@@ -424,20 +424,29 @@ fn sample_class(class_index: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy
 }
 
 // One axis of a wrap mode, into [0, 1] for a sampler that repeats. Repeat: fract (the repeating sampler
-// filters across the seam). Mirror and clamp: additionally kept half a texel (of mip 0) inside the edge,
-// so the repeating sampler does not blend in the opposite edge there; that is exactly what mirror and
-// clamp filtering give at mip 0 (coarser mips blend at most half a texel of the opposite edge).
-fn wrap_axis(u: f32, mode: u32, size: f32) -> f32 {
-    let h = 0.5 / size;
+// filters across the seam). Mirror and clamp: additionally kept `inset` (in UV) inside the edge, so the
+// repeating sampler does not blend in the opposite edge there ([`edge_inset`]: half a texel of the
+// coarser mip the trilinear filter reads).
+fn wrap_axis(u: f32, mode: u32, inset: f32) -> f32 {
     if mode == WRAP_MIRROR {
         let t = fract(u * 0.5) * 2.0;
         let m = select(t, 2.0 - t, t > 1.0);
-        return clamp(m, h, 1.0 - h);
+        return clamp(m, inset, 1.0 - inset);
     }
     if mode == WRAP_CLAMP {
-        return clamp(u, h, 1.0 - h);
+        return clamp(u, inset, 1.0 - inset);
     }
     return fract(u);
+}
+
+// Per axis, half a texel (in UV of a texture of `extent` texels) of the coarser of the two mip levels a
+// trilinear sample with UV derivatives `ddx`, `ddy` reads: level ⌈log2 ρ⌉ for ρ the footprint's longer
+// side in texels (the isotropic level; an anisotropic sample reads a level no coarser). At most 0.5: a
+// texel wider than the texture is its average, read at the centre, as clamp and mirror give there.
+fn edge_inset(ddx: vec2<f32>, ddy: vec2<f32>, extent: vec2<f32>) -> vec2<f32> {
+    let rho = max(length(ddx * extent), length(ddy * extent));
+    let texel = exp2(ceil(log2(max(rho, 1.0))));
+    return min(vec2<f32>(0.5 * texel) / extent, vec2<f32>(0.5));
 }
 
 fn level_colour(level: u32) -> vec3<f32> {
@@ -530,9 +539,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         let sv = singular_values(ddx * scale, ddy * scale, e.class_size);
         return vec4<f32>(sv.x, sv.y, f32(SOURCE_ORIGINAL), f32(draw_level(in)));
     }
+    let inset = edge_inset(ddx, ddy, e.extent);
     let wrapped = vec2<f32>(
-        wrap_axis(in.uv.x, e.wrap & CODE_MASK, e.extent.x),
-        wrap_axis(in.uv.y, (e.wrap >> WRAP_T_SHIFT) & CODE_MASK, e.extent.y),
+        wrap_axis(in.uv.x, e.wrap & CODE_MASK, inset.x),
+        wrap_axis(in.uv.y, (e.wrap >> WRAP_T_SHIFT) & CODE_MASK, inset.y),
     ) * scale;
     let colour = sample_class(e.class_index, wrapped, e.layer, ddx * scale, ddy * scale) * e.factor;
     return finish(colour, e.cutoff, e.alpha_mode);

@@ -528,6 +528,8 @@ fn fly(
 ) -> anyhow::Result<()> {
     let params = file.to_params();
     let mut selections = Vec::new();
+    // Reference frames of one colour throughout (the sky alone, or a view inside a wall).
+    let (mut truths, mut flat_truths) = (0usize, 0usize);
     for (i, cam) in cameras.iter().enumerate() {
         let scale = cfg.viewport.scale(&params, cam.fov_x_deg)?;
         let plan = fl
@@ -544,6 +546,10 @@ fn fly(
                 Some(fl.renderer.read_frame()?)
             }
         };
+        if let Some(t) = &truth {
+            truths += 1;
+            flat_truths += usize::from(is_one_colour(t));
+        }
         for run in runs.iter_mut() {
             let s = fl.renderer.execute(plan, run.mode)?;
             if let Some(truth) = &truth
@@ -562,6 +568,13 @@ fn fly(
             }
         }
     }
+    if truths > 0 && flat_truths == truths {
+        eprintln!(
+            "warning: every reference frame of the path is one colour (the sky alone: does the path look \
+             at the scene, and is the scene larger than a pixel from it?): PSNR 99 dB and SSIM 1 measure \
+             nothing here"
+        );
+    }
     if cfg.selection {
         std::fs::create_dir_all(&cfg.out)
             .with_context(|| format!("creating {}", cfg.out.display()))?;
@@ -571,6 +584,13 @@ fn fly(
             .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
+}
+
+/// Whether every pixel of an RGBA8 frame has the first pixel's colour (the frame shows nothing).
+fn is_one_colour(rgba: &[u8]) -> bool {
+    let mut px = rgba.chunks_exact(4);
+    let first = px.next();
+    px.all(|p| Some(p) == first)
 }
 
 /// One frame's selection: every tree's cut items, as drawn (a missing block's item is listed as
@@ -664,6 +684,18 @@ pub(super) fn parse_anisotropy(s: &str) -> Result<u16, String> {
 mod tests {
     use super::RenderArgs;
     use clap::Parser;
+
+    /// A frame of the clear colour alone is one colour (the warning's case); one pixel drawn, or an empty
+    /// frame's single pixel, decides it.
+    #[test]
+    fn a_frame_of_one_colour_is_told_from_one_with_a_pixel_drawn() {
+        use super::is_one_colour;
+        let mut frame = [40u8, 90, 200, 255].repeat(64);
+        assert!(is_one_colour(&frame));
+        frame[4 * 37 + 1] = 91;
+        assert!(!is_one_colour(&frame));
+        assert!(is_one_colour(&[1, 2, 3, 4]));
+    }
 
     /// An earlier run's outputs that this run does not overwrite go, and only those: mode folders an
     /// earlier multi-mode run's summary names, top-level outputs of a single-mode run when this run

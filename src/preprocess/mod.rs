@@ -664,6 +664,36 @@ pub(super) struct PixelPass {
 /// alpha tree to scale 0.001, 5.6× the scene's diagonal, without a word).
 const OVERSIZED_WARN_SCALE: f64 = 0.125;
 
+/// The warning for original textures stored smaller than their source: how many, and the first few by
+/// name with both sizes.
+fn downsampled_warning(cache: &raster::ImageCache<'_>) -> Option<String> {
+    let d = cache.downsampled.lock().ok()?;
+    if d.is_empty() {
+        return None;
+    }
+    let names: Vec<String> = d
+        .iter()
+        .take(3)
+        .map(|(id, (src, stored))| {
+            let name = cache.image_name(*id);
+            format!("{name} {}×{} → {}×{}", src[0], src[1], stored[0], stored[1])
+        })
+        .collect();
+    let more = if d.len() > names.len() { ", …" } else { "" };
+    let (what, have) = if d.len() == 1 {
+        ("original texture has", "it is")
+    } else {
+        ("original textures have", "they are")
+    };
+    Some(format!(
+        "{} {what} a side above {} texels and {have} stored downsampled to it ({}{more}): views nearer \
+         than their leaf's min_distance and --mode original draw them at that resolution",
+        d.len(),
+        crate::model::MAX_ORIGINAL_CLASS,
+        names.join(", ")
+    ))
+}
+
 /// The report of a finished build, with the warnings of the image cache and of clamped leaves.
 pub(super) fn build_report(
     params: BuildParams,
@@ -685,7 +715,8 @@ pub(super) fn build_report(
         if lr.oversized > 0 && lr.scale_min < OVERSIZED_WARN_SCALE {
             warnings.push(format!(
                 "{:?} tree: {} leaves scaled for an oversized rect, down to scale {:.3} (root min_distance {:.1} \
-                 m): one texture's period alone needs more than an atlas (--no-source-cap, a large --texel-ratio) \
+                 m): one texture's period alone needs more than an atlas (a source side above --atlas-size, \
+                 --no-source-cap, a large --texel-ratio) \
                  and every texture of such a leaf is shrunk with it, so the tree serves from far away only; \
                  keep textures capped to their source or raise --atlas-size",
                 r.kind, lr.oversized, lr.scale_min, r.root_min_distance
@@ -698,6 +729,9 @@ pub(super) fn build_report(
                 r.kind, lr.clamped
             ));
         }
+    }
+    if let Some(w) = downsampled_warning(cache) {
+        warnings.push(w);
     }
     let atlas_texels = crate::texfmt::TexFormat::Rgba8.chain_bytes(forest.params.atlas_size) / 4;
     let texels_stored = trees

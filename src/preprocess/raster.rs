@@ -94,7 +94,13 @@ pub struct ImageCache<'a> {
     /// Images a later decode (after eviction) gave other pixels than the first: the file changed during
     /// the build ([`Self::changed_image`]).
     changed: Mutex<Vec<ImageId>>,
+    /// Original textures stored smaller than their source (a side above
+    /// [`crate::model::MAX_ORIGINAL_CLASS`]): by image, its decoded and its stored sides (reported).
+    pub downsampled: Mutex<std::collections::BTreeMap<ImageId, Downsampled>>,
 }
+
+/// An original texture stored smaller than its source: the decoded `[width, height]`, then the stored.
+pub type Downsampled = ([u32; 2], [u32; 2]);
 
 /// An original texture as stored: image, stored `[width, height]`, wrap modes (resampling depends on
 /// them), storage format and compared channels (the encoding depends on them), and the bits of the MASK
@@ -196,6 +202,7 @@ impl<'a> ImageCache<'a> {
             decode_locks: scene.images.iter().map(|_| Mutex::new(())).collect(),
             pixel_hashes: scene.images.iter().map(|_| Default::default()).collect(),
             changed: Mutex::new(Vec::new()),
+            downsampled: Mutex::new(Default::default()),
         }
     }
 
@@ -211,11 +218,15 @@ impl<'a> ImageCache<'a> {
         let Some(&id) = lock(&self.changed).iter().min() else {
             return Ok(());
         };
-        let name = self.scene.images.get(id.idx()).map_or("?", |i| &i.name);
         Err(BuildError::ImageChanged {
             image: id.0,
-            name: name.to_string(),
+            name: self.image_name(id).to_string(),
         })
+    }
+
+    /// Image `id`'s name in the scene (`?` for an id the scene lacks).
+    pub fn image_name(&self, id: ImageId) -> &str {
+        self.scene.images.get(id.idx()).map_or("?", |i| &i.name)
     }
 
     /// Records the pixels of a decode of `id`; a second decode with other pixels marks it changed.
@@ -310,6 +321,10 @@ impl ImageCache<'_> {
         let what = || format!("original texture {} at {w}×{h}", key.0.0);
         let img = self.get(key.0);
         let identity = resample_is_identity(&img, w, h);
+        let source = [img.decoded.width, img.decoded.height];
+        if source[0] > w || source[1] > h {
+            lock(&self.downsampled).insert(key.0, (source, [w, h]));
+        }
         // The cached chain is box-filtered, as resampling wants; so is the stored chain.
         let resampled = || resample_rect(&img.chain, w, h, key.2).map_err(|e| image_err(what(), e));
         let encode_err = |source| BuildError::Encode {

@@ -14,7 +14,8 @@
 //!   maths (UVs of ±1e5 are reduced by their period first).
 //! - [`draw_rect`]: fill one packed texture area of a leaf atlas, border included (§5.2.2, §5.2.3).
 //! - [`combine_quadrants`]: the inner-node atlas from four children's level-1 mips (§5.1).
-//! - [`resample_rect`] / [`resample_square`]: original textures at their stored power-of-two sides,
+//! - [`resample_rect`] / [`resample_square`]: original textures at their stored power-of-two sides (a
+//!   Catmull-Rom cubic where they grow: [`magnify_cubic`]),
 //!   seamless under wrap.
 //!
 //! Conventions: texel `(x, y)` has `y` = row from the top; UV `(0, 0)` is the top-left corner of the image,
@@ -22,6 +23,7 @@
 
 mod coverage;
 mod linear;
+mod magnify;
 mod mip;
 mod raster;
 mod sample;
@@ -30,6 +32,7 @@ mod srgb_simd;
 
 pub use coverage::{AlphaMips, CoverageRegion, preserve_coverage};
 pub use linear::LinearImage;
+pub use magnify::magnify_cubic;
 pub use mip::{
     MipChain, MipFilter, MipOptions, downsample, halve, mip_chain_rgba8, mip_chain_rgba8_with,
 };

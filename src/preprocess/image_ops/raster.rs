@@ -3,6 +3,7 @@
 
 use super::ImageOpsError;
 use super::linear::LinearImage;
+use super::magnify::magnify_cubic;
 use super::mip::{MipChain, MipFilter, MipOptions};
 use super::sample::{AxisTaps, FootprintPlan, apply_rows, period_shift, tap_row, tap_rows};
 use super::srgb::srgb8_to_linear;
@@ -274,9 +275,11 @@ pub fn resample_square(
 }
 
 /// The image of `chain` (its linear-light box mip chain, e.g. the one the image cache holds; box weights
-/// do not depend on wrap) resampled to `w × h` (an original texture at its stored power-of-two sides),
-/// filtered like [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the edges
-/// follow `wrap`, so a repeat or mirror texture tiles as seamlessly after resampling as before.
+/// do not depend on wrap) resampled to `w × h` (an original texture at its stored power-of-two sides).
+/// Where neither side shrinks and one grows (a non-power-of-two texture rounded up), a Catmull-Rom cubic
+/// of level 0 ([`magnify_cubic`]: bilinear here and bilinear again in the renderer blurred it twice);
+/// otherwise filtered like [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the
+/// edges follow `wrap`, so a repeat or mirror texture tiles as seamlessly after resampling as before.
 pub fn resample_rect(
     chain: &MipChain,
     w: u32,
@@ -285,6 +288,13 @@ pub fn resample_rect(
 ) -> Result<LinearImage, ImageOpsError> {
     if w == 0 || h == 0 {
         return Err(ImageOpsError::ZeroSize { size: w.min(h) });
+    }
+    if let Some(base) = chain.levels.first()
+        && w >= base.width
+        && h >= base.height
+        && (w, h) != (base.width, base.height)
+    {
+        return magnify_cubic(base, w, h, wrap);
     }
     let mut out = LinearImage::new_filled(w, h, [0.0; 4]);
     let job = RectJob {

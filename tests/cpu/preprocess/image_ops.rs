@@ -589,10 +589,11 @@ fn resample_square_tiles_seamlessly_under_wrap() {
     assert!(r_right > 0.1, "repeat right edge {r_right}");
     assert_eq!(clamp.get(7, 3).unwrap()[0], 0.0);
     assert_eq!(mirror.get(7, 3).unwrap()[0], 0.0);
-    // Magnification 5/8: one bilinear tap. Texel 7's centre is at source x = 4.1875 (weight 0.1875 on
-    // texel 5 ≡ 0, white); texel 0's at −0.1875 (weight 0.8125 on texel 0): continuous across the seam.
-    assert!((r_right - 0.1875).abs() < 1e-6, "{r_right}");
-    assert!((r_left - 0.8125).abs() < 1e-6, "{r_left}");
+    // Magnification 5/8: a Catmull-Rom cubic. Texel 7's centre is at source x = 4.1875 (t = 0.1875 past
+    // texel 4; weight ½(−3t³ + 4t² + t) = 0.15417 on texel 5 ≡ 0, white); texel 0's at −0.1875 (t =
+    // 0.8125 past texel −1; the same weight, 0.92200, on texel 0): continuous across the seam.
+    assert!((r_right - 0.154_174_8).abs() < 1e-6, "{r_right}");
+    assert!((r_left - 0.921_997).abs() < 1e-6, "{r_left}");
     // Downsampling keeps the mean under Repeat (the wrap keeps every texel's total weight equal).
     let big = opaque_noise(48, 48, 5);
     let m_src = LinearImage::from_decoded(&big).unwrap().mean();

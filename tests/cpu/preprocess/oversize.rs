@@ -329,3 +329,41 @@ fn a_leaf_shrunk_far_for_an_oversized_rect_is_warned_about() {
         capped.report.warnings
     );
 }
+
+/// A 4096 × 4 texture with the defaults: its source side alone is wider than the 256² atlas, so its leaf
+/// is scaled far and the warning names that cause (it named only `--no-source-cap` and the texel ratio,
+/// flags this build does not use); and its original is stored at 2048 × 4, the largest original class,
+/// which the build says, naming the image and both sizes (it said nothing: close views and `--mode
+/// original` drew a quarter of the source's texels without a word). A 64² texture gets neither warning
+/// (the test above).
+#[test]
+fn a_source_wider_than_the_atlas_and_the_largest_original_class_is_warned_about() {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.image("long strip", 4096, 4, |x, _| {
+        [(x % 251) as u8, 90, 160, 255]
+    });
+    let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    let corners = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)];
+    b.quad(
+        corners.map(|(x, z)| DVec3::new(x, 0.0, z)),
+        DVec2::ZERO,
+        DVec2::ONE,
+        m,
+    );
+    let built = build_ok(&b.build(), &tiny_opts(256, 0.05));
+    let w = &built.report.warnings;
+    let oversized = w
+        .iter()
+        .find(|w| w.contains("scaled for an oversized rect"));
+    assert!(
+        oversized.is_some_and(|w| w.contains("a source side above --atlas-size")),
+        "{w:?}"
+    );
+    let downsampled = w.iter().find(|w| w.contains("stored downsampled"));
+    assert!(
+        downsampled
+            .is_some_and(|w| w.starts_with("1 original texture has")
+                && w.contains("long strip 4096×4 → 2048×4")),
+        "{w:?}"
+    );
+}
