@@ -501,6 +501,9 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
             t.capped_rects,
             t.clamped_leaves
         );
+        if let Some(line) = capped_line(t.capped_rects, &t.capped_shortfall) {
+            println!("    {line}");
+        }
         let lr = &t.leaf_reasons;
         println!(
             "    leaves: {} fit, {} scaled for an oversized rect, {} scaled at source resolution, {} scaled within \
@@ -646,6 +649,28 @@ pub(super) fn fmt_psnr(db: f64) -> String {
     }
 }
 
+/// The build summary's line on capped rects drawn coarser than their sources (DESIGN "capped rects above
+/// their leaf"), or `None` where nothing falls short.
+fn capped_line(rects: u64, s: &atlastree::preprocess::CappedShortfall) -> Option<String> {
+    let parts: Vec<String> = [
+        (s.at_leaf, "in leaves scaled to fit"),
+        (s.one_up, "one level above their leaf"),
+        (s.at_root, "from the root"),
+    ]
+    .iter()
+    .filter(|(f, _)| *f > 1.0)
+    .map(|(f, where_)| format!("{f:.1}× {where_}"))
+    .collect();
+    if rects == 0 || parts.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "capped rects drawn with fewer texels than their originals show at the same distance: up to {} \
+         (close views draw the originals; DESIGN \"capped rects above their leaf\")",
+        parts.join(", ")
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::{over_budget, recorded_argv};
@@ -653,6 +678,30 @@ mod tests {
 
     /// A scene the node walk refused for `--max-memory` says what its plan needs, from the whole
     /// scene's count, against the budget given (not one rebuilt from the triangle cap).
+    /// Only the factors above 1 are named (a depth-0 tree has no level above its leaf); nothing short,
+    /// no line.
+    #[test]
+    fn the_capped_line_names_only_what_falls_short() {
+        use atlastree::preprocess::CappedShortfall;
+        let s = |at_leaf, one_up, at_root| CappedShortfall {
+            at_leaf,
+            one_up,
+            at_root,
+        };
+        let line = super::capped_line(3, &s(2.6, 1.0, 1.0)).unwrap();
+        assert!(
+            line.contains("up to 2.6× in leaves scaled to fit (close"),
+            "{line}"
+        );
+        let line = super::capped_line(3, &s(1.0, 2.0, 19.0)).unwrap();
+        assert!(
+            line.contains("up to 2.0× one level above their leaf, 19.0× from the root ("),
+            "{line}"
+        );
+        assert_eq!(super::capped_line(3, &s(1.0, 1.0, 1.0)), None);
+        assert_eq!(super::capped_line(0, &s(2.0, 4.0, 8.0)), None);
+    }
+
     #[test]
     fn a_scene_over_the_triangle_budget_says_what_it_needs() {
         let refused = || {

@@ -39,8 +39,9 @@ pub struct Assembled {
     pub blocks: Vec<BlockDesc>,
     /// Occupancy per leaf atlas (0..1), in leaf order.
     pub occupancy: Vec<f64>,
-    /// Whether each leaf's rect was capped to its source on an axis (parallel to `tree.leaves[i].rects`).
-    pub capped: Vec<Vec<bool>>,
+    /// Each leaf's rects' [`crate::preprocess::layout::PlannedRect::need_over_source`] (parallel to
+    /// `tree.leaves[i].rects`; above 1 where the rect was capped to its source).
+    pub capped: Vec<Vec<f64>>,
     /// Σ over rects of the UV area (periods) their inner rectangles show, and of the UV hull area of
     /// their triangles (what baking would store).
     pub periods_stored: f64,
@@ -302,7 +303,7 @@ impl Asm<'_> {
         self.out.occupancy.push(l.occupancy);
         self.out
             .capped
-            .push(l.rects.iter().map(|r| r.capped[0] || r.capped[1]).collect());
+            .push(l.rects.iter().map(|r| r.need_over_source).collect());
         for r in &l.rects {
             let stored = r.uv_max - r.uv_min;
             self.out.periods_stored += stored.x * stored.y;

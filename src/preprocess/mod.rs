@@ -313,6 +313,8 @@ pub struct TreeReport {
     /// Leaves by why they ended ([`layout::LeafReason`]) and the originals source-resolution leaves imply.
     pub leaf_reasons: layout::LeafCounts,
     pub capped_rects: u64,
+    /// How much coarser than their sources the capped rects are drawn, from their leaves and above.
+    pub capped_shortfall: CappedShortfall,
     /// Periods stored in the leaf atlases (Σ over rects of the UV area their inner rectangle shows) and
     /// periods the UVs span (Σ over rects of the UV hull area of their triangles): what wrapping saves.
     pub periods_stored: f64,
@@ -324,6 +326,28 @@ pub struct TreeReport {
     pub sizing: prepare::PrepareReport,
     /// The original textures' bytes against their sources once ([`originals::OriginalsCost`]).
     pub originals: originals::OriginalsCost,
+}
+
+/// The largest factor by which capped rects ([`TreeReport::capped_rects`]: textures stored at their
+/// source's resolution where `d_min` asked for more) are drawn with fewer texels than their original
+/// textures show at the same distance: from their leaf (only a leaf scaled below 1 falls short), from the
+/// node one level up, and from the root. 1 where nothing falls short. Each level up halves a rect while
+/// its min_distance only doubles (DESIGN "capped rects above their leaf").
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct CappedShortfall {
+    pub at_leaf: f64,
+    pub one_up: f64,
+    pub at_root: f64,
+}
+
+impl Default for CappedShortfall {
+    fn default() -> Self {
+        Self {
+            at_leaf: 1.0,
+            one_up: 1.0,
+            at_root: 1.0,
+        }
+    }
 }
 
 /// What a build did, with the numbers (printed by `atlastree build`, JSON with `--json`).

@@ -190,7 +190,8 @@ fn tree_report(
         vertices: asm.tree.vertices.len() as u64,
         clamped_leaves: lay.clamped_leaves as u64,
         leaf_reasons: lay.leaves.clone(),
-        capped_rects: asm.capped.iter().flatten().filter(|c| **c).count() as u64,
+        capped_rects: asm.capped.iter().flatten().filter(|&&r| r > 1.0).count() as u64,
+        capped_shortfall: capped_shortfall(&asm.tree, &asm.capped),
         periods_stored: asm.periods_stored,
         periods_spanned: asm.periods_spanned,
         occupancy_mean: occ.iter().sum::<f64>() / occ.len().max(1) as f64,
@@ -219,4 +220,26 @@ fn check_file_size(
         });
     }
     Ok(())
+}
+
+/// How much coarser than their sources capped rects are drawn ([`super::CappedShortfall`]; DESIGN
+/// "capped rects above their leaf"): a rect capped at a source `r` times coarser than `d_min` asked for,
+/// in a leaf of scale `s` at depth `D`, is drawn from its leaf with `min(1 / s, r)` times fewer texels than
+/// its original shows there, one level up `min(2 / s, r)`, from the root `min(2^D / s, r)`.
+fn capped_shortfall(tree: &crate::model::AtlasTree, capped: &[Vec<f64>]) -> super::CappedShortfall {
+    let mut out = super::CappedShortfall::default();
+    for (leaf, rects) in tree.leaves.iter().zip(capped) {
+        let Some(r) = rects.iter().copied().filter(|&r| r > 1.0).reduce(f64::max) else {
+            continue;
+        };
+        let s = leaf.clamp_scale;
+        let depth = tree.nodes.get(leaf.node.idx()).map_or(0, |n| n.level.0);
+        let short = |levels: i32| r.min(2f64.powi(levels) / s).max(1.0);
+        out.at_leaf = out.at_leaf.max(short(0));
+        if depth > 0 {
+            out.one_up = out.one_up.max(short(1));
+            out.at_root = out.at_root.max(short(i32::from(depth)));
+        }
+    }
+    out
 }

@@ -244,6 +244,8 @@ pub(super) fn try_leaf(
             ctx.opts.cap_to_source && need.w > f64::from(src[0]),
             ctx.opts.cap_to_source && need.h > f64::from(src[1]),
         ];
+        let over = |n: f64, s: u32, c: bool| if c { n / f64::from(s) } else { 1.0 };
+        let need_over_source = over(need.w, src[0], capped[0]).max(over(need.h, src[1], capped[1]));
         summed += u64::from(area.outer_w) * u64::from(area.outer_h);
         if summed > cap {
             return None;
@@ -254,6 +256,7 @@ pub(super) fn try_leaf(
         }
         sizes.push([area.outer_w, area.outer_h]);
         let wrap = [need.cover[0].wrap(), need.cover[1].wrap()];
+        let capped = (capped, need_over_source);
         mats.push((mat, class, area, input.uv_min, input.uv_max, wrap, capped));
     }
     let packing = pack(
@@ -276,7 +279,8 @@ pub(super) fn try_leaf(
                 uv_min: DVec2::from(uv_min),
                 uv_max: DVec2::from(uv_max),
                 wrap,
-                capped,
+                capped: capped.0,
+                need_over_source: capped.1,
             },
         )
         .collect();

@@ -64,6 +64,9 @@ pub struct PlannedRect {
     /// Per axis, whether the source cap limited this texture's resolution (then the guarantee is the
     /// source's).
     pub capped: [bool; 2],
+    /// Texels per period the sizing asked for over the source's, on the capped axis that falls furthest
+    /// short (1 where not capped): how much finer than its source `d_min` wanted this texture.
+    pub need_over_source: f64,
 }
 
 /// A successful leaf layout.

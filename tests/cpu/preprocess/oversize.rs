@@ -367,3 +367,64 @@ fn a_source_wider_than_the_atlas_and_the_largest_original_class_is_warned_about(
         "{w:?}"
     );
 }
+
+/// A 64² texture repeated 8 × 8 times over a 400 m ground, beside 16 small quads of their own textures
+/// that make the tree split: `d_min` asks for far more texels per period than the source has, so the
+/// ground's rects are capped at 64 (DESIGN "capped rects above their leaf"). The report says by how much
+/// they fall short above their leaves — each level up halves them, so `one_up` is 2 where the need is at
+/// least twice the source, and the root's factor is `min(2^depth, need / source)` — and with the cap off
+/// (rects as fine as asked) nothing is capped and nothing falls short.
+#[test]
+fn capped_rects_report_how_far_short_they_fall_above_their_leaf() {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let ground = b.pattern_image("ground", 64, 0);
+    let m = b.material(ground, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    let quad = |b: &mut SceneBuilder, x: f64, z: f64, s: f64, uv: f64, m| {
+        let c = [(x, z), (x + s, z), (x + s, z + s), (x, z + s)];
+        b.quad(
+            c.map(|(x, z)| DVec3::new(x, 0.0, z)),
+            DVec2::ZERO,
+            DVec2::splat(uv),
+            m,
+        );
+    };
+    quad(&mut b, 0.0, 0.0, 400.0, 8.0, m);
+    for i in 0..16u32 {
+        let img = b.pattern_image(&format!("q{i}"), 64, i + 1);
+        let mq = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let (x, z) = (
+            f64::from(i % 4) * 100.0 + 40.0,
+            f64::from(i / 4) * 100.0 + 40.0,
+        );
+        quad(&mut b, x, z, 4.0, 1.0, mq);
+    }
+    let scene = b.build();
+    let capped = build_ok(&scene, &tiny_opts(256, 50.0));
+    let t = &capped.report.trees[0];
+    let s = t.capped_shortfall;
+    assert!(
+        t.depth >= 1 && t.capped_rects > 0,
+        "depth {}, capped {}",
+        t.depth,
+        t.capped_rects
+    );
+    assert_eq!(s.at_leaf, 1.0, "no leaf is scaled: {s:?}");
+    assert_eq!(s.one_up, 2.0, "{s:?}");
+    assert!(
+        s.at_root >= s.one_up && s.at_root <= 2f64.powi(i32::from(t.depth)),
+        "{s:?}"
+    );
+    let uncapped = build_ok(
+        &scene,
+        &BuildOptions {
+            cap_to_source: false,
+            max_file_bytes: 1 << 30,
+            ..tiny_opts(256, 50.0)
+        },
+    );
+    let u = &uncapped.report.trees[0];
+    assert_eq!(
+        (u.capped_rects, u.capped_shortfall),
+        (0, Default::default())
+    );
+}
