@@ -204,7 +204,9 @@ enum ShardStep {
 /// takes most of every atlas (`--border 255` at 1024 built 3.2 GiB from a scene whose default file is
 /// 0.1 GiB, silently).
 fn warn_wide_border(a: &BuildArgs) {
-    if a.border.saturating_mul(16) > a.atlas_size {
+    // A border of a quarter of the atlas or more is refused, with its own message, right after.
+    let refused = a.border.saturating_mul(4) >= a.atlas_size;
+    if a.border.saturating_mul(16) > a.atlas_size && !refused {
         eprintln!(
             "warning: --border {} is more than 1/16 of --atlas-size {}: every packed texture takes at least \
              {} texels a side, so few fit one atlas and the tree and the file grow (a border protects \

@@ -198,7 +198,7 @@ pub enum BuildError {
     InvalidParam {
         name: &'static str,
         value: String,
-        why: &'static str,
+        why: std::borrow::Cow<'static, str>,
     },
     /// d_min from the scene's diagonal (`--d-min-ratio`, the default) where that diagonal is 0 or not
     /// finite: every position the same point (a zero scale, all-zero positions), or overflowing.
@@ -385,7 +385,13 @@ pub fn resolve_params(
     scene: &Scene,
     opts: &BuildOptions,
 ) -> Result<(BuildParams, f64), BuildError> {
-    let bad = |name, value: String, why| Err(BuildError::InvalidParam { name, value, why });
+    let bad = |name, value: String, why: &'static str| {
+        Err(BuildError::InvalidParam {
+            name,
+            value,
+            why: why.into(),
+        })
+    };
     if !opts.atlas_size.is_power_of_two() || !(64..=16384).contains(&opts.atlas_size) {
         return bad(
             "atlas-size",
@@ -394,11 +400,16 @@ pub fn resolve_params(
         );
     }
     if opts.border * 4 >= opts.atlas_size {
-        return bad(
-            "border",
-            opts.border.to_string(),
-            "must be less than a quarter of the atlas size",
+        let why = format!(
+            "must be less than a quarter of the atlas size {}: at most {} (or a larger --atlas-size)",
+            opts.atlas_size,
+            (opts.atlas_size / 4).saturating_sub(1)
         );
+        return Err(BuildError::InvalidParam {
+            name: "border",
+            value: opts.border.to_string(),
+            why: why.into(),
+        });
     }
     if !(opts.fov_deg > 0.0 && opts.fov_deg < 180.0) {
         return bad(

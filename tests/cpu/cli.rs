@@ -744,6 +744,22 @@ fn a_wide_border_is_warned_about_up_front() {
         "{wide}"
     );
     assert!(!build(&[]).contains("--border"));
+    // A border the build refuses (a quarter of the atlas or more) gets the refusal alone, with the most
+    // it may be (it was warned about first, then refused without the bound).
+    let o = run(bin()
+        .args(["build", "--atlas-size", "64", "-q", "-o"])
+        .arg(&out)
+        .arg(scene()));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && !stderr.contains("warning"),
+        "{stderr}"
+    );
+    assert!(
+        stderr
+            .contains("--border 16: must be less than a quarter of the atlas size 64: at most 15"),
+        "{stderr}"
+    );
 }
 
 /// A shard's output named by bytes that are not UTF-8 (a valid Unix file name) builds and merges (the
