@@ -441,11 +441,15 @@ fn print_shard(a: &BuildArgs, spec: ShardSpec, report: &ShardReport) -> anyhow::
     );
     print_times(&r.stages.timings);
     println!(
-        "  images decoded {}, peak memory {}",
+        "  images decoded {} ({} fallbacks), peak memory {}",
         r.images_decoded,
+        r.image_fallbacks,
         r.stages.peak_rss_bytes.map_or("?".into(), human_bytes)
     );
     print_stage_peaks(&r.stages.stage_peak_rss);
+    for w in &r.warnings {
+        println!("  warning: {w}");
+    }
     println!(
         "  when all {} shards are written: atlastree merge {}",
         spec.count,

@@ -73,6 +73,27 @@ pub(super) fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
             p.path.display()
         );
     }
+    // What the shards warned about (an image drawn as the magenta fallback is in the merged file): each
+    // warning once, with the shards that gave it.
+    let mut warned: Vec<(&str, Vec<u32>)> = Vec::new();
+    for s in &r.shards {
+        for w in &s.warnings {
+            match warned.iter_mut().find(|(x, _)| x == w) {
+                Some((_, shards)) => shards.push(s.shard),
+                None => warned.push((w, vec![s.shard])),
+            }
+        }
+    }
+    let fallbacks: u64 = r.shards.iter().filter_map(|s| s.image_fallbacks).sum();
+    if fallbacks > 0 {
+        println!(
+            "  image decodes that fell back to magenta: {fallbacks} (drawn so in the merged file; the shards' warnings below)"
+        );
+    }
+    for (w, shards) in &warned {
+        let list: Vec<String> = shards.iter().map(u32::to_string).collect();
+        println!("  warning (shard {}): {w}", list.join(", "));
+    }
     let times: Vec<f64> = r.shards.iter().filter_map(|s| s.seconds).collect();
     if times.len() == r.shards.len() && !times.is_empty() {
         let max = times.iter().cloned().fold(0.0, f64::max);

@@ -103,6 +103,9 @@ pub struct MergedShard {
     pub seconds: Option<f64>,
     pub peak_rss_bytes: Option<u64>,
     pub work: Option<u64>,
+    /// From the shard's JSON report: images drawn as the magenta fallback, and its warnings.
+    pub image_fallbacks: Option<u64>,
+    pub warnings: Vec<String>,
 }
 
 /// What a merge did.
@@ -634,6 +637,8 @@ impl ShardSet {
                     seconds: side.as_ref().and_then(total),
                     peak_rss_bytes: side.as_ref().and_then(|r| r.stages.peak_rss_bytes),
                     work: side.as_ref().map(|r| r.work),
+                    image_fallbacks: side.as_ref().map(|r| r.image_fallbacks),
+                    warnings: side.map(|r| r.warnings).unwrap_or_default(),
                 }
             })
             .collect()

@@ -68,7 +68,8 @@ pub struct ImageCache<'a> {
     cap_bytes: u64,
     chains: Mutex<Lru<Arc<CachedImage>>>,
     sources: Mutex<Lru<Arc<DecodedImage>>>,
-    /// Images that failed to decode and were replaced by the visible fallback (counted, reported).
+    /// Images that failed to decode and were replaced by the visible fallback (counted once per image,
+    /// reported).
     pub fallbacks: AtomicU64,
     pub decodes: AtomicU64,
     /// Texels of the images decoded (each decode counted, so re-decodes after eviction too).
@@ -83,6 +84,9 @@ pub struct ImageCache<'a> {
     opaque_only: Vec<bool>,
     /// Images whose alpha was ignored this way although some texel had alpha < 255 (reported).
     pub alpha_ignored: AtomicU64,
+    /// Per image, what has been counted for it ([`NOTED_ALPHA_IGNORED`], [`NOTED_FALLBACK`] bits), so
+    /// that re-decodes after eviction count nothing twice.
+    noted: Vec<std::sync::atomic::AtomicU8>,
     /// Per image: held while it is decoded, so threads that miss it together decode it once (the others
     /// wait and take the result). Decoding runs no rayon work, so no task stolen under the lock can ask
     /// for the same image on the same thread.
@@ -98,6 +102,11 @@ pub struct ImageCache<'a> {
     /// [`crate::model::MAX_ORIGINAL_CLASS`]): by image, its decoded and its stored sides (reported).
     pub downsampled: Mutex<std::collections::BTreeMap<ImageId, Downsampled>>,
 }
+
+/// [`ImageCache::first_note`]: the image's alpha was ignored (OPAQUE materials only).
+const NOTED_ALPHA_IGNORED: u8 = 1;
+/// [`ImageCache::first_note`]: the image fell back to the magenta checker.
+const NOTED_FALLBACK: u8 = 2;
 
 /// An original texture stored smaller than its source: the decoded `[width, height]`, then the stored.
 pub type Downsampled = ([u32; 2], [u32; 2]);
@@ -199,6 +208,7 @@ impl<'a> ImageCache<'a> {
             original_hits: AtomicU64::new(0),
             opaque_only: opaque_only_images(scene),
             alpha_ignored: AtomicU64::new(0),
+            noted: scene.images.iter().map(|_| Default::default()).collect(),
             decode_locks: scene.images.iter().map(|_| Mutex::new(())).collect(),
             pixel_hashes: scene.images.iter().map(|_| Default::default()).collect(),
             changed: Mutex::new(Vec::new()),
@@ -286,20 +296,24 @@ impl<'a> ImageCache<'a> {
                 ));
             }
             if opaque && !d.is_opaque() {
-                self.alpha_ignored.fetch_add(1, Ordering::Relaxed);
+                if self.first_note(id, NOTED_ALPHA_IGNORED) {
+                    self.alpha_ignored.fetch_add(1, Ordering::Relaxed);
+                }
                 d.pixels.iter_mut().for_each(|p| p[3] = 255);
             }
             self.decoded_texels.fetch_add(texels, Ordering::Relaxed);
             Ok(d)
         });
         let decoded = decoded.unwrap_or_else(|e| {
-            self.fallbacks.fetch_add(1, Ordering::Relaxed);
-            let mut w = lock(&self.warnings);
-            if w.len() < 100 {
-                w.push(format!(
-                    "image {} ({}): {e}; used the magenta fallback",
-                    id.0, src.name
-                ));
+            if self.first_note(id, NOTED_FALLBACK) {
+                self.fallbacks.fetch_add(1, Ordering::Relaxed);
+                let mut w = lock(&self.warnings);
+                if w.len() < 100 {
+                    w.push(format!(
+                        "image {} ({}): {e}; used the magenta fallback",
+                        id.0, src.name
+                    ));
+                }
             }
             crate::scene::fallback_checker()
         });
@@ -309,6 +323,14 @@ impl<'a> ImageCache<'a> {
 }
 
 impl ImageCache<'_> {
+    /// Whether this is the first time `what` ([`NOTED_ALPHA_IGNORED`], [`NOTED_FALLBACK`]) is noted for
+    /// image `id`: an image decoded again after eviction is counted and warned about once.
+    fn first_note(&self, id: ImageId, what: u8) -> bool {
+        self.noted
+            .get(id.idx())
+            .is_none_or(|n| n.fetch_or(what, Ordering::Relaxed) & what == 0)
+    }
+
     /// The stored bytes (and compression error) of original texture `key`, resampled and encoded once and
     /// then shared (bounded by a quarter of the cache budget; beyond it the map is cleared, which costs
     /// only recomputation).
@@ -735,6 +757,37 @@ mod tests {
             height: h,
             pixels,
         }
+    }
+
+    /// Re-decodes after eviction count nothing twice: two images with transparent texels used only by
+    /// OPAQUE materials, fetched a, b, a through a cache that holds neither, decode three times and count
+    /// two images whose alpha was ignored (it counted every decode: hacienda's 3 images read 10 at a
+    /// 1 MiB cache).
+    #[test]
+    fn an_image_decoded_again_is_counted_once() {
+        use crate::scene::synthetic::SceneBuilder;
+        use crate::scene::{AlphaMode, UpAxis};
+        let mut b = SceneBuilder::new(UpAxis::Y);
+        let ids: Vec<ImageId> = ["a", "b"]
+            .into_iter()
+            .map(|name| {
+                let img = b.image(name, 8, 8, |x, _| [9, 9, 9, if x < 4 { 255 } else { 0 }]);
+                let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+                b.triangle(
+                    [glam::DVec3::ZERO, glam::DVec3::X, glam::DVec3::Z],
+                    [glam::DVec2::ZERO; 3],
+                    m,
+                );
+                img
+            })
+            .collect();
+        let scene = b.build();
+        let cache = ImageCache::new(&scene, 1);
+        for &id in [ids[0], ids[1], ids[0]].iter() {
+            cache.get(id);
+        }
+        assert_eq!(cache.decodes.load(Ordering::Relaxed), 3);
+        assert_eq!(cache.alpha_ignored.load(Ordering::Relaxed), 2);
     }
 
     #[test]

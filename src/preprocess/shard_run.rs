@@ -39,6 +39,13 @@ pub struct ShardReport {
     #[serde(flatten)]
     pub stages: super::StageLog,
     pub images_decoded: u64,
+    /// Images that failed to decode and were drawn as the magenta fallback, and the warnings of the
+    /// shard's rasterisation (each naming its image): the merge repeats them, so a sharded build's user
+    /// learns of a fallback in the merged file as a one-process build's does.
+    #[serde(default)]
+    pub image_fallbacks: u64,
+    #[serde(default)]
+    pub warnings: Vec<String>,
     /// How the memory budget was split, if there was one.
     pub memory: Option<super::memory::MemoryPlan>,
 }
@@ -171,6 +178,8 @@ pub(super) fn rasterise_shard(
         file_bytes,
         stages: timings,
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
+        image_fallbacks: cache.fallbacks.load(std::sync::atomic::Ordering::Relaxed),
+        warnings: cache.warnings.lock().map(|w| w.clone()).unwrap_or_default(),
         memory: memory_plan,
     };
     write_sidecar(&path, &report)?;

@@ -199,6 +199,16 @@ pub fn fallback_checker() -> DecodedImage {
     }
 }
 
+/// The most one decode may allocate: half the machine's memory (the build's default budget, which
+/// refuses a scene whose images cannot fit before any decode), at least the `image` crate's own 512 MiB.
+/// Its default alone turned a 16384² RGB orthophoto or an 8200² 16-bit PNG into the magenta fallback
+/// whatever `--max-memory` allowed; a header claiming 60000² still falls back rather than abort.
+fn decode_alloc_limit() -> u64 {
+    const IMAGE_CRATE_DEFAULT: u64 = 512 << 20;
+    crate::util::memory_limit_bytes()
+        .map_or(IMAGE_CRATE_DEFAULT, |m| (m / 2).max(IMAGE_CRATE_DEFAULT))
+}
+
 /// Decodes a PNG/JPEG stream to RGBA8.
 fn decode_encoded<R: Read + Seek + std::io::BufRead>(
     reader: R,
@@ -208,11 +218,13 @@ fn decode_encoded<R: Read + Seek + std::io::BufRead>(
         image: name.to_string(),
         reason,
     };
-    let img = image::ImageReader::new(reader)
+    let mut reader = image::ImageReader::new(reader)
         .with_guessed_format()
-        .map_err(|e| err(e.to_string()))?
-        .decode()
         .map_err(|e| err(e.to_string()))?;
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(decode_alloc_limit());
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| err(e.to_string()))?;
     let rgba = img.into_rgba8();
     let (width, height) = rgba.dimensions();
     let pixels: Vec<[u8; 4]> = bytemuck::cast_vec(rgba.into_raw());

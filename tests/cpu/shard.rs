@@ -607,3 +607,62 @@ fn the_image_cache_names_an_image_whose_pixels_changed_between_two_decodes() {
         "{e}"
     );
 }
+
+/// An image that fails to decode is drawn as the magenta fallback in a sharded build as in a one-process
+/// one; the shards' reports carry the fallback count and the warning naming the image, and the merge
+/// report repeats them (the merge, all a sharded build's user may read, said nothing).
+#[test]
+fn a_fallback_image_is_reported_by_the_shards_and_the_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city");
+    let copy = dir.path().join("city");
+    std::fs::create_dir_all(copy.join("textures")).unwrap();
+    for name in ["scene.gltf", "scene.bin"] {
+        std::fs::copy(src.join(name), copy.join(name)).unwrap();
+    }
+    let mut names: Vec<_> = std::fs::read_dir(src.join("textures"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    names.sort();
+    for n in &names {
+        std::fs::copy(src.join("textures").join(n), copy.join("textures").join(n)).unwrap();
+    }
+    // The first texture cut in half: its header and first chunks pass the import's checks, and its
+    // decode fails (a cut right after the header is an import warning instead).
+    let broken = copy.join("textures").join(&names[0]);
+    let bytes = std::fs::read(&broken).unwrap();
+    std::fs::write(&broken, &bytes[..bytes.len() / 2]).unwrap();
+    let scene = import(&copy.join("scene.gltf"), &ImportOptions::default()).unwrap();
+    let out = dir.path().join("x.atlastree");
+    let opts = deep_opts();
+    let mut shard_fallbacks = 0;
+    for index in 0..2 {
+        let spec = ShardSpec { index, count: 2 };
+        let sharded = ShardedOptions {
+            spec,
+            argv: argv(spec),
+        };
+        let r = build_shard(&scene, &opts, &out, &sharded, &NoProgress).unwrap();
+        shard_fallbacks += r.image_fallbacks;
+        assert_eq!(
+            r.warnings.len() as u64,
+            r.image_fallbacks.min(1),
+            "{:?}",
+            r.warnings
+        );
+    }
+    assert!(shard_fallbacks >= 1);
+    let report = merge(&out, None, &NoProgress).unwrap();
+    let fallbacks: u64 = report.shards.iter().filter_map(|s| s.image_fallbacks).sum();
+    assert_eq!(fallbacks, shard_fallbacks);
+    let name = names[0].to_string_lossy().into_owned();
+    let warned = report.shards.iter().flat_map(|s| &s.warnings);
+    assert!(
+        warned
+            .clone()
+            .any(|w| w.contains(&name) && w.contains("magenta")),
+        "{:?}",
+        warned.collect::<Vec<_>>()
+    );
+}

@@ -10,7 +10,7 @@
 use super::accessors::view_slice;
 use crate::scene::error::SceneError;
 use crate::scene::image_source::{self, ImageData, ImageSource};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Splits a GLB into (JSON chunk, BIN chunk); a `.gltf` is all JSON.
@@ -154,7 +154,7 @@ impl<'a> Buffers<'a> {
         if uri.starts_with("data:") {
             return decode_data_uri(uri);
         }
-        let path = self.base_dir.join(percent_decode(uri));
+        let path = local_path(&self.base_dir, uri)?;
         crate::util::read_regular(&path, Some(length))
             .map_err(|e| format!("{}: {e}", path.display()))
     }
@@ -208,15 +208,16 @@ impl<'a> Buffers<'a> {
             }
             ImgSrc::Uri(uri) => {
                 let rel = percent_decode(uri);
-                let path = self.base_dir.join(&rel);
                 let name = img.name().map_or_else(|| rel.clone(), str::to_string);
-                let res = crate::util::open_regular(&path)
-                    .map_err(|e| format!("{}: {e}", path.display()))
-                    .and_then(|f| {
-                        image_source::read_header(std::io::BufReader::new(f))
-                            .map_err(|e| format!("{}: {e}", path.display()))
-                    })
-                    .map(|h| from_header(&name, h, ImageData::File(path.clone())));
+                let res = local_path(&self.base_dir, uri).and_then(|path| {
+                    crate::util::open_regular(&path)
+                        .map_err(|e| format!("{}: {e}", path.display()))
+                        .and_then(|f| {
+                            image_source::read_header(std::io::BufReader::new(f))
+                                .map_err(|e| format!("{}: {e}", path.display()))
+                        })
+                        .map(|h| from_header(&name, h, ImageData::File(path.clone())))
+                });
                 (name, res)
             }
             ImgSrc::View(view) => {
@@ -272,6 +273,38 @@ fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> Loa
 }
 
 /// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).
+/// The local file a (non-`data:`) URI names: a relative reference against the glTF file's folder
+/// (percent-decoded), or a `file:` URI's path. Any other scheme is refused by name (`http://…` was joined
+/// to the folder and reported as a missing local file).
+pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> {
+    let scheme = uri.split_once(':').map(|(s, _)| s).filter(|s| {
+        let mut c = s.chars();
+        c.next().is_some_and(|c| c.is_ascii_alphabetic())
+            && c.all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+    });
+    match scheme {
+        None => Ok(base_dir.join(percent_decode(uri))),
+        Some(s) if s.eq_ignore_ascii_case("file") => {
+            let rest = &uri[s.len() + 1..];
+            // file:///abs, file://localhost/abs, file:/abs
+            let path = match rest.strip_prefix("//") {
+                Some(r) => r.strip_prefix("localhost").unwrap_or(r),
+                None => rest,
+            };
+            if !path.starts_with('/') {
+                return Err(format!(
+                    "{uri}: a file: URI needs an absolute path (file:///…)"
+                ));
+            }
+            Ok(PathBuf::from(percent_decode(path)))
+        }
+        Some(s) => Err(format!(
+            "{uri}: the URI scheme '{s}:' is not read (local files and data: URIs are; fetch the \
+             file next to the glTF and name it by a relative path)"
+        )),
+    }
+}
+
 pub(super) fn percent_decode(uri: &str) -> String {
     let b = uri.as_bytes();
     let mut out = Vec::with_capacity(b.len());
@@ -324,6 +357,26 @@ fn uri_for_messages(uri: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Relative references resolve against the folder, `file:` URIs to their absolute path; other
+    /// schemes are refused by name, not joined to the folder as a local name.
+    #[test]
+    fn uris_resolve_to_local_files_or_are_refused_by_scheme() {
+        let base = Path::new("/scenes/city");
+        let ok = |uri| local_path(base, uri).unwrap();
+        assert_eq!(ok("tex/a%20b.png"), Path::new("/scenes/city/tex/a b.png"));
+        assert_eq!(ok("./x:y.png"), Path::new("/scenes/city/./x:y.png"));
+        assert_eq!(ok("file:///data/s.bin"), Path::new("/data/s.bin"));
+        assert_eq!(
+            ok("FILE://localhost/data/a%23.bin"),
+            Path::new("/data/a#.bin")
+        );
+        assert_eq!(ok("file:/data/s.bin"), Path::new("/data/s.bin"));
+        let err = local_path(base, "http://127.0.0.1:9/scene.bin").unwrap_err();
+        assert!(err.contains("the URI scheme 'http:' is not read"), "{err}");
+        assert!(local_path(base, "file:rel.bin").is_err());
+        assert!(local_path(base, "s3://bucket/x.png").is_err());
+    }
 
     #[test]
     fn data_uris_are_named_by_type_and_length() {
