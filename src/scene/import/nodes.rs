@@ -90,6 +90,7 @@ impl<'a> Walk<'a, '_> {
         }
         let mut on_path = vec![false; n];
         let mut seen = vec![false; n];
+        let mut warned_shared = vec![false; n];
         let mut stack: Vec<Step> = roots
             .iter()
             .rev()
@@ -130,7 +131,11 @@ impl<'a> Walk<'a, '_> {
                 });
             }
             if let Some(s) = seen.get_mut(i) {
-                if *s {
+                // Once per node: a node under many parents (or under a shared one) is visited many times.
+                if *s && !warned_shared.get(i).copied().unwrap_or(true) {
+                    if let Some(w) = warned_shared.get_mut(i) {
+                        *w = true;
+                    }
                     self.report.warn(format!(
                         "{}: node {i} has more than one parent; it is instanced once per parent",
                         self.file

@@ -302,21 +302,35 @@ pub(super) fn check_indices(root: &Value, file: &str) -> Result<(), SceneError> 
     Ok(())
 }
 
-/// Refuses a glTF 1.x document (`asset.version` "1.0", "1.0.2", …): its scenes, meshes and materials are
-/// keyed by name, so every later check would report its references as "not an index". A missing or other
-/// version is left to the parser.
+/// Refuses a document that is not glTF 2.0: `asset.version` of another major version (1.x keys its
+/// scenes, meshes and materials by name, so every later check would report its references as "not an
+/// index"; "3.0" was read as 2.0 silently), or an `asset.minVersion` above 2.0 (the asset says it needs a
+/// newer reader). A missing version is left to the parser.
 fn check_version(root: &Value, file: &str) -> Result<(), SceneError> {
-    let version = root
-        .get("asset")
-        .and_then(|a| a.get("version"))
-        .and_then(Value::as_str);
-    match version {
-        Some(v) if v.split('.').next() == Some("1") => Err(SceneError::UnsupportedVersion {
+    let asset = root.get("asset");
+    let field = |name| asset.and_then(|a| a.get(name)).and_then(Value::as_str);
+    let major_minor = |v: &str| {
+        let mut parts = v.split('.').map(|p| p.parse::<u64>().ok());
+        (parts.next().flatten(), parts.next().flatten().unwrap_or(0))
+    };
+    let refuse = |v: &str| {
+        Err(SceneError::UnsupportedVersion {
             file: file.to_string(),
             version: v.to_string(),
-        }),
-        _ => Ok(()),
+        })
+    };
+    if let Some(v) = field("version")
+        && major_minor(v).0.is_some_and(|major| major != 2)
+    {
+        return refuse(v);
     }
+    if let Some(v) = field("minVersion")
+        && let (Some(major), minor) = major_minor(v)
+        && (major, minor) > (2, 0)
+    {
+        return refuse(&format!("{v} (asset.minVersion)"));
+    }
+    Ok(())
 }
 
 /// Material texture references are found by name (`baseColorTexture`, `KHR_materials_clearcoat`'s

@@ -372,7 +372,7 @@ fn glb_header_length_below_twelve_is_refused() {
 }
 
 /// A glTF 1.0 file (name-keyed objects, `"scene": "defaultScene"`) is refused by its version, not with
-/// "not an index" for its first reference.
+/// "not an index" for its first reference; so are other versions that are not 2.x.
 #[test]
 fn gltf_1_is_refused_by_version() {
     let dir = tempfile::tempdir().unwrap();
@@ -390,6 +390,31 @@ fn gltf_1_is_refused_by_version() {
             path.display()
         )),
         "{e}"
+    );
+    // Another major version, or a minVersion above 2.0, is refused too (both were read as 2.0); a
+    // minVersion of 2.0 is fine for the version check.
+    for (asset, version) in [
+        (json!({"version": "3.0"}), "3.0"),
+        (
+            json!({"version": "2.0", "minVersion": "2.1"}),
+            "2.1 (asset.minVersion)",
+        ),
+    ] {
+        let doc = json!({"asset": asset, "scenes": [{"nodes": []}]});
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        let e = import(&path, &ImportOptions::default()).unwrap_err();
+        assert!(
+            matches!(&e, SceneError::UnsupportedVersion { version: v, .. } if v == version),
+            "{e}"
+        );
+    }
+    let doc = json!({"asset": {"version": "2.0", "minVersion": "2.0"}, "scenes": [{"nodes": []}]});
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let e = import(&path, &ImportOptions::default());
+    assert!(
+        !matches!(&e, Err(SceneError::UnsupportedVersion { .. })),
+        "{:?}",
+        e.err()
     );
 }
 
