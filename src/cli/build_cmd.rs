@@ -579,7 +579,7 @@ fn print_import(r: &atlastree::scene::ImportReport) {
         return;
     }
     println!(
-        "  import: {} warnings: {} missing images (drawn with the magenta/black checker), {} truncated JPEGs, {} \
+        "  import: {} warnings: {} missing images (drawn with the magenta/black checker), {} truncated images, {} \
          primitives and {} triangles skipped, {} primitives without their TEXCOORD, {} triangles with huge UVs",
         r.warnings_total,
         r.missing_images,

@@ -461,6 +461,17 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
     std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
     let earlier = earlier_modes(&cfg.out);
     clear_earlier_run(&cfg.out, &earlier, &cfg.modes, cfg.selection)?;
+    // Until this run's summary replaces it: a summary that names this run's modes (so a later run
+    // still finds its folders) and says it is incomplete. An interrupted run left the earlier run's
+    // summary, frame count and all, beside its own frames.
+    let running = serde_json::json!({
+        "complete": false,
+        "modes": cfg.modes.iter().map(|m| (m.name().to_string(), serde_json::Value::Null))
+            .collect::<serde_json::Map<_, _>>(),
+    });
+    let summary = cfg.out.join("summary.json");
+    atlastree::util::write_atomic(&summary, (running.to_string() + "\n").as_bytes())
+        .with_context(|| format!("writing {}", summary.display()))?;
     let mut runs = Vec::new();
     for &mode in &cfg.modes {
         let dir = if cfg.modes.len() > 1 {
@@ -469,14 +480,13 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
             cfg.out.clone()
         };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        // An earlier run's frames (and contact sheet, where this run saves none) would sit beside
-        // this run's stats as if they were its own.
-        let is_frame = |n: &str| is_render_output(n) && n != "stats.csv";
-        let removed = atlastree::util::remove_stale_outputs(&dir, is_frame)
+        // An earlier run's frames, contact sheet and stats would sit beside this run's as if they were
+        // its own (until this run's end, or for good where it is interrupted).
+        let removed = atlastree::util::remove_stale_outputs(&dir, is_render_output)
             .with_context(|| format!("removing an earlier run's frames from {}", dir.display()))?;
         if removed > 0 {
             eprintln!(
-                "note: removed {removed} frame PNG(s) or contact sheet of an earlier run from {}",
+                "note: removed {removed} frame PNG(s), contact sheet or stats of an earlier run from {}",
                 dir.display()
             );
         }

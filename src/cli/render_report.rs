@@ -50,6 +50,7 @@ pub(super) fn write_and_report(
         print_http(h);
     }
     let json = serde_json::json!({
+        "complete": true,
         "modes": medians.iter().map(|m| (m.mode.name().to_string(), serde_json::json!({
             "frames": m.frames,
             "median_frame_ms": m.frame_ms,

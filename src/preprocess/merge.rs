@@ -167,6 +167,32 @@ fn shard_files(out: &Path) -> Vec<(u32, u32, PathBuf)> {
     found
 }
 
+/// `argv` with the value of its `-o`/`--out` (in any of clap's spellings) replaced by `out`, made
+/// absolute (the merge may run elsewhere than the shard did).
+fn with_out(argv: &[String], out: &Path) -> Vec<String> {
+    let out = std::path::absolute(out)
+        .unwrap_or_else(|_| out.to_path_buf())
+        .to_string_lossy()
+        .into_owned();
+    let mut args = Vec::with_capacity(argv.len());
+    let mut it = argv.iter();
+    while let Some(a) = it.next() {
+        if a == "-o" || a == "--out" {
+            args.push(a.clone());
+            if it.next().is_some() {
+                args.push(out.clone());
+            }
+        } else if let Some(flag) = ["--out=", "-o="].into_iter().find(|f| a.starts_with(f)) {
+            args.push(format!("{flag}{out}"));
+        } else if a.starts_with("-o") && !a.starts_with("--") && a.len() > 2 {
+            args.push(format!("-o{out}"));
+        } else {
+            args.push(a.clone());
+        }
+    }
+    args
+}
+
 /// `; rebuild it with: …` from a shard's stored command line, with its `--shard` value replaced.
 fn rebuild_hint(argv: Option<&[String]>, spec: ShardSpec) -> String {
     let Some(argv) = argv.filter(|a| !a.is_empty()) else {
@@ -385,9 +411,10 @@ impl ShardSet {
                 std::cmp::Reverse(prints.iter().position(|q| q == *p)),
             )
         });
+        // With `-o` naming this merge's OUT: shards built elsewhere and gathered here are rebuilt here.
         let argv = (opened.iter().flatten())
             .find(|f| Some(&f.header.fingerprint) == majority)
-            .map(|f| f.argv.clone());
+            .map(|f| with_out(&f.argv, out));
         let mut set = ShardSet {
             count,
             shards: Vec::new(),
@@ -667,4 +694,51 @@ fn read_sidecar<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
     name.push(".json");
     let bytes = crate::util::read_regular(&PathBuf::from(name), None).ok()?;
     serde_json::from_slice(&bytes).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    /// Every spelling of `-o` gets the merge's OUT (absolute); other arguments stay, `-q` among them.
+    #[test]
+    fn the_rebuild_command_writes_beside_this_merges_out() {
+        let out = std::path::Path::new("/gathered/x.at");
+        let args = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let argv = args(&[
+            "atlastree",
+            "build",
+            "s.gltf",
+            "-q",
+            "-o",
+            "/old/x.at",
+            "--shard",
+            "1/2",
+        ]);
+        assert_eq!(
+            super::with_out(&argv, out),
+            args(&[
+                "atlastree",
+                "build",
+                "s.gltf",
+                "-q",
+                "-o",
+                "/gathered/x.at",
+                "--shard",
+                "1/2"
+            ])
+        );
+        for (given, want) in [
+            ("-o/old/x.at", "-o/gathered/x.at"),
+            ("-o=/old/x.at", "-o=/gathered/x.at"),
+            ("--out=/old/x.at", "--out=/gathered/x.at"),
+        ] {
+            assert_eq!(
+                super::with_out(&args(&["b", given]), out),
+                args(&["b", want])
+            );
+        }
+        assert_eq!(
+            super::with_out(&args(&["b", "--out", "/old/x.at"]), out),
+            args(&["b", "--out", "/gathered/x.at"])
+        );
+    }
 }

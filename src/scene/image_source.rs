@@ -98,7 +98,8 @@ pub(super) struct ImageHeader {
     pub has_alpha: bool,
     pub color: String,
     /// A JPEG without its end-of-image marker near its end (a truncated file, most likely: decoders draw
-    /// what is there and fill the rest), reported by the import as a warning.
+    /// what is there and fill the rest), or a PNG without its `IEND` chunk (its decode fails), reported
+    /// by the import as a warning.
     pub truncated: bool,
 }
 
@@ -245,7 +246,12 @@ pub(super) fn read_header<R: Read + Seek + std::io::BufRead>(
     let n = read_up_to(&mut reader, &mut sig).map_err(|e| e.to_string())?;
     reader.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
     if n == 8 && sig == PNG_SIGNATURE {
-        return read_png_header(reader);
+        let header = read_png_header(&mut reader)?;
+        let truncated = !png_ends_with_iend(&mut reader)?;
+        return Ok(ImageHeader {
+            truncated,
+            ..header
+        });
     }
     let truncated = sig.starts_with(&[0xFF, 0xD8, 0xFF]) && !jpeg_ends_with_eoi(&mut reader)?;
     reader.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
@@ -284,6 +290,20 @@ fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
     let mut tail = Vec::with_capacity((len - start) as usize);
     reader.read_to_end(&mut tail).map_err(|e| e.to_string())?;
     Ok(tail.windows(2).any(|w| w == [0xFF, 0xD9]))
+}
+
+/// Whether the PNG in `reader` has its `IEND` chunk (type and CRC) in its last [`JPEG_TAIL`] bytes: a
+/// file cut short has none, and its decode fails (the build then draws the magenta fallback).
+fn png_ends_with_iend<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
+    const IEND: [u8; 8] = [b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
+    let len = reader.seek(SeekFrom::End(0)).map_err(|e| e.to_string())?;
+    let start = len.saturating_sub(JPEG_TAIL);
+    reader
+        .seek(SeekFrom::Start(start))
+        .map_err(|e| e.to_string())?;
+    let mut tail = Vec::with_capacity((len - start) as usize);
+    reader.read_to_end(&mut tail).map_err(|e| e.to_string())?;
+    Ok(tail.windows(IEND.len()).any(|w| w == IEND))
 }
 
 const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
@@ -422,6 +442,27 @@ mod tests {
         let mut out = std::io::Cursor::new(Vec::new());
         img.write_to(&mut out, image::ImageFormat::Png).unwrap();
         out.into_inner()
+    }
+
+    /// A PNG cut short keeps its header but loses its `IEND`: truncated (its decode fails); whole, or
+    /// with bytes after `IEND`, it is not.
+    #[test]
+    fn a_png_cut_short_reads_as_truncated() {
+        let img = image::RgbaImage::from_fn(64, 48, |x, y| image::Rgba([x as u8, y as u8, 7, 255]));
+        let png = png_bytes(image::DynamicImage::ImageRgba8(img));
+        let header = |bytes: &[u8]| read_header(std::io::Cursor::new(bytes)).unwrap();
+        assert!(!header(&png).truncated);
+        let mut padded = png.clone();
+        padded.extend_from_slice(&[0u8; 100]);
+        assert!(!header(&padded).truncated);
+        for cut in [png.len() - 1, png.len() / 2] {
+            let h = header(&png[..cut]);
+            assert_eq!(
+                (h.width, h.height, h.truncated),
+                (64, 48, true),
+                "cut at {cut}"
+            );
+        }
     }
 
     #[test]

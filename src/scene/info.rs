@@ -392,7 +392,7 @@ impl fmt::Display for SceneInfo {
         writeln!(
             f,
             "  import: {} warnings, {} skipped primitives, {} skipped triangles, {} missing images, {} truncated \
-             JPEGs, {} primitives without their TEXCOORD, {} triangles with huge UVs",
+             images, {} primitives without their TEXCOORD, {} triangles with huge UVs",
             r.warnings_total,
             r.skipped_primitives,
             r.skipped_triangles,

@@ -453,7 +453,7 @@ fn build_reports_what_the_import_replaced() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
         stdout.contains(
-            "  import: 2 warnings: 1 missing images (drawn with the magenta/black checker), 1 truncated JPEGs, 0 \
+            "  import: 2 warnings: 1 missing images (drawn with the magenta/black checker), 1 truncated images, 0 \
              primitives and 0 triangles skipped"
         ),
         "{stdout}"
@@ -461,7 +461,8 @@ fn build_reports_what_the_import_replaced() {
     assert!(stdout.contains("missing.png"), "{stdout}");
     assert!(
         stdout.contains(&format!(
-            "({}): the JPEG data ends without its end-of-image marker (a truncated file?)",
+            "({}): the data ends without its end marker (a JPEG's end-of-image, a PNG's IEND: a \
+             truncated file?)",
             cut.display()
         )),
         "{stdout}"

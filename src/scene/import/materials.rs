@@ -406,8 +406,9 @@ pub(super) fn image_or_fallback(
             if truncated {
                 report.truncated_images += 1;
                 report.warn(format!(
-                    "{file}: image {} ({name}): the JPEG data ends without its end-of-image marker (a \
-                     truncated file?); what decodes is drawn, the rest as the decoder fills it",
+                    "{file}: image {} ({name}): the data ends without its end marker (a JPEG's \
+                     end-of-image, a PNG's IEND: a truncated file?); a JPEG is drawn as far as it \
+                     decodes, a PNG as the magenta fallback",
                     img.index()
                 ));
             }
