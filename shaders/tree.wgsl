@@ -444,7 +444,9 @@ fn wrap_axis(u: f32, mode: u32, inset: f32) -> f32 {
 // side in texels (the isotropic level; an anisotropic sample reads a level no coarser). At most 0.5: a
 // texel wider than the texture is its average, read at the centre, as clamp and mirror give there.
 fn edge_inset(ddx: vec2<f32>, ddy: vec2<f32>, extent: vec2<f32>) -> vec2<f32> {
-    let rho = max(length(ddx * extent), length(ddy * extent));
+    let r = max(length(ddx * extent), length(ddy * extent));
+    // NaN derivatives (a degenerate triangle) read as one texel: the inset stays finite.
+    let rho = select(1.0, r, r == r);
     let texel = exp2(ceil(log2(max(rho, 1.0))));
     return min(vec2<f32>(0.5 * texel) / extent, vec2<f32>(0.5));
 }

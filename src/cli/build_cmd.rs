@@ -658,10 +658,12 @@ pub(super) fn fmt_psnr(db: f64) -> String {
 /// The build summary's line on capped rects drawn coarser than their sources (DESIGN "capped rects above
 /// their leaf"), or `None` where nothing falls short.
 fn capped_line(rects: u64, s: &atlastree::preprocess::CappedShortfall) -> Option<String> {
+    // A tree without a level above its leaves (depth 0) has its root for its leaf.
+    let root = if s.one_up > 1.0 { s.at_root } else { 1.0 };
     let parts: Vec<String> = [
         (s.at_leaf, "in leaves scaled to fit"),
         (s.one_up, "one level above their leaf"),
-        (s.at_root, "from the root"),
+        (root, "from the root"),
     ]
     .iter()
     .filter(|(f, _)| *f > 1.0)
@@ -682,8 +684,6 @@ mod tests {
     use super::{over_budget, recorded_argv};
     use std::path::Path;
 
-    /// A scene the node walk refused for `--max-memory` says what its plan needs, from the whole
-    /// scene's count, against the budget given (not one rebuilt from the triangle cap).
     /// Only the factors above 1 are named (a depth-0 tree has no level above its leaf); nothing short,
     /// no line.
     #[test]
@@ -694,7 +694,7 @@ mod tests {
             one_up,
             at_root,
         };
-        let line = super::capped_line(3, &s(2.6, 1.0, 1.0)).unwrap();
+        let line = super::capped_line(3, &s(2.6, 1.0, 2.6)).unwrap();
         assert!(
             line.contains("up to 2.6× in leaves scaled to fit (close"),
             "{line}"
@@ -708,6 +708,8 @@ mod tests {
         assert_eq!(super::capped_line(0, &s(2.0, 4.0, 8.0)), None);
     }
 
+    /// A scene the node walk refused for `--max-memory` says what its plan needs, from the whole
+    /// scene's count, against the budget given (not one rebuilt from the triangle cap).
     #[test]
     fn a_scene_over_the_triangle_budget_says_what_it_needs() {
         let refused = || {

@@ -87,7 +87,8 @@ pub(super) fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
     let fallbacks: u64 = r.shards.iter().filter_map(|s| s.image_fallbacks).sum();
     if fallbacks > 0 {
         println!(
-            "  image decodes that fell back to magenta: {fallbacks} (drawn so in the merged file; the shards' warnings below)"
+            "  images drawn as the magenta fallback: {fallbacks}, counted per shard (they are in the merged file; \
+             the shards' warnings below)"
         );
     }
     for (w, shards) in &warned {

@@ -199,16 +199,31 @@ pub(crate) fn check_out_folder(out: &std::path::Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Imports a scene with a clear error naming the file, refusing in the node walk a scene past what half
-/// the machine's memory holds (`preprocess::memory::default_budget`, the build's default): a 2.4 KB
-/// glTF whose nodes list one child twice at 25 levels instances 2²⁵ meshes, and `scene-info` aborted
-/// allocating 4.8 GB where `build` refused it.
+/// Imports a scene with a clear error naming the file, refusing in the node walk a scene of more
+/// triangles than a build's plan could hold in all of this machine's memory (twice the build's default
+/// budget, which these commands do not take): a 2.4 KB glTF whose nodes list one child twice at 25
+/// levels instances 2²⁵ meshes, and `scene-info` aborted allocating 4.8 GB where `build` refused it.
 pub(crate) fn load_scene(
     path: &std::path::Path,
     up: UpArg,
 ) -> anyhow::Result<atlastree::scene::Scene> {
-    use atlastree::preprocess::memory::{default_budget, max_plan_triangles};
-    load_scene_within(path, up, default_budget().map(max_plan_triangles))
+    use atlastree::preprocess::memory::max_plan_triangles;
+    let max = atlastree::util::memory_limit_bytes().map(max_plan_triangles);
+    load_scene_within(path, up, max).map_err(|e| {
+        match e.downcast_ref::<atlastree::scene::SceneError>() {
+            Some(atlastree::scene::SceneError::OverTriangleBudget {
+                file,
+                triangles,
+                instances,
+                max,
+            }) => anyhow::anyhow!(
+                "{file}: {triangles} triangles over {instances} mesh instances, more than the {max} this \
+                 machine's memory could build (nodes shared by many parents instance their meshes once per \
+                 path; `build --max-memory` says what a build of it needs)"
+            ),
+            _ => e,
+        }
+    })
 }
 
 /// [`load_scene`] refusing, during the node walk, a scene of more than `max_triangles`

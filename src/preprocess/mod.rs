@@ -328,7 +328,7 @@ pub struct TreeReport {
     pub originals: originals::OriginalsCost,
 }
 
-/// The largest factor by which capped rects ([`TreeReport::capped_rects`]: textures stored at their
+/// At most the factor by which capped rects ([`TreeReport::capped_rects`]: textures stored at their
 /// source's resolution where `d_min` asked for more) are drawn with fewer texels than their original
 /// textures show at the same distance: from their leaf (only a leaf scaled below 1 falls short), from the
 /// node one level up, and from the root. 1 where nothing falls short. Each level up halves a rect while
@@ -701,7 +701,7 @@ const OVERSIZED_WARN_SCALE: f64 = 0.125;
 
 /// The warning for original textures stored smaller than their source: how many, and the first few by
 /// name with both sizes.
-fn downsampled_warning(cache: &raster::ImageCache<'_>) -> Option<String> {
+pub(super) fn downsampled_warning(cache: &raster::ImageCache<'_>) -> Option<String> {
     let d = cache.downsampled.lock().ok()?;
     if d.is_empty() {
         return None;
@@ -715,14 +715,14 @@ fn downsampled_warning(cache: &raster::ImageCache<'_>) -> Option<String> {
         })
         .collect();
     let more = if d.len() > names.len() { ", …" } else { "" };
-    let (what, have) = if d.len() == 1 {
-        ("original texture has", "it is")
+    let (what, them) = if d.len() == 1 {
+        ("original texture has", "it")
     } else {
-        ("original textures have", "they are")
+        ("original textures have", "them")
     };
     Some(format!(
-        "{} {what} a side above {} texels and {have} stored downsampled to it ({}{more}): views nearer \
-         than their leaf's min_distance and --mode original draw them at that resolution",
+        "{} {what} a side above {} texels, stored at that size ({}{more}): views nearer than the \
+         leaf's min_distance and --mode original draw {them} at that resolution",
         d.len(),
         crate::model::MAX_ORIGINAL_CLASS,
         names.join(", ")

@@ -225,7 +225,8 @@ fn check_file_size(
 /// How much coarser than their sources capped rects are drawn ([`super::CappedShortfall`]; DESIGN
 /// "capped rects above their leaf"): a rect capped at a source `r` times coarser than `d_min` asked for,
 /// in a leaf of scale `s` at depth `D`, is drawn from its leaf with `min(1 / s, r)` times fewer texels than
-/// its original shows there, one level up `min(2 / s, r)`, from the root `min(2^D / s, r)`.
+/// its original shows there, one level up at most `min(2 / s, r)`, from the root at most `min(2^D / s, r)`
+/// (an ancestor's min_distance may come from a more scaled sibling: then it falls short by less).
 fn capped_shortfall(tree: &crate::model::AtlasTree, capped: &[Vec<f64>]) -> super::CappedShortfall {
     let mut out = super::CappedShortfall::default();
     for (leaf, rects) in tree.leaves.iter().zip(capped) {
@@ -236,9 +237,9 @@ fn capped_shortfall(tree: &crate::model::AtlasTree, capped: &[Vec<f64>]) -> supe
         let depth = tree.nodes.get(leaf.node.idx()).map_or(0, |n| n.level.0);
         let short = |levels: i32| r.min(2f64.powi(levels) / s).max(1.0);
         out.at_leaf = out.at_leaf.max(short(0));
+        out.at_root = out.at_root.max(short(i32::from(depth)));
         if depth > 0 {
             out.one_up = out.one_up.max(short(1));
-            out.at_root = out.at_root.max(short(i32::from(depth)));
         }
     }
     out

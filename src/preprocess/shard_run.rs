@@ -179,7 +179,11 @@ pub(super) fn rasterise_shard(
         stages: timings,
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
         image_fallbacks: cache.fallbacks.load(std::sync::atomic::Ordering::Relaxed),
-        warnings: cache.warnings.lock().map(|w| w.clone()).unwrap_or_default(),
+        warnings: {
+            let mut w = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
+            w.extend(super::downsampled_warning(&cache));
+            w
+        },
         memory: memory_plan,
     };
     write_sidecar(&path, &report)?;

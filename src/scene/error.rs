@@ -42,10 +42,11 @@ pub enum SceneError {
         stage: &'static str,
         message: String,
     },
-    /// A glTF 1.x file (`asset.version`, or the GLB header's version): its JSON layout differs from 2.0's.
+    /// Not glTF 2.0: a 1.x file (`asset.version`, or the GLB header's version: its JSON layout differs
+    /// from 2.0's), another major version, or an `asset.minVersion` above 2.0.
     #[error(
-        "{file}: glTF {version} is not supported, only glTF 2.0: convert it first (e.g. `npx gltf-pipeline -i IN -o \
-         OUT.gltf` upgrades 1.0 files, or re-export from the modelling tool)"
+        "{file}: glTF {version} is not supported, only glTF 2.0: convert it or re-export it as glTF 2.0 \
+         (`npx gltf-pipeline -i IN -o OUT.gltf` upgrades 1.0 files)"
     )]
     UnsupportedVersion { file: String, version: String },
     #[error("{file}: required extension {extension} is not supported")]

@@ -206,8 +206,11 @@ pub fn fallback_checker() -> DecodedImage {
 /// whatever `--max-memory` allowed; a header claiming 60000² still falls back rather than abort.
 fn decode_alloc_limit() -> u64 {
     const IMAGE_CRATE_DEFAULT: u64 = 512 << 20;
-    crate::util::memory_limit_bytes()
-        .map_or(IMAGE_CRATE_DEFAULT, |m| (m / 2).max(IMAGE_CRATE_DEFAULT))
+    static LIMIT: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    *LIMIT.get_or_init(|| {
+        crate::util::memory_limit_bytes()
+            .map_or(IMAGE_CRATE_DEFAULT, |m| (m / 2).max(IMAGE_CRATE_DEFAULT))
+    })
 }
 
 /// Decodes a PNG/JPEG stream to RGBA8.
@@ -292,12 +295,14 @@ fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
     Ok(tail.windows(2).any(|w| w == [0xFF, 0xD9]))
 }
 
-/// Whether the PNG in `reader` has its `IEND` chunk (type and CRC) in its last [`JPEG_TAIL`] bytes: a
-/// file cut short has none, and its decode fails (the build then draws the magenta fallback).
+/// Whether the PNG in `reader` has its `IEND` chunk (type and CRC) in its last 64 KiB: a file cut short
+/// has none, and its decode fails (the build then draws the magenta fallback).
 fn png_ends_with_iend<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
     const IEND: [u8; 8] = [b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
+    // Bytes appended after IEND (a trailer) are searched past too, up to this many.
+    const PNG_TAIL: u64 = 1 << 16;
     let len = reader.seek(SeekFrom::End(0)).map_err(|e| e.to_string())?;
-    let start = len.saturating_sub(JPEG_TAIL);
+    let start = len.saturating_sub(PNG_TAIL);
     reader
         .seek(SeekFrom::Start(start))
         .map_err(|e| e.to_string())?;

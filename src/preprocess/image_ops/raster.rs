@@ -276,7 +276,7 @@ pub fn resample_square(
 
 /// The image of `chain` (its linear-light box mip chain, e.g. the one the image cache holds; box weights
 /// do not depend on wrap) resampled to `w × h` (an original texture at its stored power-of-two sides).
-/// Where neither side shrinks and one grows (a non-power-of-two texture rounded up), a Catmull-Rom cubic
+/// Where neither side shrinks and a side that is not a power of two grows (rounded up), a Catmull-Rom cubic
 /// of level 0 ([`magnify_cubic`]: bilinear here and bilinear again in the renderer blurred it twice);
 /// otherwise filtered like [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the
 /// edges follow `wrap`, so a repeat or mirror texture tiles as seamlessly after resampling as before.
@@ -289,10 +289,11 @@ pub fn resample_rect(
     if w == 0 || h == 0 {
         return Err(ImageOpsError::ZeroSize { size: w.min(h) });
     }
+    let grows_npot = |to: u32, from: u32| to > from && !from.is_power_of_two();
     if let Some(base) = chain.levels.first()
         && w >= base.width
         && h >= base.height
-        && (w, h) != (base.width, base.height)
+        && (grows_npot(w, base.width) || grows_npot(h, base.height))
     {
         return magnify_cubic(base, w, h, wrap);
     }

@@ -2,7 +2,7 @@
 //! a single vertex; and the digest of the scene input that keys a plan to the files it was made from.
 
 use super::materials::image_or_fallback;
-use super::uri::{Buffers, percent_decode, split_glb};
+use super::uri::{Buffers, local_path, split_glb};
 use super::{SceneError, panic_message, parse_document, refs};
 use crate::scene::{ImageRef, ImageSource, ImportReport};
 use std::io::Read;
@@ -103,14 +103,16 @@ pub fn input_digest(path: &Path) -> Result<[u64; 2], SceneError> {
     .filter_map(|b| b.get("uri").and_then(|u| u.as_str()))
     .filter(|u| !u.starts_with("data:"));
     for (i, uri) in uris.enumerate() {
-        let buffer = base_dir.join(percent_decode(uri));
-        hasher.update(format!("|buffer {i}|").as_bytes());
-        stream_into(&mut hasher, &buffer).map_err(|source| SceneError::Buffer {
+        let buffer_err = |reason| SceneError::Buffer {
             file: file.clone(),
             buffer: i,
             uri: uri.to_string(),
-            reason: format!("{}: {source}", buffer.display()),
-        })?;
+            reason,
+        };
+        let buffer = local_path(&base_dir, uri).map_err(buffer_err)?;
+        hasher.update(format!("|buffer {i}|").as_bytes());
+        stream_into(&mut hasher, &buffer)
+            .map_err(|source| buffer_err(format!("{}: {source}", buffer.display())))?;
     }
     Ok(crate::util::digest_words(hasher.digest128()))
 }

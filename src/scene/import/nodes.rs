@@ -89,8 +89,15 @@ impl<'a> Walk<'a, '_> {
             Exit(usize),
         }
         let mut on_path = vec![false; n];
-        let mut seen = vec![false; n];
         let mut warned_shared = vec![false; n];
+        let mut parents = vec![0u32; n];
+        for node in self.doc.nodes() {
+            for c in node.children() {
+                if let Some(p) = parents.get_mut(c.index()) {
+                    *p = p.saturating_add(1);
+                }
+            }
+        }
         let mut stack: Vec<Step> = roots
             .iter()
             .rev()
@@ -130,18 +137,17 @@ impl<'a> Walk<'a, '_> {
                     ),
                 });
             }
-            if let Some(s) = seen.get_mut(i) {
-                // Once per node: a node under many parents (or under a shared one) is visited many times.
-                if *s && !warned_shared.get(i).copied().unwrap_or(true) {
-                    if let Some(w) = warned_shared.get_mut(i) {
-                        *w = true;
-                    }
-                    self.report.warn(format!(
-                        "{}: node {i} has more than one parent; it is instanced once per parent",
-                        self.file
-                    ));
-                }
-                *s = true;
+            // Once per node that has several parents itself (a child of a shared node is visited as
+            // often as its parent, and has one).
+            if let Some(w) = warned_shared.get_mut(i)
+                && !*w
+                && parents.get(i).is_some_and(|&p| p > 1)
+            {
+                *w = true;
+                self.report.warn(format!(
+                    "{}: node {i} has more than one parent; it is instanced once per parent",
+                    self.file
+                ));
             }
             if let Some(p) = on_path.get_mut(i) {
                 *p = true;

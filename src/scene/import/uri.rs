@@ -18,6 +18,26 @@ pub(super) fn split_glb(
     bytes: Vec<u8>,
     file: &str,
 ) -> Result<(Vec<u8>, Option<Vec<u8>>), SceneError> {
+    let named_glb = std::path::Path::new(file)
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    if !bytes.starts_with(b"glTF") && named_glb && !bytes.trim_ascii_start().starts_with(b"{") {
+        let magic: String = (bytes.iter().take(4))
+            .map(|&b| {
+                if b.is_ascii_graphic() {
+                    char::from(b)
+                } else {
+                    '.'
+                }
+            })
+            .collect();
+        return Err(SceneError::Parse {
+            file: file.to_string(),
+            reason: format!(
+                "GLB: the file starts with '{magic}', not the magic 'glTF' (not a GLB, or a damaged one)"
+            ),
+        });
+    }
     if !bytes.starts_with(b"glTF") {
         // A UTF-8 byte-order mark before the JSON: glTF 2.0 §3.2 lets readers ignore it (JSON parsers do not).
         if let Some(json) = bytes.strip_prefix(b"\xef\xbb\xbf") {
@@ -48,9 +68,18 @@ pub(super) fn split_glb(
             ),
         });
     }
+    if let Some(length) = length.filter(|&n| n as usize > bytes.len()) {
+        return Err(SceneError::Parse {
+            file: file.to_string(),
+            reason: format!(
+                "GLB: header says the file has {length} bytes, it has {} (truncated?)",
+                bytes.len()
+            ),
+        });
+    }
     let glb = gltf::Glb::from_slice(&bytes).map_err(|e| SceneError::Parse {
         file: file.to_string(),
-        reason: format!("GLB: {e}"),
+        reason: format!("GLB ({} bytes): {e}", bytes.len()),
     })?;
     let json = glb.json.into_owned();
     // The BIN chunk is most of a GLB: it stays in the file's own vector (moved to its front), not copied
@@ -165,8 +194,9 @@ impl<'a> Buffers<'a> {
         Ok(())
     }
 
-    /// Reads a URI: `data:` (base64) or a path relative to the glTF file (percent-decoded): a regular file,
-    /// of which the first `length` bytes (the buffer's `byteLength`; a longer file's tail is not read).
+    /// Reads a URI: `data:` (base64), or the local file [`local_path`] names (relative to the glTF file,
+    /// or a `file:` URI; other schemes refused): a regular file, of which the first `length` bytes (the
+    /// buffer's `byteLength`; a longer file's tail is not read).
     fn read_uri(&self, uri: &str, length: u64) -> Result<Vec<u8>, String> {
         if uri.starts_with("data:") {
             return decode_data_uri(uri);
@@ -289,7 +319,6 @@ fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> Loa
     }
 }
 
-/// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).
 /// The local file a (non-`data:`) URI names: a relative reference against the glTF file's folder
 /// (percent-decoded), or a `file:` URI's path. Any other scheme is refused by name (`http://…` was joined
 /// to the folder and reported as a missing local file).
@@ -299,8 +328,15 @@ pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> 
         c.next().is_some_and(|c| c.is_ascii_alphabetic())
             && c.all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
     });
+    let relative = base_dir.join(percent_decode(uri));
     match scheme {
-        None => Ok(base_dir.join(percent_decode(uri))),
+        None => Ok(relative),
+        // A one-letter "scheme" is a Windows drive; a name with an unencoded colon that exists
+        // (`Material:Base.png`, as exporters write) is read as it always was.
+        Some(s) if s.len() == 1 => Err(format!(
+            "'{uri}' looks like a Windows path: glTF URIs are relative to the glTF file (or file:///…)"
+        )),
+        Some(_) if relative.is_file() => Ok(relative),
         Some(s) if s.eq_ignore_ascii_case("file") => {
             let rest = &uri[s.len() + 1..];
             // file:///abs, file://localhost/abs, file:/abs
@@ -316,12 +352,13 @@ pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> 
             Ok(PathBuf::from(percent_decode(path)))
         }
         Some(s) => Err(format!(
-            "{uri}: the URI scheme '{s}:' is not read (local files and data: URIs are; fetch the \
+            "the URI scheme '{s}:' is not read (local files and data: URIs are; fetch the \
              file next to the glTF and name it by a relative path)"
         )),
     }
 }
 
+/// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).
 pub(super) fn percent_decode(uri: &str) -> String {
     let b = uri.as_bytes();
     let mut out = Vec::with_capacity(b.len());
@@ -392,6 +429,8 @@ mod tests {
         let err = local_path(base, "http://127.0.0.1:9/scene.bin").unwrap_err();
         assert!(err.contains("the URI scheme 'http:' is not read"), "{err}");
         assert!(local_path(base, "file:rel.bin").is_err());
+        let err = local_path(base, "C:/tex/a.png").unwrap_err();
+        assert!(err.contains("looks like a Windows path"), "{err}");
         assert!(local_path(base, "s3://bucket/x.png").is_err());
     }
 

@@ -350,7 +350,8 @@ fn reported_build_command_fails_cleanly() {
 }
 
 /// A GLB header whose total length is below its own 12 bytes: gltf 1.4.1 subtracts 12 from it first (an
-/// overflow panic in debug builds); it is refused before gltf reads it.
+/// overflow panic in debug builds); it is refused before gltf reads it. So are a length past the file's
+/// and a wrong magic, each saying what it found.
 #[test]
 fn glb_header_length_below_twelve_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -368,6 +369,29 @@ fn glb_header_length_below_twelve_is_refused() {
             "{}: not a valid glTF/GLB file: GLB: header says the file has 5 bytes, fewer than its 12-byte header",
             path.display()
         )
+    );
+    // Cut short: the header's length against the file's (it was "could not completely read the
+    // object"); a wrong magic in a .glb names the bytes found (it was a JSON error at line 1 column 1).
+    let whole = glb_bytes(&doc, &bin);
+    std::fs::write(&path, &whole[..whole.len() - 100]).unwrap();
+    let e = import(&path, &ImportOptions::default())
+        .unwrap_err()
+        .to_string();
+    let want = format!(
+        "GLB: header says the file has {} bytes, it has {} (truncated?)",
+        whole.len(),
+        whole.len() - 100
+    );
+    assert!(e.ends_with(&want), "{e}");
+    let mut magic = whole.clone();
+    magic[..4].copy_from_slice(b"glTX");
+    std::fs::write(&path, &magic).unwrap();
+    let e = import(&path, &ImportOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("GLB: the file starts with 'glTX', not the magic 'glTF'"),
+        "{e}"
     );
 }
 

@@ -359,7 +359,7 @@ fn a_source_wider_than_the_atlas_and_the_largest_original_class_is_warned_about(
         oversized.is_some_and(|w| w.contains("a source side above --atlas-size")),
         "{w:?}"
     );
-    let downsampled = w.iter().find(|w| w.contains("stored downsampled"));
+    let downsampled = w.iter().find(|w| w.contains("stored at that size"));
     assert!(
         downsampled
             .is_some_and(|w| w.starts_with("1 original texture has")
