@@ -655,8 +655,8 @@ pub(super) fn fmt_psnr(db: f64) -> String {
     }
 }
 
-/// The build summary's line on capped rects drawn coarser than their sources (DESIGN "capped rects above
-/// their leaf"), or `None` where nothing falls short.
+/// The build summary's line on capped rects drawn coarser than their sources (docs/DESIGN.md "Where the
+/// guarantee does not hold: capped rects above their leaf"), or `None` where nothing falls short.
 fn capped_line(rects: u64, s: &atlastree::preprocess::CappedShortfall) -> Option<String> {
     // A tree without a level above its leaves (depth 0) has its root for its leaf.
     let root = if s.one_up > 1.0 { s.at_root } else { 1.0 };
@@ -674,7 +674,7 @@ fn capped_line(rects: u64, s: &atlastree::preprocess::CappedShortfall) -> Option
     }
     Some(format!(
         "capped rects drawn with fewer texels than their originals show at the same distance: up to {} \
-         (close views draw the originals; DESIGN \"capped rects above their leaf\")",
+         (close views draw the originals; the design document's \"capped rects above their leaf\")",
         parts.join(", ")
     ))
 }

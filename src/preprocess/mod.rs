@@ -332,7 +332,8 @@ pub struct TreeReport {
 /// source's resolution where `d_min` asked for more) are drawn with fewer texels than their original
 /// textures show at the same distance: from their leaf (only a leaf scaled below 1 falls short), from the
 /// node one level up, and from the root. 1 where nothing falls short. Each level up halves a rect while
-/// its min_distance only doubles (DESIGN "capped rects above their leaf").
+/// its min_distance only doubles (docs/DESIGN.md "Where the guarantee does not hold: capped rects above
+/// their leaf").
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct CappedShortfall {
     pub at_leaf: f64,

@@ -222,10 +222,10 @@ fn check_file_size(
     Ok(())
 }
 
-/// How much coarser than their sources capped rects are drawn ([`super::CappedShortfall`]; DESIGN
-/// "capped rects above their leaf"): a rect capped at a source `r` times coarser than `d_min` asked for,
-/// in a leaf of scale `s` at depth `D`, is drawn from its leaf with `min(1 / s, r)` times fewer texels than
-/// its original shows there, one level up at most `min(2 / s, r)`, from the root at most `min(2^D / s, r)`
+/// How much coarser than their sources capped rects are drawn ([`super::CappedShortfall`]; docs/DESIGN.md
+/// "Where the guarantee does not hold: capped rects above their leaf"): a rect capped at a source `r` times
+/// coarser than `d_min` asked for, in a leaf of scale `s` at depth `D`, is drawn from its leaf with
+/// `min(1 / s, r)` times fewer texels than its original shows there, one level up at most `min(2 / s, r)`, from the root at most `min(2^D / s, r)`
 /// (an ancestor's min_distance may come from a more scaled sibling: then it falls short by less).
 fn capped_shortfall(tree: &crate::model::AtlasTree, capped: &[Vec<f64>]) -> super::CappedShortfall {
     let mut out = super::CappedShortfall::default();

@@ -500,7 +500,7 @@ mod tests {
     }
 
     #[test]
-    fn gltf_1_is_refused_by_its_version() {
+    fn versions_other_than_2_are_refused() {
         for v in ["1.0", "1.0.2", "1"] {
             let doc = json!({"asset": {"version": v}, "scene": "defaultScene"});
             match check_indices(&doc, "f.gltf") {
@@ -508,9 +508,18 @@ mod tests {
                 other => panic!("version {v}: {other:?}"),
             }
         }
-        for v in ["2.0", "2.1", "10.0"] {
+        for v in ["2.0", "2.1"] {
             let doc = json!({"asset": {"version": v}});
             assert!(check_indices(&doc, "f.gltf").is_ok(), "version {v}");
+        }
+        // Another major version is no 2.x either (it was read as 2.0).
+        for v in ["10.0", "3.0"] {
+            let doc = json!({"asset": {"version": v}});
+            let e = check_indices(&doc, "f.gltf");
+            assert!(
+                matches!(e, Err(SceneError::UnsupportedVersion { .. })),
+                "version {v}: {e:?}"
+            );
         }
     }
 

@@ -370,10 +370,11 @@ fn a_source_wider_than_the_atlas_and_the_largest_original_class_is_warned_about(
 
 /// A 64² texture repeated 8 × 8 times over a 400 m ground, beside 16 small quads of their own textures
 /// that make the tree split: `d_min` asks for far more texels per period than the source has, so the
-/// ground's rects are capped at 64 (DESIGN "capped rects above their leaf"). The report says by how much
-/// they fall short above their leaves — each level up halves them, so `one_up` is 2 where the need is at
-/// least twice the source, and the root's factor is `min(2^depth, need / source)` — and with the cap off
-/// (rects as fine as asked) nothing is capped and nothing falls short.
+/// ground's rects are capped at 64 (docs/DESIGN.md "Where the guarantee does not hold: capped rects above
+/// their leaf"). The report says by how much they fall short above their leaves — each level up halves
+/// them, so `one_up` is 2 where the need is at least twice the source, and the root's factor is
+/// `min(2^depth, need / source)` — and with the cap off (rects as fine as asked) nothing is capped and
+/// nothing falls short.
 #[test]
 fn capped_rects_report_how_far_short_they_fall_above_their_leaf() {
     let mut b = SceneBuilder::new(UpAxis::Y);
