@@ -285,14 +285,21 @@ const JPEG_TAIL: u64 = 4096;
 /// Whether the JPEG in `reader` has its end-of-image marker (`FF D9`) in its last [`JPEG_TAIL`] bytes.
 /// Files with a longer trailer after it (e.g. a motion photo's video) read as truncated: a warning only.
 fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
+    Ok(tail(reader, JPEG_TAIL)?
+        .windows(2)
+        .any(|w| w == [0xFF, 0xD9]))
+}
+
+/// The last `n` bytes of `reader` (all of it when shorter).
+fn tail<R: Read + Seek>(reader: &mut R, n: u64) -> Result<Vec<u8>, String> {
     let len = reader.seek(SeekFrom::End(0)).map_err(|e| e.to_string())?;
-    let start = len.saturating_sub(JPEG_TAIL);
+    let start = len.saturating_sub(n);
     reader
         .seek(SeekFrom::Start(start))
         .map_err(|e| e.to_string())?;
     let mut tail = Vec::with_capacity((len - start) as usize);
     reader.read_to_end(&mut tail).map_err(|e| e.to_string())?;
-    Ok(tail.windows(2).any(|w| w == [0xFF, 0xD9]))
+    Ok(tail)
 }
 
 /// Whether the PNG in `reader` has its `IEND` chunk (type and CRC) in its last 64 KiB: a file cut short
@@ -301,14 +308,9 @@ fn png_ends_with_iend<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
     const IEND: [u8; 8] = [b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
     // Bytes appended after IEND (a trailer) are searched past too, up to this many.
     const PNG_TAIL: u64 = 1 << 16;
-    let len = reader.seek(SeekFrom::End(0)).map_err(|e| e.to_string())?;
-    let start = len.saturating_sub(PNG_TAIL);
-    reader
-        .seek(SeekFrom::Start(start))
-        .map_err(|e| e.to_string())?;
-    let mut tail = Vec::with_capacity((len - start) as usize);
-    reader.read_to_end(&mut tail).map_err(|e| e.to_string())?;
-    Ok(tail.windows(IEND.len()).any(|w| w == IEND))
+    Ok(tail(reader, PNG_TAIL)?
+        .windows(IEND.len())
+        .any(|w| w == IEND))
 }
 
 const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];

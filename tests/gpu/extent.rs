@@ -120,28 +120,8 @@ fn non_square_originals_draw_as_the_textures_alone(ctx: &GpuContext) -> Result<(
                 SIDES.len()
             ));
         }
-        let cam = Camera {
-            eye: DVec3::new(24.0, 6.0, -4.0),
-            target: DVec3::new(24.0, 0.0, 14.0),
-            up: DVec3::Y,
-            fov_x_deg: 80.0,
-            aspect: f64::from(W) / f64::from(H),
-            near: 0.5,
-            far: 500.0,
-        };
-        let mut r = renderer(ctx, &file)?;
-        let scale = scale_for(&file, &cam)?;
-        r.render(&cam, scale, Mode::Tree).map_err(e)?;
-        let originals = r
-            .cuts()
-            .iter()
-            .flat_map(|c| &c.items)
-            .filter(|i| i.source == Source::Original)
-            .count();
-        let tree = r.read_frame().map_err(e)?;
-        r.render(&cam, scale, Mode::Original).map_err(e)?;
-        let original = r.read_frame().map_err(e)?;
-        let (psnr, covered) = psnr_covered(&tree, &original);
+        let cam = camera([24.0, 6.0, -4.0], [24.0, 0.0, 14.0], 80.0, 0.5);
+        let (originals, psnr, covered) = tree_against_original(ctx, &file, &cam)?;
         println!(
             "  {}: originals {} MB stored ({} MB as square classes), {originals} original draws, tree vs \
              original {psnr:.2} dB over {covered} px",
@@ -215,28 +195,8 @@ fn clamped_and_mirrored_originals_keep_their_edges_at_coarse_mips(
     };
     build(&edge_ground(), &opts, &out, &NoProgress).map_err(e)?;
     let file = TreeFile::open(&out).map_err(e)?;
-    let cam = Camera {
-        eye: DVec3::new(64.0, 1.5, -2.0),
-        target: DVec3::new(64.0, 0.0, 30.0),
-        up: DVec3::Y,
-        fov_x_deg: 90.0,
-        aspect: f64::from(W) / f64::from(H),
-        near: 0.2,
-        far: 500.0,
-    };
-    let mut r = renderer(ctx, &file)?;
-    let scale = scale_for(&file, &cam)?;
-    r.render(&cam, scale, Mode::Tree).map_err(e)?;
-    let originals = r
-        .cuts()
-        .iter()
-        .flat_map(|c| &c.items)
-        .filter(|i| i.source == Source::Original)
-        .count();
-    let tree = r.read_frame().map_err(e)?;
-    r.render(&cam, scale, Mode::Original).map_err(e)?;
-    let original = r.read_frame().map_err(e)?;
-    let (psnr, covered) = psnr_covered(&tree, &original);
+    let cam = camera([64.0, 1.5, -2.0], [64.0, 0.0, 30.0], 90.0, 0.2);
+    let (originals, psnr, covered) = tree_against_original(ctx, &file, &cam)?;
     println!("  {originals} original draws, tree vs original {psnr:.2} dB over {covered} px");
     if originals == 0 || covered < (W * H / 3) as usize {
         return Err(format!(
@@ -249,4 +209,37 @@ fn clamped_and_mirrored_originals_keep_their_edges_at_coarse_mips(
         ));
     }
     Ok(())
+}
+
+/// A camera at `eye` looking at `target` (y up), `fov` degrees wide, the frame's aspect.
+fn camera(eye: [f64; 3], target: [f64; 3], fov: f64, near: f64) -> Camera {
+    Camera {
+        eye: DVec3::from(eye),
+        target: DVec3::from(target),
+        up: DVec3::Y,
+        fov_x_deg: fov,
+        aspect: f64::from(W) / f64::from(H),
+        near,
+        far: 500.0,
+    }
+}
+
+/// `cam` drawn in tree mode and in original mode: the tree frame's original-texture draws, and the PSNR
+/// of the two frames over the pixels either covers, with their number.
+fn tree_against_original(
+    ctx: &GpuContext,
+    file: &TreeFile,
+    cam: &Camera,
+) -> Result<(usize, f64, usize), String> {
+    let mut r = renderer(ctx, file)?;
+    let scale = scale_for(file, cam)?;
+    r.render(cam, scale, Mode::Tree).map_err(e)?;
+    let originals = (r.cuts().iter().flat_map(|c| &c.items))
+        .filter(|i| i.source == Source::Original)
+        .count();
+    let tree = r.read_frame().map_err(e)?;
+    r.render(cam, scale, Mode::Original).map_err(e)?;
+    let original = r.read_frame().map_err(e)?;
+    let (psnr, covered) = psnr_covered(&tree, &original);
+    Ok((originals, psnr, covered))
 }
