@@ -131,7 +131,7 @@ impl<'a> Geometry<'a> {
         let Some(mesh) = self.meshes.get(inst.mesh).cloned() else {
             return Ok(());
         };
-        let mesh_name = mesh.name().unwrap_or("").to_string();
+        let mesh_name = mesh.name().unwrap_or("unnamed").to_string();
         // Morph weights (glTF 2.0 §3.7.2.2): the node's, else the mesh's, else 0 (the pose drawn without
         // animation).
         let node_weights = self.nodes.get(inst.node).and_then(|n| n.weights());

@@ -246,10 +246,9 @@ impl<'a> Buffers<'a> {
         };
         match source {
             ImgSrc::Uri(uri) if uri.starts_with("data:") => {
-                let name = img.name().map_or_else(
-                    || format!("image {} (data URI)", img.index()),
-                    str::to_string,
-                );
+                let name = img
+                    .name()
+                    .map_or_else(|| "data URI".to_string(), str::to_string);
                 let res = decode_data_uri(uri).and_then(|b| from_bytes(&name, b.into()));
                 (name, res)
             }
@@ -268,10 +267,9 @@ impl<'a> Buffers<'a> {
                 (name, res)
             }
             ImgSrc::View(view) => {
-                let name = img.name().map_or_else(
-                    || format!("image {} (buffer view {})", img.index(), view.index()),
-                    str::to_string,
-                );
+                let name = img
+                    .name()
+                    .map_or_else(|| format!("buffer view {}", view.index()), str::to_string);
                 let res = self
                     .load_buffer(view.buffer().index())
                     .map_err(|e| e.to_string())
