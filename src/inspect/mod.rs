@@ -385,7 +385,8 @@ pub fn verify_with(file: &TreeFile, reference: Option<&TreeFile>) -> VerifyRepor
 }
 
 /// Why `reference` cannot be the uncompressed twin of `file` for [`verify_with`]: every build parameter,
-/// the tree count and the block count that differ, each with both values; `None` when they all agree.
+/// the tree, atlas, vertex, triangle and material counts that differ, each with both values; `None` when
+/// they all agree (a reference of another scene with the same tree shape was reported as block errors).
 pub fn reference_mismatch(file: &TreeFile, reference: &TreeFile) -> Option<String> {
     use crate::util::short_number as n;
     let (a, b) = (file.params(), reference.params());
@@ -429,6 +430,20 @@ pub fn reference_mismatch(file: &TreeFile, reference: &TreeFile) -> Option<Strin
         nodes.sum::<usize>().to_string()
     };
     differ("atlases", atlases(file), atlases(reference));
+    // Another scene of the same tree shape (a small scene's one node per tree): its geometry differs.
+    let geometry = |f: &TreeFile| {
+        let counts: Vec<String> = (0..f.trees())
+            .filter_map(|t| f.tree(t))
+            .map(|t| format!("{}/{}", t.vertices.len(), t.indices.len() / 3))
+            .collect();
+        format!("{} (vertices/triangles per tree)", counts.join(", "))
+    };
+    differ("geometry", geometry(file), geometry(reference));
+    differ(
+        "materials",
+        file.materials().len().to_string(),
+        reference.materials().len().to_string(),
+    );
     // Parameters that print alike but differ in their bits (a d_min beyond 12 digits).
     if diffs.is_empty() && a != b {
         diffs.push("build parameters that differ beyond 12 significant digits".into());

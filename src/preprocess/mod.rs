@@ -436,11 +436,11 @@ pub fn resolve_params(
             "must be a number of atlases ≥ 0",
         );
     }
-    if opts.max_depth == 0 || opts.max_depth > 30 {
+    if opts.max_depth > 30 {
         return bad(
             "max-depth",
             opts.max_depth.to_string(),
-            "must be from 1 to 30",
+            "must be from 0 (one leaf per tree) to 30",
         );
     }
     let (lo, hi) = scene.bounds().ok_or_else(|| empty_scene(scene))?;

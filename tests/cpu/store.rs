@@ -664,3 +664,51 @@ fn a_file_replaced_between_two_opens_is_refused() {
         Ok(_) => panic!("a replaced file was accepted"),
     }
 }
+
+/// A reference of another scene with the same tree shape (one node per tree, the same parameters) is
+/// told apart by its geometry and materials, not reported as atlas errors ("recorded error … but …
+/// measured"): one textured quad against two.
+#[test]
+fn a_reference_of_another_scene_is_named_by_its_geometry() {
+    use atlastree::scene::synthetic::SceneBuilder;
+    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
+    use glam::{DVec2, DVec3};
+    let scene = |quads: usize| {
+        let mut b = SceneBuilder::new(UpAxis::Y);
+        for i in 0..quads {
+            let img = b.pattern_image(&format!("t{i}"), 32, i as u32);
+            let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+            let x = 20.0 * i as f64;
+            b.quad(
+                [(x, 0.0), (x + 10.0, 0.0), (x + 10.0, 10.0), (x, 10.0)]
+                    .map(|(x, z)| DVec3::new(x, 0.0, z)),
+                DVec2::ZERO,
+                DVec2::ONE,
+                m,
+            );
+        }
+        b.build()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let opts = crate::built::tiny_opts(1024, 5.0);
+    let paths: Vec<_> = [1, 2]
+        .iter()
+        .map(|&q| {
+            let p = dir.path().join(format!("q{q}.atlastree"));
+            atlastree::preprocess::build(&scene(q), &opts, &p, &atlastree::preprocess::NoProgress)
+                .unwrap();
+            p
+        })
+        .collect();
+    let [a, b] = [&paths[0], &paths[1]].map(|p| TreeFile::open(p).unwrap());
+    assert_eq!(
+        a.tree(0).unwrap().nodes.len(),
+        b.tree(0).unwrap().nodes.len()
+    );
+    let why = atlastree::inspect::reference_mismatch(&a, &b).expect("another scene");
+    assert!(
+        why.contains("geometry") && why.contains("materials 2 (this file: 1)"),
+        "{why}"
+    );
+    assert_eq!(atlastree::inspect::reference_mismatch(&a, &a), None);
+}

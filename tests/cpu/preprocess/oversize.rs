@@ -429,3 +429,40 @@ fn capped_rects_report_how_far_short_they_fall_above_their_leaf() {
         (0, Default::default())
     );
 }
+
+/// `--max-depth 0` is a tree of one leaf (it was refused as "must be from 1 to 30"): a scene that fits one
+/// atlas builds one node per tree, one that does not is an error naming depth 0.
+#[test]
+fn max_depth_zero_builds_one_leaf_or_says_the_region_needs_more() {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let mats: Vec<_> = (0..8)
+        .map(|i| {
+            let img = b.pattern_image(&format!("t{i}"), 64, i);
+            b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque)
+        })
+        .collect();
+    for (i, &m) in mats.iter().enumerate() {
+        let x = 30.0 * i as f64;
+        b.quad(
+            [(x, 0.0), (x + 10.0, 0.0), (x + 10.0, 10.0), (x, 10.0)]
+                .map(|(x, z)| DVec3::new(x, 0.0, z)),
+            DVec2::ZERO,
+            DVec2::ONE,
+            m,
+        );
+    }
+    let scene = b.build();
+    let opts = |atlas| BuildOptions {
+        max_depth: 0,
+        ..tiny_opts(atlas, 0.05)
+    };
+    let one = build_ok(&scene, &opts(1024));
+    assert_eq!(
+        (one.report.trees[0].nodes, one.report.trees[0].depth),
+        (1, 0)
+    );
+    let Err((_, e)) = try_build(&scene, &opts(128)) else {
+        panic!("eight 64² textures fit one 128² atlas at depth 0")
+    };
+    assert!(e.to_string().contains("depth 0"), "{e}");
+}
