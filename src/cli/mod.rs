@@ -116,7 +116,12 @@ pub(crate) fn run() -> anyhow::Result<ExitCode> {
         // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process with 130 and no temp file
         // left (a paging file's is its whole length, reserved up front). `serve` handles Ctrl-C itself.
         let _ = ctrlc::set_handler(|| {
-            atlastree::util::remove_live_temps();
+            let removed = atlastree::util::remove_live_temps();
+            // Said, so an interrupted step is not read as a finished one (it ended without a word).
+            eprintln!(
+                "interrupted: stopped before finishing; {removed} unfinished output(s) removed, earlier \
+                 outputs left as they were"
+            );
             std::process::exit(130);
         });
     }

@@ -152,16 +152,16 @@ fn killed_build_leaves_nothing_or_the_whole_file_and_the_next_build_succeeds() {
 }
 
 /// Ctrl-C or SIGTERM (a scheduler cancelling a job) while the paging file is being written: the process
-/// ends with 130 and removes its temp file itself (a SIGKILLed one leaves it to the next build, above),
-/// and no output appears. The build is BC7 so it is still writing when the signal comes.
+/// ends with 130, removes its temp file itself (a SIGKILLed one leaves it to the next build, above) and
+/// says so, and no output appears. The build is BC7 so it is still writing when the signal comes.
 #[test]
 fn interrupted_build_removes_its_temp_file_and_exits_130() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
     for signal in ["-INT", "-TERM"] {
-        let mut child = build_cmd(&out)
+        let child = build_cmd(&out)
             .args(["--compress", "bc7"])
-            .stderr(Stdio::null())
+            .stderr(Stdio::piped())
             .spawn()
             .unwrap();
         let started = std::time::Instant::now();
@@ -178,8 +178,16 @@ fn interrupted_build_removes_its_temp_file_and_exits_130() {
             .status()
             .unwrap();
         assert!(sent.success(), "kill {signal}");
-        let status = child.wait().unwrap();
+        let output = child.wait_with_output().unwrap();
+        let status = output.status;
         assert_eq!(status.code(), Some(130), "{signal}: {status}");
+        // Said, not silent: the removed temp file counted.
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            stderr
+                .contains("interrupted: stopped before finishing; 1 unfinished output(s) removed"),
+            "{signal}: {stderr}"
+        );
         assert_eq!(temps(&out), Vec::<String>::new(), "{signal}: temp left");
         assert!(!out.exists(), "{signal}: an output appeared");
     }
