@@ -485,7 +485,7 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
     );
     for t in &r.trees {
         println!(
-            "  {:?} tree: {} triangles → {} nodes, {} leaves, depth {}, {} vertices; occupancy mean {:.0}% (min {:.0}%, max {:.0}%); root min_distance {:.1} m",
+            "  {:?} tree: {} triangles → {} nodes, {} leaves, depth {}, {} vertices; occupancy mean {:.0}% (min {:.0}%, max {:.0}%); root min_distance {} m",
             t.kind,
             t.triangles,
             t.nodes,
@@ -495,7 +495,7 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
             100.0 * t.occupancy_mean,
             100.0 * t.occupancy_min,
             100.0 * t.occupancy_max,
-            t.root_min_distance
+            fixed_number(t.root_min_distance, 1)
         );
         let s = &t.sizing;
         println!(

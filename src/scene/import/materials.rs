@@ -416,6 +416,8 @@ pub(super) fn image_or_fallback(
         }
         Err(reason) => {
             report.missing_images += 1;
+            // One line: decoders' messages may span several.
+            let reason = reason.split_whitespace().collect::<Vec<_>>().join(" ");
             report.warn(format!(
                 "{file}: image {} ({name}): {reason}; using the magenta/black fallback checker",
                 img.index()

@@ -595,3 +595,30 @@ fn a_texture_with_only_a_basisu_source_names_the_extension() {
         )]
     );
 }
+
+/// A JPEG cut inside its header falls back with a warning on one line (the decoder's message ended
+/// with a line break, which split the warning before "; using the magenta…").
+#[test]
+fn a_jpeg_cut_in_its_header_is_warned_about_on_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["buffers"][0]["uri"] = json!(city_dir().join("scene.bin").display().to_string());
+    let images = doc["images"].as_array().unwrap();
+    let jpeg = (images.iter())
+        .position(|i| i["uri"].as_str().unwrap().ends_with(".jpg"))
+        .unwrap();
+    let whole = std::fs::read(doc["images"][jpeg]["uri"].as_str().unwrap()).unwrap();
+    let cut = dir.path().join("cut.jpg");
+    std::fs::write(&cut, &whole[..40]).unwrap();
+    doc["images"][jpeg]["uri"] = json!(cut.display().to_string());
+    let path = dir.path().join("scene.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let scene = import(&path, &ImportOptions::default()).unwrap();
+    let w = (scene.report.warnings.iter())
+        .find(|w| w.contains("cut.jpg"))
+        .expect("a warning names the cut JPEG");
+    assert!(
+        !w.contains('\n') && w.ends_with("using the magenta/black fallback checker"),
+        "{w:?}"
+    );
+}
