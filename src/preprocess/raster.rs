@@ -68,9 +68,6 @@ pub struct ImageCache<'a> {
     cap_bytes: u64,
     chains: Mutex<Lru<Arc<CachedImage>>>,
     sources: Mutex<Lru<Arc<DecodedImage>>>,
-    /// Images that failed to decode and were replaced by the visible fallback (counted once per image,
-    /// reported).
-    pub fallbacks: AtomicU64,
     pub decodes: AtomicU64,
     /// Texels of the images decoded (each decode counted, so re-decodes after eviction too).
     pub decoded_texels: AtomicU64,
@@ -82,10 +79,10 @@ pub struct ImageCache<'a> {
     /// rendered output is fully opaque and any alpha value is ignored"). Decoded with alpha 1, such an
     /// image keeps the colour of texels whose stored alpha is 0 (premultiplying would lose it).
     opaque_only: Vec<bool>,
-    /// Images whose alpha was ignored this way although some texel had alpha < 255 (reported).
-    pub alpha_ignored: AtomicU64,
-    /// Per image, what has been counted for it ([`NOTED_ALPHA_IGNORED`], [`NOTED_FALLBACK`] bits), so
-    /// that re-decodes after eviction count nothing twice.
+    /// Per image, what was noted of its decodes ([`NOTED_ALPHA_IGNORED`]: its alpha ignored although
+    /// some texel had alpha < 255; [`NOTED_FALLBACK`]: it failed and the visible fallback replaced it),
+    /// once however often it is decoded again after eviction: [`Self::fallbacks`],
+    /// [`Self::alpha_ignored`].
     noted: Vec<std::sync::atomic::AtomicU8>,
     /// Per image: held while it is decoded, so threads that miss it together decode it once (the others
     /// wait and take the result). Decoding runs no rayon work, so no task stolen under the lock can ask
@@ -200,14 +197,12 @@ impl<'a> ImageCache<'a> {
             cap_bytes,
             chains: Mutex::new(Lru::new(cap_bytes / 4 * 3)),
             sources: Mutex::new(Lru::new(cap_bytes / 4)),
-            fallbacks: AtomicU64::new(0),
             decodes: AtomicU64::new(0),
             decoded_texels: AtomicU64::new(0),
             warnings: Mutex::new(Vec::new()),
             originals: Mutex::new((HashMap::new(), 0)),
             original_hits: AtomicU64::new(0),
             opaque_only: opaque_only_images(scene),
-            alpha_ignored: AtomicU64::new(0),
             noted: scene.images.iter().map(|_| Default::default()).collect(),
             decode_locks: scene.images.iter().map(|_| Mutex::new(())).collect(),
             pixel_hashes: scene.images.iter().map(|_| Default::default()).collect(),
@@ -296,9 +291,7 @@ impl<'a> ImageCache<'a> {
                 ));
             }
             if opaque && !d.is_opaque() {
-                if self.first_note(id, NOTED_ALPHA_IGNORED) {
-                    self.alpha_ignored.fetch_add(1, Ordering::Relaxed);
-                }
+                self.first_note(id, NOTED_ALPHA_IGNORED);
                 d.pixels.iter_mut().for_each(|p| p[3] = 255);
             }
             self.decoded_texels.fetch_add(texels, Ordering::Relaxed);
@@ -306,7 +299,6 @@ impl<'a> ImageCache<'a> {
         });
         let decoded = decoded.unwrap_or_else(|e| {
             if self.first_note(id, NOTED_FALLBACK) {
-                self.fallbacks.fetch_add(1, Ordering::Relaxed);
                 let mut w = lock(&self.warnings);
                 if w.len() < 100 {
                     w.push(format!(
@@ -323,6 +315,22 @@ impl<'a> ImageCache<'a> {
 }
 
 impl ImageCache<'_> {
+    /// Images that failed to decode and were replaced by the visible fallback (reported).
+    pub fn fallbacks(&self) -> u64 {
+        self.noted_count(NOTED_FALLBACK)
+    }
+
+    /// Images used only by OPAQUE materials whose alpha was ignored although some texel had alpha < 255
+    /// (reported).
+    pub fn alpha_ignored(&self) -> u64 {
+        self.noted_count(NOTED_ALPHA_IGNORED)
+    }
+
+    fn noted_count(&self, what: u8) -> u64 {
+        let noted = self.noted.iter().map(|n| n.load(Ordering::Relaxed));
+        noted.filter(|n| n & what != 0).count() as u64
+    }
+
     /// Whether this is the first time `what` ([`NOTED_ALPHA_IGNORED`], [`NOTED_FALLBACK`]) is noted for
     /// image `id`: an image decoded again after eviction is counted and warned about once.
     fn first_note(&self, id: ImageId, what: u8) -> bool {
@@ -787,7 +795,7 @@ mod tests {
             cache.get(id);
         }
         assert_eq!(cache.decodes.load(Ordering::Relaxed), 3);
-        assert_eq!(cache.alpha_ignored.load(Ordering::Relaxed), 2);
+        assert_eq!(cache.alpha_ignored(), 2);
     }
 
     #[test]

@@ -178,7 +178,7 @@ pub(super) fn rasterise_shard(
         file_bytes,
         stages: timings,
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
-        image_fallbacks: cache.fallbacks.load(std::sync::atomic::Ordering::Relaxed),
+        image_fallbacks: cache.fallbacks(),
         warnings: {
             let mut w = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
             w.extend(super::downsampled_warning(&cache));

@@ -47,17 +47,28 @@ pub fn grid_quad(
     i: u32,
     m: atlastree::ids::MaterialId,
 ) {
-    let x = 25.0 * f64::from(i % 3);
-    let z = 25.0 * f64::from(i / 3);
+    ground_quad(
+        b,
+        [25.0 * f64::from(i % 3), 25.0 * f64::from(i / 3)],
+        20.0,
+        1.0,
+        m,
+    );
+}
+
+/// A `side` m square on the ground (y = 0, y up) with its corner at `(x, z)`, UV `0..uv` on both axes.
+pub fn ground_quad(
+    b: &mut atlastree::scene::synthetic::SceneBuilder,
+    [x, z]: [f64; 2],
+    side: f64,
+    uv: f64,
+    m: atlastree::ids::MaterialId,
+) {
+    let corners = [(x, z), (x + side, z), (x + side, z + side), (x, z + side)];
     b.quad(
-        [
-            DVec3::new(x, 0.0, z),
-            DVec3::new(x + 20.0, 0.0, z),
-            DVec3::new(x + 20.0, 0.0, z + 20.0),
-            DVec3::new(x, 0.0, z + 20.0),
-        ],
+        corners.map(|(x, z)| DVec3::new(x, 0.0, z)),
         DVec2::ZERO,
-        DVec2::ONE,
+        DVec2::splat(uv),
         m,
     );
 }

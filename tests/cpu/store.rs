@@ -672,20 +672,12 @@ fn a_file_replaced_between_two_opens_is_refused() {
 fn a_reference_of_another_scene_is_named_by_its_geometry() {
     use atlastree::scene::synthetic::SceneBuilder;
     use atlastree::scene::{AlphaMode, UpAxis, Wrap};
-    use glam::{DVec2, DVec3};
     let scene = |quads: usize| {
         let mut b = SceneBuilder::new(UpAxis::Y);
         for i in 0..quads {
             let img = b.pattern_image(&format!("t{i}"), 32, i as u32);
             let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
-            let x = 20.0 * i as f64;
-            b.quad(
-                [(x, 0.0), (x + 10.0, 0.0), (x + 10.0, 10.0), (x, 10.0)]
-                    .map(|(x, z)| DVec3::new(x, 0.0, z)),
-                DVec2::ZERO,
-                DVec2::ONE,
-                m,
-            );
+            crate::built::ground_quad(&mut b, [20.0 * i as f64, 0.0], 10.0, 1.0, m);
         }
         b.build()
     };

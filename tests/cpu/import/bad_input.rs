@@ -6,7 +6,7 @@ use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
 use atlastree::scene::{ImportOptions, SceneError, import};
 use serde_json::{Value, json};
 
-use super::city::{city_dir, city_json, import_city};
+use super::city::{city_dir, city_json, city_json_standalone, import_city};
 
 /// The error of importing the city with `ptr` set to `value`, and the file it names.
 fn city_error(ptr: &str, value: Value) -> (String, String) {
@@ -601,8 +601,7 @@ fn a_texture_with_only_a_basisu_source_names_the_extension() {
 #[test]
 fn a_jpeg_cut_in_its_header_is_warned_about_on_one_line() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = city_json();
-    doc["buffers"][0]["uri"] = json!(city_dir().join("scene.bin").display().to_string());
+    let mut doc = city_json_standalone();
     let images = doc["images"].as_array().unwrap();
     let jpeg = (images.iter())
         .position(|i| i["uri"].as_str().unwrap().ends_with(".jpg"))

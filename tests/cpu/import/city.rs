@@ -9,6 +9,13 @@ pub(super) fn city_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city")
 }
 
+/// [`city_json`] with its buffer's URI absolute too: written anywhere, it imports with nothing beside it.
+pub(super) fn city_json_standalone() -> Value {
+    let mut doc = city_json();
+    doc["buffers"][0]["uri"] = json!(city_dir().join("scene.bin").display().to_string());
+    doc
+}
+
 /// The city's JSON with every image URI made absolute (so a copy in a temp dir needs no textures).
 pub(super) fn city_json() -> Value {
     let text = std::fs::read(city_dir().join("scene.gltf")).unwrap();
@@ -34,8 +41,7 @@ pub(super) fn import_city(dir: &Path, doc: &Value) -> (PathBuf, Result<Scene, Sc
 #[test]
 fn a_shared_node_is_warned_about_once_and_its_child_not() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = city_json();
-    doc["buffers"][0]["uri"] = json!(city_dir().join("scene.bin").display().to_string());
+    let mut doc = city_json_standalone();
     let nodes = doc["nodes"].as_array_mut().unwrap();
     // Node 1 (with its own children) becomes a child of the root and of two new parents.
     let n = nodes.len();

@@ -298,13 +298,7 @@ fn a_leaf_shrunk_far_for_an_oversized_rect_is_warned_about() {
     let mut b = SceneBuilder::new(UpAxis::Y);
     let img = b.pattern_image("fine", 64, 4);
     let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
-    let corners = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)];
-    b.quad(
-        corners.map(|(x, z)| DVec3::new(x, 0.0, z)),
-        DVec2::ZERO,
-        DVec2::ONE,
-        m,
-    );
+    ground_quad(&mut b, [0.0, 0.0], 10.0, 1.0, m);
     let scene = b.build();
     let build = |cap_to_source| {
         build_ok(
@@ -343,13 +337,7 @@ fn a_source_wider_than_the_atlas_and_the_largest_original_class_is_warned_about(
         [(x % 251) as u8, 90, 160, 255]
     });
     let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
-    let corners = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)];
-    b.quad(
-        corners.map(|(x, z)| DVec3::new(x, 0.0, z)),
-        DVec2::ZERO,
-        DVec2::ONE,
-        m,
-    );
+    ground_quad(&mut b, [0.0, 0.0], 10.0, 1.0, m);
     let built = build_ok(&b.build(), &tiny_opts(256, 0.05));
     let w = &built.report.warnings;
     let oversized = w
@@ -380,16 +368,7 @@ fn capped_rects_report_how_far_short_they_fall_above_their_leaf() {
     let mut b = SceneBuilder::new(UpAxis::Y);
     let ground = b.pattern_image("ground", 64, 0);
     let m = b.material(ground, [Wrap::Repeat; 2], AlphaMode::Opaque);
-    let quad = |b: &mut SceneBuilder, x: f64, z: f64, s: f64, uv: f64, m| {
-        let c = [(x, z), (x + s, z), (x + s, z + s), (x, z + s)];
-        b.quad(
-            c.map(|(x, z)| DVec3::new(x, 0.0, z)),
-            DVec2::ZERO,
-            DVec2::splat(uv),
-            m,
-        );
-    };
-    quad(&mut b, 0.0, 0.0, 400.0, 8.0, m);
+    ground_quad(&mut b, [0.0, 0.0], 400.0, 8.0, m);
     for i in 0..16u32 {
         let img = b.pattern_image(&format!("q{i}"), 64, i + 1);
         let mq = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
@@ -397,7 +376,7 @@ fn capped_rects_report_how_far_short_they_fall_above_their_leaf() {
             f64::from(i % 4) * 100.0 + 40.0,
             f64::from(i / 4) * 100.0 + 40.0,
         );
-        quad(&mut b, x, z, 4.0, 1.0, mq);
+        ground_quad(&mut b, [x, z], 4.0, 1.0, mq);
     }
     let scene = b.build();
     let capped = build_ok(&scene, &tiny_opts(256, 50.0));
@@ -442,14 +421,7 @@ fn max_depth_zero_builds_one_leaf_or_says_the_region_needs_more() {
         })
         .collect();
     for (i, &m) in mats.iter().enumerate() {
-        let x = 30.0 * i as f64;
-        b.quad(
-            [(x, 0.0), (x + 10.0, 0.0), (x + 10.0, 10.0), (x, 10.0)]
-                .map(|(x, z)| DVec3::new(x, 0.0, z)),
-            DVec2::ZERO,
-            DVec2::ONE,
-            m,
-        );
+        ground_quad(&mut b, [30.0 * i as f64, 0.0], 10.0, 1.0, m);
     }
     let scene = b.build();
     let opts = |atlas| BuildOptions {
