@@ -13,7 +13,9 @@
 //! (the sharded identity tests), and `texfmt`'s tests compare combined levels with encoded ones.
 
 use super::BuildError;
-use super::image_ops::{LinearImage, MipChain, MipFilter, MipOptions, preserve_coverage};
+use super::image_ops::{
+    BandedLevels, LinearImage, MipChain, MipFilter, MipOptions, preserve_coverage,
+};
 use super::raster::{AtlasOut, fill_for};
 use crate::ids::NodeId;
 use crate::model::{AtlasTree, TreeKind};
@@ -39,6 +41,14 @@ impl NodeOut {
     }
 }
 
+/// An atlas as it arrives to be finished.
+pub(super) enum AtlasStart {
+    /// Level 0 in linear light (an inner atlas, or a leaf drawn whole): its chain is built from it.
+    Linear(LinearImage),
+    /// A leaf drawn band by band: level 0 already stored as RGBA8, the chain built from level 1.
+    Banded(BandedLevels),
+}
+
 /// Whether atlases of `tree` built with `out`'s options may take stored levels from their children: the
 /// opaque tree (the alpha tree bleeds colour into transparent texels across quadrants), the 2×2 box (a
 /// Kaiser kernel reaches across quadrants), and no per-texture alpha rescaling (`regions` empty).
@@ -53,20 +63,31 @@ pub(super) fn finish_atlas(
     out: &AtlasOut<'_>,
     tree: &AtlasTree,
     id: NodeId,
-    atlas: LinearImage,
+    atlas: AtlasStart,
     children: Option<[Option<&NodeOut>; 4]>,
 ) -> Result<NodeOut, BuildError> {
     let node = &tree.nodes[id.idx()];
+    let opts = MipOptions {
+        filter: out.mip_filter,
+        ..MipOptions::default()
+    };
+    // A banded leaf's level 0, stored already: (bytes, bled).
+    let (mut level0, base) = match atlas {
+        AtlasStart::Linear(level0) => (None, level0),
+        AtlasStart::Banded(b) => (Some((b.rgba0, b.bled)), b.level1),
+    };
     // One mip chain serves both the stored block and the parent, which needs exactly level 1 (with
     // coverage kept, the rescaled level 1: the parent's level 0 then has the leaves' coverage).
-    let mut chain = MipChain::build_with(
-        atlas,
-        &MipOptions {
-            filter: out.mip_filter,
-            ..MipOptions::default()
-        },
-    );
+    let mut chain = MipChain::build_with(base, &opts);
     let regions = super::alpha_coverage::node_regions(tree, id, out.atlas_size, &out.mask_cutoffs);
+    if level0.is_some() && !regions.is_empty() {
+        return Err(BuildError::Image {
+            what: format!("leaf atlas of node {}", id.0),
+            source: super::image_ops::ImageOpsError::BandedWithCoverage {
+                regions: regions.len(),
+            },
+        });
+    }
     preserve_coverage(&mut chain.levels, &regions);
     let reusable = reusable_levels(out, tree, regions.is_empty());
     // Children's stored levels, by quadrant, where every present child has them.
@@ -85,7 +106,18 @@ pub(super) fn finish_atlas(
     let mut levels: Vec<(std::ops::Range<usize>, u64)> = Vec::with_capacity(chain.levels.len());
     let mut bled = false;
     let mut samples = 0u64;
+    // The chain's level k is the atlas's level k + skip.
+    let skip = usize::from(level0.is_some());
+    if let Some((rgba, was_bled)) = level0.take() {
+        let side = out.atlas_size;
+        samples += u64::from(side) * u64::from(side) * channels as u64;
+        bled |= was_bled;
+        let (bytes, sse) = encode_level_measured(format, rgba.into(), side, side, channels);
+        block.extend_from_slice(&bytes);
+        levels.push((0..block.len(), sse));
+    }
     for (k, level) in chain.levels.iter().enumerate() {
+        let k = k + skip;
         let side = level.width;
         samples += u64::from(side) * u64::from(level.height) * channels as u64;
         let combined = from_children.zip(fill.as_ref()).and_then(|(kids, fill)| {
@@ -127,12 +159,15 @@ pub(super) fn finish_atlas(
         };
         levels.iter().skip(1).map(level).collect()
     });
+    // The chain starts at level 1 where level 0 came banded; a chain of one level hands that level.
     let mut chain_levels = chain.levels.into_iter();
-    let level0 = chain_levels.next();
-    let level1 = chain_levels
-        .next()
-        .or(level0)
-        .unwrap_or_else(|| LinearImage::new_filled(1, 1, [0.0; 4]));
+    let first = chain_levels.next();
+    let level1 = if skip == 1 {
+        first
+    } else {
+        chain_levels.next().or(first)
+    };
+    let level1 = level1.unwrap_or_else(|| LinearImage::new_filled(1, 1, [0.0; 4]));
     Ok(NodeOut { level1, stored })
 }
 

@@ -7,11 +7,12 @@
 //! copies instead of encoding ([`super::finish`]); memory stays at a few atlases per tree level and thread.
 
 use super::BuildError;
-use super::finish::{NodeOut, finish_atlas};
+use super::finish::{AtlasStart, NodeOut, finish_atlas};
 use super::image_ops::ImageOpsError;
 use super::image_ops::{
-    AlphaMips, CoverageRegion, LinearImage, MipChain, MipFilter, RectJob, combine_quadrants,
-    draw_rect, mip_chain_rgba8, neutral_fill, preserve_coverage, resample_rect,
+    AlphaMips, CoverageRegion, LinearImage, MipChain, MipFilter, RectJob, RectPlan,
+    combine_quadrants, draw_leaf_banded, draw_rect, mip_chain_rgba8, neutral_fill,
+    preserve_coverage, resample_rect,
 };
 use crate::ids::{ImageId, NodeId};
 use crate::model::{AtlasTree, Leaf, TreeKind};
@@ -209,6 +210,11 @@ impl<'a> ImageCache<'a> {
             changed: Mutex::new(Vec::new()),
             downsampled: Mutex::new(Default::default()),
         }
+    }
+
+    /// The cache's bound in bytes (both tiers).
+    pub fn capacity(&self) -> u64 {
+        self.cap_bytes
     }
 
     /// Per image of the scene, the hash of the pixels this cache decoded, `None` for one it never
@@ -564,7 +570,14 @@ pub fn raster_above(
         raster_above(out, tree, handoffs, c).map(NodeOut::level1_only)
     })?;
     let atlas = combine_children(out, tree, id, &kids)?;
-    finish_atlas(out, tree, id, atlas, Some(quadrants(&kids))).map(|n| n.level1)
+    finish_atlas(
+        out,
+        tree,
+        id,
+        AtlasStart::Linear(atlas),
+        Some(quadrants(&kids)),
+    )
+    .map(|n| n.level1)
 }
 
 /// Rasterises every atlas and original-texture block of `tree` into the sink.
@@ -625,13 +638,18 @@ fn raster_node(
         if let Some(blocks) = owned.get(&leaf_id.idx()) {
             write_originals(ctx, tree, blocks)?;
         }
-        let atlas = leaf_atlas(ctx, leaf, ctx.out.atlas_size, fill_for(tree.kind))
-            .map_err(|e| image_err(format!("leaf atlas of node {}", id.0), e))?;
+        let atlas = leaf_start(ctx, tree, id, leaf)?;
         return finish_atlas(&ctx.out, tree, id, atlas, None);
     }
     let kids = children_of(tree, id, &|c| raster_node(ctx, tree, owned, c))?;
     let atlas = combine_children(&ctx.out, tree, id, &kids)?;
-    finish_atlas(&ctx.out, tree, id, atlas, Some(quadrants(&kids)))
+    finish_atlas(
+        &ctx.out,
+        tree,
+        id,
+        AtlasStart::Linear(atlas),
+        Some(quadrants(&kids)),
+    )
 }
 
 /// Inner node `id`'s children's outputs from `child` (in parallel), with their quadrants.
@@ -675,6 +693,73 @@ fn combine_children(
         .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))
 }
 
+/// A leaf's atlas as [`finish_atlas`] takes it: level 0 drawn band by band, halved and encoded as it goes
+/// ([`draw_leaf_banded`]: the same bytes with a quarter of the memory traffic) where nothing changes
+/// level 0 or 1 after drawing — the 2×2 box and no coverage regions — and the leaf's sources together
+/// take at most a quarter of the image cache (a band draws from all of them, so they are held at once);
+/// else drawn whole ([`leaf_atlas`]).
+fn leaf_start(
+    ctx: &RasterCtx<'_>,
+    tree: &AtlasTree,
+    id: NodeId,
+    leaf: &Leaf,
+) -> Result<AtlasStart, BuildError> {
+    let err = |e| image_err(format!("leaf atlas of node {}", id.0), e);
+    let (size, fill) = (ctx.out.atlas_size, fill_for(tree.kind));
+    let box_only = ctx.out.mip_filter == MipFilter::Box
+        && super::alpha_coverage::node_regions(tree, id, size, &ctx.out.mask_cutoffs).is_empty();
+    if box_only && let Some(images) = leaf_images_within(ctx, leaf, ctx.cache.capacity() / 4) {
+        let plans = leaf
+            .rects
+            .iter()
+            .zip(&images)
+            .map(|(r, img)| RectPlan::new(size, size, &rect_job(ctx, r), &img.chain))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(err)?;
+        if let Some(levels) = draw_leaf_banded(size, fill, &plans) {
+            return Ok(AtlasStart::Banded(levels));
+        }
+    }
+    leaf_atlas(ctx, leaf, size, fill)
+        .map(AtlasStart::Linear)
+        .map_err(err)
+}
+
+/// The source of each of `leaf`'s rects, in rect order, while their distinct images take at most
+/// `bytes`; `None` beyond.
+fn leaf_images_within(
+    ctx: &RasterCtx<'_>,
+    leaf: &Leaf,
+    bytes: u64,
+) -> Option<Vec<Arc<CachedImage>>> {
+    let mut held: HashMap<ImageId, Arc<CachedImage>> = HashMap::new();
+    let mut total = 0u64;
+    let mut out = Vec::with_capacity(leaf.rects.len());
+    for r in &leaf.rects {
+        let id = ctx.scene.materials[r.material.idx()].image;
+        let img = match held.get(&id) {
+            Some(img) => img.clone(),
+            None => {
+                let img = ctx.cache.get(id);
+                total = total.saturating_add(img.bytes());
+                if total > bytes {
+                    return None;
+                }
+                held.insert(id, img.clone());
+                img
+            }
+        };
+        out.push(img);
+    }
+    Some(out)
+}
+
+/// The draw job of `r` with its material's wrap modes and colour factor.
+fn rect_job(ctx: &RasterCtx<'_>, r: &crate::model::AtlasRect) -> RectJob {
+    let mat = &ctx.scene.materials[r.material.idx()];
+    RectJob::from_atlas_rect(r, mat.wrap, mat.base_color_factor)
+}
+
 /// A leaf atlas: every material's area drawn from its source (§5.2.3; the paper renders textured quads on
 /// the GPU, we filter on the CPU in linear light with correct minification).
 pub fn leaf_atlas(
@@ -685,17 +770,8 @@ pub fn leaf_atlas(
 ) -> Result<LinearImage, ImageOpsError> {
     let mut atlas = LinearImage::new_filled(size, size, fill);
     for r in &leaf.rects {
-        let mat = &ctx.scene.materials[r.material.idx()];
-        let img = ctx.cache.get(mat.image);
-        let job = RectJob {
-            outer: r.outer,
-            inner: r.inner,
-            uv_min: r.uv_min,
-            uv_max: r.uv_max,
-            wrap: mat.wrap,
-            factor: mat.base_color_factor,
-        };
-        draw_rect(&mut atlas, &job, &img.chain)?;
+        let img = ctx.cache.get(ctx.scene.materials[r.material.idx()].image);
+        draw_rect(&mut atlas, &rect_job(ctx, r), &img.chain)?;
     }
     Ok(atlas)
 }

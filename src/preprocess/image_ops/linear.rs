@@ -174,18 +174,7 @@ impl LinearImage {
         }
         let enc = Encoder::get();
         // Each run also says whether it wrote a transparent texel (no second pass over the bytes).
-        let run = |(px, texels): (&mut [u8], &[[f32; 4]])| {
-            if let Some(transparent) = enc.encode_run_simd(texels, px) {
-                return transparent;
-            }
-            let mut transparent = false;
-            for (p, &t) in px.chunks_exact_mut(4).zip(texels) {
-                let e = encode_texel(enc, t);
-                transparent |= e[3] == 0;
-                p.copy_from_slice(&e);
-            }
-            transparent
-        };
+        let run = |(px, texels): (&mut [u8], &[[f32; 4]])| encode_texels(enc, texels, px);
         let data = &self.data[..n.min(self.data.len())];
         let transparent = if n >= PAR_TEXELS {
             out.par_chunks_mut(RUN * 4)
@@ -202,6 +191,22 @@ impl LinearImage {
         }
         bled
     }
+}
+
+/// `texels` encoded into `px` (4 bytes each, as far as both reach) as [`LinearImage::to_rgba8_into`]
+/// encodes them, before any colour bleed: each texel's bytes are its own. Returns whether one was
+/// transparent (8-bit alpha 0).
+pub(super) fn encode_texels(enc: Encoder, texels: &[[f32; 4]], px: &mut [u8]) -> bool {
+    if let Some(transparent) = enc.encode_run_simd(texels, px) {
+        return transparent;
+    }
+    let mut transparent = false;
+    for (p, &t) in px.chunks_exact_mut(4).zip(texels) {
+        let e = encode_texel(enc, t);
+        transparent |= e[3] == 0;
+        p.copy_from_slice(&e);
+    }
+    transparent
 }
 
 /// sRGB8 straight → linear premultiplied, with `lut` = [`srgb8_to_linear_table`] and `unit` =
@@ -267,7 +272,7 @@ fn round_unit255(a: f32) -> u8 {
 /// row, then the nearest of those rows' results `|dy|` further; adding one distance to a whole row keeps
 /// its order, ties included). Sequential over memory, where the search's layers visited texels in a
 /// scattered order and waited on them (it was ~10 % of an alpha-heavy build).
-fn bleed_into_transparent(rgba: &mut [u8], w: usize, h: usize) {
+pub(super) fn bleed_into_transparent(rgba: &mut [u8], w: usize, h: usize) {
     let n = w.saturating_mul(h);
     if rgba.len() < n * 4 || n == 0 {
         return;

@@ -158,12 +158,7 @@ fn halve_even_box(img: &LinearImage) -> LinearImage {
     let row = |(y, dst): (usize, &mut [[f32; 4]])| {
         let r0 = &img.data[2 * y * w..(2 * y + 1) * w];
         let r1 = &img.data[(2 * y + 1) * w..(2 * y + 2) * w];
-        for (x, d) in dst.iter_mut().enumerate() {
-            let (a, b, c, e) = (r0[2 * x], r0[2 * x + 1], r1[2 * x], r1[2 * x + 1]);
-            for k in 0..4 {
-                d[k] = 0.25 * ((a[k] + b[k]) + (c[k] + e[k]));
-            }
-        }
+        halve_row_pair(r0, r1, dst);
     };
     if dw == 0 {
         return out;
@@ -174,6 +169,21 @@ fn halve_even_box(img: &LinearImage) -> LinearImage {
         out.data.chunks_mut(dw).enumerate().for_each(row);
     }
     out
+}
+
+/// One row of the 2×2 box: `dst[x]` is the mean of texels `2x` and `2x + 1` of rows `r0` and `r1`
+/// (summed as `(a + b) + (c + d)`, the order every halving of an even level uses, so a level halved
+/// whole or band by band has the same bits).
+pub(super) fn halve_row_pair(r0: &[[f32; 4]], r1: &[[f32; 4]], dst: &mut [[f32; 4]]) {
+    for (d, (p0, p1)) in dst
+        .iter_mut()
+        .zip(r0.chunks_exact(2).zip(r1.chunks_exact(2)))
+    {
+        let (a, b, c, e) = (p0[0], p0[1], p1[0], p1[1]);
+        for k in 0..4 {
+            d[k] = 0.25 * ((a[k] + b[k]) + (c[k] + e[k]));
+        }
+    }
 }
 
 /// For each output index along one axis, the (source index, weight) taps; weights sum to 1.

@@ -12,7 +12,8 @@
 //! - [`preserve_coverage`]: optional α-test coverage kept through the mips of MASK areas ([`AlphaMips`]).
 //! - [`sample_footprint`]: minification-correct sampling of a mip chain with per-axis wrap modes, in f64 UV
 //!   maths (UVs of ±1e5 are reduced by their period first).
-//! - [`draw_rect`]: fill one packed texture area of a leaf atlas, border included (§5.2.2, §5.2.3).
+//! - [`draw_rect`]: fill one packed texture area of a leaf atlas, border included (§5.2.2, §5.2.3);
+//!   [`draw_leaf_banded`]: a leaf's rects drawn, halved and encoded band by band (the same bytes).
 //! - [`combine_quadrants`]: the inner-node atlas from four children's level-1 mips (§5.1).
 //! - [`resample_rect`] / [`resample_square`]: original textures at their stored power-of-two sides (a
 //!   Catmull-Rom cubic where they grow: [`magnify_cubic`]),
@@ -21,6 +22,7 @@
 //! Conventions: texel `(x, y)` has `y` = row from the top; UV `(0, 0)` is the top-left corner of the image,
 //! `u` runs along `x` and `v` along `y` (glTF); texel centres are at `(x + 0.5) / width`.
 
+mod band;
 mod coverage;
 mod linear;
 mod magnify;
@@ -30,6 +32,7 @@ mod sample;
 pub mod srgb;
 mod srgb_simd;
 
+pub use band::{BAND_ROWS, BandedLevels, draw_leaf_banded};
 pub use coverage::{AlphaMips, CoverageRegion, preserve_coverage};
 pub use linear::LinearImage;
 pub use magnify::magnify_cubic;
@@ -37,7 +40,7 @@ pub use mip::{
     MipChain, MipFilter, MipOptions, downsample, halve, mip_chain_rgba8, mip_chain_rgba8_with,
 };
 pub use raster::{
-    RectJob, combine_quadrants, draw_rect, neutral_fill, resample_rect, resample_square,
+    RectJob, RectPlan, combine_quadrants, draw_rect, neutral_fill, resample_rect, resample_square,
 };
 pub(crate) use sample::period_shift;
 pub use sample::{FootprintPlan, MAX_ANISOTROPY, sample_footprint, sample_planned, wrap_index};
@@ -52,6 +55,11 @@ pub enum ImageOpsError {
         height: u32,
         pixels: usize,
     },
+    #[error(
+        "level 0 was encoded band by band, but {regions} coverage regions would rescale it (banded levels \
+         are made only without them)"
+    )]
+    BandedWithCoverage { regions: usize },
     #[error("linear image is {width}×{height} but has {texels} texels (expected width·height)")]
     TexelCount {
         width: u32,

@@ -79,67 +79,10 @@ fn check_rect(
 /// mirror: 2) so huge UVs lose no precision. Rows run on rayon for rects of ≥ 16384 texels.
 pub fn draw_rect(dst: &mut LinearImage, r: &RectJob, src: &MipChain) -> Result<(), ImageOpsError> {
     dst.check()?;
-    check_rect("outer", r.outer, dst.width, dst.height)?;
-    let [ix, iy, iw, ih] = r.inner;
-    if iw == 0 || ih == 0 {
-        return Err(ImageOpsError::EmptyInner {
-            x: ix,
-            y: iy,
-            w: iw,
-            h: ih,
-        });
-    }
-    let (mn, mx) = (r.uv_min, r.uv_max);
-    if !(mn.iter().chain(&mx).all(|v| v.is_finite())) {
-        return Err(ImageOpsError::NonFiniteUv {
-            u0: mn[0],
-            v0: mn[1],
-            u1: mx[0],
-            v1: mx[1],
-        });
-    }
-    if !src
-        .levels
-        .first()
-        .is_some_and(|l| l.width > 0 && l.height > 0)
-    {
-        return Err(ImageOpsError::EmptySource);
-    }
-    let shift = [
-        period_shift(mn[0], r.wrap[0]),
-        period_shift(mn[1], r.wrap[1]),
-    ];
-    let lo = DVec2::new(mn[0] - shift[0], mn[1] - shift[1]);
-    let span = DVec2::new(mx[0] - shift[0], mx[1] - shift[1]) - lo;
-    let size = DVec2::new(iw as f64, ih as f64);
-    let plan = FootprintPlan::new(src, span.abs() / size);
-    let Some(level) = src.levels.get(plan.level) else {
-        return Err(ImageOpsError::EmptySource);
-    };
-
-    let [ox, oy, ow, oh] = r.outer.map(|v| v as usize);
-    // Per-column taps, computed once: the UV of column x depends on x only. Every column has the same
-    // number of taps (`2 · plan.taps[0]`), so they are stored flat, `nx` per column.
-    let mut col_taps: Vec<(u32, f32)> = Vec::with_capacity(ow * 2 * plan.taps[0] as usize);
-    for x in ox..ox + ow {
-        let u = lo.x + ((x as f64 + 0.5 - ix as f64) / size.x) * span.x;
-        let taps = AxisTaps::new(u, plan.footprint.x, plan.taps[0], level.width, r.wrap[0]);
-        col_taps.extend_from_slice(taps.as_slice());
-    }
-    let nx = col_taps.len() / ow.max(1);
-    let f = r.factor;
-    let scale = [f[0] * f[3], f[1] * f[3], f[2] * f[3], f[3]];
+    let plan = RectPlan::new(dst.width, dst.height, r, src)?;
     let row_len = dst.width as usize;
-    let fill_row = |(ry, row): (usize, &mut [[f32; 4]])| {
-        let y = oy + ry;
-        let v = lo.y + ((y as f64 + 0.5 - iy as f64) / size.y) * span.y;
-        let ys = AxisTaps::new(v, plan.footprint.y, plan.taps[1], level.height, r.wrap[1]);
-        let Some(seg) = row.get_mut(ox..ox + ow) else {
-            return;
-        };
-        fill_segment(seg, level, &col_taps, nx, ys.as_slice(), scale);
-    };
-    let Some(rows) = dst.data.get_mut(oy * row_len..(oy + oh) * row_len) else {
+    let rows = plan.rows();
+    let Some(rows_data) = dst.data.get_mut(rows.start * row_len..rows.end * row_len) else {
         return Err(ImageOpsError::TexelCount {
             width: dst.width,
             height: dst.height,
@@ -149,12 +92,152 @@ pub fn draw_rect(dst: &mut LinearImage, r: &RectJob, src: &MipChain) -> Result<(
     if row_len == 0 {
         return Ok(());
     }
-    if ow * oh >= PAR_TEXELS {
-        rows.par_chunks_mut(row_len).enumerate().for_each(fill_row);
+    let fill_row = |(ry, row): (usize, &mut [[f32; 4]])| plan.fill_row(rows.start + ry, row);
+    if plan.texels() >= PAR_TEXELS {
+        rows_data
+            .par_chunks_mut(row_len)
+            .enumerate()
+            .for_each(fill_row);
     } else {
-        rows.chunks_mut(row_len).enumerate().for_each(fill_row);
+        rows_data.chunks_mut(row_len).enumerate().for_each(fill_row);
     }
     Ok(())
+}
+
+/// One rect of [`draw_rect`], planned for a `width × height` destination: its checks passed and its
+/// per-column taps computed once. Each destination row depends on its own `y` alone, so rows may be
+/// filled in any order and grouping ([`RectPlan::fill_row`]): all at once ([`draw_rect`]) or band by
+/// band across a leaf's rects (`super::band::draw_leaf_banded`), the same texels either way.
+pub struct RectPlan<'a> {
+    /// The source level the footprint reads.
+    level: &'a LinearImage,
+    /// Per-column taps, `nx` per column of `outer`.
+    col_taps: Vec<(u32, f32)>,
+    nx: usize,
+    /// `r.outer` as `[x, y, w, h]`.
+    outer: [usize; 4],
+    /// The inner rect's top row, its size, and the UV origin and span of the period-shifted map.
+    iy: u32,
+    size: DVec2,
+    lo: DVec2,
+    span: DVec2,
+    /// The v axis's footprint, taps per texel and wrap.
+    footprint_v: f64,
+    taps_v: u32,
+    wrap_v: Wrap,
+    /// Premultiplied colour factor.
+    scale: [f32; 4],
+}
+
+impl<'a> RectPlan<'a> {
+    /// Checks `r` against a `width × height` destination and `src` (the errors of [`draw_rect`]) and
+    /// computes its column taps.
+    pub fn new(
+        width: u32,
+        height: u32,
+        r: &RectJob,
+        src: &'a MipChain,
+    ) -> Result<Self, ImageOpsError> {
+        check_rect("outer", r.outer, width, height)?;
+        let [ix, iy, iw, ih] = r.inner;
+        if iw == 0 || ih == 0 {
+            return Err(ImageOpsError::EmptyInner {
+                x: ix,
+                y: iy,
+                w: iw,
+                h: ih,
+            });
+        }
+        let (mn, mx) = (r.uv_min, r.uv_max);
+        if !(mn.iter().chain(&mx).all(|v| v.is_finite())) {
+            return Err(ImageOpsError::NonFiniteUv {
+                u0: mn[0],
+                v0: mn[1],
+                u1: mx[0],
+                v1: mx[1],
+            });
+        }
+        if !src
+            .levels
+            .first()
+            .is_some_and(|l| l.width > 0 && l.height > 0)
+        {
+            return Err(ImageOpsError::EmptySource);
+        }
+        let shift = [
+            period_shift(mn[0], r.wrap[0]),
+            period_shift(mn[1], r.wrap[1]),
+        ];
+        let lo = DVec2::new(mn[0] - shift[0], mn[1] - shift[1]);
+        let span = DVec2::new(mx[0] - shift[0], mx[1] - shift[1]) - lo;
+        let size = DVec2::new(iw as f64, ih as f64);
+        let plan = FootprintPlan::new(src, span.abs() / size);
+        let Some(level) = src.levels.get(plan.level) else {
+            return Err(ImageOpsError::EmptySource);
+        };
+        let [ox, oy, ow, oh] = r.outer.map(|v| v as usize);
+        // Per-column taps, computed once: the UV of column x depends on x only. Every column has the same
+        // number of taps (`2 · plan.taps[0]`), so they are stored flat, `nx` per column.
+        let mut col_taps: Vec<(u32, f32)> = Vec::with_capacity(ow * 2 * plan.taps[0] as usize);
+        for x in ox..ox + ow {
+            let u = lo.x + ((x as f64 + 0.5 - ix as f64) / size.x) * span.x;
+            let taps = AxisTaps::new(u, plan.footprint.x, plan.taps[0], level.width, r.wrap[0]);
+            col_taps.extend_from_slice(taps.as_slice());
+        }
+        let nx = col_taps.len() / ow.max(1);
+        let f = r.factor;
+        Ok(Self {
+            level,
+            col_taps,
+            nx,
+            outer: [ox, oy, ow, oh],
+            iy,
+            size,
+            lo,
+            span,
+            footprint_v: plan.footprint.y,
+            taps_v: plan.taps[1],
+            wrap_v: r.wrap[1],
+            scale: [f[0] * f[3], f[1] * f[3], f[2] * f[3], f[3]],
+        })
+    }
+
+    /// The destination rows the rect writes.
+    pub fn rows(&self) -> std::ops::Range<usize> {
+        let [_, oy, _, oh] = self.outer;
+        oy..oy + oh
+    }
+
+    /// Destination texels the rect writes.
+    pub fn texels(&self) -> usize {
+        self.outer[2] * self.outer[3]
+    }
+
+    /// Fills the rect's texels of destination row `y` (one of [`RectPlan::rows`]) in `row`, the whole
+    /// destination row; a `row` shorter than the rect's columns is left as it is.
+    pub fn fill_row(&self, y: usize, row: &mut [[f32; 4]]) {
+        let [ox, _, ow, _] = self.outer;
+        let (lo, span, size) = (self.lo, self.span, self.size);
+        let v = lo.y + ((y as f64 + 0.5 - self.iy as f64) / size.y) * span.y;
+        let ys = AxisTaps::new(
+            v,
+            self.footprint_v,
+            self.taps_v,
+            self.level.height,
+            self.wrap_v,
+        );
+        let Some(seg) = row.get_mut(ox..ox + ow) else {
+            return;
+        };
+        fill_segment(
+            seg,
+            self.level,
+            &self.col_taps,
+            self.nx,
+            ys.as_slice(),
+            self.scale,
+        );
+    }
 }
 
 /// One row segment of [`draw_rect`]: texel `i` is the taps `col_taps[i·nx..(i+1)·nx] × ys` of `level`
