@@ -235,7 +235,11 @@ impl<'a> Materials<'a> {
             let uv = self.uv.get(id.idx()).copied().unwrap_or(UvSource::Solid);
             return (id, uv);
         }
-        let mut factor = diffuse.map_or(pbr.base_color_factor(), |sg| sg.diffuse_factor());
+        // Clamped into glTF's [0, 1] (warned about: `warn_undrawn_features`), so the atlas, which applies
+        // it before filtering and stores 8 bits, and the originals, which apply it after, agree.
+        let mut factor = diffuse
+            .map_or(pbr.base_color_factor(), |sg| sg.diffuse_factor())
+            .map(|c| if c.is_nan() { 1.0 } else { c.clamp(0.0, 1.0) });
         let alpha = match gm.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             // glTF 2.0 §3.9.4 draws a texel whose alpha is ≥ the cutoff opaque, in its own colour: with a

@@ -31,7 +31,8 @@ impl ImportReport {
 /// What the glTF asks for that atlastree does not draw, one counted warning per feature (not per
 /// instance): vertex colours (`COLOR_0`), NEAREST magnification filters (atlases and originals are
 /// sampled linearly, in linear light), emission (atlases hold the base colour only), skins (meshes are
-/// placed by their nodes' transforms), and MASK cutoffs below glTF's minimum of 0 (drawn as OPAQUE),
+/// placed by their nodes' transforms), base colour factors outside `[0, 1]` (clamped) and MASK cutoffs
+/// below glTF's minimum of 0 (drawn as OPAQUE),
 /// counted over the whole file, drawn scene or not. Not warned: `doubleSided: false`, the default of most
 /// files — every triangle is drawn from both sides (README, "Bad input and faults").
 pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &mut ImportReport) {
@@ -99,6 +100,22 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
         ));
     }
     warn_undeclared_quantization(file, doc, report);
+    // glTF 2.0's schema bounds baseColorFactor to [0, 1]; beyond, the atlas (8-bit, the factor applied
+    // before filtering) and the originals (the factor applied after) would draw different colours.
+    let outside: Vec<usize> = doc
+        .materials()
+        .filter(|m| {
+            let f = m.pbr_metallic_roughness().base_color_factor();
+            f.iter().any(|c| !(0.0..=1.0).contains(c))
+        })
+        .filter_map(|m| m.index())
+        .collect();
+    if let Some(&first) = outside.first() {
+        report.warn(format!(
+            "{file}: {} materials have a baseColorFactor outside glTF's range [0, 1], clamped into it              (first: material {first})",
+            outside.len()
+        ));
+    }
     for m in doc.materials() {
         if let Some(c) = m.alpha_cutoff().filter(|c| *c < 0.0) {
             report.warn(format!(

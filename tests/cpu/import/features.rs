@@ -104,6 +104,31 @@ fn an_opaque_materials_factor_alpha_is_ignored() {
     assert_eq!(by_name("roof_2").base_color_factor[3], 0.25);
 }
 
+/// glTF 2.0's schema bounds baseColorFactor to [0, 1]. Beyond it the atlas (the factor applied before
+/// filtering, stored in 8 bits) and the originals (applied after filtering) drew different colours
+/// without a word; now it is clamped, with one counted warning naming the first such material.
+#[test]
+fn a_base_colour_factor_outside_0_1_is_clamped_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    let pbr = "pbrMetallicRoughness";
+    doc["materials"][2][pbr]["baseColorFactor"] = json!([2.0, -1.0, 0.5, 1.0]);
+    doc["materials"][4][pbr]["baseColorFactor"] = json!([1.0, 1.0, 1.0, 1.5]);
+    doc["materials"][4]["alphaMode"] = json!("BLEND");
+    let s = import_city(dir.path(), &doc).1.unwrap();
+    let w = &s.report.warnings;
+    assert_eq!(s.report.warnings_total, 1, "{w:?}");
+    assert!(
+        w[0].contains("2 materials have a baseColorFactor outside glTF's range [0, 1]")
+            && w[0].contains("first: material 2"),
+        "{w:?}"
+    );
+    let name = |i: usize| doc["materials"][i]["name"].as_str().unwrap().to_string();
+    let by_name = |n: String| s.materials.iter().find(|m| m.name == n).unwrap();
+    assert_eq!(by_name(name(2)).base_color_factor, [1.0, 0.0, 0.5, 1.0]);
+    assert_eq!(by_name(name(4)).base_color_factor, [1.0; 4]);
+}
+
 /// Emission is not drawn: one counted warning naming the first emissive material (an emissive texture
 /// with the default factor [0, 0, 0] emits nothing and is not counted).
 #[test]
