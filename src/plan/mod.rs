@@ -28,6 +28,7 @@ use crate::paging::{
 use crate::select::{Cut, select};
 use crate::store::TreeFile;
 use crate::store::format::NodeRecord;
+use std::borrow::Cow;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -183,7 +184,9 @@ struct PagingState {
 
 /// Plans frames of one set of trees. See the module docs.
 pub struct FramePlanner<'a> {
-    trees: Vec<&'a [NodeRecord]>,
+    /// Borrowed where the caller holds them; a paging file's are copies (`from_file`), so a file
+    /// rewritten in place while it is drawn cannot change the selection under the frames.
+    trees: Vec<Cow<'a, [NodeRecord]>>,
     paging: Option<PagingState>,
     frozen: Option<Camera>,
     plan: Option<FramePlan>,
@@ -193,7 +196,7 @@ impl<'a> FramePlanner<'a> {
     /// A planner with every block resident (no paging).
     pub fn new(trees: Vec<&'a [NodeRecord]>) -> FramePlanner<'a> {
         FramePlanner {
-            trees,
+            trees: trees.into_iter().map(Cow::Borrowed).collect(),
             paging: None,
             frozen: None,
             plan: None,
@@ -202,7 +205,13 @@ impl<'a> FramePlanner<'a> {
 
     /// Every tree of `file`, every block resident.
     pub fn from_file(file: &'a TreeFile) -> FramePlanner<'a> {
-        FramePlanner::new(file_trees(file))
+        FramePlanner {
+            trees: file_trees_copied(file)
+                .into_iter()
+                .map(Cow::Owned)
+                .collect(),
+            ..FramePlanner::new(Vec::new())
+        }
     }
 
     /// A paging planner: the pager with `opts` (capacity clamped to the table's blocks), the root atlases
@@ -219,7 +228,7 @@ impl<'a> FramePlanner<'a> {
         let pending = pager.bootstrap(fetch_root)?;
         let max_capacity = pager.options().capacity;
         Ok(FramePlanner {
-            trees,
+            trees: trees.into_iter().map(Cow::Borrowed).collect(),
             paging: Some(PagingState {
                 session: PagingSession::new(pager),
                 loader,
@@ -260,7 +269,14 @@ impl<'a> FramePlanner<'a> {
                     .map_err(PlanError::Loader)?,
             )
         };
-        FramePlanner::paged(file_trees(file), table, setup.pager, loader, fetch)
+        let planner = FramePlanner::paged(Vec::new(), table, setup.pager, loader, fetch)?;
+        Ok(FramePlanner {
+            trees: file_trees_copied(file)
+                .into_iter()
+                .map(Cow::Owned)
+                .collect(),
+            ..planner
+        })
     }
 
     /// The pager (`None` when every block is resident).
@@ -358,13 +374,14 @@ impl<'a> FramePlanner<'a> {
         let frame = previous.as_ref().map_or(0, |p| p.frame) + 1;
         let (mut cuts, reuse_resolved) =
             previous.map_or((Vec::new(), None), |p| (p.cuts, p.resolved));
-        let mut stats = select_cuts(&self.trees, &selector, &frustum, scale, &mut cuts);
+        let trees: Vec<&[NodeRecord]> = self.trees.iter().map(|t| &**t).collect();
+        let mut stats = select_cuts(&trees, &selector, &frustum, scale, &mut cuts);
         let t1 = Instant::now();
         stats.select_us = (t1 - t0).as_secs_f64() * 1e6;
         let mut resolved = None;
         if let Some(p) = &mut self.paging {
             let view = View {
-                trees: &self.trees,
+                trees: &trees,
                 selector: &selector,
                 frustum: &frustum,
                 scale,
@@ -567,6 +584,13 @@ impl PagingState {
         frame.resident_original_bytes = originals;
         frame.resident_hash = resident_fingerprint(pager.resident());
     }
+}
+
+/// [`file_trees`] copied out of the file (a few dozen bytes a node): what a planner drawing a paging file
+/// selects from, so bytes rewritten in place under a memory map cannot change the nodes it draws (frames
+/// of no geometry, no warning); the blocks are fetched through their copied records and checksums.
+pub fn file_trees_copied(file: &TreeFile) -> Vec<Vec<NodeRecord>> {
+    file_trees(file).into_iter().map(<[_]>::to_vec).collect()
 }
 
 /// The node tables of every tree of `file`, in tree order.

@@ -106,8 +106,8 @@ impl Renderer<'_> {
         let queue = &ctx.queue;
         self.batch.clear();
         for (t, (info, cut)) in self.resident.infos.iter().zip(&plan.cuts).enumerate() {
-            if let Some(view) = self.file.tree(t) {
-                stats.skipped_draws += self.batch.add_cut(info, view.nodes, cut, plan.resolved(t));
+            if let Some(nodes) = self.nodes.get(t) {
+                stats.skipped_draws += self.batch.add_cut(info, nodes, cut, plan.resolved(t));
             }
         }
         self.batch.finish();

@@ -189,6 +189,9 @@ pub(super) struct Timestamps {
 pub struct Renderer<'f> {
     pub(super) ctx: &'f GpuContext,
     pub(super) file: &'f TreeFile,
+    /// The node tables of every tree, copied at the start (`plan::file_trees_copied`): each frame's
+    /// draws are made from them, not from the memory map a file rewritten in place would change.
+    pub(super) nodes: Vec<Vec<crate::store::format::NodeRecord>>,
     pub resident: Resident,
     pub(super) opts: RendererOptions,
     pub(super) layout: wgpu::BindGroupLayout,
@@ -319,6 +322,7 @@ impl<'f> Renderer<'f> {
         Ok(Renderer {
             ctx,
             file,
+            nodes: crate::plan::file_trees_copied(file),
             resident,
             opts,
             layout,

@@ -5,7 +5,8 @@
 //!   with an ancestor atlas, and the block is requested again after the back-off;
 //! - a still plan (warm-up, preview) steps no pager and moves no clock;
 //! - the clock may not run backwards;
-//! - the capacity may be lowered and raised again up to the capacity at creation, never above it.
+//! - the capacity may be lowered and raised again up to the capacity at creation, never above it;
+//! - a planner of a paging file selects from copies of its node tables, not through the memory map.
 
 use crate::fixtures::corners::{corners, options};
 use atlastree::camera::{Camera, CameraPath};
@@ -208,4 +209,33 @@ fn capacity_goes_down_and_back_up_to_the_capacity_at_creation() {
     let plan = all.plan(&cams[0], 0.0, scale, &mut NoResidency).unwrap();
     assert!(plan.resolved.is_none() && plan.stats.paging.is_none());
     assert!(plan.stats.nodes_drawn > 0);
+}
+
+/// A paging file rewritten in place while it is drawn (same path, not truncated: `dd conv=notrunc`, a
+/// copy over it) must not change the nodes the planner selects: it read the node tables through the
+/// memory map every frame, so the fault hunt's render drew 60 of 150 frames with no geometry, no load
+/// failure and no warning. The planner now selects from copies taken at the start; here the whole file
+/// is zeroed under the map and the next plan selects what the first did.
+#[test]
+fn a_file_rewritten_in_place_does_not_change_the_selection() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let file = build_corners(dir.path());
+    let mut planner = FramePlanner::from_file(&file);
+    let (cams, scale) = street(&file, 1);
+    let before = planner
+        .plan_still(&cams[0], scale, &mut NoResidency)
+        .unwrap();
+    let (drawn, cuts) = (before.stats.nodes_drawn, format!("{:?}", before.cuts));
+    assert!(drawn > 0);
+    let path = dir.path().join("corners.atlastree");
+    let len = std::fs::metadata(&path).unwrap().len() as usize;
+    let mut f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    f.write_all(&vec![0u8; len]).unwrap();
+    f.sync_all().unwrap();
+    let after = planner
+        .plan_still(&cams[0], scale, &mut NoResidency)
+        .unwrap();
+    assert_eq!(after.stats.nodes_drawn, drawn);
+    assert_eq!(format!("{:?}", after.cuts), cuts);
 }
