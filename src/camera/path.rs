@@ -76,6 +76,18 @@ pub enum CameraError {
          length in f64), the view direction is undefined"
     )]
     DegenerateView { path: PathBuf, keyframe: usize },
+    #[error(
+        "{path}: near is {near} (far {far}): the projection's depth term near·far/(far − near) is {term:e}, \
+         below the smallest normal f32 ({min:e}), so every depth rounds alike and nothing is drawn; use a \
+         larger near"
+    )]
+    NearUnderflows {
+        path: PathBuf,
+        near: f64,
+        far: f64,
+        term: f64,
+        min: f64,
+    },
     #[error("{path}: {field} is {value}, it must be finite and > 0 (and near < far)")]
     BadLens {
         path: PathBuf,
@@ -247,6 +259,19 @@ impl CameraPath {
                 path: path(),
                 field: "near",
                 value: self.near,
+            });
+        }
+        // The depth term of `Camera::projection` reaches the GPU as an f32; subnormal or zero, every
+        // fragment's depth rounds alike (1e-40 drew blank frames without a word).
+        let term = self.near * self.far / (self.far - self.near);
+        let min = f64::from(f32::MIN_POSITIVE);
+        if term < min {
+            return Err(CameraError::NearUnderflows {
+                path: path(),
+                near: self.near,
+                far: self.far,
+                term,
+                min,
             });
         }
         for (i, k) in self.keyframes.iter().enumerate() {

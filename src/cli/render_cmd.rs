@@ -69,9 +69,10 @@ pub(crate) struct RenderArgs {
     /// by default): ground truth where the original itself aliases. Needs every block resident.
     #[arg(long)]
     pub reference: Option<Reference>,
-    /// Write OUT/selection.json: per frame, the nodes the selection draws in every tree (node, level,
-    /// atlas or original, distance), e.g. to compare with the tiles a 3D Tiles viewer shows for the same
-    /// camera (`atlastree export 3dtiles`).
+    /// Write OUT/selection.json: per frame, the nodes the selection chooses in every tree (node, level,
+    /// atlas or original, distance) and what drew each (paged: a resident ancestor's atlas where a block
+    /// is missing, with the levels it is coarser), e.g. to compare with the tiles a 3D Tiles viewer shows
+    /// for the same camera (`atlastree export 3dtiles`).
     #[arg(long)]
     pub selection: bool,
     #[command(flatten, next_help_heading = "Viewport")]
@@ -604,21 +605,33 @@ fn is_one_colour(rgba: &[u8]) -> bool {
     px.all(|p| Some(p) == first)
 }
 
-/// One frame's selection: every tree's cut items, as drawn (a missing block's item is listed as
-/// selected; `--selection` is for comparing cuts).
+/// One frame's selection: every tree's cut items as selected (`node`, `source`), and what drew each
+/// (`drawn_node`, `drawn_source`, `coarser_levels`): where a paged block is missing, a resident ancestor's
+/// atlas, so `--selection` compares both the cuts and what the frames show.
 fn selection_json(frame: usize, plan: &atlastree::plan::FramePlan) -> serde_json::Value {
+    let name = |original: bool| if original { "original" } else { "atlas" };
     let items: Vec<serde_json::Value> = plan
         .cuts
         .iter()
         .enumerate()
         .flat_map(|(t, cut)| {
-            cut.items.iter().map(move |i| {
+            let resolved = plan.resolved(t);
+            cut.items.iter().enumerate().map(move |(k, i)| {
+                let original = i.source == atlastree::select::Source::Original;
+                let drawn = resolved.and_then(|r| r.get(k));
+                let (drawn_node, drawn_original, coarser) = match drawn {
+                    Some(d) => (
+                        d.atlas_node.unwrap_or(i.node).0,
+                        d.atlas_node.is_none(),
+                        d.coarser_levels,
+                    ),
+                    None => (i.node.0, original, 0),
+                };
                 serde_json::json!({
                     "tree": t, "node": i.node.0, "level": i.level, "distance": i.distance,
-                    "source": match i.source {
-                        atlastree::select::Source::Atlas => "atlas",
-                        atlastree::select::Source::Original => "original",
-                    },
+                    "source": name(original),
+                    "drawn_node": drawn_node, "drawn_source": name(drawn_original),
+                    "coarser_levels": coarser,
                 })
             })
         })

@@ -42,7 +42,17 @@ pub(super) fn write_and_report(
             );
         }
     }
-    let ratios = frame_ratios(&medians);
+    // A path that never looks at the scene times empty frames: their ratios would read as a measurement.
+    let drew = runs.iter().any(|r| r.stats.iter().any(|s| s.triangles > 0));
+    let ratios = if drew {
+        frame_ratios(&medians)
+    } else {
+        eprintln!(
+            "warning: no frame of the path draws any geometry (does it look at the scene?): the frame \
+             times measure empty frames, so their ratios are left out"
+        );
+        Vec::new()
+    };
     for (name, r) in &ratios {
         println!("median frame time {name}: {r:.3}");
     }

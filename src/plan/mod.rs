@@ -39,6 +39,13 @@ pub trait Residency {
     /// be applied: for a loaded block the pager then takes it back (drawn coarser) and asks for it again
     /// as the error's [`ResidencyError::retry`] says.
     fn apply(&mut self, event: &Event) -> Result<u64, ResidencyError>;
+
+    /// Whether [`Residency::apply`] reports real uploads. An executor that uploads nothing (the
+    /// simulator's) has its loads counted at the bytes a renderer uploads for them and the byte budget
+    /// counts ([`crate::paging::BlockMeta::upload_bytes`]), so `bytes_uploaded` means the same in both.
+    fn uploads(&self) -> bool {
+        true
+    }
 }
 
 /// The simulator's executor: nothing to upload, every change applies.
@@ -49,6 +56,10 @@ impl Residency for NoResidency {
     fn apply(&mut self, _: &Event) -> Result<u64, ResidencyError> {
         Ok(0)
     }
+
+    fn uploads(&self) -> bool {
+        false
+    }
 }
 
 /// A recorder: applies nothing, hands every change to a closure (the simulator's event log).
@@ -58,6 +69,10 @@ impl<F: FnMut(&Event)> Residency for RecordResidency<F> {
     fn apply(&mut self, event: &Event) -> Result<u64, ResidencyError> {
         (self.0)(event);
         Ok(0)
+    }
+
+    fn uploads(&self) -> bool {
+        false
     }
 }
 
@@ -483,7 +498,10 @@ impl Applier<'_, '_> {
         };
         match result {
             Ok(bytes) => {
-                self.uploaded += bytes;
+                self.uploaded += match load {
+                    Some(block) if !self.residency.uploads() => self.table.meta(block).upload_bytes,
+                    _ => bytes,
+                };
                 if let Some(block) = load {
                     self.loaded_originals += self.table.bytes_by_kind([block]).1;
                 }

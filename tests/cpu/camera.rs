@@ -184,6 +184,21 @@ fn bad_files_give_clear_errors() {
         matches!(e, CameraError::BadLens { field: "near", .. }),
         "{e}"
     );
+    // A near so small that the projection's depth term is no normal f32 drew blank frames; 1e-30 draws.
+    let e = err_of(&format!(
+        r#"{{ "keyframes": [ {} ], "near": 1e-40, "far": 1000 }}"#,
+        kf(0.0, 60.0)
+    ));
+    assert!(
+        matches!(e, CameraError::NearUnderflows { .. }) && e.to_string().contains("larger near"),
+        "{e}"
+    );
+    let tiny = format!(
+        r#"{{ "keyframes": [ {} ], "near": 1e-30, "far": 1000 }}"#,
+        kf(0.0, 60.0)
+    );
+    let p: atlastree::camera::CameraPath = serde_json::from_str(&tiny).unwrap();
+    p.validate(Path::new("code")).unwrap();
     // An up of length 0, or of a length that underflows.
     for up in ["[0, 0, 0]", "[0, 1e-300, 0]"] {
         let e = err_of(&format!(

@@ -170,6 +170,13 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
         .flat_map(|r| r.rows.iter().map(|x| x.bytes_loaded()))
         .collect();
     assert_eq!(written, held);
+    // A frame that loads uploads what a renderer would (the bytes the upload budget counts): the column
+    // read 0 on every frame.
+    let up = t.header.iter().position(|h| h == "bytes_uploaded").unwrap();
+    for row in &t.rows {
+        let (loaded, uploaded): (u64, u64) = (row[col].parse().unwrap(), row[up].parse().unwrap());
+        assert_eq!(loaded > 0, uploaded > 0, "{row:?}");
+    }
     for r in &a {
         let k = r.key.capacity.unwrap_or(u32::MAX);
         for row in &r.rows {

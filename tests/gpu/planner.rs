@@ -35,6 +35,14 @@ pub fn tests() -> Vec<GpuTest> {
             run: warm_up_and_extra_modes_step_no_pager,
         },
         GpuTest {
+            name: "planner::a_path_that_never_looks_at_the_scene_reports_no_frame_ratios",
+            run: a_path_that_never_looks_at_the_scene_reports_no_frame_ratios,
+        },
+        GpuTest {
+            name: "planner::selection_json_says_what_drew_each_item",
+            run: selection_json_says_what_drew_each_item,
+        },
+        GpuTest {
             name: "planner::draws_without_a_gpu_layer_are_skipped_and_counted",
             run: draws_without_a_gpu_layer_are_skipped_and_counted,
         },
@@ -190,6 +198,104 @@ fn warm_up_and_extra_modes_step_no_pager(_: &GpuContext) -> Result<(), String> {
                 other.get(i)
             ));
         }
+    }
+    Ok(())
+}
+
+/// A path that never looks at the scene draws empty frames; their median times were still divided
+/// ("median frame time tree ÷ dummy: 1.057") and written to summary.json as if measured. Now a warning
+/// says so and the ratios are left out (the modes' medians stay).
+fn a_path_that_never_looks_at_the_scene_reports_no_frame_ratios(
+    _: &GpuContext,
+) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let cam = dir.path().join("away.json");
+    let away = r#"{ "keyframes": [
+        { "time": 0, "eye": [0, 100000, 0], "target": [0, 200000, 0], "fov": 60 },
+        { "time": 1, "eye": [10, 100000, 0], "target": [10, 200000, 0], "fov": 60 } ],
+        "up": [0, 0, 1] }"#;
+    std::fs::write(&cam, away).map_err(e)?;
+    let out = dir.path().join("r");
+    let o = Command::new(env!("CARGO_BIN_EXE_atlastree"))
+        .arg("render")
+        .arg(city_deep()?)
+        .args(["--mode", "tree,dummy", "--frames", "3", "--every", "0"])
+        .args(["--width", "64", "--height", "48", "--path"])
+        .arg(&cam)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .map_err(e)?;
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    if !o.status.success() || !stderr.contains("no frame of the path draws any geometry") {
+        return Err(format!("no warning (exit {:?}): {stderr}", o.status.code()));
+    }
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).map_err(e)?)
+            .map_err(e)?;
+    let none = v["ratios"].as_object().is_some_and(|m| m.is_empty());
+    if !none || stdout.contains("median frame time") || v["modes"]["tree"]["frames"] != 3 {
+        return Err(format!("ratios of empty frames reported: {stdout}\n{v}"));
+    }
+    Ok(())
+}
+
+/// `--selection` listed the cut as selected only: with the roots alone resident (k = the root atlases)
+/// the fault hunt's frame listed 7 leaves and 3 originals as if drawn. Each item now says what drew it:
+/// paged at the roots' capacity, some item is drawn by another node's atlas, coarser; all resident,
+/// every item by itself.
+fn selection_json_says_what_drew_each_item(_: &GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let path = city_deep()?;
+    let roots = TreeFile::open(&path).map_err(e)?.trees().to_string();
+    let items = |capacity: Option<&str>, out: &Path| -> Result<Vec<serde_json::Value>, String> {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_atlastree"));
+        cmd.arg("render")
+            .arg(&path)
+            .args(["--path", "street", "--frames", "4", "--every", "0"]);
+        cmd.args(["--width", "64", "--height", "48", "--selection", "--out"])
+            .arg(out);
+        if let Some(k) = capacity {
+            cmd.args(["--capacity", k, "--loader-threads", "0"]);
+        }
+        let o = cmd.output().map_err(e)?;
+        if !o.status.success() {
+            return Err(format!(
+                "render failed: {}",
+                String::from_utf8_lossy(&o.stderr)
+            ));
+        }
+        let text = std::fs::read_to_string(out.join("selection.json")).map_err(e)?;
+        let v: serde_json::Value = serde_json::from_str(&text).map_err(e)?;
+        let frames = v
+            .as_array()
+            .or(v["frames"].as_array())
+            .ok_or(format!("no frames: {v}"))?;
+        Ok(frames
+            .iter()
+            .flat_map(|f| f["items"].as_array().cloned().unwrap_or_default())
+            .collect())
+    };
+    let redrawn = |i: &serde_json::Value| {
+        i["drawn_node"] != i["node"] || i["drawn_source"] != i["source"] || i["coarser_levels"] != 0
+    };
+    let paged = items(Some(&roots), &dir.path().join("paged"))?;
+    let all = items(None, &dir.path().join("all"))?;
+    if all.is_empty() || all.iter().any(redrawn) {
+        return Err(format!(
+            "all resident, an item is drawn by another: {all:?}"
+        ));
+    }
+    if !paged
+        .iter()
+        .any(|i| redrawn(i) && i["coarser_levels"].as_u64() > Some(0))
+    {
+        return Err(format!(
+            "roots alone resident, every item drawn as selected: {paged:?}"
+        ));
     }
     Ok(())
 }
