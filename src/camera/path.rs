@@ -77,7 +77,7 @@ pub enum CameraError {
     )]
     DegenerateView { path: PathBuf, keyframe: usize },
     #[error(
-        "{path}: near is {near} (far {far}): the projection's depth term near·far/(far − near) is {term:e}, \
+        "{path}: near is {near:e} (far {far}): the projection's depth term near·far/(far − near) is {term:e}, \
          below the smallest normal f32 ({min:e}), so every depth rounds alike and nothing is drawn; use a \
          larger near"
     )]
