@@ -201,7 +201,9 @@ pub(crate) struct PagingArgs {
     /// Paging policy: paper (§6), distance, lru, ours (paper + hysteresis + lookahead) [default: paper]
     #[arg(long)]
     pub policy: Option<Policy>,
-    /// Loader threads; 0 loads synchronously within the frame (deterministic) [default: 2]
+    /// Loader threads; 0 loads synchronously within the frame (deterministic; over HTTP a server that
+    /// stalls then holds the frame for up to 4 attempts of 30 s a block, where loader threads count the
+    /// block as failed and draw on) [default: 2]
     #[arg(long, value_name = "N")]
     pub loader_threads: Option<usize>,
 }
