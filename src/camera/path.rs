@@ -133,8 +133,10 @@ pub(super) const MAX_TIME: f64 = 1e9;
 /// Smallest time between two keyframes, seconds (the spline divides by it).
 pub(super) const MIN_KEYFRAME_GAP: f64 = 1e-6;
 
-/// One keyframe: time, eye, target and horizontal field of view.
+/// One keyframe: time, eye, target and horizontal field of view. An unknown field is refused (a
+/// misspelled `"fvo"` was ignored without a word).
 #[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Keyframe {
     /// Seconds from the start of the path.
     pub time: f64,
@@ -170,8 +172,10 @@ fn default_far() -> f64 {
 /// Hermite spline (Fritsch–Carlson tangents, PCHIP): C¹, through every keyframe exactly, and **never
 /// outside the range of the two keyframes around `t` in any coordinate** (no overshoot: a path whose
 /// keyframes are above the ground stays above it). The field of view is interpolated linearly. Times
-/// outside the keyframes clamp to the first or last keyframe.
+/// outside the keyframes clamp to the first or last keyframe. An unknown field is refused, with its name
+/// and the fields there are (a misspelled `"upp"` was ignored without a word).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CameraPath {
     pub keyframes: Vec<Keyframe>,
     #[serde(default = "default_up")]

@@ -199,6 +199,20 @@ fn bad_files_give_clear_errors() {
     );
     let p: atlastree::camera::CameraPath = serde_json::from_str(&tiny).unwrap();
     p.validate(Path::new("code")).unwrap();
+    // A misspelled field was ignored (the path drawn with the default up, a keyframe's fov field lost).
+    for (text, name) in [
+        (format!(r#"{{ "keyframes": [ {} ], "upp": [0, 0, 1] }}"#, kf(0.0, 60.0)), "upp"),
+        (
+            r#"{ "keyframes": [ { "time": 0, "eye": [0,5,0], "target": [1,5,0], "fov": 60, "fvo": 90 } ] }"#.to_string(),
+            "fvo",
+        ),
+    ] {
+        let e = err_of(&text);
+        assert!(
+            matches!(e, CameraError::Json { .. }) && e.to_string().contains(&format!("unknown field `{name}`")),
+            "{e}"
+        );
+    }
     // An up of length 0, or of a length that underflows.
     for up in ["[0, 0, 0]", "[0, 1e-300, 0]"] {
         let e = err_of(&format!(

@@ -112,8 +112,10 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
         .collect();
     if let Some(&first) = outside.first() {
         report.warn(format!(
-            "{file}: {} materials have a baseColorFactor outside glTF's range [0, 1], clamped into it              (first: material {first})",
-            outside.len()
+            "{file}: {} {} a baseColorFactor outside glTF's range [0, 1], clamped into it (first: material \
+             {first})",
+            outside.len(),
+            if outside.len() == 1 { "material has" } else { "materials have" }
         ));
     }
     for m in doc.materials() {

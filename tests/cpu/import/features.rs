@@ -119,8 +119,10 @@ fn a_base_colour_factor_outside_0_1_is_clamped_with_a_warning() {
     let w = &s.report.warnings;
     assert_eq!(s.report.warnings_total, 1, "{w:?}");
     assert!(
-        w[0].contains("2 materials have a baseColorFactor outside glTF's range [0, 1]")
-            && w[0].contains("first: material 2"),
+        w[0].contains(
+            "2 materials have a baseColorFactor outside glTF's range [0, 1], clamped into it (first: \
+             material 2)"
+        ),
         "{w:?}"
     );
     let name = |i: usize| doc["materials"][i]["name"].as_str().unwrap().to_string();
