@@ -72,7 +72,7 @@ pub(super) fn finish_atlas(
         ..MipOptions::default()
     };
     // A banded leaf's level 0, stored already: (bytes, bled).
-    let (mut level0, base) = match atlas {
+    let (level0, base) = match atlas {
         AtlasStart::Linear(level0) => (None, level0),
         AtlasStart::Banded(b) => (Some((b.rgba0, b.bled)), b.level1),
     };
@@ -108,7 +108,7 @@ pub(super) fn finish_atlas(
     let mut samples = 0u64;
     // The chain's level k is the atlas's level k + skip.
     let skip = usize::from(level0.is_some());
-    if let Some((rgba, was_bled)) = level0.take() {
+    if let Some((rgba, was_bled)) = level0 {
         let side = out.atlas_size;
         samples += u64::from(side) * u64::from(side) * channels as u64;
         bled |= was_bled;
