@@ -28,10 +28,11 @@ use std::sync::Arc;
 pub(crate) struct RenderArgs {
     /// The paging file, or an http(s) URL of one (then blocks are paged over HTTP; `--capacity` defaults
     /// to all blocks). A local file's tables are memory-mapped: truncating it while it renders can stop
-    /// the run with SIGBUS. The node tables are copied at the start and paged blocks are read through a
-    /// handle of their own, checked against their checksums, so a file rewritten in place costs counted
-    /// load failures. Publish a new file by renaming it over the old one (as `build` does), or set
-    /// ATLASTREE_NO_MMAP=1 to read the file into memory.
+    /// the run with SIGBUS. The node tables and parameters are copied as the run starts and paged blocks
+    /// are read through a handle of their own, checked against their checksums, so in tree modes a file
+    /// rewritten in place afterwards costs counted load failures (`--mode original` reads its geometry
+    /// tables at its first frame). Publish a new file by renaming it over the old one (as `build` does),
+    /// or set ATLASTREE_NO_MMAP=1 to read the file into memory.
     pub file: PathBuf,
     /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
     #[arg(long, default_value = "overview-dive")]

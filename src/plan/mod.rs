@@ -199,8 +199,9 @@ struct PagingState {
 
 /// Plans frames of one set of trees. See the module docs.
 pub struct FramePlanner<'a> {
-    /// Borrowed where the caller holds them; a paging file's are copies (`from_file`), so a file
-    /// rewritten in place while it is drawn cannot change the selection under the frames.
+    /// Borrowed where the caller holds them; a paging file's are copies (`from_file`,
+    /// `paged_from_file`), so a file rewritten in place while it is drawn cannot change the selection
+    /// under the frames.
     trees: Vec<Cow<'a, [NodeRecord]>>,
     paging: Option<PagingState>,
     frozen: Option<Camera>,
@@ -208,6 +209,20 @@ pub struct FramePlanner<'a> {
 }
 
 impl<'a> FramePlanner<'a> {
+    /// This planner selecting from copies of `file`'s node tables ([`file_trees_copied`]), taken now.
+    fn with_copied_trees(mut self, file: &TreeFile) -> Self {
+        self.trees = file_trees_copied(file)
+            .into_iter()
+            .map(Cow::Owned)
+            .collect();
+        self
+    }
+
+    /// Tree `t`'s node table as the planner selects from it (its own copy for a paging file).
+    pub fn tree(&self, t: usize) -> Option<&[NodeRecord]> {
+        self.trees.get(t).map(|t| &**t)
+    }
+
     /// A planner with every block resident (no paging).
     pub fn new(trees: Vec<&'a [NodeRecord]>) -> FramePlanner<'a> {
         FramePlanner {
@@ -220,13 +235,7 @@ impl<'a> FramePlanner<'a> {
 
     /// Every tree of `file`, every block resident.
     pub fn from_file(file: &'a TreeFile) -> FramePlanner<'a> {
-        FramePlanner {
-            trees: file_trees_copied(file)
-                .into_iter()
-                .map(Cow::Owned)
-                .collect(),
-            ..FramePlanner::new(Vec::new())
-        }
+        FramePlanner::new(Vec::new()).with_copied_trees(file)
     }
 
     /// A paging planner: the pager with `opts` (capacity clamped to the table's blocks), the root atlases
@@ -285,13 +294,7 @@ impl<'a> FramePlanner<'a> {
             )
         };
         let planner = FramePlanner::paged(Vec::new(), table, setup.pager, loader, fetch)?;
-        Ok(FramePlanner {
-            trees: file_trees_copied(file)
-                .into_iter()
-                .map(Cow::Owned)
-                .collect(),
-            ..planner
-        })
+        Ok(planner.with_copied_trees(file))
     }
 
     /// The pager (`None` when every block is resident).
@@ -604,7 +607,7 @@ impl PagingState {
     }
 }
 
-/// [`file_trees`] copied out of the file (a few dozen bytes a node): what a planner drawing a paging file
+/// [`file_trees`] copied out of the file (104 bytes a node): what a planner drawing a paging file
 /// selects from, so bytes rewritten in place under a memory map cannot change the nodes it draws (frames
 /// of no geometry, no warning); the blocks are fetched through their copied records and checksums.
 pub fn file_trees_copied(file: &TreeFile) -> Vec<Vec<NodeRecord>> {

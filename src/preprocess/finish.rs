@@ -76,9 +76,6 @@ pub(super) fn finish_atlas(
         AtlasStart::Linear(level0) => (None, level0),
         AtlasStart::Banded(b) => (Some((b.rgba0, b.bled)), b.level1),
     };
-    // One mip chain serves both the stored block and the parent, which needs exactly level 1 (with
-    // coverage kept, the rescaled level 1: the parent's level 0 then has the leaves' coverage).
-    let mut chain = MipChain::build_with(base, &opts);
     let regions = super::alpha_coverage::node_regions(tree, id, out.atlas_size, &out.mask_cutoffs);
     if level0.is_some() && !regions.is_empty() {
         return Err(BuildError::Image {
@@ -88,6 +85,9 @@ pub(super) fn finish_atlas(
             },
         });
     }
+    // One mip chain serves both the stored block and the parent, which needs exactly level 1 (with
+    // coverage kept, the rescaled level 1: the parent's level 0 then has the leaves' coverage).
+    let mut chain = MipChain::build_with(base, &opts);
     preserve_coverage(&mut chain.levels, &regions);
     let reusable = reusable_levels(out, tree, regions.is_empty());
     // Children's stored levels, by quadrant, where every present child has them.

@@ -21,6 +21,7 @@ pub mod demand;
 mod finish;
 pub mod image_ops;
 pub mod layout;
+mod leaf;
 pub mod memory;
 mod merge;
 pub mod originals;

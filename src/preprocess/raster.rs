@@ -10,12 +10,11 @@ use super::BuildError;
 use super::finish::{AtlasStart, NodeOut, finish_atlas};
 use super::image_ops::ImageOpsError;
 use super::image_ops::{
-    AlphaMips, CoverageRegion, LinearImage, MipChain, MipFilter, RectJob, RectPlan,
-    combine_quadrants, draw_leaf_banded, draw_rect, mip_chain_rgba8, neutral_fill,
-    preserve_coverage, resample_rect,
+    AlphaMips, CoverageRegion, LinearImage, MipChain, MipFilter, combine_quadrants,
+    mip_chain_rgba8, neutral_fill, preserve_coverage, resample_rect,
 };
 use crate::ids::{ImageId, NodeId};
-use crate::model::{AtlasTree, Leaf, TreeKind};
+use crate::model::{AtlasTree, TreeKind};
 use crate::scene::{DecodedImage, Scene};
 use crate::store::BlockSink;
 use crate::texfmt::{Encoded, TexFormat, encode_chain_rect, encode_levels_rect};
@@ -47,7 +46,8 @@ impl CachedImage {
         out
     }
 
-    fn bytes(&self) -> u64 {
+    /// Bytes it holds: the linear chain and the decoded pixels.
+    pub(super) fn bytes(&self) -> u64 {
         let chain: u64 = self
             .chain
             .levels
@@ -638,7 +638,7 @@ fn raster_node(
         if let Some(blocks) = owned.get(&leaf_id.idx()) {
             write_originals(ctx, tree, blocks)?;
         }
-        let atlas = leaf_start(ctx, tree, id, leaf)?;
+        let atlas = super::leaf::leaf_start(ctx, tree, id, leaf)?;
         return finish_atlas(&ctx.out, tree, id, atlas, None);
     }
     let kids = children_of(tree, id, &|c| raster_node(ctx, tree, owned, c))?;
@@ -693,93 +693,7 @@ fn combine_children(
         .map_err(|e| image_err(format!("inner atlas of node {}", id.0), e))
 }
 
-/// A leaf's atlas as [`finish_atlas`] takes it: level 0 drawn band by band, halved and encoded as it goes
-/// ([`draw_leaf_banded`]: the same bytes with a quarter of the memory traffic) where nothing changes
-/// level 0 or 1 after drawing — the 2×2 box and no coverage regions — and the leaf's sources together
-/// take at most a quarter of the image cache shared by the rasteriser threads (a band draws from all of
-/// them, so they are held at once); else drawn whole ([`leaf_atlas`]).
-fn leaf_start(
-    ctx: &RasterCtx<'_>,
-    tree: &AtlasTree,
-    id: NodeId,
-    leaf: &Leaf,
-) -> Result<AtlasStart, BuildError> {
-    let err = |e| image_err(format!("leaf atlas of node {}", id.0), e);
-    let (size, fill) = (ctx.out.atlas_size, fill_for(tree.kind));
-    let box_only = ctx.out.mip_filter == MipFilter::Box
-        && super::alpha_coverage::node_regions(tree, id, size, &ctx.out.mask_cutoffs).is_empty();
-    // What the threads hold beside the cache: together at most a quarter of it (4 threads at a quarter
-    // each peaked 30 MiB above a 1200 MiB budget where the whole-level path stayed 60 MiB further below).
-    let share = ctx.cache.capacity() / 4 / rayon::current_num_threads().max(1) as u64;
-    if box_only && let Some(images) = leaf_images_within(ctx, leaf, share) {
-        let plans = leaf
-            .rects
-            .iter()
-            .zip(&images)
-            .map(|(r, img)| RectPlan::new(size, size, &rect_job(ctx, r), &img.chain))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(err)?;
-        if let Some(levels) = draw_leaf_banded(size, fill, &plans) {
-            return Ok(AtlasStart::Banded(levels));
-        }
-    }
-    leaf_atlas(ctx, leaf, size, fill)
-        .map(AtlasStart::Linear)
-        .map_err(err)
-}
-
-/// The source of each of `leaf`'s rects, in rect order, while their distinct images take at most
-/// `bytes`; `None` beyond.
-fn leaf_images_within(
-    ctx: &RasterCtx<'_>,
-    leaf: &Leaf,
-    bytes: u64,
-) -> Option<Vec<Arc<CachedImage>>> {
-    let mut held: HashMap<ImageId, Arc<CachedImage>> = HashMap::new();
-    let mut total = 0u64;
-    let mut out = Vec::with_capacity(leaf.rects.len());
-    for r in &leaf.rects {
-        let id = ctx.scene.materials[r.material.idx()].image;
-        let img = match held.get(&id) {
-            Some(img) => img.clone(),
-            None => {
-                let img = ctx.cache.get(id);
-                total = total.saturating_add(img.bytes());
-                if total > bytes {
-                    return None;
-                }
-                held.insert(id, img.clone());
-                img
-            }
-        };
-        out.push(img);
-    }
-    Some(out)
-}
-
-/// The draw job of `r` with its material's wrap modes and colour factor.
-fn rect_job(ctx: &RasterCtx<'_>, r: &crate::model::AtlasRect) -> RectJob {
-    let mat = &ctx.scene.materials[r.material.idx()];
-    RectJob::from_atlas_rect(r, mat.wrap, mat.base_color_factor)
-}
-
-/// A leaf atlas: every material's area drawn from its source (§5.2.3; the paper renders textured quads on
-/// the GPU, we filter on the CPU in linear light with correct minification).
-pub fn leaf_atlas(
-    ctx: &RasterCtx<'_>,
-    leaf: &Leaf,
-    size: u32,
-    fill: [f32; 4],
-) -> Result<LinearImage, ImageOpsError> {
-    let mut atlas = LinearImage::new_filled(size, size, fill);
-    for r in &leaf.rects {
-        let img = ctx.cache.get(ctx.scene.materials[r.material.idx()].image);
-        draw_rect(&mut atlas, &rect_job(ctx, r), &img.chain)?;
-    }
-    Ok(atlas)
-}
-
-fn image_err(what: String, source: ImageOpsError) -> BuildError {
+pub(super) fn image_err(what: String, source: ImageOpsError) -> BuildError {
     BuildError::Image { what, source }
 }
 

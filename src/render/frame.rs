@@ -192,6 +192,8 @@ pub struct Renderer<'f> {
     /// The node tables of every tree, copied at the start (`plan::file_trees_copied`): each frame's
     /// draws are made from them, not from the memory map a file rewritten in place would change.
     pub(super) nodes: Vec<Vec<crate::store::format::NodeRecord>>,
+    /// The file's atlas side, read once (the shader divides by it every frame).
+    pub(super) atlas_texels: f32,
     pub resident: Resident,
     pub(super) opts: RendererOptions,
     pub(super) layout: wgpu::BindGroupLayout,
@@ -323,6 +325,7 @@ impl<'f> Renderer<'f> {
             ctx,
             file,
             nodes: crate::plan::file_trees_copied(file),
+            atlas_texels: file.params().atlas_size as f32,
             resident,
             opts,
             layout,
@@ -444,7 +447,7 @@ impl<'f> Renderer<'f> {
             } else {
                 MODE_TEXTURED
             },
-            atlas_texels: self.file.params().atlas_size as f32,
+            atlas_texels: self.atlas_texels,
             _p1: 0,
             _p2: 0,
         };

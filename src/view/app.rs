@@ -148,7 +148,8 @@ struct Running<'a> {
     ctx: &'a GpuContext,
     /// `ctx.adapter_summary()`, shown in the inspector.
     adapter: String,
-    file: &'a TreeFile,
+    /// The file's parameters, read once (not through the memory map every frame).
+    params: crate::model::BuildParams,
     bounds: (DVec3, DVec3),
     presenter: Presenter<'a>,
     /// The frame planner and the renderer that executes its plans.
@@ -258,7 +259,7 @@ impl<'a> Running<'a> {
             window,
             ctx,
             adapter: ctx.adapter_summary(),
-            file,
+            params: file.to_params(),
             bounds,
             presenter,
             frame_loop,
@@ -464,7 +465,7 @@ impl<'a> Running<'a> {
         self.frame_loop.planner.freeze_selection(self.frozen);
         let selector = self.frozen.as_ref().unwrap_or(&camera);
         let scale = min_distance_scale(
-            &self.file.to_params(),
+            &self.params,
             &SelectOptions {
                 screen_width: w,
                 texel_ratio: self.settings.texel_ratio,
@@ -554,11 +555,11 @@ impl<'a> Running<'a> {
     fn node_boxes(&self) -> Vec<NodeBox> {
         let mut boxes = Vec::new();
         for (t, cut) in self.frame_loop.cuts().iter().enumerate() {
-            let Some(view) = self.file.tree(t) else {
+            let Some(nodes) = self.frame_loop.planner.tree(t) else {
                 continue;
             };
             boxes.extend(cut.items.iter().filter_map(|item| {
-                let n = view.nodes.get(item.node.idx())?;
+                let n = nodes.get(item.node.idx())?;
                 Some(NodeBox {
                     lo: DVec3::from_array(n.bounds_min),
                     hi: DVec3::from_array(n.bounds_max),

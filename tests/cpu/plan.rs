@@ -221,6 +221,10 @@ fn a_file_rewritten_in_place_does_not_change_the_selection() {
     use std::io::Write;
     let dir = tempfile::tempdir().unwrap();
     let file = build_corners(dir.path());
+    assert!(
+        file.is_mapped(),
+        "the test needs the memory map (ATLASTREE_NO_MMAP unset)"
+    );
     let mut planner = FramePlanner::from_file(&file);
     let (cams, scale) = street(&file, 1);
     let before = planner
@@ -228,9 +232,11 @@ fn a_file_rewritten_in_place_does_not_change_the_selection() {
         .unwrap();
     let (drawn, cuts) = (before.stats.nodes_drawn, format!("{:?}", before.cuts));
     assert!(drawn > 0);
-    let path = dir.path().join("corners.atlastree");
-    let len = std::fs::metadata(&path).unwrap().len() as usize;
-    let mut f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    let len = std::fs::metadata(file.path()).unwrap().len() as usize;
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(file.path())
+        .unwrap();
     f.write_all(&vec![0u8; len]).unwrap();
     f.sync_all().unwrap();
     let after = planner

@@ -270,14 +270,17 @@ fn selection_json_says_what_drew_each_item(_: &GpuContext) -> Result<(), String>
         }
         let text = std::fs::read_to_string(out.join("selection.json")).map_err(e)?;
         let v: serde_json::Value = serde_json::from_str(&text).map_err(e)?;
-        let frames = v
-            .as_array()
-            .or(v["frames"].as_array())
-            .ok_or(format!("no frames: {v}"))?;
-        Ok(frames
-            .iter()
-            .flat_map(|f| f["items"].as_array().cloned().unwrap_or_default())
-            .collect())
+        let frames = v["frames"].as_array().ok_or(format!("no frames: {v}"))?;
+        let mut items = Vec::new();
+        for f in frames {
+            items.extend(
+                f["items"]
+                    .as_array()
+                    .ok_or(format!("a frame without items: {f}"))?
+                    .clone(),
+            );
+        }
+        Ok(items)
     };
     let redrawn = |i: &serde_json::Value| {
         i["drawn_node"] != i["node"] || i["drawn_source"] != i["source"] || i["coarser_levels"] != 0

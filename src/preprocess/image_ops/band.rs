@@ -1,5 +1,5 @@
-//! A leaf atlas's level 0 drawn, halved and encoded band by band (issue 26, docs/DESIGN.md "Build
-//! throughput"): the rects of a leaf ([`RectPlan`]) fill a band of rows in a small f32 buffer, which is
+//! A leaf atlas's level 0 drawn, halved and encoded band by band (issue 26,
+//! docs/DESIGN.md "Build throughput"): the rects of a leaf ([`RectPlan`]) fill a band of rows in a small f32 buffer, which is
 //! halved into level 1 and encoded to RGBA8 while it is still in the cache, so the 16 bytes a texel of
 //! a whole f32 level 0 are never written to memory, nor read back twice (the encode and the halving of a
 //! 1024² level each read 16 MiB). Every texel is the value the whole-level path gives: a rect's row
@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 /// Rows of level 0 a band holds: 32 rows of a 1024² atlas are 512 KiB of f32 RGBA, well inside a core's
 /// L2; even, so a band halves into whole rows of level 1.
-pub const BAND_ROWS: usize = 32;
+pub(super) const BAND_ROWS: usize = 32;
 
 /// Level 0 of a leaf atlas as stored, and level 1 in linear light: what the rest of its chain and its
 /// parent are made from.
@@ -53,14 +53,12 @@ pub fn draw_leaf_banded(size: u32, fill: [f32; 4], rects: &[RectPlan<'_>]) -> Op
             for rect in rects {
                 let r = rect.rows();
                 for y in r.start.max(y0)..r.end.min(y0 + rows) {
-                    if let Some(row) = buf.get_mut((y - y0) * n..(y - y0 + 1) * n) {
-                        rect.fill_row(y, row);
-                    }
+                    rect.fill_row(y, &mut buf[(y - y0) * n..(y - y0 + 1) * n]);
                 }
             }
             for (j, dst) in halves.chunks_exact_mut(half).enumerate() {
-                let (r0, r1) = (&buf[2 * j * n..(2 * j + 1) * n], &buf[(2 * j + 1) * n..]);
-                halve_row_pair(r0, &r1[..n], dst);
+                let (r0, r1) = (2 * j * n, (2 * j + 1) * n);
+                halve_row_pair(&buf[r0..r1], &buf[r1..r1 + n], dst);
             }
             encode_texels(enc, buf, px)
         })
@@ -128,8 +126,33 @@ mod tests {
                 &a,
             ),
         ];
-        for fill in [[0.2, 0.2, 0.2, 1.0], [0.0; 4]] {
-            let size = 128;
+        // Four whole bands; three and a short one (100 = 3 · 32 + 4); one band and a short one; one short.
+        for (fill, size) in [
+            ([0.2, 0.2, 0.2, 1.0], 128),
+            ([0.0; 4], 128),
+            ([0.0; 4], 100),
+            ([0.2, 0.2, 0.2, 1.0], 34),
+            ([0.0; 4], 6),
+        ] {
+            // The jobs scaled to the atlas (inner at least one texel).
+            let fit = |j: &RectJob| {
+                let s = |v: u32| v * size / 128;
+                let [x, y, w, h] = j.outer;
+                let outer = [s(x), s(y), s(w).max(5), s(h).max(5)];
+                let outer = [
+                    outer[0].min(size - outer[2]),
+                    outer[1].min(size - outer[3]),
+                    outer[2],
+                    outer[3],
+                ];
+                RectJob {
+                    outer,
+                    inner: [outer[0] + 2, outer[1] + 2, outer[2] - 4, outer[3] - 4],
+                    ..j.clone()
+                }
+            };
+            let jobs: Vec<(RectJob, &MipChain)> =
+                jobs.iter().map(|(j, src)| (fit(j), *src)).collect();
             let mut whole = LinearImage::new_filled(size, size, fill);
             for (j, src) in &jobs {
                 draw_rect(&mut whole, j, src).unwrap();
@@ -141,7 +164,7 @@ mod tests {
                 .map(|(j, src)| RectPlan::new(size, size, j, src).unwrap())
                 .collect();
             let banded = draw_leaf_banded(size, fill, &plans).unwrap();
-            if fill[3] == 0.0 {
+            if fill[3] == 0.0 && size >= 100 {
                 assert!(bled, "the transparent fill is left between the rects");
             }
             assert_eq!(banded.bled, bled);
@@ -160,9 +183,12 @@ mod tests {
     #[test]
     fn an_opaque_level_is_not_bled_and_odd_sizes_are_left_to_the_caller() {
         let plans: [RectPlan<'_>; 0] = [];
-        let banded = draw_leaf_banded(8, [0.5, 0.5, 0.5, 1.0], &plans).unwrap();
+        let fill = [0.5, 0.25, 0.125, 1.0];
+        let banded = draw_leaf_banded(8, fill, &plans).unwrap();
         assert!(!banded.bled);
-        assert_eq!(banded.level1.width, 4);
+        assert_eq!(banded.rgba0, LinearImage::new_filled(8, 8, fill).to_rgba8());
+        assert_eq!((banded.level1.width, banded.level1.height), (4, 4));
+        assert!(banded.level1.data.iter().all(|t| *t == fill));
         assert!(draw_leaf_banded(7, [0.0; 4], &plans).is_none());
         assert!(draw_leaf_banded(0, [0.0; 4], &plans).is_none());
     }

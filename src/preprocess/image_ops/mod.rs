@@ -32,7 +32,7 @@ mod sample;
 pub mod srgb;
 mod srgb_simd;
 
-pub use band::{BAND_ROWS, BandedLevels, draw_leaf_banded};
+pub use band::{BandedLevels, draw_leaf_banded};
 pub use coverage::{AlphaMips, CoverageRegion, preserve_coverage};
 pub use linear::LinearImage;
 pub use magnify::magnify_cubic;
@@ -56,8 +56,8 @@ pub enum ImageOpsError {
         pixels: usize,
     },
     #[error(
-        "level 0 was encoded band by band, but {regions} coverage regions would rescale it (banded levels \
-         are made only without them)"
+        "level 0 was encoded band by band, but coverage regions ({regions}) would rescale it (banded \
+         levels are made only without them)"
     )]
     BandedWithCoverage { regions: usize },
     #[error("linear image is {width}×{height} but has {texels} texels (expected width·height)")]

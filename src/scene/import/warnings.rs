@@ -100,20 +100,23 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
         ));
     }
     warn_undeclared_quantization(file, doc, report);
-    // glTF 2.0's schema bounds baseColorFactor to [0, 1]; beyond, the atlas (8-bit, the factor applied
+    // glTF 2.0's schemas bound baseColorFactor (and the specular-glossiness diffuseFactor, drawn in its
+    // place where `Materials::material_for` says) to [0, 1]; beyond, the atlas (8-bit, the factor applied
     // before filtering) and the originals (the factor applied after) would draw different colours.
+    let outside_range = |f: [f32; 4]| f.iter().any(|c| !(0.0..=1.0).contains(c));
     let outside: Vec<usize> = doc
         .materials()
         .filter(|m| {
-            let f = m.pbr_metallic_roughness().base_color_factor();
-            f.iter().any(|c| !(0.0..=1.0).contains(c))
+            outside_range(m.pbr_metallic_roughness().base_color_factor())
+                || m.pbr_specular_glossiness()
+                    .is_some_and(|sg| outside_range(sg.diffuse_factor()))
         })
         .filter_map(|m| m.index())
         .collect();
     if let Some(&first) = outside.first() {
         report.warn(format!(
-            "{file}: {} {} a baseColorFactor outside glTF's range [0, 1], clamped into it (first: material \
-             {first})",
+            "{file}: {} {} a baseColorFactor (or diffuseFactor) outside glTF's range [0, 1], drawn clamped \
+             into it (first: material {first})",
             outside.len(),
             if outside.len() == 1 { "material has" } else { "materials have" }
         ));

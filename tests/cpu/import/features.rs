@@ -115,13 +115,18 @@ fn a_base_colour_factor_outside_0_1_is_clamped_with_a_warning() {
     doc["materials"][2][pbr]["baseColorFactor"] = json!([2.0, -1.0, 0.5, 1.0]);
     doc["materials"][4][pbr]["baseColorFactor"] = json!([1.0, 1.0, 1.0, 1.5]);
     doc["materials"][4]["alphaMode"] = json!("BLEND");
+    // A specular-glossiness diffuseFactor has the same range.
+    let sg =
+        json!({"KHR_materials_pbrSpecularGlossiness": {"diffuseFactor": [1.0, 1.0, 3.0, 1.0]}});
+    doc["materials"][5]["extensions"] = sg;
+    doc["extensionsUsed"] = json!(["KHR_materials_pbrSpecularGlossiness"]);
     let s = import_city(dir.path(), &doc).1.unwrap();
     let w = &s.report.warnings;
     assert_eq!(s.report.warnings_total, 1, "{w:?}");
     assert!(
         w[0].contains(
-            "2 materials have a baseColorFactor outside glTF's range [0, 1], clamped into it (first: \
-             material 2)"
+            "3 materials have a baseColorFactor (or diffuseFactor) outside glTF's range [0, 1], drawn \
+             clamped into it (first: material 2)"
         ),
         "{w:?}"
     );

@@ -128,6 +128,18 @@ fn builds_are_deterministic_byte_for_byte() {
         std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(),
         "two builds differ"
     );
+    // An image cache too small to hold a leaf's sources draws every leaf's level 0 whole instead of band
+    // by band (`raster::leaf_start`): the same bytes.
+    let c = dir.path().join("c.atlastree");
+    let whole = BuildOptions {
+        image_cache_bytes: 1,
+        ..opts(128)
+    };
+    build(&scene, &whole, &c, &NoProgress).unwrap();
+    assert!(
+        std::fs::read(&a).unwrap() == std::fs::read(&c).unwrap(),
+        "leaves drawn whole differ from leaves drawn band by band"
+    );
 }
 
 #[test]
