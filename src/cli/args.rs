@@ -5,6 +5,7 @@
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, CameraPath};
 use atlastree::model::BuildParams;
+use atlastree::paging::HttpOptions;
 use atlastree::paging::{PagerOptions, Policy, UploadBudget};
 use atlastree::preprocess::BuildOptions;
 use atlastree::select::{SelectOptions, min_distance_scale};
@@ -202,10 +203,17 @@ pub(crate) struct PagingArgs {
     #[arg(long)]
     pub policy: Option<Policy>,
     /// Loader threads; 0 loads synchronously within the frame (deterministic; over HTTP a server that
-    /// stalls then holds the frame for up to 4 attempts of 30 s a block, where loader threads count the
-    /// block as failed and draw on) [default: 2]
+    /// stalls then holds the frame for up to `--http-retries` + 1 attempts of `--http-timeout` a block,
+    /// where loader threads count the block as failed and draw on) [default: 2]
     #[arg(long, value_name = "N")]
     pub loader_threads: Option<usize>,
+    /// Over HTTP: seconds one request may take before it counts as failed (and is retried)
+    /// [default: 30]
+    #[arg(long, value_name = "SECONDS", value_parser = clap::value_parser!(u64).range(1..=3600))]
+    pub http_timeout: Option<u64>,
+    /// Over HTTP: retries of a failed request, with a doubling back-off [default: 3]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=20))]
+    pub http_retries: Option<u32>,
 }
 
 /// Where paged blocks come from.
@@ -224,6 +232,21 @@ pub(crate) struct Paging {
     pub pager: PagerOptions,
     pub source: SourceArg,
     pub loader_threads: usize,
+    /// `--http-timeout` and `--http-retries` (the defaults of [`HttpOptions`] where not given).
+    pub http_timeout: std::time::Duration,
+    pub http_retries: u32,
+}
+
+impl Paging {
+    /// The HTTP client's options of this run: [`HttpOptions::default`] with the run's timeout and
+    /// retries.
+    pub(crate) fn http_options(&self) -> HttpOptions {
+        HttpOptions {
+            timeout: self.http_timeout,
+            retries: self.http_retries,
+            ..HttpOptions::default()
+        }
+    }
 }
 
 /// Whether `s` is an http(s) URL.
@@ -254,6 +277,10 @@ impl PagingArgs {
             Some("--policy")
         } else if self.loader_threads.is_some() {
             Some("--loader-threads")
+        } else if self.http_timeout.is_some() {
+            Some("--http-timeout")
+        } else if self.http_retries.is_some() {
+            Some("--http-retries")
         } else {
             None
         }
@@ -280,10 +307,15 @@ impl PagingArgs {
             policy: self.policy.unwrap_or(base.policy),
             ..base
         })?;
+        let http = HttpOptions::default();
         Ok(Paging {
             pager,
             source,
             loader_threads: self.loader_threads.unwrap_or(2),
+            http_timeout: self
+                .http_timeout
+                .map_or(http.timeout, std::time::Duration::from_secs),
+            http_retries: self.http_retries.unwrap_or(http.retries),
         })
     }
 }
@@ -450,6 +482,40 @@ mod tests {
             QueueArgs::default().byte_budget().unwrap(),
             UploadBudget::Unlimited
         );
+    }
+
+    /// `--http-timeout` and `--http-retries` reach the HTTP client (a stalled server held a synchronous
+    /// loader for 4 attempts of 30 s a block, with no way to shorten it); without them its defaults;
+    /// out of range refused by the parser.
+    #[test]
+    fn http_flags_reach_the_client_options() {
+        #[derive(Parser)]
+        struct Paged {
+            #[command(flatten)]
+            paging: PagingArgs,
+        }
+        let argv = [
+            "render",
+            "--capacity",
+            "8",
+            "--http-timeout",
+            "2",
+            "--http-retries",
+            "0",
+        ];
+        let given = Paged::parse_from(argv).paging;
+        assert_eq!(given.given_beyond_capacity(), Some("--http-timeout"));
+        let o = given.validate().unwrap().http_options();
+        assert_eq!(
+            (o.timeout, o.retries),
+            (std::time::Duration::from_secs(2), 0)
+        );
+        let d = Paged::parse_from(["render", "--capacity", "8"]).paging;
+        let (o, def) = (d.validate().unwrap().http_options(), HttpOptions::default());
+        assert_eq!((o.timeout, o.retries), (def.timeout, def.retries));
+        for bad in [["--http-timeout", "0"], ["--http-retries", "21"]] {
+            assert!(Paged::try_parse_from([&["render"][..], &bad[..]].concat()).is_err());
+        }
     }
 
     #[test]

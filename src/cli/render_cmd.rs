@@ -174,6 +174,16 @@ impl RenderArgs {
         } else {
             None
         };
+        let local = matches!(tree, TreeSource::Local(_))
+            && paging
+                .as_ref()
+                .is_some_and(|p| p.paging.source == SourceArg::File);
+        if local && (self.paging.http_timeout.is_some() || self.paging.http_retries.is_some()) {
+            bail!(
+                "--http-timeout and --http-retries mean nothing without HTTP: give FILE as a URL or \
+                 --source URL"
+            );
+        }
         // Why this run pages: a URL always does (its blocks come over HTTP), a local file with --capacity.
         let why_paged = match &tree {
             TreeSource::Remote(url) => {
@@ -235,7 +245,8 @@ pub(super) type Measured = Vec<(Mode, Vec<FrameStats>)>;
 /// Runs a checked configuration; returns what it measured.
 pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     super::check_out_folder(&cfg.out)?;
-    let (file, http) = open_tree(&cfg.tree)?;
+    let http_options = cfg.paging.as_ref().map(|p| p.paging.http_options());
+    let (file, http) = open_tree(&cfg.tree, http_options.unwrap_or_default())?;
     let cameras = sample_cameras(cfg, &file)?;
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
     println!("adapter: {}", ctx.adapter_summary());
@@ -254,11 +265,14 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
 }
 
 /// Phase 1: the tree's tables, from the file or over HTTP (with the HTTP source for its blocks).
-fn open_tree(tree: &TreeSource) -> anyhow::Result<(TreeFile, Option<Arc<HttpSource>>)> {
+fn open_tree(
+    tree: &TreeSource,
+    http: HttpOptions,
+) -> anyhow::Result<(TreeFile, Option<Arc<HttpSource>>)> {
     Ok(match tree {
         TreeSource::Remote(url) => {
-            let (tables, source) = HttpSource::open(url, HttpOptions::default())
-                .with_context(|| format!("opening {url}"))?;
+            let (tables, source) =
+                HttpSource::open(url, http).with_context(|| format!("opening {url}"))?;
             (tables, Some(Arc::new(source)))
         }
         TreeSource::Local(path) => (
@@ -280,14 +294,14 @@ type PagedSource = (Arc<dyn BlockSource>, Option<Arc<HttpSource>>);
 /// The block source of a paged run: the HTTP source of a remote tree, else `--source`; with the HTTP
 /// source again where it is one (its counters are reported at the end).
 fn block_source(
-    source: &SourceArg,
+    paging: &Paging,
     file: &TreeFile,
     http: Option<Arc<HttpSource>>,
 ) -> anyhow::Result<PagedSource> {
     if let Some(h) = http {
         return Ok((h.clone(), Some(h)));
     }
-    match source {
+    match &paging.source {
         SourceArg::File => {
             let reopened = file
                 .reopen()
@@ -295,7 +309,7 @@ fn block_source(
             Ok((Arc::new(FileSource::new(Arc::new(reopened))), None))
         }
         SourceArg::Url(url) => {
-            let (tables, http) = HttpSource::open(url, HttpOptions::default())
+            let (tables, http) = HttpSource::open(url, paging.http_options())
                 .with_context(|| format!("opening {url}"))?;
             if tables.header().file_len != file.header().file_len
                 || tables.blocks() != file.blocks()
@@ -337,7 +351,7 @@ fn frame_loop<'f>(
     let fl = match &cfg.paging {
         None => FrameLoop::new(ctx, file, ropts).with_context(what)?,
         Some(p) => {
-            let (source, from) = block_source(&p.paging.source, file, http)?;
+            let (source, from) = block_source(&p.paging, file, http)?;
             paged_from = from;
             let k = p.capacity.unwrap_or(file.blocks().len() as u32);
             println!(

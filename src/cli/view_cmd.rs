@@ -125,7 +125,8 @@ impl ViewArgs {
         self.viewport.validate()?;
         if let Some(flag) = self.paging.given_beyond_capacity() {
             bail!(
-                "{flag} means nothing for view: it pages from the file with two loader threads, the paper                  policy and the default queue (only --capacity applies; use `render` for the others)"
+                "{flag} means nothing for view: it pages from the file with two loader threads, the paper \
+                 policy and the default queue (only --capacity applies; use `render` for the others)"
             );
         }
         if self.paging.capacity == Some(0) {
