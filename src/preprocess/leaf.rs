@@ -12,10 +12,10 @@ use crate::model::{AtlasTree, Leaf};
 use std::collections::HashMap;
 use std::sync::Arc;
 
-/// A leaf's atlas as [`super::finish::finish_atlas`] takes it: level 0 drawn band by band, halved and encoded as it goes
-/// ([`draw_leaf_banded`]: the same bytes with a quarter of the memory traffic) where nothing changes
-/// level 0 or 1 after drawing — the 2×2 box and no coverage regions — and the leaf's sources together
-/// take at most the image cache's size / 4 / rasteriser threads (a band draws from all of them, so each
+/// A leaf's atlas as [`super::finish::finish_atlas`] takes it: level 0 drawn band by band, halved and
+/// encoded as it goes ([`draw_leaf_banded`]: the same bytes with a quarter of the memory traffic) where
+/// nothing changes level 0 or 1 after drawing — the 2×2 box and no coverage regions — and the leaf's
+/// sources together take at most the image cache's size / 4 / rasteriser threads (a band draws from all of them, so each
 /// thread holds its leaf's sources at once); else drawn whole ([`leaf_atlas`]).
 pub(super) fn leaf_start(
     ctx: &RasterCtx<'_>,

@@ -1,8 +1,8 @@
 //! A leaf atlas's level 0 drawn, halved and encoded band by band (issue 26,
-//! docs/DESIGN.md "Build throughput"): the rects of a leaf ([`RectPlan`]) fill a band of rows in a small f32 buffer, which is
-//! halved into level 1 and encoded to RGBA8 while it is still in the cache, so the 16 bytes a texel of
-//! a whole f32 level 0 are never written to memory, nor read back twice (the encode and the halving of a
-//! 1024² level each read 16 MiB). Every texel is the value the whole-level path gives: a rect's row
+//! docs/DESIGN.md "Build throughput"): the rects of a leaf ([`RectPlan`]) fill a band of rows in a small
+//! f32 buffer, which is halved into level 1 and encoded to RGBA8 while it is still in the cache, so the
+//! 16 bytes a texel of a whole f32 level 0 are never written to memory, nor read back twice (the encode
+//! and the halving of a 1024² level each read 16 MiB). Every texel is the value the whole-level path gives: a rect's row
 //! depends on its own `y` alone, the rects are drawn in the same order, the halving sums each 2×2 box
 //! in the same order ([`super::mip::halve_row_pair`]) and the encoding is per texel until the colour
 //! bleed, which runs afterwards over the whole level as it does there.
