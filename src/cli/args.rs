@@ -185,13 +185,45 @@ impl QueueArgs {
     }
 }
 
+/// `--capacity`: a block count ≥ 1, or `all` (every block may be resident).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(crate) enum Capacity {
+    All,
+    Blocks(u32),
+}
+
+impl Capacity {
+    /// The block count; `None` for `all`.
+    pub(crate) fn blocks(self) -> Option<u32> {
+        match self {
+            Capacity::All => None,
+            Capacity::Blocks(k) => Some(k),
+        }
+    }
+}
+
+impl std::str::FromStr for Capacity {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Capacity, String> {
+        if s == "all" {
+            return Ok(Capacity::All);
+        }
+        match s.parse::<u32>() {
+            Ok(k) if k > 0 => Ok(Capacity::Blocks(k)),
+            Ok(_) => Err("must be > 0 (omit it to upload every block at start)".into()),
+            Err(_) => Err(format!("expected a block count ≥ 1 or `all`, got {s:?}")),
+        }
+    }
+}
+
 /// Paging under a capacity (paper §6) for `render` and `view`.
 #[derive(Args, Debug, Clone, Default)]
 pub(crate) struct PagingArgs {
     /// Page blocks with at most this many resident (the paper used 160); missing blocks are drawn with
-    /// the nearest resident ancestor atlas. Omit to upload every block at start.
-    #[arg(long, value_name = "K")]
-    pub capacity: Option<u32>,
+    /// the nearest resident ancestor atlas. `all`: page every block on demand and evict none (as
+    /// `simulate --capacity all`). Omit to upload every block at start.
+    #[arg(long, value_name = "K|all")]
+    pub capacity: Option<Capacity>,
     /// Where paged blocks come from: `file` (the paging file, memory-mapped) or an http(s) URL of the
     /// same file on any static server that supports range requests (see `atlastree serve`)
     /// [default: file]
@@ -288,9 +320,6 @@ impl PagingArgs {
 
     /// The paging settings (capacity left at the default for the caller to set).
     pub(crate) fn validate(&self) -> anyhow::Result<Paging> {
-        if self.capacity == Some(0) {
-            bail!("--capacity must be > 0 (omit it to upload every block)");
-        }
         let source = match self.source.as_deref() {
             None | Some("file") => SourceArg::File,
             Some(u) if is_url(u) => {
@@ -487,6 +516,23 @@ mod tests {
     /// `--http-timeout` and `--http-retries` reach the HTTP client (a stalled server held a synchronous
     /// loader for 4 attempts of 30 s a block, with no way to shorten it); without them its defaults;
     /// out of range refused by the parser.
+    #[test]
+    fn capacity_takes_a_block_count_or_all() {
+        #[derive(Parser)]
+        struct Paged {
+            #[command(flatten)]
+            paging: PagingArgs,
+        }
+        let k =
+            |v: &str| Paged::try_parse_from(["render", "--capacity", v]).map(|p| p.paging.capacity);
+        assert_eq!(k("160").unwrap(), Some(Capacity::Blocks(160)));
+        assert_eq!(k("all").unwrap(), Some(Capacity::All));
+        assert_eq!(Capacity::All.blocks(), None);
+        for bad in ["0", "-1", "ALL", "1.5", ""] {
+            assert!(k(bad).is_err(), "{bad:?} accepted");
+        }
+    }
+
     #[test]
     fn http_flags_reach_the_client_options() {
         #[derive(Parser)]

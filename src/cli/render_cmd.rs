@@ -1,7 +1,9 @@
 //! `atlastree render`: flags → [`RenderConfig`] ([`RenderArgs::validate`]) → [`execute`], a run in named
 //! phases: open the source, sample the cameras, set up the frame loop, warm up, fly, write and report.
 
-use super::args::{Paging, PagingArgs, SourceArg, Viewport, ViewportArgs, check_url, is_url};
+use super::args::{
+    Capacity, Paging, PagingArgs, SourceArg, Viewport, ViewportArgs, check_url, is_url,
+};
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::gpu::{GpuContext, GpuOptions};
@@ -118,7 +120,7 @@ pub(crate) struct RenderConfig {
 /// Paging of a `render` run.
 #[derive(Debug, Clone)]
 pub(crate) struct RenderPaging {
-    /// `None`: all blocks (a remote file without `--capacity`).
+    /// `None`: all blocks (`--capacity all`, or a remote file without `--capacity`).
     pub capacity: Option<u32>,
     pub paging: Paging,
 }
@@ -158,7 +160,7 @@ impl RenderArgs {
         if !paged && let Some(flag) = self.paging.given_beyond_capacity() {
             bail!(
                 "{flag} means nothing without --capacity: every block is uploaded at start (give \
-                 --capacity K to page)"
+                 --capacity K, or all, to page)"
             );
         }
         if let TreeSource::Remote(url) = &tree
@@ -168,7 +170,7 @@ impl RenderArgs {
         }
         let paging = if paged {
             Some(RenderPaging {
-                capacity: self.paging.capacity,
+                capacity: self.paging.capacity.and_then(Capacity::blocks),
                 paging: self.paging.validate()?,
             })
         } else {

@@ -1,4 +1,4 @@
-use super::args::{PagingArgs, WindowArgs};
+use super::args::{Capacity, PagingArgs, WindowArgs};
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
 use atlastree::render::Mode;
@@ -79,8 +79,8 @@ pub(crate) struct ViewArgs {
     pub viewport: WindowArgs,
     /// `--capacity K` pages blocks (paper §6) with at most k resident, loaded from the file by two loader
     /// threads with the paper policy; the inspector shows the paging counters and its capacity slider
-    /// changes k live (up to this k). Without it every block is uploaded at start and the paging rows
-    /// read n/a. The other paging flags are `render`'s.
+    /// changes k live (up to this k). Without it (or with `--capacity all`) every block is uploaded at
+    /// start and the paging rows read n/a. The other paging flags are `render`'s.
     #[command(flatten, next_help_heading = "Paging")]
     pub paging: PagingArgs,
 }
@@ -129,9 +129,6 @@ impl ViewArgs {
                  policy and the default queue (only --capacity applies; use `render` for the others)"
             );
         }
-        if self.paging.capacity == Some(0) {
-            bail!("--capacity must be > 0 (omit it to upload every block)");
-        }
         if self.path_fps.is_some_and(|f| !(f.is_finite() && f > 0.0)) {
             bail!("--path-fps must be finite and > 0");
         }
@@ -163,7 +160,7 @@ impl ViewArgs {
             height: viewport.height,
             mode: self.mode,
             texel_ratio: viewport.texel_ratio,
-            capacity: self.paging.capacity,
+            capacity: self.paging.capacity.and_then(Capacity::blocks),
             camera,
             path,
             path_fps: self.path_fps,

@@ -146,7 +146,8 @@ pub fn human_bytes(b: u64) -> String {
 
 /// Parses a byte size: a number with an optional unit `B`, `KB`, `MB`, `GB`, `TB` (powers of 1000) or
 /// `KiB`, `MiB`, `GiB`, `TiB` (powers of 1024), case-insensitive, e.g. `8MB`, `512KiB`, `1e6`, `1TiB`.
-/// `None` if malformed, negative, not finite or past `u64`.
+/// `None` if malformed, negative, not finite, past `u64`, or a fraction of one byte (`0.5B`: rounding it
+/// would turn a size the user meant as nothing or as a typo into 1 byte).
 pub fn parse_bytes(s: &str) -> Option<u64> {
     let t = s.trim();
     let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
@@ -169,7 +170,7 @@ pub fn parse_bytes(s: &str) -> Option<u64> {
         _ => return None,
     };
     let b = v * mul;
-    (0.0..1.8e19).contains(&b).then_some(b.round() as u64)
+    ((0.0..1.8e19).contains(&b) && (b == 0.0 || b >= 1.0)).then_some(b.round() as u64)
 }
 
 /// Parses a rate in bytes per second: a [`parse_bytes`] size followed by `/s`, e.g. `5MB/s`.
@@ -253,6 +254,10 @@ mod parse_tests {
         assert_eq!(parse_bytes("1TiB"), Some(1 << 40));
         assert_eq!(parse_bytes("2 TB"), Some(2_000_000_000_000));
         assert_eq!(parse_bytes("20000000TiB"), None);
+        assert_eq!(parse_bytes("0.5B"), None);
+        assert_eq!(parse_bytes("0.0001KB"), None);
+        assert_eq!(parse_bytes("0"), Some(0));
+        assert_eq!(parse_bytes("1.5B"), Some(2));
         assert_eq!(parse_rate("5MB/s"), Some(5e6));
         assert_eq!(parse_rate("0MB/s"), None);
         assert_eq!(parse_seconds("80ms"), Some(0.08));
