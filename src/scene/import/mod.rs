@@ -123,7 +123,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
     warnings::warn_undrawn_features(&file, &doc, &mut report);
     let accessors: Vec<gltf::Accessor> = doc.accessors().collect();
     let mut buffers = Buffers::new(&file, base_dir, &doc, blob);
-    let instances = Walk {
+    let mut walk = Walk {
         file: &file,
         doc: &doc,
         raw: &raw.nodes,
@@ -131,8 +131,9 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
         buffers: &mut buffers,
         report: &mut report,
         max_triangles: opts.max_triangles,
-    }
-    .instances()?;
+    };
+    walk.warn_invalid_matrices();
+    let instances = walk.instances()?;
     let mut geometry = Geometry::new(&file, &doc);
     geometry.reserve(&instances)?;
     let mut materials = Materials::new(&file, &doc, raw.materials, raw.textures);

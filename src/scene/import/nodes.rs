@@ -1,7 +1,8 @@
 //! The node walk: the glTF node graph → a flat list of mesh [`Instance`]s with f64 world matrices.
 //!
 //! The default scene is walked (all root nodes if there is none), depth first and iteratively. Local
-//! transforms are read from the raw JSON in f64 (gltf-json keeps them as f32): `matrix`, else T·R·S;
+//! transforms are read from the raw JSON in f64 (gltf-json keeps them as f32): `matrix`, else T·R·S (a
+//! `matrix` beside TRS, or with a projective last row, is warned once per node and used affinely);
 //! a zero or non-finite rotation becomes the identity (counted warning). `EXT_mesh_gpu_instancing`
 //! multiplies a node's mesh into one instance per T·R·S of its attributes. A node met again on its own
 //! path is a [`SceneError::RecursiveNodes`]; a node with several parents is instanced once per parent
@@ -204,6 +205,30 @@ impl<'a> Walk<'a, '_> {
         self.report.nodes = visits;
         self.report.instances = instances.len() as u64;
         Ok(instances)
+    }
+
+    /// One warning per node of the file whose `matrix` breaks glTF 2.0 (§5.25): given beside
+    /// translation, rotation or scale (the matrix is used, the others ignored), or with a last row other
+    /// than (0, 0, 0, 1) (not a TRS; the row is ignored: points are transformed affinely).
+    pub(super) fn warn_invalid_matrices(&mut self) {
+        for (i, raw) in self.raw.iter().enumerate() {
+            let Some(m) = raw.matrix else { continue };
+            if raw.translation.is_some() || raw.rotation.is_some() || raw.scale.is_some() {
+                self.report.warn(format!(
+                    "{}: node {i} has both `matrix` and translation/rotation/scale (glTF 2.0 allows one); \
+                     using the matrix, ignoring the others",
+                    self.file
+                ));
+            }
+            let row = [m[3], m[7], m[11], m[15]];
+            if row != [0.0, 0.0, 0.0, 1.0] {
+                self.report.warn(format!(
+                    "{}: node {i} has a `matrix` whose last row is {row:?}, not (0, 0, 0, 1): glTF 2.0 \
+                     requires a TRS matrix; the row is ignored",
+                    self.file
+                ));
+            }
+        }
     }
 
     /// The node's local matrix in f64 from the raw JSON (`matrix`, else T·R·S).

@@ -57,3 +57,46 @@ fn a_shared_node_is_warned_about_once_and_its_child_not() {
     assert_eq!(shared.len(), 1, "{shared:?}");
     assert!(shared[0].contains("node 1 has"), "{shared:?}");
 }
+
+/// A `matrix` beside TRS and a projective `matrix` (glTF 2.0 forbids both) are each warned about once
+/// per node, however often the node is drawn, and drawn as the matrix alone, affinely.
+#[test]
+fn an_invalid_node_matrix_is_warned_about_once_per_node() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = atlastree::scene::import(&city_dir().join("scene.gltf"), &Default::default());
+    let plain = plain.unwrap().bounds();
+    let mut doc = city_json_standalone();
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    let n = nodes.len();
+    let identity = [
+        1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ];
+    let mut projective = identity;
+    projective[3] = 0.5;
+    // Two wrappers around the root, one with matrix and a translation, one projective, each under two
+    // parents: drawn twice.
+    nodes.push(json!({"children": [0], "matrix": identity, "translation": [100.0, 0.0, 0.0]}));
+    nodes.push(json!({"children": [0], "matrix": projective}));
+    nodes.push(json!({"children": [n, n + 1]}));
+    nodes.push(json!({"children": [n, n + 1]}));
+    doc["scenes"][0]["nodes"] = json!([n + 2, n + 3]);
+    let path = dir.path().join("matrix.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let scene = atlastree::scene::import(&path, &Default::default()).unwrap();
+    let w = &scene.report.warnings;
+    let both = w
+        .iter()
+        .filter(|w| w.contains("has both `matrix` and"))
+        .count();
+    let row = w
+        .iter()
+        .filter(|w| w.contains("whose last row is [0.5, 0.0, 0.0, 1.0]"))
+        .count();
+    assert_eq!((both, row), (1, 1), "{w:?}");
+    assert!(
+        w.iter().any(|w| w.contains(&format!("node {n} has both"))),
+        "{w:?}"
+    );
+    // The translation is ignored and the projective row too: the city where it was.
+    assert_eq!(scene.bounds(), plain);
+}
