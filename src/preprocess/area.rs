@@ -21,7 +21,13 @@
 //!   [`RequiredArea::outer_uv`] gives that scaled UV box.
 //! - **Rounding**: a product within 1e-9 (relative) above an integer is rounded down to it: f64 noise of
 //!   the sizing must not add a texel column; the guarantee is kept to a factor `1 + 1e-9`.
+//! - **Source texel grid** ([`on_source_grid`]): where a rect holds its source's own resolution, its UV
+//!   range is first widened to whole source texels, so rect texels are source texels and the rasteriser
+//!   copies them instead of resampling (a range off the grid, or one f32 step past it, blurred close
+//!   views: a 64² checker over UV `[0.1, 0.6]` drew at 28 dB against the original where `[0.125, 0.625]`
+//!   drew at 93 dB).
 
+use crate::model::RectWrap;
 use serde::Serialize;
 
 /// What [`required_area`] needs for one material in one node.
@@ -225,6 +231,43 @@ fn axis_size(
     Ok((inner_u, outer_u, opts.border + extra / 2))
 }
 
+/// Largest distance (texels) from a texel edge that [`on_source_grid`] takes for the edge itself, at
+/// `texels` on an axis of `source` texels: f32 UVs carry ~2⁻²⁴ of their value, and of 1 near 0 (`0.5 +
+/// 1 ulp` of a 64-texel source is 3.8·10⁻⁶ texels past texel 32), so 16 times that; at most 10⁻² texels
+/// (f32 UVs far from 0 hold no finer position anyway).
+fn grid_tolerance(texels: f64, source: f64) -> f64 {
+    (texels.abs().max(source) * 2f64.powi(-20)).min(1e-2)
+}
+
+/// `[lo, hi]` (UV, `lo ≤ hi`) widened outward to the edges of the texels of an axis of `source` texels
+/// (edges at `k / source`), an edge within [`grid_tolerance`] of a texel edge taken as that edge; for a
+/// rect that holds `source` texels per UV (the source cap), so its texels are the source's. The rect's
+/// wrap bounds the result as it bounds the cover ([`crate::preprocess::cover`]): mirror and clamp
+/// ranges stay in `[0, 1]`, a repeat arc widened to a period or more is the period `[0, 1]`, a linear
+/// (baked) range is unbounded. Non-finite input is returned as it is (the sizing refuses it).
+pub fn on_source_grid(lo: f64, hi: f64, source: u32, wrap: RectWrap) -> (f64, f64) {
+    if !(lo.is_finite() && hi.is_finite()) || hi < lo {
+        return (lo, hi);
+    }
+    let s = f64::from(source.max(1));
+    let snap = |x: f64, outward: fn(f64) -> f64| {
+        let r = x.round();
+        if (x - r).abs() <= grid_tolerance(x, s) {
+            r
+        } else {
+            outward(x)
+        }
+    };
+    let (a, b) = (snap(lo * s, f64::floor), snap(hi * s, f64::ceil));
+    let (lo, hi) = (a / s, b / s);
+    match wrap {
+        RectWrap::Linear => (lo, hi),
+        RectWrap::Repeat if hi - lo >= 1.0 => (0.0, 1.0),
+        RectWrap::Repeat => (lo, hi),
+        RectWrap::Mirror | RectWrap::Clamp => (lo.max(0.0), hi.min(1.0)),
+    }
+}
+
 /// `ceil(x)`, except that `x` within `CEIL_TOLERANCE` (relative) above an integer gives that integer.
 fn ceil_tolerant(x: f64) -> f64 {
     let down = x.floor();
@@ -348,6 +391,35 @@ pub fn analyze_areas(inputs: &[AreaInput], opts: &AreaOptions) -> AreaReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ranges_widen_to_whole_source_texels() {
+        const L: RectWrap = RectWrap::Linear;
+        // Off the grid: outward to texel edges (64 texels: 0.1 → 6.4 → 6, 0.6 → 38.4 → 39).
+        assert_eq!(on_source_grid(0.1, 0.6, 64, L), (6.0 / 64.0, 39.0 / 64.0));
+        // On the grid, or one f32 step past it: unchanged, not a texel wider.
+        assert_eq!(on_source_grid(0.125, 0.625, 64, L), (0.125, 0.625));
+        let past = f64::from(0.5f32 + f32::EPSILON * 0.5);
+        assert!(past > 0.5);
+        assert_eq!(on_source_grid(0.0, past, 64, L), (0.0, 0.5));
+        assert_eq!(
+            on_source_grid(-f64::from(f32::EPSILON), 1.0, 64, L),
+            (0.0, 1.0)
+        );
+        // A point inside a texel: that texel.
+        assert_eq!(on_source_grid(0.35, 0.35, 10, L), (0.3, 0.4));
+        // Mirror and clamp stay in [0, 1]; a repeat arc keeps crossing the seam, and is the period once
+        // widened to one; baked ranges are unbounded.
+        assert_eq!(on_source_grid(0.01, 0.999, 4, RectWrap::Clamp), (0.0, 1.0));
+        assert_eq!(on_source_grid(0.01, 0.6, 4, RectWrap::Mirror), (0.0, 0.75));
+        assert_eq!(on_source_grid(0.8, 1.2, 4, RectWrap::Repeat), (0.75, 1.25));
+        assert_eq!(on_source_grid(0.3, 1.2, 4, RectWrap::Repeat), (0.0, 1.0));
+        assert_eq!(on_source_grid(0.3, 1.2, 4, L), (0.25, 1.25));
+        // Huge UVs: the tolerance stays below a hundredth of a texel.
+        let (lo, hi) = on_source_grid(1e6 + 0.3, 1e6 + 0.7, 100, L);
+        assert_eq!((lo * 100.0, hi * 100.0), (1e8 + 30.0, 1e8 + 70.0));
+        assert!(on_source_grid(f64::NAN, 1.0, 4, L).0.is_nan());
+    }
 
     fn input(w: f64, h: f64, uv_min: [f64; 2], uv_max: [f64; 2]) -> AreaInput {
         AreaInput {

@@ -12,7 +12,9 @@ use super::tree::{LayoutError, LayoutOptions, LeafLayout, LeafReason, PlannedRec
 use crate::ids::MaterialId;
 use crate::model::RectWrap;
 use crate::model::sizing::SizeMethod;
-use crate::preprocess::area::{AreaInput, AreaOptions, required_area, scale_to_fit};
+use crate::preprocess::area::{
+    AreaInput, AreaOptions, on_source_grid, required_area, scale_to_fit,
+};
 use crate::preprocess::cover::AxisCover;
 use crate::preprocess::originals::original_class;
 use crate::preprocess::pack::{PackOptions, pack};
@@ -50,8 +52,10 @@ impl MatNeed {
     }
 
     /// The area input at the node's requirement (palette textures — several constant-UV triangles —
-    /// keep their source resolution over their used area).
-    fn input(&self, source: [u32; 2]) -> AreaInput {
+    /// keep their source resolution over their used area). An axis held at the source's resolution
+    /// (`cap_to_source` and a need of at least the source's texels) has its range on the source's texel
+    /// grid ([`on_source_grid`]).
+    fn input(&self, source: [u32; 2], cap_to_source: bool) -> AreaInput {
         let (u0, u1) = self.cover[0].range();
         let (v0, v1) = self.cover[1].range();
         let (mut w, mut h) = (self.w, self.h);
@@ -59,6 +63,16 @@ impl MatNeed {
             w = w.max(f64::from(source[0]));
             h = h.max(f64::from(source[1]));
         }
+        let grid = |(lo, hi): (f64, f64), need: f64, k: usize| {
+            let s = source[k];
+            if cap_to_source && need >= f64::from(s) {
+                on_source_grid(lo, hi, s, self.cover[k].wrap())
+            } else {
+                (lo, hi)
+            }
+        };
+        let (u0, u1) = grid((u0, u1), w, 0);
+        let (v0, v1) = grid((v0, v1), h, 1);
         AreaInput {
             w,
             h,
@@ -181,7 +195,11 @@ pub(super) fn base_scale(ctx: &Ctx<'_>, needs: &BTreeMap<(MaterialId, i32), MatN
     needs
         .iter()
         .filter_map(|(&(mat, _), need)| {
-            scale_to_fit(&need.input(source_of(ctx, mat)), &opts, ctx.opts.atlas_size)
+            scale_to_fit(
+                &need.input(source_of(ctx, mat), ctx.opts.cap_to_source),
+                &opts,
+                ctx.opts.atlas_size,
+            )
         })
         .fold(1.0, f64::min)
 }
@@ -204,7 +222,7 @@ pub(super) fn capped_demand(
             let c = u64::from(original_class(src[0], src[1]));
             originals = originals.saturating_add(c * c);
         }
-        let input = need.input(src);
+        let input = need.input(src, ctx.opts.cap_to_source);
         let Ok(a) = required_area(&input, &opts) else {
             continue;
         };
@@ -238,7 +256,7 @@ pub(super) fn try_leaf(
     let mut original_texels = 0u64;
     for (&(mat, class), need) in needs {
         let src = source_of(ctx, mat);
-        let input = need.input(src);
+        let input = need.input(src, ctx.opts.cap_to_source);
         let area = required_area(&input, &aopts).ok()?;
         let capped = [
             ctx.opts.cap_to_source && need.w > f64::from(src[0]),

@@ -303,3 +303,54 @@ fn repeats_cost_texels_by_world_size_only() {
         64e4
     );
 }
+
+/// A rect that holds its source's own resolution (the source cap) shows the source's texels, copied: its
+/// UV range, `[0.1, 0.6]` of a 64-texel source here (texels 6.4 … 38.4), is widened to whole texels
+/// (6 … 39), and one f32 step past a texel edge adds no texel. Fault hunt, session 27: both drew at
+/// 28.3 and 25.7 dB against original mode, the texels resampled onto a grid off the source's.
+#[test]
+fn a_rect_at_source_resolution_copies_the_source_texels() {
+    let texel = |x: u32, y: u32| [(x * 4) as u8, (y * 4) as u8, ((x ^ y) * 4) as u8, 255];
+    let past_half = f64::from(f32::from_bits(0.5f32.to_bits() + 1));
+    for (lo, hi, first, last) in [(0.1, 0.6, 6u32, 39u32), (0.0, past_half, 0, 32)] {
+        let mut b = SceneBuilder::new(UpAxis::Y);
+        let img = b.image("grid", 64, 64, texel);
+        let m = b.material(img, [Wrap::ClampToEdge; 2], AlphaMode::Opaque);
+        let corners = [(0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (0.0, 20.0)];
+        b.quad(
+            corners.map(|(x, z)| DVec3::new(x, 0.0, z)),
+            DVec2::splat(lo),
+            DVec2::splat(hi),
+            m,
+        );
+        let built = build_ok(&b.build(), &tiny_opts(256, 0.5));
+        let t = built.file.tree(0).unwrap();
+        let leaf = &t.leaves[0];
+        let rect = t.leaf_rects(leaf)[0].decode();
+        let n = last - first;
+        assert_eq!(
+            [rect.inner[2], rect.inner[3]],
+            [n, n],
+            "[{lo}, {hi}]: {rect:?}"
+        );
+        assert_eq!(rect.uv_min, [f64::from(first) / 64.0; 2]);
+        assert_eq!(rect.uv_max, [f64::from(last) / 64.0; 2]);
+        let node = &t.nodes[leaf.node as usize];
+        let block = built
+            .file
+            .block(atlastree::ids::BlockId(node.atlas_block))
+            .unwrap();
+        let [ix, iy, ..] = rect.inner;
+        for j in 0..n {
+            for i in 0..n {
+                let at = (((iy + j) * 256 + ix + i) * 4) as usize;
+                let want = texel(first + i, first + j);
+                assert_eq!(
+                    block[at..at + 4],
+                    want,
+                    "[{lo}, {hi}]: rect texel ({i}, {j})"
+                );
+            }
+        }
+    }
+}
