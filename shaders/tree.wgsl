@@ -126,7 +126,7 @@ struct LeafInfo {
     _p2: u32,
 }
 
-// One per (leaf, rect) (64 bytes), leaf-atlas texels.
+// One per (leaf, rect) (72 bytes), leaf-atlas texels.
 struct RectMap {
     uv_min: vec2<f32>,
     texels_per_uv: vec2<f32>,
@@ -139,6 +139,10 @@ struct RectMap {
     wrap: u32,
     cutoff: f32,
     inner_size: vec2<f32>,
+    // The inner rectangle's mean colour, sRGB8 straight alpha packed as unpack4x8unorm reads it: what a
+    // fragment covering a whole period shows (rect_mean).
+    mean: u32,
+    _p1: u32,
 }
 
 // One per (leaf, original texture) (48 bytes).
@@ -268,29 +272,22 @@ struct RectSample {
     // Their screen derivatives.
     gx: vec2<f32>,
     gy: vec2<f32>,
-    // A flat sample's taps: `texel ± tap` averaged (leaf texels; zero: one tap at `texel`).
-    tap: vec2<f32>,
+    // The footprint covers the period: the fragment shows the rect's mean (rect_mean), not a sample.
+    flat: bool,
 }
 
-// See render::wgsl::tree::CELLS, FLAT_SHARE, SHARPEN_MIN, FLAT_TAPS_ASPECT and REACH_SAFETY.
+// See render::wgsl::tree::CELLS, FLAT_SHARE, SHARPEN_MIN and REACH_SAFETY.
 const CELLS: f32 = 2.0;
 const FLAT_SHARE: f32 = 1.0;
 const SHARPEN_MIN: f32 = 0.25;
-const FLAT_TAPS_ASPECT: f32 = 1.5;
 const REACH_SAFETY: f32 = 0.99;
 
-// RectMap::flat_tap: on the mip a flat sample reads, an inner rectangle of aspect a is CELLS × CELLS·a
-// texels; one tap at its centre reads the middle CELLS × CELLS (the middle half of a 1:2 sprite, which
-// alpha-tested turned sparse firs into solid sheets). From FLAT_TAPS_ASPECT on, two taps a quarter of
-// the length either side of the centre read it all (1:2) or evenly (longer).
-fn flat_tap(inner: vec2<f32>) -> vec2<f32> {
-    if inner.x >= FLAT_TAPS_ASPECT * inner.y {
-        return vec2<f32>(0.25 * inner.x, 0.0);
-    }
-    if inner.y >= FLAT_TAPS_ASPECT * inner.x {
-        return vec2<f32>(0.0, 0.25 * inner.y);
-    }
-    return vec2<f32>(0.0);
+// RectMap::mean_linear: the rect's mean as a texture sample gives it, linear colour and straight alpha.
+fn rect_mean(packed: u32) -> vec4<f32> {
+    let c = unpack4x8unorm(packed);
+    let low = c.rgb / 12.92;
+    let high = pow((c.rgb + vec3<f32>(0.055)) / 1.055, vec3<f32>(2.4));
+    return vec4<f32>(select(high, low, c.rgb <= vec3<f32>(0.04045)), c.a);
 }
 
 // RectMap::footprint_cap: the largest footprint (leaf texels) whose filter stays within `room` leaf texels
@@ -309,8 +306,9 @@ fn footprint_cap(room: f32, level_texels: f32) -> f32 {
 // RectMap::texel_f32: the fragment's texel in its leaf's atlas. The gradients are sharpened by k <= 1 so
 // that the sampler's filter (footprint_cap) stays inside the outer rectangle around the sample: a footprint
 // of more than FLAT_SHARE of the inner rectangle along both axes, or k < SHARPEN_MIN, covers (about) a
-// period: it gets the period's average, at the rect's centre on the mip where the inner rectangle is CELLS
-// texels wide; one covered axis alone is sampled at its centre, the other keeps its detail.
+// period: it shows the period's mean (`flat`; its texel and gradients, the rect's centre on the mip where
+// the inner rectangle is CELLS texels wide, are the twin's); one covered axis alone is sampled at its
+// centre, the other keeps its detail.
 fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_texels: f32) -> RectSample {
     let s = rect_axis(uv.x, r.wrap & CODE_MASK, r.uv_min.x, r.half_gap.x);
     let t = rect_axis(uv.y, (r.wrap >> WRAP_T_SHIFT) & CODE_MASK, r.uv_min.y, r.half_gap.y);
@@ -337,12 +335,13 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
         out.gx = out.gx * kk;
         out.gy = out.gy * kk;
         out.texel = centre;
-        out.tap = flat_tap(r.inner_size);
+        out.flat = true;
         return out;
     }
     out.gx = out.gx * k;
     out.gy = out.gy * k;
     out.texel = q;
+    out.flat = false;
     return out;
 }
 
@@ -485,8 +484,8 @@ struct AtlasSample {
     uv: vec2<f32>,
     ddx: vec2<f32>,
     ddy: vec2<f32>,
-    // RectSample::tap in UV units of that atlas.
-    tap: vec2<f32>,
+    // RectSample::flat.
+    flat: bool,
 }
 
 // `rm`: the draw's rect map, `rects[in.draw.y]`, read once per fragment by the caller (lavapipe does not
@@ -499,7 +498,7 @@ fn atlas_sample(in: VertexOut, rm: RectMap, ddx: vec2<f32>, ddy: vec2<f32>) -> A
     out.uv = (r.texel / size) * x.x + x.yz;
     out.ddx = r.gx * (x.x / size);
     out.ddy = r.gy * (x.x / size);
-    out.tap = r.tap * (x.x / size);
+    out.flat = r.flat;
     return out;
 }
 
@@ -524,11 +523,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         }
         let layer = draw_layer(in);
         var c: vec4<f32>;
-        if all(a.tap == vec2<f32>(0.0)) {
-            c = sample_atlas(a.uv, layer, a.ddx, a.ddy);
+        if a.flat {
+            c = rect_mean(rm.mean);
         } else {
-            c = 0.5 * (sample_atlas(a.uv - a.tap, layer, a.ddx, a.ddy)
-                + sample_atlas(a.uv + a.tap, layer, a.ddx, a.ddy));
+            c = sample_atlas(a.uv, layer, a.ddx, a.ddy);
         }
         // Per material, as original draws: MASK tested against its cutoff, BLEND blended (or, in a blend
         // node's depth pre-pass, written where opaque).

@@ -238,6 +238,12 @@ pub(super) fn print_verify(v: &VerifyReport) {
             v.wrap_borders_checked, v.wrap_border_mean_max
         );
     }
+    if v.rect_means_checked > 0 {
+        println!(
+            "  rect means: {} checked against their atlases, largest difference from level 0 {} sRGB levels",
+            v.rect_means_checked, v.rect_mean_level0_max
+        );
+    }
     if !v.atlas_psnr.is_empty() {
         let n = v.atlas_psnr.len();
         let mut worst: Vec<_> = v.atlas_psnr.iter().collect();

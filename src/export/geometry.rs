@@ -470,6 +470,7 @@ mod tests {
             uv_max: [hi, hi],
             wrap: [wrap, wrap],
             capped: [false, false],
+            mean: [0; 4],
         }
     }
 

@@ -172,18 +172,6 @@ fn bilinear(img: &RgbaImage, u: f64, v: f64) -> image::Rgba<u8> {
     image::Rgba(out)
 }
 
-/// The mean of `img`'s texels (sRGB bytes averaged as stored, as a box filter over the image).
-pub(super) fn mean(img: &RgbaImage) -> image::Rgba<u8> {
-    let mut sum = [0u64; 4];
-    for p in img.pixels() {
-        for (s, &c) in sum.iter_mut().zip(&p.0) {
-            *s += u64::from(c);
-        }
-    }
-    let n = u64::from(img.width()) * u64::from(img.height());
-    image::Rgba(sum.map(|s| ((s + n / 2) / n.max(1)) as u8))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

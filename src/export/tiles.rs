@@ -114,15 +114,12 @@ fn atlas_tile(
                     side,
                     rect,
                 } if f64::from(side) * s < keep => {
-                    // Averaged: its texel in the averages image, its triangles joined to the run of
-                    // averaged rects of the same alpha before it (contiguous: sorted by side).
+                    // Averaged: its stored mean (format 6, as the tree shader's flat fragments) in its
+                    // texel of the averages image, its triangles joined to the run of averaged rects of
+                    // the same alpha before it (contiguous: sorted by side).
                     let r = &leaf.rects[rect as usize];
                     let (x, y) = ctx.grid.texel(ctx.rect_base[l] + rect);
-                    averages.put_pixel(
-                        x,
-                        y - row0,
-                        images::mean(&images::crop_scaled(&atlas, r.inner, (ox, oy, d))),
-                    );
+                    averages.put_pixel(x, y - row0, image::Rgba(r.mean));
                     averaged += 1;
                     let tex = *avg_tex.get_or_insert_with(|| {
                         // Its URI is set once the image is complete (below).

@@ -327,6 +327,11 @@ pub struct VerifyReport {
     /// side, sRGB8 levels (colour premultiplied by alpha).
     pub wrap_borders_checked: u64,
     pub wrap_border_mean_max: f64,
+    /// Rect means (format 6) measured again on their leaf's stored atlas and compared with the table
+    /// (equal, or a violation), and the largest difference of one against the mean of the rect's level-0
+    /// texels (sRGB8 levels, any channel): what measuring on level 2 costs.
+    pub rect_means_checked: u64,
+    pub rect_mean_level0_max: u32,
     /// Triangles that are extra pieces of split scene triangles.
     pub split_pieces: u64,
     /// Up to 100 violations, each naming the tree, node/leaf/vertex and the numbers.
@@ -381,6 +386,7 @@ pub fn verify_with(file: &TreeFile, reference: Option<&TreeFile>) -> VerifyRepor
     let mut r = verify_structure(file);
     verify_psnr(file, reference, &mut r);
     rects::verify_wrap_borders(file, &mut r);
+    rects::verify_rect_means(file, &mut r);
     r
 }
 

@@ -305,6 +305,48 @@ pub(super) fn verify_wrap_borders(file: &TreeFile, r: &mut VerifyReport) {
 }
 
 /// Level 0 of an atlas block as RGBA8 texels.
+/// Every rect's stored mean ([`crate::model::AtlasRect::mean`]) against the one its leaf's stored atlas
+/// gives ([`crate::texfmt::rect_means`], what the writer measured: equal, else a violation), and against
+/// the mean of its level-0 texels ([`crate::texfmt::area_mean`]: the largest difference is reported).
+pub(super) fn verify_rect_means(file: &TreeFile, r: &mut VerifyReport) {
+    let size = file.params().atlas_size;
+    for ti in 0..file.trees() {
+        let Some(t) = file.tree(ti) else { continue };
+        let format = t.format();
+        for (li, l) in t.leaves.iter().enumerate() {
+            let rects = t.leaf_rects(l);
+            let Some(node) = t.nodes.get(l.node as usize) else {
+                continue;
+            };
+            let Ok(bytes) = file.block(crate::ids::BlockId(node.atlas_block)) else {
+                continue; // a bad checksum is reported by the block pass
+            };
+            let inners: Vec<[u32; 4]> = rects.iter().map(|x| x.inner).collect();
+            let means = crate::texfmt::rect_means(format, bytes, size, &inners);
+            let (Some(means), Some(level0)) = (means, level0_rgba8(format, bytes, size)) else {
+                r.fail(format!(
+                    "tree {ti} leaf {li}: atlas block {} does not decode",
+                    node.atlas_block
+                ));
+                continue;
+            };
+            for (ri, (rect, mean)) in rects.iter().zip(means).enumerate() {
+                r.rect_means_checked += 1;
+                if rect.mean != mean {
+                    r.fail(format!(
+                        "tree {ti} leaf {li} rect {ri}: stored mean {:?}, its atlas gives {mean:?}",
+                        rect.mean
+                    ));
+                }
+                let [x, y, w, h] = rect.inner.map(f64::from);
+                let exact = crate::texfmt::area_mean(&level0, size, size, [x, y, x + w, y + h]);
+                let diff = (exact.iter().zip(&mean)).map(|(a, b)| u32::from(a.abs_diff(*b)));
+                r.rect_mean_level0_max = r.rect_mean_level0_max.max(diff.max().unwrap_or(0));
+            }
+        }
+    }
+}
+
 fn level0_rgba8(format: TexFormat, bytes: &[u8], size: u32) -> Option<Vec<u8>> {
     let n = format.level_bytes(size) as usize;
     let level = bytes.get(..n)?;

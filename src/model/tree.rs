@@ -168,6 +168,10 @@ pub struct AtlasRect {
     /// Per axis, whether the source cap limited the texels per period (the guarantee is then the
     /// source's: the atlas holds the source's full resolution).
     pub capped: [bool; 2],
+    /// The inner rectangle's mean colour, sRGB8 with straight alpha: what a pixel covering a whole
+    /// period shows (docs/DESIGN.md "Repeats: one period per rect, wrapped in the shader"). Measured on
+    /// the stored leaf atlas as the paging file is written ([`crate::texfmt::rect_means`]); zero before.
+    pub mean: [u8; 4],
 }
 
 impl AtlasRect {

@@ -327,6 +327,7 @@ impl Asm<'_> {
                     uv_max: r.uv_max.to_array(),
                     wrap: r.wrap,
                     capped: r.capped,
+                    mean: [0; 4],
                 })
                 .collect(),
             originals,

@@ -70,6 +70,8 @@ impl RectMap {
             wrap: r.wrap[0].code() | r.wrap[1].code() << WRAP_T_SHIFT | mode << ALPHA_SHIFT,
             cutoff,
             inner_size: [r.inner[2] as f32, r.inner[3] as f32],
+            mean: u32::from_le_bytes(r.mean),
+            _p1: 0,
         }
     }
 }

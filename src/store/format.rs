@@ -48,8 +48,9 @@ pub const MAGIC: [u8; 8] = *b"ATLTREE\0";
 /// compression error ([`BlockRecord::sse`]); 3 = repeats wrapped in the shader: per-rect wrap and cap flags
 /// ([`RectRecord::flags`]), vertices without a baked atlas UV but with their rect ([`TreeVertex::rect`]);
 /// 4 = original textures stored once per tree: an [`OriginalRecord`] may name a block another leaf owns;
-/// 5 = original textures stored non-square ([`OriginalRecord::width`], [`OriginalRecord::height`]).
-pub const FORMAT_VERSION: u32 = 5;
+/// 5 = original textures stored non-square ([`OriginalRecord::width`], [`OriginalRecord::height`]);
+/// 6 = each rect's mean colour ([`RectRecord::mean`]), what a pixel covering a period shows.
+pub const FORMAT_VERSION: u32 = 6;
 /// Alignment of every section's offset, bytes.
 pub const SECTION_ALIGN: u64 = 16;
 /// Alignment of every block's offset, bytes (one page: a block can be mapped or read with O_DIRECT alone).
@@ -586,8 +587,12 @@ pub struct RectRecord {
     pub inner: [u32; 4],
     /// `wrap_s | wrap_t << 2 | capped_s << 4 | capped_t << 5` ([`RectWrap::code`]); other bits zero.
     pub flags: u32,
+    /// [`AtlasRect::mean`] (format 6): written when the leaf's atlas block is, by
+    /// [`crate::store::FileWriter`].
+    pub mean: [u8; 4],
+    pub _reserved: u32,
 }
-const _: () = assert!(size_of::<RectRecord>() == 72);
+const _: () = assert!(size_of::<RectRecord>() == 80);
 
 /// Bits of [`RectRecord::flags`] this version defines.
 pub const RECT_FLAGS_KNOWN: u32 = 0x3f;
@@ -604,6 +609,8 @@ impl RectRecord {
                 | r.wrap[1].code() << 2
                 | u32::from(r.capped[0]) << 4
                 | u32::from(r.capped[1]) << 5,
+            mean: r.mean,
+            _reserved: 0,
         }
     }
 
@@ -634,6 +641,7 @@ impl RectRecord {
             uv_max: self.uv_max,
             wrap: self.wrap().unwrap_or_default(),
             capped: self.capped(),
+            mean: self.mean,
         }
     }
 }

@@ -12,6 +12,7 @@
 //! [`AtlasForest`]: crate::model::AtlasForest
 
 pub mod format;
+mod means;
 mod positional;
 mod read;
 pub mod shard;

@@ -586,6 +586,9 @@ fn check_rects_originals(
         if r.wrap().is_none() {
             return Err(bad_value("rects", gi, "flags", u64::from(r.flags)));
         }
+        if r._reserved != 0 {
+            return Err(bad_value("rects", gi, "_reserved", u64::from(r._reserved)));
+        }
         check_rect_geometry(r, gi, atlas_size)?;
     }
     for (i, o) in t.originals.iter().enumerate() {

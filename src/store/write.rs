@@ -6,6 +6,7 @@ use super::format::{
     MaterialRecord, NodeRecord, OriginalRecord, ParamsRecord, Range64, RectRecord, SECTION_ALIGN,
     SECTION_COUNT, Section, SectionEntry, TreeRecord, align_up,
 };
+use super::means::{RectMeans, TreeRects};
 use super::validate::{self, TreeCounts, TreeTables};
 use super::{StoreError, check_endian};
 use crate::ids::BlockId;
@@ -66,6 +67,9 @@ pub struct FileWriter {
     summary: WriteSummary,
     /// Serialises seek + write where positional writes are not available (non-unix).
     lock: Mutex<()>,
+    /// The rects' means, measured as leaf atlas blocks arrive; the rect table is written again at
+    /// [`FileWriter::finish`].
+    means: RectMeans,
 }
 
 /// The encoded tables of one tree (its big arrays stay borrowed from the forest).
@@ -447,7 +451,17 @@ impl FileWriter {
             tables_end,
             encoded,
         } = plan_file(forest)?;
-        let mut writer = FileWriter::with_layout(path, header, blocks, tables_end)?;
+        let trees: Vec<TreeRects<'_>> = (encoded.trees.iter())
+            .map(|t| TreeRects {
+                format: t.record.tex_format().unwrap_or_default(),
+                nodes: &t.nodes,
+                leaves: &t.leaves,
+                rects: &t.rects,
+            })
+            .collect();
+        let means = RectMeans::new(encoded.params.atlas_size, blocks.len(), &trees)
+            .ok_or(overflow("rects"))?;
+        let mut writer = FileWriter::with_layout(path, header, blocks, tables_end, means)?;
         writer.write_tables(forest, &encoded)?;
         Ok(writer)
     }
@@ -500,7 +514,19 @@ impl FileWriter {
             })
             .collect();
         let tables_end = super::read::sections_end(&header).ok_or(overflow("sections"))?;
-        FileWriter::with_layout(path, header, blocks, tables_end)
+        let views: Vec<super::TreeView<'_>> =
+            (0..tables.trees()).filter_map(|t| tables.tree(t)).collect();
+        let trees: Vec<TreeRects<'_>> = (views.iter())
+            .map(|t| TreeRects {
+                format: t.format(),
+                nodes: t.nodes,
+                leaves: t.leaves,
+                rects: t.rects,
+            })
+            .collect();
+        let means = RectMeans::new(tables.params().atlas_size, blocks.len(), &trees)
+            .ok_or(overflow("rects"))?;
+        FileWriter::with_layout(path, header, blocks, tables_end, means)
     }
 
     /// The temp file sized for `header.file_len`, nothing written yet.
@@ -509,6 +535,7 @@ impl FileWriter {
         header: Header,
         blocks: Vec<BlockRecord>,
         tables_end: u64,
+        means: RectMeans,
     ) -> Result<FileWriter, StoreError> {
         check_replaceable(path)?;
         // The permissions of a plain `File::create` once renamed (0o666 less the umask); a private 0o600
@@ -525,6 +552,7 @@ impl FileWriter {
             blocks,
             temp,
             lock: Mutex::new(()),
+            means,
         };
         let temp = &writer.temp;
         super::positional::size_and_reserve(
@@ -607,6 +635,7 @@ impl FileWriter {
         {
             return Err(StoreError::BlockWrittenTwice { block: id });
         }
+        self.means.record(id, bytes);
         let sum = xxhash_rust::xxh3::xxh3_64(bytes);
         if let Err(e) = write_all_at(self.temp.file(), &self.lock, record.offset, bytes) {
             state.store(UNWRITTEN, Ordering::Release);
@@ -638,15 +667,19 @@ impl FileWriter {
         }
         let (file, lock) = (self.temp.file(), &self.lock);
         let mut failure = None;
+        let mut put = |offset: u64, bytes: &[u8]| {
+            if let Err(e) = write_all_at(file, lock, offset, bytes) {
+                failure.get_or_insert(e);
+            }
+        };
+        let rects = self.means.finished();
+        let rect_bytes: Vec<&[u8]> = rects.iter().map(|r| bytemuck::cast_slice(r)).collect();
+        put_section(&mut self.header, Section::Rects, &rect_bytes, &mut put);
         put_section(
             &mut self.header,
             Section::Blocks,
             &[bytemuck::cast_slice(&blocks)],
-            &mut |offset, bytes| {
-                if let Err(e) = write_all_at(file, lock, offset, bytes) {
-                    failure.get_or_insert(e);
-                }
-            },
+            &mut put,
         );
         if let Some(e) = failure {
             return Err(self.temp_err(e));

@@ -159,7 +159,9 @@ fn all_twins() -> Vec<Twins> {
                     outer_hi,
                     wrap,
                     cutoff,
-                    inner_size
+                    inner_size,
+                    mean,
+                    _p1
                 }),
                 twin!(tree::TamEntry {
                     class_index,

@@ -372,9 +372,9 @@ fn resealed_bad_references_are_named() {
         TreeFile::from_bytes(&b).err()
     );
     // A future version, and versions 1 (RGBA8 only, 40-byte block records), 2 (baked atlas UVs in the
-    // vertices), 3 (originals stored per leaf) and 4 (originals at square classes): all refused by
-    // number, the message says to rebuild.
-    for found in [6u32, 4, 3, 2, 1] {
+    // vertices), 3 (originals stored per leaf), 4 (originals at square classes) and 5 (no rect means):
+    // all refused by number, the message says to rebuild.
+    for found in [7u32, 5, 4, 3, 2, 1] {
         let mut b = bytes.clone();
         b[8..12].copy_from_slice(&found.to_le_bytes());
         reseal(&mut b);
@@ -382,7 +382,7 @@ fn resealed_bad_references_are_named() {
             Err(
                 e @ StoreError::UnsupportedVersion {
                     found: f,
-                    supported: 5,
+                    supported: 6,
                 },
             ) => {
                 assert_eq!(f, found);

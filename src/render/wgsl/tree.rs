@@ -103,10 +103,8 @@ wgsl_consts! {
     /// Alpha below which a fragment of a BLEND material is discarded in the blend pass.
     BLEND_MIN_ALPHA: f32 = 0.5 / 255.0;
 
-    /// Texels of the inner rectangle at the mip a flattened sample reads ([`RectMap::texel_f32`]): at 2,
-    /// a bilinear tap at the inner centre averages the whole period. Block-compressed atlases use the
-    /// same level (measured on data/city, BC7 against uncompressed: 47.5–53 dB per view, against 34 dB
-    /// with a finer level for BC).
+    /// Texels of the inner rectangle at the mip a flat fragment's texel and gradients name
+    /// ([`RectMap::texel_f32`]; the shader shows the rect's mean there instead, [`RectMap::sample_f32`]).
     CELLS: f32 = 2.0;
     /// A footprint larger than this share of the period gets the period's average.
     FLAT_SHARE: f32 = 1.0;
@@ -114,9 +112,6 @@ wgsl_consts! {
     /// the gradients are sharpened by `k ≤ 1` to what the border protects; below this `k` the sharpened
     /// sample would alias, and the pixel gets the period's average instead.
     SHARPEN_MIN: f32 = 0.25;
-    /// An inner rectangle at least this elongated takes two taps where it is flat
-    /// ([`RectMap::flat_tap`]).
-    FLAT_TAPS_ASPECT: f32 = 1.5;
     /// [`RectMap::footprint_cap`] stays this much below the power of two whose coarser mip would reach
     /// too far, so the sampler's rounding of the lod never blends that mip in.
     REACH_SAFETY: f32 = 0.99;
@@ -289,8 +284,12 @@ pub struct RectMap {
     pub cutoff: f32,
     /// Size of the inner rectangle.
     pub inner_size: [f32; 2],
+    /// [`crate::model::AtlasRect::mean`] as a little-endian `u32` (`unpack4x8unorm` in the shader): what
+    /// a flat fragment shows ([`RectMap::mean_linear`]).
+    pub mean: u32,
+    pub _p1: u32,
 }
-const _: () = assert!(size_of::<RectMap>() == 64);
+const _: () = assert!(size_of::<RectMap>() == 72);
 
 impl RectMap {
     /// `(rect coordinate, sign of its derivative)` of `u` on axis `k`: `rect_axis` in the shader.
@@ -313,23 +312,6 @@ impl RectMap {
             return (u.clamp(0.0, 1.0) - lo, 1.0);
         }
         (u - lo, 1.0)
-    }
-
-    /// The shader's `flat_tap`: where [`Self::texel_f32`] gives the period's average (the inner centre
-    /// on the mip where the inner rectangle's smaller side is [`CELLS`] texels), the shader averages two
-    /// taps at `centre ± flat_tap()` (leaf texels), a quarter of the rect's length either side, when the
-    /// rect is at least [`FLAT_TAPS_ASPECT`] times as long as wide; zero (one tap) otherwise. On that mip
-    /// a 1:2 rect is CELLS × 2·CELLS texels: one centre tap reads its middle half only (sparse
-    /// alpha-tested sprites became solid sheets), two read all of it.
-    pub fn flat_tap(&self) -> Vec2 {
-        let inner = Vec2::from(self.inner_size);
-        if inner.x >= FLAT_TAPS_ASPECT * inner.y {
-            Vec2::new(0.25 * inner.x, 0.0)
-        } else if inner.y >= FLAT_TAPS_ASPECT * inner.x {
-            Vec2::new(0.0, 0.25 * inner.y)
-        } else {
-            Vec2::ZERO
-        }
     }
 
     /// The shader's `footprint_cap`: the largest footprint (leaf texels, the longer gradient) whose
@@ -359,10 +341,12 @@ impl RectMap {
     ///   rectangle around the sample: it reads the rect's border (the sampler's rule) and never a
     ///   neighbouring rect. Only samples near the border are sharpened.
     /// - A pixel whose footprint exceeds [`FLAT_SHARE`] of the inner rectangle along both axes, or whose
-    ///   `k` is below [`SHARPEN_MIN`], covers (about) a period: it gets the period's average, which the
-    ///   mip level where the inner rectangle's smaller side is [`CELLS`] texels wide holds at its centre
-    ///   (the gradients are scaled to that level, the sample moved to the centre) — no aliasing, and
-    ///   every such pixel of the rect reads the same texels.
+    ///   `k` is below [`SHARPEN_MIN`], covers (about) a period: it is flat ([`RectMap::sample_f32`]) and
+    ///   shows the period's mean, measured when the file was written ([`RectMap::mean_linear`]) — no
+    ///   aliasing, and every such pixel of the rect shows the same colour. Its texel is the inner centre
+    ///   and its gradients name the mip where the inner rectangle's smaller side is [`CELLS`] texels
+    ///   (the mean's stand-in before format 6, which read the middle of the period where the rect sat
+    ///   off that mip's texel grid).
     /// - A footprint that covers one axis only (the short side of an elongated rect, say 992 × 16 texels
     ///   seen from afar) averages that axis alone: the sample sits at the inner centre there; the other
     ///   axis keeps its detail.
@@ -375,6 +359,19 @@ impl RectMap {
         ddy: Vec2,
         level_texels: f32,
     ) -> (Vec2, Vec2, Vec2) {
+        let (texel, gx, gy, _) = self.sample_f32(uv, ddx, ddy, level_texels);
+        (texel, gx, gy)
+    }
+
+    /// [`RectMap::texel_f32`] and whether the fragment is flat (the shader's `RectSample::flat`: it
+    /// shows [`RectMap::mean_linear`] instead of sampling at that texel).
+    pub fn sample_f32(
+        &self,
+        uv: Vec2,
+        ddx: Vec2,
+        ddy: Vec2,
+        level_texels: f32,
+    ) -> (Vec2, Vec2, Vec2, bool) {
         let (ts, ss) = self.axis_f32(uv.x, 0);
         let (tt, st) = self.axis_f32(uv.y, 1);
         let tpu = Vec2::from(self.texels_per_uv) * Vec2::new(ss, st);
@@ -405,9 +402,23 @@ impl RectMap {
         };
         if covered.all() || k < SHARPEN_MIN {
             let kk = period / CELLS / footprint;
-            return (centre, gx * kk, gy * kk);
+            return (centre, gx * kk, gy * kk, true);
         }
-        (q, gx * k, gy * k)
+        (q, gx * k, gy * k, false)
+    }
+
+    /// The shader's `rect_mean`: [`RectMap::mean`] as a texture sample gives it, linear colour (IEC
+    /// 61966-2-1) and straight alpha.
+    pub fn mean_linear(&self) -> [f32; 4] {
+        let [r, g, b, a] = self.mean.to_le_bytes().map(|v| f32::from(v) / 255.0);
+        let lin = |c: f32| {
+            if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }
+        };
+        [lin(r), lin(g), lin(b), a]
     }
 }
 

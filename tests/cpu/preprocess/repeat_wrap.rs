@@ -13,6 +13,7 @@ use atlastree::preprocess::{BuildOptions, DMin};
 use atlastree::render::wgsl::tree::RectMap;
 use atlastree::scene::synthetic::SceneBuilder;
 use atlastree::scene::{AlphaMode, DecodedImage, Scene, UpAxis, Wrap};
+use atlastree::texfmt::TexFormat;
 use glam::{DVec2, DVec3, Vec2};
 
 /// A 64² source, continuous under the sampler's rule (else the original itself has a hard edge at the
@@ -149,6 +150,7 @@ fn rect_sampling_matches_the_original_per_mode_level_and_edge() {
             uv_max: [case.hi; 2],
             wrap: [case.mode; 2],
             capped: [false; 2],
+            mean: [0; 4],
         };
         let mut atlas = LinearImage::new_filled(size, size, neutral_fill());
         let job = RectJob::from_atlas_rect(&rect, [case.wrap; 2], [1.0; 4]);
@@ -215,12 +217,13 @@ fn rect_sampling_matches_the_original_per_mode_level_and_edge() {
 /// texture each. Equal world areas put almost everything east of the cut into one half; equal demand cuts
 /// among the plates. The first split (x) of the demand tree keeps the shared-texture tiles and part of
 /// the plates together, the area tree separates the tiles from every plate.
-/// A 1:2 sprite far away (the footprint covers its rect: the period's average). Its alpha is 1 in the
+/// A 1:2 sprite far away (the footprint covers its rect: the period's mean). Its alpha is 1 in the
 /// middle half of each axis, a quarter of its area; on the mip where its rect is 2 × 4 texels a tap at
 /// the centre reads the middle 2 × 2 (alpha 0.5, above a 0.5 cutoff: black_forest's firs drew as solid
-/// sheets), the shader's two taps at `centre ± flat_tap` read all 8 (the sprite's mean, 0.25).
+/// sheets), so the fragment is flat and shows the rect's mean measured on the stored atlas (alpha 0.25,
+/// `texfmt::rect_means`), whatever the mips hold at the centre.
 #[test]
-fn a_flat_sprite_is_averaged_over_its_whole_rect() {
+fn a_flat_sprite_shows_the_mean_of_its_whole_rect() {
     let (w, h) = (64u32, 128u32);
     let pixels = (0..w * h)
         .map(|i| {
@@ -243,6 +246,7 @@ fn a_flat_sprite_is_averaged_over_its_whole_rect() {
         uv_max: [1.0; 2],
         wrap: [RectWrap::Clamp; 2],
         capped: [false; 2],
+        mean: [0; 4],
     };
     let mut atlas = LinearImage::new_filled(256, 256, neutral_fill());
     let job = RectJob::from_atlas_rect(&rect, [Wrap::ClampToEdge; 2], [1.0; 4]);
@@ -250,26 +254,36 @@ fn a_flat_sprite_is_averaged_over_its_whole_rect() {
     let atlas = MipChain::build(atlas);
     let map = RectMap::new(&rect, AlphaMode::Mask { cutoff: 0.5 });
     let (ddx, ddy) = (Vec2::new(3.0, 0.0), Vec2::new(0.0, 3.0));
-    let (centre, gx, gy) = map.texel_f32(Vec2::new(0.3, 0.6), ddx, ddy, 1.0);
+    let (centre, gx, gy, flat) = map.sample_f32(Vec2::new(0.3, 0.6), ddx, ddy, 1.0);
+    assert!(flat);
     assert_eq!(centre, Vec2::new(64.0, 96.0));
-    // The flat branch's gradients pick the mip where the rect's smaller side is 2 texels: mip 5.
+    // What the flat branch read before format 6: the centre of the mip where the rect's smaller side is
+    // 2 texels (mip 5), alpha 0.5.
     let lod = (gx.length().max(gy.length())).log2();
     assert!((lod - 5.0).abs() < 1e-5, "{lod}");
-    let level = &atlas.levels[5];
-    let alpha = |p: Vec2| bilinear(level, p.as_dvec2() / 32.0)[3];
-    assert!((alpha(centre) - 0.5).abs() < 0.02, "{}", alpha(centre));
-    let tap = map.flat_tap();
-    assert_eq!(tap, Vec2::new(0.0, 32.0));
-    let two = 0.5 * (alpha(centre - tap) + alpha(centre + tap));
-    assert!((two - 0.25).abs() < 0.02, "{two}");
-    // Square rects keep one tap.
-    let square = AtlasRect {
-        inner: [32, 32, 64, 64],
-        ..rect
-    };
-    assert_eq!(
-        RectMap::new(&square, AlphaMode::Opaque).flat_tap(),
-        Vec2::ZERO
+    let at_centre = bilinear(&atlas.levels[5], centre.as_dvec2() / 32.0)[3];
+    assert!((at_centre - 0.5).abs() < 0.02, "{at_centre}");
+    // The stored mean: the sprite's colour at a quarter coverage, below the cutoff.
+    let stored = atlas.to_rgba8();
+    let means =
+        atlastree::texfmt::rect_means(TexFormat::Rgba8, &stored, 256, &[rect.inner]).unwrap();
+    let want = [90, 140, 60, 64];
+    assert!(
+        (means[0].iter().zip(want)).all(|(&g, w)| g.abs_diff(w) <= 1),
+        "{:?}",
+        means[0]
+    );
+    let shown = RectMap::new(
+        &AtlasRect {
+            mean: means[0],
+            ..rect
+        },
+        AlphaMode::Opaque,
+    )
+    .mean_linear();
+    assert!(
+        (shown[3] - 0.25).abs() < 0.01 && shown[3] < 0.5,
+        "{shown:?}"
     );
 }
 
@@ -307,6 +321,7 @@ fn an_isotropic_trilinear_filter_never_reads_a_neighbouring_rect() {
         uv_max: [1.0; 2],
         wrap: [RectWrap::Repeat; 2],
         capped: [false; 2],
+        mean: [0; 4],
     };
     let mut atlas = LinearImage::new_filled(256, 128, [0.0, 0.0, 1.0, 1.0]);
     draw_rect(

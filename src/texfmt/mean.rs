@@ -1,0 +1,236 @@
+//! The mean colour of each texture rectangle of a stored leaf atlas (docs/DESIGN.md "Repeats: one period
+//! per rect, wrapped in the shader"): what a pixel that covers a whole period of a repeated texture shows.
+//!
+//! The shader used to read it from the atlas's mips, at the rect's centre on the mip where the rect is
+//! two texels wide; those texels are blocks aligned to the atlas, not to the rect, so it read the
+//! middle half of the period where the rect sat off the block grid (a 64-texel period of black with
+//! white edge lines drew black where its mean is grey; a 32 %-coverage alpha-tested sprite drew solid,
+//! since its middle is opaque). The mean is a per-rect constant, so it is measured once, here, from the
+//! bytes the file stores: a build and the merge of a sharded build, which both write through
+//! [`crate::store::FileWriter`], measure the same bytes and store the same means.
+//!
+//! Rects of at least [`MEAN_LEVEL_MIN_SIDE`] texels are measured on level [`MEAN_LEVEL`] (16 times fewer
+//! texels than level 0, decoded where compressed), each texel weighted by its overlap with the inner
+//! rectangle mapped onto that level; at the default border its 4×4 blocks hold only the rect's own
+//! texels (inner or border, see [`super`] "Bleeding"). Smaller rects are measured on level 0, decoding
+//! only the blocks under them. Averaged in linear light with premultiplied alpha, as the mips are;
+//! stored as sRGB8 with straight alpha.
+
+use super::{TexFormat, decode_level_rect, mip_sizes};
+
+/// The level the means are measured on (or the chain's last, if it has fewer).
+pub const MEAN_LEVEL: usize = 2;
+
+/// sRGB-encoded 8-bit value → linear, f64 (IEC 61966-2-1).
+fn to_linear(c: u8) -> f64 {
+    let e = f64::from(c) / 255.0;
+    if e <= 0.04045 {
+        e / 12.92
+    } else {
+        ((e + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Linear `[0, 1]` → the nearest sRGB-encoded 8-bit value (clamped; NaN → 0).
+fn to_srgb8(v: f64) -> u8 {
+    let v = if v > 0.0 { v.min(1.0) } else { 0.0 };
+    let e = if v <= 0.0031308 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    };
+    (e * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+/// The mean of the `[x0, x1) × [y0, y1)` texels (fractional, in texels of the level) of a `w × h` RGBA8
+/// sRGB straight-alpha level: linear premultiplied colour over coverage, straight alpha; texels weighted by
+/// their overlap. An area without coverage gives its straight colour mean with alpha 0; an empty area or
+/// one outside the level, transparent black.
+pub fn area_mean(rgba: &[u8], w: u32, h: u32, area: [f64; 4]) -> [u8; 4] {
+    let lut: Vec<f64> = (0..=255u8).map(to_linear).collect();
+    let [x0, y0, x1, y1] = area;
+    let (w, h) = (w as usize, h as usize);
+    let span = |lo: f64, hi: f64, n: usize| {
+        let a = lo.floor().max(0.0) as usize;
+        let b = (hi.ceil().max(0.0) as usize).min(n);
+        (a, b)
+    };
+    let overlap = |i: usize, lo: f64, hi: f64| (hi.min(i as f64 + 1.0) - lo.max(i as f64)).max(0.0);
+    let ((xa, xb), (ya, yb)) = (span(x0, x1, w), span(y0, y1, h));
+    // [Σ w·a·c (3), Σ w·a, Σ w, Σ w·c (3)]
+    let mut sum = [0.0f64; 8];
+    for y in ya..yb {
+        let wy = overlap(y, y0, y1);
+        for x in xa..xb {
+            let wt = wy * overlap(x, x0, x1);
+            let Some(t) = rgba.get((y * w + x) * 4..(y * w + x) * 4 + 4) else {
+                continue;
+            };
+            let a = f64::from(t[3]) / 255.0;
+            for k in 0..3 {
+                let c = lut[usize::from(t[k])];
+                sum[k] += wt * a * c;
+                sum[5 + k] += wt * c;
+            }
+            sum[3] += wt * a;
+            sum[4] += wt;
+        }
+    }
+    if sum[4] <= 0.0 {
+        return [0; 4];
+    }
+    let colour = |k: usize| {
+        if sum[3] > 0.0 {
+            to_srgb8(sum[k] / sum[3])
+        } else {
+            to_srgb8(sum[5 + k] / sum[4])
+        }
+    };
+    let alpha = (sum[3] / sum[4] * 255.0).round().clamp(0.0, 255.0) as u8;
+    [colour(0), colour(1), colour(2), alpha]
+}
+
+/// Rects at least this many level-0 texels on both sides are measured on level [`MEAN_LEVEL`]; smaller
+/// ones on level 0 (only the 4×4 blocks under them decoded), where a level-2 texel straddling their edge
+/// would weigh in as much border or neighbour as rect.
+pub const MEAN_LEVEL_MIN_SIDE: u32 = 64;
+
+/// The mean ([`area_mean`]) of each inner rectangle `[x, y, w, h]` (level-0 texels) of the leaf atlas
+/// `chain`: a `side²` image and its mip chain stored in `format`, level 0 first. `None` where `chain` is
+/// shorter than the chain of `side` (the caller checked the block's length).
+pub fn rect_means(
+    format: TexFormat,
+    chain: &[u8],
+    side: u32,
+    inners: &[[u32; 4]],
+) -> Option<Vec<[u8; 4]>> {
+    let sizes: Vec<u32> = mip_sizes(side).collect();
+    let level_bytes = |l: usize| -> Option<&[u8]> {
+        let offset: u64 = sizes[..l].iter().map(|&s| format.level_bytes(s)).sum();
+        let bytes = chain.get(usize::try_from(offset).ok()?..)?;
+        bytes.get(..usize::try_from(format.level_bytes(sizes[l])).ok()?)
+    };
+    let level = MEAN_LEVEL.min(sizes.len().checked_sub(1)?);
+    let fine = level_bytes(0)?;
+    let big = |&[_, _, w, h]: &[u32; 4]| w.min(h) >= MEAN_LEVEL_MIN_SIDE;
+    // Level `level`, decoded once where a rect is measured on it.
+    let coarse = match inners.iter().any(big) {
+        true => Some((
+            decode_level_rect(format, level_bytes(level)?, sizes[level], sizes[level]),
+            sizes[level],
+        )),
+        false => None,
+    };
+    let means = inners.iter().map(|inner| {
+        let [x, y, w, h] = inner.map(f64::from);
+        match &coarse {
+            Some((rgba, s)) if big(inner) => {
+                // The box mip filter integrates level 0 over `[j·f, (j+1)·f)` of each texel `j` there.
+                let f = f64::from(*s) / f64::from(side.max(1));
+                area_mean(rgba, *s, *s, [x * f, y * f, (x + w) * f, (y + h) * f])
+            }
+            _ => {
+                let (rgba, [bx, by, bw, bh]) = decode_blocks(format, fine, side, *inner);
+                let (ox, oy) = (f64::from(bx), f64::from(by));
+                area_mean(&rgba, bw, bh, [x - ox, y - oy, x + w - ox, y + h - oy])
+            }
+        }
+    });
+    Some(means.collect())
+}
+
+/// The texels of the 4×4 blocks (texels for RGBA8) of a `side²` level under `[x, y, w, h]`, clipped to
+/// the level: RGBA8 rows and their rectangle `[x, y, w, h]` in the level.
+fn decode_blocks(
+    format: TexFormat,
+    level: &[u8],
+    side: u32,
+    [x, y, w, h]: [u32; 4],
+) -> (Vec<u8>, [u32; 4]) {
+    let step = if format == TexFormat::Rgba8 { 1 } else { 4 };
+    let x0 = (x / step * step).min(side);
+    let y0 = (y / step * step).min(side);
+    let x1 = x.saturating_add(w).min(side).div_ceil(step) * step;
+    let y1 = y.saturating_add(h).min(side).div_ceil(step) * step;
+    let (x1, y1) = (
+        x1.min(side.div_ceil(step) * step),
+        y1.min(side.div_ceil(step) * step),
+    );
+    let (bw, bh) = ((x1 - x0) as usize, (y1 - y0) as usize);
+    let mut out = vec![0u8; bw * bh * 4];
+    if format == TexFormat::Rgba8 {
+        for row in 0..bh {
+            let at = ((y0 as usize + row) * side as usize + x0 as usize) * 4;
+            if let Some(src) = level.get(at..at + bw * 4) {
+                out[row * bw * 4..(row + 1) * bw * 4].copy_from_slice(src);
+            }
+        }
+    } else {
+        let bb = format.bytes_per_block() as usize;
+        let blocks_per_row = side.div_ceil(4) as usize;
+        let pitch = bw * 4;
+        for by in (y0 / 4) as usize..(y1 / 4) as usize {
+            for bx in (x0 / 4) as usize..(x1 / 4) as usize {
+                let at = (by * blocks_per_row + bx) * bb;
+                let Some(block) = level.get(at..at + bb) else {
+                    continue;
+                };
+                let dst = &mut out[((by * 4 - y0 as usize) * bw + (bx * 4 - x0 as usize)) * 4..];
+                match format {
+                    TexFormat::Bc1 => bcdec_rs::bc1(block, dst, pitch),
+                    TexFormat::Bc3 => bcdec_rs::bc3(block, dst, pitch),
+                    TexFormat::Bc7 => bcdec_rs::bc7(block, dst, pitch),
+                    TexFormat::Rgba8 => {}
+                }
+            }
+        }
+    }
+    // Texels past the level (a level whose side is not a multiple of 4) are cut off by `area_mean`'s
+    // rectangle, which lies inside the level.
+    (out, [x0, y0, bw as u32, bh as u32])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_transfer_functions_round_trip_every_code() {
+        for c in 0..=255u8 {
+            assert_eq!(to_srgb8(to_linear(c)), c);
+        }
+        assert_eq!(
+            (to_srgb8(f64::NAN), to_srgb8(-1.0), to_srgb8(2.0)),
+            (0, 0, 255)
+        );
+    }
+
+    #[test]
+    fn area_means_weigh_by_overlap_coverage_and_light() {
+        // 4×1: black opaque, white opaque, red transparent, grey half.
+        let rgba = [
+            0, 0, 0, 255, 255, 255, 255, 255, 255, 0, 0, 0, 128, 128, 128, 128,
+        ];
+        // Black and white in linear light: 0.5 linear is sRGB 188, not 128.
+        let grey = to_srgb8(0.5);
+        assert_eq!(
+            area_mean(&rgba, 4, 1, [0.0, 0.0, 2.0, 1.0]),
+            [grey, grey, grey, 255]
+        );
+        // A quarter of white and three quarters of black: linear 0.25.
+        assert_eq!(
+            area_mean(&rgba, 4, 1, [0.25, 0.0, 1.25, 1.0])[0],
+            to_srgb8(0.25)
+        );
+        // The transparent texel adds no colour, only weight to alpha.
+        assert_eq!(
+            area_mean(&rgba, 4, 1, [1.0, 0.0, 3.0, 1.0]),
+            [255, 255, 255, 128]
+        );
+        // No coverage at all: the straight colour, alpha 0.
+        assert_eq!(area_mean(&rgba, 4, 1, [2.0, 0.0, 3.0, 1.0]), [255, 0, 0, 0]);
+        // Outside or empty: transparent black.
+        assert_eq!(area_mean(&rgba, 4, 1, [5.0, 0.0, 6.0, 1.0]), [0; 4]);
+        assert_eq!(area_mean(&rgba, 4, 1, [1.0, 0.0, 1.0, 1.0]), [0; 4]);
+    }
+}
