@@ -220,8 +220,9 @@ impl std::str::FromStr for Capacity {
 #[derive(Args, Debug, Clone, Default)]
 pub(crate) struct PagingArgs {
     /// Page blocks with at most this many resident (the paper used 160); missing blocks are drawn with
-    /// the nearest resident ancestor atlas. `all`: page every block on demand and evict none (as
-    /// `simulate --capacity all`). Omit to upload every block at start.
+    /// the nearest resident ancestor atlas. `all`: `render` pages every block on demand and evicts none
+    /// (as `simulate --capacity all`); `view` uploads every block at start, as without the flag. Omit
+    /// to upload every block at start.
     #[arg(long, value_name = "K|all")]
     pub capacity: Option<Capacity>,
     /// Where paged blocks come from: `file` (the paging file, memory-mapped) or an http(s) URL of the
@@ -513,9 +514,6 @@ mod tests {
         );
     }
 
-    /// `--http-timeout` and `--http-retries` reach the HTTP client (a stalled server held a synchronous
-    /// loader for 4 attempts of 30 s a block, with no way to shorten it); without them its defaults;
-    /// out of range refused by the parser.
     #[test]
     fn capacity_takes_a_block_count_or_all() {
         #[derive(Parser)]
@@ -533,6 +531,9 @@ mod tests {
         }
     }
 
+    /// `--http-timeout` and `--http-retries` reach the HTTP client (a stalled server held a synchronous
+    /// loader for 4 attempts of 30 s a block, with no way to shorten it); without them its defaults;
+    /// out of range refused by the parser.
     #[test]
     fn http_flags_reach_the_client_options() {
         #[derive(Parser)]

@@ -232,11 +232,12 @@ fn axis_size(
 }
 
 /// Largest distance (texels) from a texel edge that [`on_source_grid`] takes for the edge itself, at
-/// `texels` on an axis of `source` texels: f32 UVs carry ~2⁻²⁴ of their value, and of 1 near 0 (`0.5 +
-/// 1 ulp` of a 64-texel source is 3.8·10⁻⁶ texels past texel 32), so 16 times that; at most 10⁻² texels
-/// (f32 UVs far from 0 hold no finer position anyway).
+/// `texels` on an axis of `source` texels: half of what `inspect --verify` allows a stored UV outside its
+/// rect (`max(|u|, 1) · 2⁻²¹ + 10⁻⁶` in UV, f32 storage), so a range moved inward by the snap still holds
+/// its triangles there — and `0.5 + 1 f32 ulp` of a 64-texel source, 3.8·10⁻⁶ texels past texel 32, is
+/// texel 32. At most 10⁻² texels (f32 UVs far from 0 hold no finer position anyway).
 fn grid_tolerance(texels: f64, source: f64) -> f64 {
-    (texels.abs().max(source) * 2f64.powi(-20)).min(1e-2)
+    (texels.abs().max(source) * 2f64.powi(-22) + source * 5e-7).min(1e-2)
 }
 
 /// `[lo, hi]` (UV, `lo ≤ hi`) widened outward to the edges of the texels of an axis of `source` texels
@@ -263,6 +264,8 @@ pub fn on_source_grid(lo: f64, hi: f64, source: u32, wrap: RectWrap) -> (f64, f6
     match wrap {
         RectWrap::Linear => (lo, hi),
         RectWrap::Repeat if hi - lo >= 1.0 => (0.0, 1.0),
+        // An arc starts in [0, 1) (the cover's contract): a start just below 1 taken as 1 is 0.
+        RectWrap::Repeat if lo >= 1.0 => (lo - 1.0, hi - 1.0),
         RectWrap::Repeat => (lo, hi),
         RectWrap::Mirror | RectWrap::Clamp => (lo.max(0.0), hi.min(1.0)),
     }
@@ -415,6 +418,27 @@ mod tests {
         assert_eq!(on_source_grid(0.8, 1.2, 4, RectWrap::Repeat), (0.75, 1.25));
         assert_eq!(on_source_grid(0.3, 1.2, 4, RectWrap::Repeat), (0.0, 1.0));
         assert_eq!(on_source_grid(0.3, 1.2, 4, L), (0.25, 1.25));
+        let below_one = 1.0 - 4.0 * 2f64.powi(-24);
+        assert_eq!(
+            on_source_grid(below_one, 1.25, 64, RectWrap::Repeat),
+            (0.0, 0.25)
+        );
+        // A baked range far from 0 is not moved inward past what `inspect --verify` allows (f32 UVs):
+        // 10 f32 steps inside a texel edge at 100.5 is not that edge; one step is.
+        let step = f64::from(f32::EPSILON) * 64.0;
+        let texel = 1.0 / 64.0;
+        assert_eq!(
+            on_source_grid(100.5 - 10.0 * step, 101.0, 64, L).0,
+            100.5 - texel
+        );
+        assert_eq!(
+            on_source_grid(100.0, 100.5 + 10.0 * step, 64, L).1,
+            100.5 + texel
+        );
+        assert_eq!(
+            on_source_grid(100.5 - step, 100.5 + step, 64, L),
+            (100.5, 100.5)
+        );
         // Huge UVs: the tolerance stays below a hundredth of a texel.
         let (lo, hi) = on_source_grid(1e6 + 0.3, 1e6 + 0.7, 100, L);
         assert_eq!((lo * 100.0, hi * 100.0), (1e8 + 30.0, 1e8 + 70.0));

@@ -592,7 +592,8 @@ impl ShardSet {
     /// is combined ([`ShardSet::handoff`]).
     ///
     /// Shards are copied in order, the blocks of one shard on the rayon pool (positional reads and writes:
-    /// a merge of gigabytes is page-cache copies and checksums, which one core did alone); a shard's first
+    /// a merge of gigabytes is page-cache copies, checksums and the leaf atlases' rect means, measured
+    /// by the writer as a build measures them — work one core did alone); a shard's first
     /// bad block in entry order is the one reported, as a serial copy would.
     fn copy_blocks(
         &self,

@@ -12,6 +12,8 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// One tree's tables as the means need them.
 pub(super) struct TreeRects<'a> {
     pub(super) format: TexFormat,
+    /// Every rect measured on level 0 ([`crate::texfmt::rect_means`]'s `exact`): the alpha tree.
+    pub(super) exact: bool,
     pub(super) nodes: &'a [NodeRecord],
     pub(super) leaves: &'a [LeafRecord],
     pub(super) rects: &'a [RectRecord],
@@ -22,6 +24,7 @@ pub(super) struct TreeRects<'a> {
 struct LeafRects {
     tree: usize,
     format: TexFormat,
+    exact: bool,
     first: usize,
     count: usize,
 }
@@ -57,6 +60,7 @@ impl RectMeans {
                 *by_block.get_mut(node.atlas_block as usize)? = Some(LeafRects {
                     tree: t,
                     format: tree.format,
+                    exact: tree.exact,
                     first,
                     count,
                 });
@@ -80,13 +84,11 @@ impl RectMeans {
         let Some(Some(leaf)) = self.by_block.get(id.idx()) else {
             return;
         };
-        if bytes.len() as u64 != leaf.format.chain_bytes(self.atlas_size) {
-            return;
-        }
         let rects = &self.rects[leaf.tree][leaf.first..leaf.first + leaf.count];
         let inners: Vec<[u32; 4]> = rects.iter().map(|r| r.inner).collect();
-        let Some(means) = crate::texfmt::rect_means(leaf.format, bytes, self.atlas_size, &inners)
-        else {
+        let means =
+            crate::texfmt::rect_means(leaf.format, bytes, self.atlas_size, &inners, leaf.exact);
+        let Some(means) = means else {
             return;
         };
         let slots = &self.means[leaf.tree][leaf.first..leaf.first + leaf.count];

@@ -440,7 +440,8 @@ pub fn table_prefix(forest: &AtlasForest) -> Result<Vec<u8>, StoreError> {
 
 impl FileWriter {
     /// Lays out the file for `forest`, creates a temp file next to `path`, sizes it and writes every table
-    /// but the block table (whose checksums come with the blocks).
+    /// but the block table (whose checksums come with the blocks); the rect table's means are zero until
+    /// [`FileWriter::finish`] writes it again with those measured on the leaf atlases.
     ///
     /// Fails before touching the disk if the forest's tables are inconsistent (the same checks the reader
     /// applies), so a file that `finish`es always opens.
@@ -454,13 +455,14 @@ impl FileWriter {
         let trees: Vec<TreeRects<'_>> = (encoded.trees.iter())
             .map(|t| TreeRects {
                 format: t.record.tex_format().unwrap_or_default(),
+                exact: t.record.tree_kind() == Some(crate::model::TreeKind::Alpha),
                 nodes: &t.nodes,
                 leaves: &t.leaves,
                 rects: &t.rects,
             })
             .collect();
         let means = RectMeans::new(encoded.params.atlas_size, blocks.len(), &trees)
-            .ok_or(overflow("rects"))?;
+            .ok_or(StoreError::LayoutOverflow { what: "rect means" })?;
         let mut writer = FileWriter::with_layout(path, header, blocks, tables_end, means)?;
         writer.write_tables(forest, &encoded)?;
         Ok(writer)
@@ -514,18 +516,20 @@ impl FileWriter {
             })
             .collect();
         let tables_end = super::read::sections_end(&header).ok_or(overflow("sections"))?;
-        let views: Vec<super::TreeView<'_>> =
-            (0..tables.trees()).filter_map(|t| tables.tree(t)).collect();
+        let views: Option<Vec<super::TreeView<'_>>> =
+            (0..tables.trees()).map(|t| tables.tree(t)).collect();
+        let views = views.ok_or(StoreError::LayoutOverflow { what: "trees" })?;
         let trees: Vec<TreeRects<'_>> = (views.iter())
             .map(|t| TreeRects {
                 format: t.format(),
+                exact: t.kind == crate::model::TreeKind::Alpha,
                 nodes: t.nodes,
                 leaves: t.leaves,
                 rects: t.rects,
             })
             .collect();
         let means = RectMeans::new(tables.params().atlas_size, blocks.len(), &trees)
-            .ok_or(overflow("rects"))?;
+            .ok_or(StoreError::LayoutOverflow { what: "rect means" })?;
         FileWriter::with_layout(path, header, blocks, tables_end, means)
     }
 
@@ -649,8 +653,9 @@ impl FileWriter {
         Ok(())
     }
 
-    /// Writes the block table (with the blocks' checksums) and the header, fsyncs, and renames the temp file
-    /// onto the target (replacing any file there). Fails naming the first block never written; then
+    /// Writes the rect table again with its means (`store::means`), the block table (with the blocks'
+    /// checksums) and the header, fsyncs, and renames the temp file onto the target (replacing any file
+    /// there). Fails naming the first block never written; then
     /// nothing appears at the target.
     pub fn finish(mut self) -> Result<WriteSummary, StoreError> {
         for (i, state) in self.state.iter().enumerate() {

@@ -12,14 +12,19 @@
 //! Rects of at least [`MEAN_LEVEL_MIN_SIDE`] texels are measured on level [`MEAN_LEVEL`] (16 times fewer
 //! texels than level 0, decoded where compressed), each texel weighted by its overlap with the inner
 //! rectangle mapped onto that level; at the default border its 4×4 blocks hold only the rect's own
-//! texels (inner or border, see [`super`] "Bleeding"). Smaller rects are measured on level 0, decoding
-//! only the blocks under them. Averaged in linear light with premultiplied alpha, as the mips are;
+//! texels (inner or border, see [`super`] "Bleeding"). Smaller rects, and every rect of the alpha tree
+//! (whose mips may keep α-test coverage instead of the mean), are measured on level 0, decoding only the
+//! blocks under them. Averaged in linear light with premultiplied alpha, as the mips are;
 //! stored as sRGB8 with straight alpha.
 
 use super::{TexFormat, decode_level_rect, mip_sizes};
 
 /// The level the means are measured on (or the chain's last, if it has fewer).
 pub const MEAN_LEVEL: usize = 2;
+
+/// [`to_linear`] of every 8-bit code.
+static TO_LINEAR: std::sync::LazyLock<[f64; 256]> =
+    std::sync::LazyLock::new(|| std::array::from_fn(|c| to_linear(c as u8)));
 
 /// sRGB-encoded 8-bit value → linear, f64 (IEC 61966-2-1).
 fn to_linear(c: u8) -> f64 {
@@ -47,7 +52,7 @@ fn to_srgb8(v: f64) -> u8 {
 /// their overlap. An area without coverage gives its straight colour mean with alpha 0; an empty area or
 /// one outside the level, transparent black.
 pub fn area_mean(rgba: &[u8], w: u32, h: u32, area: [f64; 4]) -> [u8; 4] {
-    let lut: Vec<f64> = (0..=255u8).map(to_linear).collect();
+    let lut = &*TO_LINEAR;
     let [x0, y0, x1, y1] = area;
     let (w, h) = (w as usize, h as usize);
     let span = |lo: f64, hi: f64, n: usize| {
@@ -96,14 +101,20 @@ pub fn area_mean(rgba: &[u8], w: u32, h: u32, area: [f64; 4]) -> [u8; 4] {
 pub const MEAN_LEVEL_MIN_SIDE: u32 = 64;
 
 /// The mean ([`area_mean`]) of each inner rectangle `[x, y, w, h]` (level-0 texels) of the leaf atlas
-/// `chain`: a `side²` image and its mip chain stored in `format`, level 0 first. `None` where `chain` is
-/// shorter than the chain of `side` (the caller checked the block's length).
+/// `chain`: a `side²` image and its mip chain stored in `format`, level 0 first. `exact`: every rect on
+/// level 0 — the alpha tree's, whose level 2 may hold alpha rescaled to keep α-test coverage
+/// (`--alpha-mips coverage`), not the mean that decides whether a distant sprite is drawn. `None` where
+/// `chain` is not the chain of `side` (a block of another length).
 pub fn rect_means(
     format: TexFormat,
     chain: &[u8],
     side: u32,
     inners: &[[u32; 4]],
+    exact: bool,
 ) -> Option<Vec<[u8; 4]>> {
+    if chain.len() as u64 != format.chain_bytes(side) {
+        return None;
+    }
     let sizes: Vec<u32> = mip_sizes(side).collect();
     let level_bytes = |l: usize| -> Option<&[u8]> {
         let offset: u64 = sizes[..l].iter().map(|&s| format.level_bytes(s)).sum();
@@ -112,7 +123,7 @@ pub fn rect_means(
     };
     let level = MEAN_LEVEL.min(sizes.len().checked_sub(1)?);
     let fine = level_bytes(0)?;
-    let big = |&[_, _, w, h]: &[u32; 4]| w.min(h) >= MEAN_LEVEL_MIN_SIDE;
+    let big = |&[_, _, w, h]: &[u32; 4]| !exact && w.min(h) >= MEAN_LEVEL_MIN_SIDE;
     // Level `level`, decoded once where a rect is measured on it.
     let coarse = match inners.iter().any(big) {
         true => Some((
@@ -152,10 +163,6 @@ fn decode_blocks(
     let y0 = (y / step * step).min(side);
     let x1 = x.saturating_add(w).min(side).div_ceil(step) * step;
     let y1 = y.saturating_add(h).min(side).div_ceil(step) * step;
-    let (x1, y1) = (
-        x1.min(side.div_ceil(step) * step),
-        y1.min(side.div_ceil(step) * step),
-    );
     let (bw, bh) = ((x1 - x0) as usize, (y1 - y0) as usize);
     let mut out = vec![0u8; bw * bh * 4];
     if format == TexFormat::Rgba8 {
@@ -203,6 +210,62 @@ mod tests {
             (to_srgb8(f64::NAN), to_srgb8(-1.0), to_srgb8(2.0)),
             (0, 0, 255)
         );
+    }
+
+    /// On compressed chains, level 2 (rects of 64 texels and more) and the blocks under a small,
+    /// unaligned rect give the mean of the decoded level 0 within two levels; `exact` takes level 0 for
+    /// all.
+    #[test]
+    fn rect_means_agree_with_the_decoded_level_0() {
+        use crate::preprocess::image_ops::{LinearImage, MipChain};
+        let side = 256u32;
+        let mut rng = crate::util::XorShift64::new(7);
+        let pixels = (0..side * side)
+            .map(|i| {
+                let (x, y) = (i % side, i / side);
+                let n = (rng.next_u64() % 24) as u8;
+                [
+                    (x / 2) as u8 + n,
+                    (y / 2) as u8,
+                    ((x ^ y) & 0xff) as u8 / 2 + n,
+                    255,
+                ]
+            })
+            .collect();
+        let img = crate::scene::DecodedImage {
+            width: side,
+            height: side,
+            pixels,
+        };
+        let rgba_chain = MipChain::build(LinearImage::from_decoded(&img).unwrap()).to_rgba8();
+        let inners = [
+            [3, 5, 70, 90],
+            [17, 130, 9, 13],
+            [200, 200, 56, 56],
+            [1, 1, 1, 1],
+        ];
+        for format in [TexFormat::Rgba8, TexFormat::Bc1, TexFormat::Bc7] {
+            let chain = crate::texfmt::encode_chain(format, &rgba_chain, side, 4)
+                .unwrap()
+                .bytes;
+            let level0 = &chain[..format.level_bytes(side) as usize];
+            let fine = crate::texfmt::decode_level(format, level0, side);
+            for exact in [false, true] {
+                let means = rect_means(format, &chain, side, &inners, exact).unwrap();
+                for (inner, got) in inners.iter().zip(means) {
+                    let [x, y, w, h] = inner.map(f64::from);
+                    let want = area_mean(&fine, side, side, [x, y, x + w, y + h]);
+                    let coarse = !exact && inner[2].min(inner[3]) >= MEAN_LEVEL_MIN_SIDE;
+                    let tol = if coarse { 2 } else { 0 };
+                    let diff = got.iter().zip(want).map(|(a, b)| a.abs_diff(b)).max();
+                    assert!(
+                        diff <= Some(tol),
+                        "{format:?} exact {exact} {inner:?}: {got:?} vs {want:?}"
+                    );
+                }
+            }
+        }
+        assert!(rect_means(TexFormat::Bc1, &[0; 9], side, &inners, false).is_none());
     }
 
     #[test]

@@ -600,7 +600,7 @@ fn texel_f32_agrees_with_f64_reference() {
 /// A footprint that covers an elongated rect's short side alone (992 × 16 texels, ~20 texels a pixel
 /// along the strip) averages that side only: the strip keeps its detail along its length. (It was
 /// flattened whole, so a 1024 × 16 gradient texture seen from a few metres drew as one colour.) A
-/// footprint over both sides still gives the period's average at the centre.
+/// footprint over both sides is flat (it shows the rect's mean; its texel is the inner centre).
 #[test]
 fn a_footprint_over_a_strips_short_side_keeps_its_length() {
     use crate::fixtures::shader_math::rects;

@@ -52,6 +52,11 @@ struct ProbeOut {
     atlas_ddx: vec2<f32>,
     atlas_ddy: vec2<f32>,
     level_xf: vec4<f32>,
+    mean: vec4<f32>,
+    flat: u32,
+    _p1: u32,
+    _p2: u32,
+    _p3: u32,
 }
 
 @group(0) @binding(100) var<storage, read> probe_in: array<ProbeIn>;
@@ -74,7 +79,9 @@ fn probe_main(@builtin(global_invocation_id) id: vec3<u32>) {
     let xf = level_transform(v);
     let r = rect_texel(rects[p.rect], p.uv, p.ddx, p.ddy, 1.0 / xf.x);
     let a = atlas_sample(v, rects[p.rect], p.ddx, p.ddy);
-    probe_out[i] = ProbeOut(r.texel, r.gx, r.gy, a.uv, a.ddx, a.ddy, vec4<f32>(xf, 0.0));
+    let flat = select(0u, 1u, r.flat);
+    let m = rect_mean(rects[p.rect].mean);
+    probe_out[i] = ProbeOut(r.texel, r.gx, r.gy, a.uv, a.ddx, a.ddy, vec4<f32>(xf, 0.0), m, flat, 0u, 0u, 0u);
 }
 "#;
 
@@ -102,8 +109,13 @@ struct ProbeOut {
     atlas_ddx: [f32; 2],
     atlas_ddy: [f32; 2],
     level_xf: [f32; 4],
+    /// `rect_mean` of the rect: what a flat fragment shows.
+    mean: [f32; 4],
+    /// `RectSample::flat`.
+    flat: u32,
+    _p: [u32; 3],
 }
-const _: () = assert!(size_of::<ProbeOut>() == 64);
+const _: () = assert!(size_of::<ProbeOut>() == 96);
 
 /// Runs the probe over `inputs` with `maps` bound as `rects`.
 fn run_probe(
@@ -224,8 +236,17 @@ fn check_sample(
     out: &ProbeOut,
 ) -> Result<F64Check, String> {
     let texel = Vec2::from(out.texel);
-    let (want, wgx, wgy) = map.texel_f32(s.uv, s.ddx, s.ddy, s.level_texels());
+    let (want, wgx, wgy, flat) = map.sample_f32(s.uv, s.ddx, s.ddy, s.level_texels());
     let f64_check = check_f64(rect, s, texel)?;
+    // The mean a flat fragment shows, as `mean_linear` decodes it: WGSL's `pow` is exp2(y·log2 x), a
+    // few ulp on lavapipe and looser elsewhere, so within 10⁻⁵ (a 400th of an 8-bit step).
+    let mean = map.mean_linear();
+    if !(out.mean.iter().zip(mean)).all(|(&g, w)| (g - w).abs() <= 1e-5) {
+        return Err(format!(
+            "{s:?}: GPU rect mean {:?}, mean_linear {mean:?}",
+            out.mean
+        ));
+    }
     // Near a branch the GPU may round to the other side than the CPU's f32; such samples are compared with
     // f64 only where it is decisive (never), and the level transform below still is.
     // Near a step of the footprint cap the GPU may take the other side of the step: its gradients are then
@@ -248,6 +269,12 @@ fn check_sample(
     let near_step = f64_check == F64Check::AgreesTexelNearStep;
     let gradients_agree =
         scaled(1.0) || (near_step && (0.5..=2.0).contains(&step_factor) && scaled(step_factor));
+    if (f64_check == F64Check::Agrees || near_step) && (out.flat == 1) != flat {
+        return Err(format!(
+            "{s:?}: GPU flat {}, sample_f32 flat {flat}",
+            out.flat
+        ));
+    }
     if (f64_check == F64Check::Agrees || near_step)
         && !(close2(texel, want, 1.0) && gradients_agree)
     {
@@ -318,6 +345,14 @@ fn rect_texel_and_level_transform_match_cpu(ctx: &GpuContext) -> Result<(), Stri
             samples.len()
         ));
     }
+    // Both branches are probed: flat fragments (the rect's mean) and sampled ones.
+    let flat = outputs.iter().filter(|o| o.flat == 1).count();
+    if flat == 0 || flat == outputs.len() {
+        return Err(format!(
+            "{flat} of {} samples flat: the grid misses a branch",
+            outputs.len()
+        ));
+    }
     let (mut compared, mut near_step, mut failures) = (0usize, 0usize, Vec::new());
     for (s, out) in samples.iter().zip(&outputs) {
         match check_sample(s, &maps[s.rect], &rects[s.rect], out) {
@@ -332,7 +367,7 @@ fn rect_texel_and_level_transform_match_cpu(ctx: &GpuContext) -> Result<(), Stri
     }
     println!(
         "    {} samples, {} compared with texel_f32 and f64 ({} near a step of the footprint cap, whose \
-         gradients may be scaled by the step), all with the level transform",
+         gradients may be scaled by the step), all with the level transform; {flat} flat",
         samples.len(),
         compared,
         near_step

@@ -265,8 +265,8 @@ fn a_flat_sprite_shows_the_mean_of_its_whole_rect() {
     assert!((at_centre - 0.5).abs() < 0.02, "{at_centre}");
     // The stored mean: the sprite's colour at a quarter coverage, below the cutoff.
     let stored = atlas.to_rgba8();
-    let means =
-        atlastree::texfmt::rect_means(TexFormat::Rgba8, &stored, 256, &[rect.inner]).unwrap();
+    let means = atlastree::texfmt::rect_means(TexFormat::Rgba8, &stored, 256, &[rect.inner], false)
+        .unwrap();
     let want = [90, 140, 60, 64];
     assert!(
         (means[0].iter().zip(want)).all(|(&g, w)| g.abs_diff(w) <= 1),
