@@ -79,7 +79,7 @@ impl RectMeans {
     /// Measures the rects of the leaf whose atlas is block `id` on its bytes. A no-op for other blocks,
     /// and for an atlas block that is not one atlas chain of the file's format and size: the store does
     /// not require that of a block (a build always writes one; the store's own tests write blocks of any
-    /// length), so its rects keep mean 0, and `inspect --verify` reports the block as not decoding.
+    /// length), so its rects keep mean 0, and `inspect --verify` reports the block as no atlas chain.
     pub(super) fn record(&self, id: BlockId, bytes: &[u8]) {
         let Some(Some(leaf)) = self.by_block.get(id.idx()) else {
             return;
