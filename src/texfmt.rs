@@ -47,7 +47,7 @@ mod bc1;
 mod mean;
 mod quadrants;
 mod rect;
-pub use mean::{MEAN_LEVEL, MEAN_LEVEL_MIN_SIDE, area_mean, rect_means};
+pub use mean::{MEAN_LEVEL, area_mean, rect_means};
 pub use quadrants::{StoredLevel, cell_side, combine_stored_quadrants};
 pub use rect::{
     decode_chain_rect, decode_level_rect, encode_chain_rect, encode_level_measured,

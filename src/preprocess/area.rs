@@ -244,7 +244,7 @@ fn grid_tolerance(texels: f64, source: f64) -> f64 {
 /// (edges at `k / source`), an edge within [`grid_tolerance`] of a texel edge taken as that edge; for a
 /// rect that holds `source` texels per UV (the source cap), so its texels are the source's. The rect's
 /// wrap bounds the result as it bounds the cover ([`crate::preprocess::cover`]): mirror and clamp
-/// ranges stay in `[0, 1]`, a repeat arc widened to a period or more is the period `[0, 1]`, a linear
+/// ranges stay in `[0, 1]`, a repeat arc that would widen to a period or more keeps its own range, a linear
 /// (baked) range is unbounded. Non-finite input is returned as it is (the sizing refuses it).
 pub fn on_source_grid(lo: f64, hi: f64, source: u32, wrap: RectWrap) -> (f64, f64) {
     if !(lo.is_finite() && hi.is_finite()) || hi < lo {
@@ -260,14 +260,18 @@ pub fn on_source_grid(lo: f64, hi: f64, source: u32, wrap: RectWrap) -> (f64, f6
         }
     };
     let (a, b) = (snap(lo * s, f64::floor), snap(hi * s, f64::ceil));
-    let (lo, hi) = (a / s, b / s);
+    let (wlo, whi) = (a / s, b / s);
     match wrap {
-        RectWrap::Linear => (lo, hi),
-        RectWrap::Repeat if hi - lo >= 1.0 => (0.0, 1.0),
+        RectWrap::Linear => (wlo, whi),
+        // An arc shorter than a period stays one: widened to a whole period it would turn a palette's
+        // few texels into a repeated texture of that many (fault hunt: a 4-texel source's [0.125, 0.875],
+        // scaled to 3 texels, got a repeat border no BC7 block can hold), so it keeps its range.
+        RectWrap::Repeat if whi - wlo >= 1.0 && hi - lo < 1.0 => (lo, hi),
+        RectWrap::Repeat if whi - wlo >= 1.0 => (0.0, 1.0),
         // An arc starts in [0, 1) (the cover's contract): a start just below 1 taken as 1 is 0.
-        RectWrap::Repeat if lo >= 1.0 => (lo - 1.0, hi - 1.0),
-        RectWrap::Repeat => (lo, hi),
-        RectWrap::Mirror | RectWrap::Clamp => (lo.max(0.0), hi.min(1.0)),
+        RectWrap::Repeat if wlo >= 1.0 => (wlo - 1.0, whi - 1.0),
+        RectWrap::Repeat => (wlo, whi),
+        RectWrap::Mirror | RectWrap::Clamp => (wlo.max(0.0), whi.min(1.0)),
     }
 }
 
@@ -411,12 +415,17 @@ mod tests {
         );
         // A point inside a texel: that texel.
         assert_eq!(on_source_grid(0.35, 0.35, 10, L), (0.3, 0.4));
-        // Mirror and clamp stay in [0, 1]; a repeat arc keeps crossing the seam, and is the period once
-        // widened to one; baked ranges are unbounded.
+        // Mirror and clamp stay in [0, 1]; a repeat arc keeps crossing the seam, and keeps its own range
+        // where it would widen to a period; baked ranges are unbounded.
         assert_eq!(on_source_grid(0.01, 0.999, 4, RectWrap::Clamp), (0.0, 1.0));
         assert_eq!(on_source_grid(0.01, 0.6, 4, RectWrap::Mirror), (0.0, 0.75));
         assert_eq!(on_source_grid(0.8, 1.2, 4, RectWrap::Repeat), (0.75, 1.25));
-        assert_eq!(on_source_grid(0.3, 1.2, 4, RectWrap::Repeat), (0.0, 1.0));
+        assert_eq!(on_source_grid(0.3, 1.2, 4, RectWrap::Repeat), (0.3, 1.2));
+        assert_eq!(
+            on_source_grid(0.125, 0.875, 4, RectWrap::Repeat),
+            (0.125, 0.875)
+        );
+        assert_eq!(on_source_grid(0.0, 1.0, 4, RectWrap::Repeat), (0.0, 1.0));
         assert_eq!(on_source_grid(0.3, 1.2, 4, L), (0.25, 1.25));
         let below_one = 1.0 - 4.0 * 2f64.powi(-24);
         assert_eq!(

@@ -629,14 +629,26 @@ fn check_rect_geometry(r: &RectRecord, index: u64, atlas_size: u32) -> Result<()
         if i0 < o0 {
             return Err(bad_value("rects", index, INNER[k], i0));
         }
+        if i0 >= o0 + ow {
+            return Err(bad_value("rects", index, INNER[k], i0));
+        }
         if iw == 0 || i0 + iw > o0 + ow {
             return Err(bad_value("rects", index, INNER[k + 2], iw));
         }
         let (lo, hi) = (r.uv_min[k], r.uv_max[k]);
         if !lo.is_finite() || !hi.is_finite() || lo > hi {
-            let field = if lo.is_finite() { "uv_max" } else { "uv_min" };
-            let bits = if lo.is_finite() { hi } else { lo }.to_bits();
-            return Err(bad_value("rects", index, field, bits));
+            let (field, value, rule) = match (lo.is_finite(), hi.is_finite()) {
+                (false, _) => ("uv_min", lo, "finite"),
+                (true, false) => ("uv_max", hi, "finite"),
+                (true, true) => ("uv_max", hi, "at least uv_min"),
+            };
+            return Err(StoreError::BadFloat {
+                table: "rects",
+                index,
+                field,
+                value,
+                rule,
+            });
         }
     }
     Ok(())

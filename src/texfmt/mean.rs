@@ -9,12 +9,13 @@
 //! bytes the file stores: a build and the merge of a sharded build, which both write through
 //! [`crate::store::FileWriter`], measure the same bytes and store the same means.
 //!
-//! Rects of at least [`MEAN_LEVEL_MIN_SIDE`] texels are measured on level [`MEAN_LEVEL`] (16 times fewer
-//! texels than level 0, decoded where compressed), each texel weighted by its overlap with the inner
-//! rectangle mapped onto that level; at the default border its 4×4 blocks hold only the rect's own
-//! texels (inner or border, see [`super`] "Bleeding"). Smaller rects, and every rect of the alpha tree
-//! (whose mips may keep α-test coverage instead of the mean), are measured on level 0, decoding only the
-//! blocks under them. Averaged in linear light with premultiplied alpha, as the mips are;
+//! A rect is measured on level [`MEAN_LEVEL`] where it covers whole texels of it (16 times fewer than
+//! level 0, decoded where compressed; each the box mean of 4 × 4 texels of level 0) and on level 0 in the
+//! strips along its edges that cover level-2 texels in part (decoding only the blocks under them), so
+//! the mean is the level-0 mean but for 8-bit rounding and compression error of level 2 (a measurement
+//! of level-2 texels weighted by their overlap read up to 16 sRGB levels of border into 65–129-texel
+//! rects; fault hunt). Every rect of the alpha tree, whose mips may keep α-test coverage instead of the
+//! mean, is measured on level 0. Averaged in linear light with premultiplied alpha, as the mips are;
 //! stored as sRGB8 with straight alpha.
 
 use super::{TexFormat, decode_level_rect, mip_sizes};
@@ -47,11 +48,12 @@ fn to_srgb8(v: f64) -> u8 {
     (e * 255.0).round().clamp(0.0, 255.0) as u8
 }
 
-/// The mean of the `[x0, x1) × [y0, y1)` texels (fractional, in texels of the level) of a `w × h` RGBA8
-/// sRGB straight-alpha level: linear premultiplied colour over coverage, straight alpha; texels weighted by
-/// their overlap. An area without coverage gives its straight colour mean with alpha 0; an empty area or
-/// one outside the level, transparent black.
-pub fn area_mean(rgba: &[u8], w: u32, h: u32, area: [f64; 4]) -> [u8; 4] {
+/// Weighted sums over texels: `[Σ w·a·c (r, g, b), Σ w·a, Σ w, Σ w·c (r, g, b)]`, colour in linear light.
+type Sums = [f64; 8];
+
+/// The sums of the `[x0, x1) × [y0, y1)` texels (fractional, in texels of the level) of a `w × h` RGBA8
+/// sRGB straight-alpha level, each weighted by its overlap times `weight`.
+fn area_sums(rgba: &[u8], w: u32, h: u32, area: [f64; 4], weight: f64) -> Sums {
     let lut = &*TO_LINEAR;
     let [x0, y0, x1, y1] = area;
     let (w, h) = (w as usize, h as usize);
@@ -62,10 +64,9 @@ pub fn area_mean(rgba: &[u8], w: u32, h: u32, area: [f64; 4]) -> [u8; 4] {
     };
     let overlap = |i: usize, lo: f64, hi: f64| (hi.min(i as f64 + 1.0) - lo.max(i as f64)).max(0.0);
     let ((xa, xb), (ya, yb)) = (span(x0, x1, w), span(y0, y1, h));
-    // [Σ w·a·c (3), Σ w·a, Σ w, Σ w·c (3)]
     let mut sum = [0.0f64; 8];
     for y in ya..yb {
-        let wy = overlap(y, y0, y1);
+        let wy = weight * overlap(y, y0, y1);
         for x in xa..xb {
             let wt = wy * overlap(x, x0, x1);
             let Some(t) = rgba.get((y * w + x) * 4..(y * w + x) * 4 + 4) else {
@@ -81,6 +82,12 @@ pub fn area_mean(rgba: &[u8], w: u32, h: u32, area: [f64; 4]) -> [u8; 4] {
             sum[4] += wt;
         }
     }
+    sum
+}
+
+/// The mean the sums give: linear premultiplied colour over coverage, straight alpha; without coverage
+/// the straight colour mean with alpha 0; without any texel, transparent black.
+fn mean_of(sum: &Sums) -> [u8; 4] {
     if sum[4] <= 0.0 {
         return [0; 4];
     }
@@ -95,10 +102,13 @@ pub fn area_mean(rgba: &[u8], w: u32, h: u32, area: [f64; 4]) -> [u8; 4] {
     [colour(0), colour(1), colour(2), alpha]
 }
 
-/// Rects at least this many level-0 texels on both sides are measured on level [`MEAN_LEVEL`]; smaller
-/// ones on level 0 (only the 4×4 blocks under them decoded), where a level-2 texel straddling their edge
-/// would weigh in as much border or neighbour as rect.
-pub const MEAN_LEVEL_MIN_SIDE: u32 = 64;
+/// The mean of the `[x0, x1) × [y0, y1)` texels (fractional, in texels of the level) of a `w × h` RGBA8
+/// sRGB straight-alpha level: linear premultiplied colour over coverage, straight alpha; texels weighted by
+/// their overlap. An area without coverage gives its straight colour mean with alpha 0; an empty area or
+/// one outside the level, transparent black.
+pub fn area_mean(rgba: &[u8], w: u32, h: u32, area: [f64; 4]) -> [u8; 4] {
+    mean_of(&area_sums(rgba, w, h, area, 1.0))
+}
 
 /// The mean ([`area_mean`]) of each inner rectangle `[x, y, w, h]` (level-0 texels) of the leaf atlas
 /// `chain`: a `side²` image and its mip chain stored in `format`, level 0 first. `exact`: every rect on
@@ -121,31 +131,46 @@ pub fn rect_means(
         let bytes = chain.get(usize::try_from(offset).ok()?..)?;
         bytes.get(..usize::try_from(format.level_bytes(sizes[l])).ok()?)
     };
-    let level = MEAN_LEVEL.min(sizes.len().checked_sub(1)?);
     let fine = level_bytes(0)?;
-    let big = |&[_, _, w, h]: &[u32; 4]| !exact && w.min(h) >= MEAN_LEVEL_MIN_SIDE;
-    // Level `level`, decoded once where a rect is measured on it.
-    let coarse = match inners.iter().any(big) {
-        true => Some((
-            decode_level_rect(format, level_bytes(level)?, sizes[level], sizes[level]),
-            sizes[level],
-        )),
-        false => None,
+    // Level 2, where its texels are exactly 4 × 4 texels of level 0 (the box mip filter of a side that
+    // is a multiple of 4), decoded once.
+    let coarse = match sizes.get(MEAN_LEVEL) {
+        Some(&s) if !exact && side.is_multiple_of(4) && s * 4 == side => {
+            Some(decode_level_rect(format, level_bytes(MEAN_LEVEL)?, s, s))
+        }
+        _ => None,
     };
-    let means = inners.iter().map(|inner| {
-        let [x, y, w, h] = inner.map(f64::from);
-        match &coarse {
-            Some((rgba, s)) if big(inner) => {
-                // The box mip filter integrates level 0 over `[j·f, (j+1)·f)` of each texel `j` there.
-                let f = f64::from(*s) / f64::from(side.max(1));
-                area_mean(rgba, *s, *s, [x * f, y * f, (x + w) * f, (y + h) * f])
-            }
-            _ => {
-                let (rgba, [bx, by, bw, bh]) = decode_blocks(format, fine, side, *inner);
-                let (ox, oy) = (f64::from(bx), f64::from(by));
-                area_mean(&rgba, bw, bh, [x - ox, y - oy, x + w - ox, y + h - oy])
+    let level0 = |[x, y, w, h]: [u32; 4]| -> Sums {
+        if w == 0 || h == 0 {
+            return [0.0; 8];
+        }
+        let (rgba, [bx, by, bw, bh]) = decode_blocks(format, fine, side, [x, y, w, h]);
+        let [x, y, w, h, bx, by] = [x, y, w, h, bx, by].map(f64::from);
+        let area = [x - bx, y - by, x + w - bx, y + h - by];
+        area_sums(&rgba, bw, bh, area, 1.0)
+    };
+    let means = inners.iter().map(|&[x, y, w, h]| {
+        // The part of the rect on whole level-2 texels, and the strips around it on level 0.
+        let (ax0, ay0) = (x.div_ceil(4) * 4, y.div_ceil(4) * 4);
+        let (ax1, ay1) = ((x + w) / 4 * 4, (y + h) / 4 * 4);
+        let Some(rgba) = coarse.as_ref().filter(|_| ax1 > ax0 && ay1 > ay0) else {
+            return mean_of(&level0([x, y, w, h]));
+        };
+        let s = side / 4;
+        let inner = [ax0, ay0, ax1, ay1].map(|v| f64::from(v / 4));
+        let mut sum = area_sums(rgba, s, s, inner, 16.0);
+        let strips = [
+            [x, y, w, ay0 - y],
+            [x, ay1, w, y + h - ay1],
+            [x, ay0, ax0 - x, ay1 - ay0],
+            [ax1, ay0, x + w - ax1, ay1 - ay0],
+        ];
+        for strip in strips {
+            for (a, b) in sum.iter_mut().zip(level0(strip)) {
+                *a += b;
             }
         }
+        mean_of(&sum)
     });
     Some(means.collect())
 }
@@ -212,9 +237,9 @@ mod tests {
         );
     }
 
-    /// On compressed chains, level 2 (rects of 64 texels and more) and the blocks under a small,
-    /// unaligned rect give the mean of the decoded level 0 within two levels; `exact` takes level 0 for
-    /// all.
+    /// Level 2 with level-0 strips, and level 0 alone (`exact`), give the mean of the decoded level 0
+    /// on RGBA8, BC1 and BC7 chains, for rects aligned and not to level 2's texels: exactly on level 0,
+    /// within the rounding and compression error of level 2 otherwise.
     #[test]
     fn rect_means_agree_with_the_decoded_level_0() {
         use crate::preprocess::image_ops::{LinearImage, MipChain};
@@ -255,8 +280,7 @@ mod tests {
                 for (inner, got) in inners.iter().zip(means) {
                     let [x, y, w, h] = inner.map(f64::from);
                     let want = area_mean(&fine, side, side, [x, y, x + w, y + h]);
-                    let coarse = !exact && inner[2].min(inner[3]) >= MEAN_LEVEL_MIN_SIDE;
-                    let tol = if coarse { 2 } else { 0 };
+                    let tol = if exact { 0 } else { 2 };
                     let diff = got.iter().zip(want).map(|(a, b)| a.abs_diff(b)).max();
                     assert!(
                         diff <= Some(tol),

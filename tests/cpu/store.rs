@@ -320,6 +320,35 @@ fn resealed_bad_references_are_named() {
         }
         other => panic!("{:?}", other.err()),
     }
+    // A rect's inner x past its outer rectangle is named as `inner.x` (it was reported as `inner.w`), a
+    // NaN `uv_min` as a float (it was its bit pattern).
+    let mut b = bytes.clone();
+    let at = record_at(&b, Section::Rects, 0);
+    b[at + 52..at + 56].copy_from_slice(&5000u32.to_le_bytes());
+    reseal(&mut b);
+    match TreeFile::from_bytes(&b) {
+        Err(StoreError::BadValue {
+            table: "rects",
+            index: 0,
+            field: "inner.x",
+            value: 5000,
+        }) => {}
+        other => panic!("{:?}", other.err()),
+    }
+    let mut b = bytes.clone();
+    b[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+    reseal(&mut b);
+    match TreeFile::from_bytes(&b) {
+        Err(
+            e @ StoreError::BadFloat {
+                table: "rects",
+                index: 0,
+                field: "uv_min",
+                ..
+            },
+        ) => assert!(e.to_string().contains("NaN"), "{e}"),
+        other => panic!("{:?}", other.err()),
+    }
     // A block offset moved off its place (the end of the block before, rounded up to 4 KiB).
     let mut b = bytes.clone();
     let at = record_at(&b, Section::Blocks, 1);
