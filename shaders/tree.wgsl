@@ -274,6 +274,8 @@ struct RectSample {
     gy: vec2<f32>,
     // The footprint covers the period: the fragment shows the rect's mean (rect_mean), not a sample.
     flat: bool,
+    // Otherwise, how much of the rect's mean is mixed into the sample (MEAN_MIX_FROM of a period on).
+    mix_mean: f32,
 }
 
 // See render::wgsl::tree::CELLS, FLAT_SHARE, SHARPEN_MIN and REACH_SAFETY.
@@ -281,6 +283,8 @@ const CELLS: f32 = 2.0;
 const FLAT_SHARE: f32 = 1.0;
 const SHARPEN_MIN: f32 = 0.25;
 const REACH_SAFETY: f32 = 0.99;
+// RectSampleF32::mix_mean.
+const MEAN_MIX_FROM: f32 = 0.5;
 
 // RectMap::mean_linear: the rect's mean as a texture sample gives it, linear colour and straight alpha.
 fn rect_mean(packed: u32) -> vec4<f32> {
@@ -336,12 +340,14 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
         out.gy = out.gy * kk;
         out.texel = centre;
         out.flat = true;
+        out.mix_mean = 1.0;
         return out;
     }
     out.gx = out.gx * k;
     out.gy = out.gy * k;
     out.texel = q;
     out.flat = false;
+    out.mix_mean = smoothstep(MEAN_MIX_FROM, 1.0, footprint / max(r.inner_size.x, r.inner_size.y));
     return out;
 }
 
@@ -484,8 +490,9 @@ struct AtlasSample {
     uv: vec2<f32>,
     ddx: vec2<f32>,
     ddy: vec2<f32>,
-    // RectSample::flat.
+    // RectSample::flat and mix_mean.
     flat: bool,
+    mix_mean: f32,
 }
 
 // `rm`: the draw's rect map, `rects[in.draw.y]`, read once per fragment by the caller (lavapipe does not
@@ -499,6 +506,7 @@ fn atlas_sample(in: VertexOut, rm: RectMap, ddx: vec2<f32>, ddy: vec2<f32>) -> A
     out.ddx = r.gx * (x.x / size);
     out.ddy = r.gy * (x.x / size);
     out.flat = r.flat;
+    out.mix_mean = r.mix_mean;
     return out;
 }
 
@@ -527,6 +535,9 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             c = rect_mean(rm.mean);
         } else {
             c = sample_atlas(a.uv, layer, a.ddx, a.ddy);
+            if a.mix_mean > 0.0 {
+                c = mix(c, rect_mean(rm.mean), a.mix_mean);
+            }
         }
         // Per material, as original draws: MASK tested against its cutoff, BLEND blended (or, in a blend
         // node's depth pre-pass, written where opaque).

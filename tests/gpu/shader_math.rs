@@ -54,7 +54,7 @@ struct ProbeOut {
     level_xf: vec4<f32>,
     mean: vec4<f32>,
     flat: u32,
-    _p1: u32,
+    mix_mean: f32,
     _p2: u32,
     _p3: u32,
 }
@@ -81,7 +81,7 @@ fn probe_main(@builtin(global_invocation_id) id: vec3<u32>) {
     let a = atlas_sample(v, rects[p.rect], p.ddx, p.ddy);
     let flat = select(0u, 1u, r.flat);
     let m = rect_mean(rects[p.rect].mean);
-    probe_out[i] = ProbeOut(r.texel, r.gx, r.gy, a.uv, a.ddx, a.ddy, vec4<f32>(xf, 0.0), m, flat, 0u, 0u, 0u);
+    probe_out[i] = ProbeOut(r.texel, r.gx, r.gy, a.uv, a.ddx, a.ddy, vec4<f32>(xf, 0.0), m, flat, r.mix_mean, 0u, 0u);
 }
 "#;
 
@@ -111,9 +111,10 @@ struct ProbeOut {
     level_xf: [f32; 4],
     /// `rect_mean` of the rect: what a flat fragment shows.
     mean: [f32; 4],
-    /// `RectSample::flat`.
+    /// `RectSample::flat` and `mix_mean`.
     flat: u32,
-    _p: [u32; 3],
+    mix_mean: f32,
+    _p: [u32; 2],
 }
 const _: () = assert!(size_of::<ProbeOut>() == 96);
 
@@ -236,7 +237,8 @@ fn check_sample(
     out: &ProbeOut,
 ) -> Result<F64Check, String> {
     let texel = Vec2::from(out.texel);
-    let (want, wgx, wgy, flat) = map.sample_f32(s.uv, s.ddx, s.ddy, s.level_texels());
+    let twin = map.sample_f32(s.uv, s.ddx, s.ddy, s.level_texels());
+    let (want, wgx, wgy, flat) = (twin.texel, twin.gx, twin.gy, twin.flat);
     let f64_check = check_f64(rect, s, texel)?;
     // The mean a flat fragment shows, as `mean_linear` decodes it: WGSL's `pow` is exp2(y·log2 x), a
     // few ulp on lavapipe and looser elsewhere, so within 10⁻⁵ (a 400th of an 8-bit step).
@@ -273,6 +275,12 @@ fn check_sample(
         return Err(format!(
             "{s:?}: GPU flat {}, sample_f32 flat {flat}",
             out.flat
+        ));
+    }
+    if f64_check == F64Check::Agrees && (out.mix_mean - twin.mix_mean).abs() > 1e-5 {
+        return Err(format!(
+            "{s:?}: GPU mix_mean {}, sample_f32 {}",
+            out.mix_mean, twin.mix_mean
         ));
     }
     if (f64_check == F64Check::Agrees || near_step)
@@ -345,11 +353,14 @@ fn rect_texel_and_level_transform_match_cpu(ctx: &GpuContext) -> Result<(), Stri
             samples.len()
         ));
     }
-    // Both branches are probed: flat fragments (the rect's mean) and sampled ones.
+    // Every branch is probed: flat fragments (the rect's mean), sampled ones, and samples mixing the mean.
     let flat = outputs.iter().filter(|o| o.flat == 1).count();
-    if flat == 0 || flat == outputs.len() {
+    let mixed = (outputs.iter())
+        .filter(|o| o.mix_mean > 0.0 && o.mix_mean < 1.0)
+        .count();
+    if flat == 0 || flat == outputs.len() || mixed == 0 {
         return Err(format!(
-            "{flat} of {} samples flat: the grid misses a branch",
+            "{flat} of {} samples flat, {mixed} mixing the mean: the grid misses a branch",
             outputs.len()
         ));
     }
@@ -367,7 +378,7 @@ fn rect_texel_and_level_transform_match_cpu(ctx: &GpuContext) -> Result<(), Stri
     }
     println!(
         "    {} samples, {} compared with texel_f32 and f64 ({} near a step of the footprint cap, whose \
-         gradients may be scaled by the step), all with the level transform; {flat} flat",
+         gradients may be scaled by the step), all with the level transform; {flat} flat, {mixed} mixing the mean",
         samples.len(),
         compared,
         near_step

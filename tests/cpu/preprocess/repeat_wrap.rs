@@ -254,8 +254,9 @@ fn a_flat_sprite_shows_the_mean_of_its_whole_rect() {
     let atlas = MipChain::build(atlas);
     let map = RectMap::new(&rect, AlphaMode::Mask { cutoff: 0.5 });
     let (ddx, ddy) = (Vec2::new(3.0, 0.0), Vec2::new(0.0, 3.0));
-    let (centre, gx, gy, flat) = map.sample_f32(Vec2::new(0.3, 0.6), ddx, ddy, 1.0);
-    assert!(flat);
+    let s = map.sample_f32(Vec2::new(0.3, 0.6), ddx, ddy, 1.0);
+    let (centre, gx, gy) = (s.texel, s.gx, s.gy);
+    assert!(s.flat && s.mix_mean == 1.0);
     assert_eq!(centre, Vec2::new(64.0, 96.0));
     // What the flat branch read before format 6: the centre of the mip where the rect's smaller side is
     // 2 texels (mip 5), alpha 0.5.
