@@ -20,7 +20,8 @@
 
 use super::{TexFormat, decode_level_rect, mip_sizes};
 
-/// The level the means are measured on (or the chain's last, if it has fewer).
+/// The level the means are measured on where a rect covers whole texels of it (level 0 alone where the
+/// chain has no such level, or its side is not a quarter of level 0's).
 pub const MEAN_LEVEL: usize = 2;
 
 /// [`to_linear`] of every 8-bit code.
@@ -133,7 +134,9 @@ pub fn rect_means(
     };
     let fine = level_bytes(0)?;
     // Level 2, where its texels are exactly 4 × 4 texels of level 0 (the box mip filter of a side that
-    // is a multiple of 4), decoded once.
+    // is a multiple of 4), decoded once. With `--filter kaiser` they are not (the kernel reaches ~12
+    // level-0 texels further, within the default border of 16, and keeps the mean but for its clamped
+    // ringing): the means are then close, not exact.
     let coarse = match sizes.get(MEAN_LEVEL) {
         Some(&s) if !exact && side.is_multiple_of(4) && s * 4 == side => {
             Some(decode_level_rect(format, level_bytes(MEAN_LEVEL)?, s, s))
