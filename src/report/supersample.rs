@@ -5,28 +5,7 @@
 
 use super::ReportError;
 
-/// Linear value of an sRGB-encoded 8-bit channel (IEC 61966-2-1).
-pub fn srgb8_to_linear(c: u8) -> f64 {
-    let v = f64::from(c) / 255.0;
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// The sRGB 8-bit code of a linear value in `[0, 1]` (clamped; NaN → 0), rounded in the encoded domain.
-pub fn linear_to_srgb8(v: f64) -> u8 {
-    if v.is_nan() || v <= 0.0 {
-        return 0;
-    }
-    let e = if v <= 0.0031308 {
-        v * 12.92
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    };
-    (e * 255.0).round().clamp(0.0, 255.0) as u8
-}
+pub use crate::util::srgb::{linear_to_srgb8, srgb8_to_linear};
 
 /// `rgba` (`width × height` sRGB RGBA8, rows top to bottom) box-filtered by `factor` in linear light:
 /// `(width / factor) × (height / factor)` pixels. Errors: a buffer of the wrong size, or sides that

@@ -19,35 +19,15 @@
 //! stored as sRGB8 with straight alpha.
 
 use super::{TexFormat, decode_level_rect, mip_sizes};
+use crate::util::srgb::{linear_to_srgb8, srgb8_to_linear};
 
 /// The level the means are measured on where a rect covers whole texels of it (level 0 alone where the
 /// chain has no such level, or its side is not a quarter of level 0's).
 pub const MEAN_LEVEL: usize = 2;
 
-/// [`to_linear`] of every 8-bit code.
+/// [`srgb8_to_linear`] of every 8-bit code.
 static TO_LINEAR: std::sync::LazyLock<[f64; 256]> =
-    std::sync::LazyLock::new(|| std::array::from_fn(|c| to_linear(c as u8)));
-
-/// sRGB-encoded 8-bit value → linear, f64 (IEC 61966-2-1).
-fn to_linear(c: u8) -> f64 {
-    let e = f64::from(c) / 255.0;
-    if e <= 0.04045 {
-        e / 12.92
-    } else {
-        ((e + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// Linear `[0, 1]` → the nearest sRGB-encoded 8-bit value (clamped; NaN → 0).
-fn to_srgb8(v: f64) -> u8 {
-    let v = if v > 0.0 { v.min(1.0) } else { 0.0 };
-    let e = if v <= 0.0031308 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    };
-    (e * 255.0).round().clamp(0.0, 255.0) as u8
-}
+    std::sync::LazyLock::new(|| std::array::from_fn(|c| srgb8_to_linear(c as u8)));
 
 /// Weighted sums over texels: `[Σ w·a·c (r, g, b), Σ w·a, Σ w, Σ w·c (r, g, b)]`, colour in linear light.
 type Sums = [f64; 8];
@@ -94,9 +74,9 @@ fn mean_of(sum: &Sums) -> [u8; 4] {
     }
     let colour = |k: usize| {
         if sum[3] > 0.0 {
-            to_srgb8(sum[k] / sum[3])
+            linear_to_srgb8(sum[k] / sum[3])
         } else {
-            to_srgb8(sum[5 + k] / sum[4])
+            linear_to_srgb8(sum[5 + k] / sum[4])
         }
     };
     let alpha = (sum[3] / sum[4] * 255.0).round().clamp(0.0, 255.0) as u8;
@@ -229,17 +209,6 @@ fn decode_blocks(
 mod tests {
     use super::*;
 
-    #[test]
-    fn the_transfer_functions_round_trip_every_code() {
-        for c in 0..=255u8 {
-            assert_eq!(to_srgb8(to_linear(c)), c);
-        }
-        assert_eq!(
-            (to_srgb8(f64::NAN), to_srgb8(-1.0), to_srgb8(2.0)),
-            (0, 0, 255)
-        );
-    }
-
     /// Level 2 with level-0 strips, and level 0 alone (`exact`), give the mean of the decoded level 0
     /// on RGBA8, BC1 and BC7 chains, for rects aligned and not to level 2's texels: exactly on level 0,
     /// within the rounding and compression error of level 2 otherwise.
@@ -302,7 +271,7 @@ mod tests {
             0, 0, 0, 255, 255, 255, 255, 255, 255, 0, 0, 0, 128, 128, 128, 128,
         ];
         // Black and white in linear light: 0.5 linear is sRGB 188, not 128.
-        let grey = to_srgb8(0.5);
+        let grey = linear_to_srgb8(0.5);
         assert_eq!(
             area_mean(&rgba, 4, 1, [0.0, 0.0, 2.0, 1.0]),
             [grey, grey, grey, 255]
@@ -310,7 +279,7 @@ mod tests {
         // A quarter of white and three quarters of black: linear 0.25.
         assert_eq!(
             area_mean(&rgba, 4, 1, [0.25, 0.0, 1.25, 1.0])[0],
-            to_srgb8(0.25)
+            linear_to_srgb8(0.25)
         );
         // The transparent texel adds no colour, only weight to alpha.
         assert_eq!(

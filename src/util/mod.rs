@@ -3,6 +3,7 @@
 
 mod files;
 mod memory;
+pub mod srgb;
 
 pub use files::{
     AtomicFile, LiveTempDir, MAX_TEXT_FILE_BYTES, node_kind, open_regular, parent_dir,
