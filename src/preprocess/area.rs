@@ -240,11 +240,16 @@ fn grid_tolerance(texels: f64, source: f64) -> f64 {
     (texels.abs().max(source) * 2f64.powi(-22) + source * 5e-7).min(1e-2)
 }
 
+/// The fewest source texels a repeat arc shorter than a period is widened to a whole period at (two 4×4
+/// blocks): see [`on_source_grid`].
+pub const MIN_WIDENED_PERIOD: f64 = 8.0;
+
 /// `[lo, hi]` (UV, `lo ≤ hi`) widened outward to the edges of the texels of an axis of `source` texels
 /// (edges at `k / source`), an edge within [`grid_tolerance`] of a texel edge taken as that edge; for a
 /// rect that holds `source` texels per UV (the source cap), so its texels are the source's. The rect's
 /// wrap bounds the result as it bounds the cover ([`crate::preprocess::cover`]): mirror and clamp
-/// ranges stay in `[0, 1]`, a repeat arc that would widen to a period or more keeps its own range, a linear
+/// ranges stay in `[0, 1]`, a repeat arc that widens to a period is that period (one of a source under
+/// [`MIN_WIDENED_PERIOD`] texels keeps its own range), a linear
 /// (baked) range is unbounded. Non-finite input is returned as it is (the sizing refuses it).
 pub fn on_source_grid(lo: f64, hi: f64, source: u32, wrap: RectWrap) -> (f64, f64) {
     if !(lo.is_finite() && hi.is_finite()) || hi < lo {
@@ -263,10 +268,13 @@ pub fn on_source_grid(lo: f64, hi: f64, source: u32, wrap: RectWrap) -> (f64, f6
     let (wlo, whi) = (a / s, b / s);
     match wrap {
         RectWrap::Linear => (wlo, whi),
-        // An arc shorter than a period stays one: widened to a whole period it would turn a palette's
-        // few texels into a repeated texture of that many (fault hunt: a 4-texel source's [0.125, 0.875],
-        // scaled to 3 texels, got a repeat border no BC7 block can hold), so it keeps its range.
-        RectWrap::Repeat if whi - wlo >= 1.0 && hi - lo < 1.0 => (lo, hi),
+        // An arc shorter than a period that widens to one is the whole period, the source's texels
+        // copied: kept as it was, a half-texel inset (`[0.5, 63.5] / 64`, common in game assets) was
+        // resampled half a texel off the source's grid and drew at 30.5 dB against original mode (fault
+        // hunt, session 28). Except a period under [`MIN_WIDENED_PERIOD`] texels: widened, a palette's
+        // few texels would become a repeated texture of that many (a 4-texel source's [0.125, 0.875],
+        // scaled to 3 texels, got a repeat border no BC7 block can hold; fault hunt, session 27).
+        RectWrap::Repeat if whi - wlo >= 1.0 && hi - lo < 1.0 && s < MIN_WIDENED_PERIOD => (lo, hi),
         RectWrap::Repeat if whi - wlo >= 1.0 => (0.0, 1.0),
         // An arc starts in [0, 1) (the cover's contract): a start just below 1 taken as 1 is 0.
         RectWrap::Repeat if wlo >= 1.0 => (wlo - 1.0, whi - 1.0),
@@ -415,8 +423,9 @@ mod tests {
         );
         // A point inside a texel: that texel.
         assert_eq!(on_source_grid(0.35, 0.35, 10, L), (0.3, 0.4));
-        // Mirror and clamp stay in [0, 1]; a repeat arc keeps crossing the seam, and keeps its own range
-        // where it would widen to a period; baked ranges are unbounded.
+        // Mirror and clamp stay in [0, 1]; a repeat arc keeps crossing the seam, and one of a
+        // source under 8 texels keeps its own range where it would widen to a period; baked ranges are
+        // unbounded.
         assert_eq!(on_source_grid(0.01, 0.999, 4, RectWrap::Clamp), (0.0, 1.0));
         assert_eq!(on_source_grid(0.01, 0.6, 4, RectWrap::Mirror), (0.0, 0.75));
         assert_eq!(on_source_grid(0.8, 1.2, 4, RectWrap::Repeat), (0.75, 1.25));
@@ -426,6 +435,16 @@ mod tests {
             (0.125, 0.875)
         );
         assert_eq!(on_source_grid(0.0, 1.0, 4, RectWrap::Repeat), (0.0, 1.0));
+        // From 8 source texels on, an arc that widens to a period is the period: a half-texel inset.
+        assert_eq!(
+            on_source_grid(0.5 / 64.0, 63.5 / 64.0, 64, RectWrap::Repeat),
+            (0.0, 1.0)
+        );
+        assert_eq!(on_source_grid(0.01, 0.99, 8, RectWrap::Repeat), (0.0, 1.0));
+        assert_eq!(
+            on_source_grid(0.01, 0.99, 7, RectWrap::Repeat),
+            (0.01, 0.99)
+        );
         assert_eq!(on_source_grid(0.3, 1.2, 4, L), (0.25, 1.25));
         let below_one = 1.0 - 4.0 * 2f64.powi(-24);
         assert_eq!(

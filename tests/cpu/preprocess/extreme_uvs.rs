@@ -307,16 +307,25 @@ fn repeats_cost_texels_by_world_size_only() {
 /// A rect that holds its source's own resolution (the source cap) shows the source's texels, copied: its
 /// UV range, `[0.1, 0.6]` of a 64-texel source here (texels 6.4 … 38.4), is widened to whole texels
 /// (6 … 39), and one f32 step past a texel edge adds no texel. Fault hunt, session 27: both drew at
-/// 28.3 and 25.7 dB against original mode, the texels resampled onto a grid off the source's.
+/// 28.3 and 25.7 dB against original mode, the texels resampled onto a grid off the source's. A repeated
+/// texture's half-texel inset, `[0.5, 63.5] / 64`, is its whole period (session 28: kept off the grid, it
+/// drew at 30.5 dB).
 #[test]
 fn a_rect_at_source_resolution_copies_the_source_texels() {
     let texel = |x: u32, y: u32| [(x * 4) as u8, (y * 4) as u8, ((x ^ y) * 4) as u8, 255];
     let past_half = f64::from(f32::from_bits(0.5f32.to_bits() + 1));
-    for (lo, hi, first, last) in [(0.1, 0.6, 6u32, 39u32), (0.0, past_half, 0, 32)] {
+    let (clamp, repeat) = (Wrap::ClampToEdge, Wrap::Repeat);
+    for (lo, hi, wrap, first, last) in [
+        (0.1, 0.6, clamp, 6u32, 39u32),
+        (0.0, past_half, clamp, 0, 32),
+        (0.5 / 64.0, 63.5 / 64.0, repeat, 0, 64),
+    ] {
         let mut b = SceneBuilder::new(UpAxis::Y);
         let img = b.image("grid", 64, 64, texel);
-        let m = b.material(img, [Wrap::ClampToEdge; 2], AlphaMode::Opaque);
-        let corners = [(0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (0.0, 20.0)];
+        let m = b.material(img, [wrap; 2], AlphaMode::Opaque);
+        // At least 64 texels per UV at d_min 0.5 (the source cap).
+        let side = 40.0 * (hi - lo);
+        let corners = [(0.0, 0.0), (side, 0.0), (side, side), (0.0, side)];
         b.quad(
             corners.map(|(x, z)| DVec3::new(x, 0.0, z)),
             DVec2::splat(lo),
