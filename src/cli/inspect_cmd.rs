@@ -39,7 +39,9 @@ fn opening_message(file: &std::path::Path, e: &atlastree::store::StoreError) -> 
 
 pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     super::reject_url(&a.file, "inspect")?;
-    let file = match TreeFile::open(&a.file) {
+    // The tables in memory, blocks read through the handle: `--verify` reads for long, and a file
+    // truncated meanwhile is then an error naming the block, not SIGBUS (fault hunt, session 28).
+    let file = match TreeFile::open_with(&a.file, atlastree::store::LoadMode::Tables) {
         Ok(file) => file,
         // With --verify a file that opens but breaks the format (a checksum, a bad header, table or value)
         // is a violation like a corrupt block: status 1. An unreadable one is an error (status 2).
@@ -64,7 +66,8 @@ pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     };
     let reference = match a.reference.as_deref() {
         Some(p) if a.verify => Some(
-            TreeFile::open(p).with_context(|| format!("opening the reference {}", p.display()))?,
+            TreeFile::open_with(p, atlastree::store::LoadMode::Tables)
+                .with_context(|| format!("opening the reference {}", p.display()))?,
         ),
         _ => None,
     };

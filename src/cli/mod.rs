@@ -116,13 +116,13 @@ pub(crate) fn run() -> anyhow::Result<ExitCode> {
         // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process with 130 and no temp file
         // left (a paging file's is its whole length, reserved up front). `serve` handles Ctrl-C itself.
         let _ = ctrlc::set_handler(|| {
-            let removed = atlastree::util::remove_live_temps();
-            // Said, so an interrupted step is not read as a finished one (it ended without a word).
-            eprintln!(
-                "interrupted: stopped before finishing; {removed} unfinished output(s) removed, earlier \
-                 outputs left as they were"
-            );
-            std::process::exit(130);
+            atlastree::util::remove_live_temps_and_exit(130, |removed| {
+                // Said, so an interrupted step is not read as a finished one (it ended without a word).
+                eprintln!(
+                    "interrupted: stopped before finishing; {removed} unfinished output(s) removed, \
+                     earlier outputs left as they were"
+                );
+            })
         });
     }
     match cli.command {
@@ -168,13 +168,15 @@ pub(crate) fn retain_materials(
     Ok(report)
 }
 
-/// Opens a local paging file for `command` ([`reject_url`] first).
+/// Opens a local paging file for `command` ([`reject_url`] first) with `mode` (`LoadMode::Tables` for a
+/// command that reads blocks for long: a file truncated meanwhile is then an error, not SIGBUS).
 pub(crate) fn open_local(
     path: &std::path::Path,
     command: &str,
+    mode: atlastree::store::LoadMode,
 ) -> anyhow::Result<atlastree::store::TreeFile> {
     reject_url(path, command)?;
-    anyhow::Context::with_context(atlastree::store::TreeFile::open(path), || {
+    anyhow::Context::with_context(atlastree::store::TreeFile::open_with(path, mode), || {
         format!("opening {}", path.display())
     })
 }

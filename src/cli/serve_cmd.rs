@@ -61,7 +61,7 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             anyhow::bail!("{flag} {t:?} is below 1ms: every transfer would be cut short");
         }
     }
-    let file = super::open_local(&a.file, "serve")?;
+    let file = super::open_local(&a.file, "serve", atlastree::store::LoadMode::Auto)?;
     let (blocks, file_bytes) = (file.blocks().len(), file.file_len());
     drop(file);
     let options = serve::ServeOptions {

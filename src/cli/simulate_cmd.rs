@@ -48,7 +48,8 @@ pub(crate) struct SimulateArgs {
     /// Frame clock, frames per second.
     #[arg(long, default_value_t = 60.0)]
     pub fps: f64,
-    /// Frames to simulate (the path is stretched over them at `--fps`; default: the path's duration).
+    /// Frames to simulate: frame i is the camera at path time i / `--fps` (fewer frames than the path's
+    /// duration covers its start only; more hold its last camera). Default: the path's duration.
     #[arg(long)]
     pub frames: Option<usize>,
     /// Requests in flight at once (I/O model).
@@ -172,7 +173,7 @@ pub(super) fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
 
 /// Runs a checked configuration.
 pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
-    let file = super::open_local(&cfg.file, "simulate")?;
+    let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Auto)?;
     // Before the runs, not after them: an --out that cannot be a folder (or made one).
     super::check_out_folder(&cfg.out)?;
     std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
@@ -282,7 +283,11 @@ fn print_results(results: &[RunResult], json: bool) -> anyhow::Result<()> {
         let rows: Vec<serde_json::Value> = results
             .iter()
             .map(
-                |r| serde_json::json!({ "run": r.key.label(), "key": r.key, "summary": r.summary }),
+                // `drew_nodes` false: the path never looks at the scene, the run measures nothing.
+                |r| {
+                    let drew = r.rows.iter().any(|f| f.paging.coarse.items > 0);
+                    serde_json::json!({ "run": r.key.label(), "key": r.key, "drew_nodes": drew, "summary": r.summary })
+                },
             )
             .collect();
         println!("{}", serde_json::to_string_pretty(&rows)?);

@@ -181,7 +181,7 @@ impl ViewArgs {
 
 pub(super) fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
     a.check_flags()?;
-    let file = super::open_local(&a.file, "view")?;
+    let file = super::open_local(&a.file, "view", atlastree::store::LoadMode::Auto)?;
     let opts = a.validate(&file)?;
     let report = atlastree::view::run(&file, opts)?;
     print_report(&report, a.json);

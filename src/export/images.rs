@@ -84,7 +84,7 @@ pub(super) fn atlas_level0(
     size: u32,
 ) -> Result<RgbaImage, StoreError> {
     let bytes = file.block(block)?;
-    level0(bytes, block, format, size, size, 0)
+    level0(&bytes, block, format, size, size, 0)
 }
 
 /// Mip 0 of the `w × h` original at byte `offset` of `block` (images of one block lie back to back, each a
@@ -97,7 +97,7 @@ pub(super) fn original_level0(
     offset: u64,
 ) -> Result<RgbaImage, StoreError> {
     let bytes = file.block(block)?;
-    level0(bytes, block, format, w, h, offset)
+    level0(&bytes, block, format, w, h, offset)
 }
 
 fn level0(

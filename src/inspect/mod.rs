@@ -523,7 +523,7 @@ fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyRepo
                 let exact = rf
                     .block(crate::ids::BlockId(rn.atlas_block))
                     .map_err(|e| format!("the reference's block {}: {e}", rn.atlas_block))?;
-                let decoded = crate::texfmt::decode_chain(format, stored, size)
+                let decoded = crate::texfmt::decode_chain(format, &stored, size)
                     .map_err(|e| format!("decoding block {}: {e}", n.atlas_block))?;
                 if exact.len() != decoded.len() {
                     return Err(format!(
@@ -532,7 +532,7 @@ fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyRepo
                         decoded.len()
                     ));
                 }
-                Ok(crate::texfmt::sse_rgba8(exact, &decoded, channels))
+                Ok(crate::texfmt::sse_rgba8(&exact, &decoded, channels))
             });
             match &measured {
                 None => {}

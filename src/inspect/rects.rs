@@ -277,7 +277,7 @@ pub(super) fn verify_wrap_borders(file: &TreeFile, r: &mut VerifyReport) {
             let Ok(bytes) = file.block(crate::ids::BlockId(node.atlas_block)) else {
                 continue; // a bad checksum is reported by the block pass
             };
-            let level0 = level0_rgba8(format, bytes, size);
+            let level0 = level0_rgba8(format, &bytes, size);
             let Some(img) = level0 else {
                 r.fail(format!(
                     "tree {ti} leaf {li}: atlas block {} does not decode",
@@ -323,8 +323,8 @@ pub(super) fn verify_rect_means(file: &TreeFile, r: &mut VerifyReport) {
             let inners: Vec<[u32; 4]> = rects.iter().map(|x| x.inner).collect();
             let exact = t.kind == crate::model::TreeKind::Alpha;
             // `None` for a block that is not one atlas chain (what the writer measures no mean on).
-            let means = crate::texfmt::rect_means(format, bytes, size, &inners, exact);
-            let (Some(means), Some(level0)) = (means, level0_rgba8(format, bytes, size)) else {
+            let means = crate::texfmt::rect_means(format, &bytes, size, &inners, exact);
+            let (Some(means), Some(level0)) = (means, level0_rgba8(format, &bytes, size)) else {
                 r.fail(format!(
                     "tree {ti} leaf {li}: atlas block {} is not one atlas chain of {} (its rects have no mean)",
                     node.atlas_block,

@@ -7,6 +7,7 @@
 use crate::ids::BlockId;
 use crate::store::TreeFile;
 use crate::store::format::BlockRecord;
+use std::borrow::Cow;
 use std::sync::Arc;
 
 /// Why a block could not be fetched. The pager counts these, keeps drawing coarser atlases, and decides
@@ -184,7 +185,7 @@ impl BlockSource for FileSource {
             error,
         };
         let Some(reader) = &self.reader else {
-            return self.file.block(id).map(<[u8]>::to_vec).map_err(store);
+            return self.file.block(id).map(Cow::into_owned).map_err(store);
         };
         let bytes = reader.read(record.offset, record.length).map_err(store)?;
         verify(&self.name(), id, record, &bytes)?;

@@ -12,6 +12,7 @@ use crate::model::{AtlasForest, AtlasTree, BuildParams, TreeKind, TreeVertex};
 use crate::scene::Material;
 use bytemuck::Pod;
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::fs::File;
 use std::io::Read;
 
@@ -36,26 +37,64 @@ pub enum LoadMode {
     Mmap,
     /// Read the whole file into an 8-byte-aligned buffer.
     Read,
+    /// Read the tables (header and sections) into memory, and each block, when asked for, through the
+    /// file's handle: a file truncated or rewritten in place while it is read gives errors naming what it
+    /// lost, never SIGBUS, in memory the size of the tables (`export`, `inspect`: they read for long).
+    Tables,
 }
 
 /// The bytes of an open file.
 enum Backing {
-    Mmap(memmap2::Mmap),
+    /// The map, and a handle on the file it maps for positional reads of blocks ([`TreeFile::block`]).
+    Mmap { map: memmap2::Mmap, file: File },
     /// `words` holds `len` bytes; `u64` storage guarantees the 8-byte alignment the records need.
-    Owned {
+    Owned { words: Vec<u64>, len: usize },
+    /// [`LoadMode::Tables`]: the file's first `len` bytes (header and sections) in `words`, and a handle
+    /// on the file for positional reads of blocks.
+    Tables {
         words: Vec<u64>,
         len: usize,
+        file: File,
     },
 }
 
 impl Backing {
     fn bytes(&self) -> &[u8] {
         match self {
-            Backing::Mmap(m) => m,
-            Backing::Owned { words, len } => bytemuck::cast_slice::<u64, u8>(words)
-                .get(..*len)
-                .unwrap_or(&[]),
+            Backing::Mmap { map, .. } => map,
+            Backing::Owned { words, len } | Backing::Tables { words, len, .. } => {
+                bytemuck::cast_slice::<u64, u8>(words)
+                    .get(..*len)
+                    .unwrap_or(&[])
+            }
         }
+    }
+
+    /// The handle blocks are read through, where the file is not held in memory whole.
+    fn positional(&self) -> Option<&File> {
+        match self {
+            Backing::Mmap { file, .. } | Backing::Tables { file, .. } => Some(file),
+            Backing::Owned { .. } => None,
+        }
+    }
+
+    /// [`LoadMode::Tables`]: reads the header and the sections it lists (up to the first block); returns
+    /// them with the file's length.
+    fn tables(file: File, path: &Path) -> Result<(Backing, u64), StoreError> {
+        let io = |e| StoreError::io(path, e);
+        let file_len = file.metadata().map_err(io)?.len();
+        let mut head = vec![0u8; HEADER_SIZE.min(usize::try_from(file_len).unwrap_or(HEADER_SIZE))];
+        super::positional::read_exact_at(&file, &mut head, 0).map_err(io)?;
+        let header = parse_header(path, &head)?;
+        let end = sections_end(&header)
+            .and_then(|end| align_up(end, BLOCK_ALIGN))
+            .ok_or(StoreError::LayoutOverflow { what: "sections" })?;
+        let len = end.min(header.file_len).min(file_len);
+        let len = usize::try_from(len).map_err(|_| StoreError::LayoutOverflow { what: "file" })?;
+        let mut words = vec![0u64; len.div_ceil(8)];
+        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
+        super::positional::read_exact_at(&file, buf, 0).map_err(io)?;
+        Ok((Backing::Tables { words, len, file }, file_len))
     }
 
     /// An aligned copy of `bytes`.
@@ -86,7 +125,8 @@ impl Backing {
         // SAFETY: see the contract on `TreeFile`: the file is treated as immutable while mapped; the map is
         // read-only and every byte we interpret is validated (bounds, checksums) before use.
         let map = unsafe { memmap2::Mmap::map(file) }.map_err(|e| StoreError::io(path, e))?;
-        Ok(Backing::Mmap(map))
+        let file = file.try_clone().map_err(|e| StoreError::io(path, e))?;
+        Ok(Backing::Mmap { map, file })
     }
 }
 
@@ -245,6 +285,10 @@ impl TreeFile {
         let backing = match mode {
             LoadMode::Mmap => Backing::map(&file, path)?,
             LoadMode::Read => Backing::read(&mut file, path)?,
+            LoadMode::Tables => {
+                let (backing, file_len) = Backing::tables(file, path)?;
+                return Self::validate(path.to_path_buf(), backing, file_len, true);
+            }
             LoadMode::Auto if no_mmap => Backing::read(&mut file, path)?,
             LoadMode::Auto => match Backing::map(&file, path) {
                 Ok(m) => m,
@@ -464,7 +508,7 @@ impl TreeFile {
 
     /// True if the file is memory-mapped (false: read into memory).
     pub fn is_mapped(&self) -> bool {
-        matches!(self.backing, Backing::Mmap(_))
+        matches!(self.backing, Backing::Mmap { .. })
     }
 
     /// The validated header.
@@ -540,9 +584,10 @@ impl TreeFile {
 
     /// The bytes of block `id`, after checking them against the block's checksum and the padding after it
     /// (up to the next [`BLOCK_ALIGN`] boundary) for zero (the paging read; at most 4095 bytes more, in
-    /// the page holding the block's tail).
+    /// the page holding the block's tail). A mapped file's block is a copy read through the file's own
+    /// handle (a file truncated under a reader is an error, not SIGBUS); a file held in memory lends it.
     /// Fails with [`StoreError::BlocksNotHeld`] on a table prefix ([`TreeFile::from_prefix`]).
-    pub fn block(&self, id: BlockId) -> Result<&[u8], StoreError> {
+    pub fn block(&self, id: BlockId) -> Result<Cow<'_, [u8]>, StoreError> {
         let blocks = self.blocks();
         let b = blocks.get(id.idx()).ok_or(StoreError::BadReference {
             table: "blocks",
@@ -557,24 +602,50 @@ impl TreeFile {
                 block: id,
             });
         }
-        let bytes =
-            slice_at(self.bytes(), b.offset, b.length).ok_or(StoreError::BlockOutOfBounds {
-                block: id,
-                offset: b.offset,
-                len: b.length,
-                file_len: self.file_len(),
-            })?;
+        let out_of_bounds = StoreError::BlockOutOfBounds {
+            block: id,
+            offset: b.offset,
+            len: b.length,
+            file_len: self.file_len(),
+        };
         let end = b.offset.saturating_add(b.length);
-        let place = format!(
-            "{}: block {} (bytes {}..{end})",
-            self.path.display(),
-            id.0,
-            b.offset
-        );
-        checksum(place, b.checksum, bytes)?;
         let (from, to) = padding_range(b, self.file_len());
-        let padding = slice_at(self.bytes(), from, to - from).unwrap_or(&[]);
-        check_block_padding(id, b, self.file_len(), padding)?;
+        let at = format!("block {} (bytes {}..{end})", id.0, b.offset);
+        let place = format!("{}: {at}", self.path.display());
+        // A mapped file's blocks (and their padding) are read through its handle, not the map: a file
+        // truncated while it is read gives an error naming the block where a read through the map would
+        // end the process with SIGBUS (fault hunt, session 28: `export` and `inspect --verify`). The tables
+        // stay mapped (the contract on `TreeFile`).
+        let (bytes, padding) = match self.backing.positional() {
+            Some(file) => {
+                if end > self.file_len() || to < from {
+                    return Err(out_of_bounds);
+                }
+                let total = usize::try_from(to - b.offset).map_err(|_| out_of_bounds)?;
+                let mut buf = vec![0u8; total];
+                super::positional::read_exact_at(file, &mut buf, b.offset).map_err(|e| {
+                    let why = if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                        "the file ends before it (truncated or rewritten while it was read?)"
+                            .to_string()
+                    } else {
+                        e.to_string()
+                    };
+                    StoreError::io(
+                        &self.path,
+                        std::io::Error::new(e.kind(), format!("{at}: {why}")),
+                    )
+                })?;
+                let padding = buf.split_off(b.length as usize);
+                (Cow::Owned(buf), Cow::Owned(padding))
+            }
+            None => {
+                let bytes = slice_at(self.bytes(), b.offset, b.length).ok_or(out_of_bounds)?;
+                let padding = slice_at(self.bytes(), from, to - from).unwrap_or(&[]);
+                (Cow::Borrowed(bytes), Cow::Borrowed(padding))
+            }
+        };
+        checksum(place, b.checksum, &bytes)?;
+        check_block_padding(id, b, self.file_len(), &padding)?;
         Ok(bytes)
     }
 

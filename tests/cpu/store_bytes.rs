@@ -196,7 +196,7 @@ fn padding_flip_refused_on_disk_by_open_modes_and_the_cli() {
     let dir = tempfile::tempdir().unwrap();
     let path: PathBuf = dir.path().join("bad.atlastree");
     std::fs::write(&path, &bad).unwrap();
-    for mode in [LoadMode::Mmap, LoadMode::Read] {
+    for mode in [LoadMode::Mmap, LoadMode::Read, LoadMode::Tables] {
         let f = TreeFile::open_with(&path, mode).unwrap();
         for i in 0..f.blocks().len() {
             let r = f.block(BlockId(i as u32));
@@ -205,7 +205,7 @@ fn padding_flip_refused_on_disk_by_open_modes_and_the_cli() {
                     Err(StoreError::BlockPadding { block, offset }) => {
                         assert_eq!((block, offset), (BlockId(k as u32), pos), "{mode:?}");
                     }
-                    other => panic!("{mode:?} block {k}: {:?}", other.map(<[u8]>::len)),
+                    other => panic!("{mode:?} block {k}: {:?}", other.map(|b| b.len())),
                 }
             } else {
                 r.unwrap();
@@ -225,4 +225,37 @@ fn padding_flip_refused_on_disk_by_open_modes_and_the_cli() {
         BlockId(k as u32)
     );
     assert!(stdout.contains(&want), "{stdout}");
+}
+
+/// A file truncated while it is open: with its tables in memory (`LoadMode::Tables`, what `export` and
+/// `inspect` use) or mapped, every block it lost is an error naming the block, read through the file's
+/// handle — through the map the first one ended the process with SIGBUS (fault hunt, session 28) — and
+/// the tables still read.
+#[test]
+fn blocks_of_a_file_truncated_while_open_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let path: PathBuf = dir.path().join("t.atlastree");
+    for mode in [LoadMode::Tables, LoadMode::Mmap] {
+        std::fs::write(&path, tiny()).unwrap();
+        let f = TreeFile::open_with(&path, mode).unwrap();
+        let first = f.blocks()[0].offset;
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .unwrap()
+            .set_len(first)
+            .unwrap();
+        for i in 0..f.blocks().len() {
+            match f.block(BlockId(i as u32)) {
+                Err(StoreError::Io { source, .. }) => {
+                    let text = source.to_string();
+                    assert!(text.contains(&format!("block {i} ")), "{mode:?}: {text}");
+                }
+                other => panic!("{mode:?} block {i}: {:?}", other.map(|b| b.len())),
+            }
+        }
+        if mode == LoadMode::Tables {
+            assert!(f.tree(0).is_some_and(|t| !t.nodes.is_empty()));
+        }
+    }
 }

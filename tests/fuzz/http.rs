@@ -339,7 +339,7 @@ fn case(bytes: &[u8]) -> Verdict {
         let id = BlockId(b);
         let truth = t.file.block(id).expect("the true file's blocks read");
         match src.fetch(id, &t.file.blocks()[b as usize]) {
-            Ok(got) if got.as_slice() == truth => {}
+            Ok(got) if got.as_slice() == &*truth => {}
             Ok(_) => return Verdict::AcceptedCorruption(format!("{id}: wrong bytes accepted")),
             Err(e) => {
                 refused = Some(format!(

@@ -123,7 +123,7 @@ fn a_full_atlas_array_refuses_instead_of_overwriting(ctx: &GpuContext) -> Result
     let [first, second] = atlases[..] else {
         return Err("fewer than two atlases in tree 0".into());
     };
-    let bytes = |b: BlockId| file.block(b).map(<[u8]>::to_vec).map_err(e);
+    let bytes = |b: BlockId| file.block(b).map(std::borrow::Cow::into_owned).map_err(e);
     r.apply(&ctx.queue, &loaded(first, &bytes(first)?))
         .map_err(e)?;
     let node_of = |b: BlockId| table.meta(b).item.node().idx();
@@ -214,7 +214,7 @@ fn check_second_refused(
     a: BlockId,
     b: BlockId,
 ) -> Result<(), String> {
-    let bytes = |x: BlockId| file.block(x).map(<[u8]>::to_vec).map_err(e);
+    let bytes = |x: BlockId| file.block(x).map(std::borrow::Cow::into_owned).map_err(e);
     r.apply(&ctx.queue, &loaded(a, &bytes(a)?)).map_err(e)?;
     let used = r.residency.original_layers_used;
     let refs_before: Vec<u32> = r.residency.unique_refs.clone();

@@ -166,7 +166,7 @@ impl Resident {
         for b in 0..all {
             let block = BlockId(b);
             let bytes = file.block(block)?;
-            let uploaded = r.upload_block(&ctx.queue, block, bytes)?;
+            let uploaded = r.upload_block(&ctx.queue, block, &bytes)?;
             r.stats.texture_bytes += uploaded;
             staged += uploaded;
             if staged >= FLUSH_BYTES {

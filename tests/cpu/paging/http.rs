@@ -125,7 +125,11 @@ fn check_every_block(fx: &Fixture, url: &str) -> HttpSource {
     let mut block_bytes = 0;
     for i in 0..fx.file.blocks().len() as u32 {
         let got = fetch(&src, &remote, i).unwrap();
-        assert_eq!(got, fx.file.block(BlockId(i)).unwrap(), "block {i}");
+        assert_eq!(
+            got,
+            fx.file.block(BlockId(i)).unwrap().into_owned(),
+            "block {i}"
+        );
         block_bytes += got.len() as u64;
     }
     let n = fx.file.blocks().len() as u64;
@@ -278,7 +282,7 @@ fn a_server_that_ignores_range_works_and_is_counted() {
     for i in 0..fx.file.blocks().len() as u32 {
         assert_eq!(
             fetch(&src, &remote, i).unwrap(),
-            fx.file.block(BlockId(i)).unwrap()
+            fx.file.block(BlockId(i)).unwrap().into_owned()
         );
     }
     let s = src.stats();
@@ -304,7 +308,7 @@ fn unavailable_503_then_ok_succeeds_after_retries() {
     });
     assert_eq!(
         fetch(&src, &remote, 3).unwrap(),
-        fx.file.block(BlockId(3)).unwrap()
+        fx.file.block(BlockId(3)).unwrap().into_owned()
     );
     let s = src.stats();
     assert_eq!(s.requests - before.requests, 3);
@@ -400,7 +404,7 @@ fn corrupted_bytes_are_retried_then_a_checksum_error() {
     let before = src.stats();
     assert_eq!(
         fetch(&src, &remote, 2).unwrap(),
-        fx.file.block(BlockId(2)).unwrap()
+        fx.file.block(BlockId(2)).unwrap().into_owned()
     );
     let s = src.stats();
     assert_eq!(
@@ -430,7 +434,7 @@ fn corrupted_bytes_are_retried_then_a_checksum_error() {
     server.set_faults(Faults::default());
     assert_eq!(
         fetch(&src, &remote, 2).unwrap(),
-        fx.file.block(BlockId(2)).unwrap()
+        fx.file.block(BlockId(2)).unwrap().into_owned()
     );
 }
 
@@ -446,7 +450,7 @@ fn a_wrong_content_range_is_retried_then_reported() {
     let before = src.stats();
     assert_eq!(
         fetch(&src, &remote, 5).unwrap(),
-        fx.file.block(BlockId(5)).unwrap()
+        fx.file.block(BlockId(5)).unwrap().into_owned()
     );
     assert_eq!(src.stats().requests - before.requests, 3);
     server.set_faults(Faults {
@@ -488,7 +492,7 @@ fn headers_then_a_stalled_body_times_out_and_is_retried() {
     let t = Instant::now();
     assert_eq!(
         fetch(&src, &remote, 1).unwrap(),
-        fx.file.block(BlockId(1)).unwrap()
+        fx.file.block(BlockId(1)).unwrap().into_owned()
     );
     let took = t.elapsed();
     assert!(
@@ -619,7 +623,7 @@ fn stop_and_restart<S>(
     for i in 0..fx.file.blocks().len() as u32 {
         assert_eq!(
             fetch(&src, &remote, i).unwrap(),
-            fx.file.block(BlockId(i)).unwrap()
+            fx.file.block(BlockId(i)).unwrap().into_owned()
         );
     }
     assert!(!src.stats().is_failing());
@@ -723,7 +727,7 @@ fn concurrent_loader_threads_get_every_block() {
     let mut got = 0;
     for t in threads {
         for (i, bytes) in t.join().unwrap() {
-            assert_eq!(bytes, fx.file.block(BlockId(i)).unwrap());
+            assert_eq!(bytes, fx.file.block(BlockId(i)).unwrap().into_owned());
             got += 1;
         }
     }
@@ -768,7 +772,7 @@ fn cli_serve_serves_until_ctrl_c() {
     let (remote, src) = HttpSource::open(url, quick()).unwrap();
     assert_eq!(
         fetch(&src, &remote, 1).unwrap(),
-        fx.file.block(BlockId(1)).unwrap()
+        fx.file.block(BlockId(1)).unwrap().into_owned()
     );
     let killed = std::process::Command::new("kill")
         .args(["-INT", &child.id().to_string()])

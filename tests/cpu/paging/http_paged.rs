@@ -93,7 +93,7 @@ fn a_root_whose_first_requests_fail_still_loads() {
         let events = planner.take_bootstrap();
         assert!(
             matches!(events.as_slice(), [Event::Loaded { block, data: Some(d) }]
-                if *block == root && d.as_slice() == fx.file.block(root).unwrap()),
+                if *block == root && d.as_slice() == fx.file.block(root).unwrap().into_owned()),
             "{what}"
         );
         assert_eq!(server.seen().faults - faults_before, 3, "{what}");

@@ -83,7 +83,7 @@ fn stored_alpha_atlases_have_no_dark_fringe_at_any_level() {
     let (mut partial_inner, mut transparent, mut checked) = (0, 0, 0);
     for n in t.nodes {
         let block = b.file.block(BlockId(n.atlas_block)).unwrap();
-        for (_, px) in levels(block, size) {
+        for (_, px) in levels(&block, size) {
             for p in px.chunks_exact(4) {
                 // Texels with alpha > 0: premultiplied filtering keeps them pure red. Texels with alpha 0
                 // carry the bled colour of their nearest visible texel (red), so GPU bilinear filtering of

@@ -99,12 +99,12 @@ fn coverage_mips_keep_the_alpha_tested_share_in_atlases_and_originals() {
     let (mut levels_checked, mut worst_plain, mut worst_kept) = (0, 1.0f64, 0.0f64);
     for (np, nk) in tp.nodes.iter().zip(tk.nodes) {
         let cp = chain_coverage(
-            plain.file.block(BlockId(np.atlas_block)).unwrap(),
+            &plain.file.block(BlockId(np.atlas_block)).unwrap(),
             size,
             size,
         );
         let ck = chain_coverage(
-            kept.file.block(BlockId(nk.atlas_block)).unwrap(),
+            &kept.file.block(BlockId(nk.atlas_block)).unwrap(),
             size,
             size,
         );
