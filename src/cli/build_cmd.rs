@@ -20,7 +20,10 @@ use std::process::ExitCode;
 pub(crate) struct BuildArgs {
     /// The glTF scene (.gltf or .glb).
     pub scene: PathBuf,
-    /// Output paging file (written atomically: an interrupted build leaves no partial file).
+    /// Output paging file, written atomically: an interrupted build (Ctrl-C, SIGTERM) leaves no partial
+    /// file; a killed one (SIGKILL, the OOM killer) leaves a hidden `.NAME.tmp.PID.*` beside it, removed
+    /// by the next build of the same output. A symbolic link is written through (the file it names is
+    /// replaced).
     #[arg(short, long)]
     pub out: PathBuf,
     /// d_min in metres (world units). Conflicts with --d-min-ratio.

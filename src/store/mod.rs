@@ -50,7 +50,7 @@ pub enum StoreError {
          choose another output"
     )]
     NotReplaceable { path: PathBuf, what: String },
-    #[error("{path}: a paging file's name, not a folder's, is needed (drop the trailing /)")]
+    #[error("{path}: a paging file's name, not a folder's, is needed (it ends in /, /. or /..)")]
     FolderName { path: PathBuf },
     /// The output's folder is missing (or a file): found before any work, not when the file is written.
     #[error("{path}: its folder {dir} {what}: create it first or choose another output")]

@@ -739,8 +739,11 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
         path: path.to_path_buf(),
         what,
     };
-    // `OUT/` names a folder: the rename at the end would fail with ENOTDIR after all the work.
-    if path.as_os_str().as_encoded_bytes().last() == Some(&b'/') {
+    // `OUT/`, `OUT/.` and `OUT/..` name a folder: the rename at the end would fail after all the work
+    // (`new/.` of a folder that does not exist was found out only then; fault hunt, session 28).
+    let raw = path.as_os_str().as_encoded_bytes();
+    let last = raw.rsplit(|&b| b == b'/').next().unwrap_or(raw);
+    if raw.last() == Some(&b'/') || last == b"." || last == b".." {
         return Err(StoreError::FolderName {
             path: path.to_path_buf(),
         });

@@ -63,7 +63,21 @@ impl Drop for LiveTemp {
 /// [`AtomicFile::create`] of the same target: [`remove_stale_temps`]).
 /// Folders created above a temp folder go last, deepest first, and only if empty.
 pub fn remove_live_temps() -> usize {
+    remove_listed(&live_temps())
+}
+
+/// [`remove_live_temps`] for a handler of Ctrl-C or SIGTERM: `say` is told how many were removed, then
+/// the process ends with `code` while it still holds the registry's lock, so a temp that
+/// [`AtomicFile::create`] (which creates and registers under that lock) was making is either removed
+/// here or never made (one created while the handler ran stayed behind; fault hunt, session 28).
+pub fn remove_live_temps_and_exit(code: i32, say: impl FnOnce(usize)) -> ! {
     let live = live_temps();
+    say(remove_listed(&live));
+    std::process::exit(code)
+}
+
+/// Removes `live`'s temps (see [`remove_live_temps`]).
+fn remove_listed(live: &[(PathBuf, bool)]) -> usize {
     let removed = live
         .iter()
         .filter(|(p, if_empty)| {
@@ -121,6 +135,24 @@ impl LiveTempDir {
                 .collect(),
         }
     }
+}
+
+/// `path` with its symbolic links followed to the path they name (at most 40, the kernel's own limit; a
+/// dangling link gives the path it names, an unreadable one stops there).
+fn follow_links(path: &Path) -> PathBuf {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        let is_link = std::fs::symlink_metadata(&p).is_ok_and(|m| m.file_type().is_symlink());
+        let Some(to) = is_link.then(|| std::fs::read_link(&p).ok()).flatten() else {
+            break;
+        };
+        p = if to.is_absolute() {
+            to
+        } else {
+            parent_dir(&p).join(to)
+        };
+    }
+    p
 }
 
 /// The directory `path` lives in (`.` for a bare name).
@@ -192,6 +224,9 @@ impl AtomicFile {
     /// symlink) is refused with [`std::io::ErrorKind::InvalidInput`]: the rename would replace the node
     /// itself (`-o /dev/null` run as root would delete `/dev/null`).
     pub fn create(target: &Path, mode: u32) -> std::io::Result<AtomicFile> {
+        // A link is written through: the file it names is replaced, the link kept (renamed over, the
+        // link became a regular file and the file it named stayed stale; fault hunt, session 28).
+        let target = &follow_links(target);
         if let Ok(meta) = std::fs::metadata(target)
             && !meta.is_file()
         {
@@ -215,6 +250,9 @@ impl AtomicFile {
         #[cfg(not(unix))]
         let _ = mode;
         let dir = parent_dir(target);
+        // Created and registered under one hold of the registry's lock: an interrupt's
+        // `remove_live_temps_and_exit` sees this temp, or ends the process before it is made.
+        let mut live = live_temps();
         let temp = builder.tempfile_in(dir).map_err(|e| {
             // tempfile's error names the random temp path (`at path ".x.tmp.123.AbC"`), which means
             // nothing to a user: say which folder refused, with the OS's own words.
@@ -227,7 +265,9 @@ impl AtomicFile {
         })?;
         // Best effort: where advisory locks are unsupported the pid alone guards the temp.
         let _ = temp.as_file().try_lock();
-        let live = LiveTemp::register(temp.path());
+        live.push((temp.path().to_path_buf(), false));
+        drop(live);
+        let live = LiveTemp(temp.path().to_path_buf(), false);
         Ok(AtomicFile {
             target: target.to_path_buf(),
             temp,
