@@ -35,7 +35,9 @@ def main():
             rows, _ = json.JSONDecoder().raw_decode(res.stdout[res.stdout.index("["):])
             for r in rows:
                 s = r["summary"]
-                mbs = r["key"]["bandwidth"] / 1e6
+                # `bandwidth` before session 28 (bytes per second either way).
+                key = r["key"]
+                mbs = key.get("bandwidth_bytes_per_s", key.get("bandwidth")) / 1e6
                 orig = s.get("bytes_originals_total")
                 orig = f" ({orig / 1e6:.1f})" if orig is not None else ""
                 print(f"| {label} | {p} | {mbs:g} | {s['mean_coarser']:.4f} | {s['bytes_total'] / 1e6:.1f}{orig} | "

@@ -68,6 +68,16 @@ pub(super) fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
     super::check_out_folder(&a.out)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let scene = import_scene(&scene_path)?;
+    // One root atlas per tree (opaque, and alpha where a material uses alpha) stays resident: a smaller
+    // k is refused before the build, not at the paged flight (section 6).
+    let roots = atlastree::preprocess::partition_triangles(&scene).len() as u32;
+    if a.capacity < roots {
+        anyhow::bail!(
+            "--capacity {} is below the {roots} root atlases of this scene's trees (one per tree), which \
+             the paged flight keeps resident: use at least {roots}",
+            a.capacity
+        );
+    }
     let file = build_tree(&a, &scene)?;
     let (tf, verified) = inspect_and_verify(&file)?;
     let mut pictures = write_pictures(&a.out, &tf)?;
@@ -188,14 +198,23 @@ fn show_tour(tour: &DemoTour, tf: &atlastree::store::TreeFile) -> anyhow::Result
     let scales = tour.scales(tf, &cameras)?;
     let levels = levels_along(tf, &cameras, &scales)?;
     let fps = tour.fps(&path);
-    println!(
-        "{} frames over the whole path ({:.1} s of path time, one frame every {:.2} s), {}×{}",
-        cameras.len(),
-        path.duration(),
-        1.0 / fps,
-        tour.width,
-        tour.height
-    );
+    if cameras.len() < 2 {
+        println!(
+            "1 frame, the path's first camera (t = 0 of {:.1} s of path time), {}×{}",
+            path.duration(),
+            tour.width,
+            tour.height
+        );
+    } else {
+        println!(
+            "{} frames over the whole path ({:.1} s of path time, one frame every {:.2} s), {}×{}",
+            cameras.len(),
+            path.duration(),
+            1.0 / fps,
+            tour.width,
+            tour.height
+        );
+    }
     for (t, lv) in levels.iter().enumerate() {
         let kind = tf.tree(t).map_or("tree".to_string(), |v| {
             format!("{:?}", v.kind).to_lowercase()
@@ -413,11 +432,18 @@ fn print_summary(
             if lv.all_levels_drawn() { " (all)" } else { "" }
         );
     }
-    println!(
-        "  path: the whole overview-dive, {:.1} s in {} frames",
-        shown.duration,
-        shown.cameras.len()
-    );
+    if shown.cameras.len() < 2 {
+        println!(
+            "  path: the overview-dive's first camera only ({:.1} s path, 1 frame)",
+            shown.duration
+        );
+    } else {
+        println!(
+            "  path: the whole overview-dive, {:.1} s in {} frames",
+            shown.duration,
+            shown.cameras.len()
+        );
+    }
     match fallback {
         Some(&(coarser, frames, max)) => println!(
             "  paging: k = {} of {blocks} blocks; {coarser} of {frames} frames drew part of the screen with an ancestor's atlas while blocks loaded (largest share {:.2})",

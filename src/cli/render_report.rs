@@ -61,6 +61,8 @@ pub(super) fn write_and_report(
     }
     let json = serde_json::json!({
         "complete": true,
+        // False: the path never looks at the scene; the frames and their PSNR measure nothing.
+        "drew_geometry": drew,
         "modes": medians.iter().map(|m| (m.mode.name().to_string(), serde_json::json!({
             "frames": m.frames,
             "median_frame_ms": m.frame_ms,
@@ -339,11 +341,16 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
     }
     // Medians: robust against one-off stalls (a software rasteriser compiles shader variants on first use).
     let frame: Vec<f64> = stats.iter().map(|s| s.frame_ms).collect();
+    // Without GPU timing (`--no-gpu-timing`, or no timestamp queries) there is no GPU median to print.
+    let gpu_median = if gpu.is_empty() {
+        String::new()
+    } else {
+        format!("  GPU median {:>8.2}", median(gpu))
+    };
     println!(
-        "  {:<20} median {:>8.2}  GPU median {:>8.2}",
+        "  {:<20} median {:>8.2}{gpu_median}",
         "frame ms",
-        median(frame),
-        median(gpu)
+        median(frame)
     );
 }
 

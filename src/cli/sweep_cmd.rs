@@ -246,18 +246,24 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
         &cfg.scene.display().to_string(),
         &cfg.path.to_string(),
     )?;
-    // A path that never looks at the scene covers no pixel: every PSNR is the 99 dB cap of nothing.
-    if !data.frames.is_empty() && data.frames.iter().all(|f| f.covered_pixels == 0) {
+    // A path that never looks at the scene covers no pixel: every PSNR is the 99 dB cap of nothing. The
+    // report says so too, and the JSON has `"measured": false` and no recommendation.
+    let measured = !data.measures_nothing();
+    if !measured {
         eprintln!(
             "warning: no frame of the path covers any pixel of the scene (does it look at it?): PSNR and \
-             SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and neither does \
-             the recommendation"
+             SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and no default is \
+             recommended"
         );
     }
-    let rec = recommend(&rows, PSNR_TOLERANCE_DB);
+    let rec = recommend(&rows, PSNR_TOLERANCE_DB).filter(|_| measured);
     if cfg.json {
-        let out =
-            serde_json::json!({ "variants": rows, "builds": data.builds, "recommendation": rec });
+        let out = serde_json::json!({
+            "measured": measured,
+            "variants": rows,
+            "builds": data.builds,
+            "recommendation": rec,
+        });
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(ExitCode::SUCCESS);
     }

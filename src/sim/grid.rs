@@ -35,7 +35,11 @@ pub struct GridSpec {
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct RunKey {
     pub capacity: Option<u32>,
+    /// Bytes per second; `None`: instant.
+    #[serde(rename = "bandwidth_bytes_per_s")]
     pub bandwidth: Option<f64>,
+    /// Seconds.
+    #[serde(rename = "latency_s")]
     pub latency: f64,
     pub policy: Policy,
 }
@@ -170,7 +174,14 @@ fn key_cells(k: &RunKey) -> Vec<Cell> {
     ]
 }
 
-const KEY_HEADER: [&str; 5] = ["run", "capacity", "bandwidth_bps", "latency_ms", "policy"];
+/// Units in the names: bytes per second (it read `bandwidth_bps`, bits by convention) and milliseconds.
+const KEY_HEADER: [&str; 5] = [
+    "run",
+    "capacity",
+    "bandwidth_bytes_per_s",
+    "latency_ms",
+    "policy",
+];
 
 /// Writes `frames.csv` and `summary.csv` into `dir`; returns their paths.
 pub fn write_csvs(dir: &Path, results: &[RunResult]) -> Result<Vec<PathBuf>, ReportError> {

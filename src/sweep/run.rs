@@ -174,6 +174,14 @@ pub struct SweepData {
     pub skipped: Vec<(String, String)>,
 }
 
+impl SweepData {
+    /// No frame covers a pixel of the scene (a path that never looks at it): every PSNR and SSIM is the
+    /// value of an empty comparison (99 dB, 1), so neither they nor a recommendation measure anything.
+    pub fn measures_nothing(&self) -> bool {
+        !self.frames.is_empty() && self.frames.iter().all(|f| f.covered_pixels == 0)
+    }
+}
+
 /// The reference of one frame (the original-texture render, or the supersampled one) and the covered
 /// pixels.
 struct RefFrame {

@@ -370,8 +370,17 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
              measure the driver, not the tree; `--anisotropy 1` isolates the atlas tree's own error.\n"
         );
     }
+    let nothing = data.measures_nothing();
+    if nothing {
+        let _ = writeln!(
+            md,
+            "**Warning:** no frame of the path covers any pixel of the scene (does it look at it?): PSNR \
+             and SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and no \
+             default is recommended.\n"
+        );
+    }
     let _ = writeln!(md, "## Recommended defaults\n");
-    match recommend(rows, PSNR_TOLERANCE_DB) {
+    match recommend(rows, PSNR_TOLERANCE_DB).filter(|_| !nothing) {
         Some(rec) => {
             // One line per distinct variant, naming every role it fills.
             let tol = rec.tolerance_db;
@@ -404,6 +413,9 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
                 let _ = writeln!(md, "- {label}: {}", describe(&rows[i]));
             }
             let _ = writeln!(md);
+        }
+        None if nothing => {
+            let _ = writeln!(md, "None: nothing was measured.\n");
         }
         None => {
             let _ = writeln!(md, "No variant has a finite PSNR.\n");

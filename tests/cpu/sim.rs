@@ -139,7 +139,7 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
     let mut want = vec![
         "run",
         "capacity",
-        "bandwidth_bps",
+        "bandwidth_bytes_per_s",
         "latency_ms",
         "policy",
         "frame",
