@@ -370,6 +370,7 @@ pub struct BuildReport {
     /// originals, every level): the rasteriser's input and output (the summary's throughput line).
     pub texels_decoded: u64,
     pub texels_stored: u64,
+    /// Images drawn as the magenta/black fallback: missing or unreadable at import, or failed to decode.
     pub image_fallbacks: u64,
     /// Images used only by OPAQUE materials whose alpha channel (some texel below 255) was ignored, as
     /// glTF specifies: their colour is kept where alpha is 0.

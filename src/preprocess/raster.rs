@@ -303,6 +303,12 @@ impl<'a> ImageCache<'a> {
             self.decoded_texels.fetch_add(texels, Ordering::Relaxed);
             Ok(d)
         });
+        // Replaced at import (a missing or unreadable file, already warned about there): counted here
+        // too, so "images decoded N (F fallbacks)" agrees with the import's count (it said 0; fault
+        // hunt, session 28).
+        if src.is_fallback() {
+            self.first_note(id, NOTED_FALLBACK);
+        }
         let decoded = decoded.unwrap_or_else(|e| {
             if self.first_note(id, NOTED_FALLBACK) {
                 let mut w = lock(&self.warnings);

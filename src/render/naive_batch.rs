@@ -212,7 +212,9 @@ pub fn plan_naive(file: &TreeFile, tables: NaiveTables<'_>) -> Result<NaiveBatch
                     leaves: tables.leaves.len(),
                 })?
                 .first_tam as usize;
-            for (o, tris) in (0u32..).zip(&groups) {
+            // The texture and pass of each original of the leaf.
+            let mut kinds = Vec::with_capacity(groups.len());
+            for o in 0..groups.len() as u32 {
                 let entry = first_tam + o as usize;
                 let (Some(&texture), Some(e)) =
                     (tables.tam_unique.get(entry), tables.tam.get(entry))
@@ -225,8 +227,17 @@ pub fn plan_naive(file: &TreeFile, tables: NaiveTables<'_>) -> Result<NaiveBatch
                         uniques: tables.tam_unique.len(),
                     });
                 };
+                kinds.push((texture, pass_of(e.alpha_mode)));
+            }
+            let mut blends = false;
+            for (tris, &(texture, pass)) in groups.iter().zip(&kinds) {
                 if tris.is_empty() {
                     batch.empty_pairs += 1;
+                    continue;
+                }
+                // Blended triangles are drawn below, in index order.
+                if pass == Pass::Blend {
+                    blends = true;
                     continue;
                 }
                 let first_index =
@@ -238,8 +249,46 @@ pub fn plan_naive(file: &TreeFile, tables: NaiveTables<'_>) -> Result<NaiveBatch
                     base_vertex: info.vertex_base,
                     leaf_base: info.leaf_base,
                     texture,
-                    pass: pass_of(e.alpha_mode),
+                    pass,
                 });
+            }
+            // Blending is not commutative: a leaf's blended triangles are drawn in index-buffer order, as
+            // the tree's blend pass draws them (`batch::blend_list`), one draw per run of one original.
+            // Grouped by original, overlapping BLEND quads of two materials drew in the other order than
+            // the tree's (32.6 dB between the modes; fault hunt, session 28).
+            if blends {
+                let range = leaf_triangles(t, li, leaf, view.indices)?;
+                for tri in range.chunks_exact(3) {
+                    let Some(o) = view.vertices.get(tri[0] as usize).map(|v| v.original) else {
+                        continue; // checked by regroup_leaf
+                    };
+                    let Some(&(texture, Pass::Blend)) = kinds.get(o as usize) else {
+                        continue;
+                    };
+                    let first_index = u32::try_from(batch.indices.len())
+                        .map_err(|_| NaiveBatchError::TooLarge)?;
+                    batch.indices.extend_from_slice(tri);
+                    // Only a draw of this leaf (one made here: contiguous and blended) is extended.
+                    let this_leaf = batch.draws.len() as u32 > start;
+                    match batch.draws.last_mut() {
+                        Some(d)
+                            if this_leaf
+                                && d.pass == Pass::Blend
+                                && d.texture == texture
+                                && d.first_index + d.index_count == first_index =>
+                        {
+                            d.index_count += 3;
+                        }
+                        _ => batch.draws.push(NaiveDraw {
+                            first_index,
+                            index_count: 3,
+                            base_vertex: info.vertex_base,
+                            leaf_base: info.leaf_base,
+                            texture,
+                            pass: Pass::Blend,
+                        }),
+                    }
+                }
             }
             batch
                 .leaf_draws
@@ -250,16 +299,13 @@ pub fn plan_naive(file: &TreeFile, tables: NaiveTables<'_>) -> Result<NaiveBatch
     Ok(batch)
 }
 
-/// The triangles of leaf `li` of tree `t` per original texture (`[original][triangle]`, each list in index
-/// order). A triangle belongs to the original of its first vertex (the preprocessor gives all three the
-/// same).
-fn regroup_leaf(
+/// The indices of leaf `li` of tree `t`: whole triangles inside `indices`.
+fn leaf_triangles<'a>(
     t: usize,
     li: usize,
     leaf: &crate::store::format::LeafRecord,
-    indices: &[u32],
-    vertices: &[crate::model::TreeVertex],
-) -> Result<Vec<Vec<[u32; 3]>>, NaiveBatchError> {
+    indices: &'a [u32],
+) -> Result<&'a [u32], NaiveBatchError> {
     let first = leaf.first_index as usize;
     let range = indices
         .get(first..first.saturating_add(leaf.index_count as usize))
@@ -277,6 +323,20 @@ fn regroup_leaf(
             count: leaf.index_count,
         });
     }
+    Ok(range)
+}
+
+/// The triangles of leaf `li` of tree `t` per original texture (`[original][triangle]`, each list in index
+/// order). A triangle belongs to the original of its first vertex (the preprocessor gives all three the
+/// same).
+fn regroup_leaf(
+    t: usize,
+    li: usize,
+    leaf: &crate::store::format::LeafRecord,
+    indices: &[u32],
+    vertices: &[crate::model::TreeVertex],
+) -> Result<Vec<Vec<[u32; 3]>>, NaiveBatchError> {
+    let range = leaf_triangles(t, li, leaf, indices)?;
     let mut groups = vec![Vec::new(); leaf.original_count as usize];
     for (k, tri) in range.chunks_exact(3).enumerate() {
         let tri = [tri[0], tri[1], tri[2]];

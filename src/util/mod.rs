@@ -6,8 +6,8 @@ mod memory;
 pub mod srgb;
 
 pub use files::{
-    AtomicFile, LiveTempDir, MAX_TEXT_FILE_BYTES, node_kind, open_regular, parent_dir,
-    read_regular, read_text_file, remove_live_temps, remove_live_temps_and_exit,
+    AtomicFile, LiveTempDir, MAX_TEXT_FILE_BYTES, follow_output_links, node_kind, open_regular,
+    parent_dir, read_regular, read_text_file, remove_live_temps, remove_live_temps_and_exit,
     remove_stale_outputs, remove_stale_temps, save_png, write_atomic,
 };
 
@@ -127,6 +127,24 @@ pub fn glob_match(pattern: &str, name: &str) -> bool {
         }
     }
     p[i..].iter().all(|&c| c == '*')
+}
+
+/// `text` with its control characters escaped (`\u{1b}`): names from a scene file (an image's URI or
+/// `name`) and the warnings that quote them reach a terminal, where raw ESC or BEL bytes could clear
+/// the screen or set its title (fault hunt, session 28).
+pub fn printable(text: &str) -> std::borrow::Cow<'_, str> {
+    if !text.chars().any(char::is_control) {
+        return std::borrow::Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len() + 8);
+    for c in text.chars() {
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    std::borrow::Cow::Owned(out)
 }
 
 /// Human-readable bytes (binary units).

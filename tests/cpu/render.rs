@@ -347,8 +347,10 @@ fn plan_maps_every_vertex_original_into_its_leaf_tam_range() {
 }
 
 /// The naive baseline's draws (`render::naive_batch`, planned on the CPU) on the city: one draw per (leaf,
-/// original) pair with triangles, exactly the leaf's triangles of that original, every triangle of the tree
-/// drawn once, each draw in its material's pass with its TAM entry's texture; the counts are pinned.
+/// original) pair with triangles, exactly the leaf's triangles of that original — except blended ones,
+/// drawn after them in index-buffer order (the tree's blend order), a draw per run of one original —
+/// every triangle of the tree drawn once, each draw in its material's pass with its TAM entry's texture;
+/// the counts are pinned.
 #[test]
 fn naive_batch_draws_every_triangle_once() {
     use atlastree::render::naive_batch::{NaiveTables, plan_naive};
@@ -360,6 +362,7 @@ fn naive_batch_draws_every_triangle_once() {
 
     // Independently: per leaf, the set of originals its triangles use, and its triangle count.
     let (mut pairs, mut triangles, mut leaves) = (0usize, 0usize, 0usize);
+    let mut blend_runs = 0;
     for (t, info) in g.infos.iter().enumerate() {
         let view = file.tree(t).unwrap();
         for (li, leaf) in view.leaves.iter().enumerate() {
@@ -372,31 +375,54 @@ fn naive_batch_draws_every_triangle_once() {
                 .collect();
             used.sort_unstable();
             used.dedup();
+            let entry = |o: u32| g.leaves[gl].first_tam as usize + o as usize;
+            let blended = |o: u32| g.tam[entry(o)].alpha_mode >= 2;
+            // The expected draws: (original, its indices).
+            let mut want: Vec<(u32, Vec<u32>)> = used
+                .iter()
+                .filter(|&&o| !blended(o))
+                .map(|&o| {
+                    let mine = tris
+                        .chunks_exact(3)
+                        .filter(|c| view.vertices[c[0] as usize].original == o)
+                        .flatten()
+                        .copied()
+                        .collect();
+                    (o, mine)
+                })
+                .collect();
+            let opaque_draws = want.len();
+            for c in tris.chunks_exact(3) {
+                let o = view.vertices[c[0] as usize].original;
+                if !blended(o) {
+                    continue;
+                }
+                let in_blend_runs = want.len() > opaque_draws;
+                match want.last_mut() {
+                    Some((p, run)) if in_blend_runs && *p == o => run.extend_from_slice(c),
+                    _ => want.push((o, c.to_vec())),
+                }
+            }
+            blend_runs += want.len() - opaque_draws;
             let (d0, dn) = plan.leaf_draws[gl];
-            assert_eq!(dn as usize, used.len(), "tree {t} leaf {li}");
-            for (k, &o) in used.iter().enumerate() {
+            assert_eq!(dn as usize, want.len(), "tree {t} leaf {li}");
+            for (k, (o, mine)) in want.iter().enumerate() {
+                let o = *o;
                 let d = plan.draws[d0 as usize + k];
-                let mine: Vec<u32> = tris
-                    .chunks_exact(3)
-                    .filter(|c| view.vertices[c[0] as usize].original == o)
-                    .flatten()
-                    .copied()
-                    .collect();
                 let range = d.first_index as usize..(d.first_index + d.index_count) as usize;
                 assert_eq!(
                     plan.indices[range],
                     mine[..],
                     "tree {t} leaf {li} original {o}"
                 );
-                let entry = g.leaves[gl].first_tam as usize + o as usize;
-                assert_eq!(d.texture, g.tam_unique[entry]);
-                assert_eq!(d.pass as u32, g.tam[entry].alpha_mode.min(2));
+                assert_eq!(d.texture, g.tam_unique[entry(o)]);
+                assert_eq!(d.pass as u32, g.tam[entry(o)].alpha_mode.min(2));
                 assert_eq!(
                     (d.base_vertex, d.leaf_base),
                     (info.vertex_base, info.leaf_base)
                 );
             }
-            pairs += used.len();
+            pairs += want.len();
             triangles += tris.len() / 3;
             leaves += 1;
         }
@@ -406,9 +432,76 @@ fn naive_batch_draws_every_triangle_once() {
     assert_eq!(plan.indices.len(), 3 * triangles);
     // The fixture's numbers: 22 leaves, 40 (leaf, original) draws, 162 triangles, every pair used.
     assert_eq!(
-        (leaves, plan.draws.len(), triangles, plan.empty_pairs),
-        (22, 40, 162, 0)
+        (
+            leaves,
+            plan.draws.len(),
+            triangles,
+            plan.empty_pairs,
+            blend_runs
+        ),
+        (22, 40, 162, 0, 0)
     );
+}
+
+/// Blended triangles of two materials stacked A, B, A: original mode draws them in index-buffer order,
+/// as the tree's blend pass does, one draw per run of one original (grouped by original, the two modes
+/// blended overlapping quads in different orders; fault hunt, session 28).
+#[test]
+fn naive_blend_draws_keep_the_index_order() {
+    use crate::built::{build_ok, tiny_opts};
+    use atlastree::render::naive_batch::{NaiveTables, plan_naive};
+    use atlastree::scene::synthetic::SceneBuilder;
+    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
+    use glam::DVec2;
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let red = b.image("red", 8, 8, |_, _| [255, 0, 0, 128]);
+    let blue = b.image("blue", 8, 8, |_, _| [0, 0, 255, 128]);
+    let a = b.material(red, [Wrap::ClampToEdge; 2], AlphaMode::Blend);
+    let c = b.material(blue, [Wrap::ClampToEdge; 2], AlphaMode::Blend);
+    for (k, m) in [a, c, a, c].into_iter().enumerate() {
+        let y = 0.1 * k as f64;
+        let corners = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)];
+        b.quad(
+            corners.map(|(x, z)| DVec3::new(x, y, z)),
+            DVec2::ZERO,
+            DVec2::ONE,
+            m,
+        );
+    }
+    let built = build_ok(&b.build(), &tiny_opts(64, 0.5));
+    let file = &built.file;
+    let g = gather_tables(file).unwrap();
+    let plan = plan_naive(file, NaiveTables::of(&g)).unwrap();
+    let mut runs_seen = 0;
+    for (t, info) in g.infos.iter().enumerate() {
+        let view = file.tree(t).unwrap();
+        for (li, leaf) in view.leaves.iter().enumerate() {
+            let first = leaf.first_index as usize;
+            let tris = &view.indices[first..first + leaf.index_count as usize];
+            let (d0, dn) = plan.leaf_draws[info.leaf_base as usize + li];
+            let draws = &plan.draws[d0 as usize..(d0 + dn) as usize];
+            let drawn: Vec<u32> = draws
+                .iter()
+                .filter(|d| d.pass == Pass::Blend)
+                .flat_map(|d| {
+                    plan.indices[d.first_index as usize..(d.first_index + d.index_count) as usize]
+                        .iter()
+                        .copied()
+                })
+                .collect();
+            assert_eq!(drawn, tris, "tree {t} leaf {li}: blended in index order");
+            // One draw per run of one original.
+            let originals: Vec<u32> = tris
+                .chunks_exact(3)
+                .map(|c| view.vertices[c[0] as usize].original)
+                .collect();
+            let runs = 1 + originals.windows(2).filter(|w| w[0] != w[1]).count();
+            assert_eq!(draws.len(), runs, "tree {t} leaf {li}");
+            runs_seen += runs;
+        }
+    }
+    // Four quads of alternating materials: four runs wherever they lie.
+    assert!(runs_seen >= 4, "{runs_seen} runs");
 }
 
 /// The naive frame plan (`render::naive_batch::visible_draws`): a cut of every tree's root draws every

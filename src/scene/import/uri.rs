@@ -222,7 +222,8 @@ impl<'a> Buffers<'a> {
         Ok(())
     }
 
-    /// Reads an image's header and keeps its path (external file) or encoded bytes.
+    /// Reads an image's header and keeps its path (external file) or encoded bytes. The image's name
+    /// (its `name`, else its URI) has its control characters escaped ([`crate::util::printable`]).
     pub(super) fn load_image(
         &mut self,
         img: &gltf::Image,
@@ -241,6 +242,7 @@ impl<'a> Buffers<'a> {
                 let name = img
                     .name()
                     .map_or_else(|| format!("image {}", img.index()), str::to_string);
+                let name = crate::util::printable(&name).into_owned();
                 return (name, Err("neither uri nor bufferView".to_string()));
             }
         };
@@ -249,12 +251,14 @@ impl<'a> Buffers<'a> {
                 let name = img
                     .name()
                     .map_or_else(|| "data URI".to_string(), str::to_string);
+                let name = crate::util::printable(&name).into_owned();
                 let res = decode_data_uri(uri).and_then(|b| from_bytes(&name, b.into()));
                 (name, res)
             }
             ImgSrc::Uri(uri) => {
                 let rel = percent_decode(uri);
                 let name = img.name().map_or_else(|| rel.clone(), str::to_string);
+                let name = crate::util::printable(&name).into_owned();
                 let res = local_path(&self.base_dir, uri).and_then(|path| {
                     crate::util::open_regular(&path)
                         .map_err(|e| format!("{}: {e}", path.display()))
@@ -270,6 +274,7 @@ impl<'a> Buffers<'a> {
                 let name = img
                     .name()
                     .map_or_else(|| format!("buffer view {}", view.index()), str::to_string);
+                let name = crate::util::printable(&name).into_owned();
                 let res = self
                     .load_buffer(view.buffer().index())
                     .map_err(|e| e.to_string())
@@ -320,13 +325,18 @@ fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> Loa
 /// The local file a (non-`data:`) URI names: a relative reference against the glTF file's folder
 /// (percent-decoded), or a `file:` URI's path. Any other scheme is refused by name (`http://…` was joined
 /// to the folder and reported as a missing local file).
+///
+/// A relative reference that names no file as written is tried as a browser reads it: without its
+/// `?query` or `#fragment`, and with a Windows exporter's `\` as `/` (`tex.png?v=2` and
+/// `textures\tex.png` drew the fallback; fault hunt, session 28). As written first, so a file named
+/// with a `#` (`Material #25.png`) is still found.
 pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> {
     let scheme = uri.split_once(':').map(|(s, _)| s).filter(|s| {
         let mut c = s.chars();
         c.next().is_some_and(|c| c.is_ascii_alphabetic())
             && c.all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
     });
-    let relative = base_dir.join(percent_decode(uri));
+    let relative = relative_file(base_dir, uri);
     match scheme {
         None => Ok(relative),
         // A one-letter "scheme" is a Windows drive; a name with an unencoded colon that exists
@@ -347,7 +357,7 @@ pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> 
                     "{uri}: a file: URI needs an absolute path (file:///…)"
                 ));
             }
-            Ok(PathBuf::from(percent_decode(path)))
+            Ok(decoded_path(path))
         }
         Some(s) => Err(format!(
             "the URI scheme '{s}:' is not read (local files and data: URIs are; fetch the \
@@ -356,8 +366,46 @@ pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> 
     }
 }
 
-/// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally).
+/// `base_dir` joined with the decoded relative reference `uri`, or with the first of its browser
+/// readings that names a file ([`local_path`]); as written when none does (the error names that).
+fn relative_file(base_dir: &Path, uri: &str) -> PathBuf {
+    let as_written = base_dir.join(decoded_path(uri));
+    if as_written.is_file() {
+        return as_written;
+    }
+    let slashed = uri.replace('\\', "/");
+    let readings = [uri, slashed.as_str()].map(|u| u.split(['?', '#']).next().unwrap_or(u));
+    [slashed.as_str(), readings[0], readings[1]]
+        .into_iter()
+        .filter(|u| *u != uri)
+        .map(|u| base_dir.join(decoded_path(u)))
+        .find(|p| p.is_file())
+        .unwrap_or(as_written)
+}
+
+/// The path a URI's decoded bytes name: on Unix the bytes themselves (`caf%E9.png` is the Latin-1 file
+/// name `caf\xE9.png`, which a lossy UTF-8 decode could never open), elsewhere their text.
+fn decoded_path(uri: &str) -> PathBuf {
+    let bytes = percent_decode_bytes(uri);
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStringExt;
+        PathBuf::from(std::ffi::OsString::from_vec(bytes))
+    }
+    #[cfg(not(unix))]
+    {
+        PathBuf::from(String::from_utf8_lossy(&bytes).into_owned())
+    }
+}
+
+/// Decodes `%XX` escapes of a relative URI (invalid escapes are kept literally), as text for names and
+/// messages (bytes that are not UTF-8 shown as U+FFFD; [`decoded_path`] keeps them).
 pub(super) fn percent_decode(uri: &str) -> String {
+    String::from_utf8_lossy(&percent_decode_bytes(uri)).into_owned()
+}
+
+/// The bytes `%XX` escapes of `uri` decode to (invalid escapes kept literally).
+fn percent_decode_bytes(uri: &str) -> Vec<u8> {
     let b = uri.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
@@ -374,7 +422,7 @@ pub(super) fn percent_decode(uri: &str) -> String {
             }
         }
     }
-    String::from_utf8_lossy(&out).into_owned()
+    out
 }
 
 /// Decodes a base64 `data:` URI (padding optional).
@@ -430,6 +478,32 @@ mod tests {
         let err = local_path(base, "C:/tex/a.png").unwrap_err();
         assert!(err.contains("looks like a Windows path"), "{err}");
         assert!(local_path(base, "s3://bucket/x.png").is_err());
+    }
+
+    /// A reference that names no file as written is tried without its query or fragment and with `\` as
+    /// `/`; one that does is taken as written; Latin-1 escapes name the bytes.
+    #[test]
+    fn relative_references_are_read_as_a_browser_reads_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let base = dir.path();
+        std::fs::create_dir(base.join("textures")).unwrap();
+        for name in ["textures/tex.png", "a.png", "b#1.png"] {
+            std::fs::write(base.join(name), b"x").unwrap();
+        }
+        let ok = |uri| local_path(base, uri).unwrap();
+        assert_eq!(ok("textures\\tex.png"), base.join("textures/tex.png"));
+        assert_eq!(ok("a.png?v=2"), base.join("a.png"));
+        assert_eq!(ok("a.png#layer"), base.join("a.png"));
+        assert_eq!(ok("textures\\tex.png?x"), base.join("textures/tex.png"));
+        assert_eq!(ok("b#1.png"), base.join("b#1.png"));
+        assert_eq!(ok("missing.png?v=1"), base.join("missing.png?v=1"));
+        #[cfg(unix)]
+        {
+            use std::os::unix::ffi::OsStrExt;
+            let latin1 = std::ffi::OsStr::from_bytes(b"caf\xe9.png");
+            std::fs::write(base.join(latin1), b"x").unwrap();
+            assert_eq!(ok("caf%E9.png"), base.join(latin1));
+        }
     }
 
     #[test]

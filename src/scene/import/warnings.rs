@@ -11,10 +11,13 @@ pub(super) const MAX_WARNINGS: usize = 100;
 
 impl ImportReport {
     /// Records a warning: the string is kept while fewer than [`MAX_WARNINGS`] are, the total is exact.
+    /// Keeps `msg` (its control characters escaped: it may quote names from the file) up to
+    /// [`MAX_WARNINGS`]; counts it either way.
     pub(super) fn warn(&mut self, msg: String) {
         self.warnings_total += 1;
         if self.warnings.len() < MAX_WARNINGS {
-            self.warnings.push(msg);
+            self.warnings
+                .push(crate::util::printable(&msg).into_owned());
         }
     }
 
