@@ -37,10 +37,11 @@ def main():
                 s = r["summary"]
                 # `bandwidth` before session 28 (bytes per second either way).
                 key = r["key"]
-                mbs = key.get("bandwidth_bytes_per_s", key.get("bandwidth")) / 1e6
+                rate = key.get("bandwidth_bytes_per_s", key.get("bandwidth"))
+                mbs = "instant" if rate is None else f"{rate / 1e6:g}"
                 orig = s.get("bytes_originals_total")
                 orig = f" ({orig / 1e6:.1f})" if orig is not None else ""
-                print(f"| {label} | {p} | {mbs:g} | {s['mean_coarser']:.4f} | {s['bytes_total'] / 1e6:.1f}{orig} | "
+                print(f"| {label} | {p} | {mbs} | {s['mean_coarser']:.4f} | {s['bytes_total'] / 1e6:.1f}{orig} | "
                       f"{s['loads']} | {' '.join(map(str, s['converge_frames']))} |")
 
 

@@ -198,7 +198,7 @@ fn show_tour(tour: &DemoTour, tf: &atlastree::store::TreeFile) -> anyhow::Result
     let scales = tour.scales(tf, &cameras)?;
     let levels = levels_along(tf, &cameras, &scales)?;
     let fps = tour.fps(&path);
-    if cameras.len() < 2 {
+    if cameras.len() == 1 {
         println!(
             "1 frame, the path's first camera (t = 0 of {:.1} s of path time), {}×{}",
             path.duration(),
@@ -432,7 +432,7 @@ fn print_summary(
             if lv.all_levels_drawn() { " (all)" } else { "" }
         );
     }
-    if shown.cameras.len() < 2 {
+    if shown.cameras.len() == 1 {
         println!(
             "  path: the overview-dive's first camera only ({:.1} s path, 1 frame)",
             shown.duration

@@ -87,17 +87,16 @@ pub(super) fn atlas_level0(
     level0(&bytes, block, format, size, size, 0)
 }
 
-/// Mip 0 of the `w × h` original at byte `offset` of `block` (images of one block lie back to back, each a
-/// full chain), decoded to RGBA8.
+/// Mip 0 of the `w × h` original at byte `offset` of `bytes`, block `block`'s verified bytes (images of
+/// one block lie back to back, each a full chain), decoded to RGBA8.
 pub(super) fn original_level0(
-    file: &TreeFile,
+    bytes: &[u8],
     block: BlockId,
     format: TexFormat,
     [w, h]: [u32; 2],
     offset: u64,
 ) -> Result<RgbaImage, StoreError> {
-    let bytes = file.block(block)?;
-    level0(&bytes, block, format, w, h, offset)
+    level0(bytes, block, format, w, h, offset)
 }
 
 fn level0(

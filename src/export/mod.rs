@@ -530,15 +530,31 @@ fn prepare_tree<'a>(
         tree.format,
     );
     let codec = ImageCodec::for_alpha(tree.kind == TreeKind::Alpha);
-    let originals = offsets
+    // Each block read (and its checksum verified) once for all the originals it holds: a read per
+    // original copied a block of hundreds of them as many times.
+    let mut by_block: std::collections::BTreeMap<u32, Vec<_>> = Default::default();
+    for &(b, slot, ext, off) in &offsets {
+        by_block.entry(b).or_default().push((slot, ext, off));
+    }
+    let originals = by_block
         .par_iter()
-        .map(|&(b, slot, ext, off)| {
-            let img = images::original_level0(file, crate::ids::BlockId(b), tree.format, ext, off)?;
-            let uri = format!("img/o{b}-{slot}.{}", codec.extension());
-            let (image, _) = encode_image(&tdir, &uri, &img, codec, false)?;
-            Ok(((b, slot), image))
+        .map(|(&b, slots)| {
+            let block = crate::ids::BlockId(b);
+            let bytes = file.block(block)?;
+            slots
+                .par_iter()
+                .map(|&(slot, ext, off)| {
+                    let img = images::original_level0(&bytes, block, tree.format, ext, off)?;
+                    let uri = format!("img/o{b}-{slot}.{}", codec.extension());
+                    let (image, _) = encode_image(&tdir, &uri, &img, codec, false)?;
+                    Ok(((b, slot), image))
+                })
+                .collect::<Result<Vec<_>, ExportError>>()
         })
-        .collect::<Result<HashMap<_, _>, ExportError>>()?;
+        .collect::<Result<Vec<_>, ExportError>>()?
+        .into_iter()
+        .flatten()
+        .collect::<HashMap<_, _>>();
     summary.image_bytes += originals.values().map(|i| i.bytes).sum::<u64>();
     let root = &tree.nodes[0];
     Ok(TreeCtx {

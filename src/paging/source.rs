@@ -159,7 +159,8 @@ pub trait BlockSource: Send + Sync {
 
 /// Blocks from an open paging file: where it is memory-mapped, read through a handle of their own
 /// ([`crate::store::BlockReader`]: a file truncated in place gives counted load failures, not SIGBUS);
-/// where it was read into memory (or the path cannot be opened again), from its bytes.
+/// otherwise through [`TreeFile::block`] (its bytes where it was read into memory whole, its own handle
+/// where only its tables were).
 pub struct FileSource {
     file: Arc<TreeFile>,
     reader: Option<crate::store::BlockReader>,

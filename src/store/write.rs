@@ -748,7 +748,10 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
             path: path.to_path_buf(),
         });
     }
-    let dir = crate::util::parent_dir(path);
+    // Where a link points (the file that is written): its folder must exist (a dangling link into a
+    // missing folder failed only at the write; review, session 28).
+    let resolved = crate::util::follow_output_links(path).map_err(|e| refuse(e.to_string()))?;
+    let dir = crate::util::parent_dir(&resolved);
     if !dir.is_dir() {
         let what = if dir.exists() {
             "is not a folder"

@@ -137,22 +137,47 @@ impl LiveTempDir {
     }
 }
 
-/// `path` with its symbolic links followed to the path they name (at most 40, the kernel's own limit; a
-/// dangling link gives the path it names, an unreadable one stops there).
-fn follow_links(path: &Path) -> PathBuf {
+/// The output path `path` names with its symbolic links followed (a dangling link gives the path it
+/// names), so a file is written where a link points. Refused ([`std::io::ErrorKind::InvalidInput`]): a
+/// chain of more than 40 links or a loop (the kernel's limit), and, as the kernel's
+/// `protected_symlinks` does, a link in a sticky world-writable folder (`/tmp`) owned neither by the
+/// folder's owner nor by this process's user (Linux: `/proc/self`'s owner) — another user's link there
+/// could point a build's output anywhere its user may write.
+pub fn follow_output_links(path: &Path) -> std::io::Result<PathBuf> {
+    let refuse = |why: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, why);
     let mut p = path.to_path_buf();
-    for _ in 0..40 {
-        let is_link = std::fs::symlink_metadata(&p).is_ok_and(|m| m.file_type().is_symlink());
-        let Some(to) = is_link.then(|| std::fs::read_link(&p).ok()).flatten() else {
-            break;
+    for _ in 0..=40 {
+        let Ok(meta) = std::fs::symlink_metadata(&p) else {
+            return Ok(p);
         };
+        if !meta.file_type().is_symlink() {
+            return Ok(p);
+        }
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let dir = std::fs::metadata(parent_dir(&p))?;
+            let shared = dir.mode() & 0o1002 == 0o1002;
+            let user = std::fs::metadata("/proc/self").map(|m| m.uid()).ok();
+            if shared && meta.uid() != dir.uid() && Some(meta.uid()) != user {
+                return Err(refuse(format!(
+                    "{} is a symbolic link in a shared folder (sticky, writable by all) that its owner \
+                     did not make: not followed; remove it or choose another output",
+                    p.display()
+                )));
+            }
+        }
+        let to = std::fs::read_link(&p)?;
         p = if to.is_absolute() {
             to
         } else {
             parent_dir(&p).join(to)
         };
     }
-    p
+    Err(refuse(format!(
+        "{}: more than 40 symbolic links, or a loop",
+        path.display()
+    )))
 }
 
 /// The directory `path` lives in (`.` for a bare name).
@@ -226,7 +251,7 @@ impl AtomicFile {
     pub fn create(target: &Path, mode: u32) -> std::io::Result<AtomicFile> {
         // A link is written through: the file it names is replaced, the link kept (renamed over, the
         // link became a regular file and the file it named stayed stale; fault hunt, session 28).
-        let target = &follow_links(target);
+        let target = &follow_output_links(target)?;
         if let Ok(meta) = std::fs::metadata(target)
             && !meta.is_file()
         {

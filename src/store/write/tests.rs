@@ -44,6 +44,23 @@ fn an_output_behind_a_link_replaces_the_linked_file() {
     let f = crate::util::AtomicFile::create(&link, 0o644).unwrap();
     f.commit().unwrap();
     assert!(real.is_file());
+    // A loop is refused, the links kept; a dangling link into a missing folder is refused up front.
+    let (a, b) = (dir.path().join("a.bin"), dir.path().join("b.bin"));
+    std::os::unix::fs::symlink("b.bin", &a).unwrap();
+    std::os::unix::fs::symlink("a.bin", &b).unwrap();
+    let e = crate::util::AtomicFile::create(&a, 0o644).err().unwrap();
+    assert!(e.to_string().contains("or a loop"), "{e}");
+    assert!(
+        std::fs::symlink_metadata(&a)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(check_replaceable(&a).is_err());
+    let lost = dir.path().join("lost.bin");
+    std::os::unix::fs::symlink("missing/city.bin", &lost).unwrap();
+    let e = check_replaceable(&lost).unwrap_err();
+    assert!(matches!(e, StoreError::NoOutputDir { .. }), "{e}");
 }
 
 #[cfg(unix)]
