@@ -252,6 +252,13 @@ pub const MIN_WIDENED_PERIOD: f64 = 8.0;
 /// [`MIN_WIDENED_PERIOD`] texels keeps its own range), a linear
 /// (baked) range is unbounded. Non-finite input is returned as it is (the sizing refuses it).
 pub fn on_source_grid(lo: f64, hi: f64, source: u32, wrap: RectWrap) -> (f64, f64) {
+    on_source_grid_at(lo, hi, source, wrap, 1.0)
+}
+
+/// [`on_source_grid`] for a rect drawn at resolution `scale` (a leaf clamped below 1): a repeat arc is
+/// widened to the whole period only where the period keeps [`MIN_WIDENED_PERIOD`] texels at that scale
+/// (a 16-texel palette at scale 0.2 would be a 3-texel repeated rect; review, session 28).
+pub fn on_source_grid_at(lo: f64, hi: f64, source: u32, wrap: RectWrap, scale: f64) -> (f64, f64) {
     if !(lo.is_finite() && hi.is_finite()) || hi < lo {
         return (lo, hi);
     }
@@ -274,7 +281,9 @@ pub fn on_source_grid(lo: f64, hi: f64, source: u32, wrap: RectWrap) -> (f64, f6
         // hunt, session 28). Except a period under [`MIN_WIDENED_PERIOD`] texels: widened, a palette's
         // few texels would become a repeated texture of that many (a 4-texel source's [0.125, 0.875],
         // scaled to 3 texels, got a repeat border no BC7 block can hold; fault hunt, session 27).
-        RectWrap::Repeat if whi - wlo >= 1.0 && hi - lo < 1.0 && s < MIN_WIDENED_PERIOD => (lo, hi),
+        RectWrap::Repeat if whi - wlo >= 1.0 && hi - lo < 1.0 && s * scale < MIN_WIDENED_PERIOD => {
+            (lo, hi)
+        }
         RectWrap::Repeat if whi - wlo >= 1.0 => (0.0, 1.0),
         // An arc starts in [0, 1) (the cover's contract): a start just below 1 taken as 1 is 0.
         RectWrap::Repeat if wlo >= 1.0 => (wlo - 1.0, whi - 1.0),
@@ -445,6 +454,11 @@ mod tests {
             on_source_grid(0.01, 0.99, 7, RectWrap::Repeat),
             (0.01, 0.99)
         );
+        // At a leaf's scale below 1 the period counts the texels it keeps: 16 × 0.25 = 4 keeps its range.
+        let inset = (0.5 / 16.0, 15.5 / 16.0);
+        let at = |scale| on_source_grid_at(inset.0, inset.1, 16, RectWrap::Repeat, scale);
+        assert_eq!(at(0.25), inset);
+        assert_eq!(at(0.5), (0.0, 1.0));
         assert_eq!(on_source_grid(0.3, 1.2, 4, L), (0.25, 1.25));
         let below_one = 1.0 - 4.0 * 2f64.powi(-24);
         assert_eq!(

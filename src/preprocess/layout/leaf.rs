@@ -13,7 +13,7 @@ use crate::ids::MaterialId;
 use crate::model::RectWrap;
 use crate::model::sizing::SizeMethod;
 use crate::preprocess::area::{
-    AreaInput, AreaOptions, on_source_grid, required_area, scale_to_fit,
+    AreaInput, AreaOptions, on_source_grid_at, required_area, scale_to_fit,
 };
 use crate::preprocess::cover::AxisCover;
 use crate::preprocess::originals::original_class;
@@ -54,8 +54,8 @@ impl MatNeed {
     /// The area input at the node's requirement (palette textures — several constant-UV triangles —
     /// keep their source resolution over their used area). An axis held at the source's resolution
     /// (`cap_to_source` and a need of at least the source's texels) has its range on the source's texel
-    /// grid ([`on_source_grid`]).
-    fn input(&self, source: [u32; 2], cap_to_source: bool) -> AreaInput {
+    /// grid ([`on_source_grid_at`] at the leaf's resolution `scale`).
+    fn input(&self, source: [u32; 2], cap_to_source: bool, scale: f64) -> AreaInput {
         let (u0, u1) = self.cover[0].range();
         let (v0, v1) = self.cover[1].range();
         let (mut w, mut h) = (self.w, self.h);
@@ -66,7 +66,7 @@ impl MatNeed {
         let grid = |(lo, hi): (f64, f64), need: f64, k: usize| {
             let s = source[k];
             if cap_to_source && need >= f64::from(s) {
-                on_source_grid(lo, hi, s, self.cover[k].wrap())
+                on_source_grid_at(lo, hi, s, self.cover[k].wrap(), scale)
             } else {
                 (lo, hi)
             }
@@ -196,7 +196,7 @@ pub(super) fn base_scale(ctx: &Ctx<'_>, needs: &BTreeMap<(MaterialId, i32), MatN
         .iter()
         .filter_map(|(&(mat, _), need)| {
             scale_to_fit(
-                &need.input(source_of(ctx, mat), ctx.opts.cap_to_source),
+                &need.input(source_of(ctx, mat), ctx.opts.cap_to_source, 1.0),
                 &opts,
                 ctx.opts.atlas_size,
             )
@@ -222,7 +222,7 @@ pub(super) fn capped_demand(
             let c = u64::from(original_class(src[0], src[1]));
             originals = originals.saturating_add(c * c);
         }
-        let input = need.input(src, ctx.opts.cap_to_source);
+        let input = need.input(src, ctx.opts.cap_to_source, 1.0);
         let Ok(a) = required_area(&input, &opts) else {
             continue;
         };
@@ -256,7 +256,7 @@ pub(super) fn try_leaf(
     let mut original_texels = 0u64;
     for (&(mat, class), need) in needs {
         let src = source_of(ctx, mat);
-        let input = need.input(src, ctx.opts.cap_to_source);
+        let input = need.input(src, ctx.opts.cap_to_source, scale);
         let area = required_area(&input, &aopts).ok()?;
         let capped = [
             ctx.opts.cap_to_source && need.w > f64::from(src[0]),
