@@ -374,22 +374,30 @@ pub fn summarise(rows: &[FrameRow], cancelled: u64, discarded: u64) -> RunSummar
 mod tests {
     use super::*;
 
-    /// Requests beyond the free transfer slots are the frame's `queued` (frames.csv), as a real loader's
-    /// waiting requests are; it read 0 always (the poll had cleared them).
-    #[test]
-    fn requests_past_the_free_slots_are_queued() {
-        let mut l = ModelLoader::new(IoModel {
-            bandwidth: 1e6,
-            latency: 0.0,
-            overhead: 0.0,
-            max_in_flight: 4,
-        });
-        let wanted: Vec<Request> = (0..7)
+    /// 1 MB/s, no latency, 4 requests in flight.
+    const ONE_MB_PER_S: IoModel = IoModel {
+        bandwidth: 1e6,
+        latency: 0.0,
+        overhead: 0.0,
+        max_in_flight: 4,
+    };
+
+    /// Seven 1 MB blocks.
+    fn seven_blocks() -> Vec<Request> {
+        (0..7)
             .map(|i| Request {
                 block: BlockId(i),
                 bytes: 1_000_000,
             })
-            .collect();
+            .collect()
+    }
+
+    /// Requests beyond the free transfer slots are the frame's `queued` (frames.csv), as a real loader's
+    /// waiting requests are; it read 0 always (the poll had cleared them).
+    #[test]
+    fn requests_past_the_free_slots_are_queued() {
+        let mut l = ModelLoader::new(ONE_MB_PER_S);
+        let wanted = seven_blocks();
         l.set_requests(&wanted);
         let mut out = Vec::new();
         l.poll(0.0, &mut out);
@@ -403,18 +411,8 @@ mod tests {
     /// arrives in the poll that starts it, whatever `max_in_flight`.
     #[test]
     fn finished_transfers_free_their_slots_in_the_same_poll() {
-        let model = IoModel {
-            bandwidth: 1e6,
-            latency: 0.0,
-            overhead: 0.0,
-            max_in_flight: 4,
-        };
-        let wanted: Vec<Request> = (0..7)
-            .map(|i| Request {
-                block: BlockId(i),
-                bytes: 1_000_000,
-            })
-            .collect();
+        let model = ONE_MB_PER_S;
+        let wanted = seven_blocks();
         let mut l = ModelLoader::new(model);
         let mut out = Vec::new();
         l.set_requests(&wanted);
