@@ -159,7 +159,7 @@ pub struct ExportSummary {
     pub texel_ratio: f64,
     pub tiles: usize,
     pub trees: usize,
-    /// Bytes of everything written, and by kind.
+    /// Bytes of everything written (this report, `atlastree-export.json`, included), and by kind.
     pub total_bytes: u64,
     pub geometry_bytes: u64,
     /// Of `geometry_bytes`: the second index list per leaf (by original texture).
@@ -213,6 +213,16 @@ pub fn export_3dtiles(
     // not a file. `exp/.` is `exp` (the components drop the trailing `.`; `remove_dir_all("exp/.")`
     // emptied the old export and then failed).
     let out: PathBuf = out.components().collect();
+    // A link is written through, as `build -o` does: the folder it names is replaced, the link kept (it
+    // was replaced by a new folder and the linked export left stale; fault hunt, session 28).
+    let out = crate::util::follow_output_links(&out).map_err(|e| ExportError::BadOutput {
+        dir: out.clone(),
+        why: if e.kind() == std::io::ErrorKind::InvalidInput {
+            "is a symbolic link that is not followed (a loop, or another user's in a shared folder)"
+        } else {
+            "is a symbolic link that cannot be read"
+        },
+    })?;
     let out = out.as_path();
     let name = match (out.file_name(), out.components().next_back()) {
         (Some(n), Some(std::path::Component::Normal(_))) => n.to_string_lossy().into_owned(),
@@ -425,11 +435,22 @@ fn write_tileset(
     summary.tiles = summary.tile_list.len();
     summary.levels = level_summaries(&summary.tile_list);
     summary.images = count_images(&summary.tile_list);
-    summary.total_bytes = summary.geometry_bytes
+    let written = summary.geometry_bytes
         + summary.image_bytes
         + summary.gltf_bytes
         + summary.tileset_json_bytes;
-    let report = serde_json::to_string_pretty(&summary).unwrap_or_default();
+    // The report counts itself (it was left out: the total fell short of the folder; fault hunt,
+    // session 28): its length depends on the digits of the total, so settle the two (a few rounds).
+    let mut report = String::new();
+    for _ in 0..8 {
+        summary.total_bytes = written + report.len() as u64;
+        let again = serde_json::to_string_pretty(&summary).unwrap_or_default();
+        let settled = again.len() == report.len();
+        report = again;
+        if settled {
+            break;
+        }
+    }
     write_file(&dir.join("atlastree-export.json"), report.as_bytes())?;
     Ok(summary)
 }
@@ -437,7 +458,9 @@ fn write_tileset(
 /// Tiles, unique images and their bytes, glTF bytes and draw calls per level (`"orig"`: the original
 /// tiles below the leaves).
 fn level_summaries(tiles: &[TileSummary]) -> BTreeMap<String, LevelSummary> {
-    let mut levels: BTreeMap<String, (LevelSummary, Vec<&ImageSummary>)> = BTreeMap::new();
+    // Per level: its summary, and its images with their trees.
+    type Images<'a> = Vec<(usize, &'a ImageSummary)>;
+    let mut levels: BTreeMap<String, (LevelSummary, Images<'_>)> = BTreeMap::new();
     for t in tiles {
         let key = if t.source == "original" {
             "orig".to_string()
@@ -449,13 +472,15 @@ fn level_summaries(tiles: &[TileSummary]) -> BTreeMap<String, LevelSummary> {
         e.gltf_bytes += t.gltf_bytes;
         e.draw_calls += t.draw_calls;
         e.max_draw_calls = e.max_draw_calls.max(t.draw_calls);
-        imgs.extend(&t.images);
+        imgs.extend(t.images.iter().map(|i| (t.tree, i)));
     }
     levels
         .into_iter()
         .map(|(k, (mut e, mut imgs))| {
-            imgs.sort_unstable_by(|a, b| a.uri.cmp(&b.uri));
-            imgs.dedup_by(|a, b| a.uri == b.uri);
+            // A URI is relative to its tree's folder: `img/n0-avg.png` of tree 0 and of tree 1 are two files.
+            imgs.sort_unstable_by(|a, b| (a.0, &a.1.uri).cmp(&(b.0, &b.1.uri)));
+            imgs.dedup_by(|a, b| a.0 == b.0 && a.1.uri == b.1.uri);
+            let mut imgs: Vec<&ImageSummary> = imgs.into_iter().map(|(_, i)| i).collect();
             // Image files: an embedded image's bytes are in its tile's glTF bytes (base64).
             imgs.retain(|i| !i.embedded);
             e.images = imgs.len();
@@ -465,10 +490,12 @@ fn level_summaries(tiles: &[TileSummary]) -> BTreeMap<String, LevelSummary> {
         .collect()
 }
 
+/// Image files written: URIs are relative to their tree's folder, so counted per tree (tree 0's and tree
+/// 1's `img/n0-avg.png` were counted once; fault hunt, session 28).
 fn count_images(tiles: &[TileSummary]) -> usize {
-    let mut uris: Vec<&str> = tiles
+    let mut uris: Vec<(usize, &str)> = tiles
         .iter()
-        .flat_map(|t| (t.images.iter().filter(|i| !i.embedded)).map(|i| i.uri.as_str()))
+        .flat_map(|t| (t.images.iter().filter(|i| !i.embedded)).map(|i| (t.tree, i.uri.as_str())))
         .collect();
     uris.sort_unstable();
     uris.dedup();

@@ -609,6 +609,32 @@ fn force_replaces_dir_dot_and_never_the_folder_of_the_input() {
     assert!(input.is_file() && out.join("tileset.json").is_file());
 }
 
+/// `-o LINK --force` replaces the export the link names and keeps the link (the link was replaced by a
+/// new folder, the linked export left stale; fault hunt, session 28).
+#[cfg(unix)]
+#[test]
+fn force_through_a_link_replaces_the_linked_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let forced = ExportOptions {
+        force: true,
+        ..ExportOptions::default()
+    };
+    let file = TreeFile::open(&city().1).unwrap();
+    let real = dir.path().join("store/tiles");
+    std::fs::create_dir_all(&real).unwrap();
+    std::fs::write(real.join("old.txt"), b"old").unwrap();
+    let link = dir.path().join("current");
+    std::os::unix::fs::symlink("store/tiles", &link).unwrap();
+    export_3dtiles(&file, &link, &forced, NO_PROGRESS).unwrap();
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(real.join("tileset.json").is_file() && !real.join("old.txt").exists());
+}
+
 /// The same scene at the origin and at UTM-size coordinates exports the same contents byte for byte (every
 /// `.gltf` and `.bin`: positions relative to the leaf, leaves placed relative to the tree origin), the
 /// same boxes relative to the tree origin (within 1e-6 m), and tree transforms that differ by exactly the
