@@ -110,8 +110,23 @@ pub(crate) fn init_tracing() {
         .try_init();
 }
 
+/// The most threads `RAYON_NUM_THREADS` may ask for: 99,999 aborted inside the thread pool's start (a
+/// stack guard page it could not map) or ran on for minutes before the memory check could refuse it
+/// (fault hunt, session 28).
+const MAX_RAYON_THREADS: usize = 1024;
+
 pub(crate) fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
+    if let Some(n) = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .filter(|&n| n > MAX_RAYON_THREADS)
+    {
+        anyhow::bail!(
+            "RAYON_NUM_THREADS={n}: more worker threads than this tool starts (at most \
+             {MAX_RAYON_THREADS}; unset it for one a core)"
+        );
+    }
     if !matches!(cli.command, Command::Serve(_)) {
         // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process with 130 and no temp file
         // left (a paging file's is its whole length, reserved up front). `serve` handles Ctrl-C itself.

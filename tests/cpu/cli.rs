@@ -39,6 +39,19 @@ fn build_json(out: &std::path::Path, args: &[&str]) -> serde_json::Value {
         .arg(scene())))
 }
 
+/// An absurd `RAYON_NUM_THREADS` is refused before any work, with the limit (99,999 aborted in the
+/// thread pool's start).
+#[test]
+fn an_absurd_thread_count_is_refused() {
+    let out = run(bin()
+        .env("RAYON_NUM_THREADS", "99999")
+        .arg("scene-info")
+        .arg(scene()));
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("at most 1024"), "{stderr}");
+}
+
 #[test]
 fn scene_info_reports_the_default_scene() {
     let v = json(&run(bin().arg("scene-info").arg(scene()).arg("--json")));
