@@ -6,7 +6,7 @@ use atlastree::gpu::{GpuContext, GpuOptions};
 use atlastree::preprocess::BuildOptions;
 use atlastree::render::reference::Reference;
 use atlastree::sweep::output::write_outputs;
-use atlastree::sweep::summary::{PSNR_TOLERANCE_DB, recommend};
+use atlastree::sweep::summary::{MEASURED_NOTHING, recommendation};
 use atlastree::sweep::{Grid, Plan, SweepOptions, SweepProgress, run_sweep, sample_path};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -250,13 +250,9 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     // report says so too, and the JSON has `"measured": false` and no recommendation.
     let measured = !data.measures_nothing();
     if !measured {
-        eprintln!(
-            "warning: no frame of the path covers any pixel of the scene (does it look at it?): PSNR and \
-             SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and no default is \
-             recommended"
-        );
+        eprintln!("warning: {MEASURED_NOTHING}");
     }
-    let rec = recommend(&rows, PSNR_TOLERANCE_DB).filter(|_| measured);
+    let rec = recommendation(&data, &rows);
     if cfg.json {
         let out = serde_json::json!({
             "measured": measured,

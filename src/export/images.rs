@@ -87,19 +87,9 @@ pub(super) fn atlas_level0(
     level0(&bytes, block, format, size, size, 0)
 }
 
-/// Mip 0 of the `w × h` original at byte `offset` of `bytes`, block `block`'s verified bytes (images of
-/// one block lie back to back, each a full chain), decoded to RGBA8.
-pub(super) fn original_level0(
-    bytes: &[u8],
-    block: BlockId,
-    format: TexFormat,
-    [w, h]: [u32; 2],
-    offset: u64,
-) -> Result<RgbaImage, StoreError> {
-    level0(bytes, block, format, w, h, offset)
-}
-
-fn level0(
+/// Mip 0 of the `w × h` image at byte `offset` of `bytes`, block `block`'s verified bytes (an atlas at
+/// 0; the originals of one block lie back to back, each a full chain), decoded to RGBA8.
+pub(super) fn level0(
     bytes: &[u8],
     block: BlockId,
     format: TexFormat,

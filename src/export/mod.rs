@@ -571,7 +571,8 @@ fn prepare_tree<'a>(
             slots
                 .par_iter()
                 .map(|&(slot, ext, off)| {
-                    let img = images::original_level0(&bytes, block, tree.format, ext, off)?;
+                    let [w, h] = ext;
+                    let img = images::level0(&bytes, block, tree.format, w, h, off)?;
                     let uri = format!("img/o{b}-{slot}.{}", codec.extension());
                     let (image, _) = encode_image(&tdir, &uri, &img, codec, false)?;
                     Ok(((b, slot), image))

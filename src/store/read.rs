@@ -47,6 +47,16 @@ pub enum LoadMode {
     Tables,
 }
 
+/// `len` bytes in 8-byte-aligned storage (the records' alignment), filled by `fill`.
+fn aligned(
+    len: usize,
+    fill: impl FnOnce(&mut [u8]) -> std::io::Result<()>,
+) -> std::io::Result<Vec<u64>> {
+    let mut words = vec![0u64; len.div_ceil(8)];
+    fill(&mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len])?;
+    Ok(words)
+}
+
 /// The bytes of an open file.
 enum Backing {
     /// The map, and a handle on the file it maps for positional reads of blocks ([`TreeFile::block`]).
@@ -95,16 +105,17 @@ impl Backing {
             .ok_or(StoreError::LayoutOverflow { what: "sections" })?;
         let len = end.min(header.file_len).min(file_len);
         let len = usize::try_from(len).map_err(|_| StoreError::LayoutOverflow { what: "file" })?;
-        let mut words = vec![0u64; len.div_ceil(8)];
-        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
-        super::positional::read_exact_at(&file, buf, 0).map_err(io)?;
+        let words = aligned(len, |b| super::positional::read_exact_at(&file, b, 0)).map_err(io)?;
         Ok((Backing::Tables { words, len, file }, file_len))
     }
 
     /// An aligned copy of `bytes`.
     fn copy_of(bytes: &[u8]) -> Backing {
-        let mut words = vec![0u64; bytes.len().div_ceil(8)];
-        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
+        let words = aligned(bytes.len(), |b| {
+            b.copy_from_slice(bytes);
+            Ok(())
+        })
+        .unwrap_or_default(); // the fill cannot fail
         Backing::Owned {
             words,
             len: bytes.len(),
@@ -114,9 +125,7 @@ impl Backing {
     fn read(file: &mut File, path: &Path) -> Result<Backing, StoreError> {
         let len = file.metadata().map_err(|e| StoreError::io(path, e))?.len();
         let len = usize::try_from(len).map_err(|_| StoreError::LayoutOverflow { what: "file" })?;
-        let mut words = vec![0u64; len.div_ceil(8)];
-        let buf = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
-        file.read_exact(buf).map_err(|e| StoreError::io(path, e))?;
+        let words = aligned(len, |b| file.read_exact(b)).map_err(|e| StoreError::io(path, e))?;
         Ok(Backing::Owned { words, len })
     }
 

@@ -141,6 +141,17 @@ pub struct Recommendation {
     pub fastest_build: usize,
 }
 
+/// What a sweep whose path covers no pixel says (report, terminal).
+pub const MEASURED_NOTHING: &str = "no frame of the path covers any pixel of the scene (does it look at \
+     it?): PSNR and SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and no \
+     default is recommended";
+
+/// The sweep's recommendation: [`recommend`] at [`PSNR_TOLERANCE_DB`], `None` where the path measured
+/// nothing ([`SweepData::measures_nothing`]).
+pub fn recommendation(data: &SweepData, rows: &[VariantRow]) -> Option<Recommendation> {
+    recommend(rows, PSNR_TOLERANCE_DB).filter(|_| !data.measures_nothing())
+}
+
 /// [`Recommendation`] of `rows`; `None` when no row has a finite covered PSNR.
 pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendation> {
     let best = (0..rows.len())
@@ -372,15 +383,10 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
     }
     let nothing = data.measures_nothing();
     if nothing {
-        let _ = writeln!(
-            md,
-            "**Warning:** no frame of the path covers any pixel of the scene (does it look at it?): PSNR \
-             and SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and no \
-             default is recommended.\n"
-        );
+        let _ = writeln!(md, "**Warning:** {MEASURED_NOTHING}.\n");
     }
     let _ = writeln!(md, "## Recommended defaults\n");
-    match recommend(rows, PSNR_TOLERANCE_DB).filter(|_| !nothing) {
+    match recommendation(data, rows) {
         Some(rec) => {
             // One line per distinct variant, naming every role it fills.
             let tol = rec.tolerance_db;

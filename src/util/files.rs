@@ -43,7 +43,12 @@ impl LiveTemp {
     }
 
     fn register_as(path: &Path, if_empty: bool) -> LiveTemp {
-        live_temps().push((path.to_path_buf(), if_empty));
+        Self::register_in(&mut live_temps(), path, if_empty)
+    }
+
+    /// [`Self::register_as`] in a registry whose lock the caller holds.
+    fn register_in(live: &mut Vec<(PathBuf, bool)>, path: &Path, if_empty: bool) -> LiveTemp {
+        live.push((path.to_path_buf(), if_empty));
         LiveTemp(path.to_path_buf(), if_empty)
     }
 }
@@ -277,7 +282,7 @@ impl AtomicFile {
         let dir = parent_dir(target);
         // Created and registered under one hold of the registry's lock: an interrupt's
         // `remove_live_temps_and_exit` sees this temp, or ends the process before it is made.
-        let mut live = live_temps();
+        let mut registry = live_temps();
         let temp = builder.tempfile_in(dir).map_err(|e| {
             // tempfile's error names the random temp path (`at path ".x.tmp.123.AbC"`), which means
             // nothing to a user: say which folder refused, with the OS's own words.
@@ -290,9 +295,8 @@ impl AtomicFile {
         })?;
         // Best effort: where advisory locks are unsupported the pid alone guards the temp.
         let _ = temp.as_file().try_lock();
-        live.push((temp.path().to_path_buf(), false));
-        drop(live);
-        let live = LiveTemp(temp.path().to_path_buf(), false);
+        let live = LiveTemp::register_in(&mut registry, temp.path(), false);
+        drop(registry);
         Ok(AtomicFile {
             target: target.to_path_buf(),
             temp,

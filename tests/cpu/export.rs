@@ -523,10 +523,7 @@ fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
     assert!(e.to_string().contains("--force"), "{e}");
     assert_eq!(std::fs::read(out.join("keep.txt")).unwrap(), b"mine");
     // --force replaces it as a whole.
-    let forced = ExportOptions {
-        force: true,
-        ..ExportOptions::default()
-    };
+    let forced = forced();
     export_3dtiles(&file, &out, &forced, NO_PROGRESS).unwrap();
     assert!(!out.join("keep.txt").exists() && out.join("tileset.json").is_file());
     // Never into a file, nor into a path that names no directory of its own (`.`: replacing it would
@@ -575,15 +572,20 @@ fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
     assert!(!left.iter().any(|n| n.contains("partial")), "{left:?}");
 }
 
+/// The defaults with `--force`.
+fn forced() -> ExportOptions {
+    ExportOptions {
+        force: true,
+        ..ExportOptions::default()
+    }
+}
+
 /// `--force` onto `DIR/.` replaces DIR (it emptied DIR and then failed on `rmdir("DIR/.")`); onto a folder
 /// that holds the paging file being exported it is refused (it deleted the input).
 #[test]
 fn force_replaces_dir_dot_and_never_the_folder_of_the_input() {
     let dir = tempfile::tempdir().unwrap();
-    let forced = ExportOptions {
-        force: true,
-        ..ExportOptions::default()
-    };
+    let forced = forced();
     let file = TreeFile::open(&city().1).unwrap();
     let out = dir.path().join("tiles");
     export_3dtiles(&file, &out, &forced, NO_PROGRESS).unwrap();
@@ -614,10 +616,7 @@ fn force_replaces_dir_dot_and_never_the_folder_of_the_input() {
 #[test]
 fn force_through_a_link_replaces_the_linked_export() {
     let dir = tempfile::tempdir().unwrap();
-    let forced = ExportOptions {
-        force: true,
-        ..ExportOptions::default()
-    };
+    let forced = forced();
     let file = TreeFile::open(&city().1).unwrap();
     let real = dir.path().join("store/tiles");
     std::fs::create_dir_all(&real).unwrap();

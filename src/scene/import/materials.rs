@@ -430,6 +430,9 @@ pub(super) fn image_or_fallback(
         }
     };
     source.gltf_image = u32::try_from(img.index()).ok();
+    // Its name (its `name`, else its URI) reaches terminals: control characters escaped (the warnings
+    // above are escaped by `ImportReport::warn`).
+    source.name = crate::util::printable(&source.name).into_owned();
     source
 }
 

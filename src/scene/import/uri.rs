@@ -222,8 +222,7 @@ impl<'a> Buffers<'a> {
         Ok(())
     }
 
-    /// Reads an image's header and keeps its path (external file) or encoded bytes. The image's name
-    /// (its `name`, else its URI) has its control characters escaped ([`crate::util::printable`]).
+    /// Reads an image's header and keeps its path (external file) or encoded bytes.
     pub(super) fn load_image(
         &mut self,
         img: &gltf::Image,
@@ -242,7 +241,6 @@ impl<'a> Buffers<'a> {
                 let name = img
                     .name()
                     .map_or_else(|| format!("image {}", img.index()), str::to_string);
-                let name = crate::util::printable(&name).into_owned();
                 return (name, Err("neither uri nor bufferView".to_string()));
             }
         };
@@ -251,14 +249,12 @@ impl<'a> Buffers<'a> {
                 let name = img
                     .name()
                     .map_or_else(|| "data URI".to_string(), str::to_string);
-                let name = crate::util::printable(&name).into_owned();
                 let res = decode_data_uri(uri).and_then(|b| from_bytes(&name, b.into()));
                 (name, res)
             }
             ImgSrc::Uri(uri) => {
                 let rel = percent_decode(uri);
                 let name = img.name().map_or_else(|| rel.clone(), str::to_string);
-                let name = crate::util::printable(&name).into_owned();
                 let res = local_path(&self.base_dir, uri).and_then(|path| {
                     crate::util::open_regular(&path)
                         .map_err(|e| format!("{}: {e}", path.display()))
@@ -274,7 +270,6 @@ impl<'a> Buffers<'a> {
                 let name = img
                     .name()
                     .map_or_else(|| format!("buffer view {}", view.index()), str::to_string);
-                let name = crate::util::printable(&name).into_owned();
                 let res = self
                     .load_buffer(view.buffer().index())
                     .map_err(|e| e.to_string())
