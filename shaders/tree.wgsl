@@ -278,10 +278,11 @@ struct RectSample {
     mix_mean: f32,
 }
 
-// See render::wgsl::tree::CELLS, FLAT_SHARE, SHARPEN_MIN and REACH_SAFETY.
+// See render::wgsl::tree::CELLS, FLAT_SHARE, SHARPEN_MIN, POINT_REACH and REACH_SAFETY.
 const CELLS: f32 = 2.0;
 const FLAT_SHARE: f32 = 1.0;
 const SHARPEN_MIN: f32 = 0.25;
+const POINT_REACH: f32 = 1.5;
 const REACH_SAFETY: f32 = 0.99;
 // RectSampleF32::mix_mean.
 const MEAN_MIX_FROM: f32 = 0.5;
@@ -332,10 +333,12 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     // The filter is isotropic: the nearer outer edge, along either axis, bounds it.
     let d = min(q - r.outer_lo, r.outer_hi - q);
     let cap = footprint_cap(min(d.x, d.y), level_texels);
-    // A constant UV (zero footprint) reaches past nothing.
+    // A constant UV (zero footprint) reaches past nothing; nearer the outer edge than the drawn level's
+    // bilinear taps reach (1.5 of its texels: a palette cell's rect on a coarse level), it shows the mean.
     let k = select(min(1.0, cap / footprint), 1.0, footprint == 0.0);
-    if all(covered) || k < SHARPEN_MIN {
-        let kk = period / CELLS / footprint;
+    let point_mixed = footprint == 0.0 && min(d.x, d.y) < POINT_REACH * level_texels;
+    if all(covered) || k < SHARPEN_MIN || point_mixed {
+        let kk = select(period / CELLS / footprint, 0.0, footprint == 0.0);
         out.gx = out.gx * kk;
         out.gy = out.gy * kk;
         out.texel = centre;

@@ -510,6 +510,12 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
             t.capped_rects,
             t.clamped_leaves
         );
+        if s.palette.materials > 0 {
+            println!(
+                "    palettes: {} constant-UV texels of {} materials kept as rects of their own",
+                s.palette.cells, s.palette.materials
+            );
+        }
         if let Some(line) = capped_line(t.capped_rects, &t.capped_shortfall) {
             println!("    {line}");
         }

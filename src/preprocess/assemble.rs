@@ -525,6 +525,7 @@ mod tests {
         Prepared {
             infos: pieces.iter().copied().enumerate().map(tri).collect(),
             pieces,
+            palette: Default::default(),
         }
     }
 

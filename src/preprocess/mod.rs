@@ -26,6 +26,7 @@ pub mod memory;
 mod merge;
 pub mod originals;
 pub mod pack;
+pub mod palette;
 mod plan_forest;
 pub mod prepare;
 pub mod raster;
@@ -758,6 +759,14 @@ pub(super) fn build_report(
                  and every texture of such a leaf is shrunk with it, so the tree serves from far away only; \
                  keep textures capped to their source or raise --atlas-size",
                 r.kind, lr.oversized, lr.scale_min, r.root_min_distance
+            ));
+        }
+        for m in &r.sizing.palette.over_limit {
+            warnings.push(format!(
+                "{:?} tree: material {} ('{}') paints constant-UV triangles with {} distinct texels of its \
+                 image, more than the {} kept as rects of their own: they share one rect, so scaled leaves and \
+                 ancestor levels draw them mixed with neighbouring texels",
+                r.kind, m.material, m.name, m.cells, r.sizing.palette.limit
             ));
         }
         if lr.clamped > 0 {

@@ -135,10 +135,12 @@ fn plan_tree(
         split_limit: f64::from(params.atlas_size / 4),
         max_pieces: opts.max_pieces,
         wrap,
+        palette_cells: palette_cell_limit(params, opts.cap_to_source),
     };
     let prepared = prepare::prepare(scene, tris, &popts);
     let (infos, corners) = (&prepared.infos, prepared.corners(scene));
-    let sizing = prepare::analyze(infos);
+    let mut sizing = prepare::analyze(infos);
+    sizing.palette = prepared.palette.clone();
     progress.finish_stage();
     timings.push(&format!("sizing {kind:?}"), t);
 
@@ -166,6 +168,26 @@ fn plan_tree(
 
     let report = tree_report(scene, tris.len(), infos.len(), &lay, &asm, sizing);
     Ok((asm, report))
+}
+
+/// [`super::palette::cell_limit`] for this build's atlas and border: the outer size of a 1 × 1 rect.
+fn palette_cell_limit(params: &BuildParams, cap_to_source: bool) -> u32 {
+    use super::area::{AreaInput, AreaOptions, required_area};
+    let input = AreaInput {
+        w: 0.0,
+        h: 0.0,
+        uv_min: [0.0; 2],
+        uv_max: [0.0; 2],
+        source: [1, 1],
+    };
+    let aopts = AreaOptions {
+        border: params.border,
+        scale: 1.0,
+        cap_to_source,
+        max_side: params.atlas_size,
+    };
+    let atlas = u64::from(params.atlas_size).pow(2);
+    required_area(&input, &aopts).map_or(0, |a| super::palette::cell_limit(a.outer_texels(), atlas))
 }
 
 /// The report of one tree after assembly (its atlas PSNR is filled in by the pixel pass).

@@ -127,6 +127,9 @@ pub struct PrepareOptions {
     /// so no triangle is cut for its UV range and every triangle of a material shares one density class
     /// (one rect per material and node, at the largest density its triangles need).
     pub wrap: bool,
+    /// Most distinct source texels a material's constant-UV triangles may show and still get one rect per
+    /// texel ([`super::palette`]; 0: off).
+    pub palette_cells: u32,
 }
 
 /// Prepares the triangles `tris` (indices into `scene.triangles`) for a build. Parallel over triangles.
@@ -145,16 +148,18 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Prepared {
         // One piece a triangle (`tessellate` returns its input): an indexed map collects in place, where
         // the flat map below collects per task and then copies every record once more (~1 s and 4.4 GB
         // moved for the 24 M triangles of the all-tracks world tiled 2 × 2).
-        let infos = tris
+        let mut infos: Vec<TriInfo> = tris
             .par_iter()
             .map(|&ti| {
                 let s = SizedTriangle::of(scene, ti, opts);
                 s.piece(s.pos, s.uv, opts)
             })
             .collect();
+        let palette = super::palette::assign_classes(scene, &mut infos, opts.palette_cells);
         return Prepared {
             infos,
             pieces: Vec::new(),
+            palette,
         };
     }
     // Every record with its corners, a cut piece's marked (`piece` 0 for now); then only the cut
@@ -184,7 +189,12 @@ pub fn prepare(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> Prepared {
     }
     pieces.truncate(kept);
     pieces.shrink_to_fit();
-    Prepared { infos, pieces }
+    let palette = super::palette::assign_classes(scene, &mut infos, opts.palette_cells);
+    Prepared {
+        infos,
+        pieces,
+        palette,
+    }
 }
 
 /// The prepared triangles of a tree ([`prepare`]).
@@ -193,6 +203,8 @@ pub struct Prepared {
     /// The corners of the cut pieces (repeats baked), where [`TriInfo::piece`] says; a whole scene
     /// triangle's corners are the scene's.
     pub pieces: Vec<[DVec3; 3]>,
+    /// The constant-UV triangles given per-texel classes ([`super::palette`]).
+    pub palette: super::palette::PaletteReport,
 }
 
 impl Prepared {
@@ -342,6 +354,8 @@ pub struct PrepareReport {
     pub edge_fallback: u64,
     pub all_uv_equal: u64,
     pub world_degenerate: u64,
+    /// The constant-UV triangles' per-texel rects ([`super::palette`]; filled in by the caller).
+    pub palette: super::palette::PaletteReport,
 }
 
 pub fn analyze(infos: &[TriInfo]) -> PrepareReport {
@@ -428,6 +442,7 @@ mod tests {
             split_limit: 256.0,
             max_pieces: 4096,
             wrap: false,
+            palette_cells: 0,
         };
         let prepared = prepare(&scene, &[0, 1], &opts);
         let corners = prepared.corners(&scene);

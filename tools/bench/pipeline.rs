@@ -65,6 +65,7 @@ fn sizing(c: &mut Criterion) {
         split_limit: f64::from(params.atlas_size / 4),
         max_pieces: 4096,
         wrap: true,
+        palette_cells: 0,
     };
     let mut g = c.benchmark_group("sizing");
     g.throughput(Throughput::Elements(tris.len() as u64));

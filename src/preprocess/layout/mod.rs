@@ -405,6 +405,7 @@ mod tests {
             split_limit: 1e9,
             max_pieces: 1,
             wrap: true,
+            palette_cells: 0,
         };
         let prepared = prepare(&scene, &[0, 1, 2, 3], &popts);
         (scene, prepared)

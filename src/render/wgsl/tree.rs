@@ -112,6 +112,10 @@ wgsl_consts! {
     /// the gradients are sharpened by `k ≤ 1` to what the border protects; below this `k` the sharpened
     /// sample would alias, and the pixel gets the period's average instead.
     SHARPEN_MIN: f32 = 0.25;
+    /// Drawn texels around a constant-UV sample that its bilinear taps' box-filtered texels reach (one tap
+    /// each side, half a texel beyond): nearer the outer edge than this, the fragment shows the rect's
+    /// mean ([`RectMap::sample_f32`]).
+    POINT_REACH: f32 = 1.5;
     /// From this share of the rect's longer side on, a sampled fragment's footprint mixes the rect's mean
     /// into its sample, up to all of it where it covers the rect ([`RectSampleF32::mix_mean`]).
     MEAN_MIX_FROM: f32 = 0.5;
@@ -350,6 +354,10 @@ impl RectMap {
     ///   and its gradients name the mip where the inner rectangle's smaller side is [`CELLS`] texels
     ///   (the mean's stand-in before format 6, which read the middle of the period where the rect sat
     ///   off that mip's texel grid).
+    /// - A constant UV (zero footprint, [`crate::preprocess::palette`]) nearer the outer edge than
+    ///   [`POINT_REACH`] drawn texels is flat too: on a coarse level its rect (a palette cell's: 1 × 1
+    ///   inner, a uniform border) is smaller than the texels the sampler would mix; its mean is its colour.
+    ///   Its gradients stay zero.
     /// - A footprint that covers one axis only (the short side of an elongated rect, say 992 × 16 texels
     ///   seen from afar) averages that axis alone: the sample sits at the inner centre there; the other
     ///   axis keeps its detail.
@@ -397,8 +405,15 @@ impl RectMap {
         } else {
             (cap / footprint).min(1.0)
         };
-        if covered.all() || k < SHARPEN_MIN {
-            let kk = period / CELLS / footprint;
+        // Nearer the outer edge than the drawn level's bilinear taps reach, a constant UV (a palette
+        // cell's rect on a coarse level, crate::preprocess::palette) shows the rect's mean.
+        let point_mixed = footprint == 0.0 && d.min_element() < POINT_REACH * level_texels;
+        if covered.all() || k < SHARPEN_MIN || point_mixed {
+            let kk = if footprint == 0.0 {
+                0.0
+            } else {
+                period / CELLS / footprint
+            };
             return RectSampleF32 {
                 texel: centre,
                 gx: gx * kk,

@@ -12,4 +12,5 @@ mod huge_coords;
 mod image_ops;
 mod oversize;
 mod pack;
+mod palette;
 mod repeat_wrap;

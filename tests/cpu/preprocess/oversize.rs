@@ -152,6 +152,7 @@ fn thousands_of_triangles_with_one_midpoint_terminate() {
         split_limit: 16.0,
         max_pieces: 4096,
         wrap: true,
+        palette_cells: 0,
     };
     let infos = prepare(&scene, &(0..n).collect::<Vec<_>>(), &popts).infos;
     let mid = infos[0].mid;

@@ -1,0 +1,179 @@
+//! Palette cells: constant-UV triangles get one rect per source texel they show (§5.2.1's 1×1 area).
+//!
+//! A triangle whose three UVs are equal ([`SizeMethod::AllUvEqual`]) shows one colour at every distance:
+//! the source's level-0 sample at that UV (its UV derivatives are zero, so the original texture is never
+//! minified). Game levels paint whole models this way from a small palette texture, a few dozen cells
+//! used by thousands of triangles. Kept in one rect per (material, node) — the used part of the palette
+//! at its source resolution — each such triangle read a neighbourhood of cells wherever the rect had
+//! fewer texels than its source: in a leaf scaled to fit (`scale < 1`) and in every ancestor (each level
+//! halves it), so it drew a mix of neighbouring palette colours with no warning (session 28's hunt: 17–28
+//! dB in a leaf at scale 0.25, 12–14 dB from the root, against 59 dB at scale 1).
+//!
+//! Here every such triangle of a material that uses at most `limit` distinct cells gets a density class
+//! of its own cell ([`TriInfo::class`] = [`POINT_CLASS`] + 1 + the cell's rank among the material's), so
+//! the layout gives it a rect whose inner 1 × 1 texel is that cell and whose border repeats it: uniform,
+//! so no leaf scale changes it, the halved levels above keep it while the rect spans a few of their
+//! texels, and beyond that the shader shows the rect's mean, the same colour (`rect_texel` in
+//! `shaders/tree.wgsl`: a zero footprint nearer the outer edge than its filter reaches). A material past
+//! the limit keeps the one rect and is counted ([`PaletteReport::over_limit`]); the build warns.
+
+use super::prepare::{POINT_CLASS, TriInfo};
+use crate::ids::MaterialId;
+use crate::model::sizing::SizeMethod;
+use crate::scene::{Scene, Wrap};
+use glam::DVec2;
+
+/// Most cells of one material kept as their own rects, whatever the atlas (see [`cell_limit`]).
+pub const MAX_CELLS: u32 = 256;
+
+/// The most distinct cells of one material given rects of their own, for rects of `cell_texels` outer
+/// texels (a 1 × 1 inner rect with its border) in atlases of `atlas_texels`: [`MAX_CELLS`], and at most
+/// an eighth of an atlas for one material's cells, so a node holding a palette still fits others.
+pub fn cell_limit(cell_texels: u64, atlas_texels: u64) -> u32 {
+    let by_area = atlas_texels / 8 / cell_texels.max(1);
+    by_area.min(u64::from(MAX_CELLS)) as u32
+}
+
+/// What [`assign_classes`] did, for the build report.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PaletteReport {
+    /// Materials whose constant-UV triangles got per-cell rects.
+    pub materials: u64,
+    /// Distinct cells of those materials (rects per node that holds them all).
+    pub cells: u64,
+    /// Materials past the limit: their constant-UV triangles share one rect, and scaled leaves and
+    /// ancestors draw them averaged with neighbouring cells.
+    pub over_limit: Vec<OverLimit>,
+    /// The limit applied ([`cell_limit`]; 0: off).
+    pub limit: u32,
+}
+
+/// A material whose constant-UV triangles show more distinct texels than [`cell_limit`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct OverLimit {
+    pub material: u32,
+    /// The material's name, escaped for a terminal ([`crate::util::printable`]).
+    pub name: String,
+    /// Distinct cells its constant-UV triangles show.
+    pub cells: u64,
+}
+
+/// The source texel a constant UV `uv` (period-shifted, [`super::prepare::period_shift`]) shows, as a
+/// key: per axis the cell index in `[0, n)` on repeat and clamp-to-edge (clamped), `[0, 2n)` on mirrored
+/// repeat (the shifted UV lies in `[0, 2)`). `None` for a non-finite UV.
+pub fn cell_key(uv: DVec2, source: [u32; 2], wrap: [Wrap; 2]) -> Option<u64> {
+    if !uv.is_finite() {
+        return None;
+    }
+    let axis = |u: f64, n: u32, w: Wrap| {
+        let n = u64::from(n.max(1));
+        let span = if w == Wrap::MirroredRepeat { 2 } else { 1 };
+        let cells = n * span;
+        let c = (u * n as f64).floor();
+        // Also clamps a clamp-to-edge UV outside [0, 1] onto its edge cell.
+        (c.max(0.0) as u64).min(cells - 1)
+    };
+    let (w, h) = (source[0], source[1]);
+    let x = axis(uv.x, w, wrap[0]);
+    let y = axis(uv.y, h, wrap[1]);
+    // Row stride of the widest axis range (2w on mirrored repeat).
+    Some(y * 2 * u64::from(w.max(1)) + x)
+}
+
+/// Gives every constant-UV record of a material with at most `limit` distinct cells the class of its
+/// cell (see the module docs); `limit` 0 leaves every class as it is. Deterministic: the ranks are
+/// those of the sorted cells, whatever the thread count.
+pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> PaletteReport {
+    use rayon::prelude::*;
+    let mut report = PaletteReport {
+        limit,
+        ..PaletteReport::default()
+    };
+    if limit == 0 {
+        return report;
+    }
+    let key = |t: &TriInfo| -> Option<u64> {
+        if t.size.method != SizeMethod::AllUvEqual {
+            return None;
+        }
+        let mat = scene.materials.get(t.material.idx())?;
+        let img = scene.images.get(mat.image.idx())?;
+        cell_key(t.uv[0], [img.width, img.height], mat.wrap)
+    };
+    let mut pairs: Vec<(MaterialId, u64)> = infos
+        .par_iter()
+        .filter_map(|t| key(t).map(|c| (t.material, c)))
+        .collect();
+    if pairs.is_empty() {
+        return report;
+    }
+    pairs.par_sort_unstable();
+    pairs.dedup();
+    // Per material (by index) its sorted cells, where within the limit.
+    let mut cells: Vec<Option<Vec<u64>>> = vec![None; scene.materials.len()];
+    for run in pairs.chunk_by(|a, b| a.0 == b.0) {
+        let (mat, n) = (run[0].0, run.len() as u64);
+        if n > u64::from(limit) {
+            let name = scene
+                .materials
+                .get(mat.idx())
+                .map_or("", |m| m.name.as_str());
+            report.over_limit.push(OverLimit {
+                material: mat.0,
+                name: crate::util::printable(name).into_owned(),
+                cells: n,
+            });
+            continue;
+        }
+        report.materials += 1;
+        report.cells += n;
+        if let Some(slot) = cells.get_mut(mat.idx()) {
+            *slot = Some(run.iter().map(|p| p.1).collect());
+        }
+    }
+    infos.par_iter_mut().for_each(|t| {
+        let Some(Some(of_mat)) = cells.get(t.material.idx()) else {
+            return;
+        };
+        if let Some(rank) = key(t).and_then(|c| of_mat.binary_search(&c).ok()) {
+            // rank < limit ≤ MAX_CELLS: far from the density classes (about −1100 ..= 1100).
+            t.class = POINT_CLASS + 1 + rank as i32;
+        }
+    });
+    report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cell_keys_name_the_texel_a_constant_uv_shows() {
+        let rep = [Wrap::Repeat; 2];
+        let k = |u: f64, v: f64, wrap| cell_key(DVec2::new(u, v), [16, 8], wrap);
+        // Texel centres and anywhere inside a texel: the same cell.
+        assert_eq!(k(0.5 / 16.0, 0.5 / 8.0, rep), Some(0));
+        assert_eq!(k(0.99 / 16.0, 0.01 / 8.0, rep), Some(0));
+        assert_eq!(k(3.5 / 16.0, 2.5 / 8.0, rep), Some(2 * 32 + 3));
+        // The last cell, and a UV of exactly 1 (a period shift's upper end) on it too.
+        assert_eq!(k(15.5 / 16.0, 7.5 / 8.0, rep), Some(7 * 32 + 15));
+        assert_eq!(k(1.0, 1.0, rep), Some(7 * 32 + 15));
+        // Clamp-to-edge: outside [0, 1] the edge cells.
+        let clamp = [Wrap::ClampToEdge; 2];
+        assert_eq!(k(-3.0, 5.0, clamp), Some(7 * 32));
+        // Mirrored repeat: the second period has cells of its own.
+        let mirror = [Wrap::MirroredRepeat; 2];
+        assert_eq!(k(1.5 / 16.0 + 1.0, 0.5 / 8.0, mirror), Some(17));
+        assert_eq!(k(f64::NAN, 0.0, rep), None);
+    }
+
+    #[test]
+    fn the_limit_leaves_an_eighth_of_an_atlas() {
+        // Border 8: a 1 × 1 inner rect is 20 × 20 outer.
+        assert_eq!(cell_limit(400, 1024 * 1024), 256);
+        assert_eq!(cell_limit(400, 512 * 512), 81);
+        assert_eq!(cell_limit(400, 64 * 64), 1);
+        assert_eq!(cell_limit(400, 32 * 32), 0);
+        assert_eq!(cell_limit(0, 32 * 32), 128);
+    }
+}

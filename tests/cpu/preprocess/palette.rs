@@ -1,0 +1,154 @@
+//! Palette textures (`preprocess::palette`): quads whose UVs all sit on one texel of a small palette,
+//! the way game levels paint whole models. Each cell a material's constant-UV triangles show gets a rect
+//! of its own: 1 × 1 inner, the cell's exact colour, in a leaf scaled far below its sources' resolution
+//! as at scale 1 (before: one rect of the used palette shrunk with the leaf, each texel a mix of 4 × 4
+//! cells at scale 1/4). Past the limit the build keeps one rect and warns, naming the material.
+
+use crate::built::*;
+use atlastree::ids::{BlockId, MaterialId};
+use atlastree::scene::synthetic::SceneBuilder;
+use atlastree::scene::{AlphaMode, Scene, UpAxis, Wrap};
+use glam::{DVec2, DVec3};
+
+/// The palette's colour of cell `(x, y)`: every cell differs from its neighbours by ≥ 40 levels.
+fn cell_colour(x: u32, y: u32) -> [u8; 4] {
+    [
+        (x * 97 + y * 13) as u8 % 200 + 40,
+        (y * 71 + x * 29) as u8 % 200 + 40,
+        ((x + 2 * y) % 3 * 100) as u8 + 20,
+        255,
+    ]
+}
+
+/// `cells` palette quads (1 m, each on one cell of a 16² REPEAT palette, the cell centre as its one UV)
+/// beside twelve 20 m ground quads of distinct 64² textures, more than one 256² atlas holds at their
+/// source resolution (d_min 5 m). With `max_depth` 0 the root is the only leaf and is scaled to fit.
+fn scene(cells: u32) -> (Scene, MaterialId) {
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let palette = b.image("palette", 16, 16, cell_colour);
+    let pm = b.material(palette, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    for i in 0..36 {
+        let img = b.pattern_image(&format!("ground{i}"), 64, i);
+        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let (x, z) = (f64::from(i % 6), f64::from(i / 6));
+        ground_quad(&mut b, [x, z], 0.9, 1.0, m);
+    }
+    for k in 0..cells {
+        let (cx, cy) = (k % 16, (k / 16 + 3 * k) % 16);
+        let uv = DVec2::new((f64::from(cx) + 0.5) / 16.0, (f64::from(cy) + 0.5) / 16.0);
+        let (x, z) = (0.25 * f64::from(k % 8), 6.0 + 0.25 * f64::from(k / 8));
+        let c = [(x, z), (x + 0.2, z), (x + 0.2, z + 0.2), (x, z + 0.2)];
+        b.quad(c.map(|(x, z)| DVec3::new(x, 0.0, z)), uv, uv, pm);
+    }
+    (b.build(), pm)
+}
+
+/// Every stored palette triangle: its rect's inner is 1 × 1, holds the cell's colour in the leaf atlas
+/// (level 0) and as the rect's mean. Returns `(palette triangles checked, smallest leaf scale)`.
+fn check_cells(built: &Built, pm: MaterialId) -> usize {
+    let t = built.file.tree(0).expect("tree");
+    let size = built.file.to_params().atlas_size as usize;
+    let mut checked = 0;
+    for leaf in t.leaves {
+        let rects = t.leaf_rects(leaf);
+        let atlas = built
+            .file
+            .block(BlockId(t.nodes[leaf.node as usize].atlas_block))
+            .expect("leaf atlas");
+        for k in 0..leaf.index_count as usize / 3 {
+            let (_, v) = leaf_triangle(&t, leaf.origin, leaf.first_index as usize / 3 + k);
+            let r = rects[v[0].rect as usize];
+            if r.material != pm.0 {
+                continue;
+            }
+            assert!(v.iter().all(|w| w.rect == v[0].rect), "one rect a triangle");
+            assert_eq!(&r.inner[2..], &[1, 1], "a cell's rect: {r:?}");
+            let uv = v[0].orig_uv;
+            let want = cell_colour((uv[0] * 16.0) as u32, (uv[1] * 16.0) as u32);
+            let i = (r.inner[1] as usize * size + r.inner[0] as usize) * 4;
+            let got = &atlas[i..i + 4];
+            let close = |a: &[u8], b: &[u8; 4]| a.iter().zip(b).all(|(&x, &y)| x.abs_diff(y) <= 1);
+            assert!(
+                close(got, &want),
+                "cell at {uv:?}: stored {got:?}, palette {want:?}"
+            );
+            assert!(
+                close(&r.mean, &want),
+                "cell at {uv:?}: mean {:?}, palette {want:?}",
+                r.mean
+            );
+            checked += 1;
+        }
+    }
+    checked
+}
+
+/// The defaults but 256² atlases with the paper's border: 36 distinct 64² textures within 6 m make leaves at their sources'
+/// resolution that do not fit, scaled ([`atlastree::preprocess::layout`]'s `scaled_leaf`).
+fn opts() -> atlastree::preprocess::BuildOptions {
+    atlastree::preprocess::BuildOptions {
+        atlas_size: 256,
+        // The paper's border: 1 × 1 rects of 20², at most 20 of a material in a 256² atlas.
+        border: 8,
+        max_file_bytes: 256 << 20,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn palette_cells_keep_their_colours_in_a_scaled_leaf() {
+    let (scene, pm) = scene(12);
+    let opts = opts();
+    let built = build_ok(&scene, &opts);
+    assert_sound(&built.file);
+    let tree = &built.report.trees[0];
+    assert_eq!(tree.leaves, 1);
+    assert!(
+        tree.leaf_reasons.scale_min < 0.5,
+        "the root is scaled: {:?}",
+        tree.leaf_reasons
+    );
+    let p = &tree.sizing.palette;
+    assert_eq!((p.materials, p.cells, p.limit), (1, 12, 20));
+    assert!(p.over_limit.is_empty());
+    assert_eq!(check_cells(&built, pm), 24, "12 quads, 2 triangles each");
+}
+
+#[test]
+fn palette_cells_keep_their_colours_in_a_tree() {
+    let (scene, pm) = scene(12);
+    let built = build_ok(&scene, &tiny_opts(256, 5.0));
+    assert_sound(&built.file);
+    assert!(
+        built.report.trees[0].depth >= 2,
+        "{:?}",
+        built.report.trees[0]
+    );
+    assert_eq!(check_cells(&built, pm), 24);
+}
+
+#[test]
+fn a_palette_past_the_limit_is_one_rect_and_a_warning() {
+    let (scene, pm) = scene(24);
+    let opts = opts();
+    let built = build_ok(&scene, &opts);
+    assert_sound(&built.file);
+    let p = &built.report.trees[0].sizing.palette;
+    assert_eq!((p.materials, p.cells), (0, 0));
+    assert_eq!(p.over_limit.len(), 1);
+    assert_eq!(
+        (p.over_limit[0].material, p.over_limit[0].cells),
+        (pm.0, 24)
+    );
+    let warned = built
+        .report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("24 distinct texels") && w.contains(&format!("material {}", pm.0)))
+        .count();
+    assert_eq!(warned, 1, "{:#?}", built.report.warnings);
+    // One rect holds the palette's used cells, shrunk with the scaled leaf.
+    let t = built.file.tree(0).unwrap();
+    let rects = t.leaf_rects(&t.leaves[0]);
+    assert_eq!(rects.iter().filter(|r| r.material == pm.0).count(), 1);
+}
