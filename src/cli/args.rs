@@ -282,15 +282,35 @@ impl Paging {
     }
 }
 
-/// Whether `s` is an http(s) URL.
+/// Whether `s` is an http(s) URL (the scheme in any case, as RFC 3986 §3.1 allows).
 pub(super) fn is_url(s: &str) -> bool {
-    s.starts_with("http://") || s.starts_with("https://")
+    url_scheme(s).is_some_and(|scheme| {
+        scheme.eq_ignore_ascii_case("http") || scheme.eq_ignore_ascii_case("https")
+    })
+}
+
+/// `u` with its scheme in lower case (`HTTP://host/f` → `http://host/f`), as requests and messages use it.
+pub(super) fn normalised_url(u: &str) -> String {
+    match url_scheme(u) {
+        Some(scheme) => format!("{}{}", scheme.to_ascii_lowercase(), &u[scheme.len()..]),
+        None => u.to_string(),
+    }
+}
+
+/// The scheme of `s` where it starts like a URL (`scheme://`, the scheme letters, digits, `+`, `-`, `.`
+/// after a letter), else `None`.
+pub(super) fn url_scheme(s: &str) -> Option<&str> {
+    let (scheme, _) = s.split_once("://")?;
+    let mut chars = scheme.chars();
+    (chars.next()?.is_ascii_alphabetic()
+        && chars.all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.')))
+    .then_some(scheme)
 }
 
 /// Refuses, before any request, an https URL where this build has no TLS (the `https` cargo feature):
 /// every attempt would fail the same way.
 pub(super) fn check_url(u: &str) -> anyhow::Result<()> {
-    if !cfg!(feature = "https") && u.starts_with("https://") {
+    if !cfg!(feature = "https") && url_scheme(u).is_some_and(|s| s.eq_ignore_ascii_case("https")) {
         bail!(
             "{u}: this atlastree was built without TLS (cargo feature `https`), so it pages over plain \
              http:// only; serve the file with `atlastree serve` (http) or rebuild with `--features https`"
@@ -325,7 +345,7 @@ impl PagingArgs {
             None | Some("file") => SourceArg::File,
             Some(u) if is_url(u) => {
                 check_url(u)?;
-                SourceArg::Url(u.to_string())
+                SourceArg::Url(normalised_url(u))
             }
             Some(other) => bail!("unknown --source {other:?}: expected `file` or an http(s) URL"),
         };
@@ -378,7 +398,7 @@ pub(crate) struct BuildParamsArgs {
     /// a build that cannot fit (the plan holds ~250 bytes per triangle, the rasteriser a few atlases per
     /// thread, the cache at least the largest image per thread) is refused before any work, with the
     /// number it needs. Default: half of the memory this process may use (the machine's, or its cgroup's
-    /// limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's limit).
+    /// limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's limit; or `ulimit -v`).
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
     pub max_memory: Option<MemoryArg>,
     /// Split a triangle too big for one atlas (a ground quad with a tile repeated hundreds of times) into at
@@ -476,6 +496,15 @@ pub(super) fn parse_list<T>(
 mod tests {
     use super::*;
     use clap::Parser;
+
+    #[test]
+    fn url_schemes_are_read_in_any_case() {
+        assert!(is_url("http://h/f") && is_url("HTTP://h/f") && is_url("Https://h/f"));
+        assert!(!is_url("ftp://h/f") && !is_url("city.atlastree") && !is_url("://h"));
+        assert_eq!(url_scheme("ftp://h/f"), Some("ftp"));
+        assert_eq!(url_scheme("a b://h"), None);
+        assert_eq!(normalised_url("HTTP://Host/F"), "http://Host/F");
+    }
 
     #[derive(Parser)]
     struct Build {

@@ -226,8 +226,24 @@ fn shard_step(arg: Option<&str>) -> anyhow::Result<ShardStep> {
         None => Ok(ShardStep::Whole),
         Some("plan") => Ok(ShardStep::Plan),
         Some("auto") => {
-            let (spec, scheduler) = shard_from_env(&|k| std::env::var(k).ok())?;
+            // A value that is not Unicode is read lossily (U+FFFD), so it is refused as a bad value,
+            // not taken for an unset variable.
+            let get = |k: &str| {
+                std::env::var_os(k).map(|v| {
+                    v.into_string()
+                        .unwrap_or_else(|v| v.to_string_lossy().into_owned())
+                })
+            };
+            let (spec, scheduler) = shard_from_env(&get)?;
             eprintln!("--shard auto: shard {spec} from the {scheduler} environment");
+            for (variable, value) in
+                atlastree::preprocess::shard::ignored_scheduler_variables(&get, scheduler)
+            {
+                eprintln!(
+                    "warning: --shard auto: {variable}={value:?} is set too and ignored (the {scheduler} \
+                     environment comes first)"
+                );
+            }
             Ok(ShardStep::Shard(spec))
         }
         Some(s) => Ok(ShardStep::Shard(s.parse::<ShardSpec>()?)),
@@ -254,7 +270,7 @@ fn over_budget(
     let source = if given {
         "--max-memory"
     } else {
-        "the default budget (half of this machine's or cgroup's memory)"
+        "the default budget (half of this machine's memory, or of its cgroup's or address-space limit)"
     };
     let pixels = if plan_step {
         ""

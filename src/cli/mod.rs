@@ -8,6 +8,7 @@ mod demo;
 mod export_cmd;
 mod inspect_cmd;
 mod merge_cmd;
+mod os_limits;
 mod progress;
 mod render_cmd;
 mod render_report;
@@ -107,6 +108,8 @@ pub(crate) fn init_tracing() {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        // Colour codes only on a terminal: a log redirected to a file stays plain text.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .try_init();
 }
 
@@ -117,6 +120,7 @@ const MAX_RAYON_THREADS: usize = 1024;
 
 pub(crate) fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
+    os_limits::prepare_process();
     if let Some(n) = std::env::var("RAYON_NUM_THREADS")
         .ok()
         .and_then(|v| v.trim().parse::<usize>().ok())
@@ -200,10 +204,19 @@ pub(crate) fn open_local(
 /// instead of "No such file or directory".
 pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Result<()> {
     let text = path.to_string_lossy();
-    if (text.starts_with("http://") || text.starts_with("https://")) && !path.exists() {
+    if path.exists() {
+        return Ok(());
+    }
+    if args::is_url(&text) {
         anyhow::bail!(
             "{text}: `atlastree {command}` reads a local paging file, not a URL (`atlastree render URL` pages \
              over HTTP; download the file for {command})"
+        );
+    }
+    if let Some(scheme) = args::url_scheme(&text) {
+        anyhow::bail!(
+            "{text}: unsupported URL scheme '{scheme}' (`atlastree render` pages over http:// and https://; \
+             other commands read a local file)"
         );
     }
     Ok(())

@@ -152,7 +152,7 @@ impl RenderArgs {
         let name = self.file.to_string_lossy();
         let tree = if is_url(&name) {
             check_url(&name)?;
-            TreeSource::Remote(name.into_owned())
+            TreeSource::Remote(super::args::normalised_url(&name))
         } else {
             TreeSource::Local(self.file.clone())
         };
@@ -166,7 +166,10 @@ impl RenderArgs {
         if let TreeSource::Remote(url) = &tree
             && self.paging.source.is_some()
         {
-            bail!("--source means nothing when FILE is a URL: blocks are paged from {url}");
+            bail!(
+                "--source means nothing when FILE is a URL: blocks are paged from {}",
+                atlastree::paging::redact_url(url)
+            );
         }
         let paging = if paged {
             Some(RenderPaging {
@@ -189,7 +192,10 @@ impl RenderArgs {
         // Why this run pages: a URL always does (its blocks come over HTTP), a local file with --capacity.
         let why_paged = match &tree {
             TreeSource::Remote(url) => {
-                format!("a tree read from {url} is always paged over HTTP; render a local copy")
+                format!(
+                    "a tree read from {} is always paged over HTTP; render a local copy",
+                    atlastree::paging::redact_url(url)
+                )
             }
             TreeSource::Local(_) => "not when paging (--capacity)".to_string(),
         };
@@ -217,11 +223,24 @@ impl RenderArgs {
                  {why_paged}"
             );
         }
+        let viewport = self.viewport.validate()?;
+        let window = atlastree::report::metrics::SSIM_WINDOW as u32;
+        if let Some(r) = self.reference
+            && (viewport.width < window || viewport.height < window)
+        {
+            bail!(
+                "--reference {} scores frames by SSIM, which needs at least {window}×{window} pixels (got \
+                 {}×{})",
+                r.name(),
+                viewport.width,
+                viewport.height
+            );
+        }
         Ok(RenderConfig {
             tree,
             path: self.path,
             out: self.out,
-            viewport: self.viewport.validate()?,
+            viewport,
             modes,
             frames: self.frames,
             every: self.every,
@@ -247,12 +266,14 @@ pub(super) type Measured = Vec<(Mode, Vec<FrameStats>)>;
 /// Runs a checked configuration; returns what it measured.
 pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     super::check_out_folder(&cfg.out)?;
+    // Until phase 4 replaces the earlier run's summary, a failure says that summary is not this run's.
+    let failed = |e: anyhow::Error| mark_earlier_summary_stale(&cfg.out, e);
     let http_options = cfg.paging.as_ref().map(|p| p.paging.http_options());
-    let (file, http) = open_tree(&cfg.tree, http_options.unwrap_or_default())?;
-    let cameras = sample_cameras(cfg, &file)?;
-    let ctx = GpuContext::new_headless(&GpuOptions::default())?;
+    let (file, http) = open_tree(&cfg.tree, http_options.unwrap_or_default()).map_err(failed)?;
+    let cameras = sample_cameras(cfg, &file).map_err(failed)?;
+    let ctx = GpuContext::new_headless(&GpuOptions::default()).map_err(|e| failed(e.into()))?;
     println!("adapter: {}", ctx.adapter_summary());
-    let (mut fl, http) = frame_loop(&ctx, &file, cfg, http)?;
+    let (mut fl, http) = frame_loop(&ctx, &file, cfg, http).map_err(failed)?;
     let mut runs = mode_runs(cfg, cameras.len())?;
     warm_up(&mut fl, cfg, &file, &cameras, &runs)?;
     fly(&mut fl, cfg, &file, &cameras, &mut runs)?;
@@ -273,8 +294,8 @@ fn open_tree(
 ) -> anyhow::Result<(TreeFile, Option<Arc<HttpSource>>)> {
     Ok(match tree {
         TreeSource::Remote(url) => {
-            let (tables, source) =
-                HttpSource::open(url, http).with_context(|| format!("opening {url}"))?;
+            let (tables, source) = HttpSource::open(url, http)
+                .with_context(|| format!("opening {}", atlastree::paging::redact_url(url)))?;
             (tables, Some(Arc::new(source)))
         }
         TreeSource::Local(path) => (
@@ -312,12 +333,13 @@ fn block_source(
         }
         SourceArg::Url(url) => {
             let (tables, http) = HttpSource::open(url, paging.http_options())
-                .with_context(|| format!("opening {url}"))?;
+                .with_context(|| format!("opening {}", atlastree::paging::redact_url(url)))?;
             if tables.header().file_len != file.header().file_len
                 || tables.blocks() != file.blocks()
             {
                 bail!(
-                    "{url} is not the same paging file as {} (block tables differ)",
+                    "{} is not the same paging file as {} (block tables differ)",
+                    atlastree::paging::redact_url(url),
                     file.path().display()
                 );
             }
@@ -473,6 +495,29 @@ fn clear_earlier_run(
         );
     }
     Ok(())
+}
+
+/// A run that failed before its own summary was begun ([`mode_runs`]) marks the earlier run's
+/// `summary.json` in `out`, if any, `"complete": false` with this run's error (`"failed"`): a finished
+/// earlier run's summary beside a failed run read as this run's result (fault hunt, session 29). Its
+/// frames stay. Returns `error`.
+fn mark_earlier_summary_stale(out: &std::path::Path, error: anyhow::Error) -> anyhow::Error {
+    let path = out.join("summary.json");
+    let earlier = std::fs::read(&path)
+        .ok()
+        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
+    if let Some(serde_json::Value::Object(mut summary)) = earlier {
+        summary.insert("complete".into(), false.into());
+        summary.insert("failed".into(), format!("{error:#}").into());
+        let text = serde_json::Value::Object(summary).to_string() + "\n";
+        if let Err(e) = atlastree::util::write_atomic(&path, text.as_bytes()) {
+            eprintln!(
+                "warning: could not mark {} as not this run's: {e}",
+                path.display()
+            );
+        }
+    }
+    error
 }
 
 /// Phase 4: one output directory per mode (the output directory itself for a single mode).

@@ -222,10 +222,14 @@ fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
 
 /// What the run's end says of the requests still unanswered at its last frame (`None`: there were
 /// none). A server that stopped responding holds them up to its timeout × attempts; they are abandoned
-/// at exit, not counted as failures. Nothing arrived all run and nothing failed: a dead source from the
-/// start. Nothing arrived in the last frames while loads failed there: a source that died mid-run (more
+/// at exit, not counted as failures. Nothing arrived and nothing failed over at least
+/// [`DEAD_AFTER_FRAMES`] frames: a dead source from the start (a shorter run may simply end before a
+/// healthy source's first answers are drawn: one frame over a local server said "dead"). Nothing arrived in the last frames while loads failed there: a source that died mid-run (more
 /// frames or a synchronous loader cannot help). Otherwise the run simply ended before a slow source
 /// answered (its latency × the requests per frame).
+/// Frames without an answer before a run calls its source unresponsive ([`unanswered_requests`]).
+const DEAD_AFTER_FRAMES: usize = 10;
+
 fn unanswered_requests(paged: &[&atlastree::plan::PagingFrame], failures: u32) -> Option<String> {
     let last = paged.last()?;
     let (in_flight, queued) = (last.session.in_flight, last.session.queued);
@@ -239,23 +243,25 @@ fn unanswered_requests(paged: &[&atlastree::plan::PagingFrame], failures: u32) -
         .take_while(|p| p.pager().loaded == 0)
         .collect();
     let quiet_failures: u32 = quiet.iter().map(|p| p.pager().failures).sum();
-    Some(if loaded == 0 && failures == 0 {
-        format!(
-            "warning: no block request was answered during the run ({in_flight} in flight, {queued} queued at \
+    Some(
+        if loaded == 0 && failures == 0 && paged.len() >= DEAD_AFTER_FRAMES {
+            format!(
+                "warning: no block request was answered during the run ({in_flight} in flight, {queued} queued at \
              the end): is the source responding?"
-        )
-    } else if quiet_failures > 0 {
-        format!(
-            "warning: the source stopped answering: nothing arrived in the last {} frames and {quiet_failures} \
+            )
+        } else if quiet_failures > 0 {
+            format!(
+                "warning: the source stopped answering: nothing arrived in the last {} frames and {quiet_failures} \
              loads failed there ({in_flight} requests in flight and {queued} queued at the end)",
-            quiet.len()
-        )
-    } else {
-        format!(
-            "note: the run ended with {in_flight} block requests in flight and {queued} queued (a source slower \
+                quiet.len()
+            )
+        } else {
+            format!(
+                "note: the run ended with {in_flight} block requests in flight and {queued} queued (a source slower \
              than the frames: more frames, or --loader-threads 0 to wait for each load, let them arrive)"
-        )
-    })
+            )
+        },
+    )
 }
 
 /// `stats.csv`: `frame`, the frame's counters and timings ([`atlastree::render::frame_columns`]) and, when paged,
@@ -391,8 +397,17 @@ mod tests {
                 .unwrap()
                 .starts_with("note: the run ended with 2 block requests")
         );
-        let dead = [frame(0, 0, 1), frame(0, 0, 2)];
+        let dead: Vec<PagingFrame> = (0..DEAD_AFTER_FRAMES as u32)
+            .map(|k| frame(0, 0, k + 1))
+            .collect();
         assert!(run(&dead).unwrap().contains("is the source responding?"));
+        // Shorter, the run may have ended before a healthy source's first answers: a note.
+        let short = [frame(0, 0, 1), frame(0, 0, 2)];
+        assert!(
+            run(&short)
+                .unwrap()
+                .starts_with("note: the run ended with 2 block requests")
+        );
         assert_eq!(run(&[frame(5, 0, 0)]), None);
     }
 }

@@ -70,6 +70,9 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         io_timeout: a.io_timeout,
         ..serve::ServeOptions::default()
     };
+    // Made before the server starts and its URL is printed: a handler that cannot start (out of file
+    // descriptors) is an error before anything is announced.
+    let signals = signal_runtime()?;
     let server = serve::spawn_with(&a.file, SocketAddr::new(a.bind, a.port), options)?;
     if a.json {
         let line = serde_json::json!({
@@ -89,7 +92,9 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         println!("press Ctrl-C to stop");
     }
     std::io::stdout().flush()?;
-    wait_for_ctrl_c()?;
+    signals
+        .block_on(tokio::signal::ctrl_c())
+        .context("waiting for Ctrl-C")?;
     server.shutdown();
     if !a.json {
         println!("stopped");
@@ -97,15 +102,12 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Blocks until SIGINT (Ctrl-C).
-fn wait_for_ctrl_c() -> anyhow::Result<()> {
-    let runtime = tokio::runtime::Builder::new_current_thread()
+/// The runtime that waits for SIGINT (Ctrl-C).
+fn signal_runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_current_thread()
         .enable_io()
         .build()
-        .context("starting the signal handler")?;
-    runtime
-        .block_on(tokio::signal::ctrl_c())
-        .context("waiting for Ctrl-C")
+        .context("starting the signal handler")
 }
 
 #[cfg(test)]

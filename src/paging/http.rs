@@ -18,4 +18,4 @@ mod client;
 pub(super) mod range;
 pub mod serve;
 
-pub use client::{HttpOptions, HttpSource, HttpStats};
+pub use client::{HttpOptions, HttpSource, HttpStats, redact_url};

@@ -30,7 +30,7 @@ mod usage;
 
 pub use blocks::{BlockItem, BlockMeta, BlockTable, BlockTableError};
 pub use budget::UploadBudget;
-pub use http::{HttpOptions, HttpSource, HttpStats, serve};
+pub use http::{HttpOptions, HttpSource, HttpStats, redact_url, serve};
 pub use loader::{ImmediateLoader, Loader, ThreadedLoader};
 pub use pager::{
     Applied, Arrival, Event, Pager, PagerError, PagerFrameStats, PagerOptions, PagerTotals,

@@ -37,6 +37,19 @@ pub enum MergeError {
         path: PathBuf,
         rebuild: String,
     },
+    /// The process ran out of file descriptors opening the shards (every shard is held open): a limit of
+    /// this machine, not a fault of the shard.
+    #[error(
+        "opening shard {shard} of {count} ({path}): {source}: the merge holds all {count} shards open; raise \
+         the open-files limit (ulimit -n, at least {count} plus a few) and merge again"
+    )]
+    TooManyOpen {
+        shard: u32,
+        count: u32,
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("shard {shard} of {count} ({path}) is unreadable or corrupt: {source}{rebuild}")]
     Corrupt {
         shard: u32,
@@ -374,6 +387,11 @@ struct ShardSet {
     argv: Option<Vec<String>>,
 }
 
+/// `EMFILE` / `ENFILE`: the process's or the system's open-files limit.
+fn is_out_of_descriptors(e: &std::io::Error) -> bool {
+    matches!(e.raw_os_error(), Some(23 | 24))
+}
+
 impl ShardSet {
     /// Finds and opens every shard of `out` (`count`, or the only count found beside it); fails on the
     /// first missing or unreadable one.
@@ -421,6 +439,16 @@ impl ShardSet {
             argv,
         };
         if let Some((shard, path, err)) = failures.into_iter().next() {
+            if let Some(ShardFileError::Io { source, .. }) = &err
+                && is_out_of_descriptors(source)
+            {
+                return Err(MergeError::TooManyOpen {
+                    shard,
+                    count,
+                    path,
+                    source: std::io::Error::new(source.kind(), source.to_string()),
+                });
+            }
             let rebuild = set.hint(shard);
             return Err(match err {
                 None => MergeError::Missing {

@@ -140,10 +140,15 @@ pub fn shard_from_env(
         let count = number(count_var, count, "a shard count")?;
         // `--array=1-4` numbers tasks 1..=4 with a count of 4: task 4 would be out of range and shard 0
         // never built. The array must be 0-(N-1).
+        let bound = |variable: &'static str| -> Result<Option<u32>, ShardSpecError> {
+            get(variable)
+                .map(|v| number(variable, v, "an array task number"))
+                .transpose()
+        };
         if scheduler == "Slurm"
             && let (Some(min), Some(max)) = (
-                get("SLURM_ARRAY_TASK_MIN").and_then(|v| v.trim().parse::<u32>().ok()),
-                get("SLURM_ARRAY_TASK_MAX").and_then(|v| v.trim().parse::<u32>().ok()),
+                bound("SLURM_ARRAY_TASK_MIN")?,
+                bound("SLURM_ARRAY_TASK_MAX")?,
             )
             && (min != 0 || max.checked_add(1) != Some(count))
         {
@@ -171,6 +176,44 @@ pub fn shard_from_env(
         return Ok((ShardSpec { index, count }, scheduler));
     }
     Err(ShardSpecError::NoScheduler)
+}
+
+/// The variables of the schedulers [`shard_from_env`] did not take its shard from (`chosen`) that are
+/// set anyway, as `(variable, value)`: two schedulers' environments at once (a Kubernetes job launched
+/// from a Slurm allocation, an `ATLASTREE_SHARD_COUNT` left beside a Slurm array) are said, not silently
+/// ignored.
+pub fn ignored_scheduler_variables(
+    get: &dyn Fn(&str) -> Option<String>,
+    chosen: &str,
+) -> Vec<(&'static str, String)> {
+    let by_scheduler: [(&str, &[&'static str]); 3] = [
+        ("Slurm", &["SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT"]),
+        (
+            "Kubernetes",
+            &["JOB_COMPLETION_INDEX", "ATLASTREE_SHARD_COUNT"],
+        ),
+        (
+            "AWS Batch",
+            &["AWS_BATCH_JOB_ARRAY_INDEX", "ATLASTREE_SHARD_COUNT"],
+        ),
+    ];
+    let used: Vec<&str> = by_scheduler
+        .iter()
+        .filter(|(s, _)| *s == chosen)
+        .flat_map(|(_, vars)| vars.iter().copied())
+        .collect();
+    let mut out: Vec<(&'static str, String)> = Vec::new();
+    for (_, vars) in by_scheduler {
+        for &v in vars {
+            if !used.contains(&v)
+                && !out.iter().any(|(seen, _)| *seen == v)
+                && let Some(value) = get(v)
+            {
+                out.push((v, value));
+            }
+        }
+    }
+    out
 }
 
 /// Where shard `spec` of the build of `out` writes: `OUT.shard-I-of-N`, beside `out`.
@@ -636,6 +679,42 @@ mod tests {
             shard_from_env(&env(&zero_based)),
             Ok((ShardSpec { index: 3, count: 4 }, "Slurm"))
         );
+        // An array bound that is not a number is refused, not skipped.
+        let mut bad_max = zero_based;
+        bad_max[3] = ("SLURM_ARRAY_TASK_MAX", "x");
+        assert!(matches!(
+            shard_from_env(&env(&bad_max)),
+            Err(ShardSpecError::BadVariable {
+                variable: "SLURM_ARRAY_TASK_MAX",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn another_schedulers_variables_are_named() {
+        let both = [
+            ("SLURM_ARRAY_TASK_ID", "1"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ("JOB_COMPLETION_INDEX", "2"),
+            ("ATLASTREE_SHARD_COUNT", "8"),
+        ];
+        assert_eq!(
+            shard_from_env(&env(&both)),
+            Ok((ShardSpec { index: 1, count: 4 }, "Slurm"))
+        );
+        assert_eq!(
+            ignored_scheduler_variables(&env(&both), "Slurm"),
+            vec![
+                ("JOB_COMPLETION_INDEX", "2".to_string()),
+                ("ATLASTREE_SHARD_COUNT", "8".to_string())
+            ]
+        );
+        let k8s = [
+            ("JOB_COMPLETION_INDEX", "2"),
+            ("ATLASTREE_SHARD_COUNT", "8"),
+        ];
+        assert!(ignored_scheduler_variables(&env(&k8s), "Kubernetes").is_empty());
     }
 
     #[test]

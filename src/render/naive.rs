@@ -90,11 +90,12 @@ impl Naive {
         } else {
             &plan.indices
         };
-        let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("naive indices"),
-            contents: bytemuck::cast_slice(indices),
-            usage: wgpu::BufferUsages::INDEX,
-        });
+        let index_buffer = super::resident::buffer(
+            ctx,
+            "naive indices",
+            bytemuck::cast_slice(indices),
+            wgpu::BufferUsages::INDEX,
+        )?;
         Ok(Naive {
             pipelines,
             group0,

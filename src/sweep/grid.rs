@@ -374,6 +374,14 @@ impl Grid {
                 self.frames, self.width, self.height
             ));
         }
+        let window = crate::report::metrics::SSIM_WINDOW as u32;
+        if self.width < window || self.height < window {
+            return bad(format!(
+                "size {}×{}: every variant's frames are scored by SSIM, which needs at least \
+                 {window}×{window} pixels",
+                self.width, self.height
+            ));
+        }
         if self.frames > MAX_FRAMES || self.width > MAX_SIDE || self.height > MAX_SIDE {
             return bad(format!(
                 "frames {} and size {}×{} must be at most {MAX_FRAMES} frames of {MAX_SIDE}×{MAX_SIDE}",

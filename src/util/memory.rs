@@ -43,14 +43,31 @@ pub fn machine_memory_bytes() -> Option<u64> {
 
 /// The memory this process may use, bytes: the machine's ([`machine_memory_bytes`]), or the memory limit
 /// of its cgroup where that is smaller (a Slurm job, a Kubernetes pod, a container: half of a 256 GiB
-/// node is no budget for a job allowed 8 GiB, which the kernel kills past its limit). `None` where the
-/// platform tells neither.
+/// node is no budget for a job allowed 8 GiB, which the kernel kills past its limit), or its address-space
+/// limit where smaller still (`ulimit -v`, an HPC job's `h_vmem`: past it every allocation fails and the
+/// process aborts). `None` where the platform tells none of them.
 pub fn memory_limit_bytes() -> Option<u64> {
     let cgroup = cgroup_memory_limit(Path::new("/proc/self/cgroup"), Path::new("/sys/fs/cgroup"));
-    match (machine_memory_bytes(), cgroup) {
-        (Some(machine), Some(limit)) => Some(machine.min(limit)),
-        (machine, limit) => machine.or(limit),
-    }
+    let address_space = std::fs::read_to_string("/proc/self/limits")
+        .ok()
+        .and_then(|text| address_space_limit(&text));
+    [machine_memory_bytes(), cgroup, address_space]
+        .into_iter()
+        .flatten()
+        .min()
+}
+
+/// The soft address-space limit in a `/proc/PID/limits` text (`Max address space  SOFT  HARD  bytes`),
+/// bytes; `None` where it is "unlimited" or absent.
+fn address_space_limit(limits: &str) -> Option<u64> {
+    let line = limits
+        .lines()
+        .find(|l| l.starts_with("Max address space"))?;
+    line["Max address space".len()..]
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
 }
 
 /// The smallest memory limit on the way from this process's cgroups (`proc_cgroup`: lines
@@ -92,6 +109,17 @@ fn cgroup_memory_limit(proc_cgroup: &Path, root: &Path) -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_address_space_limit_is_read_from_proc_limits() {
+        let text = "Limit                     Soft Limit           Hard Limit           Units     \n\
+                    Max file size             unlimited            unlimited            bytes     \n\
+                    Max address space         307200000            unlimited            bytes     \n";
+        assert_eq!(address_space_limit(text), Some(307_200_000));
+        let unlimited = text.replace("307200000", "unlimited");
+        assert_eq!(address_space_limit(&unlimited), None);
+        assert_eq!(address_space_limit(""), None);
+    }
 
     #[test]
     fn cgroup_limits_are_the_smallest_on_the_way_up() {

@@ -196,10 +196,29 @@ struct Ranged {
     total: Option<u64>,
 }
 
+/// `url` with the password of its userinfo replaced by `***` (`http://alice:***@host/…`), for messages,
+/// names and reports; the requests use the URL as given. A URL without a password is returned as is.
+pub fn redact_url(url: &str) -> String {
+    let Some((scheme, rest)) = url.split_once("://") else {
+        return url.to_string();
+    };
+    let authority_end = rest.find(['/', '?', '#']).unwrap_or(rest.len());
+    let (authority, path) = rest.split_at(authority_end);
+    match authority.rsplit_once('@') {
+        Some((userinfo, host)) => match userinfo.split_once(':') {
+            Some((user, _password)) => format!("{scheme}://{user}:***@{host}{path}"),
+            None => url.to_string(),
+        },
+        None => url.to_string(),
+    }
+}
+
 /// A [`BlockSource`] reading blocks from `url` with HTTP range requests. Cheap to share between loader
 /// threads (`Arc<HttpSource>`); connections are pooled.
 pub struct HttpSource {
     url: String,
+    /// [`redact_url`] of `url`: what messages and [`BlockSource::name`] show.
+    shown: String,
     agent: ureq::Agent,
     options: HttpOptions,
     file_len: u64,
@@ -219,15 +238,16 @@ impl HttpSource {
             source.get_tables(0, HEADER_SIZE as u64, |r| TreeFile::prefix_len(&r.bytes))?;
         if prefix_len > source.options.max_table_bytes {
             return Err(SourceError::TablesTooLarge {
-                url: url.to_string(),
+                url: source.shown.clone(),
                 bytes: prefix_len,
                 limit: source.options.max_table_bytes,
             });
         }
         let header: Header = bytemuck::pod_read_unaligned(&head.bytes[..HEADER_SIZE]);
         let file_len = |r: &Ranged| r.total.or(head.total).unwrap_or(header.file_len);
+        let shown = source.shown.clone();
         let (file, prefix) = source.get_tables(0, prefix_len, |r| {
-            TreeFile::from_prefix(&r.bytes, file_len(r), url)
+            TreeFile::from_prefix(&r.bytes, file_len(r), &shown)
         })?;
         source.file_len = file_len(&prefix);
         Ok((file, source))
@@ -243,6 +263,7 @@ impl HttpSource {
             .build();
         HttpSource {
             url: url.to_string(),
+            shown: redact_url(url),
             agent: config.into(),
             options,
             file_len: 0,
@@ -250,9 +271,9 @@ impl HttpSource {
         }
     }
 
-    /// The URL blocks are read from.
-    pub fn url(&self) -> &str {
-        &self.url
+    /// The URL blocks are read from as messages show it: its password redacted ([`redact_url`]).
+    pub fn shown_url(&self) -> &str {
+        &self.shown
     }
 
     /// Length of the remote file, bytes.
@@ -294,7 +315,7 @@ impl HttpSource {
         };
         let result = self.get_with_retries(offset, len, u64::MAX, check);
         let tables_error = |failure: Failure, attempts| SourceError::Tables {
-            url: self.url.clone(),
+            url: self.shown.clone(),
             offset,
             len,
             attempts,
@@ -303,7 +324,7 @@ impl HttpSource {
         let value = match (result, parsed.into_inner()) {
             (Ok(ranged), Some(Ok(value))) => Ok((value, ranged)),
             (Ok(_), Some(Err(error))) => Err(SourceError::Store {
-                source_name: self.url.clone(),
+                source_name: self.shown.clone(),
                 error,
             }),
             (Ok(_), None) => Err(tables_error(
@@ -419,7 +440,7 @@ impl HttpSource {
         f: Failure,
         attempts: u32,
     ) -> SourceError {
-        let (url, offset, len) = (self.url.clone(), record.offset, record.length);
+        let (url, offset, len) = (self.shown.clone(), record.offset, record.length);
         match f {
             Failure::Status(status) => SourceError::Status {
                 url,
@@ -469,7 +490,7 @@ impl HttpSource {
 
     fn fetch_verified(&self, id: BlockId, record: &BlockRecord) -> Result<Vec<u8>, SourceError> {
         if record.length == 0 {
-            verify(&self.url, id, record, &[])?;
+            verify(&self.shown, id, record, &[])?;
             return Ok(Vec::new());
         }
         let check = |r: &Ranged| {
@@ -489,7 +510,7 @@ impl HttpSource {
 
 impl BlockSource for HttpSource {
     fn name(&self) -> String {
-        self.url.clone()
+        self.shown.clone()
     }
 
     /// Fetches and verifies block `id` (see the module docs for the retry policy). Blocking; call it from
@@ -568,6 +589,23 @@ fn splitmix64(x: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn passwords_are_redacted_from_shown_urls() {
+        assert_eq!(
+            redact_url("http://alice:s3cret@127.0.0.1:8080/f.atlastree"),
+            "http://alice:***@127.0.0.1:8080/f.atlastree"
+        );
+        // An '@' in the path is not userinfo; a user without a password shows as given.
+        for same in [
+            "http://127.0.0.1/a@b.atlastree",
+            "http://alice@host/f",
+            "http://host:80/f?x=a:b@c",
+            "not a url",
+        ] {
+            assert_eq!(redact_url(same), same);
+        }
+    }
 
     #[test]
     fn content_range_must_match_the_request() {

@@ -269,6 +269,9 @@ struct Server {
     counters: Arc<Counters>,
 }
 
+/// How often a failing `accept` is warned about (each failure is logged at debug level).
+const ACCEPT_WARN_EVERY: Duration = Duration::from_secs(10);
+
 /// The server thread: accept until `stop` fires (or its sender is dropped), then shut down gracefully.
 fn run(
     runtime: tokio::runtime::Runtime,
@@ -294,6 +297,7 @@ fn run(
         let (closing, closing_rx) = watch::channel(false);
         let mut connections = JoinSet::new();
         let mut stop = stop;
+        let mut last_warned = None;
         loop {
             tokio::select! {
                 _ = &mut stop => break,
@@ -310,9 +314,18 @@ fn run(
                             closing_rx.clone(),
                         ));
                     }
-                    // Out of file descriptors or a connection reset before accept: go on shortly.
+                    // Out of file descriptors or a connection reset before accept: go on shortly. Said
+                    // at most every ACCEPT_WARN_EVERY (out of descriptors, clients wait unanswered).
                     Err(e) => {
-                        tracing::debug!("serve: accept: {e}");
+                        if last_warned.is_none_or(|t: std::time::Instant| t.elapsed() >= ACCEPT_WARN_EVERY) {
+                            tracing::warn!(
+                                "serve: cannot accept a connection: {e} (clients wait; with too many open \
+                                 files, raise the limit: ulimit -n)"
+                            );
+                            last_warned = Some(std::time::Instant::now());
+                        } else {
+                            tracing::debug!("serve: accept: {e}");
+                        }
                         tokio::time::sleep(Duration::from_millis(10)).await;
                     }
                 },

@@ -29,7 +29,6 @@ use crate::store::TreeFile;
 use crate::store::format::MaterialRecord;
 use crate::texfmt::TexFormat;
 use arrays::{atlas_arrays_for, device_layers_per_array};
-use wgpu::util::DeviceExt;
 
 /// One distinct original texture: where its pixels are in the file and where they live on the GPU.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -125,12 +124,15 @@ pub struct Bookkeeping {
     pub original_layers_used: u32,
 }
 
-fn buffer(
+/// A buffer holding `contents`, made inside an error scope: a device out of memory is
+/// [`GpuError::OutOfMemory`] naming the buffer (a buffer mapped at creation panicked in wgpu when it
+/// could not be allocated: fault hunt, session 29), then filled through the queue.
+pub(crate) fn buffer(
     ctx: &GpuContext,
     label: &str,
     contents: &[u8],
     usage: wgpu::BufferUsages,
-) -> wgpu::Buffer {
+) -> Result<wgpu::Buffer, RenderError> {
     // wgpu rejects zero-sized bindings and ones smaller than one array element: keep at least 256 bytes.
     let mut owned;
     let contents = if contents.len() < 256 {
@@ -140,12 +142,27 @@ fn buffer(
     } else {
         contents
     };
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents,
-            usage,
+    let buffer = ctx
+        .scoped(&format!("allocating the {label} buffer"), |device| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: contents.len().next_multiple_of(4) as u64,
+                usage: usage | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
         })
+        .map_err(RenderError::Gpu)?;
+    // `write_buffer` takes whole multiples of 4 bytes.
+    let mut padded;
+    let contents = if contents.len() % 4 == 0 {
+        contents
+    } else {
+        padded = contents.to_vec();
+        padded.resize(contents.len().next_multiple_of(4), 0);
+        &padded[..]
+    };
+    ctx.queue.write_buffer(&buffer, 0, contents);
+    Ok(buffer)
 }
 
 impl Resident {
@@ -203,37 +220,37 @@ impl Resident {
         stats: LoadStats,
         leaf_offsets: LeafOffsets,
         residency: Bookkeeping,
-    ) -> Resident {
+    ) -> Result<Resident, RenderError> {
         let storage = wgpu::BufferUsages::STORAGE;
         let dummy = TextureArray::new(&ctx.device, "dummy 1x1", 1, 1, TexFormat::Rgba8);
         dummy.upload_chain(&ctx.queue, 0, &[200, 200, 200, 255]);
-        Resident {
+        Ok(Resident {
             vertex_buffer: buffer(
                 ctx,
                 "tree vertices",
                 bytemuck::cast_slice(&g.vertices),
                 wgpu::BufferUsages::VERTEX,
-            ),
+            )?,
             index_buffer: buffer(
                 ctx,
                 "tree indices",
                 bytemuck::cast_slice(&g.indices),
                 wgpu::BufferUsages::INDEX,
-            ),
-            leaves_buffer: buffer(ctx, "leaves", bytemuck::cast_slice(&g.leaves), storage),
+            )?,
+            leaves_buffer: buffer(ctx, "leaves", bytemuck::cast_slice(&g.leaves), storage)?,
             offsets_buffer: buffer(
                 ctx,
                 "leaf offsets",
                 bytemuck::cast_slice(&leaf_offsets.offsets),
                 storage | wgpu::BufferUsages::COPY_DST,
-            ),
+            )?,
             tam_buffer: buffer(
                 ctx,
                 "tam",
                 bytemuck::cast_slice(&tam),
                 storage | wgpu::BufferUsages::COPY_DST,
-            ),
-            rects_buffer: buffer(ctx, "rects", bytemuck::cast_slice(&g.rects), storage),
+            )?,
+            rects_buffer: buffer(ctx, "rects", bytemuck::cast_slice(&g.rects), storage)?,
             leaf_offsets,
             infos,
             atlas_arrays,
@@ -247,7 +264,7 @@ impl Resident {
             has_alpha: g.has_alpha,
             stats,
             residency,
-        }
+        })
     }
 
     /// Uploads the leaf offsets (after [`LeafOffsets::update`]).
@@ -370,7 +387,7 @@ impl Resident {
             original_layers_used: 0,
         };
         let leaf_offsets = LeafOffsets::new(std::mem::take(&mut g.origins));
-        Ok(Self::assemble(
+        Self::assemble(
             ctx,
             g,
             infos,
@@ -382,6 +399,6 @@ impl Resident {
             stats,
             leaf_offsets,
             residency,
-        ))
+        )
     }
 }
