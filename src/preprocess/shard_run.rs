@@ -166,7 +166,7 @@ pub(super) fn rasterise_shard(
         .iter()
         .map(|u| shard::subtree_nodes(&forest.trees[u.tree as usize], crate::ids::NodeId(u.node)))
         .sum();
-    let report = ShardReport {
+    let mut report = ShardReport {
         shard: spec.index,
         count: spec.count,
         path: path.clone(),
@@ -186,7 +186,14 @@ pub(super) fn rasterise_shard(
         },
         memory: memory_plan,
     };
-    write_sidecar(&path, &report)?;
+    // The shard file is complete and committed: a report that cannot be written (a disk full by a few
+    // KiB) is said, not an error that reads as a failed shard (the merge's table shows '-' for it).
+    if let Err(e) = write_sidecar(&path, &report) {
+        report.warnings.push(format!(
+            "the shard file is complete, but its report could not be written: {e} (the merge's table lacks \
+             this shard's times and memory)"
+        ));
+    }
     Ok(report)
 }
 
@@ -197,12 +204,11 @@ pub(super) fn write_sidecar(path: &Path, report: &impl Serialize) -> Result<(), 
     let mut name = path.as_os_str().to_os_string();
     name.push(".json");
     let target = PathBuf::from(name);
-    let write_err = |source| {
-        BuildError::Store(StoreError::Write {
-            target: target.clone(),
-            temp: crate::util::parent_dir(&target).to_path_buf(),
-            source,
-        })
+    let write_err = |source: std::io::Error| {
+        BuildError::Store(StoreError::io(
+            &target,
+            std::io::Error::new(source.kind(), format!("writing: {source}")),
+        ))
     };
     let mut f = crate::util::AtomicFile::create(&target, 0o666).map_err(write_err)?;
     let json = serde_json::to_vec_pretty(report).unwrap_or_default();
