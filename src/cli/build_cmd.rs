@@ -18,7 +18,9 @@ use std::process::ExitCode;
 /// field of view `fov`). Smaller d_min: deeper tree, bigger file, original textures needed less often.
 #[derive(Args, Debug)]
 pub(crate) struct BuildArgs {
-    /// The glTF scene (.gltf or .glb).
+    /// The glTF scene (.gltf or .glb). What it asks for and is not drawn is one counted warning per
+    /// feature (vertex colours, NEAREST magnification, emission, skins); not warned: every triangle is
+    /// drawn from both sides (`doubleSided: false`, the default of most files, is not culled).
     pub scene: PathBuf,
     /// Output paging file, written atomically: an interrupted build (Ctrl-C, SIGTERM) leaves no partial
     /// file; a killed one (SIGKILL, the OOM killer) leaves a hidden `.NAME.tmp.PID.*` beside it, removed
