@@ -312,8 +312,9 @@ pub(super) fn url_scheme(s: &str) -> Option<&str> {
 pub(super) fn check_url(u: &str) -> anyhow::Result<()> {
     if !cfg!(feature = "https") && url_scheme(u).is_some_and(|s| s.eq_ignore_ascii_case("https")) {
         bail!(
-            "{u}: this atlastree was built without TLS (cargo feature `https`), so it pages over plain \
-             http:// only; serve the file with `atlastree serve` (http) or rebuild with `--features https`"
+            "{}: this atlastree was built without TLS (cargo feature `https`), so it pages over plain \
+             http:// only; serve the file with `atlastree serve` (http) or rebuild with `--features https`",
+            atlastree::paging::redact_url(u)
         );
     }
     Ok(())

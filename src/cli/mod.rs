@@ -203,17 +203,18 @@ pub(crate) fn open_local(
 /// An http(s) URL that is not also a local path gets a clear error (only `render` pages over HTTP)
 /// instead of "No such file or directory".
 pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Result<()> {
-    let text = path.to_string_lossy();
     if path.exists() {
         return Ok(());
     }
-    if args::is_url(&text) {
+    let raw = path.to_string_lossy();
+    let text = atlastree::paging::redact_url(&raw);
+    if args::is_url(&raw) {
         anyhow::bail!(
             "{text}: `atlastree {command}` reads a local paging file, not a URL (`atlastree render URL` pages \
              over HTTP; download the file for {command})"
         );
     }
-    if let Some(scheme) = args::url_scheme(&text) {
+    if let Some(scheme) = args::url_scheme(&raw) {
         anyhow::bail!(
             "{text}: unsupported URL scheme '{scheme}' (`atlastree render` pages over http:// and https://; \
              other commands read a local file)"

@@ -154,6 +154,8 @@ impl RenderArgs {
             check_url(&name)?;
             TreeSource::Remote(super::args::normalised_url(&name))
         } else {
+            // Another scheme is named here (a local FILE of that name aside), not "No such file".
+            super::reject_url(&self.file, "render")?;
             TreeSource::Local(self.file.clone())
         };
         let paged = self.paging.capacity.is_some() || matches!(tree, TreeSource::Remote(_));
@@ -367,7 +369,7 @@ fn frame_loop<'f>(
     let what = || {
         let name = match &cfg.tree {
             TreeSource::Local(p) => p.display().to_string(),
-            TreeSource::Remote(u) => u.clone(),
+            TreeSource::Remote(u) => atlastree::paging::redact_url(u),
         };
         format!("setting up the renderer for {name}")
     };
@@ -503,7 +505,7 @@ fn clear_earlier_run(
 /// frames stay. Returns `error`.
 fn mark_earlier_summary_stale(out: &std::path::Path, error: anyhow::Error) -> anyhow::Error {
     let path = out.join("summary.json");
-    let earlier = std::fs::read(&path)
+    let earlier = atlastree::util::read_regular(&path, Some(1 << 20))
         .ok()
         .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
     if let Some(serde_json::Value::Object(mut summary)) = earlier {

@@ -220,6 +220,9 @@ fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
     sheet
 }
 
+/// Frames without an answer before a run calls its source unresponsive ([`unanswered_requests`]).
+const DEAD_AFTER_FRAMES: usize = 10;
+
 /// What the run's end says of the requests still unanswered at its last frame (`None`: there were
 /// none). A server that stopped responding holds them up to its timeout × attempts; they are abandoned
 /// at exit, not counted as failures. Nothing arrived and nothing failed over at least
@@ -227,9 +230,6 @@ fn contact_sheet(thumbs: &[image::RgbaImage]) -> image::RgbaImage {
 /// healthy source's first answers are drawn: one frame over a local server said "dead"). Nothing arrived in the last frames while loads failed there: a source that died mid-run (more
 /// frames or a synchronous loader cannot help). Otherwise the run simply ended before a slow source
 /// answered (its latency × the requests per frame).
-/// Frames without an answer before a run calls its source unresponsive ([`unanswered_requests`]).
-const DEAD_AFTER_FRAMES: usize = 10;
-
 fn unanswered_requests(paged: &[&atlastree::plan::PagingFrame], failures: u32) -> Option<String> {
     let last = paged.last()?;
     let (in_flight, queued) = (last.session.in_flight, last.session.queued);

@@ -70,9 +70,11 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         io_timeout: a.io_timeout,
         ..serve::ServeOptions::default()
     };
-    // Made before the server starts and its URL is printed: a handler that cannot start (out of file
-    // descriptors) is an error before anything is announced.
-    let signals = signal_runtime()?;
+    // Installed before the server starts and its URL is printed: a Ctrl-C as soon as the URL shows stops
+    // the server (tokio installs its handler when the signal is first awaited: one SIGINT in 20 right
+    // after the URL killed the process), and a handler that cannot start (out of file descriptors) is an
+    // error before anything is announced.
+    let (signals, interrupted) = interrupt_handler()?;
     let server = serve::spawn_with(&a.file, SocketAddr::new(a.bind, a.port), options)?;
     if a.json {
         let line = serde_json::json!({
@@ -92,9 +94,7 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         println!("press Ctrl-C to stop");
     }
     std::io::stdout().flush()?;
-    signals
-        .block_on(tokio::signal::ctrl_c())
-        .context("waiting for Ctrl-C")?;
+    signals.block_on(interrupted)?;
     server.shutdown();
     if !a.json {
         println!("stopped");
@@ -102,12 +102,30 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The runtime that waits for SIGINT (Ctrl-C).
-fn signal_runtime() -> anyhow::Result<tokio::runtime::Runtime> {
-    tokio::runtime::Builder::new_current_thread()
+/// A runtime with the SIGINT (Ctrl-C) handler installed now, and the future that resolves on the first
+/// SIGINT (on platforms without Unix signals, Ctrl-C as tokio sees it).
+fn interrupt_handler() -> anyhow::Result<(
+    tokio::runtime::Runtime,
+    impl std::future::Future<Output = anyhow::Result<()>>,
+)> {
+    let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_io()
         .build()
-        .context("starting the signal handler")
+        .context("starting the signal handler")?;
+    #[cfg(unix)]
+    let waiting = {
+        use tokio::signal::unix::{SignalKind, signal};
+        let mut interrupt = runtime
+            .block_on(async { signal(SignalKind::interrupt()) })
+            .context("starting the signal handler")?;
+        async move {
+            interrupt.recv().await;
+            Ok(())
+        }
+    };
+    #[cfg(not(unix))]
+    let waiting = async { tokio::signal::ctrl_c().await.context("waiting for Ctrl-C") };
+    Ok((runtime, waiting))
 }
 
 #[cfg(test)]

@@ -58,7 +58,8 @@ pub struct MemoryPlan {
 #[error(
     "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan, {triangles} triangles held; {raster_mib} MiB \
      for {threads} rasteriser threads; {cache_mib} MiB of image cache for the largest image, {largest_image}: \
-     {largest_texels} texels, once per thread), over --max-memory {budget_mib} MiB: raise --max-memory, downscale \
+     {largest_texels} texels, once per thread), over the budget of {budget_mib} MiB (--max-memory; by default \
+     half the memory this process may use): raise --max-memory, downscale \
      that image if it dominates, or for a sharded build plan once (`build --shard plan`): its shards then hold no \
      triangles"
 )]
@@ -87,7 +88,7 @@ impl MemoryError {
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error(
     "the plan needs about {needed_mib} MiB ({triangles} triangles, all held at once while planning), over \
-     --max-memory {budget_mib} MiB: plan on a machine with more memory (--max-memory {needed_mib}MiB or more; the \
+     the budget of {budget_mib} MiB (--max-memory; by default half the memory this process may use): plan on a machine with more memory (--max-memory {needed_mib}MiB or more; the \
      budget is not part of the plan's key, so the shards may keep a small one)"
 )]
 pub struct PlanStepMemoryError {

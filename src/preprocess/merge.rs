@@ -387,11 +387,6 @@ struct ShardSet {
     argv: Option<Vec<String>>,
 }
 
-/// `EMFILE` / `ENFILE`: the process's or the system's open-files limit.
-fn is_out_of_descriptors(e: &std::io::Error) -> bool {
-    matches!(e.raw_os_error(), Some(23 | 24))
-}
-
 impl ShardSet {
     /// Finds and opens every shard of `out` (`count`, or the only count found beside it); fails on the
     /// first missing or unreadable one.
@@ -439,16 +434,19 @@ impl ShardSet {
             argv,
         };
         if let Some((shard, path, err)) = failures.into_iter().next() {
-            if let Some(ShardFileError::Io { source, .. }) = &err
-                && is_out_of_descriptors(source)
-            {
-                return Err(MergeError::TooManyOpen {
-                    shard,
-                    count,
-                    path,
-                    source: std::io::Error::new(source.kind(), source.to_string()),
-                });
-            }
+            let err = match err {
+                Some(ShardFileError::Io { source, .. })
+                    if crate::util::is_out_of_descriptors(&source) =>
+                {
+                    return Err(MergeError::TooManyOpen {
+                        shard,
+                        count,
+                        path,
+                        source,
+                    });
+                }
+                other => other,
+            };
             let rebuild = set.hint(shard);
             return Err(match err {
                 None => MergeError::Missing {

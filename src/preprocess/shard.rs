@@ -96,6 +96,14 @@ impl std::fmt::Display for ShardSpec {
     }
 }
 
+/// The schedulers `--shard auto` reads, in order: `(name, index variable, count variable)`. Slurm gives
+/// both numbers; the other two give only the index, so their job sets `ATLASTREE_SHARD_COUNT`.
+const SCHEDULERS: [(&str, &str, &str); 3] = [
+    ("Slurm", "SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT"),
+    ("Kubernetes", "JOB_COMPLETION_INDEX", "ATLASTREE_SHARD_COUNT"),
+    ("AWS Batch", "AWS_BATCH_JOB_ARRAY_INDEX", "ATLASTREE_SHARD_COUNT"),
+];
+
 /// The shard a scheduler's array task is, from its environment (`get` reads a variable): Slurm job
 /// arrays, Kubernetes Indexed Jobs and AWS Batch array jobs, in that order. Slurm gives both numbers;
 /// the other two give only the index, so their job sets `ATLASTREE_SHARD_COUNT` (the completions or
@@ -103,20 +111,7 @@ impl std::fmt::Display for ShardSpec {
 pub fn shard_from_env(
     get: &dyn Fn(&str) -> Option<String>,
 ) -> Result<(ShardSpec, &'static str), ShardSpecError> {
-    let schedulers: [(&'static str, &'static str, &'static str); 3] = [
-        ("Slurm", "SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT"),
-        (
-            "Kubernetes",
-            "JOB_COMPLETION_INDEX",
-            "ATLASTREE_SHARD_COUNT",
-        ),
-        (
-            "AWS Batch",
-            "AWS_BATCH_JOB_ARRAY_INDEX",
-            "ATLASTREE_SHARD_COUNT",
-        ),
-    ];
-    for (scheduler, index_var, count_var) in schedulers {
+    for (scheduler, index_var, count_var) in SCHEDULERS {
         let Some(index) = get(index_var) else {
             continue;
         };
@@ -186,25 +181,14 @@ pub fn ignored_scheduler_variables(
     get: &dyn Fn(&str) -> Option<String>,
     chosen: &str,
 ) -> Vec<(&'static str, String)> {
-    let by_scheduler: [(&str, &[&'static str]); 3] = [
-        ("Slurm", &["SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT"]),
-        (
-            "Kubernetes",
-            &["JOB_COMPLETION_INDEX", "ATLASTREE_SHARD_COUNT"],
-        ),
-        (
-            "AWS Batch",
-            &["AWS_BATCH_JOB_ARRAY_INDEX", "ATLASTREE_SHARD_COUNT"],
-        ),
-    ];
-    let used: Vec<&str> = by_scheduler
+    let used: Vec<&str> = SCHEDULERS
         .iter()
-        .filter(|(s, _)| *s == chosen)
-        .flat_map(|(_, vars)| vars.iter().copied())
+        .filter(|(s, _, _)| *s == chosen)
+        .flat_map(|&(_, index, count)| [index, count])
         .collect();
     let mut out: Vec<(&'static str, String)> = Vec::new();
-    for (_, vars) in by_scheduler {
-        for &v in vars {
+    for (_, index, count) in SCHEDULERS {
+        for v in [index, count] {
             if !used.contains(&v)
                 && !out.iter().any(|(seen, _)| *seen == v)
                 && let Some(value) = get(v)

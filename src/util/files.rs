@@ -486,9 +486,45 @@ pub fn save_png(path: &Path, img: &image::RgbaImage) -> std::io::Result<()> {
     write_atomic(path, &bytes)
 }
 
+/// Whether `e` is the process's or the system's open-files limit (`EMFILE`, `ENFILE`; on Windows
+/// `ERROR_TOO_MANY_OPEN_FILES`): a limit of the machine, not a fault of the file being opened.
+pub fn is_out_of_descriptors(e: &std::io::Error) -> bool {
+    #[cfg(unix)]
+    return matches!(e.raw_os_error(), Some(libc::EMFILE | libc::ENFILE));
+    #[cfg(windows)]
+    return e.raw_os_error() == Some(4);
+    #[cfg(not(any(unix, windows)))]
+    {
+        let _ = e;
+        false
+    }
+}
+
+/// [`is_out_of_descriptors`], or the kernel out of memory for it (`ENOBUFS`, `ENOMEM`): what a server
+/// that cannot accept connections should say, where a reset connection is routine.
+pub fn is_resource_exhaustion(e: &std::io::Error) -> bool {
+    #[cfg(unix)]
+    if matches!(e.raw_os_error(), Some(libc::ENOBUFS | libc::ENOMEM)) {
+        return true;
+    }
+    is_out_of_descriptors(e)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    #[cfg(unix)]
+    fn descriptor_exhaustion_is_told_from_other_errors() {
+        let emfile = std::io::Error::from_raw_os_error(libc::EMFILE);
+        assert!(is_out_of_descriptors(&emfile) && is_resource_exhaustion(&emfile));
+        let enobufs = std::io::Error::from_raw_os_error(libc::ENOBUFS);
+        assert!(!is_out_of_descriptors(&enobufs) && is_resource_exhaustion(&enobufs));
+        let reset = std::io::Error::from_raw_os_error(libc::ECONNRESET);
+        assert!(!is_resource_exhaustion(&reset));
+        assert!(!is_out_of_descriptors(&std::io::Error::other("no code")));
+    }
 
     #[test]
     fn stale_outputs_are_the_picked_files_only() {

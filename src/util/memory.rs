@@ -50,12 +50,27 @@ pub fn memory_limit_bytes() -> Option<u64> {
     let cgroup = cgroup_memory_limit(Path::new("/proc/self/cgroup"), Path::new("/sys/fs/cgroup"));
     let address_space = std::fs::read_to_string("/proc/self/limits")
         .ok()
-        .and_then(|text| address_space_limit(&text));
+        .and_then(|text| address_space_limit(&text))
+        .map(|limit| {
+            // What the limit leaves for data: not what this process has already mapped (`VmSize`), nor
+            // what each worker thread reserves without touching it (glibc's malloc arena and the stack),
+            // which count against it though never resident: 16 threads under `ulimit -v 600000` aborted in
+            // malloc with ~90 MiB resident (review, session 29).
+            let mapped = status_bytes("VmSize:").unwrap_or(0);
+            let threads = rayon::current_num_threads() as u64;
+            limit
+                .saturating_sub(mapped)
+                .saturating_sub(threads.saturating_mul(RESERVED_PER_THREAD))
+        });
     [machine_memory_bytes(), cgroup, address_space]
         .into_iter()
         .flatten()
         .min()
 }
+
+/// Address space a worker thread reserves without using it: a glibc malloc arena (64 MiB on 64-bit
+/// systems) and its stack (rayon's 2 MiB, rounded up).
+const RESERVED_PER_THREAD: u64 = 72 << 20;
 
 /// The soft address-space limit in a `/proc/PID/limits` text (`Max address space  SOFT  HARD  bytes`),
 /// bytes; `None` where it is "unlimited" or absent.

@@ -430,6 +430,22 @@ fn bad_input_is_a_clear_error() {
                  pages over HTTP; download the file for {command})"
             ),
         );
+    }    // The scheme in any case; another scheme is named, not "No such file or directory".
+    let upper = "HTTP://127.0.0.1:9/city.atlastree";
+    let o = run(bin().current_dir(dir.path()).args(["inspect", upper]));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("reads a local paging file, not a URL"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    for args in [
+        vec!["inspect", "ftp://127.0.0.1/city.atlastree"],
+        vec!["render", "ftp://127.0.0.1/city.atlastree", "--out", "r"],
+    ] {
+        let o = run(bin().current_dir(dir.path()).args(&args));
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains("unsupported URL scheme 'ftp'"), "{args:?}: {e}");
     }
 }
 

@@ -382,6 +382,11 @@ fn a_knob_with_too_many_values_is_refused() {
     );
     g.d_min_ratio.truncate(64);
     g.validate("test").unwrap();
+    // Frames below SSIM's window are refused before any build (they failed after the first variant).
+    let mut small = Grid::preset("small").expect("preset");
+    small.width = 8;
+    let e = small.validate("test").unwrap_err().to_string();
+    assert!(e.contains("SSIM, which needs at least 11×11"), "{e}");
     // Two values that print alike (ids keep 12 significant digits) would be two rows under one id.
     let mut g = Grid::preset("small").expect("preset");
     g.texel_ratio = vec![1.0000000000001, 2.0];

@@ -269,7 +269,8 @@ struct Server {
     counters: Arc<Counters>,
 }
 
-/// How often a failing `accept` is warned about (each failure is logged at debug level).
+/// How often an `accept` failing for lack of descriptors or memory is warned about (other failures, and
+/// those in between, are logged at debug level).
 const ACCEPT_WARN_EVERY: Duration = Duration::from_secs(10);
 
 /// The server thread: accept until `stop` fires (or its sender is dropped), then shut down gracefully.
@@ -314,10 +315,15 @@ fn run(
                             closing_rx.clone(),
                         ));
                     }
-                    // Out of file descriptors or a connection reset before accept: go on shortly. Said
-                    // at most every ACCEPT_WARN_EVERY (out of descriptors, clients wait unanswered).
+                    // Out of file descriptors or a connection reset before accept: go on shortly. Out of
+                    // descriptors (clients wait unanswered) is warned about at most every
+                    // ACCEPT_WARN_EVERY; the rest, a reset among them, is logged at debug level.
                     Err(e) => {
-                        if last_warned.is_none_or(|t: std::time::Instant| t.elapsed() >= ACCEPT_WARN_EVERY) {
+                        if crate::util::is_resource_exhaustion(&e)
+                            && last_warned.is_none_or(|t: std::time::Instant| {
+                                t.elapsed() >= ACCEPT_WARN_EVERY
+                            })
+                        {
                             tracing::warn!(
                                 "serve: cannot accept a connection: {e} (clients wait; with too many open \
                                  files, raise the limit: ulimit -n)"

@@ -142,16 +142,6 @@ pub(crate) fn buffer(
     } else {
         contents
     };
-    let buffer = ctx
-        .scoped(&format!("allocating the {label} buffer"), |device| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: contents.len().next_multiple_of(4) as u64,
-                usage: usage | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        })
-        .map_err(RenderError::Gpu)?;
     // `write_buffer` takes whole multiples of 4 bytes.
     let mut padded;
     let contents = if contents.len() % 4 == 0 {
@@ -161,8 +151,18 @@ pub(crate) fn buffer(
         padded.resize(contents.len().next_multiple_of(4), 0);
         &padded[..]
     };
-    ctx.queue.write_buffer(&buffer, 0, contents);
-    Ok(buffer)
+    // The write stages a copy as large as the buffer: in the same scope, so its failure is an error too.
+    ctx.scoped(&format!("allocating the {label} buffer"), |device| {
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: contents.len() as u64,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        ctx.queue.write_buffer(&buffer, 0, contents);
+        buffer
+    })
+    .map_err(RenderError::Gpu)
 }
 
 impl Resident {
