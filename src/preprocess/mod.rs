@@ -763,9 +763,9 @@ pub(super) fn build_report(
         }
         for m in &r.sizing.palette.over_limit {
             warnings.push(format!(
-                "{:?} tree: material {} ('{}') paints constant-UV triangles with {} distinct texels of its \
-                 image, more than the {} kept as rects of their own: they share one rect, so scaled leaves and \
-                 ancestor levels draw them mixed with neighbouring texels",
+                "{:?} tree: material {} ('{}') paints constant-UV triangles at {} distinct points of its \
+                 image (texels, to a 64th), more than the {} kept as rects of their own: they share one rect, \
+                 so scaled leaves and ancestor levels draw them mixed with neighbouring texels",
                 r.kind, m.material, m.name, m.cells, r.sizing.palette.limit
             ));
         }

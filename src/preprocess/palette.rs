@@ -9,9 +9,11 @@
 //! halves it), so it drew a mix of neighbouring palette colours with no warning (session 28's hunt: 17–28
 //! dB in a leaf at scale 0.25, 12–14 dB from the root, against 59 dB at scale 1).
 //!
-//! Here every such triangle of a material that uses at most `limit` distinct cells gets a density class
-//! of its own cell ([`TriInfo::class`] = [`POINT_CLASS`] + 1 + the cell's rank among the material's), so
-//! the layout gives it a rect whose inner 1 × 1 texel is that cell and whose border repeats it: uniform,
+//! Here every such triangle of a material that uses at most `limit` distinct cells (a [`SUBCELLS`]-th of a
+//! source texel per axis: real palettes name each colour by one UV) gets a density class of its own cell
+//! ([`TriInfo::class`] = [`POINT_CLASS`] + 1 + the cell's rank among the material's), so the layout gives
+//! it a point rect ([`is_cell_class`]) whose inner 1 × 1 texel is the source at that UV and whose border
+//! repeats it: uniform,
 //! so no leaf scale changes it, the halved levels above keep it while the rect spans a few of their
 //! texels, and beyond that the shader shows the rect's mean, the same colour (`rect_texel` in
 //! `shaders/tree.wgsl`: a zero footprint nearer the outer edge than its filter reaches). A material past
@@ -25,6 +27,19 @@ use glam::DVec2;
 
 /// Most cells of one material kept as their own rects, whatever the atlas (see [`cell_limit`]).
 pub const MAX_CELLS: u32 = 256;
+
+/// Cells per source texel along each axis: constant UVs within `1 / SUBCELLS` of a texel of each other
+/// share a rect, others get their own (two quads on one texel at UVs `0.55` and `0.95` of it, or at float
+/// noise apart, took one rect spanning the texel, which the leaf's scale then averaged with its
+/// neighbours: the palette hunt of session 29). A cell's rect is a point ([`is_cell_class`]): its
+/// border is its own colour to within `border / SUBCELLS` of a texel of bilinear change.
+pub const SUBCELLS: u32 = 64;
+
+/// Whether `class` is a cell's ([`assign_classes`]): its rect is a point, never widened to its source's
+/// texel grid.
+pub fn is_cell_class(class: i32) -> bool {
+    class > POINT_CLASS && class <= POINT_CLASS + MAX_CELLS as i32
+}
 
 /// The most distinct cells of one material given rects of their own, for rects of `cell_texels` outer
 /// texels (a 1 × 1 inner rect with its border) in atlases of `atlas_texels`: [`MAX_CELLS`], and at most
@@ -58,15 +73,16 @@ pub struct OverLimit {
     pub cells: u64,
 }
 
-/// The source texel a constant UV `uv` (period-shifted, [`super::prepare::period_shift`]) shows, as a
-/// key: per axis the cell index in `[0, n)` on repeat and clamp-to-edge (clamped), `[0, 2n)` on mirrored
-/// repeat (the shifted UV lies in `[0, 2)`). `None` for a non-finite UV.
+/// The cell (a [`SUBCELLS`]-th of a source texel per axis) a constant UV `uv` (period-shifted,
+/// [`super::prepare::period_shift`]) lies in, as a key: per axis the cell index in `[0, n)` for `n =
+/// SUBCELLS · side` on repeat and clamp-to-edge (clamped), `[0, 2n)` on mirrored repeat (the shifted UV
+/// lies in `[0, 2)`). `None` for a non-finite UV.
 pub fn cell_key(uv: DVec2, source: [u32; 2], wrap: [Wrap; 2]) -> Option<u64> {
     if !uv.is_finite() {
         return None;
     }
     let axis = |u: f64, n: u32, w: Wrap| {
-        let n = u64::from(n.max(1));
+        let n = u64::from(n.max(1)) * u64::from(SUBCELLS);
         let span = if w == Wrap::MirroredRepeat { 2 } else { 1 };
         let cells = n * span;
         let c = (u * n as f64).floor();
@@ -76,8 +92,8 @@ pub fn cell_key(uv: DVec2, source: [u32; 2], wrap: [Wrap; 2]) -> Option<u64> {
     let (w, h) = (source[0], source[1]);
     let x = axis(uv.x, w, wrap[0]);
     let y = axis(uv.y, h, wrap[1]);
-    // Row stride of the widest axis range (2w on mirrored repeat).
-    Some(y * 2 * u64::from(w.max(1)) + x)
+    // Row stride of the widest axis range (2n on mirrored repeat).
+    Some(y * 2 * u64::from(w.max(1)) * u64::from(SUBCELLS) + x)
 }
 
 /// Gives every constant-UV record of a material with at most `limit` distinct cells the class of its
@@ -89,9 +105,6 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
         limit,
         ..PaletteReport::default()
     };
-    if limit == 0 {
-        return report;
-    }
     let key = |t: &TriInfo| -> Option<u64> {
         if t.size.method != SizeMethod::AllUvEqual {
             return None;
@@ -114,6 +127,10 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
     for run in pairs.chunk_by(|a, b| a.0 == b.0) {
         let (mat, n) = (run[0].0, run.len() as u64);
         if n > u64::from(limit) {
+            // One cell in one rect is what a cell's own rect would be: nothing to warn about.
+            if n < 2 {
+                continue;
+            }
             let name = scene
                 .materials
                 .get(mat.idx())
@@ -148,23 +165,28 @@ mod tests {
     use super::*;
 
     #[test]
-    fn cell_keys_name_the_texel_a_constant_uv_shows() {
+    fn cell_keys_name_the_subtexel_cell_a_constant_uv_lies_in() {
         let rep = [Wrap::Repeat; 2];
-        let k = |u: f64, v: f64, wrap| cell_key(DVec2::new(u, v), [16, 8], wrap);
-        // Texel centres and anywhere inside a texel: the same cell.
-        assert_eq!(k(0.5 / 16.0, 0.5 / 8.0, rep), Some(0));
-        assert_eq!(k(0.99 / 16.0, 0.01 / 8.0, rep), Some(0));
-        assert_eq!(k(3.5 / 16.0, 2.5 / 8.0, rep), Some(2 * 32 + 3));
+        // A 2 × 1 source: 128 × 64 cells, rows of 256 keys.
+        let k = |u: f64, v: f64, wrap| cell_key(DVec2::new(u, v), [2, 1], wrap);
+        let s = f64::from(SUBCELLS);
+        // Within a 64th of a texel: one cell; a texel's centre and its 0.95 are not.
+        assert_eq!(k(0.0, 0.0, rep), Some(0));
+        assert_eq!(k(0.9 / s / 2.0, 0.9 / s, rep), Some(0));
+        assert_eq!(k(0.25, 0.5, rep), Some(32 * 256 + 32));
+        assert_ne!(k(0.25, 0.5, rep), k(0.475, 0.5, rep));
         // The last cell, and a UV of exactly 1 (a period shift's upper end) on it too.
-        assert_eq!(k(15.5 / 16.0, 7.5 / 8.0, rep), Some(7 * 32 + 15));
-        assert_eq!(k(1.0, 1.0, rep), Some(7 * 32 + 15));
+        assert_eq!(k(1.0, 1.0, rep), Some(63 * 256 + 127));
         // Clamp-to-edge: outside [0, 1] the edge cells.
         let clamp = [Wrap::ClampToEdge; 2];
-        assert_eq!(k(-3.0, 5.0, clamp), Some(7 * 32));
+        assert_eq!(k(-3.0, 5.0, clamp), Some(63 * 256));
         // Mirrored repeat: the second period has cells of its own.
         let mirror = [Wrap::MirroredRepeat; 2];
-        assert_eq!(k(1.5 / 16.0 + 1.0, 0.5 / 8.0, mirror), Some(17));
+        assert_eq!(k(1.0 + 0.5 / s / 2.0, 0.0, mirror), Some(128));
         assert_eq!(k(f64::NAN, 0.0, rep), None);
+        // Cell classes are told from the density classes and the point class.
+        assert!(is_cell_class(POINT_CLASS + 1) && is_cell_class(POINT_CLASS + MAX_CELLS as i32));
+        assert!(!is_cell_class(POINT_CLASS) && !is_cell_class(0) && !is_cell_class(-1100));
     }
 
     #[test]

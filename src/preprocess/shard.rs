@@ -100,8 +100,16 @@ impl std::fmt::Display for ShardSpec {
 /// both numbers; the other two give only the index, so their job sets `ATLASTREE_SHARD_COUNT`.
 const SCHEDULERS: [(&str, &str, &str); 3] = [
     ("Slurm", "SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT"),
-    ("Kubernetes", "JOB_COMPLETION_INDEX", "ATLASTREE_SHARD_COUNT"),
-    ("AWS Batch", "AWS_BATCH_JOB_ARRAY_INDEX", "ATLASTREE_SHARD_COUNT"),
+    (
+        "Kubernetes",
+        "JOB_COMPLETION_INDEX",
+        "ATLASTREE_SHARD_COUNT",
+    ),
+    (
+        "AWS Batch",
+        "AWS_BATCH_JOB_ARRAY_INDEX",
+        "ATLASTREE_SHARD_COUNT",
+    ),
 ];
 
 /// The shard a scheduler's array task is, from its environment (`get` reads a variable): Slurm job

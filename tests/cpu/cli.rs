@@ -430,7 +430,7 @@ fn bad_input_is_a_clear_error() {
                  pages over HTTP; download the file for {command})"
             ),
         );
-    }    // The scheme in any case; another scheme is named, not "No such file or directory".
+    } // The scheme in any case; another scheme is named, not "No such file or directory".
     let upper = "HTTP://127.0.0.1:9/city.atlastree";
     let o = run(bin().current_dir(dir.path()).args(["inspect", upper]));
     assert!(

@@ -694,6 +694,41 @@ fn texel_f32_agrees_with_f64_reference() {
 /// along the strip) averages that side only: the strip keeps its detail along its length. (It was
 /// flattened whole, so a 1024 × 16 gradient texture seen from a few metres drew as one colour.) A
 /// footprint over both sides is flat (it shows the rect's mean; its texel is the inner centre).
+/// A constant UV (zero gradients) on a palette cell's point rect (1 × 1 inner, 8-texel border): sampled
+/// while the drawn level's bilinear taps stay inside the outer rect, its mean beyond (`POINT_REACH` drawn
+/// texels from the nearer outer edge), with zero gradients either way.
+#[test]
+fn a_constant_uv_shows_the_mean_where_its_taps_would_leave_the_rect() {
+    use atlastree::model::{AtlasRect, RectWrap};
+    use atlastree::render::wgsl::tree::{POINT_REACH, RectMap};
+    use atlastree::scene::AlphaMode;
+    use glam::Vec2;
+    let rect = AtlasRect {
+        material: atlastree::ids::MaterialId(0),
+        outer: [40, 60, 20, 20],
+        inner: [48, 68, 1, 1],
+        uv_min: [0.53125; 2],
+        uv_max: [0.53125; 2],
+        wrap: [RectWrap::Linear; 2],
+        capped: [false; 2],
+        mean: [10, 20, 30, 255],
+    };
+    let map = RectMap::new(&rect, AlphaMode::Opaque);
+    let uv = Vec2::splat(0.53125);
+    // A zero UV span counts as one UV: the UV maps onto the inner texel's corner, 8 texels from the
+    // outer edges (the border is the cell's colour, so the bilinear taps read it alone).
+    for (level_texels, flat) in [(1.0f32, false), (4.0, false), (8.0, true), (16.0, true)] {
+        let s = map.sample_f32(uv, Vec2::ZERO, Vec2::ZERO, level_texels);
+        assert_eq!(s.flat, flat, "level texels {level_texels}: {s:?}");
+        assert_eq!(flat, 8.0 < POINT_REACH * level_texels);
+        assert_eq!((s.gx, s.gy), (Vec2::ZERO, Vec2::ZERO), "{s:?}");
+        assert_eq!(s.mix_mean, if flat { 1.0 } else { 0.0 });
+        if !flat {
+            assert_eq!(s.texel, Vec2::new(48.0, 68.0));
+        }
+    }
+}
+
 #[test]
 fn a_footprint_over_a_strips_short_side_keeps_its_length() {
     use crate::fixtures::shader_math::rects;

@@ -38,6 +38,8 @@ pub(super) struct MatNeed {
     h: f64,
     cover: [AxisCover; 2],
     point_uvs: bool,
+    /// A palette cell's need ([`crate::preprocess::palette::is_cell_class`]): a point, never widened.
+    cell: bool,
 }
 
 impl MatNeed {
@@ -59,7 +61,9 @@ impl MatNeed {
         let (u0, u1) = self.cover[0].range();
         let (v0, v1) = self.cover[1].range();
         let (mut w, mut h) = (self.w, self.h);
-        if self.point_uvs && (u1 > u0 || v1 > v0) {
+        // A cell's UVs lie within a 64th of a texel: its rect stays a point (1 × 1 inner at any scale),
+        // not the whole texel at the source's resolution, which a scaled leaf averaged with neighbours.
+        if self.point_uvs && !self.cell && (u1 > u0 || v1 > v0) {
             w = w.max(f64::from(source[0]));
             h = h.max(f64::from(source[1]));
         }
@@ -121,7 +125,7 @@ fn needs_of_run(ctx: &Ctx<'_>, items: &[u32]) -> BTreeMap<(MaterialId, i32), Mat
         let slot = match last {
             Some((k, slot)) if k == key => slot,
             _ => *slot_of.entry(key).or_insert_with(|| {
-                needs.push((key, new_need(ctx, t.material)));
+                needs.push((key, new_need(ctx, t.material, t.class)));
                 needs.len() - 1
             }),
         };
@@ -152,8 +156,8 @@ fn needs_of_run(ctx: &Ctx<'_>, items: &[u32]) -> BTreeMap<(MaterialId, i32), Mat
     needs.into_iter().collect()
 }
 
-/// A material's need before any triangle: nothing covered, at its sampler's rect wrap.
-fn new_need(ctx: &Ctx<'_>, material: MaterialId) -> MatNeed {
+/// A need of `material` and `class` before any triangle: nothing covered, at its sampler's rect wrap.
+fn new_need(ctx: &Ctx<'_>, material: MaterialId, class: i32) -> MatNeed {
     let wrap = ctx.scene.materials[material.idx()].wrap;
     let mode = |k: usize| {
         if ctx.opts.wrap {
@@ -167,6 +171,7 @@ fn new_need(ctx: &Ctx<'_>, material: MaterialId) -> MatNeed {
         h: 0.0,
         cover: [AxisCover::new(mode(0)), AxisCover::new(mode(1))],
         point_uvs: false,
+        cell: crate::preprocess::palette::is_cell_class(class),
     }
 }
 
