@@ -26,7 +26,9 @@ use std::process::ExitCode;
     mut_arg("upload_budget", |a| a.hide(true)),
     mut_arg("max_queue", |a| a.hide(true)),
     mut_arg("policy", |a| a.hide(true)),
-    mut_arg("loader_threads", |a| a.hide(true))
+    mut_arg("loader_threads", |a| a.hide(true)),
+    mut_arg("http_timeout", |a| a.hide(true)),
+    mut_arg("http_retries", |a| a.hide(true))
 )]
 pub(crate) struct ViewArgs {
     /// The paging file.

@@ -181,6 +181,8 @@ pub struct ExportSummary {
     pub paging_file_bytes: u64,
     /// Keyed by level (`"00"`, `"01"`, …; `"orig"` for the original-texture tiles).
     pub levels: BTreeMap<String, LevelSummary>,
+    /// Every tile (left out of the JSON where emptied: `export --json` prints the summary without it).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
     pub tile_list: Vec<TileSummary>,
 }
 
