@@ -13,9 +13,7 @@ use clap::Args;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Texel-per-pixel control (paper §5.2.1): the atlas of a leaf is sized so that a camera at least d_min
-/// away sees at least `texel-ratio` texels per screen pixel (screen `screen-width` pixels wide, horizontal
-/// field of view `fov`). Smaller d_min: deeper tree, bigger file, original textures needed less often.
+// Its --help text is the doc comment of `cli::Command::Build` (clap shows the variant's, not this struct's).
 #[derive(Args, Debug)]
 pub(crate) struct BuildArgs {
     /// The glTF scene (.gltf or .glb). What it asks for and is not drawn is one counted warning per

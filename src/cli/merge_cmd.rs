@@ -8,12 +8,7 @@ use clap::Args;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Finds `OUT.shard-I-of-N` for I in 0..N beside OUT (written by `atlastree build SCENE -o OUT --shard I/N`
-/// on any machines that share the directory), checks each (present, intact, same scene and flags, the
-/// part of the tree the cut gives it), copies their blocks, makes the atlases above the cut from the
-/// shards' subtree roots (four children halved) and writes OUT atomically: byte-identical to
-/// `atlastree build SCENE -o OUT` with the same flags. A missing or broken shard is named with the command
-/// that rebuilds it; rerunning a merge writes the same file. The shard files are left in place.
+// Its --help text is the doc comment of `cli::Command::Merge` (clap shows the variant's, not this struct's).
 #[derive(Args, Debug)]
 pub(crate) struct MergeArgs {
     /// The paging file to write (the `-o` of the shards' build).

@@ -47,16 +47,50 @@ pub(crate) enum Command {
     /// Summarise a glTF scene: triangles, textures, UV ranges and repeats, wrap and alpha modes, planarity.
     SceneInfo(scene_info::SceneInfoArgs),
     /// Preprocess a glTF scene into a texture-atlas tree paging file (paper §5).
+    ///
+    /// Texel-per-pixel control (paper §5.2.1): the atlas of a leaf is sized so that a camera at least d_min
+    /// away sees at least `texel-ratio` texels per screen pixel (screen `screen-width` pixels wide, horizontal
+    /// field of view `fov`). Smaller d_min: deeper tree, bigger file, original textures needed less often.
     Build(build_cmd::BuildArgs),
     /// Merge the shard files of a sharded build (`build --shard I/N`) into the paging file, byte-identical
     /// to a one-process build.
+    ///
+    /// Finds `OUT.shard-I-of-N` for I in 0..N beside OUT (written by `atlastree build SCENE -o OUT --shard I/N`
+    /// on any machines that share the directory), checks each (present, intact, same scene and flags, the
+    /// part of the tree the cut gives it), copies their blocks, makes the atlases above the cut from the
+    /// shards' subtree roots (four children halved) and writes OUT atomically: byte-identical to
+    /// `atlastree build SCENE -o OUT` with the same flags. A missing or broken shard is named with the command
+    /// that rebuilds it; rerunning a merge writes the same file. The shard files are left in place.
     Merge(merge_cmd::MergeArgs),
     /// Show a paging file's tree shape and per-level statistics; `--verify` checks every checksum and
     /// invariant and exits non-zero on any violation.
     Inspect(inspect_cmd::InspectArgs),
     /// Render a camera path offscreen with the texture-array-batched renderer; PNGs, contact sheet, stats.csv.
+    ///
+    /// Render a camera path through a paging file offscreen and measure every frame. Writes PNG frames (every
+    /// k-th), a contact sheet and `stats.csv` per mode.
+    ///
+    /// Without `--capacity` every block is uploaded at start. With `--capacity k` blocks are paged (paper §6):
+    /// at most k blocks resident, loaded by priority from `--source`, missing ones drawn with the nearest
+    /// resident ancestor atlas; `stats.csv` then gains the paging columns (blocks needed / ideal / resident /
+    /// queued / in flight, bytes loaded, ideal fraction resident, coarser screen share, evictions, …; the
+    /// README's "Changelog" lists the column names).
     Render(render_cmd::RenderArgs),
     /// Paging-budget experiments without a GPU: capacity × bandwidth × latency × policy over a camera path.
+    ///
+    /// Simulate block paging (paper §6) along a camera path for a grid of capacities, bandwidths, latencies
+    /// and policies — the same selection and paging code as `render --capacity`, with an I/O model instead of
+    /// a disk or network and CPU screen accounting instead of a GPU. Deterministic: the same inputs give the
+    /// same CSVs byte for byte (so the upload budget is bytes or unlimited: there are no uploads to time).
+    ///
+    /// Writes `frames.csv` (per run and frame: the paging counters under the same names as `render`'s
+    /// `stats.csv` — blocks_needed, ideal, resident, queued, in_flight, bytes_loaded, coarser_share, … — and
+    /// time_to_ideal), `summary.csv` (per run: mean/p95/max coarser share, bytes, peak resident,
+    /// frames to converge after each jump, stalls) and plots (SVG + PNG): coarser share over time per k, bytes
+    /// per frame, and heat maps of the mean coarser share over capacity × bandwidth.
+    ///
+    /// Example: `atlastree simulate city.atlastree --path overview-dive --capacity 40,80,160,320
+    /// --bandwidth 5MB/s,50MB/s,500MB/s --latency 0ms,80ms --out sim/`
     Simulate(simulate_cmd::SimulateArgs),
     /// Export a paging file for other viewers: `export 3dtiles FILE -o DIR` writes a 3D Tiles 1.1
     /// tileset (CesiumJS, 3DTilesRendererJS, …) with one tile per node and the original textures below the
@@ -73,9 +107,37 @@ pub(crate) enum Command {
     Serve(serve_cmd::ServeArgs),
     /// Fly through a paging file in a window with a live inspector (egui): fps, counters, knobs, node
     /// bounds, frozen selection, screenshots, path recording.
+    ///
+    /// Fly through a paging file in a window, with a live inspector (egui) of what the renderer does.
+    ///
+    /// Keys: W A S D move, Q E down/up, Shift fast, drag the mouse to look, wheel for speed (orbit: distance);
+    /// O fly/orbit; F frame the scene; 1 2 3 tree/original/dummy; L level colours; B node bounds; G freeze the
+    /// selection (fly away and look at the cut from outside); H hide the inspector; P screenshot (PNG in
+    /// --out); R start/stop recording the flown path (JSON camera path in --out, replay with --path or
+    /// `render --path`); Esc quit.
+    ///
+    /// Scripted: `--screenshot-after N --exit` writes the N-th frame to --screenshot and quits, e.g. under
+    /// `xvfb-run -a` on a machine without a display (any wgpu backend; lavapipe works).
     View(view_cmd::ViewArgs),
     /// What accuracy costs in time: build and render a grid of knob values on one scene and path, compare
     /// every frame with the original textures; sweep.csv, frames.csv, report.md and Pareto plots.
+    ///
+    /// Measure what accuracy costs in time. Builds every build-time variant of the grid once (d_min ratio,
+    /// atlas size, border, down-sampling filter, compression, repeats, alpha mips), renders every runtime
+    /// variant (texel ratio, paging capacity k) over the same frames of the path, and compares each frame
+    /// with the reference: the same view drawn with the original textures at full resolution (`render --mode
+    /// original`), or ground truth with `--reference supersampled`.
+    ///
+    /// The grid is a star around a base variant: the base plus each listed value of one knob at a time.
+    /// `--grid small` (4 builds, 17 variants, 6 frames of 320×240; CI time on data/city), `--grid full`
+    /// (12 builds, 50 variants, 12 frames of 640×480), or a JSON file, e.g.
+    /// `{"base": {"d_min_ratio": 8, "atlas_size": 1024, "border": 8, "filter": "box", "texel_ratio": 1},
+    ///   "atlas_size": [512, 1024, 2048], "texel_ratio": [0.25, 0.5, 1, 2], "capacity": [64], "frames": 8}`.
+    ///
+    /// Writes into `--out`: sweep.csv (one row per variant, means), frames.csv (per variant and frame),
+    /// builds.csv (stage times), report.md (tables, recommended defaults, plots) and the plots as SVG + PNG:
+    /// accuracy vs frame time with the Pareto front, vs file size, vs build time, vs texel ratio, and the
+    /// texel-per-pixel histograms.
     Sweep(sweep_cmd::SweepArgs),
 }
 

@@ -18,14 +18,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-/// Render a camera path through a paging file offscreen and measure every frame. Writes PNG frames (every
-/// k-th), a contact sheet and `stats.csv` per mode.
-///
-/// Without `--capacity` every block is uploaded at start. With `--capacity k` blocks are paged (paper §6):
-/// at most k blocks resident, loaded by priority from `--source`, missing ones drawn with the nearest
-/// resident ancestor atlas; `stats.csv` then gains the paging columns (blocks needed / ideal / resident /
-/// queued / in flight, bytes loaded, ideal fraction resident, coarser screen share, evictions, …; the
-/// README's "Changelog" lists the column names).
+// Its --help text is the doc comment of `cli::Command::Render` (clap shows the variant's, not this struct's).
 #[derive(Args, Debug)]
 pub(crate) struct RenderArgs {
     /// The paging file, or an http(s) URL of one (then blocks are paged over HTTP; `--capacity` defaults

@@ -12,19 +12,7 @@ use clap::Args;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Simulate block paging (paper §6) along a camera path for a grid of capacities, bandwidths, latencies
-/// and policies — the same selection and paging code as `render --capacity`, with an I/O model instead of
-/// a disk or network and CPU screen accounting instead of a GPU. Deterministic: the same inputs give the
-/// same CSVs byte for byte (so the upload budget is bytes or unlimited: there are no uploads to time).
-///
-/// Writes `frames.csv` (per run and frame: the paging counters under the same names as `render`'s
-/// `stats.csv` — blocks_needed, ideal, resident, queued, in_flight, bytes_loaded, coarser_share, … — and
-/// time_to_ideal), `summary.csv` (per run: mean/p95/max coarser share, bytes, peak resident,
-/// frames to converge after each jump, stalls) and plots (SVG + PNG): coarser share over time per k, bytes
-/// per frame, and heat maps of the mean coarser share over capacity × bandwidth.
-///
-/// Example: `atlastree simulate city.atlastree --path overview-dive --capacity 40,80,160,320
-/// --bandwidth 5MB/s,50MB/s,500MB/s --latency 0ms,80ms --out sim/`
+// Its --help text is the doc comment of `cli::Command::Simulate` (clap shows the variant's, not this struct's).
 #[derive(Args, Debug)]
 pub(crate) struct SimulateArgs {
     /// The paging file (only its tables are read).

@@ -14,22 +14,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-/// Measure what accuracy costs in time. Builds every build-time variant of the grid once (d_min ratio,
-/// atlas size, border, down-sampling filter, compression, repeats, alpha mips), renders every runtime
-/// variant (texel ratio, paging capacity k) over the same frames of the path, and compares each frame
-/// with the reference: the same view drawn with the original textures at full resolution (`render --mode
-/// original`), or ground truth with `--reference supersampled`.
-///
-/// The grid is a star around a base variant: the base plus each listed value of one knob at a time.
-/// `--grid small` (4 builds, 17 variants, 6 frames of 320×240; CI time on data/city), `--grid full`
-/// (12 builds, 50 variants, 12 frames of 640×480), or a JSON file, e.g.
-/// `{"base": {"d_min_ratio": 8, "atlas_size": 1024, "border": 8, "filter": "box", "texel_ratio": 1},
-///   "atlas_size": [512, 1024, 2048], "texel_ratio": [0.25, 0.5, 1, 2], "capacity": [64], "frames": 8}`.
-///
-/// Writes into `--out`: sweep.csv (one row per variant, means), frames.csv (per variant and frame),
-/// builds.csv (stage times), report.md (tables, recommended defaults, plots) and the plots as SVG + PNG:
-/// accuracy vs frame time with the Pareto front, vs file size, vs build time, vs texel ratio, and the
-/// texel-per-pixel histograms.
+// Its --help text is the doc comment of `cli::Command::Sweep` (clap shows the variant's, not this struct's).
 #[derive(Args, Debug)]
 pub(crate) struct SweepArgs {
     /// The glTF scene (.gltf or .glb).

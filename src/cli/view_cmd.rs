@@ -9,16 +9,7 @@ use glam::DVec3;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Fly through a paging file in a window, with a live inspector (egui) of what the renderer does.
-///
-/// Keys: W A S D move, Q E down/up, Shift fast, drag the mouse to look, wheel for speed (orbit: distance);
-/// O fly/orbit; F frame the scene; 1 2 3 tree/original/dummy; L level colours; B node bounds; G freeze the
-/// selection (fly away and look at the cut from outside); H hide the inspector; P screenshot (PNG in
-/// --out); R start/stop recording the flown path (JSON camera path in --out, replay with --path or
-/// `render --path`); Esc quit.
-///
-/// Scripted: `--screenshot-after N --exit` writes the N-th frame to --screenshot and quits, e.g. under
-/// `xvfb-run -a` on a machine without a display (any wgpu backend; lavapipe works).
+// Its --help text is the doc comment of `cli::Command::View` (clap shows the variant's, not this struct's).
 #[derive(Args, Debug)]
 // `render`'s paging flags beyond --capacity are refused here ("means nothing for view"): not listed.
 #[command(
