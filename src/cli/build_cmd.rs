@@ -360,6 +360,9 @@ fn run_plan(
     );
     print_stage_peaks(&report.stages.stage_peak_rss);
     print_import(&scene.report);
+    for w in &report.warnings {
+        println!("  warning: {w}");
+    }
     println!(
         "  next: each shard with the same flags (`--shard I/N` or `auto`) reads this plan instead of planning; then \
          atlastree merge {}",

@@ -733,23 +733,11 @@ pub(super) fn downsampled_warning(cache: &raster::ImageCache<'_>) -> Option<Stri
     ))
 }
 
-/// The report of a finished build, with the warnings of the image cache and of clamped leaves.
-pub(super) fn build_report(
-    params: BuildParams,
-    scene_diagonal: f64,
-    forest: &AtlasForest,
-    trees: Vec<TreeReport>,
-    file_bytes: u64,
-    timings: StageLog,
-    cache: &raster::ImageCache<'_>,
-) -> BuildReport {
-    let atlas_blocks = forest
-        .blocks
-        .iter()
-        .filter(|b| matches!(b.kind, crate::model::BlockKind::Atlas { .. }))
-        .count() as u64;
-    let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
-    for r in &trees {
+/// What the plan of each tree warns about (oversized rects, clamped triangles, palettes past their limit):
+/// the same lines from a one-process build, a self-planning shard and the plan step (`--shard plan`).
+pub(super) fn tree_warnings(trees: &[TreeReport]) -> Vec<String> {
+    let mut warnings = Vec::new();
+    for r in trees {
         let lr = &r.leaf_reasons;
         if lr.oversized > 0 && lr.scale_min < OVERSIZED_WARN_SCALE {
             warnings.push(format!(
@@ -777,6 +765,26 @@ pub(super) fn build_report(
             ));
         }
     }
+    warnings
+}
+
+/// The report of a finished build, with the warnings of the image cache and of clamped leaves.
+pub(super) fn build_report(
+    params: BuildParams,
+    scene_diagonal: f64,
+    forest: &AtlasForest,
+    trees: Vec<TreeReport>,
+    file_bytes: u64,
+    timings: StageLog,
+    cache: &raster::ImageCache<'_>,
+) -> BuildReport {
+    let atlas_blocks = forest
+        .blocks
+        .iter()
+        .filter(|b| matches!(b.kind, crate::model::BlockKind::Atlas { .. }))
+        .count() as u64;
+    let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
+    warnings.extend(tree_warnings(&trees));
     if let Some(w) = downsampled_warning(cache) {
         warnings.push(w);
     }

@@ -28,6 +28,9 @@ pub struct ShardPlanReport {
     pub stages: StageLog,
     /// The memory budget's check, if there was a budget.
     pub memory: Option<super::memory::MemoryPlan>,
+    /// What planning the trees warned about ([`super::tree_warnings`]).
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 impl ShardPlanReport {
@@ -134,6 +137,7 @@ pub fn plan_shards(
     let super::Planned {
         mut timings,
         forest,
+        reports,
         ..
     } = super::plan_build(scene, &unbudgeted, progress)?;
     let t = Instant::now();
@@ -157,6 +161,7 @@ pub fn plan_shards(
         blocks: forest.blocks.len() as u64,
         stages: timings,
         memory,
+        warnings: super::tree_warnings(&reports),
     };
     Ok(report)
 }
@@ -225,6 +230,8 @@ pub fn build_shard_planned(
         prefix: Vec::new(),
         memory_plan,
         timings,
+        // Said by the plan step.
+        plan_warnings: Vec::new(),
     };
     rasterise_shard(input, opts, out, sharded, progress, (t, t_all))
 }

@@ -65,6 +65,7 @@ pub fn build_shard(
         memory_plan,
         timings,
         forest,
+        reports,
         ..
     } = super::plan_build(scene, opts, progress)?;
     let t = Instant::now();
@@ -82,6 +83,7 @@ pub fn build_shard(
         prefix: held,
         memory_plan,
         timings,
+        plan_warnings: super::tree_warnings(&reports),
     };
     rasterise_shard(input, opts, out, sharded, progress, (t, t_all))
 }
@@ -97,6 +99,9 @@ pub(super) struct ShardInput<'a> {
     pub(super) prefix: Vec<u8>,
     pub(super) memory_plan: Option<super::memory::MemoryPlan>,
     pub(super) timings: super::StageLog,
+    /// What planning the trees warned about ([`super::tree_warnings`]; a planned shard's were said by
+    /// the plan step).
+    pub(super) plan_warnings: Vec<String>,
 }
 
 /// The shard's part of the pixel pass into its shard file, and its report; `t` = (start of the shard
@@ -116,6 +121,7 @@ pub(super) fn rasterise_shard(
         prefix,
         memory_plan,
         mut timings,
+        plan_warnings,
     } = input;
     let spec = sharded.spec;
     let cut = choose_cut(forest, spec.count);
@@ -180,7 +186,8 @@ pub(super) fn rasterise_shard(
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
         image_fallbacks: cache.fallbacks(),
         warnings: {
-            let mut w = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
+            let mut w = plan_warnings;
+            w.extend(cache.warnings.lock().map(|w| w.clone()).unwrap_or_default());
             w.extend(super::downsampled_warning(&cache));
             w
         },

@@ -188,6 +188,22 @@ fn a_palette_past_the_limit_is_one_rect_and_a_warning() {
         .filter(|w| w.contains("24 distinct points") && w.contains(&format!("material {}", pm.0)))
         .count();
     assert_eq!(warned, 1, "{:#?}", built.report.warnings);
+    // A shard that plans for itself says it too (only the one-process build did).
+    let shard = atlastree::preprocess::build_shard(
+        &scene,
+        &opts,
+        &built.dir.path().join("sharded.atlastree"),
+        &atlastree::preprocess::ShardedOptions {
+            spec: atlastree::preprocess::shard::ShardSpec { index: 0, count: 2 },
+            argv: Vec::new(),
+        },
+        &atlastree::preprocess::NoProgress,
+    )
+    .expect("shard 0 of 2");
+    let in_shard = (shard.warnings.iter())
+        .filter(|w| w.contains("24 distinct points"))
+        .count();
+    assert_eq!(in_shard, 1, "{:#?}", shard.warnings);
     // One rect holds the palette's used cells, shrunk with the scaled leaf.
     let t = built.file.tree(0).unwrap();
     let rects = t.leaf_rects(&t.leaves[0]);
