@@ -1,4 +1,4 @@
-use super::{UpArg, build_cmd, inspect_cmd, load_scene, progress::Bars, render_cmd, simulate_cmd};
+use super::{UpArg, inspect_cmd, load_scene, progress::Bars, render_cmd, simulate_cmd};
 use anyhow::Context;
 use atlastree::preprocess::build;
 use atlastree::sim::tour::{DemoTour, TreeLevels, levels_along};
@@ -158,7 +158,7 @@ fn build_tree(a: &DemoArgs, scene: &atlastree::scene::Scene) -> anyhow::Result<P
     let opts = tour.build_options();
     let report =
         build(scene, &opts, &file, &Bars::new(a.quiet)).context("building the demo tree")?;
-    build_cmd::print_report(&report, &file);
+    super::build_report::print_report(&report, &file);
     Ok(file)
 }
 

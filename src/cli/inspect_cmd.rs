@@ -1,4 +1,4 @@
-use super::build_cmd::fmt_psnr;
+use super::build_report::fmt_psnr;
 use anyhow::Context;
 use atlastree::inspect::{InspectReport, VerifyReport, inspect, reference_mismatch, verify_with};
 use atlastree::store::TreeFile;

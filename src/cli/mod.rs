@@ -4,6 +4,7 @@
 
 mod args;
 mod build_cmd;
+mod build_report;
 mod demo;
 mod export_cmd;
 mod inspect_cmd;
@@ -11,6 +12,7 @@ mod merge_cmd;
 mod os_limits;
 mod progress;
 mod render_cmd;
+mod render_out;
 mod render_report;
 mod scene_info;
 mod serve_cmd;

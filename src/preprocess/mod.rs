@@ -30,6 +30,7 @@ pub mod palette;
 mod plan_forest;
 pub mod prepare;
 pub mod raster;
+mod report;
 pub mod shard;
 mod shard_plan;
 mod shard_run;
@@ -37,6 +38,7 @@ pub mod sizing;
 mod stage_log;
 
 pub use merge::{MergeError, MergeReport, merge};
+use report::{build_report, downsampled_warning, tree_warnings};
 pub use shard_plan::{
     ShardPlanError, ShardPlanReport, build_shard_planned, plan_shards, shard_plan_key,
 };
@@ -696,120 +698,4 @@ pub(super) fn pixel_pass(
 pub(super) struct PixelPass {
     pub(super) handoffs: std::collections::HashMap<shard::Unit, raster::Handoff>,
     pub(super) atlas_psnr_db: Vec<f64>,
-}
-
-/// Below this scale, leaves scaled for an oversized rect are warned about: the whole leaf shrinks with
-/// its one oversized texture (`--no-source-cap` took hacienda's opaque root to one leaf at 770 m, its
-/// alpha tree to scale 0.001, 5.6× the scene's diagonal, without a word).
-const OVERSIZED_WARN_SCALE: f64 = 0.125;
-
-/// The warning for original textures stored smaller than their source: how many, and the first few by
-/// name with both sizes.
-pub(super) fn downsampled_warning(cache: &raster::ImageCache<'_>) -> Option<String> {
-    let d = cache.downsampled.lock().ok()?;
-    if d.is_empty() {
-        return None;
-    }
-    let names: Vec<String> = d
-        .iter()
-        .take(3)
-        .map(|(id, (src, stored))| {
-            let name = cache.image_name(*id);
-            format!("{name} {}×{} → {}×{}", src[0], src[1], stored[0], stored[1])
-        })
-        .collect();
-    let more = if d.len() > names.len() { ", …" } else { "" };
-    let (what, them) = if d.len() == 1 {
-        ("original texture has", "it")
-    } else {
-        ("original textures have", "them")
-    };
-    Some(format!(
-        "{} {what} a side above {} texels, stored at that size ({}{more}): views nearer than the \
-         leaf's min_distance and --mode original draw {them} at that resolution",
-        d.len(),
-        crate::model::MAX_ORIGINAL_CLASS,
-        names.join(", ")
-    ))
-}
-
-/// What the plan of each tree warns about (oversized rects, clamped triangles, palettes past their limit):
-/// the same lines from a one-process build, a self-planning shard and the plan step (`--shard plan`).
-pub(super) fn tree_warnings(trees: &[TreeReport]) -> Vec<String> {
-    let mut warnings = Vec::new();
-    for r in trees {
-        let lr = &r.leaf_reasons;
-        if lr.oversized > 0 && lr.scale_min < OVERSIZED_WARN_SCALE {
-            warnings.push(format!(
-                "{:?} tree: {} leaves scaled for an oversized rect, down to scale {:.3} (root min_distance {:.1} \
-                 m): one texture's period alone needs more than an atlas (a source side above --atlas-size, \
-                 --no-source-cap, a large --texel-ratio) \
-                 and every texture of such a leaf is shrunk with it, so the tree serves from far away only; \
-                 keep textures capped to their source or raise --atlas-size",
-                r.kind, lr.oversized, lr.scale_min, r.root_min_distance
-            ));
-        }
-        for m in &r.sizing.palette.over_limit {
-            warnings.push(format!(
-                "{:?} tree: material {} ('{}') paints constant-UV triangles at {} distinct points of its \
-                 image (texels, to a 64th), more than the {} kept as rects of their own: they share one rect, \
-                 so scaled leaves and ancestor levels draw them mixed with neighbouring texels",
-                r.kind, m.material, m.name, m.cells, r.sizing.palette.limit
-            ));
-        }
-        if lr.clamped > 0 {
-            warnings.push(format!(
-                "{:?} tree: {} leaves hold a triangle that alone needs more than one atlas; their resolution was \
-                 scaled down and their min_distance raised accordingly",
-                r.kind, lr.clamped
-            ));
-        }
-    }
-    warnings
-}
-
-/// The report of a finished build, with the warnings of the image cache and of clamped leaves.
-pub(super) fn build_report(
-    params: BuildParams,
-    scene_diagonal: f64,
-    forest: &AtlasForest,
-    trees: Vec<TreeReport>,
-    file_bytes: u64,
-    timings: StageLog,
-    cache: &raster::ImageCache<'_>,
-) -> BuildReport {
-    let atlas_blocks = forest
-        .blocks
-        .iter()
-        .filter(|b| matches!(b.kind, crate::model::BlockKind::Atlas { .. }))
-        .count() as u64;
-    let mut warnings = cache.warnings.lock().map(|w| w.clone()).unwrap_or_default();
-    warnings.extend(tree_warnings(&trees));
-    if let Some(w) = downsampled_warning(cache) {
-        warnings.push(w);
-    }
-    let atlas_texels = crate::texfmt::TexFormat::Rgba8.chain_bytes(forest.params.atlas_size) / 4;
-    let texels_stored = trees
-        .iter()
-        .map(|r| r.originals.texels)
-        .sum::<u64>()
-        .saturating_add(atlas_blocks.saturating_mul(atlas_texels));
-    BuildReport {
-        params,
-        scene_diagonal,
-        trees,
-        blocks: forest.blocks.len() as u64,
-        atlas_blocks,
-        original_blocks: forest.blocks.len() as u64 - atlas_blocks,
-        file_bytes,
-        stages: timings,
-        images_decoded: cache.decodes.load(Ordering::Relaxed),
-        texels_decoded: cache.decoded_texels.load(Ordering::Relaxed),
-        texels_stored,
-        image_fallbacks: cache.fallbacks(),
-        images_alpha_ignored: cache.alpha_ignored(),
-        memory: None,
-        warnings,
-        import: crate::scene::ImportReport::default(),
-    }
 }
