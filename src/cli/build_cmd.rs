@@ -280,9 +280,10 @@ fn over_budget(
     };
     e.context(format!(
         "the budget is too small: {triangles} triangles need at least {} MiB for the plan alone \
-         (~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle, all held at once){pixels}, over {source} of {} MiB: \
-         give a larger --max-memory",
+         ({} MiB of process base and ~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle, all held at once){pixels}, \
+         over {source} of {} MiB: give a larger --max-memory",
         plan.div_ceil(1 << 20),
+        BASE_BYTES >> 20,
         budget >> 20
     ))
 }

@@ -56,12 +56,11 @@ pub struct MemoryPlan {
 /// Why a budget is too small.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error(
-    "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan, {triangles} triangles held; {raster_mib} MiB \
-     for {threads} rasteriser threads; {cache_mib} MiB of image cache for the largest image, {largest_image}: \
-     {largest_texels} texels, once per thread), over the budget of {budget_mib} MiB (--max-memory; by default \
-     half the memory this process may use): raise --max-memory, downscale \
-     that image if it dominates, or for a sharded build plan once (`build --shard plan`): its shards then hold no \
-     triangles"
+    "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan: a 64 MiB base and {triangles} triangles \
+     held; {raster_mib} MiB for {threads} rasteriser threads; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; by default \
+     half the memory this process may use): raise --max-memory, or for a sharded build plan once (`build --shard plan`): its shards then hold no \
+     triangles",
+    cache_why(.largest_image, *.largest_texels, *.threads)
 )]
 pub struct MemoryError {
     pub budget_mib: u64,
@@ -81,6 +80,23 @@ impl MemoryError {
     pub fn naming(mut self, largest_image: &str) -> Self {
         self.largest_image = largest_image.to_string();
         self
+    }
+}
+
+/// Why the image cache needs what it needs: the largest image once per thread where that passes the
+/// cache's minimum ([`MIN_IMAGE_CACHE`]), else the minimum (a small image is not the cause; the docs hunt
+/// of session 29 found a 64² texture blamed for 80 MiB).
+fn cache_why(largest_image: &str, largest_texels: u64, threads: u64) -> String {
+    if largest_texels * CACHE_BYTES_PER_TEXEL * threads.max(1) > MIN_IMAGE_CACHE {
+        format!(
+            "the largest image, {largest_image}: {largest_texels} texels, once per thread; downscale that \
+             image if it dominates"
+        )
+    } else {
+        format!(
+            "the cache's minimum of {} MiB with a quarter for originals",
+            MIN_IMAGE_CACHE >> 20
+        )
     }
 }
 
