@@ -89,12 +89,14 @@ pub(super) fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
     super::args::check_frames("--frames", a.frames)?;
     super::check_out_folder(&a.out)?;
-    // The embedded scene's folder lives until the demo ends.
+    // The embedded scene's folder lives until the demo ends; registered, so a Ctrl-C removes it too (the
+    // interrupt handler exits without running destructors).
     let (embedded_dir, scene_path) = match &a.scene {
         Some(path) => (None, path.clone()),
         None => {
             let (dir, path) = write_embedded_scene()?;
-            (Some(dir), path)
+            let live = atlastree::util::LiveTempDir::register(dir.path());
+            (Some((dir, live)), path)
         }
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;

@@ -69,8 +69,7 @@ pub(crate) enum Command {
     Inspect(inspect_cmd::InspectArgs),
     /// Render a camera path offscreen with the texture-array-batched renderer; PNGs, contact sheet, stats.csv.
     ///
-    /// Render a camera path through a paging file offscreen and measure every frame. Writes PNG frames (every
-    /// k-th), a contact sheet and `stats.csv` per mode.
+    /// Measures every frame. Writes PNG frames (every k-th), a contact sheet and `stats.csv` per mode.
     ///
     /// Without `--capacity` every block is uploaded at start. With `--capacity k` blocks are paged (paper §6):
     /// at most k blocks resident, loaded by priority from `--source`, missing ones drawn with the nearest
@@ -80,8 +79,7 @@ pub(crate) enum Command {
     Render(render_cmd::RenderArgs),
     /// Paging-budget experiments without a GPU: capacity × bandwidth × latency × policy over a camera path.
     ///
-    /// Simulate block paging (paper §6) along a camera path for a grid of capacities, bandwidths, latencies
-    /// and policies — the same selection and paging code as `render --capacity`, with an I/O model instead of
+    /// The same selection and paging code as `render --capacity`, with an I/O model instead of
     /// a disk or network and CPU screen accounting instead of a GPU. Deterministic: the same inputs give the
     /// same CSVs byte for byte (so the upload budget is bytes or unlimited: there are no uploads to time).
     ///
@@ -110,8 +108,6 @@ pub(crate) enum Command {
     /// Fly through a paging file in a window with a live inspector (egui): fps, counters, knobs, node
     /// bounds, frozen selection, screenshots, path recording.
     ///
-    /// Fly through a paging file in a window, with a live inspector (egui) of what the renderer does.
-    ///
     /// Keys: W A S D move, Q E down/up, Shift fast, drag the mouse to look, wheel for speed (orbit: distance);
     /// O fly/orbit; F frame the scene; 1 2 3 tree/original/dummy; L level colours; B node bounds; G freeze the
     /// selection (fly away and look at the cut from outside); H hide the inspector; P screenshot (PNG in
@@ -124,7 +120,7 @@ pub(crate) enum Command {
     /// What accuracy costs in time: build and render a grid of knob values on one scene and path, compare
     /// every frame with the original textures; sweep.csv, frames.csv, report.md and Pareto plots.
     ///
-    /// Measure what accuracy costs in time. Builds every build-time variant of the grid once (d_min ratio,
+    /// Builds every build-time variant of the grid once (d_min ratio,
     /// atlas size, border, down-sampling filter, compression, repeats, alpha mips), renders every runtime
     /// variant (texel ratio, paging capacity k) over the same frames of the path, and compares each frame
     /// with the reference: the same view drawn with the original textures at full resolution (`render --mode

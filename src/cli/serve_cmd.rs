@@ -102,8 +102,8 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// A runtime with the SIGINT (Ctrl-C) handler installed now, and the future that resolves on the first
-/// SIGINT (on platforms without Unix signals, Ctrl-C as tokio sees it).
+/// A runtime with the SIGINT (Ctrl-C) handler installed now (Unix), and the future that resolves on the
+/// first SIGINT. Elsewhere the future is tokio's `ctrl_c`, whose handler is installed when first awaited.
 fn interrupt_handler() -> anyhow::Result<(
     tokio::runtime::Runtime,
     impl std::future::Future<Output = anyhow::Result<()>>,

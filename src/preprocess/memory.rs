@@ -56,11 +56,13 @@ pub struct MemoryPlan {
 /// Why a budget is too small.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error(
-    "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan: a 64 MiB base and {triangles} triangles \
-     held; {raster_mib} MiB for {threads} rasteriser threads; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; by default \
-     half the memory this process may use): raise --max-memory, or for a sharded build plan once (`build --shard plan`): its shards then hold no \
-     triangles",
-    cache_why(.largest_image, *.largest_texels, *.threads)
+    "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan: {}; {raster_mib} MiB for {threads} \
+     rasteriser threads; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; \
+     by default half the memory this process may use): raise --max-memory{}",
+    plan_why(*.triangles),
+    cache_why(.largest_image, *.largest_texels, *.threads),
+    if *.triangles > 0 { ", or for a sharded build plan once (`build --shard plan`): its shards then hold no \
+     triangles" } else { "" }
 )]
 pub struct MemoryError {
     pub budget_mib: u64,
@@ -83,11 +85,23 @@ impl MemoryError {
     }
 }
 
+/// What the plan's share holds, in words: the process's fixed base and the triangles held, or for a
+/// shard that read a plan file (no triangles) the base and the tables' skeleton.
+fn plan_why(triangles: u64) -> String {
+    let base = BASE_BYTES >> 20;
+    if triangles > 0 {
+        format!("a {base} MiB base and {triangles} triangles held")
+    } else {
+        format!("a {base} MiB base and the plan file's tables, no triangles")
+    }
+}
+
 /// Why the image cache needs what it needs: the largest image once per thread where that passes the
 /// cache's minimum ([`MIN_IMAGE_CACHE`]), else the minimum (a small image is not the cause; the docs hunt
 /// of session 29 found a 64² texture blamed for 80 MiB).
 fn cache_why(largest_image: &str, largest_texels: u64, threads: u64) -> String {
-    if largest_texels * CACHE_BYTES_PER_TEXEL * threads.max(1) > MIN_IMAGE_CACHE {
+    let per_thread = largest_texels.saturating_mul(CACHE_BYTES_PER_TEXEL);
+    if per_thread.saturating_mul(threads.max(1)) > MIN_IMAGE_CACHE {
         format!(
             "the largest image, {largest_image}: {largest_texels} texels, once per thread; downscale that \
              image if it dominates"
@@ -202,8 +216,9 @@ fn split_budget(
     let plan_bytes = BASE_BYTES.saturating_add(held);
     let atlas = u64::from(atlas_size).pow(2) * 16;
     let raster_bytes = threads.max(1) * ATLASES_PER_THREAD * atlas;
-    let floor =
-        (largest_image_texels * CACHE_BYTES_PER_TEXEL * threads.max(1)).max(MIN_IMAGE_CACHE);
+    let floor = (largest_image_texels.saturating_mul(CACHE_BYTES_PER_TEXEL))
+        .saturating_mul(threads.max(1))
+        .max(MIN_IMAGE_CACHE);
     // The originals cache may hold a quarter of the image cache's bound on top of it.
     let needed_bytes = plan_bytes
         .saturating_add(raster_bytes)
@@ -248,6 +263,25 @@ pub fn default_budget() -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cache's floor is blamed on the largest image only where it sets it; a planned shard's plan
+    /// share names no triangles.
+    #[test]
+    fn refusals_name_what_sets_each_share() {
+        let small = cache_why("t.png", 64 * 64, 2);
+        assert!(
+            small.contains("the cache's minimum of 64 MiB") && !small.contains("t.png"),
+            "{small}"
+        );
+        let big = cache_why("big.png", 4096 * 4096, 2);
+        assert!(
+            big.contains("the largest image, big.png: 16777216 texels"),
+            "{big}"
+        );
+        assert!(cache_why("x", u64::MAX, u64::MAX).contains("the largest image"));
+        assert_eq!(plan_why(12), "a 64 MiB base and 12 triangles held");
+        assert!(plan_why(0).contains("no triangles"));
+    }
 
     #[test]
     fn budget_fixes_the_cache_and_refuses_what_cannot_fit() {

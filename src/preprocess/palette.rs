@@ -127,7 +127,8 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
     for run in pairs.chunk_by(|a, b| a.0 == b.0) {
         let (mat, n) = (run[0].0, run.len() as u64);
         if n > u64::from(limit) {
-            // One cell in one rect is what a cell's own rect would be: nothing to warn about.
+            // One cell alone in its material's rect (the limit is 0 only where no cell's rect fits an
+            // atlas's eighth): a point range, drawn as its own rect would be; nothing to warn about.
             if n < 2 {
                 continue;
             }

@@ -196,6 +196,10 @@ pub(super) fn rasterise_shard(
     // The shard file is complete and committed: a report that cannot be written (a disk full by a few
     // KiB) is said, not an error that reads as a failed shard (the merge's table shows '-' for it).
     if let Err(e) = write_sidecar(&path, &report) {
+        // An earlier run's report would be read as this shard's.
+        let mut stale = path.as_os_str().to_os_string();
+        stale.push(".json");
+        let _ = std::fs::remove_file(PathBuf::from(stale));
         report.warnings.push(format!(
             "the shard file is complete, but its report could not be written: {e} (the merge's table lacks \
              this shard's times and memory)"

@@ -491,8 +491,9 @@ pub fn save_png(path: &Path, img: &image::RgbaImage) -> std::io::Result<()> {
 pub fn is_out_of_descriptors(e: &std::io::Error) -> bool {
     #[cfg(unix)]
     return matches!(e.raw_os_error(), Some(libc::EMFILE | libc::ENFILE));
+    // ERROR_TOO_MANY_OPEN_FILES, and WSAEMFILE from a socket's accept.
     #[cfg(windows)]
-    return e.raw_os_error() == Some(4);
+    return matches!(e.raw_os_error(), Some(4 | 10024));
     #[cfg(not(any(unix, windows)))]
     {
         let _ = e;
@@ -505,6 +506,11 @@ pub fn is_out_of_descriptors(e: &std::io::Error) -> bool {
 pub fn is_resource_exhaustion(e: &std::io::Error) -> bool {
     #[cfg(unix)]
     if matches!(e.raw_os_error(), Some(libc::ENOBUFS | libc::ENOMEM)) {
+        return true;
+    }
+    // WSAENOBUFS.
+    #[cfg(windows)]
+    if e.raw_os_error() == Some(10055) {
         return true;
     }
     is_out_of_descriptors(e)

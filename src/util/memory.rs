@@ -43,9 +43,10 @@ pub fn machine_memory_bytes() -> Option<u64> {
 
 /// The memory this process may use, bytes: the machine's ([`machine_memory_bytes`]), or the memory limit
 /// of its cgroup where that is smaller (a Slurm job, a Kubernetes pod, a container: half of a 256 GiB
-/// node is no budget for a job allowed 8 GiB, which the kernel kills past its limit), or its address-space
-/// limit where smaller still (`ulimit -v`, an HPC job's `h_vmem`: past it every allocation fails and the
-/// process aborts). `None` where the platform tells none of them.
+/// node is no budget for a job allowed 8 GiB, which the kernel kills past its limit), or what its
+/// address-space limit leaves where smaller still (`ulimit -v`, an HPC job's `h_vmem`: past it every
+/// allocation fails and the process aborts; [`address_space_left`], measured now). `None` where the
+/// platform tells none of them.
 pub fn memory_limit_bytes() -> Option<u64> {
     let cgroup = cgroup_memory_limit(Path::new("/proc/self/cgroup"), Path::new("/sys/fs/cgroup"));
     let address_space = std::fs::read_to_string("/proc/self/limits")
@@ -57,15 +58,40 @@ pub fn memory_limit_bytes() -> Option<u64> {
             // which count against it though never resident: 16 threads under `ulimit -v 600000` aborted in
             // malloc with ~90 MiB resident (review, session 29).
             let mapped = status_bytes("VmSize:").unwrap_or(0);
-            let threads = rayon::current_num_threads() as u64;
-            limit
-                .saturating_sub(mapped)
-                .saturating_sub(threads.saturating_mul(RESERVED_PER_THREAD))
+            let workers = std::env::var("RAYON_NUM_THREADS")
+                .ok()
+                .and_then(|v| v.trim().parse::<u64>().ok())
+                .filter(|&n| n > 0)
+                .or_else(|| {
+                    std::thread::available_parallelism()
+                        .ok()
+                        .map(|n| n.get() as u64)
+                })
+                .unwrap_or(1);
+            address_space_left(limit, mapped, workers, running_threads().unwrap_or(1))
         });
     [machine_memory_bytes(), cgroup, address_space]
         .into_iter()
         .flatten()
         .min()
+}
+
+/// What an address-space `limit` leaves for data (bytes): less what the process has mapped (`mapped`,
+/// `VmSize`: its running threads' reservations included) and what each of the `workers` not yet running
+/// (beyond the `running` threads but this one) will reserve ([`RESERVED_PER_THREAD`]).
+fn address_space_left(limit: u64, mapped: u64, workers: u64, running: u64) -> u64 {
+    let to_start = workers.saturating_sub(running.saturating_sub(1));
+    limit
+        .saturating_sub(mapped)
+        .saturating_sub(to_start.saturating_mul(RESERVED_PER_THREAD))
+}
+
+/// This process's thread count now (Linux `Threads:`).
+fn running_threads() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/self/status").ok()?;
+    text.lines()
+        .find_map(|l| l.strip_prefix("Threads:"))
+        .and_then(|v| v.trim().parse().ok())
 }
 
 /// Address space a worker thread reserves without using it: a glibc malloc arena (64 MiB on 64-bit
@@ -124,6 +150,22 @@ fn cgroup_memory_limit(proc_cgroup: &Path, root: &Path) -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_address_space_left_counts_threads_once() {
+        const MIB: u64 = 1 << 20;
+        // 3000 MiB allowed, 100 mapped, 16 workers, only the main thread running: 16 arenas to come.
+        let left = address_space_left(3000 * MIB, 100 * MIB, 16, 1);
+        assert_eq!(left, 2900 * MIB - 16 * RESERVED_PER_THREAD);
+        // The pool running (17 threads): its reservations are in the mapped size already.
+        assert_eq!(
+            address_space_left(3000 * MIB, 100 * MIB, 16, 17),
+            2900 * MIB
+        );
+        // Past the limit: nothing left, not an underflow.
+        assert_eq!(address_space_left(1000 * MIB, 100 * MIB, 16, 1), 0);
+        assert!(running_threads().is_some_and(|n| n >= 1));
+    }
 
     #[test]
     fn the_address_space_limit_is_read_from_proc_limits() {

@@ -430,7 +430,8 @@ fn bad_input_is_a_clear_error() {
                  pages over HTTP; download the file for {command})"
             ),
         );
-    } // The scheme in any case; another scheme is named, not "No such file or directory".
+    }
+    // The scheme in any case; another scheme is named, not "No such file or directory".
     let upper = "HTTP://127.0.0.1:9/city.atlastree";
     let o = run(bin().current_dir(dir.path()).args(["inspect", upper]));
     assert!(
@@ -705,6 +706,12 @@ fn help_shows_the_flag_groups() {
     }
     let view = help("view");
     assert!(view.contains("[default: 1280]"), "{view}");
+    // The long texts (clap shows the variant's doc comment, not the argument struct's).
+    assert!(view.contains("Keys: W A S D move"), "{view}");
+    assert!(!view.contains("--http-timeout"), "{view}");
+    assert!(help("sweep").contains(r#"{"base": {"d_min_ratio": 8"#));
+    assert!(help("merge").contains("byte-identical to"));
+    assert!(help("build").contains("doubleSided: false"));
     let simulate = help("simulate");
     for s in ["Queue:", "--max-queue <N>", "Viewport:"] {
         assert!(

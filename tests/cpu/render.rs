@@ -690,10 +690,6 @@ fn texel_f32_agrees_with_f64_reference() {
     println!("{agree} agree, {near} near a branch, {near_step} near a step of the footprint cap");
 }
 
-/// A footprint that covers an elongated rect's short side alone (992 × 16 texels, ~20 texels a pixel
-/// along the strip) averages that side only: the strip keeps its detail along its length. (It was
-/// flattened whole, so a 1024 × 16 gradient texture seen from a few metres drew as one colour.) A
-/// footprint over both sides is flat (it shows the rect's mean; its texel is the inner centre).
 /// A constant UV (zero gradients) on a palette cell's point rect (1 × 1 inner, 8-texel border): sampled
 /// while the drawn level's bilinear taps stay inside the outer rect, its mean beyond (`POINT_REACH` drawn
 /// texels from the nearer outer edge), with zero gradients either way.
@@ -729,6 +725,10 @@ fn a_constant_uv_shows_the_mean_where_its_taps_would_leave_the_rect() {
     }
 }
 
+/// A footprint that covers an elongated rect's short side alone (992 × 16 texels, ~20 texels a pixel
+/// along the strip) averages that side only: the strip keeps its detail along its length. (It was
+/// flattened whole, so a 1024 × 16 gradient texture seen from a few metres drew as one colour.) A
+/// footprint over both sides is flat (it shows the rect's mean; its texel is the inner centre).
 #[test]
 fn a_footprint_over_a_strips_short_side_keeps_its_length() {
     use crate::fixtures::shader_math::rects;

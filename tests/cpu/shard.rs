@@ -182,6 +182,32 @@ fn shard_rerun_writes_the_same_bytes_and_merge_is_idempotent() {
     assert!(std::fs::read(&out).unwrap() == once);
 }
 
+/// A shard whose report (`.json`) cannot be written is still a finished shard, said with a warning (it
+/// was a failed step with its shard file published; fault hunt, session 29).
+#[test]
+fn a_shard_whose_report_cannot_be_written_is_finished_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    let spec = ShardSpec { index: 0, count: 2 };
+    let report_path = {
+        let mut p = shard_path(&out, spec).into_os_string();
+        p.push(".json");
+        std::path::PathBuf::from(p)
+    };
+    // A folder where the report goes: its write fails.
+    std::fs::create_dir(&report_path).unwrap();
+    let sharded = ShardedOptions {
+        spec,
+        argv: argv(spec),
+    };
+    let r = build_shard(city(), &deep_opts(), &out, &sharded, &NoProgress).unwrap();
+    assert!(shard_path(&out, spec).is_file());
+    let said = (r.warnings.iter())
+        .filter(|w| w.contains("the shard file is complete, but its report could not be written"))
+        .count();
+    assert_eq!(said, 1, "{:#?}", r.warnings);
+}
+
 /// A directory with the 4 shards of the deep build and an existing output the failed merges must leave.
 fn four_shards() -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();

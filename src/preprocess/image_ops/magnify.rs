@@ -110,9 +110,59 @@ pub fn magnify_cubic(
     })
 }
 
+/// `src` magnified to `w × h` by whole factors (`w` and `h` multiples of its sides): each texel repeated
+/// `w / src.width × h / src.height` times. The renderer's bilinear filter then shows the source's texels
+/// exactly at their centres and its bilinear mix midway between them, as the source drawn itself would
+/// (a 4 × 2 palette stored at 4 × 4 through the bilinear footprint filter blended its two rows: the
+/// palette hunt of session 29). Sides below [`crate::model::MIN_ORIGINAL_CLASS`] (1 and 2) grow so.
+pub(super) fn magnify_replicate(
+    src: &LinearImage,
+    w: u32,
+    h: u32,
+) -> Result<LinearImage, ImageOpsError> {
+    src.check()?;
+    if src.width == 0
+        || src.height == 0
+        || !w.is_multiple_of(src.width)
+        || !h.is_multiple_of(src.height)
+    {
+        return Err(ImageOpsError::ZeroSize {
+            size: src.width.min(src.height).min(w).min(h),
+        });
+    }
+    let (kx, ky) = ((w / src.width) as usize, (h / src.height) as usize);
+    let sw = src.width as usize;
+    let data = (0..h as usize)
+        .flat_map(|y| (0..w as usize).map(move |x| (x, y)))
+        .map(|(x, y)| src.data[(y / ky) * sw + x / kx])
+        .collect();
+    Ok(LinearImage {
+        width: w,
+        height: h,
+        data,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn whole_factors_repeat_each_texel() {
+        // A 4 × 2 palette stored at 4 × 4: each row twice, never a blend of the two.
+        let src = image(4, 2, |x, y| [x as f32 / 4.0, y as f32, 0.5, 1.0]);
+        let out = magnify_replicate(&src, 4, 4).unwrap();
+        for y in 0..4 {
+            for x in 0..4 {
+                assert_eq!(out.data[y * 4 + x], src.data[(y / 2) * 4 + x], "({x}, {y})");
+            }
+        }
+        // 1 × 1 to 4 × 4: the one colour everywhere.
+        let one = image(1, 1, |_, _| [0.2, 0.4, 0.6, 1.0]);
+        let out = magnify_replicate(&one, 4, 4).unwrap();
+        assert!(out.data.iter().all(|t| *t == one.data[0]));
+        assert!(magnify_replicate(&src, 6, 4).is_err(), "not a whole factor");
+    }
 
     fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> [f32; 4]) -> LinearImage {
         let data = (0..h)

@@ -3,7 +3,7 @@
 
 use super::ImageOpsError;
 use super::linear::LinearImage;
-use super::magnify::magnify_cubic;
+use super::magnify::{magnify_cubic, magnify_replicate};
 use super::mip::{MipChain, MipFilter, MipOptions};
 use super::sample::{AxisTaps, FootprintPlan, apply_rows, period_shift, tap_row, tap_rows};
 use super::srgb::srgb8_to_linear;
@@ -359,8 +359,10 @@ pub fn resample_square(
 
 /// The image of `chain` (its linear-light box mip chain, e.g. the one the image cache holds; box weights
 /// do not depend on wrap) resampled to `w × h` (an original texture at its stored power-of-two sides).
-/// Where neither side shrinks and a side that is not a power of two grows (rounded up), a Catmull-Rom cubic
-/// of level 0 ([`magnify_cubic`]: bilinear here and bilinear again in the renderer blurred it twice);
+/// Where sides grow by whole factors (a side of 1 or 2 stored at 4), each texel repeated
+/// ([`magnify_replicate`]); where neither side shrinks and a side that is not a power of two grows
+/// (rounded up), a Catmull-Rom cubic of level 0 ([`magnify_cubic`]: bilinear here and bilinear again in
+/// the renderer blurred it twice);
 /// otherwise filtered like [`draw_rect`] with the UV square `[0, 1]²` onto the whole image. Taps beyond the
 /// edges follow `wrap`, so a repeat or mirror texture tiles as seamlessly after resampling as before.
 pub fn resample_rect(
@@ -373,6 +375,15 @@ pub fn resample_rect(
         return Err(ImageOpsError::ZeroSize { size: w.min(h) });
     }
     let grows_npot = |to: u32, from: u32| to > from && !from.is_power_of_two();
+    if let Some(base) = chain.levels.first()
+        && base.width > 0
+        && base.height > 0
+        && (w > base.width || h > base.height)
+        && w.is_multiple_of(base.width)
+        && h.is_multiple_of(base.height)
+    {
+        return magnify_replicate(base, w, h);
+    }
     if let Some(base) = chain.levels.first()
         && w >= base.width
         && h >= base.height
