@@ -103,8 +103,8 @@ pub enum SceneError {
     /// More triangles than `ImportOptions::max_triangles` (the memory budget's plan): all of them
     /// counted (the node walk goes on counting, keeping nothing), so the caller can say what is needed.
     #[error(
-        "{file}: {triangles} triangles over {instances} mesh instances, more than the {max} the memory budget's \
-         plan holds beside the process's fixed base"
+        "{file}: {triangles} triangles over {instances} mesh instances, more than the memory budget's plan \
+         holds (room for {max} beside the process's fixed base)"
     )]
     OverTriangleBudget {
         file: String,
