@@ -222,9 +222,9 @@ impl RenderArgs {
             );
         }
         let viewport = self.viewport.validate()?;
-        let window = atlastree::report::metrics::SSIM_WINDOW as u32;
+        let window = atlastree::report::metrics::SSIM_WINDOW;
         if let Some(r) = self.reference
-            && (viewport.width < window || viewport.height < window)
+            && !atlastree::report::metrics::ssim_fits(viewport.width, viewport.height)
         {
             bail!(
                 "--reference {} scores frames by SSIM, which needs at least {window}×{window} pixels (got \

@@ -227,7 +227,8 @@ const DEAD_AFTER_FRAMES: usize = 10;
 /// none). A server that stopped responding holds them up to its timeout × attempts; they are abandoned
 /// at exit, not counted as failures. Nothing arrived and nothing failed over at least
 /// [`DEAD_AFTER_FRAMES`] frames: a dead source from the start (a shorter run may simply end before a
-/// healthy source's first answers are drawn: one frame over a local server said "dead"). Nothing arrived in the last frames while loads failed there: a source that died mid-run (more
+/// healthy source's first answers are drawn: one frame over a local server said "dead"). Nothing
+/// arrived in the last frames while loads failed there: a source that died mid-run (more
 /// frames or a synchronous loader cannot help). Otherwise the run simply ended before a slow source
 /// answered (its latency × the requests per frame).
 fn unanswered_requests(paged: &[&atlastree::plan::PagingFrame], failures: u32) -> Option<String> {

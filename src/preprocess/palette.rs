@@ -59,7 +59,7 @@ pub struct PaletteReport {
     /// Materials past the limit: their constant-UV triangles share one rect, and scaled leaves and
     /// ancestors draw them averaged with neighbouring cells.
     pub over_limit: Vec<OverLimit>,
-    /// The limit applied ([`cell_limit`]; 0: off).
+    /// The limit applied ([`cell_limit`]; 0 where no cell's rect fits an eighth of an atlas).
     pub limit: u32,
 }
 

@@ -139,8 +139,7 @@ fn plan_tree(
     };
     let prepared = prepare::prepare(scene, tris, &popts);
     let (infos, corners) = (&prepared.infos, prepared.corners(scene));
-    let mut sizing = prepare::analyze(infos);
-    sizing.palette = prepared.palette.clone();
+    let sizing = prepare::analyze(&prepared);
     progress.finish_stage();
     timings.push(&format!("sizing {kind:?}"), t);
 

@@ -127,8 +127,8 @@ pub struct PrepareOptions {
     /// so no triangle is cut for its UV range and every triangle of a material shares one density class
     /// (one rect per material and node, at the largest density its triangles need).
     pub wrap: bool,
-    /// Most distinct source texels a material's constant-UV triangles may show and still get one rect per
-    /// texel ([`super::palette`]; 0: off).
+    /// Most distinct cells (64ths of a source texel) a material's constant UVs may lie in and still get a
+    /// rect per cell ([`super::palette::cell_limit`]; 0: none, every material with two or more is over).
     pub palette_cells: u32,
 }
 
@@ -354,13 +354,15 @@ pub struct PrepareReport {
     pub edge_fallback: u64,
     pub all_uv_equal: u64,
     pub world_degenerate: u64,
-    /// The constant-UV triangles' per-texel rects ([`super::palette`]; filled in by the caller).
+    /// The constant-UV triangles' per-cell rects ([`Prepared::palette`]).
     pub palette: super::palette::PaletteReport,
 }
 
-pub fn analyze(infos: &[TriInfo]) -> PrepareReport {
+pub fn analyze(prepared: &Prepared) -> PrepareReport {
+    let infos = &prepared.infos;
     let mut r = PrepareReport {
         triangles: infos.len() as u64,
+        palette: prepared.palette.clone(),
         ..Default::default()
     };
     for t in infos {

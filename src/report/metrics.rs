@@ -150,7 +150,7 @@ pub fn ssim_from_moments(mx: f64, my: f64, sxx: f64, syy: f64, sxy: f64) -> f64 
 pub fn ssim(a: &[u8], b: &[u8], width: u32, height: u32) -> Result<f64, ReportError> {
     check_frame("ssim: first frame", a, width, height)?;
     check_frame("ssim: second frame", b, width, height)?;
-    if (width as usize) < SSIM_WINDOW || (height as usize) < SSIM_WINDOW {
+    if !ssim_fits(width, height) {
         return Err(ReportError::FrameTooSmall {
             width,
             height,
@@ -163,6 +163,12 @@ pub fn ssim(a: &[u8], b: &[u8], width: u32, height: u32) -> Result<f64, ReportEr
         width as usize,
         height as usize,
     ))
+}
+
+/// Whether frames of `width × height` hold one [`SSIM_WINDOW`]-wide window: what [`ssim`] needs, checked
+/// up front by `sweep` and `render --reference`.
+pub fn ssim_fits(width: u32, height: u32) -> bool {
+    width as usize >= SSIM_WINDOW && height as usize >= SSIM_WINDOW
 }
 
 /// Mean SSIM of two luma planes (`w × h`, both ≥ [`SSIM_WINDOW`]); see [`ssim`].

@@ -374,8 +374,8 @@ impl Grid {
                 self.frames, self.width, self.height
             ));
         }
-        let window = crate::report::metrics::SSIM_WINDOW as u32;
-        if self.width < window || self.height < window {
+        if !crate::report::metrics::ssim_fits(self.width, self.height) {
+            let window = crate::report::metrics::SSIM_WINDOW;
             return bad(format!(
                 "size {}×{}: every variant's frames are scored by SSIM, which needs at least \
                  {window}×{window} pixels",
