@@ -293,39 +293,37 @@ fn selection(a: &BuildArgs) -> String {
     format!("materials={:?};up={:?}", a.materials, a.up)
 }
 
-/// This process's arguments as text: a name that is not UTF-8 (a valid file name on Unix) shows as
-/// U+FFFD in the hint, where `std::env::args` would panic.
-fn lossy_args() -> impl Iterator<Item = String> {
-    std::env::args_os().map(|a| a.to_string_lossy().into_owned())
-}
-
 /// The command line a shard or plan records for the "rebuild it with: …" hints of merge and of a refused
 /// plan: as typed, but with the program, the scene and the output as absolute paths (resolved against this
 /// process's working directory, without touching the file system), so the hint works from wherever merge
 /// runs. A program named without a `/` is left for the shell's search path.
+/// Every argument is recorded byte for byte (`util::shell_words`: a name that is not UTF-8, valid on Unix,
+/// prints back in `$'…'` quoting and runs).
 fn recorded_argv(
-    args: impl Iterator<Item = String>,
+    args: impl Iterator<Item = std::ffi::OsString>,
     scene: &std::path::Path,
     out: &std::path::Path,
 ) -> Vec<String> {
+    use atlastree::util::shell_words::path_to_recorded;
     let absolute = |p: &std::path::Path| {
-        std::path::absolute(p).map_or_else(|_| p.display().to_string(), |a| a.display().to_string())
+        path_to_recorded(&std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()))
     };
-    let (scene_arg, out_arg) = (scene.display().to_string(), out.display().to_string());
+    let out_bytes = out.as_os_str().as_encoded_bytes();
     args.enumerate()
         .map(|(i, arg)| {
-            let program = i == 0 && arg.contains('/');
-            let path = i > 0 && (arg == scene_arg || arg == out_arg);
+            let bytes = arg.as_encoded_bytes();
+            let program = i == 0 && bytes.contains(&b'/');
+            let path = i > 0 && (arg == scene.as_os_str() || arg == out.as_os_str());
             if program || path {
                 return absolute(std::path::Path::new(&arg));
             }
             // The output attached to its flag: `--out=PATH`, `-o=PATH`, `-oPATH`.
             for flag in ["--out=", "-o=", "-o"] {
-                if arg.strip_prefix(flag) == Some(out_arg.as_str()) {
+                if bytes.strip_prefix(flag.as_bytes()) == Some(out_bytes) {
                     return format!("{flag}{}", absolute(out));
                 }
             }
-            arg
+            path_to_recorded(std::path::Path::new(&arg))
         })
         .collect()
 }
@@ -338,7 +336,7 @@ fn run_plan(
 ) -> anyhow::Result<ExitCode> {
     let opts = a.options();
     let key = shard_plan_key(&opts, &a.scene, &selection(a))?;
-    let argv = recorded_argv(lossy_args(), &a.scene, &a.out);
+    let argv = recorded_argv(std::env::args_os(), &a.scene, &a.out);
     let mut report = plan_shards(scene, &opts, &a.out, key, argv, bars)
         .with_context(|| format!("planning {} for {}", a.scene.display(), a.out.display()))?;
     report.stages.prepend("import", import_s, import_peak);
@@ -389,7 +387,7 @@ fn run_planned_shard(
     let key = shard_plan_key(&opts, &a.scene, &selection(a))?;
     let sharded = ShardedOptions {
         spec,
-        argv: recorded_argv(lossy_args(), &a.scene, &a.out),
+        argv: recorded_argv(std::env::args_os(), &a.scene, &a.out),
     };
     if !(a.quiet || a.json) {
         println!("shard {spec}: planned by {}", plan.display());
@@ -430,7 +428,7 @@ fn run_shard(
 ) -> anyhow::Result<ExitCode> {
     let sharded = ShardedOptions {
         spec,
-        argv: recorded_argv(lossy_args(), &a.scene, &a.out),
+        argv: recorded_argv(std::env::args_os(), &a.scene, &a.out),
     };
     let mut report =
         build_shard(scene, &a.options(), &a.out, &sharded, bars).with_context(|| {
@@ -565,7 +563,7 @@ mod tests {
             "--compress",
             "bc1",
         ]
-        .map(String::from);
+        .map(std::ffi::OsString::from);
         let got = recorded_argv(
             args.into_iter(),
             Path::new("scn/scene.gltf"),
@@ -587,7 +585,8 @@ mod tests {
             ]
         );
         // `--out=`, an absolute scene and a program found on the search path are kept or made absolute.
-        let args = ["atlastree", "build", "/data/s.glb", "--out=o.atlastree"].map(String::from);
+        let args = ["atlastree", "build", "/data/s.glb", "--out=o.atlastree"]
+            .map(std::ffi::OsString::from);
         let got = recorded_argv(
             args.into_iter(),
             Path::new("/data/s.glb"),
@@ -603,12 +602,36 @@ mod tests {
             ]
         );
         // `-oPATH` (clap's attached short form) too; another flag's value equal to no path is kept.
-        let args = ["atlastree", "build", "s.glb", "-oout/x.at", "-q"].map(String::from);
+        let args =
+            ["atlastree", "build", "s.glb", "-oout/x.at", "-q"].map(std::ffi::OsString::from);
         let got = recorded_argv(args.into_iter(), Path::new("s.glb"), Path::new("out/x.at"));
         assert_eq!(got[3], format!("-o{}", abs("out/x.at")));
         assert_eq!(got[4], "-q");
-        let args = ["atlastree", "build", "s.glb", "-o=out/x.at"].map(String::from);
+        let args = ["atlastree", "build", "s.glb", "-o=out/x.at"].map(std::ffi::OsString::from);
         let got = recorded_argv(args.into_iter(), Path::new("s.glb"), Path::new("out/x.at"));
         assert_eq!(got[3], format!("-o={}", abs("out/x.at")));
+    }
+
+    /// A scene whose name is not UTF-8 is made absolute and recorded byte for byte, so the hint quotes
+    /// it as `$'…\xff…'` and runs (it printed U+FFFD and named no file).
+    #[cfg(unix)]
+    #[test]
+    fn non_utf8_names_are_recorded_exactly() {
+        use std::ffi::{OsStr, OsString};
+        use std::os::unix::ffi::OsStrExt;
+        let scene = OsStr::from_bytes(b"/data/sc\xff.gltf");
+        let args = [
+            OsString::from("atlastree"),
+            OsString::from("build"),
+            scene.to_owned(),
+            OsString::from("-o"),
+            OsString::from("/o/m.at"),
+        ];
+        let got = recorded_argv(args.into_iter(), Path::new(scene), Path::new("/o/m.at"));
+        assert_eq!(
+            atlastree::util::shell_words::shell_word(&got[2]),
+            "$'/data/sc\\xff.gltf'"
+        );
+        assert_eq!(got[4], "/o/m.at");
     }
 }

@@ -86,6 +86,9 @@ pub(super) fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
              the shards' warnings below)"
         );
     }
+    for w in r.plan.iter().flat_map(|p| &p.warnings) {
+        println!("  warning (plan): {w}");
+    }
     for (w, shards) in &warned {
         let list: Vec<String> = shards.iter().map(u32::to_string).collect();
         println!("  warning (shard {}): {w}", list.join(", "));

@@ -517,6 +517,21 @@ fn fly(
 ) -> anyhow::Result<()> {
     let params = file.to_params();
     let mut selections = Vec::new();
+    if let Some(Reference::Supersampled(_)) = cfg.reference {
+        let formats: Vec<String> = (0..file.trees())
+            .filter_map(|i| file.tree(i).map(|t| t.format()))
+            .filter(|f| *f != atlastree::texfmt::TexFormat::Rgba8)
+            .map(|f| format!("{f:?}"))
+            .collect();
+        if !formats.is_empty() {
+            eprintln!(
+                "note: the supersampled reference draws this file's original textures as stored, \
+                 block-compressed ({}): it carries their compression error, so it is the truth only up to \
+                 that; build with --compress none for a reference without it",
+                formats.join(", ")
+            );
+        }
+    }
     // Reference frames of one colour throughout (the sky alone, or a view inside a wall).
     let (mut truths, mut flat_truths) = (0usize, 0usize);
     for (i, cam) in cameras.iter().enumerate() {

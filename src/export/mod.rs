@@ -285,7 +285,8 @@ pub fn export_3dtiles(
 }
 
 /// Puts the finished export `temp` at `out`: an old `out` is renamed aside first and deleted only once the
-/// new one is in place (put back if that rename fails), so a failure never leaves `out` empty.
+/// new one is in place (put back if that rename fails), so a failure never leaves `out` empty; an old one
+/// that cannot be deleted then is a warning, the export done.
 fn replace_dir(temp: &Path, out: &Path, name: &str) -> Result<(), ExportError> {
     if !out.exists() {
         return std::fs::rename(temp, out).map_err(io(out));
@@ -300,7 +301,16 @@ fn replace_dir(temp: &Path, out: &Path, name: &str) -> Result<(), ExportError> {
         let _ = std::fs::rename(&old, out);
         return Err(io(out)(e));
     }
-    std::fs::remove_dir_all(&old).map_err(io(&old))
+    // The new export is in place: an old one that cannot be removed (an immutable file in it) is left
+    // with a warning, not reported as a failed export; a later export removes it once it can.
+    if let Err(e) = std::fs::remove_dir_all(&old) {
+        tracing::warn!(
+            "the new export is at {}, but its predecessor, moved aside to {}, could not be removed: {e}",
+            out.display(),
+            old.display()
+        );
+    }
+    Ok(())
 }
 
 /// Removes `.NAME.partial-PID` and `.NAME.old-PID` folders in `parent` whose process is gone (an export
@@ -677,6 +687,7 @@ fn tree_tileset(
     let tile_json = |t: &TileSummary, children: Vec<serde_json::Value>| {
         let lo = DVec3::from_array(t.bounds_min);
         let hi = DVec3::from_array(t.bounds_max);
+        let (lo, hi) = tileset::with_f32_slack(lo, hi, ctx.origin);
         let mut j = json!({
             "boundingVolume": { "box": tileset::tile_box(lo, hi, ctx.origin) },
             "geometricError": t.geometric_error,
@@ -707,7 +718,9 @@ fn tree_tileset(
     }
     let mut root = built[0].take().unwrap_or_default();
     root["transform"] = tileset::translation(ctx.origin);
+    // Grown as the root tile's box is, so the union over both trees holds both boxes.
     let bounds = (tree.nodes[0].bounds_min, tree.nodes[0].bounds_max);
+    let bounds = tileset::with_f32_slack(bounds.0, bounds.1, ctx.origin);
     for t in tiles.iter().chain(orig.iter()) {
         summary.gltf_bytes += t.gltf_bytes;
         summary.per_tile_geometry_bytes += t.geometry_bytes;

@@ -29,6 +29,9 @@ pub fn refine_distance(g: f64, screen_width: u32, fov_x_deg: f64) -> f64 {
     g * f64::from(screen_width.max(1)) / (2.0 * t * SCREEN_SPACE_ERROR)
 }
 
+/// Relative slack of a content box: 8 f32 steps (two roundings of each coordinate, with room).
+pub(super) const F32_SLACK: f64 = 8.0 * f32::EPSILON as f64;
+
 /// A scene-frame (y-up) vector in the tile frame (z-up).
 pub(super) fn to_tile_frame(p: DVec3) -> DVec3 {
     DVec3::new(p.x, -p.z, p.y)
@@ -36,13 +39,22 @@ pub(super) fn to_tile_frame(p: DVec3) -> DVec3 {
 
 /// The 3D Tiles `box` of the scene-frame AABB `[lo, hi]` relative to `origin`: centre, then the three
 /// half-axis vectors, in the tile frame. Half sizes are kept at least `1e-6` of the largest (and at least
-/// 1e-9) so a flat node still has a volume.
+/// 1e-9) so a flat node still has a volume. A box of content is first grown ([`with_f32_slack`]).
 pub(super) fn tile_box(lo: DVec3, hi: DVec3, origin: DVec3) -> Value {
     let c = to_tile_frame((lo + hi) * 0.5 - origin);
     let h = (hi - lo) * 0.5;
     let floor = (h.max_element() * 1e-6).max(1e-9);
     let h = to_tile_frame(h).abs().max(DVec3::splat(floor));
     json!([c.x, c.y, c.z, h.x, 0.0, 0.0, 0.0, h.y, 0.0, 0.0, 0.0, h.z])
+}
+
+/// `[lo, hi]` grown on every side by [`F32_SLACK`] of its farthest corner's distance from `origin`: a
+/// tile's f32 positions (relative to `origin`, from the file's f32 positions relative to their leaf) lie
+/// up to a few f32 steps outside the f64 bounds (13 µm at 100 m, outside the box without it).
+pub(super) fn with_f32_slack(lo: DVec3, hi: DVec3, origin: DVec3) -> (DVec3, DVec3) {
+    let reach = (lo - origin).abs().max((hi - origin).abs()).max_element();
+    let slack = DVec3::splat(reach * F32_SLACK);
+    (lo - slack, hi + slack)
 }
 
 /// The column-major 4 × 4 translation to the scene-frame point `origin`, in the tile frame.
@@ -87,5 +99,14 @@ mod tests {
             .collect();
         assert_eq!(&v[..3], &[5.0, 15.0, 12.0]);
         assert_eq!((v[3], v[7], v[11]), (5.0, 5.0, 2.0));
+        // Grown by the slack of the farthest corner's coordinate (20, of (10, 14, -20)).
+        let (lo, hi) = with_f32_slack(
+            DVec3::new(1000.0, 10.0, -20.0),
+            DVec3::new(1010.0, 14.0, -10.0),
+            DVec3::new(1000.0, 0.0, 0.0),
+        );
+        let slack = 20.0 * F32_SLACK;
+        assert_eq!(lo, DVec3::new(1000.0, 10.0, -20.0) - slack);
+        assert_eq!(hi, DVec3::new(1010.0, 14.0, -10.0) + slack);
     }
 }

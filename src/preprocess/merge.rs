@@ -143,6 +143,9 @@ pub struct MergedPlan {
     pub path: PathBuf,
     pub seconds: Option<f64>,
     pub peak_rss_bytes: Option<u64>,
+    /// What planning the trees warned about (from the plan's report; the shards that read the plan do
+    /// not repeat it).
+    pub warnings: Vec<String>,
 }
 
 /// The shard files beside `out`, by their names: `(index, count, path)`.
@@ -183,10 +186,9 @@ fn shard_files(out: &Path) -> Vec<(u32, u32, PathBuf)> {
 /// `argv` with the value of its `-o`/`--out` (in any of clap's spellings) replaced by `out`, made
 /// absolute (the merge may run elsewhere than the shard did).
 fn with_out(argv: &[String], out: &Path) -> Vec<String> {
-    let out = std::path::absolute(out)
-        .unwrap_or_else(|_| out.to_path_buf())
-        .to_string_lossy()
-        .into_owned();
+    let out = crate::util::shell_words::path_to_recorded(
+        &std::path::absolute(out).unwrap_or_else(|_| out.to_path_buf()),
+    );
     let mut args = Vec::with_capacity(argv.len());
     let mut it = argv.iter();
     while let Some(a) = it.next() {
@@ -226,15 +228,7 @@ fn rebuild_hint(argv: Option<&[String]>, spec: ShardSpec) -> String {
     }
     let quoted: Vec<String> = args
         .iter()
-        .map(|a| {
-            if a.chars()
-                .all(|c| c.is_ascii_alphanumeric() || "-_./=:,".contains(c))
-            {
-                a.clone()
-            } else {
-                format!("'{}'", a.replace('\'', "'\\''"))
-            }
-        })
+        .map(|a| crate::util::shell_words::shell_word(a))
         .collect();
     format!("; rebuild it with: {}", quoted.join(" "))
 }
@@ -269,7 +263,8 @@ pub fn merge(
         let report: Option<super::ShardPlanReport> = read_sidecar(&path);
         let plan = MergedPlan {
             seconds: report.as_ref().and_then(super::ShardPlanReport::seconds),
-            peak_rss_bytes: report.and_then(|r| r.stages.peak_rss_bytes),
+            peak_rss_bytes: report.as_ref().and_then(|r| r.stages.peak_rss_bytes),
+            warnings: report.map(|r| r.warnings).unwrap_or_default(),
             path,
         };
         (Tables::Plan(file, tables), Some(plan))

@@ -204,12 +204,12 @@ pub enum BuildError {
         value: String,
         why: std::borrow::Cow<'static, str>,
     },
-    /// d_min from the scene's diagonal (`--d-min-ratio`, the default) where that diagonal is 0 or not
-    /// finite: every position the same point (a zero scale, all-zero positions), or overflowing.
+    /// d_min from the scene's diagonal (`--d-min-ratio`, the default) where that diagonal is 0: every
+    /// position the same point (a zero scale, all-zero positions).
     #[error(
         "the scene {path} spans a diagonal of {d} world units, so d_min = diagonal / {r} is no \
-         distance: its positions are all one point (a zero scale?) or overflow; give --d-min in metres to \
-         build it anyway",
+         distance: its positions are all one point (a zero scale?); give --d-min in metres to build it \
+         anyway",
         d = crate::util::short_number(*.diagonal),
         r = crate::util::short_number(*.ratio)
     )]
@@ -218,6 +218,13 @@ pub enum BuildError {
         diagonal: f64,
         ratio: f64,
     },
+    /// A scene wider than the 32-bit floats its vertices are stored in (relative to their leaf) hold.
+    #[error(
+        "the scene {path} spans {e} world units along one axis, more than the 3.4e38 a vertex's 32-bit \
+         float holds (a node matrix or accessor scaling by an absurd factor?); nothing built",
+        e = crate::util::short_number(*.extent)
+    )]
+    ExtentOverflow { path: String, extent: f64 },
     /// `detail` says why: what the import skipped (counted, with its first warnings), or that nothing
     /// was skipped.
     #[error(
@@ -450,6 +457,15 @@ pub fn resolve_params(
     }
     let (lo, hi) = scene.bounds().ok_or_else(|| empty_scene(scene))?;
     let diagonal = (hi - lo).length();
+    // A vertex is stored as 32-bit floats relative to its leaf's centre: a scene wider than an f32 holds
+    // (a node matrix scaling by 1e300) would store every position as 0, one point, without this.
+    let extent = (hi - lo).max_element();
+    if !(diagonal.is_finite() && extent <= f64::from(f32::MAX)) {
+        return Err(BuildError::ExtentOverflow {
+            path: scene.source.display().to_string(),
+            extent,
+        });
+    }
     let d_min = match opts.d_min {
         DMin::Metres(m) => m,
         DMin::Ratio(r) => {

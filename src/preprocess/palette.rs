@@ -10,7 +10,8 @@
 //! dB in a leaf at scale 0.25, 12–14 dB from the root, against 59 dB at scale 1).
 //!
 //! Here every such triangle of a material that uses at most `limit` distinct cells (a [`SUBCELLS`]-th of a
-//! source texel per axis: real palettes name each colour by one UV) gets a density class of its own cell
+//! source texel per axis: real palettes name each colour by one UV; a triangle whose UVs lie within a cell
+//! of each other counts, at their centre, and is stored with that one UV) gets a density class of its own cell
 //! ([`TriInfo::class`] = [`POINT_CLASS`] + 1 + the cell's rank among the material's), so the layout gives
 //! it a point rect ([`is_cell_class`]) whose inner 1 × 1 texel is the source at that UV and whose border
 //! repeats it: uniform,
@@ -21,7 +22,7 @@
 
 use super::prepare::{POINT_CLASS, TriInfo};
 use crate::ids::MaterialId;
-use crate::model::sizing::SizeMethod;
+use crate::model::sizing::{SizeEstimate, SizeMethod};
 use crate::scene::{Scene, Wrap};
 use glam::DVec2;
 
@@ -76,7 +77,7 @@ pub struct OverLimit {
 /// The cell (a [`SUBCELLS`]-th of a source texel per axis) a constant UV `uv` (period-shifted,
 /// [`super::prepare::period_shift`]) lies in, as a key: per axis the cell index in `[0, n)` for `n =
 /// SUBCELLS · side` on repeat and clamp-to-edge (clamped), `[0, 2n)` on mirrored repeat (the shifted UV
-/// lies in `[0, 2)`). `None` for a non-finite UV.
+/// lies in `[0, 2)`; [`assign_classes`] folds the second period back first). `None` for a non-finite UV.
 pub fn cell_key(uv: DVec2, source: [u32; 2], wrap: [Wrap; 2]) -> Option<u64> {
     if !uv.is_finite() {
         return None;
@@ -106,12 +107,10 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
         ..PaletteReport::default()
     };
     let key = |t: &TriInfo| -> Option<u64> {
-        if t.size.method != SizeMethod::AllUvEqual {
-            return None;
-        }
+        let (uv, _) = point_uv(scene, t)?;
         let mat = scene.materials.get(t.material.idx())?;
         let img = scene.images.get(mat.image.idx())?;
-        cell_key(t.uv[0], [img.width, img.height], mat.wrap)
+        cell_key(uv, [img.width, img.height], mat.wrap)
     };
     let mut pairs: Vec<(MaterialId, u64)> = infos
         .par_iter()
@@ -156,9 +155,55 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
         if let Some(rank) = key(t).and_then(|c| of_mat.binary_search(&c).ok()) {
             // rank < limit ≤ MAX_CELLS: far from the density classes (about −1100 ..= 1100).
             t.class = POINT_CLASS + 1 + rank as i32;
+            // Its one UV, exactly (a UV spread within its cell, a mirrored period folded back).
+            if let Some((uv, changed)) = point_uv(scene, t)
+                && changed
+            {
+                t.uv = [uv; 3];
+                t.size = SizeEstimate {
+                    w: 0.0,
+                    h: 0.0,
+                    method: SizeMethod::AllUvEqual,
+                };
+            }
         }
     });
     report
+}
+
+/// The one UV a triangle shows, if it shows one texel's colour, and whether it differs from the
+/// triangle's stored UVs: a constant UV ([`SizeMethod::AllUvEqual`]), or UVs within a [`SUBCELLS`]-th of a
+/// source texel of each other per axis (float noise of an exporter, or a texel magnified over a whole
+/// model: one f32 step of spread took the triangle out of its cell, 15 dB where its twin with equal UVs
+/// drew 99; session 30's hunt), at their centre. On a mirrored-repeat axis the second period `[1, 2)`
+/// folds back to `2 − u`, the same texel (a cell drawn at `u` and at `2 − u` took two cells).
+fn point_uv(scene: &Scene, t: &TriInfo) -> Option<(DVec2, bool)> {
+    let mat = scene.materials.get(t.material.idx())?;
+    let img = scene.images.get(mat.image.idx())?;
+    let constant = t.size.method == SizeMethod::AllUvEqual;
+    let uv = if constant {
+        t.uv[0]
+    } else {
+        let lo = t.uv[0].min(t.uv[1]).min(t.uv[2]);
+        let hi = t.uv[0].max(t.uv[1]).max(t.uv[2]);
+        let texels = (hi - lo) * DVec2::new(f64::from(img.width), f64::from(img.height));
+        if !(texels.is_finite() && texels.max_element() <= 1.0 / f64::from(SUBCELLS)) {
+            return None;
+        }
+        (lo + hi) * 0.5
+    };
+    if !uv.is_finite() {
+        return None;
+    }
+    let fold = |u: f64, w: Wrap| {
+        if w == Wrap::MirroredRepeat && u > 1.0 {
+            2.0 - u
+        } else {
+            u
+        }
+    };
+    let folded = DVec2::new(fold(uv.x, mat.wrap[0]), fold(uv.y, mat.wrap[1]));
+    Some((folded, !constant || folded != uv))
 }
 
 #[cfg(test)]

@@ -182,7 +182,10 @@ pub fn build_shard_planned(
     let t_all = Instant::now();
     let path = plan.path().to_path_buf();
     if plan.header.key != key {
-        let planned_by = plan.manifest.argv.join(" ");
+        let words: Vec<String> = (plan.manifest.argv.iter())
+            .map(|a| crate::util::shell_words::shell_word(a))
+            .collect();
+        let planned_by = words.join(" ");
         return Err(ShardPlanError::OtherInput { path, planned_by }.into());
     }
     let mut timings = StageLog::default();

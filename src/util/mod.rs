@@ -3,6 +3,7 @@
 
 mod files;
 mod memory;
+pub mod shell_words;
 pub mod srgb;
 
 pub use files::{

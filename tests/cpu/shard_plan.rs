@@ -89,6 +89,31 @@ fn planned_shards_merge_into_the_one_process_file() {
     }
 }
 
+/// The plan step's warnings (its report, `OUT.plan.json`) reach the merge's report: the shards that read
+/// the plan do not repeat them, so the merge is where a planned build's warnings are seen together.
+#[test]
+fn the_merge_reports_the_plans_warnings() {
+    let scene = city_path();
+    let opts = BuildOptions::default();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("w.atlastree");
+    let imported = import(&scene, &ImportOptions::default()).unwrap();
+    let key = shard_plan_key(&opts, &scene, "").unwrap();
+    let mut report = plan_shards(&imported, &opts, &out, key, Vec::new(), &NoProgress).unwrap();
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+    report
+        .warnings
+        .push("Opaque tree: a warning of the plan".into());
+    report.save().unwrap();
+    for index in 0..2 {
+        let r = planned_shard(&scene, &opts, &out, ShardSpec { index, count: 2 }).unwrap();
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+    }
+    let merged = merge(&out, None, &NoProgress).unwrap();
+    let p = merged.plan.expect("the merge names the plan");
+    assert_eq!(p.warnings, ["Opaque tree: a warning of the plan"]);
+}
+
 #[test]
 fn the_plans_skeleton_is_the_tables_without_their_geometry() {
     // Read without its geometry sections, the plan gives the very skeleton the whole prefix gives.

@@ -357,7 +357,9 @@ impl RectMap {
     /// - A constant UV (zero footprint, [`crate::preprocess::palette`]) nearer the outer edge than
     ///   [`POINT_REACH`] drawn texels is flat too: on a coarse level its rect (a palette cell's: 1 × 1
     ///   inner, a uniform border) is smaller than the texels the sampler would mix; its mean is its colour.
-    ///   Its gradients stay zero.
+    ///   Its gradients stay zero. A rect of one inner texel is flat at any footprint: the constant UV of
+    ///   a palette cell, interpolated, has gradients an ulp off zero, which took the sampled branch on
+    ///   coarse levels and read neighbouring rects (banded cells at `--border 2`, session 30's hunt).
     /// - A footprint that covers one axis only (the short side of an elongated rect, say 992 × 16 texels
     ///   seen from afar) averages that axis alone: the sample sits at the inner centre there; the other
     ///   axis keeps its detail.
@@ -408,7 +410,10 @@ impl RectMap {
         // Nearer the outer edge than the drawn level's bilinear taps reach, a constant UV (a palette
         // cell's rect on a coarse level, crate::preprocess::palette) shows the rect's mean.
         let point_mixed = footprint == 0.0 && d.min_element() < POINT_REACH * level_texels;
-        if covered.all() || k < SHARPEN_MIN || point_mixed {
+        // A rect of one inner texel (a palette cell's) has one colour, its mean: shown whatever the
+        // gradients (a constant UV's interpolation jitters them off zero by an ulp).
+        let one_texel = inner.cmple(Vec2::ONE).all();
+        if covered.all() || k < SHARPEN_MIN || point_mixed || one_texel {
             let kk = if footprint == 0.0 {
                 0.0
             } else {

@@ -68,11 +68,16 @@ pub(super) fn split_glb(
             ),
         });
     }
-    if let Some(length) = length.filter(|&n| n as usize > bytes.len()) {
+    if let Some(length) = length.filter(|&n| n as usize != bytes.len()) {
+        let why = if length as usize > bytes.len() {
+            "truncated?"
+        } else {
+            "bytes appended after it, or a corrupt header"
+        };
         return Err(SceneError::Parse {
             file: file.to_string(),
             reason: format!(
-                "GLB: header says the file has {length} bytes, it has {} (truncated?)",
+                "GLB: header says the file has {length} bytes, it has {} ({why})",
                 bytes.len()
             ),
         });

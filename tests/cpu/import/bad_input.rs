@@ -383,6 +383,18 @@ fn glb_header_length_below_twelve_is_refused() {
         whole.len() - 100
     );
     assert!(e.ends_with(&want), "{e}");
+    // A header length below the file's (it imported what followed, silently): refused the same way.
+    let mut short = whole.clone();
+    short[8..12].copy_from_slice(&20u32.to_le_bytes());
+    std::fs::write(&path, &short).unwrap();
+    let e = import(&path, &ImportOptions::default())
+        .unwrap_err()
+        .to_string();
+    let want = format!(
+        "GLB: header says the file has 20 bytes, it has {} (bytes appended after it, or a corrupt header)",
+        whole.len()
+    );
+    assert!(e.ends_with(&want), "{e}");
     let mut magic = whole.clone();
     magic[..4].copy_from_slice(b"glTX");
     std::fs::write(&path, &magic).unwrap();

@@ -249,6 +249,29 @@ fn a_point_footprint_terminates_and_a_point_scene_is_refused() {
     assert_eq!(built.report.trees[0].leaves, 1);
 }
 
+/// A scene wider than the f32 its vertices are stored in (relative to their leaf) holds is refused
+/// whatever d_min says: with `--d-min` given it built and stored every vertex at 0, one point.
+#[test]
+fn a_scene_wider_than_an_f32_is_refused() {
+    for (span, ok) in [(1e300, false), (1e39, false), (1e38, true)] {
+        let mut b = SceneBuilder::new(UpAxis::Y);
+        let img = b.pattern_image("p", 4, 0);
+        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let (p, q, r) = (DVec3::ZERO, DVec3::X * span, DVec3::Z * span);
+        b.triangle([p, q, r], [DVec2::ZERO, DVec2::X, DVec2::Y], m);
+        let scene = b.build();
+        let got = try_build(&scene, &tiny_opts(64, 1e37));
+        match (ok, got) {
+            (true, Ok(built)) => assert_sound(&built.file),
+            (false, Err((_, BuildError::ExtentOverflow { extent, .. }))) => {
+                assert_eq!(extent, span)
+            }
+            (_, Err((_, e))) => panic!("span {span}: {e}"),
+            (false, Ok(_)) => panic!("span {span}: built"),
+        }
+    }
+}
+
 /// A d_min so small that the texel density at it, `screen width × texel ratio / (2 d_min tan(fov/2))`,
 /// overflows would size every triangle at 0 texels (the coarsest tree, labelled the finest): it is
 /// refused naming --d-min, in short numbers. Just above the overflow it builds the finest tree.

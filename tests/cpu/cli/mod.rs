@@ -4,6 +4,8 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
+mod refusals;
+
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_atlastree"))
 }
@@ -541,264 +543,6 @@ fn demo_runs_and_writes_pictures() {
     }
 }
 
-/// `atlastree ARGS` that must be refused before any file is read: exit 2, no panic, stderr naming every
-/// string in `says`.
-fn refused(args: &[&str], says: &[&str]) {
-    let o = run(bin().args(args));
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
-    for s in says {
-        assert!(e.contains(s), "{args:?}: expected {s:?} in: {e}");
-    }
-}
-
-/// Values a flag cannot mean are refused by the parser, before any file is opened: an image cache whose
-/// bytes overflow (it wrapped to the smallest cache), and an https URL in a build without TLS (every
-/// attempt failed the same way, four times). `--max-memory` takes TiB.
-#[test]
-fn values_past_what_a_flag_holds_are_refused() {
-    refused(
-        &[
-            "build",
-            "nope.gltf",
-            "-o",
-            "x.atlastree",
-            "--image-cache-mib",
-            "17592186044416",
-        ],
-        &["--image-cache-mib", "17592186044416"],
-    );
-    if !cfg!(feature = "https") {
-        refused(
-            &["render", "https://127.0.0.1:9/x.atlastree"],
-            &["built without TLS", "atlastree serve"],
-        );
-        refused(
-            &[
-                "render",
-                "nope.atlastree",
-                "--capacity",
-                "4",
-                "--source",
-                "https://127.0.0.1:9/x",
-            ],
-            &["built without TLS"],
-        );
-    }
-    // 1 TiB parses: the build goes on to the scene, which is missing.
-    let o = run(bin().args([
-        "build",
-        "nope.gltf",
-        "-o",
-        "x.atlastree",
-        "--max-memory",
-        "1TiB",
-    ]));
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !e.contains("is not a size") && e.contains("nope.gltf"),
-        "{e}"
-    );
-}
-
-/// A flag that means nothing for a command is refused there with a message, before any file is opened
-/// (the files named here do not exist): a time upload budget in `simulate` (it has no uploads to time),
-/// paging flags without `--capacity` in `render`, paging flags beyond `--capacity` in `view`.
-#[test]
-fn flags_that_mean_nothing_are_refused() {
-    refused(
-        &["simulate", "nope.atlastree", "--upload-budget", "2ms"],
-        &["--upload-budget", "simulate has no uploads to time", "8MB"],
-    );
-    // Zero requests in flight would never load a block (it ran as 1).
-    refused(
-        &["simulate", "nope.atlastree", "--in-flight", "0"],
-        &["--in-flight must be at least 1"],
-    );
-    for (flag, value) in [
-        ("--upload-budget", "8MB"),
-        ("--max-queue", "4"),
-        ("--policy", "lru"),
-        ("--loader-threads", "0"),
-        ("--source", "file"),
-    ] {
-        refused(
-            &["render", "nope.atlastree", flag, value],
-            &[flag, "means nothing without --capacity"],
-        );
-    }
-    refused(
-        &[
-            "render",
-            "nope.atlastree",
-            "--capacity",
-            "8",
-            "--mode",
-            "tree,original",
-        ],
-        &["--mode original", "paging"],
-    );
-    refused(
-        &[
-            "render",
-            "nope.atlastree",
-            "--capacity",
-            "8",
-            "--reference",
-            "supersampled",
-        ],
-        &["--reference supersampled:4", "paging"],
-    );
-    refused(
-        &["render", "nope.atlastree", "--mode", "tree,tree"],
-        &["--mode tree is given twice"],
-    );
-    refused(
-        &[
-            "view",
-            "nope.atlastree",
-            "--capacity",
-            "8",
-            "--policy",
-            "lru",
-        ],
-        &["--policy means nothing for view"],
-    );
-    refused(
-        &["render", "nope.atlastree", "--width", "0"],
-        &["--width and --height must be > 0"],
-    );
-    // Accepted flags reach the file: the error names it.
-    refused(
-        &["simulate", "nope.atlastree", "--upload-budget", "8MB"],
-        &["nope.atlastree"],
-    );
-    refused(
-        &[
-            "render",
-            "nope.atlastree",
-            "--capacity",
-            "8",
-            "--upload-budget",
-            "2ms",
-        ],
-        &["nope.atlastree"],
-    );
-}
-
-/// The shared flag groups show in each command's help under their heading, with the command's defaults.
-#[test]
-fn help_shows_the_flag_groups() {
-    let help = |cmd: &str| {
-        let o = run(bin().args([cmd, "--help"]));
-        assert!(o.status.success(), "{cmd} --help");
-        String::from_utf8_lossy(&o.stdout).into_owned()
-    };
-    let render = help("render");
-    for s in [
-        "Viewport:",
-        "Paging:",
-        "--width <WIDTH>",
-        "[default: 800]",
-        "--upload-budget <BUDGET>",
-    ] {
-        assert!(render.contains(s), "render --help lacks {s:?}:\n{render}");
-    }
-    let view = help("view");
-    assert!(view.contains("[default: 1280]"), "{view}");
-    // The long texts (clap shows the variant's doc comment, not the argument struct's).
-    assert!(view.contains("Keys: W A S D move"), "{view}");
-    assert!(!view.contains("--http-timeout"), "{view}");
-    assert!(help("sweep").contains(r#"{"base": {"d_min_ratio": 8"#));
-    assert!(help("merge").contains("byte-identical to"));
-    assert!(help("build").contains("doubleSided: false"));
-    let simulate = help("simulate");
-    for s in ["Queue:", "--max-queue <N>", "Viewport:"] {
-        assert!(
-            simulate.contains(s),
-            "simulate --help lacks {s:?}:\n{simulate}"
-        );
-    }
-    for cmd in ["build", "sweep"] {
-        let h = help(cmd);
-        for s in ["--leaf-originals", "--screen-width", "--split"] {
-            assert!(h.contains(s), "{cmd} --help lacks {s:?}:\n{h}");
-        }
-    }
-    assert!(help("build").contains("--atlas-size"));
-    assert!(
-        !help("sweep").contains("--atlas-size"),
-        "the grid sets the atlas size"
-    );
-}
-
-/// `--out` naming a file is refused before any work by every command that writes a folder of outputs
-/// (render and demo failed with "File exists (os error 17)" after the work, sweep with "Not a directory").
-#[test]
-fn out_naming_a_file_is_refused_before_any_work() {
-    let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("taken");
-    std::fs::write(&file, b"x").unwrap();
-    let out = file.to_str().unwrap();
-    let scene = scene();
-    let scene = scene.to_str().unwrap();
-    for args in [
-        vec!["render", "nope.atlastree", "--out", out],
-        vec!["demo", "--out", out],
-        vec!["sweep", scene, "--out", out],
-    ] {
-        let o = run(bin().args(&args));
-        let e = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
-        assert!(
-            e.contains(&format!("--out {out}: exists and is not a folder")),
-            "{args:?}: {e}"
-        );
-    }
-    assert_eq!(std::fs::read(&file).unwrap(), b"x");
-}
-
-/// A border over 1/16 of the atlas side is warned about before the build (it built 3.2 GiB at
-/// `--border 255`, atlas 1024, without a word); the default border is not.
-#[test]
-fn a_wide_border_is_warned_about_up_front() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("b.atlastree");
-    let build = |extra: &[&str]| {
-        let o = run(bin()
-            .args(["build", "--d-min-ratio", "4", "--atlas-size", "256", "-q"])
-            .args(extra)
-            .arg("-o")
-            .arg(&out)
-            .arg(scene()));
-        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
-        assert!(o.status.success(), "{stderr}");
-        stderr
-    };
-    let wide = build(&["--border", "20"]);
-    assert!(
-        wide.contains("warning: --border 20 is more than 1/16 of --atlas-size 256"),
-        "{wide}"
-    );
-    assert!(!build(&[]).contains("--border"));
-    // A border the build refuses (a quarter of the atlas or more) gets the refusal alone, with the most
-    // it may be (it was warned about first, then refused without the bound).
-    let o = run(bin()
-        .args(["build", "--atlas-size", "64", "-q", "-o"])
-        .arg(&out)
-        .arg(scene()));
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !o.status.success() && !stderr.contains("warning"),
-        "{stderr}"
-    );
-    assert!(
-        stderr
-            .contains("--border 16: must be less than a quarter of the atlas size 64: at most 15"),
-        "{stderr}"
-    );
-}
-
 /// A shard's output named by bytes that are not UTF-8 (a valid Unix file name) builds and merges (the
 /// recorded command line panicked in `std::env::args`), and `simulate` with an `--out` under a regular
 /// file is refused before its runs (it ran the whole grid, then failed).
@@ -837,4 +581,45 @@ fn a_non_utf8_shard_output_builds_and_simulate_refuses_its_out_early() {
         !stdout.contains(" frames at "),
         "the grid started first: {stdout}"
     );
+    // A missing shard's hint names the scene and the output byte for byte (`$'…\xff…'`; it printed
+    // U+FFFD and named no file), and running it rebuilds the shard.
+    let sub = dir.path().join(std::ffi::OsStr::from_bytes(b"s\xffd"));
+    std::fs::create_dir(&sub).unwrap();
+    let two = sub.join(std::ffi::OsStr::from_bytes(b"t\xffo.atlastree"));
+    for i in 0..2 {
+        let o = run(bin()
+            .args([
+                "build",
+                "--d-min-ratio",
+                "10",
+                "-q",
+                "--shard",
+                &format!("{i}/2"),
+                "-o",
+            ])
+            .arg(&two)
+            .arg(scene()));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let missing = sub.join(std::ffi::OsStr::from_bytes(
+        b"t\xffo.atlastree.shard-1-of-2",
+    ));
+    std::fs::remove_file(&missing).unwrap();
+    let o = run(bin().args(["merge", "-q"]).arg(&two));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let hint = stderr
+        .split_once("rebuild it with: ")
+        .map(|(_, h)| h.trim().to_string())
+        .unwrap_or_default();
+    assert!(
+        !o.status.success() && hint.contains("\\xff") && !hint.contains('\u{FFFD}'),
+        "{stderr}"
+    );
+    let o = run(Command::new("bash").args(["-c", &hint]));
+    assert!(
+        o.status.success(),
+        "{hint}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(missing.exists(), "{hint} did not rebuild the shard");
 }
