@@ -28,7 +28,7 @@ mod path;
 mod test_scenes;
 
 pub use ground::{Ground, GroundError};
-pub use path::{CameraError, CameraPath, Keyframe, PathKind};
+pub use path::{CameraError, CameraPath, Keyframe, MIN_FOV_DEG, PathKind};
 
 use glam::{DMat4, DVec3, DVec4};
 use serde::{Deserialize, Serialize};

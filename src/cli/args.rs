@@ -18,6 +18,20 @@ pub(crate) const MAX_FRAMES: usize = 100_000;
 /// Most loader threads a paged run starts.
 pub(crate) const MAX_LOADER_THREADS: usize = 64;
 
+/// Slowest frame clock a flag takes (frames per second): a frame every ~11.6 days. Below it the clock of
+/// a long run leaves f64 (`--fps 1e-308` rendered two frames, then failed on an infinite time).
+pub(crate) const MIN_FPS: f64 = 1e-6;
+
+/// A frame rate of a flag (`flag` names it): finite and at least [`MIN_FPS`].
+pub(crate) fn check_fps(flag: &str, fps: f64) -> anyhow::Result<()> {
+    if !(fps.is_finite() && fps >= MIN_FPS) {
+        bail!(
+            "{flag} must be a finite number of frames per second, at least {MIN_FPS:e} (got {fps})"
+        );
+    }
+    Ok(())
+}
+
 /// A frame count of a flag (`flag` names it) is 1 to [`MAX_FRAMES`].
 pub(crate) fn check_frames(flag: &str, frames: usize) -> anyhow::Result<()> {
     if frames == 0 || frames > MAX_FRAMES {

@@ -48,11 +48,19 @@ pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
         Err(e) if a.verify && !matches!(e, atlastree::store::StoreError::Io { .. }) => {
             let message = opening_message(&a.file, &e);
             if a.json {
-                let verify =
-                    serde_json::json!({ "ok": false, "violation_count": 1, "open_error": message });
+                // The schema of a file that opens: `ok`, the count and the list (the message in it), and
+                // `open_error` beside them; no inspection.
+                let verify = serde_json::json!({
+                    "ok": false,
+                    "violation_count": 1,
+                    "violations": [message.clone()],
+                    "open_error": message,
+                });
                 println!(
                     "{}",
-                    serde_json::to_string_pretty(&serde_json::json!({ "verify": verify }))?
+                    serde_json::to_string_pretty(
+                        &serde_json::json!({ "inspect": null, "verify": verify })
+                    )?
                 );
             } else {
                 eprintln!("error: {message}");
@@ -78,9 +86,19 @@ pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     let rep = inspect(&file);
     let ver = a.verify.then(|| verify_with(&file, reference.as_ref()));
     if a.json {
+        // `ok` as a file that does not open has it (scripts read `verify.ok` either way).
+        let verify = match &ver {
+            Some(v) => {
+                let mut j = serde_json::to_value(v)?;
+                j["ok"] = serde_json::Value::Bool(v.ok());
+                j["open_error"] = serde_json::Value::Null;
+                j
+            }
+            None => serde_json::Value::Null,
+        };
         println!(
             "{}",
-            serde_json::to_string_pretty(&serde_json::json!({ "inspect": rep, "verify": ver }))?
+            serde_json::to_string_pretty(&serde_json::json!({ "inspect": rep, "verify": verify }))?
         );
     } else {
         print_inspect(&rep);
@@ -245,6 +263,13 @@ pub(super) fn print_verify(v: &VerifyReport) {
         println!(
             "  rect means: {} checked against their atlases, largest difference from level 0 {} sRGB levels",
             v.rect_means_checked, v.rect_mean_level0_max
+        );
+    }
+    if v.inner_quadrants_checked > 0 {
+        println!(
+            "  inner atlases: {} children's quadrants checked against the children's level 1, largest \
+             mean difference {:.2} sRGB levels",
+            v.inner_quadrants_checked, v.inner_quadrant_mean_max
         );
     }
     if !v.atlas_psnr.is_empty() {

@@ -32,7 +32,9 @@ pub(crate) struct RenderArgs {
     /// tables at its first frame). Publish a new file by renaming it over the old one (as `build` does),
     /// or set ATLASTREE_NO_MMAP=1 to read the file into memory.
     pub file: PathBuf,
-    /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
+    /// Camera path: overview-dive, street, orbit, or a keyframe JSON file: `{"keyframes": [{"time": s,
+    /// "eye": [x, y, z], "target": [x, y, z], "fov": degrees}, …], "up": [0, 1, 0], "near": 0.25,
+    /// "far": 100000}` (the scene's units; `aspect`, if given, is not used: frames take the viewport's).
     #[arg(long, default_value = "overview-dive")]
     pub path: PathKind,
     /// Output directory (one subdirectory per mode when several modes are given).
@@ -132,9 +134,7 @@ impl RenderArgs {
                 self.warmup
             );
         }
-        if !(self.fps.is_finite() && self.fps > 0.0) {
-            bail!("--fps must be finite and > 0 (got {})", self.fps);
-        }
+        super::args::check_fps("--fps", self.fps)?;
         let mut modes: Vec<Mode> = Vec::new();
         for m in self.mode {
             if modes.contains(&m) {

@@ -331,7 +331,8 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         let (share, max_share) = mean_max(paged.iter().map(|p| p.coarse.share()));
         let failures: u32 = paged.iter().map(|p| p.pager().failures).sum();
         println!(
-            "  paging: peak resident {peak}, {} loaded, coarser share mean {:.3} max {:.3}, {} load failures",
+            "  paging: peak resident {peak}, {} loaded after the root atlases (resident before the first \
+             frame), coarser share mean {:.3} max {:.3}, {} load failures",
             atlastree::util::human_bytes(bytes),
             share,
             max_share,

@@ -17,7 +17,9 @@ use std::process::ExitCode;
 pub(crate) struct SimulateArgs {
     /// The paging file (only its tables are read).
     pub file: PathBuf,
-    /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
+    /// Camera path: overview-dive, street, orbit, or a keyframe JSON file: `{"keyframes": [{"time": s,
+    /// "eye": [x, y, z], "target": [x, y, z], "fov": degrees}, …], "up": [0, 1, 0], "near": 0.25,
+    /// "far": 100000}` (the scene's units; `aspect`, if given, is not used: frames take the viewport's).
     #[arg(long, default_value = "overview-dive")]
     pub path: PathKind,
     /// Capacities k (blocks), comma-separated; `all` = no budget.
@@ -89,9 +91,7 @@ fn or_word<T>(
 impl SimulateArgs {
     /// Checks the flags and derives the grid.
     pub(crate) fn validate(self) -> anyhow::Result<SimulateConfig> {
-        if !(self.fps.is_finite() && self.fps > 0.0) {
-            bail!("--fps must be finite and > 0 (got {})", self.fps);
-        }
+        super::args::check_fps("--fps", self.fps)?;
         if let Some(frames) = self.frames {
             super::args::check_frames("--frames", frames)?;
         }
@@ -281,6 +281,7 @@ fn print_results(results: &[RunResult], json: bool) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&rows)?);
         return Ok(());
     }
+    println!("MB: loaded over the path after the root atlases (resident before the first frame)");
     println!(
         "{:<32} {:>8} {:>8} {:>8} {:>10} {:>10} {:>6} {:>6} {:>6}  converge (frames after each jump)",
         "run", "mean", "p95", "max", "MB", "orig MB", "peak", "jumps", "stalls"

@@ -19,7 +19,9 @@ use std::time::Duration;
 pub(crate) struct SweepArgs {
     /// The glTF scene (.gltf or .glb).
     pub scene: PathBuf,
-    /// Camera path: overview-dive, street, orbit, or a keyframe JSON file.
+    /// Camera path: overview-dive, street, orbit, or a keyframe JSON file: `{"keyframes": [{"time": s,
+    /// "eye": [x, y, z], "target": [x, y, z], "fov": degrees}, …], "up": [0, 1, 0], "near": 0.25,
+    /// "far": 100000}` (the scene's units; `aspect`, if given, is not used: frames take the viewport's).
     #[arg(long, default_value = "overview-dive")]
     pub path: PathKind,
     /// Output directory.
@@ -222,6 +224,25 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     };
     let t = std::time::Instant::now();
     let data = run_sweep(&ctx, &scene, plan, &cameras, &opts, &Bar(progress_bar(cfg)))?;
+    // An earlier grid's builds that this one did not make (kept with --keep-builds) would sit beside
+    // this run's report as if they were its own.
+    let planned: std::collections::HashSet<String> = (plan.builds.iter())
+        .map(|b| format!("{}.atlastree", b.knobs.id()))
+        .collect();
+    let stale = |n: &str| n.ends_with(".atlastree") && !planned.contains(n);
+    let removed =
+        atlastree::util::remove_stale_outputs(&opts.builds_dir, stale).with_context(|| {
+            format!(
+                "removing an earlier run's builds from {}",
+                opts.builds_dir.display()
+            )
+        })?;
+    if removed > 0 {
+        eprintln!(
+            "note: removed {removed} build(s) of an earlier run from {}",
+            opts.builds_dir.display()
+        );
+    }
     if !cfg.keep_builds {
         let _ = std::fs::remove_dir(&opts.builds_dir);
     }

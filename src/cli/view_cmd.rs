@@ -98,8 +98,11 @@ fn parse_camera(s: &str, up: DVec3) -> anyhow::Result<Camera> {
     if !(eye.is_finite() && target.is_finite()) || eye == target {
         bail!("--camera {s:?}: eye and target must be finite and different");
     }
-    if !(fov > 0.0 && fov < 180.0) {
-        bail!("--camera {s:?}: field of view {fov}° is outside (0°, 180°)");
+    if !(atlastree::camera::MIN_FOV_DEG..180.0).contains(&fov) {
+        bail!(
+            "--camera {s:?}: field of view {fov}° is outside [{}°, 180°)",
+            atlastree::camera::MIN_FOV_DEG
+        );
     }
     Ok(Camera {
         eye,
@@ -122,8 +125,8 @@ impl ViewArgs {
                  policy and the default queue (only --capacity applies; use `render` for the others)"
             );
         }
-        if self.path_fps.is_some_and(|f| !(f.is_finite() && f > 0.0)) {
-            bail!("--path-fps must be finite and > 0");
+        if let Some(f) = self.path_fps {
+            super::args::check_fps("--path-fps", f)?;
         }
         if self.screenshot_after == Some(0) {
             bail!("--screenshot-after counts frames from 1");

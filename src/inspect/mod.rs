@@ -9,6 +9,7 @@ use crate::texfmt::{TexFormat, psnr};
 use serde::Serialize;
 use std::collections::BTreeSet;
 
+mod atlases;
 mod rects;
 mod repeats;
 pub use rects::wrap_border_tolerance;
@@ -332,6 +333,10 @@ pub struct VerifyReport {
     /// texels (sRGB8 levels, any channel): what measuring on level 2 costs.
     pub rect_means_checked: u64,
     pub rect_mean_level0_max: u32,
+    /// Children's quadrants of the opaque tree's inner atlases compared with the children's level 1
+    /// (level 0 decoded) and the largest mean difference of one, sRGB8 levels (RGB).
+    pub inner_quadrants_checked: u64,
+    pub inner_quadrant_mean_max: f64,
     /// Triangles that are extra pieces of split scene triangles.
     pub split_pieces: u64,
     /// Up to 100 violations, each naming the tree, node/leaf/vertex and the numbers.
@@ -387,6 +392,7 @@ pub fn verify_with(file: &TreeFile, reference: Option<&TreeFile>) -> VerifyRepor
     verify_psnr(file, reference, &mut r);
     rects::verify_wrap_borders(file, &mut r);
     rects::verify_rect_means(file, &mut r);
+    atlases::verify_inner_atlases(file, &mut r);
     r
 }
 
@@ -450,6 +456,23 @@ pub fn reference_mismatch(file: &TreeFile, reference: &TreeFile) -> Option<Strin
         file.materials().len().to_string(),
         reference.materials().len().to_string(),
     );
+    // Stored uncompressed (a bc7 reference of a bc1 file was reported as a violation of the file).
+    let formats = |f: &TreeFile| {
+        let names: Vec<&str> = (0..f.trees())
+            .filter_map(|t| f.tree(t))
+            .map(|t| t.format().name())
+            .collect();
+        names.join(", ")
+    };
+    let rgba8 = (0..reference.trees())
+        .filter_map(|t| reference.tree(t))
+        .all(|t| t.format() == TexFormat::Rgba8);
+    if !rgba8 {
+        diffs.push(format!(
+            "trees stored as {} (not rgba8)",
+            formats(reference)
+        ));
+    }
     // Parameters that print alike but differ in their bits (a d_min beyond 12 digits).
     if diffs.is_empty() && a != b {
         diffs.push("build parameters that differ beyond 12 significant digits".into());

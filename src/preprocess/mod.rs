@@ -245,8 +245,7 @@ pub enum BuildError {
     },
     #[error(
         "the tree would need {nodes} nodes (depth {depth}), {blocks} blocks and {predicted} bytes of texture data, \
-         over the limit of {limit} bytes \
-         (--max-file-gib): raise --d-min (or lower --d-min-ratio), lower --texel-ratio, or keep the source cap"
+         over the limit of {limit} bytes (--max-file-gib): {advice}"
     )]
     TooLarge {
         nodes: u64,
@@ -254,6 +253,8 @@ pub enum BuildError {
         blocks: u64,
         predicted: u64,
         limit: u64,
+        /// What would shrink it, of what applies to the build's options.
+        advice: String,
     },
     #[error(transparent)]
     Store(#[from] StoreError),

@@ -71,7 +71,7 @@ pub(super) fn plan_build(
     let memory_plan = plan_memory(scene, opts, &params)?;
     let mut timings = StageLog::default();
     let (forest, reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
-    check_file_size(&forest, &reports, opts.max_file_bytes)?;
+    check_file_size(&forest, &reports, opts)?;
     Ok(Planned {
         params,
         diagonal,
@@ -228,19 +228,47 @@ fn tree_report(
 fn check_file_size(
     forest: &AtlasForest,
     reports: &[TreeReport],
-    limit: u64,
+    opts: &BuildOptions,
 ) -> Result<(), BuildError> {
     let predicted: u64 = forest.blocks.iter().map(|b| b.bytes).sum();
+    let limit = opts.max_file_bytes;
     if predicted > limit {
+        let depth = reports.iter().map(|r| r.depth).max().unwrap_or(0);
         return Err(BuildError::TooLarge {
             nodes: reports.iter().map(|r| r.nodes).sum(),
-            depth: reports.iter().map(|r| r.depth).max().unwrap_or(0),
+            depth,
             blocks: forest.blocks.len() as u64,
             predicted,
             limit,
+            advice: too_large_advice(opts, depth),
         });
     }
     Ok(())
+}
+
+/// What would shrink a file over `--max-file-gib`, of what applies to these options (the same fixed text
+/// said "keep the source cap" to a build that kept it, and "raise --d-min" to a one-node tree).
+fn too_large_advice(opts: &BuildOptions, depth: u8) -> String {
+    let mut ways = vec!["raise --max-file-gib where the disk holds it".to_string()];
+    if depth > 0 {
+        ways.push("raise --d-min (or lower --d-min-ratio)".into());
+    }
+    if opts.texel_ratio > 1.0 {
+        ways.push("lower --texel-ratio".into());
+    }
+    if !opts.cap_to_source {
+        ways.push("keep the source cap (drop --no-source-cap)".into());
+    }
+    if opts.compress == crate::texfmt::Compression::None {
+        ways.push("--compress bc1 or bc7 (4 to 8 times smaller)".into());
+    }
+    if opts.repeat == super::RepeatMode::Bake {
+        ways.push("--repeat wrap (one period per rect)".into());
+    }
+    if opts.atlas_size > 256 {
+        ways.push("a smaller --atlas-size".into());
+    }
+    ways.join(", ")
 }
 
 /// How much coarser than their sources capped rects are drawn ([`super::CappedShortfall`]; docs/DESIGN.md

@@ -40,8 +40,18 @@ impl StageLog {
             .map(|(_, s)| *s)
     }
 
-    /// Puts a stage that ran before the library's (the CLI's import) first.
+    /// Puts a stage that ran before the library's (the CLI's import) first, and counts it in `total`
+    /// (which left the import out: stages summed to more than their total).
     pub fn prepend(&mut self, name: &str, seconds: f64, peak: Option<u64>) {
+        if let Some((_, total)) = self.timings.iter_mut().find(|(n, _)| n == "total") {
+            *total += seconds;
+        }
+        if let (Some(p), Some((_, total_peak))) = (
+            peak,
+            (self.stage_peak_rss.iter_mut()).find(|(n, _)| n == "total"),
+        ) {
+            *total_peak = (*total_peak).max(p);
+        }
         self.record(name, seconds, peak, true);
     }
 

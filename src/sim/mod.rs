@@ -190,7 +190,8 @@ impl FrameRow {
         self.paging.pager().ideal_fraction()
     }
 
-    /// Bytes the pager loaded this frame.
+    /// Bytes the pager loaded this frame (the root atlases, resident before the first frame, are not
+    /// counted in any frame).
     pub fn bytes_loaded(&self) -> u64 {
         self.paging.pager().bytes_loaded
     }
@@ -203,6 +204,7 @@ pub struct RunSummary {
     pub mean_coarser: f64,
     pub p95_coarser: f64,
     pub max_coarser: f64,
+    /// Bytes loaded over the path, after the root atlases (resident before the first frame).
     pub bytes_total: u64,
     /// Of `bytes_total`, those of original-texture blocks.
     pub bytes_originals_total: u64,

@@ -165,6 +165,9 @@ pub struct PlannedBuild {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {
     pub builds: Vec<PlannedBuild>,
+    /// The grid's base runtime knobs: with the base build, the variant every knob's effect is measured
+    /// against.
+    pub base_runtime: RuntimeKnobs,
     pub frames: usize,
     pub width: u32,
     pub height: u32,
@@ -470,6 +473,7 @@ impl Grid {
             .collect();
         Plan {
             builds,
+            base_runtime: self.base.runtime(),
             frames: self.frames,
             width: self.width,
             height: self.height,

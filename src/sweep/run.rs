@@ -276,6 +276,8 @@ pub fn run_sweep(
         progress.message(&format!("build {}", pb.knobs.id()));
         data.builds
             .push(build_one(scene, &pb.knobs, &opts.build, &path)?);
+        // Deleted once measured; by the Ctrl-C handler if the sweep is interrupted before.
+        let _temporary = (!opts.keep_builds).then(|| crate::util::LiveTempFile::register(&path));
         progress.advance(n);
         let file = TreeFile::open(&path).map_err(|source| SweepError::Open {
             path: path.clone(),

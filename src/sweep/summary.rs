@@ -154,9 +154,13 @@ pub fn recommendation(data: &SweepData, rows: &[VariantRow]) -> Option<Recommend
 
 /// [`Recommendation`] of `rows`; `None` when no row has a finite covered PSNR.
 pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendation> {
+    // Ties: the faster frames, then the first row (`max_by` kept the last: t2 over an equal t1).
     let best = (0..rows.len())
         .filter(|&i| rows[i].psnr_covered_db.is_finite())
-        .max_by(|&a, &b| rows[a].psnr_covered_db.total_cmp(&rows[b].psnr_covered_db))?;
+        .min_by(|&a, &b| {
+            (rows[b].psnr_covered_db.total_cmp(&rows[a].psnr_covered_db))
+                .then(rows[a].frame_ms_median.total_cmp(&rows[b].frame_ms_median))
+        })?;
     let floor = rows[best].psnr_covered_db - tolerance_db;
     let ok: Vec<usize> = (0..rows.len())
         .filter(|&i| rows[i].psnr_covered_db >= floor)
@@ -166,9 +170,12 @@ pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendatio
             .copied()
             .filter(|&i| cost(&rows[i]).is_finite())
             .min_by(|&a, &b| {
+                // Ties: the more accurate, then the best itself (variants of one build share its
+                // file and build time: another named the smallest file was the same file).
                 cost(&rows[a])
                     .total_cmp(&cost(&rows[b]))
                     .then(rows[b].psnr_covered_db.total_cmp(&rows[a].psnr_covered_db))
+                    .then((a != best).cmp(&(b != best)))
             })
             .unwrap_or(best)
     };
@@ -267,14 +274,13 @@ pub fn knob_effects(rows: &[VariantRow], base: usize) -> Vec<KnobEffect> {
         .collect()
 }
 
-/// Index of the grid's base variant in `rows`: the base build with texel ratio 1 and every block
-/// resident, else the first row of the base build.
-pub fn base_row(rows: &[VariantRow], base: &BuildKnobs) -> Option<usize> {
-    let of_base = || rows.iter().enumerate().filter(|(_, r)| r.build == *base);
-    of_base()
-        .find(|(_, r)| r.runtime.texel_ratio == 1.0 && r.runtime.capacity.is_none())
-        .or_else(|| of_base().next())
-        .map(|(i, _)| i)
+/// Index of the grid's base variant in `rows`: the base build at the grid's base runtime knobs (it was the
+/// variant at texel ratio 1 with every block resident, else the base build's first row: a base of
+/// capacity 17 measured its knobs against capacity 2, and left out every build whose rows differ in
+/// capacity too).
+pub fn base_row(rows: &[VariantRow], base: &BuildKnobs, runtime: &RuntimeKnobs) -> Option<usize> {
+    rows.iter()
+        .position(|r| r.build == *base && r.runtime == *runtime)
 }
 
 /// Formats a float cell with its sign for markdown (`–` for NaN).
@@ -412,9 +418,11 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
                     .filter(|(j, _)| *j == i)
                     .map(|(_, n)| n.as_str())
                     .collect();
+                // The first letter upper-cased, past any markdown emphasis (`**fastest …`).
                 let mut label = names.join(", ");
-                if let Some(c) = label.get(..1) {
-                    label = c.to_uppercase() + &label[1..];
+                if let Some((at, c)) = label.char_indices().find(|(_, c)| c.is_alphabetic()) {
+                    let rest = &label[at + c.len_utf8()..];
+                    label = format!("{}{}{rest}", &label[..at], c.to_uppercase());
                 }
                 let _ = writeln!(md, "- {label}: {}", describe(&rows[i]));
             }
@@ -442,7 +450,7 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
         .plan
         .builds
         .first()
-        .and_then(|b| base_row(rows, &b.knobs))
+        .and_then(|b| base_row(rows, &b.knobs, &data.plan.base_runtime))
     {
         effects_table(&mut md, rows, base);
     }

@@ -117,6 +117,21 @@ fn remove_dir_under_writers(p: &Path) -> bool {
     (0..3).any(|_| std::fs::remove_dir_all(&target).is_ok() || !target.exists())
 }
 
+/// A finished file the work deletes when done with it (a sweep's build without `--keep-builds`), which
+/// [`remove_live_temps`] removes if the process is interrupted while this guard lives (an interrupted
+/// sweep left its 83 MB build). Dropping the guard only forgets the file.
+pub struct LiveTempFile {
+    _live: LiveTemp,
+}
+
+impl LiveTempFile {
+    pub fn register(path: &Path) -> LiveTempFile {
+        LiveTempFile {
+            _live: LiveTemp::register(path),
+        }
+    }
+}
+
 /// A temp directory (an export being written) that [`remove_live_temps`] removes with its contents if the
 /// process is interrupted while this guard lives. Dropping the guard only forgets the directory.
 pub struct LiveTempDir {

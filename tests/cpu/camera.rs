@@ -166,6 +166,13 @@ fn bad_files_give_clear_errors() {
         kf(1.0, 180.0)
     ));
     assert!(matches!(e, CameraError::BadFov { keyframe: 1, .. }), "{e}");
+    // Narrower than 10⁻³° (the frame drew blank at 10⁻⁸°, with no warning): refused too.
+    let e = err_of(&format!(
+        r#"{{ "keyframes": [ {}, {} ] }}"#,
+        kf(0.0, 60.0),
+        kf(1.0, 1e-8)
+    ));
+    assert!(matches!(e, CameraError::BadFov { keyframe: 1, .. }), "{e}");
     // Eye and target equal, or 1e-300 apart (the difference's length underflows): no direction.
     for target in ["[0,1,0]", "[1e-300,1,1e-300]"] {
         let e = err_of(&format!(

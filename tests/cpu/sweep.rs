@@ -208,6 +208,15 @@ fn summary_means_front_and_recommendation() {
     let tight = recommend(&rows, 0.1).expect("rows");
     assert_eq!((tight.fastest_frames, tight.smallest_file), (1, 1));
     assert!(recommend(&[], 0.5).is_none());
+    // Two variants of one build, equally accurate and fast: every role names the same one (the smallest
+    // file was the other variant of the same file).
+    let frames = vec![frame(a, 0.5, 0, 40.0, 50.0), frame(a, 1.0, 0, 40.0, 50.0)];
+    let rows = summarise(&[build_row(a, 300, 2.0)], &frames);
+    let rec = recommend(&rows, 0.5).expect("rows");
+    assert_eq!(
+        (rec.fastest_frames, rec.smallest_file, rec.fastest_build),
+        (rec.best, rec.best, rec.best)
+    );
 }
 
 /// Knob effects: every single-knob change from the base (texel ratio 1, all resident) with its PSNR
@@ -230,7 +239,11 @@ fn knob_effects_against_the_base() {
         build_row(c, 100, 5.0),
     ];
     let rows = summarise(&builds, &frames);
-    let base = base_row(&rows, &a).expect("base");
+    let all = RuntimeKnobs {
+        texel_ratio: 1.0,
+        capacity: None,
+    };
+    let base = base_row(&rows, &a, &all).expect("base");
     assert_eq!(rows[base].id, "r10_a512_b8_box_t1_all");
     let e = knob_effects(&rows, base);
     let got: Vec<(&str, &str, usize)> = e
@@ -246,7 +259,19 @@ fn knob_effects_against_the_base() {
     assert_eq!(e[1].psnr_delta_db, -1.0);
     assert_eq!((e[1].frame_ratio, e[1].build_ratio), (0.5, 2.5));
     assert!((e[1].file_ratio - 1.0 / 3.0).abs() < 1e-12);
-    assert_eq!(base_row(&rows, &knobs(2048)), None);
+    assert_eq!(base_row(&rows, &knobs(2048), &all), None);
+    // The grid's own base runtime, not texel ratio 1 (a base at 0.5 was measured against 1).
+    let half = RuntimeKnobs {
+        texel_ratio: 0.5,
+        ..all
+    };
+    let base = base_row(&rows, &a, &half).expect("base at 0.5");
+    assert_eq!(rows[base].id, "r10_a512_b8_box_t0.5_all");
+    let e = knob_effects(&rows, base);
+    let mut got: Vec<(&str, &str)> = e.iter().map(|e| (e.knob, e.value.as_str())).collect();
+    got.sort();
+    // c (border 16 at 0.5) is one knob from this base; b (atlas 1024 at 1) is two.
+    assert_eq!(got, vec![("border", "16"), ("texel_ratio", "1")]);
 }
 
 /// The report: one line per distinct recommended variant naming all its roles, the knob-effects table
@@ -296,7 +321,7 @@ fn report_names_roles_once_effects_and_skipped_builds() {
         "{md}"
     );
     assert!(
-        rec[1].starts_with("- **fastest frames within 0.5 dB of it** (the recommended runtime default): `r10_a512_b8_box_t0.5_all`"),
+        rec[1].starts_with("- **Fastest frames within 0.5 dB of it** (the recommended runtime default): `r10_a512_b8_box_t0.5_all`"),
         "{md}"
     );
     assert!(md.contains("sampler anisotropy 16×"), "{md}");

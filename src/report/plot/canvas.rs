@@ -65,7 +65,9 @@ pub struct PlotFiles {
     pub png: PathBuf,
 }
 
-const PALETTE: [RGBColor; 10] = [
+/// Tableau 10, then ten of Tableau 20's lighter and darker twins (a full sweep grid draws 12 builds: with
+/// ten colours two pairs of its series looked alike).
+const PALETTE: [RGBColor; 20] = [
     RGBColor(0x4e, 0x79, 0xa7),
     RGBColor(0xf2, 0x8e, 0x2b),
     RGBColor(0xe1, 0x57, 0x59),
@@ -76,9 +78,19 @@ const PALETTE: [RGBColor; 10] = [
     RGBColor(0xff, 0x9d, 0xa7),
     RGBColor(0x9c, 0x75, 0x5f),
     RGBColor(0xba, 0xb0, 0xac),
+    RGBColor(0xa0, 0xcb, 0xe8),
+    RGBColor(0xff, 0xbe, 0x7d),
+    RGBColor(0x8c, 0xd1, 0x7d),
+    RGBColor(0xb6, 0x99, 0x2d),
+    RGBColor(0x49, 0x98, 0x94),
+    RGBColor(0x79, 0x70, 0x6e),
+    RGBColor(0xd3, 0x72, 0x95),
+    RGBColor(0xd4, 0xa6, 0xc8),
+    RGBColor(0xd7, 0xb5, 0xa6),
+    RGBColor(0x2f, 0x4b, 0x7c),
 ];
 
-/// The colour of series `i` (Tableau 10, cycled).
+/// The colour of series `i` (20 colours, cycled).
 pub fn series_colour(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }

@@ -70,11 +70,18 @@ impl XyContent for LineContent<'_> {
         };
         for (i, s) in self.series.iter().enumerate() {
             let colour = series_colour(i);
+            let finite = s.points.iter().filter(|p| ok(p)).count();
+            // Dense series (a value per frame) in 1-px strokes: the bitmap backend joins a 2-px stroke's
+            // segments with miters, which at a one-frame spike reached 63 px past the axis (bytes per
+            // frame below 0, a share above 1).
+            let width = if finite <= 40 { 2 } else { 1 };
             for run in s.points.split(|p| !ok(p)).filter(|r| !r.is_empty()) {
-                chart.draw_series(LineSeries::new(run.iter().copied(), colour.stroke_width(2)))?;
+                chart.draw_series(LineSeries::new(
+                    run.iter().copied(),
+                    colour.stroke_width(width),
+                ))?;
             }
             // Markers make sparse series readable (and single points visible at all).
-            let finite = s.points.iter().filter(|p| ok(p)).count();
             if finite <= 40 {
                 chart.draw_series(
                     s.points

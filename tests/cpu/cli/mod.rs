@@ -149,6 +149,28 @@ fn build_then_inspect_verify() {
         .args(["inspect", "--verify", "--json"])
         .arg(&out)));
     assert_eq!(v["verify"]["violation_count"], 0, "{v}");
+    assert_eq!(v["verify"]["ok"], true, "{v}");
+    // The multi-level tree's inner atlases are checked against their children.
+    assert!(
+        v["verify"]["inner_quadrants_checked"].as_u64() > Some(0),
+        "{v}"
+    );
+    // The build's total counts its import (it left it out: the stages summed to more).
+    let stages: f64 = b["timings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|t| t[0] != "total")
+        .map(|t| t[1].as_f64().unwrap())
+        .sum();
+    let total = b["timings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t[0] == "total")
+        .and_then(|t| t[1].as_f64())
+        .unwrap();
+    assert!(stages <= total + 1e-3, "stages {stages} s, total {total} s");
     // simulate --json: stdout is the JSON alone (the header and the files written go to stderr).
     let sim = json(&run(bin()
         .args(["simulate", "--json", "--out"])
@@ -171,8 +193,24 @@ fn build_then_inspect_verify() {
     let o = run(bin().args(["inspect", "--verify"]).arg(&out));
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stdout).contains("checksum mismatch"));
-    // A truncated file: a clear error naming the file, exit 2.
+    // A truncated file: under --verify --json the schema of a file that opens (`ok`, `violations`),
+    // exit 1; without --verify a clear error naming the file, exit 2.
     std::fs::write(&out, &bytes[..1000]).unwrap();
+    let o = run(bin().args(["inspect", "--verify", "--json"]).arg(&out));
+    assert_eq!(o.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON on stdout");
+    assert_eq!(
+        (&v["verify"]["ok"], &v["inspect"]),
+        (&serde_json::json!(false), &serde_json::Value::Null),
+        "{v}"
+    );
+    assert!(
+        v["verify"]["violations"][0]
+            .as_str()
+            .unwrap()
+            .contains("bytes"),
+        "{v}"
+    );
     let o = run(bin().arg("inspect").arg(&out));
     assert_eq!(o.status.code(), Some(2));
     let e = String::from_utf8_lossy(&o.stderr);
@@ -321,16 +359,17 @@ fn build_compress_bc1_then_inspect_verify_reference() {
         s.contains("format bc1 (8 bytes per 4×4 texels)") && s.contains("atlas PSNR ("),
         "{s}"
     );
-    // The reference must be uncompressed and of the same tree: the compressed file itself is refused.
+    // The reference must be uncompressed and of the same tree: the compressed file itself is refused as a
+    // usage error, exit 2 (it was a violation of the intact file, exit 1).
     let o = run(bin()
         .args(["inspect", "--verify", "--reference"])
         .arg(&bc1)
         .arg(&bc1));
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(
-        String::from_utf8_lossy(&o.stdout).contains("need"),
+        String::from_utf8_lossy(&o.stderr).contains("(not rgba8)"),
         "{}",
-        String::from_utf8_lossy(&o.stdout)
+        String::from_utf8_lossy(&o.stderr)
     );
     // A reference with a corrupt block: the violation says why (it said only "not comparable"); one that
     // cannot be opened is named as the reference, not as FILE.

@@ -170,6 +170,11 @@ fn failed_build_leaves_no_file() {
     let err = build(&scene, &o, &out, &NoProgress).unwrap_err();
     assert!(err.to_string().contains("--max-file-gib"), "{err}");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    // Its advice is what applies: the source cap is kept already, the file is uncompressed.
+    let text = err.to_string();
+    assert!(text.contains("raise --max-file-gib"), "{text}");
+    assert!(text.contains("--compress bc1"), "{text}");
+    assert!(!text.contains("source cap"), "{text}");
 }
 
 #[test]

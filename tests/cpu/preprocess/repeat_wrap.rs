@@ -656,3 +656,54 @@ fn tiny_repeated_noise_textures_verify_under_block_compression() {
         assert_sound(&built.file);
     }
 }
+
+/// Two more fresh builds `verify` refused: repeated 64² textures at `--border 1` in BC1 (a border narrower
+/// than a block is encoded with the texture's own detail: 17.9 levels against a tolerance of 16), and a
+/// clamp-to-edge axis whose UVs lie wholly outside `[0, 1]` without the source cap (stored as the one
+/// edge line every sample reads, which the period check counted as 1 texel per period).
+#[test]
+fn narrow_borders_in_bc1_and_collapsed_clamp_axes_verify() {
+    use atlastree::texfmt::Compression;
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    for i in 0..8 {
+        let img = b.pattern_image(&format!("p{i}"), 64, i);
+        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let (x, z) = (3.0 * (i % 4) as f64, 3.0 * (i / 4) as f64);
+        let c = [(x, z), (x + 2.0, z), (x + 2.0, z + 2.0), (x, z + 2.0)];
+        b.quad(
+            c.map(|(x, z)| DVec3::new(x, 0.0, z)),
+            DVec2::ZERO,
+            DVec2::splat(3.0),
+            m,
+        );
+    }
+    let built = build_ok(
+        &b.build(),
+        &BuildOptions {
+            compress: Compression::Bc1,
+            border: 1,
+            atlas_size: 128,
+            d_min: DMin::Metres(0.02),
+            ..BuildOptions::default()
+        },
+    );
+    assert_sound(&built.file);
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.pattern_image("edge", 64, 3);
+    let m = b.material(img, [Wrap::ClampToEdge; 2], AlphaMode::Opaque);
+    let c = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)];
+    b.quad(
+        c.map(|(x, z)| DVec3::new(x, 0.0, z)),
+        DVec2::new(0.0, 1.0),
+        DVec2::new(1.0, 2.0),
+        m,
+    );
+    let built = build_ok(
+        &b.build(),
+        &BuildOptions {
+            cap_to_source: false,
+            ..BuildOptions::default()
+        },
+    );
+    assert_sound(&built.file);
+}

@@ -1,8 +1,6 @@
 //! The shader's rect arithmetic in f32 (`RectMap::texel_f32`) against the f64 reference, and its
 //! footprint rules at a rect's edges.
 
-use super::*;
-
 /// `RectMap::texel_f32` (the shader's arithmetic in f32) agrees with the f64 reference
 /// `model::transform::rect_texel` on the grid of `tests/fixtures/shader_math.rs` (every wrap mode, rect
 /// edges, UVs up to 65536 periods out, levels to 24), within the tolerance stated there, and the f32 level
