@@ -171,8 +171,8 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
     report
 }
 
-/// The one UV a triangle shows, if it shows one texel's colour, and whether it differs from the
-/// triangle's stored UVs: a constant UV ([`SizeMethod::AllUvEqual`]), or UVs within a [`SUBCELLS`]-th of a
+/// The one UV a triangle shows, if it shows one texel's colour and has an area to show it on, and whether
+/// it differs from the triangle's stored UVs: a constant UV ([`SizeMethod::AllUvEqual`]), or UVs within a [`SUBCELLS`]-th of a
 /// source texel of each other per axis (float noise of an exporter, or a texel magnified over a whole
 /// model: one f32 step of spread took the triangle out of its cell, 15 dB where its twin with equal UVs
 /// drew 99; session 30's hunt), at their centre. On a mirrored-repeat axis the second period `[1, 2)`
@@ -181,6 +181,10 @@ fn point_uv(scene: &Scene, t: &TriInfo) -> Option<(DVec2, bool)> {
     let mat = scene.materials.get(t.material.idx())?;
     let img = scene.images.get(mat.image.idx())?;
     let constant = t.size.method == SizeMethod::AllUvEqual;
+    // A triangle of no world area draws nothing: no cell of its own (two such on sandtrack took two).
+    if t.size.method == SizeMethod::WorldDegenerate {
+        return None;
+    }
     let uv = if constant {
         t.uv[0]
     } else {
