@@ -142,7 +142,8 @@ struct RectMap {
     // The inner rectangle's mean colour, sRGB8 straight alpha packed as unpack4x8unorm reads it: what a
     // fragment covering a whole period shows (rect_mean).
     mean: u32,
-    _p1: u32,
+    // 1 for a point rect (one UV, one inner texel: a palette cell's): its mean at any footprint.
+    point: u32,
 }
 
 // One per (leaf, original texture) (48 bytes).
@@ -337,10 +338,9 @@ fn rect_texel(r: RectMap, uv: vec2<f32>, ddx: vec2<f32>, ddy: vec2<f32>, level_t
     // bilinear taps reach (1.5 of its texels: a palette cell's rect on a coarse level), it shows the mean.
     let k = select(min(1.0, cap / footprint), 1.0, footprint == 0.0);
     let point_mixed = footprint == 0.0 && min(d.x, d.y) < POINT_REACH * level_texels;
-    // A rect of one inner texel (a palette cell's) has one colour, its mean: shown whatever the
-    // gradients (a constant UV's interpolation jitters them off zero by an ulp).
-    let one_texel = all(r.inner_size <= vec2<f32>(1.0));
-    if all(covered) || k < SHARPEN_MIN || point_mixed || one_texel {
+    // A point rect (one UV, one inner texel: a palette cell's) has one colour, its mean: shown whatever
+    // the gradients (a constant UV's interpolation jitters them off zero by an ulp).
+    if all(covered) || k < SHARPEN_MIN || point_mixed || r.point != 0u {
         let kk = select(period / CELLS / footprint, 0.0, footprint == 0.0);
         out.gx = out.gx * kk;
         out.gy = out.gy * kk;

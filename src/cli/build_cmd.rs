@@ -438,7 +438,7 @@ fn run_shard(
                 a.out.display()
             )
         })?;
-    report.stages.prepend("import", import_s, import_peak);
+    report.count_import(import_s, import_peak);
     let code = print_shard(a, spec, &report)?;
     if !a.json {
         print_import(&scene.report);

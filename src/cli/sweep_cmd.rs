@@ -39,7 +39,9 @@ pub(crate) struct SweepArgs {
     /// Frame height in pixels (overrides the grid's).
     #[arg(long)]
     pub height: Option<u32>,
-    /// Keep the paging files in OUT/builds (by default each is deleted once its variants are measured).
+    /// Keep the paging files in OUT/builds (by default each is deleted once its variants are measured). A
+    /// later sweep into the same OUT removes the builds its grid does not make, kept or not (they would
+    /// sit beside its report as if they were its own): copy them elsewhere to keep them.
     #[arg(long)]
     pub keep_builds: bool,
     /// Sampler anisotropy (1–16, or `auto`: 16 on a GPU, 1 on a software rasteriser) of every render, the

@@ -29,6 +29,10 @@ use glam::DVec2;
 /// Most cells of one material kept as their own rects, whatever the atlas (see [`cell_limit`]).
 pub const MAX_CELLS: u32 = 256;
 
+/// The spread, in f32 steps of the UVs' magnitude, up to which a triangle's UVs are one UV (float noise:
+/// an exporter's arithmetic, a format's rounding).
+const F32_NOISE_STEPS: f64 = 8.0;
+
 /// Cells per source texel along each axis: constant UVs within `1 / SUBCELLS` of a texel of each other
 /// share a rect, others get their own (two quads on one texel at UVs `0.55` and `0.95` of it, or at float
 /// noise apart, took one rect spanning the texel, which the leaf's scale then averaged with its
@@ -172,10 +176,13 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
 }
 
 /// The one UV a triangle shows, if it shows one texel's colour and has an area to show it on, and whether
-/// it differs from the triangle's stored UVs: a constant UV ([`SizeMethod::AllUvEqual`]), or UVs within a [`SUBCELLS`]-th of a
-/// source texel of each other per axis (float noise of an exporter, or a texel magnified over a whole
-/// model: one f32 step of spread took the triangle out of its cell, 15 dB where its twin with equal UVs
-/// drew 99; session 30's hunt), at their centre. On a mirrored-repeat axis the second period `[1, 2)`
+/// it differs from the triangle's stored UVs: a constant UV ([`SizeMethod::AllUvEqual`]), or UVs that
+/// differ by float noise alone ([`F32_NOISE_STEPS`] f32 steps of their magnitude per axis), or UVs of no
+/// mapping ([`SizeMethod::EdgeFallback`]: one corner moved off the others) within a [`SUBCELLS`]-th of a
+/// source texel, at their centre (one f32 step of spread took a palette triangle out of its cell, 15 dB
+/// where its twin with equal UVs drew 99; session 30's hunt). A well-formed mapping of a small UV patch —
+/// a texel magnified over a finely tessellated terrain — is not a cell: it is drawn as sized (snapping it
+/// faceted the terrain, crowded the atlas with point rects and pushed real palettes past their limit). On a mirrored-repeat axis the second period `[1, 2)`
 /// folds back to `2 − u`, the same texel (a cell drawn at `u` and at `2 − u` took two cells).
 fn point_uv(scene: &Scene, t: &TriInfo) -> Option<(DVec2, bool)> {
     let mat = scene.materials.get(t.material.idx())?;
@@ -191,7 +198,14 @@ fn point_uv(scene: &Scene, t: &TriInfo) -> Option<(DVec2, bool)> {
         let lo = t.uv[0].min(t.uv[1]).min(t.uv[2]);
         let hi = t.uv[0].max(t.uv[1]).max(t.uv[2]);
         let texels = (hi - lo) * DVec2::new(f64::from(img.width), f64::from(img.height));
-        if !(texels.is_finite() && texels.max_element() <= 1.0 / f64::from(SUBCELLS)) {
+        // Float noise: a few f32 steps of the UVs' magnitude, whatever the sizing made of it.
+        let noise = F32_NOISE_STEPS
+            * f64::from(f32::EPSILON)
+            * lo.abs().max(hi.abs()).max_element().max(1.0);
+        // UVs that name no mapping (edge fallback: rank-deficient) within a cell.
+        let cell = t.size.method == SizeMethod::EdgeFallback
+            && texels.max_element() <= 1.0 / f64::from(SUBCELLS);
+        if !(texels.is_finite() && ((hi - lo).max_element() <= noise || cell)) {
             return None;
         }
         (lo + hi) * 0.5

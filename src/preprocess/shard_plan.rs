@@ -41,10 +41,10 @@ impl ShardPlanReport {
         super::shard_run::write_sidecar(&self.path, self)
     }
 
-    /// Seconds of the whole plan step: its stages' total and the import before them.
+    /// Seconds of the whole plan step: its stages' total, which counts the import before them
+    /// ([`super::stage_log::StageLog::prepend`]; it was added again here).
     pub fn seconds(&self) -> Option<f64> {
-        let total = self.stages.seconds("total")?;
-        Some(total + self.stages.seconds("import").unwrap_or(0.0))
+        self.stages.seconds("total")
     }
 }
 

@@ -208,6 +208,21 @@ pub(super) fn rasterise_shard(
     Ok(report)
 }
 
+impl ShardReport {
+    /// Counts an import the caller timed before [`build_shard`] (the CLI's) among the stages and in their
+    /// total, and writes the report beside the shard again, so the merge's table and critical path count
+    /// it (they left it out).
+    pub fn count_import(&mut self, seconds: f64, peak: Option<u64>) {
+        self.stages.prepend("import", seconds, peak);
+        let path = self.path.clone();
+        if let Err(e) = write_sidecar(&path, self) {
+            self.warnings.push(format!(
+                "the shard's report could not be written again with its import: {e}"
+            ));
+        }
+    }
+}
+
 /// `PATH.json`: the shard's report, written atomically (the merge reads it for its table; the shard file
 /// itself holds nothing that differs between reruns).
 pub(super) fn write_sidecar(path: &Path, report: &impl Serialize) -> Result<(), BuildError> {

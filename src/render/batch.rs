@@ -71,7 +71,7 @@ impl RectMap {
             cutoff,
             inner_size: [r.inner[2] as f32, r.inner[3] as f32],
             mean: u32::from_le_bytes(r.mean),
-            _p1: 0,
+            point: u32::from(r.uv_min == r.uv_max && r.inner[2] <= 1 && r.inner[3] <= 1),
         }
     }
 }

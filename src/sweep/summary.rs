@@ -446,13 +446,17 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
             "![{caption}]({file}.png)  \n*{caption}* ([SVG]({file}.svg))\n"
         );
     }
-    if let Some(base) = data
-        .plan
-        .builds
-        .first()
-        .and_then(|b| base_row(rows, &b.knobs, &data.plan.base_runtime))
+    match (data.plan.builds.first()).and_then(|b| base_row(rows, &b.knobs, &data.plan.base_runtime))
     {
-        effects_table(&mut md, rows, base);
+        Some(base) => effects_table(&mut md, rows, base),
+        None if !rows.is_empty() => {
+            let _ = writeln!(
+                md,
+                "## What each knob costs\n\nNot measured: the grid's base variant was not rendered \
+                 (see Builds not rendered), so no change can be measured against it.\n"
+            );
+        }
+        None => {}
     }
     if !data.skipped.is_empty() {
         let _ = writeln!(

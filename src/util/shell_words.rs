@@ -54,7 +54,7 @@ pub fn path_to_recorded(p: &Path) -> String {
 }
 
 /// One recorded argument as a shell word: as is when it holds only `[A-Za-z0-9-_./=:,]`, in single quotes
-/// when it is text, in bash's `$'…'` with `\xNN` escapes when it holds raw bytes.
+/// when it is text, in bash's `$'…'` with `\xNN` escapes when it holds raw bytes or control characters.
 pub fn shell_word(arg: &str) -> String {
     if !arg.is_empty()
         && arg
@@ -63,7 +63,9 @@ pub fn shell_word(arg: &str) -> String {
     {
         return arg.to_string();
     }
-    if !arg.chars().any(|c| raw_byte(c).is_some()) {
+    // Raw bytes and control characters (a newline, ESC: printed as they are, they would act on the
+    // terminal that shows the hint) only in `$'…'`, escaped.
+    if !arg.chars().any(|c| raw_byte(c).is_some() || c.is_control()) {
         return format!("'{}'", arg.replace('\'', "'\\''"));
     }
     let mut out = String::from("$'");
@@ -75,6 +77,7 @@ pub fn shell_word(arg: &str) -> String {
                 out.push(c);
             }
             (None, c) if c.is_ascii_control() => out.push_str(&format!("\\x{:02x}", c as u32)),
+            (None, c) if c.is_control() => out.push_str(&format!("\\u{:04x}", c as u32)),
             (None, c) => out.push(c),
         }
     }
@@ -93,6 +96,8 @@ mod tests {
         assert_eq!(shell_word("it's"), "'it'\\''s'");
         assert_eq!(shell_word(""), "''");
         assert_eq!(shell_word("straße"), "'straße'");
+        // Control characters are escaped, never printed raw.
+        assert_eq!(shell_word("a\nb\u{1b}c\u{85}"), "$'a\\x0ab\\x1bc\\u0085'");
     }
 
     #[cfg(unix)]

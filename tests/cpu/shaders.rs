@@ -161,7 +161,7 @@ fn all_twins() -> Vec<Twins> {
                     cutoff,
                     inner_size,
                     mean,
-                    _p1
+                    point
                 }),
                 twin!(tree::TamEntry {
                     class_index,

@@ -294,7 +294,9 @@ pub struct RectMap {
     /// [`crate::model::AtlasRect::mean`] as a little-endian `u32` (`unpack4x8unorm` in the shader): what
     /// a flat fragment shows ([`RectMap::mean_linear`]).
     pub mean: u32,
-    pub _p1: u32,
+    /// 1 for a rect of one UV and one inner texel (a palette cell's, `crate::preprocess::palette`): one
+    /// colour, its mean, at any footprint; else 0.
+    pub point: u32,
 }
 const _: () = assert!(size_of::<RectMap>() == 72);
 
@@ -357,9 +359,11 @@ impl RectMap {
     /// - A constant UV (zero footprint, [`crate::preprocess::palette`]) nearer the outer edge than
     ///   [`POINT_REACH`] drawn texels is flat too: on a coarse level its rect (a palette cell's: 1 × 1
     ///   inner, a uniform border) is smaller than the texels the sampler would mix; its mean is its colour.
-    ///   Its gradients stay zero. A rect of one inner texel is flat at any footprint: the constant UV of
-    ///   a palette cell, interpolated, has gradients an ulp off zero, which took the sampled branch on
-    ///   coarse levels and read neighbouring rects (banded cells at `--border 2`, session 30's hunt).
+    ///   Its gradients stay zero. A point rect ([`RectMap::point`]: one UV, one inner texel) is flat at
+    ///   any footprint: the constant UV of a palette cell, interpolated, has gradients an ulp off zero,
+    ///   which took the sampled branch on coarse levels and read neighbouring rects (banded cells at
+    ///   `--border 2`, session 30's hunt). A rect of one inner texel with a UV span (a 2 × 2 texture in a
+    ///   leaf scaled to half) is sampled as before.
     /// - A footprint that covers one axis only (the short side of an elongated rect, say 992 × 16 texels
     ///   seen from afar) averages that axis alone: the sample sits at the inner centre there; the other
     ///   axis keeps its detail.
@@ -410,10 +414,9 @@ impl RectMap {
         // Nearer the outer edge than the drawn level's bilinear taps reach, a constant UV (a palette
         // cell's rect on a coarse level, crate::preprocess::palette) shows the rect's mean.
         let point_mixed = footprint == 0.0 && d.min_element() < POINT_REACH * level_texels;
-        // A rect of one inner texel (a palette cell's) has one colour, its mean: shown whatever the
-        // gradients (a constant UV's interpolation jitters them off zero by an ulp).
-        let one_texel = inner.cmple(Vec2::ONE).all();
-        if covered.all() || k < SHARPEN_MIN || point_mixed || one_texel {
+        // A point rect (one UV, one inner texel: a palette cell's) has one colour, its mean: shown whatever
+        // the gradients (a constant UV's interpolation jitters them off zero by an ulp).
+        if covered.all() || k < SHARPEN_MIN || point_mixed || self.point != 0 {
             let kk = if footprint == 0.0 {
                 0.0
             } else {

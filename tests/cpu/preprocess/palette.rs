@@ -34,8 +34,12 @@ enum Variant {
     /// Each quad's UVs spread by this much about the texel's centre (float noise of an exporter within
     /// one quad).
     Spread(f64),
+    /// One corner of each triangle this far from the others (UVs of no mapping: the sizing's edge fallback).
+    OneCorner(f64),
     /// A MIRRORED_REPEAT palette, each cell painted at `uv` and again at `2 − uv` (the same texel).
     Mirrored,
+    /// Each quad's UVs a well-formed mapping of this much of the palette (a texel magnified): not a cell.
+    Magnified(f64),
 }
 
 fn scene_with(cells: u32, jitter: f64, variant: Variant) -> (Scene, MaterialId) {
@@ -61,6 +65,17 @@ fn scene_with(cells: u32, jitter: f64, variant: Variant) -> (Scene, MaterialId) 
         match variant {
             Variant::Constant => b.quad(c.map(|(x, z)| DVec3::new(x, 0.0, z)), uv, uv, pm),
             Variant::Spread(d) => {
+                let (lo, hi) = (uv - d / 2.0, uv + d / 2.0);
+                b.quad(c.map(|(x, z)| DVec3::new(x, 0.0, z)), lo, hi, pm);
+            }
+            Variant::OneCorner(d) => {
+                // About the texel's centre: two corners d/2 below it, one d/2 above.
+                let p = c.map(|(x, z)| DVec3::new(x, 0.0, z));
+                let (at, moved) = (uv - DVec2::splat(d / 2.0), uv + DVec2::splat(d / 2.0));
+                b.triangle([p[0], p[1], p[2]], [at, at, moved], pm);
+                b.triangle([p[0], p[2], p[3]], [at, moved, at], pm);
+            }
+            Variant::Magnified(d) => {
                 let (lo, hi) = (uv - d / 2.0, uv + d / 2.0);
                 b.quad(c.map(|(x, z)| DVec3::new(x, 0.0, z)), lo, hi, pm);
             }
@@ -174,8 +189,8 @@ fn palette_cells_keep_their_colours_in_a_scaled_leaf() {
     assert_eq!(check_cells(&built, pm), 24, "12 quads, 2 triangles each");
 }
 
-/// Quads whose own UVs spread by float noise (one f32 step at 0.5, 6·10⁻⁸) or by a hundredth of a texel
-/// are cells too, stored with their centre's one UV: they were sized as ordinary triangles, kept in one
+/// Quads whose own UVs spread by float noise (one f32 step at 0.5, 6·10⁻⁸), or whose triangles have one
+/// corner a hundredth of a texel off the others (UVs of no mapping), are cells too, stored with their centre's one UV: they were sized as ordinary triangles, kept in one
 /// rect at the source's resolution and drawn mixed with the neighbouring cells in the scaled leaf (15 dB
 /// against 99 for their constant twins; session 30's hunt). A MIRRORED_REPEAT cell painted at `uv` and at
 /// `2 − uv` is one cell (it counted two, past the limit with its twins).
@@ -183,7 +198,7 @@ fn palette_cells_keep_their_colours_in_a_scaled_leaf() {
 fn near_constant_and_mirrored_palette_uvs_are_cells() {
     for variant in [
         Variant::Spread(2f64.powi(-24)),
-        Variant::Spread(1.0 / 16.0 / 100.0),
+        Variant::OneCorner(1.0 / 16.0 / 100.0),
         Variant::Mirrored,
     ] {
         let (scene, pm) = scene_with(12, 0.0, variant);
@@ -205,6 +220,19 @@ fn near_constant_and_mirrored_palette_uvs_are_cells() {
             }
         }
     }
+}
+
+/// A well-formed mapping of a hundredth of a texel (a texel magnified over a quad) is drawn as sized, not
+/// as a cell: snapping such triangles faceted magnified terrain and pushed real palettes past their limit
+/// (session 30's second palette hunt).
+#[test]
+fn a_magnified_texel_is_not_a_cell() {
+    let (scene, _) = scene_with(12, 0.0, Variant::Magnified(1.0 / 16.0 / 100.0));
+    let built = build_ok(&scene, &opts());
+    assert_sound(&built.file);
+    let p = &built.report.trees[0].sizing.palette;
+    assert_eq!((p.materials, p.cells), (0, 0), "{p:?}");
+    assert!(p.over_limit.is_empty(), "{p:?}");
 }
 
 /// Two quads on each texel, their UVs 10⁻⁶ apart: each pair took one rect spanning the whole texel at the

@@ -97,6 +97,24 @@ fn a_constant_uv_shows_the_mean_where_its_taps_would_leave_the_rect() {
             }
         }
     }
+    // One inner texel holding a UV span (a 4 × 4 checker's quarter texel magnified, or a 2 × 2 texture in
+    // a leaf scaled to half) is no point: sampled like any rect near the inner texel (all of them drew
+    // flat for a while, 5 dB against the original on the reviewer's checker).
+    let span = RectMap::new(
+        &AtlasRect {
+            uv_max: [0.6; 2],
+            ..rect.clone()
+        },
+        AlphaMode::Opaque,
+    );
+    assert_eq!((map.point, span.point), (1, 0));
+    let s = span.sample_f32(
+        Vec2::splat(0.55),
+        Vec2::new(1e-3, 0.0),
+        Vec2::new(0.0, 1e-3),
+        1.0,
+    );
+    assert!(!s.flat, "{s:?}");
     // A wider rect (2 × 1 inner) keeps the rule by reach: sampled while the taps stay inside, its mean
     // beyond (`POINT_REACH` drawn texels from the nearer outer edge).
     let wide = RectMap::new(
