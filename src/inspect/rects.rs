@@ -329,13 +329,14 @@ pub(super) fn verify_wrap_borders(file: &TreeFile, r: &mut VerifyReport) {
                     r.wrap_border_mean_max = r.wrap_border_mean_max.max(mean);
                     // A period under two blocks, or a border under one: the texture's own detail,
                     // flattened by the blocks a border shares with it, is part of what the border may
-                    // differ by (a 5×7 noise texture: 21 levels in BC1; a 64² one at --border 1: 18),
-                    // up to twice the format's own allowance more (a wrong border differs by more).
-                    let small = rect.inner[side.axis + 2] < SMALL_BLOCK_PERIOD || border < 4;
-                    let tol = if format.is_compressed() && small {
+                    // differ by (a 5×7 noise texture: 21 levels in BC1, a 3-texel alpha-tested one 27.6
+                    // in BC7; a 64² one at --border 1: 18). A longer period's share is capped at twice
+                    // the format's own allowance (a wrong border of a noisy texture differs by more).
+                    let small = rect.inner[side.axis + 2] < SMALL_BLOCK_PERIOD;
+                    let tol = if format.is_compressed() && (small || border < 4) {
                         let c = *contrast
                             .get_or_insert_with(|| neighbour_contrast(&img, size, rect.inner));
-                        tol + c.min(2.0 * tol)
+                        tol + if small { c } else { c.min(2.0 * tol) }
                     } else {
                         tol
                     };

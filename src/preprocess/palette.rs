@@ -10,8 +10,9 @@
 //! dB in a leaf at scale 0.25, 12–14 dB from the root, against 59 dB at scale 1).
 //!
 //! Here every such triangle of a material that uses at most `limit` distinct cells (a [`SUBCELLS`]-th of a
-//! source texel per axis: real palettes name each colour by one UV; a triangle whose UVs lie within a cell
-//! of each other counts, at their centre, and is stored with that one UV) gets a density class of its own cell
+//! source texel per axis: real palettes name each colour by one UV; a triangle whose UVs differ by float
+//! noise counts, at their centre, and is stored with that one UV: [`point_uv`]) gets a density class of its
+//! own cell
 //! ([`TriInfo::class`] = [`POINT_CLASS`] + 1 + the cell's rank among the material's), so the layout gives
 //! it a point rect ([`is_cell_class`]) whose inner 1 × 1 texel is the source at that UV and whose border
 //! repeats it: uniform,
@@ -182,8 +183,9 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
 /// source texel, at their centre (one f32 step of spread took a palette triangle out of its cell, 15 dB
 /// where its twin with equal UVs drew 99; session 30's hunt). A well-formed mapping of a small UV patch —
 /// a texel magnified over a finely tessellated terrain — is not a cell: it is drawn as sized (snapping it
-/// faceted the terrain, crowded the atlas with point rects and pushed real palettes past their limit). On a mirrored-repeat axis the second period `[1, 2)`
-/// folds back to `2 − u`, the same texel (a cell drawn at `u` and at `2 − u` took two cells).
+/// faceted the terrain, crowded the atlas with point rects and pushed real palettes past their limit).
+/// On a mirrored-repeat axis the second period `[1, 2)` folds back to `2 − u`, the same texel (a cell
+/// drawn at `u` and at `2 − u` took two cells).
 fn point_uv(scene: &Scene, t: &TriInfo) -> Option<(DVec2, bool)> {
     let mat = scene.materials.get(t.material.idx())?;
     let img = scene.images.get(mat.image.idx())?;

@@ -629,13 +629,21 @@ fn tiny_repeated_noise_textures_verify_under_block_compression() {
         (5, 7),
     ];
     for (i, &(w, h)) in sizes.iter().enumerate() {
+        // Every other one alpha-tested, its first texel transparent (the alpha tree's BC3 or BC7).
+        let masked = i % 2 == 1;
         let noise = move |x: u32, y: u32| {
             let v = (x * 7919 + y * 104_729 + i as u32 * 31) ^ 0x5bd1_e995;
             let v = v.wrapping_mul(0x2c1b_3c6d);
-            [(v >> 24) as u8, (v >> 16) as u8, (v >> 8) as u8, 255]
+            let a = if masked && x == 0 && y == 0 { 0 } else { 255 };
+            [(v >> 24) as u8, (v >> 16) as u8, (v >> 8) as u8, a]
         };
         let img = b.image(&format!("t{i}"), w, h, noise);
-        let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+        let alpha = if masked {
+            AlphaMode::Mask { cutoff: 0.5 }
+        } else {
+            AlphaMode::Opaque
+        };
+        let m = b.material(img, [Wrap::Repeat; 2], alpha);
         let (x, z) = (12.0 * (i % 4) as f64, 12.0 * (i / 4) as f64);
         let c = [(x, z), (x + 10.0, z), (x + 10.0, z + 10.0), (x, z + 10.0)];
         b.quad(
