@@ -443,6 +443,13 @@ pub(crate) struct BuildParamsArgs {
 #[derive(Copy, Clone, Debug)]
 pub(crate) struct MemoryArg(Option<u64>);
 
+impl MemoryArg {
+    /// The bytes asked for (`None`: no budget), before [`within_limit`].
+    pub(crate) fn bytes(self) -> Option<u64> {
+        self.0
+    }
+}
+
 fn parse_memory(s: &str) -> Result<MemoryArg, String> {
     if s.eq_ignore_ascii_case("none") {
         return Ok(MemoryArg(None));
@@ -463,13 +470,17 @@ impl BuildParamsArgs {
     /// ([`atlastree::preprocess::memory::default_budget`]).
     pub(crate) fn memory_budget(&self) -> Option<u64> {
         self.max_memory
-            .map_or_else(atlastree::preprocess::memory::default_budget, |m| m.0)
+            .map_or_else(atlastree::preprocess::memory::default_budget, |m| {
+                within_limit(m.0)
+            })
     }
 
     /// `base` with these parameters.
     pub(crate) fn apply(&self, base: BuildOptions) -> BuildOptions {
         BuildOptions {
-            max_memory_bytes: self.max_memory.map_or(base.max_memory_bytes, |m| m.0),
+            max_memory_bytes: self
+                .max_memory
+                .map_or(base.max_memory_bytes, |m| within_limit(m.0)),
             screen_width: self.screen_width,
             fov_deg: self.fov,
             texel_ratio: self.texel_ratio,
@@ -482,6 +493,16 @@ impl BuildParamsArgs {
             split: self.split,
             ..base
         }
+    }
+}
+
+/// An explicit budget, at most what this process may use (`util::memory_limit_bytes`: memory, cgroup,
+/// `ulimit -v`): above it the budget bounded nothing and a build aborted on a failed allocation (the build
+/// warns, naming both numbers).
+fn within_limit(budget: Option<u64>) -> Option<u64> {
+    match (budget, atlastree::util::memory_limit_bytes()) {
+        (Some(b), Some(limit)) => Some(b.min(limit)),
+        (b, _) => b,
     }
 }
 

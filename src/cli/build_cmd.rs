@@ -143,6 +143,7 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     // fails at once, not after the shards have run (the merge writes OUT).
     atlastree::store::check_replaceable(&a.out)?;
     warn_wide_border(&a);
+    warn_budget_above_limit(&a);
     let bars = Bars::new(a.quiet || a.json);
     if let ShardStep::Shard(spec) = step {
         let plan = plan_path(&a.out);
@@ -218,6 +219,28 @@ fn warn_wide_border(a: &BuildArgs) {
             a.border,
             a.atlas_size,
             (2 * a.border + 1).div_ceil(4) * 4
+        );
+    }
+}
+
+/// An explicit `--max-memory` above what this process may use (RAM, its cgroup's limit, `ulimit -v`) is
+/// said up front; the budget is that limit (`args::within_limit`): a 4 GiB budget under `ulimit -v
+/// 700000` was accepted without a word and the build aborted in malloc (session 30's memory hunt).
+fn warn_budget_above_limit(a: &BuildArgs) {
+    let Some(asked) = a.params.max_memory.map(|m| m.bytes()) else {
+        return;
+    };
+    let (Some(asked), Some(limit)) = (asked, atlastree::util::memory_limit_bytes()) else {
+        return;
+    };
+    if asked > limit {
+        eprintln!(
+            "warning: --max-memory {} is more than the {} this process may use (its memory, its cgroup's \
+             limit or ulimit -v, less what is in use): the budget is {} (a build that needs more is \
+             refused up front; above it an allocation would fail mid-build)",
+            atlastree::util::human_bytes(asked),
+            atlastree::util::human_bytes(limit),
+            atlastree::util::human_bytes(limit)
         );
     }
 }
