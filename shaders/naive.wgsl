@@ -8,12 +8,16 @@
 
 // Values of PASS (tree.wgsl's): every other pass tests the material's alpha mode.
 const PASS_OPAQUE: u32 = 0u;
+const PASS_MASK: u32 = 1u;
 // Material.alpha_mode codes (tree.wgsl's).
 const ALPHA_OPAQUE: u32 = 0u;
 const ALPHA_MASK: u32 = 1u;
 const ALPHA_BLEND: u32 = 2u;
 // In the blend pass, fragments below it are discarded.
 const BLEND_MIN_ALPHA: f32 = 0.5 / 255.0;
+// In the mask pass (the depth pre-pass of a leaf's BLEND triangles, as the tree's blend nodes have), BLEND
+// texels at or above it are opaque and write depth; the rest wait for the blend pass.
+const OPAQUE_ALPHA: f32 = 0.998039;
 
 override PASS: u32 = PASS_OPAQUE;
 
@@ -69,6 +73,12 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // gradients differently under anisotropy: 28–44 dB apart at 16).
     let colour = textureSampleGrad(tex, tex_sampler, in.uv, dpdx(in.uv), dpdy(in.uv)) * material.factor;
     if PASS == PASS_OPAQUE || material.alpha_mode == ALPHA_OPAQUE {
+        return vec4<f32>(colour.rgb, 1.0);
+    }
+    if PASS == PASS_MASK && material.alpha_mode == ALPHA_BLEND {
+        if colour.a < OPAQUE_ALPHA {
+            discard;
+        }
         return vec4<f32>(colour.rgb, 1.0);
     }
     if material.alpha_mode == ALPHA_MASK {

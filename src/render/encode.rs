@@ -263,7 +263,11 @@ impl Renderer<'_> {
                     0..1,
                 );
                 stats.draw_calls += 1;
-                stats.triangles += u64::from(draw.index_count / 3);
+                // Every triangle once, as the tree counts its nodes: a BLEND triangle is drawn in the
+                // mask pass (its depth pre-pass) and again in the blend pass.
+                if p != Pass::Blend {
+                    stats.triangles += u64::from(draw.index_count / 3);
+                }
             }
         }
         Ok(())

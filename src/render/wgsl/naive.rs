@@ -15,6 +15,9 @@ pub use super::tree::Globals;
 wgsl_consts! {
     /// [`overrides::PASS`] of the opaque pipelines (as [`tree::PASS_OPAQUE`]).
     PASS_OPAQUE: u32 = tree::PASS_OPAQUE;
+    /// [`overrides::PASS`] of the mask pipelines (as [`tree::PASS_MASK`]): MASK materials, and the depth
+    /// pre-pass of BLEND triangles.
+    PASS_MASK: u32 = tree::PASS_MASK;
     /// [`Material::alpha_mode`] codes (as [`tree::ALPHA_OPAQUE`] …): opaque.
     ALPHA_OPAQUE: u32 = tree::ALPHA_OPAQUE;
     /// Alpha mask.
@@ -23,6 +26,8 @@ wgsl_consts! {
     ALPHA_BLEND: u32 = tree::ALPHA_BLEND;
     /// Alpha below which a fragment of a BLEND material is discarded (as [`tree::BLEND_MIN_ALPHA`]).
     BLEND_MIN_ALPHA: f32 = tree::BLEND_MIN_ALPHA;
+    /// Alpha at and above which a BLEND texel is opaque in the mask pass (as [`tree::OPAQUE_ALPHA`]).
+    OPAQUE_ALPHA: f32 = tree::OPAQUE_ALPHA;
 }
 
 wgsl_overrides! {

@@ -19,7 +19,7 @@ fn naive_batch_draws_every_triangle_once() {
 
     // Independently: per leaf, the set of originals its triangles use, and its triangle count.
     let (mut pairs, mut triangles, mut leaves) = (0usize, 0usize, 0usize);
-    let mut blend_runs = 0;
+    let (mut blend_runs, mut prepass_triangles) = (0, 0);
     for (t, info) in g.infos.iter().enumerate() {
         let view = file.tree(t).unwrap();
         for (li, leaf) in view.leaves.iter().enumerate() {
@@ -34,10 +34,10 @@ fn naive_batch_draws_every_triangle_once() {
             used.dedup();
             let entry = |o: u32| g.leaves[gl].first_tam as usize + o as usize;
             let blended = |o: u32| g.tam[entry(o)].alpha_mode >= 2;
-            // The expected draws: (original, its indices).
+            // The expected draws: (original, its indices); a blended original's in the mask pass (the
+            // depth pre-pass of its opaque texels, as the tree's blend nodes have).
             let mut want: Vec<(u32, Vec<u32>)> = used
                 .iter()
-                .filter(|&&o| !blended(o))
                 .map(|&o| {
                     let mine = tris
                         .chunks_exact(3)
@@ -61,6 +61,10 @@ fn naive_batch_draws_every_triangle_once() {
                 }
             }
             blend_runs += want.len() - opaque_draws;
+            prepass_triangles += (want[..opaque_draws].iter())
+                .filter(|(o, _)| blended(*o))
+                .map(|(_, mine)| mine.len() / 3)
+                .sum::<usize>();
             let (d0, dn) = plan.leaf_draws[gl];
             assert_eq!(dn as usize, want.len(), "tree {t} leaf {li}");
             for (k, (o, mine)) in want.iter().enumerate() {
@@ -73,7 +77,12 @@ fn naive_batch_draws_every_triangle_once() {
                     "tree {t} leaf {li} original {o}"
                 );
                 assert_eq!(d.texture, g.tam_unique[entry(o)]);
-                assert_eq!(d.pass as u32, g.tam[entry(o)].alpha_mode.min(2));
+                let pass = if k < opaque_draws {
+                    g.tam[entry(o)].alpha_mode.min(1)
+                } else {
+                    2
+                };
+                assert_eq!(d.pass as u32, pass, "tree {t} leaf {li} original {o}");
                 assert_eq!(
                     (d.base_vertex, d.leaf_base),
                     (info.vertex_base, info.leaf_base)
@@ -86,7 +95,7 @@ fn naive_batch_draws_every_triangle_once() {
     }
     assert_eq!(plan.leaf_draws.len(), leaves);
     assert_eq!(plan.draws.len(), pairs);
-    assert_eq!(plan.indices.len(), 3 * triangles);
+    assert_eq!(plan.indices.len(), 3 * (triangles + prepass_triangles));
     // The fixture's numbers: 22 leaves, 40 (leaf, original) draws, 162 triangles, every pair used.
     assert_eq!(
         (
@@ -147,13 +156,23 @@ fn naive_blend_draws_keep_the_index_order() {
                 })
                 .collect();
             assert_eq!(drawn, tris, "tree {t} leaf {li}: blended in index order");
-            // One draw per run of one original.
+            // Before them, each original's triangles in the mask pass (the depth pre-pass).
+            let prepass: Vec<u32> = draws
+                .iter()
+                .filter(|d| d.pass == Pass::Mask)
+                .map(|d| d.index_count / 3)
+                .collect();
+            assert_eq!(prepass.iter().sum::<u32>() as usize, tris.len() / 3);
+            // One draw per run of one original, and one pre-pass draw per original.
             let originals: Vec<u32> = tris
                 .chunks_exact(3)
                 .map(|c| view.vertices[c[0] as usize].original)
                 .collect();
             let runs = 1 + originals.windows(2).filter(|w| w[0] != w[1]).count();
-            assert_eq!(draws.len(), runs, "tree {t} leaf {li}");
+            let mut distinct = originals.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            assert_eq!(draws.len(), runs + distinct.len(), "tree {t} leaf {li}");
             runs_seen += runs;
         }
     }
