@@ -496,11 +496,18 @@ impl BuildParamsArgs {
     }
 }
 
+/// [`atlastree::util::memory_limit_bytes`], read once a process: each read walks `/proc` and the cgroup
+/// tree, and a build asks at every use of its options.
+pub(crate) fn process_memory_limit() -> Option<u64> {
+    static LIMIT: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    *LIMIT.get_or_init(atlastree::util::memory_limit_bytes)
+}
+
 /// An explicit budget, at most what this process may use (`util::memory_limit_bytes`: memory, cgroup,
 /// `ulimit -v`): above it the budget bounded nothing and a build aborted on a failed allocation (the build
 /// warns, naming both numbers).
 fn within_limit(budget: Option<u64>) -> Option<u64> {
-    match (budget, atlastree::util::memory_limit_bytes()) {
+    match (budget, process_memory_limit()) {
         (Some(b), Some(limit)) => Some(b.min(limit)),
         (b, _) => b,
     }

@@ -230,7 +230,7 @@ fn warn_budget_above_limit(a: &BuildArgs) {
     let Some(asked) = a.params.max_memory.map(|m| m.bytes()) else {
         return;
     };
-    let (Some(asked), Some(limit)) = (asked, atlastree::util::memory_limit_bytes()) else {
+    let (Some(asked), Some(limit)) = (asked, super::args::process_memory_limit()) else {
         return;
     };
     if asked > limit {
@@ -411,6 +411,7 @@ fn run_planned_shard(
     let sharded = ShardedOptions {
         spec,
         argv: recorded_argv(std::env::args_os(), &a.scene, &a.out),
+        import: None,
     };
     if !(a.quiet || a.json) {
         println!("shard {spec}: planned by {}", plan.display());
@@ -446,22 +447,21 @@ fn run_shard(
     a: &BuildArgs,
     scene: &atlastree::scene::Scene,
     spec: ShardSpec,
-    (import_s, import_peak): (f64, Option<u64>),
+    import: (f64, Option<u64>),
     bars: &Bars,
 ) -> anyhow::Result<ExitCode> {
     let sharded = ShardedOptions {
         spec,
         argv: recorded_argv(std::env::args_os(), &a.scene, &a.out),
+        import: Some(import),
     };
-    let mut report =
-        build_shard(scene, &a.options(), &a.out, &sharded, bars).with_context(|| {
-            format!(
-                "building shard {spec} of {} for {}",
-                a.scene.display(),
-                a.out.display()
-            )
-        })?;
-    report.count_import(import_s, import_peak);
+    let report = build_shard(scene, &a.options(), &a.out, &sharded, bars).with_context(|| {
+        format!(
+            "building shard {spec} of {} for {}",
+            a.scene.display(),
+            a.out.display()
+        )
+    })?;
     let code = print_shard(a, spec, &report)?;
     if !a.json {
         print_import(&scene.report);

@@ -90,6 +90,16 @@ pub(crate) enum TreeSource {
     Remote(String),
 }
 
+impl TreeSource {
+    /// The tree as messages name it: the path, or the URL with its password redacted.
+    fn shown(&self) -> String {
+        match self {
+            TreeSource::Local(p) => p.display().to_string(),
+            TreeSource::Remote(u) => atlastree::paging::redact_url(u),
+        }
+    }
+}
+
 /// A checked `render` run.
 #[derive(Debug, Clone)]
 pub(crate) struct RenderConfig {
@@ -161,12 +171,10 @@ impl RenderArgs {
                  --capacity K, or all, to page)"
             );
         }
-        if let TreeSource::Remote(url) = &tree
-            && self.paging.source.is_some()
-        {
+        if matches!(tree, TreeSource::Remote(_)) && self.paging.source.is_some() {
             bail!(
                 "--source means nothing when FILE is a URL: blocks are paged from {}",
-                atlastree::paging::redact_url(url)
+                tree.shown()
             );
         }
         let paging = if paged {
@@ -189,12 +197,10 @@ impl RenderArgs {
         }
         // Why this run pages: a URL always does (its blocks come over HTTP), a local file with --capacity.
         let why_paged = match &tree {
-            TreeSource::Remote(url) => {
-                format!(
-                    "a tree read from {} is always paged over HTTP; render a local copy",
-                    atlastree::paging::redact_url(url)
-                )
-            }
+            TreeSource::Remote(_) => format!(
+                "a tree read from {} is always paged over HTTP; render a local copy",
+                tree.shown()
+            ),
             TreeSource::Local(_) => "not when paging (--capacity)".to_string(),
         };
         if paging.is_some()
@@ -292,8 +298,8 @@ fn open_tree(
 ) -> anyhow::Result<(TreeFile, Option<Arc<HttpSource>>)> {
     Ok(match tree {
         TreeSource::Remote(url) => {
-            let (tables, source) = HttpSource::open(url, http)
-                .with_context(|| format!("opening {}", atlastree::paging::redact_url(url)))?;
+            let (tables, source) =
+                HttpSource::open(url, http).with_context(|| format!("opening {}", tree.shown()))?;
             (tables, Some(Arc::new(source)))
         }
         TreeSource::Local(path) => (
@@ -362,13 +368,7 @@ fn frame_loop<'f>(
         gpu_timing: cfg.gpu_timing,
         anisotropy: cfg.anisotropy,
     };
-    let what = || {
-        let name = match &cfg.tree {
-            TreeSource::Local(p) => p.display().to_string(),
-            TreeSource::Remote(u) => atlastree::paging::redact_url(u),
-        };
-        format!("setting up the renderer for {name}")
-    };
+    let what = || format!("setting up the renderer for {}", cfg.tree.shown());
     let mut paged_from = None;
     let fl = match &cfg.paging {
         None => FrameLoop::new(ctx, file, ropts).with_context(what)?,

@@ -27,7 +27,7 @@ fn inner_atlas_tolerance(format: TexFormat) -> f64 {
 
 /// Level `k` (0 or 1) of a square atlas chain of side `size` as RGBA8 texels; `None` where the block is
 /// shorter.
-fn level_rgba8(format: TexFormat, bytes: &[u8], size: u32, k: u32) -> Option<Vec<u8>> {
+pub(super) fn level_rgba8(format: TexFormat, bytes: &[u8], size: u32, k: u32) -> Option<Vec<u8>> {
     let (start, side) = if k == 0 {
         (0, size)
     } else {

@@ -39,11 +39,7 @@ const SMALL_BLOCK_PERIOD: u32 = 8;
 /// Mean difference (the metric of [`BorderSide::mean_difference`]) between neighbouring texels inside
 /// `inner` (`[x, y, w, h]`), along both axes: how much detail a 4×4 block's few colours must flatten.
 fn neighbour_contrast(img: &[u8], size: u32, inner: [u32; 4]) -> f64 {
-    let at = |x: u32, y: u32| -> [i32; 4] {
-        let i = ((y as usize * size as usize) + x as usize) * 4;
-        let t = img.get(i..i + 4).unwrap_or(&[0; 4]);
-        [t[0], t[1], t[2], t[3]].map(i32::from)
-    };
+    let at = |x: u32, y: u32| texel(img, size, x, y);
     let [x0, y0, w, h] = inner;
     let (mut sum, mut n) = (0.0f64, 0u64);
     for y in y0..y0 + h {
@@ -52,10 +48,7 @@ fn neighbour_contrast(img: &[u8], size: u32, inner: [u32; 4]) -> f64 {
             let right = (x + 1 < x0 + w).then(|| at(x + 1, y));
             let below = (y + 1 < y0 + h).then(|| at(x, y + 1));
             for v in [right, below].into_iter().flatten() {
-                for c in 0..3 {
-                    sum += f64::from((u[c] * u[3] - v[c] * v[3]).abs()) / 255.0;
-                }
-                sum += f64::from((u[3] - v[3]).abs());
+                sum += texel_difference(u, v);
                 n += 4;
             }
         }
@@ -401,13 +394,7 @@ pub(super) fn verify_rect_means(file: &TreeFile, r: &mut VerifyReport) {
 
 /// Level 0 of an atlas block as RGBA8 texels.
 fn level0_rgba8(format: TexFormat, bytes: &[u8], size: u32) -> Option<Vec<u8>> {
-    let n = format.level_bytes(size) as usize;
-    let level = bytes.get(..n)?;
-    Some(if format.is_compressed() {
-        crate::texfmt::decode_level(format, level, size)
-    } else {
-        level.to_vec()
-    })
+    super::atlases::level_rgba8(format, bytes, size, 0)
 }
 
 /// One border side of a rect and the texels it must match.
@@ -430,11 +417,6 @@ impl BorderSide {
     /// exact uncompressed) does not count beyond what it shows.
     fn mean_difference(&self, img: &[u8], size: u32) -> f64 {
         let (mut sum, mut n) = (0.0f64, 0u64);
-        let at = |x: u32, y: u32| -> [i32; 4] {
-            let i = ((y as usize * size as usize) + x as usize) * 4;
-            let t = img.get(i..i + 4).unwrap_or(&[0; 4]);
-            [t[0], t[1], t[2], t[3]].map(i32::from)
-        };
         for &(b, p) in &self.pairs {
             for o in self.span.0..self.span.1 {
                 let (x0, y0, x1, y1) = if self.axis == 0 {
@@ -442,16 +424,28 @@ impl BorderSide {
                 } else {
                     (o, b, o, p)
                 };
-                let (u, v) = (at(x0, y0), at(x1, y1));
-                for c in 0..3 {
-                    sum += f64::from((u[c] * u[3] - v[c] * v[3]).abs()) / 255.0;
-                }
-                sum += f64::from((u[3] - v[3]).abs());
+                sum += texel_difference(texel(img, size, x0, y0), texel(img, size, x1, y1));
                 n += 4;
             }
         }
         if n == 0 { 0.0 } else { sum / n as f64 }
     }
+}
+
+/// Texel `(x, y)` of an RGBA8 image `size` texels wide (zeros outside it).
+fn texel(img: &[u8], size: u32, x: u32, y: u32) -> [i32; 4] {
+    let i = ((y as usize * size as usize) + x as usize) * 4;
+    let t = img.get(i..i + 4).unwrap_or(&[0; 4]);
+    [t[0], t[1], t[2], t[3]].map(i32::from)
+}
+
+/// The summed difference of two texels over their four channels, sRGB8 levels: colour premultiplied by
+/// alpha, alpha as stored ([`BorderSide::mean_difference`]'s metric).
+fn texel_difference(u: [i32; 4], v: [i32; 4]) -> f64 {
+    let colour: f64 = (0..3)
+        .map(|c| f64::from((u[c] * u[3] - v[c] * v[3]).abs()) / 255.0)
+        .sum();
+    colour + f64::from((u[3] - v[3]).abs())
 }
 
 /// The border sides of `rect` that a wrap rule determines: both sides of a full-period REPEAT axis

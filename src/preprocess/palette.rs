@@ -11,7 +11,7 @@
 //!
 //! Here every such triangle of a material that uses at most `limit` distinct cells (a [`SUBCELLS`]-th of a
 //! source texel per axis: real palettes name each colour by one UV; a triangle whose UVs differ by float
-//! noise counts, at their centre, and is stored with that one UV: [`point_uv`]) gets a density class of its
+//! noise counts, at their centre, and is stored with that one UV: [`point_of`]) gets a density class of its
 //! own cell
 //! ([`TriInfo::class`] = [`POINT_CLASS`] + 1 + the cell's rank among the material's), so the layout gives
 //! it a point rect ([`is_cell_class`]) whose inner 1 × 1 texel is the source at that UV and whose border
@@ -111,15 +111,9 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
         limit,
         ..PaletteReport::default()
     };
-    let key = |t: &TriInfo| -> Option<u64> {
-        let (uv, _) = point_uv(scene, t)?;
-        let mat = scene.materials.get(t.material.idx())?;
-        let img = scene.images.get(mat.image.idx())?;
-        cell_key(uv, [img.width, img.height], mat.wrap)
-    };
     let mut pairs: Vec<(MaterialId, u64)> = infos
         .par_iter()
-        .filter_map(|t| key(t).map(|c| (t.material, c)))
+        .filter_map(|t| point_of(scene, t).map(|p| (t.material, p.cell)))
         .collect();
     if pairs.is_empty() {
         return report;
@@ -157,14 +151,15 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
         let Some(Some(of_mat)) = cells.get(t.material.idx()) else {
             return;
         };
-        if let Some(rank) = key(t).and_then(|c| of_mat.binary_search(&c).ok()) {
+        let Some(p) = point_of(scene, t) else {
+            return;
+        };
+        if let Ok(rank) = of_mat.binary_search(&p.cell) {
             // rank < limit ≤ MAX_CELLS: far from the density classes (about −1100 ..= 1100).
             t.class = POINT_CLASS + 1 + rank as i32;
             // Its one UV, exactly (a UV spread within its cell, a mirrored period folded back).
-            if let Some((uv, changed)) = point_uv(scene, t)
-                && changed
-            {
-                t.uv = [uv; 3];
+            if p.changed {
+                t.uv = [p.uv; 3];
                 t.size = SizeEstimate {
                     w: 0.0,
                     h: 0.0,
@@ -176,8 +171,7 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
     report
 }
 
-/// The one UV a triangle shows, if it shows one texel's colour and has an area to show it on, and whether
-/// it differs from the triangle's stored UVs: a constant UV ([`SizeMethod::AllUvEqual`]), or UVs that
+/// The one UV a triangle shows ([`Point`]), if it shows one texel's colour and has an area to show it on: a constant UV ([`SizeMethod::AllUvEqual`]), or UVs that
 /// differ by float noise alone ([`F32_NOISE_STEPS`] f32 steps of their magnitude per axis), or UVs of no
 /// mapping ([`SizeMethod::EdgeFallback`]: one corner moved off the others) within a [`SUBCELLS`]-th of a
 /// source texel, at their centre (one f32 step of spread took a palette triangle out of its cell, 15 dB
@@ -186,7 +180,7 @@ pub fn assign_classes(scene: &Scene, infos: &mut [TriInfo], limit: u32) -> Palet
 /// faceted the terrain, crowded the atlas with point rects and pushed real palettes past their limit).
 /// On a mirrored-repeat axis the second period `[1, 2)` folds back to `2 − u`, the same texel (a cell
 /// drawn at `u` and at `2 − u` took two cells).
-fn point_uv(scene: &Scene, t: &TriInfo) -> Option<(DVec2, bool)> {
+fn point_of(scene: &Scene, t: &TriInfo) -> Option<Point> {
     let mat = scene.materials.get(t.material.idx())?;
     let img = scene.images.get(mat.image.idx())?;
     let constant = t.size.method == SizeMethod::AllUvEqual;
@@ -223,7 +217,19 @@ fn point_uv(scene: &Scene, t: &TriInfo) -> Option<(DVec2, bool)> {
         }
     };
     let folded = DVec2::new(fold(uv.x, mat.wrap[0]), fold(uv.y, mat.wrap[1]));
-    Some((folded, !constant || folded != uv))
+    Some(Point {
+        cell: cell_key(folded, [img.width, img.height], mat.wrap)?,
+        uv: folded,
+        changed: !constant || folded != uv,
+    })
+}
+
+/// The one UV a triangle shows ([`point_of`]): its cell ([`cell_key`]), the UV, and whether the
+/// triangle's stored UVs differ from it.
+struct Point {
+    cell: u64,
+    uv: DVec2,
+    changed: bool,
 }
 
 #[cfg(test)]

@@ -18,6 +18,10 @@ pub struct ShardedOptions {
     pub spec: ShardSpec,
     /// The command line that builds this shard, stored for the merge's "rebuild with" hint.
     pub argv: Vec<String>,
+    /// An import the caller timed before the call (the CLI's: seconds, peak memory), counted among the
+    /// report's stages and in their total, so the merge's table and critical path count it (they left it
+    /// out).
+    pub import: Option<(f64, Option<u64>)>,
 }
 
 /// What one shard did (printed by `atlastree build --shard`, saved beside the shard file as JSON for the
@@ -167,6 +171,9 @@ pub(super) fn rasterise_shard(
     progress.finish_stage();
     timings.push("write", t);
     timings.push("total", t_all);
+    if let Some((seconds, peak)) = sharded.import {
+        timings.prepend("import", seconds, peak);
+    }
 
     let nodes = units
         .iter()
@@ -206,21 +213,6 @@ pub(super) fn rasterise_shard(
         ));
     }
     Ok(report)
-}
-
-impl ShardReport {
-    /// Counts an import the caller timed before [`build_shard`] (the CLI's) among the stages and in their
-    /// total, and writes the report beside the shard again, so the merge's table and critical path count
-    /// it (they left it out).
-    pub fn count_import(&mut self, seconds: f64, peak: Option<u64>) {
-        self.stages.prepend("import", seconds, peak);
-        let path = self.path.clone();
-        if let Err(e) = write_sidecar(&path, self) {
-            self.warnings.push(format!(
-                "the shard's report could not be written again with its import: {e}"
-            ));
-        }
-    }
 }
 
 /// `PATH.json`: the shard's report, written atomically (the merge reads it for its table; the shard file

@@ -6,7 +6,11 @@ use std::path::Path;
 /// The `kB` fields `keys` of a Linux `/proc` file (`status`, `meminfo`), in bytes, from one read; `None`
 /// where the file or a field is unavailable.
 fn proc_kb_fields<const N: usize>(path: &str, keys: [&str; N]) -> Option<[u64; N]> {
-    let s = std::fs::read_to_string(path).ok()?;
+    kb_fields(&std::fs::read_to_string(path).ok()?, keys)
+}
+
+/// The `kB` fields `keys` of a `/proc` text, in bytes ([`proc_kb_fields`]).
+fn kb_fields<const N: usize>(s: &str, keys: [&str; N]) -> Option<[u64; N]> {
     let mut out = [0u64; N];
     for (o, key) in out.iter_mut().zip(keys) {
         let line = s.lines().find(|l| l.starts_with(key))?;
@@ -57,7 +61,9 @@ pub fn memory_limit_bytes() -> Option<u64> {
             // what each worker thread reserves without touching it (glibc's malloc arena and the stack),
             // which count against it though never resident: 16 threads under `ulimit -v 600000` aborted in
             // malloc with ~90 MiB resident (review, session 29).
-            let mapped = status_bytes("VmSize:").unwrap_or(0);
+            // One read of `status` for both the mapped size and the thread count.
+            let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+            let mapped = kb_fields(&status, ["VmSize:"]).map_or(0, |[v]| v);
             let workers = std::env::var("RAYON_NUM_THREADS")
                 .ok()
                 .and_then(|v| v.trim().parse::<u64>().ok())
@@ -68,7 +74,7 @@ pub fn memory_limit_bytes() -> Option<u64> {
                         .map(|n| n.get() as u64)
                 })
                 .unwrap_or(1);
-            address_space_left(limit, mapped, workers, running_threads().unwrap_or(1))
+            address_space_left(limit, mapped, workers, threads_of(&status).unwrap_or(1))
         });
     [machine_memory_bytes(), cgroup, address_space]
         .into_iter()
@@ -86,9 +92,8 @@ fn address_space_left(limit: u64, mapped: u64, workers: u64, running: u64) -> u6
         .saturating_sub(to_start.saturating_mul(RESERVED_PER_THREAD))
 }
 
-/// This process's thread count now (Linux `Threads:`).
-fn running_threads() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/self/status").ok()?;
+/// The thread count of a `/proc/PID/status` text (Linux `Threads:`).
+fn threads_of(text: &str) -> Option<u64> {
     text.lines()
         .find_map(|l| l.strip_prefix("Threads:"))
         .and_then(|v| v.trim().parse().ok())
@@ -164,7 +169,8 @@ mod tests {
         );
         // Past the limit: nothing left, not an underflow.
         assert_eq!(address_space_left(1000 * MIB, 100 * MIB, 16, 1), 0);
-        assert!(running_threads().is_some_and(|n| n >= 1));
+        let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+        assert!(threads_of(&status).is_some_and(|n| n >= 1));
     }
 
     #[test]

@@ -41,6 +41,7 @@ fn build_shards(opts: &BuildOptions, out: &Path, count: u32) {
         let sharded = ShardedOptions {
             spec,
             argv: argv(spec),
+            import: None,
         };
         let r = build_shard(city(), opts, out, &sharded, &NoProgress).unwrap();
         assert_eq!((r.shard, r.count), (index, count));
@@ -173,6 +174,7 @@ fn shard_rerun_writes_the_same_bytes_and_merge_is_idempotent() {
     let sharded = ShardedOptions {
         spec,
         argv: argv(spec),
+        import: None,
     };
     build_shard(city(), &opts, &out, &sharded, &NoProgress).unwrap();
     assert!(std::fs::read(shard_path(&out, spec)).unwrap() == first);
@@ -199,6 +201,7 @@ fn a_shard_whose_report_cannot_be_written_is_finished_with_a_warning() {
     let sharded = ShardedOptions {
         spec,
         argv: argv(spec),
+        import: None,
     };
     let r = build_shard(city(), &deep_opts(), &out, &sharded, &NoProgress).unwrap();
     assert!(shard_path(&out, spec).is_file());
@@ -290,6 +293,7 @@ fn merge_refuses_a_shard_of_another_build() {
     let sharded = ShardedOptions {
         spec,
         argv: argv(spec),
+        import: None,
     };
     build_shard(city(), &other, &out, &sharded, &NoProgress).unwrap();
     assert!(matches!(
@@ -301,12 +305,14 @@ fn merge_refuses_a_shard_of_another_build() {
     let good = ShardedOptions {
         spec,
         argv: argv(spec),
+        import: None,
     };
     build_shard(city(), &deep_opts(), &out, &good, &NoProgress).unwrap();
     let spec0 = ShardSpec { index: 0, count: 4 };
     let stale0 = ShardedOptions {
         spec: spec0,
         argv: argv(spec0),
+        import: None,
     };
     build_shard(city(), &other, &out, &stale0, &NoProgress).unwrap();
     let e = refused(&out, 0);
@@ -551,6 +557,7 @@ fn merge_refuses_shards_that_decoded_two_versions_of_an_image() {
         let sharded = ShardedOptions {
             spec,
             argv: argv(spec),
+            import: None,
         };
         build_shard(&scene, &opts, &out, &sharded, &NoProgress).unwrap();
     };
@@ -672,6 +679,7 @@ fn a_fallback_image_is_reported_by_the_shards_and_the_merge() {
         let sharded = ShardedOptions {
             spec,
             argv: argv(spec),
+            import: None,
         };
         let r = build_shard(&scene, &opts, &out, &sharded, &NoProgress).unwrap();
         shard_fallbacks += r.image_fallbacks;

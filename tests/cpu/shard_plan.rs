@@ -53,6 +53,7 @@ fn planned_shard(
             "--shard".into(),
             spec.to_string(),
         ],
+        import: None,
     };
     build_shard_planned(&plan, key, scene, opts, out, &sharded, &NoProgress)
 }
@@ -161,6 +162,7 @@ fn planned_and_self_planning_shards_write_the_same_blocks() {
         let sharded = ShardedOptions {
             spec,
             argv: vec!["x".into()],
+            import: None,
         };
         build_shard(&imported, &opts, &a, &sharded, &NoProgress).unwrap();
         planned_shard(&scene, &opts, &b, spec).unwrap();

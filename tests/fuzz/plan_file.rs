@@ -153,6 +153,7 @@ fn mutate(data: &[u8]) -> Verdict {
         let sharded = ShardedOptions {
             spec,
             argv: vec!["atlastree".into()],
+            import: None,
         };
         let built = PlanFile::open(&plan_path(&out))
             .map_err(|e| e.to_string())

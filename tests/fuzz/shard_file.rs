@@ -42,6 +42,7 @@ fn base() -> &'static Base {
             let sharded = ShardedOptions {
                 spec,
                 argv: vec!["atlastree".into()],
+                import: None,
             };
             build_shard(&scene, &opts, &out, &sharded, &NoProgress).expect("shard builds");
             std::fs::read(shard_path(&out, spec)).expect("read shard")

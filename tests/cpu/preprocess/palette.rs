@@ -288,6 +288,7 @@ fn a_palette_past_the_limit_is_one_rect_and_a_warning() {
         &atlastree::preprocess::ShardedOptions {
             spec: atlastree::preprocess::shard::ShardSpec { index: 0, count: 2 },
             argv: Vec::new(),
+            import: None,
         },
         &atlastree::preprocess::NoProgress,
     )
