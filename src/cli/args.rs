@@ -225,6 +225,10 @@ impl std::str::FromStr for Capacity {
         match s.parse::<u32>() {
             Ok(k) if k > 0 => Ok(Capacity::Blocks(k)),
             Ok(_) => Err("must be > 0 (omit it to upload every block at start)".into()),
+            Err(e) if *e.kind() == std::num::IntErrorKind::PosOverflow => Err(format!(
+                "{s} blocks is more than a capacity holds (at most {}; `all` keeps every block)",
+                u32::MAX
+            )),
             Err(_) => Err(format!("expected a block count ≥ 1 or `all`, got {s:?}")),
         }
     }
@@ -454,13 +458,13 @@ fn parse_memory(s: &str) -> Result<MemoryArg, String> {
     if s.eq_ignore_ascii_case("none") {
         return Ok(MemoryArg(None));
     }
-    match atlastree::util::parse_bytes(s) {
-        Some(b) if b >= 1 << 20 => Ok(MemoryArg(Some(b))),
-        Some(b) => Err(format!(
+    match atlastree::util::parse_size(s) {
+        Ok(b) if b >= 1 << 20 => Ok(MemoryArg(Some(b))),
+        Ok(b) => Err(format!(
             "{s:?} is {b} bytes: a build's budget is at least 1MiB (e.g. 2GiB), or none"
         )),
-        _ => Err(format!(
-            "{s:?} is not a size (e.g. 2GiB, 512MiB, 8GB) or none"
+        Err(why) => Err(format!(
+            "{s:?} {why}: give a size (e.g. 2GiB, 512MiB, 8GB, 1.5e3MiB) or none"
         )),
     }
 }

@@ -142,6 +142,18 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     // Before any work, in every step: `-o` naming the scene or another file that is not a paging file
     // fails at once, not after the shards have run (the merge writes OUT).
     atlastree::store::check_replaceable(&a.out)?;
+    // This step's own output too (the magic without its version byte: an older plan or shard is ours).
+    match step {
+        ShardStep::Whole => {}
+        ShardStep::Plan => {
+            let plan = plan_path(&a.out);
+            atlastree::store::check_replaceable_as(&plan, b"ATPLAN", "plan file")?;
+        }
+        ShardStep::Shard(spec) => {
+            let shard = atlastree::preprocess::shard::shard_path(&a.out, spec);
+            atlastree::store::check_replaceable_as(&shard, b"ATSHARD", "shard file")?;
+        }
+    }
     warn_wide_border(&a);
     warn_budget_above_limit(&a);
     let bars = Bars::new(a.quiet || a.json);
@@ -363,7 +375,7 @@ fn run_plan(
     let mut report = plan_shards(scene, &opts, &a.out, key, argv, bars)
         .with_context(|| format!("planning {} for {}", a.scene.display(), a.out.display()))?;
     report.stages.prepend("import", import_s, import_peak);
-    report.save()?;
+    report.save();
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(ExitCode::SUCCESS);

@@ -195,12 +195,20 @@ pub(crate) fn run() -> anyhow::Result<ExitCode> {
         // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process with 130 and no temp file
         // left (a paging file's is its whole length, reserved up front). `serve` handles Ctrl-C itself.
         let _ = ctrlc::set_handler(|| {
-            atlastree::util::remove_live_temps_and_exit(130, |removed| {
-                // Said, so an interrupted step is not read as a finished one (it ended without a word).
-                eprintln!(
-                    "interrupted: stopped before finishing; {removed} unfinished output(s) removed, \
-                     earlier outputs left as they were"
-                );
+            atlastree::util::remove_live_temps_and_exit(130, |removed, committed| {
+                // Said, so an interrupted step is not read as a finished one (it ended without a word),
+                // nor a complete output as an unfinished one.
+                match committed {
+                    Some((n, last)) => eprintln!(
+                        "interrupted: {n} output(s) of this run were already complete (the last {}, left in \
+                         place); {removed} unfinished output(s) removed",
+                        last.display()
+                    ),
+                    None => eprintln!(
+                        "interrupted: stopped before finishing; {removed} unfinished output(s) removed, \
+                         earlier outputs left as they were"
+                    ),
+                }
             })
         });
     }

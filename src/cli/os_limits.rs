@@ -9,6 +9,8 @@
 //!   4096, `--shard`'s limit) and failed at 1,019 shards under the usual soft limit of 1024, reported
 //!   as a corrupt shard; `serve`'s connections count too. Raising the soft limit up to the hard one is
 //!   what the hard limit is for (no privilege needed).
+//! - **One malloc arena under an address-space limit** (glibc): see
+//!   [`one_malloc_arena_under_address_limit`].
 
 /// Applies both (see the module docs). Failures are ignored: the limits stay as they were.
 pub(super) fn prepare_process() {
@@ -29,5 +31,40 @@ pub(super) fn prepare_process() {
             lim.rlim_cur = lim.rlim_max;
             libc::setrlimit(libc::RLIMIT_NOFILE, &lim);
         }
+        one_malloc_arena_under_address_limit();
     }
 }
+
+/// Under an address-space limit (`ulimit -v`, a batch system's `h_vmem`), glibc's malloc keeps its arenas'
+/// reservations within an eighth of the limit: each arena past the first (one per thread that allocates,
+/// up to 8 a core) reserves 64 MiB of address space whether it is used or not, so a merge of two shards
+/// under `ulimit -v 250000` aborted in `malloc` (`memory allocation of 4194304 bytes failed`) with most of
+/// the limit reserved and unused, while the same merge under 150000 (no room for the arenas: glibc fell
+/// back to the first) finished (fault hunt, session 31). So at most `limit / 512 MiB` arenas, at least
+/// one (one arena serialises some allocations). Without a limit, or with `MALLOC_ARENA_MAX` set (the
+/// user's choice), nothing changes.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+#[allow(
+    unsafe_code,
+    reason = "getrlimit(2) and glibc's mallopt(3) through libc, before any thread is started"
+)]
+fn one_malloc_arena_under_address_limit() {
+    let mut lim = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: `getrlimit` writes into `lim`, a valid local; `mallopt` sets a malloc parameter and
+    // touches no memory the Rust code owns. Called from `main` before the thread pools start.
+    unsafe {
+        if std::env::var_os("MALLOC_ARENA_MAX").is_none()
+            && libc::getrlimit(libc::RLIMIT_AS, &mut lim) == 0
+            && lim.rlim_cur != libc::RLIM_INFINITY
+        {
+            let arenas = (lim.rlim_cur / (512 << 20)).clamp(1, 1024);
+            libc::mallopt(libc::M_ARENA_MAX, arenas as libc::c_int);
+        }
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn one_malloc_arena_under_address_limit() {}

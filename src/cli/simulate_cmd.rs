@@ -100,7 +100,7 @@ impl SimulateArgs {
         }
         let capacities = parse_list(
             "capacity",
-            "a block count ≥ 1, or all (every block resident)",
+            "a block count from 1 to 4294967295, or all (every block resident)",
             &self.capacity,
             or_word("all", |s| s.parse::<u32>().ok().filter(|&k| k > 0)),
         )?;

@@ -13,7 +13,9 @@
 //! - **Source cap** ([`AreaOptions::cap_to_source`], default on): `w` is capped at the source width `sw`
 //!   (and `h` at `sh`). More texels per repetition than the source has would only store a magnified copy
 //!   of the original texture: the screen would show the same (magnified) source texels either way, so the
-//!   no-magnification guarantee of the *atlas* holds at `sw` already.
+//!   no-magnification guarantee of the *atlas* holds at `sw` already. In a leaf scaled below 1 the cap
+//!   comes before the scale, except that a capped axis keeps `min(sw, 8)` texels per UV where the
+//!   leaf's distance shows them ([`SCALED_CAP_FLOOR`], [`axis_texels`]).
 //! - **Border**: `border` texels on every side (paper: 8), then the outer size is rounded *up* to a
 //!   multiple of 4 so BC blocks never straddle two textures; the extra 0–3 texels go into the border
 //!   (half before, the rest after). The rasteriser fills the border by continuing the linear UV mapping
@@ -195,6 +197,33 @@ fn validate(input: &AreaInput, opts: &AreaOptions) -> Result<(), AreaError> {
     }
 }
 
+/// Texels per UV a capped axis of a leaf scaled below 1 keeps at least: all of a source up to this many
+/// texels, where the leaf's distance would show them (see [`axis_texels`]).
+pub const SCALED_CAP_FLOOR: f64 = 8.0;
+
+/// Texels (before rounding) along one axis of `extent` UV: `per_uv · scale · extent`, `per_uv` capped at
+/// the source first (module docs). A capped axis of a scaled leaf (`scale < 1`) keeps at least
+/// `min(source, SCALED_CAP_FLOOR)` texels per UV — no more than the leaf's distance (`d_min / scale`)
+/// shows, `per_uv · scale`, nor than an atlas side holds beside its borders: scaled after the cap, a
+/// 2 × 2 clamp texture over a 200 m quad in a leaf of scale 0.465 was one texel, its mean, where the
+/// original showed four (20.6 dB; fault hunt, session 30). Larger sources still fall short by up to
+/// `1 / scale` (the build's capped-rects warning). Non-decreasing in `scale`, as the leaf clamp's
+/// bisection needs; unchanged at `scale ≥ 1` and for uncapped axes.
+fn axis_texels(per_uv: f64, source: u32, extent: f64, opts: &AreaOptions) -> f64 {
+    if !opts.cap_to_source {
+        return per_uv * opts.scale * extent;
+    }
+    let src = f64::from(source.max(1));
+    let exact = per_uv.min(src) * opts.scale * extent;
+    if opts.scale >= 1.0 || per_uv <= src {
+        return exact;
+    }
+    let shown = per_uv * opts.scale * extent;
+    let room = f64::from((opts.max_side / 4 * 4).saturating_sub(opts.border.saturating_mul(2)));
+    let floor = (src.min(SCALED_CAP_FLOOR) * extent).min(shown).min(room);
+    exact.max(floor)
+}
+
 /// `(inner, outer, border_before)` along one axis.
 fn axis_size(
     axis: char,
@@ -204,13 +233,13 @@ fn axis_size(
     hi: f64,
     opts: &AreaOptions,
 ) -> Result<(u32, u32, u32), AreaError> {
+    let extent = hi - lo;
+    let exact = axis_texels(per_uv, source, extent, opts);
     let per_uv = if opts.cap_to_source {
         per_uv.min(f64::from(source.max(1)))
     } else {
         per_uv
     };
-    let extent = hi - lo;
-    let exact = per_uv * opts.scale * extent;
     let inner = ceil_tolerant(exact).max(1.0);
     let raw = inner + 2.0 * f64::from(opts.border);
     let outer = (raw / 4.0).ceil() * 4.0;
@@ -753,6 +782,24 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// The scaled-leaf floor: never decreasing in the scale (the leaf clamp bisects on it), equal to
+        /// the old rule at scale 1, never above what the leaf's distance shows.
+        #[test]
+        fn axis_texels_grow_with_the_scale(
+            per_uv in 0.0f64..5000.0, source in 1u32..64, extent in 0.0f64..4.0,
+            s0 in 1e-4f64..1.0, s1 in 1e-4f64..1.0, border in 0u32..20,
+        ) {
+            let at = |scale: f64| axis_texels(
+                per_uv, source, extent,
+                &AreaOptions { border, scale, cap_to_source: true, max_side: 1024 },
+            );
+            let (lo, hi) = (s0.min(s1), s0.max(s1));
+            proptest::prop_assert!(at(lo) <= at(hi), "{} > {}", at(lo), at(hi));
+            proptest::prop_assert_eq!(at(1.0), per_uv.min(f64::from(source)) * extent);
+            let shown = per_uv.max(f64::from(source)) * lo * extent;
+            proptest::prop_assert!(at(lo) <= shown * (1.0 + 1e-12), "{} > {}", at(lo), shown);
+        }
+
         #[test]
         fn area_invariants(
             w in 0.0f64..2000.0, h in 0.0f64..2000.0,
@@ -771,7 +818,13 @@ mod tests {
                 let slack = outer - inner - 2 * border;
                 proptest::prop_assert!(slack < 4, "{:?}", a);
                 proptest::prop_assert!(b >= border && b - border <= slack, "{:?}", a);
-                let need = if cap { per_uv.min(src) } else { per_uv } * scale * ext;
+                let mut need = if cap { per_uv.min(src) } else { per_uv } * scale * ext;
+                // A capped axis of a scaled leaf keeps min(src, 8) texels per UV where shown.
+                if cap && per_uv > src && scale < 1.0 {
+                    let room = f64::from((o.max_side / 4 * 4) - 2 * border);
+                    let floor = (src.min(SCALED_CAP_FLOOR) * ext).min(per_uv * scale * ext).min(room);
+                    need = need.max(floor);
+                }
                 // No magnification (to 1e-9) and no wasted texel column.
                 proptest::prop_assert!(f64::from(inner) >= need * (1.0 - 1e-9), "{} < {}", inner, need);
                 proptest::prop_assert!(f64::from(inner) < need.max(1.0) + 1.0, "{} vs {}", inner, need);

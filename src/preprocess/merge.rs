@@ -378,8 +378,11 @@ struct ShardSet {
     count: u32,
     shards: Vec<ShardFile>,
     /// The stored command line of a shard of the build most shards belong to (a foreign shard's flags
-    /// would rebuild the wrong thing).
+    /// would rebuild the wrong thing), or the plan's ([`ShardSet::prefer_plan`]).
     argv: Option<Vec<String>>,
+    /// The prefix hash of `OUT.plan` where planned shards are merged and it opens: the shards built
+    /// from it are the reference, however many are stale.
+    plan_prefix: Option<[u64; 2]>,
 }
 
 impl ShardSet {
@@ -427,7 +430,13 @@ impl ShardSet {
             count,
             shards: Vec::new(),
             argv,
+            plan_prefix: None,
         };
+        // Before any hint is made (a missing shard's too).
+        let mut read = opened.iter().flatten().peekable();
+        if read.peek().is_none() || read.any(|f| f.header.prefix_len == 0) {
+            set.prefer_plan(out);
+        }
         if let Some((shard, path, err)) = failures.into_iter().next() {
             let err = match err {
                 Some(ShardFileError::Io { source, .. })
@@ -461,6 +470,20 @@ impl ShardSet {
         }
         set.shards = opened.into_iter().flatten().collect();
         Ok(set)
+    }
+
+    /// Where some shard read a plan (or none could be read) and `OUT.plan` opens, the plan decides which
+    /// shards are stale: a re-plan with other flags and one shard rebuilt from it made that shard the odd
+    /// one out, and the hint sent the user to rebuild it with the old flags, which the new plan then
+    /// refused (fault hunt, session 31). Hints then copy the plan's command line (its `--shard plan`
+    /// becomes `--shard I/N`). A plan that does not open is reported later, where its tables are read.
+    fn prefer_plan(&mut self, out: &Path) {
+        let path = crate::store::shard_plan::plan_path(out);
+        let Ok(plan) = crate::store::shard_plan::PlanFile::open(&path) else {
+            return;
+        };
+        self.plan_prefix = Some(plan.header.prefix_hash);
+        self.argv = Some(with_out(&plan.manifest.argv, out));
     }
 
     fn hint(&self, index: u32) -> String {
@@ -512,22 +535,35 @@ impl ShardSet {
                 && x.pixel_options == y.pixel_options
         };
         let n = self.shards.len();
-        // Per shard, how many shards agree with it; the first of the largest group (shard 0's on a tie).
+        // Per shard, how many shards agree with it; the first of the largest group (shard 0's on a tie),
+        // among the shards built from the plan where there is one.
         let agreeing: Vec<usize> = (0..n)
             .map(|i| (0..n).filter(|&j| same(i, j)).count())
             .collect();
-        let reference = (0..n).fold(0, |best, i| {
-            if agreeing[i] > agreeing[best] {
-                i
-            } else {
-                best
-            }
-        });
+        // No shard from the plan: all are older than it, which reading the plan's tables reports.
+        let plan = self
+            .plan_prefix
+            .filter(|&p| self.shards.iter().any(|f| f.header.prefix_hash == p));
+        let from_plan = |i: usize| plan.is_none_or(|p| self.shards[i].header.prefix_hash == p);
+        let Some(reference) = (0..n)
+            .filter(|&i| from_plan(i))
+            .fold(None, |best, i| match best {
+                Some(b) if agreeing[b] >= agreeing[i] => Some(b),
+                _ => Some(i),
+            })
+        else {
+            return Ok(());
+        };
         let Some(odd) = (0..n).find(|&i| !same(reference, i)) else {
             return Ok(());
         };
         let group = agreeing[reference];
-        let why = if 2 * group > n {
+        let why = if plan.is_some() && !from_plan(odd) {
+            format!(
+                "it was not built from the plan beside OUT, which {group} of {n} shards were (shard \
+                 {reference})"
+            )
+        } else if 2 * group > n {
             format!(
                 "its fingerprint (scene and flags) differs from the other {group} of {n} shards' (shard \
                  {reference}'s)"

@@ -38,7 +38,7 @@ pub mod sizing;
 mod stage_log;
 
 pub use merge::{MergeError, MergeReport, merge};
-use report::{build_report, downsampled_warning, tree_warnings};
+use report::{build_report, resized_warnings, tree_warnings};
 pub use shard_plan::{
     ShardPlanError, ShardPlanReport, build_shard_planned, plan_shards, shard_plan_key,
 };

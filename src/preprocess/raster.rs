@@ -99,6 +99,9 @@ pub struct ImageCache<'a> {
     /// Original textures stored smaller than their source (a side above
     /// [`crate::model::MAX_ORIGINAL_CLASS`]): by image, its decoded and its stored sides (reported).
     pub downsampled: Mutex<std::collections::BTreeMap<ImageId, Downsampled>>,
+    /// Original textures stored larger than their source on a side (not a power of two, or under
+    /// [`crate::model::MIN_ORIGINAL_CLASS`]): by image, its decoded and its stored sides (reported).
+    pub upsampled: Mutex<std::collections::BTreeMap<ImageId, Downsampled>>,
 }
 
 /// [`ImageCache::first_note`]: the image's alpha was ignored (OPAQUE materials only).
@@ -209,6 +212,7 @@ impl<'a> ImageCache<'a> {
             pixel_hashes: scene.images.iter().map(|_| Default::default()).collect(),
             changed: Mutex::new(Vec::new()),
             downsampled: Mutex::new(Default::default()),
+            upsampled: Mutex::new(Default::default()),
         }
     }
 
@@ -319,7 +323,9 @@ impl<'a> ImageCache<'a> {
                     ));
                 }
             }
-            crate::scene::fallback_checker()
+            // At most an original's largest side (an 8192² header's board would be 256 MiB).
+            let side = |v: u32| v.min(crate::model::MAX_ORIGINAL_CLASS);
+            crate::scene::fallback_checker_sized(side(src.width), side(src.height))
         });
         self.record_pixels(id, &decoded);
         decoded
@@ -366,6 +372,11 @@ impl ImageCache<'_> {
         let source = [img.decoded.width, img.decoded.height];
         if source[0] > w || source[1] > h {
             lock(&self.downsampled).insert(key.0, (source, [w, h]));
+        } else if (source[0] < w || source[1] < h)
+            && (img.decoded.pixels.iter()).any(|p| *p != img.decoded.pixels[0])
+        {
+            // One colour (a solid material's 1 × 1) resamples to itself: nothing to say.
+            lock(&self.upsampled).insert(key.0, (source, [w, h]));
         }
         // The cached chain is box-filtered, as resampling wants; so is the stored chain.
         let resampled = || resample_rect(&img.chain, w, h, key.2).map_err(|e| image_err(what(), e));

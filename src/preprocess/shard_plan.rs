@@ -37,8 +37,20 @@ impl ShardPlanReport {
     /// Saves the report beside the plan (`OUT.plan.json`, atomically), where the merge finds its time and
     /// peak memory for the critical path; the caller first adds what it timed before [`plan_shards`] (the
     /// CLI's import).
-    pub fn save(&self) -> Result<(), BuildError> {
-        super::shard_run::write_sidecar(&self.path, self)
+    /// The plan file is complete and committed by now: a report that cannot be written is a warning in
+    /// this report, not an error that reads as a failed plan (it said `error:` with a usable plan left
+    /// behind), and an earlier run's report is removed (the merge would print its times and warnings;
+    /// fault hunt, session 31), as a shard does.
+    pub fn save(&mut self) {
+        if let Err(e) = super::shard_run::write_sidecar(&self.path, &*self) {
+            let mut stale = self.path.as_os_str().to_os_string();
+            stale.push(".json");
+            let _ = std::fs::remove_file(PathBuf::from(stale));
+            self.warnings.push(format!(
+                "the plan file is complete, but its report could not be written: {e} (the merge does not \
+                 show the plan's time, memory and warnings)"
+            ));
+        }
     }
 
     /// Seconds of the whole plan step: its stages' total, which counts the import before them

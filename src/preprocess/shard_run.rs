@@ -195,7 +195,7 @@ pub(super) fn rasterise_shard(
         warnings: {
             let mut w = plan_warnings;
             w.extend(cache.warnings.lock().map(|w| w.clone()).unwrap_or_default());
-            w.extend(super::downsampled_warning(&cache));
+            w.extend(super::resized_warnings(&cache));
             w
         },
         memory: memory_plan,

@@ -187,6 +187,28 @@ impl ImageSource {
     }
 }
 
+/// The fallback checkerboard at `width × height` (8 × 8 cells, or one texel per cell on a shorter side),
+/// for an image whose header was read but whose pixels do not decode: the build sized its atlas rects
+/// and its stored original by the header, so both draw the same squares; the 8 × 8 board, resampled to
+/// the header's size, was blurred in the atlas and replicated in the original (9.5 dB between the modes;
+/// fault hunt, session 31). The caller bounds the sides (the build: an original's largest, so both
+/// still resample the same board); a side of 0 gives the 8 × 8 board.
+pub fn fallback_checker_sized(width: u32, height: u32) -> DecodedImage {
+    if width == 0 || height == 0 {
+        return fallback_checker();
+    }
+    let cell = |i: u32, n: u32| u64::from(i) * u64::from(n.min(FALLBACK_SIZE)) / u64::from(n);
+    let pixels = (0..height)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .map(|(x, y)| FALLBACK_COLORS[((cell(x, width) + cell(y, height)) % 2) as usize])
+        .collect();
+    DecodedImage {
+        width,
+        height,
+        pixels,
+    }
+}
+
 /// The 8×8 magenta/black checkerboard ([`FALLBACK_COLORS`]) drawn for images that cannot be decoded.
 pub fn fallback_checker() -> DecodedImage {
     let n = FALLBACK_SIZE;

@@ -14,6 +14,7 @@ pub mod synthetic;
 pub use error::SceneError;
 pub use image_source::{
     DecodedImage, FALLBACK_COLORS, ImageData, ImageRef, ImageSource, fallback_checker,
+    fallback_checker_sized,
 };
 pub use import::{ImportOptions, import, import_images, input_digest};
 

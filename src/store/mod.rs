@@ -21,7 +21,7 @@ mod validate;
 mod write;
 
 pub use read::{BlockReader, LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
-pub use write::{FileWriter, WriteSummary, check_replaceable, table_prefix};
+pub use write::{FileWriter, WriteSummary, check_replaceable, check_replaceable_as, table_prefix};
 
 use crate::ids::BlockId;
 use std::path::PathBuf;
@@ -46,10 +46,14 @@ pub enum StoreError {
     /// the scene, its buffer or an image would destroy the input). `what` says what it is instead ("a
     /// directory", or its first bytes as text).
     #[error(
-        "{path} exists and is not an atlastree paging file ({what}): refusing to replace it; remove it first or \
+        "{path} exists and is not an atlastree {kind} ({what}): refusing to replace it; remove it first or \
          choose another output"
     )]
-    NotReplaceable { path: PathBuf, what: String },
+    NotReplaceable {
+        path: PathBuf,
+        kind: &'static str,
+        what: String,
+    },
     #[error("{path}: a paging file's name, not a folder's, is needed (it ends in /, /. or /..)")]
     FolderName { path: PathBuf },
     /// The output's folder is missing (or a file): found before any work, not when the file is written.

@@ -734,9 +734,21 @@ fn summarize(
 /// with [`StoreError::NotReplaceable`] before any work, so a mistyped `-o` cannot destroy an input; a
 /// folder that does not exist is [`StoreError::NoOutputDir`], also before any work.
 pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
+    check_replaceable_as(path, &MAGIC, "paging file")
+}
+
+/// [`check_replaceable`] for another of atlastree's outputs, a `kind` of file (`"plan file"`) that
+/// starts with `magic` (a shard's or plan's name beside OUT held a user's file, replaced without a word;
+/// fault hunt, session 31).
+pub fn check_replaceable_as(
+    path: &Path,
+    magic: &[u8],
+    kind: &'static str,
+) -> Result<(), StoreError> {
     use std::io::Read;
     let refuse = |what: String| StoreError::NotReplaceable {
         path: path.to_path_buf(),
+        kind,
         what,
     };
     // `OUT/`, `OUT/.` and `OUT/..` name a folder: the rename at the end would fail after all the work
@@ -781,13 +793,13 @@ pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
     if meta.len() == 0 {
         return Ok(());
     }
-    let mut head = Vec::with_capacity(MAGIC.len());
+    let mut head = Vec::with_capacity(magic.len());
     // Unreadable: refused too, as it is not known to be a paging file.
-    if let Err(e) = File::open(path).and_then(|f| f.take(MAGIC.len() as u64).read_to_end(&mut head))
+    if let Err(e) = File::open(path).and_then(|f| f.take(magic.len() as u64).read_to_end(&mut head))
     {
         return Err(refuse(format!("unreadable: {e}")));
     }
-    if head == MAGIC {
+    if head == magic {
         return Ok(());
     }
     Err(refuse(super::describe_start(&head)))

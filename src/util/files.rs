@@ -75,10 +75,21 @@ pub fn remove_live_temps() -> usize {
 /// the process ends with `code` while it still holds the registry's lock, so a temp that
 /// [`AtomicFile::create`] (which creates and registers under that lock) was making is either removed
 /// here or never made (one created while the handler ran stayed behind; fault hunt, session 28).
-pub fn remove_live_temps_and_exit(code: i32, say: impl FnOnce(usize)) -> ! {
+pub fn remove_live_temps_and_exit(
+    code: i32,
+    say: impl FnOnce(usize, Option<&(usize, PathBuf)>),
+) -> ! {
     let live = live_temps();
-    say(remove_listed(&live));
+    let committed = committed();
+    say(remove_listed(&live), committed.as_ref());
     std::process::exit(code)
+}
+
+/// How many [`AtomicFile`]s this process committed, and the last one's target.
+static COMMITTED: std::sync::Mutex<Option<(usize, PathBuf)>> = std::sync::Mutex::new(None);
+
+fn committed() -> std::sync::MutexGuard<'static, Option<(usize, PathBuf)>> {
+    COMMITTED.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// Removes `live`'s temps (see [`remove_live_temps`]).
@@ -340,7 +351,16 @@ impl AtomicFile {
     pub fn commit(self) -> std::io::Result<()> {
         self.temp.as_file().sync_all()?;
         let AtomicFile { target, temp, .. } = self;
-        temp.persist(&target).map_err(|e| e.error)?;
+        {
+            // Under the registry's lock, so an interrupt's handler ([`remove_live_temps_and_exit`])
+            // runs before the rename or after it is recorded: one after it said "stopped before
+            // finishing" of a complete output (fault hunt, session 31).
+            let _live = live_temps();
+            temp.persist(&target).map_err(|e| e.error)?;
+            let mut done = committed();
+            let count = done.as_ref().map_or(0, |d| d.0) + 1;
+            *done = Some((count, target.clone()));
+        }
         sync_dir(parent_dir(&target))
     }
 }
@@ -534,6 +554,24 @@ pub fn is_resource_exhaustion(e: &std::io::Error) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A commit is recorded under the registry's lock, for the interrupt handler's message: the count
+    /// grows; a dropped file leaves nothing.
+    #[test]
+    fn commits_are_recorded_for_the_interrupt_message() {
+        let dir = tempfile::tempdir().unwrap();
+        let before = committed().as_ref().map_or(0, |c| c.0);
+        let target = dir.path().join("out.bin");
+        let f = AtomicFile::create(&target, 0o644).unwrap();
+        std::io::Write::write_all(&mut f.file(), b"x").unwrap();
+        drop(AtomicFile::create(&dir.path().join("dropped.bin"), 0o644).unwrap());
+        f.commit().unwrap();
+        let after = committed().clone().unwrap();
+        // Other tests commit in parallel: at least this one, and the count moved.
+        assert!(after.0 > before, "{after:?}");
+        assert!(target.exists());
+        assert!(!dir.path().join("dropped.bin").exists());
+    }
 
     #[test]
     #[cfg(unix)]

@@ -165,19 +165,37 @@ pub fn human_bytes(b: u64) -> String {
     }
 }
 
-/// Parses a byte size: a number with an optional unit `B`, `KB`, `MB`, `GB`, `TB` (powers of 1000) or
-/// `KiB`, `MiB`, `GiB`, `TiB` (powers of 1024), case-insensitive, e.g. `8MB`, `512KiB`, `1e6`, `1TiB`.
-/// `None` if malformed, negative, not finite, past `u64`, or a fraction of one byte (`0.5B`: rounding it
-/// would turn a size the user meant as nothing or as a typo into 1 byte).
-pub fn parse_bytes(s: &str) -> Option<u64> {
+/// Why [`parse_size`] refused a text.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SizeError {
+    #[error("is not a size")]
+    Malformed,
+    #[error("has an unknown unit")]
+    Unit,
+    #[error("is negative or not finite")]
+    Negative,
+    #[error("is more bytes than a 64-bit count holds (16 EiB)")]
+    TooLarge,
+    #[error("is a fraction of one byte")]
+    Fraction,
+}
+
+/// Parses a byte size: a number (`12`, `1.5`, `1e6`, `1.5e3`) with an optional unit `B`, `KB`, `MB`,
+/// `GB`, `TB` (powers of 1000) or `KiB`, `MiB`, `GiB`, `TiB` (powers of 1024), case-insensitive, spaces
+/// allowed between, e.g. `8MB`, `512KiB`, `1.5e3MiB`, `1TiB`. The unit is the trailing run of letters.
+/// Refused, with the reason: malformed, an unknown unit, negative or not finite, past `u64`, or a
+/// fraction of one byte (`0.5B`: rounding it would turn a size the user meant as nothing or as a typo
+/// into 1 byte).
+pub fn parse_size(s: &str) -> Result<u64, SizeError> {
     let t = s.trim();
-    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
-    // `1e6` has an alphabetic `e`: treat a number that parses whole as unitless.
-    let (num, unit) = match t.parse::<f64>() {
-        Ok(_) => (t, ""),
-        Err(_) => (&t[..split], t[split..].trim()),
-    };
-    let v: f64 = num.trim().parse().ok()?;
+    let unit_at = t
+        .char_indices()
+        .rev()
+        .take_while(|(_, c)| c.is_ascii_alphabetic())
+        .last()
+        .map_or(t.len(), |(i, _)| i);
+    let (num, unit) = t.split_at(unit_at);
+    let v: f64 = num.trim().parse().map_err(|_| SizeError::Malformed)?;
     let mul = match unit.to_ascii_lowercase().as_str() {
         "" | "b" => 1.0,
         "kb" | "k" => 1e3,
@@ -188,10 +206,25 @@ pub fn parse_bytes(s: &str) -> Option<u64> {
         "mib" => 1024.0 * 1024.0,
         "gib" => 1024.0 * 1024.0 * 1024.0,
         "tib" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
-        _ => return None,
+        _ => return Err(SizeError::Unit),
     };
     let b = v * mul;
-    ((0.0..1.8e19).contains(&b) && (b == 0.0 || b >= 1.0)).then_some(b.round() as u64)
+    if b.is_nan() || b < 0.0 || v.is_infinite() {
+        return Err(SizeError::Negative);
+    }
+    // 1.8e19 < 2^64 ≈ 1.845e19: every value below it rounds into a u64.
+    if b >= 1.8e19 {
+        return Err(SizeError::TooLarge);
+    }
+    if b > 0.0 && b < 1.0 {
+        return Err(SizeError::Fraction);
+    }
+    Ok(b.round() as u64)
+}
+
+/// [`parse_size`] without the reason.
+pub fn parse_bytes(s: &str) -> Option<u64> {
+    parse_size(s).ok()
 }
 
 /// Parses a rate in bytes per second: a [`parse_bytes`] size followed by `/s`, e.g. `5MB/s`.
@@ -279,6 +312,18 @@ mod parse_tests {
         assert_eq!(parse_bytes("0.0001KB"), None);
         assert_eq!(parse_bytes("0"), Some(0));
         assert_eq!(parse_bytes("1.5B"), Some(2));
+        assert_eq!(parse_bytes("1.5e3MiB"), Some(1500 << 20));
+        assert_eq!(parse_bytes("1e3 KB"), Some(1_000_000));
+        assert_eq!(parse_size("1e30"), Err(SizeError::TooLarge));
+        assert_eq!(parse_size("18446744073709551616"), Err(SizeError::TooLarge));
+        assert_eq!(parse_size("5XB"), Err(SizeError::Unit));
+        assert_eq!(parse_size("e6"), Err(SizeError::Malformed));
+        assert_eq!(parse_size("1e"), Err(SizeError::Unit));
+        assert_eq!(parse_size("nan"), Err(SizeError::Malformed));
+        assert_eq!(parse_size("NaN B"), Err(SizeError::Negative));
+        assert_eq!(parse_size("inf"), Err(SizeError::Malformed));
+        assert_eq!(parse_size("-1MB"), Err(SizeError::Negative));
+        assert_eq!(parse_size("0.5"), Err(SizeError::Fraction));
         assert_eq!(parse_rate("5MB/s"), Some(5e6));
         assert_eq!(parse_rate("0MB/s"), None);
         assert_eq!(parse_seconds("80ms"), Some(0.08));

@@ -105,7 +105,8 @@ fn the_merge_reports_the_plans_warnings() {
     report
         .warnings
         .push("Opaque tree: a warning of the plan".into());
-    report.save().unwrap();
+    report.save();
+    assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
     for index in 0..2 {
         let r = planned_shard(&scene, &opts, &out, ShardSpec { index, count: 2 }).unwrap();
         assert!(r.warnings.is_empty(), "{:?}", r.warnings);
@@ -289,4 +290,68 @@ fn merge_refuses_a_missing_corrupt_or_replaced_plan_and_writes_nothing() {
     assert!(refused("replaced").contains("not the ones the shards were built from"));
     std::fs::write(&plan_file, &good).unwrap();
     merge(&out, None, &NoProgress).unwrap();
+}
+
+/// A plan made again with other flags and one shard rebuilt from it: the merge names a shard that was
+/// not built from the plan, with the plan's flags in its rebuild hint (it named the rebuilt shard, and
+/// its hint's old flags were refused by the new plan: a circle; fault hunt, session 31). Rebuilt from
+/// the plan, the shards merge into the one-process file of the new flags.
+#[test]
+fn a_merge_after_a_new_plan_names_the_shards_not_built_from_it() {
+    let scene = city_path();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    plan(&scene, &deep_opts(), &out);
+    for index in 0..3 {
+        planned_shard(&scene, &deep_opts(), &out, ShardSpec { index, count: 3 }).unwrap();
+    }
+    let new = BuildOptions {
+        border: 8,
+        ..deep_opts()
+    };
+    plan(&scene, &new, &out);
+    planned_shard(&scene, &new, &out, ShardSpec { index: 1, count: 3 }).unwrap();
+    let e = merge(&out, None, &NoProgress).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        matches!(e, MergeError::Foreign { shard: 0, .. })
+            && msg.contains(
+                "it was not built from the plan beside OUT, which 1 of 3 shards were (shard 1)"
+            )
+            && msg.contains("plan"),
+        "{msg}"
+    );
+    assert!(!out.exists());
+    for index in [0, 2] {
+        planned_shard(&scene, &new, &out, ShardSpec { index, count: 3 }).unwrap();
+    }
+    merge(&out, None, &NoProgress).unwrap();
+    let whole = dir.path().join("whole.atlastree");
+    let imported = import(&scene, &ImportOptions::default()).unwrap();
+    build(&imported, &new, &whole, &NoProgress).unwrap();
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(&whole).unwrap());
+}
+
+/// A plan whose report cannot be written (its name is a folder here) keeps its plan and says so in its
+/// warnings, instead of failing after the plan was committed (fault hunt, session 31).
+#[test]
+fn a_plan_whose_report_cannot_be_written_warns() {
+    let scene = city_path();
+    let opts = deep_opts();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    std::fs::create_dir(dir.path().join("city.atlastree.plan.json")).unwrap();
+    let imported = import(&scene, &ImportOptions::default()).unwrap();
+    let key = shard_plan_key(&opts, &scene, "").unwrap();
+    let mut report = plan_shards(&imported, &opts, &out, key, Vec::new(), &NoProgress).unwrap();
+    report.save();
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("the plan file is complete, but its report could not be written")),
+        "{:?}",
+        report.warnings
+    );
+    assert!(plan_path(&out).exists());
 }

@@ -196,21 +196,45 @@ struct Ranged {
     total: Option<u64>,
 }
 
-/// `url` with the password of its userinfo replaced by `***` (`http://alice:***@host/…`), for messages,
-/// names and reports; the requests use the URL as given. A URL without a password is returned as is.
+/// `url` with the password of its userinfo replaced by `***` (`http://alice:***@host/…`; a user without
+/// a password, often a token, as `***@host`) and the value of
+/// each query parameter too (`?X-Amz-Signature=***`: a presigned URL's signature is a credential; it was
+/// shown in messages, fault hunt, session 31), for messages, names and reports; the requests use the URL
+/// as given. A URL with neither is returned as is.
 pub fn redact_url(url: &str) -> String {
     let Some((scheme, rest)) = url.split_once("://") else {
         return url.to_string();
     };
     let authority_end = rest.find(['/', '?', '#']).unwrap_or(rest.len());
     let (authority, path) = rest.split_at(authority_end);
-    match authority.rsplit_once('@') {
+    let authority = match authority.rsplit_once('@') {
         Some((userinfo, host)) => match userinfo.split_once(':') {
-            Some((user, _password)) => format!("{scheme}://{user}:***@{host}{path}"),
-            None => url.to_string(),
+            Some((user, _password)) => format!("{user}:***@{host}"),
+            // A user alone is often a token (`https://TOKEN@host/`).
+            None => format!("***@{host}"),
         },
-        None => url.to_string(),
-    }
+        None => authority.to_string(),
+    };
+    format!("{scheme}://{authority}{}", redact_query(path))
+}
+
+/// `path` (from the first `/`, `?` or `#` after the authority) with each query value replaced by `***`.
+fn redact_query(path: &str) -> String {
+    let Some((before, query)) = path.split_once('?') else {
+        return path.to_string();
+    };
+    let (query, fragment) = match query.split_once('#') {
+        Some((q, f)) => (q, Some(f)),
+        None => (query, None),
+    };
+    let pairs: Vec<String> = (query.split('&'))
+        .map(|pair| match pair.split_once('=') {
+            Some((key, value)) if !value.is_empty() => format!("{key}=***"),
+            _ => pair.to_string(),
+        })
+        .collect();
+    let fragment = fragment.map_or(String::new(), |f| format!("#{f}"));
+    format!("{before}?{}{fragment}", pairs.join("&"))
 }
 
 /// A [`BlockSource`] reading blocks from `url` with HTTP range requests. Cheap to share between loader
@@ -599,12 +623,21 @@ mod tests {
         // An '@' in the path is not userinfo; a user without a password shows as given.
         for same in [
             "http://127.0.0.1/a@b.atlastree",
-            "http://alice@host/f",
-            "http://host:80/f?x=a:b@c",
+            "http://host:80/f?flag&empty=",
             "not a url",
         ] {
             assert_eq!(redact_url(same), same);
         }
+        assert_eq!(redact_url("http://TOKEN@host/f"), "http://***@host/f");
+        // Query values are credentials too (presigned URLs); keys and the fragment stay.
+        assert_eq!(
+            redact_url("http://host:80/f?x=a:b@c"),
+            "http://host:80/f?x=***"
+        );
+        assert_eq!(
+            redact_url("https://u:p@b.example/t.atlastree?X-Amz-Signature=abc&v=2#frag"),
+            "https://u:***@b.example/t.atlastree?X-Amz-Signature=***&v=***#frag"
+        );
     }
 
     #[test]

@@ -237,6 +237,11 @@ pub(super) fn read_floats(
             gltf::accessor::sparse::IndexType::U32 => DataType::U32,
         };
         let n = sp.count();
+        if n > count {
+            return Err(err(format!(
+                "sparse count {n} exceeds the accessor's {count} elements"
+            )));
+        }
         let d = dense(
             buffers,
             &iv.view(),
@@ -256,6 +261,16 @@ pub(super) fn read_floats(
         tmp.clear();
         for e in d.elements() {
             tmp.extend(e.chunks_exact(cs).map(|b| decode_component(t, norm, b)));
+        }
+        // glTF 2.0 §3.6.2.3: sparse indices MUST strictly increase (a repeated index would make the
+        // element depend on which write comes last).
+        if let Some(k) = idx.windows(2).position(|w| w[1] <= w[0]) {
+            return Err(err(format!(
+                "sparse indices must strictly increase: index {k} is {}, index {} is {}",
+                idx[k],
+                k + 1,
+                idx[k + 1]
+            )));
         }
         for (k, &i) in idx.iter().enumerate() {
             let dst = i

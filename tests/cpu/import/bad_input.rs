@@ -633,3 +633,63 @@ fn a_jpeg_cut_in_its_header_is_warned_about_on_one_line() {
         "{w:?}"
     );
 }
+
+/// The city with a sparse substitution on accessor 36 (16 positions): `indices` as u16 and as many
+/// VEC3 values (each the accessor's own element at that index, so a valid substitution changes nothing),
+/// in a second buffer given as a data URI.
+fn city_with_sparse(indices: &[u16]) -> Result<usize, String> {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    let bin = std::fs::read(city_dir().join("scene.bin")).unwrap();
+    let first = 1392;
+    let mut data = Vec::new();
+    for i in indices {
+        data.extend_from_slice(&i.to_le_bytes());
+    }
+    while !data.len().is_multiple_of(4) {
+        data.push(0);
+    }
+    let values_at = data.len();
+    for &i in indices {
+        let at = first + 12 * usize::from(i.min(15));
+        data.extend_from_slice(&bin[at..at + 12]);
+    }
+    use base64::Engine;
+    let b64 = base64::engine::general_purpose::STANDARD.encode(&data);
+    doc["buffers"].as_array_mut().unwrap().push(json!({
+        "uri": format!("data:application/octet-stream;base64,{b64}"),
+        "byteLength": data.len()
+    }));
+    let views = doc["bufferViews"].as_array_mut().unwrap();
+    views.push(json!({"buffer": 1, "byteOffset": 0, "byteLength": values_at}));
+    views.push(json!({"buffer": 1, "byteOffset": values_at, "byteLength": data.len() - values_at}));
+    doc["accessors"][36]["sparse"] = json!({
+        "count": indices.len(),
+        "indices": {"bufferView": 4, "componentType": 5123},
+        "values": {"bufferView": 5}
+    });
+    let (_, r) = import_city(dir.path(), &doc);
+    r.map(|s| s.triangles.len()).map_err(|e| e.to_string())
+}
+
+/// glTF 2.0 §3.6.2.3: sparse indices strictly increase. Repeated or falling ones (the last write won,
+/// silently; fault hunt, session 31) and more substitutions than elements are refused, naming the
+/// accessor; increasing ones import as before.
+#[test]
+fn sparse_indices_must_strictly_increase() {
+    assert_eq!(city_with_sparse(&[1, 2, 3]), Ok(city_triangles()));
+    let e = city_with_sparse(&[2, 1, 2]).unwrap_err();
+    assert!(
+        e.contains("accessor 36: POSITION: ")
+            && e.contains("sparse indices must strictly increase: index 0 is 2, index 1 is 1"),
+        "{e}"
+    );
+    let e = city_with_sparse(&[3, 3]).unwrap_err();
+    assert!(e.contains("index 0 is 3, index 1 is 3"), "{e}");
+    let many: Vec<u16> = (0..17).collect();
+    let e = city_with_sparse(&many).unwrap_err();
+    assert!(
+        e.contains("sparse count 17 exceeds the accessor's 16 elements"),
+        "{e}"
+    );
+}
