@@ -552,6 +552,7 @@ impl ShardSet {
                 _ => Some(i),
             })
         else {
+            // No shard at all (an open set has at least one; nothing to compare).
             return Ok(());
         };
         let Some(odd) = (0..n).find(|&i| !same(reference, i)) else {
