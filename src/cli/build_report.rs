@@ -65,7 +65,7 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
         let lr = &t.leaf_reasons;
         println!(
             "    leaves: {} fit, {} scaled for an oversized rect, {} scaled at source resolution, {} scaled within \
-             --leaf-originals, {} shared-texture, {} clamped triangles; smallest scale {:.3}; originals of scaled \
+             --leaf-originals, {} shared-texture, {} clamped triangles; smallest scale {}; originals of scaled \
              leaves {} (largest leaf {})",
             lr.fits,
             lr.oversized,
@@ -73,7 +73,7 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
             lr.scaled,
             lr.shared,
             lr.clamped,
-            lr.scale_min,
+            atlastree::util::fraction_text(lr.scale_min),
             human_texels(lr.scaled_original_texels),
             human_texels(lr.scaled_original_texels_max)
         );

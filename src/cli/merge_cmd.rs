@@ -81,9 +81,16 @@ pub(super) fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
     }
     let fallbacks: u64 = r.shards.iter().filter_map(|s| s.image_fallbacks).sum();
     if fallbacks > 0 {
+        // "Below" only where something is (a report missing or written by an older build has none).
+        let plan_warned = r.plan.as_ref().is_some_and(|p| !p.warnings.is_empty());
+        let below = if warned.is_empty() && !plan_warned {
+            "the shards' reports name no image"
+        } else {
+            "the warnings below name them"
+        };
         println!(
             "  images drawn as the magenta fallback: {fallbacks}, counted per shard (they are in the merged file; \
-             the shards' warnings below)"
+             {below})"
         );
     }
     for w in r.plan.iter().flat_map(|p| &p.warnings) {

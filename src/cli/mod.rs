@@ -239,6 +239,19 @@ pub(crate) fn retain_materials(
         .take(8)
         .map(|m| m.name.clone())
         .collect();
+    // `'a, b'` is two patterns (the space is not part of a name), and each must match a material: one
+    // mistyped pattern of several dropped its materials without a word (fault hunt, session 31).
+    let globs: Vec<&str> = globs.iter().map(|g| g.trim()).collect();
+    if let Some(missing) = globs
+        .iter()
+        .find(|g| !(scene.materials.iter()).any(|m| atlastree::util::glob_match(g, &m.name)))
+    {
+        anyhow::bail!(
+            "{}: --materials pattern {missing:?} matches no material (materials include: {})",
+            scene.source.display(),
+            names.join(", ")
+        );
+    }
     let report = scene.retain_materials(|m| {
         globs
             .iter()
@@ -330,6 +343,19 @@ pub(crate) fn load_scene(
     })
 }
 
+/// What the file at `path` is, where its first bytes say it is neither JSON text nor a GLB
+/// ([`atlastree::store::describe_start`]); `None` for those (their parse error says more).
+fn not_a_scene(path: &std::path::Path) -> Option<String> {
+    use std::io::Read;
+    let mut head = Vec::with_capacity(16);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(16).read_to_end(&mut head))
+        .ok()?;
+    let text = head.trim_ascii_start();
+    let scene_like = text.starts_with(b"{") || text.starts_with(b"[") || head.starts_with(b"glTF");
+    (!scene_like && !head.is_empty()).then(|| atlastree::store::describe_start(&head))
+}
+
 /// [`load_scene`] refusing, during the node walk, a scene of more than `max_triangles`
 /// ([`atlastree::scene::ImportOptions::max_triangles`]).
 pub(crate) fn load_scene_within(
@@ -342,6 +368,13 @@ pub(crate) fn load_scene_within(
         max_triangles,
     };
     atlastree::scene::import(path, &opts).map_err(|e| {
+        // A file that is not JSON or GLB at all says what it is (a paging file given to `build` read
+        // "expected value at line 1 column 1"; fault hunt, session 31), as `inspect` does of a scene.
+        if let atlastree::scene::SceneError::Parse { file, .. } = &e
+            && let Some(what) = not_a_scene(path)
+        {
+            return anyhow::anyhow!("{file}: not a glTF or GLB scene: {what}");
+        }
         // Most scene errors already start with the file; name it once.
         let file = path.display().to_string();
         if e.to_string().contains(&file) {

@@ -56,6 +56,9 @@ pub struct AreaOptions {
     pub cap_to_source: bool,
     /// Largest allowed outer side, texels (normally the atlas size).
     pub max_side: u32,
+    /// A capped axis of a scaled leaf keeps [`SCALED_CAP_FLOOR`] texels per UV ([`axis_texels`]); off
+    /// where the floors would not let the leaf fit (the layout tries with them first).
+    pub cap_floor: bool,
 }
 
 impl Default for AreaOptions {
@@ -65,6 +68,7 @@ impl Default for AreaOptions {
             scale: 1.0,
             cap_to_source: true,
             max_side: 1 << 16,
+            cap_floor: true,
         }
     }
 }
@@ -203,8 +207,9 @@ pub const SCALED_CAP_FLOOR: f64 = 8.0;
 
 /// Texels (before rounding) along one axis of `extent` UV: `per_uv · scale · extent`, `per_uv` capped at
 /// the source first (module docs). A capped axis of a scaled leaf (`scale < 1`) keeps at least
-/// `min(source, SCALED_CAP_FLOOR)` texels per UV — no more than the leaf's distance (`d_min / scale`)
-/// shows, `per_uv · scale`, nor than an atlas side holds beside its borders: scaled after the cap, a
+/// `min(source, SCALED_CAP_FLOOR)` texels per UV over at most one period (`opts.cap_floor`) — no more
+/// than the leaf's distance (`d_min / scale`) shows, `per_uv · scale`, nor than an atlas side holds
+/// beside its borders: scaled after the cap, a
 /// 2 × 2 clamp texture over a 200 m quad in a leaf of scale 0.465 was one texel, its mean, where the
 /// original showed four (20.6 dB; fault hunt, session 30). Larger sources still fall short by up to
 /// `1 / scale` (the build's capped-rects warning). Non-decreasing in `scale`, as the leaf clamp's
@@ -215,12 +220,16 @@ fn axis_texels(per_uv: f64, source: u32, extent: f64, opts: &AreaOptions) -> f64
     }
     let src = f64::from(source.max(1));
     let exact = per_uv.min(src) * opts.scale * extent;
-    if opts.scale >= 1.0 || per_uv <= src {
+    if opts.scale >= 1.0 || per_uv <= src || !opts.cap_floor {
         return exact;
     }
     let shown = per_uv * opts.scale * extent;
     let room = f64::from((opts.max_side / 4 * 4).saturating_sub(opts.border.saturating_mul(2)));
-    let floor = (src.min(SCALED_CAP_FLOOR) * extent).min(shown).min(room);
+    // One period at most: past it a clamp rect is its edge colour and a baked one repeats (a floor over
+    // 150 baked periods filled an atlas side and halved the leaf's scale; fault hunt, session 31).
+    let floor = (src.min(SCALED_CAP_FLOOR) * extent.min(1.0))
+        .min(shown)
+        .min(room);
     exact.max(floor)
 }
 
@@ -781,6 +790,29 @@ mod tests {
         assert!((r.border_fraction() - (1.0 - 5121.0 / 15184.0)).abs() < 1e-12);
     }
 
+    /// The floor covers one period at most (a baked rect of 150 periods asked an atlas side of it),
+    /// and is off with `cap_floor` (the rule of before: the source times the scale).
+    #[test]
+    fn the_scaled_leaf_floor_spans_one_period_and_can_be_off() {
+        let o = AreaOptions {
+            border: 16,
+            scale: 0.1,
+            cap_to_source: true,
+            max_side: 1024,
+            cap_floor: true,
+        };
+        // An 8-texel source asked at 1000 texels per UV over 150 UV: 8 · 0.1 · 150 = 120 exact, the
+        // floor 8 texels of one period: the exact size wins.
+        assert_eq!(axis_texels(1000.0, 8, 150.0, &o), 8.0 * 0.1 * 150.0);
+        // Over half a period: 4 texels kept, not 0.4.
+        assert_eq!(axis_texels(1000.0, 8, 0.5, &o), 4.0);
+        let off = AreaOptions {
+            cap_floor: false,
+            ..o
+        };
+        assert!((axis_texels(1000.0, 8, 0.5, &off) - 0.4).abs() < 1e-12);
+    }
+
     proptest::proptest! {
         /// The scaled-leaf floor: never decreasing in the scale (the leaf clamp bisects on it), equal to
         /// the old rule at scale 1, never above what the leaf's distance shows.
@@ -791,7 +823,7 @@ mod tests {
         ) {
             let at = |scale: f64| axis_texels(
                 per_uv, source, extent,
-                &AreaOptions { border, scale, cap_to_source: true, max_side: 1024 },
+                &AreaOptions { border, scale, cap_to_source: true, max_side: 1024, cap_floor: true },
             );
             let (lo, hi) = (s0.min(s1), s0.max(s1));
             proptest::prop_assert!(at(lo) <= at(hi), "{} > {}", at(lo), at(hi));
@@ -807,7 +839,7 @@ mod tests {
             border in 0u32..20, scale in 0.01f64..1.0, cap in proptest::bool::ANY,
         ) {
             let i = AreaInput { w, h, uv_min: [u0, v0], uv_max: [u0 + du, v0 + dv], source: [1024, 256] };
-            let o = AreaOptions { border, scale, cap_to_source: cap, max_side: 1 << 16 };
+            let o = AreaOptions { border, scale, cap_to_source: cap, max_side: 1 << 16, cap_floor: true };
             let a = required_area(&i, &o).unwrap();
             for (inner, outer, b, per_uv, src, ext) in [
                 (a.inner_w, a.outer_w, a.border[0], w, 1024.0, i.uv_max[0] - i.uv_min[0]),
@@ -822,7 +854,7 @@ mod tests {
                 // A capped axis of a scaled leaf keeps min(src, 8) texels per UV where shown.
                 if cap && per_uv > src && scale < 1.0 {
                     let room = f64::from((o.max_side / 4 * 4) - 2 * border);
-                    let floor = (src.min(SCALED_CAP_FLOOR) * ext).min(per_uv * scale * ext).min(room);
+                    let floor = (src.min(SCALED_CAP_FLOOR) * ext.min(1.0)).min(per_uv * scale * ext).min(room);
                     need = need.max(floor);
                 }
                 // No magnification (to 1e-9) and no wasted texel column.

@@ -118,6 +118,7 @@ impl DemandModel {
             scale: 1.0,
             cap_to_source: self.cap_to_source,
             max_side: u32::MAX,
+            cap_floor: true,
         };
         // Beyond u32 sides: saturate (such a set never fits; only the order of demands matters). An area
         // within u32 sides can exceed the saturated value (both sides past 2³¹): it saturates too, so a

@@ -116,7 +116,8 @@ pub struct MergedShard {
     pub seconds: Option<f64>,
     pub peak_rss_bytes: Option<u64>,
     pub work: Option<u64>,
-    /// From the shard's JSON report: images drawn as the magenta fallback, and its warnings.
+    /// From the shard's JSON report: images drawn as the magenta fallback, and its warnings (its
+    /// import's first, where it imported the scene).
     pub image_fallbacks: Option<u64>,
     pub warnings: Vec<String>,
 }
@@ -143,8 +144,8 @@ pub struct MergedPlan {
     pub path: PathBuf,
     pub seconds: Option<f64>,
     pub peak_rss_bytes: Option<u64>,
-    /// What planning the trees warned about (from the plan's report; the shards that read the plan do
-    /// not repeat it).
+    /// What the scene's import and planning the trees warned about (from the plan's report; the shards
+    /// that read the plan do not repeat it).
     pub warnings: Vec<String>,
 }
 
@@ -264,7 +265,9 @@ pub fn merge(
         let plan = MergedPlan {
             seconds: report.as_ref().and_then(super::ShardPlanReport::seconds),
             peak_rss_bytes: report.as_ref().and_then(|r| r.stages.peak_rss_bytes),
-            warnings: report.map(|r| r.warnings).unwrap_or_default(),
+            warnings: report
+                .map(|r| [r.import_warnings, r.warnings].concat())
+                .unwrap_or_default(),
             path,
         };
         (Tables::Plan(file, tables), Some(plan))
@@ -724,7 +727,9 @@ impl ShardSet {
                     peak_rss_bytes: side.as_ref().and_then(|r| r.stages.peak_rss_bytes),
                     work: side.as_ref().map(|r| r.work),
                     image_fallbacks: side.as_ref().map(|r| r.image_fallbacks),
-                    warnings: side.map(|r| r.warnings).unwrap_or_default(),
+                    warnings: side
+                        .map(|r| [r.import_warnings, r.warnings].concat())
+                        .unwrap_or_default(),
                 }
             })
             .collect()

@@ -184,6 +184,7 @@ fn palette_cell_limit(params: &BuildParams, cap_to_source: bool) -> u32 {
         scale: 1.0,
         cap_to_source,
         max_side: params.atlas_size,
+        cap_floor: true,
     };
     let atlas = u64::from(params.atlas_size).pow(2);
     required_area(&input, &aopts).map_or(0, |a| super::palette::cell_limit(a.outer_texels(), atlas))
@@ -212,7 +213,10 @@ fn tree_report(
         clamped_leaves: lay.clamped_leaves as u64,
         leaf_reasons: lay.leaves.clone(),
         capped_rects: asm.capped.iter().flatten().filter(|&&r| r > 1.0).count() as u64,
-        capped_shortfall: capped_shortfall(&asm.tree, &asm.capped),
+        capped_shortfall: capped_shortfall(&asm.tree, &asm.capped, |m| {
+            let img = &scene.images[scene.materials[m.idx()].image.idx()];
+            [img.width, img.height]
+        }),
         periods_stored: asm.periods_stored,
         periods_spanned: asm.periods_spanned,
         occupancy_mean: occ.iter().sum::<f64>() / occ.len().max(1) as f64,
@@ -272,23 +276,52 @@ fn too_large_advice(opts: &BuildOptions, depth: u8) -> String {
 }
 
 /// How much coarser than their sources capped rects are drawn ([`super::CappedShortfall`]; docs/DESIGN.md
-/// "Where the guarantee does not hold: capped rects above their leaf"): a rect capped at a source `r` times
-/// coarser than `d_min` asked for, in a leaf of scale `s` at depth `D`, is drawn from its leaf with
-/// `min(1 / s, r)` times fewer texels than its original shows there, one level up at most `min(2 / s, r)`, from the root at most `min(2^D / s, r)`
-/// (an ancestor's min_distance may come from a more scaled sibling: then it falls short by less).
-fn capped_shortfall(tree: &crate::model::AtlasTree, capped: &[Vec<f64>]) -> super::CappedShortfall {
+/// "Where the guarantee does not hold: capped rects above their leaf"): a rect capped at a source `r`
+/// times coarser than `d_min` asked for, in a leaf of scale `s` at depth `D`, shows at its leaf's
+/// distance `min(r · s, 1)` of its source's texels per UV where it stores `k` of them (`k = s`, or more
+/// where the scaled-leaf floor kept them: [`super::area::SCALED_CAP_FLOOR`]), so it falls short by
+/// `min(r · s, 1) / k`; one level up by at most `min(r · s, 2) / k`, from the root `min(r · s, 2^D) / k`
+/// (with `k = s`: the `min(r, 2^D / s)` of before; a 4 × 4 texture the floor kept whole was said to fall
+/// 2.3× short; fault hunt, session 31). An ancestor's min_distance may come from a more scaled sibling:
+/// then it falls short by less. `source_of` gives a material's source size.
+fn capped_shortfall(
+    tree: &crate::model::AtlasTree,
+    capped: &[Vec<f64>],
+    source_of: impl Fn(crate::ids::MaterialId) -> [u32; 2],
+) -> super::CappedShortfall {
     let mut out = super::CappedShortfall::default();
     for (leaf, rects) in tree.leaves.iter().zip(capped) {
-        let Some(r) = rects.iter().copied().filter(|&r| r > 1.0).reduce(f64::max) else {
-            continue;
-        };
         let s = leaf.clamp_scale;
         let depth = tree.nodes.get(leaf.node.idx()).map_or(0, |n| n.level.0);
-        let short = |levels: i32| r.min(2f64.powi(levels) / s).max(1.0);
-        out.at_leaf = out.at_leaf.max(short(0));
-        out.at_root = out.at_root.max(short(i32::from(depth)));
-        if depth > 0 {
-            out.one_up = out.one_up.max(short(1));
+        for (rect, &r) in leaf.rects.iter().zip(rects) {
+            if r <= 1.0 {
+                continue;
+            }
+            // Stored texels per source texel on the capped axes (the fewest), `s` where unknown.
+            let src = source_of(rect.material);
+            let kept = (0..2)
+                .filter(|&a| rect.capped[a])
+                .filter_map(|a| {
+                    let extent = rect.uv_max[a] - rect.uv_min[a];
+                    (extent > 0.0)
+                        .then(|| f64::from(rect.inner[2 + a]) / extent / f64::from(src[a].max(1)))
+                })
+                .fold(f64::INFINITY, f64::min);
+            let kept = if kept.is_finite() && kept > 0.0 {
+                kept.min(1.0)
+            } else {
+                s
+            };
+            // Never past the old bound (`k ≥ s` up to the inner size's rounding).
+            let short = |levels: i32| {
+                ((r * s).min(2f64.powi(levels)) / kept.max(s))
+                    .clamp(1.0, r.min(2f64.powi(levels) / s).max(1.0))
+            };
+            out.at_leaf = out.at_leaf.max(short(0));
+            out.at_root = out.at_root.max(short(i32::from(depth)));
+            if depth > 0 {
+                out.one_up = out.one_up.max(short(1));
+            }
         }
     }
     out

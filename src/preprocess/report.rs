@@ -70,12 +70,15 @@ pub(super) fn tree_warnings(trees: &[TreeReport]) -> Vec<String> {
         let lr = &r.leaf_reasons;
         if lr.oversized > 0 && lr.scale_min < OVERSIZED_WARN_SCALE {
             warnings.push(format!(
-                "{:?} tree: {} leaves scaled for an oversized rect, down to scale {:.3} (root min_distance {:.1} \
+                "{:?} tree: {} leaves scaled for an oversized rect, down to scale {} (root min_distance {:.1} \
                  m): one texture's period alone needs more than an atlas (a source side above --atlas-size, \
                  --no-source-cap, a large --texel-ratio) \
                  and every texture of such a leaf is shrunk with it, so the tree serves from far away only; \
                  keep textures capped to their source or raise --atlas-size",
-                r.kind, lr.oversized, lr.scale_min, r.root_min_distance
+                r.kind,
+                lr.oversized,
+                crate::util::fraction_text(lr.scale_min),
+                r.root_min_distance
             ));
         }
         for m in &r.sizing.palette.over_limit {

@@ -31,6 +31,10 @@ pub struct ShardPlanReport {
     /// What planning the trees warned about ([`super::tree_warnings`]).
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// The scene import's warnings (a missing image, a skipped primitive): in `--json` and the merge's
+    /// list, not only in the printed summary (fault hunt, session 31).
+    #[serde(default)]
+    pub import_warnings: Vec<String>,
 }
 
 impl ShardPlanReport {
@@ -174,6 +178,7 @@ pub fn plan_shards(
         stages: timings,
         memory,
         warnings: super::tree_warnings(&reports),
+        import_warnings: scene.report.warnings.clone(),
     };
     Ok(report)
 }
@@ -247,6 +252,7 @@ pub fn build_shard_planned(
         timings,
         // Said by the plan step.
         plan_warnings: Vec::new(),
+        import_warnings: Vec::new(),
     };
     rasterise_shard(input, opts, out, sharded, progress, (t, t_all))
 }

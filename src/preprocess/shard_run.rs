@@ -50,6 +50,11 @@ pub struct ShardReport {
     pub image_fallbacks: u64,
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// The scene import's warnings of a shard that planned itself (a missing image, a skipped
+    /// primitive; a planned shard's are the plan's): in `--json` and the merge's list, not only in the
+    /// printed summary (fault hunt, session 31).
+    #[serde(default)]
+    pub import_warnings: Vec<String>,
     /// How the memory budget was split, if there was one.
     pub memory: Option<super::memory::MemoryPlan>,
 }
@@ -88,6 +93,7 @@ pub fn build_shard(
         memory_plan,
         timings,
         plan_warnings: super::tree_warnings(&reports),
+        import_warnings: scene.report.warnings.clone(),
     };
     rasterise_shard(input, opts, out, sharded, progress, (t, t_all))
 }
@@ -106,6 +112,8 @@ pub(super) struct ShardInput<'a> {
     /// What planning the trees warned about ([`super::tree_warnings`]; a planned shard's were said by
     /// the plan step).
     pub(super) plan_warnings: Vec<String>,
+    /// The import's warnings, where this shard imported the scene (a planned shard's are the plan's).
+    pub(super) import_warnings: Vec<String>,
 }
 
 /// The shard's part of the pixel pass into its shard file, and its report; `t` = (start of the shard
@@ -126,6 +134,7 @@ pub(super) fn rasterise_shard(
         memory_plan,
         mut timings,
         plan_warnings,
+        import_warnings,
     } = input;
     let spec = sharded.spec;
     let cut = choose_cut(forest, spec.count);
@@ -192,6 +201,7 @@ pub(super) fn rasterise_shard(
         stages: timings,
         images_decoded: cache.decodes.load(std::sync::atomic::Ordering::Relaxed),
         image_fallbacks: cache.fallbacks(),
+        import_warnings,
         warnings: {
             let mut w = plan_warnings;
             w.extend(cache.warnings.lock().map(|w| w.clone()).unwrap_or_default());

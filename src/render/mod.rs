@@ -88,7 +88,10 @@ pub enum RenderError {
     Store(#[from] StoreError),
     #[error(transparent)]
     Gpu(#[from] GpuError),
-    #[error("{what}: {layers} texture-array layers needed, the device allows {limit}")]
+    #[error(
+        "{what}: {layers} texture-array layers needed, the device allows {limit}; page the blocks with \
+         `--capacity K` (a smaller K where it is given: each resident block takes its layers)"
+    )]
     TooManyLayers {
         what: String,
         layers: u64,

@@ -149,6 +149,16 @@ pub fn printable(text: &str) -> std::borrow::Cow<'_, str> {
     std::borrow::Cow::Owned(out)
 }
 
+/// A scale (or any positive fraction) with three decimals, or three significant digits below 0.001:
+/// a leaf scaled to 5·10⁻⁵ printed as "scale 0.000" (fault hunt, session 31).
+pub fn fraction_text(x: f64) -> String {
+    if x != 0.0 && x.abs() < 0.0005 {
+        format!("{x:.2e}")
+    } else {
+        format!("{x:.3}")
+    }
+}
+
 /// Human-readable bytes (binary units).
 pub fn human_bytes(b: u64) -> String {
     const U: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
@@ -313,6 +323,9 @@ mod parse_tests {
         assert_eq!(parse_bytes("0"), Some(0));
         assert_eq!(parse_bytes("1.5B"), Some(2));
         assert_eq!(parse_bytes("1.5e3MiB"), Some(1500 << 20));
+        assert_eq!(fraction_text(0.465), "0.465");
+        assert_eq!(fraction_text(0.0), "0.000");
+        assert_eq!(fraction_text(5.1e-5), "5.10e-5");
         assert_eq!(parse_bytes("1e3 KB"), Some(1_000_000));
         assert_eq!(parse_size("1e30"), Err(SizeError::TooLarge));
         assert_eq!(parse_size("18446744073709551616"), Err(SizeError::TooLarge));

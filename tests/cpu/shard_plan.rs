@@ -355,3 +355,59 @@ fn a_plan_whose_report_cannot_be_written_warns() {
     );
     assert!(plan_path(&out).exists());
 }
+
+/// The scene import's warnings (here a missing texture) are in the plan's report and a self-planning
+/// shard's, as `import_warnings`, and the merge lists the plan's: `--json` of a sharded build dropped
+/// them, and the merge promised "the shards' warnings below" and listed none (fault hunt, session 31).
+#[test]
+fn import_warnings_reach_the_plan_the_shards_and_the_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = city_path();
+    let src = src.parent().unwrap();
+    let copy = dir.path().join("city");
+    std::fs::create_dir_all(copy.join("textures")).unwrap();
+    for name in ["scene.gltf", "scene.bin"] {
+        std::fs::copy(src.join(name), copy.join(name)).unwrap();
+    }
+    let mut names: Vec<_> = (std::fs::read_dir(src.join("textures")).unwrap())
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    names.sort();
+    // Every texture but the first: that one is missing.
+    for n in &names[1..] {
+        std::fs::copy(src.join("textures").join(n), copy.join("textures").join(n)).unwrap();
+    }
+    let scene = copy.join("scene.gltf");
+    let missing = names[0].to_string_lossy().into_owned();
+    let names_it = |w: &Vec<String>| w.iter().any(|x| x.contains(&missing));
+    let opts = deep_opts();
+    let out = dir.path().join("x.atlastree");
+    let imported = import(&scene, &ImportOptions::default()).unwrap();
+    let key = shard_plan_key(&opts, &scene, "").unwrap();
+    let mut report = plan_shards(&imported, &opts, &out, key, Vec::new(), &NoProgress).unwrap();
+    assert!(
+        names_it(&report.import_warnings),
+        "{:?}",
+        report.import_warnings
+    );
+    assert!(!names_it(&report.warnings), "{:?}", report.warnings);
+    report.save();
+    for index in 0..2 {
+        let r = planned_shard(&scene, &opts, &out, ShardSpec { index, count: 2 }).unwrap();
+        // Said by the plan, not again by every shard.
+        assert!(r.import_warnings.is_empty(), "{:?}", r.import_warnings);
+    }
+    let merged = merge(&out, None, &NoProgress).unwrap();
+    let plan = merged.plan.unwrap();
+    assert!(names_it(&plan.warnings), "{:?}", plan.warnings);
+    // A shard that planned itself carries them too.
+    let other = dir.path().join("y.atlastree");
+    let spec = ShardSpec { index: 0, count: 1 };
+    let sharded = ShardedOptions {
+        spec,
+        argv: vec!["atlastree".into()],
+        import: None,
+    };
+    let r = build_shard(&imported, &opts, &other, &sharded, &NoProgress).unwrap();
+    assert!(names_it(&r.import_warnings), "{:?}", r.import_warnings);
+}

@@ -186,6 +186,7 @@ fn area_options(ctx: &Ctx<'_>, scale: f64) -> AreaOptions {
         scale,
         cap_to_source: ctx.opts.cap_to_source,
         max_side: ctx.opts.atlas_size,
+        cap_floor: true,
     }
 }
 
@@ -245,14 +246,33 @@ pub(super) fn capped_demand(
     (share, originals)
 }
 
-/// Tries to lay out one atlas for the node's `needs` at resolution `scale` (§5.2.2, §5.2.3).
+/// Tries to lay out one atlas for the node's `needs` at resolution `scale` (§5.2.2, §5.2.3), below
+/// scale 1 with the capped rects' floors ([`crate::preprocess::area::SCALED_CAP_FLOOR`]) and, where they
+/// do not fit, without them: the floors are kept where there is room, never the reason a node splits
+/// (700 8 × 8 textures, each with its floor and a 16-texel border, no longer fitted the atlas their
+/// scaled leaf had filled, and the node was split into a 4.7× larger file; fault hunt, session 31).
 pub(super) fn try_leaf(
     ctx: &Ctx<'_>,
     needs: &BTreeMap<(MaterialId, i32), MatNeed>,
     scale: f64,
     reason: LeafReason,
 ) -> Option<LeafLayout> {
-    let aopts = area_options(ctx, scale);
+    try_leaf_with(ctx, needs, scale, reason, true)
+        .or_else(|| (scale < 1.0).then(|| try_leaf_with(ctx, needs, scale, reason, false))?)
+}
+
+/// [`try_leaf`] with the floors on or off (`cap_floor`).
+fn try_leaf_with(
+    ctx: &Ctx<'_>,
+    needs: &BTreeMap<(MaterialId, i32), MatNeed>,
+    scale: f64,
+    reason: LeafReason,
+    cap_floor: bool,
+) -> Option<LeafLayout> {
+    let aopts = AreaOptions {
+        cap_floor,
+        ..area_options(ctx, scale)
+    };
     let mut mats = Vec::with_capacity(needs.len());
     let mut sizes = Vec::with_capacity(needs.len());
     let mut summed: u64 = 0;
@@ -327,8 +347,17 @@ pub(super) fn scaled_leaf(
     base: f64,
     reason: LeafReason,
 ) -> Option<LeafLayout> {
-    try_leaf(ctx, needs, base * MIN_LEAF_SCALE, reason)?;
-    clamp_leaf(ctx, items, needs, base, reason).ok()
+    // With the floors where the leaf fits with them at its smallest scale, else without (the scale the
+    // floors' absence allows).
+    let low = base * MIN_LEAF_SCALE;
+    let cap_floor = match try_leaf_with(ctx, needs, low, reason, true) {
+        Some(_) => true,
+        None => {
+            try_leaf_with(ctx, needs, low, reason, false)?;
+            false
+        }
+    };
+    clamp_leaf_with(ctx, items, needs, base, reason, cap_floor).ok()
 }
 
 /// The smallest resolution scale of a leaf made for its content (`min_distance ≤ 16 · d_min`).
@@ -343,10 +372,25 @@ pub(super) fn clamp_leaf(
     base: f64,
     reason: LeafReason,
 ) -> Result<LeafLayout, LayoutError> {
+    // The floors shrink with the scale (never above what the leaf's distance shows), so at the
+    // bisection's low end they hold what the rule without them does.
+    clamp_leaf_with(ctx, items, needs, base, reason, true)
+}
+
+/// [`clamp_leaf`] with the capped rects' floors on or off: one rule for every scale tried, so the
+/// bisection's predicate is monotone (either rule's fit only grows as the scale falls).
+fn clamp_leaf_with(
+    ctx: &Ctx<'_>,
+    items: &[u32],
+    needs: &BTreeMap<(MaterialId, i32), MatNeed>,
+    base: f64,
+    reason: LeafReason,
+    cap_floor: bool,
+) -> Result<LeafLayout, LayoutError> {
     // Bisection on log2(scale) in [log2(base) − 40, log2(base)].
     let top = base.log2();
     let (mut lo, mut hi) = (top - 40.0, top);
-    let Some(mut best) = try_leaf(ctx, needs, lo.exp2(), reason) else {
+    let Some(mut best) = try_leaf_with(ctx, needs, lo.exp2(), reason, cap_floor) else {
         let t = &ctx.infos[items[0] as usize];
         return Err(LayoutError::Unfittable {
             scene_triangle: t.scene_tri,
@@ -357,7 +401,7 @@ pub(super) fn clamp_leaf(
     };
     for _ in 0..12 {
         let mid = 0.5 * (lo + hi);
-        match try_leaf(ctx, needs, mid.exp2(), reason) {
+        match try_leaf_with(ctx, needs, mid.exp2(), reason, cap_floor) {
             Some(l) => {
                 best = l;
                 lo = mid;
