@@ -390,6 +390,24 @@ fn build_compress_bc1_then_inspect_verify_reference() {
         ),
         "{out}"
     );
+    // A reference built with another mip filter (not recorded in the file): every atlas differs, and the
+    // first violation says the reference is likely another build's (it read as a corrupt file).
+    let (kaiser, _) = build("kaiser.atlastree", "none", &["--filter", "kaiser"]);
+    let o = bin()
+        .args(["inspect", "--verify", "--json", "--reference"])
+        .arg(&kaiser)
+        .arg(&bc1)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let first = v["verify"]["violations"][0].as_str().unwrap_or_default();
+    assert!(
+        first.starts_with(&format!(
+            "all {nodes} compressed atlases differ from the reference"
+        )) && first.contains("--filter"),
+        "{v}"
+    );
     // A reference built with another screen width: a usage error (exit 2) naming that parameter.
     let (other, _) = build("other.atlastree", "none", &["--screen-width", "801"]);
     let o = run(bin()
