@@ -147,11 +147,13 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         ShardStep::Whole => {}
         ShardStep::Plan => {
             let plan = plan_path(&a.out);
-            atlastree::store::check_replaceable_as(&plan, b"ATPLAN", "plan file")?;
+            let magic = &atlastree::store::shard_plan::PLAN_MAGIC[..6];
+            atlastree::store::check_replaceable_as(&plan, magic, "plan file")?;
         }
         ShardStep::Shard(spec) => {
             let shard = atlastree::preprocess::shard::shard_path(&a.out, spec);
-            atlastree::store::check_replaceable_as(&shard, b"ATSHARD", "shard file")?;
+            let magic = &atlastree::store::shard::SHARD_MAGIC[..7];
+            atlastree::store::check_replaceable_as(&shard, magic, "shard file")?;
         }
     }
     warn_wide_border(&a);

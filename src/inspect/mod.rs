@@ -377,7 +377,8 @@ impl VerifyReport {
 }
 
 /// Checks every block checksum and the invariants: children inside parent bounds, levels and cells
-/// consistent, min_distance of inner nodes = 2 · max(children), leaves contiguous in tree order and every
+/// consistent, min_distance of inner nodes = 2 · max(children) (these three already where the file is
+/// opened), leaves contiguous in tree order and every
 /// node's index range the union of its children's, every triangle in exactly one leaf and inside its
 /// rect under the rect's wrap, every rect holding the texels per period its triangles need, and every
 /// wrap border of a leaf atlas showing what the sampler's rule puts there.
@@ -654,7 +655,6 @@ fn verify_structure(file: &TreeFile) -> VerifyReport {
         for (ni, n) in t.nodes.iter().enumerate() {
             r.nodes_checked += 1;
             let is_leaf = n.leaf != NONE;
-            let mut kids_md: f64 = 0.0;
             let mut kids_idx: u64 = 0;
             let mut has_kids = false;
             for &c in &n.children {
@@ -662,26 +662,12 @@ fn verify_structure(file: &TreeFile) -> VerifyReport {
                     continue;
                 }
                 has_kids = true;
-                // Child in range, its parent, level and cell: checked by `TreeFile::open`.
+                // Child in range, its parent, level and cell, its bounds and index range inside this
+                // node's, and this node's min_distance twice its children's largest: checked by
+                // `TreeFile::open` (`store::validate::check_nested`, `check_min_distance`).
                 let Some(ch) = t.nodes.get(c as usize) else {
                     continue;
                 };
-                for a in 0..3 {
-                    if ch.bounds_min[a] < n.bounds_min[a] || ch.bounds_max[a] > n.bounds_max[a] {
-                        r.fail(format!(
-                            "tree {ti} node {c}: bounds not inside parent {ni} on axis {a}"
-                        ));
-                        break;
-                    }
-                }
-                if ch.first_index < n.first_index
-                    || ch.first_index + ch.index_count > n.first_index + n.index_count
-                {
-                    r.fail(format!(
-                        "tree {ti} node {c}: index range outside parent {ni}"
-                    ));
-                }
-                kids_md = kids_md.max(ch.min_distance);
                 kids_idx += u64::from(ch.index_count);
             }
             if is_leaf == has_kids {
@@ -690,13 +676,6 @@ fn verify_structure(file: &TreeFile) -> VerifyReport {
                 ));
             }
             if has_kids {
-                if !eps(n.min_distance, 2.0 * kids_md) {
-                    r.fail(format!(
-                        "tree {ti} node {ni}: min_distance {} ≠ 2 · max(children) = {}",
-                        n.min_distance,
-                        2.0 * kids_md
-                    ));
-                }
                 if kids_idx != u64::from(n.index_count) {
                     r.fail(format!(
                         "tree {ti} node {ni}: children cover {kids_idx} indices of {}",

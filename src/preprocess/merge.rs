@@ -250,16 +250,17 @@ pub fn merge(
         out: out.to_path_buf(),
         source,
     })?;
-    let set = ShardSet::open(out, count)?;
+    let mut set = ShardSet::open(out, count)?;
     set.check_headers()?;
     set.check_images()?;
+    let opened_plan = set.plan.take();
     let first = &set.shards[0];
     let (tables, plan) = if first.header.prefix_len > 0 {
         let tables = (first.skeleton())
             .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
         (Tables::Shard0(tables), None)
     } else {
-        let (file, tables) = planned_tables(out, first.header.prefix_hash)?;
+        let (file, tables) = planned_tables(out, first.header.prefix_hash, opened_plan)?;
         let path = file.path().to_path_buf();
         let report: Option<super::ShardPlanReport> = read_sidecar(&path);
         let plan = MergedPlan {
@@ -351,21 +352,24 @@ impl Tables {
 }
 
 /// The tables of a planned build, from `OUT.plan` (checked: intact, and the plan the shards say they were
-/// built from), without their geometry.
+/// built from), without their geometry; `opened` is the plan where the shard set already opened it.
 fn planned_tables(
     out: &Path,
     prefix_hash: [u64; 2],
+    opened: Option<crate::store::shard_plan::PlanFile>,
 ) -> Result<(crate::store::shard_plan::PlanFile, TreeFile), MergeError> {
     let path = crate::store::shard_plan::plan_path(out);
     let refuse = |why: String| MergeError::Plan {
         plan: path.clone(),
         why,
     };
-    if !path.exists() {
-        return Err(refuse("it does not exist".into()));
-    }
-    let plan =
-        crate::store::shard_plan::PlanFile::open(&path).map_err(|e| refuse(e.to_string()))?;
+    let plan = match opened {
+        Some(plan) => plan,
+        None if !path.exists() => return Err(refuse("it does not exist".into())),
+        None => {
+            crate::store::shard_plan::PlanFile::open(&path).map_err(|e| refuse(e.to_string()))?
+        }
+    };
     if plan.header.prefix_hash != prefix_hash {
         return Err(refuse(
             "its tables are not the ones the shards were built from (another plan was written since)".into(),
@@ -383,9 +387,9 @@ struct ShardSet {
     /// The stored command line of a shard of the build most shards belong to (a foreign shard's flags
     /// would rebuild the wrong thing), or the plan's ([`ShardSet::prefer_plan`]).
     argv: Option<Vec<String>>,
-    /// The prefix hash of `OUT.plan` where planned shards are merged and it opens: the shards built
-    /// from it are the reference, however many are stale.
-    plan_prefix: Option<[u64; 2]>,
+    /// `OUT.plan` where planned shards are merged and it opens: the shards built from it are the
+    /// reference, however many are stale; the merge then reads its tables from this one open.
+    plan: Option<crate::store::shard_plan::PlanFile>,
 }
 
 impl ShardSet {
@@ -433,7 +437,7 @@ impl ShardSet {
             count,
             shards: Vec::new(),
             argv,
-            plan_prefix: None,
+            plan: None,
         };
         // Before any hint is made (a missing shard's too).
         let mut read = opened.iter().flatten().peekable();
@@ -485,8 +489,8 @@ impl ShardSet {
         let Ok(plan) = crate::store::shard_plan::PlanFile::open(&path) else {
             return;
         };
-        self.plan_prefix = Some(plan.header.prefix_hash);
         self.argv = Some(with_out(&plan.manifest.argv, out));
+        self.plan = Some(plan);
     }
 
     fn hint(&self, index: u32) -> String {
@@ -544,8 +548,8 @@ impl ShardSet {
             .map(|i| (0..n).filter(|&j| same(i, j)).count())
             .collect();
         // No shard from the plan: all are older than it, which reading the plan's tables reports.
-        let plan = self
-            .plan_prefix
+        let plan = (self.plan.as_ref())
+            .map(|p| p.header.prefix_hash)
             .filter(|&p| self.shards.iter().any(|f| f.header.prefix_hash == p));
         let from_plan = |i: usize| plan.is_none_or(|p| self.shards[i].header.prefix_hash == p);
         let Some(reference) = (0..n)
@@ -754,9 +758,7 @@ fn only_count(out: &Path) -> Result<u32, MergeError> {
 }
 
 fn read_sidecar<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
-    let mut name = path.as_os_str().to_os_string();
-    name.push(".json");
-    let bytes = crate::util::read_regular(&PathBuf::from(name), None).ok()?;
+    let bytes = crate::util::read_regular(&super::shard_run::sidecar_path(path), None).ok()?;
     serde_json::from_slice(&bytes).ok()
 }
 

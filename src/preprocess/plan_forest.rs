@@ -213,10 +213,7 @@ fn tree_report(
         clamped_leaves: lay.clamped_leaves as u64,
         leaf_reasons: lay.leaves.clone(),
         capped_rects: asm.capped.iter().flatten().filter(|&&r| r > 1.0).count() as u64,
-        capped_shortfall: capped_shortfall(&asm.tree, &asm.capped, |m| {
-            let img = &scene.images[scene.materials[m.idx()].image.idx()];
-            [img.width, img.height]
-        }),
+        capped_shortfall: capped_shortfall(&asm.tree, &asm.capped, |m| scene.source_size(m)),
         periods_stored: asm.periods_stored,
         periods_spanned: asm.periods_spanned,
         occupancy_mean: occ.iter().sum::<f64>() / occ.len().max(1) as f64,
@@ -307,16 +304,14 @@ fn capped_shortfall(
                         .then(|| f64::from(rect.inner[2 + a]) / extent / f64::from(src[a].max(1)))
                 })
                 .fold(f64::INFINITY, f64::min);
-            let kept = if kept.is_finite() && kept > 0.0 {
-                kept.min(1.0)
+            // At least `s` (the inner size's rounding can leave it a hair below), so never past the
+            // old bound `min(r · s, 2^D) / s`; at most a whole source.
+            let kept = if kept.is_finite() {
+                kept.min(1.0).max(s)
             } else {
                 s
             };
-            // Never past the old bound (`k ≥ s` up to the inner size's rounding).
-            let short = |levels: i32| {
-                ((r * s).min(2f64.powi(levels)) / kept.max(s))
-                    .clamp(1.0, r.min(2f64.powi(levels) / s).max(1.0))
-            };
+            let short = |levels: i32| ((r * s).min(2f64.powi(levels)) / kept).max(1.0);
             out.at_leaf = out.at_leaf.max(short(0));
             out.at_root = out.at_root.max(short(i32::from(depth)));
             if depth > 0 {

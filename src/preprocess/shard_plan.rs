@@ -46,14 +46,9 @@ impl ShardPlanReport {
     /// behind), and an earlier run's report is removed (the merge would print its times and warnings;
     /// fault hunt, session 31), as a shard does.
     pub fn save(&mut self) {
-        if let Err(e) = super::shard_run::write_sidecar(&self.path, &*self) {
-            let mut stale = self.path.as_os_str().to_os_string();
-            stale.push(".json");
-            let _ = std::fs::remove_file(PathBuf::from(stale));
-            self.warnings.push(format!(
-                "the plan file is complete, but its report could not be written: {e} (the merge does not \
-                 show the plan's time, memory and warnings)"
-            ));
+        let lacks = "the merge does not show the plan's time, memory and warnings";
+        if let Some(w) = super::shard_run::save_sidecar_or_warn(&self.path, &*self, "plan", lacks) {
+            self.warnings.push(w);
         }
     }
 

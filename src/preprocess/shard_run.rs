@@ -212,26 +212,45 @@ pub(super) fn rasterise_shard(
     };
     // The shard file is complete and committed: a report that cannot be written (a disk full by a few
     // KiB) is said, not an error that reads as a failed shard (the merge's table shows '-' for it).
-    if let Err(e) = write_sidecar(&path, &report) {
-        // An earlier run's report would be read as this shard's.
-        let mut stale = path.as_os_str().to_os_string();
-        stale.push(".json");
-        let _ = std::fs::remove_file(PathBuf::from(stale));
-        report.warnings.push(format!(
-            "the shard file is complete, but its report could not be written: {e} (the merge's table lacks \
-             this shard's times and memory)"
-        ));
+    if let Some(w) = save_sidecar_or_warn(
+        &path,
+        &report,
+        "shard",
+        "the merge's table lacks this shard's times and memory",
+    ) {
+        report.warnings.push(w);
     }
     Ok(report)
+}
+
+/// `PATH.json`, where the report of the shard or plan file `path` lives.
+pub(super) fn sidecar_path(path: &Path) -> PathBuf {
+    let mut name = path.as_os_str().to_os_string();
+    name.push(".json");
+    PathBuf::from(name)
+}
+
+/// [`write_sidecar`] after its `what` file (`"shard"`, `"plan"`) was committed: on failure an earlier
+/// run's report is removed (it would be read as this run's) and the warning to add is returned, saying
+/// what the merge then `lacks`.
+pub(super) fn save_sidecar_or_warn(
+    path: &Path,
+    report: &impl Serialize,
+    what: &str,
+    lacks: &str,
+) -> Option<String> {
+    let e = write_sidecar(path, report).err()?;
+    let _ = std::fs::remove_file(sidecar_path(path));
+    Some(format!(
+        "the {what} file is complete, but its report could not be written: {e} ({lacks})"
+    ))
 }
 
 /// `PATH.json`: the shard's report, written atomically (the merge reads it for its table; the shard file
 /// itself holds nothing that differs between reruns).
 pub(super) fn write_sidecar(path: &Path, report: &impl Serialize) -> Result<(), BuildError> {
     use std::io::Write;
-    let mut name = path.as_os_str().to_os_string();
-    name.push(".json");
-    let target = PathBuf::from(name);
+    let target = sidecar_path(path);
     let write_err = |source: std::io::Error| {
         BuildError::Store(StoreError::io(
             &target,

@@ -164,6 +164,12 @@ impl Scene {
         Some(it.fold((first, first), |(lo, hi), v| (lo.min(v.pos), hi.max(v.pos))))
     }
 
+    /// `[width, height]` in texels of the image material `m` samples (its header's size).
+    pub fn source_size(&self, m: MaterialId) -> [u32; 2] {
+        let img = &self.images[self.materials[m.idx()].image.idx()];
+        [img.width, img.height]
+    }
+
     /// True if any material uses alpha (MASK or BLEND): only then is an alpha tree built.
     pub fn has_alpha(&self) -> bool {
         self.materials.iter().any(|m| m.alpha.uses_alpha())

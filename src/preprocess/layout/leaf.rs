@@ -176,8 +176,7 @@ fn new_need(ctx: &Ctx<'_>, material: MaterialId, class: i32) -> MatNeed {
 }
 
 fn source_of(ctx: &Ctx<'_>, mat: MaterialId) -> [u32; 2] {
-    let img = &ctx.scene.images[ctx.scene.materials[mat.idx()].image.idx()];
-    [img.width, img.height]
+    ctx.scene.source_size(mat)
 }
 
 fn area_options(ctx: &Ctx<'_>, scale: f64) -> AreaOptions {
@@ -257,8 +256,20 @@ pub(super) fn try_leaf(
     scale: f64,
     reason: LeafReason,
 ) -> Option<LeafLayout> {
-    try_leaf_with(ctx, needs, scale, reason, true)
-        .or_else(|| (scale < 1.0).then(|| try_leaf_with(ctx, needs, scale, reason, false))?)
+    try_leaf_with(ctx, needs, scale, reason, true).or_else(|| {
+        (scale < 1.0 && floors_apply(ctx, needs))
+            .then(|| try_leaf_with(ctx, needs, scale, reason, false))?
+    })
+}
+
+/// Whether some need is capped to its source (more texels per UV asked than it has): only then can the
+/// floors ([`crate::preprocess::area::axis_texels`]) change a rect, and a retry without them differ.
+fn floors_apply(ctx: &Ctx<'_>, needs: &BTreeMap<(MaterialId, i32), MatNeed>) -> bool {
+    ctx.opts.cap_to_source
+        && needs.iter().any(|(&(mat, _), need)| {
+            let src = source_of(ctx, mat);
+            need.w > f64::from(src[0]) || need.h > f64::from(src[1])
+        })
 }
 
 /// [`try_leaf`] with the floors on or off (`cap_floor`).
@@ -352,10 +363,11 @@ pub(super) fn scaled_leaf(
     let low = base * MIN_LEAF_SCALE;
     let cap_floor = match try_leaf_with(ctx, needs, low, reason, true) {
         Some(_) => true,
-        None => {
+        None if floors_apply(ctx, needs) => {
             try_leaf_with(ctx, needs, low, reason, false)?;
             false
         }
+        None => return None,
     };
     clamp_leaf_with(ctx, items, needs, base, reason, cap_floor).ok()
 }

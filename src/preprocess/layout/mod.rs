@@ -47,7 +47,7 @@ pub use tree::{
 
 use super::demand::DemandModel;
 use super::prepare::{Corners, TriInfo};
-use crate::ids::{Cell, Level};
+use crate::ids::{Cell, Level, MaterialId};
 use crate::scene::Scene;
 use glam::DVec3;
 use leaf::{base_scale, capped_demand, clamp_leaf, material_needs, scaled_leaf, try_leaf};
@@ -77,13 +77,8 @@ struct Ctx<'a> {
 /// The demand model of `scene` under `opts` (sources, sampler wraps, border, cap, wrap).
 pub fn demand_model(scene: &Scene, opts: &LayoutOptions) -> DemandModel {
     DemandModel {
-        sources: scene
-            .materials
-            .iter()
-            .map(|m| {
-                let img = &scene.images[m.image.idx()];
-                [img.width, img.height]
-            })
+        sources: (0..scene.materials.len())
+            .map(|m| scene.source_size(MaterialId(m as u32)))
             .collect(),
         wraps: scene.materials.iter().map(|m| m.wrap).collect(),
         wrap: opts.wrap,
