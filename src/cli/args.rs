@@ -521,6 +521,9 @@ fn within_limit(budget: Option<u64>) -> Option<u64> {
 fn parse_gib(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(g) if g.is_finite() && g > 0.0 && g <= f64::from(1u32 << 24) => Ok(g),
+        Ok(g) if g > f64::from(1u32 << 24) => Err(format!(
+            "{s} GiB is over the largest limit, 16777216 GiB (16 PiB)"
+        )),
         _ => Err(format!("{s} is not a size in GiB > 0 (e.g. 64 or 0.5)")),
     }
 }

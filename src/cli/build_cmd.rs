@@ -168,9 +168,10 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let t = std::time::Instant::now();
     // A scene past what the budget's plan holds is refused while its nodes are walked, not after a
     // node graph sharing children has instanced gigabytes of triangles.
-    let max_triangles =
-        (a.params.memory_budget()).map(atlastree::preprocess::memory::max_plan_triangles);
-    let mut scene = load_scene_within(&a.scene, a.up, max_triangles).map_err(|e| {
+    use atlastree::preprocess::memory::{max_json_bytes, max_plan_triangles};
+    let budget = a.params.memory_budget();
+    let (max_triangles, max_json) = (budget.map(max_plan_triangles), budget.map(max_json_bytes));
+    let mut scene = load_scene_within(&a.scene, a.up, max_triangles, max_json).map_err(|e| {
         let budget = a.params.memory_budget();
         let plan_step = matches!(step, ShardStep::Plan);
         over_budget(e, budget, a.params.max_memory.is_some(), plan_step)
@@ -249,8 +250,8 @@ fn warn_budget_above_limit(a: &BuildArgs) {
     };
     if asked > limit {
         eprintln!(
-            "warning: --max-memory {} is more than the {} this process may use (its memory, its cgroup's \
-             limit or ulimit -v, less what is in use): the budget is {} (a build that needs more is \
+            "warning: --max-memory {} is more than the {} this process may use (the machine's memory, or its \
+             cgroup's limit or what ulimit -v leaves where smaller): the budget is {} (a build that needs more is \
              refused up front; above it an allocation would fail mid-build)",
             atlastree::util::human_bytes(asked),
             atlastree::util::human_bytes(limit),
@@ -297,27 +298,58 @@ fn over_budget(
     given: bool,
     plan_step: bool,
 ) -> anyhow::Error {
-    use atlastree::preprocess::memory::{BASE_BYTES, PLAN_BYTES_PER_TRIANGLE};
+    use atlastree::preprocess::memory::{BASE_BYTES, JSON_BYTES_FACTOR, PLAN_BYTES_PER_TRIANGLE};
     use atlastree::scene::SceneError;
-    let (Some(&SceneError::OverTriangleBudget { triangles, .. }), Some(budget)) =
-        (e.downcast_ref(), budget)
-    else {
-        return e;
-    };
-    let plan = BASE_BYTES.saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE));
     let source = if given {
         "--max-memory"
     } else {
         "the default budget (half of this machine's memory, or of its cgroup's or address-space limit)"
     };
+    if let (Some(&SceneError::OverJsonBudget { json_bytes, .. }), Some(budget)) =
+        (e.downcast_ref(), budget)
+    {
+        let needed = BASE_BYTES.saturating_add(json_bytes.saturating_mul(JSON_BYTES_FACTOR));
+        return e.context(format!(
+            "the budget is too small: parsing {} MiB of glTF JSON needs about {} MiB ({} MiB of process \
+             base and ~{JSON_BYTES_FACTOR} bytes a byte of JSON), over {source} of {} MiB: give a larger \
+             --max-memory",
+            json_bytes.div_ceil(1 << 20),
+            needed.div_ceil(1 << 20),
+            BASE_BYTES >> 20,
+            budget >> 20
+        ));
+    }
+    let (
+        Some(&SceneError::OverTriangleBudget {
+            triangles,
+            json_bytes,
+            ..
+        }),
+        Some(budget),
+    ) = (e.downcast_ref(), budget)
+    else {
+        return e;
+    };
+    // The triangles, and the JSON parsed beside them while they are read.
+    let plan = BASE_BYTES
+        .saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE))
+        .saturating_add(json_bytes.saturating_mul(JSON_BYTES_FACTOR));
     let pixels = if plan_step {
         ""
     } else {
         " and the pixel pass more"
     };
+    let json = if json_bytes > 0 {
+        format!(
+            ", and ~{JSON_BYTES_FACTOR} bytes a byte of the {} MiB of glTF JSON parsed beside them",
+            json_bytes.div_ceil(1 << 20)
+        )
+    } else {
+        String::new()
+    };
     e.context(format!(
         "the budget is too small: {triangles} triangles need at least {} MiB for the plan alone \
-         ({} MiB of process base and ~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle, all held at once){pixels}, \
+         ({} MiB of process base and ~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle, all held at once{json}){pixels}, \
          over {source} of {} MiB: give a larger --max-memory",
         plan.div_ceil(1 << 20),
         BASE_BYTES >> 20,
@@ -562,6 +594,7 @@ mod tests {
                 triangles: 1_000_000,
                 instances: 3,
                 max: 0,
+                json_bytes: 0,
             })
         };
         // 64 MiB + 10⁶ × 250 bytes = 302.4 MiB.

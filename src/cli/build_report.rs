@@ -30,8 +30,15 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
         p.border
     );
     for t in &r.trees {
+        // Where repeats are baked, sizing cuts triangles into pieces, which the lines below and
+        // `inspect` count (fault hunt, session 32: "1290 triangles" beside sizing counts of 43,984).
+        let cut = if t.pieces != t.triangles {
+            format!(" ({} pieces after cutting baked repeats)", t.pieces)
+        } else {
+            String::new()
+        };
         println!(
-            "  {:?} tree: {} triangles → {} nodes, {} leaves, depth {}, {} vertices; occupancy mean {:.0}% (min {:.0}%, max {:.0}%); root min_distance {} m",
+            "  {:?} tree: {} triangles{cut} → {} nodes, {} leaves, depth {}, {} vertices; occupancy mean {:.0}% (min {:.0}%, max {:.0}%); root min_distance {} m",
             t.kind,
             t.triangles,
             t.nodes,
@@ -78,10 +85,10 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
             human_texels(lr.scaled_original_texels_max)
         );
         println!(
-            "    periods stored {:.1} of the {:.1} the rects' UV boxes span ({:.0}× fewer)",
+            "    periods stored {:.1} of the {:.1} the rects' UV boxes span ({})",
             t.periods_stored,
             t.periods_spanned,
-            t.periods_spanned / t.periods_stored.max(1e-9)
+            periods_ratio(t.periods_stored, t.periods_spanned)
         );
         let o = &t.originals;
         println!(
@@ -232,4 +239,33 @@ pub(super) fn capped_line(
          (close views draw the originals; the design document's \"capped rects above their leaf\")",
         parts.join(", ")
     ))
+}
+
+/// How many times fewer periods a tree stores than its rects' UV boxes span, in words: "1× fewer" was
+/// printed for any ratio under 1.5 and where more were stored than spanned (baked repeats; fault hunt,
+/// session 32).
+fn periods_ratio(stored: f64, spanned: f64) -> String {
+    let ratio = spanned / stored.max(1e-9);
+    if ratio >= 10.0 {
+        format!("{ratio:.0}× fewer")
+    } else if ratio >= 1.005 {
+        format!("{ratio:.2}× fewer")
+    } else if ratio > 1.0 / 1.005 {
+        "as many".to_string()
+    } else {
+        format!("{:.2}× more", 1.0 / ratio.max(1e-300))
+    }
+}
+
+#[cfg(test)]
+mod periods_tests {
+    use super::periods_ratio;
+
+    #[test]
+    fn the_periods_ratio_says_fewer_or_more() {
+        assert_eq!(periods_ratio(1.0, 250.0), "250× fewer");
+        assert_eq!(periods_ratio(16.1, 18.1), "1.12× fewer");
+        assert_eq!(periods_ratio(617835.7, 617794.1), "as many");
+        assert_eq!(periods_ratio(2.0, 1.0), "2.00× more");
+    }
 }

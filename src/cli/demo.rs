@@ -119,7 +119,7 @@ pub(super) fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
     drop(tf);
     let flights = render_flights(&a, &file, &shown, blocks)?;
     pictures.extend(flights.pictures.iter().cloned());
-    pictures.extend(simulate_grid(&a, &file, &shown)?);
+    pictures.extend(simulate_grid(&a, &file, &shown, roots)?);
     print_summary(&a, &shown, blocks, flights.fallback.as_ref());
     println!("\npictures:");
     for p in &pictures {
@@ -152,12 +152,17 @@ fn build_tree(a: &DemoArgs, scene: &atlastree::scene::Scene) -> anyhow::Result<P
     println!("\n== 2. build the texture-atlas tree (Buchholz & Döllner 2005, §5)");
     let file = a.out.join("city.atlastree");
     let tour = a.tour();
+    let opts = tour.build_options();
+    let border = if opts.border != atlastree::preprocess::BuildOptions::default().border {
+        format!(" --border {} (under a quarter of the atlas)", opts.border)
+    } else {
+        String::new()
+    };
     println!(
         "demo settings (not the build defaults, so that the small embedded scene makes a deep tree): \
-         --atlas-size {} --d-min-ratio {} --leaf-originals {}",
+         --atlas-size {} --d-min-ratio {} --leaf-originals {}{border}",
         tour.atlas_size, tour.d_min_ratio, tour.leaf_originals
     );
-    let opts = tour.build_options();
     let report =
         build(scene, &opts, &file, &Bars::new(a.quiet)).context("building the demo tree")?;
     super::build_report::print_report(&report, &file);
@@ -418,13 +423,29 @@ fn out_frame_pair(out: &Path, render: &Path, i: usize) -> anyhow::Result<PathBuf
     Ok(path)
 }
 
+/// The capacities stage 7 simulates around the flight's `k`: half (never below the `roots` that stay
+/// resident), `k`, double (saturating), each once, then all. `--capacity 3` gave a half of 1 that the
+/// simulation refused after every other stage had run, and 2³¹ a double that wrapped to 0 (fault hunt,
+/// session 32).
+fn capacity_grid(k: u32, roots: u32) -> String {
+    let mut ks = vec![(k / 2).max(roots), k, k.saturating_mul(2)];
+    ks.dedup();
+    let mut list: Vec<String> = ks.iter().map(u32::to_string).collect();
+    list.push("all".into());
+    list.join(",")
+}
+
 /// Stage 7: the paging-budget experiment without a GPU on the same frames.
-fn simulate_grid(a: &DemoArgs, file: &Path, shown: &Shown) -> anyhow::Result<Vec<PathBuf>> {
+fn simulate_grid(
+    a: &DemoArgs,
+    file: &Path,
+    shown: &Shown,
+    roots: u32,
+) -> anyhow::Result<Vec<PathBuf>> {
     println!(
         "\n== 7. paging-budget experiment without a GPU: capacity × bandwidth × latency on the same frames"
     );
-    let k = a.tour().capacity;
-    let capacities = format!("{},{},{},all", (k / 2).max(1), k, 2 * k);
+    let capacities = capacity_grid(a.tour().capacity, roots);
     let (frames, fps) = (shown.cameras.len().to_string(), shown.fps.to_string());
     let (width, height) = (a.tour().width.to_string(), a.tour().height.to_string());
     let sim = a.out.join("simulate");
@@ -540,5 +561,22 @@ mod embedded_scene_tests {
         }
         out.sort();
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::capacity_grid;
+
+    #[test]
+    fn the_simulated_capacities_keep_the_roots_and_never_wrap() {
+        assert_eq!(capacity_grid(40, 2), "20,40,80,all");
+        assert_eq!(capacity_grid(3, 2), "2,3,6,all");
+        assert_eq!(capacity_grid(2, 2), "2,4,all");
+        assert_eq!(
+            capacity_grid(1 << 31, 1),
+            "1073741824,2147483648,4294967295,all"
+        );
+        assert_eq!(capacity_grid(u32::MAX, 1), "2147483647,4294967295,all");
     }
 }

@@ -124,7 +124,9 @@ pub(crate) enum Command {
     /// atlas size, border, down-sampling filter, compression, repeats, alpha mips), renders every runtime
     /// variant (texel ratio, paging capacity k) over the same frames of the path, and compares each frame
     /// with the reference: the same view drawn with the original textures at full resolution (`render --mode
-    /// original`), or ground truth with `--reference supersampled`.
+    /// original`), or ground truth with `--reference supersampled`. A paged variant is measured at the
+    /// steady state its k gives each view: its pager is stepped there until it loads nothing more (the
+    /// loads counted in that frame's bytes_loaded).
     ///
     /// The grid is a star around a base variant: the base plus each listed value of one knob at a time.
     /// `--grid small` (4 builds, 17 variants, 6 frames of 320×240; CI time on data/city), `--grid full`
@@ -132,7 +134,8 @@ pub(crate) enum Command {
     /// `{"base": {"d_min_ratio": 8, "atlas_size": 1024, "border": 8, "filter": "box", "texel_ratio": 1},
     ///   "atlas_size": [512, 1024, 2048], "texel_ratio": [0.25, 0.5, 1, 2], "capacity": [64], "frames": 8}`.
     ///
-    /// Writes into `--out`: sweep.csv (one row per variant, means), frames.csv (per variant and frame),
+    /// Writes into `--out`: sweep.csv (one row per variant: means, bytes_loaded summed over the frames),
+    /// frames.csv (per variant and frame),
     /// builds.csv (stage times), report.md (tables, recommended defaults, plots) and the plots as SVG + PNG:
     /// accuracy vs frame time with the Pareto front, vs file size, vs build time, vs texel ratio, and the
     /// texel-per-pixel histograms.
@@ -326,13 +329,14 @@ pub(crate) fn load_scene(
 ) -> anyhow::Result<atlastree::scene::Scene> {
     use atlastree::preprocess::memory::max_plan_triangles;
     let max = atlastree::util::memory_limit_bytes().map(max_plan_triangles);
-    load_scene_within(path, up, max).map_err(|e| {
+    load_scene_within(path, up, max, None).map_err(|e| {
         match e.downcast_ref::<atlastree::scene::SceneError>() {
             Some(atlastree::scene::SceneError::OverTriangleBudget {
                 file,
                 triangles,
                 instances,
                 max,
+                ..
             }) => anyhow::anyhow!(
                 "{file}: {triangles} triangles over {instances} mesh instances, more than the {max} this \
                  machine's memory could build (nodes shared by many parents instance their meshes once per \
@@ -357,15 +361,18 @@ fn not_a_scene(path: &std::path::Path) -> Option<String> {
 }
 
 /// [`load_scene`] refusing, during the node walk, a scene of more than `max_triangles`
-/// ([`atlastree::scene::ImportOptions::max_triangles`]).
+/// ([`atlastree::scene::ImportOptions::max_triangles`]), and before parsing, glTF JSON of more than
+/// `max_json_bytes`.
 pub(crate) fn load_scene_within(
     path: &std::path::Path,
     up: UpArg,
     max_triangles: Option<u64>,
+    max_json_bytes: Option<u64>,
 ) -> anyhow::Result<atlastree::scene::Scene> {
     let opts = atlastree::scene::ImportOptions {
         up: up.to_option(),
         max_triangles,
+        max_json_bytes,
     };
     atlastree::scene::import(path, &opts).map_err(|e| {
         // A file that is not JSON or GLB at all says what it is (a paging file given to `build` read

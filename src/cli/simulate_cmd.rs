@@ -38,14 +38,17 @@ pub(crate) struct SimulateArgs {
     /// Frame clock, frames per second.
     #[arg(long, default_value_t = 60.0)]
     pub fps: f64,
-    /// Frames to simulate: frame i is the camera at path time i / `--fps` (fewer frames than the path's
-    /// duration covers its start only; more hold its last camera). Default: the path's duration.
+    /// Frames to simulate: frame i is the camera at path time start + i / `--fps` (fewer frames than the
+    /// path's duration covers its start only; more hold its last camera). Default: the path's duration,
+    /// its first and, where it falls on a frame, its last keyframe included.
     #[arg(long)]
     pub frames: Option<usize>,
     /// Requests in flight at once (I/O model).
     #[arg(long, default_value_t = 4)]
     pub in_flight: u32,
-    /// Extra time per request, e.g. `2ms` for HTTP request overhead.
+    /// Extra time per request, e.g. `2ms` for HTTP request overhead, in every run of the grid: the model
+    /// adds it to each request's latency (so `--overhead 200ms --latency 0ms` equals `--latency 200ms`);
+    /// the table and `--json` state it.
     #[arg(long, default_value = "0ms")]
     pub overhead: String,
     /// Output directory.
@@ -229,7 +232,7 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     }
     let mut written = write_csvs(&cfg.out, &results)?;
     written.extend(write_plots(&cfg.out, &cfg.spec, &results)?);
-    print_results(&results, cfg.json)?;
+    print_results(&results, cfg.json, &cfg.spec)?;
     let per_cell = results.iter().map(|r| r.seconds).fold(0.0, f64::max);
     say(format!(
         "{cells} runs in {wall:.2} s wall (slowest run {per_cell:.2} s for {} frames)",
@@ -242,14 +245,16 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// One camera per frame at `i / fps` (default frame count: the path's duration).
+/// One camera per frame at `start + i / fps` (default frame count: the path's duration, both ends).
 fn sample_cameras(cfg: &SimulateConfig, file: &TreeFile) -> anyhow::Result<Vec<Camera>> {
     let path = cfg.path.resolve_with(|| Ground::from_tree(file))?;
     let frames = match cfg.frames {
         Some(frames) => frames,
         None => {
-            // The path's duration at --fps, bounded as --frames is.
-            let n = (path.duration() * cfg.spec.fps).ceil().max(1.0);
+            // The path's duration at --fps, its end included where it falls on a frame (a 1 s path at 1
+            // fps is 2 frames; the overview-dive's 20 s at 60 fps ended at 19.983 s; fault hunt, session
+            // 32), bounded as --frames is.
+            let n = default_frames(path.duration(), cfg.spec.fps);
             if n > super::args::MAX_FRAMES as f64 {
                 bail!(
                     "the path's {:.1} s at --fps {} are {n:.3e} frames, over the {} a run takes: lower \
@@ -266,7 +271,15 @@ fn sample_cameras(cfg: &SimulateConfig, file: &TreeFile) -> anyhow::Result<Vec<C
 }
 
 /// The per-run summaries, as JSON or a table.
-fn print_results(results: &[RunResult], json: bool) -> anyhow::Result<()> {
+fn print_results(results: &[RunResult], json: bool, spec: &GridSpec) -> anyhow::Result<()> {
+    // Settings of every run that its label does not carry (a run with --overhead read as one without:
+    // fault hunt, session 32).
+    let shared = serde_json::json!({
+        "overhead_s": spec.overhead,
+        "max_in_flight": spec.max_in_flight,
+        "max_queue": spec.max_queue,
+        "fps": spec.fps,
+    });
     if json {
         let rows: Vec<serde_json::Value> = results
             .iter()
@@ -274,7 +287,7 @@ fn print_results(results: &[RunResult], json: bool) -> anyhow::Result<()> {
                 // `drew_nodes` false: the path never looks at the scene, the run measures nothing.
                 |r| {
                     let drew = r.rows.iter().any(|f| f.paging.coarse.items > 0);
-                    serde_json::json!({ "run": r.key.label(), "key": r.key, "drew_nodes": drew, "summary": r.summary })
+                    serde_json::json!({ "run": r.key.label(), "key": r.key, "settings": shared, "drew_nodes": drew, "summary": r.summary })
                 },
             )
             .collect();
@@ -282,6 +295,12 @@ fn print_results(results: &[RunResult], json: bool) -> anyhow::Result<()> {
         return Ok(());
     }
     println!("MB: loaded over the path after the root atlases (resident before the first frame)");
+    if spec.overhead > 0.0 {
+        println!(
+            "every run: {} ms of overhead per request, added to its latency",
+            atlastree::util::short_number(spec.overhead * 1e3)
+        );
+    }
     println!(
         "{:<32} {:>8} {:>8} {:>8} {:>10} {:>10} {:>6} {:>6} {:>6}  converge (frames after each jump)",
         "run", "mean", "p95", "max", "MB", "orig MB", "peak", "jumps", "stalls"
@@ -303,4 +322,25 @@ fn print_results(results: &[RunResult], json: bool) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Frames `start + i / fps` that lie on a path of `duration` seconds, both ends included: ⌊duration · fps⌋
+/// + 1 (a product within 10⁻⁹ of a whole number counts as it, so 0.1 s at 30 fps is 4 frames).
+fn default_frames(duration: f64, fps: f64) -> f64 {
+    let steps = duration * fps;
+    (steps + 1e-9 * steps.max(1.0)).floor().max(0.0) + 1.0
+}
+
+#[cfg(test)]
+mod frame_tests {
+    use super::default_frames;
+
+    #[test]
+    fn the_default_frames_reach_the_paths_end() {
+        assert_eq!(default_frames(1.0, 1.0), 2.0);
+        assert_eq!(default_frames(20.0, 60.0), 1201.0);
+        assert_eq!(default_frames(0.0, 60.0), 1.0);
+        assert_eq!(default_frames(0.1, 30.0), 4.0);
+        assert_eq!(default_frames(1.5, 1.0), 2.0);
+    }
 }

@@ -273,7 +273,7 @@ pub fn export_3dtiles(
     let result = std::fs::create_dir_all(&temp)
         .map_err(io(&temp))
         .and_then(|()| write_tileset(file, &temp, opts, progress))
-        .and_then(|summary| replace_dir(&temp, out, &name).map(|()| summary));
+        .and_then(|summary| replace_dir(&temp, out, &name, opts.force).map(|()| summary));
     if result.is_err() {
         let _ = std::fs::remove_dir_all(&temp);
         for dir in &created {
@@ -284,12 +284,32 @@ pub fn export_3dtiles(
     result
 }
 
-/// Puts the finished export `temp` at `out`: an old `out` is renamed aside first and deleted only once the
-/// new one is in place (put back if that rename fails), so a failure never leaves `out` empty; an old one
-/// that cannot be deleted then is a warning, the export done.
-fn replace_dir(temp: &Path, out: &Path, name: &str) -> Result<(), ExportError> {
-    if !out.exists() {
-        return std::fs::rename(temp, out).map_err(io(out));
+/// Puts the finished export `temp` at `out`. Without `force` by one rename, which the kernel refuses onto
+/// a non-empty directory or a file: an `out` that appeared or filled while the export ran is kept and
+/// refused as the check up front refuses it (it was moved aside and deleted: fault hunt, session 32).
+/// With `force`, an old `out` directory is renamed aside first and deleted only once the new one is in
+/// place (put back if that rename fails), so a failure never leaves `out` empty; an old one that cannot
+/// be deleted then is a warning, the export done.
+fn replace_dir(temp: &Path, out: &Path, name: &str, force: bool) -> Result<(), ExportError> {
+    if !force || !out.exists() {
+        return std::fs::rename(temp, out).map_err(|e| match e.kind() {
+            std::io::ErrorKind::DirectoryNotEmpty | std::io::ErrorKind::AlreadyExists => {
+                ExportError::Exists {
+                    dir: out.to_path_buf(),
+                }
+            }
+            std::io::ErrorKind::NotADirectory => ExportError::BadOutput {
+                dir: out.to_path_buf(),
+                why: "exists and is not a directory",
+            },
+            _ => io(out)(e),
+        });
+    }
+    if !out.is_dir() {
+        return Err(ExportError::BadOutput {
+            dir: out.to_path_buf(),
+            why: "exists and is not a directory",
+        });
     }
     let parent = crate::util::parent_dir(out);
     let old = parent.join(format!(".{name}.old-{}", std::process::id()));
@@ -738,4 +758,48 @@ fn tree_tileset(
     summary.tile_list.append(&mut tiles);
     summary.tile_list.append(&mut orig);
     (root, bounds)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Without `--force` the finished export never replaces what appeared at OUT while it ran: a
+    /// non-empty folder or a file is kept and refused, an empty folder is replaced; with `--force` the
+    /// folder is replaced and a file still refused.
+    #[test]
+    fn finishing_replaces_only_what_force_allows() {
+        let dir = tempfile::tempdir().unwrap();
+        let (temp, out) = (dir.path().join(".out.partial"), dir.path().join("out"));
+        let fresh = || {
+            std::fs::create_dir_all(&temp).unwrap();
+            std::fs::write(temp.join("tileset.json"), b"{}").unwrap();
+        };
+        fresh();
+        std::fs::create_dir(&out).unwrap();
+        std::fs::write(out.join("notes.txt"), b"mine").unwrap();
+        let err = replace_dir(&temp, &out, "out", false).unwrap_err();
+        assert!(matches!(err, ExportError::Exists { .. }), "{err}");
+        assert_eq!(std::fs::read(out.join("notes.txt")).unwrap(), b"mine");
+        replace_dir(&temp, &out, "out", true).unwrap();
+        assert!(out.join("tileset.json").exists() && !out.join("notes.txt").exists());
+        // An empty folder is replaced without --force.
+        std::fs::remove_dir_all(&out).unwrap();
+        std::fs::create_dir(&out).unwrap();
+        fresh();
+        replace_dir(&temp, &out, "out", false).unwrap();
+        assert!(out.join("tileset.json").exists());
+        // A file at OUT is refused either way and kept.
+        std::fs::remove_dir_all(&out).unwrap();
+        std::fs::write(&out, b"file").unwrap();
+        fresh();
+        for force in [false, true] {
+            let err = replace_dir(&temp, &out, "out", force).unwrap_err();
+            assert!(
+                matches!(err, ExportError::BadOutput { .. }),
+                "{force}: {err}"
+            );
+            assert_eq!(std::fs::read(&out).unwrap(), b"file");
+        }
+    }
 }

@@ -103,7 +103,14 @@ pub fn original_blocks_cost(file: &TreeFile, ti: usize, atlas_bytes: u64) -> Ori
         ..OriginalBlocks::default()
     };
     if let (Some(&lo), Some(&hi)) = (sizes.first(), sizes.last()) {
-        c.size_vs_atlas = [lo, sizes[sizes.len() / 2], hi].map(ratio);
+        // The median of an even count is the mean of the two middle sizes (the upper one was shown: of
+        // two blocks, the largest; fault hunt, session 32).
+        let n = sizes.len();
+        let median = match n % 2 {
+            1 => ratio(sizes[n / 2]),
+            _ => 0.5 * (ratio(sizes[n / 2 - 1]) + ratio(sizes[n / 2])),
+        };
+        c.size_vs_atlas = [ratio(lo), median, ratio(hi)];
     }
     // One pass over the leaves: the chains each draws, the blocks it loads for them, and their users.
     let mut users: std::collections::BTreeMap<u32, u64> = Default::default();

@@ -17,6 +17,14 @@ use serde::Serialize;
 /// ~1.3× its 235 B). Measured with repeats wrapped; baked, a cut piece is a record of its own and keeps
 /// its corners (72 bytes more).
 pub const PLAN_BYTES_PER_TRIANGLE: u64 = 250;
+/// Bytes each piece beyond the first that a triangle is cut into where repeats are baked (`--repeat
+/// bake`) adds: a record like a triangle's and its own corners (3 × 3 f64).
+pub const BAKED_PIECE_BYTES: u64 = PLAN_BYTES_PER_TRIANGLE + 72;
+/// Bytes the import holds per byte of glTF JSON while it parses it (the text, its `serde_json` value,
+/// the `gltf` document and the raw nodes and materials, all alive at once; freed before the plan):
+/// measured 13.5 (21.5 MB of JSON for 40,000 one-quad primitives, import peak 357 MiB: 290 over the
+/// base and the triangles), rounded up.
+pub const JSON_BYTES_FACTOR: u64 = 16;
 /// The process itself, its libraries and small tables.
 pub const BASE_BYTES: u64 = 64 << 20;
 /// Decoded bytes per source texel in the image cache: RGBA8 (4) and the linear f32 mip chain (16 × 4/3).
@@ -36,6 +44,58 @@ pub const ATLASES_PER_THREAD: u64 = 4;
 pub const CACHE_SHARE_DIVISOR: u64 = 3;
 /// Smallest image cache worth running with.
 pub const MIN_IMAGE_CACHE: u64 = 64 << 20;
+
+/// What the plan holds: the scene's triangles and, where repeats are baked, the pieces beyond one a
+/// triangle that `prepare::prepare` cuts them into (`prepare::count_pieces`), counted before they exist:
+/// a baked build of 2,048 triangles accepted at 300 MiB peaked at 1.08 GiB (fault hunt, session 32).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PlanLoad {
+    pub triangles: u64,
+    pub extra_pieces: u64,
+}
+
+impl PlanLoad {
+    /// `triangles` whole triangles, none cut.
+    pub fn triangles(triangles: u64) -> PlanLoad {
+        PlanLoad {
+            triangles,
+            extra_pieces: 0,
+        }
+    }
+
+    /// What the import and plan hold beyond [`BASE_BYTES`].
+    fn bytes(self) -> u64 {
+        (self.triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE))
+            .saturating_add(self.extra_pieces.saturating_mul(BAKED_PIECE_BYTES))
+    }
+}
+
+/// The decoded sizes the image cache is sized from (texels): the largest image, the `threads` largest
+/// together (each rasteriser thread may hold a different one: the cache's floor), and all of them (a
+/// cache that holds every image never evicts one still in use, so nothing is held twice). A single
+/// 16384² image was counted once per thread and once more in flight, 4.5 copies, and refused under the
+/// default budget of a 24 GB machine where it peaks at one (fault hunt, session 32).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImageTexels {
+    pub largest: u64,
+    pub per_threads: u64,
+    pub all: u64,
+}
+
+impl ImageTexels {
+    /// The sizes of `texels` (one entry per image) for `threads` rasteriser threads.
+    pub fn of(texels: impl IntoIterator<Item = u64>, threads: u64) -> ImageTexels {
+        let mut sizes: Vec<u64> = texels.into_iter().collect();
+        sizes.sort_unstable_by(|a, b| b.cmp(a));
+        let sum = |s: &[u64]| s.iter().fold(0u64, |a, &b| a.saturating_add(b));
+        let take = usize::try_from(threads.max(1)).unwrap_or(usize::MAX);
+        ImageTexels {
+            largest: sizes.first().copied().unwrap_or(0),
+            per_threads: sum(&sizes[..take.min(sizes.len())]),
+            all: sum(&sizes),
+        }
+    }
+}
 
 /// How a build spends its memory budget (bytes).
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq, Eq)]
@@ -59,8 +119,8 @@ pub struct MemoryPlan {
     "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan: {}; {raster_mib} MiB for {threads} \
      rasteriser threads; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; \
      by default half the memory this process may use): raise --max-memory{}",
-    plan_why(*.triangles),
-    cache_why(.largest_image, *.largest_texels, *.threads),
+    plan_why(*.triangles, *.extra_pieces),
+    cache_why(.largest_image, *.largest_texels, *.images_set_floor, *.cache_evicts),
     if *.triangles > 0 { ", or for a sharded build plan once (`build --shard plan`): its shards then hold no \
      triangles" } else { "" }
 )]
@@ -68,11 +128,18 @@ pub struct MemoryError {
     pub budget_mib: u64,
     pub needed_mib: u64,
     pub triangles: u64,
+    /// Pieces beyond one a triangle where repeats are baked ([`PlanLoad::extra_pieces`]).
+    pub extra_pieces: u64,
     pub plan_mib: u64,
     pub raster_mib: u64,
     pub threads: u64,
     pub cache_mib: u64,
     pub largest_texels: u64,
+    /// The threads' largest images set the cache's floor (else its minimum, [`MIN_IMAGE_CACHE`], does).
+    pub images_set_floor: bool,
+    /// The cache's floor holds fewer texels than all images together, so an image in use may be evicted
+    /// and held beside it (then counted once more).
+    pub cache_evicts: bool,
     /// The largest image's name; filled in by the caller, who knows the images ([`MemoryError::naming`]).
     pub largest_image: String,
 }
@@ -87,24 +154,38 @@ impl MemoryError {
 
 /// What the plan's share holds, in words: the process's fixed base and the triangles held, or for a
 /// shard that read a plan file (no triangles) the base and the tables' skeleton.
-fn plan_why(triangles: u64) -> String {
+fn plan_why(triangles: u64, extra_pieces: u64) -> String {
     let base = BASE_BYTES >> 20;
-    if triangles > 0 {
+    if extra_pieces > 0 {
+        format!(
+            "a {base} MiB base and {triangles} triangles held, cut into {extra_pieces} more pieces where \
+             repeats are baked (--repeat bake; --repeat wrap cuts none, a smaller --max-pieces fewer)"
+        )
+    } else if triangles > 0 {
         format!("a {base} MiB base and {triangles} triangles held")
     } else {
         format!("a {base} MiB base and the plan file's tables, no triangles")
     }
 }
 
-/// Why the image cache needs what it needs: the largest image once per thread where that passes the
+/// Why the image cache needs what it needs: the largest images (one per thread) where they pass the
 /// cache's minimum ([`MIN_IMAGE_CACHE`]), else the minimum (a small image is not the cause; the docs hunt
 /// of session 29 found a 64² texture blamed for 80 MiB).
-fn cache_why(largest_image: &str, largest_texels: u64, threads: u64) -> String {
-    let per_thread = largest_texels.saturating_mul(CACHE_BYTES_PER_TEXEL);
-    if per_thread.saturating_mul(threads.max(1)) > MIN_IMAGE_CACHE {
+fn cache_why(
+    largest_image: &str,
+    largest_texels: u64,
+    images_set_floor: bool,
+    cache_evicts: bool,
+) -> String {
+    if images_set_floor {
+        let twice = if cache_evicts {
+            ", and once more while held after its eviction"
+        } else {
+            ""
+        };
         format!(
-            "the largest image, {largest_image}: {largest_texels} texels, once per thread in the cache and \
-             once more while it is decoded; downscale that image if it dominates"
+            "the largest images, one per rasteriser thread, the largest {largest_image}: {largest_texels} \
+             texels{twice}; downscale that image if it dominates"
         )
     } else {
         format!(
@@ -117,50 +198,47 @@ fn cache_why(largest_image: &str, largest_texels: u64, threads: u64) -> String {
 /// Why the plan step of a sharded build does not fit its budget.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error(
-    "the plan needs about {needed_mib} MiB ({triangles} triangles, all held at once while planning), over \
+    "the plan needs about {needed_mib} MiB ({triangles} triangles{}, all held at once while planning), over \
      the budget of {budget_mib} MiB (--max-memory; by default half the memory this process may use): plan on a machine with more memory (--max-memory {needed_mib}MiB or more; the \
-     budget is not part of the plan's key, so the shards may keep a small one)"
+     budget is not part of the plan's key, so the shards may keep a small one)",
+    if *.extra_pieces > 0 { format!(" and {} more pieces where repeats are baked", .extra_pieces) } else { String::new() }
 )]
 pub struct PlanStepMemoryError {
     pub budget_mib: u64,
     pub needed_mib: u64,
     pub triangles: u64,
-}
-
-/// What the import and plan hold for `triangles` beyond [`BASE_BYTES`].
-fn triangle_bytes(triangles: u64) -> u64 {
-    triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE)
+    pub extra_pieces: u64,
 }
 
 /// Splits `budget` between plan, rasteriser threads and the image cache (at most `cache_wanted`); fails when
 /// even the smallest cache does not fit.
 pub fn plan_memory(
     budget: u64,
-    triangles: u64,
+    load: PlanLoad,
     atlas_size: u32,
     threads: u64,
-    largest_image_texels: u64,
+    images: ImageTexels,
     cache_wanted: u64,
 ) -> Result<MemoryPlan, MemoryError> {
-    let plan_bytes = triangle_bytes(triangles);
     let pixels = PixelNeeds {
         atlas_size,
         threads,
-        largest_image_texels,
+        images,
         cache_wanted,
     };
-    split_budget(budget, plan_bytes, triangles, pixels)
+    split_budget(budget, load.bytes(), load, pixels)
 }
 
 /// [`plan_memory`] for the plan step of a sharded build (`build --shard plan`): the plan alone, no pixel
 /// pass and so no image cache.
-pub fn plan_step_memory(budget: u64, triangles: u64) -> Result<MemoryPlan, PlanStepMemoryError> {
-    let plan_bytes = BASE_BYTES.saturating_add(triangle_bytes(triangles));
+pub fn plan_step_memory(budget: u64, load: PlanLoad) -> Result<MemoryPlan, PlanStepMemoryError> {
+    let plan_bytes = BASE_BYTES.saturating_add(load.bytes());
     if plan_bytes > budget {
         return Err(PlanStepMemoryError {
             budget_mib: budget >> 20,
             needed_mib: plan_bytes.div_ceil(1 << 20),
-            triangles,
+            triangles: load.triangles,
+            extra_pieces: load.extra_pieces,
         });
     }
     Ok(MemoryPlan {
@@ -179,51 +257,52 @@ pub fn planned_shard_memory(
     skeleton_bytes: u64,
     atlas_size: u32,
     threads: u64,
-    largest_image_texels: u64,
+    images: ImageTexels,
     cache_wanted: u64,
 ) -> Result<MemoryPlan, MemoryError> {
     let pixels = PixelNeeds {
         atlas_size,
         threads,
-        largest_image_texels,
+        images,
         cache_wanted,
     };
-    split_budget(budget, skeleton_bytes, 0, pixels)
+    split_budget(budget, skeleton_bytes, PlanLoad::default(), pixels)
 }
 
 /// What the pixel pass's share of a budget depends on.
 struct PixelNeeds {
     atlas_size: u32,
     threads: u64,
-    largest_image_texels: u64,
+    images: ImageTexels,
     cache_wanted: u64,
 }
 
-/// The split of [`plan_memory`]: `held` bytes of plan data (for `triangles` triangles) besides
-/// [`BASE_BYTES`].
+/// The split of [`plan_memory`]: `held` bytes of plan data (for `load`) besides [`BASE_BYTES`].
 fn split_budget(
     budget: u64,
     held: u64,
-    triangles: u64,
+    load: PlanLoad,
     pixels: PixelNeeds,
 ) -> Result<MemoryPlan, MemoryError> {
     let PixelNeeds {
         atlas_size,
         threads,
-        largest_image_texels,
+        images,
         cache_wanted,
     } = pixels;
     let plan_bytes = BASE_BYTES.saturating_add(held);
     let atlas = u64::from(atlas_size).pow(2) * 16;
     let raster_bytes = threads.max(1) * ATLASES_PER_THREAD * atlas;
-    let per_threads =
-        (largest_image_texels.saturating_mul(CACHE_BYTES_PER_TEXEL)).saturating_mul(threads.max(1));
+    let per_threads = images.per_threads.saturating_mul(CACHE_BYTES_PER_TEXEL);
+    let all = images.all.saturating_mul(CACHE_BYTES_PER_TEXEL);
     let floor = per_threads.max(MIN_IMAGE_CACHE);
     // The originals cache may hold a quarter of the image cache's bound on top of it, and each thread
-    // its largest image outside the cache while it decodes it and builds its chain (or holds it, evicted,
-    // while its leaf is drawn): at the old need, without that, black_forest peaked 13 % over the budget
-    // (674 MiB: 759) and a planned shard of it 22 % (512 MiB: 626; session 30's memory hunt).
-    let in_flight = per_threads;
+    // its image outside the cache while it decodes it and builds its chain (or holds it, evicted, while
+    // its leaf is drawn): at the old need, without that, black_forest peaked 13 % over the budget (674
+    // MiB: 759) and a planned shard of it 22 % (512 MiB: 626; session 30's memory hunt). A floor that
+    // holds every image evicts none, and the one being decoded is the entry it becomes.
+    let cache_evicts = all > floor;
+    let in_flight = if cache_evicts { per_threads } else { 0 };
     let needed_bytes = plan_bytes
         .saturating_add(raster_bytes)
         .saturating_add(floor + floor / 4)
@@ -233,12 +312,15 @@ fn split_budget(
         return Err(MemoryError {
             budget_mib: budget >> 20,
             needed_mib: mib(needed_bytes),
-            triangles,
+            triangles: load.triangles,
+            extra_pieces: load.extra_pieces,
             plan_mib: mib(plan_bytes),
             raster_mib: mib(raster_bytes),
             threads,
             cache_mib: mib((floor + floor / 4).saturating_add(in_flight)),
-            largest_texels: largest_image_texels,
+            largest_texels: images.largest,
+            images_set_floor: per_threads > MIN_IMAGE_CACHE,
+            cache_evicts,
             largest_image: "?".to_string(),
         });
     }
@@ -259,6 +341,13 @@ pub fn max_plan_triangles(budget: u64) -> u64 {
     budget.saturating_sub(BASE_BYTES) / PLAN_BYTES_PER_TRIANGLE
 }
 
+/// The largest glTF JSON the import parses within `budget` beside [`BASE_BYTES`]
+/// ([`JSON_BYTES_FACTOR`] bytes a byte): `scene::ImportOptions::max_json_bytes`, which also leaves the
+/// triangles only the rest of the budget.
+pub fn max_json_bytes(budget: u64) -> u64 {
+    budget.saturating_sub(BASE_BYTES) / JSON_BYTES_FACTOR
+}
+
 /// The default budget: half of the memory this process may use where the platform tells (Linux
 /// `MemTotal`, or its cgroup's limit where smaller: a Slurm job, a Kubernetes pod), else none.
 pub fn default_budget() -> Option<u64> {
@@ -273,25 +362,32 @@ mod tests {
     /// share names no triangles.
     #[test]
     fn refusals_name_what_sets_each_share() {
-        let small = cache_why("t.png", 64 * 64, 2);
+        let small = cache_why("t.png", 64 * 64, false, true);
         assert!(
             small.contains("the cache's minimum of 64 MiB") && !small.contains("t.png"),
             "{small}"
         );
-        let big = cache_why("big.png", 4096 * 4096, 2);
+        let big = cache_why("big.png", 4096 * 4096, true, true);
         assert!(
-            big.contains("the largest image, big.png: 16777216 texels"),
+            big.contains("the largest big.png: 16777216 texels, and once more while held"),
             "{big}"
         );
-        assert!(cache_why("x", u64::MAX, u64::MAX).contains("the largest image"));
-        assert_eq!(plan_why(12), "a 64 MiB base and 12 triangles held");
-        assert!(plan_why(0).contains("no triangles"));
+        let kept = cache_why("big.png", 4096 * 4096, true, false);
+        assert!(!kept.contains("once more"), "{kept}");
+        assert!(cache_why("x", u64::MAX, true, true).contains("the largest images"));
+        assert_eq!(plan_why(12, 0), "a 64 MiB base and 12 triangles held");
+        assert!(plan_why(12, 5).contains("cut into 5 more pieces where repeats are baked"));
+        assert!(plan_why(0, 0).contains("no triangles"));
     }
 
     #[test]
     fn budget_fixes_the_cache_and_refuses_what_cannot_fit() {
-        // 1 M triangles, 1024² atlases, 2 threads, a 2048² largest image, 2 GiB wanted.
-        let p = plan_memory(2 << 30, 1_000_000, 1024, 2, 2048 * 2048, 2 << 30).unwrap();
+        // 1 M triangles, 1024² atlases, 2 threads, 2048² images (more than the cache's floor holds),
+        // 2 GiB wanted.
+        let images = ImageTexels::of([2048 * 2048; 40], 2);
+        assert_eq!(images.per_threads, 2 * 2048 * 2048);
+        let tris = PlanLoad::triangles;
+        let p = plan_memory(2 << 30, tris(1_000_000), 1024, 2, images, 2 << 30).unwrap();
         assert_eq!(p.plan_bytes, (64 << 20) + 250_000_000);
         assert_eq!(p.raster_bytes, 2 * 4 * 1024 * 1024 * 16);
         let left = (2u64 << 30) - p.plan_bytes - p.raster_bytes;
@@ -305,10 +401,11 @@ mod tests {
             p.plan_bytes + p.raster_bytes + per_threads + per_threads / 4 + per_threads
         );
         // A generous budget keeps the wanted cache.
-        let p = plan_memory(64 << 30, 1000, 1024, 2, 1 << 20, 2 << 30).unwrap();
+        let one = ImageTexels::of([1 << 20], 2);
+        let p = plan_memory(64 << 30, tris(1000), 1024, 2, one, 2 << 30).unwrap();
         assert_eq!(p.image_cache_bytes, 2 << 30);
         // 20 M triangles do not fit 2 GiB: the error gives the number needed.
-        let e = plan_memory(2 << 30, 20_000_000, 1024, 2, 2048 * 2048, 2 << 30).unwrap_err();
+        let e = plan_memory(2 << 30, tris(20_000_000), 1024, 2, images, 2 << 30).unwrap_err();
         assert_eq!(
             e.plan_mib,
             ((64u64 << 20) + 5_000_000_000).div_ceil(1 << 20)
@@ -316,13 +413,54 @@ mod tests {
         assert!(e.needed_mib > 2048);
         assert!(e.to_string().contains("raise --max-memory"));
         // The plan step needs the plan alone: 6 M triangles fit 2 GiB there, not with a cache beside.
-        let p = plan_step_memory(2 << 30, 6_000_000).unwrap();
+        let p = plan_step_memory(2 << 30, tris(6_000_000)).unwrap();
         assert_eq!((p.raster_bytes, p.image_cache_bytes), (0, 0));
-        assert!(plan_memory(2 << 30, 6_000_000, 1024, 2, 4096 * 4096, 2 << 30).is_err());
-        let e = plan_step_memory(2 << 30, 24_000_000).unwrap_err();
+        let big = ImageTexels::of([4096 * 4096; 3], 2);
+        assert!(plan_memory(2 << 30, tris(6_000_000), 1024, 2, big, 2 << 30).is_err());
+        let e = plan_step_memory(2 << 30, tris(24_000_000)).unwrap_err();
         assert_eq!(
             e.needed_mib,
             ((64u64 << 20) + 6_000_000_000).div_ceil(1 << 20)
         );
+    }
+
+    /// Pieces cut where repeats are baked are counted with their corners; a cache floor that holds every
+    /// image counts none of them twice, and the floor is the threads' largest distinct images.
+    #[test]
+    fn baked_pieces_and_distinct_images_are_counted_as_held() {
+        let load = PlanLoad {
+            triangles: 2048,
+            extra_pieces: 1_000_000,
+        };
+        let tiny = ImageTexels::of([64 * 64], 2);
+        let p = plan_memory(u64::MAX, load, 1024, 2, tiny, 2 << 30).unwrap();
+        assert_eq!(p.plan_bytes, BASE_BYTES + 2048 * 250 + 1_000_000 * 322);
+        let e = plan_step_memory(300 << 20, load).unwrap_err();
+        assert_eq!(e.extra_pieces, 1_000_000);
+        assert!(
+            e.to_string()
+                .contains("and 1000000 more pieces where repeats are baked"),
+            "{e}"
+        );
+        // One 16384² image: held once (its cache entry), with the originals' quarter.
+        let huge = 16384 * 16384;
+        let one = ImageTexels::of([huge, 64 * 64], 2);
+        assert_eq!((one.largest, one.per_threads), (huge, huge + 64 * 64));
+        let p = plan_memory(u64::MAX, PlanLoad::triangles(10), 1024, 2, one, 2 << 30).unwrap();
+        let floor = (huge + 64 * 64) * CACHE_BYTES_PER_TEXEL;
+        assert_eq!(
+            p.needed_bytes,
+            p.plan_bytes + p.raster_bytes + floor + floor / 4
+        );
+        // Three of them: the floor holds two, so an evicted one may be held beside it.
+        let three = ImageTexels::of([huge; 3], 2);
+        let p = plan_memory(u64::MAX, PlanLoad::triangles(10), 1024, 2, three, 2 << 30).unwrap();
+        let floor = 2 * huge * CACHE_BYTES_PER_TEXEL;
+        assert_eq!(
+            p.needed_bytes,
+            p.plan_bytes + p.raster_bytes + floor + floor / 4 + floor
+        );
+        assert_eq!(ImageTexels::of([], 2), ImageTexels::default());
+        assert_eq!(ImageTexels::of([5, 9, 7], 8).per_threads, 21);
     }
 }

@@ -195,6 +195,12 @@ impl Progress for NoProgress {
     fn finish_stage(&self) {}
 }
 
+impl From<memory::MemoryError> for BuildError {
+    fn from(e: memory::MemoryError) -> BuildError {
+        BuildError::Memory(Box::new(e))
+    }
+}
+
 /// Errors of a build; every variant names what and where.
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
@@ -244,8 +250,8 @@ pub enum BuildError {
         source: layout::LayoutError,
     },
     #[error(
-        "the tree would need {nodes} nodes (depth {depth}), {blocks} blocks and {predicted} bytes of texture data, \
-         over the limit of {limit} bytes (--max-file-gib): {advice}"
+        "the tree would need {nodes} nodes (depth {depth}) and {blocks} blocks, a file of {predicted} bytes \
+         (tables, geometry and blocks), over the limit of {limit} bytes (--max-file-gib): {advice}"
     )]
     TooLarge {
         nodes: u64,
@@ -258,8 +264,9 @@ pub enum BuildError {
     },
     #[error(transparent)]
     Store(#[from] StoreError),
+    /// Boxed: the refusal names every share of the budget, and the error type stays small.
     #[error(transparent)]
-    Memory(#[from] memory::MemoryError),
+    Memory(Box<memory::MemoryError>),
     #[error(transparent)]
     PlanStepMemory(#[from] memory::PlanStepMemoryError),
     #[error(transparent)]
@@ -604,25 +611,27 @@ pub(super) fn plan_memory(
     scene: &Scene,
     opts: &BuildOptions,
     params: &BuildParams,
+    load: memory::PlanLoad,
 ) -> Result<Option<memory::MemoryPlan>, BuildError> {
     let Some(budget) = opts.max_memory_bytes else {
         return Ok(None);
     };
     let plan = memory::plan_memory(
         budget,
-        scene.triangles.len() as u64,
+        load,
         params.atlas_size,
         rayon::current_num_threads() as u64,
-        largest_image_texels(&scene.images),
+        image_texels(&scene.images),
         opts.image_cache_bytes,
     )
     .map_err(|e| e.naming(largest_image_name(&scene.images)))?;
     Ok(Some(plan))
 }
 
-/// Texels of the largest of `images` (the image cache must hold it once per rasteriser thread).
-pub(super) fn largest_image_texels(images: &[crate::scene::ImageSource]) -> u64 {
-    images.iter().map(|i| i.texels()).max().unwrap_or(0)
+/// The decoded sizes of `images` the image cache is sized from, for this process's rasteriser threads.
+pub(super) fn image_texels(images: &[crate::scene::ImageSource]) -> memory::ImageTexels {
+    let threads = rayon::current_num_threads() as u64;
+    memory::ImageTexels::of(images.iter().map(|i| i.texels()), threads)
 }
 
 /// The name of the largest of `images` (the first of equals), for [`memory::MemoryError::naming`].

@@ -68,7 +68,12 @@ pub(super) fn plan_build(
     if parts.is_empty() {
         return Err(empty_scene(scene));
     }
-    let memory_plan = plan_memory(scene, opts, &params)?;
+    let memory_plan = plan_memory(
+        scene,
+        opts,
+        &params,
+        plan_load(scene, opts, &params, &parts),
+    )?;
     let mut timings = StageLog::default();
     let (forest, reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
     check_file_size(&forest, &reports, opts)?;
@@ -128,15 +133,7 @@ fn plan_tree(
 
     let t = Instant::now();
     progress.stage(&format!("sizing {kind:?}"), None);
-    let popts = prepare::PrepareOptions {
-        f_proj: params.f_proj(),
-        up: params.up,
-        cap_to_source: opts.cap_to_source,
-        split_limit: f64::from(params.atlas_size / 4),
-        max_pieces: opts.max_pieces,
-        wrap,
-        palette_cells: palette_cell_limit(params, opts.cap_to_source),
-    };
+    let popts = prepare_options(params, opts);
     let prepared = prepare::prepare(scene, tris, &popts);
     let (infos, corners) = (&prepared.infos, prepared.corners(scene));
     let sizing = prepare::analyze(&prepared);
@@ -167,6 +164,43 @@ fn plan_tree(
 
     let report = tree_report(scene, tris.len(), infos.len(), &lay, &asm, sizing);
     Ok((asm, report))
+}
+
+/// How [`prepare::prepare`] sizes and cuts the triangles of every tree of a build.
+fn prepare_options(params: &BuildParams, opts: &BuildOptions) -> prepare::PrepareOptions {
+    prepare::PrepareOptions {
+        f_proj: params.f_proj(),
+        up: params.up,
+        cap_to_source: opts.cap_to_source,
+        split_limit: f64::from(params.atlas_size / 4),
+        max_pieces: opts.max_pieces,
+        wrap: opts.repeat == RepeatMode::Wrap,
+        palette_cells: palette_cell_limit(params, opts.cap_to_source),
+    }
+}
+
+/// What the plan of `scene` holds ([`memory::PlanLoad`]): its triangles and, where repeats are baked
+/// and a budget is set, the pieces beyond one a triangle that sizing will cut them into, counted before
+/// any is made ([`prepare::count_pieces`]).
+pub(super) fn plan_load(
+    scene: &Scene,
+    opts: &BuildOptions,
+    params: &BuildParams,
+    parts: &[(TreeKind, Vec<u32>)],
+) -> memory::PlanLoad {
+    let triangles = scene.triangles.len() as u64;
+    if opts.repeat != RepeatMode::Bake || opts.max_memory_bytes.is_none() {
+        return memory::PlanLoad::triangles(triangles);
+    }
+    let popts = prepare_options(params, opts);
+    let (pieces, whole) = parts.iter().fold((0u64, 0u64), |(p, w), (_, tris)| {
+        let n = prepare::count_pieces(scene, tris, &popts);
+        (p.saturating_add(n), w + tris.len() as u64)
+    });
+    memory::PlanLoad {
+        triangles,
+        extra_pieces: pieces.saturating_sub(whole),
+    }
 }
 
 /// [`super::palette::cell_limit`] for this build's atlas and border: the outer size of a 1 × 1 rect.
@@ -231,7 +265,8 @@ fn check_file_size(
     reports: &[TreeReport],
     opts: &BuildOptions,
 ) -> Result<(), BuildError> {
-    let predicted: u64 = forest.blocks.iter().map(|b| b.bytes).sum();
+    // The whole file, tables and geometry too, not only its blocks.
+    let predicted = crate::store::predicted_file_len(forest)?;
     let limit = opts.max_file_bytes;
     if predicted > limit {
         let depth = reports.iter().map(|r| r.depth).max().unwrap_or(0);

@@ -135,10 +135,12 @@ pub fn plan_shards(
         .collect::<Result<Vec<_>, _>>()?;
     // The plan step runs no pixel pass: its budget covers the plan alone.
     let memory = match opts.max_memory_bytes {
-        Some(budget) => Some(super::memory::plan_step_memory(
-            budget,
-            scene.triangles.len() as u64,
-        )?),
+        Some(budget) => {
+            let (params, _) = super::resolve_params(scene, opts)?;
+            let parts = super::partition_triangles(scene);
+            let load = super::plan_forest::plan_load(scene, opts, &params, &parts);
+            Some(super::memory::plan_step_memory(budget, load)?)
+        }
         None => None,
     };
     let unbudgeted = BuildOptions {
@@ -220,7 +222,7 @@ pub fn build_shard_planned(
                 skeleton_bytes(&forest),
                 opts.atlas_size,
                 rayon::current_num_threads() as u64,
-                super::largest_image_texels(&images),
+                super::image_texels(&images),
                 opts.image_cache_bytes,
             )
             .map_err(|e| e.naming(super::largest_image_name(&images)))?,

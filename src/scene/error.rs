@@ -104,12 +104,25 @@ pub enum SceneError {
     /// counted (the node walk goes on counting, keeping nothing), so the caller can say what is needed.
     #[error(
         "{file}: {triangles} triangles over {instances} mesh instances, more than the memory budget's plan \
-         holds (room for {max} beside the process's fixed base)"
+         holds (room for {max} beside the process's fixed base and the {json_bytes} bytes of JSON parsed)"
     )]
     OverTriangleBudget {
         file: String,
         triangles: u64,
         instances: u64,
+        max: u64,
+        /// The glTF JSON's length, bytes: parsing it takes its share of the budget too.
+        json_bytes: u64,
+    },
+    /// A glTF JSON larger than `ImportOptions::max_json_bytes` (the memory budget's share for parsing
+    /// it), refused before it is parsed.
+    #[error(
+        "{file}: {json_bytes} bytes of glTF JSON, more than the memory budget lets the import parse \
+         ({max} bytes: its parsed forms take ~16 bytes a byte)"
+    )]
+    OverJsonBudget {
+        file: String,
+        json_bytes: u64,
         max: u64,
     },
     #[error("image {image}: {reason}")]

@@ -45,13 +45,17 @@ impl DemoTour {
     };
 
     /// The build options of the demo's tree: the defaults but for atlas size, `d_min` and the originals
-    /// budget.
+    /// budget, and the border where the default does not fit the atlas (under a quarter of its side: the
+    /// demo has no `--border`, and `--atlas-size 64`, the smallest, was refused for the default border
+    /// of 16; fault hunt, session 32).
     pub fn build_options(&self) -> BuildOptions {
+        let defaults = BuildOptions::default();
         BuildOptions {
             d_min: DMin::Ratio(self.d_min_ratio),
             atlas_size: self.atlas_size,
             leaf_originals_atlases: self.leaf_originals,
-            ..BuildOptions::default()
+            border: defaults.border.min((self.atlas_size / 4).saturating_sub(1)),
+            ..defaults
         }
     }
 

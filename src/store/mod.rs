@@ -21,7 +21,10 @@ mod validate;
 mod write;
 
 pub use read::{BlockReader, LoadMode, TreeFile, TreeView, check_block_padding, padding_range};
-pub use write::{FileWriter, WriteSummary, check_replaceable, check_replaceable_as, table_prefix};
+pub use write::{
+    FileWriter, WriteSummary, check_replaceable, check_replaceable_as, predicted_file_len,
+    table_prefix,
+};
 
 use crate::ids::BlockId;
 use std::path::PathBuf;

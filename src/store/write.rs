@@ -204,6 +204,30 @@ fn section_counts(e: &Encoded, blocks: usize) -> [u64; SECTION_COUNT] {
     ]
 }
 
+/// The length of the paging file [`FileWriter::create`] writes for `forest` (header, every table and every
+/// block with their alignment gaps), from the record counts alone: what `--max-file-gib` limits, so a
+/// geometry-heavy file is not judged by its blocks alone (a 600,000-triangle scene wrote 3.9× its limit;
+/// fault hunt, session 32).
+pub fn predicted_file_len(forest: &AtlasForest) -> Result<u64, StoreError> {
+    let strings: u64 = forest.materials.iter().map(|m| m.name.len() as u64).sum();
+    let per_tree = |f: &dyn Fn(&AtlasTree) -> usize| forest.trees.iter().map(|t| f(t) as u64).sum();
+    let counts = [
+        1,
+        forest.materials.len() as u64,
+        strings,
+        forest.trees.len() as u64,
+        per_tree(&|t| t.nodes.len()),
+        per_tree(&|t| t.leaves.len()),
+        per_tree(&|t| t.leaves.iter().map(|l| l.rects.len()).sum()),
+        per_tree(&|t| t.leaves.iter().map(|l| l.originals.len()).sum()),
+        per_tree(&|t| t.vertices.len()),
+        per_tree(&|t| t.indices.len()),
+        per_tree(&|t| t.source_triangles.len()),
+        forest.blocks.len() as u64,
+    ];
+    Ok(layout(&counts, forest.blocks.iter().map(|b| b.bytes))?.3)
+}
+
 /// Places the sections after the header (16-byte aligned) and the blocks after the tables (4 KiB aligned,
 /// in block-id order). Returns the section entries (checksums 0), the tables' end and the block offsets.
 fn layout(

@@ -548,7 +548,8 @@ fn builds_table(md: &mut String, builds: &[BuildRow]) {
 fn variants_table(md: &mut String, rows: &[VariantRow], reference: Reference) {
     let _ = writeln!(
         md,
-        "## Variants (over all frames: PSNR of the mean squared error, other columns means)\n"
+        "## Variants (over all frames: PSNR of the mean squared error, paged bytes summed, other columns \
+         means)\n"
     );
     // Against a supersampled reference, the original textures' own scores beside the tree's.
     let originals = matches!(reference, Reference::Supersampled(_));

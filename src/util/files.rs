@@ -71,8 +71,8 @@ pub fn remove_live_temps() -> usize {
     remove_listed(&live_temps())
 }
 
-/// [`remove_live_temps`] for a handler of Ctrl-C or SIGTERM: `say` is told how many were removed, then
-/// the process ends with `code` while it still holds the registry's lock, so a temp that
+/// [`remove_live_temps`] for a handler of Ctrl-C or SIGTERM: `say` is told how many were removed and
+/// how many committed outputs are still there, with the last ([`kept_outputs`]), then the process ends with `code` while it still holds the registry's lock, so a temp that
 /// [`AtomicFile::create`] (which creates and registers under that lock) was making is either removed
 /// here or never made (one created while the handler ran stayed behind; fault hunt, session 28).
 pub fn remove_live_temps_and_exit(
@@ -81,15 +81,24 @@ pub fn remove_live_temps_and_exit(
 ) -> ! {
     let live = live_temps();
     let committed = committed();
-    say(remove_listed(&live), committed.as_ref());
+    let removed = remove_listed(&live);
+    say(removed, kept_outputs(&committed).as_ref());
     std::process::exit(code)
 }
 
-/// How many [`AtomicFile`]s this process committed, and the last one's target.
-static COMMITTED: std::sync::Mutex<Option<(usize, PathBuf)>> = std::sync::Mutex::new(None);
+/// The targets of the [`AtomicFile`]s this process committed, in order.
+static COMMITTED: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
 
-fn committed() -> std::sync::MutexGuard<'static, Option<(usize, PathBuf)>> {
+fn committed() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     COMMITTED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// How many of the `committed` outputs are still there, and the last of them: a sweep's build is
+/// committed and then deleted once measured, or removed as a [`LiveTempFile`] by the interrupt, and was
+/// named "left in place" (fault hunt, session 31).
+fn kept_outputs(committed: &[PathBuf]) -> Option<(usize, PathBuf)> {
+    let kept: Vec<&PathBuf> = committed.iter().filter(|p| p.exists()).collect();
+    kept.last().map(|last| (kept.len(), (*last).clone()))
 }
 
 /// Removes `live`'s temps (see [`remove_live_temps`]).
@@ -357,9 +366,7 @@ impl AtomicFile {
             // finishing" of a complete output (fault hunt, session 31).
             let _live = live_temps();
             temp.persist(&target).map_err(|e| e.error)?;
-            let mut done = committed();
-            let count = done.as_ref().map_or(0, |d| d.0) + 1;
-            *done = Some((count, target.clone()));
+            committed().push(target.clone());
         }
         sync_dir(parent_dir(&target))
     }
@@ -560,17 +567,32 @@ mod tests {
     #[test]
     fn commits_are_recorded_for_the_interrupt_message() {
         let dir = tempfile::tempdir().unwrap();
-        let before = committed().as_ref().map_or(0, |c| c.0);
         let target = dir.path().join("out.bin");
         let f = AtomicFile::create(&target, 0o644).unwrap();
         std::io::Write::write_all(&mut f.file(), b"x").unwrap();
         drop(AtomicFile::create(&dir.path().join("dropped.bin"), 0o644).unwrap());
         f.commit().unwrap();
-        let after = committed().clone().unwrap();
-        // Other tests commit in parallel: at least this one, and the count moved.
-        assert!(after.0 > before, "{after:?}");
+        // Other tests commit in parallel: this target is recorded, the dropped one is not.
+        let recorded = committed().clone();
+        assert!(recorded.contains(&target), "{recorded:?}");
+        assert!(!recorded.contains(&dir.path().join("dropped.bin")));
         assert!(target.exists());
         assert!(!dir.path().join("dropped.bin").exists());
+    }
+
+    #[test]
+    fn outputs_removed_after_their_commit_are_not_counted_as_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let [a, b, c] = ["a", "b", "c"].map(|n| dir.path().join(n));
+        std::fs::write(&a, b"a").unwrap();
+        std::fs::write(&b, b"b").unwrap();
+        // `c` was committed last and then deleted (a sweep's measured build).
+        let list = [a.clone(), b.clone(), c];
+        assert_eq!(kept_outputs(&list), Some((2, b.clone())));
+        std::fs::remove_file(&a).unwrap();
+        std::fs::remove_file(&b).unwrap();
+        assert_eq!(kept_outputs(&list), None);
+        assert_eq!(kept_outputs(&[]), None);
     }
 
     #[test]

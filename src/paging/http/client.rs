@@ -198,8 +198,8 @@ struct Ranged {
 
 /// `url` with the password of its userinfo replaced by `***` (`http://alice:***@host/…`; a user without
 /// a password, often a token, as `***@host`) and the value of
-/// each query parameter too (`?X-Amz-Signature=***`: a presigned URL's signature is a credential; it was
-/// shown in messages, fault hunt, session 31), for messages, names and reports; the requests use the URL
+/// each query and fragment parameter too (`?X-Amz-Signature=***`: a presigned URL's signature is a
+/// credential; it was shown in messages, fault hunt, session 31), for messages, names and reports; the requests use the URL
 /// as given. A URL with neither is returned as is.
 pub fn redact_url(url: &str) -> String {
     let Some((scheme, rest)) = url.split_once("://") else {
@@ -218,23 +218,33 @@ pub fn redact_url(url: &str) -> String {
     format!("{scheme}://{authority}{}", redact_query(path))
 }
 
-/// `path` (from the first `/`, `?` or `#` after the authority) with each query value replaced by `***`.
+/// `path` (from the first `/`, `?` or `#` after the authority) with each value of its query and of its
+/// fragment replaced by `***`: no request sends the fragment, but a pasted OAuth redirect carries
+/// `#access_token=…` there (fault hunt, session 31).
 fn redact_query(path: &str) -> String {
-    let Some((before, query)) = path.split_once('?') else {
-        return path.to_string();
+    let (path, fragment) = match path.split_once('#') {
+        Some((p, f)) => (p, Some(f)),
+        None => (path, None),
     };
-    let (query, fragment) = match query.split_once('#') {
-        Some((q, f)) => (q, Some(f)),
-        None => (query, None),
+    let path = match path.split_once('?') {
+        Some((before, query)) => format!("{before}?{}", redact_pairs(query)),
+        None => path.to_string(),
     };
-    let pairs: Vec<String> = (query.split('&'))
+    match fragment {
+        Some(f) => format!("{path}#{}", redact_pairs(f)),
+        None => path,
+    }
+}
+
+/// `key=value&…` with every non-empty value replaced by `***`; a part without `=` is kept.
+fn redact_pairs(pairs: &str) -> String {
+    let parts: Vec<String> = (pairs.split('&'))
         .map(|pair| match pair.split_once('=') {
             Some((key, value)) if !value.is_empty() => format!("{key}=***"),
             _ => pair.to_string(),
         })
         .collect();
-    let fragment = fragment.map_or(String::new(), |f| format!("#{f}"));
-    format!("{before}?{}{fragment}", pairs.join("&"))
+    parts.join("&")
 }
 
 /// A [`BlockSource`] reading blocks from `url` with HTTP range requests. Cheap to share between loader
@@ -629,7 +639,8 @@ mod tests {
             assert_eq!(redact_url(same), same);
         }
         assert_eq!(redact_url("http://TOKEN@host/f"), "http://***@host/f");
-        // Query values are credentials too (presigned URLs); keys and the fragment stay.
+        // Query and fragment values are credentials too (presigned URLs, OAuth redirects); keys and a
+        // bare fragment stay.
         assert_eq!(
             redact_url("http://host:80/f?x=a:b@c"),
             "http://host:80/f?x=***"
@@ -637,6 +648,14 @@ mod tests {
         assert_eq!(
             redact_url("https://u:p@b.example/t.atlastree?X-Amz-Signature=abc&v=2#frag"),
             "https://u:***@b.example/t.atlastree?X-Amz-Signature=***&v=***#frag"
+        );
+        assert_eq!(
+            redact_url("https://host/f#access_token=abc&state=x"),
+            "https://host/f#access_token=***&state=***"
+        );
+        assert_eq!(
+            redact_url("https://host/f?a=1#t=2"),
+            "https://host/f?a=***#t=***"
         );
     }
 

@@ -67,6 +67,29 @@ pub struct ImportOptions {
     /// no instance) before any vertex is read: a few KB of JSON sharing nodes can instance millions of
     /// triangles. `None`: only the importer's own cap.
     pub max_triangles: Option<u64>,
+    /// The largest glTF JSON the same budget lets the import parse (its parsed forms take ~16 bytes a
+    /// byte: `preprocess::memory::max_json_bytes`): a larger one is refused before it is parsed
+    /// ([`SceneError::OverJsonBudget`]), and a smaller one leaves `max_triangles` its share (the two
+    /// limits are of one budget, so JSON of half the largest leaves half the triangles). 40,000 one-quad
+    /// primitives (21.5 MB of JSON, 80,000 triangles) peaked at 357 MiB where the model said 84 (fault
+    /// hunt, session 32). `None`: no limit.
+    pub max_json_bytes: Option<u64>,
+}
+
+/// `max_triangles` less the share of the budget `json_bytes` of JSON take, where both limits are given
+/// ([`ImportOptions::max_json_bytes`]).
+fn triangles_beside_json(
+    max_triangles: Option<u64>,
+    max_json_bytes: Option<u64>,
+    json_bytes: u64,
+) -> Option<u64> {
+    match (max_triangles, max_json_bytes) {
+        (Some(t), Some(j)) if j > 0 => {
+            let left = u128::from(j.saturating_sub(json_bytes));
+            Some((u128::from(t) * left / u128::from(j)) as u64)
+        }
+        (t, _) => t,
+    }
 }
 
 /// Imports a `.gltf` (external files and/or data URIs) or `.glb` file into a world-space [`Scene`].
@@ -97,6 +120,14 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
         source,
     })?;
     let (json_bytes, blob) = split_glb(bytes, &file)?;
+    let json_len = json_bytes.len() as u64;
+    if let Some(max) = opts.max_json_bytes.filter(|&max| json_len > max) {
+        return Err(SceneError::OverJsonBudget {
+            file,
+            json_bytes: json_len,
+            max,
+        });
+    }
     let value: serde_json::Value =
         serde_json::from_slice(&json_bytes).map_err(|e| SceneError::Parse {
             file: file.clone(),
@@ -130,7 +161,8 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
         accessors: &accessors,
         buffers: &mut buffers,
         report: &mut report,
-        max_triangles: opts.max_triangles,
+        max_triangles: triangles_beside_json(opts.max_triangles, opts.max_json_bytes, json_len),
+        json_bytes: json_len,
     };
     walk.warn_invalid_matrices();
     let instances = walk.instances()?;

@@ -48,8 +48,10 @@ pub(super) struct Walk<'a, 'b> {
     /// Instancing attributes are read through these.
     pub(super) buffers: &'b mut Buffers<'a>,
     pub(super) report: &'b mut ImportReport,
-    /// [`super::ImportOptions::max_triangles`].
+    /// [`super::ImportOptions::max_triangles`], less the share of the JSON parsed beside them.
     pub(super) max_triangles: Option<u64>,
+    /// The glTF JSON's length, bytes (named by [`SceneError::OverTriangleBudget`]).
+    pub(super) json_bytes: u64,
 }
 
 impl<'a> Walk<'a, '_> {
@@ -200,6 +202,7 @@ impl<'a> Walk<'a, '_> {
                 triangles,
                 instances: met as u64,
                 max,
+                json_bytes: self.json_bytes,
             });
         }
         self.report.nodes = visits;

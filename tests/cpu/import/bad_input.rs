@@ -516,6 +516,45 @@ fn a_scene_past_the_triangle_budget_is_refused_in_the_node_walk() {
     assert_eq!(within(n).unwrap().triangles.len() as u64, n);
 }
 
+/// `ImportOptions::max_json_bytes` (`build --max-memory`): JSON one byte over the budget's share is
+/// refused before it is parsed; at exactly its length it imports, and the JSON's share leaves the
+/// triangles the rest of the budget (40,000 one-quad primitives, 21.5 MB of JSON, peaked at 357 MiB
+/// where the model counted 84; fault hunt, session 32).
+#[test]
+fn json_past_the_budget_is_refused_before_it_is_parsed() {
+    let path = city_dir().join("scene.gltf");
+    let len = std::fs::metadata(&path).unwrap().len();
+    let n = city_triangles() as u64;
+    let with = |max_json_bytes, max_triangles| {
+        import(
+            &path,
+            &ImportOptions {
+                max_json_bytes: Some(max_json_bytes),
+                max_triangles,
+                ..ImportOptions::default()
+            },
+        )
+    };
+    match with(len - 1, None) {
+        Err(SceneError::OverJsonBudget {
+            json_bytes, max, ..
+        }) => assert_eq!((json_bytes, max), (len, len - 1)),
+        other => panic!("{:?}", other.map(|s| s.triangles.len())),
+    }
+    assert_eq!(with(len, None).unwrap().triangles.len() as u64, n);
+    // JSON taking half the budget leaves half the triangles: room for 2n, n fit; for 2n - 2, not.
+    assert_eq!(
+        with(2 * len, Some(2 * n)).unwrap().triangles.len() as u64,
+        n
+    );
+    match with(2 * len, Some(2 * n - 2)) {
+        Err(SceneError::OverTriangleBudget {
+            max, json_bytes, ..
+        }) => assert_eq!((max, json_bytes), (n - 1, len)),
+        other => panic!("{:?}", other.map(|s| s.triangles.len())),
+    }
+}
+
 /// A `.gltf` saved with a UTF-8 byte-order mark imports as without it (glTF 2.0 §3.2: readers may ignore
 /// it; the JSON parser refused it at "line 1 column 1").
 #[test]

@@ -175,6 +175,28 @@ fn failed_build_leaves_no_file() {
     assert!(text.contains("raise --max-file-gib"), "{text}");
     assert!(text.contains("--compress bc1"), "{text}");
     assert!(!text.contains("source cap"), "{text}");
+    // The limit is the whole file's length, tables and geometry included: a limit one byte below the
+    // file written is refused, the file's own length is not (blocks alone were compared before, and a
+    // geometry-heavy file could pass at 3.9× its limit).
+    let summary = build(&scene, &opts(128), &out, &NoProgress).unwrap();
+    let len = std::fs::metadata(&out).unwrap().len();
+    assert_eq!(summary.file_bytes, len);
+    std::fs::remove_file(&out).unwrap();
+    let at = |max_file_bytes| {
+        let o = BuildOptions {
+            max_file_bytes,
+            ..opts(128)
+        };
+        build(&scene, &o, &out, &NoProgress)
+    };
+    let err = at(len - 1).unwrap_err();
+    assert!(
+        err.to_string().contains(&format!("a file of {len} bytes")),
+        "{err}"
+    );
+    assert!(!out.exists());
+    at(len).unwrap();
+    assert_eq!(std::fs::metadata(&out).unwrap().len(), len);
 }
 
 #[test]
