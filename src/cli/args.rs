@@ -414,8 +414,9 @@ pub(crate) struct BuildParamsArgs {
     #[arg(long, default_value_t = 2048, value_parser = clap::value_parser!(u64).range(0..=u64::MAX >> 20))]
     pub image_cache_mib: u64,
     /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
-    /// a build that cannot fit (the plan holds ~250 bytes per triangle, the rasteriser a few atlases per
-    /// thread, the cache at least the largest image per thread) is refused before any work, with the
+    /// a build that cannot fit (the plan holds ~250 bytes per triangle and ~550 per extra piece where
+    /// `--repeat bake` cuts them, the import ~16 bytes per byte of glTF JSON, the rasteriser a few atlases
+    /// per thread, the cache at least the largest image per thread) is refused before any work, with the
     /// number it needs. Default: half of the memory this process may use (the machine's, or its cgroup's
     /// limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's limit; or `ulimit -v`).
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]

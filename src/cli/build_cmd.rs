@@ -172,7 +172,6 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let budget = a.params.memory_budget();
     let (max_triangles, max_json) = (budget.map(max_plan_triangles), budget.map(max_json_bytes));
     let mut scene = load_scene_within(&a.scene, a.up, max_triangles, max_json).map_err(|e| {
-        let budget = a.params.memory_budget();
         let plan_step = matches!(step, ShardStep::Plan);
         over_budget(e, budget, a.params.max_memory.is_some(), plan_step)
     })?;

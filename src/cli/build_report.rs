@@ -245,6 +245,10 @@ pub(super) fn capped_line(
 /// printed for any ratio under 1.5 and where more were stored than spanned (baked repeats; fault hunt,
 /// session 32).
 fn periods_ratio(stored: f64, spanned: f64) -> String {
+    if spanned.is_nan() || spanned <= 0.0 {
+        // Rects of constant UVs (palettes) span no period.
+        return "none spanned".to_string();
+    }
     let ratio = spanned / stored.max(1e-9);
     if ratio >= 10.0 {
         format!("{ratio:.0}× fewer")
@@ -267,5 +271,6 @@ mod periods_tests {
         assert_eq!(periods_ratio(16.1, 18.1), "1.12× fewer");
         assert_eq!(periods_ratio(617835.7, 617794.1), "as many");
         assert_eq!(periods_ratio(2.0, 1.0), "2.00× more");
+        assert_eq!(periods_ratio(3.0, 0.0), "none spanned");
     }
 }

@@ -372,18 +372,8 @@ fn frame_loop<'f>(
     let mut paged_from = None;
     let fl = match &cfg.paging {
         None => FrameLoop::new(ctx, file, ropts).map_err(|e| {
-            // Original mode and a reference need every block resident, so "page the blocks" is no way
-            // out for them (it was the advice, and paging then refused them; fault hunt, session 32).
             let needs_all = cfg.modes.contains(&Mode::Original) || cfg.reference.is_some();
-            if needs_all && matches!(e, atlastree::render::RenderError::TooManyLayers { .. }) {
-                anyhow::Error::new(e).context(format!(
-                    "{}: --mode original and --reference draw with every block resident, which this \
-                     file's blocks exceed on this device; render --mode tree (or dummy) with --capacity K",
-                    what()
-                ))
-            } else {
-                anyhow::Error::new(e).context(what())
-            }
+            super::render_out::setup_error(e, needs_all, what())
         })?,
         Some(p) => {
             let (source, from) = block_source(&p.paging, file, http)?;

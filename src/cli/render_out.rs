@@ -90,3 +90,21 @@ pub(super) fn mark_earlier_summary_stale(
     }
     error
 }
+
+/// The error of setting up an all-resident renderer (`what`: for which file). Original mode and a
+/// reference need every block resident, so "page the blocks" is no way out for them (`needs_all`): it
+/// was the advice, and paging then refused them (fault hunt, session 32).
+pub(super) fn setup_error(
+    e: atlastree::render::RenderError,
+    needs_all: bool,
+    what: String,
+) -> anyhow::Error {
+    if needs_all && matches!(e, atlastree::render::RenderError::TooManyLayers { .. }) {
+        anyhow::Error::new(e).context(format!(
+            "{what}: --mode original and --reference draw with every block resident, which this file's \
+             blocks exceed on this device; render --mode tree (or dummy) with --capacity K"
+        ))
+    } else {
+        anyhow::Error::new(e).context(what)
+    }
+}

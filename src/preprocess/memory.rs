@@ -18,8 +18,11 @@ use serde::Serialize;
 /// its corners (72 bytes more).
 pub const PLAN_BYTES_PER_TRIANGLE: u64 = 250;
 /// Bytes each piece beyond the first that a triangle is cut into where repeats are baked (`--repeat
-/// bake`) adds: a record like a triangle's and its own corners (3 × 3 f64).
-pub const BAKED_PIECE_BYTES: u64 = PLAN_BYTES_PER_TRIANGLE + 72;
+/// bake`) adds at the plan's peak (the assembly): its record, its own corners (3 × 3 f64) and about two
+/// vertices of its own (cut pieces share few): measured ~500 (2,048 quads cut into 2,097,152 pieces,
+/// assembly peak 1.07 GiB; 322 = a triangle's 250 + its corners let that build peak 18 % over its stated
+/// need: review of session 32), rounded up ~1.1×.
+pub const BAKED_PIECE_BYTES: u64 = 550;
 /// Bytes the import holds per byte of glTF JSON while it parses it (the text, its `serde_json` value,
 /// the `gltf` document and the raw nodes and materials, all alive at once; freed before the plan):
 /// measured 13.5 (21.5 MB of JSON for 40,000 one-quad primitives, import peak 357 MiB: 290 over the
@@ -70,33 +73,6 @@ impl PlanLoad {
     }
 }
 
-/// The decoded sizes the image cache is sized from (texels): the largest image, the `threads` largest
-/// together (each rasteriser thread may hold a different one: the cache's floor), and all of them (a
-/// cache that holds every image never evicts one still in use, so nothing is held twice). A single
-/// 16384² image was counted once per thread and once more in flight, 4.5 copies, and refused under the
-/// default budget of a 24 GB machine where it peaks at one (fault hunt, session 32).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ImageTexels {
-    pub largest: u64,
-    pub per_threads: u64,
-    pub all: u64,
-}
-
-impl ImageTexels {
-    /// The sizes of `texels` (one entry per image) for `threads` rasteriser threads.
-    pub fn of(texels: impl IntoIterator<Item = u64>, threads: u64) -> ImageTexels {
-        let mut sizes: Vec<u64> = texels.into_iter().collect();
-        sizes.sort_unstable_by(|a, b| b.cmp(a));
-        let sum = |s: &[u64]| s.iter().fold(0u64, |a, &b| a.saturating_add(b));
-        let take = usize::try_from(threads.max(1)).unwrap_or(usize::MAX);
-        ImageTexels {
-            largest: sizes.first().copied().unwrap_or(0),
-            per_threads: sum(&sizes[..take.min(sizes.len())]),
-            all: sum(&sizes),
-        }
-    }
-}
-
 /// How a build spends its memory budget (bytes).
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq, Eq)]
 pub struct MemoryPlan {
@@ -120,7 +96,7 @@ pub struct MemoryPlan {
      rasteriser threads; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; \
      by default half the memory this process may use): raise --max-memory{}",
     plan_why(*.triangles, *.extra_pieces),
-    cache_why(.largest_image, *.largest_texels, *.images_set_floor, *.cache_evicts),
+    cache_why(.largest_image, *.largest_texels, *.threads),
     if *.triangles > 0 { ", or for a sharded build plan once (`build --shard plan`): its shards then hold no \
      triangles" } else { "" }
 )]
@@ -135,11 +111,6 @@ pub struct MemoryError {
     pub threads: u64,
     pub cache_mib: u64,
     pub largest_texels: u64,
-    /// The threads' largest images set the cache's floor (else its minimum, [`MIN_IMAGE_CACHE`], does).
-    pub images_set_floor: bool,
-    /// The cache's floor holds fewer texels than all images together, so an image in use may be evicted
-    /// and held beside it (then counted once more).
-    pub cache_evicts: bool,
     /// The largest image's name; filled in by the caller, who knows the images ([`MemoryError::naming`]).
     pub largest_image: String,
 }
@@ -168,28 +139,25 @@ fn plan_why(triangles: u64, extra_pieces: u64) -> String {
     }
 }
 
-/// Why the image cache needs what it needs: the largest images (one per thread) where they pass the
+/// Why the image cache needs what it needs: the largest image once per thread where that passes the
 /// cache's minimum ([`MIN_IMAGE_CACHE`]), else the minimum (a small image is not the cause; the docs hunt
-/// of session 29 found a 64² texture blamed for 80 MiB).
-fn cache_why(
-    largest_image: &str,
-    largest_texels: u64,
-    images_set_floor: bool,
-    cache_evicts: bool,
-) -> String {
-    if images_set_floor {
-        let twice = if cache_evicts {
-            ", and once more while held after its eviction"
-        } else {
-            ""
-        };
+/// of session 29 found a 64² texture blamed for 80 MiB); each thread's image held once more while it is
+/// decoded (or held, evicted) either way. An image is counted per thread, not once: threads that miss
+/// one image's chain build their own copies, and the chain tier holds 3/4 of the cache (the review of
+/// session 32 found both, so a single 16384² texture is still counted 4.5 times at 2 threads).
+fn cache_why(largest_image: &str, largest_texels: u64, threads: u64) -> String {
+    let per_thread = largest_texels.saturating_mul(CACHE_BYTES_PER_TEXEL);
+    if per_thread.saturating_mul(threads.max(1)) > MIN_IMAGE_CACHE {
         format!(
-            "the largest images, one per rasteriser thread, the largest {largest_image}: {largest_texels} \
-             texels{twice}; downscale that image if it dominates"
+            "the largest image, {largest_image}: {largest_texels} texels, once per thread in the cache and \
+             once more while it is decoded; downscale that image if it dominates"
         )
     } else {
+        // The in-flight share is in the number: named here too (hacienda's shard said 132 MiB for "the
+        // minimum of 64 MiB with a quarter", 52 unexplained; fault hunt, session 32).
         format!(
-            "the cache's minimum of {} MiB with a quarter for originals",
+            "the cache's minimum of {} MiB with a quarter for originals, and each thread's largest image \
+             ({largest_image}, {largest_texels} texels) once more while it is decoded",
             MIN_IMAGE_CACHE >> 20
         )
     }
@@ -217,13 +185,13 @@ pub fn plan_memory(
     load: PlanLoad,
     atlas_size: u32,
     threads: u64,
-    images: ImageTexels,
+    largest_image_texels: u64,
     cache_wanted: u64,
 ) -> Result<MemoryPlan, MemoryError> {
     let pixels = PixelNeeds {
         atlas_size,
         threads,
-        images,
+        largest_image_texels,
         cache_wanted,
     };
     split_budget(budget, load.bytes(), load, pixels)
@@ -257,13 +225,13 @@ pub fn planned_shard_memory(
     skeleton_bytes: u64,
     atlas_size: u32,
     threads: u64,
-    images: ImageTexels,
+    largest_image_texels: u64,
     cache_wanted: u64,
 ) -> Result<MemoryPlan, MemoryError> {
     let pixels = PixelNeeds {
         atlas_size,
         threads,
-        images,
+        largest_image_texels,
         cache_wanted,
     };
     split_budget(budget, skeleton_bytes, PlanLoad::default(), pixels)
@@ -273,7 +241,7 @@ pub fn planned_shard_memory(
 struct PixelNeeds {
     atlas_size: u32,
     threads: u64,
-    images: ImageTexels,
+    largest_image_texels: u64,
     cache_wanted: u64,
 }
 
@@ -287,25 +255,23 @@ fn split_budget(
     let PixelNeeds {
         atlas_size,
         threads,
-        images,
+        largest_image_texels,
         cache_wanted,
     } = pixels;
     let plan_bytes = BASE_BYTES.saturating_add(held);
     let atlas = u64::from(atlas_size).pow(2) * 16;
     let raster_bytes = threads.max(1) * ATLASES_PER_THREAD * atlas;
-    let per_threads = images.per_threads.saturating_mul(CACHE_BYTES_PER_TEXEL);
-    let all = images.all.saturating_mul(CACHE_BYTES_PER_TEXEL);
+    let per_threads =
+        (largest_image_texels.saturating_mul(CACHE_BYTES_PER_TEXEL)).saturating_mul(threads.max(1));
     let floor = per_threads.max(MIN_IMAGE_CACHE);
     // The originals cache may hold a quarter of the image cache's bound on top of it, and each thread
-    // its image outside the cache while it decodes it and builds its chain (or holds it, evicted, while
-    // its leaf is drawn): at the old need, without that, black_forest peaked 13 % over the budget (674
-    // MiB: 759) and a planned shard of it 22 % (512 MiB: 626; session 30's memory hunt). A floor that
-    // holds every image evicts none, and the one being decoded is the entry it becomes.
-    let cache_evicts = all > floor;
-    let in_flight = if cache_evicts { per_threads } else { 0 };
+    // its largest image outside the cache while it decodes it and builds its chain (or holds it, evicted,
+    // while its leaf is drawn): at the old need, without that, black_forest peaked 13 % over the budget
+    // (674 MiB: 759) and a planned shard of it 22 % (512 MiB: 626; session 30's memory hunt).
+    let in_flight = per_threads;
     let needed_bytes = plan_bytes
         .saturating_add(raster_bytes)
-        .saturating_add(floor + floor / 4)
+        .saturating_add(floor.saturating_add(floor / 4))
         .saturating_add(in_flight);
     if needed_bytes > budget {
         let mib = |b: u64| b.div_ceil(1 << 20);
@@ -317,10 +283,8 @@ fn split_budget(
             plan_mib: mib(plan_bytes),
             raster_mib: mib(raster_bytes),
             threads,
-            cache_mib: mib((floor + floor / 4).saturating_add(in_flight)),
-            largest_texels: images.largest,
-            images_set_floor: per_threads > MIN_IMAGE_CACHE,
-            cache_evicts,
+            cache_mib: mib((floor.saturating_add(floor / 4)).saturating_add(in_flight)),
+            largest_texels: largest_image_texels,
             largest_image: "?".to_string(),
         });
     }
@@ -358,23 +322,22 @@ pub fn default_budget() -> Option<u64> {
 mod tests {
     use super::*;
 
-    /// The cache's floor is blamed on the largest image only where it sets it; a planned shard's plan
-    /// share names no triangles.
+    /// The cache's floor is blamed on the largest image only where it sets it, and the in-flight share
+    /// is named either way; a planned shard's plan share names no triangles.
     #[test]
     fn refusals_name_what_sets_each_share() {
-        let small = cache_why("t.png", 64 * 64, false, true);
+        let small = cache_why("t.png", 64 * 64, 2);
         assert!(
-            small.contains("the cache's minimum of 64 MiB") && !small.contains("t.png"),
+            small.contains("the cache's minimum of 64 MiB")
+                && small.contains("each thread's largest image (t.png, 4096 texels) once more"),
             "{small}"
         );
-        let big = cache_why("big.png", 4096 * 4096, true, true);
+        let big = cache_why("big.png", 4096 * 4096, 2);
         assert!(
-            big.contains("the largest big.png: 16777216 texels, and once more while held"),
+            big.contains("the largest image, big.png: 16777216 texels"),
             "{big}"
         );
-        let kept = cache_why("big.png", 4096 * 4096, true, false);
-        assert!(!kept.contains("once more"), "{kept}");
-        assert!(cache_why("x", u64::MAX, true, true).contains("the largest images"));
+        assert!(cache_why("x", u64::MAX, u64::MAX).contains("the largest image"));
         assert_eq!(plan_why(12, 0), "a 64 MiB base and 12 triangles held");
         assert!(plan_why(12, 5).contains("cut into 5 more pieces where repeats are baked"));
         assert!(plan_why(0, 0).contains("no triangles"));
@@ -382,12 +345,9 @@ mod tests {
 
     #[test]
     fn budget_fixes_the_cache_and_refuses_what_cannot_fit() {
-        // 1 M triangles, 1024² atlases, 2 threads, 2048² images (more than the cache's floor holds),
-        // 2 GiB wanted.
-        let images = ImageTexels::of([2048 * 2048; 40], 2);
-        assert_eq!(images.per_threads, 2 * 2048 * 2048);
+        // 1 M triangles, 1024² atlases, 2 threads, a 2048² largest image, 2 GiB wanted.
         let tris = PlanLoad::triangles;
-        let p = plan_memory(2 << 30, tris(1_000_000), 1024, 2, images, 2 << 30).unwrap();
+        let p = plan_memory(2 << 30, tris(1_000_000), 1024, 2, 2048 * 2048, 2 << 30).unwrap();
         assert_eq!(p.plan_bytes, (64 << 20) + 250_000_000);
         assert_eq!(p.raster_bytes, 2 * 4 * 1024 * 1024 * 16);
         let left = (2u64 << 30) - p.plan_bytes - p.raster_bytes;
@@ -401,11 +361,10 @@ mod tests {
             p.plan_bytes + p.raster_bytes + per_threads + per_threads / 4 + per_threads
         );
         // A generous budget keeps the wanted cache.
-        let one = ImageTexels::of([1 << 20], 2);
-        let p = plan_memory(64 << 30, tris(1000), 1024, 2, one, 2 << 30).unwrap();
+        let p = plan_memory(64 << 30, tris(1000), 1024, 2, 1 << 20, 2 << 30).unwrap();
         assert_eq!(p.image_cache_bytes, 2 << 30);
         // 20 M triangles do not fit 2 GiB: the error gives the number needed.
-        let e = plan_memory(2 << 30, tris(20_000_000), 1024, 2, images, 2 << 30).unwrap_err();
+        let e = plan_memory(2 << 30, tris(20_000_000), 1024, 2, 2048 * 2048, 2 << 30).unwrap_err();
         assert_eq!(
             e.plan_mib,
             ((64u64 << 20) + 5_000_000_000).div_ceil(1 << 20)
@@ -415,26 +374,27 @@ mod tests {
         // The plan step needs the plan alone: 6 M triangles fit 2 GiB there, not with a cache beside.
         let p = plan_step_memory(2 << 30, tris(6_000_000)).unwrap();
         assert_eq!((p.raster_bytes, p.image_cache_bytes), (0, 0));
-        let big = ImageTexels::of([4096 * 4096; 3], 2);
-        assert!(plan_memory(2 << 30, tris(6_000_000), 1024, 2, big, 2 << 30).is_err());
+        assert!(plan_memory(2 << 30, tris(6_000_000), 1024, 2, 4096 * 4096, 2 << 30).is_err());
         let e = plan_step_memory(2 << 30, tris(24_000_000)).unwrap_err();
         assert_eq!(
             e.needed_mib,
             ((64u64 << 20) + 6_000_000_000).div_ceil(1 << 20)
         );
+        // An absurd image header saturates the need instead of overflowing it.
+        let e = plan_memory(2 << 30, tris(10), 1024, 2, u64::MAX / 4, 2 << 30).unwrap_err();
+        assert_eq!(e.needed_mib, u64::MAX.div_ceil(1 << 20));
     }
 
-    /// Pieces cut where repeats are baked are counted with their corners; a cache floor that holds every
-    /// image counts none of them twice, and the floor is the threads' largest distinct images.
+    /// Pieces cut where repeats are baked are counted with their corners, in the build's need and in the
+    /// plan step's.
     #[test]
-    fn baked_pieces_and_distinct_images_are_counted_as_held() {
+    fn baked_pieces_are_counted_as_held() {
         let load = PlanLoad {
             triangles: 2048,
             extra_pieces: 1_000_000,
         };
-        let tiny = ImageTexels::of([64 * 64], 2);
-        let p = plan_memory(u64::MAX, load, 1024, 2, tiny, 2 << 30).unwrap();
-        assert_eq!(p.plan_bytes, BASE_BYTES + 2048 * 250 + 1_000_000 * 322);
+        let p = plan_memory(u64::MAX, load, 1024, 2, 64 * 64, 2 << 30).unwrap();
+        assert_eq!(p.plan_bytes, BASE_BYTES + 2048 * 250 + 1_000_000 * 550);
         let e = plan_step_memory(300 << 20, load).unwrap_err();
         assert_eq!(e.extra_pieces, 1_000_000);
         assert!(
@@ -442,25 +402,10 @@ mod tests {
                 .contains("and 1000000 more pieces where repeats are baked"),
             "{e}"
         );
-        // One 16384² image: held once (its cache entry), with the originals' quarter.
-        let huge = 16384 * 16384;
-        let one = ImageTexels::of([huge, 64 * 64], 2);
-        assert_eq!((one.largest, one.per_threads), (huge, huge + 64 * 64));
-        let p = plan_memory(u64::MAX, PlanLoad::triangles(10), 1024, 2, one, 2 << 30).unwrap();
-        let floor = (huge + 64 * 64) * CACHE_BYTES_PER_TEXEL;
-        assert_eq!(
-            p.needed_bytes,
-            p.plan_bytes + p.raster_bytes + floor + floor / 4
+        let e = plan_memory(300 << 20, load, 1024, 2, 64 * 64, 2 << 30).unwrap_err();
+        assert!(
+            e.to_string().contains("cut into 1000000 more pieces"),
+            "{e}"
         );
-        // Three of them: the floor holds two, so an evicted one may be held beside it.
-        let three = ImageTexels::of([huge; 3], 2);
-        let p = plan_memory(u64::MAX, PlanLoad::triangles(10), 1024, 2, three, 2 << 30).unwrap();
-        let floor = 2 * huge * CACHE_BYTES_PER_TEXEL;
-        assert_eq!(
-            p.needed_bytes,
-            p.plan_bytes + p.raster_bytes + floor + floor / 4 + floor
-        );
-        assert_eq!(ImageTexels::of([], 2), ImageTexels::default());
-        assert_eq!(ImageTexels::of([5, 9, 7], 8).per_threads, 21);
     }
 }

@@ -621,17 +621,16 @@ pub(super) fn plan_memory(
         load,
         params.atlas_size,
         rayon::current_num_threads() as u64,
-        image_texels(&scene.images),
+        largest_image_texels(&scene.images),
         opts.image_cache_bytes,
     )
     .map_err(|e| e.naming(largest_image_name(&scene.images)))?;
     Ok(Some(plan))
 }
 
-/// The decoded sizes of `images` the image cache is sized from, for this process's rasteriser threads.
-pub(super) fn image_texels(images: &[crate::scene::ImageSource]) -> memory::ImageTexels {
-    let threads = rayon::current_num_threads() as u64;
-    memory::ImageTexels::of(images.iter().map(|i| i.texels()), threads)
+/// Texels of the largest of `images` (the image cache must hold it once per rasteriser thread).
+pub(super) fn largest_image_texels(images: &[crate::scene::ImageSource]) -> u64 {
+    images.iter().map(|i| i.texels()).max().unwrap_or(0)
 }
 
 /// The name of the largest of `images` (the first of equals), for [`memory::MemoryError::naming`].

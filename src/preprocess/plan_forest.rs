@@ -259,7 +259,8 @@ fn tree_report(
     }
 }
 
-/// Refuses, before anything is written, a forest whose blocks exceed `limit` bytes.
+/// Refuses, before anything is written, a forest whose paging file (tables, geometry and blocks) would
+/// exceed `--max-file-gib`.
 fn check_file_size(
     forest: &AtlasForest,
     reports: &[TreeReport],

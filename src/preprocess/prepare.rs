@@ -491,6 +491,22 @@ mod tests {
             tessellate_count([DVec2::NAN; 3], 48.0, 48.0, 256.0, 4096),
             1
         );
+        let uv = [DVec2::ZERO, DVec2::new(95.0, 0.0), DVec2::new(0.0, 55.0)];
+        for (w, h, limit, max) in [
+            (f64::INFINITY, 48.0, 256.0, 4096),
+            (48.0, 48.0, 0.0, 4096),
+            (48.0, 48.0, -1.0, 4096),
+            (-48.0, 48.0, 256.0, 4096),
+            (48.0, 48.0, 256.0, 0),
+            (48.0, 48.0, 256.0, 1),
+            (48.0, 48.0, 256.0, 2),
+        ] {
+            assert_eq!(
+                tessellate_count(uv, w, h, limit, max),
+                tessellate(p, uv, w, h, limit, max).len(),
+                "{w} {h} {limit} {max}"
+            );
+        }
     }
 
     #[test]

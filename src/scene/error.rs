@@ -117,8 +117,8 @@ pub enum SceneError {
     /// A glTF JSON larger than `ImportOptions::max_json_bytes` (the memory budget's share for parsing
     /// it), refused before it is parsed.
     #[error(
-        "{file}: {json_bytes} bytes of glTF JSON, more than the memory budget lets the import parse \
-         ({max} bytes: its parsed forms take ~16 bytes a byte)"
+        "{file}: {json_bytes} bytes of glTF JSON (data: URIs counted at a quarter), more than the memory \
+         budget lets the import parse ({max} bytes: its parsed forms take ~16 bytes a byte)"
     )]
     OverJsonBudget {
         file: String,

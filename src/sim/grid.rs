@@ -293,11 +293,15 @@ pub fn write_plots(
     if !first.is_empty() {
         let p = line_chart(
             &dir.join("coarser_over_time"),
-            &PlotOptions::new(
-                format!("Screen share coarser than target ({cond})"),
-                "time (s)",
-                "coarser share of drawn area",
-            ),
+            &PlotOptions {
+                // A share: the axis is 0..1 whatever the data (a flat series was widened to −0.4..1.4).
+                y_range: Some((0.0, 1.0)),
+                ..PlotOptions::new(
+                    format!("Screen share coarser than target ({cond})"),
+                    "time (s)",
+                    "coarser share of drawn area",
+                )
+            },
             &series(&|x| x.coarser_share()),
         )?;
         out.extend([p.svg, p.png]);

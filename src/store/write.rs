@@ -476,6 +476,8 @@ impl FileWriter {
             tables_end,
             encoded,
         } = plan_file(forest)?;
+        // `--max-file-gib` judged the file by its twin, from the counts alone.
+        debug_assert_eq!(predicted_file_len(forest).ok(), Some(header.file_len));
         let trees: Vec<TreeRects<'_>> = (encoded.trees.iter())
             .map(|t| TreeRects {
                 format: t.record.tex_format().unwrap_or_default(),

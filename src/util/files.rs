@@ -72,9 +72,10 @@ pub fn remove_live_temps() -> usize {
 }
 
 /// [`remove_live_temps`] for a handler of Ctrl-C or SIGTERM: `say` is told how many were removed and
-/// how many committed outputs are still there, with the last ([`kept_outputs`]), then the process ends with `code` while it still holds the registry's lock, so a temp that
-/// [`AtomicFile::create`] (which creates and registers under that lock) was making is either removed
-/// here or never made (one created while the handler ran stayed behind; fault hunt, session 28).
+/// how many committed outputs are still there, with the last ([`kept_outputs`]), then the process ends
+/// with `code` while it still holds the registry's lock, so a temp that [`AtomicFile::create`] (which
+/// creates and registers under that lock) was making is either removed here or never made (one created
+/// while the handler ran stayed behind; fault hunt, session 28).
 pub fn remove_live_temps_and_exit(
     code: i32,
     say: impl FnOnce(usize, Option<&(usize, PathBuf)>),
@@ -97,8 +98,14 @@ fn committed() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 /// committed and then deleted once measured, or removed as a [`LiveTempFile`] by the interrupt, and was
 /// named "left in place" (fault hunt, session 31).
 fn kept_outputs(committed: &[PathBuf]) -> Option<(usize, PathBuf)> {
-    let kept: Vec<&PathBuf> = committed.iter().filter(|p| p.exists()).collect();
-    kept.last().map(|last| (kept.len(), (*last).clone()))
+    // A target committed twice (`render` writes its summary twice) is one output, last at its last commit.
+    let mut kept: Vec<&PathBuf> = Vec::new();
+    for p in committed.iter().rev() {
+        if !kept.contains(&p) && p.exists() {
+            kept.push(p);
+        }
+    }
+    kept.first().map(|last| (kept.len(), (*last).clone()))
 }
 
 /// Removes `live`'s temps (see [`remove_live_temps`]).
@@ -237,12 +244,9 @@ fn temp_prefix(target: &Path) -> String {
     format!(".{name}.tmp.")
 }
 
-/// Whether process `pid` may still run: `/proc/<pid>` exists (Linux); elsewhere always `true` (then a
-/// stale temp is left for the user, never a live one removed).
+/// Whether process `pid` (not this one) may still run: `/proc/<pid>` exists (Linux); elsewhere always
+/// `true` (then a stale temp is left for the user, never a live one removed).
 fn process_may_run(pid: u32) -> bool {
-    if pid == std::process::id() {
-        return true;
-    }
     let proc = Path::new("/proc");
     if proc.join("self").exists() {
         proc.join(pid.to_string()).exists()
@@ -252,8 +256,11 @@ fn process_may_run(pid: u32) -> bool {
 }
 
 /// Removes the temp files of `target` left by writers that were killed: named by [`temp_prefix`], their
-/// pid gone and their lock free. Returns how many were removed. Errors (a racing remover, permissions)
-/// only leave a temp in place.
+/// pid gone and their lock free. A temp named with this process's own pid that this process is not
+/// writing is another process's that had the same pid — a container's PID 1, a retried Kubernetes pod,
+/// a killed Job writing to the same volume — and goes by its lock alone (a killed shard pod's temp, the
+/// size of the shard, was never removed: `/proc/1` always exists; fault hunt, session 32). Returns how
+/// many were removed. Errors (a racing remover, permissions) only leave a temp in place.
 pub fn remove_stale_temps(target: &Path) -> usize {
     let prefix = temp_prefix(target);
     let Ok(entries) = std::fs::read_dir(parent_dir(target)) else {
@@ -268,10 +275,14 @@ pub fn remove_stale_temps(target: &Path) -> usize {
         let Some(pid) = rest.split('.').next().and_then(|p| p.parse::<u32>().ok()) else {
             continue;
         };
-        if process_may_run(pid) {
+        let path = entry.path();
+        if pid == std::process::id() {
+            if live_temps().iter().any(|(p, _)| *p == path) {
+                continue;
+            }
+        } else if process_may_run(pid) {
             continue;
         }
-        let path = entry.path();
         // A free lock confirms the owner is gone (another pid namespace may share the directory).
         let free = File::open(&path).is_ok_and(|f| f.try_lock().is_ok());
         if free && std::fs::remove_file(&path).is_ok() {
@@ -366,7 +377,10 @@ impl AtomicFile {
             // finishing" of a complete output (fault hunt, session 31).
             let _live = live_temps();
             temp.persist(&target).map_err(|e| e.error)?;
-            committed().push(target.clone());
+            let mut done = committed();
+            // Once per target, last where it was last committed (a `view` session saves one path often).
+            done.retain(|p| *p != target);
+            done.push(target.clone());
         }
         sync_dir(parent_dir(&target))
     }
@@ -580,6 +594,25 @@ mod tests {
         assert!(!dir.path().join("dropped.bin").exists());
     }
 
+    /// A temp of this process's pid that it is not writing (another container's PID 1 killed mid-write)
+    /// is removed once its lock is free; this process's own live temp is kept.
+    #[test]
+    fn a_temp_of_this_pid_that_this_process_does_not_write_is_stale() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("shard.bin");
+        let live = AtomicFile::create(&target, 0o644).unwrap();
+        let stale = dir.path().join(format!(
+            "{}{}.ZZZZZZZZ",
+            temp_prefix(&target),
+            std::process::id()
+        ));
+        std::fs::write(&stale, b"left by a killed writer").unwrap();
+        assert_eq!(remove_stale_temps(&target), 1);
+        assert!(!stale.exists());
+        assert!(live.temp_path().exists(), "the live temp was removed");
+        drop(live);
+    }
+
     #[test]
     fn outputs_removed_after_their_commit_are_not_counted_as_kept() {
         let dir = tempfile::tempdir().unwrap();
@@ -589,6 +622,11 @@ mod tests {
         // `c` was committed last and then deleted (a sweep's measured build).
         let list = [a.clone(), b.clone(), c];
         assert_eq!(kept_outputs(&list), Some((2, b.clone())));
+        // A target committed twice is one output.
+        assert_eq!(
+            kept_outputs(&[a.clone(), b.clone(), a.clone()]),
+            Some((2, a.clone()))
+        );
         std::fs::remove_file(&a).unwrap();
         std::fs::remove_file(&b).unwrap();
         assert_eq!(kept_outputs(&list), None);

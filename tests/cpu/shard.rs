@@ -390,16 +390,12 @@ fn memory_budget_sizes_the_cache_or_refuses_up_front_with_the_number_needed() {
         .map(|i| u64::from(i.width) * u64::from(i.height))
         .max()
         .unwrap();
-    use atlastree::preprocess::memory::{ImageTexels, PlanLoad};
-    let threads = rayon::current_num_threads() as u64;
-    let texels_again = || (city().images.iter()).map(|i| u64::from(i.width) * u64::from(i.height));
-    let texels = texels_again();
     let needed = atlastree::preprocess::memory::plan_memory(
         u64::MAX,
-        PlanLoad::triangles(city().triangles.len() as u64),
+        atlastree::preprocess::memory::PlanLoad::triangles(city().triangles.len() as u64),
         1024,
-        threads,
-        ImageTexels::of(texels, threads),
+        rayon::current_num_threads() as u64,
+        largest,
         2 << 30,
     )
     .unwrap()
@@ -419,12 +415,11 @@ fn memory_budget_sizes_the_cache_or_refuses_up_front_with_the_number_needed() {
                 .unwrap()
                 .name;
             assert_eq!(&e.largest_image, name);
-            // The cause of the cache's floor: the threads' largest images where they pass the cache's
-            // minimum, else the minimum (a small image is not blamed).
+            // The cause of the cache's floor: the largest image once per thread where that passes the
+            // cache's minimum, else the minimum (a small image is not blamed).
             use atlastree::preprocess::memory::{CACHE_BYTES_PER_TEXEL, MIN_IMAGE_CACHE};
-            let per_threads = ImageTexels::of(texels_again(), threads).per_threads;
-            let want = if per_threads * CACHE_BYTES_PER_TEXEL > MIN_IMAGE_CACHE {
-                format!("the largest {name}: {largest} texels")
+            let want = if largest * CACHE_BYTES_PER_TEXEL * e.threads.max(1) > MIN_IMAGE_CACHE {
+                format!("the largest image, {name}: {largest} texels")
             } else {
                 format!("the cache's minimum of {} MiB", MIN_IMAGE_CACHE >> 20)
             };

@@ -197,10 +197,10 @@ struct Ranged {
 }
 
 /// `url` with the password of its userinfo replaced by `***` (`http://alice:***@host/…`; a user without
-/// a password, often a token, as `***@host`) and the value of
-/// each query and fragment parameter too (`?X-Amz-Signature=***`: a presigned URL's signature is a
-/// credential; it was shown in messages, fault hunt, session 31), for messages, names and reports; the requests use the URL
-/// as given. A URL with neither is returned as is.
+/// a password, often a token, as `***@host`) and the value of each query and fragment parameter too
+/// (`?X-Amz-Signature=***`: a presigned URL's signature is a credential; it was shown in messages, fault
+/// hunt, session 31), for messages, names and reports; the requests use the URL as given. A URL with
+/// neither is returned as is.
 pub fn redact_url(url: &str) -> String {
     let Some((scheme, rest)) = url.split_once("://") else {
         return url.to_string();

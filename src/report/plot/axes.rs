@@ -15,8 +15,11 @@ use plotters::prelude::*;
 use std::ops::Range;
 use std::path::Path;
 
-/// A tick label: up to 4 decimals without trailing zeros; `1e6`-style from 10⁶ and below 10⁻³.
+/// A tick label: up to 4 decimals without trailing zeros; `1e6`-style from 10⁶ and below 10⁻³. A tick
+/// within 10⁻¹² of 0 is the tick arithmetic's rounding of 0 and reads "0" (a one-frame plot labelled its
+/// middle tick `-5.55e-17`; fault hunt, session 32).
 pub fn format_tick(v: f64) -> String {
+    let v = if v.abs() < 1e-12 { 0.0 } else { v };
     if v == 0.0 || !v.is_finite() {
         return if v.is_nan() {
             "nan".into()

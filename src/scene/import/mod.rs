@@ -76,6 +76,26 @@ pub struct ImportOptions {
     pub max_json_bytes: Option<u64>,
 }
 
+/// The bytes of `json` as the memory budget weighs them: a byte inside a `data:` URI (an embedded
+/// buffer or image, base64: its text, one string and the decoded bytes) costs about a quarter of a byte
+/// of JSON structure (its parsed forms), so it counts a quarter (the review of session 32: embedded
+/// buffers were refused at 16 bytes a byte).
+fn json_weight(json: &[u8]) -> u64 {
+    const OPEN: &[u8] = b"\"data:";
+    let mut data = 0u64;
+    let mut at = 0;
+    while let Some(start) = json[at..].windows(OPEN.len()).position(|w| w == OPEN) {
+        let from = at + start + 1;
+        let len = json[from..]
+            .iter()
+            .position(|&b| b == b'"')
+            .unwrap_or(json.len() - from);
+        data += len as u64;
+        at = from + len;
+    }
+    json.len() as u64 - data * 3 / 4
+}
+
 /// `max_triangles` less the share of the budget `json_bytes` of JSON take, where both limits are given
 /// ([`ImportOptions::max_json_bytes`]).
 fn triangles_beside_json(
@@ -120,7 +140,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
         source,
     })?;
     let (json_bytes, blob) = split_glb(bytes, &file)?;
-    let json_len = json_bytes.len() as u64;
+    let json_len = json_weight(&json_bytes);
     if let Some(max) = opts.max_json_bytes.filter(|&max| json_len > max) {
         return Err(SceneError::OverJsonBudget {
             file,
@@ -284,6 +304,22 @@ pub(super) fn auto_up(bounds: Option<(DVec3, DVec3)>) -> UpAxis {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn data_uris_weigh_a_quarter_in_the_json_budget() {
+        let plain = br#"{"buffers":[{"uri":"a.bin"}]}"#;
+        assert_eq!(json_weight(plain), plain.len() as u64);
+        let data = format!(r#"{{"uri":"data:{}"}}"#, "A".repeat(995));
+        // 1000 bytes inside the URI (from `data:`), 3/4 of them taken off.
+        assert_eq!(json_weight(data.as_bytes()), data.len() as u64 - 750);
+        // An unterminated URI counts to the end, and never more than the text.
+        let open = br#"{"uri":"data:AAAA"#;
+        assert!(json_weight(open) <= open.len() as u64);
+        assert_eq!(triangles_beside_json(Some(100), Some(1000), 500), Some(50));
+        assert_eq!(triangles_beside_json(Some(100), Some(1000), 5000), Some(0));
+        assert_eq!(triangles_beside_json(Some(100), None, 5000), Some(100));
+        assert_eq!(triangles_beside_json(None, Some(1000), 5), None);
+    }
 
     #[test]
     fn auto_up_picks_least_extent() {

@@ -259,7 +259,7 @@ fn materials_filter_and_decode_baseline() {
         Some(facade_mats),
         "one facade image per facade material: {d}"
     );
-    assert_eq!(d["failures"], 0);
+    assert_eq!((&d["failures"], &d["fallbacks"]), (&0.into(), &0.into()));
     assert!(
         d["texels"].as_u64().unwrap() >= facade_mats * 64 * 64,
         "{d}"
@@ -295,6 +295,45 @@ fn materials_filter_and_decode_baseline() {
         "the error names some of the scene's materials: {e}"
     );
     assert!(!none.exists());
+}
+
+/// `scene-info --decode` counts the images the import could not find (drawn as the fallback checker)
+/// apart: "decoded 55 images" with 0 failures read as 55 good images where 53 were missing (fault hunt,
+/// session 32).
+#[test]
+fn decode_counts_missing_images_as_fallbacks() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = scene().parent().unwrap().to_path_buf();
+    std::fs::copy(src.join("scene.gltf"), dir.path().join("scene.gltf")).unwrap();
+    std::fs::copy(src.join("scene.bin"), dir.path().join("scene.bin")).unwrap();
+    std::fs::create_dir(dir.path().join("textures")).unwrap();
+    let mut missing = 0;
+    for (i, e) in std::fs::read_dir(src.join("textures")).unwrap().enumerate() {
+        let e = e.unwrap();
+        if i % 2 == 0 {
+            std::fs::copy(e.path(), dir.path().join("textures").join(e.file_name())).unwrap();
+        } else {
+            missing += 1;
+        }
+    }
+    let v = json(&run(bin()
+        .args(["scene-info", "--json", "--decode"])
+        .arg(dir.path().join("scene.gltf"))));
+    let fallbacks = v["decode"]["fallbacks"].as_u64().unwrap();
+    assert!(
+        fallbacks > 0 && fallbacks <= missing,
+        "{fallbacks} of {missing}: {v}"
+    );
+    let text = run(bin()
+        .args(["scene-info", "--decode"])
+        .arg(dir.path().join("scene.gltf")));
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains(&format!(
+            "{fallbacks} of them missing or unreadable at import"
+        )),
+        "{text}"
+    );
 }
 
 /// `build --compress bc1` next to an uncompressed build of the same scene: the compressed file is smaller by

@@ -462,3 +462,34 @@ fn max_depth_zero_builds_one_leaf_or_says_the_region_needs_more() {
     };
     assert!(e.to_string().contains("depth 0"), "{e}");
 }
+
+/// Under `--max-memory`, the pieces baked repeats cut a triangle into are counted before any is made:
+/// the same triangle fits a budget whole and is refused cut, with the pieces named, and the budget the
+/// refusal states fits (2,048 baked triangles accepted at 300 MiB once peaked at 1.08 GiB; fault hunt,
+/// session 32).
+#[test]
+fn baked_pieces_count_against_the_memory_budget_before_they_exist() {
+    let scene = one_big_triangle();
+    let cut = build_ok(&scene, &big_opts(4096));
+    let pieces = cut.report.trees[0].pieces;
+    assert!(pieces > 100, "{pieces}");
+    let per_piece = atlastree::preprocess::memory::BAKED_PIECE_BYTES;
+    let probe = |max_memory: u64, max_pieces: u32| {
+        let opts = BuildOptions {
+            max_memory_bytes: Some(max_memory),
+            ..big_opts(max_pieces)
+        };
+        try_build(&scene, &opts)
+    };
+    let Err((_, e)) = probe(1 << 20, 4096) else {
+        panic!("1 MiB held the plan")
+    };
+    let BuildError::Memory(m) = e else {
+        panic!("{e}")
+    };
+    assert_eq!(m.extra_pieces, pieces - 1, "{m}");
+    let needed = m.needed_mib << 20;
+    // One piece's worth less than the need of the cut plan still holds the whole triangle.
+    assert!(probe(needed - (pieces - 1) * per_piece + (1 << 20), 1).is_ok());
+    assert!(probe(needed, 4096).is_ok(), "the stated need must fit");
+}
