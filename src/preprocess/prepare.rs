@@ -215,35 +215,18 @@ pub fn count_pieces(scene: &Scene, tris: &[u32], opts: &PrepareOptions) -> u64 {
         .sum()
 }
 
-/// The number of pieces [`tessellate`] returns for these arguments, by the same cuts of the UVs alone
-/// (its analyzer twin: no positions, no pieces kept).
+/// The number of pieces [`tessellate`] returns for these arguments, by the same cuts ([`cut`]) of the
+/// UVs alone (its analyzer twin: no positions, no pieces kept).
 pub fn tessellate_count(uv: [DVec2; 3], w: f64, h: f64, limit: f64, max_pieces: u32) -> usize {
-    let too_big = |uv: &[DVec2; 3]| {
-        let lo = uv[0].min(uv[1]).min(uv[2]);
-        let hi = uv[0].max(uv[1]).max(uv[2]);
-        (hi.x - lo.x) * w > limit || (hi.y - lo.y) * h > limit
-    };
-    let finite = w.is_finite() && h.is_finite() && limit > 0.0 && uv.iter().all(|u| u.is_finite());
-    if !finite || !too_big(&uv) {
-        return 1;
-    }
-    let mut done = 0;
-    let mut todo = vec![uv];
-    while let Some(uv) = todo.pop() {
-        if !too_big(&uv) || done + todo.len() + 2 > max_pieces as usize {
-            done += 1;
-            continue;
-        }
-        let len = |i: usize| texel_len(uv[(i + 1) % 3] - uv[i], w, h);
-        let e = (0..3)
-            .max_by(|&a, &b| len(a).total_cmp(&len(b)))
-            .unwrap_or(0);
-        let (a, b, c) = (e, (e + 1) % 3, (e + 2) % 3);
-        let um = (uv[a] + uv[b]) * 0.5;
-        todo.push([uv[a], um, uv[c]]);
-        todo.push([um, uv[b], uv[c]]);
-    }
-    done
+    let mut n = 0;
+    cut(
+        [(); 3],
+        uv,
+        (w, h, limit, max_pieces),
+        |_, _| (),
+        |_, _| n += 1,
+    );
+    n
 }
 
 /// The prepared triangles of a tree ([`prepare`]).
@@ -366,6 +349,25 @@ pub fn tessellate(
     limit: f64,
     max_pieces: u32,
 ) -> Vec<([DVec3; 3], [DVec2; 3])> {
+    let mut out = Vec::new();
+    let mid = |a: DVec3, b: DVec3| (a + b) * 0.5;
+    cut(p, uv, (w, h, limit, max_pieces), mid, |p, uv| {
+        out.push((p, uv))
+    });
+    out
+}
+
+/// The cuts of [`tessellate`] and [`tessellate_count`], one rule for both: a triangle of corners `p` (any
+/// payload, split at an edge's midpoint by `mid`) and UVs `uv` at `w × h` texels per UV unit, halved at its
+/// longest edge in texels until each piece spans at most `limit` texels on both axes or `max_pieces`
+/// exist; `emit` gets every piece in order.
+fn cut<T: Copy>(
+    p: [T; 3],
+    uv: [DVec2; 3],
+    (w, h, limit, max_pieces): (f64, f64, f64, u32),
+    mid: impl Fn(T, T) -> T,
+    mut emit: impl FnMut([T; 3], [DVec2; 3]),
+) {
     let too_big = |uv: &[DVec2; 3]| {
         let lo = uv[0].min(uv[1]).min(uv[2]);
         let hi = uv[0].max(uv[1]).max(uv[2]);
@@ -373,13 +375,15 @@ pub fn tessellate(
     };
     let finite = w.is_finite() && h.is_finite() && limit > 0.0 && uv.iter().all(|u| u.is_finite());
     if !finite || !too_big(&uv) {
-        return vec![(p, uv)];
+        emit(p, uv);
+        return;
     }
-    let mut done = Vec::new();
+    let mut done = 0;
     let mut todo = vec![(p, uv)];
     while let Some((p, uv)) = todo.pop() {
-        if !too_big(&uv) || done.len() + todo.len() + 2 > max_pieces as usize {
-            done.push((p, uv));
+        if !too_big(&uv) || done + todo.len() + 2 > max_pieces as usize {
+            done += 1;
+            emit(p, uv);
             continue;
         }
         let len = |i: usize| texel_len(uv[(i + 1) % 3] - uv[i], w, h);
@@ -387,12 +391,11 @@ pub fn tessellate(
             .max_by(|&a, &b| len(a).total_cmp(&len(b)))
             .unwrap_or(0);
         let (a, b, c) = (e, (e + 1) % 3, (e + 2) % 3);
-        let pm = (p[a] + p[b]) * 0.5;
+        let pm = mid(p[a], p[b]);
         let um = (uv[a] + uv[b]) * 0.5;
         todo.push(([p[a], pm, p[c]], [uv[a], um, uv[c]]));
         todo.push(([pm, p[b], p[c]], [um, uv[b], uv[c]]));
     }
-    done
 }
 
 /// Counts of sizing methods over prepared triangles (the report twin of [`prepare`]).

@@ -671,6 +671,16 @@ mod tests {
         );
     }
 
+    /// [`remove_live_temps`] of the temps under `dir` only: the whole registry holds the temps of every
+    /// test running beside this one, and removing them made `commit` fail in another test.
+    fn remove_live_temps_in(dir: &Path) -> usize {
+        let mine: Vec<(PathBuf, bool)> = (live_temps().iter())
+            .filter(|(p, _)| p.starts_with(dir))
+            .cloned()
+            .collect();
+        remove_listed(&mine)
+    }
+
     #[test]
     fn live_temp_dirs_are_removed_with_their_contents_while_registered() {
         let dir = tempfile::tempdir().unwrap();
@@ -678,11 +688,11 @@ mod tests {
         std::fs::create_dir_all(partial.join("a/b")).unwrap();
         std::fs::write(partial.join("a/b/c.glb"), b"x").unwrap();
         let guard = LiveTempDir::register(&partial);
-        assert!(remove_live_temps() >= 1);
+        assert!(remove_live_temps_in(dir.path()) >= 1);
         assert!(!partial.exists());
         drop(guard);
         std::fs::create_dir(&partial).unwrap();
-        remove_live_temps();
+        remove_live_temps_in(dir.path());
         assert!(partial.exists(), "a dropped guard forgets its folder");
     }
 
@@ -695,13 +705,13 @@ mod tests {
         let partial = deep.join(".out.partial-1");
         std::fs::create_dir_all(partial.join("x")).unwrap();
         let guard = LiveTempDir::register_with_parents(&partial, &[deep.clone(), new.clone()]);
-        remove_live_temps();
+        remove_live_temps_in(dir.path());
         assert!(!new.exists(), "{}", new.display());
         drop(guard);
         std::fs::create_dir_all(partial.join("x")).unwrap();
         std::fs::write(new.join("keep.txt"), b"x").unwrap();
         let guard = LiveTempDir::register_with_parents(&partial, &[deep.clone(), new.clone()]);
-        remove_live_temps();
+        remove_live_temps_in(dir.path());
         assert!(!deep.exists() && new.join("keep.txt").exists());
         drop(guard);
     }

@@ -52,22 +52,7 @@ fn a_capacity_above_the_block_count_scores_as_all_resident(
     ctx: &atlastree::gpu::GpuContext,
 ) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
-    let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
-    let scene = atlastree::scene::import(&scene_path, &Default::default()).map_err(e)?;
-    let mut grid = Grid::preset("small").ok_or("no small preset")?;
-    grid.atlas_size = vec![];
-    grid.filter = vec![];
-    grid.repeat = vec![];
-    grid.texel_ratio = vec![];
-    grid.capacity = vec![100_000];
-    grid.frames = 3;
-    grid.width = 160;
-    grid.height = 120;
-    grid.validate("paged").map_err(e)?;
-    let plan = grid.plan();
-    let (lo, hi) = scene.bounds().ok_or("empty scene")?;
-    let path = atlastree::camera::CameraPath::overview_dive(lo, hi, scene.up).map_err(e)?;
-    let cameras = sample_path(&path, plan.frames, 160.0 / 120.0);
+    let (scene, plan, cameras) = tiny_city_grid(vec![], vec![100_000])?;
     let opts = SweepOptions {
         builds_dir: dir.path().join("builds"),
         ..SweepOptions::default()
@@ -103,22 +88,7 @@ fn supersampled_reference_measures_tree_and_original(
     ctx: &atlastree::gpu::GpuContext,
 ) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
-    let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
-    let scene = atlastree::scene::import(&scene_path, &Default::default()).map_err(e)?;
-    let mut grid = Grid::preset("small").ok_or("no small preset")?;
-    grid.atlas_size = vec![512, 1024];
-    grid.filter = vec![];
-    grid.repeat = vec![];
-    grid.texel_ratio = vec![];
-    grid.capacity = vec![24];
-    grid.frames = 3;
-    grid.width = 160;
-    grid.height = 120;
-    grid.validate("tiny").map_err(e)?;
-    let plan = grid.plan();
-    let (lo, hi) = scene.bounds().ok_or("empty scene")?;
-    let path = atlastree::camera::CameraPath::overview_dive(lo, hi, scene.up).map_err(e)?;
-    let cameras = sample_path(&path, plan.frames, 160.0 / 120.0);
+    let (scene, plan, cameras) = tiny_city_grid(vec![512, 1024], vec![24])?;
     let opts = SweepOptions {
         builds_dir: dir.path().join("builds"),
         reference: Reference::Supersampled(2),
@@ -167,6 +137,33 @@ fn supersampled_reference_measures_tree_and_original(
         );
     }
     Ok(())
+}
+
+/// data/city, and a grid of the small preset with only these atlas sizes and capacities, 3 frames of
+/// 160×120 sampled along the overview-dive.
+type TinyGrid = (
+    atlastree::scene::Scene,
+    atlastree::sweep::Plan,
+    Vec<(f64, atlastree::camera::Camera)>,
+);
+fn tiny_city_grid(atlas_size: Vec<u32>, capacity: Vec<u32>) -> Result<TinyGrid, String> {
+    let scene_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+    let scene = atlastree::scene::import(&scene_path, &Default::default()).map_err(e)?;
+    let mut grid = Grid::preset("small").ok_or("no small preset")?;
+    grid.atlas_size = atlas_size;
+    grid.filter = vec![];
+    grid.repeat = vec![];
+    grid.texel_ratio = vec![];
+    grid.capacity = capacity;
+    grid.frames = 3;
+    grid.width = 160;
+    grid.height = 120;
+    grid.validate("tiny").map_err(e)?;
+    let plan = grid.plan();
+    let (lo, hi) = scene.bounds().ok_or("empty scene")?;
+    let path = atlastree::camera::CameraPath::overview_dive(lo, hi, scene.up).map_err(e)?;
+    let cameras = sample_path(&path, plan.frames, 160.0 / 120.0);
+    Ok((scene, plan, cameras))
 }
 
 /// Tolerance of the per-frame monotonicity of PSNR in the texel ratio, dB.

@@ -160,8 +160,11 @@ impl<'a> Buffers<'a> {
                 // glTF 2.0 §4.4 (GLB-stored buffer): only the first buffer may use the BIN chunk.
                 // Buffer 0 is loaded once, so the chunk is taken at most once.
                 let data = match index {
+                    // Said for both forms: a `.gltf` text buffer without a uri read as a truncated GLB
+                    // (fault hunt, session 32).
                     0 => self.blob.take().ok_or_else(|| {
-                        "the file has no GLB BIN chunk (truncated after its JSON chunk?)"
+                        "has no uri: a .gltf buffer needs one, and a GLB's first buffer its BIN chunk, \
+                         which this file lacks (a GLB truncated after its JSON chunk?)"
                             .to_string()
                     }),
                     _ => Err("has no uri, and only buffer 0 may use the GLB BIN chunk".into()),

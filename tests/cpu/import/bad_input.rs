@@ -197,7 +197,8 @@ fn glb_bin_chunk_absent_or_claimed_twice() {
     assert_eq!(
         e.to_string(),
         format!(
-            "{}: buffer 0 (<GLB BIN chunk>): the file has no GLB BIN chunk (truncated after its JSON chunk?)",
+            "{}: buffer 0 (<GLB BIN chunk>): has no uri: a .gltf buffer needs one, and a GLB's first buffer \
+             its BIN chunk, which this file lacks (a GLB truncated after its JSON chunk?)",
             path.display()
         )
     );
@@ -731,4 +732,41 @@ fn sparse_indices_must_strictly_increase() {
         e.contains("sparse count 17 exceeds the accessor's 16 elements"),
         "{e}"
     );
+}
+
+/// An accessor without a buffer view (and without sparse) is all zeros (glTF 2.0 §3.6.2.1): an exporter's
+/// zero morph-target deltas. The schema check reported it missing and the whole file was refused (fault
+/// hunt, session 32); it imports as the same quad with the target added as zeros.
+#[test]
+fn an_accessor_without_a_buffer_view_is_zeros() {
+    use base64::Engine;
+    let dir = tempfile::tempdir().unwrap();
+    let positions: [f32; 12] = [0., 0., 0., 10., 0., 0., 10., 0., -10., 0., 0., -10.];
+    let mut bin: Vec<u8> = positions.iter().flat_map(|v| v.to_le_bytes()).collect();
+    bin.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|v| v.to_le_bytes()));
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    );
+    let doc = json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.3, 0.2, 1]}}],
+        "meshes": [{"weights": [0.5], "primitives": [{"attributes": {"POSITION": 0}, "indices": 1,
+            "material": 0, "targets": [{"POSITION": 2}]}]}],
+        "buffers": [{"byteLength": bin.len(), "uri": uri}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                        {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [0, 0, -10], "max": [10, 0, 0]},
+            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"},
+            {"componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [0, 0, 0]}
+        ]
+    });
+    let path = dir.path().join("zeros.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let s = import(&path, &ImportOptions::default()).unwrap();
+    assert_eq!(s.triangles.len(), 2);
+    let xs: Vec<f64> = s.vertices.iter().map(|v| v.pos.x).collect();
+    assert!(xs.contains(&10.0) && xs.contains(&0.0), "{xs:?}");
 }
