@@ -421,8 +421,9 @@ pub(crate) struct BuildParamsArgs {
     /// limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's limit; or `ulimit -v`).
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
     pub max_memory: Option<MemoryArg>,
-    /// Split a triangle too big for one atlas (a ground quad with a tile repeated hundreds of times) into at
-    /// most this many pieces; beyond that its leaf's resolution is clamped. 1 disables splitting.
+    /// With `--repeat bake`: split a triangle too big for one atlas (a ground quad with a tile repeated
+    /// hundreds of times) into at most this many pieces; beyond that its leaf's resolution is clamped. 1
+    /// disables splitting. Wrapped repeats (the default) store one period and never split a triangle.
     #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(1..))]
     pub max_pieces: u32,
     /// Refuse, before writing anything, a build whose paging file would exceed this size (GiB; fractions

@@ -83,7 +83,7 @@ pub(crate) struct BuildArgs {
     /// Slurm job arrays (SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT), Kubernetes Indexed Jobs
     /// (JOB_COMPLETION_INDEX and ATLASTREE_SHARD_COUNT set to the completions), AWS Batch arrays
     /// (AWS_BATCH_JOB_ARRAY_INDEX and ATLASTREE_SHARD_COUNT set to the array size).
-    #[arg(long, value_name = "plan|I/N|auto")]
+    #[arg(long, value_name = "plan|I/N|auto", allow_hyphen_values = true)]
     pub shard: Option<String>,
     /// Print the report as JSON.
     #[arg(long)]
@@ -309,10 +309,10 @@ fn over_budget(
     {
         let needed = BASE_BYTES.saturating_add(json_bytes.saturating_mul(JSON_BYTES_FACTOR));
         return e.context(format!(
-            "the budget is too small: parsing {} MiB of glTF JSON needs about {} MiB ({} MiB of process \
+            "the budget is too small: parsing {} of glTF JSON needs about {} MiB ({} MiB of process \
              base and ~{JSON_BYTES_FACTOR} bytes a byte of JSON), over {source} of {} MiB: give a larger \
              --max-memory",
-            json_bytes.div_ceil(1 << 20),
+            atlastree::util::human_bytes(json_bytes),
             needed.div_ceil(1 << 20),
             BASE_BYTES >> 20,
             budget >> 20
@@ -340,8 +340,8 @@ fn over_budget(
     };
     let json = if json_bytes > 0 {
         format!(
-            ", and ~{JSON_BYTES_FACTOR} bytes a byte of the {} MiB of glTF JSON parsed beside them",
-            json_bytes.div_ceil(1 << 20)
+            ", and ~{JSON_BYTES_FACTOR} bytes a byte of the {} of glTF JSON parsed beside them",
+            atlastree::util::human_bytes(json_bytes)
         )
     } else {
         String::new()

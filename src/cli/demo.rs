@@ -60,7 +60,7 @@ pub(crate) struct DemoArgs {
     pub leaf_originals: f64,
     /// Frames of the rendered overview-dive, spread evenly over the whole path (first to last keyframe).
     #[arg(long, default_value_t = DemoTour::DEFAULT.frames,
-          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=super::args::MAX_FRAMES as u64))]
     pub frames: usize,
     /// Blocks resident at most in the paged flight: well below the file's block count, so that the flight
     /// draws missing blocks with their ancestors while they load.

@@ -42,9 +42,13 @@ pub(crate) struct Cli {
     pub command: Command,
 }
 
+/// Commands with numeric flags take negative numbers as values (`--fov -10` reaches the flag's own check,
+/// which names it and its range; clap read `-1` as an unknown flag and quoted a token never typed: fault
+/// hunt, session 32).
 #[derive(Subcommand, Debug)]
 pub(crate) enum Command {
     /// Run the whole pipeline on the embedded default scene (data/city) and show what each stage did.
+    #[command(allow_negative_numbers = true)]
     Demo(demo::DemoArgs),
     /// Summarise a glTF scene: triangles, textures, UV ranges and repeats, wrap and alpha modes, planarity.
     SceneInfo(scene_info::SceneInfoArgs),
@@ -53,6 +57,7 @@ pub(crate) enum Command {
     /// Texel-per-pixel control (paper §5.2.1): the atlas of a leaf is sized so that a camera at least d_min
     /// away sees at least `texel-ratio` texels per screen pixel (screen `screen-width` pixels wide, horizontal
     /// field of view `fov`). Smaller d_min: deeper tree, bigger file, original textures needed less often.
+    #[command(allow_negative_numbers = true)]
     Build(build_cmd::BuildArgs),
     /// Merge the shard files of a sharded build (`build --shard I/N`) into the paging file, byte-identical
     /// to a one-process build.
@@ -76,6 +81,7 @@ pub(crate) enum Command {
     /// resident ancestor atlas; `stats.csv` then gains the paging columns (blocks needed / ideal / resident /
     /// queued / in flight, bytes loaded, ideal fraction resident, coarser screen share, evictions, …; the
     /// README's "Changelog" lists the column names).
+    #[command(allow_negative_numbers = true)]
     Render(render_cmd::RenderArgs),
     /// Paging-budget experiments without a GPU: capacity × bandwidth × latency × policy over a camera path.
     ///
@@ -91,10 +97,12 @@ pub(crate) enum Command {
     ///
     /// Example: `atlastree simulate city.atlastree --path overview-dive --capacity 40,80,160,320
     /// --bandwidth 5MB/s,50MB/s,500MB/s --latency 0ms,80ms --out sim/`
+    #[command(allow_negative_numbers = true)]
     Simulate(simulate_cmd::SimulateArgs),
     /// Export a paging file for other viewers: `export 3dtiles FILE -o DIR` writes a 3D Tiles 1.1
     /// tileset (CesiumJS, 3DTilesRendererJS, …) with one tile per node and the original textures below the
     /// leaves.
+    #[command(allow_negative_numbers = true)]
     Export(export_cmd::ExportArgs),
     /// Serve a paging file over HTTP with range requests (for `render --source http://…`); Ctrl-C stops.
     ///
@@ -139,6 +147,7 @@ pub(crate) enum Command {
     /// builds.csv (stage times), report.md (tables, recommended defaults, plots) and the plots as SVG + PNG:
     /// accuracy vs frame time with the Pareto front, vs file size, vs build time, vs texel ratio, and the
     /// texel-per-pixel histograms.
+    #[command(allow_negative_numbers = true)]
     Sweep(sweep_cmd::SweepArgs),
 }
 

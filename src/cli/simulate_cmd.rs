@@ -30,7 +30,12 @@ pub(crate) struct SimulateArgs {
     #[arg(long, default_value = "5MB/s,50MB/s,500MB/s", value_delimiter = ',')]
     pub bandwidth: Vec<String>,
     /// Latencies per request, comma-separated (`0ms`, `80ms`).
-    #[arg(long, default_value = "0ms,80ms", value_delimiter = ',')]
+    #[arg(
+        long,
+        default_value = "0ms,80ms",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
     pub latency: Vec<String>,
     /// Policies, comma-separated: paper, distance, lru, ours.
     #[arg(long, default_value = "paper", value_delimiter = ',')]
@@ -49,7 +54,7 @@ pub(crate) struct SimulateArgs {
     /// Extra time per request, e.g. `2ms` for HTTP request overhead, in every run of the grid: the model
     /// adds it to each request's latency (so `--overhead 200ms --latency 0ms` equals `--latency 200ms`);
     /// the table and `--json` state it.
-    #[arg(long, default_value = "0ms")]
+    #[arg(long, default_value = "0ms", allow_hyphen_values = true)]
     pub overhead: String,
     /// Output directory.
     #[arg(long, default_value = "out/simulate")]

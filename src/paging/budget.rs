@@ -28,16 +28,24 @@ impl std::str::FromStr for UploadBudget {
             return Ok(UploadBudget::Unlimited);
         }
         if t.ends_with("ms") || t.ends_with("us") || t.ends_with("µs") {
-            return crate::util::parse_seconds(t)
-                .filter(|&v| v > 0.0)
-                .map(|v| UploadBudget::Millis(v * 1e3))
-                .ok_or_else(|| format!("bad upload budget {s:?}: expected e.g. 2ms"));
+            return match crate::util::parse_seconds(t) {
+                Some(v) if v > 0.0 => Ok(UploadBudget::Millis(v * 1e3)),
+                Some(_) => Err(format!(
+                    "bad upload budget {s:?}: zero time uploads nothing; give a positive time, or 0 or \
+                     unlimited for no limit"
+                )),
+                None => Err(format!("bad upload budget {s:?}: expected e.g. 2ms")),
+            };
         }
-        crate::util::parse_bytes(t)
-            .filter(|&b| b > 0)
-            .map(UploadBudget::Bytes)
-            .ok_or_else(|| {
-                format!("bad upload budget {s:?}: expected unlimited, 8MB, 512KiB or 2ms")
-            })
+        match crate::util::parse_bytes(t) {
+            Some(0) => Err(format!(
+                "bad upload budget {s:?}: zero uploads nothing; give a positive size, or 0 or unlimited \
+                 for no limit"
+            )),
+            Some(b) => Ok(UploadBudget::Bytes(b)),
+            None => Err(format!(
+                "bad upload budget {s:?}: expected unlimited, 8MB, 512KiB or 2ms"
+            )),
+        }
     }
 }

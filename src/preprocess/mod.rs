@@ -443,7 +443,7 @@ pub fn resolve_params(
         return bad(
             "texel-ratio",
             crate::util::short_number(opts.texel_ratio),
-            "must be a positive number",
+            "must be a finite number > 0",
         );
     }
     if opts.screen_width == 0 {
@@ -453,7 +453,7 @@ pub fn resolve_params(
         return bad(
             "leaf-originals",
             crate::util::short_number(opts.leaf_originals_atlases),
-            "must be a number of atlases ≥ 0",
+            "must be a finite number of atlases ≥ 0",
         );
     }
     if opts.max_depth > 30 {
@@ -481,7 +481,7 @@ pub fn resolve_params(
                 return bad(
                     "d-min-ratio",
                     crate::util::short_number(r),
-                    "must be a positive number",
+                    "must be a finite number > 0",
                 );
             }
             diagonal / r
@@ -498,7 +498,7 @@ pub fn resolve_params(
         return bad(
             "d-min",
             crate::util::short_number(d_min),
-            "must be a positive distance (is the scene a single point?)",
+            "must be a finite distance > 0 (is the scene a single point?)",
         );
     }
     let params = BuildParams {

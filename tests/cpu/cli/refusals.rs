@@ -14,6 +14,30 @@ fn refused(args: &[&str], says: &[&str]) {
     }
 }
 
+/// A negative value reaches its flag's own check, which names the flag and what it allows (clap read
+/// `-10` as an unknown flag `-1` and advised `-- -1`: fault hunt, session 32).
+#[test]
+fn negative_values_are_refused_by_their_flags() {
+    let scene = scene();
+    let scene = scene.to_str().unwrap();
+    refused(
+        &["build", scene, "-o", "x.atlastree", "--fov", "-10"],
+        &["--fov -10", "between 0 and 180"],
+    );
+    refused(
+        &["build", scene, "-o", "x.atlastree", "--shard", "-1/2"],
+        &["--shard -1/2", "0 ≤ I < N"],
+    );
+    refused(
+        &["simulate", "x.atlastree", "--latency", "-5ms"],
+        &["--latency", "-5ms", "≥ 0"],
+    );
+    refused(
+        &["simulate", "x.atlastree", "--upload-budget", "0B"],
+        &["0B", "zero uploads nothing"],
+    );
+}
+
 /// Values a flag cannot mean are refused by the parser, before any file is opened: an image cache whose
 /// bytes overflow (it wrapped to the smallest cache), and an https URL in a build without TLS (every
 /// attempt failed the same way, four times). `--max-memory` takes TiB.
