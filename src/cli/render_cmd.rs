@@ -286,6 +286,9 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
             "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
         );
     }
+    if let Some(e) = fl.planner.first_load_error() {
+        eprintln!("warning: block loads failed during the run (drawn coarser); the first: {e}");
+    }
     let http = http.map(|h| h.stats());
     super::render_report::write_and_report(&cfg.out, cfg.reference, &runs, http)?;
     Ok(runs.into_iter().map(|r| (r.mode, r.stats)).collect())

@@ -111,10 +111,18 @@ fn print_http(h: &HttpStats) {
         );
     }
     if h.checksum_failures > 0 {
+        // Not every failed answer was asked again (the last attempt of a fetch is not), and a block
+        // failing every attempt points at the served file itself (fault hunt, session 32).
+        let corrupt = if h.failures > 0 {
+            "; fetches failed on every attempt, so the served file itself may be corrupt: run `atlastree \
+             inspect --verify` on it"
+        } else {
+            ""
+        };
         println!(
-            "  warning: {} answers failed their block checksum and were asked again: the served file changed \
-             during the run, or bytes were corrupted on the way",
-            h.checksum_failures
+            "  warning: {} answers failed their block checksum ({} requests were retries): the served file \
+             changed during the run, or bytes were corrupted on the way{corrupt}",
+            h.checksum_failures, h.retries
         );
     }
 }

@@ -229,6 +229,8 @@ pub struct Pager {
     frame: u64,
     stats: PagerFrameStats,
     totals: PagerTotals,
+    /// The first load that failed: its block and why ([`Pager::first_load_error`]).
+    first_load_error: Option<String>,
 }
 
 impl Pager {
@@ -273,6 +275,7 @@ impl Pager {
             frame: 0,
             stats: PagerFrameStats::default(),
             totals: PagerTotals::default(),
+            first_load_error: None,
         })
     }
 
@@ -338,6 +341,12 @@ impl Pager {
 
     pub fn totals(&self) -> &PagerTotals {
         &self.totals
+    }
+
+    /// The first block whose load failed, and why ("block 21: … checksum …"): a run reported only how
+    /// many failed, and `inspect --verify` had to find which (fault hunt, session 32).
+    pub fn first_load_error(&self) -> Option<&str> {
+        self.first_load_error.as_deref()
     }
 
     /// Frames planned so far.
@@ -535,6 +544,9 @@ impl Pager {
                 Err(e) => {
                     self.state[i] = State::Absent;
                     self.back_off(a.block, Retry::transient(e.is_transient()));
+                    if self.first_load_error.is_none() {
+                        self.first_load_error = Some(format!("block {}: {e}", a.block.0));
+                    }
                 }
             }
         }

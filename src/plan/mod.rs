@@ -337,6 +337,12 @@ impl<'a> FramePlanner<'a> {
         self.paging.as_ref().and_then(|p| p.last_error.as_deref())
     }
 
+    /// The first block whose load failed and why ([`crate::paging::Pager::first_load_error`]); `None`
+    /// when none did or nothing is paged.
+    pub fn first_load_error(&self) -> Option<&str> {
+        (self.paging.as_ref()).and_then(|p| p.session.pager.first_load_error())
+    }
+
     /// Selects every following plan's cut for `camera` instead of the frame's own camera (`None`: the
     /// frame's camera again): the viewer's "freeze selection". Draws still use the frame's camera.
     pub fn freeze_selection(&mut self, camera: Option<Camera>) {

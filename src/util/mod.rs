@@ -265,6 +265,21 @@ pub fn parse_seconds(s: &str) -> Option<f64> {
     (secs.is_finite() && secs >= 0.0).then_some(secs)
 }
 
+/// Which file `meta` describes: (device, inode) on unix, where two opens of one path can be told apart
+/// when a file was renamed over it in between; `None` elsewhere.
+pub fn file_identity(meta: &std::fs::Metadata) -> Option<(u64, u64)> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        Some((meta.dev(), meta.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = meta;
+        None
+    }
+}
+
 /// A 128-bit digest (`xxh3_128`) as the two `u64` words the file formats store, low word first.
 pub fn digest_words(d: u128) -> [u64; 2] {
     [d as u64, (d >> 64) as u64]

@@ -150,12 +150,20 @@ pub enum ServeError {
 pub struct ServerHandle {
     addr: SocketAddr,
     url: String,
+    /// [`crate::util::file_identity`] of the file it serves, as opened.
+    file_identity: Option<(u64, u64)>,
     counters: Arc<Counters>,
     stop: Option<oneshot::Sender<()>>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl ServerHandle {
+    /// Which file it serves ([`crate::util::file_identity`] of the handle it opened): a caller that
+    /// checked the path before compares it with the file it checked.
+    pub fn file_identity(&self) -> Option<(u64, u64)> {
+        self.file_identity
+    }
+
     /// The address the server listens on (the real port when started on port 0).
     pub fn addr(&self) -> SocketAddr {
         self.addr
@@ -226,6 +234,7 @@ pub fn spawn_with(
         path: path.to_path_buf(),
         source,
     })?;
+    let file_identity = (held.metadata().ok()).and_then(|m| crate::util::file_identity(&m));
     let bind_err = |source| ServeError::Bind { addr, source };
     let listener = std::net::TcpListener::bind(addr).map_err(bind_err)?;
     listener.set_nonblocking(true).map_err(bind_err)?;
@@ -253,6 +262,7 @@ pub fn spawn_with(
     Ok(ServerHandle {
         addr,
         url,
+        file_identity,
         counters,
         stop: Some(stop),
         thread: Some(thread),

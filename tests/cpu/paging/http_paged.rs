@@ -209,6 +209,12 @@ fn a_block_that_stays_broken_is_counted_drawn_coarser_and_retried_with_back_off(
     assert_eq!(server.seen().faults % 4, 0);
     assert_eq!(failures, fetches, "every failed fetch is counted once");
     assert_eq!(p.pager().unwrap().totals().failures, failures);
+    // The run can name the block and why (it reported only a count: fault hunt, session 32).
+    let first = p.first_load_error().expect("the first failed load is kept");
+    assert!(
+        first.starts_with(&format!("block {}: ", victim.0)) && first.contains("503"),
+        "{first}"
+    );
     // Asked for again after 8, 16, 32, 64 … frames: at least twice, and at most once per back-off.
     assert!(
         (2..=5).contains(&fetches),
