@@ -518,7 +518,21 @@ fn print_summary(
 }
 
 #[cfg(test)]
-mod embedded_scene_tests {
+mod tests {
+    use super::capacity_grid;
+
+    #[test]
+    fn the_simulated_capacities_keep_the_roots_and_never_wrap() {
+        assert_eq!(capacity_grid(40, 2), "20,40,80,all");
+        assert_eq!(capacity_grid(3, 2), "2,3,6,all");
+        assert_eq!(capacity_grid(2, 2), "2,4,all");
+        assert_eq!(
+            capacity_grid(1 << 31, 1),
+            "1073741824,2147483648,4294967295,all"
+        );
+        assert_eq!(capacity_grid(u32::MAX, 1), "2147483647,4294967295,all");
+    }
+
     /// The embedded scene is `data/city` file for file and byte for byte, and writes out whole.
     #[test]
     fn the_embedded_scene_is_data_city() {
@@ -561,22 +575,5 @@ mod embedded_scene_tests {
         }
         out.sort();
         out
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::capacity_grid;
-
-    #[test]
-    fn the_simulated_capacities_keep_the_roots_and_never_wrap() {
-        assert_eq!(capacity_grid(40, 2), "20,40,80,all");
-        assert_eq!(capacity_grid(3, 2), "2,3,6,all");
-        assert_eq!(capacity_grid(2, 2), "2,4,all");
-        assert_eq!(
-            capacity_grid(1 << 31, 1),
-            "1073741824,2147483648,4294967295,all"
-        );
-        assert_eq!(capacity_grid(u32::MAX, 1), "2147483647,4294967295,all");
     }
 }

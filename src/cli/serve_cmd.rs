@@ -61,17 +61,11 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             anyhow::bail!("{flag} {t:?} is below 1ms: every transfer would be cut short");
         }
     }
-    let identity = || {
-        let meta = std::fs::metadata(&a.file).ok();
-        meta.and_then(|m| atlastree::util::file_identity(&m))
-    };
-    let checked = identity();
+    let checked =
+        (std::fs::metadata(&a.file).ok()).and_then(|m| atlastree::util::file_identity(&m));
     let file = super::open_local(&a.file, "serve", atlastree::store::LoadMode::Auto)?;
     let (blocks, file_bytes) = (file.blocks().len(), file.file_len());
     drop(file);
-    // The server opens the path again; a file renamed over it in between (a build publishing) would be
-    // served unchecked, under the checked file's URL, blocks and size (fault hunt, session 32).
-    let replaced = |served: Option<(u64, u64)>| checked.is_some() && served != checked;
     let options = serve::ServeOptions {
         max_connections: a.max_connections,
         header_timeout: a.header_timeout,
@@ -84,7 +78,9 @@ pub(super) fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     // error before anything is announced.
     let (signals, interrupted) = interrupt_handler()?;
     let server = serve::spawn_with(&a.file, SocketAddr::new(a.bind, a.port), options)?;
-    if replaced(server.file_identity()) {
+    // The server opens the path again; a file renamed over it in between (a build publishing) would be
+    // served unchecked, under the checked file's URL, blocks and size (fault hunt, session 32).
+    if checked.is_some() && server.file_identity() != checked {
         drop(server);
         anyhow::bail!(
             "{}: the file was replaced while serve checked it (a build publishing it?): run serve again",

@@ -559,7 +559,7 @@ pub fn build(
         mut timings,
         forest,
         mut reports,
-    } = plan_build(scene, opts, progress)?;
+    } = plan_build(scene, opts, plan_forest::Budget::Build, progress)?;
 
     // One shard, in memory: the cut at the roots, so nothing is left above it (module shard).
     let t = Instant::now();

@@ -61,6 +61,7 @@ pub(super) fn empty_scene(scene: &Scene) -> BuildError {
 pub(super) fn plan_build(
     scene: &Scene,
     opts: &BuildOptions,
+    budget: Budget,
     progress: &dyn Progress,
 ) -> Result<Planned, BuildError> {
     let (params, diagonal) = resolve_params(scene, opts)?;
@@ -68,12 +69,12 @@ pub(super) fn plan_build(
     if parts.is_empty() {
         return Err(empty_scene(scene));
     }
-    let memory_plan = plan_memory(
-        scene,
-        opts,
-        &params,
-        plan_load(scene, opts, &params, &parts),
-    )?;
+    let load = plan_load(scene, opts, &params, &parts);
+    let memory_plan = match (budget, opts.max_memory_bytes) {
+        (Budget::Build, _) => plan_memory(scene, opts, &params, load)?,
+        (Budget::PlanStep, Some(b)) => Some(memory::plan_step_memory(b, load)?),
+        (Budget::PlanStep, None) => None,
+    };
     let mut timings = StageLog::default();
     let (forest, reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
     check_file_size(&forest, &reports, opts)?;
@@ -85,6 +86,14 @@ pub(super) fn plan_build(
         forest,
         reports,
     })
+}
+
+/// What `--max-memory` must hold in a [`plan_build`]: the plan and the pixel pass after it (a build, a
+/// self-planning shard), or the plan alone (the plan step of a sharded build, which runs no pixel pass).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Budget {
+    Build,
+    PlanStep,
 }
 
 /// Stages 1–3 for every tree: the forest without pixels (every block's size fixed), with a report per tree.
@@ -189,7 +198,7 @@ pub(super) fn plan_load(
     parts: &[(TreeKind, Vec<u32>)],
 ) -> memory::PlanLoad {
     let triangles = scene.triangles.len() as u64;
-    if opts.repeat != RepeatMode::Bake || opts.max_memory_bytes.is_none() {
+    if opts.max_memory_bytes.is_none() {
         return memory::PlanLoad::triangles(triangles);
     }
     let popts = prepare_options(params, opts);

@@ -134,25 +134,13 @@ pub fn plan_shards(
         })
         .collect::<Result<Vec<_>, _>>()?;
     // The plan step runs no pixel pass: its budget covers the plan alone.
-    let memory = match opts.max_memory_bytes {
-        Some(budget) => {
-            let (params, _) = super::resolve_params(scene, opts)?;
-            let parts = super::partition_triangles(scene);
-            let load = super::plan_forest::plan_load(scene, opts, &params, &parts);
-            Some(super::memory::plan_step_memory(budget, load)?)
-        }
-        None => None,
-    };
-    let unbudgeted = BuildOptions {
-        max_memory_bytes: None,
-        ..opts.clone()
-    };
     let super::Planned {
         mut timings,
         forest,
         reports,
+        memory_plan: memory,
         ..
-    } = super::plan_build(scene, &unbudgeted, progress)?;
+    } = super::plan_build(scene, opts, super::plan_forest::Budget::PlanStep, progress)?;
     let t = Instant::now();
     progress.stage("write plan", None);
     let prefix = table_prefix(&forest)?;

@@ -76,7 +76,7 @@ pub fn build_shard(
         forest,
         reports,
         ..
-    } = super::plan_build(scene, opts, progress)?;
+    } = super::plan_build(scene, opts, super::plan_forest::Budget::Build, progress)?;
     let t = Instant::now();
     let prefix = table_prefix(&forest)?;
     let prefix_hash = hash128(&prefix);

@@ -537,9 +537,8 @@ fn run_build(
 const SETTLE_MAX_STEPS: u32 = 4096;
 
 /// What [`settle`] loaded.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default)]
 struct Settled {
-    steps: u32,
     loaded: u32,
     bytes: u64,
 }
@@ -559,9 +558,8 @@ fn settle(
     scale: f64,
 ) -> Result<Settled, crate::plan::PlanError> {
     let mut out = Settled::default();
-    while out.steps < SETTLE_MAX_STEPS {
+    for _ in 0..SETTLE_MAX_STEPS {
         let frame = planner.plan(camera, time, scale, &mut r.residency())?;
-        out.steps += 1;
         let Some(p) = frame.stats.paging.as_ref() else {
             return Ok(out);
         };
