@@ -97,6 +97,8 @@ pub enum CameraError {
         field: &'static str,
         value: f64,
     },
+    #[error("{path}: near is {near} and far is {far}: near must be less than far")]
+    NearNotBelowFar { path: PathBuf, near: f64, far: f64 },
     #[error(
         "{path}: up vector {up:?} must be finite and non-zero, and long enough that its length is a number \
          (not below ~1e-154)"
@@ -265,10 +267,11 @@ impl CameraPath {
             }
         }
         if self.near >= self.far {
-            return Err(CameraError::BadLens {
+            // Both named: the old message blamed near alone (fault hunt, session 33).
+            return Err(CameraError::NearNotBelowFar {
                 path: path(),
-                field: "near",
-                value: self.near,
+                near: self.near,
+                far: self.far,
             });
         }
         // The depth term of `Camera::projection` reaches the GPU as an f32; subnormal or zero, every

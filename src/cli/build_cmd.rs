@@ -71,7 +71,8 @@ pub(crate) struct BuildArgs {
     /// tree held only the facades (§7). d_min ratios then refer to the kept geometry's diagonal.
     #[arg(long, value_delimiter = ',', value_name = "GLOB")]
     pub materials: Vec<String>,
-    /// Up axis; `auto` takes the axis of least extent.
+    /// Up axis; `auto` takes the axis of least extent where it is under half the next least, else y
+    /// (glTF's convention).
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
     /// One step of a sharded build (city scale, docs/city-scale.md). `plan`: plan the whole tree once

@@ -154,7 +154,7 @@ pub(crate) enum Command {
 /// Which axis points up (the other two span the distribution plane).
 #[derive(Copy, Clone, Debug, Default, ValueEnum)]
 pub(crate) enum UpArg {
-    /// The axis of least extent.
+    /// The axis of least extent where it is under half the next least, else y (glTF's convention).
     #[default]
     Auto,
     X,

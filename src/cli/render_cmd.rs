@@ -287,7 +287,7 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
         );
     }
     if let Some(e) = fl.planner.first_load_error() {
-        eprintln!("warning: block loads failed during the run (drawn coarser); the first: {e}");
+        eprintln!("warning: block loads failed during the run; the first: {e}");
     }
     let http = http.map(|h| h.stats());
     super::render_report::write_and_report(&cfg.out, cfg.reference, &runs, http)?;

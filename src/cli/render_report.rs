@@ -67,6 +67,8 @@ pub(super) fn write_and_report(
             "frames": m.frames,
             "median_frame_ms": m.frame_ms,
             "median_gpu_ms": m.gpu_ms,
+            // Paged runs: block loads that failed (a corrupt or unreachable block); null all-resident.
+            "load_failures": runs.iter().find(|r| r.mode == m.mode).and_then(|r| load_failures(&r.stats)),
             "reference": runs.iter().find(|r| r.mode == m.mode).and_then(|r| Quality::of(&r.quality)).map(|q| serde_json::json!({
                 "psnr_db_all_frames": q.psnr_all,
                 "psnr_db_min": q.psnr_min,
@@ -202,6 +204,12 @@ fn ratio_key(name: &str) -> String {
 }
 
 /// Mean and max of a column.
+/// Block loads that failed over a paged run (`None` for an all-resident one).
+fn load_failures(stats: &[FrameStats]) -> Option<u32> {
+    let paged: Vec<_> = stats.iter().filter_map(FrameStats::paging).collect();
+    (!paged.is_empty()).then(|| paged.iter().map(|p| p.pager().failures).sum())
+}
+
 fn mean_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut n, mut sum, mut max) = (0usize, 0.0, f64::NEG_INFINITY);
     for v in values {
@@ -337,7 +345,7 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
         let peak = paged.iter().map(|p| p.pager().resident).max().unwrap_or(0);
         let bytes: u64 = paged.iter().map(|p| p.pager().bytes_loaded).sum();
         let (share, max_share) = mean_max(paged.iter().map(|p| p.coarse.share()));
-        let failures: u32 = paged.iter().map(|p| p.pager().failures).sum();
+        let failures = load_failures(stats).unwrap_or(0);
         println!(
             "  paging: peak resident {peak}, {} loaded after the root atlases (resident before the first \
              frame), coarser share mean {:.3} max {:.3}, {} load failures",
@@ -347,8 +355,15 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
             failures
         );
         if failures > 0 {
+            // Only where some frame drew coarser: a block fetched ahead of need fails unseen (it said
+            // "those nodes drew coarser" beside a coarser share of 0: fault hunt, session 33).
+            let drawn = if max_share > 0.0 {
+                "nodes whose blocks were missing drew a coarser resident atlas"
+            } else {
+                "no frame drew coarser for them: they were fetched ahead of need"
+            };
             println!(
-                "  warning: {failures} block loads failed (those nodes drew a coarser resident atlas; see stats.csv failures)"
+                "  warning: {failures} block loads failed ({drawn}; see stats.csv failures): is the file corrupt?"
             );
         }
         if let Some(line) = unanswered_requests(&paged, failures) {

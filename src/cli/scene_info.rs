@@ -7,7 +7,8 @@ use std::process::ExitCode;
 pub(crate) struct SceneInfoArgs {
     /// The glTF scene (.gltf or .glb).
     pub scene: PathBuf,
-    /// Up axis; `auto` takes the axis of least extent.
+    /// Up axis; `auto` takes the axis of least extent where it is under half the next least, else y
+    /// (glTF's convention).
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
     /// Keep only the triangles of these materials (comma-separated globs, as `build --materials`).

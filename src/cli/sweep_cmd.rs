@@ -56,7 +56,8 @@ pub(crate) struct SweepArgs {
     /// too, per build, so the report shows where they fall short as well.
     #[arg(long, default_value = "original")]
     pub reference: Reference,
-    /// Up axis; `auto` takes the axis of least extent.
+    /// Up axis; `auto` takes the axis of least extent where it is under half the next least, else y
+    /// (glTF's convention).
     #[arg(long, value_enum, default_value_t = UpArg::Auto)]
     pub up: UpArg,
     /// Print the variant rows and the recommendation as JSON on stdout.

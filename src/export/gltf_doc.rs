@@ -29,6 +29,15 @@ pub(super) fn wrap_code(w: crate::scene::Wrap) -> u32 {
     }
 }
 
+/// Where a leaf's node puts the leaf's positions in its tile.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct LeafPlacement {
+    /// The leaf origin relative to the tile's (tree's) origin, in glTF's frame.
+    pub translation: [f32; 3],
+    /// The turn from the scene's frame to glTF's (`tileset::gltf_rotation`), `None` for y-up.
+    pub rotation: Option<[f32; 4]>,
+}
+
 /// A material: one texture, the UV set it reads, an optional `KHR_texture_transform` (offset, scale),
 /// the base colour factor (linear) and the alpha mode (0 opaque, 1 mask with cutoff, 2 blend).
 #[derive(Clone, Debug, PartialEq)]
@@ -235,7 +244,7 @@ impl GltfDoc {
         leaf: usize,
         mesh: &LeafMesh,
         uri: &str,
-        translation: [f32; 3],
+        placement: LeafPlacement,
         prims: &[(IndexGroup, usize, bool)],
     ) {
         if prims.is_empty() {
@@ -261,8 +270,12 @@ impl GltfDoc {
         }
         self.primitives += out.len();
         self.meshes.push(json!({ "primitives": out }));
-        self.nodes
-            .push(json!({ "mesh": self.meshes.len() - 1, "translation": translation }));
+        let mut node =
+            json!({ "mesh": self.meshes.len() - 1, "translation": placement.translation });
+        if let Some(rotation) = placement.rotation {
+            node["rotation"] = json!(rotation);
+        }
+        self.nodes.push(node);
     }
 
     /// The document as JSON text.

@@ -385,6 +385,8 @@ struct TreeCtx<'a> {
     /// Original images by (block, slot).
     originals: HashMap<(u32, u32), ImageSummary>,
     codec: ImageCodec,
+    /// The scene's up axis (the forest's): the tile frame's z.
+    up: crate::scene::UpAxis,
 }
 
 fn write_tileset(
@@ -454,7 +456,7 @@ fn write_tileset(
         let bounds = tileset::union(roots.iter().map(|r| r.1));
         let (lo, hi) = bounds.unwrap_or((DVec3::ZERO, DVec3::ZERO));
         json!({
-            "boundingVolume": { "box": tileset::tile_box(lo, hi, DVec3::ZERO) },
+            "boundingVolume": { "box": tileset::tile_box(lo, hi, DVec3::ZERO, params.up) },
             "geometricError": far,
             "refine": "REPLACE",
             "children": roots.into_iter().map(|r| r.0).collect::<Vec<_>>(),
@@ -638,6 +640,7 @@ fn prepare_tree<'a>(
         grid,
         originals,
         codec,
+        up: forest.params.up,
     })
 }
 
@@ -719,7 +722,7 @@ fn tree_tileset(
         let hi = DVec3::from_array(t.bounds_max);
         let (lo, hi) = tileset::with_f32_slack(lo, hi, ctx.origin);
         let mut j = json!({
-            "boundingVolume": { "box": tileset::tile_box(lo, hi, ctx.origin) },
+            "boundingVolume": { "box": tileset::tile_box(lo, hi, ctx.origin, ctx.up) },
             "geometricError": t.geometric_error,
             "content": { "uri": t.uri },
             "extras": { "atlastree": { "tree": t.tree, "node": t.node, "level": t.level,
@@ -747,7 +750,7 @@ fn tree_tileset(
         built[i] = Some(tile_json(&tiles[i], children));
     }
     let mut root = built[0].take().unwrap_or_default();
-    root["transform"] = tileset::translation(ctx.origin);
+    root["transform"] = tileset::translation(ctx.origin, ctx.up);
     // Grown as the root tile's box is, so the union over both trees holds both boxes.
     let bounds = (tree.nodes[0].bounds_min, tree.nodes[0].bounds_max);
     let bounds = tileset::with_f32_slack(bounds.0, bounds.1, ctx.origin);

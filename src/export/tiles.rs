@@ -3,10 +3,13 @@
 //! [`super`]).
 
 use super::geometry::{self, GroupKey};
-use super::gltf_doc::{self, CLAMP_TO_EDGE, GltfDoc, MIRRORED_REPEAT, MaterialSpec, REPEAT};
+use super::gltf_doc::{
+    self, CLAMP_TO_EDGE, GltfDoc, LeafPlacement, MIRRORED_REPEAT, MaterialSpec, REPEAT,
+};
 use super::images::{self, ImageCodec};
 use super::{
-    ExportError, ExportOptions, ImageSummary, TileSummary, TreeCtx, encode_image, write_file,
+    ExportError, ExportOptions, ImageSummary, TileSummary, TreeCtx, encode_image, tileset,
+    write_file,
 };
 use crate::model::{AtlasForest, RectWrap};
 use crate::store::TreeFile;
@@ -21,10 +24,15 @@ fn period_wrap(w: RectWrap) -> u32 {
     }
 }
 
-/// The leaf's translation in its tree's frame (scene frame, relative to the tree origin).
-fn leaf_translation(ctx: &TreeCtx<'_>, leaf: usize) -> [f32; 3] {
-    let d = ctx.tree.leaves[leaf].origin - ctx.origin;
-    [d.x as f32, d.y as f32, d.z as f32]
+/// Where a leaf's node puts its positions (scene frame, relative to the leaf origin) in its tile: the
+/// leaf origin relative to the tree origin and the turn that makes the scene's up axis glTF's y, both
+/// in glTF's frame (`tileset::to_gltf_frame`).
+fn leaf_placement(ctx: &TreeCtx<'_>, leaf: usize) -> LeafPlacement {
+    let d = tileset::to_gltf_frame(ctx.tree.leaves[leaf].origin - ctx.origin, ctx.up);
+    LeafPlacement {
+        translation: [d.x as f32, d.y as f32, d.z as f32],
+        rotation: tileset::gltf_rotation(ctx.up).map(|q| q.map(|c| c as f32)),
+    }
 }
 
 /// The node tiles of a tree: `(content uri, summary)` per node.
@@ -177,7 +185,7 @@ fn atlas_tile(
                 GroupKey::Original { .. } => {}
             }
         }
-        doc.leaf_node(l, mesh, &uri, leaf_translation(ctx, l), &prims);
+        doc.leaf_node(l, mesh, &uri, leaf_placement(ctx, l), &prims);
     }
     if avg_tex.is_some() {
         let (summary, src) = encode_image(&ctx.dir, &avg_uri, &averages, ImageCodec::Png, true)?;
@@ -292,7 +300,7 @@ fn originals_tile(
             l,
             mesh,
             &format!("geom/l{l}.bin"),
-            leaf_translation(ctx, l),
+            leaf_placement(ctx, l),
             &prims,
         );
     }

@@ -31,6 +31,9 @@ pub const JSON_BYTES_FACTOR: u64 = 16;
 /// The process itself, its libraries and small tables.
 pub const BASE_BYTES: u64 = 64 << 20;
 /// Decoded bytes per source texel in the image cache: RGBA8 (4) and the linear f32 mip chain (16 × 4/3).
+/// The cache holds at most one of each image, whoever draws it (`raster::ImageCache::get`): measured
+/// peak 6.45 GiB for a build of one 16384² texture (268 M texels, 25.8 bytes a texel with everything
+/// else the process holds).
 pub const CACHE_BYTES_PER_TEXEL: u64 = 26;
 /// Atlases' worth of f32 RGBA texels one rasteriser thread holds (the atlas, its mip chain, the halves of
 /// its children waiting to be combined, the encoded block). Beside them, not counted: the colour bleed's
@@ -73,6 +76,35 @@ impl PlanLoad {
     }
 }
 
+/// The images a pixel pass may decode, as the image cache holds them: each image at most once in the
+/// process (its chain is built by one thread while the others that need it wait, and taken back while
+/// any thread still holds it after its eviction: `raster::ImageCache::get`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImageLoad {
+    /// Texels of the largest image.
+    pub largest_texels: u64,
+    /// Texels of the `threads` largest images together: what the rasteriser threads hold at once
+    /// when each draws from another of the largest images.
+    pub per_thread_texels: u64,
+    /// Texels of all the images together: the cache and the threads never hold more than each once.
+    pub all_texels: u64,
+}
+
+impl ImageLoad {
+    /// The load of images of `texels` each, drawn by `threads` rasteriser threads.
+    pub fn of(texels: impl IntoIterator<Item = u64>, threads: u64) -> ImageLoad {
+        let mut all: Vec<u64> = texels.into_iter().collect();
+        all.sort_unstable_by(|a, b| b.cmp(a));
+        let threads = usize::try_from(threads.max(1)).unwrap_or(usize::MAX);
+        let sum = |t: &[u64]| t.iter().fold(0u64, |s, &x| s.saturating_add(x));
+        ImageLoad {
+            largest_texels: all.first().copied().unwrap_or(0),
+            per_thread_texels: sum(&all[..threads.min(all.len())]),
+            all_texels: sum(&all),
+        }
+    }
+}
+
 /// How a build spends its memory budget (bytes).
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq, Eq)]
 pub struct MemoryPlan {
@@ -84,8 +116,8 @@ pub struct MemoryPlan {
     pub raster_bytes: u64,
     /// The image cache's bound (the originals cache may add a quarter of it).
     pub image_cache_bytes: u64,
-    /// The least budget this build runs in: plan, raster and a cache that holds the largest image once
-    /// per thread (at least [`MIN_IMAGE_CACHE`]).
+    /// The least budget this build runs in: plan, raster and a cache that holds the threads' largest
+    /// images (at least [`MIN_IMAGE_CACHE`]), never more than every image once.
     pub needed_bytes: u64,
 }
 
@@ -96,7 +128,7 @@ pub struct MemoryPlan {
      rasteriser threads; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; \
      by default half the memory this process may use): raise --max-memory{}",
     plan_why(*.triangles, *.extra_pieces),
-    cache_why(.largest_image, *.largest_texels, *.threads),
+    cache_why(.largest_image, *.images, *.threads),
     if *.triangles > 0 { ", or for a sharded build plan once (`build --shard plan`): its shards then hold no \
      triangles" } else { "" }
 )]
@@ -110,7 +142,7 @@ pub struct MemoryError {
     pub raster_mib: u64,
     pub threads: u64,
     pub cache_mib: u64,
-    pub largest_texels: u64,
+    pub images: ImageLoad,
     /// The largest image's name; filled in by the caller, who knows the images ([`MemoryError::naming`]).
     pub largest_image: String,
 }
@@ -139,28 +171,56 @@ fn plan_why(triangles: u64, extra_pieces: u64) -> String {
     }
 }
 
-/// Why the image cache needs what it needs: the largest image once per thread where that passes the
-/// cache's minimum ([`MIN_IMAGE_CACHE`]), else the minimum (a small image is not the cause; the docs hunt
-/// of session 29 found a 64² texture blamed for 80 MiB); each thread's image held once more while it is
-/// decoded (or held, evicted) either way. An image is counted per thread, not once: threads that miss
-/// one image's chain build their own copies, and the chain tier holds 3/4 of the cache (the review of
-/// session 32 found both, so a single 16384² texture is still counted 4.5 times at 2 threads).
-fn cache_why(largest_image: &str, largest_texels: u64, threads: u64) -> String {
-    let per_thread = largest_texels.saturating_mul(CACHE_BYTES_PER_TEXEL);
-    if per_thread.saturating_mul(threads.max(1)) > MIN_IMAGE_CACHE {
+/// Why the image cache needs what it needs ([`cache_need`]): every image once where that is less
+/// (one huge texture), else the threads' largest images in the cache where they pass its minimum
+/// ([`MIN_IMAGE_CACHE`]), or the minimum (a small image is not the cause; the docs hunt of session 29
+/// found a 64² texture blamed for 80 MiB), and each thread's image once more while it is decoded.
+fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
+    let ImageLoad {
+        largest_texels,
+        per_thread_texels,
+        all_texels,
+    } = images;
+    let (_, all_bound) = cache_need(images);
+    if all_bound {
         format!(
-            "the largest image, {largest_image}: {largest_texels} texels, once per thread in the cache and \
-             once more while it is decoded; downscale that image if it dominates"
+            "every image once ({all_texels} texels; the largest, {largest_image}: {largest_texels}), \
+             with a quarter for originals; downscale the largest if it dominates"
+        )
+    } else if per_thread_texels.saturating_mul(CACHE_BYTES_PER_TEXEL) > MIN_IMAGE_CACHE {
+        format!(
+            "the {threads} largest images ({per_thread_texels} texels; the largest, {largest_image}: \
+             {largest_texels}), one a thread in the cache and once more while it is decoded; downscale \
+             the largest if they dominate"
         )
     } else {
         // The in-flight share is in the number: named here too (hacienda's shard said 132 MiB for "the
         // minimum of 64 MiB with a quarter", 52 unexplained; fault hunt, session 32).
         format!(
-            "the cache's minimum of {} MiB with a quarter for originals, and each thread's largest image \
-             ({largest_image}, {largest_texels} texels) once more while it is decoded",
+            "the cache's minimum of {} MiB with a quarter for originals, and each thread's image (the \
+             largest, {largest_image}, {largest_texels} texels) once more while it is decoded",
             MIN_IMAGE_CACHE >> 20
         )
     }
+}
+
+/// The image cache's floor (the least bound it runs with) and what the cache and the images in flight
+/// need at most, with the flag: that is every image once (less than the per-thread count).
+///
+/// The floor holds the threads' largest images, one each ([`ImageLoad::per_thread_texels`], at least
+/// [`MIN_IMAGE_CACHE`]); the originals cache may add a quarter of the bound; and each thread holds its
+/// image outside the cache while it decodes it and builds its chain (or holds it, evicted, while its
+/// leaf is drawn): at the old need, without that, black_forest peaked 13 % over the budget (674 MiB:
+/// 759) and a planned shard of it 22 % (512 MiB: 626; session 30's memory hunt). As the process holds
+/// an image at most once, all that never passes every image once with the originals' quarter.
+fn cache_need(images: ImageLoad) -> (u64, bool) {
+    let bytes = |texels: u64| texels.saturating_mul(CACHE_BYTES_PER_TEXEL);
+    let per_threads = bytes(images.per_thread_texels);
+    let floor = per_threads.max(MIN_IMAGE_CACHE);
+    let in_flight = per_threads;
+    let counted = floor.saturating_add(floor / 4).saturating_add(in_flight);
+    let every_image = bytes(images.all_texels).saturating_add(floor / 4);
+    (counted.min(every_image), every_image < counted)
 }
 
 /// Why the plan step of a sharded build does not fit its budget.
@@ -185,13 +245,13 @@ pub fn plan_memory(
     load: PlanLoad,
     atlas_size: u32,
     threads: u64,
-    largest_image_texels: u64,
+    images: ImageLoad,
     cache_wanted: u64,
 ) -> Result<MemoryPlan, MemoryError> {
     let pixels = PixelNeeds {
         atlas_size,
         threads,
-        largest_image_texels,
+        images,
         cache_wanted,
     };
     split_budget(budget, load.bytes(), load, pixels)
@@ -225,13 +285,13 @@ pub fn planned_shard_memory(
     skeleton_bytes: u64,
     atlas_size: u32,
     threads: u64,
-    largest_image_texels: u64,
+    images: ImageLoad,
     cache_wanted: u64,
 ) -> Result<MemoryPlan, MemoryError> {
     let pixels = PixelNeeds {
         atlas_size,
         threads,
-        largest_image_texels,
+        images,
         cache_wanted,
     };
     split_budget(budget, skeleton_bytes, PlanLoad::default(), pixels)
@@ -241,7 +301,7 @@ pub fn planned_shard_memory(
 struct PixelNeeds {
     atlas_size: u32,
     threads: u64,
-    largest_image_texels: u64,
+    images: ImageLoad,
     cache_wanted: u64,
 }
 
@@ -255,24 +315,20 @@ fn split_budget(
     let PixelNeeds {
         atlas_size,
         threads,
-        largest_image_texels,
+        images,
         cache_wanted,
     } = pixels;
     let plan_bytes = BASE_BYTES.saturating_add(held);
     let atlas = u64::from(atlas_size).pow(2) * 16;
     let raster_bytes = threads.max(1) * ATLASES_PER_THREAD * atlas;
-    let per_threads =
-        (largest_image_texels.saturating_mul(CACHE_BYTES_PER_TEXEL)).saturating_mul(threads.max(1));
-    let floor = per_threads.max(MIN_IMAGE_CACHE);
-    // The originals cache may hold a quarter of the image cache's bound on top of it, and each thread
-    // its largest image outside the cache while it decodes it and builds its chain (or holds it, evicted,
-    // while its leaf is drawn): at the old need, without that, black_forest peaked 13 % over the budget
-    // (674 MiB: 759) and a planned shard of it 22 % (512 MiB: 626; session 30's memory hunt).
-    let in_flight = per_threads;
+    let floor = (images
+        .per_thread_texels
+        .saturating_mul(CACHE_BYTES_PER_TEXEL))
+    .max(MIN_IMAGE_CACHE);
+    let (cache_bytes, _) = cache_need(images);
     let needed_bytes = plan_bytes
         .saturating_add(raster_bytes)
-        .saturating_add(floor.saturating_add(floor / 4))
-        .saturating_add(in_flight);
+        .saturating_add(cache_bytes);
     if needed_bytes > budget {
         let mib = |b: u64| b.div_ceil(1 << 20);
         return Err(MemoryError {
@@ -283,8 +339,8 @@ fn split_budget(
             plan_mib: mib(plan_bytes),
             raster_mib: mib(raster_bytes),
             threads,
-            cache_mib: mib((floor.saturating_add(floor / 4)).saturating_add(in_flight)),
-            largest_texels: largest_image_texels,
+            cache_mib: mib(cache_bytes),
+            images,
             largest_image: "?".to_string(),
         });
     }
@@ -322,22 +378,29 @@ pub fn default_budget() -> Option<u64> {
 mod tests {
     use super::*;
 
-    /// The cache's floor is blamed on the largest image only where it sets it, and the in-flight share
+    /// The cache's floor is blamed on the largest images only where they set it, and the in-flight share
     /// is named either way; a planned shard's plan share names no triangles.
     #[test]
     fn refusals_name_what_sets_each_share() {
-        let small = cache_why("t.png", 64 * 64, 2);
+        let small = cache_why("t.png", ImageLoad::of(vec![512 * 512; 40], 2), 2);
         assert!(
             small.contains("the cache's minimum of 64 MiB")
-                && small.contains("each thread's largest image (t.png, 4096 texels) once more"),
+                && small.contains("(the largest, t.png, 262144 texels) once more"),
             "{small}"
         );
-        let big = cache_why("big.png", 4096 * 4096, 2);
+        let big = cache_why("big.png", ImageLoad::of(vec![4096 * 4096; 5], 2), 2);
         assert!(
-            big.contains("the largest image, big.png: 16777216 texels"),
+            big.contains("the 2 largest images (33554432 texels; the largest, big.png: 16777216)"),
             "{big}"
         );
-        assert!(cache_why("x", u64::MAX, u64::MAX).contains("the largest image"));
+        let huge = cache_why("huge.png", ImageLoad::of([16384 * 16384, 64 * 64], 2), 2);
+        assert!(
+            huge.contains("every image once (268439552 texels; the largest, huge.png: 268435456)"),
+            "{huge}"
+        );
+        let absurd = ImageLoad::of([u64::MAX, u64::MAX], u64::MAX);
+        assert_eq!(absurd.all_texels, u64::MAX);
+        assert!(cache_why("x", absurd, u64::MAX).contains("the largest"));
         assert_eq!(plan_why(12, 0), "a 64 MiB base and 12 triangles held");
         assert!(plan_why(12, 5).contains("cut into 5 more pieces where repeats are baked"));
         assert!(plan_why(0, 0).contains("no triangles"));
@@ -347,24 +410,42 @@ mod tests {
     fn budget_fixes_the_cache_and_refuses_what_cannot_fit() {
         // 1 M triangles, 1024² atlases, 2 threads, a 2048² largest image, 2 GiB wanted.
         let tris = PlanLoad::triangles;
-        let p = plan_memory(2 << 30, tris(1_000_000), 1024, 2, 2048 * 2048, 2 << 30).unwrap();
+        let images = |texels: u64| ImageLoad::of(vec![texels; 100], 2);
+        let p = plan_memory(
+            2 << 30,
+            tris(1_000_000),
+            1024,
+            2,
+            images(2048 * 2048),
+            2 << 30,
+        )
+        .unwrap();
         assert_eq!(p.plan_bytes, (64 << 20) + 250_000_000);
         assert_eq!(p.raster_bytes, 2 * 4 * 1024 * 1024 * 16);
         let left = (2u64 << 30) - p.plan_bytes - p.raster_bytes;
         assert_eq!(p.image_cache_bytes, left / CACHE_SHARE_DIVISOR);
         assert!(p.plan_bytes + p.raster_bytes + p.image_cache_bytes * 5 / 4 <= 2 << 30);
         // The need: plan, raster, the cache's floor with the originals' quarter, and each thread's largest
-        // image once more in flight (without it, builds at their stated need peaked 13–22 % over).
+        // image once more in flight (without it, builds at their stated need peaked 13–22 % over); two
+        // threads: the two largest images.
         let per_threads = 2048 * 2048 * CACHE_BYTES_PER_TEXEL * 2;
         assert_eq!(
             p.needed_bytes,
             p.plan_bytes + p.raster_bytes + per_threads + per_threads / 4 + per_threads
         );
         // A generous budget keeps the wanted cache.
-        let p = plan_memory(64 << 30, tris(1000), 1024, 2, 1 << 20, 2 << 30).unwrap();
+        let p = plan_memory(64 << 30, tris(1000), 1024, 2, images(1 << 20), 2 << 30).unwrap();
         assert_eq!(p.image_cache_bytes, 2 << 30);
         // 20 M triangles do not fit 2 GiB: the error gives the number needed.
-        let e = plan_memory(2 << 30, tris(20_000_000), 1024, 2, 2048 * 2048, 2 << 30).unwrap_err();
+        let e = plan_memory(
+            2 << 30,
+            tris(20_000_000),
+            1024,
+            2,
+            images(2048 * 2048),
+            2 << 30,
+        )
+        .unwrap_err();
         assert_eq!(
             e.plan_mib,
             ((64u64 << 20) + 5_000_000_000).div_ceil(1 << 20)
@@ -374,14 +455,25 @@ mod tests {
         // The plan step needs the plan alone: 6 M triangles fit 2 GiB there, not with a cache beside.
         let p = plan_step_memory(2 << 30, tris(6_000_000)).unwrap();
         assert_eq!((p.raster_bytes, p.image_cache_bytes), (0, 0));
-        assert!(plan_memory(2 << 30, tris(6_000_000), 1024, 2, 4096 * 4096, 2 << 30).is_err());
+        assert!(
+            plan_memory(
+                2 << 30,
+                tris(6_000_000),
+                1024,
+                2,
+                images(4096 * 4096),
+                2 << 30
+            )
+            .is_err()
+        );
         let e = plan_step_memory(2 << 30, tris(24_000_000)).unwrap_err();
         assert_eq!(
             e.needed_mib,
             ((64u64 << 20) + 6_000_000_000).div_ceil(1 << 20)
         );
         // An absurd image header saturates the need instead of overflowing it.
-        let e = plan_memory(2 << 30, tris(10), 1024, 2, u64::MAX / 4, 2 << 30).unwrap_err();
+        let absurd = ImageLoad::of([u64::MAX / 4], 2);
+        let e = plan_memory(2 << 30, tris(10), 1024, 2, absurd, 2 << 30).unwrap_err();
         assert_eq!(e.needed_mib, u64::MAX.div_ceil(1 << 20));
     }
 
@@ -393,7 +485,8 @@ mod tests {
             triangles: 2048,
             extra_pieces: 1_000_000,
         };
-        let p = plan_memory(u64::MAX, load, 1024, 2, 64 * 64, 2 << 30).unwrap();
+        let images = ImageLoad::of([64 * 64], 2);
+        let p = plan_memory(u64::MAX, load, 1024, 2, images, 2 << 30).unwrap();
         assert_eq!(p.plan_bytes, BASE_BYTES + 2048 * 250 + 1_000_000 * 550);
         let e = plan_step_memory(300 << 20, load).unwrap_err();
         assert_eq!(e.extra_pieces, 1_000_000);
@@ -402,10 +495,48 @@ mod tests {
                 .contains("and 1000000 more pieces where repeats are baked"),
             "{e}"
         );
-        let e = plan_memory(300 << 20, load, 1024, 2, 64 * 64, 2 << 30).unwrap_err();
+        let e = plan_memory(300 << 20, load, 1024, 2, images, 2 << 30).unwrap_err();
         assert!(
             e.to_string().contains("cut into 1000000 more pieces"),
             "{e}"
+        );
+    }
+
+    /// The cache holds an image once whoever draws it, so one huge texture is counted once, not once a
+    /// thread and once more in flight: a 16384² texture beside three 1024² ones fits the default budget
+    /// of a 24 GiB machine (12 GiB; the old count, 4.5 times the texture, needed 31 GiB).
+    #[test]
+    fn one_huge_image_is_counted_once() {
+        let images = ImageLoad::of([1024 * 1024, 16384 * 16384, 1024 * 1024, 1024 * 1024], 2);
+        assert_eq!(
+            images,
+            ImageLoad {
+                largest_texels: 16384 * 16384,
+                per_thread_texels: 16384 * 16384 + 1024 * 1024,
+                all_texels: 16384 * 16384 + 3 * 1024 * 1024,
+            }
+        );
+        let p = plan_memory(
+            12 << 30,
+            PlanLoad::triangles(1000),
+            1024,
+            2,
+            images,
+            2 << 30,
+        )
+        .unwrap();
+        let floor = (16384 * 16384 + 1024 * 1024) * CACHE_BYTES_PER_TEXEL;
+        let every_image = (16384 * 16384 + 3 * 1024 * 1024) * CACHE_BYTES_PER_TEXEL + floor / 4;
+        assert_eq!(p.needed_bytes, p.plan_bytes + p.raster_bytes + every_image);
+        assert_eq!(p.image_cache_bytes, floor);
+        // With many images of that size, the threads' two are counted, each once more in flight.
+        let many = ImageLoad::of(vec![16384 * 16384; 8], 2);
+        let e =
+            plan_memory(12 << 30, PlanLoad::triangles(1000), 1024, 2, many, 2 << 30).unwrap_err();
+        let per_threads = 2 * 16384 * 16384 * CACHE_BYTES_PER_TEXEL;
+        assert_eq!(
+            e.cache_mib,
+            (per_threads * 5 / 4 + per_threads).div_ceil(1 << 20)
         );
     }
 }

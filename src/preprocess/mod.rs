@@ -621,16 +621,17 @@ pub(super) fn plan_memory(
         load,
         params.atlas_size,
         rayon::current_num_threads() as u64,
-        largest_image_texels(&scene.images),
+        image_load(&scene.images),
         opts.image_cache_bytes,
     )
     .map_err(|e| e.naming(largest_image_name(&scene.images)))?;
     Ok(Some(plan))
 }
 
-/// Texels of the largest of `images` (the image cache must hold it once per rasteriser thread).
-pub(super) fn largest_image_texels(images: &[crate::scene::ImageSource]) -> u64 {
-    images.iter().map(|i| i.texels()).max().unwrap_or(0)
+/// What `images` weigh in the image cache, drawn by this process's rasteriser threads.
+pub(super) fn image_load(images: &[crate::scene::ImageSource]) -> memory::ImageLoad {
+    let threads = rayon::current_num_threads() as u64;
+    memory::ImageLoad::of(images.iter().map(|i| i.texels()), threads)
 }
 
 /// The name of the largest of `images` (the first of equals), for [`memory::MemoryError::naming`].

@@ -85,10 +85,16 @@ pub struct ImageCache<'a> {
     /// once however often it is decoded again after eviction: [`Self::fallbacks`],
     /// [`Self::alpha_ignored`].
     noted: Vec<std::sync::atomic::AtomicU8>,
-    /// Per image: held while it is decoded, so threads that miss it together decode it once (the others
-    /// wait and take the result). Decoding runs no rayon work, so no task stolen under the lock can ask
-    /// for the same image on the same thread.
-    decode_locks: Vec<Mutex<()>>,
+    /// Per image: its chain entry while anything holds it (this cache, or a thread drawing a leaf after
+    /// the entry's eviction), so an image has one chain in the process, whoever asks for it
+    /// ([`Self::get`]; the memory budget counts each image once: `memory::ImageLoad`).
+    live: Vec<Mutex<std::sync::Weak<CachedImage>>>,
+    /// The images whose entries a thread is building now; the threads that need one of them too wait on
+    /// [`Self::built`] and take the result.
+    building: Mutex<std::collections::HashSet<ImageId>>,
+    built: std::sync::Condvar,
+    /// Chain entries built (each image once, again only after its entry was evicted and let go).
+    pub chain_builds: AtomicU64,
     /// Per image: `xxh3_128` of the pixels its first decode gave (after any alpha drop; the fallback's
     /// own when it failed). A shard file carries them, so the merge refuses shards that decoded one image
     /// to different pixels ([`Self::pixel_hashes`]).
@@ -189,6 +195,34 @@ impl<V: Clone> Lru<V> {
     }
 }
 
+thread_local! {
+    /// Entries this thread is building now ([`ImageCache::get`]).
+    static BUILDING: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
+}
+
+/// A thread's claim to build one image's entry ([`ImageCache::get`]): released when dropped (a panic
+/// included), waking the threads that wait for it.
+struct Claim<'c, 'a> {
+    cache: &'c ImageCache<'a>,
+    id: ImageId,
+}
+
+impl<'c, 'a> Claim<'c, 'a> {
+    /// The claim on `id`, already entered in `cache.building`.
+    fn taken(cache: &'c ImageCache<'a>, id: ImageId) -> Self {
+        BUILDING.with(|b| b.set(b.get() + 1));
+        Claim { cache, id }
+    }
+}
+
+impl Drop for Claim<'_, '_> {
+    fn drop(&mut self) {
+        BUILDING.with(|b| b.set(b.get() - 1));
+        lock(&self.cache.building).remove(&self.id);
+        self.cache.built.notify_all();
+    }
+}
+
 /// Locks `m`, recovering the data of a poisoned lock (a panicking thread aborts the build anyway).
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
@@ -208,7 +242,10 @@ impl<'a> ImageCache<'a> {
             original_hits: AtomicU64::new(0),
             opaque_only: opaque_only_images(scene),
             noted: scene.images.iter().map(|_| Default::default()).collect(),
-            decode_locks: scene.images.iter().map(|_| Mutex::new(())).collect(),
+            live: scene.images.iter().map(|_| Default::default()).collect(),
+            building: Mutex::default(),
+            built: std::sync::Condvar::new(),
+            chain_builds: AtomicU64::new(0),
             pixel_hashes: scene.images.iter().map(|_| Default::default()).collect(),
             changed: Mutex::new(Vec::new()),
             downsampled: Mutex::new(Default::default()),
@@ -255,32 +292,70 @@ impl<'a> ImageCache<'a> {
         }
     }
 
-    /// The decoded image `id`, decoding it if needed. A decode failure yields a magenta/black checker
-    /// (visible, never silently wrong), counted in `fallbacks` with a warning naming the image.
+    /// The decoded image `id` with its chain, decoded and built if needed, once: threads that miss it
+    /// together wait for the one that builds it, and an entry evicted while a thread still holds it is
+    /// taken back, not built again, so the process holds at most one chain of an image (a 16384²
+    /// texture drawn by two threads was two chains, ~11 GiB: the budget counted every image once per
+    /// thread; fault hunt, session 32). A decode failure yields a magenta/black checker (visible, never
+    /// silently wrong), counted in `fallbacks` with a warning naming the image.
+    ///
+    /// The build runs on the calling thread alone ([`super::image_ops::on_this_thread`]): the waiters
+    /// block inside rayon tasks, so no piece of the build may be a task one of them could be holding.
     pub fn get(&self, id: ImageId) -> Arc<CachedImage> {
-        if let Some(e) = lock(&self.chains).get(id) {
-            return e;
+        loop {
+            if let Some(e) = self.held(id) {
+                return e;
+            }
+            let mut building = lock(&self.building);
+            if building.insert(id) {
+                break;
+            }
+            if BUILDING.with(|b| b.get()) > 0 {
+                // This thread is building another entry further up its stack (a build that ran a rayon
+                // task would get here): it never waits, which could close a cycle, but builds a copy.
+                drop(building);
+                return Arc::new(self.build(id));
+            }
+            while building.contains(&id) {
+                building = self.built.wait(building).unwrap_or_else(|e| e.into_inner());
+            }
         }
+        let _claim = Claim::taken(self, id);
+        let entry = Arc::new(super::image_ops::on_this_thread(|| self.build(id)));
+        if let Some(live) = self.live.get(id.idx()) {
+            *lock(live) = Arc::downgrade(&entry);
+        }
+        lock(&self.chains).insert(id, entry.clone(), entry.bytes());
+        self.chain_builds.fetch_add(1, Ordering::Relaxed);
+        entry
+    }
+
+    /// Image `id`'s entry where the cache or a thread holds it (taken back into the cache then).
+    fn held(&self, id: ImageId) -> Option<Arc<CachedImage>> {
+        if let Some(e) = lock(&self.chains).get(id) {
+            return Some(e);
+        }
+        let e = lock(self.live.get(id.idx())?).upgrade()?;
+        lock(&self.chains).insert(id, e.clone(), e.bytes());
+        Some(e)
+    }
+
+    /// Image `id` decoded (or taken from the sources tier) and its linear chain built.
+    fn build(&self, id: ImageId) -> CachedImage {
+        // Its own statement: the guard of a lock in the condition would live through the closure.
         let cached_source = lock(&self.sources).get(id);
         let decoded = cached_source.unwrap_or_else(|| {
-            let _decoding = self.decode_locks.get(id.idx()).map(lock);
-            // Another thread may have decoded it while this one waited.
-            let again = lock(&self.sources).get(id);
-            again.unwrap_or_else(|| {
-                let d = Arc::new(self.decode(id));
-                lock(&self.sources).insert(id, d.clone(), d.pixels.len() as u64 * 4);
-                d
-            })
+            let d = Arc::new(self.decode(id));
+            lock(&self.sources).insert(id, d.clone(), d.pixels.len() as u64 * 4);
+            d
         });
         // `decode` checked the pixel count, the only way `from_decoded` fails.
         let linear = LinearImage::from_decoded(&decoded)
             .unwrap_or_else(|_| LinearImage::new_filled(1, 1, [1.0, 0.0, 1.0, 1.0]));
-        let entry = Arc::new(CachedImage {
+        CachedImage {
             decoded,
             chain: MipChain::build(linear),
-        });
-        lock(&self.chains).insert(id, entry.clone(), entry.bytes());
-        entry
+        }
     }
 
     /// Image `id` decoded (alpha dropped where only OPAQUE materials use it). A decode failure or a pixel
@@ -806,6 +881,48 @@ mod tests {
         }
         assert_eq!(cache.decodes.load(Ordering::Relaxed), 3);
         assert_eq!(cache.alpha_ignored(), 2);
+    }
+
+    /// Threads that need one image together build its chain once, and an entry evicted while a thread
+    /// still holds it is taken back, not built again: the process holds one chain of an image, as the
+    /// memory budget counts it (`memory::ImageLoad`).
+    #[test]
+    fn an_image_has_one_chain_however_many_threads_draw_it() {
+        use crate::scene::synthetic::SceneBuilder;
+        use crate::scene::{AlphaMode, UpAxis};
+        use rayon::prelude::*;
+        let mut b = SceneBuilder::new(UpAxis::Y);
+        let [big, small] = [("big", 512), ("small", 8)].map(|(name, side)| {
+            let img = b.image(name, side, side, |x, y| [x as u8, y as u8, 7, 255]);
+            let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+            b.triangle(
+                [glam::DVec3::ZERO, glam::DVec3::X, glam::DVec3::Z],
+                [glam::DVec2::ZERO; 3],
+                m,
+            );
+            img
+        });
+        let scene = b.build();
+        // Holds one entry at a time.
+        let cache = ImageCache::new(&scene, 1);
+        let builds = || cache.chain_builds.load(Ordering::Relaxed);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(4)
+            .build()
+            .unwrap();
+        let held: Vec<Arc<CachedImage>> =
+            pool.install(|| (0..16).into_par_iter().map(|_| cache.get(big)).collect());
+        assert!(held.iter().all(|e| Arc::ptr_eq(e, &held[0])));
+        assert_eq!((builds(), cache.decodes.load(Ordering::Relaxed)), (1, 1));
+        // `small` evicts `big`, which `held` keeps: taken back, the same entry.
+        drop(cache.get(small));
+        assert!(Arc::ptr_eq(&cache.get(big), &held[0]));
+        assert_eq!(builds(), 2);
+        // Let go and evicted, it is built again.
+        drop(held);
+        drop(cache.get(small));
+        drop(cache.get(big));
+        assert_eq!(builds(), 4);
     }
 
     #[test]

@@ -187,8 +187,16 @@ fn bad_files_give_clear_errors() {
         r#"{{ "keyframes": [ {} ], "near": 10, "far": 5 }}"#,
         kf(0.0, 60.0)
     ));
+    // Both planes named (it blamed near alone: fault hunt, session 33).
     assert!(
-        matches!(e, CameraError::BadLens { field: "near", .. }),
+        matches!(
+            e,
+            CameraError::NearNotBelowFar {
+                near: 10.0,
+                far: 5.0,
+                ..
+            }
+        ) && e.to_string().contains("near is 10 and far is 5"),
         "{e}"
     );
     // A near so small that the projection's depth term is no normal f32 drew blank frames; 1e-30 draws.

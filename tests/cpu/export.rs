@@ -23,27 +23,45 @@ const NO_PROGRESS: &(dyn Fn(u64, u64) + Sync) = &|_, _| {};
 /// data/city built with the demo's settings, once per test binary.
 fn city() -> &'static (tempfile::TempDir, PathBuf) {
     static CITY: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
-    CITY.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
-        let scene = atlastree::scene::import(
-            &Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf"),
-            &Default::default(),
-        )
-        .unwrap();
-        let out = dir.path().join("city.atlastree");
-        build(
-            &scene,
-            &DemoTour::DEFAULT.build_options(),
-            &out,
-            &NoProgress,
-        )
-        .unwrap();
-        (dir, out)
-    })
+    CITY.get_or_init(|| build_city(false))
+}
+
+/// data/city stood on z (its y-up `(x, y, z)` as the z-up `(x, −z, y)`, `up` Z), once per test binary.
+fn z_up_city() -> &'static (tempfile::TempDir, PathBuf) {
+    static CITY: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    CITY.get_or_init(|| build_city(true))
+}
+
+fn build_city(z_up: bool) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = atlastree::scene::import(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf"),
+        &Default::default(),
+    )
+    .unwrap();
+    if z_up {
+        for v in &mut scene.vertices {
+            v.pos = DVec3::new(v.pos.x, -v.pos.z, v.pos.y);
+        }
+        scene.up = atlastree::scene::UpAxis::Z;
+    }
+    let out = dir.path().join("city.atlastree");
+    build(
+        &scene,
+        &DemoTour::DEFAULT.build_options(),
+        &out,
+        &NoProgress,
+    )
+    .unwrap();
+    (dir, out)
 }
 
 fn export(naive: bool) -> (tempfile::TempDir, PathBuf, ExportSummary, TreeFile) {
-    let file = TreeFile::open(&city().1).unwrap();
+    export_file(&city().1, naive)
+}
+
+fn export_file(path: &Path, naive: bool) -> (tempfile::TempDir, PathBuf, ExportSummary, TreeFile) {
+    let file = TreeFile::open(path).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("tiles");
     let opts = ExportOptions {
@@ -218,6 +236,68 @@ fn load(path: &Path) -> Content {
 #[test]
 fn every_content_lies_inside_its_box() {
     let (_dir, out, _, _) = export(false);
+    contents_lie_inside_their_boxes(&out);
+}
+
+/// A z-up scene is exported standing on the tile frame's z, as the same scene y-up is (it was laid on
+/// its side, its ground in the tile frame's xz plane: fault hunt, session 33): the same boxes, and
+/// every content, turned by its leaf node's rotation, inside its box.
+#[test]
+fn a_z_up_scene_stands_on_the_tile_frames_z() {
+    let (_dir, out, _, _) = export(false);
+    let (_zdir, zout, _, _) = export_file(&z_up_city().1, false);
+    contents_lie_inside_their_boxes(&zout);
+    let boxes = |out: &Path| {
+        let mut tiles = Vec::new();
+        walk(
+            &read_json(&out.join("tileset.json"))["root"],
+            f64::INFINITY,
+            DVec3::ZERO,
+            &mut tiles,
+        );
+        tiles
+            .iter()
+            .map(|(t, _, offset)| {
+                let b = &t["boundingVolume"]["box"];
+                let b: Vec<f64> = b
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_f64().unwrap())
+                    .collect();
+                (
+                    DVec3::new(b[0], b[1], b[2]) + *offset,
+                    DVec3::new(b[3], b[7], b[11]),
+                )
+            })
+            .collect::<Vec<_>>()
+    };
+    // The same boxes (the plane's second axis runs the other way, so the quadtree's children may come
+    // in another order).
+    let (y, z) = (boxes(&out), boxes(&zout));
+    assert_eq!(y.len(), z.len());
+    for (yc, yh) in &y {
+        let tol = 1e-6 * (1.0 + yc.abs().max_element() + yh.max_element());
+        let same = |(zc, zh): &(DVec3, DVec3)| {
+            (*yc - *zc).abs().max_element() <= tol && (*yh - *zh).abs().max_element() <= tol
+        };
+        assert!(
+            z.iter().any(same),
+            "y-up box {yc} ± {yh}: no z-up box alike"
+        );
+    }
+    assert!(
+        z[0] == y[0] || (z[0].0 - y[0].0).abs().max_element() < 1e-6,
+        "root boxes differ"
+    );
+    // The city's ground spans x and y; its height is the least extent.
+    let (_, h) = z[0];
+    assert!(h.z < h.x && h.z < h.y, "root half extents {h}");
+}
+
+/// Every tile's content (each leaf node's positions turned and translated as its node says, then the
+/// ancestors' transforms, in the z-up tile frame) lies inside the tile's box.
+fn contents_lie_inside_their_boxes(out: &Path) {
     let ts = read_json(&out.join("tileset.json"));
     let mut tiles = Vec::new();
     walk(&ts["root"], f64::INFINITY, DVec3::ZERO, &mut tiles);
@@ -234,12 +314,15 @@ fn every_content_lies_inside_its_box() {
         let (c, h) = (DVec3::new(b[0], b[1], b[2]), DVec3::new(b[3], b[7], b[11]));
         let content = load(&out.join(uri));
         for node in content.doc.nodes() {
-            let t = DVec3::from(node.transform().decomposed().0.map(f64::from));
+            let (t, r, s) = node.transform().decomposed();
+            assert_eq!(s, [1.0; 3]);
+            let t = DVec3::from(t.map(f64::from));
+            let r = glam::DQuat::from_array(r.map(f64::from));
             for prim in node.mesh().unwrap().primitives() {
                 let pos = prim.get(&gltf::Semantic::Positions).unwrap();
                 let reader = prim.reader(|buf| Some(&content.bins[buf.index()]));
                 for p in reader.read_positions().unwrap() {
-                    let y_up = DVec3::from(p.map(f64::from)) + t;
+                    let y_up = r * DVec3::from(p.map(f64::from)) + t;
                     // glTF y-up → tile frame z-up, then the ancestors' transforms.
                     let z_up = DVec3::new(y_up.x, -y_up.z, y_up.y) + *offset;
                     let d = (z_up - (c + *offset)).abs() - h;

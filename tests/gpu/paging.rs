@@ -358,6 +358,12 @@ fn render_over_http_reports_what_the_client_did(_ctx: &GpuContext) -> Result<(),
     if n("full_responses")? != 0 || n("checksum_failures")? != 0 || n("failures")? != 0 {
         return Err(format!("a healthy server's run reports trouble: {h}"));
     }
+    // A paged run says how many block loads failed (none here), so a script can tell a corrupt file.
+    if v["modes"]["tree"]["load_failures"].as_u64() != Some(0) {
+        return Err(format!(
+            "summary.json lacks the paged run's load failures: {v}"
+        ));
+    }
     if !stdout.contains(&format!("http: {} requests", n("requests")?)) || stdout.contains("warning")
     {
         return Err(format!("stdout does not report the client: {stdout}"));

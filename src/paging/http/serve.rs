@@ -2,7 +2,8 @@
 //! `atlastree serve` runs and what tests start on port 0. Built to stay up under abuse:
 //!
 //! - **paths**: the file is served at `/<its file name>` (percent-encoded), `GET` and `HEAD` only; any
-//!   other path is `404`, another method `405`;
+//!   other path is `404`, another method `405`; a path is compared after its escapes are decoded, so
+//!   `%c3%bc` and `%2E` name what `%C3%BC` and `.` name (RFC 3986 §6.2.2);
 //! - **ranges**: see [`super::range`] — `206` for one range (several are coalesced when they touch),
 //!   `416` with `Content-Range: bytes */LEN` when none is satisfiable, the whole file with `200` for a
 //!   malformed `Range` (ignored, as RFC 9110 §14.2 allows; never `400`) or disjoint ranges; a request head
@@ -302,7 +303,8 @@ fn run(
         let server = Arc::new(server);
         let app = axum::Router::new()
             .route(&route, axum::routing::get(serve_file))
-            .with_state(server.clone());
+            .fallback(serve_equivalent)
+            .with_state((server.clone(), Arc::new(route)));
         let slots = Arc::new(Semaphore::new(server.options.max_connections));
         let queue = Arc::new(Semaphore::new(server.options.max_connections));
         let (closing, closing_rx) = watch::channel(false);
@@ -431,10 +433,32 @@ async fn reject_busy(mut stream: tokio::net::TcpStream) {
 
 /// The handler of the file's route: `GET` or `HEAD`, with or without `Range`.
 async fn serve_file(
-    State(server): State<Arc<Server>>,
+    State((server, _)): State<(Arc<Server>, Arc<String>)>,
     method: Method,
     headers: HeaderMap,
 ) -> Response {
+    serve_answer(server, method, headers).await
+}
+
+/// Every other path: the file's route written with other escapes (lower-case hex, an escaped
+/// unreserved character) is the file's (it was `404`: fault hunt, session 32); the rest `404`.
+async fn serve_equivalent(
+    State((server, route)): State<(Arc<Server>, Arc<String>)>,
+    method: Method,
+    uri: axum::http::Uri,
+    headers: HeaderMap,
+) -> Response {
+    if canonical_path(uri.path()) != *route {
+        return status_only(StatusCode::NOT_FOUND);
+    }
+    if method != Method::GET && method != Method::HEAD {
+        return status_only(StatusCode::METHOD_NOT_ALLOWED);
+    }
+    serve_answer(server, method, headers).await
+}
+
+/// A `GET` or `HEAD` of the file.
+async fn serve_answer(server: Arc<Server>, method: Method, headers: HeaderMap) -> Response {
     match answer_file(&server, &method, &headers).await {
         Ok(r) => r,
         Err(e) => {
@@ -610,9 +634,21 @@ impl<T: AsyncWrite + Unpin> AsyncWrite for Deadline<T> {
 /// `/` + the percent-encoded file name (unreserved characters kept), `/file` if there is no name.
 pub fn url_path(path: &Path) -> String {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
-    let name = name.unwrap_or_else(|| "file".into());
+    encoded_path(name.unwrap_or_else(|| "file".into()).as_bytes())
+}
+
+/// A request path as [`url_path`] writes it: its escapes decoded, then every byte but the unreserved
+/// ones encoded (upper-case hex). A `/` inside the name stays encoded, so no other path matches.
+fn canonical_path(path: &str) -> String {
+    let name = path.strip_prefix('/').unwrap_or(path);
+    let bytes: Vec<u8> = percent_encoding::percent_decode_str(name).collect();
+    encoded_path(&bytes)
+}
+
+/// `/` + `name` percent-encoded, unreserved characters kept.
+fn encoded_path(name: &[u8]) -> String {
     let mut out = String::from("/");
-    for b in name.bytes() {
+    for &b in name {
         if b.is_ascii_alphanumeric() || b"-._~".contains(&b) {
             out.push(b as char);
         } else {
@@ -626,6 +662,29 @@ pub fn url_path(path: &Path) -> String {
 mod tests {
     use super::url_path;
     use std::path::Path;
+
+    #[test]
+    fn equivalent_escapes_name_the_same_path() {
+        use super::canonical_path;
+        let route = url_path(std::path::Path::new("/d/Müll city.atlastree"));
+        assert_eq!(route, "/M%C3%BCll%20city.atlastree");
+        for same in [
+            "/M%C3%BCll%20city.atlastree",
+            "/M%c3%bcll%20city.atlastree",
+            "/M%C3%BCll%20city%2Eatlastree",
+            "/%4D%C3%BCll%20city.atlastree",
+        ] {
+            assert_eq!(canonical_path(same), route, "{same}");
+        }
+        for other in [
+            "/",
+            "/..%2FM%C3%BCll%20city.atlastree",
+            "/M%C3%BCll city.atlastre",
+        ] {
+            assert_ne!(canonical_path(other), route, "{other}");
+        }
+        assert_eq!(canonical_path("/%2e%2e/etc/passwd"), "/..%2Fetc%2Fpasswd");
+    }
 
     #[test]
     fn url_path_keeps_unreserved_and_encodes_the_rest() {

@@ -81,7 +81,7 @@ impl LinearImage {
             }
         };
         let spare = &mut data.spare_capacity_mut()[..n];
-        if n >= PAR_TEXELS {
+        if super::split(n, PAR_TEXELS) {
             spare
                 .par_chunks_mut(RUN)
                 .zip(img.pixels.par_chunks(RUN))

@@ -163,7 +163,7 @@ fn halve_even_box(img: &LinearImage) -> LinearImage {
     if dw == 0 {
         return out;
     }
-    if out.data.len() >= PAR_TEXELS {
+    if super::split(out.data.len(), PAR_TEXELS) {
         out.data.par_chunks_mut(dw).enumerate().for_each(row);
     } else {
         out.data.chunks_mut(dw).enumerate().for_each(row);
@@ -295,7 +295,7 @@ fn resample_separable(
             );
         }
     };
-    if tmp.data.len() >= PAR_TEXELS {
+    if super::split(tmp.data.len(), PAR_TEXELS) {
         tmp.data.par_chunks_mut(dwu).enumerate().for_each(hrow);
     } else {
         tmp.data.chunks_mut(dwu).enumerate().for_each(hrow);
@@ -310,7 +310,7 @@ fn resample_separable(
             );
         }
     };
-    if out.data.len() >= PAR_TEXELS {
+    if super::split(out.data.len(), PAR_TEXELS) {
         out.data.par_chunks_mut(dwu).enumerate().for_each(vrow);
     } else {
         out.data.chunks_mut(dwu).enumerate().for_each(vrow);

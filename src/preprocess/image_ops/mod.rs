@@ -46,6 +46,33 @@ pub(crate) use sample::period_shift;
 pub use sample::{FootprintPlan, MAX_ANISOTROPY, sample_footprint, sample_planned, wrap_index};
 pub use srgb::{linear_to_srgb8, srgb8_to_linear};
 
+thread_local! {
+    /// Set by [`on_this_thread`]: this thread's per-texel passes stay on it.
+    static ON_THIS_THREAD: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f` with the per-texel passes of [`LinearImage::from_decoded`] and the mip halving
+/// ([`MipChain::build`]) on the calling thread alone, without splitting them into rayon tasks (the
+/// same texels: each is computed on its own). For work done while other threads wait on it: a
+/// thread that waits inside a rayon task must not hold a piece of that work, or both wait forever
+/// (`raster::ImageCache` builds an image's chain once while the threads that need it wait).
+pub fn on_this_thread<T>(f: impl FnOnce() -> T) -> T {
+    struct Restore(bool);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            ON_THIS_THREAD.with(|c| c.set(self.0));
+        }
+    }
+    let _restore = Restore(ON_THIS_THREAD.with(|c| c.replace(true)));
+    f()
+}
+
+/// Whether a per-texel pass over `texels` texels splits into rayon tasks: at `threshold` texels or
+/// more, outside [`on_this_thread`].
+fn split(texels: usize, threshold: usize) -> bool {
+    texels >= threshold && !ON_THIS_THREAD.with(|c| c.get())
+}
+
 /// Errors of the image operations; every variant names the sizes and coordinates involved.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ImageOpsError {

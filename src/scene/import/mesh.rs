@@ -183,6 +183,30 @@ impl<'a> Geometry<'a> {
             ));
             return Ok(());
         };
+        let morphed = (prim.morph_targets().enumerate())
+            .any(|(i, t)| weights.get(i).is_some_and(|w| *w != 0.0) && t.positions().is_some());
+        if pos_acc.view().is_none() && pos_acc.sparse().is_none() && !morphed {
+            // All zeros by the spec: nothing to draw. A Draco primitive without its uncompressed
+            // fallback came out as silent zero-area triangles (fault hunt, session 33).
+            let draco = prim.extension_value("KHR_draco_mesh_compression").is_some();
+            report.skipped_primitives += 1;
+            report.warn(format!(
+                "{}: mesh {} ({}) primitive {}: its POSITION accessor {} has no data (no bufferView){}; \
+                 skipped",
+                self.file,
+                ctx.mesh,
+                ctx.mesh_name,
+                ctx.primitive,
+                pos_acc.index(),
+                if draco {
+                    ": it is compressed with KHR_draco_mesh_compression, which atlastree does not \
+                     decode, and has no uncompressed fallback"
+                } else {
+                    ""
+                }
+            ));
+            return Ok(());
+        }
         let (material, uv_source) = materials.material_for(prim, ctx, buffers, report);
 
         // Positions → world space.
@@ -296,6 +320,7 @@ impl<'a> Geometry<'a> {
     ) -> Result<(), SceneError> {
         for (i, target) in prim.morph_targets().enumerate() {
             let w = weights.get(i).copied().unwrap_or(0.0);
+
             let Some(acc) = target.positions().filter(|_| w != 0.0) else {
                 continue;
             };

@@ -59,7 +59,8 @@ pub(super) const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
 /// Import options.
 #[derive(Clone, Debug, Default)]
 pub struct ImportOptions {
-    /// `None` = auto (the axis of least extent of the world bounds; ties prefer Y, then Z).
+    /// `None` = auto (the axis of least extent of the world bounds where under half the next least,
+    /// else Y: [`auto_up`]).
     pub up: Option<UpAxis>,
     /// The most triangles the caller's memory budget holds (`build --max-memory`: the plan keeps ~250
     /// bytes a triangle). The node walk counts triangles as it meets mesh instances and refuses the scene
@@ -293,19 +294,23 @@ fn finish(
     scene
 }
 
-/// Auto up axis: the axis of least extent of `bounds`; ties prefer Y, then Z, then X. Y for no bounds.
+/// Auto up axis: the axis of least extent of `bounds` where it is clearly the least (under half of
+/// the next least: a Z-up city, a landscape), else Y, glTF's own convention (a tower on a square plot,
+/// whose two ground axes tie, was laid on its side: fault hunt, session 33). Y for no bounds.
 pub(super) fn auto_up(bounds: Option<(DVec3, DVec3)>) -> UpAxis {
     let Some((lo, hi)) = bounds else {
         return UpAxis::Y;
     };
     let e = hi - lo;
-    let mut best = (UpAxis::Y, e.y);
-    for (axis, ext) in [(UpAxis::Z, e.z), (UpAxis::X, e.x)] {
-        if ext < best.1 {
-            best = (axis, ext);
-        }
+    let mut axes = [(UpAxis::Y, e.y), (UpAxis::Z, e.z), (UpAxis::X, e.x)];
+    // Stable: equal extents keep the order Y, Z, X.
+    axes.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let [(least, extent), (_, next), _] = axes;
+    if least == UpAxis::Y || extent < 0.5 * next {
+        least
+    } else {
+        UpAxis::Y
     }
-    best.0
 }
 
 #[cfg(test)]
@@ -340,9 +345,16 @@ mod tests {
             UpAxis::Y
         );
         assert_eq!(
-            auto_up(Some((DVec3::ZERO, DVec3::new(0.5, 1.0, 10.0)))),
+            auto_up(Some((DVec3::ZERO, DVec3::new(0.4, 1.0, 10.0)))),
             UpAxis::X
         );
         assert_eq!(auto_up(Some((DVec3::ZERO, DVec3::ONE))), UpAxis::Y);
+        // Not clearly least (at least half the next least): glTF's Y. A 300 m tower on a 50 × 50 m
+        // plot was laid on its side (Z); a 60 × 50 m plot too.
+        let up = |x: f64, y: f64, z: f64| auto_up(Some((DVec3::ZERO, DVec3::new(x, y, z))));
+        assert_eq!(up(0.5, 1.0, 10.0), UpAxis::Y);
+        assert_eq!(up(50.0, 300.0, 50.0), UpAxis::Y);
+        assert_eq!(up(60.0, 300.0, 50.0), UpAxis::Y);
+        assert_eq!(up(1000.0, 1000.0, 50.0), UpAxis::Z);
     }
 }

@@ -736,7 +736,10 @@ fn sparse_indices_must_strictly_increase() {
 
 /// An accessor without a buffer view (and without sparse) is all zeros (glTF 2.0 §3.6.2.1): an exporter's
 /// zero morph-target deltas. The schema check reported it missing and the whole file was refused (fault
-/// hunt, session 32); it imports as the same quad with the target added as zeros.
+/// hunt, session 32); it imports as the same quad with the target added as zeros. A POSITION accessor
+/// without data draws nothing: its primitive is skipped with a warning (one compressed with Draco and
+/// without a fallback came out as silent zero-area triangles: session 33), unless a weighted morph
+/// target moves it.
 #[test]
 fn an_accessor_without_a_buffer_view_is_zeros() {
     use base64::Engine;
@@ -749,10 +752,16 @@ fn an_accessor_without_a_buffer_view_is_zeros() {
         base64::engine::general_purpose::STANDARD.encode(&bin)
     );
     let doc = json!({
-        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1, 2]}],
+        "extensionsUsed": ["KHR_draco_mesh_compression"],
+        "nodes": [{"mesh": 0}, {"mesh": 1}, {"mesh": 2, "translation": [100, 0, 0]}],
         "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.3, 0.2, 1]}}],
         "meshes": [{"weights": [0.5], "primitives": [{"attributes": {"POSITION": 0}, "indices": 1,
-            "material": 0, "targets": [{"POSITION": 2}]}]}],
+            "material": 0, "targets": [{"POSITION": 2}]}]},
+            {"primitives": [{"attributes": {"POSITION": 2}, "indices": 1, "extensions":
+                {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}}]},
+            {"weights": [1.0], "primitives": [{"attributes": {"POSITION": 2}, "indices": 1,
+                "targets": [{"POSITION": 0}]}]}],
         "buffers": [{"byteLength": bin.len(), "uri": uri}],
         "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
                         {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
@@ -766,7 +775,16 @@ fn an_accessor_without_a_buffer_view_is_zeros() {
     let path = dir.path().join("zeros.gltf");
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
     let s = import(&path, &ImportOptions::default()).unwrap();
-    assert_eq!(s.triangles.len(), 2);
+    assert_eq!(s.triangles.len(), 4);
     let xs: Vec<f64> = s.vertices.iter().map(|v| v.pos.x).collect();
     assert!(xs.contains(&10.0) && xs.contains(&0.0), "{xs:?}");
+    assert!(xs.contains(&110.0), "the morphed zero base: {xs:?}");
+    assert_eq!(s.report.skipped_primitives, 1);
+    let w = s.report.warnings.join("\n");
+    assert!(
+        w.contains("mesh 1 (")
+            && w.contains("accessor 2 has no data")
+            && w.contains("KHR_draco_mesh_compression"),
+        "{w}"
+    );
 }
