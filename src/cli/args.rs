@@ -416,9 +416,10 @@ pub(crate) struct BuildParamsArgs {
     /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
     /// a build that cannot fit (the plan holds ~250 bytes per triangle and ~550 per extra piece where
     /// `--repeat bake` cuts them, the import ~16 bytes per byte of glTF JSON, the rasteriser a few atlases
-    /// per thread, the cache at least the largest image per thread) is refused before any work, with the
-    /// number it needs. Default: half of the memory this process may use (the machine's, or its cgroup's
-    /// limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's limit; or `ulimit -v`).
+    /// per thread, the cache the threads' largest images, one each, never more than every image once) is
+    /// refused before any work, with the number it needs. Default: half of the memory this process may
+    /// use (the machine's, or its cgroup's limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's
+    /// limit; or `ulimit -v`).
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
     pub max_memory: Option<MemoryArg>,
     /// With `--repeat bake`: split a triangle too big for one atlas (a ground quad with a tile repeated

@@ -203,12 +203,13 @@ fn ratio_key(name: &str) -> String {
     name.replace(" ÷ ", "_over_")
 }
 
-/// Mean and max of a column.
 /// Block loads that failed over a paged run (`None` for an all-resident one).
 fn load_failures(stats: &[FrameStats]) -> Option<u32> {
     let paged: Vec<_> = stats.iter().filter_map(FrameStats::paging).collect();
     (!paged.is_empty()).then(|| paged.iter().map(|p| p.pager().failures).sum())
 }
+
+/// Mean and max of a column.
 
 fn mean_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut n, mut sum, mut max) = (0usize, 0.0, f64::NEG_INFINITY);
@@ -363,7 +364,7 @@ fn print_summary(mode: Mode, stats: &[FrameStats], dir: &Path) {
                 "no frame drew coarser for them: they were fetched ahead of need"
             };
             println!(
-                "  warning: {failures} block loads failed ({drawn}; see stats.csv failures): is the file corrupt?"
+                "  warning: {failures} block loads failed ({drawn}; see stats.csv failures): a corrupt file or an unreachable server?"
             );
         }
         if let Some(line) = unanswered_requests(&paged, failures) {

@@ -237,7 +237,8 @@ impl GltfDoc {
         self.materials.len() - 1
     }
 
-    /// One leaf as a glTF node at `translation` (relative to the tile frame's origin, y-up), its mesh one
+    /// One leaf as a glTF node placed by `placement` (relative to the tile's origin, in glTF's y-up frame,
+    /// turned from the scene's where its up axis is another), its mesh one
     /// primitive per `(group, material)`; `uv1` selects `TEXCOORD_1` (leaf-atlas UV) over the original UV.
     pub(super) fn leaf_node(
         &mut self,

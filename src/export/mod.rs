@@ -103,7 +103,7 @@ pub struct TileSummary {
     pub uri: String,
     pub min_distance: f64,
     pub geometric_error: f64,
-    /// Scene-frame (y-up) bounds of the node's triangles, world units.
+    /// Scene-frame bounds of the node's triangles (the scene's own up axis), world units.
     pub bounds_min: [f64; 3],
     pub bounds_max: [f64; 3],
     /// The images its content draws (shared ones listed by every tile that draws them).

@@ -48,6 +48,16 @@ pub const ATLASES_PER_THREAD: u64 = 4;
 /// 2 × 2 at 2 GiB peaked at 0.81, 1.59 and 2.18 GiB with caches of 256, 600 and 971 MiB (the last the 1/2
 /// share), so the share is 1/3.
 pub const CACHE_SHARE_DIVISOR: u64 = 3;
+/// Bytes a rasteriser thread holds outside the cache per stored texel of an original texture it
+/// resamples and encodes (`raster::ImageCache::original`): the resampled f32 chain (21.3), its RGBA8
+/// chain (5.3) and the encoded chain (at most 5.3). Stored sides are powers of two up to
+/// [`crate::model::MAX_ORIGINAL_CLASS`] (`originals::original_extent`), so a 1025² source is
+/// resampled to 2048²: 16 such sources at a stated need of 325 MiB peaked at 394 (fault hunt, session
+/// 33).
+pub const ORIGINAL_RESAMPLED_BYTES_PER_TEXEL: u64 = 32;
+/// [`ORIGINAL_RESAMPLED_BYTES_PER_TEXEL`] for an original stored at its source's own sides (taken from
+/// the cached chain: its RGBA8 levels, 5.3, and the encoded chain, at most 5.3).
+pub const ORIGINAL_COPIED_BYTES_PER_TEXEL: u64 = 11;
 /// Smallest image cache worth running with.
 pub const MIN_IMAGE_CACHE: u64 = 64 << 20;
 
@@ -88,19 +98,41 @@ pub struct ImageLoad {
     pub per_thread_texels: u64,
     /// Texels of all the images together: the cache and the threads never hold more than each once.
     pub all_texels: u64,
+    /// Bytes the threads hold beside the cache while each resamples and encodes one of the largest
+    /// original textures ([`ORIGINAL_RESAMPLED_BYTES_PER_TEXEL`]).
+    pub originals_scratch_bytes: u64,
 }
 
 impl ImageLoad {
-    /// The load of images of `texels` each, drawn by `threads` rasteriser threads.
-    pub fn of(texels: impl IntoIterator<Item = u64>, threads: u64) -> ImageLoad {
-        let mut all: Vec<u64> = texels.into_iter().collect();
-        all.sort_unstable_by(|a, b| b.cmp(a));
+    /// The load of images of `(width, height)` each, drawn by `threads` rasteriser threads.
+    pub fn of(sides: impl IntoIterator<Item = (u32, u32)>, threads: u64) -> ImageLoad {
+        let sides: Vec<(u32, u32)> = sides.into_iter().collect();
+        let mut texels: Vec<u64> = (sides.iter())
+            .map(|&(w, h)| u64::from(w) * u64::from(h))
+            .collect();
+        let mut scratch: Vec<u64> = (sides.iter())
+            .map(|&(w, h)| {
+                let [sw, sh] = super::originals::original_extent(w, h);
+                let per_texel = if [sw, sh] == [w, h] {
+                    ORIGINAL_COPIED_BYTES_PER_TEXEL
+                } else {
+                    ORIGINAL_RESAMPLED_BYTES_PER_TEXEL
+                };
+                u64::from(sw) * u64::from(sh) * per_texel
+            })
+            .collect();
         let threads = usize::try_from(threads.max(1)).unwrap_or(usize::MAX);
-        let sum = |t: &[u64]| t.iter().fold(0u64, |s, &x| s.saturating_add(x));
+        let largest_sum = |v: &mut Vec<u64>| {
+            v.sort_unstable_by(|a, b| b.cmp(a));
+            v.iter()
+                .take(threads)
+                .fold(0u64, |s, &x| s.saturating_add(x))
+        };
         ImageLoad {
-            largest_texels: all.first().copied().unwrap_or(0),
-            per_thread_texels: sum(&all[..threads.min(all.len())]),
-            all_texels: sum(&all),
+            largest_texels: texels.iter().copied().max().unwrap_or(0),
+            per_thread_texels: largest_sum(&mut texels),
+            all_texels: texels.iter().fold(0u64, |s, &x| s.saturating_add(x)),
+            originals_scratch_bytes: largest_sum(&mut scratch),
         }
     }
 }
@@ -125,9 +157,10 @@ pub struct MemoryPlan {
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error(
     "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan: {}; {raster_mib} MiB for {threads} \
-     rasteriser threads; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; \
+     rasteriser {}; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; \
      by default half the memory this process may use): raise --max-memory{}",
     plan_why(*.triangles, *.extra_pieces),
+    if *.threads == 1 { "thread" } else { "threads" },
     cache_why(.largest_image, *.images, *.threads),
     if *.triangles > 0 { ", or for a sharded build plan once (`build --shard plan`): its shards then hold no \
      triangles" } else { "" }
@@ -176,18 +209,47 @@ fn plan_why(triangles: u64, extra_pieces: u64) -> String {
 /// ([`MIN_IMAGE_CACHE`]), or the minimum (a small image is not the cause; the docs hunt of session 29
 /// found a 64² texture blamed for 80 MiB), and each thread's image once more while it is decoded.
 fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
+    let (_, all_bound) = cache_need(images);
+    let threads_word = if threads == 1 { "thread" } else { "threads" };
+    format!(
+        "{}; and {} MiB for the originals the {threads} {threads_word} resample and encode",
+        cache_why_shares(largest_image, images, threads, all_bound),
+        images.originals_scratch_bytes.div_ceil(1 << 20)
+    )
+}
+
+/// [`cache_why`] but for the originals being encoded.
+fn cache_why_shares(
+    largest_image: &str,
+    images: ImageLoad,
+    threads: u64,
+    all_bound: bool,
+) -> String {
     let ImageLoad {
         largest_texels,
         per_thread_texels,
         all_texels,
+        ..
     } = images;
-    let (_, all_bound) = cache_need(images);
-    if all_bound {
+    let big = per_thread_texels.saturating_mul(CACHE_BYTES_PER_TEXEL) > MIN_IMAGE_CACHE;
+    if all_bound && big {
         format!(
             "every image once ({all_texels} texels; the largest, {largest_image}: {largest_texels}), \
              with a quarter for originals; downscale the largest if it dominates"
         )
-    } else if per_thread_texels.saturating_mul(CACHE_BYTES_PER_TEXEL) > MIN_IMAGE_CACHE {
+    } else if all_bound {
+        // Small images are not blamed (session 29's docs hunt found a 64² texture blamed for 80 MiB).
+        format!(
+            "a quarter of the cache's minimum of {} MiB for originals and every image once \
+             ({all_texels} texels)",
+            MIN_IMAGE_CACHE >> 20
+        )
+    } else if big && threads == 1 {
+        format!(
+            "the largest image, {largest_image}: {largest_texels} texels, in the cache and once more \
+             while it is decoded; downscale it if it dominates"
+        )
+    } else if big {
         format!(
             "the {threads} largest images ({per_thread_texels} texels; the largest, {largest_image}: \
              {largest_texels}), one a thread in the cache and once more while it is decoded; downscale \
@@ -204,15 +266,17 @@ fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
     }
 }
 
-/// The image cache's floor (the least bound it runs with) and what the cache and the images in flight
-/// need at most, with the flag: that is every image once (less than the per-thread count).
+/// What the image cache and the images in flight need at most (`threads` rasteriser threads), with the
+/// flag: that is every image once (less than the per-thread count).
 ///
 /// The floor holds the threads' largest images, one each ([`ImageLoad::per_thread_texels`], at least
 /// [`MIN_IMAGE_CACHE`]); the originals cache may add a quarter of the bound; and each thread holds its
 /// image outside the cache while it decodes it and builds its chain (or holds it, evicted, while its
 /// leaf is drawn): at the old need, without that, black_forest peaked 13 % over the budget (674 MiB:
 /// 759) and a planned shard of it 22 % (512 MiB: 626; session 30's memory hunt). As the process holds
-/// an image at most once, all that never passes every image once with the originals' quarter.
+/// an image at most once, all that never passes every image once with the originals' quarter. Beside
+/// either, each thread resamples and encodes an original texture outside the cache
+/// ([`ImageLoad::originals_scratch_bytes`]).
 fn cache_need(images: ImageLoad) -> (u64, bool) {
     let bytes = |texels: u64| texels.saturating_mul(CACHE_BYTES_PER_TEXEL);
     let per_threads = bytes(images.per_thread_texels);
@@ -220,7 +284,11 @@ fn cache_need(images: ImageLoad) -> (u64, bool) {
     let in_flight = per_threads;
     let counted = floor.saturating_add(floor / 4).saturating_add(in_flight);
     let every_image = bytes(images.all_texels).saturating_add(floor / 4);
-    (counted.min(every_image), every_image < counted)
+    let need = counted.min(every_image);
+    (
+        need.saturating_add(images.originals_scratch_bytes),
+        every_image < counted,
+    )
 }
 
 /// Why the plan step of a sharded build does not fit its budget.
@@ -382,23 +450,31 @@ mod tests {
     /// is named either way; a planned shard's plan share names no triangles.
     #[test]
     fn refusals_name_what_sets_each_share() {
-        let small = cache_why("t.png", ImageLoad::of(vec![512 * 512; 40], 2), 2);
+        let small = cache_why("t.png", ImageLoad::of(vec![(512, 512); 40], 2), 2);
         assert!(
             small.contains("the cache's minimum of 64 MiB")
                 && small.contains("(the largest, t.png, 262144 texels) once more"),
             "{small}"
         );
-        let big = cache_why("big.png", ImageLoad::of(vec![4096 * 4096; 5], 2), 2);
+        // One tiny image: every image once, and no image blamed.
+        let tiny = cache_why("t.png", ImageLoad::of([(64, 64)], 2), 2);
+        assert!(
+            tiny.contains("a quarter of the cache's minimum of 64 MiB")
+                && tiny.contains("every image once (4096 texels)")
+                && !tiny.contains("t.png"),
+            "{tiny}"
+        );
+        let big = cache_why("big.png", ImageLoad::of(vec![(4096, 4096); 5], 2), 2);
         assert!(
             big.contains("the 2 largest images (33554432 texels; the largest, big.png: 16777216)"),
             "{big}"
         );
-        let huge = cache_why("huge.png", ImageLoad::of([16384 * 16384, 64 * 64], 2), 2);
+        let huge = cache_why("huge.png", ImageLoad::of([(16384, 16384), (64, 64)], 2), 2);
         assert!(
             huge.contains("every image once (268439552 texels; the largest, huge.png: 268435456)"),
             "{huge}"
         );
-        let absurd = ImageLoad::of([u64::MAX, u64::MAX], u64::MAX);
+        let absurd = ImageLoad::of([(u32::MAX, u32::MAX); 2], u64::MAX);
         assert_eq!(absurd.all_texels, u64::MAX);
         assert!(cache_why("x", absurd, u64::MAX).contains("the largest"));
         assert_eq!(plan_why(12, 0), "a 64 MiB base and 12 triangles held");
@@ -410,16 +486,8 @@ mod tests {
     fn budget_fixes_the_cache_and_refuses_what_cannot_fit() {
         // 1 M triangles, 1024² atlases, 2 threads, a 2048² largest image, 2 GiB wanted.
         let tris = PlanLoad::triangles;
-        let images = |texels: u64| ImageLoad::of(vec![texels; 100], 2);
-        let p = plan_memory(
-            2 << 30,
-            tris(1_000_000),
-            1024,
-            2,
-            images(2048 * 2048),
-            2 << 30,
-        )
-        .unwrap();
+        let images = |side: u32| ImageLoad::of(vec![(side, side); 100], 2);
+        let p = plan_memory(2 << 30, tris(1_000_000), 1024, 2, images(2048), 2 << 30).unwrap();
         assert_eq!(p.plan_bytes, (64 << 20) + 250_000_000);
         assert_eq!(p.raster_bytes, 2 * 4 * 1024 * 1024 * 16);
         let left = (2u64 << 30) - p.plan_bytes - p.raster_bytes;
@@ -427,25 +495,18 @@ mod tests {
         assert!(p.plan_bytes + p.raster_bytes + p.image_cache_bytes * 5 / 4 <= 2 << 30);
         // The need: plan, raster, the cache's floor with the originals' quarter, and each thread's largest
         // image once more in flight (without it, builds at their stated need peaked 13–22 % over); two
-        // threads: the two largest images.
+        // threads: the two largest images; and two originals encoded at their own sides beside it.
         let per_threads = 2048 * 2048 * CACHE_BYTES_PER_TEXEL * 2;
+        let scratch = 2 * 2048 * 2048 * ORIGINAL_COPIED_BYTES_PER_TEXEL;
         assert_eq!(
             p.needed_bytes,
-            p.plan_bytes + p.raster_bytes + per_threads + per_threads / 4 + per_threads
+            p.plan_bytes + p.raster_bytes + per_threads + per_threads / 4 + per_threads + scratch
         );
         // A generous budget keeps the wanted cache.
-        let p = plan_memory(64 << 30, tris(1000), 1024, 2, images(1 << 20), 2 << 30).unwrap();
+        let p = plan_memory(64 << 30, tris(1000), 1024, 2, images(1024), 2 << 30).unwrap();
         assert_eq!(p.image_cache_bytes, 2 << 30);
         // 20 M triangles do not fit 2 GiB: the error gives the number needed.
-        let e = plan_memory(
-            2 << 30,
-            tris(20_000_000),
-            1024,
-            2,
-            images(2048 * 2048),
-            2 << 30,
-        )
-        .unwrap_err();
+        let e = plan_memory(2 << 30, tris(20_000_000), 1024, 2, images(2048), 2 << 30).unwrap_err();
         assert_eq!(
             e.plan_mib,
             ((64u64 << 20) + 5_000_000_000).div_ceil(1 << 20)
@@ -455,24 +516,14 @@ mod tests {
         // The plan step needs the plan alone: 6 M triangles fit 2 GiB there, not with a cache beside.
         let p = plan_step_memory(2 << 30, tris(6_000_000)).unwrap();
         assert_eq!((p.raster_bytes, p.image_cache_bytes), (0, 0));
-        assert!(
-            plan_memory(
-                2 << 30,
-                tris(6_000_000),
-                1024,
-                2,
-                images(4096 * 4096),
-                2 << 30
-            )
-            .is_err()
-        );
+        assert!(plan_memory(2 << 30, tris(6_000_000), 1024, 2, images(4096), 2 << 30).is_err());
         let e = plan_step_memory(2 << 30, tris(24_000_000)).unwrap_err();
         assert_eq!(
             e.needed_mib,
             ((64u64 << 20) + 6_000_000_000).div_ceil(1 << 20)
         );
         // An absurd image header saturates the need instead of overflowing it.
-        let absurd = ImageLoad::of([u64::MAX / 4], 2);
+        let absurd = ImageLoad::of([(u32::MAX, u32::MAX)], 2);
         let e = plan_memory(2 << 30, tris(10), 1024, 2, absurd, 2 << 30).unwrap_err();
         assert_eq!(e.needed_mib, u64::MAX.div_ceil(1 << 20));
     }
@@ -485,7 +536,7 @@ mod tests {
             triangles: 2048,
             extra_pieces: 1_000_000,
         };
-        let images = ImageLoad::of([64 * 64], 2);
+        let images = ImageLoad::of([(64, 64)], 2);
         let p = plan_memory(u64::MAX, load, 1024, 2, images, 2 << 30).unwrap();
         assert_eq!(p.plan_bytes, BASE_BYTES + 2048 * 250 + 1_000_000 * 550);
         let e = plan_step_memory(300 << 20, load).unwrap_err();
@@ -507,13 +558,19 @@ mod tests {
     /// of a 24 GiB machine (12 GiB; the old count, 4.5 times the texture, needed 31 GiB).
     #[test]
     fn one_huge_image_is_counted_once() {
-        let images = ImageLoad::of([1024 * 1024, 16384 * 16384, 1024 * 1024, 1024 * 1024], 2);
+        let images = ImageLoad::of(
+            [(1024, 1024), (16384, 16384), (1024, 1024), (1024, 1024)],
+            2,
+        );
         assert_eq!(
             images,
             ImageLoad {
                 largest_texels: 16384 * 16384,
                 per_thread_texels: 16384 * 16384 + 1024 * 1024,
                 all_texels: 16384 * 16384 + 3 * 1024 * 1024,
+                // The 16384² stored at 2048² (resampled), a 1024² at its own sides.
+                originals_scratch_bytes: 2048 * 2048 * ORIGINAL_RESAMPLED_BYTES_PER_TEXEL
+                    + 1024 * 1024 * ORIGINAL_COPIED_BYTES_PER_TEXEL,
             }
         );
         let p = plan_memory(
@@ -526,17 +583,26 @@ mod tests {
         )
         .unwrap();
         let floor = (16384 * 16384 + 1024 * 1024) * CACHE_BYTES_PER_TEXEL;
-        let every_image = (16384 * 16384 + 3 * 1024 * 1024) * CACHE_BYTES_PER_TEXEL + floor / 4;
+        let every_image = (16384 * 16384 + 3 * 1024 * 1024) * CACHE_BYTES_PER_TEXEL
+            + floor / 4
+            + images.originals_scratch_bytes;
         assert_eq!(p.needed_bytes, p.plan_bytes + p.raster_bytes + every_image);
         assert_eq!(p.image_cache_bytes, floor);
         // With many images of that size, the threads' two are counted, each once more in flight.
-        let many = ImageLoad::of(vec![16384 * 16384; 8], 2);
+        let many = ImageLoad::of(vec![(16384, 16384); 8], 2);
         let e =
             plan_memory(12 << 30, PlanLoad::triangles(1000), 1024, 2, many, 2 << 30).unwrap_err();
         let per_threads = 2 * 16384 * 16384 * CACHE_BYTES_PER_TEXEL;
+        let scratch = 2 * 2048 * 2048 * ORIGINAL_RESAMPLED_BYTES_PER_TEXEL;
         assert_eq!(
             e.cache_mib,
-            (per_threads * 5 / 4 + per_threads).div_ceil(1 << 20)
+            (per_threads * 5 / 4 + per_threads + scratch).div_ceil(1 << 20)
+        );
+        // An NPOT source is resampled to the next power of two: counted at the stored sides.
+        let npot = ImageLoad::of(vec![(1025, 1025); 16], 2);
+        assert_eq!(
+            npot.originals_scratch_bytes,
+            2 * 2048 * 2048 * ORIGINAL_RESAMPLED_BYTES_PER_TEXEL
         );
     }
 }

@@ -631,7 +631,7 @@ pub(super) fn plan_memory(
 /// What `images` weigh in the image cache, drawn by this process's rasteriser threads.
 pub(super) fn image_load(images: &[crate::scene::ImageSource]) -> memory::ImageLoad {
     let threads = rayon::current_num_threads() as u64;
-    memory::ImageLoad::of(images.iter().map(|i| i.texels()), threads)
+    memory::ImageLoad::of(images.iter().map(|i| (i.width, i.height)), threads)
 }
 
 /// The name of the largest of `images` (the first of equals), for [`memory::MemoryError::naming`].

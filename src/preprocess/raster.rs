@@ -312,7 +312,11 @@ impl<'a> ImageCache<'a> {
             }
             if BUILDING.with(|b| b.get()) > 0 {
                 // This thread is building another entry further up its stack (a build that ran a rayon
-                // task would get here): it never waits, which could close a cycle, but builds a copy.
+                // task would get here): it never waits, which could close a cycle, but builds a copy
+                // the budget does not count. Nothing under a claim runs rayon work today.
+                if cfg!(debug_assertions) {
+                    panic!("image {} asked for while this thread builds another", id.0);
+                }
                 drop(building);
                 return Arc::new(self.build(id));
             }
@@ -321,6 +325,10 @@ impl<'a> ImageCache<'a> {
             }
         }
         let _claim = Claim::taken(self, id);
+        // Built and let go between this thread's miss and its claim (review of session 33).
+        if let Some(e) = self.held(id) {
+            return e;
+        }
         let entry = Arc::new(super::image_ops::on_this_thread(|| self.build(id)));
         if let Some(live) = self.live.get(id.idx()) {
             *lock(live) = Arc::downgrade(&entry);

@@ -452,7 +452,10 @@ async fn serve_equivalent(
         return status_only(StatusCode::NOT_FOUND);
     }
     if method != Method::GET && method != Method::HEAD {
-        return status_only(StatusCode::METHOD_NOT_ALLOWED);
+        let mut r = status_only(StatusCode::METHOD_NOT_ALLOWED);
+        r.headers_mut()
+            .insert(header::ALLOW, HeaderValue::from_static("GET,HEAD"));
+        return r;
     }
     serve_answer(server, method, headers).await
 }

@@ -183,9 +183,11 @@ impl<'a> Geometry<'a> {
             ));
             return Ok(());
         };
-        let morphed = (prim.morph_targets().enumerate())
-            .any(|(i, t)| weights.get(i).is_some_and(|w| *w != 0.0) && t.positions().is_some());
-        if pos_acc.view().is_none() && pos_acc.sparse().is_none() && !morphed {
+        let has_data = |a: &gltf::Accessor<'_>| a.view().is_some() || a.sparse().is_some();
+        let morphed = (prim.morph_targets().enumerate()).any(|(i, t)| {
+            weights.get(i).is_some_and(|w| *w != 0.0) && t.positions().is_some_and(|a| has_data(&a))
+        });
+        if !has_data(&pos_acc) && !morphed {
             // All zeros by the spec: nothing to draw. A Draco primitive without its uncompressed
             // fallback came out as silent zero-area triangles (fault hunt, session 33).
             let draco = prim.extension_value("KHR_draco_mesh_compression").is_some();
@@ -320,7 +322,6 @@ impl<'a> Geometry<'a> {
     ) -> Result<(), SceneError> {
         for (i, target) in prim.morph_targets().enumerate() {
             let w = weights.get(i).copied().unwrap_or(0.0);
-
             let Some(acc) = target.positions().filter(|_| w != 0.0) else {
                 continue;
             };
