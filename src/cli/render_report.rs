@@ -210,7 +210,6 @@ fn load_failures(stats: &[FrameStats]) -> Option<u32> {
 }
 
 /// Mean and max of a column.
-
 fn mean_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut n, mut sum, mut max) = (0usize, 0.0, f64::NEG_INFINITY);
     for v in values {
