@@ -419,7 +419,8 @@ pub(crate) struct BuildParamsArgs {
     /// per thread, the cache the threads' largest images, one each, never more than every image once) is
     /// refused before any work, with the number it needs. Default: half of the memory this process may
     /// use (the machine's, or its cgroup's limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's
-    /// limit; or `ulimit -v`).
+    /// limit; or `ulimit -v`). The rasteriser runs a thread per core; `RAYON_NUM_THREADS=N` runs N,
+    /// which need less (each holds its atlases and images).
     #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
     pub max_memory: Option<MemoryArg>,
     /// With `--repeat bake`: split a triangle too big for one atlas (a ground quad with a tile repeated

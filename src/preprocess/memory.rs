@@ -158,10 +158,12 @@ pub struct MemoryPlan {
 #[error(
     "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan: {}; {raster_mib} MiB for {threads} \
      rasteriser {}; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; \
-     by default half the memory this process may use): raise --max-memory{}",
+     by default half the memory this process may use): raise --max-memory{}{}",
     plan_why(*.triangles, *.extra_pieces),
     if *.threads == 1 { "thread" } else { "threads" },
     cache_why(.largest_image, *.images, *.threads),
+    if *.threads > 1 { ", or run fewer rasteriser threads (RAYON_NUM_THREADS=N: each holds its atlases \
+     and its images)" } else { "" },
     if *.triangles > 0 { ", or for a sharded build plan once (`build --shard plan`): its shards then hold no \
      triangles" } else { "" }
 )]

@@ -238,7 +238,8 @@ pub(super) fn variant_id(b: &BuildKnobs, r: &RuntimeKnobs) -> String {
 pub(crate) const MAX_D_MIN_RATIO: f64 = 1e9;
 
 impl Grid {
-    /// Both around the build defaults (border 16, repeats wrapped). `small`: data/city in CI time (d_min =
+    /// Both around a base of their own, not the build's defaults (d_min ratio 151, atlas 1024): border 16,
+    /// repeats wrapped. `small`: data/city in CI time (d_min =
     /// diagonal / 15; 4 builds: atlas 512/1024, box/Kaiser, repeats baked; 4 texel ratios, one capacity, 6
     /// frames of 320×240). `full`: 12 builds (d_min ratio 10/30/60, atlas 512/1024/2048, border 2/8/16 (the
     /// paper's 8), box/Kaiser, compression none/bc1/bc7, repeats wrap/bake, alpha mips plain/coverage),

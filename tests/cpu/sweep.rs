@@ -217,6 +217,27 @@ fn summary_means_front_and_recommendation() {
         (rec.fastest_frames, rec.smallest_file, rec.fastest_build),
         (rec.best, rec.best, rec.best)
     );
+    // Variants of one build that draw identical frames share their mean time (their differences are
+    // noise: four identical sweeps named four "fastest"), and times within 10 % of the least are equal;
+    // equals name the most accurate, then the first. Here b/1 is 14 ms, the three of a 16.6, 11.6 and
+    // 14.0 (mean 14.07): all within 10 %, so the more accurate a (40.0 dB) over b (39.9), its first row.
+    let frames = vec![
+        frame(a, 0.5, 0, 40.0, 16.6),
+        frame(a, 1.0, 0, 40.0, 11.6),
+        frame(a, 2.0, 0, 40.0, 14.0),
+        frame(b, 1.0, 0, 39.9, 14.0),
+    ];
+    let rows = summarise(&[build_row(a, 300, 2.0), build_row(b, 100, 2.1)], &frames);
+    let rec = recommend(&rows, 0.5).expect("rows");
+    assert_eq!(rows[0].id, "r10_a512_b8_box_t0.5_all");
+    assert_eq!((rec.best, rec.fastest_frames, rec.fastest_build), (0, 0, 0));
+    // The smallest file is exact: b's.
+    assert_eq!(rec.smallest_file, 3);
+    // Beyond 10 %, the faster wins: b at 10 ms against a's 14.07.
+    let mut faster_b = frames.clone();
+    faster_b[3] = frame(b, 1.0, 0, 39.9, 10.0);
+    let rows = summarise(&[build_row(a, 300, 2.0), build_row(b, 100, 2.1)], &faster_b);
+    assert_eq!(recommend(&rows, 0.5).expect("rows").fastest_frames, 3);
 }
 
 /// Knob effects: every single-knob change from the base (texel ratio 1, all resident) with its PSNR
@@ -321,7 +342,8 @@ fn report_names_roles_once_effects_and_skipped_builds() {
         "{md}"
     );
     assert!(
-        rec[1].starts_with("- **Fastest frames within 0.5 dB of it** (the recommended runtime default): `r10_a512_b8_box_t0.5_all`"),
+        rec[1].starts_with("- **Fastest frames within 0.5 dB of it** (the recommended runtime default; times within 10 % of the least count as equal")
+            && rec[1].contains("): `r10_a512_b8_box_t0.5_all`"),
         "{md}"
     );
     assert!(md.contains("sampler anisotropy 16×"), "{md}");
