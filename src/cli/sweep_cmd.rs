@@ -293,8 +293,12 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     }
     if let Some(rec) = rec {
         println!(
-            "recommended (fastest frames within {} dB of the best {:.2} dB): {}",
-            rec.tolerance_db, rows[rec.best].psnr_covered_db, rows[rec.fastest_frames].id
+            "recommended (fastest frames within {} dB of the best {:.2} dB; times within {:.0} % of the \
+             least count as equal): {}",
+            rec.tolerance_db,
+            rows[rec.best].psnr_covered_db,
+            atlastree::sweep::summary::TIME_TIE_SHARE * 100.0,
+            rows[rec.fastest_frames].id
         );
     }
     for w in written {

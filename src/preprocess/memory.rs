@@ -56,7 +56,8 @@ pub const CACHE_SHARE_DIVISOR: u64 = 3;
 /// 33).
 pub const ORIGINAL_RESAMPLED_BYTES_PER_TEXEL: u64 = 32;
 /// [`ORIGINAL_RESAMPLED_BYTES_PER_TEXEL`] for an original stored at its source's own sides (taken from
-/// the cached chain: its RGBA8 levels, 5.3, and the encoded chain, at most 5.3).
+/// the cached chain: its RGBA8 levels, 5.3, and the encoded chain, at most 5.3), unless alpha mips keep
+/// coverage (`--alpha-mips coverage`: the chain is copied in f32 first, as resampled).
 pub const ORIGINAL_COPIED_BYTES_PER_TEXEL: u64 = 11;
 /// Smallest image cache worth running with.
 pub const MIN_IMAGE_CACHE: u64 = 64 << 20;
@@ -104,8 +105,26 @@ pub struct ImageLoad {
 }
 
 impl ImageLoad {
-    /// The load of images of `(width, height)` each, drawn by `threads` rasteriser threads.
+    /// The load of images of `(width, height)` each, drawn by `threads` rasteriser threads
+    /// ([`ImageLoad::with_coverage_mips`] where alpha mips keep coverage).
     pub fn of(sides: impl IntoIterator<Item = (u32, u32)>, threads: u64) -> ImageLoad {
+        Self::counted(sides, threads, ORIGINAL_COPIED_BYTES_PER_TEXEL)
+    }
+
+    /// [`ImageLoad::of`] for a build whose alpha mips keep coverage: an original stored at its source's
+    /// sides is copied in f32 first, so it weighs as a resampled one.
+    pub fn with_coverage_mips(
+        sides: impl IntoIterator<Item = (u32, u32)>,
+        threads: u64,
+    ) -> ImageLoad {
+        Self::counted(sides, threads, ORIGINAL_RESAMPLED_BYTES_PER_TEXEL)
+    }
+
+    fn counted(
+        sides: impl IntoIterator<Item = (u32, u32)>,
+        threads: u64,
+        copied: u64,
+    ) -> ImageLoad {
         let sides: Vec<(u32, u32)> = sides.into_iter().collect();
         let mut texels: Vec<u64> = (sides.iter())
             .map(|&(w, h)| u64::from(w) * u64::from(h))
@@ -114,7 +133,7 @@ impl ImageLoad {
             .map(|&(w, h)| {
                 let [sw, sh] = super::originals::original_extent(w, h);
                 let per_texel = if [sw, sh] == [w, h] {
-                    ORIGINAL_COPIED_BYTES_PER_TEXEL
+                    copied
                 } else {
                     ORIGINAL_RESAMPLED_BYTES_PER_TEXEL
                 };
@@ -212,9 +231,13 @@ fn plan_why(triangles: u64, extra_pieces: u64) -> String {
 /// found a 64² texture blamed for 80 MiB), and each thread's image once more while it is decoded.
 fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
     let (_, all_bound) = cache_need(images);
-    let threads_word = if threads == 1 { "thread" } else { "threads" };
+    let threads_do = if threads == 1 {
+        "thread resamples and encodes"
+    } else {
+        "threads resample and encode"
+    };
     format!(
-        "{}; and {} MiB for the originals the {threads} {threads_word} resample and encode",
+        "{}; and {} MiB for the originals the {threads} {threads_do}",
         cache_why_shares(largest_image, images, threads, all_bound),
         images.originals_scratch_bytes.div_ceil(1 << 20)
     )
@@ -599,6 +622,16 @@ mod tests {
         assert_eq!(
             e.cache_mib,
             (per_threads * 5 / 4 + per_threads + scratch).div_ceil(1 << 20)
+        );
+        // With coverage-keeping alpha mips a copied original goes through f32 too.
+        assert_eq!(
+            ImageLoad::with_coverage_mips([(1024, 1024)], 2).originals_scratch_bytes,
+            1024 * 1024 * ORIGINAL_RESAMPLED_BYTES_PER_TEXEL
+        );
+        // An absurd header's sides are stored at the largest class (rounding up first overflowed).
+        assert_eq!(
+            ImageLoad::of([(u32::MAX, 3)], 1).originals_scratch_bytes,
+            2048 * 4 * ORIGINAL_RESAMPLED_BYTES_PER_TEXEL
         );
         // An NPOT source is resampled to the next power of two: counted at the stored sides.
         let npot = ImageLoad::of(vec![(1025, 1025); 16], 2);

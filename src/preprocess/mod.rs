@@ -621,17 +621,25 @@ pub(super) fn plan_memory(
         load,
         params.atlas_size,
         rayon::current_num_threads() as u64,
-        image_load(&scene.images),
+        image_load(&scene.images, opts.alpha_mips),
         opts.image_cache_bytes,
     )
     .map_err(|e| e.naming(largest_image_name(&scene.images)))?;
     Ok(Some(plan))
 }
 
-/// What `images` weigh in the image cache, drawn by this process's rasteriser threads.
-pub(super) fn image_load(images: &[crate::scene::ImageSource]) -> memory::ImageLoad {
+/// What `images` weigh in the image cache, drawn by this process's rasteriser threads with
+/// `alpha_mips`.
+pub(super) fn image_load(
+    images: &[crate::scene::ImageSource],
+    alpha_mips: image_ops::AlphaMips,
+) -> memory::ImageLoad {
     let threads = rayon::current_num_threads() as u64;
-    memory::ImageLoad::of(images.iter().map(|i| (i.width, i.height)), threads)
+    let sides = images.iter().map(|i| (i.width, i.height));
+    match alpha_mips {
+        image_ops::AlphaMips::Plain => memory::ImageLoad::of(sides, threads),
+        image_ops::AlphaMips::Coverage => memory::ImageLoad::with_coverage_mips(sides, threads),
+    }
 }
 
 /// The name of the largest of `images` (the first of equals), for [`memory::MemoryError::naming`].

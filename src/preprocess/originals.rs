@@ -31,10 +31,12 @@ pub fn original_class(w: u32, h: u32) -> u32 {
 /// `MIN_ORIGINAL_CLASS..=MAX_ORIGINAL_CLASS` (so the larger is [`original_class`]). Non-square, so a
 /// `1024 × 256` texture stores a quarter of the `1024²` its class layer holds.
 pub fn original_extent(w: u32, h: u32) -> [u32; 2] {
+    // Clamped before rounding up: `next_power_of_two` of a side above 2³¹ overflows (an absurd
+    // image header; review of session 33). The same sides for every other value.
     let side = |v: u32| {
-        v.max(1)
+        v.clamp(1, MAX_ORIGINAL_CLASS)
             .next_power_of_two()
-            .clamp(MIN_ORIGINAL_CLASS, MAX_ORIGINAL_CLASS)
+            .max(MIN_ORIGINAL_CLASS)
     };
     [side(w), side(h)]
 }

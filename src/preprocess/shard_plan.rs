@@ -210,7 +210,7 @@ pub fn build_shard_planned(
                 skeleton_bytes(&forest),
                 opts.atlas_size,
                 rayon::current_num_threads() as u64,
-                super::image_load(&images),
+                super::image_load(&images, opts.alpha_mips),
                 opts.image_cache_bytes,
             )
             .map_err(|e| e.naming(super::largest_image_name(&images)))?,

@@ -133,7 +133,9 @@ pub struct Recommendation {
     /// The most accurate variant (index into the rows).
     pub best: usize,
     pub tolerance_db: f64,
-    /// Lowest median frame time within the tolerance.
+    /// Lowest median frame time within the tolerance, times within [`TIME_TIE_SHARE`] of the least
+    /// counted as equal and the rows of one build that draw identical frames timed by their mean (the
+    /// first such row named; tables and the front show each row's own median).
     pub fastest_frames: usize,
     /// Smallest file within the tolerance.
     pub smallest_file: usize,
@@ -205,18 +207,20 @@ pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendatio
 /// Each row's median frame time, averaged over the rows of its build that drew identical frames (the
 /// same covered PSNR and SSIM, to the bit): the same work, so their differences are noise.
 fn same_frames_mean_ms(rows: &[VariantRow]) -> Vec<f64> {
-    let key = |r: &VariantRow| (r.build.id(), r.psnr_covered_db.to_bits(), r.ssim.to_bits());
-    rows.iter()
-        .map(|r| {
-            let same: Vec<f64> = (rows.iter())
-                .filter(|o| key(o) == key(r) && o.frame_ms_median.is_finite())
-                .map(|o| o.frame_ms_median)
-                .collect();
-            if same.is_empty() {
-                r.frame_ms_median
-            } else {
-                same.iter().sum::<f64>() / same.len() as f64
-            }
+    let keys: Vec<_> = (rows.iter())
+        .map(|r| (r.build.id(), r.psnr_covered_db.to_bits(), r.ssim.to_bits()))
+        .collect();
+    let mut sums: std::collections::HashMap<_, (f64, u32)> = Default::default();
+    for (key, r) in keys.iter().zip(rows) {
+        if r.frame_ms_median.is_finite() {
+            let e = sums.entry(key).or_default();
+            *e = (e.0 + r.frame_ms_median, e.1 + 1);
+        }
+    }
+    (keys.iter().zip(rows))
+        .map(|(key, r)| match sums.get(key) {
+            Some(&(sum, n)) if n > 0 => sum / f64::from(n),
+            _ => r.frame_ms_median,
         })
         .collect()
 }
