@@ -84,10 +84,12 @@ pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
         anyhow::bail!("--reference: {why}");
     }
     // Said, not ignored (fault hunt, session 32): only compressed atlases are re-measured.
-    let compressed = (0..file.trees())
-        .filter_map(|t| file.tree(t))
-        .any(|t| t.format().is_compressed());
-    if reference.is_some() && !compressed {
+    let compressed = || {
+        (0..file.trees())
+            .filter_map(|t| file.tree(t))
+            .any(|t| t.format().is_compressed())
+    };
+    if reference.is_some() && !compressed() {
         eprintln!(
             "note: --reference: {} stores no compressed atlas, so there is nothing to re-measure against it",
             a.file.display()

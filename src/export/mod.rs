@@ -295,8 +295,7 @@ fn replace_dir(temp: &Path, out: &Path, name: &str, force: bool) -> Result<(), E
         let renamed = std::fs::rename(temp, out).or_else(|e| {
             // Windows renames onto no directory, not even an empty one: an empty one goes first
             // (`remove_dir` refuses a non-empty one, which stays refused).
-            let empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_none());
-            if empty && std::fs::remove_dir(out).is_ok() {
+            if std::fs::remove_dir(out).is_ok() {
                 std::fs::rename(temp, out)
             } else {
                 Err(e)

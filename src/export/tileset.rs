@@ -117,11 +117,7 @@ mod tests {
     fn every_up_axis_becomes_the_tile_frames_z() {
         let p = DVec3::new(1.0, 2.0, 3.0);
         for up in [UpAxis::X, UpAxis::Y, UpAxis::Z] {
-            let up_vector = match up {
-                UpAxis::X => DVec3::X,
-                UpAxis::Y => DVec3::Y,
-                UpAxis::Z => DVec3::Z,
-            };
+            let up_vector = up.vector();
             assert_eq!(to_tile_frame(up_vector, up), DVec3::Z, "{up:?}");
             assert_eq!(to_gltf_frame(up_vector, up), DVec3::Y, "{up:?}");
             let q = gltf_rotation(up).map_or(glam::DQuat::IDENTITY, glam::DQuat::from_array);

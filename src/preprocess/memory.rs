@@ -230,34 +230,16 @@ fn plan_why(triangles: u64, extra_pieces: u64) -> String {
 /// ([`MIN_IMAGE_CACHE`]), or the minimum (a small image is not the cause; the docs hunt of session 29
 /// found a 64² texture blamed for 80 MiB), and each thread's image once more while it is decoded.
 fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
-    let (_, all_bound) = cache_need(images);
-    let threads_do = if threads == 1 {
-        "thread resamples and encodes"
-    } else {
-        "threads resample and encode"
-    };
-    format!(
-        "{}; and {} MiB for the originals the {threads} {threads_do}",
-        cache_why_shares(largest_image, images, threads, all_bound),
-        images.originals_scratch_bytes.div_ceil(1 << 20)
-    )
-}
-
-/// [`cache_why`] but for the originals being encoded.
-fn cache_why_shares(
-    largest_image: &str,
-    images: ImageLoad,
-    threads: u64,
-    all_bound: bool,
-) -> String {
     let ImageLoad {
         largest_texels,
         per_thread_texels,
         all_texels,
-        ..
+        originals_scratch_bytes,
     } = images;
-    let big = per_thread_texels.saturating_mul(CACHE_BYTES_PER_TEXEL) > MIN_IMAGE_CACHE;
-    if all_bound && big {
+    let need = cache_need(images);
+    let (all_bound, big) = (need.every_image_bound, need.floor > MIN_IMAGE_CACHE);
+    let min_mib = MIN_IMAGE_CACHE >> 20;
+    let shares = if all_bound && big {
         format!(
             "every image once ({all_texels} texels; the largest, {largest_image}: {largest_texels}), \
              with a quarter for originals; downscale the largest if it dominates"
@@ -265,9 +247,8 @@ fn cache_why_shares(
     } else if all_bound {
         // Small images are not blamed (session 29's docs hunt found a 64² texture blamed for 80 MiB).
         format!(
-            "a quarter of the cache's minimum of {} MiB for originals and every image once \
-             ({all_texels} texels)",
-            MIN_IMAGE_CACHE >> 20
+            "a quarter of the cache's minimum of {min_mib} MiB for originals and every image once \
+             ({all_texels} texels)"
         )
     } else if big && threads == 1 {
         format!(
@@ -284,11 +265,19 @@ fn cache_why_shares(
         // The in-flight share is in the number: named here too (hacienda's shard said 132 MiB for "the
         // minimum of 64 MiB with a quarter", 52 unexplained; fault hunt, session 32).
         format!(
-            "the cache's minimum of {} MiB with a quarter for originals, and each thread's image (the \
-             largest, {largest_image}, {largest_texels} texels) once more while it is decoded",
-            MIN_IMAGE_CACHE >> 20
+            "the cache's minimum of {min_mib} MiB with a quarter for originals, and each thread's image \
+             (the largest, {largest_image}, {largest_texels} texels) once more while it is decoded"
         )
-    }
+    };
+    let threads_do = if threads == 1 {
+        "thread resamples and encodes"
+    } else {
+        "threads resample and encode"
+    };
+    format!(
+        "{shares}; and {} MiB for the originals the {threads} {threads_do}",
+        originals_scratch_bytes.div_ceil(1 << 20)
+    )
 }
 
 /// What the image cache and the images in flight need at most (`threads` rasteriser threads), with the
@@ -302,18 +291,26 @@ fn cache_why_shares(
 /// an image at most once, all that never passes every image once with the originals' quarter. Beside
 /// either, each thread resamples and encodes an original texture outside the cache
 /// ([`ImageLoad::originals_scratch_bytes`]).
-fn cache_need(images: ImageLoad) -> (u64, bool) {
+fn cache_need(images: ImageLoad) -> CacheNeed {
     let bytes = |texels: u64| texels.saturating_mul(CACHE_BYTES_PER_TEXEL);
     let per_threads = bytes(images.per_thread_texels);
     let floor = per_threads.max(MIN_IMAGE_CACHE);
     let in_flight = per_threads;
     let counted = floor.saturating_add(floor / 4).saturating_add(in_flight);
     let every_image = bytes(images.all_texels).saturating_add(floor / 4);
-    let need = counted.min(every_image);
-    (
-        need.saturating_add(images.originals_scratch_bytes),
-        every_image < counted,
-    )
+    CacheNeed {
+        floor,
+        bytes: (counted.min(every_image)).saturating_add(images.originals_scratch_bytes),
+        every_image_bound: every_image < counted,
+    }
+}
+
+/// [`cache_need`]: the cache's floor (the least bound it runs with), what the cache, the images in
+/// flight and the originals being encoded need, and whether "every image once" set it.
+struct CacheNeed {
+    floor: u64,
+    bytes: u64,
+    every_image_bound: bool,
 }
 
 /// Why the plan step of a sharded build does not fit its budget.
@@ -414,11 +411,11 @@ fn split_budget(
     let plan_bytes = BASE_BYTES.saturating_add(held);
     let atlas = u64::from(atlas_size).pow(2) * 16;
     let raster_bytes = threads.max(1) * ATLASES_PER_THREAD * atlas;
-    let floor = (images
-        .per_thread_texels
-        .saturating_mul(CACHE_BYTES_PER_TEXEL))
-    .max(MIN_IMAGE_CACHE);
-    let (cache_bytes, _) = cache_need(images);
+    let CacheNeed {
+        floor,
+        bytes: cache_bytes,
+        ..
+    } = cache_need(images);
     let needed_bytes = plan_bytes
         .saturating_add(raster_bytes)
         .saturating_add(cache_bytes);

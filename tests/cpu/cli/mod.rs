@@ -303,30 +303,24 @@ fn materials_filter_and_decode_baseline() {
 #[test]
 fn decode_counts_missing_images_as_fallbacks() {
     let dir = tempfile::tempdir().unwrap();
-    let src = scene().parent().unwrap().to_path_buf();
-    std::fs::copy(src.join("scene.gltf"), dir.path().join("scene.gltf")).unwrap();
-    std::fs::copy(src.join("scene.bin"), dir.path().join("scene.bin")).unwrap();
-    std::fs::create_dir(dir.path().join("textures")).unwrap();
+    let gltf = crate::built::city_copy(dir.path());
     let mut missing = 0;
-    for (i, e) in std::fs::read_dir(src.join("textures")).unwrap().enumerate() {
-        let e = e.unwrap();
-        if i % 2 == 0 {
-            std::fs::copy(e.path(), dir.path().join("textures").join(e.file_name())).unwrap();
-        } else {
-            missing += 1;
-        }
+    let textures: Vec<_> = (std::fs::read_dir(dir.path().join("city/textures")).unwrap())
+        .map(|e| e.unwrap().path())
+        .collect();
+    for texture in textures.iter().skip(1).step_by(2) {
+        std::fs::remove_file(texture).unwrap();
+        missing += 1;
     }
     let v = json(&run(bin()
         .args(["scene-info", "--json", "--decode"])
-        .arg(dir.path().join("scene.gltf"))));
+        .arg(&gltf)));
     let fallbacks = v["decode"]["fallbacks"].as_u64().unwrap();
     assert!(
         fallbacks > 0 && fallbacks <= missing,
         "{fallbacks} of {missing}: {v}"
     );
-    let text = run(bin()
-        .args(["scene-info", "--decode"])
-        .arg(dir.path().join("scene.gltf")));
+    let text = run(bin().args(["scene-info", "--decode"]).arg(&gltf));
     let text = String::from_utf8_lossy(&text.stdout);
     assert!(
         text.contains(&format!(
