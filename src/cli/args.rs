@@ -421,7 +421,7 @@ pub(crate) struct BuildParamsArgs {
     /// use (the machine's, or its cgroup's limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's
     /// limit; or `ulimit -v`). The rasteriser runs a thread per core; `RAYON_NUM_THREADS=N` runs N,
     /// which need less (each holds its atlases and images).
-    #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
+    #[arg(long, value_name = "SIZE", value_parser = parse_memory, allow_hyphen_values = true)]
     pub max_memory: Option<MemoryArg>,
     /// With `--repeat bake`: split a triangle too big for one atlas (a ground quad with a tile repeated
     /// hundreds of times) into at most this many pieces; beyond that its leaf's resolution is clamped. 1

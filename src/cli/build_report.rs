@@ -92,7 +92,7 @@ pub(super) fn print_report(r: &BuildReport, out: &std::path::Path) {
         );
         let o = &t.originals;
         println!(
-            "    originals: {} stored, one per material ({} leaf references, {} images), {} ({} as square classes); the sources once in {} with mips {} ({:.2}×)",
+            "    originals: {} stored, one per image, wrap and MASK cutoff ({} leaf references, {} images), {} ({} as square classes); the sources once in {} with mips {} ({:.2}×)",
             o.stored,
             o.references,
             o.images,

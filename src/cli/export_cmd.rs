@@ -40,7 +40,8 @@ pub(crate) struct Tiles3dArgs {
     /// Output directory (created; written to a temporary sibling and renamed when complete).
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Replace OUT if it exists and is not empty.
+    /// Replace OUT if it exists and is not empty: only an earlier export (a directory with
+    /// atlastree-export.json); any other non-empty directory is refused, never deleted.
     #[arg(long)]
     pub force: bool,
     /// For comparison: every tile drawn with the original textures, as tilers without texture LOD do.
@@ -49,7 +50,12 @@ pub(crate) struct Tiles3dArgs {
     /// At most this many wrapping rects per tile get their own image holding one period (a draw call
     /// each); those with the smallest periods at the tile's level are drawn with their period's average
     /// instead (below 2 texels of the tile's level they always are: atlastree's shader does the same).
-    #[arg(long, default_value_t = 256, value_name = "N")]
+    #[arg(
+        long,
+        default_value_t = 256,
+        value_name = "N",
+        allow_hyphen_values = true
+    )]
     pub max_period_images: usize,
     /// Print the summary as JSON (the same as OUT/atlastree-export.json without the tile list).
     #[arg(long)]

@@ -316,6 +316,24 @@ pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Resul
     Ok(())
 }
 
+/// A scene given as an http(s) or other URL that is not also a local path gets a clear error (it read
+/// "cannot read: No such file or directory"; fault hunt, session 34), as [`reject_url`] does for paging
+/// files.
+fn reject_scene_url(path: &std::path::Path) -> anyhow::Result<()> {
+    if path.exists() {
+        return Ok(());
+    }
+    let raw = path.to_string_lossy();
+    let text = atlastree::paging::redact_url(&raw);
+    if args::is_url(&raw) || args::url_scheme(&raw).is_some() {
+        anyhow::bail!(
+            "{text}: scenes are read from local glTF or GLB files, not URLs; download the scene with its \
+             images first (only `atlastree render URL` reads over HTTP, and it reads paging files)"
+        );
+    }
+    Ok(())
+}
+
 /// Before any work: `--out` must be a folder or not exist yet (a file there failed only when the outputs
 /// were written, as "File exists (os error 17)" or "Not a directory").
 pub(crate) fn check_out_folder(out: &std::path::Path) -> anyhow::Result<()> {
@@ -378,6 +396,7 @@ pub(crate) fn load_scene_within(
     max_triangles: Option<u64>,
     max_json_bytes: Option<u64>,
 ) -> anyhow::Result<atlastree::scene::Scene> {
+    reject_scene_url(path)?;
     let opts = atlastree::scene::ImportOptions {
         up: up.to_option(),
         max_triangles,

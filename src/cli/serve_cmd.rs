@@ -30,7 +30,7 @@ pub(crate) struct ServeArgs {
     /// A paging file written by `atlastree build`.
     pub file: PathBuf,
     /// TCP port; 0 picks a free one (printed).
-    #[arg(long, default_value_t = 8077)]
+    #[arg(long, default_value_t = 8077, allow_hyphen_values = true)]
     pub port: u16,
     /// Address to listen on. The default serves this machine only; `0.0.0.0` serves the network.
     #[arg(long, default_value = "127.0.0.1")]

@@ -27,9 +27,15 @@ pub(crate) struct SimulateArgs {
     pub capacity: Vec<String>,
     /// Bandwidths, comma-separated (`5MB/s`, `50MiB/s`); `instant` = no I/O model (blocks arrive in the
     /// frame they are requested).
-    #[arg(long, default_value = "5MB/s,50MB/s,500MB/s", value_delimiter = ',')]
+    #[arg(
+        long,
+        default_value = "5MB/s,50MB/s,500MB/s",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
     pub bandwidth: Vec<String>,
-    /// Latencies per request, comma-separated (`0ms`, `80ms`).
+    /// Latencies per request, comma-separated, each with its unit (`0ms`, `80ms`, `0.2s`; a bare number
+    /// other than 0 is refused, not read as seconds).
     #[arg(
         long,
         default_value = "0ms,80ms",
@@ -120,12 +126,18 @@ impl SimulateArgs {
         )?;
         let latencies = parse_list(
             "latency",
-            "a duration ≥ 0 such as 8ms",
+            "a duration ≥ 0 with its unit, such as 8ms or 0.008s (a bare number other than 0 is refused)",
             &self.latency,
-            atlastree::util::parse_seconds,
+            atlastree::util::parse_duration_with_unit,
         )?;
-        let overhead = atlastree::util::parse_seconds(&self.overhead)
-            .with_context(|| format!("bad --overhead {:?}", self.overhead))?;
+        let overhead =
+            atlastree::util::parse_duration_with_unit(&self.overhead).with_context(|| {
+                format!(
+                    "bad --overhead {:?}: a duration ≥ 0 with its unit, such as 2ms or 0.002s (a bare \
+                     number other than 0 is refused)",
+                    self.overhead
+                )
+            })?;
         if self.policy.is_empty()
             || capacities.is_empty()
             || bandwidths.is_empty()

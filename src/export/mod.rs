@@ -149,6 +149,9 @@ pub struct LevelSummary {
     pub max_draw_calls: usize,
 }
 
+/// The report every export writes into its directory: what marks a directory `--force` may replace.
+pub const EXPORT_REPORT: &str = "atlastree-export.json";
+
 /// What an export wrote (`atlastree-export.json`).
 #[derive(Clone, Debug, Serialize)]
 pub struct ExportSummary {
@@ -247,7 +250,15 @@ pub fn export_3dtiles(
             dir: out.to_path_buf(),
         });
     }
-    // `--force` replaces the directory as a whole: never one that holds the input.
+    // `--force` replaces the directory as a whole: only an earlier export (its report names it one), never
+    // a folder of other files such as the scene's (fault hunt, session 34), nor one that holds the input.
+    if non_empty && !out.join(EXPORT_REPORT).is_file() {
+        return Err(ExportError::BadOutput {
+            dir: out.to_path_buf(),
+            why: "is not an earlier export (it has no atlastree-export.json), and --force replaces only \
+                  those; remove it yourself or export into another directory",
+        });
+    }
     if non_empty
         && let (Ok(input), Ok(dir)) = (file.path().canonicalize(), out.canonicalize())
         && input.starts_with(&dir)
@@ -494,7 +505,7 @@ fn write_tileset(
             break;
         }
     }
-    write_file(&dir.join("atlastree-export.json"), report.as_bytes())?;
+    write_file(&dir.join(EXPORT_REPORT), report.as_bytes())?;
     Ok(summary)
 }
 

@@ -58,16 +58,29 @@ struct Asm<'a> {
     format: TexFormat,
     out: Assembled,
     next_block: u32,
-    /// The tree's original textures, per material in order of first use: stored bytes and the leaves
-    /// that draw it. Each is stored once; [`Asm::place_originals`] cuts them into blocks
-    /// ([`group_by_users`]) when every leaf is known (docs/DESIGN.md "Originals").
-    pending: Vec<(MaterialId, OriginalItem)>,
-    pending_of: HashMap<MaterialId, usize>,
+    /// The tree's stored original textures in order of first use: stored bytes and the leaves that
+    /// draw it. Each is stored once, however many materials draw it ([`StoredOriginal`]);
+    /// [`Asm::place_originals`] cuts them into blocks ([`group_by_users`]) when every leaf is known
+    /// (docs/DESIGN.md "Originals").
+    pending: Vec<(StoredOriginal, OriginalItem)>,
+    pending_of: HashMap<StoredOriginal, usize>,
     /// Indices of the leaves walked so far (3 per triangle): a node's `first_index` before its geometry
     /// exists.
     index_cursor: u32,
     /// Leaves whose geometry is still to be made, in leaf order ([`Asm::make_geometry`]).
     geometry: Vec<GeometryJob>,
+}
+
+/// What makes two materials' stored original textures the same bytes: the image, its wrap (resampling
+/// reads across the edges it wraps) and, in an alpha tree, a MASK material's cutoff (coverage-keeping
+/// alpha mips rescale by it; kept apart whatever the build's alpha mips, so the tables do not depend on
+/// that pixel option). Materials with one key share one stored original: the key of the pixel pass's
+/// cache of encoded originals (`raster::ImageCache::original`) adds only what is fixed per tree.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+struct StoredOriginal {
+    image: crate::ids::ImageId,
+    wrap: [crate::scene::Wrap; 2],
+    mask_cutoff: Option<u32>,
 }
 
 /// What a leaf's geometry needs besides its triangles ([`leaf_geometry`]).
@@ -147,6 +160,23 @@ pub fn assemble(
     a.out
 }
 
+/// Material `m`'s [`StoredOriginal`] in a tree of `kind`.
+fn stored_original(scene: &Scene, kind: TreeKind, m: MaterialId) -> StoredOriginal {
+    let mat = &scene.materials[m.idx()];
+    let mask_cutoff = match (kind, mat.alpha) {
+        // As `alpha_coverage::mask_cutoffs` picks the cutoffs it keeps coverage for.
+        (TreeKind::Alpha, crate::scene::AlphaMode::Mask { cutoff }) if cutoff.is_finite() => {
+            Some(cutoff.to_bits())
+        }
+        _ => None,
+    };
+    StoredOriginal {
+        image: mat.image,
+        wrap: mat.wrap,
+        mask_cutoff,
+    }
+}
+
 impl Asm<'_> {
     fn block(&mut self, kind: BlockKind, bytes: u64) -> BlockId {
         let id = BlockId(self.next_block);
@@ -164,9 +194,10 @@ impl Asm<'_> {
     /// references at their block and slot.
     fn place_originals(&mut self) {
         let budget = self.format.chain_bytes(self.params.atlas_size);
+        let kind = self.out.tree.kind;
         let items: Vec<OriginalItem> = self.pending.iter().map(|p| p.1.clone()).collect();
         let blocks = group_by_users(&items, budget, MAX_BLOCK_WASTE);
-        let mut place: HashMap<MaterialId, (BlockId, u32)> = HashMap::new();
+        let mut place: HashMap<StoredOriginal, (BlockId, u32)> = HashMap::new();
         let mut parts: HashMap<u32, u32> = HashMap::new();
         for b in &blocks {
             let part = parts.entry(b.owner).or_default();
@@ -189,8 +220,9 @@ impl Asm<'_> {
             .iter_mut()
             .flat_map(|l| &mut l.originals)
         {
-            // Every pending material is in exactly one block (group_by_users' contract).
-            if let Some(&(block, slot)) = place.get(&o.material) {
+            // Every pending original is in exactly one block (group_by_users' contract).
+            if let Some(&(block, slot)) = place.get(&stored_original(self.scene, kind, o.material))
+            {
                 (o.block, o.slot) = (block, slot);
             }
         }
@@ -250,8 +282,9 @@ impl Asm<'_> {
             DVec3::ZERO
         };
 
-        // Original textures: one entry per material, each recorded with its users; the blocks are cut
-        // once all leaves are known (`place_originals` fills in `block` and `slot`).
+        // Original textures: one reference per material, each stored original recorded once with its
+        // users; the blocks are cut once all leaves are known (`place_originals` fills in `block` and
+        // `slot`).
         let mut seen_materials = std::collections::HashSet::new();
         let mut originals: Vec<OriginalRef> = Vec::new();
         let mut slot_of: FxHashMap<MaterialId, u32> = FxHashMap::default();
@@ -259,11 +292,12 @@ impl Asm<'_> {
             let mat = &self.scene.materials[r.material.idx()];
             let img = &self.scene.images[mat.image.idx()];
             let extent = original_extent(img.width, img.height);
+            let key = stored_original(self.scene, self.out.tree.kind, r.material);
             let next = self.pending.len();
-            let k = *self.pending_of.entry(r.material).or_insert(next);
+            let k = *self.pending_of.entry(key).or_insert(next);
             if k == next {
                 self.pending.push((
-                    r.material,
+                    key,
                     OriginalItem {
                         bytes: self.format.chain_bytes_rect(extent[0], extent[1]),
                         layer_bytes: self.format.chain_bytes(extent[0].max(extent[1])),
@@ -271,7 +305,11 @@ impl Asm<'_> {
                     },
                 ));
             }
-            self.pending[k].1.users.push(leaf_id.0);
+            // Two materials of this leaf may share it: the leaf is one user.
+            let users = &mut self.pending[k].1.users;
+            if users.last() != Some(&leaf_id.0) {
+                users.push(leaf_id.0);
+            }
             slot_of.insert(r.material, originals.len() as u32);
             originals.push(OriginalRef {
                 material: r.material,

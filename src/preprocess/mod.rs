@@ -498,7 +498,8 @@ pub fn resolve_params(
         return bad(
             "d-min",
             crate::util::short_number(d_min),
-            "must be a finite distance > 0 (is the scene a single point?)",
+            // Given in metres: the scene's extent plays no part (the single-point hint is the ratio's).
+            "must be a finite distance > 0, in metres",
         );
     }
     let params = BuildParams {

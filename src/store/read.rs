@@ -438,7 +438,7 @@ impl TreeFile {
             };
             validate::check_tree(
                 &tables,
-                self.materials().len(),
+                self.materials(),
                 self.blocks(),
                 self.params().atlas_size,
             )?;

@@ -305,7 +305,7 @@ pub(crate) fn check_block_meta(
 /// index/vertex/rect/original ranges, material and block ids, vertex leaf ids and index values.
 pub(crate) fn check_tree(
     t: &TreeTables<'_>,
-    materials: usize,
+    materials: &[MaterialRecord],
     blocks: &[BlockRecord],
     atlas_size: u32,
 ) -> Result<(), StoreError> {
@@ -341,35 +341,43 @@ pub(crate) fn check_tree(
     }
     check_nodes(t, blocks)?;
     check_leaves(t, blocks)?;
-    check_rects_originals(t, materials, blocks, atlas_size)?;
-    check_original_slots(t, blocks)?;
+    check_rects_originals(t, materials.len(), blocks, atlas_size)?;
+    check_original_slots(t, materials, blocks)?;
     if t.geometry_vouched {
         return Ok(());
     }
     check_vertices_indices(t)
 }
 
-/// Every originals block of the tree holds exactly the chains its references name: one (material,
-/// extent) per `(block, slot)` however many leaves reference it, slots `0..n` without a gap, and the
+/// Every originals block of the tree holds exactly the chains its references name: one (image, wrap,
+/// extent) per `(block, slot)` however many leaves and materials reference it (materials of one image
+/// and wrap share a stored original, docs/DESIGN.md "Originals"), slots `0..n` without a gap, and the
 /// chains' bytes in the tree's format summing to the block's length (the renderer reads a slot at the
 /// sum of the chains before it). Runs after [`check_rects_originals`] (block ids and sides are valid).
-fn check_original_slots(t: &TreeTables<'_>, blocks: &[BlockRecord]) -> Result<(), StoreError> {
+fn check_original_slots(
+    t: &TreeTables<'_>,
+    materials: &[MaterialRecord],
+    blocks: &[BlockRecord],
+) -> Result<(), StoreError> {
     let Some(format) = t.record.tex_format() else {
         return Ok(());
     };
-    let mut slots: std::collections::BTreeMap<(u32, u32), (u64, u32, [u32; 2])> =
-        Default::default();
+    type Stored = (u32, [u32; 2], [u32; 2]);
+    let mut slots: std::collections::BTreeMap<(u32, u32), (u64, Stored)> = Default::default();
     for (i, o) in t.originals.iter().enumerate() {
         let gi = t.record.originals.first + i as u64;
-        let entry = slots
-            .entry((o.block, o.slot))
-            .or_insert((gi, o.material, o.extent()));
-        if (entry.1, entry.2) != (o.material, o.extent()) {
+        // `check_rects_originals` checked the material's index.
+        let wrap = materials
+            .get(o.material as usize)
+            .map_or([0; 2], |m| m.wrap);
+        let stored = (o.image, wrap, o.extent());
+        let entry = slots.entry((o.block, o.slot)).or_insert((gi, stored));
+        if entry.1 != stored {
             return Err(bad_value("originals", gi, "slot", u64::from(o.slot)));
         }
     }
     let mut by_block: std::collections::BTreeMap<u32, (u32, u64)> = Default::default();
-    for (&(block, slot), &(gi, _, [w, h])) in &slots {
+    for (&(block, slot), &(gi, (_, _, [w, h]))) in &slots {
         let (next, bytes) = by_block.entry(block).or_insert((0, 0));
         if slot != *next {
             return Err(bad_value("originals", gi, "slot", u64::from(slot)));

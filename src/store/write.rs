@@ -295,7 +295,7 @@ fn validate_encoded(
             },
             geometry_vouched: false,
         };
-        validate::check_tree(&tables, e.materials.len(), blocks, e.params.atlas_size)?;
+        validate::check_tree(&tables, &e.materials, blocks, e.params.atlas_size)?;
     }
     Ok(())
 }

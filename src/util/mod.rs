@@ -265,6 +265,18 @@ pub fn parse_seconds(s: &str) -> Option<f64> {
     (secs.is_finite() && secs >= 0.0).then_some(secs)
 }
 
+/// [`parse_seconds`] with the unit required (`80ms`, `0.08s`, `80us`), except for a bare `0`: a bare
+/// latency of `80` read as 80 seconds made a simulation load nothing without a word (fault hunt,
+/// session 34).
+pub fn parse_duration_with_unit(s: &str) -> Option<f64> {
+    let t = s.trim();
+    let bare = t.parse::<f64>().is_ok();
+    if bare && t.parse::<f64>() != Ok(0.0) {
+        return None;
+    }
+    parse_seconds(t)
+}
+
 /// Which file `meta` describes: (device, inode) on unix, where two opens of one path can be told apart
 /// when a file was renamed over it in between; `None` elsewhere.
 pub fn file_identity(meta: &std::fs::Metadata) -> Option<(u64, u64)> {
@@ -358,6 +370,10 @@ mod parse_tests {
         assert_eq!(parse_seconds("0ms"), Some(0.0));
         assert_eq!(parse_seconds("2"), Some(2.0));
         assert_eq!(parse_seconds("x"), None);
+        assert_eq!(parse_duration_with_unit("80ms"), Some(0.08));
+        assert_eq!(parse_duration_with_unit("0.5s"), Some(0.5));
+        assert_eq!(parse_duration_with_unit("0"), Some(0.0));
+        assert_eq!(parse_duration_with_unit("80"), None);
     }
 
     #[test]

@@ -606,8 +606,16 @@ fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
     let e = export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap_err();
     assert!(e.to_string().contains("--force"), "{e}");
     assert_eq!(std::fs::read(out.join("keep.txt")).unwrap(), b"mine");
-    // --force replaces it as a whole.
+    // Nor with --force: it replaces only an earlier export (fault hunt, session 34: it deleted a
+    // scene's folder).
     let forced = forced();
+    let e = export_3dtiles(&file, &out, &forced, NO_PROGRESS).unwrap_err();
+    assert!(e.to_string().contains("not an earlier export"), "{e}");
+    assert_eq!(std::fs::read(out.join("keep.txt")).unwrap(), b"mine");
+    // An earlier export (with a file of the user's beside it) is replaced as a whole.
+    std::fs::remove_file(out.join("keep.txt")).unwrap();
+    export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap();
+    std::fs::write(out.join("keep.txt"), b"mine").unwrap();
     export_3dtiles(&file, &out, &forced, NO_PROGRESS).unwrap();
     assert!(!out.join("keep.txt").exists() && out.join("tileset.json").is_file());
     // Never into a file, nor into a path that names no directory of its own (`.`: replacing it would
@@ -704,7 +712,9 @@ fn force_through_a_link_replaces_the_linked_export() {
     let file = TreeFile::open(&city().1).unwrap();
     let real = dir.path().join("store/tiles");
     std::fs::create_dir_all(&real).unwrap();
+    // An earlier export (`--force` replaces nothing else) with a file beside it.
     std::fs::write(real.join("old.txt"), b"old").unwrap();
+    std::fs::write(real.join(atlastree::export::EXPORT_REPORT), b"{}").unwrap();
     let link = dir.path().join("current");
     std::os::unix::fs::symlink("store/tiles", &link).unwrap();
     export_3dtiles(&file, &link, &forced, NO_PROGRESS).unwrap();

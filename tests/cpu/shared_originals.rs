@@ -454,3 +454,127 @@ fn a_non_square_original_transfers_its_chain_and_uploads_its_class_layer() {
     let atlas = table.atlas(0, NodeId(0)).unwrap();
     assert_eq!(table.meta(atlas).upload_bytes, table.meta(atlas).bytes);
 }
+
+/// Materials that draw one image through one sampler share its stored original (its bytes depend only
+/// on image, wrap and, in the alpha tree, a MASK cutoff: `assemble::StoredOriginal`); a different wrap or
+/// cutoff keeps its own. Every material keeps its own reference, the blocks hold each chain once, the
+/// file verifies, and a reference that names another image in a shared slot is refused.
+#[test]
+fn materials_that_share_an_image_and_sampler_share_its_stored_original() {
+    use atlastree::scene::synthetic::SceneBuilder;
+    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
+    use glam::DVec2;
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let opaque = b.pattern_image("opaque", 128, 7);
+    let cut = b.image("cut-out", 64, 64, |x, y| {
+        [
+            (x * 4) as u8,
+            (y * 4) as u8,
+            90,
+            if (x / 4 + y / 4) % 3 == 0 { 0 } else { 255 },
+        ]
+    });
+    let repeat = [Wrap::Repeat; 2];
+    let materials = [
+        b.material(opaque, repeat, AlphaMode::Opaque),
+        b.material(opaque, repeat, AlphaMode::Opaque),
+        b.material(opaque, [Wrap::ClampToEdge; 2], AlphaMode::Opaque),
+        b.material(cut, repeat, AlphaMode::Mask { cutoff: 0.5 }),
+        b.material(cut, repeat, AlphaMode::Mask { cutoff: 0.5 }),
+        b.material(cut, repeat, AlphaMode::Mask { cutoff: 0.25 }),
+    ];
+    // Each material on a quad of its own; materials 0 and 1 also side by side in the far corner.
+    let square = |x: f64, z: f64| {
+        [(0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (0.0, 20.0)]
+            .map(|(dx, dz)| DVec3::new(x + dx, 0.0, z + dz))
+    };
+    for (i, &m) in materials.iter().enumerate() {
+        b.quad(square(30.0 * i as f64, 0.0), DVec2::ZERO, DVec2::ONE, m);
+    }
+    for (i, &m) in materials[..2].iter().enumerate() {
+        b.quad(
+            square(300.0 + 30.0 * i as f64, 300.0),
+            DVec2::ZERO,
+            DVec2::ONE,
+            m,
+        );
+    }
+    let scene = b.build();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("shared.atlastree");
+    build(&scene, &options(), &out, &NoProgress).unwrap();
+    let file = TreeFile::open(&out).unwrap();
+    assert_eq!(file.trees(), 2, "an opaque and an alpha tree");
+    // Per tree, the (block, slot) each material's references name.
+    let mut places: HashMap<u32, BTreeSet<(u32, u32)>> = HashMap::new();
+    let mut stored_bytes = 0;
+    for ti in 0..file.trees() {
+        let t = file.tree(ti).unwrap();
+        let mut chains: HashMap<(u32, u32), u64> = HashMap::new();
+        for o in t.originals {
+            places
+                .entry(o.material)
+                .or_default()
+                .insert((o.block, o.slot));
+            let bytes = t.format().chain_bytes_rect(o.extent()[0], o.extent()[1]);
+            chains.insert((o.block, o.slot), bytes);
+        }
+        stored_bytes += chains.values().sum::<u64>();
+    }
+    let place = |m: atlastree::ids::MaterialId| {
+        let p = &places[&m.0];
+        assert_eq!(p.len(), 1, "material {} stored once: {p:?}", m.0);
+        *p.iter().next().unwrap()
+    };
+    let [a, b2, clamp, mask, mask_same, mask_other] = materials.map(place);
+    assert_eq!(a, b2, "one image, one sampler: one stored original");
+    assert_ne!(a, clamp, "another wrap is stored apart");
+    assert_eq!(mask, mask_same, "one cutoff: shared");
+    assert_ne!(mask, mask_other, "another cutoff is stored apart");
+    // The originals blocks hold exactly the four distinct chains.
+    let block_bytes: u64 = file
+        .blocks()
+        .iter()
+        .filter(|b| b.kind == atlastree::store::format::BLOCK_ORIGINALS)
+        .map(|b| b.length)
+        .sum();
+    assert_eq!(block_bytes, stored_bytes);
+    let report = atlastree::inspect::verify(&file);
+    assert!(report.ok(), "{:?}", report.violations);
+    // A shared slot's second reference pointed at another image is refused, naming the slot.
+    let bytes = std::fs::read(&out).unwrap();
+    let t = file.tree(0).unwrap();
+    let first = t
+        .originals
+        .iter()
+        .position(|o| o.material == materials[0].0);
+    let second = t
+        .originals
+        .iter()
+        .position(|o| o.material == materials[1].0);
+    let (first, second) = (first.unwrap(), second.unwrap());
+    assert_eq!(
+        (t.originals[first].block, t.originals[first].slot),
+        (t.originals[second].block, t.originals[second].slot)
+    );
+    drop(file);
+    let mut edited = bytes.clone();
+    let at = crate::store::record_at(
+        &edited,
+        atlastree::store::format::Section::Originals,
+        second,
+    );
+    let other_image = u32::from_le_bytes(edited[at + 4..at + 8].try_into().unwrap()) ^ 1;
+    edited[at + 4..at + 8].copy_from_slice(&other_image.to_le_bytes());
+    crate::store::reseal(&mut edited);
+    match TreeFile::from_bytes(&edited) {
+        Err(atlastree::store::StoreError::BadValue {
+            table: "originals",
+            field: "slot",
+            ..
+        }) => {}
+        other => panic!("{:?}", other.err()),
+    }
+    // The unedited bytes read.
+    TreeFile::from_bytes(&bytes).unwrap();
+}

@@ -131,7 +131,7 @@ fn small_file(seed: u64) -> (AtlasForest, Vec<u8>) {
     (forest, std::fs::read(&path).unwrap())
 }
 
-fn header_of(bytes: &[u8]) -> Header {
+pub(crate) fn header_of(bytes: &[u8]) -> Header {
     bytemuck::pod_read_unaligned(&bytes[..HEADER_SIZE])
 }
 
@@ -260,7 +260,7 @@ fn flipped_block_byte_fails_only_that_block() {
 
 /// Recomputes every section checksum and the header checksum after a deliberate edit, so the edit reaches
 /// the cross-reference checks.
-fn reseal(bytes: &mut [u8]) {
+pub(crate) fn reseal(bytes: &mut [u8]) {
     let mut h = header_of(bytes);
     for s in h.sections.iter_mut() {
         let data = &bytes[s.offset as usize..(s.offset + s.length) as usize];
@@ -271,7 +271,7 @@ fn reseal(bytes: &mut [u8]) {
 }
 
 /// Byte offset of record `index` of `section`.
-fn record_at(bytes: &[u8], section: Section, index: usize) -> usize {
+pub(crate) fn record_at(bytes: &[u8], section: Section, index: usize) -> usize {
     let e = *header_of(bytes).section(section);
     e.offset as usize + index * e.record_size as usize
 }
