@@ -3,7 +3,7 @@
 //!
 //! A build's peak is the plan (the scene's triangles and the per-triangle sizing, layout and assembly data,
 //! all held at once: [`PLAN_BYTES_PER_TRIANGLE`]) or the pixel pass (decoded images in the bounded
-//! [`super::raster::ImageCache`], whose originals cache may add a quarter, plus a few atlases in f32 per
+//! [`super::raster::ImageCache`] with a quarter of headroom ([`cache_need`]), plus a few atlases in f32 per
 //! rasteriser thread). The budget fixes the cache; a budget below what the plan and one pass need is an
 //! error before any work, with the number needed. Not bounded yet: the plan's share grows with the
 //! triangles (no streaming or spilling), in every shard as in one process.
@@ -40,7 +40,7 @@ pub const CACHE_BYTES_PER_TEXEL: u64 = 26;
 /// 8 bytes a texel of the level it converts (kept between levels up to 16 MiB a thread; a 4096²
 /// original's level 0 takes 128 MiB while it is converted), which the slack below the cache covers.
 pub const ATLASES_PER_THREAD: u64 = 4;
-/// The image cache gets 1/this of what plan and rasteriser leave: with the originals cache's quarter on top,
+/// The image cache gets 1/this of what plan and rasteriser leave: with the quarter of headroom on top,
 /// 5/12 of it. The rest covers what the model leaves out — decode buffers, entries still held by a thread
 /// after eviction (a leaf's images stay held while it is drawn), the allocator's retained pages: measured
 /// 160–300 MiB over the model's sum on Berlin ×1 and a Berlin ×4 shard at a 2 GiB budget with a 4/5 share
@@ -165,7 +165,7 @@ pub struct MemoryPlan {
     pub plan_bytes: u64,
     /// Rasteriser threads' working atlases.
     pub raster_bytes: u64,
-    /// The image cache's bound (the originals cache may add a quarter of it).
+    /// The image cache's bound (the need adds a quarter of it as headroom, [`cache_need`]).
     pub image_cache_bytes: u64,
     /// The least budget this build runs in: plan, raster and a cache that holds the threads' largest
     /// images (at least [`MIN_IMAGE_CACHE`]), never more than every image once.
@@ -242,12 +242,12 @@ fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
     let shares = if all_bound && big {
         format!(
             "every image once ({all_texels} texels; the largest, {largest_image}: {largest_texels}), \
-             with a quarter for originals; downscale the largest if it dominates"
+             with a quarter of headroom; downscale the largest if it dominates"
         )
     } else if all_bound {
         // Small images are not blamed (session 29's docs hunt found a 64² texture blamed for 80 MiB).
         format!(
-            "a quarter of the cache's minimum of {min_mib} MiB for originals and every image once \
+            "a quarter of the cache's minimum of {min_mib} MiB as headroom and every image once \
              ({all_texels} texels)"
         )
     } else if big && threads == 1 {
@@ -265,7 +265,7 @@ fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
         // The in-flight share is in the number: named here too (hacienda's shard said 132 MiB for "the
         // minimum of 64 MiB with a quarter", 52 unexplained; fault hunt, session 32).
         format!(
-            "the cache's minimum of {min_mib} MiB with a quarter for originals, and each thread's image \
+            "the cache's minimum of {min_mib} MiB with a quarter of headroom, and each thread's image \
              (the largest, {largest_image}, {largest_texels} texels) once more while it is decoded"
         )
     };
@@ -284,11 +284,14 @@ fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
 /// flag: that is every image once (less than the per-thread count).
 ///
 /// The floor holds the threads' largest images, one each ([`ImageLoad::per_thread_texels`], at least
-/// [`MIN_IMAGE_CACHE`]); the originals cache may add a quarter of the bound; and each thread holds its
+/// [`MIN_IMAGE_CACHE`]) with a quarter of it as headroom (it held a cache of encoded originals until
+/// session 34, when each original came to be encoded once and the cache went; the measured peaks the
+/// model was checked against include it, up to 1.21× the need in session 33's memory hunt, so it stays);
+/// and each thread holds its
 /// image outside the cache while it decodes it and builds its chain (or holds it, evicted, while its
 /// leaf is drawn): at the old need, without that, black_forest peaked 13 % over the budget (674 MiB:
 /// 759) and a planned shard of it 22 % (512 MiB: 626; session 30's memory hunt). As the process holds
-/// an image at most once, all that never passes every image once with the originals' quarter. Beside
+/// an image at most once, all that never passes every image once with the quarter. Beside
 /// either, each thread resamples and encodes an original texture outside the cache
 /// ([`ImageLoad::originals_scratch_bytes`]).
 fn cache_need(images: ImageLoad) -> CacheNeed {
@@ -515,7 +518,7 @@ mod tests {
         let left = (2u64 << 30) - p.plan_bytes - p.raster_bytes;
         assert_eq!(p.image_cache_bytes, left / CACHE_SHARE_DIVISOR);
         assert!(p.plan_bytes + p.raster_bytes + p.image_cache_bytes * 5 / 4 <= 2 << 30);
-        // The need: plan, raster, the cache's floor with the originals' quarter, and each thread's largest
+        // The need: plan, raster, the cache's floor with its quarter of headroom, and each thread's largest
         // image once more in flight (without it, builds at their stated need peaked 13–22 % over); two
         // threads: the two largest images; and two originals encoded at their own sides beside it.
         let per_threads = 2048 * 2048 * CACHE_BYTES_PER_TEXEL * 2;

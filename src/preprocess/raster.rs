@@ -73,9 +73,6 @@ pub struct ImageCache<'a> {
     /// Texels of the images decoded (each decode counted, so re-decodes after eviction too).
     pub decoded_texels: AtomicU64,
     pub warnings: Mutex<Vec<String>>,
-    /// Encoded original textures (stored sides, full mip chain) shared by the leaves that use them.
-    originals: Mutex<OriginalCache>,
-    pub original_hits: AtomicU64,
     /// Per image: every material that uses it is OPAQUE, so its alpha channel is ignored (glTF: "the
     /// rendered output is fully opaque and any alpha value is ignored"). Decoded with alpha 1, such an
     /// image keeps the colour of texels whose stored alpha is 0 (premultiplying would lose it).
@@ -141,9 +138,6 @@ fn opaque_only_images(scene: &Scene) -> Vec<bool> {
     }
     used.iter().zip(&alpha).map(|(&u, &a)| u && !a).collect()
 }
-
-/// Encoded original textures by key, and their total bytes.
-type OriginalCache = (HashMap<OriginalKey, Arc<Encoded>>, u64);
 
 /// Values by image, at most `cap` bytes of them (a value of its own larger than `cap` stays alone),
 /// the least recently used evicted first.
@@ -238,8 +232,6 @@ impl<'a> ImageCache<'a> {
             decodes: AtomicU64::new(0),
             decoded_texels: AtomicU64::new(0),
             warnings: Mutex::new(Vec::new()),
-            originals: Mutex::new((HashMap::new(), 0)),
-            original_hits: AtomicU64::new(0),
             opaque_only: opaque_only_images(scene),
             noted: scene.images.iter().map(|_| Default::default()).collect(),
             live: scene.images.iter().map(|_| Default::default()).collect(),
@@ -444,14 +436,10 @@ impl ImageCache<'_> {
             .is_none_or(|n| n.fetch_or(what, Ordering::Relaxed) & what == 0)
     }
 
-    /// The stored bytes (and compression error) of original texture `key`, resampled and encoded once and
-    /// then shared (bounded by a quarter of the cache budget; beyond it the map is cleared, which costs
-    /// only recomputation).
-    pub fn original(&self, key: OriginalKey) -> Result<Arc<Encoded>, BuildError> {
-        if let Some(b) = lock(&self.originals).0.get(&key) {
-            self.original_hits.fetch_add(1, Ordering::Relaxed);
-            return Ok(b.clone());
-        }
+    /// The stored bytes (and compression error) of original texture `key`, resampled and encoded. Not
+    /// kept: a tree stores each original once (`assemble::StoredOriginal`), so its one writer asks for it
+    /// once (a cache of encoded originals held up to a quarter of the budget for nothing; session 34).
+    pub fn original(&self, key: OriginalKey) -> Result<Encoded, BuildError> {
         let [w, h] = key.1;
         let what = || format!("original texture {} at {w}×{h}", key.0.0);
         let img = self.get(key.0);
@@ -496,15 +484,7 @@ impl ImageCache<'_> {
                 encode_chain_rect(key.3, &rgba8, w, h, key.4).map_err(encode_err)?
             }
         };
-        let bytes = Arc::new(enc);
-        let mut st = lock(&self.originals);
-        if st.1 + bytes.bytes.len() as u64 > self.cap_bytes / 4 {
-            st.0.clear();
-            st.1 = 0;
-        }
-        st.1 += bytes.bytes.len() as u64;
-        st.0.insert(key, bytes.clone());
-        Ok(bytes)
+        Ok(enc)
     }
 }
 
