@@ -5,7 +5,7 @@ use super::args::{
     Capacity, Paging, PagingArgs, SourceArg, Viewport, ViewportArgs, check_url, is_url,
 };
 use super::render_out::{
-    clear_earlier_run, earlier_modes, is_render_output, mark_earlier_summary_stale,
+    clear_earlier_run, earlier_modes, mark_earlier_summary_stale, remove_earlier_frames,
 };
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
@@ -466,9 +466,10 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
         };
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         // An earlier run's frames, contact sheet and stats would sit beside this run's as if they were
-        // its own (until this run's end, or for good where it is interrupted).
-        let removed = atlastree::util::remove_stale_outputs(&dir, is_render_output)
-            .with_context(|| format!("removing an earlier run's frames from {}", dir.display()))?;
+        // its own (until this run's end, or for good where it is interrupted). Only where a render
+        // wrote there (its summary named modes): a folder of the user's `frame_holiday.png` lost it
+        // (fault hunt, session 34).
+        let removed = remove_earlier_frames(&dir, &earlier)?;
         if removed > 0 {
             eprintln!(
                 "note: removed {removed} frame PNG(s), contact sheet or stats of an earlier run from {}",
@@ -742,6 +743,16 @@ mod tests {
         }
         touch("original/stats.csv");
         touch("selection.json");
+        // No summary: no render wrote here, nothing is removed (a user's `frame_holiday.png` went;
+        // fault hunt, session 34).
+        touch("frame_holiday.png");
+        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree, Mode::Dummy], false).unwrap();
+        assert_eq!(
+            super::remove_earlier_frames(out, &earlier_modes(out)).unwrap(),
+            0
+        );
+        assert!(out.join("selection.json").exists() && out.join("frame_holiday.png").exists());
+        std::fs::remove_file(out.join("frame_holiday.png")).unwrap();
         let summary = r#"{"modes": {"tree": {}, "dummy": {}}}"#;
         std::fs::write(out.join("summary.json"), summary).unwrap();
         // In the JSON object's order (by name).

@@ -23,6 +23,19 @@ pub(super) fn earlier_modes(out: &std::path::Path) -> Vec<Mode> {
     modes.keys().filter_map(|k| k.parse().ok()).collect()
 }
 
+/// Removes an earlier run's frames, contact sheet and stats from mode folder `dir`, only where a render
+/// wrote into its output (`earlier`, from its summary, names modes); returns how many went.
+pub(super) fn remove_earlier_frames(
+    dir: &std::path::Path,
+    earlier: &[Mode],
+) -> anyhow::Result<usize> {
+    if earlier.is_empty() {
+        return Ok(0);
+    }
+    atlastree::util::remove_stale_outputs(dir, is_render_output)
+        .with_context(|| format!("removing an earlier run's frames from {}", dir.display()))
+}
+
 /// Removes what an earlier run (which drew `earlier`) left in `out` that a run drawing `now` will not
 /// overwrite, so `out` holds one run's outputs: `selection.json` where this run writes none; the mode
 /// folders of an earlier multi-mode run that this run does not draw into (the folder too once empty);
@@ -34,6 +47,10 @@ pub(super) fn clear_earlier_run(
     now: &[Mode],
     selection: bool,
 ) -> anyhow::Result<()> {
+    if earlier.is_empty() {
+        // No render's summary: nothing here is known to be render's.
+        return Ok(());
+    }
     let mut notes = Vec::new();
     let mut remove = |dir: &std::path::Path, pick: &dyn Fn(&str) -> bool| -> anyhow::Result<()> {
         let n = atlastree::util::remove_stale_outputs(dir, pick)

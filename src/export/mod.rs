@@ -281,8 +281,10 @@ pub fn export_3dtiles(
         std::fs::remove_dir_all(&temp).map_err(io(&temp))?;
     }
     let live = crate::util::LiveTempDir::register_with_parents(&temp, &created);
+    // Named as OUT: the hidden sibling is this export's own business (a read-only parent was reported as
+    // `.tiles.partial-PID: Permission denied`; fault hunt, session 34).
     let result = std::fs::create_dir_all(&temp)
-        .map_err(io(&temp))
+        .map_err(io(out))
         .and_then(|()| write_tileset(file, &temp, opts, progress))
         .and_then(|summary| replace_dir(&temp, out, &name, opts.force).map(|()| summary));
     if result.is_err() {

@@ -25,11 +25,12 @@ pub struct RepeatCost {
     pub all_atlas_texels: u64,
     /// Distinct images behind the repeat rects.
     pub images: u64,
-    /// Σ over those images of their stored original texels, `w × h` (each once): what drawing them from their
-    /// mip chains at every level would store, and the most it would keep resident.
+    /// Σ over the stored originals behind them (one per image, wrap and MASK cutoff) of their texels,
+    /// `w × h`, each once: what drawing them from their mip chains at every level would store, and the
+    /// most it would keep resident.
     pub original_texels_once: u64,
     /// The same summed over every leaf that references them (one copy per leaf, as files before format 4
-    /// stored them).
+    /// stored them; a leaf whose materials share one counts it once).
     pub original_texels_per_leaf: u64,
 }
 
@@ -56,8 +57,10 @@ pub(super) fn repeat_cost(file: &TreeFile, tree: usize, atlas_size: u32) -> Opti
             * u64::from(atlas_size).pow(2),
         ..RepeatCost::default()
     };
-    // Per image: stored original texels `w × h` (largest over leaves) and how many leaves hold it.
-    let mut images: BTreeMap<u32, (u64, u64)> = BTreeMap::new();
+    // Per stored original `(block, slot)`: its texels `w × h` and how many leaves hold it (counted per
+    // material reference, 64 materials of one leaf on one image read as 64 leaves; fault hunt, session 34).
+    let mut stored: BTreeMap<(u32, u32), (u64, u64)> = BTreeMap::new();
+    let mut images = std::collections::BTreeSet::new();
     for leaf in t.leaves {
         let level = t.nodes.get(leaf.node as usize).map_or(0, |n| n.level);
         let levels: f64 = (0..=level).map(|k| 0.25f64.powi(k as i32)).sum();
@@ -67,19 +70,24 @@ pub(super) fn repeat_cost(file: &TreeFile, tree: usize, atlas_size: u32) -> Opti
             c.atlas_texels += f64::from(r.outer[2]) * f64::from(r.outer[3]) * levels;
             materials.push(r.material);
         }
+        let mut in_leaf = std::collections::BTreeSet::new();
         for o in t
             .leaf_originals(leaf)
             .iter()
             .filter(|o| materials.contains(&o.material))
         {
-            let e = images.entry(o.image).or_insert((0, 0));
+            images.insert(o.image);
+            if !in_leaf.insert((o.block, o.slot)) {
+                continue;
+            }
             let [w, h] = o.extent();
-            e.0 = e.0.max(u64::from(w) * u64::from(h));
+            let e = stored.entry((o.block, o.slot)).or_insert((0, 0));
+            e.0 = u64::from(w) * u64::from(h);
             e.1 += 1;
         }
     }
     c.images = images.len() as u64;
-    c.original_texels_once = images.values().map(|&(s, _)| s).sum();
-    c.original_texels_per_leaf = images.values().map(|&(s, n)| s * n).sum();
+    c.original_texels_once = stored.values().map(|&(s, _)| s).sum();
+    c.original_texels_per_leaf = stored.values().map(|&(s, n)| s * n).sum();
     Some(c)
 }

@@ -30,12 +30,14 @@ pub enum MergeError {
     AmbiguousCount { out: PathBuf, counts: Vec<u32> },
     #[error("--shards {count}: expected a shard count from 1 to {max}", max = shard::MAX_SHARDS)]
     BadCount { count: u32 },
-    #[error("shard {shard} of {count} is missing: {path} does not exist{rebuild}")]
+    #[error("shard {shard} of {count} is missing: {path} does not exist{rebuild}{complete}")]
     Missing {
         shard: u32,
         count: u32,
         path: PathBuf,
         rebuild: String,
+        /// Where every shard of another count lies beside OUT: what `--shards` may have meant.
+        complete: String,
     },
     /// The process ran out of file descriptors opening the shards (every shard is held open): a limit of
     /// this machine, not a fault of the shard.
@@ -463,8 +465,16 @@ impl ShardSet {
                 None => MergeError::Missing {
                     shard,
                     count,
+                    // A shard still being written is waited for, not built twice (fault hunt,
+                    // session 34: the merge sent the user off to rebuild it).
+                    rebuild: match crate::util::writer_of(&path) {
+                        Some(pid) => format!(
+                            "; process {pid} is writing it now: merge again once it has finished"
+                        ),
+                        None => rebuild,
+                    },
                     path,
-                    rebuild,
+                    complete: complete_sets_text(out, count),
                 },
                 Some(source) => MergeError::Corrupt {
                     shard,
@@ -754,6 +764,27 @@ fn only_count(out: &Path) -> Result<u32, MergeError> {
             out: out.to_path_buf(),
             counts,
         }),
+    }
+}
+
+/// Counts other than `count` whose every shard lies beside `out`, said as a hint (`--shards 3` beside a
+/// complete set of 16 named only shard 0 of 3 as missing; fault hunt, session 34); empty if none.
+fn complete_sets_text(out: &Path, count: u32) -> String {
+    let files = shard_files(out);
+    let mut counts: Vec<u32> = files.iter().map(|f| f.1).filter(|&c| c != count).collect();
+    counts.sort_unstable();
+    counts.dedup();
+    let complete: Vec<String> = counts
+        .into_iter()
+        .filter(|&c| (0..c).all(|i| files.iter().any(|f| f.1 == c && f.0 == i)))
+        .map(|c| {
+            format!("all {c} shards of a {c}-shard build (`atlastree merge OUT --shards {c}`)")
+        })
+        .collect();
+    if complete.is_empty() {
+        String::new()
+    } else {
+        format!("; beside it lie {}", complete.join(" and "))
     }
 }
 

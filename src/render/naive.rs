@@ -1,9 +1,11 @@
 //! The naive baseline for the frame-time comparison (`--mode original`): every distinct original texture is
-//! its own `texture_2d` with its own bind group, and every (leaf, original texture) pair of every visible
-//! leaf is one `draw_indexed` after one `set_bind_group`, sorted only by pass. Built on first use.
+//! its own `texture_2d`, every material drawing it its own bind group, and every (leaf, original texture)
+//! pair of every visible leaf is one `draw_indexed` after one `set_bind_group`, sorted only by pass. Built
+//! on first use.
 //!
 //! The draws are planned on the CPU as plain data ([`super::naive_batch`]); this module only creates the
-//! GPU objects: the pipelines, one texture, sampler and bind group per distinct original, the index buffer.
+//! GPU objects: the pipelines, one texture per distinct original, a sampler per wrap pair, a bind group
+//! per (material, original) pair, the index buffer.
 
 use super::RenderError;
 use super::naive_batch::{NaiveDraw, NaiveTables, plan_naive};
@@ -22,7 +24,7 @@ use wgpu::util::DeviceExt;
 pub(super) struct Naive {
     pub pipelines: PassPipelines,
     pub group0: wgpu::BindGroup,
-    /// One per distinct original texture ([`NaiveDraw::texture`]).
+    /// One per (material, distinct original texture) pair ([`NaiveDraw::texture`]).
     pub groups: Vec<wgpu::BindGroup>,
     pub index_buffer: wgpu::Buffer,
     pub draws: Vec<NaiveDraw>,
@@ -56,7 +58,7 @@ impl Naive {
                 infos: &res.infos,
                 leaves: &res.leaves,
                 tam: &res.tam,
-                tam_unique: &res.tam_unique,
+                tam_material_original: &res.tam_material_original,
             },
         )?;
         let device = &ctx.device;
@@ -109,7 +111,8 @@ impl Naive {
     }
 }
 
-/// The GPU objects of the distinct originals, one of each per `Resident::uniques` entry, in that order.
+/// The GPU objects of the distinct originals: a texture per `Resident::uniques` entry, a uniform and bind
+/// group per `Resident::material_originals` entry, in those orders.
 struct Originals {
     textures: Vec<wgpu::Texture>,
     uniforms: Vec<wgpu::Buffer>,
@@ -125,18 +128,25 @@ impl Originals {
         anisotropy: u16,
     ) -> Result<Originals, RenderError> {
         let device = &ctx.device;
+        let pairs = &res.material_originals;
         let mut out = Originals {
             textures: Vec::with_capacity(res.uniques.len()),
-            uniforms: Vec::with_capacity(res.uniques.len()),
-            groups: Vec::with_capacity(res.uniques.len()),
+            uniforms: Vec::with_capacity(pairs.len()),
+            groups: Vec::with_capacity(pairs.len()),
         };
+        let mut views = Vec::with_capacity(res.uniques.len());
+        for u in &res.uniques {
+            let tex = upload_original(ctx, file, u)?;
+            views.push(tex.create_view(&wgpu::TextureViewDescriptor::default()));
+            out.textures.push(tex);
+        }
         // One sampler per distinct pair of wrap modes.
         let mut samplers: Vec<([Wrap; 2], wgpu::Sampler)> = Vec::new();
-        for u in &res.uniques {
-            let m = res.materials.get(u.material as usize).copied();
+        for pair in pairs {
+            let m = res.materials.get(pair.material as usize).copied();
             let wrap = m.and_then(|m| m.wraps()).unwrap_or([Wrap::Repeat; 2]);
-            let tex = upload_original(ctx, file, u)?;
-            let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
+            // `gather_tables` made each pair after the unique it names.
+            let view = &views[pair.unique as usize];
             let s = match samplers.iter().position(|(w, _)| *w == wrap) {
                 Some(i) => i,
                 None => {
@@ -157,7 +167,7 @@ impl Originals {
                     entries: &[
                         wgpu::BindGroupEntry {
                             binding: binding::TEX,
-                            resource: wgpu::BindingResource::TextureView(&view),
+                            resource: wgpu::BindingResource::TextureView(view),
                         },
                         wgpu::BindGroupEntry {
                             binding: binding::TEX_SAMPLER,
@@ -169,7 +179,6 @@ impl Originals {
                         },
                     ],
                 }));
-            out.textures.push(tex);
             out.uniforms.push(ub);
         }
         Ok(out)

@@ -25,7 +25,8 @@ pub struct NaiveDraw {
     /// The tree's leaf base (which tree's leaves the draw belongs to; not drawn: naive.wgsl reads the
     /// vertex's own global leaf).
     pub leaf_base: u32,
-    /// Index into the distinct original textures (`Resident::uniques`, one bind group each).
+    /// Index into the (material, distinct original texture) pairs (`Resident::material_originals`, one
+    /// bind group each).
     pub texture: u32,
     pub pass: Pass,
 }
@@ -168,8 +169,8 @@ pub struct NaiveTables<'a> {
     pub leaves: &'a [LeafInfo],
     /// Per TAM entry: the material's alpha mode (the draw's pass).
     pub tam: &'a [TamEntry],
-    /// Per TAM entry: its distinct original texture.
-    pub tam_unique: &'a [u32],
+    /// Per TAM entry: its (material, distinct original texture) pair.
+    pub tam_material_original: &'a [u32],
 }
 
 impl<'a> NaiveTables<'a> {
@@ -179,7 +180,7 @@ impl<'a> NaiveTables<'a> {
             infos: &g.infos,
             leaves: &g.leaves,
             tam: &g.tam,
-            tam_unique: &g.tam_unique,
+            tam_material_original: &g.tam_material_original,
         }
     }
 }
@@ -216,15 +217,16 @@ pub fn plan_naive(file: &TreeFile, tables: NaiveTables<'_>) -> Result<NaiveBatch
             let mut kinds = Vec::with_capacity(groups.len());
             for o in 0..groups.len() as u32 {
                 let entry = first_tam + o as usize;
-                let (Some(&texture), Some(e)) =
-                    (tables.tam_unique.get(entry), tables.tam.get(entry))
-                else {
+                let (Some(&texture), Some(e)) = (
+                    tables.tam_material_original.get(entry),
+                    tables.tam.get(entry),
+                ) else {
                     return Err(NaiveBatchError::MissingTam {
                         leaf: global_leaf,
                         original: o,
                         entry,
                         entries: tables.tam.len(),
-                        uniques: tables.tam_unique.len(),
+                        uniques: tables.tam_material_original.len(),
                     });
                 };
                 kinds.push((texture, pass_of(e.alpha_mode)));

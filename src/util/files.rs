@@ -255,6 +255,24 @@ fn process_may_run(pid: u32) -> bool {
     }
 }
 
+/// The process id of a writer writing `target` now: a temp file of it ([`temp_prefix`]) whose lock is
+/// held (the writer holds it for its life). `None` where none is.
+pub fn writer_of(target: &Path) -> Option<u32> {
+    let prefix = temp_prefix(target);
+    let entries = std::fs::read_dir(parent_dir(target)).ok()?;
+    entries.flatten().find_map(|entry| {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let pid = name
+            .strip_prefix(&prefix)?
+            .split('.')
+            .next()?
+            .parse()
+            .ok()?;
+        let held = File::open(entry.path()).is_ok_and(|f| f.try_lock().is_err());
+        held.then_some(pid)
+    })
+}
+
 /// Removes the temp files of `target` left by writers that were killed: named by [`temp_prefix`], their
 /// pid gone and their lock free. A temp named with this process's own pid that this process is not
 /// writing is another process's that had the same pid — a container's PID 1, a retried Kubernetes pod,

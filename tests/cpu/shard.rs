@@ -247,11 +247,28 @@ fn refused(out: &Path, shard: u32) -> MergeError {
 #[test]
 fn merge_refuses_a_missing_shard() {
     let (_dir, out) = four_shards();
+    // A count with no shard beside a complete set of 4: the message points at that set (it named only
+    // shard 0 of 3 as missing; fault hunt, session 34).
+    let e = merge(&out, Some(3), &NoProgress).unwrap_err().to_string();
+    assert!(e.contains("shard 0 of 3 is missing"), "{e}");
+    assert!(e.contains("all 4 shards of a 4-shard build"), "{e}");
+    assert!(e.contains("--shards 4"), "{e}");
     std::fs::remove_file(shard_path(&out, ShardSpec { index: 2, count: 4 })).unwrap();
-    assert!(matches!(
-        refused(&out, 2),
-        MergeError::Missing { shard: 2, .. }
-    ));
+    // While a build writes it (its temp file locked), the merge says so instead of asking for a rebuild.
+    let shard2 = shard_path(&out, ShardSpec { index: 2, count: 4 });
+    let writing = atlastree::util::AtomicFile::create(&shard2, 0o666).unwrap();
+    let e = merge(&out, None, &NoProgress).unwrap_err().to_string();
+    let pid = std::process::id();
+    assert!(
+        e.contains(&format!("process {pid} is writing it now")),
+        "{e}"
+    );
+    assert!(!e.contains("--shard 2/4"), "{e}");
+    drop(writing);
+    let e = refused(&out, 2);
+    assert!(matches!(e, MergeError::Missing { shard: 2, .. }));
+    // No complete set beside it: nothing more is said.
+    assert!(!e.to_string().contains("beside it lie"), "{e}");
 }
 
 #[test]

@@ -431,75 +431,9 @@ fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
 /// what they transfer.
 #[test]
 fn a_non_square_original_transfers_its_chain_and_uploads_its_class_layer() {
-    use atlastree::scene::synthetic::SceneBuilder;
-    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
-    let mut b = SceneBuilder::new(UpAxis::Y);
-    let img = b.image("wide", 256, 64, |x, y| [x as u8, y as u8, 80, 255]);
-    let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
-    let quad =
-        [(0.0, 0.0), (16.0, 0.0), (16.0, 16.0), (0.0, 16.0)].map(|(x, z)| DVec3::new(x, 0.0, z));
-    b.quad(quad, glam::DVec2::ZERO, glam::DVec2::splat(4.0), m);
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("wide.atlastree");
-    build(&b.build(), &options(), &out, &NoProgress).unwrap();
-    let file = TreeFile::open(&out).unwrap();
-    let table = BlockTable::from_file(&file).unwrap();
-    let t = file.tree(0).unwrap();
-    let f = t.format();
-    let o = t.originals[0];
-    assert_eq!(o.extent(), [256, 64]);
-    let meta = table.meta(atlastree::ids::BlockId(o.block));
-    assert_eq!(meta.bytes, f.chain_bytes_rect(256, 64));
-    assert_eq!(meta.upload_bytes, f.chain_bytes(256));
-    let atlas = table.atlas(0, NodeId(0)).unwrap();
-    assert_eq!(table.meta(atlas).upload_bytes, table.meta(atlas).bytes);
-}
-
-/// Materials that draw one image through one sampler share its stored original (its bytes depend only
-/// on image, wrap and, in the alpha tree, a MASK cutoff: `assemble::StoredOriginal`); a different wrap or
-/// cutoff keeps its own. Every material keeps its own reference, the blocks hold each chain once, the
-/// file verifies, and a reference that names another image in a shared slot is refused.
-#[test]
-fn materials_that_share_an_image_and_sampler_share_its_stored_original() {
-    use atlastree::scene::synthetic::SceneBuilder;
-    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
-    use glam::DVec2;
-    let mut b = SceneBuilder::new(UpAxis::Y);
-    let opaque = b.pattern_image("opaque", 128, 7);
-    let cut = b.image("cut-out", 64, 64, |x, y| {
-        [
-            (x * 4) as u8,
-            (y * 4) as u8,
-            90,
-            if (x / 4 + y / 4) % 3 == 0 { 0 } else { 255 },
-        ]
-    });
-    let repeat = [Wrap::Repeat; 2];
-    let materials = [
-        b.material(opaque, repeat, AlphaMode::Opaque),
-        b.material(opaque, repeat, AlphaMode::Opaque),
-        b.material(opaque, [Wrap::ClampToEdge; 2], AlphaMode::Opaque),
-        b.material(cut, repeat, AlphaMode::Mask { cutoff: 0.5 }),
-        b.material(cut, repeat, AlphaMode::Mask { cutoff: 0.5 }),
-        b.material(cut, repeat, AlphaMode::Mask { cutoff: 0.25 }),
-    ];
-    // Each material on a quad of its own; materials 0 and 1 also side by side in the far corner.
-    let square = |x: f64, z: f64| {
-        [(0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (0.0, 20.0)]
-            .map(|(dx, dz)| DVec3::new(x + dx, 0.0, z + dz))
-    };
-    for (i, &m) in materials.iter().enumerate() {
-        b.quad(square(30.0 * i as f64, 0.0), DVec2::ZERO, DVec2::ONE, m);
-    }
-    for (i, &m) in materials[..2].iter().enumerate() {
-        b.quad(
-            square(300.0 + 30.0 * i as f64, 300.0),
-            DVec2::ZERO,
-            DVec2::ONE,
-            m,
-        );
-    }
-    let scene = b.build();
+    let scene = crate::fixtures::corners::shared_images(true);
+    let materials: [atlastree::ids::MaterialId; 6] =
+        std::array::from_fn(|i| atlastree::ids::MaterialId(i as u32));
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("shared.atlastree");
     build(&scene, &options(), &out, &NoProgress).unwrap();
@@ -541,6 +475,28 @@ fn materials_that_share_an_image_and_sampler_share_its_stored_original() {
     assert_eq!(block_bytes, stored_bytes);
     let report = atlastree::inspect::verify(&file);
     assert!(report.ok(), "{:?}", report.violations);
+    // inspect's repeat cost counts each stored original once per leaf that holds it, not once per
+    // material reference (fault hunt, session 34): per leaf, the distinct slots of its repeat materials.
+    let info = atlastree::inspect::inspect(&file);
+    let t = file.tree(0).unwrap();
+    let mut per_leaf = 0u64;
+    let mut once = BTreeSet::new();
+    for leaf in t.leaves {
+        let repeat: BTreeSet<u32> = t.leaf_rects(leaf).iter().map(|r| r.material).collect();
+        let slots: BTreeSet<(u32, u32, u64)> = t
+            .leaf_originals(leaf)
+            .iter()
+            .filter(|o| repeat.contains(&o.material) && o.material != materials[2].0)
+            .map(|o| (o.block, o.slot, u64::from(o.width) * u64::from(o.height)))
+            .collect();
+        per_leaf += slots.iter().map(|s| s.2).sum::<u64>();
+        once.extend(slots);
+    }
+    let repeats = &info.trees[0].repeats;
+    assert_eq!(repeats.images, 1, "{repeats:?}");
+    assert_eq!(repeats.original_texels_once, 128 * 128, "{repeats:?}");
+    assert_eq!(once.len(), 1);
+    assert_eq!(repeats.original_texels_per_leaf, per_leaf, "{repeats:?}");
     // A shared slot's second reference pointed at another image is refused, naming the slot.
     let bytes = std::fs::read(&out).unwrap();
     let t = file.tree(0).unwrap();

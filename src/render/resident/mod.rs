@@ -3,8 +3,9 @@
 //! uploaded as they become resident and from which they are freed when evicted ([`Resident::apply`]).
 //! The all-resident load is the same load with k = every block ([`Resident::load`]).
 //!
-//! Original textures are deduplicated by `(material, stored extent)`: one layer serves every leaf that
-//! shows the texture, held while any resident block that carries it is resident. A non-square texture
+//! Original textures are deduplicated by their stored slot `(block, slot)`: one layer serves every leaf
+//! and material that shows the texture (materials of one image and sampler share a stored original),
+//! held while the block that carries it is resident. A non-square texture
 //! fills its square class layer tiled ([`crate::texfmt::tile_chain_to_square`]).
 //!
 //! - `tables`: the CPU gathering of what the shader indexes ([`gather_tables`]);
@@ -33,7 +34,6 @@ use arrays::{atlas_arrays_for, device_layers_per_array};
 /// One distinct original texture: where its pixels are in the file and where they live on the GPU.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct UniqueOriginal {
-    pub material: u32,
     pub class_size: u32,
     /// Stored `[width, height]`, texels (`class_size` is the larger; the layer tiles the texture).
     pub extent: [u32; 2],
@@ -47,6 +47,15 @@ pub struct UniqueOriginal {
     pub offset: u64,
     /// Storage format of the block (its tree's format).
     pub format: TexFormat,
+}
+
+/// A material drawing a distinct original texture: what the naive baseline binds per draw (its texture,
+/// and the material's factor, cutoff and sampler).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MaterialOriginal {
+    pub material: u32,
+    /// Index in [`Resident::uniques`].
+    pub unique: u32,
 }
 
 /// Numbers of a load.
@@ -91,6 +100,9 @@ pub struct Resident {
     pub uniques: Vec<UniqueOriginal>,
     /// Per TAM entry, its index in `uniques`.
     pub tam_unique: Vec<u32>,
+    /// Per TAM entry, its index in `material_originals`.
+    pub tam_material_original: Vec<u32>,
+    pub material_originals: Vec<MaterialOriginal>,
     pub materials: Vec<MaterialRecord>,
     pub has_alpha: bool,
     pub stats: LoadStats,
@@ -260,6 +272,8 @@ impl Resident {
             leaves: g.leaves,
             uniques,
             tam_unique: g.tam_unique,
+            tam_material_original: g.tam_material_original,
+            material_originals: g.material_originals,
             materials,
             has_alpha: g.has_alpha,
             stats,

@@ -2,7 +2,7 @@
 //! (TAM) gathered into the shared arrays the shader indexes ([`gather_tables`]), with what the shader does
 //! not check checked here (vertex → TAM and rect ranges, class sizes, slot offsets).
 
-use super::UniqueOriginal;
+use super::{MaterialOriginal, UniqueOriginal};
 use crate::ids::{BlockId, NONE};
 use crate::model::TreeVertex;
 use crate::render::RenderError;
@@ -31,6 +31,9 @@ pub struct GpuTables {
     pub tam: Vec<TamEntry>,
     pub tam_unique: Vec<u32>,
     pub uniques: Vec<UniqueOriginal>,
+    /// Per TAM entry, its index in `material_originals` (the naive baseline's bind group).
+    pub tam_material_original: Vec<u32>,
+    pub material_originals: Vec<MaterialOriginal>,
     /// `(tree, node, block)` of every atlas, in upload order.
     pub atlas_blocks: Vec<(u32, u32, BlockId)>,
     /// `(block, unique, offset in the block)` of every original texture copy (one per leaf that uses it).
@@ -44,7 +47,11 @@ pub struct GpuTables {
 pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
     let materials = file.materials();
     let mut g = GpuTables::default();
-    let mut unique_of: HashMap<(u32, [u32; 2]), u32> = HashMap::new();
+    // A stored original (its block and slot) is one texture layer, however many materials draw it
+    // (`assemble::StoredOriginal`; keyed by material, 64 materials on one image held 64 layers: fault
+    // hunt, session 34); the naive baseline binds each (material, texture) pair on its own.
+    let mut unique_of: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut material_original_of: HashMap<(u32, u32), u32> = HashMap::new();
     // Per alpha tree: (its position in `g.infos`, its blend list, per node its range of the list).
     type BlendList = (usize, Vec<u32>, Vec<(u32, u32)>);
     let mut blend_lists: Vec<BlendList> = Vec::new();
@@ -108,10 +115,9 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
                     class_size: o.class_size(),
                 })?;
                 let next = g.uniques.len() as u32;
-                let ui = *unique_of.entry((o.material, o.extent())).or_insert(next);
+                let ui = *unique_of.entry((o.block, o.slot)).or_insert(next);
                 if ui == next {
                     g.uniques.push(UniqueOriginal {
-                        material: o.material,
                         class_size: o.class_size(),
                         extent: o.extent(),
                         class,
@@ -123,6 +129,15 @@ pub fn gather_tables(file: &TreeFile) -> Result<GpuTables, RenderError> {
                     });
                 }
                 g.tam_unique.push(ui);
+                let next = g.material_originals.len() as u32;
+                let mi = *material_original_of.entry((o.material, ui)).or_insert(next);
+                if mi == next {
+                    g.material_originals.push(MaterialOriginal {
+                        material: o.material,
+                        unique: ui,
+                    });
+                }
+                g.tam_material_original.push(mi);
                 g.block_uniques.push((BlockId(o.block), ui, offset));
                 let wrap = m.and_then(|m| m.wraps()).unwrap_or([Wrap::Repeat; 2]);
                 g.tam.push(TamEntry {

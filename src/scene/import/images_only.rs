@@ -46,7 +46,7 @@ fn images_unguarded(
         })?;
     refs::check_indices(&value, file)?;
     let (doc, _) = parse_document(&json_bytes, file)?;
-    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let base_dir = super::uri::scene_dir(path);
     let mut buffers = Buffers::new(file, base_dir, &doc, blob);
     let mut report = ImportReport::default();
     let mut images = Vec::with_capacity(wanted.len());
@@ -94,7 +94,7 @@ pub fn input_digest(path: &Path) -> Result<[u64; 2], SceneError> {
             file: file.clone(),
             reason: e.to_string(),
         })?;
-    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let base_dir = super::uri::scene_dir(path);
     let uris = (value
         .get("buffers")
         .and_then(|b| b.as_array())

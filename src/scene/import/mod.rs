@@ -167,7 +167,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
         file: file.clone(),
         reason: format!("raw JSON: {e}"),
     })?;
-    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let base_dir = uri::scene_dir(path);
     let mut report = ImportReport::default();
     for w in tolerated {
         report.warn(w);

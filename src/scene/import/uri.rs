@@ -333,6 +333,19 @@ fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> Loa
 /// `?query` or `#fragment`, and with a Windows exporter's `\` as `/` (`tex.png?v=2` and
 /// `textures\tex.png` drew the fallback; fault hunt, session 28). As written first, so a file named
 /// with a `#` (`Material #25.png`) is still found.
+/// The folder a scene's relative URIs are resolved in: the scene file's, or where the scene path is a
+/// symbolic link, its target's (`ln -s city/scene.gltf link.gltf` read `link.gltf: buffer 0
+/// (scene.bin): No such file or directory`; fault hunt, session 34). A folder of links to each file
+/// resolves the same either way.
+pub(super) fn scene_dir(path: &Path) -> PathBuf {
+    let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+    let real = match is_link {
+        true => std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()),
+        false => path.to_path_buf(),
+    };
+    real.parent().map(Path::to_path_buf).unwrap_or_default()
+}
+
 pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> {
     let scheme = uri.split_once(':').map(|(s, _)| s).filter(|s| {
         let mut c = s.chars();

@@ -332,12 +332,17 @@ fn plan_maps_every_vertex_original_into_its_leaf_tam_range() {
             assert_eq!(e.class_size, o.class_size() as f32);
             assert_eq!(e.extent, o.extent().map(|v| v as f32));
             assert_eq!(4u32 << e.class_index, o.class_size());
-            let u = &p.uniques[p.tam_unique[gpu.first_tam as usize + k] as usize];
-            assert_eq!((u.material, u.extent), (o.material, o.extent()));
+            let entry = gpu.first_tam as usize + k;
+            let u = &p.uniques[p.tam_unique[entry] as usize];
+            assert_eq!((u.block.0, u.extent), (o.block, o.extent()));
+            let pair = p.material_originals[p.tam_material_original[entry] as usize];
+            assert_eq!(pair.material, o.material);
+            assert_eq!(pair.unique, p.tam_unique[entry]);
         }
     }
-    // Deduplication: one unique texture per (material, extent), fewer than the per-leaf copies.
-    let mut keys: Vec<(u32, [u32; 2])> = p.uniques.iter().map(|u| (u.material, u.extent)).collect();
+    // Deduplication: one unique texture per stored original (block, byte offset), fewer than the
+    // per-leaf copies.
+    let mut keys: Vec<(u32, u64)> = p.uniques.iter().map(|u| (u.block.0, u.offset)).collect();
     keys.sort_unstable();
     keys.dedup();
     assert_eq!(keys.len(), p.uniques.len());
