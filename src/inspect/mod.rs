@@ -38,6 +38,8 @@ pub struct TreeInfo {
     pub clamped_leaves: u64,
     pub atlas_blocks: u64,
     pub original_blocks: u64,
+    /// Distinct source images behind the tree's original textures (it held the leaf references, the
+    /// same number as `original_refs`; report hunt, session 34).
     pub original_textures: u64,
     pub block_bytes: u64,
     /// Storage format of the tree's blocks.
@@ -45,8 +47,8 @@ pub struct TreeInfo {
     /// Bytes per 4×4 texels in that format (64 RGBA8, 8 BC1, 16 BC3/BC7).
     pub bytes_per_block: u32,
     /// PSNR (dB) of all stored atlases against the uncompressed atlases they were encoded from, as
-    /// recorded at build time (per-block squared errors, 8-bit sRGB, all mip levels, RGB or RGBA); infinite
-    /// (JSON null) for RGBA8.
+    /// recorded at build time (per-block squared errors, 8-bit sRGB, all mip levels, RGB or RGBA); the
+    /// cap ([`crate::texfmt::PSNR_CAP_DB`], lossless) for RGBA8.
     pub atlas_psnr_db: f64,
     /// The worst single atlas.
     pub atlas_psnr_min_db: f64,
@@ -203,14 +205,20 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
                 originals_sse += b.sse;
             }
         }
-        // Per stored original (block, slot): its stored sides and how many leaves reference it.
+        // Per stored original (block, slot): its stored sides and how many leaves reference it (a leaf
+        // whose materials share one counts once: review of session 34).
         let mut sharing: std::collections::HashMap<(u32, u32), ([u32; 2], u64)> =
             Default::default();
-        for o in t.originals {
-            sharing
-                .entry((o.block, o.slot))
-                .or_insert((o.extent(), 0))
-                .1 += 1;
+        for leaf in t.leaves {
+            let mut in_leaf = std::collections::BTreeSet::new();
+            for o in t.leaf_originals(leaf) {
+                if in_leaf.insert((o.block, o.slot)) {
+                    sharing
+                        .entry((o.block, o.slot))
+                        .or_insert((o.extent(), 0))
+                        .1 += 1;
+                }
+            }
         }
         let histogram = histogram(sharing.values().map(|&(_, n)| n));
         // The stored chains' samples, each once (the block errors are of the stored bytes).
@@ -230,7 +238,12 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             clamped_leaves: t.leaves.iter().filter(|l| l.clamp_scale < 1.0).count() as u64,
             atlas_blocks,
             original_blocks,
-            original_textures: t.originals.len() as u64,
+            original_textures: t
+                .originals
+                .iter()
+                .map(|o| o.image)
+                .collect::<std::collections::BTreeSet<_>>()
+                .len() as u64,
             block_bytes,
             format: t.format(),
             bytes_per_block: t.format().bytes_per_block(),

@@ -3,7 +3,7 @@
 //!
 //! A build's peak is the plan (the scene's triangles and the per-triangle sizing, layout and assembly data,
 //! all held at once: [`PLAN_BYTES_PER_TRIANGLE`]) or the pixel pass (decoded images in the bounded
-//! [`super::raster::ImageCache`] with a quarter of headroom ([`cache_need`]), plus a few atlases in f32 per
+//! [`super::raster::ImageCache`] with a quarter of headroom (`cache_need`), plus a few atlases in f32 per
 //! rasteriser thread). The budget fixes the cache; a budget below what the plan and one pass need is an
 //! error before any work, with the number needed. Not bounded yet: the plan's share grows with the
 //! triangles (no streaming or spilling), in every shard as in one process.
@@ -165,7 +165,7 @@ pub struct MemoryPlan {
     pub plan_bytes: u64,
     /// Rasteriser threads' working atlases.
     pub raster_bytes: u64,
-    /// The image cache's bound (the need adds a quarter of it as headroom, [`cache_need`]).
+    /// The image cache's bound (the need adds a quarter of it as headroom, `cache_need`).
     pub image_cache_bytes: u64,
     /// The least budget this build runs in: plan, raster and a cache that holds the threads' largest
     /// images (at least [`MIN_IMAGE_CACHE`]), never more than every image once.

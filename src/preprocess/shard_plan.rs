@@ -150,9 +150,9 @@ pub fn plan_shards(
         triangles: scene.triangles.len() as u64,
     };
     let identity = hash128(images_identity(&scene.images).as_bytes());
+    let file_bytes = write_plan(&path, key, identity, &manifest, &prefix)?;
     // As a shard does: an earlier plan's report never stands beside this plan.
     super::shard_run::remove_stale_sidecar(&path);
-    let file_bytes = write_plan(&path, key, identity, &manifest, &prefix)?;
     progress.finish_stage();
     timings.push("write plan", t);
     timings.push("total", t_all);

@@ -176,11 +176,12 @@ pub(super) fn rasterise_shard(
     timings.push("rasterise", t);
     let t = Instant::now();
     progress.stage("write shard", None);
-    // An earlier run's report goes before this shard is committed: killed between the commit and its own
-    // report, this shard would otherwise stand beside the earlier one's times and warnings, which the
-    // merge prints as its own (fault hunt, session 34).
-    remove_stale_sidecar(&path);
     let file_bytes = writer.finish(&cache.pixel_hashes())?;
+    // An earlier run's report goes as soon as this shard is committed (not before: a failed rewrite
+    // keeps the earlier shard, and its report): killed before its own report, this shard would otherwise
+    // stand beside the earlier one's times and warnings, which the merge prints as its own (fault hunt,
+    // session 34).
+    remove_stale_sidecar(&path);
     progress.finish_stage();
     timings.push("write", t);
     timings.push("total", t_all);
@@ -227,7 +228,7 @@ pub(super) fn rasterise_shard(
     Ok(report)
 }
 
-/// Removes `path`'s report ([`sidecar_path`]) before `path` is replaced. Best effort: what cannot be
+/// Removes `path`'s report ([`sidecar_path`]) once `path` was replaced. Best effort: what cannot be
 /// removed here (a directory in its place) cannot be read as a report either, and the report written
 /// after the file says what went wrong ([`save_sidecar_or_warn`]).
 pub(super) fn remove_stale_sidecar(path: &Path) {

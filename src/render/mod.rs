@@ -161,7 +161,9 @@ pub enum RenderError {
     Plan(#[from] crate::plan::PlanError),
     #[error(transparent)]
     NaiveBatch(#[from] naive_batch::NaiveBatchError),
-    #[error("naive draw names original texture {texture}; the renderer made {textures}")]
+    #[error(
+        "naive draw names (material, original texture) bind group {texture}; the renderer made {textures}"
+    )]
     MissingTexture { texture: u32, textures: usize },
     #[error("the plan has {cuts} cuts but the renderer's file has {trees} trees")]
     PlanMismatch { cuts: usize, trees: usize },

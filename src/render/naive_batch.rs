@@ -1,7 +1,8 @@
 //! The draws of the naive baseline (`--mode original`, [`crate::render::Mode::Original`]) as plain data (no
 //! wgpu types), planned once per renderer: every leaf's triangles regrouped per (leaf, original texture),
 //! one [`NaiveDraw`] per group with at least one triangle, in its own index buffer. The renderer's naive
-//! module uploads the indices and one texture and bind group per distinct original, and per frame draws
+//! module uploads the indices, one texture per distinct original and one bind group per (material,
+//! original) pair, and per frame draws
 //! the groups of the visible leaves one `draw_indexed` after one `set_bind_group` each.
 //!
 //! No triangle is dropped: a leaf whose index range, vertex, original or texture-array mapping (TAM) entry
@@ -88,14 +89,14 @@ pub enum NaiveBatchError {
     MissingLeaf { leaf: usize, leaves: usize },
     #[error(
         "global leaf {leaf}, original {original}: TAM entry {entry} is missing ({entries} entries, \
-         {uniques} texture indices)"
+         {pairs} (material, original) indices)"
     )]
     MissingTam {
         leaf: usize,
         original: u32,
         entry: usize,
         entries: usize,
-        uniques: usize,
+        pairs: usize,
     },
     #[error("more than 2^32 naive indices")]
     TooLarge,
@@ -226,7 +227,7 @@ pub fn plan_naive(file: &TreeFile, tables: NaiveTables<'_>) -> Result<NaiveBatch
                         original: o,
                         entry,
                         entries: tables.tam.len(),
-                        uniques: tables.tam_material_original.len(),
+                        pairs: tables.tam_material_original.len(),
                     });
                 };
                 kinds.push((texture, pass_of(e.alpha_mode)));

@@ -130,13 +130,16 @@ pub fn luma_bt601(rgba: &[u8]) -> Vec<f64> {
         .collect()
 }
 
-/// The SSIM of one window from its Gaussian-weighted moments.
+/// The SSIM of one window from its Gaussian-weighted moments: at most 1 (exactly so by Cauchy–Schwarz;
+/// the moments' rounding gave identical windows 1 + 2·10⁻¹⁵, and frames above 1; report hunt, session
+/// 34).
 #[inline]
 pub fn ssim_from_moments(mx: f64, my: f64, sxx: f64, syy: f64, sxy: f64) -> f64 {
     let c1 = (SSIM_K1 * SSIM_L).powi(2);
     let c2 = (SSIM_K2 * SSIM_L).powi(2);
     let (vx, vy, cxy) = (sxx - mx * mx, syy - my * my, sxy - mx * my);
-    ((2.0 * mx * my + c1) * (2.0 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
+    let s = ((2.0 * mx * my + c1) * (2.0 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2));
+    s.min(1.0)
 }
 
 /// Mean SSIM (Wang et al. 2004, eq. 13 with the paper's parameters) of two RGBA8 frames, on the BT.601
@@ -157,12 +160,14 @@ pub fn ssim(a: &[u8], b: &[u8], width: u32, height: u32) -> Result<f64, ReportEr
             window: SSIM_WINDOW as u32,
         });
     }
+    // Each window's at most 1; their mean's rounding is held there too.
     Ok(ssim_luma(
         &luma_bt601(a),
         &luma_bt601(b),
         width as usize,
         height as usize,
-    ))
+    )
+    .min(1.0))
 }
 
 /// Whether frames of `width × height` hold one [`SSIM_WINDOW`]-wide window: what [`ssim`] needs, checked
@@ -408,6 +413,22 @@ mod tests {
         assert_eq!(superscript(-3), "⁻³");
         assert_eq!(superscript(10), "¹⁰");
         assert_eq!(superscript(0), "⁰");
+    }
+
+    /// Moments whose rounding puts the covariance a hair above the variances (what nearly identical
+    /// frames give) measure 1, not 1 + 10⁻¹⁵ (report hunt, session 34).
+    #[test]
+    fn ssim_never_passes_one() {
+        let (m, sxx) = (100.1, 100.1 * 100.1 + 5.0);
+        let sxy = sxx * (1.0 + 4.0 * f64::EPSILON);
+        let unclamped = {
+            let c1 = (SSIM_K1 * SSIM_L).powi(2);
+            let c2 = (SSIM_K2 * SSIM_L).powi(2);
+            let (v, c) = (sxx - m * m, sxy - m * m);
+            ((2.0 * m * m + c1) * (2.0 * c + c2)) / ((2.0 * m * m + c1) * (2.0 * v + c2))
+        };
+        assert!(unclamped > 1.0, "the case shows the rounding: {unclamped}");
+        assert_eq!(ssim_from_moments(m, m, sxx, sxx, sxy), 1.0);
     }
 
     #[test]

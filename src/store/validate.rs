@@ -350,7 +350,7 @@ pub(crate) fn check_tree(
 }
 
 /// Every originals block of the tree holds exactly the chains its references name: one (image, wrap,
-/// extent) per `(block, slot)` however many leaves and materials reference it (materials of one image
+/// extent, and in an alpha tree MASK cutoff) per `(block, slot)` however many leaves and materials reference it (materials of one image
 /// and wrap share a stored original, docs/DESIGN.md "Originals"), slots `0..n` without a gap, and the
 /// chains' bytes in the tree's format summing to the block's length (the renderer reads a slot at the
 /// sum of the chains before it). Runs after [`check_rects_originals`] (block ids and sides are valid).
@@ -362,22 +362,26 @@ fn check_original_slots(
     let Some(format) = t.record.tex_format() else {
         return Ok(());
     };
-    type Stored = (u32, [u32; 2], [u32; 2]);
+    // (image, wrap, sides, MASK cutoff in an alpha tree): what `assemble::StoredOriginal` shares by.
+    type Stored = (u32, [u32; 2], [u32; 2], Option<u32>);
+    let alpha = t.record.tree_kind() == Some(crate::model::TreeKind::Alpha);
     let mut slots: std::collections::BTreeMap<(u32, u32), (u64, Stored)> = Default::default();
     for (i, o) in t.originals.iter().enumerate() {
         let gi = t.record.originals.first + i as u64;
         // `check_rects_originals` checked the material's index.
-        let wrap = materials
-            .get(o.material as usize)
-            .map_or([0; 2], |m| m.wrap);
-        let stored = (o.image, wrap, o.extent());
+        let m = materials.get(o.material as usize);
+        let wrap = m.map_or([0; 2], |m| m.wrap);
+        let cutoff = m
+            .filter(|m| alpha && m.alpha_mode == super::format::ALPHA_MASK)
+            .map(|m| m.alpha_cutoff.to_bits());
+        let stored = (o.image, wrap, o.extent(), cutoff);
         let entry = slots.entry((o.block, o.slot)).or_insert((gi, stored));
         if entry.1 != stored {
             return Err(bad_value("originals", gi, "slot", u64::from(o.slot)));
         }
     }
     let mut by_block: std::collections::BTreeMap<u32, (u32, u64)> = Default::default();
-    for (&(block, slot), &(gi, (_, _, [w, h]))) in &slots {
+    for (&(block, slot), &(gi, (_, _, [w, h], _))) in &slots {
         let (next, bytes) = by_block.entry(block).or_insert((0, 0));
         if slot != *next {
             return Err(bad_value("originals", gi, "slot", u64::from(slot)));

@@ -246,7 +246,7 @@ fn temp_prefix(target: &Path) -> String {
 
 /// Whether process `pid` (not this one) may still run: `/proc/<pid>` exists (Linux); elsewhere always
 /// `true` (then a stale temp is left for the user, never a live one removed).
-fn process_may_run(pid: u32) -> bool {
+pub fn process_may_run(pid: u32) -> bool {
     let proc = Path::new("/proc");
     if proc.join("self").exists() {
         proc.join(pid.to_string()).exists()
@@ -255,11 +255,14 @@ fn process_may_run(pid: u32) -> bool {
     }
 }
 
-/// The process id of a writer writing `target` now: a temp file of it ([`temp_prefix`]) whose lock is
-/// held (the writer holds it for its life). `None` where none is.
+/// The process id of a writer writing `target` now: a temp file of it ([`temp_prefix`], beside the
+/// target its output links name) whose lock another holder has (the writer holds it for its life) and
+/// whose process may still run. `None` where none is, and where locks are not supported (a dead
+/// writer's temp is then not taken for a live one).
 pub fn writer_of(target: &Path) -> Option<u32> {
-    let prefix = temp_prefix(target);
-    let entries = std::fs::read_dir(parent_dir(target)).ok()?;
+    let target = follow_output_links(target).unwrap_or_else(|_| target.to_path_buf());
+    let prefix = temp_prefix(&target);
+    let entries = std::fs::read_dir(parent_dir(&target)).ok()?;
     entries.flatten().find_map(|entry| {
         let name = entry.file_name().to_string_lossy().into_owned();
         let pid = name
@@ -268,8 +271,9 @@ pub fn writer_of(target: &Path) -> Option<u32> {
             .next()?
             .parse()
             .ok()?;
-        let held = File::open(entry.path()).is_ok_and(|f| f.try_lock().is_err());
-        held.then_some(pid)
+        let held = File::open(entry.path())
+            .is_ok_and(|f| matches!(f.try_lock(), Err(std::fs::TryLockError::WouldBlock)));
+        (held && (pid == std::process::id() || process_may_run(pid))).then_some(pid)
     })
 }
 

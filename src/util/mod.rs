@@ -9,7 +9,7 @@ pub mod srgb;
 pub use files::{
     AtomicFile, LiveTempDir, LiveTempFile, MAX_TEXT_FILE_BYTES, follow_output_links,
     is_out_of_descriptors, is_resource_exhaustion, node_kind, open_regular, parent_dir,
-    read_regular, read_text_file, remove_live_temps, remove_live_temps_and_exit,
+    process_may_run, read_regular, read_text_file, remove_live_temps, remove_live_temps_and_exit,
     remove_stale_outputs, remove_stale_temps, save_png, write_atomic, writer_of,
 };
 

@@ -604,7 +604,7 @@ fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("keep.txt"), b"mine").unwrap();
     let e = export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap_err();
-    assert!(e.to_string().contains("--force"), "{e}");
+    assert!(e.to_string().contains("not an earlier export"), "{e}");
     assert_eq!(std::fs::read(out.join("keep.txt")).unwrap(), b"mine");
     // Nor with --force: it replaces only an earlier export (fault hunt, session 34: it deleted a
     // scene's folder).
@@ -616,6 +616,9 @@ fn an_existing_directory_is_kept_and_a_failed_export_leaves_nothing() {
     std::fs::remove_file(out.join("keep.txt")).unwrap();
     export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap();
     std::fs::write(out.join("keep.txt"), b"mine").unwrap();
+    // Without --force it is offered, not done.
+    let e = export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap_err();
+    assert!(e.to_string().contains("pass --force"), "{e}");
     export_3dtiles(&file, &out, &forced, NO_PROGRESS).unwrap();
     assert!(!out.join("keep.txt").exists() && out.join("tileset.json").is_file());
     // Never into a file, nor into a path that names no directory of its own (`.`: replacing it would

@@ -58,11 +58,11 @@ fn a_texture_in_opposite_corners_is_stored_once_and_referenced_by_both_leaves() 
     );
     let places: BTreeSet<(u32, u32)> = refs.iter().map(|r| r.1).collect();
     assert_eq!(places.len(), 1, "stored once: {refs:?}");
-    // Each material's original is stored once: the original blocks hold exactly the distinct chains.
-    let mut chains: HashMap<u32, u64> = HashMap::new();
+    // Each stored original once: the original blocks hold exactly the distinct chains.
+    let mut chains: HashMap<(u32, u32), u64> = HashMap::new();
     for o in t.originals {
         chains.insert(
-            o.material,
+            (o.block, o.slot),
             t.format().chain_bytes_rect(o.extent()[0], o.extent()[1]),
         );
     }
@@ -431,6 +431,36 @@ fn evicting_one_leafs_need_keeps_the_block_another_needed_leaf_uses() {
 /// what they transfer.
 #[test]
 fn a_non_square_original_transfers_its_chain_and_uploads_its_class_layer() {
+    use atlastree::scene::synthetic::SceneBuilder;
+    use atlastree::scene::{AlphaMode, UpAxis, Wrap};
+    let mut b = SceneBuilder::new(UpAxis::Y);
+    let img = b.image("wide", 256, 64, |x, y| [x as u8, y as u8, 80, 255]);
+    let m = b.material(img, [Wrap::Repeat; 2], AlphaMode::Opaque);
+    let quad =
+        [(0.0, 0.0), (16.0, 0.0), (16.0, 16.0), (0.0, 16.0)].map(|(x, z)| DVec3::new(x, 0.0, z));
+    b.quad(quad, glam::DVec2::ZERO, glam::DVec2::splat(4.0), m);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("wide.atlastree");
+    build(&b.build(), &options(), &out, &NoProgress).unwrap();
+    let file = TreeFile::open(&out).unwrap();
+    let table = BlockTable::from_file(&file).unwrap();
+    let t = file.tree(0).unwrap();
+    let f = t.format();
+    let o = t.originals[0];
+    assert_eq!(o.extent(), [256, 64]);
+    let meta = table.meta(atlastree::ids::BlockId(o.block));
+    assert_eq!(meta.bytes, f.chain_bytes_rect(256, 64));
+    assert_eq!(meta.upload_bytes, f.chain_bytes(256));
+    let atlas = table.atlas(0, NodeId(0)).unwrap();
+    assert_eq!(table.meta(atlas).upload_bytes, table.meta(atlas).bytes);
+}
+
+/// Materials that draw one image through one sampler share its stored original (its bytes depend only
+/// on image, wrap and, in the alpha tree, a MASK cutoff: `assemble::StoredOriginal`); a different wrap or
+/// cutoff keeps its own. Every material keeps its own reference, the blocks hold each chain once, the
+/// file verifies, and a reference that names another image in a shared slot is refused.
+#[test]
+fn materials_that_share_an_image_and_sampler_share_its_stored_original() {
     let scene = crate::fixtures::corners::shared_images(true);
     let materials: [atlastree::ids::MaterialId; 6] =
         std::array::from_fn(|i| atlastree::ids::MaterialId(i as u32));
@@ -477,8 +507,22 @@ fn a_non_square_original_transfers_its_chain_and_uploads_its_class_layer() {
     assert!(report.ok(), "{:?}", report.violations);
     // inspect's repeat cost counts each stored original once per leaf that holds it, not once per
     // material reference (fault hunt, session 34): per leaf, the distinct slots of its repeat materials.
-    let info = atlastree::inspect::inspect(&file);
-    let t = file.tree(0).unwrap();
+    // One leaf per tree (depth 0), so that the leaf's two materials share one original: the case the
+    // per-reference count got wrong.
+    let one_leaf = dir.path().join("one-leaf.atlastree");
+    let opts = atlastree::preprocess::BuildOptions {
+        max_depth: 0,
+        leaf_originals_atlases: 1e6,
+        ..options()
+    };
+    build(&scene, &opts, &one_leaf, &NoProgress).unwrap();
+    let one_leaf = TreeFile::open(&one_leaf).unwrap();
+    let info = atlastree::inspect::inspect(&one_leaf);
+    let t = one_leaf.tree(0).unwrap();
+    assert!(t.leaves.iter().any(|l| {
+        let m: BTreeSet<u32> = t.leaf_originals(l).iter().map(|o| o.material).collect();
+        m.contains(&materials[0].0) && m.contains(&materials[1].0)
+    }));
     let mut per_leaf = 0u64;
     let mut once = BTreeSet::new();
     for leaf in t.leaves {
@@ -497,6 +541,9 @@ fn a_non_square_original_transfers_its_chain_and_uploads_its_class_layer() {
     assert_eq!(repeats.original_texels_once, 128 * 128, "{repeats:?}");
     assert_eq!(once.len(), 1);
     assert_eq!(repeats.original_texels_per_leaf, per_leaf, "{repeats:?}");
+    // One leaf: once (per reference it read twice).
+    assert_eq!(t.leaves.len(), 1);
+    assert_eq!(per_leaf, 128 * 128);
     // A shared slot's second reference pointed at another image is refused, naming the slot.
     let bytes = std::fs::read(&out).unwrap();
     let t = file.tree(0).unwrap();
@@ -522,6 +569,20 @@ fn a_non_square_original_transfers_its_chain_and_uploads_its_class_layer() {
     );
     let other_image = u32::from_le_bytes(edited[at + 4..at + 8].try_into().unwrap()) ^ 1;
     edited[at + 4..at + 8].copy_from_slice(&other_image.to_le_bytes());
+    crate::store::reseal(&mut edited);
+    match TreeFile::from_bytes(&edited) {
+        Err(atlastree::store::StoreError::BadValue {
+            table: "originals",
+            field: "slot",
+            ..
+        }) => {}
+        other => panic!("{:?}", other.err()),
+    }
+    // So is a shared MASK slot whose materials' cutoffs came to differ (material 4's, at byte 16 of its
+    // record, away from material 3's).
+    let mut edited = bytes.clone();
+    let at = crate::store::record_at(&edited, atlastree::store::format::Section::Materials, 4);
+    edited[at + 16..at + 20].copy_from_slice(&0.75f32.to_le_bytes());
     crate::store::reseal(&mut edited);
     match TreeFile::from_bytes(&edited) {
         Err(atlastree::store::StoreError::BadValue {

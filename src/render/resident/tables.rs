@@ -36,7 +36,8 @@ pub struct GpuTables {
     pub material_originals: Vec<MaterialOriginal>,
     /// `(tree, node, block)` of every atlas, in upload order.
     pub atlas_blocks: Vec<(u32, u32, BlockId)>,
-    /// `(block, unique, offset in the block)` of every original texture copy (one per leaf that uses it).
+    /// `(block, unique, offset in the block)` of every original texture reference (one per TAM entry: per
+    /// leaf and material that draws it).
     pub block_uniques: Vec<(BlockId, u32, u64)>,
     /// Storage format of each tree's blocks.
     pub formats: Vec<TexFormat>,

@@ -2,7 +2,7 @@
 //! a single vertex; and the digest of the scene input that keys a plan to the files it was made from.
 
 use super::materials::image_or_fallback;
-use super::uri::{Buffers, local_path, split_glb};
+use super::uri::{Buffers, local_path_in, split_glb};
 use super::{SceneError, panic_message, parse_document, refs};
 use crate::scene::{ImageRef, ImageSource, ImportReport};
 use std::io::Read;
@@ -46,8 +46,8 @@ fn images_unguarded(
         })?;
     refs::check_indices(&value, file)?;
     let (doc, _) = parse_document(&json_bytes, file)?;
-    let base_dir = super::uri::scene_dir(path);
-    let mut buffers = Buffers::new(file, base_dir, &doc, blob);
+    let base_dirs = super::uri::scene_dirs(path);
+    let mut buffers = Buffers::new(file, base_dirs, &doc, blob);
     let mut report = ImportReport::default();
     let mut images = Vec::with_capacity(wanted.len());
     // A glTF image drawn by OPAQUE and alpha materials is named twice (`Materials::image_for`): read once.
@@ -94,7 +94,7 @@ pub fn input_digest(path: &Path) -> Result<[u64; 2], SceneError> {
             file: file.clone(),
             reason: e.to_string(),
         })?;
-    let base_dir = super::uri::scene_dir(path);
+    let base_dirs = super::uri::scene_dirs(path);
     let uris = (value
         .get("buffers")
         .and_then(|b| b.as_array())
@@ -109,7 +109,7 @@ pub fn input_digest(path: &Path) -> Result<[u64; 2], SceneError> {
             uri: uri.to_string(),
             reason,
         };
-        let buffer = local_path(&base_dir, uri).map_err(buffer_err)?;
+        let buffer = local_path_in(&base_dirs, uri).map_err(buffer_err)?;
         hasher.update(format!("|buffer {i}|").as_bytes());
         stream_into(&mut hasher, &buffer)
             .map_err(|source| buffer_err(format!("{}: {source}", buffer.display())))?;

@@ -167,14 +167,14 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
         file: file.clone(),
         reason: format!("raw JSON: {e}"),
     })?;
-    let base_dir = uri::scene_dir(path);
+    let base_dirs = uri::scene_dirs(path);
     let mut report = ImportReport::default();
     for w in tolerated {
         report.warn(w);
     }
     warnings::warn_undrawn_features(&file, &doc, &mut report);
     let accessors: Vec<gltf::Accessor> = doc.accessors().collect();
-    let mut buffers = Buffers::new(&file, base_dir, &doc, blob);
+    let mut buffers = Buffers::new(&file, base_dirs, &doc, blob);
     let mut walk = Walk {
         file: &file,
         doc: &doc,

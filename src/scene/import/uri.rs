@@ -110,8 +110,9 @@ pub(super) fn split_glb(
 pub(super) struct Buffers<'a> {
     /// The glTF file (for error messages).
     file: &'a str,
-    /// Relative URIs are resolved against this directory.
-    base_dir: PathBuf,
+    /// Relative URIs are resolved against these directories, the first that holds the file
+    /// ([`scene_dirs`], [`local_path_in`]).
+    base_dirs: Vec<PathBuf>,
     doc: &'a gltf::Document,
     /// The GLB `BIN` chunk until the buffer that uses it is loaded.
     blob: Option<Vec<u8>>,
@@ -122,13 +123,13 @@ pub(super) struct Buffers<'a> {
 impl<'a> Buffers<'a> {
     pub(super) fn new(
         file: &'a str,
-        base_dir: PathBuf,
+        base_dirs: Vec<PathBuf>,
         doc: &'a gltf::Document,
         blob: Option<Vec<u8>>,
     ) -> Self {
         Buffers {
             file,
-            base_dir,
+            base_dirs,
             doc,
             blob,
             data: vec![None; doc.buffers().len()],
@@ -209,7 +210,7 @@ impl<'a> Buffers<'a> {
         if uri.starts_with("data:") {
             return decode_data_uri(uri);
         }
-        let path = local_path(&self.base_dir, uri)?;
+        let path = local_path_in(&self.base_dirs, uri)?;
         crate::util::read_regular(&path, Some(length))
             .map_err(|e| format!("{}: {e}", path.display()))
     }
@@ -263,7 +264,7 @@ impl<'a> Buffers<'a> {
             ImgSrc::Uri(uri) => {
                 let rel = percent_decode(uri);
                 let name = img.name().map_or_else(|| rel.clone(), str::to_string);
-                let res = local_path(&self.base_dir, uri).and_then(|path| {
+                let res = local_path_in(&self.base_dirs, uri).and_then(|path| {
                     crate::util::open_regular(&path)
                         .map_err(|e| format!("{}: {e}", path.display()))
                         .and_then(|f| {
@@ -333,19 +334,6 @@ fn from_header(name: &str, h: image_source::ImageHeader, data: ImageData) -> Loa
 /// `?query` or `#fragment`, and with a Windows exporter's `\` as `/` (`tex.png?v=2` and
 /// `textures\tex.png` drew the fallback; fault hunt, session 28). As written first, so a file named
 /// with a `#` (`Material #25.png`) is still found.
-/// The folder a scene's relative URIs are resolved in: the scene file's, or where the scene path is a
-/// symbolic link, its target's (`ln -s city/scene.gltf link.gltf` read `link.gltf: buffer 0
-/// (scene.bin): No such file or directory`; fault hunt, session 34). A folder of links to each file
-/// resolves the same either way.
-pub(super) fn scene_dir(path: &Path) -> PathBuf {
-    let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
-    let real = match is_link {
-        true => std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()),
-        false => path.to_path_buf(),
-    };
-    real.parent().map(Path::to_path_buf).unwrap_or_default()
-}
-
 pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> {
     let scheme = uri.split_once(':').map(|(s, _)| s).filter(|s| {
         let mut c = s.chars();
@@ -380,6 +368,39 @@ pub(super) fn local_path(base_dir: &Path, uri: &str) -> Result<PathBuf, String> 
              file next to the glTF and name it by a relative path)"
         )),
     }
+}
+
+/// The folders a scene's relative URIs are resolved in, in order: the scene file's, then, where the scene
+/// path is a symbolic link, its target's (`ln -s city/scene.gltf link.gltf` read `link.gltf: buffer 0
+/// (scene.bin): No such file or directory`; fault hunt, session 34). The link's own folder first: a
+/// folder of links into a content-addressed store (a Hugging Face cache, git-annex) holds its files
+/// only beside the links (review of session 34).
+pub(super) fn scene_dirs(path: &Path) -> Vec<PathBuf> {
+    let own = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+    let target = is_link
+        .then(|| std::fs::canonicalize(path).ok())
+        .flatten()
+        .and_then(|t| t.parent().map(Path::to_path_buf))
+        .filter(|t| *t != own);
+    std::iter::once(own).chain(target).collect()
+}
+
+/// [`local_path`] in the first of `dirs` ([`scene_dirs`]) that holds the file; the first folder's
+/// reading (or its error) where none does.
+pub(super) fn local_path_in(dirs: &[PathBuf], uri: &str) -> Result<PathBuf, String> {
+    let Some((first, rest)) = dirs.split_first() else {
+        return local_path(Path::new(""), uri);
+    };
+    let own = local_path(first, uri)?;
+    if own.is_file() {
+        return Ok(own);
+    }
+    Ok(rest
+        .iter()
+        .filter_map(|d| local_path(d, uri).ok())
+        .find(|p| p.is_file())
+        .unwrap_or(own))
 }
 
 /// `base_dir` joined with the decoded relative reference `uri`, or with the first of its browser

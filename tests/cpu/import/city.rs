@@ -115,4 +115,18 @@ fn a_symlinked_scene_resolves_uris_beside_its_target() {
     assert_eq!(through_link.triangles.len(), direct.triangles.len());
     assert_eq!(through_link.images.len(), direct.images.len());
     assert_eq!(through_link.report.warnings, direct.report.warnings);
+    // A folder of links into a content-addressed store (a Hugging Face cache, git-annex): the files are
+    // found beside the links, not beside the hash-named targets.
+    let blobs = dir.path().join("blobs");
+    let snapshot = dir.path().join("snapshot");
+    std::fs::create_dir_all(&blobs).unwrap();
+    std::fs::create_dir_all(&snapshot).unwrap();
+    for (name, blob) in [("scene.gltf", "9f1c"), ("scene.bin", "77ab")] {
+        std::fs::copy(city_dir().join(name), blobs.join(blob)).unwrap();
+        std::os::unix::fs::symlink(blobs.join(blob), snapshot.join(name)).unwrap();
+    }
+    std::os::unix::fs::symlink(city_dir().join("textures"), snapshot.join("textures")).unwrap();
+    let in_store = import(&snapshot.join("scene.gltf"), &ImportOptions::default()).unwrap();
+    assert_eq!(in_store.triangles.len(), direct.triangles.len());
+    assert_eq!(in_store.report.warnings, direct.report.warnings);
 }

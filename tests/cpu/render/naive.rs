@@ -76,7 +76,9 @@ fn naive_batch_draws_every_triangle_once() {
                     mine[..],
                     "tree {t} leaf {li} original {o}"
                 );
-                assert_eq!(d.texture, g.tam_unique[entry(o)]);
+                assert_eq!(d.texture, g.tam_material_original[entry(o)]);
+                let pair = g.material_originals[d.texture as usize];
+                assert_eq!(pair.unique, g.tam_unique[entry(o)]);
                 let pass = if k < opaque_draws {
                     g.tam[entry(o)].alpha_mode.min(1)
                 } else {
