@@ -32,6 +32,7 @@ pub mod prepare;
 pub mod raster;
 mod report;
 pub mod shard;
+mod shard_files;
 mod shard_plan;
 mod shard_run;
 pub mod sizing;
