@@ -335,7 +335,30 @@ pub(super) fn check_url(u: &str) -> anyhow::Result<()> {
             atlastree::paging::redact_url(u)
         );
     }
+    // An empty port is the scheme's default, as URLs have it.
+    if let Some(port) = url_port(u)
+        && !port.is_empty()
+        && !port.parse::<u16>().is_ok_and(|p| p > 0)
+    {
+        bail!(
+            "{}: port {port:?} is not a port (1 to 65535; it was read as the default, 80)",
+            atlastree::paging::redact_url(u)
+        );
+    }
     Ok(())
+}
+
+/// The port text of `u`'s authority (after the last `:` of the host, outside an IPv6 `[…]`), if it
+/// names one: `http://127.0.0.1:70000/f` was sent to port 80 (fault hunt, session 34).
+fn url_port(u: &str) -> Option<&str> {
+    let (_, rest) = u.split_once("://")?;
+    let authority = rest.split(['/', '?', '#']).next().unwrap_or("");
+    let host_port = authority.rsplit_once('@').map_or(authority, |(_, h)| h);
+    let after_host = match host_port.strip_prefix('[') {
+        Some(v6) => v6.split_once(']')?.1,
+        None => host_port.find(':').map_or("", |i| &host_port[i..]),
+    };
+    after_host.strip_prefix(':')
 }
 
 impl PagingArgs {
@@ -550,6 +573,22 @@ pub(super) fn parse_list<T>(
 mod tests {
     use super::*;
     use clap::Parser;
+
+    #[test]
+    fn a_port_that_is_not_one_is_refused() {
+        assert_eq!(url_port("http://h:8077/f"), Some("8077"));
+        assert_eq!(url_port("http://u:p@h:99/f?q=1"), Some("99"));
+        assert_eq!(url_port("http://[::1]:70000/f"), Some("70000"));
+        assert_eq!(url_port("http://[::1]/f"), None);
+        assert_eq!(url_port("http://h/f:1"), None);
+        assert!(check_url("http://127.0.0.1:8077/f").is_ok());
+        assert!(check_url("http://h/f").is_ok());
+        assert!(check_url("http://h:/f").is_ok(), "empty: the default port");
+        for bad in ["http://127.0.0.1:70000/f", "http://h:0/f", "http://h:abc/f"] {
+            let e = check_url(bad).unwrap_err().to_string();
+            assert!(e.contains("is not a port"), "{bad}: {e}");
+        }
+    }
 
     #[test]
     fn url_schemes_are_read_in_any_case() {

@@ -5,7 +5,8 @@ use super::args::{
     Capacity, Paging, PagingArgs, SourceArg, Viewport, ViewportArgs, check_url, is_url,
 };
 use super::render_out::{
-    clear_earlier_run, earlier_modes, mark_earlier_summary_stale, remove_earlier_frames,
+    clear_earlier_run, earlier_modes, mark_earlier_summary, mark_earlier_summary_stale,
+    remove_earlier_frames,
 };
 use anyhow::{Context, bail};
 use atlastree::camera::{Camera, Ground, PathKind};
@@ -270,7 +271,9 @@ pub(super) type Measured = Vec<(Mode, Vec<FrameStats>)>;
 /// Runs a checked configuration; returns what it measured.
 pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     super::check_out_folder(&cfg.out)?;
-    // Until phase 4 replaces the earlier run's summary, a failure says that summary is not this run's.
+    // Until phase 4 replaces the earlier run's summary, it says it is not this run's: incomplete from
+    // here (an interrupt ends the run without a word), and why where this run fails.
+    mark_earlier_summary(&cfg.out, None);
     let failed = |e: anyhow::Error| mark_earlier_summary_stale(&cfg.out, e);
     let http_options = cfg.paging.as_ref().map(|p| p.paging.http_options());
     let (file, http) = open_tree(&cfg.tree, http_options.unwrap_or_default()).map_err(failed)?;

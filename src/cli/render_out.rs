@@ -99,13 +99,26 @@ pub(super) fn mark_earlier_summary_stale(
     out: &std::path::Path,
     error: anyhow::Error,
 ) -> anyhow::Error {
+    mark_earlier_summary(out, Some(&error));
+    error
+}
+
+/// Marks an earlier run's `summary.json` in `out` incomplete as this run starts, so a run interrupted
+/// before it writes its own (a Ctrl-C while the tables of a stalled server load) leaves no summary that
+/// says `"complete": true` beside it (fault hunt, session 34); with `error`, says why this run failed.
+pub(super) fn mark_earlier_summary(out: &std::path::Path, error: Option<&anyhow::Error>) {
     let path = out.join("summary.json");
     let earlier = atlastree::util::read_regular(&path, Some(1 << 20))
         .ok()
         .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
     if let Some(serde_json::Value::Object(mut summary)) = earlier {
+        if error.is_none() && summary.get("complete") == Some(&false.into()) {
+            return;
+        }
         summary.insert("complete".into(), false.into());
-        summary.insert("failed".into(), format!("{error:#}").into());
+        if let Some(error) = error {
+            summary.insert("failed".into(), format!("{error:#}").into());
+        }
         let text = serde_json::Value::Object(summary).to_string() + "\n";
         if let Err(e) = atlastree::util::write_atomic(&path, text.as_bytes()) {
             eprintln!(
@@ -114,7 +127,6 @@ pub(super) fn mark_earlier_summary_stale(
             );
         }
     }
-    error
 }
 
 /// The error of setting up an all-resident renderer (`what`: for which file). Original mode and a
@@ -137,6 +149,26 @@ pub(super) fn setup_error(
 
 #[cfg(test)]
 mod tests {
+    /// A run that starts marks the earlier summary incomplete (an interrupt before its own left
+    /// `"complete": true`; fault hunt, session 34); one that fails adds why; the rest is kept.
+    #[test]
+    fn an_earlier_summary_is_marked_when_a_run_starts_and_fails() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let path = out.join("summary.json");
+        std::fs::write(&path, r#"{"complete": true, "modes": {"tree": {}}}"#).unwrap();
+        let read = || -> serde_json::Value {
+            serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap()
+        };
+        super::mark_earlier_summary(out, None);
+        let v = read();
+        assert_eq!(v["complete"], false);
+        assert!(v.get("failed").is_none() && v["modes"]["tree"].is_object());
+        let e = super::mark_earlier_summary_stale(out, anyhow::anyhow!("no such host"));
+        assert_eq!(e.to_string(), "no such host");
+        assert_eq!(read()["failed"], "no such host");
+    }
+
     /// An earlier run's outputs that this run does not overwrite go, and only those: mode folders an
     /// earlier multi-mode run's summary names, top-level outputs of a single-mode run when this run
     /// draws into folders; a user's file, or a folder the summary does not name, stays.

@@ -528,9 +528,21 @@ impl Pager {
                 continue;
             }
             if self.state[i] != State::Requested {
-                // Cancelled meanwhile (or a duplicate): the bytes were wasted.
-                self.stats.discarded += 1;
-                self.stats.discarded_bytes += self.table.blocks[i].bytes;
+                match &a.result {
+                    // Cancelled meanwhile (or a duplicate): the bytes were wasted.
+                    Ok(_) => {
+                        self.stats.discarded += 1;
+                        self.stats.discarded_bytes += self.table.blocks[i].bytes;
+                    }
+                    // A failed fetch is a failure whether or not it is still wanted: counted as
+                    // discarded bytes, a dead server read as a slow one (fault hunt, session 34).
+                    Err(e) => {
+                        self.stats.failures += 1;
+                        if self.first_load_error.is_none() {
+                            self.first_load_error = Some(format!("block {}: {e}", a.block.0));
+                        }
+                    }
+                }
                 continue;
             }
             match a.result {

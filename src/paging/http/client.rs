@@ -144,6 +144,10 @@ enum Failure {
     Status(u16),
     /// The body ended early (or the file is shorter than the range).
     Short { got: u64 },
+    /// A whole answer for the header's range, shorter than a header and not the start of a paging file
+    /// (an HTML page): its first bytes. Not retried: no attempt makes it one (a short page read "got 29 of
+    /// 528 bytes" after four tries, where a longer one said what it was; fault hunt, session 34).
+    NotPaging(Vec<u8>),
     /// A `206` for another range than asked for; `file_shorter` when its total ends before the range.
     WrongRange { message: String, file_shorter: bool },
     /// The bytes of a block do not match its checksum.
@@ -161,7 +165,7 @@ impl Failure {
             | Failure::Corrupt(_) => true,
             Failure::Status(status) => *status >= 500 || matches!(status, 408 | 429),
             Failure::WrongRange { file_shorter, .. } => !file_shorter,
-            Failure::Request(_) => false,
+            Failure::Request(_) | Failure::NotPaging(_) => false,
         }
     }
 
@@ -183,6 +187,10 @@ impl Failure {
             Failure::Transport(m) | Failure::Request(m) | Failure::Corrupt(m) => m.clone(),
             Failure::Status(s) => format!("HTTP status {s}"),
             Failure::Short { got } => format!("got {got} of {expected} bytes"),
+            Failure::NotPaging(head) => format!(
+                "not an atlastree paging file ({})",
+                crate::store::describe_start(head)
+            ),
             Failure::WrongRange { message, .. } => message.clone(),
             Failure::Checksum { found } => format!("checksum {found:#018x} does not match"),
         }
@@ -365,6 +373,13 @@ impl HttpSource {
                 Failure::Corrupt("the tables were not parsed".into()),
                 1,
             )),
+            (Err((Failure::NotPaging(found), _)), _) => Err(SourceError::Store {
+                source_name: self.shown.clone(),
+                error: StoreError::BadMagic {
+                    path: self.shown.clone().into(),
+                    found,
+                },
+            }),
             (Err((failure, attempts)), _) => Err(tables_error(failure, attempts)),
         };
         self.counters.outcome(value.is_ok());
@@ -425,6 +440,21 @@ impl HttpSource {
             200 => {
                 bump(&self.counters.full_responses, 1);
                 self.skip(&mut body, offset)?;
+                if offset == 0 && content_length.is_some_and(|n| n < len) {
+                    // The whole answer: if it does not start as a paging file, nothing will.
+                    let mut head = Vec::new();
+                    let read = body.take(len).read_to_end(&mut head);
+                    bump(&self.counters.bytes, head.len() as u64);
+                    read.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
+                    let magic = &crate::store::format::MAGIC;
+                    if !head.is_empty() && !magic.starts_with(&head[..head.len().min(magic.len())])
+                    {
+                        return Err(Failure::NotPaging(head));
+                    }
+                    return Err(Failure::Short {
+                        got: head.len() as u64,
+                    });
+                }
                 let bytes = self.read_len(&mut body, len)?;
                 Ok(Ranged {
                     bytes,
@@ -513,12 +543,14 @@ impl HttpSource {
                 block: id,
                 message,
             },
-            f @ (Failure::Transport(_) | Failure::Corrupt(_)) => SourceError::Transport {
-                message: f.message(len),
-                url,
-                block: id,
-                attempts,
-            },
+            f @ (Failure::Transport(_) | Failure::Corrupt(_) | Failure::NotPaging(_)) => {
+                SourceError::Transport {
+                    message: f.message(len),
+                    url,
+                    block: id,
+                    attempts,
+                }
+            }
         }
     }
 

@@ -704,6 +704,27 @@ fn a_server_holding_another_file_is_refused() {
     let tiny = FaultServer::start(Arc::new(vec![0u8; 10]), "/t", any_port()).unwrap();
     let e = HttpSource::open(&tiny.url(), quick()).err().unwrap();
     assert!(matches!(&e, SourceError::Tables { attempts: 1, .. }), "{e}");
+    // A short page from a server that ignores Range (a `200` of 29 bytes): said to be no paging file,
+    // once, not "got 29 of 528 bytes" after four tries (fault hunt, session 34).
+    let page = b"<html><body>hi</body></html>\n".to_vec();
+    let html = FaultServer::start(Arc::new(page), "/index.html", any_port()).unwrap();
+    html.set_faults(Faults {
+        ignore_range: true,
+        ..Faults::default()
+    });
+    let e = HttpSource::open(&html.url(), quick()).err().unwrap();
+    assert!(
+        matches!(
+            &e,
+            SourceError::Store {
+                error: StoreError::BadMagic { .. },
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("<html>"), "{e}");
+    assert_eq!(html.seen().requests, 1);
 }
 
 #[test]

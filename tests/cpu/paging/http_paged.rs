@@ -389,3 +389,73 @@ fn the_pager_backs_off_on_transient_failures_and_gives_up_longer_on_permanent_on
     assert!(seen[0] >= 3, "upload errors: {seen:?}");
     assert_eq!(seen[1], 1, "no free layer: {seen:?}");
 }
+
+/// A fetch that fails after its request was cancelled (the block left the ideal set while the server
+/// died) is a failure, with its error kept for the report, not a discarded arrival charged the block's
+/// bytes: a dead server read as a slow one (fault hunt, session 34). A cancelled fetch that arrives
+/// with bytes is still discarded.
+#[test]
+fn a_failed_fetch_of_a_cancelled_request_is_a_failure() {
+    use atlastree::paging::{Arrival, Pager, ViewInput};
+    let fx = fixture();
+    let table = BlockTable::from_file(&fx.file).unwrap();
+    let trees: Vec<&[atlastree::store::format::NodeRecord]> = (0..fx.file.trees())
+        .map(|i| fx.file.tree(i).unwrap().nodes)
+        .collect();
+    let mut pager = Pager::new(table, PagerOptions::default()).unwrap();
+    let (cams, scale) = cameras(&fx, 150);
+    let view_of = |c: &Camera| {
+        let frustum = c.frustum();
+        (c.eye, frustum)
+    };
+    // Requested at the first camera...
+    let (eye, frustum) = view_of(&cams[0]);
+    let view = ViewInput {
+        eye,
+        frustum: &frustum,
+        scale,
+        lookahead: None,
+    };
+    let wanted: Vec<BlockId> = pager.plan(&trees, &view).iter().map(|r| r.block).collect();
+    assert!(wanted.len() >= 2, "{wanted:?}");
+    // ...then cancelled: a camera that sees nothing (far below the ground, looking down).
+    let away = Camera {
+        eye: cams[0].eye - glam::DVec3::Y * 1e6,
+        target: cams[0].eye - glam::DVec3::Y * 2e6,
+        up: glam::DVec3::Z,
+        ..cams[0]
+    };
+    let (eye, frustum) = view_of(&away);
+    let view = ViewInput {
+        eye,
+        frustum: &frustum,
+        scale,
+        lookahead: None,
+    };
+    let still: Vec<BlockId> = pager.plan(&trees, &view).iter().map(|r| r.block).collect();
+    let cancelled: Vec<BlockId> = wanted.into_iter().filter(|b| !still.contains(b)).collect();
+    assert!(cancelled.len() >= 2, "{cancelled:?}");
+    let failed = SourceError::Status {
+        url: "u".into(),
+        block: cancelled[0],
+        status: 503,
+        offset: 0,
+        len: 0,
+        attempts: 4,
+    };
+    let arrivals = [
+        Arrival {
+            block: cancelled[0],
+            result: Err(failed),
+        },
+        Arrival {
+            block: cancelled[1],
+            result: Ok(None),
+        },
+    ];
+    pager.accept(arrivals, |_| atlastree::paging::Applied::Done);
+    let t = pager.totals();
+    assert!(t.cancelled >= 2, "{t:?}");
+    assert_eq!((t.failures, t.discarded), (1, 1));
+    assert!(pager.first_load_error().is_some_and(|e| e.contains("503")));
+}
