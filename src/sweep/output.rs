@@ -368,17 +368,19 @@ pub fn write_outputs(
         source: e,
     })?;
     // The plots a grid may not draw (one texel ratio, no histogram): an earlier sweep's would stay beside
-    // this report.
+    // this report. Only where an earlier sweep reported here (its sweep.csv; review of session 34).
     let optional = |n: &str| {
         OPTIONAL_PLOTS.iter().any(|p| {
             n.strip_prefix(p)
                 .is_some_and(|ext| ext == ".png" || ext == ".svg")
         })
     };
-    crate::util::remove_stale_outputs(dir, optional).map_err(|e| SweepError::Io {
-        path: dir.to_path_buf(),
-        source: e,
-    })?;
+    if dir.join("sweep.csv").is_file() {
+        crate::util::remove_stale_outputs(dir, optional).map_err(|e| SweepError::Io {
+            path: dir.to_path_buf(),
+            source: e,
+        })?;
+    }
     let rows = summarise(&data.builds, &data.frames);
     let sweep_csv = dir.join("sweep.csv");
     write_csv(
