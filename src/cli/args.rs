@@ -335,20 +335,22 @@ pub(super) fn check_url(u: &str) -> anyhow::Result<()> {
             atlastree::paging::redact_url(u)
         );
     }
-    // An empty port is the scheme's default, as URLs have it.
+    // An empty port is the scheme's default, as URLs have it. The port's text is not echoed: with an
+    // unescaped `/` in a password it is part of the password.
     if let Some(port) = url_port(u)
         && !port.is_empty()
-        && !port.parse::<u16>().is_ok_and(|p| p > 0)
+        && !(port.bytes().all(|b| b.is_ascii_digit()) && port.parse::<u16>().is_ok_and(|p| p > 0))
     {
         bail!(
-            "{}: port {port:?} is not a port (1 to 65535; it was read as the default, 80)",
+            "{}: its port is not a port (digits, 1 to 65535); it would have been read as the scheme's \
+             default",
             atlastree::paging::redact_url(u)
         );
     }
     Ok(())
 }
 
-/// The port text of `u`'s authority (after the last `:` of the host, outside an IPv6 `[…]`), if it
+/// The port text of `u`'s authority (after the host's first `:`, outside an IPv6 `[…]`), if it
 /// names one: `http://127.0.0.1:70000/f` was sent to port 80 (fault hunt, session 34).
 fn url_port(u: &str) -> Option<&str> {
     let (_, rest) = u.split_once("://")?;
@@ -584,7 +586,12 @@ mod tests {
         assert!(check_url("http://127.0.0.1:8077/f").is_ok());
         assert!(check_url("http://h/f").is_ok());
         assert!(check_url("http://h:/f").is_ok(), "empty: the default port");
-        for bad in ["http://127.0.0.1:70000/f", "http://h:0/f", "http://h:abc/f"] {
+        for bad in [
+            "http://127.0.0.1:70000/f",
+            "http://h:0/f",
+            "http://h:abc/f",
+            "http://h:+80/f",
+        ] {
             let e = check_url(bad).unwrap_err().to_string();
             assert!(e.contains("is not a port"), "{bad}: {e}");
         }

@@ -13,14 +13,15 @@ mod embedded {
     include!(concat!(env!("OUT_DIR"), "/demo_scene.rs"));
 }
 
-/// Writes the embedded default scene into a fresh temporary folder (removed when the value drops) and
-/// returns it with the path of its `scene.gltf`: the demo runs wherever the binary is.
 /// The prefix of the embedded scene's temporary folder: then the demo's process id and a dash.
 const EMBEDDED_PREFIX: &str = "atlastree-demo-scene-";
+/// The file in that folder whose lock the demo holds while it runs.
+const EMBEDDED_LOCK: &str = ".lock";
 
 /// Removes the embedded-scene folders of demos that were killed (SIGKILL skips every cleanup: each left
 /// 1.1 MB in the temp folder for good; fault hunt, session 34): named with a process id that no longer
-/// runs. Errors only leave a folder in place.
+/// runs, and whose lock nobody holds (a temp folder shared across PID namespaces holds live demos of
+/// other pids). Errors only leave a folder in place.
 fn remove_killed_demos_scenes() {
     let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
         return;
@@ -31,21 +32,34 @@ fn remove_killed_demos_scenes() {
             .strip_prefix(EMBEDDED_PREFIX)
             .and_then(|rest| rest.split('-').next())
             .and_then(|p| p.parse::<u32>().ok());
+        let free = || {
+            std::fs::File::open(entry.path().join(EMBEDDED_LOCK))
+                .is_ok_and(|f| f.try_lock().is_ok())
+        };
         if let Some(pid) = pid
             && pid != std::process::id()
             && !atlastree::util::process_may_run(pid)
+            && free()
         {
             let _ = std::fs::remove_dir_all(entry.path());
         }
     }
 }
 
+/// Writes the embedded default scene into a fresh temporary folder (removed when the value drops) and
+/// returns it with the path of its `scene.gltf`: the demo runs wherever the binary is.
 fn write_embedded_scene() -> anyhow::Result<(tempfile::TempDir, PathBuf)> {
     remove_killed_demos_scenes();
     let dir = tempfile::Builder::new()
         .prefix(&format!("{EMBEDDED_PREFIX}{}-", std::process::id()))
         .tempdir()
         .context("creating a temporary folder for the embedded demo scene")?;
+    // Held until the process ends (the handle is leaked on purpose): a live demo's folder is never
+    // taken for a killed one's. Best effort: without locks, the process id alone decides.
+    if let Ok(lock) = std::fs::File::create(dir.path().join(EMBEDDED_LOCK)) {
+        let _ = lock.try_lock();
+        std::mem::forget(lock);
+    }
     for (rel, bytes) in embedded::DEMO_SCENE {
         let path = dir.path().join(rel);
         if let Some(parent) = path.parent() {
@@ -580,7 +594,14 @@ mod tests {
         }
         let (dir, scene) = super::write_embedded_scene().unwrap();
         assert!(scene.starts_with(dir.path()));
-        assert_eq!(walk(dir.path()), on_disk);
+        // The scene's files, and the lock the demo holds while it runs.
+        let mut written = walk(dir.path());
+        assert_eq!(
+            written.first().map(String::as_str),
+            Some(super::EMBEDDED_LOCK)
+        );
+        written.remove(0);
+        assert_eq!(written, on_disk);
     }
 
     fn walk(root: &std::path::Path) -> Vec<String> {

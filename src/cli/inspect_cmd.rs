@@ -172,7 +172,7 @@ pub(super) fn print_inspect(r: &InspectReport) {
                 .map(|(leaves, n)| format!("{n}×{leaves}"))
                 .collect();
             println!(
-                "    originals: {} stored, one per image, wrap and MASK cutoff, {} leaf references (stored originals × leaves sharing each: {})",
+                "    originals: {} stored, one per image, wrap and MASK cutoff, {} references by leaf and material (stored originals × leaves sharing each: {})",
                 t.originals_stored,
                 t.original_refs,
                 hist.join(", ")

@@ -1,6 +1,6 @@
 //! A render's output folder before the run: what an earlier run into it left (its modes' folders and
-//! files, cleared where this run draws again) and, where this run fails before its own summary begins,
-//! the earlier summary marked as not this run's.
+//! files, cleared where this run draws again) and the earlier summary, marked incomplete as this run
+//! starts and with why where it fails, as not this run's.
 
 use anyhow::Context;
 use atlastree::render::Mode;
@@ -112,13 +112,12 @@ pub(super) fn mark_earlier_summary(out: &std::path::Path, error: Option<&anyhow:
         .ok()
         .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
     if let Some(serde_json::Value::Object(mut summary)) = earlier {
-        if error.is_none() && summary.get("complete") == Some(&false.into()) {
-            return;
-        }
         summary.insert("complete".into(), false.into());
-        if let Some(error) = error {
-            summary.insert("failed".into(), format!("{error:#}").into());
-        }
+        // An older run's failure is not this run's.
+        match error {
+            Some(error) => summary.insert("failed".into(), format!("{error:#}").into()),
+            None => summary.remove("failed"),
+        };
         let text = serde_json::Value::Object(summary).to_string() + "\n";
         if let Err(e) = atlastree::util::write_atomic(&path, text.as_bytes()) {
             eprintln!(

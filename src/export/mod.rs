@@ -255,11 +255,6 @@ pub fn export_3dtiles(
                   replaces only those; remove it yourself or export into another directory",
         });
     }
-    if non_empty && !opts.force {
-        return Err(ExportError::Exists {
-            dir: out.to_path_buf(),
-        });
-    }
     if non_empty
         && let (Ok(input), Ok(dir)) = (file.path().canonicalize(), out.canonicalize())
         && input.starts_with(&dir)
@@ -267,6 +262,11 @@ pub fn export_3dtiles(
         return Err(ExportError::BadOutput {
             dir: out.to_path_buf(),
             why: "holds the paging file being exported (--force would delete it)",
+        });
+    }
+    if non_empty && !opts.force {
+        return Err(ExportError::Exists {
+            dir: out.to_path_buf(),
         });
     }
     let parent = crate::util::parent_dir(out);

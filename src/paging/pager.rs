@@ -534,10 +534,15 @@ impl Pager {
                         self.stats.discarded += 1;
                         self.stats.discarded_bytes += self.table.blocks[i].bytes;
                     }
-                    // A failed fetch is a failure whether or not it is still wanted: counted as
-                    // discarded bytes, a dead server read as a slow one (fault hunt, session 34).
+                    // A failed fetch is a failure whether or not it is still wanted (it was counted as
+                    // discarded bytes: a dead server read as a slow one; fault hunt, session 34), and
+                    // a cancelled block backs off as a wanted one does.
                     Err(e) => {
-                        self.stats.failures += 1;
+                        if self.state[i] == State::Absent {
+                            self.back_off(a.block, Retry::transient(e.is_transient()));
+                        } else {
+                            self.stats.failures += 1;
+                        }
                         if self.first_load_error.is_none() {
                             self.first_load_error = Some(format!("block {}: {e}", a.block.0));
                         }

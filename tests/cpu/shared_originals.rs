@@ -544,6 +544,13 @@ fn materials_that_share_an_image_and_sampler_share_its_stored_original() {
     // One leaf: once (per reference it read twice).
     assert_eq!(t.leaves.len(), 1);
     assert_eq!(per_leaf, 128 * 128);
+    // The opaque tree's leaf references three materials on two stored originals of one image: each
+    // original held by one leaf (per reference, one read as held by two), one image.
+    let tree = &info.trees[0];
+    assert_eq!(tree.original_refs, 3);
+    assert_eq!(tree.originals_stored, 2);
+    assert_eq!(tree.originals_sharing, [(1, 2)]);
+    assert_eq!(tree.original_textures, 1);
     // A shared slot's second reference pointed at another image is refused, naming the slot.
     let bytes = std::fs::read(&out).unwrap();
     let t = file.tree(0).unwrap();

@@ -142,8 +142,8 @@ enum Failure {
     Request(String),
     /// An unexpected status.
     Status(u16),
-    /// The body ended early (or the file is shorter than the range).
-    Short { got: u64 },
+    /// The body ended early (or the file is shorter than the range); `head`: its first bytes (up to 64).
+    Short { got: u64, head: Vec<u8> },
     /// A whole answer for the header's range, shorter than a header and not the start of a paging file
     /// (an HTML page): its first bytes. Not retried: no attempt makes it one (a short page read "got 29 of
     /// 528 bytes" after four tries, where a longer one said what it was; fault hunt, session 34).
@@ -186,7 +186,7 @@ impl Failure {
         match self {
             Failure::Transport(m) | Failure::Request(m) | Failure::Corrupt(m) => m.clone(),
             Failure::Status(s) => format!("HTTP status {s}"),
-            Failure::Short { got } => format!("got {got} of {expected} bytes"),
+            Failure::Short { got, .. } => format!("got {got} of {expected} bytes"),
             Failure::NotPaging(head) => format!(
                 "not an atlastree paging file ({})",
                 crate::store::describe_start(head)
@@ -440,22 +440,20 @@ impl HttpSource {
             200 => {
                 bump(&self.counters.full_responses, 1);
                 self.skip(&mut body, offset)?;
-                if offset == 0 && content_length.is_some_and(|n| n < len) {
-                    // The whole answer: if it does not start as a paging file, nothing will.
-                    let mut head = Vec::new();
-                    let read = body.take(len).read_to_end(&mut head);
-                    bump(&self.counters.bytes, head.len() as u64);
-                    read.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
-                    let magic = &crate::store::format::MAGIC;
-                    if !head.is_empty() && !magic.starts_with(&head[..head.len().min(magic.len())])
-                    {
-                        return Err(Failure::NotPaging(head));
+                let bytes = match self.read_len(&mut body, len) {
+                    // The whole answer from the file's start, shorter than asked for (with or without a
+                    // `Content-Length`): if it does not start as a paging file, nothing will.
+                    Err(Failure::Short { got, head }) if offset == 0 && got > 0 => {
+                        let magic = &crate::store::format::MAGIC;
+                        let n = head.len().min(magic.len());
+                        return Err(if magic.starts_with(&head[..n]) {
+                            Failure::Short { got, head }
+                        } else {
+                            Failure::NotPaging(head)
+                        });
                     }
-                    return Err(Failure::Short {
-                        got: head.len() as u64,
-                    });
-                }
-                let bytes = self.read_len(&mut body, len)?;
+                    other => other?,
+                };
                 Ok(Ranged {
                     bytes,
                     total: content_length,
@@ -482,7 +480,10 @@ impl HttpSource {
         read.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
         match bytes.len() as u64 {
             got if got == len => Ok(bytes),
-            got => Err(Failure::Short { got }),
+            got => Err(Failure::Short {
+                got,
+                head: bytes[..bytes.len().min(64)].to_vec(),
+            }),
         }
     }
 
@@ -492,7 +493,10 @@ impl HttpSource {
         let skipped = skipped.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
         bump(&self.counters.bytes, skipped);
         if skipped < n {
-            return Err(Failure::Short { got: 0 });
+            return Err(Failure::Short {
+                got: 0,
+                head: Vec::new(),
+            });
         }
         Ok(())
     }
@@ -514,7 +518,7 @@ impl HttpSource {
                 len,
                 attempts,
             },
-            Failure::Short { got } => SourceError::Length {
+            Failure::Short { got, .. } => SourceError::Length {
                 source_name: url,
                 block: id,
                 expected: len,

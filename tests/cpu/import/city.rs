@@ -101,12 +101,12 @@ fn an_invalid_node_matrix_is_warned_about_once_per_node() {
     assert_eq!(scene.bounds(), plain);
 }
 
-/// A scene given through a symbolic link resolves its relative URIs beside the link's target (it read
-/// `link.gltf: buffer 0 (scene.bin): No such file or directory`; fault hunt, session 34), and imports
-/// the same scene as the file itself.
+/// A scene given through a symbolic link resolves its relative URIs beside the link, else beside its
+/// target (it read `link.gltf: buffer 0 (scene.bin): No such file or directory`; fault hunt, session
+/// 34), and imports the same scene as the file itself.
 #[cfg(unix)]
 #[test]
-fn a_symlinked_scene_resolves_uris_beside_its_target() {
+fn a_symlinked_scene_resolves_uris_beside_the_link_or_its_target() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("link.gltf");
     std::os::unix::fs::symlink(city_dir().join("scene.gltf"), &link).unwrap();

@@ -79,6 +79,10 @@ fn naive_batch_draws_every_triangle_once() {
                 assert_eq!(d.texture, g.tam_material_original[entry(o)]);
                 let pair = g.material_originals[d.texture as usize];
                 assert_eq!(pair.unique, g.tam_unique[entry(o)]);
+                assert_eq!(
+                    pair.material,
+                    view.leaf_originals(leaf)[o as usize].material
+                );
                 let pass = if k < opaque_draws {
                     g.tam[entry(o)].alpha_mode.min(1)
                 } else {
