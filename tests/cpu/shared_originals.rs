@@ -576,29 +576,24 @@ fn materials_that_share_an_image_and_sampler_share_its_stored_original() {
     );
     let other_image = u32::from_le_bytes(edited[at + 4..at + 8].try_into().unwrap()) ^ 1;
     edited[at + 4..at + 8].copy_from_slice(&other_image.to_le_bytes());
-    crate::store::reseal(&mut edited);
-    match TreeFile::from_bytes(&edited) {
-        Err(atlastree::store::StoreError::BadValue {
-            table: "originals",
-            field: "slot",
-            ..
-        }) => {}
-        other => panic!("{:?}", other.err()),
-    }
+    let refused_as_bad_slot = |mut edited: Vec<u8>| {
+        crate::store::reseal(&mut edited);
+        match TreeFile::from_bytes(&edited) {
+            Err(atlastree::store::StoreError::BadValue {
+                table: "originals",
+                field: "slot",
+                ..
+            }) => {}
+            other => panic!("{:?}", other.err()),
+        }
+    };
+    refused_as_bad_slot(edited);
     // So is a shared MASK slot whose materials' cutoffs came to differ (material 4's, at byte 16 of its
     // record, away from material 3's).
     let mut edited = bytes.clone();
     let at = crate::store::record_at(&edited, atlastree::store::format::Section::Materials, 4);
     edited[at + 16..at + 20].copy_from_slice(&0.75f32.to_le_bytes());
-    crate::store::reseal(&mut edited);
-    match TreeFile::from_bytes(&edited) {
-        Err(atlastree::store::StoreError::BadValue {
-            table: "originals",
-            field: "slot",
-            ..
-        }) => {}
-        other => panic!("{:?}", other.err()),
-    }
+    refused_as_bad_slot(edited);
     // The unedited bytes read.
     TreeFile::from_bytes(&bytes).unwrap();
 }

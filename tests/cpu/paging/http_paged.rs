@@ -404,19 +404,18 @@ fn a_failed_fetch_of_a_cancelled_request_is_a_failure() {
         .collect();
     let mut pager = Pager::new(table, PagerOptions::default()).unwrap();
     let (cams, scale) = cameras(&fx, 150);
-    let view_of = |c: &Camera| {
+    let mut requests_at = |c: &Camera| -> Vec<BlockId> {
         let frustum = c.frustum();
-        (c.eye, frustum)
+        let view = ViewInput {
+            eye: c.eye,
+            frustum: &frustum,
+            scale,
+            lookahead: None,
+        };
+        pager.plan(&trees, &view).iter().map(|r| r.block).collect()
     };
     // Requested at the first camera...
-    let (eye, frustum) = view_of(&cams[0]);
-    let view = ViewInput {
-        eye,
-        frustum: &frustum,
-        scale,
-        lookahead: None,
-    };
-    let wanted: Vec<BlockId> = pager.plan(&trees, &view).iter().map(|r| r.block).collect();
+    let wanted = requests_at(&cams[0]);
     assert!(wanted.len() >= 2, "{wanted:?}");
     // ...then cancelled: a camera that sees nothing (far below the ground, looking down).
     let away = Camera {
@@ -425,14 +424,7 @@ fn a_failed_fetch_of_a_cancelled_request_is_a_failure() {
         up: glam::DVec3::Z,
         ..cams[0]
     };
-    let (eye, frustum) = view_of(&away);
-    let view = ViewInput {
-        eye,
-        frustum: &frustum,
-        scale,
-        lookahead: None,
-    };
-    let still: Vec<BlockId> = pager.plan(&trees, &view).iter().map(|r| r.block).collect();
+    let still = requests_at(&away);
     let cancelled: Vec<BlockId> = wanted.into_iter().filter(|b| !still.contains(b)).collect();
     assert!(cancelled.len() >= 2, "{cancelled:?}");
     let failed = SourceError::Status {
