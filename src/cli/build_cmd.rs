@@ -224,8 +224,11 @@ enum ShardStep {
 /// takes most of every atlas (`--border 255` at 1024 built 3.2 GiB from a scene whose default file is
 /// 0.1 GiB, silently).
 fn warn_wide_border(a: &BuildArgs) {
-    // A border of a quarter of the atlas or more is refused, with its own message, right after.
-    let refused = a.border.saturating_mul(4) >= a.atlas_size;
+    // A border of a quarter of the atlas or more is refused, with its own message, right after; so is an
+    // atlas size that is none (`--atlas-size 100` was warned about before it was refused; docs hunt,
+    // session 34).
+    let atlas_ok = a.atlas_size.is_power_of_two() && (64..=16384).contains(&a.atlas_size);
+    let refused = a.border.saturating_mul(4) >= a.atlas_size || !atlas_ok;
     if a.border.saturating_mul(16) > a.atlas_size && !refused {
         eprintln!(
             "warning: --border {} is more than 1/16 of --atlas-size {}: every packed texture takes at least \

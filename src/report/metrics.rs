@@ -139,6 +139,8 @@ pub fn ssim_from_moments(mx: f64, my: f64, sxx: f64, syy: f64, sxy: f64) -> f64 
     let c2 = (SSIM_K2 * SSIM_L).powi(2);
     let (vx, vy, cxy) = (sxx - mx * mx, syy - my * my, sxy - mx * my);
     let s = ((2.0 * mx * my + c1) * (2.0 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2));
+    // `min` would read a NaN as a perfect 1; 8-bit frames' moments never give one.
+    debug_assert!(!s.is_nan(), "SSIM of a window is NaN");
     s.min(1.0)
 }
 
