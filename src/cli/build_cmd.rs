@@ -227,8 +227,8 @@ fn warn_wide_border(a: &BuildArgs) {
     // A border of a quarter of the atlas or more is refused, with its own message, right after; so is an
     // atlas size that is none (`--atlas-size 100` was warned about before it was refused; docs hunt,
     // session 34).
-    let atlas_ok = a.atlas_size.is_power_of_two() && (64..=16384).contains(&a.atlas_size);
-    let refused = a.border.saturating_mul(4) >= a.atlas_size || !atlas_ok;
+    let refused = a.border.saturating_mul(4) >= a.atlas_size
+        || !atlastree::preprocess::valid_atlas_size(a.atlas_size);
     if a.border.saturating_mul(16) > a.atlas_size && !refused {
         eprintln!(
             "warning: --border {} is more than 1/16 of --atlas-size {}: every packed texture takes at least \

@@ -32,14 +32,10 @@ fn remove_killed_demos_scenes() {
             .strip_prefix(EMBEDDED_PREFIX)
             .and_then(|rest| rest.split('-').next())
             .and_then(|p| p.parse::<u32>().ok());
-        let free = || {
-            std::fs::File::open(entry.path().join(EMBEDDED_LOCK))
-                .is_ok_and(|f| f.try_lock().is_ok())
-        };
         if let Some(pid) = pid
             && pid != std::process::id()
             && !atlastree::util::process_may_run(pid)
-            && free()
+            && atlastree::util::lock_is_free(&entry.path().join(EMBEDDED_LOCK))
         {
             let _ = std::fs::remove_dir_all(entry.path());
         }

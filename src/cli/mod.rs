@@ -293,14 +293,23 @@ pub(crate) fn open_local(
     })
 }
 
+/// `path` as written and as shown (credentials redacted), where no local file or folder has that name:
+/// what [`reject_url`] and [`reject_scene_url`] read as a URL.
+fn url_not_path(path: &std::path::Path) -> Option<(String, String)> {
+    if path.exists() {
+        return None;
+    }
+    let raw = path.to_string_lossy().into_owned();
+    let text = atlastree::paging::redact_url(&raw);
+    Some((raw, text))
+}
+
 /// An http(s) URL that is not also a local path gets a clear error (only `render` pages over HTTP)
 /// instead of "No such file or directory".
 pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Result<()> {
-    if path.exists() {
+    let Some((raw, text)) = url_not_path(path) else {
         return Ok(());
-    }
-    let raw = path.to_string_lossy();
-    let text = atlastree::paging::redact_url(&raw);
+    };
     if args::is_url(&raw) {
         anyhow::bail!(
             "{text}: `atlastree {command}` reads a local paging file, not a URL (`atlastree render URL` pages \
@@ -320,11 +329,9 @@ pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Resul
 /// "cannot read: No such file or directory"; fault hunt, session 34), as [`reject_url`] does for paging
 /// files.
 fn reject_scene_url(path: &std::path::Path) -> anyhow::Result<()> {
-    if path.exists() {
+    let Some((raw, text)) = url_not_path(path) else {
         return Ok(());
-    }
-    let raw = path.to_string_lossy();
-    let text = atlastree::paging::redact_url(&raw);
+    };
     if args::is_url(&raw) || args::url_scheme(&raw).is_some() {
         anyhow::bail!(
             "{text}: scenes are read from local glTF or GLB files, not URLs; download the scene with its \

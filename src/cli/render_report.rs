@@ -63,13 +63,15 @@ pub(super) fn write_and_report(
         "complete": true,
         // False: the path never looks at the scene; the frames and their PSNR measure nothing.
         "drew_geometry": drew,
-        "modes": medians.iter().map(|m| (m.mode.name().to_string(), serde_json::json!({
+        "modes": medians.iter().map(|m| (m.mode.name().to_string(), {
+            let run = runs.iter().find(|r| r.mode == m.mode);
+            serde_json::json!({
             "frames": m.frames,
             "median_frame_ms": m.frame_ms,
             "median_gpu_ms": m.gpu_ms,
             // Paged runs: block loads that failed (a corrupt or unreachable block); null all-resident.
-            "load_failures": runs.iter().find(|r| r.mode == m.mode).and_then(|r| load_failures(&r.stats)),
-            "reference": runs.iter().find(|r| r.mode == m.mode).and_then(|r| Quality::of(&r.quality)).map(|q| serde_json::json!({
+            "load_failures": run.and_then(|r| load_failures(&r.stats)),
+            "reference": run.and_then(|r| Quality::of(&r.quality)).map(|q| serde_json::json!({
                 "psnr_db_all_frames": q.psnr_all,
                 "psnr_db_min": q.psnr_min,
                 "ssim_mean": q.ssim_mean,
@@ -77,7 +79,7 @@ pub(super) fn write_and_report(
                 "psnr_db": q.psnr,
                 "ssim": q.ssim,
             })),
-        }))).collect::<serde_json::Map<String, serde_json::Value>>(),
+        })})).collect::<serde_json::Map<String, serde_json::Value>>(),
         "reference": reference.map(|r| r.name()),
         "http": http,
         "ratios": ratios.iter().map(|(name, r)| (ratio_key(name), serde_json::json!(r)))

@@ -239,16 +239,10 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
             s.starts_with("heatmap_") || s == "coarser_over_time" || s == "bytes_per_frame"
         })
     };
-    // Only where a simulation wrote (its summary.csv is there): never the user's own files of those
-    // names (fault hunt, session 34, found render doing so).
-    let earlier_run = cfg.out.join("summary.csv").is_file();
-    let removed = if earlier_run {
-        atlastree::util::remove_stale_outputs(&cfg.out, plot).with_context(|| {
-            format!("removing an earlier run's plots from {}", cfg.out.display())
-        })?
-    } else {
-        0
-    };
+    // Only where a simulation wrote (its summary.csv is there): never the user's own files of those names.
+    let marker = cfg.out.join("summary.csv");
+    let removed = atlastree::util::remove_earlier_outputs(&cfg.out, &marker, plot)
+        .with_context(|| format!("removing an earlier run's plots from {}", cfg.out.display()))?;
     if removed > 0 {
         say(format!(
             "note: removed {removed} plot file(s) of an earlier run from {}",

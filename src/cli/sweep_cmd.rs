@@ -233,18 +233,15 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
         .map(|b| format!("{}.atlastree", b.knobs.id()))
         .collect();
     let stale = |n: &str| n.ends_with(".atlastree") && !planned.contains(n);
-    // Only where an earlier sweep reported into this folder (its sweep.csv, written after its builds):
-    // never files of the user's (review of session 34; render deleted a user's frames).
-    let removed = if cfg.out.join("sweep.csv").is_file() {
-        atlastree::util::remove_stale_outputs(&opts.builds_dir, stale).with_context(|| {
+    // Only where an earlier sweep reported into this folder (its sweep.csv, written after its builds).
+    let marker = cfg.out.join("sweep.csv");
+    let removed = atlastree::util::remove_earlier_outputs(&opts.builds_dir, &marker, stale)
+        .with_context(|| {
             format!(
                 "removing an earlier run's builds from {}",
                 opts.builds_dir.display()
             )
-        })?
-    } else {
-        0
-    };
+        })?;
     if removed > 0 {
         eprintln!(
             "note: removed {removed} build(s) of an earlier run from {}",

@@ -543,9 +543,7 @@ impl Pager {
                         } else {
                             self.stats.failures += 1;
                         }
-                        if self.first_load_error.is_none() {
-                            self.first_load_error = Some(format!("block {}: {e}", a.block.0));
-                        }
+                        self.note_load_error(a.block, e);
                     }
                 }
                 continue;
@@ -561,9 +559,7 @@ impl Pager {
                 Err(e) => {
                     self.state[i] = State::Absent;
                     self.back_off(a.block, Retry::transient(e.is_transient()));
-                    if self.first_load_error.is_none() {
-                        self.first_load_error = Some(format!("block {}: {e}", a.block.0));
-                    }
+                    self.note_load_error(a.block, &e);
                 }
             }
         }
@@ -764,6 +760,13 @@ impl Pager {
         let n = self.fail_count[i].min(MAX_BACKOFF_DOUBLINGS);
         self.fail_count[i] = self.fail_count[i].saturating_add(1);
         self.failed_until[i] = self.frame + u64::from(self.opts.retry_frames.max(1)) * (1u64 << n);
+    }
+
+    /// Keeps the run's first load error, for the report ([`Pager::first_load_error`]).
+    fn note_load_error(&mut self, b: BlockId, e: &SourceError) {
+        if self.first_load_error.is_none() {
+            self.first_load_error = Some(format!("block {}: {e}", b.0));
+        }
     }
 
     /// Removes `b` from residency (absent again), the inverse of [`Pager::make_resident`].

@@ -56,6 +56,11 @@ use std::path::Path;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
+/// Whether `side` is an atlas side a build takes: a power of two from 64 to 16384 texels.
+pub fn valid_atlas_size(side: u32) -> bool {
+    side.is_power_of_two() && (64..=16384).contains(&side)
+}
+
 /// How d_min is given.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub enum DMin {
@@ -414,7 +419,7 @@ pub fn resolve_params(
             why: why.into(),
         })
     };
-    if !opts.atlas_size.is_power_of_two() || !(64..=16384).contains(&opts.atlas_size) {
+    if !valid_atlas_size(opts.atlas_size) {
         return bad(
             "atlas-size",
             opts.atlas_size.to_string(),
@@ -618,25 +623,26 @@ pub(super) fn plan_memory(
     let Some(budget) = opts.max_memory_bytes else {
         return Ok(None);
     };
+    let threads = rayon::current_num_threads() as u64;
     let plan = memory::plan_memory(
         budget,
         load,
         params.atlas_size,
-        rayon::current_num_threads() as u64,
-        image_load(&scene.images, opts.alpha_mips),
+        threads,
+        image_load(&scene.images, opts.alpha_mips, threads),
         opts.image_cache_bytes,
     )
     .map_err(|e| e.naming(largest_image_name(&scene.images)))?;
     Ok(Some(plan))
 }
 
-/// What `images` weigh in the image cache, drawn by this process's rasteriser threads with
-/// `alpha_mips`.
+/// What `images` weigh in the image cache, drawn by `threads` rasteriser threads (the count the memory
+/// check is given, one number for both) with `alpha_mips`.
 pub(super) fn image_load(
     images: &[crate::scene::ImageSource],
     alpha_mips: image_ops::AlphaMips,
+    threads: u64,
 ) -> memory::ImageLoad {
-    let threads = rayon::current_num_threads() as u64;
     let sides = images.iter().map(|i| (i.width, i.height));
     match alpha_mips {
         image_ops::AlphaMips::Plain => memory::ImageLoad::of(sides, threads),

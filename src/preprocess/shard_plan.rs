@@ -204,6 +204,7 @@ pub fn build_shard_planned(
     let forest = tables.to_skeleton();
     drop(tables);
     // Refused before any pixel: the shard holds the tables' skeleton, no triangle.
+    let threads = rayon::current_num_threads() as u64;
     let memory_plan = match opts.max_memory_bytes {
         None => None,
         Some(budget) => Some(
@@ -211,8 +212,8 @@ pub fn build_shard_planned(
                 budget,
                 skeleton_bytes(&forest),
                 opts.atlas_size,
-                rayon::current_num_threads() as u64,
-                super::image_load(&images, opts.alpha_mips),
+                threads,
+                super::image_load(&images, opts.alpha_mips, threads),
                 opts.image_cache_bytes,
             )
             .map_err(|e| e.naming(super::largest_image_name(&images)))?,

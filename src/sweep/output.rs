@@ -375,12 +375,12 @@ pub fn write_outputs(
                 .is_some_and(|ext| ext == ".png" || ext == ".svg")
         })
     };
-    if dir.join("sweep.csv").is_file() {
-        crate::util::remove_stale_outputs(dir, optional).map_err(|e| SweepError::Io {
+    crate::util::remove_earlier_outputs(dir, &dir.join("sweep.csv"), optional).map_err(|e| {
+        SweepError::Io {
             path: dir.to_path_buf(),
             source: e,
-        })?;
-    }
+        }
+    })?;
     let rows = summarise(&data.builds, &data.frames);
     let sweep_csv = dir.join("sweep.csv");
     write_csv(

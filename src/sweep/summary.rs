@@ -166,12 +166,11 @@ pub const TIME_TIE_SHARE: f64 = 0.1;
 /// same nodes drawn) share their mean frame time. Among equals: the more accurate, then the most
 /// accurate variant itself, then the first row. File sizes are exact.
 pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendation> {
-    // Equal accuracy: the first row (exactly equal PSNR means identical frames; their times are noise).
+    // Equal accuracy: the first row (exactly equal PSNR means identical frames; their times are noise):
+    // `min_by` returns the first of equal minima, and the rows go in order.
     let best = (0..rows.len())
         .filter(|&i| rows[i].psnr_covered_db.is_finite())
-        .min_by(|&a, &b| {
-            (rows[b].psnr_covered_db.total_cmp(&rows[a].psnr_covered_db)).then(a.cmp(&b))
-        })?;
+        .min_by(|&a, &b| rows[b].psnr_covered_db.total_cmp(&rows[a].psnr_covered_db))?;
     let floor = rows[best].psnr_covered_db - tolerance_db;
     let ok: Vec<usize> = (0..rows.len())
         .filter(|&i| rows[i].psnr_covered_db >= floor)
@@ -190,7 +189,6 @@ pub fn recommend(rows: &[VariantRow], tolerance_db: f64) -> Option<Recommendatio
                 // variant of the same file, is named the smallest file.
                 (rows[b].psnr_covered_db.total_cmp(&rows[a].psnr_covered_db))
                     .then((a != best).cmp(&(b != best)))
-                    .then(a.cmp(&b))
             })
             .unwrap_or(best)
     };
@@ -219,8 +217,9 @@ fn same_frames_mean_ms(rows: &[VariantRow]) -> Vec<f64> {
     }
     (keys.iter().zip(rows))
         .map(|(key, r)| match sums.get(key) {
-            Some(&(sum, n)) if n > 0 => sum / f64::from(n),
-            _ => r.frame_ms_median,
+            // An entry counts at least the row that made it.
+            Some(&(sum, n)) => sum / f64::from(n),
+            None => r.frame_ms_median,
         })
         .collect()
 }

@@ -306,7 +306,7 @@ pub fn remove_stale_temps(target: &Path) -> usize {
             continue;
         }
         // A free lock confirms the owner is gone (another pid namespace may share the directory).
-        let free = File::open(&path).is_ok_and(|f| f.try_lock().is_ok());
+        let free = lock_is_free(&path);
         if free && std::fs::remove_file(&path).is_ok() {
             removed += 1;
         }
@@ -487,6 +487,26 @@ pub fn remove_stale_outputs(dir: &Path, stale: impl Fn(&str) -> bool) -> std::io
         }
     }
     Ok(removed)
+}
+
+/// [`remove_stale_outputs`] only where `marker` (the report an earlier run of the same command wrote, such
+/// as its `summary.csv`) is a file: a folder no run of it reported into holds no outputs of its, only the
+/// user's (render deleted a user's `frame_holiday.png`; fault hunt, session 34).
+pub fn remove_earlier_outputs(
+    dir: &Path,
+    marker: &Path,
+    stale: impl Fn(&str) -> bool,
+) -> std::io::Result<usize> {
+    if !marker.is_file() {
+        return Ok(0);
+    }
+    remove_stale_outputs(dir, stale)
+}
+
+/// Whether the lock of the file at `path` is free (taken and let go here): its writer is gone. `false`
+/// where the file cannot be opened or the lock is held.
+pub fn lock_is_free(path: &Path) -> bool {
+    File::open(path).is_ok_and(|f| f.try_lock().is_ok())
 }
 
 /// Largest text file [`read_text_file`] reads (camera paths, sweep grids, CSV reports).

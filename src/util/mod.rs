@@ -8,9 +8,10 @@ pub mod srgb;
 
 pub use files::{
     AtomicFile, LiveTempDir, LiveTempFile, MAX_TEXT_FILE_BYTES, follow_output_links,
-    is_out_of_descriptors, is_resource_exhaustion, node_kind, open_regular, parent_dir,
-    process_may_run, read_regular, read_text_file, remove_live_temps, remove_live_temps_and_exit,
-    remove_stale_outputs, remove_stale_temps, save_png, write_atomic, writer_of,
+    is_out_of_descriptors, is_resource_exhaustion, lock_is_free, node_kind, open_regular,
+    parent_dir, process_may_run, read_regular, read_text_file, remove_earlier_outputs,
+    remove_live_temps, remove_live_temps_and_exit, remove_stale_outputs, remove_stale_temps,
+    save_png, write_atomic, writer_of,
 };
 
 pub use memory::{

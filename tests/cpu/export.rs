@@ -258,17 +258,8 @@ fn a_z_up_scene_stands_on_the_tile_frames_z() {
         tiles
             .iter()
             .map(|(t, _, offset)| {
-                let b = &t["boundingVolume"]["box"];
-                let b: Vec<f64> = b
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|x| x.as_f64().unwrap())
-                    .collect();
-                (
-                    DVec3::new(b[0], b[1], b[2]) + *offset,
-                    DVec3::new(b[3], b[7], b[11]),
-                )
+                let (c, h) = box_of(t);
+                (c + *offset, h)
             })
             .collect::<Vec<_>>()
     };
@@ -295,6 +286,17 @@ fn a_z_up_scene_stands_on_the_tile_frames_z() {
     assert!(h.z < h.x && h.z < h.y, "root half extents {h}");
 }
 
+/// A tile's axis-aligned `box` bounding volume: its centre and half extents.
+fn box_of(tile: &Value) -> (DVec3, DVec3) {
+    let b: Vec<f64> = tile["boundingVolume"]["box"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    (DVec3::new(b[0], b[1], b[2]), DVec3::new(b[3], b[7], b[11]))
+}
+
 /// Every tile's content (each leaf node's positions turned and translated as its node says, then the
 /// ancestors' transforms, in the z-up tile frame) lies inside the tile's box.
 fn contents_lie_inside_their_boxes(out: &Path) {
@@ -305,13 +307,7 @@ fn contents_lie_inside_their_boxes(out: &Path) {
         let Some(uri) = tile["content"]["uri"].as_str() else {
             continue;
         };
-        let b: Vec<f64> = tile["boundingVolume"]["box"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect();
-        let (c, h) = (DVec3::new(b[0], b[1], b[2]), DVec3::new(b[3], b[7], b[11]));
+        let (c, h) = box_of(tile);
         let content = load(&out.join(uri));
         for node in content.doc.nodes() {
             let (t, r, s) = node.transform().decomposed();

@@ -301,8 +301,10 @@ fn run(
             }
         };
         let server = Arc::new(server);
+        // One handler for every path: the file's own route is its canonical form (`url_path` writes it
+        // so), other spellings of it the same file, the rest 404 (a route beside the fallback answered
+        // the file twice over, and wrote its 405 beside the fallback's).
         let app = axum::Router::new()
-            .route(&route, axum::routing::get(serve_file))
             .fallback(serve_equivalent)
             .with_state((server.clone(), Arc::new(route)));
         let slots = Arc::new(Semaphore::new(server.options.max_connections));
@@ -431,17 +433,9 @@ async fn reject_busy(mut stream: tokio::net::TcpStream) {
     .await;
 }
 
-/// The handler of the file's route: `GET` or `HEAD`, with or without `Range`.
-async fn serve_file(
-    State((server, _)): State<(Arc<Server>, Arc<String>)>,
-    method: Method,
-    headers: HeaderMap,
-) -> Response {
-    serve_answer(server, method, headers).await
-}
-
-/// Every other path: the file's route written with other escapes (lower-case hex, an escaped
-/// unreserved character) is the file's (it was `404`: fault hunt, session 32); the rest `404`.
+/// Every request: the file's route, also written with other escapes (lower-case hex, an escaped
+/// unreserved character: it was `404`; fault hunt, session 32), is the file's, `GET` or `HEAD` with or
+/// without `Range`, other methods `405`; the rest `404`.
 async fn serve_equivalent(
     State((server, route)): State<(Arc<Server>, Arc<String>)>,
     method: Method,

@@ -184,9 +184,7 @@ impl<'a> Geometry<'a> {
             return Ok(());
         };
         let has_data = |a: &gltf::Accessor<'_>| a.view().is_some() || a.sparse().is_some();
-        let morphed = (prim.morph_targets().enumerate()).any(|(i, t)| {
-            weights.get(i).is_some_and(|w| *w != 0.0) && t.positions().is_some_and(|a| has_data(&a))
-        });
+        let morphed = weighted_position_targets(prim, weights).any(|(_, _, a)| has_data(&a));
         if !has_data(&pos_acc) && !morphed {
             // All zeros by the spec: nothing to draw. A Draco primitive without its uncompressed
             // fallback came out as silent zero-area triangles (fault hunt, session 33).
@@ -320,11 +318,7 @@ impl<'a> Geometry<'a> {
         ctx: &PrimCtx,
         buffers: &mut Buffers,
     ) -> Result<(), SceneError> {
-        for (i, target) in prim.morph_targets().enumerate() {
-            let w = weights.get(i).copied().unwrap_or(0.0);
-            let Some(acc) = target.positions().filter(|_| w != 0.0) else {
-                continue;
-            };
+        for (i, w, acc) in weighted_position_targets(prim, weights) {
             let semantic = format!("morph target {i} POSITION");
             self.read_beside_positions(&acc, &semantic, 3, (base, n), ctx, buffers)?;
             let s = &mut self.scratch;
@@ -485,4 +479,17 @@ impl<'a> Geometry<'a> {
             ));
         }
     }
+}
+
+/// The morph targets of `prim` that move its static pose: `(index, weight, POSITION accessor)` of each
+/// with a non-zero weight in `weights` (a missing weight is 0) and a POSITION attribute. The one rule
+/// for both the deltas added and whether a primitive without position data is drawn at all.
+fn weighted_position_targets<'a>(
+    prim: &gltf::Primitive<'a>,
+    weights: &[f64],
+) -> impl Iterator<Item = (usize, f64, gltf::Accessor<'a>)> {
+    prim.morph_targets().enumerate().filter_map(|(i, t)| {
+        let w = weights.get(i).copied().unwrap_or(0.0);
+        t.positions().filter(|_| w != 0.0).map(|a| (i, w, a))
+    })
 }

@@ -389,13 +389,17 @@ pub(super) fn scene_dirs(path: &Path) -> Vec<PathBuf> {
 /// [`local_path`] in the first of `dirs` ([`scene_dirs`]) that holds the file; the first folder's
 /// reading (or its error: a colon-named file is read only where it exists) where none does.
 pub(super) fn local_path_in(dirs: &[PathBuf], uri: &str) -> Result<PathBuf, String> {
-    let Some(first) = dirs.first() else {
+    let Some((first, rest)) = dirs.split_first() else {
         return local_path(Path::new(""), uri);
     };
-    dirs.iter()
+    let own = local_path(first, uri);
+    if own.as_ref().is_ok_and(|p| p.is_file()) {
+        return own;
+    }
+    rest.iter()
         .filter_map(|d| local_path(d, uri).ok())
         .find(|p| p.is_file())
-        .map_or_else(|| local_path(first, uri), Ok)
+        .map_or(own, Ok)
 }
 
 /// `base_dir` joined with the decoded relative reference `uri`, or with the first of its browser
