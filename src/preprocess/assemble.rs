@@ -75,7 +75,7 @@ struct Asm<'a> {
 /// reads across the edges it wraps) and, in an alpha tree, a MASK material's cutoff (coverage-keeping
 /// alpha mips rescale by it; kept apart whatever the build's alpha mips, so the tables do not depend on
 /// that pixel option). Materials with one key share one stored original, encoded once by the leaf that
-/// writes it (`raster::ImageCache::original`, whose `raster::OriginalKey` adds only what is fixed per
+/// writes it (`image_cache::ImageCache::original`, whose `image_cache::OriginalKey` adds only what is fixed per
 /// tree; MASK materials of one image with other cutoffs encode the same bytes twice under plain alpha
 /// mips, a rare case left so).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]

@@ -3,10 +3,11 @@
 
 use super::BuildError;
 use super::finish::AtlasStart;
+use super::image_cache::CachedImage;
 use super::image_ops::{
     ImageOpsError, LinearImage, MipFilter, RectJob, RectPlan, draw_leaf_banded, draw_rect,
 };
-use super::raster::{CachedImage, RasterCtx, fill_for, image_err};
+use super::raster::{RasterCtx, fill_for, image_err};
 use crate::ids::{ImageId, NodeId};
 use crate::model::{AtlasTree, Leaf};
 use std::collections::HashMap;

@@ -3,7 +3,7 @@
 //!
 //! A build's peak is the plan (the scene's triangles and the per-triangle sizing, layout and assembly data,
 //! all held at once: [`PLAN_BYTES_PER_TRIANGLE`]) or the pixel pass (decoded images in the bounded
-//! [`super::raster::ImageCache`] with a quarter of headroom (`cache_need`), plus a few atlases in f32 per
+//! [`super::image_cache::ImageCache`] with a quarter of headroom (`cache_need`), plus a few atlases in f32 per
 //! rasteriser thread). The budget fixes the cache; a budget below what the plan and one pass need is an
 //! error before any work, with the number needed. Not bounded yet: the plan's share grows with the
 //! triangles (no streaming or spilling), in every shard as in one process.
@@ -31,7 +31,7 @@ pub const JSON_BYTES_FACTOR: u64 = 16;
 /// The process itself, its libraries and small tables.
 pub const BASE_BYTES: u64 = 64 << 20;
 /// Decoded bytes per source texel in the image cache: RGBA8 (4) and the linear f32 mip chain (16 × 4/3).
-/// The cache holds at most one of each image, whoever draws it (`raster::ImageCache::get`): measured
+/// The cache holds at most one of each image, whoever draws it (`image_cache::ImageCache::get`): measured
 /// peak 6.45 GiB for a build of one 16384² texture (268 M texels, 25.8 bytes a texel with everything
 /// else the process holds).
 pub const CACHE_BYTES_PER_TEXEL: u64 = 26;
@@ -49,7 +49,7 @@ pub const ATLASES_PER_THREAD: u64 = 4;
 /// share), so the share is 1/3.
 pub const CACHE_SHARE_DIVISOR: u64 = 3;
 /// Bytes a rasteriser thread holds outside the cache per stored texel of an original texture it
-/// resamples and encodes (`raster::ImageCache::original`): the resampled f32 chain (21.3), its RGBA8
+/// resamples and encodes (`image_cache::ImageCache::original`): the resampled f32 chain (21.3), its RGBA8
 /// chain (5.3) and the encoded chain (at most 5.3). Stored sides are powers of two up to
 /// [`crate::model::MAX_ORIGINAL_CLASS`] (`originals::original_extent`), so a 1025² source is
 /// resampled to 2048²: 16 such sources at a stated need of 325 MiB peaked at 394 (fault hunt, session
@@ -89,7 +89,7 @@ impl PlanLoad {
 
 /// The images a pixel pass may decode, as the image cache holds them: each image at most once in the
 /// process (its chain is built by one thread while the others that need it wait, and taken back while
-/// any thread still holds it after its eviction: `raster::ImageCache::get`).
+/// any thread still holds it after its eviction: `image_cache::ImageCache::get`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ImageLoad {
     /// Texels of the largest image.

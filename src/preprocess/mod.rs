@@ -19,6 +19,7 @@ pub mod assemble;
 pub mod cover;
 pub mod demand;
 mod finish;
+pub mod image_cache;
 pub mod image_ops;
 pub mod layout;
 mod leaf;
@@ -571,7 +572,7 @@ pub fn build(
     // One shard, in memory: the cut at the roots, so nothing is left above it (module shard).
     let t = Instant::now();
     let writer = FileWriter::create(out, &forest)?;
-    let cache = raster::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
+    let cache = image_cache::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
     let cut = shard::choose_cut(&forest, 1);
     let units = cut.shards.first().map_or(&[][..], Vec::as_slice);
     let pass = pixel_pass(
@@ -683,7 +684,7 @@ pub(super) fn pixel_pass(
     forest: &AtlasForest,
     units: &[shard::Unit],
     sink: &dyn crate::store::BlockSink,
-    cache: &raster::ImageCache<'_>,
+    cache: &image_cache::ImageCache<'_>,
     progress: &dyn Progress,
 ) -> Result<PixelPass, BuildError> {
     let mut total_nodes = 0u64;

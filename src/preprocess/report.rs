@@ -2,7 +2,7 @@
 //! warns about ([`tree_warnings`], said alike by a one-process build, a self-planning shard and the plan
 //! step) and the image cache's resized originals.
 
-use super::{AtlasForest, BuildParams, BuildReport, StageLog, TreeReport, raster};
+use super::{AtlasForest, BuildParams, BuildReport, StageLog, TreeReport};
 use std::sync::atomic::Ordering;
 
 /// Below this scale, leaves scaled for an oversized rect are warned about: the whole leaf shrinks with
@@ -12,7 +12,7 @@ const OVERSIZED_WARN_SCALE: f64 = 0.125;
 
 /// The warnings for original textures stored smaller than their source, and for those stored larger on a
 /// side: how many, and the first few by name with both sizes.
-pub(super) fn resized_warnings(cache: &raster::ImageCache<'_>) -> Vec<String> {
+pub(super) fn resized_warnings(cache: &super::image_cache::ImageCache<'_>) -> Vec<String> {
     let mut out = Vec::new();
     if let Ok(d) = cache.downsampled.lock()
         && !d.is_empty()
@@ -44,8 +44,8 @@ pub(super) fn resized_warnings(cache: &raster::ImageCache<'_>) -> Vec<String> {
 
 /// The first three of `map` as `name W×H → W×H` (", …" past them), and the words for one or several.
 fn resized_list(
-    cache: &raster::ImageCache<'_>,
-    map: &std::collections::BTreeMap<crate::ids::ImageId, raster::Downsampled>,
+    cache: &super::image_cache::ImageCache<'_>,
+    map: &std::collections::BTreeMap<crate::ids::ImageId, super::image_cache::Downsampled>,
 ) -> (String, &'static str, &'static str) {
     let names: Vec<String> = (map.iter().take(3))
         .map(|(id, (src, stored))| {
@@ -108,7 +108,7 @@ pub(super) fn build_report(
     trees: Vec<TreeReport>,
     file_bytes: u64,
     timings: StageLog,
-    cache: &raster::ImageCache<'_>,
+    cache: &super::image_cache::ImageCache<'_>,
 ) -> BuildReport {
     let atlas_blocks = forest
         .blocks

@@ -4,7 +4,7 @@
 use super::shard::{
     self, ShardSpec, choose_cut, fingerprint, handoff_side, shard_blocks, shard_path,
 };
-use super::{BuildError, BuildOptions, CacheBound, Progress, raster};
+use super::{BuildError, BuildOptions, CacheBound, Progress};
 use crate::scene::Scene;
 use crate::store::shard::{ShardLayout, ShardWriter, hash128};
 use crate::store::{StoreError, table_prefix};
@@ -160,7 +160,7 @@ pub(super) fn rasterise_shard(
     timings.push("shard layout", t);
 
     let t = Instant::now();
-    let cache = raster::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
+    let cache = super::image_cache::ImageCache::new(scene, memory_plan.image_cache_bytes(opts));
     let pass = super::pixel_pass(
         scene,
         opts.pixel_options(),

@@ -119,7 +119,7 @@ const _: () = assert!(size_of::<BlockEntry>() == 40 && size_of::<HandoffEntry>()
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Pod, Zeroable, PartialEq, Eq)]
 pub struct ImageEntry {
-    /// `xxh3_128` of the decoded RGBA8 pixels (`preprocess::raster::ImageCache::pixel_hashes`); 0 when
+    /// `xxh3_128` of the decoded RGBA8 pixels (`preprocess::image_cache::ImageCache::pixel_hashes`); 0 when
     /// not decoded.
     pub pixels: [u64; 2],
     /// Index of the image in the scene.

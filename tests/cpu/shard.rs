@@ -643,7 +643,7 @@ fn merge_refuses_shards_that_decoded_two_versions_of_an_image() {
 #[test]
 fn the_image_cache_names_an_image_whose_pixels_changed_between_two_decodes() {
     use atlastree::ids::ImageId;
-    use atlastree::preprocess::raster::ImageCache;
+    use atlastree::preprocess::image_cache::ImageCache;
     use atlastree::scene::ImageData;
     let dir = tempfile::tempdir().unwrap();
     let scene = city_copy(dir.path());

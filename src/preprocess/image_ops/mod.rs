@@ -55,7 +55,7 @@ thread_local! {
 /// ([`MipChain::build`]) on the calling thread alone, without splitting them into rayon tasks (the
 /// same texels: each is computed on its own). For work done while other threads wait on it: a
 /// thread that waits inside a rayon task must not hold a piece of that work, or both wait forever
-/// (`raster::ImageCache` builds an image's chain once while the threads that need it wait).
+/// (`image_cache::ImageCache` builds an image's chain once while the threads that need it wait).
 pub fn on_this_thread<T>(f: impl FnOnce() -> T) -> T {
     struct Restore(bool);
     impl Drop for Restore {

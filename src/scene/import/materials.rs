@@ -146,7 +146,7 @@ pub(super) struct Materials<'a> {
     uv: Vec<UvSource>,
     pub(super) images: Vec<ImageSource>,
     /// Per glTF image and whether OPAQUE materials draw it: its image. An image drawn by OPAQUE and by
-    /// alpha materials is two images, one decoded with its alpha dropped (`raster::opaque_only_images`),
+    /// alpha materials is two images, one decoded with its alpha dropped (`image_cache::opaque_only_images`),
     /// one premultiplied and bled: the bleed would otherwise colour the OPAQUE material's alpha-0 texels.
     image_ids: HashMap<(usize, bool), ImageId>,
     solid_ids: HashMap<[u8; 4], ImageId>,
