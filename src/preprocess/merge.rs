@@ -90,7 +90,8 @@ pub enum MergeError {
     },
     #[error(
         "shard 0 holds no table prefix (its shards were built from the plan {plan}), and the plan cannot give it: \
-         {why}; plan again with the shards' flags (`atlastree build SCENE -o OUT FLAGS --shard plan`) and rebuild the shards"
+         {why}; plan again with the shards' flags (`atlastree build SCENE -o OUT FLAGS --shard plan`) and merge again: \
+         the plan of the same scene and flags is the one the shards read, so they need no rebuild unless those flags are lost"
     )]
     Plan { plan: PathBuf, why: String },
     #[error("merging into {out}: {source}")]

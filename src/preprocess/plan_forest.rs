@@ -77,7 +77,10 @@ pub(super) fn plan_build(
     };
     let mut timings = StageLog::default();
     let (forest, reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
-    check_file_size(&forest, &reports, opts)?;
+    let predicted = crate::store::predicted_file_len(&forest)?;
+    let depth = reports.iter().map(|r| r.depth).max().unwrap_or(0);
+    let nodes = reports.iter().map(|r| r.nodes).sum();
+    check_file_size(predicted, (nodes, depth, forest.blocks.len() as u64), opts)?;
     Ok(Planned {
         params,
         diagonal,
@@ -268,22 +271,21 @@ fn tree_report(
     }
 }
 
-/// Refuses, before anything is written, a forest whose paging file (tables, geometry and blocks) would
-/// exceed `--max-file-gib`.
-fn check_file_size(
-    forest: &AtlasForest,
-    reports: &[TreeReport],
+/// Refuses, before anything is written, a paging file of `predicted` bytes (tables, geometry and blocks:
+/// the whole file, not only its blocks) over `--max-file-gib`; `(nodes, depth, blocks)` are the forest's,
+/// for the message. The plan, a one-process build and a shard that reads a plan (the plan's file length)
+/// all ask it.
+pub(super) fn check_file_size(
+    predicted: u64,
+    (nodes, depth, blocks): (u64, u8, u64),
     opts: &BuildOptions,
 ) -> Result<(), BuildError> {
-    // The whole file, tables and geometry too, not only its blocks.
-    let predicted = crate::store::predicted_file_len(forest)?;
     let limit = opts.max_file_bytes;
     if predicted > limit {
-        let depth = reports.iter().map(|r| r.depth).max().unwrap_or(0);
         return Err(BuildError::TooLarge {
-            nodes: reports.iter().map(|r| r.nodes).sum(),
+            nodes,
             depth,
-            blocks: forest.blocks.len() as u64,
+            blocks,
             predicted,
             limit,
             advice: too_large_advice(opts, depth),

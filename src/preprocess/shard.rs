@@ -51,10 +51,12 @@ pub enum ShardSpecError {
         count_var: &'static str,
     },
     #[error(
-        "--shard auto (Slurm): the array runs from {min} to {max}; shards are numbered from 0, so submit \
-         it as --array=0-{last} (N = {count})"
+        "--shard auto (Slurm): the array runs from {min} to {max}; {why}, so submit it as --array=0-{last} \
+         (N = {count})"
     )]
     SlurmArrayRange {
+        /// Why the range cannot be the shards: they start at 0, or a step or gaps leave numbers out.
+        why: &'static str,
         min: u32,
         max: u32,
         last: u32,
@@ -155,7 +157,14 @@ pub fn shard_from_env(
             )
             && (min != 0 || max.checked_add(1) != Some(count))
         {
+            let why = if min != 0 {
+                "shards are numbered from 0"
+            } else {
+                // `--array=0-6:2` or `--array=0,2,5`: as many tasks as shards, but not 0..N-1.
+                "its tasks are not every number from 0 to N - 1 (a step or a list with gaps)"
+            };
             return Err(ShardSpecError::SlurmArrayRange {
+                why,
                 min,
                 max,
                 last: count.saturating_sub(1),
@@ -661,6 +670,18 @@ mod tests {
                  it as --array=0-3 (N = 4)"
             );
         }
+        // An array with a step (`--array=0-6:2`): 4 tasks, 0 to 6; the message says why.
+        let stepped = [
+            ("SLURM_ARRAY_TASK_ID", "2"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_MAX", "6"),
+        ];
+        assert_eq!(
+            shard_from_env(&env(&stepped)).unwrap_err().to_string(),
+            "--shard auto (Slurm): the array runs from 0 to 6; its tasks are not every number from 0 to N - 1 \
+             (a step or a list with gaps), so submit it as --array=0-3 (N = 4)"
+        );
         let zero_based = [
             ("SLURM_ARRAY_TASK_ID", "3"),
             ("SLURM_ARRAY_TASK_COUNT", "4"),

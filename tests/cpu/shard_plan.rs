@@ -236,6 +236,28 @@ fn shard_refuses_a_plan_of_other_flags_another_scene_or_changed_images() {
     bytes[100] ^= 1;
     std::fs::write(&bin, &bytes).unwrap();
     planned_shard(&scene, &opts, &out, spec).unwrap();
+    // `--max-file-gib` is a limit, not in the key: a shard checks it against the plan's file (it wrote
+    // its part of a file over the limit: fault hunt, session 35).
+    let file_len = PlanFile::open(&plan_path(&out))
+        .unwrap()
+        .skeleton()
+        .unwrap()
+        .header()
+        .file_len;
+    let small = BuildOptions {
+        max_file_bytes: file_len - 1,
+        ..deep_opts()
+    };
+    let e = planned_shard(&scene, &small, &out, spec).unwrap_err();
+    assert!(
+        matches!(&e, atlastree::preprocess::BuildError::TooLarge { predicted, .. } if *predicted == file_len),
+        "{e}"
+    );
+    let exact = BuildOptions {
+        max_file_bytes: file_len,
+        ..deep_opts()
+    };
+    planned_shard(&scene, &exact, &out, spec).unwrap();
     // An image that grew (same name, another byte length).
     let texture = std::fs::read_dir(dir.path().join("city/textures"))
         .unwrap()
@@ -290,6 +312,15 @@ fn merge_refuses_a_missing_corrupt_or_replaced_plan_and_writes_nothing() {
     assert!(refused("replaced").contains("not the ones the shards were built from"));
     std::fs::write(&plan_file, &good).unwrap();
     merge(&out, None, &NoProgress).unwrap();
+    // As the refusal says: a plan made again with the shards' flags is theirs, so the same shards merge
+    // (its hint said to rebuild them, a cluster's whole pixel pass; fault hunt, session 35).
+    std::fs::remove_file(&plan_file).unwrap();
+    let merged = std::fs::read(&out).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    assert!(refused("missing again").contains("merge again"));
+    plan(&scene, &opts, &out);
+    merge(&out, None, &NoProgress).unwrap();
+    assert!(std::fs::read(&out).unwrap() == merged);
 }
 
 /// A plan made again with other flags and one shard rebuilt from it: the merge names a shard that was

@@ -2,7 +2,8 @@
 //!
 //! Positions (f64, after the instance's world matrix) and UVs (f64, `KHR_texture_transform` baked in,
 //! or the solid texel centre) are read per primitive into reused scratch buffers, positions with their
-//! morph targets added by the default weights (the pose a viewer draws without animation); indices (or `0..n`)
+//! morph targets added by the default weights (the pose a viewer draws without animation), UVs with their
+//! targets' `TEXCOORD_n` deltas added by the same weights; indices (or `0..n`)
 //! are checked against the vertex count and assembled for triangle lists, strips and fans. Only
 //! vertices used by kept triangles are emitted, once per instance. Triangles with a non-finite position
 //! or UV are skipped, UVs beyond ±[`LARGE_UV`] kept; both counted. Non-triangle modes and primitives
@@ -21,6 +22,20 @@ use glam::{DVec2, DVec3};
 use gltf::Semantic;
 use gltf::mesh::Mode;
 use std::collections::HashMap;
+
+/// A mesh's primitives' morph targets as the raw JSON has them (attribute name → accessor index): gltf-json
+/// reads a target's POSITION, NORMAL and TANGENT only, and glTF 2.0 §3.7.2.1 allows `TEXCOORD_n` too.
+#[derive(serde::Deserialize, Default)]
+pub(super) struct RawMesh {
+    #[serde(default)]
+    primitives: Vec<RawPrimitive>,
+}
+
+#[derive(serde::Deserialize, Default)]
+struct RawPrimitive {
+    #[serde(default)]
+    targets: Vec<serde_json::Map<String, serde_json::Value>>,
+}
 
 /// UV components beyond ±this are kept but counted (`large_uv_triangles`).
 pub(super) const LARGE_UV: f64 = 1e6;
@@ -66,6 +81,9 @@ pub(super) struct Geometry<'a> {
     /// The glTF file (for errors and warnings).
     file: &'a str,
     meshes: Vec<gltf::Mesh<'a>>,
+    /// The meshes' morph targets from the raw JSON (for their `TEXCOORD_n`).
+    raw_meshes: Vec<RawMesh>,
+    accessors: Vec<gltf::Accessor<'a>>,
     nodes: Vec<gltf::Node<'a>>,
     pub(super) vertices: Vec<Vertex>,
     pub(super) triangles: Vec<Triangle>,
@@ -73,10 +91,12 @@ pub(super) struct Geometry<'a> {
 }
 
 impl<'a> Geometry<'a> {
-    pub(super) fn new(file: &'a str, doc: &'a gltf::Document) -> Self {
+    pub(super) fn new(file: &'a str, doc: &'a gltf::Document, raw_meshes: Vec<RawMesh>) -> Self {
         Geometry {
             file,
             meshes: doc.meshes().collect(),
+            raw_meshes,
+            accessors: doc.accessors().collect(),
             nodes: doc.nodes().collect(),
             vertices: Vec::new(),
             triangles: Vec::new(),
@@ -237,15 +257,22 @@ impl<'a> Geometry<'a> {
             };
             self.read_beside_positions(&uv_acc, &semantic, 2, (pos_acc.index(), n), ctx, buffers)?;
             let s = &mut self.scratch;
-            match xf {
-                Some(t) => s.uvs.extend(
-                    s.attribute
-                        .chunks_exact(2)
-                        .map(|c| t.apply(DVec2::new(c[0], c[1]))),
-                ),
-                None => s
-                    .uvs
-                    .extend(s.attribute.chunks_exact(2).map(|c| DVec2::new(c[0], c[1]))),
+            (s.uvs).extend(s.attribute.chunks_exact(2).map(|c| DVec2::new(c[0], c[1])));
+            // The targets' UV deltas times their weights, before the texture transform (which applies
+            // to the morphed UVs): a target that moved the UVs was drawn with the base ones (fault hunt,
+            // session 35).
+            for (i, w, acc) in self.weighted_uv_targets(ctx, set, weights) {
+                let semantic = format!("morph target {i} {semantic}");
+                self.read_beside_positions(&acc, &semantic, 2, (pos_acc.index(), n), ctx, buffers)?;
+                let s = &mut self.scratch;
+                for (uv, d) in s.uvs.iter_mut().zip(s.attribute.chunks_exact(2)) {
+                    *uv += w * DVec2::new(d[0], d[1]);
+                }
+            }
+            if let Some(t) = xf {
+                for uv in &mut self.scratch.uvs {
+                    *uv = t.apply(*uv);
+                }
             }
         }
 
@@ -478,6 +505,31 @@ impl<'a> Geometry<'a> {
                 c.large_uv
             ));
         }
+    }
+}
+
+impl<'a> Geometry<'a> {
+    /// The morph targets of primitive `ctx` that move its UV set `set`: `(index, weight, accessor)` of
+    /// each with a non-zero weight in `weights` (a missing weight is 0) and a `TEXCOORD_{set}` attribute
+    /// naming an accessor (the raw JSON's indices were checked by `refs`).
+    fn weighted_uv_targets(
+        &self,
+        ctx: &PrimCtx,
+        set: u32,
+        weights: &[f64],
+    ) -> Vec<(usize, f64, gltf::Accessor<'a>)> {
+        let name = format!("TEXCOORD_{set}");
+        let targets = (self.raw_meshes.get(ctx.mesh))
+            .and_then(|m| m.primitives.get(ctx.primitive))
+            .map_or(&[][..], |p| &p.targets[..]);
+        (targets.iter().enumerate())
+            .filter_map(|(i, t)| {
+                let w = weights.get(i).copied().unwrap_or(0.0);
+                let index = t.get(&name)?.as_u64()?;
+                let acc = self.accessors.get(usize::try_from(index).ok()?)?;
+                (w != 0.0).then(|| (i, w, acc.clone()))
+            })
+            .collect()
     }
 }
 

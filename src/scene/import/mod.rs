@@ -187,7 +187,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
     };
     walk.warn_invalid_matrices();
     let instances = walk.instances()?;
-    let mut geometry = Geometry::new(&file, &doc);
+    let mut geometry = Geometry::new(&file, &doc, raw.meshes);
     geometry.reserve(&instances)?;
     let mut materials = Materials::new(&file, &doc, raw.materials, raw.textures);
     for inst in &instances {
@@ -214,7 +214,7 @@ fn parse_document(json: &[u8], file: &str) -> Result<(gltf::Document, Vec<String
     let mut root: gltf::json::Root =
         gltf::json::deserialize::from_slice(json).map_err(|e| SceneError::Parse {
             file: file.to_string(),
-            reason: e.to_string(),
+            reason: with_json_context(&e, json),
         })?;
     if let Some(ext) = root
         .extensions_required
@@ -260,6 +260,26 @@ fn parse_document(json: &[u8], file: &str) -> Result<(gltf::Document, Vec<String
     ))
 }
 
+/// `e` with the JSON text where it was found: the typed parse's messages name a line and column only, and
+/// some say little on their own ("trailing characters" for a KHR_texture_transform `scale` of three
+/// numbers: fault hunt, session 35), where the text shows the field.
+fn with_json_context(e: &serde_json::Error, json: &[u8]) -> String {
+    let line_start = (json.split_inclusive(|&b| b == b'\n'))
+        .take(e.line().saturating_sub(1))
+        .map(<[u8]>::len)
+        .sum::<usize>();
+    let at = (line_start + e.column().saturating_sub(1)).min(json.len());
+    let (from, to) = (at.saturating_sub(48), (at + 16).min(json.len()));
+    let text = String::from_utf8_lossy(&json[from..to]);
+    let text: String = (text.chars())
+        .map(|c| if c.is_control() { ' ' } else { c })
+        .collect();
+    if text.trim().is_empty() {
+        return e.to_string();
+    }
+    format!("{e}, in `{}`", text.trim())
+}
+
 /// The raw JSON fields read in f64 (gltf-json keeps transforms and KHR_texture_transform as f32).
 #[derive(Deserialize, Default)]
 struct RawRoot {
@@ -269,6 +289,8 @@ struct RawRoot {
     materials: Vec<RawMaterial>,
     #[serde(default)]
     textures: Vec<RawTexture>,
+    #[serde(default)]
+    meshes: Vec<mesh::RawMesh>,
 }
 
 /// The scene of the built geometry and materials: closes the warning list ("... and N more") and picks
@@ -331,6 +353,21 @@ mod tests {
         assert_eq!(triangles_beside_json(Some(100), Some(1000), 5000), Some(0));
         assert_eq!(triangles_beside_json(Some(100), None, 5000), Some(100));
         assert_eq!(triangles_beside_json(None, Some(1000), 5), None);
+    }
+
+    /// A typed parse error shows the JSON around its line and column (the second line here), so a
+    /// `scale` of three numbers is named where serde says only "trailing characters".
+    #[test]
+    fn a_parse_error_shows_the_json_where_it_was_found() {
+        let json =
+            b"{\"asset\": {\"version\": \"2.0\"},\n \"materials\": [{\"pbrMetallicRoughness\": \
+            {\"baseColorTexture\": {\"index\": 0, \"extensions\": {\"KHR_texture_transform\": \
+            {\"scale\": [1, 2, 3]}}}}}]}";
+        let e = parse_document(json, "s.gltf").err().unwrap().to_string();
+        assert!(
+            e.contains("at line 2 column") && e.contains(r#"{"scale": [1, 2, 3]"#),
+            "{e}"
+        );
     }
 
     #[test]

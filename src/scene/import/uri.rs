@@ -86,7 +86,18 @@ pub(super) fn split_glb(
         file: file.to_string(),
         reason: format!("GLB ({} bytes): {e}", bytes.len()),
     })?;
-    let json = glb.json.into_owned();
+    // As for a .gltf: a UTF-8 byte-order mark before the JSON is ignored; and the chunk's padding, which
+    // glTF 2.0 §4.4.3.2 makes spaces, is taken as padding when an exporter wrote NULs (both were parse
+    // errors at "line 1 column 1" or "trailing characters": fault hunt, session 35).
+    let mut json = glb.json.into_owned();
+    if json.starts_with(b"\xef\xbb\xbf") {
+        json.drain(..3);
+    }
+    let padded = json
+        .iter()
+        .rposition(|&b| b != 0)
+        .map_or(0, |last| last + 1);
+    json.truncate(padded);
     // The BIN chunk is most of a GLB: it stays in the file's own vector (moved to its front), not copied
     // into a second one, which doubled the import's peak (a 512 MiB chunk peaked at 1 GiB).
     let range = glb.bin.as_deref().and_then(|b| {

@@ -291,6 +291,45 @@ fn morph_targets_are_drawn_at_their_default_weights() {
     assert!(e.contains("morph target 0 POSITION has"), "{e}");
 }
 
+/// A morph target's `TEXCOORD_0` deltas are added by the same weights as its positions (glTF 2.0
+/// §3.7.2.1 allows them; gltf-json does not read them): they were ignored silently, so a target that
+/// mirrored a texture drew it unmirrored (fault hunt, session 35).
+#[test]
+fn morph_targets_move_uvs_by_their_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    // The UVs of the ground's (mesh 0, material asphalt) triangle corners.
+    let ground_uvs = |doc: &Value| -> Vec<[f64; 2]> {
+        let s = import_city(dir.path(), doc).1.unwrap();
+        assert_eq!(s.report.warnings_total, 0, "{:?}", s.report.warnings);
+        let asphalt = (s.materials.iter())
+            .position(|m| m.name == "asphalt")
+            .unwrap();
+        (s.triangles.iter())
+            .filter(|t| t.material.idx() == asphalt)
+            .flat_map(|t| t.v)
+            .map(|v| s.vertices[v as usize].uv.to_array())
+            .collect()
+    };
+    let mut doc = city_json();
+    let base = ground_uvs(&doc);
+    assert!(base.iter().any(|uv| *uv != [0.0, 0.0]), "{base:?}");
+    let prim = &mut doc["meshes"][0]["primitives"][0];
+    let uv = prim["attributes"]["TEXCOORD_0"].clone();
+    // Target 0 moves nothing but the UVs, by the base UVs themselves; target 1 has weight 0.
+    prim["targets"] = json!([{"TEXCOORD_0": uv}, {"TEXCOORD_0": uv}]);
+    doc["meshes"][0]["weights"] = json!([-2.0, 0.0]);
+    let mirrored: Vec<[f64; 2]> = base.iter().map(|&[u, v]| [-u, -v]).collect();
+    assert_eq!(ground_uvs(&doc), mirrored);
+    // The node's weights override the mesh's.
+    doc["nodes"][2]["weights"] = json!([0.0, 0.5]);
+    let scaled: Vec<[f64; 2]> = base.iter().map(|&[u, v]| [1.5 * u, 1.5 * v]).collect();
+    assert_eq!(ground_uvs(&doc), scaled);
+    // A target of another length is an error naming it.
+    doc["meshes"][0]["primitives"][0]["targets"][1] = json!({"TEXCOORD_0": 4});
+    let e = import_city(dir.path(), &doc).1.err().unwrap().to_string();
+    assert!(e.contains("morph target 1 TEXCOORD_0 has"), "{e}");
+}
+
 /// A skinned mesh is one counted warning naming the first node: skins are not applied.
 #[test]
 fn skinned_meshes_are_one_counted_warning() {
