@@ -253,11 +253,9 @@ impl CameraPath {
                 up: self.up,
             });
         }
-        for (field, value) in [
-            ("aspect", self.aspect),
-            ("near", self.near),
-            ("far", self.far),
-        ] {
+        // Not `aspect`: frames take their viewport's, and the commands' help says a file's is not used
+        // (a file was refused for it: fault hunt, session 35); [`CameraPath::sample`] keeps one usable.
+        for (field, value) in [("near", self.near), ("far", self.far)] {
             if !(value.is_finite() && value > 0.0) {
                 return Err(CameraError::BadLens {
                     path: path(),
@@ -380,7 +378,11 @@ impl CameraPath {
             target,
             up: DVec3::from_array(self.up),
             fov_x_deg: fov,
-            aspect: self.aspect,
+            aspect: if self.aspect.is_finite() && self.aspect > 0.0 {
+                self.aspect
+            } else {
+                default_aspect()
+            },
             near: self.near,
             far: self.far,
         };
@@ -538,6 +540,18 @@ impl PathKind {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A file's `aspect` is not used (frames take their viewport's), so it is not refused; the sampled
+    /// camera keeps a usable one.
+    #[test]
+    fn an_unused_aspect_is_not_refused() {
+        let json =
+            br#"{"keyframes": [{"time": 0, "eye": [0, 10, 0], "target": [0, 0, 0], "fov": 60}],
+            "aspect": 0}"#;
+        let path: CameraPath = serde_json::from_slice(json).unwrap();
+        path.validate(Path::new("p.json")).unwrap();
+        assert_eq!(path.sample(0.0).aspect, default_aspect());
+    }
 
     #[test]
     fn pchip_never_overshoots_keyframes() {

@@ -389,8 +389,7 @@ fn not_a_scene(path: &std::path::Path) -> Option<String> {
     std::fs::File::open(path)
         .and_then(|f| f.take(16).read_to_end(&mut head))
         .ok()?;
-    let text = head.trim_ascii_start();
-    let scene_like = text.starts_with(b"{") || text.starts_with(b"[") || head.starts_with(b"glTF");
+    let scene_like = atlastree::scene::looks_like_json(&head) || head.starts_with(b"glTF");
     (!scene_like && !head.is_empty()).then(|| atlastree::store::describe_start(&head))
 }
 

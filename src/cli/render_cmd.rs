@@ -280,10 +280,15 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     let cameras = sample_cameras(cfg, &file).map_err(failed)?;
     let ctx = GpuContext::new_headless(&GpuOptions::default()).map_err(|e| failed(e.into()))?;
     println!("adapter: {}", ctx.adapter_summary());
+    if let Some(Reference::Supersampled(k)) = cfg.reference {
+        let (w, h) = (cfg.viewport.width, cfg.viewport.height);
+        atlastree::render::reference::check_supersample(&ctx, w, h, k)
+            .map_err(|e| failed(e.into()))?;
+    }
     let (mut fl, http) = frame_loop(&ctx, &file, cfg, http).map_err(failed)?;
     let mut runs = mode_runs(cfg, cameras.len())?;
-    warm_up(&mut fl, cfg, &file, &cameras, &runs)?;
-    fly(&mut fl, cfg, &file, &cameras, &mut runs)?;
+    warm_up(&mut fl, cfg, &file, &cameras, &runs).map_err(failed)?;
+    fly(&mut fl, cfg, &file, &cameras, &mut runs).map_err(failed)?;
     if let Some(e) = fl.planner.last_error() {
         eprintln!(
             "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"

@@ -184,10 +184,22 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Auto)?;
     // Before the runs, not after them: an --out that cannot be a folder (or made one).
     super::check_out_folder(&cfg.out)?;
+    let created = !cfg.out.exists();
     std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
-    let cameras = sample_cameras(cfg, &file)?;
+    let result = run_and_write(cfg, &file);
+    if result.is_err() && created {
+        // A run refused (a bad path, a capacity below the roots) leaves no folder it made (as render and
+        // sweep leave none; fault hunt, session 35); `remove_dir` takes only an empty one.
+        let _ = std::fs::remove_dir(&cfg.out);
+    }
+    result
+}
+
+/// [`execute`] once `--out` exists: the runs, their CSVs, plots and report.
+fn run_and_write(cfg: &SimulateConfig, file: &TreeFile) -> anyhow::Result<ExitCode> {
+    let cameras = sample_cameras(cfg, file)?;
     let scales = cfg.viewport.scales(&file.to_params(), &cameras)?;
-    let input = SimInput::from_file(&file)?;
+    let input = SimInput::from_file(file)?;
     let cells = cfg.spec.cells().len();
     // With --json, stdout holds the JSON alone; what people read goes to stderr.
     let say = |line: String| {

@@ -206,6 +206,10 @@ pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     }
 
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
+    // Before any build: the supersampled frame must fit the device.
+    if let Reference::Supersampled(k) = cfg.reference {
+        atlastree::render::reference::check_supersample(&ctx, plan.width, plan.height, k)?;
+    }
     if !cfg.json {
         println!(
             "adapter: {}\nsweep: {} builds, {} variants, {} frames of {}×{}",

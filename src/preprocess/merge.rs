@@ -90,10 +90,15 @@ pub enum MergeError {
     },
     #[error(
         "shard 0 holds no table prefix (its shards were built from the plan {plan}), and the plan cannot give it: \
-         {why}; plan again with the shards' flags (`atlastree build SCENE -o OUT FLAGS --shard plan`) and merge again: \
-         the plan of the same scene and flags is the one the shards read, so they need no rebuild unless those flags are lost"
+         {why}; plan again with the shards' flags ({command}) and merge again: the plan of the same scene and \
+         flags is the one the shards read (if the scene changed since they were built, rebuild them from the new plan)"
     )]
-    Plan { plan: PathBuf, why: String },
+    Plan {
+        plan: PathBuf,
+        why: String,
+        /// The plan step's command: the shards' own with `--shard plan`.
+        command: String,
+    },
     #[error("merging into {out}: {source}")]
     Store {
         out: PathBuf,
@@ -180,18 +185,25 @@ fn with_out(argv: &[String], out: &Path) -> Vec<String> {
 
 /// `; rebuild it with: …` from a shard's stored command line, with its `--shard` value replaced.
 fn rebuild_hint(argv: Option<&[String]>, spec: ShardSpec) -> String {
-    let Some(argv) = argv.filter(|a| !a.is_empty()) else {
-        return format!("; rebuild it with `atlastree build … --shard {spec}`");
-    };
+    match with_shard(argv, &spec.to_string()) {
+        Some(command) => format!("; rebuild it with: {command}"),
+        None => format!("; rebuild it with `atlastree build … --shard {spec}`"),
+    }
+}
+
+/// A shard's stored command line with its `--shard` value replaced by `value`, quoted for a shell; `None`
+/// without one.
+fn with_shard(argv: Option<&[String]>, value: &str) -> Option<String> {
+    let argv = argv.filter(|a| !a.is_empty())?;
     let mut args: Vec<String> = Vec::with_capacity(argv.len());
     let mut it = argv.iter();
     while let Some(a) = it.next() {
         if a == "--shard" {
             it.next();
             args.push("--shard".into());
-            args.push(spec.to_string());
+            args.push(value.to_string());
         } else if a.starts_with("--shard=") {
-            args.push(format!("--shard={spec}"));
+            args.push(format!("--shard={value}"));
         } else {
             args.push(a.clone());
         }
@@ -200,7 +212,7 @@ fn rebuild_hint(argv: Option<&[String]>, spec: ShardSpec) -> String {
         .iter()
         .map(|a| crate::util::shell_words::shell_word(a))
         .collect();
-    format!("; rebuild it with: {}", quoted.join(" "))
+    Some(quoted.join(" "))
 }
 
 /// Merges the shard files of `out`'s build (`count` shards, or the only count found beside `out`) into
@@ -229,7 +241,12 @@ pub fn merge(
             .map_err(|e| set.foreign(0, format!("its table prefix does not open: {e}")))?;
         (Tables::Shard0(tables), None)
     } else {
-        let (file, tables) = planned_tables(out, first.header.prefix_hash, opened_plan)?;
+        let (file, tables) = planned_tables(
+            out,
+            first.header.prefix_hash,
+            opened_plan,
+            set.argv.as_deref(),
+        )?;
         let path = file.path().to_path_buf();
         let report: Option<super::ShardPlanReport> = read_sidecar(&path);
         let plan = MergedPlan {
@@ -326,11 +343,15 @@ fn planned_tables(
     out: &Path,
     prefix_hash: [u64; 2],
     opened: Option<crate::store::shard_plan::PlanFile>,
+    argv: Option<&[String]>,
 ) -> Result<(crate::store::shard_plan::PlanFile, TreeFile), MergeError> {
     let path = crate::store::shard_plan::plan_path(out);
+    let command = with_shard(argv, "plan")
+        .unwrap_or_else(|| "`atlastree build SCENE -o OUT FLAGS --shard plan`".into());
     let refuse = |why: String| MergeError::Plan {
         plan: path.clone(),
         why,
+        command: command.clone(),
     };
     let plan = match opened {
         Some(plan) => plan,
@@ -341,7 +362,9 @@ fn planned_tables(
     };
     if plan.header.prefix_hash != prefix_hash {
         return Err(refuse(
-            "its tables are not the ones the shards were built from (another plan was written since)".into(),
+            "its tables are not the ones the shards were built from (another plan was written since, or the scene \
+             changed)"
+                .into(),
         ));
     }
     let tables = plan.skeleton().map_err(|e| refuse(e.to_string()))?;

@@ -78,9 +78,7 @@ pub(super) fn plan_build(
     let mut timings = StageLog::default();
     let (forest, reports) = plan_forest(scene, opts, &params, &parts, progress, &mut timings)?;
     let predicted = crate::store::predicted_file_len(&forest)?;
-    let depth = reports.iter().map(|r| r.depth).max().unwrap_or(0);
-    let nodes = reports.iter().map(|r| r.nodes).sum();
-    check_file_size(predicted, (nodes, depth, forest.blocks.len() as u64), opts)?;
+    check_file_size(predicted, &forest, opts, FileSizeFix::Flags)?;
     Ok(Planned {
         params,
         diagonal,
@@ -271,24 +269,49 @@ fn tree_report(
     }
 }
 
+/// The forest's node count (all trees), depth (deepest level) and block count.
+pub(super) fn forest_shape(forest: &AtlasForest) -> (u64, u8, u64) {
+    let nodes = (forest.trees.iter()).flat_map(|t| &t.nodes);
+    let depth = nodes.clone().map(|n| n.level.0).max().unwrap_or(0);
+    (nodes.count() as u64, depth, forest.blocks.len() as u64)
+}
+
+/// What a build refused for `--max-file-gib` may change: any flag that shapes the file (a build, the
+/// plan step, a self-planning shard), or only the limit (a shard that reads a plan, whose key holds the
+/// flags that shape it: following the flags' advice there got the shard refused as another build's).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum FileSizeFix {
+    Flags,
+    LimitOnly,
+}
+
 /// Refuses, before anything is written, a paging file of `predicted` bytes (tables, geometry and blocks:
-/// the whole file, not only its blocks) over `--max-file-gib`; `(nodes, depth, blocks)` are the forest's,
-/// for the message. The plan, a one-process build and a shard that reads a plan (the plan's file length)
-/// all ask it.
+/// the whole file, not only its blocks) over `--max-file-gib`, naming `forest`'s shape. The plan, a
+/// one-process build and a shard that reads a plan (the plan's file length) all ask it.
 pub(super) fn check_file_size(
     predicted: u64,
-    (nodes, depth, blocks): (u64, u8, u64),
+    forest: &AtlasForest,
     opts: &BuildOptions,
+    fix: FileSizeFix,
 ) -> Result<(), BuildError> {
     let limit = opts.max_file_bytes;
     if predicted > limit {
+        let (nodes, depth, blocks) = forest_shape(forest);
+        let advice = match fix {
+            FileSizeFix::Flags => too_large_advice(opts, depth),
+            FileSizeFix::LimitOnly => format!(
+                "raise --max-file-gib to at least {:.2} where the disk holds it (the plan fixes the file's \
+                 size), or plan again with flags that make a smaller file",
+                (predicted as f64 / f64::from(1u32 << 30) * 100.0).ceil() / 100.0
+            ),
+        };
         return Err(BuildError::TooLarge {
             nodes,
             depth,
             blocks,
             predicted,
             limit,
-            advice: too_large_advice(opts, depth),
+            advice,
         });
     }
     Ok(())

@@ -143,6 +143,14 @@ pub fn shard_from_env(
             count_var,
         })?;
         let count = number(count_var, count, "a shard count")?;
+        // Before the array's range: a count of 0 is no array to renumber.
+        if count == 0 || count > MAX_SHARDS {
+            return Err(ShardSpecError::BadCount {
+                scheduler,
+                count_var,
+                count,
+            });
+        }
         // `--array=1-4` numbers tasks 1..=4 with a count of 4: task 4 would be out of range and shard 0
         // never built. The array must be 0-(N-1).
         let bound = |variable: &'static str| -> Result<Option<u32>, ShardSpecError> {
@@ -168,13 +176,6 @@ pub fn shard_from_env(
                 min,
                 max,
                 last: count.saturating_sub(1),
-                count,
-            });
-        }
-        if count == 0 || count > MAX_SHARDS {
-            return Err(ShardSpecError::BadCount {
-                scheduler,
-                count_var,
                 count,
             });
         }

@@ -160,7 +160,7 @@ pub fn plan_shards(
         path,
         file_bytes,
         triangles: manifest.triangles,
-        nodes: forest.trees.iter().map(|t| t.nodes.len() as u64).sum(),
+        nodes: super::plan_forest::forest_shape(&forest).0,
         blocks: forest.blocks.len() as u64,
         stages: timings,
         memory,
@@ -207,14 +207,8 @@ pub fn build_shard_planned(
     // The plan's key leaves `--max-file-gib` out (a limit, not a shape), so a shard checks it against the
     // file the plan lays out, as the plan step and a one-process build do (fault hunt, session 35: a
     // planned shard wrote its part of a file over the limit it was given).
-    let trees = &forest.trees;
-    let depth = (trees.iter().flat_map(|t| &t.nodes))
-        .map(|n| n.level.0)
-        .max()
-        .unwrap_or(0);
-    let nodes = trees.iter().map(|t| t.nodes.len() as u64).sum();
-    let blocks = forest.blocks.len() as u64;
-    super::plan_forest::check_file_size(file_len, (nodes, depth, blocks), opts)?;
+    use super::plan_forest::{FileSizeFix, check_file_size};
+    check_file_size(file_len, &forest, opts, FileSizeFix::LimitOnly)?;
     // Refused before any pixel: the shard holds the tables' skeleton, no triangle.
     let threads = rayon::current_num_threads() as u64;
     let memory_plan = match opts.max_memory_bytes {

@@ -184,6 +184,29 @@ impl Supersample {
     }
 }
 
+/// [`RenderError::BadSupersample`] where a `width × height` frame at `factor` times its sides exceeds the
+/// device's texture size, or `factor` is 0: asked before a run starts (`render` found out at its first
+/// reference frame, after removing the earlier run's frames, and `sweep` after its builds: fault hunt,
+/// session 35) and by [`Renderer::execute_supersampled`].
+pub fn check_supersample(
+    ctx: &crate::gpu::GpuContext,
+    width: u32,
+    height: u32,
+    factor: u32,
+) -> Result<(), RenderError> {
+    let limit = ctx.device.limits().max_texture_dimension_2d;
+    let (sw, sh) = (width.saturating_mul(factor), height.saturating_mul(factor));
+    if factor == 0 || sw > limit || sh > limit {
+        return Err(RenderError::BadSupersample {
+            width,
+            height,
+            factor,
+            limit,
+        });
+    }
+    Ok(())
+}
+
 impl Renderer<'_> {
     /// The supersampled reference of `plan` ([`Reference::Supersampled`]): the plan drawn with the
     /// original textures ([`Mode::Original`], all blocks resident) at `factor` times the frame's width and
@@ -197,16 +220,8 @@ impl Renderer<'_> {
         factor: u32,
     ) -> Result<Vec<u8>, RenderError> {
         let (w, h) = (self.opts.width, self.opts.height);
-        let limit = self.ctx.device.limits().max_texture_dimension_2d;
-        let (sw, sh) = (w.saturating_mul(factor), h.saturating_mul(factor));
-        if factor == 0 || sw > limit || sh > limit {
-            return Err(RenderError::BadSupersample {
-                width: w,
-                height: h,
-                factor,
-                limit,
-            });
-        }
+        check_supersample(self.ctx, w, h, factor)?;
+        let (sw, sh) = (w * factor, h * factor);
         let mut ss = match self.supersample.take() {
             Some(s) if s.size == (w, h) && s.factor == factor => s,
             _ => Supersample::new(&self.ctx.device, (w, h), factor),

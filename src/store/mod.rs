@@ -288,8 +288,7 @@ pub fn describe_start(head: &[u8]) -> String {
         "a PNG image".into()
     } else if starts(&[0xff, 0xd8, 0xff]) {
         "a JPEG image".into()
-    } else if head.trim_ascii_start().starts_with(b"{") || head.trim_ascii_start().starts_with(b"[")
-    {
+    } else if crate::scene::looks_like_json(head) {
         "JSON text: a glTF scene (`atlastree build` it), a camera path or a report?".into()
     } else if starts(b"\x7fELF") {
         "an executable program".into()

@@ -31,7 +31,10 @@ fn deep_opts() -> BuildOptions {
 fn plan(scene: &Path, opts: &BuildOptions, out: &Path) -> [u64; 2] {
     let imported = import(scene, &ImportOptions::default()).unwrap();
     let key = shard_plan_key(opts, scene, "").unwrap();
-    let report = plan_shards(&imported, opts, out, key, vec!["plan".into()], &NoProgress).unwrap();
+    let argv = ["atlastree", "build", "--shard", "plan"]
+        .map(String::from)
+        .to_vec();
+    let report = plan_shards(&imported, opts, out, key, argv, &NoProgress).unwrap();
     assert_eq!(report.path, plan_path(out));
     assert_eq!(report.triangles, imported.triangles.len() as u64);
     key
@@ -252,6 +255,12 @@ fn shard_refuses_a_plan_of_other_flags_another_scene_or_changed_images() {
     assert!(
         matches!(&e, atlastree::preprocess::BuildError::TooLarge { predicted, .. } if *predicted == file_len),
         "{e}"
+    );
+    // Its advice is the limit alone: the flags that shape the file are the plan's.
+    let msg = e.to_string();
+    assert!(
+        msg.contains("the plan fixes the file's size") && !msg.contains("--d-min"),
+        "{msg}"
     );
     let exact = BuildOptions {
         max_file_bytes: file_len,

@@ -126,6 +126,11 @@ fn supersampled_agrees_where_nothing_is_minified(ctx: &GpuContext) -> Result<(),
         .planner
         .plan_still(&cam, scale_for(&file, &cam)?, &mut fl.renderer.residency())
         .map_err(e)?;
+    // Asked before a run (render and sweep refuse it before removing or building anything).
+    let check = atlastree::render::reference::check_supersample;
+    if check(ctx, W, H, too_big).is_ok() || check(ctx, W, H, too_big - 1).is_err() {
+        return Err(format!("check_supersample's limit is not {too_big}"));
+    }
     match fl.renderer.execute_supersampled(plan, too_big) {
         Err(RenderError::BadSupersample {
             factor, limit: l, ..

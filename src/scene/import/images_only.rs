@@ -42,7 +42,7 @@ fn images_unguarded(
     let value: serde_json::Value =
         serde_json::from_slice(&json_bytes).map_err(|e| SceneError::Parse {
             file: file.to_string(),
-            reason: e.to_string(),
+            reason: super::with_json_context(&e, &json_bytes),
         })?;
     refs::check_indices(&value, file)?;
     let (doc, _) = parse_document(&json_bytes, file)?;
@@ -92,7 +92,7 @@ pub fn input_digest(path: &Path) -> Result<[u64; 2], SceneError> {
     let value: serde_json::Value =
         serde_json::from_slice(&json).map_err(|e| SceneError::Parse {
             file: file.clone(),
-            reason: e.to_string(),
+            reason: super::with_json_context(&e, &json),
         })?;
     let base_dirs = super::uri::scene_dirs(path);
     let uris = (value
@@ -136,7 +136,9 @@ fn json_chunk(path: &Path) -> std::io::Result<Vec<u8>> {
     let mut head = [0u8; 20];
     let n = read_up_to(&mut f, &mut head)?;
     if n < 20 || &head[..4] != b"glTF" {
-        return crate::util::read_regular(path, None);
+        // As the import reads it (`uri::split_glb`): a byte-order mark before the JSON is no error.
+        let bytes = crate::util::read_regular(path, None)?;
+        return Ok(super::uri::json_text(&bytes).to_vec());
     }
     let len = u64::from(u32::from_le_bytes([head[12], head[13], head[14], head[15]]));
     if len > f.metadata()?.len() {
@@ -147,7 +149,7 @@ fn json_chunk(path: &Path) -> std::io::Result<Vec<u8>> {
     }
     let mut json = vec![0u8; len as usize];
     f.read_exact(&mut json)?;
-    Ok(json)
+    Ok(super::uri::glb_json_text(&json).to_vec())
 }
 
 fn read_up_to(f: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {

@@ -24,17 +24,16 @@ use gltf::mesh::Mode;
 use std::collections::HashMap;
 
 /// A mesh's primitives' morph targets as the raw JSON has them (attribute name → accessor index): gltf-json
-/// reads a target's POSITION, NORMAL and TANGENT only, and glTF 2.0 §3.7.2.1 allows `TEXCOORD_n` too.
+/// reads a target's POSITION, NORMAL and TANGENT only, and glTF 2.0 §3.7.2.2 allows `TEXCOORD_n` too.
+/// Optional as gltf-json's own fields are (`"targets": null` imports).
 #[derive(serde::Deserialize, Default)]
 pub(super) struct RawMesh {
-    #[serde(default)]
-    primitives: Vec<RawPrimitive>,
+    primitives: Option<Vec<RawPrimitive>>,
 }
 
 #[derive(serde::Deserialize, Default)]
 struct RawPrimitive {
-    #[serde(default)]
-    targets: Vec<serde_json::Map<String, serde_json::Value>>,
+    targets: Option<Vec<serde_json::Map<String, serde_json::Value>>>,
 }
 
 /// UV components beyond ±this are kept but counted (`large_uv_triangles`).
@@ -83,7 +82,7 @@ pub(super) struct Geometry<'a> {
     meshes: Vec<gltf::Mesh<'a>>,
     /// The meshes' morph targets from the raw JSON (for their `TEXCOORD_n`).
     raw_meshes: Vec<RawMesh>,
-    accessors: Vec<gltf::Accessor<'a>>,
+    accessors: &'a [gltf::Accessor<'a>],
     nodes: Vec<gltf::Node<'a>>,
     pub(super) vertices: Vec<Vertex>,
     pub(super) triangles: Vec<Triangle>,
@@ -91,12 +90,17 @@ pub(super) struct Geometry<'a> {
 }
 
 impl<'a> Geometry<'a> {
-    pub(super) fn new(file: &'a str, doc: &'a gltf::Document, raw_meshes: Vec<RawMesh>) -> Self {
+    pub(super) fn new(
+        file: &'a str,
+        doc: &'a gltf::Document,
+        accessors: &'a [gltf::Accessor<'a>],
+        raw_meshes: Vec<RawMesh>,
+    ) -> Self {
         Geometry {
             file,
             meshes: doc.meshes().collect(),
             raw_meshes,
-            accessors: doc.accessors().collect(),
+            accessors,
             nodes: doc.nodes().collect(),
             vertices: Vec::new(),
             triangles: Vec::new(),
@@ -170,7 +174,7 @@ impl<'a> Geometry<'a> {
     }
 
     /// Emits one primitive of one instance: world-space vertices (only those used by kept triangles)
-    /// and triangles, its morph targets' positions added by `weights`. See the module docs for what is
+    /// and triangles, its morph targets' positions and UVs added by `weights`. See the module docs for what is
     /// skipped and counted.
     #[allow(clippy::too_many_arguments)]
     fn emit_primitive(
@@ -520,14 +524,15 @@ impl<'a> Geometry<'a> {
     ) -> Vec<(usize, f64, gltf::Accessor<'a>)> {
         let name = format!("TEXCOORD_{set}");
         let targets = (self.raw_meshes.get(ctx.mesh))
-            .and_then(|m| m.primitives.get(ctx.primitive))
-            .map_or(&[][..], |p| &p.targets[..]);
+            .and_then(|m| m.primitives.as_ref()?.get(ctx.primitive))
+            .and_then(|p| p.targets.as_deref())
+            .unwrap_or_default();
         (targets.iter().enumerate())
             .filter_map(|(i, t)| {
-                let w = weights.get(i).copied().unwrap_or(0.0);
+                let w = target_weight(weights, i)?;
                 let index = t.get(&name)?.as_u64()?;
                 let acc = self.accessors.get(usize::try_from(index).ok()?)?;
-                (w != 0.0).then(|| (i, w, acc.clone()))
+                Some((i, w, acc.clone()))
             })
             .collect()
     }
@@ -541,7 +546,13 @@ fn weighted_position_targets<'a>(
     weights: &[f64],
 ) -> impl Iterator<Item = (usize, f64, gltf::Accessor<'a>)> {
     prim.morph_targets().enumerate().filter_map(|(i, t)| {
-        let w = weights.get(i).copied().unwrap_or(0.0);
-        t.positions().filter(|_| w != 0.0).map(|a| (i, w, a))
+        let w = target_weight(weights, i)?;
+        t.positions().map(|a| (i, w, a))
     })
+}
+
+/// Target `i`'s weight in `weights` where it moves anything: a missing weight is 0, and a target of
+/// weight 0 is not read.
+fn target_weight(weights: &[f64], i: usize) -> Option<f64> {
+    weights.get(i).copied().filter(|&w| w != 0.0)
 }

@@ -35,6 +35,7 @@ mod warnings;
 
 pub(super) use crate::scene::error::SceneError;
 pub use images_only::{import_images, input_digest};
+pub use uri::looks_like_json;
 
 use crate::scene::{ImportReport, Scene, UpAxis};
 use glam::DVec3;
@@ -152,7 +153,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
     let value: serde_json::Value =
         serde_json::from_slice(&json_bytes).map_err(|e| SceneError::Parse {
             file: file.clone(),
-            reason: e.to_string(),
+            reason: with_json_context(&e, &json_bytes),
         })?;
     refs::check_indices(&value, &file)?;
     let (doc, tolerated) =
@@ -187,7 +188,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
     };
     walk.warn_invalid_matrices();
     let instances = walk.instances()?;
-    let mut geometry = Geometry::new(&file, &doc, raw.meshes);
+    let mut geometry = Geometry::new(&file, &doc, &accessors, raw.meshes);
     geometry.reserve(&instances)?;
     let mut materials = Materials::new(&file, &doc, raw.materials, raw.textures);
     for inst in &instances {
@@ -260,16 +261,24 @@ fn parse_document(json: &[u8], file: &str) -> Result<(gltf::Document, Vec<String
     ))
 }
 
-/// `e` with the JSON text where it was found: the typed parse's messages name a line and column only, and
+/// `e` with the JSON text where it was found: serde's messages name a line and column only, and
 /// some say little on their own ("trailing characters" for a KHR_texture_transform `scale` of three
 /// numbers: fault hunt, session 35), where the text shows the field.
-fn with_json_context(e: &serde_json::Error, json: &[u8]) -> String {
+pub(super) fn with_json_context(e: &serde_json::Error, json: &[u8]) -> String {
     let line_start = (json.split_inclusive(|&b| b == b'\n'))
         .take(e.line().saturating_sub(1))
         .map(<[u8]>::len)
         .sum::<usize>();
     let at = (line_start + e.column().saturating_sub(1)).min(json.len());
-    let (from, to) = (at.saturating_sub(48), (at + 16).min(json.len()));
+    let (mut from, mut to) = (at.saturating_sub(48), (at + 16).min(json.len()));
+    // Whole characters: not from or to the middle of a multi-byte one.
+    let continuation = |i: usize| json.get(i).is_some_and(|&b| b & 0xc0 == 0x80);
+    while from < at && continuation(from) {
+        from += 1;
+    }
+    while to > at && continuation(to) {
+        to -= 1;
+    }
     let text = String::from_utf8_lossy(&json[from..to]);
     let text: String = (text.chars())
         .map(|c| if c.is_control() { ' ' } else { c })

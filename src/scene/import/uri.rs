@@ -21,7 +21,7 @@ pub(super) fn split_glb(
     let named_glb = std::path::Path::new(file)
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
-    if !bytes.starts_with(b"glTF") && named_glb && !bytes.trim_ascii_start().starts_with(b"{") {
+    if !bytes.starts_with(b"glTF") && named_glb && !looks_like_json(&bytes) {
         let magic: String = (bytes.iter().take(4))
             .map(|&b| {
                 if b.is_ascii_graphic() {
@@ -39,9 +39,8 @@ pub(super) fn split_glb(
         });
     }
     if !bytes.starts_with(b"glTF") {
-        // A UTF-8 byte-order mark before the JSON: glTF 2.0 §3.2 lets readers ignore it (JSON parsers do not).
-        if let Some(json) = bytes.strip_prefix(b"\xef\xbb\xbf") {
-            return Ok((json.to_vec(), None));
+        if bytes.starts_with(BOM) {
+            return Ok((json_text(&bytes).to_vec(), None));
         }
         return Ok((bytes, None));
     }
@@ -86,18 +85,16 @@ pub(super) fn split_glb(
         file: file.to_string(),
         reason: format!("GLB ({} bytes): {e}", bytes.len()),
     })?;
-    // As for a .gltf: a UTF-8 byte-order mark before the JSON is ignored; and the chunk's padding, which
-    // glTF 2.0 §4.4.3.2 makes spaces, is taken as padding when an exporter wrote NULs (both were parse
-    // errors at "line 1 column 1" or "trailing characters": fault hunt, session 35).
-    let mut json = glb.json.into_owned();
-    if json.starts_with(b"\xef\xbb\xbf") {
-        json.drain(..3);
+    let json = glb_json_text(&glb.json).to_vec();
+    if json.trim_ascii().is_empty() {
+        return Err(SceneError::Parse {
+            file: file.to_string(),
+            reason: format!(
+                "GLB: its JSON chunk ({} bytes) holds no JSON, only padding",
+                glb.json.len()
+            ),
+        });
     }
-    let padded = json
-        .iter()
-        .rposition(|&b| b != 0)
-        .map_or(0, |last| last + 1);
-    json.truncate(padded);
     // The BIN chunk is most of a GLB: it stays in the file's own vector (moved to its front), not copied
     // into a second one, which doubled the import's peak (a 512 MiB chunk peaked at 1 GiB).
     let range = glb.bin.as_deref().and_then(|b| {
@@ -115,6 +112,34 @@ pub(super) fn split_glb(
         (Some(b), None) => Some(b.into_owned()),
     };
     Ok((json, bin))
+}
+
+/// The UTF-8 byte-order mark.
+const BOM: &[u8] = b"\xef\xbb\xbf";
+
+/// The JSON of a `.gltf` file: without a UTF-8 byte-order mark before it (glTF 2.0 §3.2 lets readers
+/// ignore one; JSON parsers refuse it at "line 1 column 1").
+pub(crate) fn json_text(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(BOM).unwrap_or(bytes)
+}
+
+/// The JSON of a GLB's JSON chunk: [`json_text`], and the chunk's padding, which glTF 2.0 §4.4.3.2 makes
+/// spaces, taken as padding where an exporter wrote NULs (were "trailing characters": fault hunt,
+/// session 35). The one rule of the import, the plan key's digest and the CLI's sniffing.
+pub(crate) fn glb_json_text(chunk: &[u8]) -> &[u8] {
+    let json = json_text(chunk);
+    let end = json
+        .iter()
+        .rposition(|&b| b != 0)
+        .map_or(0, |last| last + 1);
+    &json[..end]
+}
+
+/// Whether `head` (a file's first bytes) starts like JSON: `{` or `[` after an optional byte-order mark
+/// and white space.
+pub fn looks_like_json(head: &[u8]) -> bool {
+    let text = json_text(head).trim_ascii_start();
+    text.starts_with(b"{") || text.starts_with(b"[")
 }
 
 /// The buffers of one glTF file, loaded lazily.

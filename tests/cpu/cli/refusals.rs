@@ -284,3 +284,29 @@ fn a_wide_border_is_warned_about_up_front() {
         "{stderr}"
     );
 }
+
+/// `simulate` refused after its `--out` was made (a capacity below the trees' roots) leaves no folder it
+/// made behind, as `render` and `sweep` leave none (fault hunt, session 35); a folder that was there stays.
+#[test]
+fn a_refused_simulation_leaves_no_folder_it_made() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("city.atlastree");
+    let o = run(bin().args(["build", "-q", "-o"]).arg(&tree).arg(scene()));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let simulate = |out: &std::path::Path| {
+        let o = run(bin()
+            .args(["simulate", "--capacity", "1", "--frames", "3", "--out"])
+            .arg(out)
+            .arg(&tree));
+        let e = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains("root"), "{e}");
+    };
+    let fresh = dir.path().join("sim");
+    simulate(&fresh);
+    assert!(!fresh.exists());
+    let kept = dir.path().join("kept");
+    std::fs::create_dir(&kept).unwrap();
+    simulate(&kept);
+    assert!(kept.is_dir());
+}

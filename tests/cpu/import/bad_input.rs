@@ -579,6 +579,15 @@ fn a_byte_order_mark_before_the_json_is_ignored() {
     std::fs::write(&glb, glb_of_json(bytes, 0, &[])).unwrap();
     let s = import(&glb, &ImportOptions::default()).unwrap();
     assert_eq!(s.triangles.len(), city_triangles());
+    // The plan key's digest reads the JSON by the same rule (`build --shard plan` refused both).
+    atlastree::scene::input_digest(&path).unwrap();
+    atlastree::scene::input_digest(&glb).unwrap();
+    // A JSON chunk of padding alone says so.
+    std::fs::write(&glb, glb_of_json(b"\xef\xbb\xbf".to_vec(), 0, &[])).unwrap();
+    let e = import(&glb, &ImportOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("its JSON chunk (4 bytes) holds no JSON"), "{e}");
 }
 
 /// A POSITION or TEXCOORD accessor of UNSIGNED_INT is refused, naming the accessor (read as integers, the

@@ -292,8 +292,8 @@ fn morph_targets_are_drawn_at_their_default_weights() {
 }
 
 /// A morph target's `TEXCOORD_0` deltas are added by the same weights as its positions (glTF 2.0
-/// §3.7.2.1 allows them; gltf-json does not read them): they were ignored silently, so a target that
-/// mirrored a texture drew it unmirrored (fault hunt, session 35).
+/// §3.7.2.2 allows them; gltf-json does not read them), before the texture transform: they were ignored
+/// silently, so a target that mirrored a texture drew it unmirrored (fault hunt, session 35).
 #[test]
 fn morph_targets_move_uvs_by_their_weights() {
     let dir = tempfile::tempdir().unwrap();
@@ -313,21 +313,37 @@ fn morph_targets_move_uvs_by_their_weights() {
     let mut doc = city_json();
     let base = ground_uvs(&doc);
     assert!(base.iter().any(|uv| *uv != [0.0, 0.0]), "{base:?}");
+    assert_eq!(doc["materials"][3]["name"], json!("asphalt"));
+    // A texture transform, applied to the morphed UVs: uv · (2, 4) + (0.25, 0.5), exact in binary.
+    doc["materials"][3]["pbrMetallicRoughness"]["baseColorTexture"]["extensions"] =
+        json!({"KHR_texture_transform": {"offset": [0.25, 0.5], "scale": [2.0, 4.0]}});
+    let transform = |[u, v]: [f64; 2]| [u * 2.0 + 0.25, v * 4.0 + 0.5];
+    let expect = |k: f64| -> Vec<[f64; 2]> {
+        base.iter()
+            .map(|&[u, v]| transform([k * u, k * v]))
+            .collect()
+    };
+    assert_eq!(ground_uvs(&doc), expect(1.0));
     let prim = &mut doc["meshes"][0]["primitives"][0];
     let uv = prim["attributes"]["TEXCOORD_0"].clone();
-    // Target 0 moves nothing but the UVs, by the base UVs themselves; target 1 has weight 0.
-    prim["targets"] = json!([{"TEXCOORD_0": uv}, {"TEXCOORD_0": uv}]);
+    assert_eq!(uv, json!(2));
+    // Target 0 moves nothing but the UVs, by the base UVs themselves; target 1, of weight 0, names an
+    // accessor of 16 elements (the primitive has 4): a target of weight 0 is not read.
+    prim["targets"] = json!([{"TEXCOORD_0": uv}, {"TEXCOORD_0": 6}]);
     doc["meshes"][0]["weights"] = json!([-2.0, 0.0]);
-    let mirrored: Vec<[f64; 2]> = base.iter().map(|&[u, v]| [-u, -v]).collect();
-    assert_eq!(ground_uvs(&doc), mirrored);
+    assert_eq!(ground_uvs(&doc), expect(-1.0));
     // The node's weights override the mesh's.
-    doc["nodes"][2]["weights"] = json!([0.0, 0.5]);
-    let scaled: Vec<[f64; 2]> = base.iter().map(|&[u, v]| [1.5 * u, 1.5 * v]).collect();
-    assert_eq!(ground_uvs(&doc), scaled);
-    // A target of another length is an error naming it.
-    doc["meshes"][0]["primitives"][0]["targets"][1] = json!({"TEXCOORD_0": 4});
+    doc["nodes"][2]["weights"] = json!([0.5, 0.0]);
+    assert_eq!(ground_uvs(&doc), expect(1.5));
+    // A target of another length with a weight is an error naming it.
+    doc["nodes"][2]["weights"] = json!([0.5, 1.0]);
     let e = import_city(dir.path(), &doc).1.err().unwrap().to_string();
     assert!(e.contains("morph target 1 TEXCOORD_0 has"), "{e}");
+    // `"targets": null` is no targets, as gltf-json reads it.
+    doc["meshes"][0]["primitives"][0]["targets"] = Value::Null;
+    doc["nodes"][2].as_object_mut().unwrap().remove("weights");
+    doc["meshes"][0].as_object_mut().unwrap().remove("weights");
+    assert_eq!(ground_uvs(&doc), expect(1.0));
 }
 
 /// A skinned mesh is one counted warning naming the first node: skins are not applied.

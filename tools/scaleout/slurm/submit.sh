@@ -251,14 +251,14 @@ state=$(realpath "$state")
 
 if [[ -n $only ]]; then
     [[ $only =~ ^[0-9]+(,[0-9]+)*$ ]] || die "--only: not a comma-separated list of shard numbers: $only"
-    # Decimal whatever the leading zeros (bash reads 08 as bad octal, 010 as 8); the array gets the
-    # normalised numbers, which Slurm reads as the same tasks.
+    # Decimal whatever the leading zeros (bash reads 08 as bad octal, 010 as 8), each shard once; the
+    # array gets the normalised numbers, which Slurm reads as the same tasks.
     normal=()
     for t in ${only//,/ }; do
-        ((${#t} <= 9)) || die "--only: shard $t does not exist (0..$((n - 1)))"
-        t=$((10#$t))
-        ((t < n)) || die "--only: shard $t does not exist (0..$((n - 1)))"
-        normal+=("$t")
+        t=${t#"${t%%[!0]*}"}
+        t=${t:-0}
+        ((${#t} <= 9 && t < n)) || die "--only: shard $t does not exist (0..$((n - 1)))"
+        [[ " ${normal[*]} " == *" $t "* ]] || normal+=("$t")
     done
     only=$(IFS=,; echo "${normal[*]}")
     tasks=$only mode=explicit array=$only
