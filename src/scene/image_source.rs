@@ -235,6 +235,15 @@ fn decode_alloc_limit() -> u64 {
     })
 }
 
+/// Bytes a decode of a `w × h` image of `color` holds at once: the decoder's buffer (`native` bytes) and,
+/// unless it is RGBA8 already, the RGBA8 copy made of it.
+fn decode_peak(w: u32, h: u32, color: image::ColorType, native: u64) -> u64 {
+    match color {
+        image::ColorType::Rgba8 => native,
+        _ => native.saturating_add(u64::from(w) * u64::from(h) * 4),
+    }
+}
+
 /// Decodes a PNG/JPEG stream to RGBA8.
 fn decode_encoded<R: Read + Seek + std::io::BufRead>(
     reader: R,
@@ -247,10 +256,26 @@ fn decode_encoded<R: Read + Seek + std::io::BufRead>(
     let mut reader = image::ImageReader::new(reader)
         .with_guessed_format()
         .map_err(|e| err(e.to_string()))?;
+    let limit = decode_alloc_limit();
     let mut limits = image::Limits::default();
-    limits.max_alloc = Some(decode_alloc_limit());
+    limits.max_alloc = Some(limit);
     reader.limits(limits);
-    let img = reader.decode().map_err(|e| err(e.to_string()))?;
+    let decoder = reader.into_decoder().map_err(|e| err(e.to_string()))?;
+    // The decoder's limit covers its own buffer; the RGBA8 copy of a grey or RGB image comes beside it
+    // (a 715-byte JPEG claiming 35000² grey was admitted at 1.2 GB and took 6 GB to convert: a panic
+    // under a 3 GB address-space limit, an OOM kill in a 2 GiB container; fault hunt, session 35).
+    let (w, h) = image::ImageDecoder::dimensions(&decoder);
+    let color = image::ImageDecoder::color_type(&decoder);
+    let peak = decode_peak(w, h, color, image::ImageDecoder::total_bytes(&decoder));
+    if peak > limit {
+        return Err(err(format!(
+            "{w}×{h} takes {} to decode and convert to RGBA8, over the {} one decode may take (half the \
+             memory this process may use)",
+            crate::util::human_bytes(peak),
+            crate::util::human_bytes(limit)
+        )));
+    }
+    let img = image::DynamicImage::from_decoder(decoder).map_err(|e| err(e.to_string()))?;
     let rgba = img.into_rgba8();
     let (width, height) = rgba.dimensions();
     let pixels: Vec<[u8; 4]> = bytemuck::cast_vec(rgba.into_raw());
@@ -304,12 +329,80 @@ pub(super) fn read_header<R: Read + Seek + std::io::BufRead>(
 /// marker cannot occur inside entropy-coded data (a 0xFF there is followed by 0x00 or a restart code).
 const JPEG_TAIL: u64 = 4096;
 
-/// Whether the JPEG in `reader` has its end-of-image marker (`FF D9`) in its last [`JPEG_TAIL`] bytes.
-/// Files with a longer trailer after it (e.g. a motion photo's video) read as truncated: a warning only.
+/// Whether the JPEG in `reader` has its end-of-image marker (`FF D9`) in its last [`JPEG_TAIL`] bytes,
+/// past the start of its first scan ([`jpeg_scan_start`]): the marker of an embedded thumbnail (EXIF
+/// APP1) made a file cut short after it read as whole (fault hunt, session 35). A file whose segments do
+/// not lead to a scan is cut short; one whose markers do not parse is searched whole, as before. Files
+/// with a longer trailer after it (e.g. a motion photo's video) read as truncated: a warning only.
 fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
-    Ok(tail(reader, JPEG_TAIL)?
-        .windows(2)
-        .any(|w| w == [0xFF, 0xD9]))
+    let scan = match jpeg_scan_start(reader) {
+        Ok(Some(at)) => at,
+        Ok(None) => return Ok(false),
+        Err(_) => 0,
+    };
+    let len = reader.seek(SeekFrom::End(0)).map_err(|e| e.to_string())?;
+    let tail_at = len.saturating_sub(JPEG_TAIL);
+    let bytes = tail(reader, JPEG_TAIL)?;
+    let skip = usize::try_from(scan.saturating_sub(tail_at)).unwrap_or(usize::MAX);
+    Ok(bytes
+        .get(skip.min(bytes.len())..)
+        .is_some_and(|b| b.windows(2).any(|w| w == [0xFF, 0xD9])))
+}
+
+/// Where the JPEG in `reader` starts its first scan's entropy-coded data: the marker segments from `SOI`
+/// walked by their lengths up to `SOS`. `Ok(None)` where the file ends first (cut short in its headers);
+/// `Err` where its markers do not parse as JPEG segments.
+fn jpeg_scan_start<R: Read + Seek>(reader: &mut R) -> Result<Option<u64>, String> {
+    reader.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
+    // The next two bytes, `None` at the end of the file.
+    let read2 = |r: &mut R| -> Result<Option<[u8; 2]>, String> {
+        let mut two = [0u8; 2];
+        let n = read_up_to(r, &mut two).map_err(|e| e.to_string())?;
+        Ok((n == 2).then_some(two))
+    };
+    if read2(reader)? != Some([0xFF, 0xD8]) {
+        return Err("no SOI".into());
+    }
+    let mut at = 2u64;
+    loop {
+        let Some(two) = read2(reader)? else {
+            return Ok(None);
+        };
+        if two[0] != 0xFF {
+            return Err(format!("no marker at byte {at}"));
+        }
+        let marker = two[1];
+        at += 2;
+        // Fill bytes (0xFF 0xFF …) and markers without a length (TEM, RSTn).
+        if marker == 0xFF {
+            reader
+                .seek(SeekFrom::Current(-1))
+                .map_err(|e| e.to_string())?;
+            at -= 1;
+            continue;
+        }
+        if marker == 0x01 || (0xD0..=0xD7).contains(&marker) {
+            continue;
+        }
+        if marker == 0xD9 {
+            // EOI before any scan: no image data.
+            return Ok(None);
+        }
+        let Some(two) = read2(reader)? else {
+            return Ok(None);
+        };
+        let length = u64::from(u16::from_be_bytes(two));
+        if length < 2 {
+            return Err(format!("segment length {length} at byte {at}"));
+        }
+        at += length;
+        if marker == 0xDA {
+            return Ok(Some(at));
+        }
+        reader
+            .seek(SeekFrom::Start(at))
+            .map_err(|e| e.to_string())?;
+    }
 }
 
 /// The last `n` bytes of `reader` (all of it when shorter).
@@ -523,6 +616,36 @@ mod tests {
                 "the header itself is intact"
             );
         }
+        // An APP1 segment (an EXIF thumbnail) ending in an end-of-image marker, after SOI: the file cut
+        // a little into its scan still reads as truncated (the thumbnail's marker was taken as the
+        // file's), and whole as not.
+        let mut app1 = vec![0xFF, 0xE1, 0x00, 0x08, b'E', b'x', 0xFF, 0xD8, 0xFF, 0xD9];
+        app1[3] = (app1.len() - 2) as u8;
+        let with_thumb = [&jpeg[..2], &app1[..], &jpeg[2..]].concat();
+        assert!(!header(&with_thumb).truncated);
+        let cut = 3000; // past the headers, the thumbnail within the last 4 KiB
+        assert!(header(&with_thumb[..cut]).truncated);
+        // Cut inside the headers: no scan to start.
+        assert_eq!(
+            jpeg_scan_start(&mut std::io::Cursor::new(&with_thumb[..8])),
+            Ok(None)
+        );
+    }
+
+    /// A decode's peak counts the RGBA8 copy beside the decoder's buffer, except where that is RGBA8
+    /// already: a 35000² grey JPEG holds 1.2 GB decoded and 4.9 GB more converted.
+    #[test]
+    fn a_decodes_peak_counts_its_rgba8_copy() {
+        use image::ColorType;
+        let (w, h) = (35_000, 35_000);
+        let texels = 35_000u64 * 35_000;
+        assert_eq!(decode_peak(w, h, ColorType::L8, texels), texels * 5);
+        assert_eq!(decode_peak(w, h, ColorType::Rgb8, 3 * texels), texels * 7);
+        assert_eq!(decode_peak(w, h, ColorType::Rgba8, 4 * texels), texels * 4);
+        assert_eq!(
+            decode_peak(w, h, ColorType::Rgba16, 8 * texels),
+            texels * 12
+        );
     }
 
     #[test]

@@ -567,7 +567,7 @@ impl FileWriter {
         tables_end: u64,
         means: RectMeans,
     ) -> Result<FileWriter, StoreError> {
-        check_replaceable(path)?;
+        super::check_replaceable(path)?;
         // The permissions of a plain `File::create` once renamed (0o666 less the umask); a private 0o600
         // would make a paging file unservable by another user's server.
         let temp = super::create_output(path)?;
@@ -753,82 +753,6 @@ fn summarize(
         padding_bytes: file_len - used,
         total: file_len,
     }
-}
-
-/// Whether a paging file may be written at `path`: it does not exist, is empty, or is a paging file (any
-/// format version: [`MAGIC`]). Anything else — the scene, its buffer, an image, a directory — is refused
-/// with [`StoreError::NotReplaceable`] before any work, so a mistyped `-o` cannot destroy an input; a
-/// folder that does not exist is [`StoreError::NoOutputDir`], also before any work.
-pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {
-    check_replaceable_as(path, &MAGIC, "paging file")
-}
-
-/// [`check_replaceable`] for another of atlastree's outputs, a `kind` of file (`"plan file"`) that
-/// starts with `magic` (a shard's or plan's name beside OUT held a user's file, replaced without a word;
-/// fault hunt, session 31).
-pub fn check_replaceable_as(
-    path: &Path,
-    magic: &[u8],
-    kind: &'static str,
-) -> Result<(), StoreError> {
-    use std::io::Read;
-    let refuse = |what: String| StoreError::NotReplaceable {
-        path: path.to_path_buf(),
-        kind,
-        what,
-    };
-    // `OUT/`, `OUT/.` and `OUT/..` name a folder: the rename at the end would fail after all the work
-    // (`new/.` of a folder that does not exist was found out only then; fault hunt, session 28).
-    let raw = path.as_os_str().as_encoded_bytes();
-    let last = raw.rsplit(|&b| b == b'/').next().unwrap_or(raw);
-    if raw.last() == Some(&b'/') || last == b"." || last == b".." {
-        return Err(StoreError::FolderName {
-            path: path.to_path_buf(),
-        });
-    }
-    // Where a link points (the file that is written): its folder must exist (a dangling link into a
-    // missing folder failed only at the write; review, session 28).
-    let resolved = crate::util::follow_output_links(path).map_err(|e| refuse(e.to_string()))?;
-    let dir = crate::util::parent_dir(&resolved);
-    if !dir.is_dir() {
-        let what = if dir.exists() {
-            "is not a folder"
-        } else {
-            "does not exist"
-        };
-        return Err(StoreError::NoOutputDir {
-            path: path.to_path_buf(),
-            dir: dir.to_path_buf(),
-            what,
-        });
-    }
-    // Absent, or metadata unreadable (the write itself then reports the error with its own context).
-    let Ok(meta) = std::fs::metadata(path) else {
-        return Ok(());
-    };
-    if meta.is_dir() {
-        return Err(refuse("a directory".to_string()));
-    }
-    // A device, FIFO or socket (`-o /dev/null` as root): the atomic rename would replace the node itself.
-    if !meta.is_file() {
-        return Err(refuse(format!(
-            "{}, not a regular file",
-            crate::util::node_kind(&meta)
-        )));
-    }
-    if meta.len() == 0 {
-        return Ok(());
-    }
-    let mut head = Vec::with_capacity(magic.len());
-    // Unreadable: refused too, as it is not known to be a paging file.
-    if let Err(e) = File::open(path).and_then(|f| f.take(magic.len() as u64).read_to_end(&mut head))
-    {
-        return Err(refuse(format!("unreadable: {e}")));
-    }
-    if head == magic {
-        return Ok(());
-    }
-    Err(refuse(super::describe_start(&head)))
 }
 
 #[cfg(test)]

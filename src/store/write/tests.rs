@@ -1,4 +1,5 @@
 use super::*;
+use crate::store::check_replaceable;
 
 #[cfg(unix)]
 #[test]
