@@ -226,7 +226,7 @@ pub fn fallback_checker() -> DecodedImage {
 /// refuses a scene whose images cannot fit before any decode), at least the `image` crate's own 512 MiB.
 /// Its default alone turned a 16384² RGB orthophoto or an 8200² 16-bit PNG into the magenta fallback
 /// whatever `--max-memory` allowed; a header claiming 60000² still falls back rather than abort.
-fn decode_alloc_limit() -> u64 {
+pub(crate) fn decode_alloc_limit() -> u64 {
     const IMAGE_CRATE_DEFAULT: u64 = 512 << 20;
     static LIMIT: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
     *LIMIT.get_or_init(|| {

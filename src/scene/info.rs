@@ -432,6 +432,48 @@ pub struct DecodeReport {
     pub threads: usize,
 }
 
+/// Bytes of the decodes in flight, held within `budget`: a decode waits while others hold some and its
+/// own need would pass it (one alone always runs, its need taken as at most the budget).
+struct DecodeGate {
+    held: std::sync::Mutex<u64>,
+    freed: std::sync::Condvar,
+    budget: u64,
+}
+
+/// A decode's share of a [`DecodeGate`], given back when dropped.
+struct Held<'g> {
+    gate: &'g DecodeGate,
+    bytes: u64,
+}
+
+impl DecodeGate {
+    fn new(budget: u64) -> Self {
+        DecodeGate {
+            held: std::sync::Mutex::new(0),
+            freed: std::sync::Condvar::new(),
+            budget,
+        }
+    }
+
+    fn enter(&self, need: u64) -> Held<'_> {
+        let bytes = need.min(self.budget);
+        let mut held = self.held.lock().unwrap_or_else(|p| p.into_inner());
+        while *held > 0 && *held + bytes > self.budget {
+            held = self.freed.wait(held).unwrap_or_else(|p| p.into_inner());
+        }
+        *held += bytes;
+        Held { gate: self, bytes }
+    }
+}
+
+impl Drop for Held<'_> {
+    fn drop(&mut self) {
+        let mut held = self.gate.held.lock().unwrap_or_else(|p| p.into_inner());
+        *held -= self.bytes;
+        self.gate.freed.notify_all();
+    }
+}
+
 /// Failed decodes whose errors a [`DecodeReport`] keeps.
 pub const DECODE_ERRORS_SHOWN: usize = 5;
 
@@ -451,11 +493,20 @@ pub fn decode_all(scene: &Scene) -> DecodeReport {
         .map(|(i, _)| i)
         .collect();
     let start = std::time::Instant::now();
+    // Decodes in flight hold at most one decode's limit together (each is refused past it alone), so
+    // two huge images are decoded one after the other, not side by side (a hostile scene's pair could
+    // take all the memory the process may use: fault hunt, session 35).
+    let gate = DecodeGate::new(super::image_source::decode_alloc_limit());
     let results: Vec<Result<u64, String>> = images
         .par_iter()
-        .map(|img| match img.decode() {
-            Ok(d) => Ok(u64::from(d.width) * u64::from(d.height)),
-            Err(e) => Err(e.to_string()),
+        .map(|img| {
+            // The decoder's buffer and its RGBA8 copy: at most 8 + 4 bytes a texel (RGBA16).
+            let need = u64::from(img.width) * u64::from(img.height) * 12;
+            let _held = gate.enter(need);
+            match img.decode() {
+                Ok(d) => Ok(u64::from(d.width) * u64::from(d.height)),
+                Err(e) => Err(e.to_string()),
+            }
         })
         .collect();
     let texels = results.iter().filter_map(|r| r.as_ref().ok()).sum();
@@ -503,5 +554,35 @@ impl fmt::Display for DecodeReport {
             write!(f, "\n  … and {} more", self.failures - self.errors.len())?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A decode whose need would pass the budget beside one in flight waits for it; one alone runs
+    /// whatever its need.
+    #[test]
+    fn decodes_in_flight_stay_within_the_gate() {
+        let gate = DecodeGate::new(100);
+        let huge = gate.enter(1_000);
+        assert_eq!(*gate.held.lock().unwrap(), 100);
+        drop(huge);
+        let first = gate.enter(60);
+        let entered = std::sync::atomic::AtomicBool::new(false);
+        std::thread::scope(|s| {
+            s.spawn(|| {
+                let _second = gate.enter(60);
+                entered.store(true, std::sync::atomic::Ordering::SeqCst);
+            });
+            std::thread::sleep(std::time::Duration::from_millis(50));
+            assert!(!entered.load(std::sync::atomic::Ordering::SeqCst));
+            let small = gate.enter(40);
+            drop(small);
+            drop(first);
+        });
+        assert!(entered.load(std::sync::atomic::Ordering::SeqCst));
+        assert_eq!(*gate.held.lock().unwrap(), 0);
     }
 }
