@@ -145,12 +145,17 @@ pub(super) fn print_inspect(r: &InspectReport) {
     );
     for t in &r.trees {
         println!(
-            "  {:?} tree: {} nodes, {} leaves, depth {}, {} triangles, {} vertices, {} atlas + {} original blocks ({}), {} scaled leaves",
+            "  {:?} tree: {} nodes, {} leaves, depth {}, {} triangles{}, {} vertices, {} atlas + {} original blocks ({}), {} scaled leaves",
             t.kind,
             t.nodes,
             t.leaves,
             t.depth,
             t.triangles,
+            if t.pieces == t.triangles {
+                String::new()
+            } else {
+                format!(" ({} pieces)", t.pieces)
+            },
             t.vertices,
             t.atlas_blocks,
             t.original_blocks,

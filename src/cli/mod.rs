@@ -385,9 +385,10 @@ pub(crate) fn load_scene(
 /// ([`atlastree::store::describe_start`]); `None` for those (their parse error says more).
 fn not_a_scene(path: &std::path::Path) -> Option<String> {
     use std::io::Read;
-    let mut head = Vec::with_capacity(16);
+    // Room for a byte-order mark and a pretty-printer's indent before the first `{`.
+    let mut head = Vec::with_capacity(256);
     std::fs::File::open(path)
-        .and_then(|f| f.take(16).read_to_end(&mut head))
+        .and_then(|f| f.take(256).read_to_end(&mut head))
         .ok()?;
     let scene_like = atlastree::scene::looks_like_json(&head) || head.starts_with(b"glTF");
     (!scene_like && !head.is_empty()).then(|| atlastree::store::describe_start(&head))

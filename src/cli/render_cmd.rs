@@ -286,7 +286,7 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
             .map_err(|e| failed(e.into()))?;
     }
     let (mut fl, http) = frame_loop(&ctx, &file, cfg, http).map_err(failed)?;
-    let mut runs = mode_runs(cfg, cameras.len())?;
+    let mut runs = mode_runs(cfg, cameras.len()).map_err(failed)?;
     warm_up(&mut fl, cfg, &file, &cameras, &runs).map_err(failed)?;
     fly(&mut fl, cfg, &file, &cameras, &mut runs).map_err(failed)?;
     if let Some(e) = fl.planner.last_error() {
@@ -298,7 +298,7 @@ pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
         eprintln!("warning: block loads failed during the run; the first: {e}");
     }
     let http = http.map(|h| h.stats());
-    super::render_report::write_and_report(&cfg.out, cfg.reference, &runs, http)?;
+    super::render_report::write_and_report(&cfg.out, cfg.reference, &runs, http).map_err(failed)?;
     Ok(runs.into_iter().map(|r| (r.mode, r.stats)).collect())
 }
 

@@ -91,10 +91,10 @@ pub(super) fn clear_earlier_run(
     Ok(())
 }
 
-/// A run that failed before its own summary was begun ([`mode_runs`]) marks the earlier run's
-/// `summary.json` in `out`, if any, `"complete": false` with this run's error (`"failed"`): a finished
-/// earlier run's summary beside a failed run read as this run's result (fault hunt, session 29). Its
-/// frames stay. Returns `error`.
+/// A run that failed marks the `summary.json` in `out`, if any, `"complete": false` with its error
+/// (`"failed"`): before its own summary was begun ([`mode_runs`]), the earlier run's (a finished earlier
+/// run's summary beside a failed run read as this run's result: fault hunt, session 29); after, its own
+/// placeholder. Frames stay. Returns `error`.
 pub(super) fn mark_earlier_summary_stale(
     out: &std::path::Path,
     error: anyhow::Error,

@@ -184,13 +184,18 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Auto)?;
     // Before the runs, not after them: an --out that cannot be a folder (or made one).
     super::check_out_folder(&cfg.out)?;
-    let created = !cfg.out.exists();
+    // The folders this run makes, deepest first.
+    let created: Vec<&std::path::Path> = (cfg.out.ancestors())
+        .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
+        .collect();
     std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
     let result = run_and_write(cfg, &file);
-    if result.is_err() && created {
+    if result.is_err() {
         // A run refused (a bad path, a capacity below the roots) leaves no folder it made (as render and
         // sweep leave none; fault hunt, session 35); `remove_dir` takes only an empty one.
-        let _ = std::fs::remove_dir(&cfg.out);
+        for dir in created {
+            let _ = std::fs::remove_dir(dir);
+        }
     }
     result
 }

@@ -36,7 +36,11 @@ pub struct TreeInfo {
     pub nodes: u64,
     pub leaves: u64,
     pub depth: u8,
+    /// Scene triangles the tree draws (as the build reports them).
     pub triangles: u64,
+    /// Triangles stored: `triangles` and the extra pieces of those cut where repeats are baked (the
+    /// build's `pieces`; inspect called these `triangles`: flag hunt, session 35).
+    pub pieces: u64,
     pub vertices: u64,
     pub clamped_leaves: u64,
     pub atlas_blocks: u64,
@@ -236,7 +240,13 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             nodes: t.nodes.len() as u64,
             leaves: t.leaves.len() as u64,
             depth: levels.len().saturating_sub(1) as u8,
-            triangles: t.indices.len() as u64 / 3,
+            triangles: {
+                let mut scene: Vec<u32> = t.source_triangles.to_vec();
+                scene.sort_unstable();
+                scene.dedup();
+                scene.len() as u64
+            },
+            pieces: t.indices.len() as u64 / 3,
             vertices: t.vertices.len() as u64,
             clamped_leaves: t.leaves.iter().filter(|l| l.clamp_scale < 1.0).count() as u64,
             atlas_blocks,

@@ -245,7 +245,7 @@ pub fn merge(
             out,
             first.header.prefix_hash,
             opened_plan,
-            set.argv.as_deref(),
+            set.shard_argv.as_deref(),
         )?;
         let path = file.path().to_path_buf();
         let report: Option<super::ShardPlanReport> = read_sidecar(&path);
@@ -379,6 +379,9 @@ struct ShardSet {
     /// The stored command line of a shard of the build most shards belong to (a foreign shard's flags
     /// would rebuild the wrong thing), or the plan's ([`ShardSet::prefer_plan`]).
     argv: Option<Vec<String>>,
+    /// The majority shards' own command line, whatever the plan says: the flags a plan made again for
+    /// these shards must have (a replaced plan's own command would write the same wrong plan again).
+    shard_argv: Option<Vec<String>>,
     /// `OUT.plan` where planned shards are merged and it opens: the shards built from it are the
     /// reference, however many are stale; the merge then reads its tables from this one open.
     plan: Option<crate::store::shard_plan::PlanFile>,
@@ -428,6 +431,7 @@ impl ShardSet {
         let mut set = ShardSet {
             count,
             shards: Vec::new(),
+            shard_argv: argv.clone(),
             argv,
             plan: None,
         };

@@ -236,11 +236,18 @@ pub(crate) fn decode_alloc_limit() -> u64 {
 }
 
 /// Bytes a decode of a `w × h` image of `color` holds at once: the decoder's buffer (`native` bytes) and,
-/// unless it is RGBA8 already, the RGBA8 copy made of it.
-fn decode_peak(w: u32, h: u32, color: image::ColorType, native: u64) -> u64 {
-    match color {
+/// unless it is RGBA8 already, the RGBA8 copy made of it; a JPEG's decoder may hold its coefficients
+/// (16 bits a sample, a progressive file's whole frame) beside its buffer before the copy is made.
+fn decode_peak(w: u32, h: u32, color: image::ColorType, native: u64, jpeg: bool) -> u64 {
+    let rgba8 = (u64::from(w) * u64::from(h)).saturating_mul(4);
+    let converted = match color {
         image::ColorType::Rgba8 => native,
-        _ => native.saturating_add(u64::from(w) * u64::from(h) * 4),
+        _ => native.saturating_add(rgba8),
+    };
+    if jpeg {
+        converted.max(native.saturating_mul(3))
+    } else {
+        converted
     }
 }
 
@@ -249,6 +256,15 @@ fn decode_encoded<R: Read + Seek + std::io::BufRead>(
     reader: R,
     name: &str,
 ) -> Result<DecodedImage, SceneError> {
+    decode_encoded_within(reader, name, decode_alloc_limit())
+}
+
+/// [`decode_encoded`] within `limit` bytes.
+fn decode_encoded_within<R: Read + Seek + std::io::BufRead>(
+    reader: R,
+    name: &str,
+    limit: u64,
+) -> Result<DecodedImage, SceneError> {
     let err = |reason: String| SceneError::ImageDecode {
         image: name.to_string(),
         reason,
@@ -256,7 +272,7 @@ fn decode_encoded<R: Read + Seek + std::io::BufRead>(
     let mut reader = image::ImageReader::new(reader)
         .with_guessed_format()
         .map_err(|e| err(e.to_string()))?;
-    let limit = decode_alloc_limit();
+    let jpeg = reader.format() == Some(image::ImageFormat::Jpeg);
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(limit);
     reader.limits(limits);
@@ -266,11 +282,17 @@ fn decode_encoded<R: Read + Seek + std::io::BufRead>(
     // under a 3 GB address-space limit, an OOM kill in a 2 GiB container; fault hunt, session 35).
     let (w, h) = image::ImageDecoder::dimensions(&decoder);
     let color = image::ImageDecoder::color_type(&decoder);
-    let peak = decode_peak(w, h, color, image::ImageDecoder::total_bytes(&decoder));
+    let peak = decode_peak(
+        w,
+        h,
+        color,
+        image::ImageDecoder::total_bytes(&decoder),
+        jpeg,
+    );
     if peak > limit {
         return Err(err(format!(
             "{w}×{h} takes {} to decode and convert to RGBA8, over the {} one decode may take (half the \
-             memory this process may use)",
+             memory this process may use, at least 512 MiB)",
             crate::util::human_bytes(peak),
             crate::util::human_bytes(limit)
         )));
@@ -351,7 +373,7 @@ fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
 
 /// Where the JPEG in `reader` starts its first scan's entropy-coded data: the marker segments from `SOI`
 /// walked by their lengths up to `SOS`. `Ok(None)` where the file ends first (cut short in its headers);
-/// `Err` where its markers do not parse as JPEG segments.
+/// `Err` where its markers do not parse as one image's segments (a second SOI, an EOI before any scan).
 fn jpeg_scan_start<R: Read + Seek>(reader: &mut R) -> Result<Option<u64>, String> {
     reader.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
     // The next two bytes, `None` at the end of the file.
@@ -384,9 +406,9 @@ fn jpeg_scan_start<R: Read + Seek>(reader: &mut R) -> Result<Option<u64>, String
         if marker == 0x01 || (0xD0..=0xD7).contains(&marker) {
             continue;
         }
-        if marker == 0xD9 {
-            // EOI before any scan: no image data.
-            return Ok(None);
+        if marker == 0xD8 || marker == 0xD9 {
+            // A second SOI, or EOI before any scan (a tables-only file): not a plain image's segments.
+            return Err(format!("marker {marker:#04x} at byte {at} before any scan"));
         }
         let Some(two) = read2(reader)? else {
             return Ok(None);
@@ -633,19 +655,54 @@ mod tests {
     }
 
     /// A decode's peak counts the RGBA8 copy beside the decoder's buffer, except where that is RGBA8
-    /// already: a 35000² grey JPEG holds 1.2 GB decoded and 4.9 GB more converted.
+    /// already, and a JPEG's coefficients: a 35000² grey JPEG holds 1.2 GB decoded and 4.9 GB more
+    /// converted; a tiny file claiming that size is refused before any of it is allocated.
     #[test]
     fn a_decodes_peak_counts_its_rgba8_copy() {
         use image::ColorType;
         let (w, h) = (35_000, 35_000);
         let texels = 35_000u64 * 35_000;
-        assert_eq!(decode_peak(w, h, ColorType::L8, texels), texels * 5);
-        assert_eq!(decode_peak(w, h, ColorType::Rgb8, 3 * texels), texels * 7);
-        assert_eq!(decode_peak(w, h, ColorType::Rgba8, 4 * texels), texels * 4);
+        assert_eq!(decode_peak(w, h, ColorType::L8, texels, false), texels * 5);
         assert_eq!(
-            decode_peak(w, h, ColorType::Rgba16, 8 * texels),
+            decode_peak(w, h, ColorType::Rgb8, 3 * texels, true),
+            texels * 9
+        );
+        assert_eq!(
+            decode_peak(w, h, ColorType::Rgba8, 4 * texels, false),
+            texels * 4
+        );
+        assert_eq!(
+            decode_peak(w, h, ColorType::Rgba16, 8 * texels, false),
             texels * 12
         );
+        // A 16² grey JPEG whose frame header claims 35000²: refused within 1 GiB, naming the need.
+        let mut jpeg = Vec::new();
+        let img = image::GrayImage::from_fn(16, 16, |x, y| image::Luma([(x * 16 + y) as u8]));
+        image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
+            .encode_image(&img)
+            .unwrap();
+        let sof = jpeg.windows(2).position(|m| m == [0xFF, 0xC0]).unwrap();
+        // SOF0: marker, length (2), precision (1), height (2), width (2).
+        jpeg[sof + 5..sof + 9].copy_from_slice(&[0x88, 0xB8, 0x88, 0xB8]);
+        let cursor = std::io::Cursor::new(&jpeg[..]);
+        let e = decode_encoded_within(cursor, "bomb.jpg", 1 << 30).unwrap_err();
+        assert!(e.to_string().contains("35000×35000 takes"), "{e}");
+    }
+
+    /// The segment walker steps over fill bytes and markers without a length (RSTn, TEM), and takes a
+    /// second SOI, or an EOI before any scan, as no plain image's segments.
+    #[test]
+    fn the_jpeg_walker_steps_over_fill_bytes_and_lengthless_markers() {
+        let walk = |bytes: &[u8]| jpeg_scan_start(&mut std::io::Cursor::new(bytes));
+        // SOI, fill, TEM, RST3, COM (length 4: 2 bytes), SOS (length 3: 1 byte), then data.
+        let file = [
+            0xFF, 0xD8, 0xFF, 0xFF, 0x01, 0xFF, 0xD3, 0xFF, 0xFE, 0x00, 0x04, 0xFF, 0xD9, 0xFF,
+            0xDA, 0x00, 0x03, 0x00, 0x11,
+        ];
+        assert_eq!(walk(&file), Ok(Some(18)));
+        assert_eq!(walk(&file[..16]), Ok(None));
+        assert!(walk(&[0xFF, 0xD8, 0xFF, 0xD8, 0xFF, 0xDA, 0, 2]).is_err());
+        assert!(walk(&[0xFF, 0xD8, 0xFF, 0xD9]).is_err());
     }
 
     #[test]

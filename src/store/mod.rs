@@ -260,7 +260,7 @@ pub(crate) fn check_endian() -> Result<(), StoreError> {
 }
 
 /// Whether a paging file may be written at `path`: it does not exist, is empty, or is a paging file (any
-/// format version: [`MAGIC`]). Anything else — the scene, its buffer, an image, a directory — is refused
+/// format version: [`format::MAGIC`]). Anything else — the scene, its buffer, an image, a directory — is refused
 /// with [`StoreError::NotReplaceable`] before any work, so a mistyped `-o` cannot destroy an input; a
 /// folder that does not exist is [`StoreError::NoOutputDir`], also before any work.
 pub fn check_replaceable(path: &Path) -> Result<(), StoreError> {

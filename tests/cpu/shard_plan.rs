@@ -31,7 +31,9 @@ fn deep_opts() -> BuildOptions {
 fn plan(scene: &Path, opts: &BuildOptions, out: &Path) -> [u64; 2] {
     let imported = import(scene, &ImportOptions::default()).unwrap();
     let key = shard_plan_key(opts, scene, "").unwrap();
-    let argv = ["atlastree", "build", "--shard", "plan"]
+    // The flags it shapes, as the CLI records them (the shards' own lines have none: they differ).
+    let size = format!("--atlas-size={}", opts.atlas_size);
+    let argv = ["atlastree", "build", size.as_str(), "--shard", "plan"]
         .map(String::from)
         .to_vec();
     let report = plan_shards(&imported, opts, out, key, argv, &NoProgress).unwrap();
@@ -318,7 +320,16 @@ fn merge_refuses_a_missing_corrupt_or_replaced_plan_and_writes_nothing() {
     refused("truncated");
     // Another build's plan (other flags): intact, but not the tables the shards were cut from.
     plan(&scene, &BuildOptions::default(), &out);
-    assert!(refused("replaced").contains("not the ones the shards were built from"));
+    let msg = refused("replaced");
+    assert!(
+        msg.contains("not the ones the shards were built from"),
+        "{msg}"
+    );
+    // The command to plan again is the shards' own, not the replacing plan's (which would write it again).
+    assert!(
+        msg.contains("(atlastree build --shard plan)") && !msg.contains("--atlas-size=1024"),
+        "{msg}"
+    );
     std::fs::write(&plan_file, &good).unwrap();
     merge(&out, None, &NoProgress).unwrap();
     // As the refusal says: a plan made again with the shards' flags is theirs, so the same shards merge

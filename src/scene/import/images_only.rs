@@ -137,8 +137,10 @@ fn json_chunk(path: &Path) -> std::io::Result<Vec<u8>> {
     let n = read_up_to(&mut f, &mut head)?;
     if n < 20 || &head[..4] != b"glTF" {
         // As the import reads it (`uri::split_glb`): a byte-order mark before the JSON is no error.
-        let bytes = crate::util::read_regular(path, None)?;
-        return Ok(super::uri::json_text(&bytes).to_vec());
+        let mut bytes = crate::util::read_regular(path, None)?;
+        let mark = bytes.len() - super::uri::json_text(&bytes).len();
+        bytes.drain(..mark);
+        return Ok(bytes);
     }
     let len = u64::from(u32::from_le_bytes([head[12], head[13], head[14], head[15]]));
     if len > f.metadata()?.len() {
@@ -149,7 +151,9 @@ fn json_chunk(path: &Path) -> std::io::Result<Vec<u8>> {
     }
     let mut json = vec![0u8; len as usize];
     f.read_exact(&mut json)?;
-    Ok(super::uri::glb_json_text(&json).to_vec())
+    let text = super::uri::glb_json_text(&json)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))?;
+    Ok(text.to_vec())
 }
 
 fn read_up_to(f: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize> {

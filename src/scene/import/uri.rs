@@ -39,9 +39,9 @@ pub(super) fn split_glb(
         });
     }
     if !bytes.starts_with(b"glTF") {
-        if bytes.starts_with(BOM) {
-            return Ok((json_text(&bytes).to_vec(), None));
-        }
+        let mut bytes = bytes;
+        let mark = bytes.len() - json_text(&bytes).len();
+        bytes.drain(..mark);
         return Ok((bytes, None));
     }
     // gltf 1.4.1 computes `length - 12` before comparing (an overflow, a panic in debug builds).
@@ -85,16 +85,12 @@ pub(super) fn split_glb(
         file: file.to_string(),
         reason: format!("GLB ({} bytes): {e}", bytes.len()),
     })?;
-    let json = glb_json_text(&glb.json).to_vec();
-    if json.trim_ascii().is_empty() {
-        return Err(SceneError::Parse {
+    let json = (glb_json_text(&glb.json))
+        .map_err(|reason| SceneError::Parse {
             file: file.to_string(),
-            reason: format!(
-                "GLB: its JSON chunk ({} bytes) holds no JSON, only padding",
-                glb.json.len()
-            ),
-        });
-    }
+            reason,
+        })?
+        .to_vec();
     // The BIN chunk is most of a GLB: it stays in the file's own vector (moved to its front), not copied
     // into a second one, which doubled the import's peak (a 512 MiB chunk peaked at 1 GiB).
     let range = glb.bin.as_deref().and_then(|b| {
@@ -125,14 +121,22 @@ pub(crate) fn json_text(bytes: &[u8]) -> &[u8] {
 
 /// The JSON of a GLB's JSON chunk: [`json_text`], and the chunk's padding, which glTF 2.0 §4.4.3.2 makes
 /// spaces, taken as padding where an exporter wrote NULs (were "trailing characters": fault hunt,
-/// session 35). The one rule of the import, the plan key's digest and the CLI's sniffing.
-pub(crate) fn glb_json_text(chunk: &[u8]) -> &[u8] {
+/// session 35); an error where nothing but padding is left. The one rule of the import, the plan key's
+/// digest and the CLI's sniffing.
+pub(crate) fn glb_json_text(chunk: &[u8]) -> Result<&[u8], String> {
     let json = json_text(chunk);
     let end = json
         .iter()
         .rposition(|&b| b != 0)
         .map_or(0, |last| last + 1);
-    &json[..end]
+    let json = &json[..end];
+    if json.trim_ascii().is_empty() {
+        return Err(format!(
+            "GLB: its JSON chunk ({} bytes) holds no JSON, only padding",
+            chunk.len()
+        ));
+    }
+    Ok(json)
 }
 
 /// Whether `head` (a file's first bytes) starts like JSON: `{` or `[` after an optional byte-order mark

@@ -303,8 +303,8 @@ fn a_refused_simulation_leaves_no_folder_it_made() {
         assert!(e.contains("root"), "{e}");
     };
     let fresh = dir.path().join("sim");
-    simulate(&fresh);
-    assert!(!fresh.exists());
+    simulate(&fresh.join("deep"));
+    assert!(!fresh.exists(), "the folders it made stay");
     let kept = dir.path().join("kept");
     std::fs::create_dir(&kept).unwrap();
     simulate(&kept);

@@ -252,6 +252,13 @@ fn every_triangle_is_covered_exactly_once_even_when_split() {
         "nothing was split"
     );
     let file = TreeFile::open(&out).unwrap();
+    // `inspect` counts as the build does: scene triangles, and the pieces stored (it called the pieces
+    // triangles: flag hunt, session 35).
+    let info = &atlastree::inspect::inspect(&file).trees[0];
+    assert_eq!(
+        (info.triangles, info.pieces),
+        (report.trees[0].triangles, report.trees[0].pieces)
+    );
     let t = file.tree(0).unwrap();
     let mut covered = vec![0.0f64; scene.triangles.len()];
     for leaf in t.leaves {
