@@ -510,9 +510,7 @@ impl<'a> Geometry<'a> {
             ));
         }
     }
-}
 
-impl<'a> Geometry<'a> {
     /// The morph targets of primitive `ctx` that move its UV set `set`: `(index, weight, accessor)` of
     /// each with a non-zero weight in `weights` (a missing weight is 0) and a `TEXCOORD_{set}` attribute
     /// naming an accessor (the raw JSON's indices were checked by `refs`).
