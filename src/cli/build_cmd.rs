@@ -169,13 +169,15 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let t = std::time::Instant::now();
     // A scene past what the budget's plan holds is refused while its nodes are walked, not after a
     // node graph sharing children has instanced gigabytes of triangles.
-    use atlastree::preprocess::memory::{max_json_bytes, max_plan_triangles};
+    use atlastree::preprocess::memory::{max_input_bytes, max_json_bytes, max_plan_triangles};
     let budget = a.params.memory_budget();
     let (max_triangles, max_json) = (budget.map(max_plan_triangles), budget.map(max_json_bytes));
-    let mut scene = load_scene_within(&a.scene, a.up, max_triangles, max_json).map_err(|e| {
-        let plan_step = matches!(step, ShardStep::Plan);
-        over_budget(e, budget, a.params.max_memory.is_some(), plan_step)
-    })?;
+    let max_input = budget.map(max_input_bytes);
+    let mut scene =
+        load_scene_within(&a.scene, a.up, max_triangles, max_json, max_input).map_err(|e| {
+            let plan_step = matches!(step, ShardStep::Plan);
+            over_budget(e, budget, a.params.max_memory.is_some(), plan_step)
+        })?;
     if !a.materials.is_empty() {
         let kept = super::retain_materials(&mut scene, &a.materials)?;
         if !(a.quiet || a.json) {

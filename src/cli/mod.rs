@@ -363,7 +363,7 @@ pub(crate) fn load_scene(
 ) -> anyhow::Result<atlastree::scene::Scene> {
     use atlastree::preprocess::memory::max_plan_triangles;
     let max = atlastree::util::memory_limit_bytes().map(max_plan_triangles);
-    load_scene_within(path, up, max, None).map_err(|e| {
+    load_scene_within(path, up, max, None, None).map_err(|e| {
         match e.downcast_ref::<atlastree::scene::SceneError>() {
             Some(atlastree::scene::SceneError::OverTriangleBudget {
                 file,
@@ -402,12 +402,14 @@ pub(crate) fn load_scene_within(
     up: UpArg,
     max_triangles: Option<u64>,
     max_json_bytes: Option<u64>,
+    max_input_bytes: Option<u64>,
 ) -> anyhow::Result<atlastree::scene::Scene> {
     reject_scene_url(path)?;
     let opts = atlastree::scene::ImportOptions {
         up: up.to_option(),
         max_triangles,
         max_json_bytes,
+        max_input_bytes,
     };
     atlastree::scene::import(path, &opts).map_err(|e| {
         // A file that is not JSON or GLB at all says what it is (a paging file given to `build` read

@@ -447,6 +447,13 @@ fn split_budget(
     })
 }
 
+/// The most bytes of scene input (the file and its buffers, held whole while the import reads them) within
+/// `budget`: all of it but [`BASE_BYTES`] (`scene::ImportOptions::max_input_bytes`; a planned shard of a
+/// GLB reads the file whole for its images, and counts it).
+pub fn max_input_bytes(budget: u64) -> u64 {
+    budget.saturating_sub(BASE_BYTES)
+}
+
 /// The most triangles a plan holds within `budget` bytes ([`PLAN_BYTES_PER_TRIANGLE`] each beyond
 /// [`BASE_BYTES`]): the import refuses a scene past it during its node walk, before reading a vertex
 /// (`scene::ImportOptions::max_triangles`). The full check, with the pixel pass, follows the import.

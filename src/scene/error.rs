@@ -114,6 +114,18 @@ pub enum SceneError {
         /// The glTF JSON's length, bytes: parsing it takes its share of the budget too.
         json_bytes: u64,
     },
+    /// Scene input (the file and the buffers it names) past `ImportOptions::max_input_bytes`, refused
+    /// before it is read.
+    #[error(
+        "{file}: {bytes} bytes of scene input ({what}, which the import holds whole while it reads them), \
+         more than the memory budget lets it read ({max} bytes)"
+    )]
+    OverInputBudget {
+        file: String,
+        bytes: u64,
+        max: u64,
+        what: &'static str,
+    },
     /// A glTF JSON larger than `ImportOptions::max_json_bytes` (the memory budget's share for parsing
     /// it), refused before it is parsed.
     #[error(

@@ -76,6 +76,44 @@ pub struct ImportOptions {
     /// primitives (21.5 MB of JSON, 80,000 triangles) peaked at 357 MiB where the model said 84 (fault
     /// hunt, session 32). `None`: no limit.
     pub max_json_bytes: Option<u64>,
+    /// The most bytes of scene input the budget lets the import read: the glTF or GLB file and the
+    /// buffers its JSON names, each held whole while the geometry is read (a one-quad scene naming a
+    /// 1.5 GiB buffer was accepted at 300 MiB and peaked at 1.5 GiB: fault hunt, session 35). Checked
+    /// on the file's length before it is read and on the buffers' `byteLength` before they are.
+    /// `None`: no limit.
+    pub max_input_bytes: Option<u64>,
+}
+
+/// The length of the file at `path` where it is a GLB (starts with `glTF`), else 0.
+pub fn glb_file_len(path: &Path) -> u64 {
+    use std::io::Read;
+    let mut magic = [0u8; 4];
+    let is_glb = std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok_and(|()| &magic == b"glTF");
+    if is_glb {
+        std::fs::metadata(path).map_or(0, |m| m.len())
+    } else {
+        0
+    }
+}
+
+/// [`SceneError::OverInputBudget`] where `bytes` of input pass `max`.
+pub fn check_input_bytes(
+    file: &str,
+    bytes: u64,
+    max: Option<u64>,
+    what: &'static str,
+) -> Result<(), SceneError> {
+    match max {
+        Some(max) if bytes > max => Err(SceneError::OverInputBudget {
+            file: file.to_string(),
+            bytes,
+            max,
+            what,
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// The bytes of `json` as the memory budget weighs them: a byte inside a `data:` URI (an embedded
@@ -137,6 +175,8 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
 /// [`import`] without the panic guard.
 fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Scene, SceneError> {
     let file = file.to_string();
+    let file_len = std::fs::metadata(path).map_or(0, |m| m.len());
+    check_input_bytes(&file, file_len, opts.max_input_bytes, "the file")?;
     let bytes = crate::util::read_regular(path, None).map_err(|source| SceneError::Io {
         file: file.clone(),
         source,
@@ -156,6 +196,25 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
             reason: with_json_context(&e, &json_bytes),
         })?;
     refs::check_indices(&value, &file)?;
+    let named: u64 = (value
+        .get("buffers")
+        .and_then(|b| b.as_array())
+        .into_iter()
+        .flatten())
+    .filter(|b| {
+        b.get("uri")
+            .and_then(|u| u.as_str())
+            .is_some_and(|u| !u.starts_with("data:"))
+    })
+    .filter_map(|b| b.get("byteLength").and_then(serde_json::Value::as_u64))
+    .fold(0u64, u64::saturating_add);
+    let what = "the file and the buffers it names";
+    check_input_bytes(
+        &file,
+        file_len.saturating_add(named),
+        opts.max_input_bytes,
+        what,
+    )?;
     let (doc, tolerated) =
         catch_unwind(|| parse_document(&json_bytes, &file)).unwrap_or_else(|payload| {
             Err(SceneError::Internal {

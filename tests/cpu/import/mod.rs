@@ -1,6 +1,7 @@
 //! `scene::import`: glTF 2.0 in, a flat scene out.
 
 mod bad_input;
+mod budget;
 mod city;
 mod extensions;
 mod features;
