@@ -440,7 +440,8 @@ pub(crate) struct BuildParamsArgs {
     pub image_cache_mib: u64,
     /// Memory budget of the build (e.g. `2GiB`, `512MiB`; `none` for no budget). It sizes the image cache;
     /// a build that cannot fit (the plan holds ~250 bytes per triangle and ~550 per extra piece where
-    /// `--repeat bake` cuts them, the import ~16 bytes per byte of glTF JSON, the rasteriser a few atlases
+    /// `--repeat bake` cuts them, the import ~16 bytes per byte of glTF JSON and the scene file and the
+    /// buffers it reads, each whole, the rasteriser a few atlases
     /// per thread, the cache the threads' largest images, one each, never more than every image once) is
     /// refused before any work, with the number it needs. Default: half of the memory this process may
     /// use (the machine's, or its cgroup's limit where smaller: a Slurm job's `--mem`, a Kubernetes pod's

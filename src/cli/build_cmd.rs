@@ -310,6 +310,18 @@ fn over_budget(
     } else {
         "the default budget (half of this machine's memory, or of its cgroup's or address-space limit)"
     };
+    if let (Some(&SceneError::OverInputBudget { bytes, .. }), Some(budget)) =
+        (e.downcast_ref(), budget)
+    {
+        return e.context(format!(
+            "the budget is too small: reading {} of scene input needs about {} MiB ({} MiB of process \
+             base besides it), over {source} of {} MiB: give a larger --max-memory",
+            atlastree::util::human_bytes(bytes),
+            BASE_BYTES.saturating_add(bytes).div_ceil(1 << 20),
+            BASE_BYTES >> 20,
+            budget >> 20
+        ));
+    }
     if let (Some(&SceneError::OverJsonBudget { json_bytes, .. }), Some(budget)) =
         (e.downcast_ref(), budget)
     {

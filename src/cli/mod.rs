@@ -391,7 +391,9 @@ fn not_a_scene(path: &std::path::Path) -> Option<String> {
         .and_then(|f| f.take(256).read_to_end(&mut head))
         .ok()?;
     let scene_like = atlastree::scene::looks_like_json(&head) || head.starts_with(b"glTF");
-    (!scene_like && !head.is_empty()).then(|| atlastree::store::describe_start(&head))
+    // Described by its first bytes, as before the longer sniff.
+    let start = &head[..head.len().min(16)];
+    (!scene_like && !head.is_empty()).then(|| atlastree::store::describe_start(start))
 }
 
 /// [`load_scene`] refusing, during the node walk, a scene of more than `max_triangles`
@@ -414,7 +416,9 @@ pub(crate) fn load_scene_within(
     atlastree::scene::import(path, &opts).map_err(|e| {
         // A file that is not JSON or GLB at all says what it is (a paging file given to `build` read
         // "expected value at line 1 column 1"; fault hunt, session 31), as `inspect` does of a scene.
-        if let atlastree::scene::SceneError::Parse { file, .. } = &e
+        // So does one too large to read in the budget (a paging file is checked by its length first).
+        use atlastree::scene::SceneError;
+        if let SceneError::Parse { file, .. } | SceneError::OverInputBudget { file, .. } = &e
             && let Some(what) = not_a_scene(path)
         {
             return anyhow::anyhow!("{file}: not a glTF or GLB scene: {what}");

@@ -482,7 +482,7 @@ pub fn reference_mismatch(file: &TreeFile, reference: &TreeFile) -> Option<Strin
             .filter_map(|t| f.tree(t))
             .map(|t| format!("{}/{}", t.vertices.len(), t.indices.len() / 3))
             .collect();
-        format!("{} (vertices/triangles per tree)", counts.join(", "))
+        format!("{} (vertices/pieces per tree)", counts.join(", "))
     };
     differ("geometry", geometry(file), geometry(reference));
     differ(

@@ -195,18 +195,14 @@ pub fn build_shard_planned(
     let mut timings = StageLog::default();
     let t = Instant::now();
     progress.stage("read plan", None);
-    // A GLB is read whole for its images (they may sit in its BIN chunk): within the budget, counted
-    // below (a planned shard of a GLB with a 1.5 GiB BIN chunk was accepted at 300 MiB; fault hunt,
-    // session 35). A .gltf's images are read one by one, as the image load counts them.
-    let glb_bytes = crate::scene::glb_file_len(scene_path);
+    // The scene file is read whole for its images' places (a GLB's BIN chunk with it): within the
+    // budget before it is read (a planned shard of a GLB with a 1.5 GiB BIN chunk was accepted at
+    // 300 MiB; fault hunt, session 35). It is freed before any pixel, so the pixel pass's shares below
+    // do not hold it.
+    let scene_bytes = std::fs::metadata(scene_path).map_or(0, |m| m.len());
     let scene_name = scene_path.display().to_string();
     let max_input = opts.max_memory_bytes.map(super::memory::max_input_bytes);
-    crate::scene::check_input_bytes(
-        &scene_name,
-        glb_bytes,
-        max_input,
-        "a GLB read whole for its images",
-    )?;
+    crate::scene::check_input_bytes(&scene_name, scene_bytes, max_input, "the scene file")?;
     let (images, report) = crate::scene::import_images(scene_path, &plan.manifest.images)?;
     if hash128(images_identity(&images).as_bytes()) != plan.header.images {
         let images = images.len();
@@ -228,7 +224,7 @@ pub fn build_shard_planned(
         Some(budget) => Some(
             super::memory::planned_shard_memory(
                 budget,
-                skeleton_bytes(&forest).saturating_add(glb_bytes),
+                skeleton_bytes(&forest),
                 opts.atlas_size,
                 threads,
                 super::image_load(&images, opts.alpha_mips, threads),

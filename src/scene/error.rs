@@ -117,8 +117,8 @@ pub enum SceneError {
     /// Scene input (the file and the buffers it names) past `ImportOptions::max_input_bytes`, refused
     /// before it is read.
     #[error(
-        "{file}: {bytes} bytes of scene input ({what}, which the import holds whole while it reads them), \
-         more than the memory budget lets it read ({max} bytes)"
+        "{file}: {bytes} bytes of scene input ({what}: each read whole), more than the memory budget \
+         lets it read ({max} bytes, the budget less the process's base)"
     )]
     OverInputBudget {
         file: String,

@@ -675,7 +675,8 @@ mod tests {
             decode_peak(w, h, ColorType::Rgba16, 8 * texels, false),
             texels * 12
         );
-        // A 16² grey JPEG whose frame header claims 35000²: refused within 1 GiB, naming the need.
+        // A 16² grey JPEG whose frame header claims 35000²: its decoder's 1.2 GB fit 2 GiB, its RGBA8
+        // copy beside them does not: refused, naming the need.
         let mut jpeg = Vec::new();
         let img = image::GrayImage::from_fn(16, 16, |x, y| image::Luma([(x * 16 + y) as u8]));
         image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
@@ -685,7 +686,7 @@ mod tests {
         // SOF0: marker, length (2), precision (1), height (2), width (2).
         jpeg[sof + 5..sof + 9].copy_from_slice(&[0x88, 0xB8, 0x88, 0xB8]);
         let cursor = std::io::Cursor::new(&jpeg[..]);
-        let e = decode_encoded_within(cursor, "bomb.jpg", 1 << 30).unwrap_err();
+        let e = decode_encoded_within(cursor, "bomb.jpg", 2 << 30).unwrap_err();
         assert!(e.to_string().contains("35000×35000 takes"), "{e}");
     }
 

@@ -501,7 +501,7 @@ pub fn decode_all(scene: &Scene) -> DecodeReport {
         .par_iter()
         .map(|img| {
             // The decoder's buffer and its RGBA8 copy: at most 8 + 4 bytes a texel (RGBA16).
-            let need = u64::from(img.width) * u64::from(img.height) * 12;
+            let need = (u64::from(img.width) * u64::from(img.height)).saturating_mul(12);
             let _held = gate.enter(need);
             match img.decode() {
                 Ok(d) => Ok(u64::from(d.width) * u64::from(d.height)),

@@ -17,8 +17,7 @@ pub use image_source::{
     fallback_checker_sized,
 };
 pub use import::{
-    ImportOptions, check_input_bytes, glb_file_len, import, import_images, input_digest,
-    looks_like_json,
+    ImportOptions, check_input_bytes, import, import_images, input_digest, looks_like_json,
 };
 
 use crate::ids::{ImageId, MaterialId};

@@ -52,9 +52,11 @@ fn planned_shard(
     let key = shard_plan_key(opts, scene, "").unwrap();
     let sharded = ShardedOptions {
         spec,
+        // As the CLI records it: the flags that shape the tables, which the plan's key checked.
         argv: vec![
             "atlastree".into(),
             "build".into(),
+            format!("--atlas-size={}", opts.atlas_size),
             "--shard".into(),
             spec.to_string(),
         ],
@@ -327,7 +329,8 @@ fn merge_refuses_a_missing_corrupt_or_replaced_plan_and_writes_nothing() {
     );
     // The command to plan again is the shards' own, not the replacing plan's (which would write it again).
     assert!(
-        msg.contains("(atlastree build --shard plan)") && !msg.contains("--atlas-size=1024"),
+        msg.contains("(atlastree build --atlas-size=256 --shard plan)")
+            && !msg.contains("--atlas-size=1024"),
         "{msg}"
     );
     std::fs::write(&plan_file, &good).unwrap();

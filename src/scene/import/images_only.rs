@@ -138,8 +138,7 @@ fn json_chunk(path: &Path) -> std::io::Result<Vec<u8>> {
     if n < 20 || &head[..4] != b"glTF" {
         // As the import reads it (`uri::split_glb`): a byte-order mark before the JSON is no error.
         let mut bytes = crate::util::read_regular(path, None)?;
-        let mark = bytes.len() - super::uri::json_text(&bytes).len();
-        bytes.drain(..mark);
+        super::uri::strip_bom(&mut bytes);
         return Ok(bytes);
     }
     let len = u64::from(u32::from_le_bytes([head[12], head[13], head[14], head[15]]));

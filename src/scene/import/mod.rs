@@ -84,18 +84,28 @@ pub struct ImportOptions {
     pub max_input_bytes: Option<u64>,
 }
 
-/// The length of the file at `path` where it is a GLB (starts with `glTF`), else 0.
-pub fn glb_file_len(path: &Path) -> u64 {
-    use std::io::Read;
-    let mut magic = [0u8; 4];
-    let is_glb = std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .is_ok_and(|()| &magic == b"glTF");
-    if is_glb {
-        std::fs::metadata(path).map_or(0, |m| m.len())
-    } else {
-        0
-    }
+/// The bytes of the external buffers (not `data:` URIs, which are in the JSON, nor a GLB's BIN chunk, in
+/// the file) that some buffer view names, by their `byteLength`: what the import may read besides the
+/// file (`Buffers` loads a buffer when a view of it is read; one no view names is never read).
+fn read_buffer_bytes(value: &serde_json::Value) -> u64 {
+    let viewed: std::collections::BTreeSet<u64> = (value.get("bufferViews"))
+        .and_then(|v| v.as_array())
+        .into_iter()
+        .flatten()
+        .filter_map(|v| v.get("buffer").and_then(serde_json::Value::as_u64))
+        .collect();
+    (value
+        .get("buffers")
+        .and_then(|b| b.as_array())
+        .into_iter()
+        .flatten())
+    .enumerate()
+    .filter(|(i, _)| viewed.contains(&(*i as u64)))
+    .filter(|(_, b)| {
+        (b.get("uri").and_then(|u| u.as_str())).is_some_and(|u| !u.starts_with("data:"))
+    })
+    .filter_map(|(_, b)| b.get("byteLength").and_then(serde_json::Value::as_u64))
+    .fold(0u64, u64::saturating_add)
 }
 
 /// [`SceneError::OverInputBudget`] where `bytes` of input pass `max`.
@@ -196,18 +206,7 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
             reason: with_json_context(&e, &json_bytes),
         })?;
     refs::check_indices(&value, &file)?;
-    let named: u64 = (value
-        .get("buffers")
-        .and_then(|b| b.as_array())
-        .into_iter()
-        .flatten())
-    .filter(|b| {
-        b.get("uri")
-            .and_then(|u| u.as_str())
-            .is_some_and(|u| !u.starts_with("data:"))
-    })
-    .filter_map(|b| b.get("byteLength").and_then(serde_json::Value::as_u64))
-    .fold(0u64, u64::saturating_add);
+    let named = read_buffer_bytes(&value);
     let what = "the file and the buffers it names";
     check_input_bytes(
         &file,

@@ -40,8 +40,7 @@ pub(super) fn split_glb(
     }
     if !bytes.starts_with(b"glTF") {
         let mut bytes = bytes;
-        let mark = bytes.len() - json_text(&bytes).len();
-        bytes.drain(..mark);
+        strip_bom(&mut bytes);
         return Ok((bytes, None));
     }
     // gltf 1.4.1 computes `length - 12` before comparing (an overflow, a panic in debug builds).
@@ -117,6 +116,12 @@ const BOM: &[u8] = b"\xef\xbb\xbf";
 /// ignore one; JSON parsers refuse it at "line 1 column 1").
 pub(crate) fn json_text(bytes: &[u8]) -> &[u8] {
     bytes.strip_prefix(BOM).unwrap_or(bytes)
+}
+
+/// [`json_text`] of `bytes` in place.
+pub(crate) fn strip_bom(bytes: &mut Vec<u8>) {
+    let mark = bytes.len() - json_text(bytes).len();
+    bytes.drain(..mark);
 }
 
 /// The JSON of a GLB's JSON chunk: [`json_text`], and the chunk's padding, which glTF 2.0 §4.4.3.2 makes
