@@ -273,7 +273,7 @@ fn parse_document(json: &[u8], file: &str) -> Result<(gltf::Document, Vec<String
     let mut root: gltf::json::Root =
         gltf::json::deserialize::from_slice(json).map_err(|e| SceneError::Parse {
             file: file.to_string(),
-            reason: with_json_context(&e, json),
+            reason: typed_json_error(&e, json),
         })?;
     if let Some(ext) = root
         .extensions_required
@@ -345,6 +345,18 @@ pub(super) fn with_json_context(e: &serde_json::Error, json: &[u8]) -> String {
         return e.to_string();
     }
     format!("{e}, in `{}`", text.trim())
+}
+
+/// [`with_json_context`] for the typed parse, which runs on JSON the untyped parse read whole: serde's
+/// "trailing characters" there is an array longer than its field takes (a `scale` of three numbers),
+/// not text after the JSON.
+fn typed_json_error(e: &serde_json::Error, json: &[u8]) -> String {
+    let context = with_json_context(e, json);
+    if e.to_string().starts_with("trailing characters") {
+        format!("more items than the field takes ({context})")
+    } else {
+        context
+    }
 }
 
 /// The raw JSON fields read in f64 (gltf-json keeps transforms and KHR_texture_transform as f32).
@@ -432,7 +444,8 @@ mod tests {
             {\"scale\": [1, 2, 3]}}}}}]}";
         let e = parse_document(json, "s.gltf").err().unwrap().to_string();
         assert!(
-            e.contains("at line 2 column") && e.contains(r#"{"scale": [1, 2, 3]"#),
+            e.contains("more items than the field takes (trailing characters at line 2 column")
+                && e.contains(r#"{"scale": [1, 2, 3]"#),
             "{e}"
         );
     }
