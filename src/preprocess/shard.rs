@@ -671,6 +671,17 @@ mod tests {
                  it as --array=0-3 (N = 4)"
             );
         }
+        // A count of 0 is refused as a count, before the array's range is looked at.
+        let none = [
+            ("SLURM_ARRAY_TASK_ID", "0"),
+            ("SLURM_ARRAY_TASK_COUNT", "0"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_MAX", "3"),
+        ];
+        assert!(matches!(
+            shard_from_env(&env(&none)),
+            Err(ShardSpecError::BadCount { count: 0, .. })
+        ));
         // An array with a step (`--array=0-6:2`): 4 tasks, 0 to 6; the message says why.
         let stepped = [
             ("SLURM_ARRAY_TASK_ID", "2"),

@@ -450,6 +450,19 @@ mod tests {
         );
     }
 
+    /// The text shown keeps whole characters: a window edge inside a multi-byte one moves off it.
+    #[test]
+    fn the_json_context_keeps_whole_characters() {
+        // Keys of two lengths: the window's start falls on each byte of a two-byte `é`.
+        for key in ["x", "xy"] {
+            let json = format!("{{\"name\": \"{}\", \"{key}\": tru}}", "é".repeat(40));
+            let e = serde_json::from_slice::<serde_json::Value>(json.as_bytes()).unwrap_err();
+            let shown = with_json_context(&e, json.as_bytes());
+            assert!(shown.contains("tru") && shown.contains("éé"), "{shown}");
+            assert!(!shown.contains('\u{fffd}'), "{shown}");
+        }
+    }
+
     #[test]
     fn auto_up_picks_least_extent() {
         assert_eq!(auto_up(None), UpAxis::Y);
