@@ -229,7 +229,7 @@ fn warn_wide_border(a: &BuildArgs) {
     // A border of a quarter of the atlas or more is refused, with its own message, right after; so is an
     // atlas size that is none (`--atlas-size 100` was warned about before it was refused; docs hunt,
     // session 34).
-    let refused = a.border.saturating_mul(4) >= a.atlas_size
+    let refused = !atlastree::preprocess::valid_border(a.border, a.atlas_size)
         || !atlastree::preprocess::valid_atlas_size(a.atlas_size);
     if a.border.saturating_mul(16) > a.atlas_size && !refused {
         eprintln!(

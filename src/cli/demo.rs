@@ -51,7 +51,8 @@ fn write_embedded_scene() -> anyhow::Result<(tempfile::TempDir, PathBuf)> {
         .tempdir()
         .context("creating a temporary folder for the embedded demo scene")?;
     // Held until the process ends (the handle is leaked on purpose): a live demo's folder is never
-    // taken for a killed one's. Best effort: without locks, the process id alone decides.
+    // taken for a killed one's. Without locks (a filesystem that has none), no folder reads as free, so a
+    // killed demo's folder is left (`util::lock_is_free`).
     if let Ok(lock) = std::fs::File::create(dir.path().join(EMBEDDED_LOCK)) {
         let _ = lock.try_lock();
         std::mem::forget(lock);

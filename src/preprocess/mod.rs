@@ -62,6 +62,12 @@ pub fn valid_atlas_size(side: u32) -> bool {
     side.is_power_of_two() && (64..=16384).contains(&side)
 }
 
+/// Whether `border` texels leave room in an atlas of `side`: less than a quarter of it (saturating, so a
+/// border past `u32::MAX / 4` is refused, not wrapped to 0).
+pub fn valid_border(border: u32, side: u32) -> bool {
+    border.saturating_mul(4) < side
+}
+
 /// How d_min is given.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub enum DMin {
@@ -427,7 +433,7 @@ pub fn resolve_params(
             "must be a power of two from 64 to 16384",
         );
     }
-    if opts.border * 4 >= opts.atlas_size {
+    if !valid_border(opts.border, opts.atlas_size) {
         let why = format!(
             "must be less than a quarter of the atlas size {}: at most {} (or a larger --atlas-size)",
             opts.atlas_size,

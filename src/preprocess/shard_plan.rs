@@ -195,15 +195,11 @@ pub fn build_shard_planned(
     let mut timings = StageLog::default();
     let t = Instant::now();
     progress.stage("read plan", None);
-    // The scene file is read whole for its images' places (a GLB's BIN chunk with it): within the
-    // budget before it is read (a planned shard of a GLB with a 1.5 GiB BIN chunk was accepted at
-    // 300 MiB; fault hunt, session 35). It is freed before any pixel, so the pixel pass's shares below
-    // do not hold it.
-    let scene_bytes = std::fs::metadata(scene_path).map_or(0, |m| m.len());
-    let scene_name = scene_path.display().to_string();
+    // The scene file is read whole for its images' places (a GLB's BIN chunk with it), within the budget;
+    // it is freed before any pixel, so the pixel pass's shares below do not hold it.
     let max_input = opts.max_memory_bytes.map(super::memory::max_input_bytes);
-    crate::scene::check_input_bytes(&scene_name, scene_bytes, max_input, "the scene file")?;
-    let (images, report) = crate::scene::import_images(scene_path, &plan.manifest.images)?;
+    let (images, report) =
+        crate::scene::import_images(scene_path, &plan.manifest.images, max_input)?;
     if hash128(images_identity(&images).as_bytes()) != plan.header.images {
         let images = images.len();
         return Err(ShardPlanError::ImagesChanged { path, images }.into());

@@ -135,13 +135,18 @@ pub fn luma_bt601(rgba: &[u8]) -> Vec<f64> {
 /// 34).
 #[inline]
 pub fn ssim_from_moments(mx: f64, my: f64, sxx: f64, syy: f64, sxy: f64) -> f64 {
-    let c1 = (SSIM_K1 * SSIM_L).powi(2);
-    let c2 = (SSIM_K2 * SSIM_L).powi(2);
-    let (vx, vy, cxy) = (sxx - mx * mx, syy - my * my, sxy - mx * my);
-    let s = ((2.0 * mx * my + c1) * (2.0 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2));
+    let s = ssim_unclamped(mx, my, sxx, syy, sxy);
     // `min` would read a NaN as a perfect 1; 8-bit frames' moments never give one.
     debug_assert!(!s.is_nan(), "SSIM of a window is NaN");
     s.min(1.0)
+}
+
+/// [`ssim_from_moments`] before it is clamped to 1: rounding can put it a hair above.
+fn ssim_unclamped(mx: f64, my: f64, sxx: f64, syy: f64, sxy: f64) -> f64 {
+    let c1 = (SSIM_K1 * SSIM_L).powi(2);
+    let c2 = (SSIM_K2 * SSIM_L).powi(2);
+    let (vx, vy, cxy) = (sxx - mx * mx, syy - my * my, sxy - mx * my);
+    ((2.0 * mx * my + c1) * (2.0 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
 }
 
 /// Mean SSIM (Wang et al. 2004, eq. 13 with the paper's parameters) of two RGBA8 frames, on the BT.601
@@ -423,12 +428,7 @@ mod tests {
     fn ssim_never_passes_one() {
         let (m, sxx) = (100.1, 100.1 * 100.1 + 5.0);
         let sxy = sxx * (1.0 + 4.0 * f64::EPSILON);
-        let unclamped = {
-            let c1 = (SSIM_K1 * SSIM_L).powi(2);
-            let c2 = (SSIM_K2 * SSIM_L).powi(2);
-            let (v, c) = (sxx - m * m, sxy - m * m);
-            ((2.0 * m * m + c1) * (2.0 * c + c2)) / ((2.0 * m * m + c1) * (2.0 * v + c2))
-        };
+        let unclamped = ssim_unclamped(m, m, sxx, sxx, sxy);
         assert!(unclamped > 1.0, "the case shows the rounding: {unclamped}");
         assert_eq!(ssim_from_moments(m, m, sxx, sxx, sxy), 1.0);
     }

@@ -362,9 +362,7 @@ fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
         Ok(None) => return Ok(false),
         Err(_) => 0,
     };
-    let len = reader.seek(SeekFrom::End(0)).map_err(|e| e.to_string())?;
-    let tail_at = len.saturating_sub(JPEG_TAIL);
-    let bytes = tail(reader, JPEG_TAIL)?;
+    let (tail_at, bytes) = tail(reader, JPEG_TAIL)?;
     let skip = usize::try_from(scan.saturating_sub(tail_at)).unwrap_or(usize::MAX);
     Ok(bytes
         .get(skip.min(bytes.len())..)
@@ -427,8 +425,8 @@ fn jpeg_scan_start<R: Read + Seek>(reader: &mut R) -> Result<Option<u64>, String
     }
 }
 
-/// The last `n` bytes of `reader` (all of it when shorter).
-fn tail<R: Read + Seek>(reader: &mut R, n: u64) -> Result<Vec<u8>, String> {
+/// Where the last `n` bytes of `reader` start, and those bytes (all of it when shorter).
+fn tail<R: Read + Seek>(reader: &mut R, n: u64) -> Result<(u64, Vec<u8>), String> {
     let len = reader.seek(SeekFrom::End(0)).map_err(|e| e.to_string())?;
     let start = len.saturating_sub(n);
     reader
@@ -436,7 +434,7 @@ fn tail<R: Read + Seek>(reader: &mut R, n: u64) -> Result<Vec<u8>, String> {
         .map_err(|e| e.to_string())?;
     let mut tail = Vec::with_capacity((len - start) as usize);
     reader.read_to_end(&mut tail).map_err(|e| e.to_string())?;
-    Ok(tail)
+    Ok((start, tail))
 }
 
 /// Whether the PNG in `reader` has its `IEND` chunk (type and CRC) in its last 64 KiB: a file cut short
@@ -446,6 +444,7 @@ fn png_ends_with_iend<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
     // Bytes appended after IEND (a trailer) are searched past too, up to this many.
     const PNG_TAIL: u64 = 1 << 16;
     Ok(tail(reader, PNG_TAIL)?
+        .1
         .windows(IEND.len())
         .any(|w| w == IEND))
 }

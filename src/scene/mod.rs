@@ -16,9 +16,7 @@ pub use image_source::{
     DecodedImage, FALLBACK_COLORS, ImageData, ImageRef, ImageSource, fallback_checker,
     fallback_checker_sized,
 };
-pub use import::{
-    ImportOptions, check_input_bytes, import, import_images, input_digest, looks_like_json,
-};
+pub use import::{ImportOptions, import, import_images, input_digest, looks_like_json};
 
 use crate::ids::{ImageId, MaterialId};
 use glam::{DVec2, DVec3};

@@ -12,12 +12,16 @@ use std::path::Path;
 /// The images `refs` of the glTF scene at `path`, in order, read exactly as [`super::import`] reads them
 /// (headers only; a glTF image that cannot be read becomes the fallback checker, counted in the report),
 /// without reading any geometry: a `.gltf` loads only the buffers that hold images, a `.glb` is read
-/// whole (its BIN chunk holds them).
+/// whole (its BIN chunk holds them). The file is refused before it is read where its length passes
+/// `max_input_bytes` (`ImportOptions::max_input_bytes`: a planned shard of a GLB with a 1.5 GiB BIN chunk
+/// was accepted at 300 MiB; fault hunt, session 35).
 pub fn import_images(
     path: &Path,
     refs: &[ImageRef],
+    max_input_bytes: Option<u64>,
 ) -> Result<(Vec<ImageSource>, ImportReport), SceneError> {
     let file = path.display().to_string();
+    super::check_file_len(path, &file, max_input_bytes)?;
     catch_unwind(AssertUnwindSafe(|| images_unguarded(path, refs, &file))).unwrap_or_else(
         |payload| {
             Err(SceneError::Internal {

@@ -108,8 +108,16 @@ fn read_buffer_bytes(value: &serde_json::Value) -> u64 {
     .fold(0u64, u64::saturating_add)
 }
 
+/// The length of the scene file at `path`, refused ([`SceneError::OverInputBudget`]) where it passes
+/// `max` before a byte is read: the import and a planned shard's image import each read it whole.
+pub(super) fn check_file_len(path: &Path, file: &str, max: Option<u64>) -> Result<u64, SceneError> {
+    let len = std::fs::metadata(path).map_or(0, |m| m.len());
+    check_input_bytes(file, len, max, "the file")?;
+    Ok(len)
+}
+
 /// [`SceneError::OverInputBudget`] where `bytes` of input pass `max`.
-pub fn check_input_bytes(
+fn check_input_bytes(
     file: &str,
     bytes: u64,
     max: Option<u64>,
@@ -185,8 +193,7 @@ pub fn import(path: &Path, opts: &ImportOptions) -> Result<Scene, SceneError> {
 /// [`import`] without the panic guard.
 fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Scene, SceneError> {
     let file = file.to_string();
-    let file_len = std::fs::metadata(path).map_or(0, |m| m.len());
-    check_input_bytes(&file, file_len, opts.max_input_bytes, "the file")?;
+    let file_len = check_file_len(path, &file, opts.max_input_bytes)?;
     let bytes = crate::util::read_regular(path, None).map_err(|source| SceneError::Io {
         file: file.clone(),
         source,
