@@ -429,8 +429,8 @@ pub(crate) struct BuildParamsArgs {
     /// Texels per pixel required at d_min.
     #[arg(long, default_value_t = 1.0)]
     pub texel_ratio: f64,
-    /// Maximum tree depth; a region that needs more is an error naming it.
-    #[arg(long, default_value_t = 24)]
+    /// Maximum tree depth, 0 (one leaf per tree) to 30; a region that needs more is an error naming it.
+    #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u8).range(0..=30))]
     pub max_depth: u8,
     /// Allow more texels per texture repetition than the source image has (by default capped).
     #[arg(long)]

@@ -142,6 +142,7 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let step = shard_step(a.shard.as_deref())?;
     // Before any work, in every step: `-o` naming the scene or another file that is not a paging file
     // fails at once, not after the shards have run (the merge writes OUT).
+    super::reject_output_url(&a.out, "-o")?;
     atlastree::store::check_replaceable(&a.out)?;
     // This step's own output too (the magic without its version byte: an older plan or shard is ours).
     match step {

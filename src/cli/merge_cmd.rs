@@ -25,6 +25,7 @@ pub(crate) struct MergeArgs {
 }
 
 pub(super) fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
+    super::reject_output_url(&a.out, "OUT")?;
     let bars = Bars::new(a.quiet || a.json);
     let r = merge(&a.out, a.shards, &bars)
         .with_context(|| format!("merging the shards of {}", a.out.display()))?;

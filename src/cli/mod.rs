@@ -190,6 +190,31 @@ pub(crate) fn init_tracing() {
 /// (fault hunt, session 28).
 const MAX_RAYON_THREADS: usize = 1024;
 
+/// Runs `handler` with the exit code for an interrupt (128 + the signal's number: 130 for SIGINT, 143
+/// for SIGTERM, 129 for SIGHUP) on a thread of its own when the first one arrives; a second one while it
+/// runs is ignored. Not installed (a line on stderr) where the signals cannot be caught.
+fn on_interrupt(handler: fn(i32)) {
+    #[cfg(unix)]
+    let installed = {
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+        signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]).and_then(|mut signals| {
+            std::thread::Builder::new()
+                .name("interrupt".into())
+                .spawn(move || {
+                    if let Some(signal) = signals.forever().next() {
+                        handler(128 + signal);
+                    }
+                })
+                .map(drop)
+        })
+    };
+    #[cfg(not(unix))]
+    let installed = ctrlc::set_handler(move || handler(130));
+    if let Err(e) = installed {
+        eprintln!("warning: interrupts not caught ({e}): Ctrl-C may leave a temporary file behind");
+    }
+}
+
 pub(crate) fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
     os_limits::prepare_process();
@@ -204,10 +229,11 @@ pub(crate) fn run() -> anyhow::Result<ExitCode> {
         );
     }
     if !matches!(cli.command, Command::Serve(_)) {
-        // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process with 130 and no temp file
-        // left (a paging file's is its whole length, reserved up front). `serve` handles Ctrl-C itself.
-        let _ = ctrlc::set_handler(|| {
-            atlastree::util::remove_live_temps_and_exit(130, |removed, committed| {
+        // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process with 128 + the signal's
+        // number (130, 143) and no temp file left (a paging file's is its whole length, reserved up
+        // front). `serve` handles Ctrl-C itself.
+        on_interrupt(|code| {
+            atlastree::util::remove_live_temps_and_exit(code, |removed, committed| {
                 // Said, so an interrupted step is not read as a finished one (it ended without a word),
                 // nor a complete output as an unfinished one.
                 match committed {
@@ -325,6 +351,22 @@ pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Resul
     Ok(())
 }
 
+/// An output named as an http(s) or other URL that is not also a local path gets a clear error: "its
+/// folder http://127.0.0.1:9 does not exist: create it first" led to a local folder named `http:`
+/// (fault hunt, session 36). `what` is the flag or argument, e.g. "-o" or "--out".
+pub(crate) fn reject_output_url(path: &std::path::Path, what: &str) -> anyhow::Result<()> {
+    let Some((raw, text)) = url_not_path(path) else {
+        return Ok(());
+    };
+    if args::is_url(&raw) || args::url_scheme(&raw).is_some() {
+        anyhow::bail!(
+            "{what} {text}: outputs are written to local files and folders, not URLs; name a local path \
+             (`atlastree serve FILE` serves a paging file over HTTP)"
+        );
+    }
+    Ok(())
+}
+
 /// A scene given as an http(s) or other URL that is not also a local path gets a clear error (it read
 /// "cannot read: No such file or directory"; fault hunt, session 34), as [`reject_url`] does for paging
 /// files.
@@ -344,6 +386,7 @@ fn reject_scene_url(path: &std::path::Path) -> anyhow::Result<()> {
 /// Before any work: `--out` must be a folder or not exist yet (a file there failed only when the outputs
 /// were written, as "File exists (os error 17)" or "Not a directory").
 pub(crate) fn check_out_folder(out: &std::path::Path) -> anyhow::Result<()> {
+    reject_output_url(out, "--out")?;
     if out.exists() && !out.is_dir() {
         anyhow::bail!(
             "--out {}: exists and is not a folder (the outputs go into a folder: name a new or existing one)",
@@ -351,6 +394,69 @@ pub(crate) fn check_out_folder(out: &std::path::Path) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// An `--out` folder a run writes into: made (with the parents it lacked), checked writable and locked
+/// for the run (an advisory lock on the folder itself), so a second run into the same folder is refused
+/// instead of mixing its outputs with this one's: two renders both exited 0 with frames of two sizes
+/// beside one "complete" summary, two simulations with one grid's `frames.csv` beside the other's
+/// `summary.csv`, and a read-only folder was found only after the whole grid ran (fault hunt, session 36).
+pub(crate) struct OutFolder {
+    /// The folders this run made, deepest first: removed (where still empty) if it fails.
+    created: Vec<std::path::PathBuf>,
+    /// The folder, open for its lock until the run ends; `None` where a folder cannot be locked (not
+    /// unix, or a file system without locks).
+    _lock: Option<std::fs::File>,
+}
+
+impl OutFolder {
+    /// Makes and locks `out` ([`check_out_folder`] first): an error naming the folder where another run
+    /// holds it or it cannot be written.
+    pub(crate) fn open(out: &std::path::Path) -> anyhow::Result<Self> {
+        use anyhow::Context;
+        check_out_folder(out)?;
+        let created = (out.ancestors())
+            .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
+            .map(std::path::Path::to_path_buf)
+            .collect();
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        #[cfg(unix)]
+        let lock = {
+            let folder =
+                std::fs::File::open(out).with_context(|| format!("opening {}", out.display()))?;
+            match folder.try_lock() {
+                Ok(()) => Some(folder),
+                Err(std::fs::TryLockError::WouldBlock) => anyhow::bail!(
+                    "--out {}: another run is writing into this folder now (two runs into one folder \
+                     would mix their outputs): wait for it to end, or name another folder",
+                    out.display()
+                ),
+                Err(std::fs::TryLockError::Error(_)) => None,
+            }
+        };
+        #[cfg(not(unix))]
+        let lock = None;
+        tempfile::Builder::new()
+            .prefix(".atlastree-write-check-")
+            .tempfile_in(out)
+            .with_context(|| format!("--out {}: cannot write into this folder", out.display()))?;
+        Ok(Self {
+            created,
+            _lock: lock,
+        })
+    }
+
+    /// Runs `f` while the folder is held; where it fails, removes the folders [`OutFolder::open`] made
+    /// (only those still empty: a run that wrote something leaves it).
+    pub(crate) fn run<T>(self, f: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<T> {
+        let result = f();
+        if result.is_err() {
+            for dir in &self.created {
+                let _ = std::fs::remove_dir(dir);
+            }
+        }
+        result
+    }
 }
 
 /// Imports a scene with a clear error naming the file, refusing in the node walk a scene of more

@@ -270,7 +270,11 @@ pub(super) type Measured = Vec<(Mode, Vec<FrameStats>)>;
 
 /// Runs a checked configuration; returns what it measured.
 pub(super) fn execute(cfg: &RenderConfig) -> anyhow::Result<Measured> {
-    super::check_out_folder(&cfg.out)?;
+    super::OutFolder::open(&cfg.out)?.run(|| execute_in(cfg))
+}
+
+/// [`execute`] while `--out` is held.
+fn execute_in(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     // Until phase 4 replaces the earlier run's summary, it says it is not this run's: incomplete from
     // here (an interrupt ends the run without a word), and why where this run fails.
     mark_earlier_summary(&cfg.out, None);

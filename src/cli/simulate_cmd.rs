@@ -181,23 +181,13 @@ pub(super) fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
 
 /// Runs a checked configuration.
 pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
-    let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Auto)?;
-    // Before the runs, not after them: an --out that cannot be a folder (or made one).
+    // An --out that cannot be a folder, before the file is read.
     super::check_out_folder(&cfg.out)?;
-    // The folders this run makes, deepest first.
-    let created: Vec<&std::path::Path> = (cfg.out.ancestors())
-        .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
-        .collect();
-    std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
-    let result = run_and_write(cfg, &file);
-    if result.is_err() {
-        // A run refused (a bad path, a capacity below the roots) leaves no folder it made (as render and
-        // sweep leave none; fault hunt, session 35); `remove_dir` takes only an empty one.
-        for dir in created {
-            let _ = std::fs::remove_dir(dir);
-        }
-    }
-    result
+    let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Auto)?;
+    // Before the runs, not after them: an --out that cannot be a folder (or made one, or written), or
+    // that another run holds. A run refused (a bad path, a capacity below the roots) leaves no folder
+    // it made (as render and sweep leave none; fault hunt, session 35).
+    super::OutFolder::open(&cfg.out)?.run(|| run_and_write(cfg, &file))
 }
 
 /// [`execute`] once `--out` exists: the runs, their CSVs, plots and report.
@@ -248,26 +238,36 @@ fn run_and_write(cfg: &SimulateConfig, file: &TreeFile) -> anyhow::Result<ExitCo
         );
     }
     let wall = t.elapsed().as_secs_f64();
-    // An earlier grid's plots that this one does not draw (other latencies or policies) would sit
-    // beside this run's summary as if they were its own.
+    // Only where a simulation wrote (its summary.csv is there, before this run replaces it): never the
+    // user's own files of those names.
+    let marker = cfg.out.join("summary.csv");
+    let earlier_run = marker.is_file();
+    let mut written = write_csvs(&cfg.out, &results)?;
+    written.extend(write_plots(&cfg.out, &cfg.spec, &results)?);
+    // An earlier grid's plots that this one did not draw (other latencies or policies) would sit beside
+    // this run's summary as if they were its own. Removed once this run's are written, so a rerun
+    // stopped before then leaves the earlier plots, not none (fault hunt, session 36).
     let plot = |n: &str| {
         let stem = n.strip_suffix(".png").or_else(|| n.strip_suffix(".svg"));
         stem.is_some_and(|s| {
             s.starts_with("heatmap_") || s == "coarser_over_time" || s == "bytes_per_frame"
-        })
+        }) && !written
+            .iter()
+            .any(|w| w.file_name().is_some_and(|f| f == n))
     };
-    // Only where a simulation wrote (its summary.csv is there): never the user's own files of those names.
-    let marker = cfg.out.join("summary.csv");
-    let removed = atlastree::util::remove_earlier_outputs(&cfg.out, &marker, plot)
-        .with_context(|| format!("removing an earlier run's plots from {}", cfg.out.display()))?;
+    let removed = if earlier_run {
+        atlastree::util::remove_stale_outputs(&cfg.out, plot).with_context(|| {
+            format!("removing an earlier run's plots from {}", cfg.out.display())
+        })?
+    } else {
+        0
+    };
     if removed > 0 {
         say(format!(
             "note: removed {removed} plot file(s) of an earlier run from {}",
             cfg.out.display()
         ));
     }
-    let mut written = write_csvs(&cfg.out, &results)?;
-    written.extend(write_plots(&cfg.out, &cfg.spec, &results)?);
     print_results(&results, cfg.json, &cfg.spec)?;
     let per_cell = results.iter().map(|r| r.seconds).fold(0.0, f64::max);
     say(format!(

@@ -185,13 +185,32 @@ fn progress_bar(cfg: &SweepConfig) -> ProgressBar {
 
 /// Runs a checked configuration: import, sample the path, build and measure, write and report.
 pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
+    super::OutFolder::open(&cfg.out)?.run(|| execute_in(cfg))
+}
+
+/// [`execute`] while `--out` is held.
+fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     let plan = &cfg.plan;
-    super::check_out_folder(&cfg.out)?;
     let scene = load_scene(&cfg.scene, cfg.up)?;
     let path = cfg.path.resolve_with(|| Ground::from_scene(&scene))?;
     let aspect = f64::from(plan.width) / f64::from(plan.height);
     let cameras = sample_path(&path, plan.frames, aspect);
-    for (i, j) in atlastree::sweep::repeated_views(&cameras) {
+    // A path of one time (a single keyframe) has one view: one note, not one per pair of frames, and no
+    // hint that more frames would see more (fault hunt, session 36).
+    let one_time = cameras.first().map(|c| c.0) == cameras.last().map(|c| c.0);
+    if one_time && cameras.len() > 1 {
+        eprintln!(
+            "note: the path has one view (all its keyframes at one time): its {} frames all measure that \
+             view; give the path keyframes at other times to measure more",
+            cameras.len()
+        );
+    }
+    let pairs = if one_time {
+        Vec::new()
+    } else {
+        atlastree::sweep::repeated_views(&cameras)
+    };
+    for (i, j) in pairs {
         eprintln!(
             "note: frames {i} and {j} (path times {:.1} s and {:.1} s) see almost the same view, which \
              counts twice in every mean{}",

@@ -98,7 +98,8 @@ pub(super) struct ImageHeader {
     pub has_alpha: bool,
     pub color: String,
     /// A JPEG without its end-of-image marker near its end (a truncated file, most likely: decoders draw
-    /// what is there and fill the rest), or a PNG without its `IEND` chunk (its decode fails), reported
+    /// what is there and fill the rest) or with fewer bytes after its first scan starts than its frame's
+    /// blocks take (a frame header claiming more than the data covers), or a PNG without its `IEND` chunk (its decode fails), reported
     /// by the import as a warning.
     pub truncated: bool,
 }
@@ -352,27 +353,73 @@ pub(super) fn read_header<R: Read + Seek + std::io::BufRead>(
 const JPEG_TAIL: u64 = 4096;
 
 /// Whether the JPEG in `reader` has its end-of-image marker (`FF D9`) in its last [`JPEG_TAIL`] bytes,
-/// past the start of its first scan ([`jpeg_scan_start`]): the marker of an embedded thumbnail (EXIF
-/// APP1) made a file cut short after it read as whole (fault hunt, session 35). A file whose segments do
-/// not lead to a scan is cut short; one whose markers do not parse is searched whole, as before. Files
-/// with a longer trailer after it (e.g. a motion photo's video) read as truncated: a warning only.
+/// past the start of its first scan ([`jpeg_scan_start`]), and at least the bytes its frame's blocks take
+/// from there ([`JpegScan::min_bytes`]). The marker of an embedded thumbnail (EXIF APP1) made a file cut
+/// short after it read as whole, and a frame header claiming more texels than the data covers drew one
+/// flat colour without a warning (fault hunts, session 35). A file whose segments do not lead to a scan
+/// is cut short; one whose markers do not parse is searched whole, as before. Files with a longer
+/// trailer after it (e.g. a motion photo's video) read as truncated: a warning only.
 fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
     let scan = match jpeg_scan_start(reader) {
-        Ok(Some(at)) => at,
+        Ok(Some(scan)) => scan,
         Ok(None) => return Ok(false),
-        Err(_) => 0,
+        Err(_) => JpegScan::default(),
     };
     let (tail_at, bytes) = tail(reader, JPEG_TAIL)?;
-    let skip = usize::try_from(scan.saturating_sub(tail_at)).unwrap_or(usize::MAX);
+    let len = tail_at + bytes.len() as u64;
+    if len.saturating_sub(scan.at) < scan.min_bytes {
+        return Ok(false);
+    }
+    let skip = usize::try_from(scan.at.saturating_sub(tail_at)).unwrap_or(usize::MAX);
     Ok(bytes
         .get(skip.min(bytes.len())..)
         .is_some_and(|b| b.windows(2).any(|w| w == [0xFF, 0xD9])))
 }
 
-/// Where the JPEG in `reader` starts its first scan's entropy-coded data: the marker segments from `SOI`
-/// walked by their lengths up to `SOS`. `Ok(None)` where the file ends first (cut short in its headers);
-/// `Err` where its markers do not parse as one image's segments (a second SOI, an EOI before any scan).
-fn jpeg_scan_start<R: Read + Seek>(reader: &mut R) -> Result<Option<u64>, String> {
+/// Where a JPEG's first scan starts and the fewest bytes its entropy-coded data can take.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct JpegScan {
+    /// The byte after the first `SOS` segment.
+    at: u64,
+    /// One bit for each 8×8 block of each component of a Huffman-coded DCT frame (`SOF0`–`SOF2`): every
+    /// block's DC difference is a Huffman code of at least one bit, in a baseline scan and in a
+    /// progressive file's first DC scan alike (a baseline block takes two, with its end-of-block code).
+    /// 0 for other frames (arithmetic coding, lossless) and a height left to a `DNL` marker.
+    min_bytes: u64,
+}
+
+/// [`JpegScan::min_bytes`] of a frame header's body (`SOFn` after its length: precision, height, width,
+/// components, then three bytes a component: id, sampling factors `H << 4 | V`, table).
+fn frame_min_bytes(body: &[u8]) -> u64 {
+    let Some((&[_, h1, h0, w1, w0, n], rest)) = body.split_first_chunk::<6>() else {
+        return 0;
+    };
+    let (height, width) = (
+        u64::from(u16::from_be_bytes([h1, h0])),
+        u64::from(u16::from_be_bytes([w1, w0])),
+    );
+    let sampling: Vec<(u64, u64)> = (rest.chunks_exact(3).take(usize::from(n)))
+        .map(|c| (u64::from(c[1] >> 4), u64::from(c[1] & 15)))
+        .collect();
+    let (hmax, vmax) = sampling
+        .iter()
+        .fold((0, 0), |(h, v), &(hc, vc)| (h.max(hc), v.max(vc)));
+    if hmax == 0 || vmax == 0 || sampling.iter().any(|&(h, v)| h == 0 || v == 0) {
+        return 0;
+    }
+    let blocks: u64 = (sampling.iter())
+        .map(|&(h, v)| {
+            (width * h).div_ceil(hmax).div_ceil(8) * (height * v).div_ceil(vmax).div_ceil(8)
+        })
+        .sum();
+    blocks / 8
+}
+
+/// Where the JPEG in `reader` starts its first scan's entropy-coded data, and the fewest bytes that data
+/// can take: the marker segments from `SOI` walked by their lengths up to `SOS`, the frame header read on
+/// the way. `Ok(None)` where the file ends first (cut short in its headers); `Err` where its markers do
+/// not parse as one image's segments (a second SOI, an EOI before any scan).
+fn jpeg_scan_start<R: Read + Seek>(reader: &mut R) -> Result<Option<JpegScan>, String> {
     reader.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
     // The next two bytes, `None` at the end of the file.
     let read2 = |r: &mut R| -> Result<Option<[u8; 2]>, String> {
@@ -384,6 +431,7 @@ fn jpeg_scan_start<R: Read + Seek>(reader: &mut R) -> Result<Option<u64>, String
         return Err("no SOI".into());
     }
     let mut at = 2u64;
+    let mut min_bytes = 0;
     loop {
         let Some(two) = read2(reader)? else {
             return Ok(None);
@@ -415,9 +463,14 @@ fn jpeg_scan_start<R: Read + Seek>(reader: &mut R) -> Result<Option<u64>, String
         if length < 2 {
             return Err(format!("segment length {length} at byte {at}"));
         }
+        if matches!(marker, 0xC0..=0xC2) {
+            let mut body = vec![0u8; (length - 2) as usize];
+            let n = read_up_to(reader, &mut body).map_err(|e| e.to_string())?;
+            min_bytes = frame_min_bytes(&body[..n]);
+        }
         at += length;
         if marker == 0xDA {
-            return Ok(Some(at));
+            return Ok(Some(JpegScan { at, min_bytes }));
         }
         reader
             .seek(SeekFrom::Start(at))
@@ -689,6 +742,46 @@ mod tests {
         assert!(e.to_string().contains("35000×35000 takes"), "{e}");
     }
 
+    /// A frame header claiming more blocks than the data after the scan starts can code (one bit each)
+    /// reads as truncated: a 64×48 JPEG patched to claim 4096×4096 decoded as one flat colour without a
+    /// warning (fault hunt, session 35). The bound is below what any whole file takes: a flat 2048² grey,
+    /// the least data a baseline file of that size holds, reads as whole, and so do a grey and a
+    /// subsampled colour file.
+    #[test]
+    fn a_jpeg_frame_claiming_more_than_its_data_reads_as_truncated() {
+        let encode = |img: image::DynamicImage| {
+            let mut jpeg = Vec::new();
+            image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
+                .encode_image(&img)
+                .unwrap();
+            jpeg
+        };
+        let header = |bytes: &[u8]| read_header(std::io::Cursor::new(bytes)).unwrap();
+        let noisy = image::RgbImage::from_fn(64, 48, |x, y| {
+            let h = (x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(40_503)).rotate_left(x % 13);
+            image::Rgb([h as u8, (h >> 8) as u8, (h >> 16) as u8])
+        });
+        let mut jpeg = encode(noisy.into());
+        assert!(!header(&jpeg).truncated);
+        let sof = jpeg.windows(2).position(|m| m == [0xFF, 0xC0]).unwrap();
+        // SOF0: marker, length (2), precision (1), height (2), width (2).
+        jpeg[sof + 5..sof + 9].copy_from_slice(&[0x10, 0x00, 0x10, 0x00]);
+        let claimed = header(&jpeg);
+        assert_eq!(
+            (claimed.width, claimed.height, claimed.truncated),
+            (4096, 4096, true)
+        );
+        let flat = image::RgbImage::from_pixel(2048, 2048, image::Rgb([128, 128, 128]));
+        let flat = encode(flat.into());
+        let scan = jpeg_scan_start(&mut std::io::Cursor::new(&flat))
+            .unwrap()
+            .unwrap();
+        assert!(scan.min_bytes > 0 && scan.min_bytes <= flat.len() as u64 - scan.at);
+        assert!(!header(&flat).truncated);
+        let grey = image::GrayImage::from_pixel(1024, 512, image::Luma([7]));
+        assert!(!header(&encode(grey.into())).truncated);
+    }
+
     /// The segment walker steps over fill bytes and markers without a length (RSTn, TEM), and takes a
     /// second SOI, or an EOI before any scan, as no plain image's segments.
     #[test]
@@ -699,7 +792,13 @@ mod tests {
             0xFF, 0xD8, 0xFF, 0xFF, 0x01, 0xFF, 0xD3, 0xFF, 0xFE, 0x00, 0x04, 0xFF, 0xD9, 0xFF,
             0xDA, 0x00, 0x03, 0x00, 0x11,
         ];
-        assert_eq!(walk(&file), Ok(Some(18)));
+        assert_eq!(
+            walk(&file),
+            Ok(Some(JpegScan {
+                at: 18,
+                min_bytes: 0
+            }))
+        );
         assert_eq!(walk(&file[..16]), Ok(None));
         assert!(walk(&[0xFF, 0xD8, 0xFF, 0xD8, 0xFF, 0xDA, 0, 2]).is_err());
         assert!(walk(&[0xFF, 0xD8, 0xFF, 0xD9]).is_err());

@@ -3,16 +3,17 @@
 
 mod files;
 mod memory;
+mod regular;
 pub mod shell_words;
 pub mod srgb;
 
 pub use files::{
-    AtomicFile, LiveTempDir, LiveTempFile, MAX_TEXT_FILE_BYTES, follow_output_links,
-    is_out_of_descriptors, is_resource_exhaustion, lock_is_free, node_kind, open_regular,
-    parent_dir, process_may_run, read_regular, read_text_file, remove_earlier_outputs,
+    AtomicFile, LiveTempDir, LiveTempFile, follow_output_links, is_out_of_descriptors,
+    is_resource_exhaustion, lock_is_free, parent_dir, process_may_run, remove_earlier_outputs,
     remove_live_temps, remove_live_temps_and_exit, remove_stale_outputs, remove_stale_temps,
     save_png, write_atomic, writer_of,
 };
+pub use regular::{MAX_TEXT_FILE_BYTES, node_kind, open_regular, read_regular, read_text_file};
 
 pub use memory::{
     machine_memory_bytes, memory_limit_bytes, peak_rss_bytes, rss_and_peak_bytes, rss_bytes,

@@ -71,6 +71,37 @@ fn values_past_what_a_flag_holds_are_refused() {
             &["built without TLS"],
         );
     }
+    // Past the deepest tree a build makes: the flag's own range, not its type's 0..=255 and then 30.
+    refused(
+        &[
+            "build",
+            "nope.gltf",
+            "-o",
+            "x.atlastree",
+            "--max-depth",
+            "31",
+        ],
+        &["--max-depth", "0..=30"],
+    );
+    // An output named as a URL: no hint to create a local folder named `http:` (fault hunt, session 36).
+    for args in [
+        &["build", "nope.gltf", "-o", "http://127.0.0.1:9/x.atlastree"][..],
+        &["merge", "http://127.0.0.1:9/x.atlastree"],
+        &[
+            "simulate",
+            "nope.atlastree",
+            "--out",
+            "https://127.0.0.1:9/sim",
+        ],
+        &[
+            "render",
+            "nope.atlastree",
+            "--out",
+            "ftp://127.0.0.1:9/frames",
+        ],
+    ] {
+        refused(args, &["not URLs", "127.0.0.1:9"]);
+    }
     // 1 TiB parses: the build goes on to the scene, which is missing.
     let o = run(bin().args([
         "build",
@@ -309,4 +340,42 @@ fn a_refused_simulation_leaves_no_folder_it_made() {
     std::fs::create_dir(&kept).unwrap();
     simulate(&kept);
     assert!(kept.is_dir());
+}
+
+/// A second run into an `--out` folder another run holds is refused, naming it, and leaves the folder as
+/// it was: two renders or simulations into one folder both exited 0 with their outputs mixed (fault hunt,
+/// session 36). Held here by the lock a run takes; once let go, the run writes.
+#[cfg(unix)]
+#[test]
+fn an_out_folder_another_run_holds_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("city.atlastree");
+    let o = run(bin().args(["build", "-q", "-o"]).arg(&tree).arg(scene()));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.path().join("sim");
+    std::fs::create_dir(&out).unwrap();
+    let simulate = || {
+        run(bin()
+            .args(["simulate", "--capacity", "4", "--frames", "3", "--out"])
+            .arg(&out)
+            .arg(&tree))
+    };
+    let held = std::fs::File::open(&out).unwrap();
+    held.lock().unwrap();
+    let o = simulate();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("another run is writing into this folder") && e.contains("sim"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::read_dir(&out).unwrap().count(),
+        0,
+        "nothing written"
+    );
+    drop(held);
+    let o = simulate();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("summary.csv").is_file());
 }
