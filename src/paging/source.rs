@@ -59,8 +59,8 @@ pub enum SourceError {
         block: BlockId,
         attempts: u32,
         message: String,
-        /// The server's `Content-Range` total says its file ends before the range: asking again cannot
-        /// help.
+        /// The server's `Content-Range` total says its file ends before the range, or is another length
+        /// than when it was opened (replaced): asking again cannot help.
         file_shorter: bool,
     },
     /// Opening a remote file: its header claims more bytes of tables than the client holds in memory

@@ -80,6 +80,9 @@ pub struct HttpStats {
     pub full_responses: u64,
     /// Answers whose bytes did not match the block's checksum (every attempt counted; retried).
     pub checksum_failures: u64,
+    /// Block fetches whose last attempt failed its checksum: every answer for the block was wrong, which
+    /// points at the served file itself (a fetch that failed for another cause is not counted).
+    pub checksum_fetch_failures: u64,
     /// Failed fetches since the last successful one: non-zero means "source failing, drawing coarser".
     pub consecutive_failures: u64,
 }
@@ -101,6 +104,7 @@ struct Counters {
     blocks: AtomicU64,
     full_responses: AtomicU64,
     checksum_failures: AtomicU64,
+    checksum_fetch_failures: AtomicU64,
     consecutive_failures: AtomicU64,
 }
 
@@ -119,6 +123,7 @@ impl Counters {
             blocks: get(&self.blocks),
             full_responses: get(&self.full_responses),
             checksum_failures: get(&self.checksum_failures),
+            checksum_fetch_failures: get(&self.checksum_fetch_failures),
             consecutive_failures: get(&self.consecutive_failures),
         }
     }
@@ -148,7 +153,8 @@ enum Failure {
     /// (an HTML page): its first bytes. Not retried: no attempt makes it one (a short page read "got 29 of
     /// 528 bytes" after four tries, where a longer one said what it was; fault hunt, session 34).
     NotPaging(Vec<u8>),
-    /// A `206` for another range than asked for; `file_shorter` when its total ends before the range.
+    /// A `206` for another range than asked for; `file_shorter` when its total ends before the range
+    /// (or differs from the length at open: a replaced file).
     WrongRange { message: String, file_shorter: bool },
     /// The bytes of a block do not match its checksum.
     Checksum { found: u64 },
@@ -169,9 +175,17 @@ impl Failure {
         }
     }
 
-    fn from_ureq(e: ureq::Error) -> Failure {
+    /// A timeout names the one that ran out (ureq says "timeout: global"; fault hunt, session 36).
+    fn from_ureq(e: ureq::Error, options: &HttpOptions) -> Failure {
         use ureq::Error as E;
         match e {
+            E::Timeout(ureq::Timeout::Connect | ureq::Timeout::Resolve) => {
+                Failure::Transport(format!(
+                    "no connection within the connect timeout of {} s",
+                    crate::util::short_number(options.connect_timeout.as_secs_f64())
+                ))
+            }
+            E::Timeout(_) => Failure::Transport(timed_out(options)),
             E::Http(_)
             | E::BadUri(_)
             | E::InvalidProxyUrl
@@ -195,6 +209,14 @@ impl Failure {
             Failure::Checksum { found } => format!("checksum {found:#018x} does not match"),
         }
     }
+}
+
+/// The whole request's timeout ran out ([`HttpOptions::timeout`]: `--http-timeout` in the CLI).
+fn timed_out(options: &HttpOptions) -> String {
+    format!(
+        "no complete answer within the request timeout of {} s (--http-timeout)",
+        crate::util::short_number(options.timeout.as_secs_f64())
+    )
 }
 
 /// The bytes of one successful range request.
@@ -424,12 +446,25 @@ impl HttpSource {
         let response = (self.agent.get(&self.url))
             .header("Range", format!("bytes={offset}-{last}"))
             .call()
-            .map_err(Failure::from_ureq)?;
+            .map_err(|e| Failure::from_ureq(e, &self.options))?;
         let status = response.status().as_u16();
         let content_range = (response.headers().get("content-range"))
             .and_then(|v| v.to_str().ok())
             .map(str::to_owned);
         let content_length = response.body().content_length();
+        // Bytes encoded on the way (a gzip the client did not ask for: a pre-compressed object on S3 or a
+        // CDN) are not the file's: named, not retried ("got 320 of 528 bytes" after four tries; fault
+        // hunt, session 36).
+        if let Some(encoding) = (response.headers().get("content-encoding"))
+            .and_then(|v| v.to_str().ok())
+            .map(str::trim)
+            .filter(|e| !e.is_empty() && !e.eq_ignore_ascii_case("identity"))
+        {
+            return Err(Failure::Request(format!(
+                "the server sent the bytes with Content-Encoding: {encoding}, not as stored: serve the \
+                 paging file uncompressed (`atlastree serve` does)"
+            )));
+        }
         let mut body = response.into_body().into_reader();
         match status {
             206 => {
@@ -477,7 +512,7 @@ impl HttpSource {
             .map_err(|e| Failure::Request(format!("allocating {len} bytes: {e}")))?;
         let read = body.take(len).read_to_end(&mut bytes);
         bump(&self.counters.bytes, bytes.len() as u64);
-        read.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
+        read.map_err(|e| self.body_error(&e))?;
         match bytes.len() as u64 {
             got if got == len => Ok(bytes),
             got => Err(Failure::Short {
@@ -487,10 +522,18 @@ impl HttpSource {
         }
     }
 
+    /// A body read's error; a timeout named as [`Failure::from_ureq`] names it.
+    fn body_error(&self, e: &std::io::Error) -> Failure {
+        if e.kind() == std::io::ErrorKind::TimedOut {
+            return Failure::Transport(format!("reading the body: {}", timed_out(&self.options)));
+        }
+        Failure::Transport(format!("reading the body: {e}"))
+    }
+
     /// Discards the first `n` bytes of a `200` body.
     fn skip(&self, body: &mut impl Read, n: u64) -> Result<(), Failure> {
         let skipped = std::io::copy(&mut body.take(n), &mut std::io::sink());
-        let skipped = skipped.map_err(|e| Failure::Transport(format!("reading the body: {e}")))?;
+        let skipped = skipped.map_err(|e| self.body_error(&e))?;
         bump(&self.counters.bytes, skipped);
         if skipped < n {
             return Err(Failure::Short {
@@ -564,6 +607,18 @@ impl HttpSource {
             return Ok(Vec::new());
         }
         let check = |r: &Ranged| {
+            // A file of another length answering for the one opened: replaced on the server (its blocks
+            // failed their checksums, reported as corruption; fault hunt, session 36).
+            if let Some(total) = r.total.filter(|&t| t != self.file_len) {
+                return Err(Failure::WrongRange {
+                    message: format!(
+                        "the server's file is now {total} bytes, {} when it was opened: it was replaced \
+                         (open the URL again for the new file)",
+                        self.file_len
+                    ),
+                    file_shorter: true,
+                });
+            }
             let found = xxhash_rust::xxh3::xxh3_64(&r.bytes);
             if found == record.checksum {
                 return Ok(());
@@ -573,7 +628,12 @@ impl HttpSource {
         };
         let ranged = self
             .get_with_retries(record.offset, record.length, id.0.into(), check)
-            .map_err(|(f, attempts)| self.block_error(id, record, f, attempts))?;
+            .map_err(|(f, attempts)| {
+                if matches!(f, Failure::Checksum { .. }) {
+                    bump(&self.counters.checksum_fetch_failures, 1);
+                }
+                self.block_error(id, record, f, attempts)
+            })?;
         Ok(ranged.bytes)
     }
 }

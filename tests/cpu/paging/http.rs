@@ -83,7 +83,7 @@ pub(super) fn fault_server(fx: &Fixture) -> FaultServer {
     FaultServer::start(fx.bytes.clone(), "/city.atlastree", any_port()).unwrap()
 }
 
-fn fetch(src: &HttpSource, file: &TreeFile, i: u32) -> Result<Vec<u8>, SourceError> {
+pub(super) fn fetch(src: &HttpSource, file: &TreeFile, i: u32) -> Result<Vec<u8>, SourceError> {
     src.fetch(BlockId(i), &file.blocks()[i as usize])
 }
 
@@ -581,8 +581,10 @@ fn a_stalled_server_times_out() {
     let t = Instant::now();
     let e = fetch(&slow, &remote, 0).unwrap_err();
     let took = t.elapsed();
+    // The timeout that ran out is named with its value (ureq's "timeout: global"; session 36).
     assert!(
-        matches!(e, SourceError::Transport { attempts: 2, .. }),
+        matches!(&e, SourceError::Transport { attempts: 2, message, .. }
+            if message.contains("request timeout of 0.3 s (--http-timeout)")),
         "{e}"
     );
     assert!(took >= Duration::from_millis(600), "{took:?}");
@@ -746,70 +748,50 @@ fn concurrent_loader_threads_get_every_block() {
     assert_eq!(src.stats().blocks, n as u64);
 }
 
-fn bin() -> std::process::Command {
-    std::process::Command::new(env!("CARGO_BIN_EXE_atlastree"))
-}
-
+/// A server that sends the bytes with a `Content-Encoding` (a pre-compressed object on a CDN) is named at
+/// once, not retried and read as a short body; one whose `Content-Range` total is no longer the length
+/// the file had when opened (replaced on the server) is named so, not read as corrupt blocks; a fetch
+/// whose every answer failed its checksum is counted apart from failures of other causes (fault hunt,
+/// session 36).
 #[test]
-fn cli_serve_help_teaches() {
-    let out = bin().args(["serve", "--help"]).output().unwrap();
-    assert!(out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
-    for word in ["--port", "--bind", "Range", "Ctrl-C"] {
-        assert!(text.contains(word), "{word} missing from:\n{text}");
-    }
-}
-
-#[test]
-fn cli_serve_serves_until_ctrl_c() {
-    use std::io::BufRead;
+fn an_encoded_body_a_replaced_file_and_checksum_fetches_are_named() {
     let fx = fixture();
-    let mut child = bin()
-        .args(["serve", "--port", "0", "--json"])
-        .arg(&fx.path)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    let stdout = child.stdout.take().unwrap();
-    std::io::BufReader::new(stdout)
-        .read_line(&mut line)
-        .unwrap();
-    let v: serde_json::Value = serde_json::from_str(&line).expect("a JSON line");
-    assert_eq!(v["blocks"], fx.file.blocks().len());
-    assert_eq!(v["file_bytes"], fx.bytes.len());
-    let url = v["url"].as_str().unwrap();
-    let (remote, src) = HttpSource::open(url, quick()).unwrap();
-    assert_eq!(
-        fetch(&src, &remote, 1).unwrap(),
-        fx.file.block(BlockId(1)).unwrap().into_owned()
-    );
-    let killed = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let t = Instant::now();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "{:?}: {}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(t.elapsed() < Duration::from_secs(5));
+    let server = fault_server(&fx);
+    let (remote, src) = HttpSource::open(&server.url(), quick()).unwrap();
+    server.set_faults(Faults {
+        encoding: Some("gzip"),
+        ..Faults::default()
+    });
+    let before = src.stats();
     let e = fetch(&src, &remote, 1).unwrap_err();
-    assert!(matches!(e, SourceError::Transport { .. }), "{e}");
-
-    // A file that is not a paging file is refused before serving.
-    let bad = fx.path.with_extension("bad");
-    std::fs::write(&bad, b"not a tree").unwrap();
-    let out = bin()
-        .args(["serve", "--port", "0"])
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("city.bad"));
+    assert!(
+        matches!(&e, SourceError::Request { message, .. } if message.contains("Content-Encoding: gzip")),
+        "{e}"
+    );
+    assert_eq!(src.stats().requests - before.requests, 1, "not retried");
+    let len = fx.bytes.len() as u64;
+    server.set_faults(Faults {
+        claimed_total: Some(len + 4096),
+        ..Faults::default()
+    });
+    let before = src.stats();
+    let e = fetch(&src, &remote, 1).unwrap_err();
+    let says = format!("now {} bytes, {len} when it was opened", len + 4096);
+    assert!(
+        matches!(&e, SourceError::WrongRange { message, file_shorter: true, .. } if message.contains(&says)),
+        "{e}"
+    );
+    assert!(!e.is_transient());
+    let s = src.stats();
+    assert_eq!(s.requests - before.requests, 1, "not retried");
+    assert_eq!(s.checksum_failures, before.checksum_failures);
+    // Failures of other causes are not checksum fetch failures; a block corrupt on every attempt is.
+    assert_eq!(s.checksum_fetch_failures, 0);
+    server.set_faults(Faults {
+        corrupt: 100,
+        ..Faults::default()
+    });
+    let e = fetch(&src, &remote, 2).unwrap_err();
+    assert!(matches!(e, SourceError::Checksum { .. }), "{e}");
+    assert_eq!(src.stats().checksum_fetch_failures, 1);
 }

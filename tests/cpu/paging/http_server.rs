@@ -35,6 +35,10 @@ pub struct Faults {
     pub target: Option<u64>,
     /// Ignore `Range` and answer `200` with the whole file (persistent).
     pub ignore_range: bool,
+    /// Send this `Content-Encoding` with every answer, the bytes unchanged (persistent).
+    pub encoding: Option<&'static str>,
+    /// Claim this total in every `Content-Range` (a file replaced by one of another length; persistent).
+    pub claimed_total: Option<u64>,
 }
 
 /// What the server saw.
@@ -287,6 +291,10 @@ fn head(out: &mut TcpStream, status: &str, headers: &[(String, String)]) -> std:
 fn answer(out: &mut TcpStream, req: &Request, shared: &Shared) -> std::io::Result<bool> {
     let len = shared.data.len() as u64;
     let (plan, ignore_range) = take_fault(shared, req);
+    let (encoding, claimed_total) = {
+        let f = shared.faults.lock().unwrap();
+        (f.encoding, f.claimed_total)
+    };
     if !matches!(plan, Plan::Normal) {
         shared.seen.lock().unwrap().faults += 1;
     }
@@ -332,13 +340,21 @@ fn answer(out: &mut TcpStream, req: &Request, shared: &Shared) -> std::io::Resul
         ("Content-Length".into(), body.len().to_string()),
         ("Accept-Ranges".into(), "bytes".into()),
     ];
+    if let Some(encoding) = encoding {
+        headers.push(("Content-Encoding".into(), encoding.into()));
+    }
     let status = match range {
         Some(_) => {
             shared.seen.lock().unwrap().partial += 1;
             let shift = u64::from(matches!(plan, Plan::WrongRange));
             headers.push((
                 "Content-Range".into(),
-                format!("bytes {}-{}/{len}", first + shift, last + shift),
+                format!(
+                    "bytes {}-{}/{}",
+                    first + shift,
+                    last + shift,
+                    claimed_total.unwrap_or(len)
+                ),
             ));
             "206 Partial Content"
         }

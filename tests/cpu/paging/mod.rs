@@ -6,3 +6,4 @@ mod http_paged;
 mod http_server;
 mod props;
 mod serve_abuse;
+mod serve_cli;
