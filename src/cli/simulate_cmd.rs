@@ -229,9 +229,10 @@ fn run_and_write(cfg: &SimulateConfig, file: &TreeFile) -> anyhow::Result<ExitCo
     let results = run_grid(&input, &cameras, &scales, &cfg.spec, &|| bar.inc(1))?;
     bar.finish_and_clear();
     // A path that never looks at the scene pages only the roots: every run would read as ideal.
-    let drawn =
-        |r: &atlastree::sim::grid::RunResult| r.rows.iter().any(|f| f.paging.coarse.items > 0);
-    if !results.iter().any(drawn) {
+    if !results
+        .iter()
+        .any(atlastree::sim::grid::RunResult::drew_nodes)
+    {
         eprintln!(
             "warning: no frame of the path draws any node of the tree (does it look at the scene?): the \
              runs measure nothing, and their coarser shares of 0 mean nothing drawn, not ideal paging"
@@ -322,7 +323,7 @@ fn print_results(results: &[RunResult], json: bool, spec: &GridSpec) -> anyhow::
             .map(
                 // `drew_nodes` false: the path never looks at the scene, the run measures nothing.
                 |r| {
-                    let drew = r.rows.iter().any(|f| f.paging.coarse.items > 0);
+                    let drew = r.drew_nodes();
                     serde_json::json!({ "run": r.key.label(), "key": r.key, "settings": shared, "drew_nodes": drew, "summary": r.summary })
                 },
             )

@@ -139,6 +139,14 @@ pub struct RunResult {
     pub seconds: f64,
 }
 
+impl RunResult {
+    /// Whether any frame drew a node of the tree: `false` where the path never looks at the scene, so
+    /// every coarser share of 0 means nothing drawn, not ideal paging (`summary.csv`'s `drew_nodes`).
+    pub fn drew_nodes(&self) -> bool {
+        self.rows.iter().any(|f| f.paging.coarse.items > 0)
+    }
+}
+
 /// Runs every cell (in parallel); `tick` is called after each cell. Results are in [`GridSpec::cells`]
 /// order.
 pub fn run_grid(
@@ -218,6 +226,7 @@ pub fn write_csvs(dir: &Path, results: &[RunResult]) -> Result<Vec<PathBuf>, Rep
         "stalls",
         "cancelled",
         "discarded",
+        "drew_nodes",
     ]);
     let mut summary = CsvWriter::create(&dir.join("summary.csv"), &header)?;
     for r in results {
@@ -243,6 +252,7 @@ pub fn write_csvs(dir: &Path, results: &[RunResult]) -> Result<Vec<PathBuf>, Rep
             Cell::UInt(s.stalls.into()),
             Cell::UInt(s.cancelled),
             Cell::UInt(s.discarded),
+            Cell::Text(r.drew_nodes().to_string()),
         ]);
         summary.row(&row)?;
     }

@@ -162,6 +162,12 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
     }
     let rows: usize = a.iter().map(|r| r.rows.len()).sum();
     assert_eq!(t.rows.len(), rows);
+    // summary.csv says whether the path drew any node (a path looking away reads as ideal paging
+    // otherwise; fault hunt, session 36): these runs draw, and its value is the rows'.
+    let sum = atlastree::report::csv::read_csv(&da.join("summary.csv")).unwrap();
+    let drew = sum.header.iter().position(|h| h == "drew_nodes").unwrap();
+    assert!(a.iter().all(|r| r.drew_nodes()));
+    assert!(sum.rows.iter().all(|r| r[drew] == "true"), "{:?}", sum.rows);
     // The bytes_loaded column is the rows' bytes, frame by frame.
     let col = t.header.iter().position(|h| h == "bytes_loaded").unwrap();
     let written: Vec<u64> = t.rows.iter().map(|r| r[col].parse().unwrap()).collect();

@@ -266,7 +266,8 @@ fn a_clamped_original_shows_its_edge_texel_just_above_one_texel_per_pixel(
     };
     let (originals, psnr, covered) = tree_against_original(ctx, &file, &cam)?;
     println!("  {originals} original draws, tree vs original {psnr:.2} dB over {covered} px");
-    if originals == 0 || covered < (W * H / 2) as usize {
+    // The quad spans 175 × 131 of the 320 × 240 pixels.
+    if originals == 0 || covered < (W * H / 5) as usize {
         return Err(format!(
             "the view must draw the original over much of the frame: {originals} draws, {covered} px"
         ));
