@@ -437,7 +437,7 @@ fn sample_class(class_index: u32, uv: vec2<f32>, layer: u32, ddx: vec2<f32>, ddy
 // One axis of a wrap mode, into [0, 1] for a sampler that repeats. Repeat: fract (the repeating sampler
 // filters across the seam). Mirror and clamp: additionally kept `inset` (in UV) inside the edge, so the
 // repeating sampler does not blend in the opposite edge there ([`edge_inset`]: half a texel of the
-// coarser mip the trilinear filter reads).
+// mip level the trilinear filter reads most).
 fn wrap_axis(u: f32, mode: u32, inset: f32) -> f32 {
     if mode == WRAP_MIRROR {
         let t = fract(u * 0.5) * 2.0;

@@ -430,7 +430,8 @@ pub(crate) struct BuildParamsArgs {
     #[arg(long, default_value_t = 1.0)]
     pub texel_ratio: f64,
     /// Maximum tree depth, 0 (one leaf per tree) to 30; a region that needs more is an error naming it.
-    #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u8).range(0..=30))]
+    #[arg(long, default_value_t = 24,
+          value_parser = clap::value_parser!(u8).range(0..=i64::from(atlastree::preprocess::MAX_DEPTH)))]
     pub max_depth: u8,
     /// Allow more texels per texture repetition than the source image has (by default capped).
     #[arg(long)]

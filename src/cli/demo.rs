@@ -123,9 +123,15 @@ impl DemoArgs {
 }
 
 pub(super) fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
-    let started = std::time::Instant::now();
     super::args::check_frames("--frames", a.frames)?;
-    super::check_out_folder(&a.out)?;
+    // Held for the whole demo: a second demo into the same folder is refused up front, not at its
+    // renders' subfolders after its build (review, session 36).
+    super::OutFolder::open(&a.out)?.run(|| run_in(a))
+}
+
+/// [`run`] while `--out` is held.
+fn run_in(a: DemoArgs) -> anyhow::Result<ExitCode> {
+    let started = std::time::Instant::now();
     // The embedded scene's folder lives until the demo ends; registered, so a Ctrl-C removes it too (the
     // interrupt handler exits without running destructors).
     let (embedded_dir, scene_path) = match &a.scene {
@@ -136,7 +142,6 @@ pub(super) fn run(a: DemoArgs) -> anyhow::Result<ExitCode> {
             (Some((dir, live)), path)
         }
     };
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let scene = import_scene(&scene_path, embedded_dir.is_some())?;
     // One root atlas per tree (opaque, and alpha where a material uses alpha) stays resident: a smaller
     // k is refused before the build, not at the paged flight (section 6).

@@ -67,6 +67,7 @@ pub(crate) struct Tiles3dArgs {
 
 pub(super) fn run(a: ExportArgs) -> anyhow::Result<ExitCode> {
     let ExportFormat::Tiles3d(a) = a.format;
+    super::reject_output_url(&a.out, "-o")?;
     let file = super::open_local(&a.file, "export", atlastree::store::LoadMode::Tables)?;
     let bars = Bars::new(a.quiet || a.json);
     let opts = ExportOptions {

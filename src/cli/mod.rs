@@ -190,29 +190,45 @@ pub(crate) fn init_tracing() {
 /// (fault hunt, session 28).
 const MAX_RAYON_THREADS: usize = 1024;
 
-/// Runs `handler` with the exit code for an interrupt (128 + the signal's number: 130 for SIGINT, 143
-/// for SIGTERM, 129 for SIGHUP) on a thread of its own when the first one arrives; a second one while it
-/// runs is ignored. Not installed (a line on stderr) where the signals cannot be caught.
+/// Runs `handler` with the signal's number (SIGINT, SIGTERM, SIGHUP; 2 for a Ctrl-C where there are no
+/// signals) on a thread of its own when the first one arrives; a second one while it runs is ignored. A
+/// signal the process started with ignored stays ignored (`nohup` ignores SIGHUP, a script's `cmd &`
+/// SIGINT: caught, a logout ended a nohup'd build; review, session 36). Not installed (a line on
+/// stderr) where the signals cannot be caught.
 fn on_interrupt(handler: fn(i32)) {
     #[cfg(unix)]
     let installed = {
         use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
-        signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]).and_then(|mut signals| {
+        let caught: Vec<i32> = [SIGINT, SIGTERM, SIGHUP]
+            .into_iter()
+            .filter(|&s| !os_limits::ignored_at_start(s))
+            .collect();
+        signal_hook::iterator::Signals::new(&caught).and_then(|mut signals| {
             std::thread::Builder::new()
                 .name("interrupt".into())
                 .spawn(move || {
                     if let Some(signal) = signals.forever().next() {
-                        handler(128 + signal);
+                        handler(signal);
                     }
                 })
                 .map(drop)
         })
     };
     #[cfg(not(unix))]
-    let installed = ctrlc::set_handler(move || handler(130));
+    let installed = ctrlc::set_handler(move || handler(2));
     if let Err(e) = installed {
         eprintln!("warning: interrupts not caught ({e}): Ctrl-C may leave a temporary file behind");
     }
+}
+
+/// Ends the process as `signal` itself would (its default action, raised again), so the shell sees a
+/// process killed by it: a loop of builds stops at a Ctrl-C (bash goes on after a child that exited on
+/// its own; review, session 36). `$?` is 128 + the signal's number (130, 143), the exit code where the
+/// signal cannot be raised.
+fn end_by(signal: i32) -> std::convert::Infallible {
+    #[cfg(unix)]
+    let _ = signal_hook::low_level::emulate_default_handler(signal);
+    std::process::exit(128 + signal)
 }
 
 pub(crate) fn run() -> anyhow::Result<ExitCode> {
@@ -229,25 +245,28 @@ pub(crate) fn run() -> anyhow::Result<ExitCode> {
         );
     }
     if !matches!(cli.command, Command::Serve(_)) {
-        // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process with 128 + the signal's
-        // number (130, 143) and no temp file left (a paging file's is its whole length, reserved up
-        // front). `serve` handles Ctrl-C itself.
-        on_interrupt(|code| {
-            atlastree::util::remove_live_temps_and_exit(code, |removed, committed| {
-                // Said, so an interrupted step is not read as a finished one (it ended without a word),
-                // nor a complete output as an unfinished one.
-                match committed {
-                    Some((n, last)) => eprintln!(
-                        "interrupted: {n} output(s) of this run were already complete (the last {}, left in \
+        // Ctrl-C, or SIGTERM from a scheduler cancelling a job, ends the process by that signal ($? 130,
+        // 143) with no temp file left (a paging file's is its whole length, reserved up front). `serve`
+        // handles Ctrl-C itself.
+        on_interrupt(|signal| {
+            atlastree::util::remove_live_temps_and_exit(
+                || end_by(signal),
+                |removed, committed| {
+                    // Said, so an interrupted step is not read as a finished one (it ended without a word),
+                    // nor a complete output as an unfinished one.
+                    match committed {
+                        Some((n, last)) => eprintln!(
+                            "interrupted: {n} output(s) of this run were already complete (the last {}, left in \
                          place); {removed} unfinished output(s) removed",
-                        last.display()
-                    ),
-                    None => eprintln!(
-                        "interrupted: stopped before finishing; {removed} unfinished output(s) removed, \
+                            last.display()
+                        ),
+                        None => eprintln!(
+                            "interrupted: stopped before finishing; {removed} unfinished output(s) removed, \
                          earlier outputs left as they were"
-                    ),
-                }
-            })
+                        ),
+                    }
+                },
+            )
         });
     }
     match cli.command {
@@ -355,32 +374,32 @@ pub(crate) fn reject_url(path: &std::path::Path, command: &str) -> anyhow::Resul
 /// folder http://127.0.0.1:9 does not exist: create it first" led to a local folder named `http:`
 /// (fault hunt, session 36). `what` is the flag or argument, e.g. "-o" or "--out".
 pub(crate) fn reject_output_url(path: &std::path::Path, what: &str) -> anyhow::Result<()> {
-    let Some((raw, text)) = url_not_path(path) else {
-        return Ok(());
-    };
-    if args::is_url(&raw) || args::url_scheme(&raw).is_some() {
-        anyhow::bail!(
+    reject_any_url(path, |text| {
+        format!(
             "{what} {text}: outputs are written to local files and folders, not URLs; name a local path \
              (`atlastree serve FILE` serves a paging file over HTTP)"
-        );
+        )
+    })
+}
+
+/// `message(shown URL)` as the error where `path` has a URL scheme and names no local file or folder.
+fn reject_any_url(path: &std::path::Path, message: impl Fn(&str) -> String) -> anyhow::Result<()> {
+    match url_not_path(path) {
+        Some((raw, text)) if args::url_scheme(&raw).is_some() => anyhow::bail!(message(&text)),
+        _ => Ok(()),
     }
-    Ok(())
 }
 
 /// A scene given as an http(s) or other URL that is not also a local path gets a clear error (it read
 /// "cannot read: No such file or directory"; fault hunt, session 34), as [`reject_url`] does for paging
 /// files.
 fn reject_scene_url(path: &std::path::Path) -> anyhow::Result<()> {
-    let Some((raw, text)) = url_not_path(path) else {
-        return Ok(());
-    };
-    if args::is_url(&raw) || args::url_scheme(&raw).is_some() {
-        anyhow::bail!(
+    reject_any_url(path, |text| {
+        format!(
             "{text}: scenes are read from local glTF or GLB files, not URLs; download the scene with its \
              images first (only `atlastree render URL` reads over HTTP, and it reads paging files)"
-        );
-    }
-    Ok(())
+        )
+    })
 }
 
 /// Before any work: `--out` must be a folder or not exist yet (a file there failed only when the outputs
@@ -401,8 +420,9 @@ pub(crate) fn check_out_folder(out: &std::path::Path) -> anyhow::Result<()> {
 /// instead of mixing its outputs with this one's: two renders both exited 0 with frames of two sizes
 /// beside one "complete" summary, two simulations with one grid's `frames.csv` beside the other's
 /// `summary.csv`, and a read-only folder was found only after the whole grid ran (fault hunt, session 36).
+/// The folders it made are removed (where still empty) unless the run succeeds.
 pub(crate) struct OutFolder {
-    /// The folders this run made, deepest first: removed (where still empty) if it fails.
+    /// The folders this run made, deepest first; emptied once the run succeeds.
     created: Vec<std::path::PathBuf>,
     /// The folder, open for its lock until the run ends; `None` where a folder cannot be locked (not
     /// unix, or a file system without locks).
@@ -410,52 +430,61 @@ pub(crate) struct OutFolder {
 }
 
 impl OutFolder {
-    /// Makes and locks `out` ([`check_out_folder`] first): an error naming the folder where another run
-    /// holds it or it cannot be written.
+    /// Makes and locks `out` ([`check_out_folder`] first): an error naming the folder where another
+    /// process holds it or it cannot be written.
     pub(crate) fn open(out: &std::path::Path) -> anyhow::Result<Self> {
         use anyhow::Context;
         check_out_folder(out)?;
-        let created = (out.ancestors())
-            .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
-            .map(std::path::Path::to_path_buf)
-            .collect();
+        let mut folder = OutFolder {
+            created: (out.ancestors())
+                .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
+                .map(std::path::Path::to_path_buf)
+                .collect(),
+            _lock: None,
+        };
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         #[cfg(unix)]
-        let lock = {
-            let folder =
+        {
+            let dir =
                 std::fs::File::open(out).with_context(|| format!("opening {}", out.display()))?;
-            match folder.try_lock() {
-                Ok(()) => Some(folder),
-                Err(std::fs::TryLockError::WouldBlock) => anyhow::bail!(
-                    "--out {}: another run is writing into this folder now (two runs into one folder \
-                     would mix their outputs): wait for it to end, or name another folder",
-                    out.display()
-                ),
-                Err(std::fs::TryLockError::Error(_)) => None,
+            match dir.try_lock() {
+                Ok(()) => folder._lock = Some(dir),
+                Err(std::fs::TryLockError::WouldBlock) => {
+                    // Not ours to remove: the folder is the other run's now.
+                    folder.created.clear();
+                    anyhow::bail!(
+                        "--out {}: another process holds this folder (another atlastree run writing into \
+                         it? two runs into one folder would mix their outputs): wait for it to end, or \
+                         name another folder",
+                        out.display()
+                    )
+                }
+                Err(std::fs::TryLockError::Error(_)) => {}
             }
-        };
-        #[cfg(not(unix))]
-        let lock = None;
+        }
         tempfile::Builder::new()
             .prefix(".atlastree-write-check-")
             .tempfile_in(out)
             .with_context(|| format!("--out {}: cannot write into this folder", out.display()))?;
-        Ok(Self {
-            created,
-            _lock: lock,
-        })
+        Ok(folder)
     }
 
-    /// Runs `f` while the folder is held; where it fails, removes the folders [`OutFolder::open`] made
-    /// (only those still empty: a run that wrote something leaves it).
-    pub(crate) fn run<T>(self, f: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<T> {
+    /// Runs `f` while the folder is held; the folders [`OutFolder::open`] made stay only if it succeeds
+    /// (a failed run that wrote something leaves that too: only empty folders are removed).
+    pub(crate) fn run<T>(mut self, f: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<T> {
         let result = f();
-        if result.is_err() {
-            for dir in &self.created {
-                let _ = std::fs::remove_dir(dir);
-            }
+        if result.is_ok() {
+            self.created.clear();
         }
         result
+    }
+}
+
+impl Drop for OutFolder {
+    fn drop(&mut self) {
+        for dir in &self.created {
+            let _ = std::fs::remove_dir(dir);
+        }
     }
 }
 

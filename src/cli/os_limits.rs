@@ -68,3 +68,18 @@ fn one_malloc_arena_under_address_limit() {
 
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 fn one_malloc_arena_under_address_limit() {}
+
+/// Whether `signal`'s action is "ignore" (as the process was started: `nohup`, a script's `cmd &`);
+/// `false` where it cannot be asked.
+#[cfg(unix)]
+#[allow(
+    unsafe_code,
+    reason = "sigaction(2) through libc, asking the current action without changing it"
+)]
+pub(super) fn ignored_at_start(signal: i32) -> bool {
+    let mut old = std::mem::MaybeUninit::<libc::sigaction>::zeroed();
+    // SAFETY: a null new action only reads the current one into `old`, a valid, zeroed local.
+    let asked = unsafe { libc::sigaction(signal, std::ptr::null(), old.as_mut_ptr()) } == 0;
+    // SAFETY: zero-initialised, then written by `sigaction` where it succeeded; read only then.
+    asked && unsafe { old.assume_init() }.sa_sigaction == libc::SIG_IGN
+}

@@ -183,34 +183,26 @@ fn progress_bar(cfg: &SweepConfig) -> ProgressBar {
     pb
 }
 
-/// Runs a checked configuration: import, sample the path, build and measure, write and report.
-pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
-    super::OutFolder::open(&cfg.out)?.run(|| execute_in(cfg))
-}
+/// Most pairs of frames that see almost the same view named one by one; more are counted.
+const MAX_REPEAT_NOTES: usize = 5;
 
-/// [`execute`] while `--out` is held.
-fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
-    let plan = &cfg.plan;
-    let scene = load_scene(&cfg.scene, cfg.up)?;
-    let path = cfg.path.resolve_with(|| Ground::from_scene(&scene))?;
-    let aspect = f64::from(plan.width) / f64::from(plan.height);
-    let cameras = sample_path(&path, plan.frames, aspect);
-    // A path of one time (a single keyframe) has one view: one note, not one per pair of frames, and no
-    // hint that more frames would see more (fault hunt, session 36).
-    let one_time = cameras.first().map(|c| c.0) == cameras.last().map(|c| c.0);
-    if one_time && cameras.len() > 1 {
-        eprintln!(
-            "note: the path has one view (all its keyframes at one time): its {} frames all measure that \
-             view; give the path keyframes at other times to measure more",
-            cameras.len()
-        );
+/// Notes on stderr of frames that see almost the same view (each counts in every mean). A path of one
+/// time (`still`: a single keyframe) has one view: one note, not one per pair of frames, and no hint that
+/// more frames would see more; a static path of several keyframes lists at most [`MAX_REPEAT_NOTES`]
+/// pairs (fault hunt and review, session 36).
+fn note_repeated_views(cameras: &[(f64, atlastree::camera::Camera)], still: bool) {
+    if still {
+        if cameras.len() > 1 {
+            eprintln!(
+                "note: the path has one view (all its keyframes at one time): its {} frames all measure \
+                 that view; give the path keyframes at other times to measure more",
+                cameras.len()
+            );
+        }
+        return;
     }
-    let pairs = if one_time {
-        Vec::new()
-    } else {
-        atlastree::sweep::repeated_views(&cameras)
-    };
-    for (i, j) in pairs {
+    let pairs = atlastree::sweep::repeated_views(cameras);
+    for &(i, j) in pairs.iter().take(MAX_REPEAT_NOTES) {
         eprintln!(
             "note: frames {i} and {j} (path times {:.1} s and {:.1} s) see almost the same view, which \
              counts twice in every mean{}",
@@ -223,6 +215,27 @@ fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
             }
         );
     }
+    if pairs.len() > MAX_REPEAT_NOTES {
+        eprintln!(
+            "note: … and {} more pairs of frames that see almost the same view",
+            pairs.len() - MAX_REPEAT_NOTES
+        );
+    }
+}
+
+/// Runs a checked configuration: import, sample the path, build and measure, write and report.
+pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
+    super::OutFolder::open(&cfg.out)?.run(|| execute_in(cfg))
+}
+
+/// [`execute`] while `--out` is held.
+fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
+    let plan = &cfg.plan;
+    let scene = load_scene(&cfg.scene, cfg.up)?;
+    let path = cfg.path.resolve_with(|| Ground::from_scene(&scene))?;
+    let aspect = f64::from(plan.width) / f64::from(plan.height);
+    let cameras = sample_path(&path, plan.frames, aspect);
+    note_repeated_views(&cameras, path.duration() == 0.0);
 
     let ctx = GpuContext::new_headless(&GpuOptions::default())?;
     // Before any build: the supersampled frame must fit the device.

@@ -131,6 +131,10 @@ impl ViewArgs {
         if self.screenshot_after == Some(0) {
             bail!("--screenshot-after counts frames from 1");
         }
+        super::reject_output_url(&self.out, "--out")?;
+        if let Some(shot) = &self.screenshot {
+            super::reject_output_url(shot, "--screenshot")?;
+        }
         Ok(())
     }
 

@@ -61,7 +61,7 @@ pub enum SourceError {
         message: String,
         /// The server's `Content-Range` total says its file ends before the range, or is another length
         /// than when it was opened (replaced): asking again cannot help.
-        file_shorter: bool,
+        permanent: bool,
     },
     /// Opening a remote file: its header claims more bytes of tables than the client holds in memory
     /// ([`crate::paging::http::HttpOptions::max_table_bytes`]); nothing past the header was fetched.
@@ -117,7 +117,7 @@ impl SourceError {
                 matches!(error, crate::store::StoreError::Io { .. })
             }
             SourceError::Status { status, .. } => *status >= 500 || matches!(status, 408 | 429),
-            SourceError::WrongRange { file_shorter, .. } => !file_shorter,
+            SourceError::WrongRange { permanent, .. } => !permanent,
             SourceError::Transport { .. }
             | SourceError::Length { .. }
             | SourceError::Checksum { .. } => true,

@@ -113,6 +113,10 @@ impl std::str::FromStr for RepeatMode {
 /// with an atlas beyond its min_distance sample coarser mips, where a thin border lets neighbouring areas
 /// bleed in: on data/city (depth 3) root-atlas views measure 33.1 dB against the original textures at
 /// border 8 and 38.3 dB at 16, for 18 % more texture data (`atlastree sweep`, border knob).
+/// The deepest tree a build makes ([`BuildOptions::max_depth`]): level 30's cells are 2⁻³⁰ of the
+/// scene's side.
+pub const MAX_DEPTH: u8 = 30;
+
 #[derive(Clone, Debug, Serialize)]
 pub struct BuildOptions {
     pub d_min: DMin,
@@ -469,12 +473,12 @@ pub fn resolve_params(
             "must be a finite number of atlases ≥ 0",
         );
     }
-    if opts.max_depth > 30 {
-        return bad(
-            "max-depth",
-            opts.max_depth.to_string(),
-            "must be from 0 (one leaf per tree) to 30",
-        );
+    if opts.max_depth > MAX_DEPTH {
+        return Err(BuildError::InvalidParam {
+            name: "max-depth",
+            value: opts.max_depth.to_string(),
+            why: format!("must be from 0 (one leaf per tree) to {MAX_DEPTH}").into(),
+        });
     }
     let (lo, hi) = scene.bounds().ok_or_else(|| empty_scene(scene))?;
     let diagonal = (hi - lo).length();

@@ -99,8 +99,8 @@ pub(super) struct ImageHeader {
     pub color: String,
     /// A JPEG without its end-of-image marker near its end (a truncated file, most likely: decoders draw
     /// what is there and fill the rest) or with fewer bytes after its first scan starts than its frame's
-    /// blocks take (a frame header claiming more than the data covers), or a PNG without its `IEND` chunk (its decode fails), reported
-    /// by the import as a warning.
+    /// blocks take (a frame header claiming more than the data covers), or a PNG without its `IEND`
+    /// chunk (its decode fails), reported by the import as a warning.
     pub truncated: bool,
 }
 
@@ -355,10 +355,11 @@ const JPEG_TAIL: u64 = 4096;
 /// Whether the JPEG in `reader` has its end-of-image marker (`FF D9`) in its last [`JPEG_TAIL`] bytes,
 /// past the start of its first scan ([`jpeg_scan_start`]), and at least the bytes its frame's blocks take
 /// from there ([`JpegScan::min_bytes`]). The marker of an embedded thumbnail (EXIF APP1) made a file cut
-/// short after it read as whole, and a frame header claiming more texels than the data covers drew one
-/// flat colour without a warning (fault hunts, session 35). A file whose segments do not lead to a scan
-/// is cut short; one whose markers do not parse is searched whole, as before. Files with a longer
-/// trailer after it (e.g. a motion photo's video) read as truncated: a warning only.
+/// short after it read as whole (fault hunt, session 35), and a frame header claiming more texels than
+/// the data covers drew one flat colour without a warning (session 35, mended in 36). A file whose
+/// segments do not lead to a scan is cut short; one whose markers do not parse is searched whole, as
+/// before. Files with a longer trailer after it (e.g. a motion photo's video) read as truncated: a
+/// warning only.
 fn jpeg_ends_with_eoi<R: Read + Seek>(reader: &mut R) -> Result<bool, String> {
     let scan = match jpeg_scan_start(reader) {
         Ok(Some(scan)) => scan,

@@ -69,19 +69,19 @@ pub fn remove_live_temps() -> usize {
 }
 
 /// [`remove_live_temps`] for a handler of Ctrl-C or SIGTERM: `say` is told how many were removed and
-/// how many committed outputs are still there, with the last ([`kept_outputs`]), then the process ends
-/// with `code` while it still holds the registry's lock, so a temp that [`AtomicFile::create`] (which
+/// how many committed outputs are still there, with the last ([`kept_outputs`]), then `end` ends the
+/// process while it still holds the registry's lock, so a temp that [`AtomicFile::create`] (which
 /// creates and registers under that lock) was making is either removed here or never made (one created
 /// while the handler ran stayed behind; fault hunt, session 28).
 pub fn remove_live_temps_and_exit(
-    code: i32,
+    end: impl FnOnce() -> std::convert::Infallible,
     say: impl FnOnce(usize, Option<&(usize, PathBuf)>),
 ) -> ! {
     let live = live_temps();
     let committed = committed();
     let removed = remove_listed(&live);
     say(removed, kept_outputs(&committed).as_ref());
-    std::process::exit(code)
+    match end() {}
 }
 
 /// The targets of the [`AtomicFile`]s this process committed, in order.

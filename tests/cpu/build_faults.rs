@@ -152,13 +152,14 @@ fn killed_build_leaves_nothing_or_the_whole_file_and_the_next_build_succeeds() {
 }
 
 /// Ctrl-C or SIGTERM (a scheduler cancelling a job) while the paging file is being written: the process
-/// ends with 128 + the signal's number (130, 143), removes its temp file itself (a SIGKILLed one leaves it to the next build, above) and
-/// says so, and no output appears. The build is BC7 so it is still writing when the signal comes.
+/// ends by that signal (so a shell loop stops; `$?` 130, 143), removes its temp file itself (a SIGKILLed
+/// one leaves it to the next build, above) and says so, and no output appears. The build is BC7 so it is still writing when the signal comes.
 #[test]
-fn interrupted_build_removes_its_temp_file_and_exits_128_plus_the_signal() {
+fn interrupted_build_removes_its_temp_file_and_ends_by_the_signal() {
+    use std::os::unix::process::ExitStatusExt;
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
-    for (signal, code) in [("-INT", 130), ("-TERM", 143)] {
+    for (signal, number) in [("-INT", 2), ("-TERM", 15)] {
         let child = build_cmd(&out)
             .args(["--compress", "bc7"])
             .stderr(Stdio::piped())
@@ -180,7 +181,7 @@ fn interrupted_build_removes_its_temp_file_and_exits_128_plus_the_signal() {
         assert!(sent.success(), "kill {signal}");
         let output = child.wait_with_output().unwrap();
         let status = output.status;
-        assert_eq!(status.code(), Some(code), "{signal}: {status}");
+        assert_eq!(status.signal(), Some(number), "{signal}: {status}");
         // Said, not silent: the removed temp file counted.
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(
@@ -191,6 +192,45 @@ fn interrupted_build_removes_its_temp_file_and_exits_128_plus_the_signal() {
         assert_eq!(temps(&out), Vec::<String>::new(), "{signal}: temp left");
         assert!(!out.exists(), "{signal}: an output appeared");
     }
+}
+
+/// A signal the build was started with ignored stays ignored: `nohup` ignores SIGHUP, and a logout ended
+/// a nohup'd build (review, session 36). The build goes on and writes its file.
+#[test]
+fn a_signal_ignored_at_start_stays_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    let mut args = vec![
+        "-c".to_string(),
+        "trap '' HUP; exec \"$0\" \"$@\"".to_string(),
+    ];
+    args.push(env!("CARGO_BIN_EXE_atlastree").into());
+    args.extend(build_args(&out, 256));
+    args.extend(["--compress".into(), "bc7".into()]);
+    let child = Command::new("bash")
+        .args(&args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while temps(&out).is_empty() {
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(60),
+            "no temp file within 60 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let sent = Command::new("kill")
+        .args(["-HUP", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{}: {stderr}", output.status);
+    assert!(!stderr.contains("interrupted"), "{stderr}");
+    assert!(out.is_file(), "the build finished");
 }
 
 /// Runs the build under `ulimit -f 1024` (1 MiB or 512 KiB, by the shell's unit). SIGXFSZ keeps the

@@ -80,8 +80,8 @@ pub struct HttpStats {
     pub full_responses: u64,
     /// Answers whose bytes did not match the block's checksum (every attempt counted; retried).
     pub checksum_failures: u64,
-    /// Block fetches whose last attempt failed its checksum: every answer for the block was wrong, which
-    /// points at the served file itself (a fetch that failed for another cause is not counted).
+    /// Block fetches that failed with every attempt's answer failing its checksum, which points at the
+    /// served file itself (a fetch with any attempt failing for another cause is not counted).
     pub checksum_fetch_failures: u64,
     /// Failed fetches since the last successful one: non-zero means "source failing, drawing coarser".
     pub consecutive_failures: u64,
@@ -153,9 +153,9 @@ enum Failure {
     /// (an HTML page): its first bytes. Not retried: no attempt makes it one (a short page read "got 29 of
     /// 528 bytes" after four tries, where a longer one said what it was; fault hunt, session 34).
     NotPaging(Vec<u8>),
-    /// A `206` for another range than asked for; `file_shorter` when its total ends before the range
-    /// (or differs from the length at open: a replaced file).
-    WrongRange { message: String, file_shorter: bool },
+    /// A `206` for another range than asked for; `permanent` when its total ends before the range or
+    /// differs from the length at open (a replaced file): asking again cannot help.
+    WrongRange { message: String, permanent: bool },
     /// The bytes of a block do not match its checksum.
     Checksum { found: u64 },
     /// The tables' bytes fail one of their checksums (corrupt in transit).
@@ -170,7 +170,7 @@ impl Failure {
             | Failure::Checksum { .. }
             | Failure::Corrupt(_) => true,
             Failure::Status(status) => *status >= 500 || matches!(status, 408 | 429),
-            Failure::WrongRange { file_shorter, .. } => !file_shorter,
+            Failure::WrongRange { permanent, .. } => !permanent,
             Failure::Request(_) | Failure::NotPaging(_) => false,
         }
     }
@@ -179,12 +179,10 @@ impl Failure {
     fn from_ureq(e: ureq::Error, options: &HttpOptions) -> Failure {
         use ureq::Error as E;
         match e {
-            E::Timeout(ureq::Timeout::Connect | ureq::Timeout::Resolve) => {
-                Failure::Transport(format!(
-                    "no connection within the connect timeout of {} s",
-                    crate::util::short_number(options.connect_timeout.as_secs_f64())
-                ))
-            }
+            E::Timeout(ureq::Timeout::Connect) => Failure::Transport(format!(
+                "no connection within the connect timeout of {} s",
+                crate::util::short_number(options.connect_timeout.as_secs_f64())
+            )),
             E::Timeout(_) => Failure::Transport(timed_out(options)),
             E::Http(_)
             | E::BadUri(_)
@@ -454,15 +452,19 @@ impl HttpSource {
         let content_length = response.body().content_length();
         // Bytes encoded on the way (a gzip the client did not ask for: a pre-compressed object on S3 or a
         // CDN) are not the file's: named, not retried ("got 320 of 528 bytes" after four tries; fault
-        // hunt, session 36).
-        if let Some(encoding) = (response.headers().get("content-encoding"))
-            .and_then(|v| v.to_str().ok())
+        // hunt, session 36). Only where the body would be the file's bytes: a gzipped 503 page is a 503.
+        let encodings: Vec<String> = (response.headers().get_all("content-encoding").iter())
+            .filter_map(|v| v.to_str().ok())
+            .flat_map(|v| v.split(','))
             .map(str::trim)
             .filter(|e| !e.is_empty() && !e.eq_ignore_ascii_case("identity"))
-        {
+            .map(str::to_owned)
+            .collect();
+        if matches!(status, 200 | 206) && !encodings.is_empty() {
             return Err(Failure::Request(format!(
-                "the server sent the bytes with Content-Encoding: {encoding}, not as stored: serve the \
-                 paging file uncompressed (`atlastree serve` does)"
+                "the server sent the bytes with Content-Encoding: {}, not as stored: serve the paging \
+                 file uncompressed (`atlastree serve` does)",
+                encodings.join(", ")
             )));
         }
         let mut body = response.into_body().into_reader();
@@ -575,15 +577,12 @@ impl HttpSource {
                 found,
                 attempts,
             },
-            Failure::WrongRange {
-                message,
-                file_shorter,
-            } => SourceError::WrongRange {
+            Failure::WrongRange { message, permanent } => SourceError::WrongRange {
                 url,
                 block: id,
                 attempts,
                 message,
-                file_shorter,
+                permanent,
             },
             Failure::Request(message) => SourceError::Request {
                 url,
@@ -606,6 +605,9 @@ impl HttpSource {
             verify(&self.shown, id, record, &[])?;
             return Ok(Vec::new());
         }
+        // Attempts of this fetch whose answer failed the checksum: all of them, where it fails, point at
+        // the served file (a timeout, then a bad checksum, does not).
+        let mismatches = std::cell::Cell::new(0u32);
         let check = |r: &Ranged| {
             // A file of another length answering for the one opened: replaced on the server (its blocks
             // failed their checksums, reported as corruption; fault hunt, session 36).
@@ -616,7 +618,7 @@ impl HttpSource {
                          (open the URL again for the new file)",
                         self.file_len
                     ),
-                    file_shorter: true,
+                    permanent: true,
                 });
             }
             let found = xxhash_rust::xxh3::xxh3_64(&r.bytes);
@@ -624,12 +626,13 @@ impl HttpSource {
                 return Ok(());
             }
             bump(&self.counters.checksum_failures, 1);
+            mismatches.set(mismatches.get() + 1);
             Err(Failure::Checksum { found })
         };
         let ranged = self
             .get_with_retries(record.offset, record.length, id.0.into(), check)
             .map_err(|(f, attempts)| {
-                if matches!(f, Failure::Checksum { .. }) {
+                if mismatches.get() == attempts {
                     bump(&self.counters.checksum_fetch_failures, 1);
                 }
                 self.block_error(id, record, f, attempts)
@@ -662,14 +665,14 @@ fn check_content_range(
     first: u64,
     last: u64,
 ) -> Result<Option<u64>, Failure> {
-    let wrong = |file_shorter: bool| Failure::WrongRange {
+    let wrong = |permanent: bool| Failure::WrongRange {
         message: format!(
             "206 with {}, expected bytes {first}-{last}/…",
             header.map_or("no Content-Range".to_string(), |h| format!(
                 "Content-Range \"{h}\""
             ))
         ),
-        file_shorter,
+        permanent,
     };
     let spec = header
         .and_then(|h| {
@@ -782,7 +785,7 @@ mod tests {
         assert!(check_content_range(None, 10, 19).is_err());
         // A total that ends before the range: the server's file is shorter, asking again cannot help.
         let shorter = |h: &str| match check_content_range(Some(h), 10, 19) {
-            Err(Failure::WrongRange { file_shorter, .. }) => Some(file_shorter),
+            Err(Failure::WrongRange { permanent, .. }) => Some(permanent),
             _ => None,
         };
         assert_eq!(shorter("bytes 0-9/10"), Some(true));
@@ -794,7 +797,7 @@ mod tests {
         assert!(
             Failure::WrongRange {
                 message: String::new(),
-                file_shorter: false
+                permanent: false
             }
             .retryable()
         );

@@ -156,9 +156,8 @@ fn a_decodes_peak_counts_its_rgba8_copy() {
 
 /// A frame header claiming more blocks than the data after the scan starts can code (one bit each)
 /// reads as truncated: a 64×48 JPEG patched to claim 4096×4096 decoded as one flat colour without a
-/// warning (fault hunt, session 35). The bound is below what any whole file takes: a flat 2048² grey,
-/// the least data a baseline file of that size holds, reads as whole, and so do a grey and a
-/// subsampled colour file.
+/// warning (fault hunt, session 35). The bound (one bit a block) is half what a baseline block takes at
+/// least (a DC and an end-of-block code): a flat 2048² colour file and a flat grey one read as whole.
 #[test]
 fn a_jpeg_frame_claiming_more_than_its_data_reads_as_truncated() {
     let encode = |img: image::DynamicImage| {

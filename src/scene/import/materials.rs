@@ -411,8 +411,9 @@ pub(super) fn image_or_fallback(
                 report.truncated_images += 1;
                 report.warn(format!(
                     "{file}: image {} ({name}): the data ends without its end marker (a JPEG's \
-                     end-of-image, a PNG's IEND: a truncated file?); a JPEG is drawn as far as it \
-                     decodes, a PNG as the magenta fallback",
+                     end-of-image, a PNG's IEND) or holds fewer bytes than its JPEG frame header's size \
+                     needs: a truncated or patched file?; a JPEG is drawn as far as it decodes, a PNG as \
+                     the magenta fallback",
                     img.index()
                 ));
             }

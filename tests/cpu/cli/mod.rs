@@ -583,8 +583,8 @@ fn build_reports_what_the_import_replaced() {
     assert!(stdout.contains("missing.png"), "{stdout}");
     assert!(
         stdout.contains(&format!(
-            "({}): the data ends without its end marker (a JPEG's end-of-image, a PNG's IEND: a \
-             truncated file?)",
+            "({}): the data ends without its end marker (a JPEG's end-of-image, a PNG's IEND) or \
+             holds fewer bytes than its JPEG frame header's size needs: a truncated or patched file?",
             cut.display()
         )),
         "{stdout}"

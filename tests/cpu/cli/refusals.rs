@@ -366,7 +366,7 @@ fn an_out_folder_another_run_holds_is_refused() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(
-        e.contains("another run is writing into this folder") && e.contains("sim"),
+        e.contains("another process holds this folder") && e.contains("sim"),
         "{e}"
     );
     assert_eq!(

@@ -464,7 +464,7 @@ fn a_wrong_content_range_is_retried_then_reported() {
             SourceError::WrongRange {
                 block: BlockId(5),
                 attempts: 4,
-                file_shorter: false,
+                permanent: false,
                 ..
             }
         ),
@@ -778,7 +778,7 @@ fn an_encoded_body_a_replaced_file_and_checksum_fetches_are_named() {
     let e = fetch(&src, &remote, 1).unwrap_err();
     let says = format!("now {} bytes, {len} when it was opened", len + 4096);
     assert!(
-        matches!(&e, SourceError::WrongRange { message, file_shorter: true, .. } if message.contains(&says)),
+        matches!(&e, SourceError::WrongRange { message, permanent: true, .. } if message.contains(&says)),
         "{e}"
     );
     assert!(!e.is_transient());
