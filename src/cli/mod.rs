@@ -221,6 +221,23 @@ fn on_interrupt(handler: fn(i32)) {
     }
 }
 
+/// What an interrupt did, said so an interrupted step is not read as a finished one (it ended without a
+/// word), nor a complete output as an unfinished one: `removed` unfinished outputs, and the committed
+/// outputs still there with the last of them.
+fn say_interrupted(removed: usize, committed: Option<&(usize, std::path::PathBuf)>) {
+    match committed {
+        Some((n, last)) => eprintln!(
+            "interrupted: {n} output(s) of this run were already complete (the last {}, left in place); \
+             {removed} unfinished output(s) removed",
+            last.display()
+        ),
+        None => eprintln!(
+            "interrupted: stopped before finishing; {removed} unfinished output(s) removed, earlier \
+             outputs left as they were"
+        ),
+    }
+}
+
 /// Ends the process as `signal` itself would (its default action, raised again), so the shell sees a
 /// process killed by it: a loop of builds stops at a Ctrl-C (bash goes on after a child that exited on
 /// its own; review, session 36). `$?` is 128 + the signal's number (130, 143), the exit code where the
@@ -249,24 +266,7 @@ pub(crate) fn run() -> anyhow::Result<ExitCode> {
         // 143) with no temp file left (a paging file's is its whole length, reserved up front). `serve`
         // handles Ctrl-C itself.
         on_interrupt(|signal| {
-            atlastree::util::remove_live_temps_and_exit(
-                || end_by(signal),
-                |removed, committed| {
-                    // Said, so an interrupted step is not read as a finished one (it ended without a word),
-                    // nor a complete output as an unfinished one.
-                    match committed {
-                        Some((n, last)) => eprintln!(
-                            "interrupted: {n} output(s) of this run were already complete (the last {}, left in \
-                         place); {removed} unfinished output(s) removed",
-                            last.display()
-                        ),
-                        None => eprintln!(
-                            "interrupted: stopped before finishing; {removed} unfinished output(s) removed, \
-                         earlier outputs left as they were"
-                        ),
-                    }
-                },
-            )
+            atlastree::util::remove_live_temps_and_exit(|| end_by(signal), say_interrupted)
         });
     }
     match cli.command {

@@ -151,35 +151,39 @@ fn killed_build_leaves_nothing_or_the_whole_file_and_the_next_build_succeeds() {
     );
 }
 
+/// Spawns `build` (stderr piped), sends `signal` (`kill`'s spelling, e.g. "-INT") once its temp file
+/// beside `out` exists, and waits for it.
+fn signal_while_writing(build: &mut Command, out: &Path, signal: &str) -> Output {
+    let child = build.stderr(Stdio::piped()).spawn().unwrap();
+    let started = std::time::Instant::now();
+    while temps(out).is_empty() {
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(60),
+            "no temp file within 60 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let sent = Command::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success(), "kill {signal}");
+    child.wait_with_output().unwrap()
+}
+
 /// Ctrl-C or SIGTERM (a scheduler cancelling a job) while the paging file is being written: the process
 /// ends by that signal (so a shell loop stops; `$?` 130, 143), removes its temp file itself (a SIGKILLed
-/// one leaves it to the next build, above) and says so, and no output appears. The build is BC7 so it is still writing when the signal comes.
+/// one leaves it to the next build, above) and says so, and no output appears. The build is BC7 so it is
+/// still writing when the signal comes.
 #[test]
 fn interrupted_build_removes_its_temp_file_and_ends_by_the_signal() {
     use std::os::unix::process::ExitStatusExt;
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("city.atlastree");
     for (signal, number) in [("-INT", 2), ("-TERM", 15)] {
-        let child = build_cmd(&out)
-            .args(["--compress", "bc7"])
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let started = std::time::Instant::now();
-        while temps(&out).is_empty() {
-            assert!(
-                started.elapsed() < std::time::Duration::from_secs(60),
-                "no temp file within 60 s"
-            );
-            std::thread::sleep(std::time::Duration::from_millis(5));
-        }
-        let sent = Command::new("kill")
-            .arg(signal)
-            .arg(child.id().to_string())
-            .status()
-            .unwrap();
-        assert!(sent.success(), "kill {signal}");
-        let output = child.wait_with_output().unwrap();
+        let mut build = build_cmd(&out);
+        build.args(["--compress", "bc7"]);
+        let output = signal_while_writing(&mut build, &out, signal);
         let status = output.status;
         assert_eq!(status.signal(), Some(number), "{signal}: {status}");
         // Said, not silent: the removed temp file counted.
@@ -207,26 +211,9 @@ fn a_signal_ignored_at_start_stays_ignored() {
     args.push(env!("CARGO_BIN_EXE_atlastree").into());
     args.extend(build_args(&out, 256));
     args.extend(["--compress".into(), "bc7".into()]);
-    let child = Command::new("bash")
-        .args(&args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let started = std::time::Instant::now();
-    while temps(&out).is_empty() {
-        assert!(
-            started.elapsed() < std::time::Duration::from_secs(60),
-            "no temp file within 60 s"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    let sent = Command::new("kill")
-        .args(["-HUP", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(sent.success());
-    let output = child.wait_with_output().unwrap();
+    let mut build = Command::new("bash");
+    build.args(&args).stdout(Stdio::null());
+    let output = signal_while_writing(&mut build, &out, "-HUP");
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{}: {stderr}", output.status);
     assert!(!stderr.contains("interrupted"), "{stderr}");

@@ -190,30 +190,15 @@ fn edge_ground() -> Scene {
 fn clamped_and_mirrored_originals_keep_their_edges_at_coarse_mips(
     ctx: &GpuContext,
 ) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let out = dir.path().join("edges.atlastree");
-    let opts = BuildOptions {
-        // d_min 2 km: every leaf draws its originals within the whole view.
-        d_min: DMin::Metres(2000.0),
-        atlas_size: 256,
-        ..BuildOptions::default()
-    };
-    build(&edge_ground(), &opts, &out, &NoProgress).map_err(e)?;
-    let file = TreeFile::open(&out).map_err(e)?;
+    let (_dir, file) = build_with_originals(&edge_ground())?;
     let cam = camera([64.0, 1.5, -2.0], [64.0, 0.0, 30.0], 90.0, 0.2);
-    let (originals, psnr, covered) = tree_against_original(ctx, &file, &cam)?;
-    println!("  {originals} original draws, tree vs original {psnr:.2} dB over {covered} px");
-    if originals == 0 || covered < (W * H / 3) as usize {
-        return Err(format!(
-            "the view must draw originals over much of the frame: {originals} draws, {covered} px"
-        ));
-    }
-    if psnr < 30.0 {
-        return Err(format!(
-            "clamped and mirrored originals: tree vs original {psnr:.2} dB < 30 dB"
-        ));
-    }
-    Ok(())
+    originals_within_30_db(
+        ctx,
+        &file,
+        &cam,
+        (W * H / 3) as usize,
+        "clamped and mirrored originals",
+    )
 }
 
 /// Seen from straight above at ~1.1 texels per pixel, a clamped texture's bands beyond its edges show
@@ -243,15 +228,7 @@ fn a_clamped_original_shows_its_edge_texel_just_above_one_texel_per_pixel(
         DVec2::new(2.0, 0.7),
         m,
     );
-    let dir = tempfile::tempdir().map_err(e)?;
-    let out = dir.path().join("edge-columns.atlastree");
-    let opts = BuildOptions {
-        d_min: DMin::Metres(2000.0),
-        atlas_size: 256,
-        ..BuildOptions::default()
-    };
-    build(&b.build(), &opts, &out, &NoProgress).map_err(e)?;
-    let file = TreeFile::open(&out).map_err(e)?;
+    let (_dir, file) = build_with_originals(&b.build())?;
     // 3 texels a metre across; a 90° view from h metres spans 2h metres over W pixels: 6h / W texels a
     // pixel, 1.1 at h = 1.1 W / 6.
     let h = 1.1 * f64::from(W) / 6.0;
@@ -264,18 +241,50 @@ fn a_clamped_original_shows_its_edge_texel_just_above_one_texel_per_pixel(
         near: 0.5,
         far: 500.0,
     };
-    let (originals, psnr, covered) = tree_against_original(ctx, &file, &cam)?;
-    println!("  {originals} original draws, tree vs original {psnr:.2} dB over {covered} px");
     // The quad spans 175 × 131 of the 320 × 240 pixels.
-    if originals == 0 || covered < (W * H / 5) as usize {
+    originals_within_30_db(
+        ctx,
+        &file,
+        &cam,
+        (W * H / 5) as usize,
+        "a clamped original's edge",
+    )
+}
+
+/// `scene` built with d_min 2 km and 256² atlases, so every leaf draws its originals within the whole
+/// view; the folder holds the file.
+fn build_with_originals(scene: &Scene) -> Result<(tempfile::TempDir, TreeFile), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let out = dir.path().join("originals.atlastree");
+    let opts = BuildOptions {
+        d_min: DMin::Metres(2000.0),
+        atlas_size: 256,
+        ..BuildOptions::default()
+    };
+    build(scene, &opts, &out, &NoProgress).map_err(e)?;
+    let file = TreeFile::open(&out).map_err(e)?;
+    Ok((dir, file))
+}
+
+/// `cam` drawn in tree and original mode ([`tree_against_original`]): an error unless the tree frame
+/// draws originals over at least `min_covered` pixels and comes within 30 dB of original mode's
+/// hardware-sampled frame (`what` names the case).
+fn originals_within_30_db(
+    ctx: &GpuContext,
+    file: &TreeFile,
+    cam: &Camera,
+    min_covered: usize,
+    what: &str,
+) -> Result<(), String> {
+    let (originals, psnr, covered) = tree_against_original(ctx, file, cam)?;
+    println!("  {originals} original draws, tree vs original {psnr:.2} dB over {covered} px");
+    if originals == 0 || covered < min_covered {
         return Err(format!(
-            "the view must draw the original over much of the frame: {originals} draws, {covered} px"
+            "the view must draw originals over much of the frame: {originals} draws, {covered} px"
         ));
     }
     if psnr < 30.0 {
-        return Err(format!(
-            "a clamped original's edge texel: tree vs original {psnr:.2} dB < 30 dB"
-        ));
+        return Err(format!("{what}: tree vs original {psnr:.2} dB < 30 dB"));
     }
     Ok(())
 }
