@@ -3,6 +3,8 @@
 Length = lines from the `fn` line to its matching closing brace (inclusive).
 Strings, chars and comments are skipped when matching braces; #[cfg(test)] code counts like any other."""
 import re, sys, os
+if not 2 <= len(sys.argv) <= 3 or not os.path.isdir(sys.argv[1]) or (len(sys.argv) == 3 and not sys.argv[2].isdigit()):
+    sys.exit("usage: tools/longest_fns.py DIR [N]   (DIR: a folder of Rust sources; N: how many, default 10)")
 root = sys.argv[1]; n = int(sys.argv[2]) if len(sys.argv) > 2 else 10
 fn_re = re.compile(r'^\s*(pub(\([^)]*\))?\s+)?(const\s+)?(async\s+)?(unsafe\s+)?(extern\s+"[^"]*"\s+)?fn\s+(\w+)')
 def strip(line, state):

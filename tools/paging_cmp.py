@@ -8,6 +8,7 @@ mean coarser share, bytes loaded (all, originals), loads, frames to the ideal se
 Each LABEL=BIN:FILE is simulated with its own binary (a file is read by the binary of its format).
 """
 import argparse
+import sys
 import json
 import subprocess
 import tempfile
@@ -23,6 +24,8 @@ def main():
     print("| file | path | MB/s | mean coarser | loaded MB (originals) | loads | converge frames |")
     print("|---|---|---|---|---|---|---|")
     for run in a.runs:
+        if "=" not in run or ":" not in run.split("=", 1)[1]:
+            ap.error(f"{run!r}: a run is LABEL=BIN:FILE")
         label, rest = run.split("=", 1)
         binary, path = rest.split(":", 1)
         for p in a.paths.split(","):
@@ -30,7 +33,11 @@ def main():
                 res = subprocess.run(
                     [binary, "simulate", path, "--path", p, "--capacity", str(a.k), "--bandwidth", a.bandwidths,
                      "--latency", "0ms", "--policy", "paper", "--fps", "30", "--frames", "1200", "--out", out,
-                     "--json"], capture_output=True, text=True, check=True)
+                     "--json"], capture_output=True, text=True)
+            if res.returncode != 0:
+                # atlastree's own error, not a traceback of the call.
+                sys.exit(f"paging_cmp.py: {label}, path {p}: simulate failed (exit {res.returncode}):\n"
+                         f"{res.stderr.strip()}")
             # Older binaries print a line before the JSON and the file list after it.
             rows, _ = json.JSONDecoder().raw_decode(res.stdout[res.stdout.index("["):])
             for r in rows:

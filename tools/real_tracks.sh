@@ -6,15 +6,28 @@
 #
 #   tools/real_tracks.sh SCENES_DIR OUT_DIR [NAME ...]     (default: every scene in SCENES_DIR)
 set -euo pipefail
+if [[ $# -lt 2 ]]; then
+    echo "usage: tools/real_tracks.sh SCENES_DIR OUT_DIR [NAME ...]   (ATLASTREE=BIN for another binary)" >&2
+    exit 2
+fi
 scenes=$1 out=$2
 shift 2
 bin=${ATLASTREE:-target/release/atlastree}
 names=("$@")
-[[ ${#names[@]} -gt 0 ]] || mapfile -t names < <(ls "$scenes")
+# The scene folders only (a README beside them is not a scene).
+[[ ${#names[@]} -gt 0 ]] || mapfile -t names < <(cd "$scenes" && for d in */; do [[ -f $d/scene.gltf ]] && echo "${d%/}"; done)
 mkdir -p "$out"
+failed=0
 for s in "${names[@]}"; do
     file=$out/$s.atlastree
-    /usr/bin/time -f "%e %M" -o "$out/$s.time" "$bin" build "$scenes/$s/scene.gltf" -o "$file" >/dev/null 2>&1
+    if ! /usr/bin/time -f "%e %M" -o "$out/$s.time" "$bin" build "$scenes/$s/scene.gltf" -o "$file" \
+        >"$out/$s.log" 2>&1; then
+        echo "$s: build FAILED ($out/$s.log):" >&2
+        tail -3 "$out/$s.log" >&2
+        failed=$((failed + 1))
+        continue
+    fi
+    rm -f "$out/$s.log"
     read -r secs kb <"$out/$s.time"
     info=$("$bin" inspect "$file")
     depth=$(grep -oE 'depth [0-9]+' <<<"$info" | awk '{print $2}' | sort -n | tail -1)
@@ -33,4 +46,9 @@ print(f"  {sys.argv[2]} k={sys.argv[3]}: {len(rows)} frames, nodes drawn per fra
       f"max {max(drawn)}, mean coarser share {sum(coarser) / len(coarser):.3f}")
 PY
     done
+    rm -rf "$out/sim" "$out/$s.time"
 done
+if [[ $failed -gt 0 ]]; then
+    echo "real_tracks.sh: $failed build(s) failed" >&2
+    exit 1
+fi

@@ -49,10 +49,16 @@ def measure(binary, scene, flags, frames, render, timeout):
         b, secs = run([binary, "build", scene, "-o", out, "--json", "-q"] + flags, timeout)
         row["build_s"] = round(secs, 2)
         if b.returncode != 0:
-            row["refused"] = b.stderr.strip().splitlines()[-1] if b.stderr.strip() else "failed"
-            m = re.search(r"need (\d+) nodes \(depth (\d+)\), (\d+) blocks and (\d+) bytes", b.stderr)
-            if m:
-                row.update(nodes=int(m[1]), depth=int(m[2]), blocks=int(m[3]), predicted_bytes=int(m[4]))
+            last = b.stderr.strip().splitlines()[-1] if b.stderr.strip() else "failed"
+            # A build refused as too large says what it would have written (preprocess `TooLarge`); any
+            # other failure (a missing scene, a bad flag) is an error of the run, not a refusal.
+            m = re.search(r"would need (\d+) nodes \(depth (\d+)\) and (\d+) blocks, a file of (\d+) bytes",
+                          b.stderr)
+            if not m:
+                row["error"] = last
+                return row
+            row["refused"] = last
+            row.update(nodes=int(m[1]), depth=int(m[2]), blocks=int(m[3]), predicted_bytes=int(m[4]))
             return row
         r = json.loads(b.stdout)
         row["file_bytes"] = r["file_bytes"]
@@ -132,8 +138,12 @@ def table(rows):
     for r in rows:
         rgb8 = 3 * (r.get("source_texels") or 0)
         name = os.path.basename(os.path.dirname(r["scene"])) or r["scene"]
+        if "error" in r:
+            lines.append(f"| {name} | failed: {r['error']} | — | — | — | — | — | — | — | — |")
+            continue
+        decode = f"{r['decode_s']:.2f}" if r.get("decode_s") is not None else "—"
         if "refused" in r:
-            lines.append(f"| {name} | refused ({r['build_s']} s) | {r.get('decode_s', '—')} s | "
+            lines.append(f"| {name} | refused ({r['build_s']} s) | {decode} s | "
                          f"{fmt_bytes(r.get('predicted_bytes'))} predicted | "
                          f"{(r.get('predicted_bytes') or 0) / max(rgb8, 1):.0f}× | — | {r.get('nodes', '—')} | "
                          f"{r.get('depth', '—')} | — | — |")
@@ -171,6 +181,10 @@ def main():
             with open(a.out, "w") as f:
                 json.dump(rows, f, indent=1)
     print(table(rows))
+    failed = [r["scene"] for r in rows if "error" in r]
+    if failed:
+        print(f"scene_table.py: {len(failed)} scene(s) failed to build: {', '.join(failed)}", file=sys.stderr)
+        sys.exit(1)
 
 
 if __name__ == "__main__":

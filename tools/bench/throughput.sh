@@ -8,6 +8,10 @@
 #
 # FLAGS (default `--compress bc1`) are passed to every build; outputs go to a temporary folder.
 set -euo pipefail
+if [[ $# -lt 2 ]]; then
+    echo "usage: tools/bench/throughput.sh \"LABEL=BIN [LABEL=BIN ...]\" SCENE.gltf...   (FLAGS=... for the builds)" >&2
+    exit 2
+fi
 bins=$1
 shift
 flags=${FLAGS:---compress bc1}
@@ -21,8 +25,12 @@ for scene in "$@"; do
         label=${lb%%=*} bin=${lb#*=}
         decode=$("$bin" scene-info --decode "$scene" 2>&1 | sed -n 's/^decoded .* in \([0-9.]*\) s on.*/\1/p')
         # shellcheck disable=SC2086 # FLAGS is a list of flags
-        /usr/bin/time -f "%e %M" -o "$out/time" "$bin" build "$scene" -o "$out/$label.atlastree" $flags \
-            >"$out/log" 2>&1
+        if ! /usr/bin/time -f "%e %M" -o "$out/time" "$bin" build "$scene" -o "$out/$label.atlastree" $flags \
+            >"$out/log" 2>&1; then
+            echo "throughput.sh: $label failed to build $scene:" >&2
+            tail -5 "$out/log" >&2
+            exit 1
+        fi
         read -r secs kb <"$out/time"
         stages=$(sed -n 's/^ *time: //p' "$out/log" | sed 's/, total.*//' | tr '\n' ' ')
         same="—"

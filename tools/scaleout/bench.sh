@@ -9,6 +9,10 @@
 #   tools/scaleout/bench.sh BIN SCENE WORKDIR N [build flags…]
 #   e.g. tools/scaleout/bench.sh target/release/atlastree /tmp/berlin4/scene.gltf /tmp/bench 4 --compress bc1
 set -euo pipefail
+if [[ $# -lt 4 ]]; then
+    echo "usage: tools/scaleout/bench.sh BIN SCENE WORKDIR N [build flags…]   (PLAN=1, ONE=0 ONE_S=…)" >&2
+    exit 2
+fi
 bin=$1 scene=$2 work=$3 n=$4
 shift 4
 mkdir -p "$work"
@@ -17,13 +21,15 @@ plan=${PLAN:-0}
 [[ ${ONE:-1} == 0 ]] || rm -f "$one"
 rm -f "$out" "$out".shard-* "$out".plan "$out".plan.json
 
-# Runs a command under GNU time; prints "seconds peak_kib".
+# Runs a command under GNU time; prints "seconds peak_kib". A failed command's exit status is returned
+# (its time file removed either way).
 timed() {
-    local log
+    local log rc=0
     log=$(mktemp)
-    /usr/bin/time -f '%e %M' -o "$log" "$@" >/dev/null
-    cat "$log"
+    /usr/bin/time -f '%e %M' -o "$log" "$@" >/dev/null || rc=$?
+    ((rc)) || cat "$log"
     rm -f "$log"
+    return "$rc"
 }
 
 if [[ ${ONE:-1} == 0 ]]; then

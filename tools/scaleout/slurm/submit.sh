@@ -227,6 +227,8 @@ scene=$1 out=$2 n=$3
 shift 3
 flags=("$@")
 [[ $n =~ ^[1-9][0-9]*$ ]] || die "N must be a positive whole number, not '$n'"
+# `build --shard I/N` takes N ≤ 4096: every task of a larger array would be refused.
+((${#n} <= 5 && n <= 4096)) || die "N must be at most 4096 (what \`atlastree build --shard\` takes), not $n"
 [[ -f $scene ]] || die "no such scene: $scene"
 out_dir=$(dirname "$out")
 [[ -d $out_dir ]] || die "the directory of OUT does not exist: $out_dir"
@@ -266,10 +268,14 @@ else
     tasks=$(seq -s, 0 $((n - 1))) mode=auto array=0-$((n - 1))
     shopt -s nullglob
     stale=("$out".shard-*-of-*)
+    # A plan of an earlier run (this one plans none), where there is one.
     ((plan)) || stale+=("$out".plan "$out".plan.json)
     shopt -u nullglob
+    present=()
+    for f in "${stale[@]}"; do [[ -e $f ]] && present+=("$f"); done
+    stale=("${present[@]}")
     if ((${#stale[@]})); then
-        echo "$prog: removing ${#stale[@]} shard file(s) of an earlier run: ${stale[*]}"
+        echo "$prog: removing ${#stale[@]} file(s) of an earlier run: ${stale[*]}"
         rm -f -- "${stale[@]}"
     fi
 fi
