@@ -23,6 +23,14 @@ pub const PLAN_BYTES_PER_TRIANGLE: u64 = 250;
 /// assembly peak 1.07 GiB; 322 = a triangle's 250 + its corners let that build peak 18 % over its stated
 /// need: review of session 32), rounded up ~1.1×.
 pub const BAKED_PIECE_BYTES: u64 = 550;
+/// Bytes each vertex beyond one a triangle adds at the plan's peak (a triangle soup, one vertex a corner;
+/// a mesh instanced by many nodes, its vertices copied per instance): the leaf geometry and its vertex
+/// lookup grow with the vertices, which [`PLAN_BYTES_PER_TRIANGLE`] (measured on indexed meshes, about
+/// one vertex a triangle) leaves out. 3 M soup triangles (9 M vertices) peaked at 2.00 GiB against 924
+/// MiB stated, and 2¹⁶ instances of a 64-triangle mesh (4.2 M triangles, 12.6 M vertices) passed a
+/// 1,500 MiB budget and aborted allocating (fault hunt, session 36): ~130 bytes a vertex beyond one a
+/// triangle, rounded up.
+pub const PLAN_BYTES_PER_EXTRA_VERTEX: u64 = 160;
 /// Bytes the import holds per byte of glTF JSON while it parses it (the text, its `serde_json` value,
 /// the `gltf` document and the raw nodes and materials, all alive at once; freed before the plan):
 /// measured 13.5 (21.5 MB of JSON for 40,000 one-quad primitives, import peak 357 MiB: 290 over the
@@ -69,6 +77,8 @@ pub const MIN_IMAGE_CACHE: u64 = 64 << 20;
 pub struct PlanLoad {
     pub triangles: u64,
     pub extra_pieces: u64,
+    /// The scene's vertices beyond one a triangle ([`PLAN_BYTES_PER_EXTRA_VERTEX`] each).
+    pub extra_vertices: u64,
 }
 
 impl PlanLoad {
@@ -77,6 +87,7 @@ impl PlanLoad {
         PlanLoad {
             triangles,
             extra_pieces: 0,
+            extra_vertices: 0,
         }
     }
 
@@ -84,6 +95,10 @@ impl PlanLoad {
     fn bytes(self) -> u64 {
         (self.triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE))
             .saturating_add(self.extra_pieces.saturating_mul(BAKED_PIECE_BYTES))
+            .saturating_add(
+                self.extra_vertices
+                    .saturating_mul(PLAN_BYTES_PER_EXTRA_VERTEX),
+            )
     }
 }
 
@@ -178,7 +193,7 @@ pub struct MemoryPlan {
     "the build needs about {needed_mib} MiB ({plan_mib} MiB for the plan: {}; {raster_mib} MiB for {threads} \
      rasteriser {}; {cache_mib} MiB of image cache: {}), over the budget of {budget_mib} MiB (--max-memory; \
      by default half the memory this process may use): raise --max-memory{}{}",
-    plan_why(*.triangles, *.extra_pieces),
+    plan_why(*.triangles, *.extra_pieces, *.extra_vertices),
     if *.threads == 1 { "thread" } else { "threads" },
     cache_why(.largest_image, *.images, *.threads),
     if *.threads > 1 { ", or run fewer rasteriser threads (RAYON_NUM_THREADS=N: each holds its atlases \
@@ -192,6 +207,8 @@ pub struct MemoryError {
     pub triangles: u64,
     /// Pieces beyond one a triangle where repeats are baked ([`PlanLoad::extra_pieces`]).
     pub extra_pieces: u64,
+    /// [`PlanLoad::extra_vertices`].
+    pub extra_vertices: u64,
     pub plan_mib: u64,
     pub raster_mib: u64,
     pub threads: u64,
@@ -211,9 +228,19 @@ impl MemoryError {
 
 /// What the plan's share holds, in words: the process's fixed base and the triangles held, or for a
 /// shard that read a plan file (no triangles) the base and the tables' skeleton.
-fn plan_why(triangles: u64, extra_pieces: u64) -> String {
+fn plan_why(triangles: u64, extra_pieces: u64, extra_vertices: u64) -> String {
     let base = BASE_BYTES >> 20;
-    if extra_pieces > 0 {
+    if extra_vertices > 0 {
+        let pieces = if extra_pieces > 0 {
+            format!(" (cut into {extra_pieces} more pieces where repeats are baked)")
+        } else {
+            String::new()
+        };
+        format!(
+            "a {base} MiB base and {triangles} triangles held{pieces}, with {extra_vertices} vertices beyond \
+             one a triangle (unshared corners, or meshes instanced with their vertices)"
+        )
+    } else if extra_pieces > 0 {
         format!(
             "a {base} MiB base and {triangles} triangles held, cut into {extra_pieces} more pieces where \
              repeats are baked (--repeat bake; --repeat wrap cuts none, a smaller --max-pieces fewer)"
@@ -319,16 +346,18 @@ struct CacheNeed {
 /// Why the plan step of a sharded build does not fit its budget.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error(
-    "the plan needs about {needed_mib} MiB ({triangles} triangles{}, all held at once while planning), over \
+    "the plan needs about {needed_mib} MiB ({triangles} triangles{}{}, all held at once while planning), over \
      the budget of {budget_mib} MiB (--max-memory; by default half the memory this process may use): plan on a machine with more memory (--max-memory {needed_mib}MiB or more; the \
      budget is not part of the plan's key, so the shards may keep a small one)",
-    if *.extra_pieces > 0 { format!(" and {} more pieces where repeats are baked", .extra_pieces) } else { String::new() }
+    if *.extra_pieces > 0 { format!(" and {} more pieces where repeats are baked", .extra_pieces) } else { String::new() },
+    if *.extra_vertices > 0 { format!(", {} vertices beyond one a triangle", .extra_vertices) } else { String::new() }
 )]
 pub struct PlanStepMemoryError {
     pub budget_mib: u64,
     pub needed_mib: u64,
     pub triangles: u64,
     pub extra_pieces: u64,
+    pub extra_vertices: u64,
 }
 
 /// Splits `budget` between plan, rasteriser threads and the image cache (at most `cache_wanted`); fails when
@@ -360,6 +389,7 @@ pub fn plan_step_memory(budget: u64, load: PlanLoad) -> Result<MemoryPlan, PlanS
             needed_mib: plan_bytes.div_ceil(1 << 20),
             triangles: load.triangles,
             extra_pieces: load.extra_pieces,
+            extra_vertices: load.extra_vertices,
         });
     }
     Ok(MemoryPlan {
@@ -429,6 +459,7 @@ fn split_budget(
             needed_mib: mib(needed_bytes),
             triangles: load.triangles,
             extra_pieces: load.extra_pieces,
+            extra_vertices: load.extra_vertices,
             plan_mib: mib(plan_bytes),
             raster_mib: mib(raster_bytes),
             threads,
@@ -509,9 +540,10 @@ mod tests {
         let absurd = ImageLoad::of([(u32::MAX, u32::MAX); 2], u64::MAX);
         assert_eq!(absurd.all_texels, u64::MAX);
         assert!(cache_why("x", absurd, u64::MAX).contains("the largest"));
-        assert_eq!(plan_why(12, 0), "a 64 MiB base and 12 triangles held");
-        assert!(plan_why(12, 5).contains("cut into 5 more pieces where repeats are baked"));
-        assert!(plan_why(0, 0).contains("no triangles"));
+        assert_eq!(plan_why(12, 0, 0), "a 64 MiB base and 12 triangles held");
+        assert!(plan_why(12, 5, 0).contains("cut into 5 more pieces where repeats are baked"));
+        assert!(plan_why(0, 0, 0).contains("no triangles"));
+        assert!(plan_why(12, 0, 24).contains("with 24 vertices beyond one a triangle"));
     }
 
     #[test]
@@ -567,6 +599,7 @@ mod tests {
         let load = PlanLoad {
             triangles: 2048,
             extra_pieces: 1_000_000,
+            extra_vertices: 0,
         };
         let images = ImageLoad::of([(64, 64)], 2);
         let p = plan_memory(u64::MAX, load, 1024, 2, images, 2 << 30).unwrap();
@@ -581,6 +614,35 @@ mod tests {
         let e = plan_memory(300 << 20, load, 1024, 2, images, 2 << 30).unwrap_err();
         assert!(
             e.to_string().contains("cut into 1000000 more pieces"),
+            "{e}"
+        );
+    }
+
+    /// Vertices beyond one a triangle are counted in the build's need and the plan step's, and named in
+    /// their refusals (a soup of 3 M triangles peaked at twice its stated need; fault hunt, session 36).
+    #[test]
+    fn vertices_beyond_one_a_triangle_are_counted_as_held() {
+        let load = PlanLoad {
+            extra_vertices: 6_000_000,
+            ..PlanLoad::triangles(3_000_000)
+        };
+        let images = ImageLoad::of([(64, 64)], 2);
+        let p = plan_memory(u64::MAX, load, 1024, 2, images, 2 << 30).unwrap();
+        assert_eq!(
+            p.plan_bytes,
+            BASE_BYTES + 3_000_000 * 250 + 6_000_000 * PLAN_BYTES_PER_EXTRA_VERTEX
+        );
+        let e = plan_step_memory(1 << 30, load).unwrap_err();
+        assert_eq!(e.extra_vertices, 6_000_000);
+        assert!(
+            e.to_string()
+                .contains(", 6000000 vertices beyond one a triangle"),
+            "{e}"
+        );
+        let e = plan_memory(1 << 30, load, 1024, 2, images, 2 << 30).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("with 6000000 vertices beyond one a triangle"),
             "{e}"
         );
     }

@@ -199,8 +199,12 @@ pub(super) fn plan_load(
     parts: &[(TreeKind, Vec<u32>)],
 ) -> memory::PlanLoad {
     let triangles = scene.triangles.len() as u64;
+    let extra_vertices = (scene.vertices.len() as u64).saturating_sub(triangles);
     if opts.max_memory_bytes.is_none() {
-        return memory::PlanLoad::triangles(triangles);
+        return memory::PlanLoad {
+            extra_vertices,
+            ..memory::PlanLoad::triangles(triangles)
+        };
     }
     let popts = prepare_options(params, opts);
     let (pieces, whole) = parts.iter().fold((0u64, 0u64), |(p, w), (_, tris)| {
@@ -210,6 +214,7 @@ pub(super) fn plan_load(
     memory::PlanLoad {
         triangles,
         extra_pieces: pieces.saturating_sub(whole),
+        extra_vertices,
     }
 }
 

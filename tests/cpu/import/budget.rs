@@ -59,3 +59,42 @@ fn input_past_the_budget_is_refused_before_it_is_read() {
         "{msg}"
     );
 }
+
+/// Primitives sharing one vertex accessor, each with indices of its own, count the vertices their
+/// indices can use, not the accessor once each: 50,000 primitives over 200,000 vertices were refused as
+/// 10¹⁰ vertices past the u32 range (fault hunt, session 36). Here three primitives of three indices
+/// share an accessor that claims 2³¹ vertices: the count is 9, so the import goes on to read the buffer
+/// (absent here) instead of refusing the scene as too large.
+#[test]
+fn primitives_sharing_an_accessor_count_the_vertices_they_index() {
+    let big = 1u64 << 31;
+    let prim = |indices: u32| json!({"attributes": {"POSITION": 0}, "indices": indices});
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [prim(1), prim(2), prim(3)]}],
+        "buffers": [{"uri": "absent.bin", "byteLength": big * 12 + 36}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": big * 12},
+            {"buffer": 0, "byteOffset": big * 12, "byteLength": 36}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": big, "type": "VEC3",
+             "min": [0, 0, 0], "max": [1, 1, 1]},
+            {"bufferView": 1, "byteOffset": 0, "componentType": 5125, "count": 3, "type": "SCALAR"},
+            {"bufferView": 1, "byteOffset": 12, "componentType": 5125, "count": 3, "type": "SCALAR"},
+            {"bufferView": 1, "byteOffset": 24, "componentType": 5125, "count": 3, "type": "SCALAR"}
+        ]
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("shared.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let e = import(&path, &ImportOptions::default())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(!e.contains("vertex index range"), "{e}");
+    assert!(e.contains("absent.bin"), "{e}");
+}
