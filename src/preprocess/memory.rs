@@ -195,7 +195,7 @@ pub struct MemoryPlan {
      by default half the memory this process may use): raise --max-memory{}{}",
     plan_why(*.triangles, *.extra_pieces, *.extra_vertices),
     if *.threads == 1 { "thread" } else { "threads" },
-    cache_why(.largest_image, *.images, *.threads),
+    cache_why(.largest_image, **.images, *.threads),
     if *.threads > 1 { ", or run fewer rasteriser threads (RAYON_NUM_THREADS=N: each holds its atlases \
      and its images)" } else { "" },
     if *.triangles > 0 { ", or for a sharded build plan once (`build --shard plan`): its shards then hold no \
@@ -213,7 +213,8 @@ pub struct MemoryError {
     pub raster_mib: u64,
     pub threads: u64,
     pub cache_mib: u64,
-    pub images: ImageLoad,
+    /// Boxed: the error stays small where it is passed back (clippy `result_large_err`).
+    pub images: Box<ImageLoad>,
     /// The largest image's name; filled in by the caller, who knows the images ([`MemoryError::naming`]).
     pub largest_image: String,
 }
@@ -464,7 +465,7 @@ fn split_budget(
             raster_mib: mib(raster_bytes),
             threads,
             cache_mib: mib(cache_bytes),
-            images,
+            images: Box::new(images),
             largest_image: "?".to_string(),
         });
     }

@@ -436,7 +436,7 @@ fn memory_budget_sizes_the_cache_or_refuses_up_front_with_the_number_needed() {
                 .unwrap()
                 .name;
             assert_eq!(&e.largest_image, name);
-            assert_eq!(e.images, images);
+            assert_eq!(*e.images, images);
             // The cause of the cache's need (every image once, the threads' largest images, or the
             // cache's minimum: `memory`'s unit tests tell which when), naming the largest image.
             let text = e.to_string();
