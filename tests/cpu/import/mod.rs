@@ -1,5 +1,6 @@
 //! `scene::import`: glTF 2.0 in, a flat scene out.
 
+mod accessors;
 mod bad_input;
 mod budget;
 mod city;
