@@ -455,7 +455,7 @@ fn print_resident(ctx: &GpuContext, fl: &FrameLoop<'_>, paged: bool, seconds: f6
 
 /// Phase 4: one output directory per mode (the output directory itself for a single mode).
 fn mode_runs(cfg: &RenderConfig, frames: usize) -> anyhow::Result<Vec<ModeRun>> {
-    std::fs::create_dir_all(&cfg.out).with_context(|| format!("creating {}", cfg.out.display()))?;
+    // `--out` exists: `OutFolder::open` made it and holds it.
     let earlier = earlier_modes(&cfg.out);
     clear_earlier_run(&cfg.out, &earlier, &cfg.modes, cfg.selection)?;
     // Until this run's summary replaces it: a summary that names this run's modes (so a later run
@@ -599,8 +599,6 @@ fn fly(
         );
     }
     if cfg.selection {
-        std::fs::create_dir_all(&cfg.out)
-            .with_context(|| format!("creating {}", cfg.out.display()))?;
         let path = cfg.out.join("selection.json");
         let text = serde_json::to_string_pretty(&serde_json::json!({ "frames": selections }))?;
         atlastree::util::write_atomic(&path, text.as_bytes())

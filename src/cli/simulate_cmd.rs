@@ -181,13 +181,13 @@ pub(super) fn run(a: SimulateArgs) -> anyhow::Result<ExitCode> {
 
 /// Runs a checked configuration.
 pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
-    // An --out that cannot be a folder, before the file is read.
-    super::check_out_folder(&cfg.out)?;
-    let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Auto)?;
-    // Before the runs, not after them: an --out that cannot be a folder (or made one, or written), or
-    // that another run holds. A run refused (a bad path, a capacity below the roots) leaves no folder
-    // it made (as render and sweep leave none; fault hunt, session 35).
-    super::OutFolder::open(&cfg.out)?.run(|| run_and_write(cfg, &file))
+    // Before the file is read and the runs: an --out that cannot be a folder (or made one, or written),
+    // or that another run holds. A run refused (a missing file, a bad path, a capacity below the roots)
+    // leaves no folder it made (as render and sweep leave none; fault hunt, session 35).
+    super::OutFolder::open(&cfg.out)?.run(|| {
+        let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Auto)?;
+        run_and_write(cfg, &file)
+    })
 }
 
 /// [`execute`] once `--out` exists: the runs, their CSVs, plots and report.

@@ -355,7 +355,7 @@ impl Grid {
         let sizes = self.atlas_size.iter().chain([&b.atlas_size]);
         if let Some(s) = sizes
             .into_iter()
-            .find(|s| !s.is_power_of_two() || !(64..=16384).contains(*s))
+            .find(|s| !crate::preprocess::valid_atlas_size(**s))
         {
             return bad(format!(
                 "atlas_size {s} must be a power of two from 64 to 16384"
@@ -399,7 +399,7 @@ impl Grid {
             .builds
             .iter()
             .map(|b| b.knobs)
-            .find(|k| u64::from(k.border) * 4 >= u64::from(k.atlas_size))
+            .find(|k| !crate::preprocess::valid_border(k.border, k.atlas_size))
         {
             return bad(format!(
                 "border {} must be less than a quarter of atlas_size {} (build {})",

@@ -453,12 +453,11 @@ impl HttpSource {
         // Bytes encoded on the way (a gzip the client did not ask for: a pre-compressed object on S3 or a
         // CDN) are not the file's: named, not retried ("got 320 of 528 bytes" after four tries; fault
         // hunt, session 36). Only where the body would be the file's bytes: a gzipped 503 page is a 503.
-        let encodings: Vec<String> = (response.headers().get_all("content-encoding").iter())
+        let encodings: Vec<&str> = (response.headers().get_all("content-encoding").iter())
             .filter_map(|v| v.to_str().ok())
             .flat_map(|v| v.split(','))
             .map(str::trim)
             .filter(|e| !e.is_empty() && !e.eq_ignore_ascii_case("identity"))
-            .map(str::to_owned)
             .collect();
         if matches!(status, 200 | 206) && !encodings.is_empty() {
             return Err(Failure::Request(format!(
