@@ -37,7 +37,8 @@ pub(crate) struct ViewArgs {
     #[arg(long, requires = "path")]
     pub path_fps: Option<f64>,
     /// Start camera `EX,EY,EZ,TX,TY,TZ[,FOV]`: eye, target (world units) and horizontal field of view
-    /// (degrees, default 60). Default: frame the whole scene.
+    /// (degrees, default 60). The near plane is 0.25 units, the far plane reaches the scene's farthest
+    /// corner (at least 100 km). Default: frame the whole scene.
     #[arg(long, conflicts_with = "path", allow_hyphen_values = true)]
     pub camera: Option<String>,
     /// Write a screenshot of the N-th frame (1 = the first) to --screenshot.

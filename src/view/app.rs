@@ -724,7 +724,11 @@ fn initial_controller(
     aspect: f64,
 ) -> Controller {
     if let Some(c) = opts.camera {
-        return Controller::from_camera(&c, up);
+        // `--camera` names no clip planes: the far plane reaches the scene's farthest corner (a 20 km
+        // terrain seen from 110 km was clipped away by the fixed 100 km; fault hunt, session 37).
+        let mut ctl = Controller::from_camera(&c, up);
+        ctl.far = ctl.far.max(far_to_see(c.eye, lo, hi));
+        return ctl;
     }
     if let Some(p) = &opts.path {
         return Controller::from_camera(&p.sample(p.start()), up);
@@ -742,6 +746,23 @@ fn initial_controller(
     let mut c = Controller::from_camera(&look, up);
     c.frame(lo, hi, aspect);
     c
+}
+
+/// A far plane, world units, beyond every corner of the box `[lo, hi]` seen from `eye` (twice the
+/// farthest corner's distance, as [`Controller::frame`] leaves room); 0 for a box that is not finite.
+fn far_to_see(eye: DVec3, lo: DVec3, hi: DVec3) -> f64 {
+    if !(lo.is_finite() && hi.is_finite()) {
+        return 0.0;
+    }
+    let corners = (0..8).map(|k| {
+        let pick = |bit: u32, a: f64, b: f64| if k & bit == 0 { a } else { b };
+        DVec3::new(
+            pick(1, lo.x, hi.x),
+            pick(2, lo.y, hi.y),
+            pick(4, lo.z, hi.z),
+        )
+    });
+    2.0 * corners.map(|c| c.distance(eye)).fold(0.0, f64::max)
 }
 
 fn movement_key(code: KeyCode) -> Option<Key> {
@@ -774,4 +795,22 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ViewError> {
     };
     std::fs::create_dir_all(crate::util::parent_dir(path)).map_err(err)?;
     crate::util::write_atomic(path, bytes).map_err(err)
+}
+
+#[cfg(test)]
+mod far_tests {
+    use super::far_to_see;
+    use glam::DVec3;
+
+    /// The far plane reaches the box's farthest corner: a 20 km terrain seen from 110 km away needs more
+    /// than the default 100 km; a box that is not finite asks for nothing.
+    #[test]
+    fn the_far_plane_reaches_the_farthest_corner() {
+        let (lo, hi) = (DVec3::new(0.0, 0.0, 0.0), DVec3::new(20e3, 50.0, 20e3));
+        let eye = DVec3::new(10e3, 110e3, 10e3);
+        let farthest = DVec3::new(0.0, 0.0, 0.0).distance(eye);
+        assert_eq!(far_to_see(eye, lo, hi), 2.0 * farthest);
+        assert!(far_to_see(eye, lo, hi) > 1e5);
+        assert_eq!(far_to_see(eye, DVec3::splat(f64::NAN), hi), 0.0);
+    }
 }

@@ -163,15 +163,22 @@ fn dense<'b>(
 impl Dense<'_> {
     /// The element slices (each exactly `elem` bytes).
     fn elements(&self) -> impl Iterator<Item = &[u8]> {
-        self.data
-            .chunks(self.stride)
-            .take(self.count)
+        self.elements_from(0)
+    }
+
+    /// The element slices from element `start` on (none where `start ≥ count`), found by offset, not by
+    /// walking the elements before it.
+    fn elements_from(&self, start: usize) -> impl Iterator<Item = &[u8]> {
+        let rest = start
+            .checked_mul(self.stride)
+            .and_then(|at| self.data.get(at..))
+            .unwrap_or_default();
+        rest.chunks(self.stride)
+            .take(self.count.saturating_sub(start))
             .filter_map(|c| c.get(..self.elem))
     }
 }
 
-/// Reads accessor `acc` as `count × dims` f64 into `out` (sparse substitution applied). The accessor
-/// must have exactly `dims` components per element.
 /// Refuses an `UNSIGNED_INT` vertex attribute: glTF allows FLOAT positions and texture coordinates, and
 /// with `KHR_mesh_quantization` 8- and 16-bit integers, never 32-bit ones (read as integers, float bits
 /// made a 10 m quad a billion metres wide, silently).
@@ -187,10 +194,29 @@ pub(super) fn check_vertex_attribute(acc: &gltf::Accessor) -> Result<(), AccErr>
     Ok(())
 }
 
+/// Reads accessor `acc` as `count × dims` f64 into `out` (sparse substitution applied). The accessor
+/// must have exactly `dims` components per element.
 pub(super) fn read_floats(
     buffers: &[Option<Vec<u8>>],
     acc: &gltf::Accessor,
     dims: usize,
+    out: &mut Vec<f64>,
+    tmp: &mut Vec<f64>,
+) -> Result<(), AccErr> {
+    read_float_range(buffers, acc, dims, 0..acc.count(), out, tmp)
+}
+
+/// [`read_floats`] for the elements in `range` alone (`range.len() × dims` values in `out`): the whole
+/// accessor is checked as [`read_floats`] checks it (view bounds, sparse indices), but only the
+/// elements in `range` are decoded, so primitives that share one large vertex accessor each read the
+/// part their indices use (a three.js exporter's geometry groups: 10,000 primitives over one accessor
+/// took 6.6 s to import, each reading all of it; fault hunt, session 36). `range` must lie inside the
+/// accessor's count.
+pub(super) fn read_float_range(
+    buffers: &[Option<Vec<u8>>],
+    acc: &gltf::Accessor,
+    dims: usize,
+    range: std::ops::Range<usize>,
     out: &mut Vec<f64>,
     tmp: &mut Vec<f64>,
 ) -> Result<(), AccErr> {
@@ -209,12 +235,19 @@ pub(super) fn read_floats(
     let cs = component_size(t);
     let norm = acc.normalized();
     let count = acc.count();
+    if range.end > count || range.start > range.end {
+        return Err(err(format!(
+            "internal: elements {}..{} read from {count}",
+            range.start, range.end
+        )));
+    }
+    let wanted = range.len();
     out.clear();
     match acc.view() {
         Some(view) => {
             let d = dense(buffers, &view, acc.offset(), count, cs * dims, true).map_err(err)?;
-            out.reserve(count * dims);
-            for e in d.elements() {
+            out.reserve(wanted * dims);
+            for e in d.elements_from(range.start).take(wanted) {
                 out.extend(e.chunks_exact(cs).map(|b| decode_component(t, norm, b)));
             }
         }
@@ -222,10 +255,10 @@ pub(super) fn read_floats(
             if count > MAX_SPARSE_ONLY_COUNT {
                 return Err(err(format!("{count} elements without a buffer view")));
             }
-            out.resize(count * dims, 0.0);
+            out.resize(wanted * dims, 0.0);
         }
     }
-    if out.len() != count * dims {
+    if out.len() != wanted * dims {
         return Err(err("short read".into()));
     }
     if let Some(sp) = acc.sparse() {
@@ -272,8 +305,16 @@ pub(super) fn read_floats(
                 idx[k + 1]
             )));
         }
+        if let Some(&i) = idx.iter().find(|&&i| i >= count) {
+            return Err(err(format!(
+                "sparse index {i} out of range ({count} elements)"
+            )));
+        }
         for (k, &i) in idx.iter().enumerate() {
-            let dst = i
+            if !range.contains(&i) {
+                continue;
+            }
+            let dst = (i - range.start)
                 .checked_mul(dims)
                 .and_then(|s| out.get_mut(s..s + dims))
                 .ok_or_else(|| err(format!("sparse index {i} out of range ({count} elements)")))?;

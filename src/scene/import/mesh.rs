@@ -1,7 +1,9 @@
 //! Geometry: the primitives of each mesh instance → world-space vertices and triangles.
 //!
 //! Positions (f64, after the instance's world matrix) and UVs (f64, `KHR_texture_transform` baked in,
-//! or the solid texel centre) are read per primitive into reused scratch buffers, positions with their
+//! or the solid texel centre) are read per primitive into reused scratch buffers — only the range of
+//! vertices its indices use, which are read first (primitives sharing one large accessor each read
+//! their part: [`read_float_range`]) — positions with their
 //! morph targets added by the default weights (the pose a viewer draws without animation), UVs with their
 //! targets' `TEXCOORD_n` deltas added by the same weights; indices (or `0..n`)
 //! are checked against the vertex count and assembled for triangle lists, strips and fans. Only
@@ -10,7 +12,7 @@
 //! without POSITION are skipped (counted warning). Bad accessors and out-of-range indices are errors.
 
 use super::accessors::{
-    PrimCtx, check_vertex_attribute, plausible_count, read_floats, read_indices,
+    PrimCtx, check_vertex_attribute, plausible_count, read_float_range, read_indices,
 };
 use super::materials::{Materials, UvSource};
 use super::nodes::Instance;
@@ -53,6 +55,23 @@ struct Scratch {
     uvs: Vec<DVec2>,
     indices: Vec<u32>,
     remap: Vec<u32>,
+}
+
+/// The vertices of one primitive that are read: its POSITION accessor (`accessor`, `count` elements)
+/// and the range of them its indices use.
+struct VertexSpan {
+    accessor: usize,
+    count: usize,
+    used: std::ops::Range<usize>,
+}
+
+/// The smallest range holding every index in `indices` (empty for none).
+fn used_range(indices: &[u32]) -> std::ops::Range<usize> {
+    let Some(&first) = indices.first() else {
+        return 0..0;
+    };
+    let (lo, hi) = (indices.iter()).fold((first, first), |(lo, hi), &i| (lo.min(i), hi.max(i)));
+    lo as usize..hi as usize + 1
 }
 
 /// Per-primitive triangle counts.
@@ -235,53 +254,7 @@ impl<'a> Geometry<'a> {
             return Ok(());
         }
         let (material, uv_source) = materials.material_for(prim, ctx, buffers, report);
-
-        // Positions → world space.
-        buffers.load_accessor(&pos_acc)?;
-        let s = &mut self.scratch;
-        check_vertex_attribute(&pos_acc)
-            .and_then(|()| read_floats(buffers.data(), &pos_acc, 3, &mut s.floats, &mut s.tmp))
-            .map_err(|e| ctx.error(self.file, "POSITION", e))?;
         let n = pos_acc.count();
-        self.add_morph_positions(prim, weights, (pos_acc.index(), n), ctx, buffers)?;
-        let s = &mut self.scratch;
-        s.world.clear();
-        s.world.extend(
-            s.floats
-                .chunks_exact(3)
-                .map(|p| inst.world.transform_point3(DVec3::new(p[0], p[1], p[2]))),
-        );
-
-        // UVs (transform baked in f64).
-        s.uvs.clear();
-        if let UvSource::Set(set, xf) = uv_source {
-            let semantic = format!("TEXCOORD_{set}");
-            let Some(uv_acc) = prim.get(&Semantic::TexCoords(set)) else {
-                return Err(SceneError::Other(format!(
-                    "{}: internal: {semantic} vanished",
-                    self.file
-                )));
-            };
-            self.read_beside_positions(&uv_acc, &semantic, 2, (pos_acc.index(), n), ctx, buffers)?;
-            let s = &mut self.scratch;
-            (s.uvs).extend(s.attribute.chunks_exact(2).map(|c| DVec2::new(c[0], c[1])));
-            // The targets' UV deltas times their weights, before the texture transform (which applies
-            // to the morphed UVs): a target that moved the UVs was drawn with the base ones (fault hunt,
-            // session 35).
-            for (i, w, acc) in self.weighted_uv_targets(ctx, set, weights) {
-                let semantic = format!("morph target {i} {semantic}");
-                self.read_beside_positions(&acc, &semantic, 2, (pos_acc.index(), n), ctx, buffers)?;
-                let s = &mut self.scratch;
-                for (uv, d) in s.uvs.iter_mut().zip(s.attribute.chunks_exact(2)) {
-                    *uv += w * DVec2::new(d[0], d[1]);
-                }
-            }
-            if let Some(t) = xf {
-                for uv in &mut self.scratch.uvs {
-                    *uv = t.apply(*uv);
-                }
-            }
-        }
 
         // Indices (or 0..n), checked against the vertex count.
         match prim.indices() {
@@ -321,6 +294,65 @@ impl<'a> Geometry<'a> {
                 self.scratch.indices.extend(0..count);
             }
         }
+        // The vertices the indices use, read alone (primitives sharing one accessor each read their
+        // part), the indices rebased to them.
+        let span = VertexSpan {
+            accessor: pos_acc.index(),
+            count: n,
+            used: used_range(&self.scratch.indices),
+        };
+        let first = span.used.start as u32;
+        self.scratch.indices.iter_mut().for_each(|i| *i -= first);
+
+        // Positions → world space.
+        buffers.load_accessor(&pos_acc)?;
+        let s = &mut self.scratch;
+        check_vertex_attribute(&pos_acc)
+            .and_then(|()| {
+                let (used, out) = (span.used.clone(), &mut s.floats);
+                read_float_range(buffers.data(), &pos_acc, 3, used, out, &mut s.tmp)
+            })
+            .map_err(|e| ctx.error(self.file, "POSITION", e))?;
+        self.add_morph_positions(prim, weights, &span, ctx, buffers)?;
+        let s = &mut self.scratch;
+        s.world.clear();
+        s.world.extend(
+            s.floats
+                .chunks_exact(3)
+                .map(|p| inst.world.transform_point3(DVec3::new(p[0], p[1], p[2]))),
+        );
+
+        // UVs (transform baked in f64).
+        s.uvs.clear();
+        if let UvSource::Set(set, xf) = uv_source {
+            let semantic = format!("TEXCOORD_{set}");
+            let Some(uv_acc) = prim.get(&Semantic::TexCoords(set)) else {
+                return Err(SceneError::Other(format!(
+                    "{}: internal: {semantic} vanished",
+                    self.file
+                )));
+            };
+            self.read_beside_positions(&uv_acc, &semantic, 2, &span, ctx, buffers)?;
+            let s = &mut self.scratch;
+            (s.uvs).extend(s.attribute.chunks_exact(2).map(|c| DVec2::new(c[0], c[1])));
+            // The targets' UV deltas times their weights, before the texture transform (which applies
+            // to the morphed UVs): a target that moved the UVs was drawn with the base ones (fault hunt,
+            // session 35).
+            for (i, w, acc) in self.weighted_uv_targets(ctx, set, weights) {
+                let semantic = format!("morph target {i} {semantic}");
+                self.read_beside_positions(&acc, &semantic, 2, &span, ctx, buffers)?;
+                let s = &mut self.scratch;
+                for (uv, d) in s.uvs.iter_mut().zip(s.attribute.chunks_exact(2)) {
+                    *uv += w * DVec2::new(d[0], d[1]);
+                }
+            }
+            if let Some(t) = xf {
+                for uv in &mut self.scratch.uvs {
+                    *uv = t.apply(*uv);
+                }
+            }
+        }
+
         let leftover = match mode {
             Mode::Triangles => self.scratch.indices.len() % 3,
             _ => 0,
@@ -335,12 +367,12 @@ impl<'a> Geometry<'a> {
                 self.scratch.indices.len()
             ));
         }
-        let counts = self.assemble(mode, material, n)?;
+        let counts = self.assemble(mode, material, span.used.len())?;
         self.report_counts(ctx, &counts, report);
         Ok(())
     }
 
-    /// Adds to the primitive's local positions (`scratch.floats`, `n` of them, from accessor `base`) each
+    /// Adds to the primitive's local positions (`scratch.floats`: `span`'s used vertices) each
     /// morph target's POSITION deltas times its weight (glTF 2.0 §3.7.2.2: the static pose is the base
     /// plus the weighted targets). Targets of weight 0, and their other attributes (normals and tangents,
     /// which are not drawn), are not read.
@@ -348,13 +380,13 @@ impl<'a> Geometry<'a> {
         &mut self,
         prim: &gltf::Primitive<'a>,
         weights: &[f64],
-        (base, n): (usize, usize),
+        span: &VertexSpan,
         ctx: &PrimCtx,
         buffers: &mut Buffers,
     ) -> Result<(), SceneError> {
         for (i, w, acc) in weighted_position_targets(prim, weights) {
             let semantic = format!("morph target {i} POSITION");
-            self.read_beside_positions(&acc, &semantic, 3, (base, n), ctx, buffers)?;
+            self.read_beside_positions(&acc, &semantic, 3, span, ctx, buffers)?;
             let s = &mut self.scratch;
             for (p, d) in s.floats.iter_mut().zip(&s.attribute) {
                 *p += w * d;
@@ -363,17 +395,19 @@ impl<'a> Geometry<'a> {
         Ok(())
     }
 
-    /// Reads vertex attribute `acc` (`dims` floats a vertex) into `scratch.attribute`, after checking that
-    /// it has the `n` elements of the primitive's POSITION (accessor `base`); errors name `semantic`.
+    /// Reads vertex attribute `acc` (`dims` floats a vertex) for `span`'s used vertices into
+    /// `scratch.attribute`, after checking that it has as many elements as the primitive's POSITION;
+    /// errors name `semantic`.
     fn read_beside_positions(
         &mut self,
         acc: &gltf::Accessor<'a>,
         semantic: &str,
         dims: usize,
-        (base, n): (usize, usize),
+        span: &VertexSpan,
         ctx: &PrimCtx,
         buffers: &mut Buffers,
     ) -> Result<(), SceneError> {
+        let (base, n) = (span.accessor, span.count);
         if acc.count() != n {
             return Err(SceneError::Accessor {
                 file: self.file.to_string(),
@@ -390,7 +424,10 @@ impl<'a> Geometry<'a> {
         buffers.load_accessor(acc)?;
         let s = &mut self.scratch;
         check_vertex_attribute(acc)
-            .and_then(|()| read_floats(buffers.data(), acc, dims, &mut s.attribute, &mut s.tmp))
+            .and_then(|()| {
+                let (used, out) = (span.used.clone(), &mut s.attribute);
+                read_float_range(buffers.data(), acc, dims, used, out, &mut s.tmp)
+            })
             .map_err(|e| ctx.error(self.file, semantic, e))
     }
 

@@ -205,7 +205,18 @@ impl<'a> Buffers<'a> {
             gltf::buffer::Source::Bin => {
                 // glTF 2.0 §4.4 (GLB-stored buffer): only the first buffer may use the BIN chunk.
                 // Buffer 0 is loaded once, so the chunk is taken at most once.
+                // EXT_meshopt_compression's placeholder: the bytes its compressed views decode into
+                // (a fallback buffer without a uri). Its message was "only buffer 0 may use the GLB
+                // BIN chunk" in a `.gltf` text file (fault hunt, session 37).
+                let meshopt = buffer.extension_value("EXT_meshopt_compression").is_some();
                 let data = match index {
+                    _ if meshopt => Err(
+                        "has no uri: it is EXT_meshopt_compression's placeholder for decompressed data, \
+                         and atlastree does not decode EXT_meshopt_compression; write the file without \
+                         mesh compression (gltfpack without -c), or with an uncompressed fallback buffer \
+                         (gltfpack -cf)"
+                            .into(),
+                    ),
                     // Said for both forms: a `.gltf` text buffer without a uri read as a truncated GLB
                     // (fault hunt, session 32).
                     0 => self.blob.take().ok_or_else(|| {
@@ -215,7 +226,12 @@ impl<'a> Buffers<'a> {
                     }),
                     _ => Err("has no uri, and only buffer 0 may use the GLB BIN chunk".into()),
                 };
-                ("<GLB BIN chunk>".to_string(), data)
+                let label = if index == 0 && !meshopt {
+                    "<GLB BIN chunk>"
+                } else {
+                    "<no uri>"
+                };
+                (label.to_string(), data)
             }
             gltf::buffer::Source::Uri(uri) => (
                 uri_for_messages(uri),

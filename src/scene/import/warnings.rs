@@ -103,6 +103,18 @@ pub(super) fn warn_undrawn_features(file: &str, doc: &gltf::Document, report: &m
         ));
     }
     warn_undeclared_quantization(file, doc, report);
+    // CESIUM_RTC (3D Tiles' b3dm content) moves the whole model by its `center`, given in the tileset's
+    // Z-up earth-fixed frame, not the glTF's own: refused where required, and where merely used the
+    // model is read as its positions say, which a silent import placed at the origin (fault hunt,
+    // session 37).
+    if let Some(rtc) = doc.extension_value("CESIUM_RTC") {
+        report.warn(format!(
+            "{file}: CESIUM_RTC (center {}) is not applied: the model is read relative to that centre, \
+             about the origin; its center is in the tileset's earth-fixed frame, so add it there, or \
+             bake it into a node translation (glTF's Y-up frame) before building",
+            rtc.get("center").map_or("absent".into(), |c| c.to_string())
+        ));
+    }
     // glTF 2.0's schemas bound baseColorFactor (and the specular-glossiness diffuseFactor, drawn in its
     // place where `Materials::material_for` says) to [0, 1]; beyond, the atlas (8-bit, the factor applied
     // before filtering) and the originals (the factor applied after) would draw different colours.

@@ -176,3 +176,42 @@ fn a_specular_glossiness_material_draws_its_diffuse_texture_and_factor() {
     let (_, pixels) = first_material_pixels(&both);
     assert_eq!(pixels, vec![[0, 0, 255, 255]]);
 }
+
+/// Extensions of compressed and geo-placed files that atlastree does not apply are named. A `.gltf`
+/// whose geometry lies in `EXT_meshopt_compression`'s placeholder buffer (no uri) was refused as "only
+/// buffer 0 may use the GLB BIN chunk"; `CESIUM_RTC` in `extensionsUsed` alone was ignored without a
+/// word, the model imported about the origin (fault hunt, session 37).
+#[test]
+fn meshopt_placeholders_and_cesium_rtc_are_named() {
+    use super::city::{city_json, import_city};
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = city_json();
+    doc["extensionsUsed"] = json!(["EXT_meshopt_compression"]);
+    let length = doc["buffers"][0]["byteLength"].clone();
+    doc["buffers"].as_array_mut().unwrap().push(json!({
+        "byteLength": length,
+        "extensions": {"EXT_meshopt_compression": {"fallback": true}}
+    }));
+    for view in doc["bufferViews"].as_array_mut().unwrap() {
+        view["buffer"] = json!(1);
+    }
+    let e = import_city(dir.path(), &doc).1.err().unwrap().to_string();
+    assert!(
+        e.contains("buffer 1")
+            && e.contains("EXT_meshopt_compression's placeholder")
+            && e.contains("gltfpack")
+            && !e.contains("GLB BIN chunk"),
+        "{e}"
+    );
+
+    let mut doc = city_json();
+    doc["extensionsUsed"] = json!(["CESIUM_RTC"]);
+    doc["extensions"] = json!({"CESIUM_RTC": {"center": [4200000.0, 100000.0, 4700000.0]}});
+    let scene = import_city(dir.path(), &doc).1.unwrap();
+    let w = scene.report.warnings.join("\n");
+    assert!(
+        w.contains("CESIUM_RTC (center [4200000.0,100000.0,4700000.0]) is not applied"),
+        "{w}"
+    );
+    assert_eq!(scene.report.warnings.len(), 1, "{w}");
+}
