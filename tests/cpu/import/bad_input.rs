@@ -219,7 +219,7 @@ fn glb_bin_chunk_absent_or_claimed_twice() {
     assert_eq!(
         e.to_string(),
         format!(
-            "{}: buffer 1 (<GLB BIN chunk>): has no uri, and only buffer 0 may use the GLB BIN chunk",
+            "{}: buffer 1 (<no uri>): has no uri, and only buffer 0 may use the GLB BIN chunk",
             path.display()
         )
     );
