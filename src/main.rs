@@ -17,8 +17,8 @@ fn main() -> std::process::ExitCode {
 }
 
 /// A report piped into `head` (stdout closed early) ends the process quietly with the shell's status
-/// for SIGPIPE (141), as other command-line tools do, instead of a panic from `println!`; every other
-/// panic keeps the default report.
+/// for SIGPIPE (141), as other command-line tools do, instead of a panic from `println!`; a panic in
+/// winit is left to `view`'s error; every other panic keeps the default report.
 fn quiet_on_closed_stdout() {
     let default = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
@@ -30,6 +30,14 @@ fn quiet_on_closed_stdout() {
             .unwrap_or("");
         if text.starts_with("failed printing to stdout") && text.contains("Broken pipe") {
             std::process::exit(141);
+        }
+        // winit unwraps its connection's errors (an X server gone under `view`); `view` catches the
+        // panic and ends with an error naming it, so its report is not printed twice.
+        if info
+            .location()
+            .is_some_and(|l| l.file().contains("/winit-"))
+        {
+            return;
         }
         default(info);
     }));

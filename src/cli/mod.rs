@@ -412,7 +412,24 @@ pub(crate) fn check_out_folder(out: &std::path::Path) -> anyhow::Result<()> {
             out.display()
         );
     }
-    Ok(())
+    check_parent_folders(out, "--out")
+}
+
+/// Before any work: the nearest existing folder above `path` (given as `flag`) must be a folder, so
+/// that the folders below it can be made (`view --screenshot notafolder/shot.png` failed after its
+/// frames as "File exists (os error 17)"; fault hunt, session 37).
+pub(crate) fn check_parent_folders(path: &std::path::Path, flag: &str) -> anyhow::Result<()> {
+    let existing = (path.ancestors().skip(1))
+        .filter(|p| !p.as_os_str().is_empty())
+        .find(|p| p.exists());
+    match existing {
+        Some(p) if !p.is_dir() => anyhow::bail!(
+            "{flag} {}: {} exists and is not a folder, so nothing can be written below it",
+            path.display(),
+            p.display()
+        ),
+        _ => Ok(()),
+    }
 }
 
 /// An `--out` folder a run writes into: made (with the parents it lacked), checked writable and locked

@@ -48,7 +48,7 @@ pub(crate) struct ViewArgs {
     #[arg(long, requires = "screenshot_after")]
     pub exit: bool,
     /// File of the --screenshot-after screenshot [default: OUT/screenshot.png].
-    #[arg(long)]
+    #[arg(long, requires = "screenshot_after")]
     pub screenshot: Option<PathBuf>,
     /// Directory for P screenshots and recorded paths.
     #[arg(long, default_value = "out/view")]
@@ -132,9 +132,10 @@ impl ViewArgs {
         if self.screenshot_after == Some(0) {
             bail!("--screenshot-after counts frames from 1");
         }
-        super::reject_output_url(&self.out, "--out")?;
+        super::check_out_folder(&self.out)?;
         if let Some(shot) = &self.screenshot {
             super::reject_output_url(shot, "--screenshot")?;
+            super::check_parent_folders(shot, "--screenshot")?;
         }
         Ok(())
     }
@@ -190,6 +191,9 @@ pub(super) fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn print_report(r: &ViewReport, json: bool) {
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
     if json {
         let v = serde_json::json!({
             "adapter": r.adapter,
@@ -201,6 +205,7 @@ fn print_report(r: &ViewReport, json: bool) {
                 "source": s.name(),
             })).collect::<Vec<_>>(),
             "recordings": r.recordings.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+            "warnings": r.warnings,
         });
         println!("{v}");
         return;

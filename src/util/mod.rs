@@ -57,6 +57,15 @@ pub fn fixed_number(v: f64, decimals: usize) -> String {
     }
 }
 
+/// The text of a panic payload (`&str` or `String`), or a placeholder.
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(a panic without a message)".to_string())
+}
+
 /// Whether the AVX2 kernels run: the CPU has AVX2 (asked at run time) and the environment variable
 /// `ATLASTREE_SCALAR` is not set (it makes every pass take its scalar rule, so a test can check that
 /// both write the same file). Asked once per process. The kernels (`image_ops::srgb_simd`,

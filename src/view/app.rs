@@ -45,7 +45,23 @@ pub fn run(file: &TreeFile, opts: ViewOptions) -> Result<ViewReport, ViewError> 
         error: None,
         report: ViewReport::default(),
     };
-    event_loop.run_app(&mut app)?;
+    // winit unwraps its connection's errors (an X server gone mid-session panicked in
+    // `Window::inner_size`): the panic ends the session with an error. Nothing of the window system is
+    // dropped after it (dropping a window or surface on a dead connection may panic again).
+    let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        event_loop.run_app(&mut app)
+    }));
+    let ran = match ran {
+        Ok(ran) => ran,
+        Err(payload) => {
+            let reason = crate::util::panic_message(payload.as_ref());
+            std::mem::forget(app);
+            std::mem::forget(window);
+            std::mem::forget(ctx);
+            return Err(ViewError::WindowSystem { reason });
+        }
+    };
+    ran?;
     if let Some(running) = app.running.as_mut() {
         running.finish(&mut app.report)?;
     }
@@ -706,6 +722,17 @@ impl<'a> Running<'a> {
         report.recordings = std::mem::take(&mut self.recordings);
         report.adapter = self.ctx.adapter_summary();
         report.size = self.presenter.size();
+        let planner = &self.frame_loop.planner;
+        if let Some(e) = planner.first_load_error() {
+            (report.warnings).push(format!(
+                "block loads failed during the session (those nodes were drawn coarser); the first: {e}"
+            ));
+        }
+        if let Some(e) = planner.last_error() {
+            (report.warnings).push(format!(
+                "residency changes failed during the session (drawn coarser); the last: {e}"
+            ));
+        }
         let secs = self.started.elapsed().as_secs_f64();
         report.fps = if secs > 0.0 {
             self.frames as f64 / secs

@@ -94,6 +94,11 @@ pub struct Controller {
     pub far: f64,
     /// Bit set of held [`Key`]s.
     held: u8,
+    /// The camera this controller started from and the heading it was turned into: drawn as given
+    /// while the eye and heading are still those. A heading clamps its pitch to ±[`MAX_PITCH_DEG`] and
+    /// has no yaw of its own straight down, so `view --camera` looking down steeply showed another
+    /// picture than `render` of the same camera (rotated 90° straight down; fault hunt, session 37).
+    start: Option<(Camera, (f64, f64))>,
 }
 
 impl Controller {
@@ -117,8 +122,10 @@ impl Controller {
             near: camera.near,
             far: camera.far,
             held: 0,
+            start: None,
         };
         c.look_along(camera.target - camera.eye);
+        c.start = Some((*camera, c.heading()));
         c
     }
 
@@ -265,6 +272,20 @@ impl Controller {
 
     /// The camera of the current state at viewport `aspect` (width / height).
     pub fn camera(&self, aspect: f64) -> Camera {
+        if let Some((start, heading)) = &self.start
+            && self.mode == ControlMode::Fly
+            && self.eye == start.eye
+            && self.heading() == *heading
+        {
+            return Camera {
+                aspect,
+                up: self.up,
+                fov_x_deg: self.fov_x_deg,
+                near: self.near,
+                far: self.far,
+                ..*start
+            };
+        }
         let target = match self.mode {
             ControlMode::Fly => self.eye + self.direction(),
             ControlMode::Orbit => self.orbit_target,
@@ -405,6 +426,26 @@ mod tests {
             assert_eq!(out.eye, c.eye);
             assert!(close((out.target - out.eye).normalize(), dir, 1e-12));
             assert_eq!(out.up, up);
+        }
+    }
+
+    /// A camera looking straight or steeply down is drawn as given until the user moves it: its
+    /// heading clamps the pitch to 89° and has no yaw straight down (`view --camera` showed a tilted or
+    /// 90°-rotated picture against `render`; fault hunt, session 37). The first move turns it into the
+    /// heading.
+    #[test]
+    fn a_steep_start_camera_is_drawn_as_given_until_moved() {
+        for target in [DVec3::new(0.0, -10.0, 0.0), DVec3::new(0.05, -10.0, 0.0)] {
+            let c = cam(DVec3::ZERO, target);
+            let mut ctl = Controller::from_camera(&c, DVec3::Y);
+            let out = ctl.camera(1.5);
+            assert_eq!((out.eye, out.target, out.up), (c.eye, c.target, c.up));
+            ctl.set_key(Key::Forward, true);
+            ctl.update(0.5);
+            let moved = ctl.camera(1.5);
+            assert_ne!(moved.eye, c.eye);
+            let pitch = (moved.target - moved.eye).normalize().dot(DVec3::Y).asin();
+            assert!(pitch >= -MAX_PITCH_DEG.to_radians() - 1e-12, "{pitch}");
         }
     }
 

@@ -81,6 +81,10 @@ pub struct ViewReport {
     pub recordings: Vec<PathBuf>,
     /// Mean frames per second over the session.
     pub fps: f64,
+    /// What went wrong while paging (the first failed block load, the last failed residency change),
+    /// drawn coarser meanwhile: `view --capacity` on a file with corrupt blocks drew a degraded frame
+    /// and said nothing (fault hunt, session 37).
+    pub warnings: Vec<String>,
 }
 
 /// winit's reason without where in winit it was raised: its `OsError` prints
@@ -120,6 +124,12 @@ pub enum ViewError {
     EventLoop { reason: String },
     #[error("cannot create the window: {reason}")]
     Window { reason: String },
+    /// The window system failed under a running session (an X server that went away: winit panics
+    /// where its connection fails; the panic was a backtrace and exit 101, fault hunt session 37).
+    #[error(
+        "the window system failed while viewing (did the X server or Wayland compositor go away?): {reason}"
+    )]
+    WindowSystem { reason: String },
     #[error(transparent)]
     Gpu(#[from] GpuError),
     #[error(transparent)]

@@ -71,6 +71,17 @@ impl<'w> Presenter<'w> {
         height: u32,
         vsync: bool,
     ) -> Result<Presenter<'w>, ViewError> {
+        // Past the device's largest texture wgpu panics configuring the surface (`view --width 20000`;
+        // fault hunt, session 37); `render` refuses such a frame as well.
+        let limit = ctx.device.limits().max_texture_dimension_2d;
+        if width > limit || height > limit {
+            return Err(ViewError::Surface {
+                message: format!(
+                    "the window is {width}x{height} pixels; each side must be at most {limit} on this \
+                     device (lower --width / --height)"
+                ),
+            });
+        }
         let caps = surface.get_capabilities(&ctx.adapter);
         let format = caps
             .formats
@@ -150,6 +161,9 @@ impl<'w> Presenter<'w> {
     /// Reconfigures the surface and recreates the composite at `width`×`height` (no-op when unchanged or
     /// empty, e.g. a minimised window).
     pub(super) fn resize(&mut self, ctx: &GpuContext, width: u32, height: u32) {
+        // A window stretched past the device's largest texture is drawn at that size (wgpu panicked).
+        let limit = ctx.device.limits().max_texture_dimension_2d;
+        let (width, height) = (width.min(limit), height.min(limit));
         if width == 0 || height == 0 || (width, height) == (self.config.width, self.config.height) {
             return;
         }

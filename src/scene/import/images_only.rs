@@ -3,8 +3,9 @@
 
 use super::materials::image_or_fallback;
 use super::uri::{Buffers, local_path_in, split_glb};
-use super::{SceneError, panic_message, parse_document, refs};
+use super::{SceneError, parse_document, refs};
 use crate::scene::{ImageRef, ImageSource, ImportReport};
+use crate::util::panic_message;
 use std::io::Read;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;

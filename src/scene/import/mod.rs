@@ -38,6 +38,7 @@ pub use images_only::{import_images, input_digest};
 pub use uri::looks_like_json;
 
 use crate::scene::{ImportReport, Scene, UpAxis};
+use crate::util::panic_message;
 use glam::DVec3;
 use materials::{Materials, RawMaterial, RawTexture};
 use mesh::Geometry;
@@ -260,15 +261,6 @@ fn import_unguarded(path: &Path, opts: &ImportOptions, file: &str) -> Result<Sce
         geometry.emit_instance(inst, &mut materials, &mut buffers, &mut report)?;
     }
     Ok(finish(path, opts, geometry, materials, report))
-}
-
-/// The text of a panic payload (`&str` or `String`), or a placeholder.
-fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "(a panic without a message)".to_string())
 }
 
 /// Parses and validates the glTF JSON. `extensionsRequired` is checked against
