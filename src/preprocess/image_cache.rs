@@ -372,6 +372,10 @@ impl<'a> ImageCache<'a> {
                     d.height
                 ));
             }
+            // The file's own pixels: the scene images one glTF image becomes for OPAQUE and alpha
+            // materials hash alike, so the merge compares shards that decoded one each (fault hunt,
+            // session 37).
+            self.record_pixels(id, &d);
             if opaque && !d.is_opaque() {
                 self.first_note(id, NOTED_ALPHA_IGNORED);
                 d.pixels.iter_mut().for_each(|p| p[3] = 255);
@@ -385,7 +389,7 @@ impl<'a> ImageCache<'a> {
         if src.is_fallback() {
             self.first_note(id, NOTED_FALLBACK);
         }
-        let decoded = decoded.unwrap_or_else(|e| {
+        decoded.unwrap_or_else(|e| {
             if self.first_note(id, NOTED_FALLBACK) {
                 let mut w = lock(&self.warnings);
                 if w.len() < 100 {
@@ -397,10 +401,10 @@ impl<'a> ImageCache<'a> {
             }
             // At most an original's largest side (an 8192² header's board would be 256 MiB).
             let side = |v: u32| v.min(crate::model::MAX_ORIGINAL_CLASS);
-            crate::scene::fallback_checker_sized(side(src.width), side(src.height))
-        });
-        self.record_pixels(id, &decoded);
-        decoded
+            let checker = crate::scene::fallback_checker_sized(side(src.width), side(src.height));
+            self.record_pixels(id, &checker);
+            checker
+        })
     }
 }
 

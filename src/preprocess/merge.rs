@@ -593,29 +593,32 @@ impl ShardSet {
     /// Every image two shards decoded has one pixel hash in both (the fingerprint, equal by now, gives
     /// every shard the same image count).
     fn check_images(&self) -> Result<(), MergeError> {
-        for i in 0..self.shards[0].images.len() {
-            let mut first: Option<(usize, &crate::store::shard::ImageEntry)> = None;
-            for (slot, f) in self.shards.iter().enumerate() {
-                let Some(e) = f.images.get(i).filter(|e| e.decoded == 1) else {
-                    continue;
-                };
-                match first {
-                    None => first = Some((slot, e)),
-                    Some((a, ea)) if ea.pixels != e.pixels => {
-                        let image = match e.gltf_image {
-                            u32::MAX => format!("image {i}"),
-                            g => format!("image {i} (glTF image {g})"),
-                        };
-                        return Err(MergeError::ImagesDiffer {
-                            image,
-                            first: a as u32,
-                            first_path: self.shards[a].path().to_path_buf(),
-                            second: slot as u32,
-                            second_path: f.path().to_path_buf(),
-                            count: self.count,
-                        });
-                    }
-                    Some(_) => {}
+        use crate::store::shard::ImageEntry;
+        // One file's pixels: a glTF image (the scene images it becomes for OPAQUE and alpha materials
+        // hash its pixels before the alpha is dropped), else the scene image itself. Two shards that
+        // each decoded a different one of them read two versions undetected (fault hunt, session 37).
+        let file_of = |i: usize, e: &ImageEntry| match e.gltf_image {
+            u32::MAX => (0, i),
+            g => (1, g as usize),
+        };
+        let mut first: std::collections::HashMap<(u8, usize), (usize, &ImageEntry)> =
+            std::collections::HashMap::new();
+        for (slot, f) in self.shards.iter().enumerate() {
+            for (i, e) in f.images.iter().enumerate().filter(|(_, e)| e.decoded == 1) {
+                let (a, ea) = *first.entry(file_of(i, e)).or_insert((slot, e));
+                if ea.pixels != e.pixels {
+                    let image = match e.gltf_image {
+                        u32::MAX => format!("image {i}"),
+                        g => format!("image {i} (glTF image {g})"),
+                    };
+                    return Err(MergeError::ImagesDiffer {
+                        image,
+                        first: a as u32,
+                        first_path: self.shards[a].path().to_path_buf(),
+                        second: slot as u32,
+                        second_path: f.path().to_path_buf(),
+                        count: self.count,
+                    });
                 }
             }
         }

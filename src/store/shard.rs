@@ -14,9 +14,10 @@
 //!
 //! The header carries the fingerprint of scene and flags (the merge refuses a mix), an `xxh3_64` of itself
 //! and one of everything up to the payloads; each payload has its own checksum in its entry. The image
-//! entries hold the hash of the pixels each scene image decoded to in this shard (version 2): the
-//! fingerprint names an image by name, size and byte length only, so the merge compares these to refuse
-//! shards that read two versions of one image.
+//! entries hold the hash of the pixels each scene image decoded to in this shard, before any alpha is
+//! dropped (version 3; version 2 hashed them after, so the two scene images one glTF image becomes for
+//! OPAQUE and alpha materials could not be compared): the fingerprint names an image by name, size and
+//! byte length only, so the merge compares these to refuse shards that read two versions of one image.
 
 use super::StoreError;
 use crate::ids::BlockId;
@@ -29,7 +30,7 @@ use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
 /// First bytes of every shard file.
 pub const SHARD_MAGIC: [u8; 8] = *b"ATSHARD\x01";
 /// Version of the layout above.
-pub const SHARD_VERSION: u32 = 2;
+pub const SHARD_VERSION: u32 = 3;
 /// Alignment of every part, bytes.
 const ALIGN: u64 = 16;
 
@@ -119,12 +120,13 @@ const _: () = assert!(size_of::<BlockEntry>() == 40 && size_of::<HandoffEntry>()
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Pod, Zeroable, PartialEq, Eq)]
 pub struct ImageEntry {
-    /// `xxh3_128` of the decoded RGBA8 pixels (`preprocess::image_cache::ImageCache::pixel_hashes`); 0 when
-    /// not decoded.
+    /// `xxh3_128` of the decoded RGBA8 pixels as the file holds them, before an OPAQUE-only image's
+    /// alpha is dropped (`preprocess::image_cache::ImageCache::pixel_hashes`); 0 when not decoded.
     pub pixels: [u64; 2],
     /// Index of the image in the scene.
     pub image: u32,
-    /// Its glTF image index, `u32::MAX` for none (a solid colour), for messages.
+    /// Its glTF image index, `u32::MAX` for none (a solid colour): scene images of one glTF image hold
+    /// one file's pixels, compared across shards.
     pub gltf_image: u32,
     /// 1 when this shard decoded the image, else 0.
     pub decoded: u32,

@@ -37,6 +37,7 @@ mod report;
 mod select;
 mod shaders;
 mod shard;
+mod shard_images;
 mod shard_plan;
 mod shared_originals;
 mod sim;

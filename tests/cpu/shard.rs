@@ -549,7 +549,7 @@ fn city_copy(dir: &Path) -> Scene {
 /// Rewrites the image file at `path` with other pixels (one flat colour, `w × h` as before) and its byte
 /// length kept (a PNG padded after its end), so the shard fingerprint (name, size, byte length) cannot
 /// tell the versions apart. False when the flat PNG does not fit the old length.
-fn rewrite_keeping_length(path: &Path, w: u32, h: u32) -> bool {
+pub(crate) fn rewrite_keeping_length(path: &Path, w: u32, h: u32) -> bool {
     let len = std::fs::metadata(path).unwrap().len() as usize;
     let flat = image::RgbaImage::from_pixel(w, h, image::Rgba([255, 0, 255, 255]));
     let mut bytes = Vec::new();

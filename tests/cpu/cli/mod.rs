@@ -663,7 +663,7 @@ fn a_non_utf8_shard_output_builds_and_simulate_refuses_its_out_early() {
         String::from_utf8_lossy(&o.stderr),
     );
     assert!(
-        !o.status.success() && stderr.contains("creating"),
+        !o.status.success() && stderr.contains("taken exists and is not a folder"),
         "{stderr}"
     );
     // Refused before the grid's header (then its runs) is printed.
