@@ -441,6 +441,9 @@ pub(crate) fn check_parent_folders(path: &std::path::Path, flag: &str) -> anyhow
 pub(crate) struct OutFolder {
     /// The folders this run made, deepest first; emptied once the run succeeds.
     created: Vec<std::path::PathBuf>,
+    /// `created`, registered for removal if the process is interrupted (a signal ends it without
+    /// running `Drop`).
+    live: Option<atlastree::util::LiveMadeFolders>,
     /// The folder, open for its lock until the run ends; `None` where a folder cannot be locked (not
     /// unix, or a file system without locks).
     _lock: Option<std::fs::File>,
@@ -457,9 +460,11 @@ impl OutFolder {
                 .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
                 .map(std::path::Path::to_path_buf)
                 .collect(),
+            live: None,
             _lock: None,
         };
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        folder.live = Some(atlastree::util::LiveMadeFolders::register(&folder.created));
         #[cfg(unix)]
         {
             let dir =
@@ -469,6 +474,7 @@ impl OutFolder {
                 Err(std::fs::TryLockError::WouldBlock) => {
                     // Not ours to remove: the folder is the other run's now.
                     folder.created.clear();
+                    folder.live = None;
                     anyhow::bail!(
                         "--out {}: another process holds this folder (another atlastree run writing into \
                          it? two runs into one folder would mix their outputs): wait for it to end, or \
@@ -492,8 +498,23 @@ impl OutFolder {
         let result = f();
         if result.is_ok() {
             self.created.clear();
+            self.live = None;
         }
         result
+    }
+
+    /// Makes `sub`, a folder inside this one, as part of the run: removed with the folders
+    /// [`OutFolder::open`] made where the run fails or is interrupted, if it is empty then (a failed
+    /// sweep left its new `--out` with an empty `builds/`; fault hunt, session 37).
+    pub(crate) fn make(&mut self, sub: &std::path::Path) -> anyhow::Result<()> {
+        use anyhow::Context;
+        if sub.exists() {
+            return Ok(());
+        }
+        std::fs::create_dir_all(sub).with_context(|| format!("creating {}", sub.display()))?;
+        self.created.insert(0, sub.to_path_buf());
+        self.live = Some(atlastree::util::LiveMadeFolders::register(&self.created));
+        Ok(())
     }
 }
 

@@ -225,7 +225,14 @@ fn note_repeated_views(cameras: &[(f64, atlastree::camera::Camera)], still: bool
 
 /// Runs a checked configuration: import, sample the path, build and measure, write and report.
 pub(super) fn execute(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
-    super::OutFolder::open(&cfg.out)?.run(|| execute_in(cfg))
+    let mut out = super::OutFolder::open(&cfg.out)?;
+    out.make(&builds_dir(cfg))?;
+    out.run(|| execute_in(cfg))
+}
+
+/// Where the sweep's builds go while they are measured.
+fn builds_dir(cfg: &SweepConfig) -> std::path::PathBuf {
+    cfg.out.join("builds")
 }
 
 /// [`execute`] while `--out` is held.
@@ -254,7 +261,7 @@ fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
         );
     }
     let opts = SweepOptions {
-        builds_dir: cfg.out.join("builds"),
+        builds_dir: builds_dir(cfg),
         keep_builds: cfg.keep_builds,
         anisotropy: cfg.anisotropy,
         reference: cfg.reference,

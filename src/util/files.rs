@@ -181,6 +181,24 @@ impl LiveTempDir {
     }
 }
 
+/// Folders a run made for its outputs (an `--out` and the folders above it), which
+/// [`remove_live_temps`] removes, deepest first and only if empty, if the process is interrupted while
+/// this guard lives: a sweep interrupted by Ctrl-C left its new `--out` with an empty `builds/` (fault
+/// hunt, session 37). Dropping the guard only forgets them.
+pub struct LiveMadeFolders {
+    _live: Vec<LiveTemp>,
+}
+
+impl LiveMadeFolders {
+    pub fn register(folders: &[PathBuf]) -> LiveMadeFolders {
+        LiveMadeFolders {
+            _live: (folders.iter())
+                .map(|p| LiveTemp::register_as(p, true))
+                .collect(),
+        }
+    }
+}
+
 /// The output path `path` names with its symbolic links followed (a dangling link gives the path it
 /// names), so a file is written where a link points. Refused ([`std::io::ErrorKind::InvalidInput`]): a
 /// chain of more than 40 links or a loop (the kernel's limit), and, as the kernel's

@@ -40,7 +40,45 @@ pub fn tests() -> Vec<GpuTest> {
             name: "sweep::a_capacity_above_the_block_count_scores_as_all_resident",
             run: a_capacity_above_the_block_count_scores_as_all_resident,
         },
+        GpuTest {
+            name: "sweep::a_failed_sweep_leaves_no_folder_it_made",
+            run: a_failed_sweep_leaves_no_folder_it_made,
+        },
     ]
+}
+
+/// A sweep whose build fails (a file past `--max-file-gib`) into a new `--out` leaves none of the folders
+/// it made, its `builds/` among them: the sweep made that one itself, so `--out` kept an empty
+/// `builds/` (fault hunt, session 37). Runs the binary (the folders are the CLI's).
+fn a_failed_sweep_leaves_no_folder_it_made(_: &atlastree::gpu::GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let fresh = dir.path().join("sweep");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_atlastree"))
+        .args([
+            "sweep",
+            "--frames",
+            "2",
+            "-q",
+            "--max-file-gib",
+            "0.0000001",
+            "--out",
+        ])
+        .arg(fresh.join("deep"))
+        .arg(&scene)
+        .output()
+        .map_err(e)?;
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    if o.status.code() != Some(2) || !stderr.contains("--max-file-gib") {
+        return Err(format!(
+            "expected the build's refusal, got {:?}: {stderr}",
+            o.status
+        ));
+    }
+    if fresh.exists() {
+        return Err(format!("the folders it made stay: {stderr}"));
+    }
+    Ok(())
 }
 
 /// A paged variant whose k exceeds the file's blocks never evicts, so once its pager has settled at each
