@@ -278,21 +278,24 @@ fn execute_in(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     // Until phase 4 replaces the earlier run's summary, it says it is not this run's: incomplete from
     // here (an interrupt ends the run without a word), and why where this run fails.
     mark_earlier_summary(&cfg.out, None);
-    let failed = |e: anyhow::Error| mark_earlier_summary_stale(&cfg.out, e);
+    measure(cfg).map_err(|e| mark_earlier_summary_stale(&cfg.out, e))
+}
+
+/// [`execute_in`]'s phases, the first error ending the run.
+fn measure(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     let http_options = cfg.paging.as_ref().map(|p| p.paging.http_options());
-    let (file, http) = open_tree(&cfg.tree, http_options.unwrap_or_default()).map_err(failed)?;
-    let cameras = sample_cameras(cfg, &file).map_err(failed)?;
-    let ctx = GpuContext::new_headless(&GpuOptions::default()).map_err(|e| failed(e.into()))?;
+    let (file, http) = open_tree(&cfg.tree, http_options.unwrap_or_default())?;
+    let cameras = sample_cameras(cfg, &file)?;
+    let ctx = GpuContext::new_headless(&GpuOptions::default())?;
     println!("adapter: {}", ctx.adapter_summary());
     if let Some(Reference::Supersampled(k)) = cfg.reference {
         let (w, h) = (cfg.viewport.width, cfg.viewport.height);
-        atlastree::render::reference::check_supersample(&ctx, w, h, k)
-            .map_err(|e| failed(e.into()))?;
+        atlastree::render::reference::check_supersample(&ctx, w, h, k)?;
     }
-    let (mut fl, http) = frame_loop(&ctx, &file, cfg, http).map_err(failed)?;
-    let mut runs = mode_runs(cfg, cameras.len()).map_err(failed)?;
-    warm_up(&mut fl, cfg, &file, &cameras, &runs).map_err(failed)?;
-    fly(&mut fl, cfg, &file, &cameras, &mut runs).map_err(failed)?;
+    let (mut fl, http) = frame_loop(&ctx, &file, cfg, http)?;
+    let mut runs = mode_runs(cfg, cameras.len())?;
+    warm_up(&mut fl, cfg, &file, &cameras, &runs)?;
+    fly(&mut fl, cfg, &file, &cameras, &mut runs)?;
     if let Some(e) = fl.planner.last_error() {
         eprintln!(
             "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
@@ -302,7 +305,7 @@ fn execute_in(cfg: &RenderConfig) -> anyhow::Result<Measured> {
         eprintln!("warning: block loads failed during the run; the first: {e}");
     }
     let http = http.map(|h| h.stats());
-    super::render_report::write_and_report(&cfg.out, cfg.reference, &runs, http).map_err(failed)?;
+    super::render_report::write_and_report(&cfg.out, cfg.reference, &runs, http)?;
     Ok(runs.into_iter().map(|r| (r.mode, r.stats)).collect())
 }
 
