@@ -10,32 +10,34 @@ fn main() -> std::process::ExitCode {
     match cli::run() {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {}", error_chain(&e));
+            // Not `eprintln!`: a stderr whose reader has gone must not turn the error into a panic.
+            use std::io::Write;
+            let _ = writeln!(std::io::stderr(), "error: {}", error_chain(&e));
             std::process::ExitCode::from(2)
         }
     }
 }
 
-/// A report piped into `head` (stdout closed early) ends the process quietly with the shell's status
-/// for SIGPIPE (141), as other command-line tools do, instead of a panic from `println!`; a panic in
-/// winit is left to `view`'s error; every other panic keeps the default report.
+/// A report piped into `head` (stdout closed early), or a warning written to a stderr whose reader has
+/// gone, ends the process quietly with the shell's status for SIGPIPE (141), as other command-line
+/// tools do, instead of a panic from `println!`/`eprintln!` (a closed stderr's panic exited 101;
+/// fault hunt, session 37), removing first what an interrupt removes (temps, the folders a run made
+/// for its outputs); a panic in winit while a `view` session runs is left to its error; every other
+/// panic keeps the default report.
 fn quiet_on_closed_stdout() {
     let default = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
-        let text = info
-            .payload()
-            .downcast_ref::<String>()
-            .map(String::as_str)
-            .or_else(|| info.payload().downcast_ref::<&str>().copied())
-            .unwrap_or("");
-        if text.starts_with("failed printing to stdout") && text.contains("Broken pipe") {
+        let text = atlastree::util::panic_message(info.payload());
+        let closed = |stream: &str| text.starts_with(&format!("failed printing to {stream}"));
+        if (closed("stdout") || closed("stderr")) && text.contains("Broken pipe") {
+            atlastree::util::remove_live_temps();
             std::process::exit(141);
         }
-        // winit unwraps its connection's errors (an X server gone under `view`); `view` catches the
-        // panic and ends with an error naming it, so its report is not printed twice.
+        // winit unwraps its connection's errors (an X server gone under `view`); while a session runs,
+        // `view` catches such a panic and ends with an error naming it, so it is not printed twice.
         if info
             .location()
-            .is_some_and(|l| l.file().contains("/winit-"))
+            .is_some_and(|l| atlastree::view::window_panic_caught(l.file()))
         {
             return;
         }

@@ -453,7 +453,9 @@ fn run_plan(
     println!(
         "  next: each shard with the same flags (`--shard I/N` or `auto`) reads this plan instead of planning; then \
          atlastree merge {}",
-        a.out.display()
+        atlastree::util::shell_words::shell_word(&atlastree::util::shell_words::path_to_recorded(
+            &a.out
+        ))
     );
     Ok(ExitCode::SUCCESS)
 }
@@ -562,7 +564,9 @@ fn print_shard(a: &BuildArgs, spec: ShardSpec, report: &ShardReport) -> anyhow::
     println!(
         "  when all {} shards are written: atlastree merge {}",
         spec.count,
-        a.out.display()
+        atlastree::util::shell_words::shell_word(&atlastree::util::shell_words::path_to_recorded(
+            &a.out
+        ))
     );
     Ok(ExitCode::SUCCESS)
 }

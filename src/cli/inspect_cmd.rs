@@ -229,8 +229,8 @@ pub(super) fn print_inspect(r: &InspectReport) {
                 l.nodes,
                 l.leaves,
                 l.triangles_in_leaves,
-                three_digits(l.min_distance_min),
-                three_digits(l.min_distance_max)
+                atlastree::util::fraction_text(l.min_distance_min),
+                atlastree::util::fraction_text(l.min_distance_max)
             );
         }
     }
@@ -334,29 +334,4 @@ fn pooled_psnr_per_tree(atlases: &[atlastree::inspect::AtlasPsnr]) -> String {
         })
         .collect();
     format!("pooled {}", parts.join(", "))
-}
-
-/// `x` with at least three significant digits and at least two decimals (a deep level's
-/// min_distance of 1 mm printed as `0.00` with two fixed decimals; fault hunt, session 37).
-fn three_digits(x: f64) -> String {
-    let decimals = if x.is_finite() && x != 0.0 {
-        (2 - x.abs().log10().floor() as i32).clamp(2, 12)
-    } else {
-        2
-    };
-    format!("{x:.*}", decimals as usize)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::three_digits;
-
-    #[test]
-    fn min_distances_keep_three_significant_digits() {
-        assert_eq!(three_digits(1234.5), "1234.50");
-        assert_eq!(three_digits(12.345), "12.35");
-        assert_eq!(three_digits(0.012345), "0.0123");
-        assert_eq!(three_digits(0.001), "0.00100");
-        assert_eq!(three_digits(0.0), "0.00");
-    }
 }

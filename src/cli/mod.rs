@@ -290,11 +290,12 @@ pub(crate) fn retain_materials(
     scene: &mut atlastree::scene::Scene,
     globs: &[String],
 ) -> anyhow::Result<atlastree::scene::RetainReport> {
+    // Quoted: a name holding a comma or a newline read as several (fault hunt, session 37).
     let names: Vec<String> = scene
         .materials
         .iter()
         .take(8)
-        .map(|m| m.name.clone())
+        .map(|m| format!("{:?}", m.name))
         .collect();
     // `'a, b'` is two patterns (the space is not part of a name), and each must match a material: one
     // mistyped pattern of several dropped its materials without a word (fault hunt, session 31).
@@ -304,7 +305,8 @@ pub(crate) fn retain_materials(
         .find(|g| !(scene.materials.iter()).any(|m| atlastree::util::glob_match(g, &m.name)))
     {
         anyhow::bail!(
-            "{}: --materials pattern {missing:?} matches no material (materials include: {})",
+            "{}: --materials pattern {missing:?} matches no material (materials include: {}; patterns are \
+             split at commas: `?` matches a comma inside a name)",
             scene.source.display(),
             names.join(", ")
         );
@@ -463,8 +465,8 @@ impl OutFolder {
             live: None,
             _lock: None,
         };
-        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         folder.live = Some(atlastree::util::LiveMadeFolders::register(&folder.created));
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         #[cfg(unix)]
         {
             let dir =
@@ -511,9 +513,9 @@ impl OutFolder {
         if sub.exists() {
             return Ok(());
         }
-        std::fs::create_dir_all(sub).with_context(|| format!("creating {}", sub.display()))?;
         self.created.insert(0, sub.to_path_buf());
         self.live = Some(atlastree::util::LiveMadeFolders::register(&self.created));
+        std::fs::create_dir_all(sub).with_context(|| format!("creating {}", sub.display()))?;
         Ok(())
     }
 }

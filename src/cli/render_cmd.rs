@@ -296,13 +296,8 @@ fn measure(cfg: &RenderConfig) -> anyhow::Result<Measured> {
     let mut runs = mode_runs(cfg, cameras.len())?;
     warm_up(&mut fl, cfg, &file, &cameras, &runs)?;
     fly(&mut fl, cfg, &file, &cameras, &mut runs)?;
-    if let Some(e) = fl.planner.last_error() {
-        eprintln!(
-            "warning: residency changes failed during the run (drawn coarser, counted in stats.csv apply_errors); last: {e}"
-        );
-    }
-    if let Some(e) = fl.planner.first_load_error() {
-        eprintln!("warning: block loads failed during the run; the first: {e}");
+    for w in fl.planner.failure_warnings() {
+        eprintln!("warning: during the run, {w} (stats.csv counts them)");
     }
     let http = http.map(|h| h.stats());
     super::render_report::write_and_report(&cfg.out, cfg.reference, &runs, http)?;

@@ -243,7 +243,7 @@ fn run_and_write(cfg: &SimulateConfig, file: &TreeFile) -> anyhow::Result<ExitCo
     // user's own files of those names.
     let marker = cfg.out.join("summary.csv");
     let earlier_run = marker.is_file();
-    let mut written = write_csvs(&cfg.out, &results)?;
+    let mut written = write_csvs(&cfg.out, &results, cfg.spec.overhead)?;
     written.extend(write_plots(&cfg.out, &cfg.spec, &results)?);
     // An earlier grid's plots that this one did not draw (other latencies or policies) would sit beside
     // this run's summary as if they were its own. Removed once this run's are written, so a rerun

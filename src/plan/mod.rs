@@ -343,6 +343,24 @@ impl<'a> FramePlanner<'a> {
         (self.paging.as_ref()).and_then(|p| p.session.pager.first_load_error())
     }
 
+    /// What went wrong while paging, as warnings for the end of a run (`render`) or a session (`view`):
+    /// the last residency change that failed and the first failed block load, each drawn coarser
+    /// meanwhile; empty where nothing failed.
+    pub fn failure_warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if let Some(e) = self.last_error() {
+            out.push(format!(
+                "residency changes failed (drawn coarser, counted in apply_errors); the last: {e}"
+            ));
+        }
+        if let Some(e) = self.first_load_error() {
+            out.push(format!(
+                "block loads failed (those nodes were drawn coarser); the first: {e}"
+            ));
+        }
+        out
+    }
+
     /// Selects every following plan's cut for `camera` instead of the frame's own camera (`None`: the
     /// frame's camera again): the viewer's "freeze selection". Draws still use the frame's camera.
     pub fn freeze_selection(&mut self, camera: Option<Camera>) {

@@ -85,9 +85,10 @@ pub struct ImageCache<'a> {
     built: std::sync::Condvar,
     /// Chain entries built (each image once, again only after its entry was evicted and let go).
     pub chain_builds: AtomicU64,
-    /// Per image: `xxh3_128` of the pixels its first decode gave (after any alpha drop; the fallback's
-    /// own when it failed). A shard file carries them, so the merge refuses shards that decoded one image
-    /// to different pixels ([`Self::pixel_hashes`]).
+    /// Per image: `xxh3_128` of the pixels its first decode gave (before an OPAQUE-only image's alpha is
+    /// dropped, so the scene images of one glTF image hash alike; the fallback's own when it failed). A
+    /// shard file carries them, so the merge refuses shards that decoded one file to different pixels
+    /// ([`Self::pixel_hashes`]).
     pixel_hashes: Vec<std::sync::OnceLock<[u64; 2]>>,
     /// Images a later decode (after eviction) gave other pixels than the first: the file changed during
     /// the build ([`Self::changed_image`]).
@@ -266,13 +267,21 @@ impl<'a> ImageCache<'a> {
         self.scene.images.get(id.idx()).map_or("?", |i| &i.name)
     }
 
-    /// Records the pixels of a decode of `id`; a second decode with other pixels marks it changed.
+    /// Records the pixels of a decode of `id`; a second decode with other pixels marks it changed, as
+    /// does a decode of another scene image of the same glTF image (its OPAQUE or alpha twin) with other
+    /// pixels: one build that decoded the twins before and after the file was rewritten mixed the two.
     fn record_pixels(&self, id: ImageId, d: &DecodedImage) {
         let Some(slot) = self.pixel_hashes.get(id.idx()) else {
             return;
         };
         let hash = crate::store::shard::hash128(bytemuck::cast_slice(&d.pixels));
-        if *slot.get_or_init(|| hash) != hash {
+        let gltf = |i: usize| self.scene.images.get(i).and_then(|img| img.gltf_image);
+        let twin_differs = gltf(id.idx()).is_some_and(|g| {
+            (self.pixel_hashes.iter().enumerate()).any(|(i, h)| {
+                i != id.idx() && gltf(i) == Some(g) && h.get().is_some_and(|&h| h != hash)
+            })
+        });
+        if *slot.get_or_init(|| hash) != hash || twin_differs {
             lock(&self.changed).push(id);
         }
     }

@@ -117,6 +117,7 @@ pub enum MergeError {
 #[derive(Clone, Debug, Serialize)]
 pub struct MergedShard {
     pub shard: u32,
+    #[serde(serialize_with = "crate::util::path_lossy")]
     pub path: PathBuf,
     pub file_bytes: u64,
     pub blocks: u64,
@@ -134,6 +135,7 @@ pub struct MergedShard {
 /// What a merge did.
 #[derive(Clone, Debug, Serialize)]
 pub struct MergeReport {
+    #[serde(serialize_with = "crate::util::path_lossy")]
     pub out: PathBuf,
     pub count: u32,
     pub shards: Vec<MergedShard>,
@@ -150,6 +152,7 @@ pub struct MergeReport {
 /// The plan step of a planned build, as the merge reports it.
 #[derive(Clone, Debug, Serialize)]
 pub struct MergedPlan {
+    #[serde(serialize_with = "crate::util::path_lossy")]
     pub path: PathBuf,
     pub seconds: Option<f64>,
     pub peak_rss_bytes: Option<u64>,
@@ -590,7 +593,8 @@ impl ShardSet {
         Err(self.foreign(odd, why))
     }
 
-    /// Every image two shards decoded has one pixel hash in both (the fingerprint, equal by now, gives
+    /// Every file two shards decoded has one pixel hash in both: a glTF image (whichever of its OPAQUE
+    /// and alpha scene images each decoded), else a scene image (the fingerprint, equal by now, gives
     /// every shard the same image count).
     fn check_images(&self) -> Result<(), MergeError> {
         use crate::store::shard::ImageEntry;
@@ -601,15 +605,16 @@ impl ShardSet {
             u32::MAX => (0, i),
             g => (1, g as usize),
         };
-        let mut first: std::collections::HashMap<(u8, usize), (usize, &ImageEntry)> =
+        let mut first: std::collections::HashMap<(u8, usize), (usize, usize, &ImageEntry)> =
             std::collections::HashMap::new();
         for (slot, f) in self.shards.iter().enumerate() {
             for (i, e) in f.images.iter().enumerate().filter(|(_, e)| e.decoded == 1) {
-                let (a, ea) = *first.entry(file_of(i, e)).or_insert((slot, e));
+                let (a, ia, ea) = *first.entry(file_of(i, e)).or_insert((slot, i, e));
                 if ea.pixels != e.pixels {
-                    let image = match e.gltf_image {
-                        u32::MAX => format!("image {i}"),
-                        g => format!("image {i} (glTF image {g})"),
+                    let image = match (e.gltf_image, ia == i) {
+                        (u32::MAX, _) => format!("image {i}"),
+                        (g, true) => format!("image {i} (glTF image {g})"),
+                        (g, false) => format!("images {ia} and {i} (glTF image {g})"),
                     };
                     return Err(MergeError::ImagesDiffer {
                         image,

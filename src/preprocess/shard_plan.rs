@@ -18,6 +18,7 @@ use std::time::Instant;
 #[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct ShardPlanReport {
     /// The plan file (`OUT.plan`).
+    #[serde(serialize_with = "crate::util::path_lossy")]
     pub path: PathBuf,
     pub file_bytes: u64,
     /// Scene triangles planned, nodes and blocks of the forest.

@@ -31,6 +31,7 @@ pub struct ShardReport {
     pub shard: u32,
     pub count: u32,
     /// The shard file.
+    #[serde(serialize_with = "crate::util::path_lossy")]
     pub path: PathBuf,
     /// Subtrees rasterised, their nodes, blocks written and the estimated work against the mean.
     pub units: u64,
@@ -270,7 +271,7 @@ pub(super) fn write_sidecar(path: &Path, report: &impl Serialize) -> Result<(), 
         ))
     };
     let mut f = crate::util::AtomicFile::create(&target, 0o666).map_err(write_err)?;
-    let json = serde_json::to_vec_pretty(report).unwrap_or_default();
+    let json = serde_json::to_vec_pretty(report).map_err(|e| write_err(e.into()))?;
     f.write_all(&json).map_err(write_err)?;
     f.commit().map_err(write_err)
 }

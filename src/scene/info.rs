@@ -238,8 +238,10 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
             }
         })
         .collect();
-    let periods_spanned = materials.iter().map(|m| m.periods_spanned).sum();
-    let periods_wrapped = materials.iter().map(|m| m.periods_wrapped).sum();
+    // Summed from +0.0: an empty f64 sum is -0.0, printed as such in the JSON of a scene without
+    // triangles (fault hunt, session 37).
+    let periods_spanned = (materials.iter()).fold(0.0, |s, m| s + m.periods_spanned);
+    let periods_wrapped = (materials.iter()).fold(0.0, |s, m| s + m.periods_wrapped);
     let bounds = scene.bounds();
     let planarity = bounds.and_then(|(lo, hi)| {
         let e = hi - lo;

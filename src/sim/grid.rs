@@ -172,27 +172,36 @@ pub fn run_grid(
         .collect()
 }
 
-fn key_cells(k: &RunKey) -> Vec<Cell> {
+fn key_cells(k: &RunKey, overhead: f64) -> Vec<Cell> {
     vec![
         Cell::Text(k.label()),
         Cell::Text(k.capacity.map_or("all".into(), |c| c.to_string())),
         Cell::Text(k.bandwidth.map_or("instant".into(), |b| format!("{b}"))),
         Cell::Float(k.latency * 1e3),
+        Cell::Float(overhead * 1e3),
         Cell::Text(k.policy.name().into()),
     ]
 }
 
 /// Units in the names: bytes per second (it read `bandwidth_bps`, bits by convention) and milliseconds.
-const KEY_HEADER: [&str; 5] = [
+/// The per-request overhead is the grid's (`--overhead`), on every row: a run with 200 ms of overhead
+/// and none of latency read as one with neither (fault hunt, session 37).
+const KEY_HEADER: [&str; 6] = [
     "run",
     "capacity",
     "bandwidth_bytes_per_s",
     "latency_ms",
+    "overhead_ms",
     "policy",
 ];
 
-/// Writes `frames.csv` and `summary.csv` into `dir`; returns their paths.
-pub fn write_csvs(dir: &Path, results: &[RunResult]) -> Result<Vec<PathBuf>, ReportError> {
+/// Writes `frames.csv` and `summary.csv` into `dir` for a grid of per-request overhead `overhead`
+/// (seconds, [`GridSpec::overhead`]); returns their paths.
+pub fn write_csvs(
+    dir: &Path,
+    results: &[RunResult],
+    overhead: f64,
+) -> Result<Vec<PathBuf>, ReportError> {
     // The paging counters of every frame through the one schema; timings are left out (the executor
     // here only records, and the table must be the same bytes for the same inputs).
     let counters =
@@ -204,7 +213,7 @@ pub fn write_csvs(dir: &Path, results: &[RunResult]) -> Result<Vec<PathBuf>, Rep
     let mut frames = CsvWriter::create(&dir.join("frames.csv"), &header)?;
     for r in results {
         for f in &r.rows {
-            let mut row = key_cells(&r.key);
+            let mut row = key_cells(&r.key, overhead);
             row.extend([Cell::UInt(f.frame.into()), Cell::Float(f.time)]);
             row.extend(columns::cells(counters(&f.paging)));
             row.push(Cell::Int(f.time_to_ideal.into()));
@@ -231,7 +240,7 @@ pub fn write_csvs(dir: &Path, results: &[RunResult]) -> Result<Vec<PathBuf>, Rep
     let mut summary = CsvWriter::create(&dir.join("summary.csv"), &header)?;
     for r in results {
         let s = &r.summary;
-        let mut row = key_cells(&r.key);
+        let mut row = key_cells(&r.key, overhead);
         row.extend([
             Cell::UInt(s.frames.into()),
             Cell::Float(s.mean_coarser),

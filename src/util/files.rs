@@ -160,7 +160,7 @@ impl LiveTempFile {
 /// process is interrupted while this guard lives. Dropping the guard only forgets the directory.
 pub struct LiveTempDir {
     _live: LiveTemp,
-    _parents: Vec<LiveTemp>,
+    _parents: LiveMadeFolders,
 }
 
 impl LiveTempDir {
@@ -173,18 +173,16 @@ impl LiveTempDir {
     pub fn register_with_parents(path: &Path, parents: &[PathBuf]) -> LiveTempDir {
         LiveTempDir {
             _live: LiveTemp::register(path),
-            _parents: parents
-                .iter()
-                .map(|p| LiveTemp::register_as(p, true))
-                .collect(),
+            _parents: LiveMadeFolders::register(parents),
         }
     }
 }
 
-/// Folders a run made for its outputs (an `--out` and the folders above it), which
-/// [`remove_live_temps`] removes, deepest first and only if empty, if the process is interrupted while
-/// this guard lives: a sweep interrupted by Ctrl-C left its new `--out` with an empty `builds/` (fault
-/// hunt, session 37). Dropping the guard only forgets them.
+/// Folders a run made for its outputs (an `--out`, the folders above it, a folder it makes inside),
+/// which [`remove_live_temps`] removes, deepest first and only if empty, if the process is interrupted
+/// while this guard lives: a sweep interrupted by Ctrl-C left its new `--out` with an empty `builds/`
+/// (fault hunt, session 37). Registered before the folders are made (an empty one is all it removes).
+/// Dropping the guard only forgets them.
 pub struct LiveMadeFolders {
     _live: Vec<LiveTemp>,
 }

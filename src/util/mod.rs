@@ -57,6 +57,14 @@ pub fn fixed_number(v: f64, decimals: usize) -> String {
     }
 }
 
+/// Serialises a path as text, any bytes that are not UTF-8 replaced (`U+FFFD`), for the reports a
+/// script reads: serde refuses a non-UTF-8 `PathBuf`, and a shard's report was written as an empty file
+/// and `merge --json` failed after the merged file was written (fault hunt, session 37). For
+/// `#[serde(serialize_with = "crate::util::path_lossy")]`.
+pub fn path_lossy<S: serde::Serializer>(path: &std::path::Path, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&path.to_string_lossy())
+}
+
 /// The text of a panic payload (`&str` or `String`), or a placeholder.
 pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
     payload

@@ -13,6 +13,7 @@ use crate::store::TreeFile;
 use glam::DVec3;
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
@@ -24,10 +25,28 @@ use winit::window::{Window, WindowId};
 /// Pixels of a touchpad's pixel-precise scroll that count as one wheel notch.
 const PIXELS_PER_NOTCH: f64 = 50.0;
 
+/// Whether a session's event loop is running ([`run`]), and whether a panic raised in winit while it
+/// ran was caught ([`window_panic_caught`]).
+static IN_SESSION: AtomicBool = AtomicBool::new(false);
+static WINDOW_PANIC: AtomicBool = AtomicBool::new(false);
+
+/// For a panic hook: true where `location` (a panic's file) lies in winit and a session's event loop is
+/// running, so [`run`] ends the session with [`ViewError::WindowSystem`] (the hook need not print it);
+/// false for every other panic, which [`run`] lets go on.
+pub fn window_panic_caught(location: &str) -> bool {
+    let caught = IN_SESSION.load(Ordering::SeqCst) && location.contains("/winit-");
+    if caught {
+        WINDOW_PANIC.store(true, Ordering::SeqCst);
+    }
+    caught
+}
+
 /// Opens the window on `file` and runs until it is closed (or `--exit` after the screenshot).
 ///
 /// Errors: no window system ([`ViewError::EventLoop`]), no adapter that can present, renderer and I/O
-/// errors of a frame; the first error ends the session.
+/// errors of a frame, the window system failing under the session ([`ViewError::WindowSystem`]: winit
+/// panics where its connection fails, and the panic hook tells it by [`window_panic_caught`]); the first
+/// error ends the session.
 pub fn run(file: &TreeFile, opts: ViewOptions) -> Result<ViewReport, ViewError> {
     let (lo, hi) = scene_bounds(file).ok_or(ViewError::EmptyFile)?;
     let event_loop = EventLoop::new()?;
@@ -46,20 +65,24 @@ pub fn run(file: &TreeFile, opts: ViewOptions) -> Result<ViewReport, ViewError> 
         report: ViewReport::default(),
     };
     // winit unwraps its connection's errors (an X server gone mid-session panicked in
-    // `Window::inner_size`): the panic ends the session with an error. Nothing of the window system is
-    // dropped after it (dropping a window or surface on a dead connection may panic again).
+    // `Window::inner_size`): such a panic ends the session with an error, any other goes on as a panic.
+    // Nothing of the window system is dropped after it (dropping a window or surface on a dead
+    // connection may panic again).
+    IN_SESSION.store(true, Ordering::SeqCst);
     let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         event_loop.run_app(&mut app)
     }));
+    IN_SESSION.store(false, Ordering::SeqCst);
     let ran = match ran {
         Ok(ran) => ran,
-        Err(payload) => {
+        Err(payload) if WINDOW_PANIC.load(Ordering::SeqCst) => {
             let reason = crate::util::panic_message(payload.as_ref());
             std::mem::forget(app);
             std::mem::forget(window);
             std::mem::forget(ctx);
             return Err(ViewError::WindowSystem { reason });
         }
+        Err(payload) => std::panic::resume_unwind(payload),
     };
     ran?;
     if let Some(running) = app.running.as_mut() {
@@ -722,17 +745,9 @@ impl<'a> Running<'a> {
         report.recordings = std::mem::take(&mut self.recordings);
         report.adapter = self.ctx.adapter_summary();
         report.size = self.presenter.size();
-        let planner = &self.frame_loop.planner;
-        if let Some(e) = planner.first_load_error() {
-            (report.warnings).push(format!(
-                "block loads failed during the session (those nodes were drawn coarser); the first: {e}"
-            ));
-        }
-        if let Some(e) = planner.last_error() {
-            (report.warnings).push(format!(
-                "residency changes failed during the session (drawn coarser); the last: {e}"
-            ));
-        }
+        report.warnings = (self.frame_loop.planner.failure_warnings().into_iter())
+            .map(|w| format!("during the session, {w}"))
+            .collect();
         let secs = self.started.elapsed().as_secs_f64();
         report.fps = if secs > 0.0 {
             self.frames as f64 / secs

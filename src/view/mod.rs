@@ -20,7 +20,7 @@ pub mod controls;
 pub mod overlay;
 mod present;
 
-pub use app::run;
+pub use app::{run, window_panic_caught};
 pub use present::ShotSource;
 
 use crate::camera::{Camera, CameraError, CameraPath};

@@ -119,8 +119,8 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
     let (da, db) = (dir.path().join("a"), dir.path().join("b"));
     std::fs::create_dir_all(&da).unwrap();
     std::fs::create_dir_all(&db).unwrap();
-    write_csvs(&da, &a).unwrap();
-    write_csvs(&db, &b).unwrap();
+    write_csvs(&da, &a, grid.overhead).unwrap();
+    write_csvs(&db, &b, grid.overhead).unwrap();
     for name in ["frames.csv", "summary.csv"] {
         let (x, y) = (
             std::fs::read(da.join(name)).unwrap(),
@@ -141,6 +141,7 @@ fn simulate_is_deterministic_conserves_bytes_and_respects_k() {
         "capacity",
         "bandwidth_bytes_per_s",
         "latency_ms",
+        "overhead_ms",
         "policy",
         "frame",
         "time_s",

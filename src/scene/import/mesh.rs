@@ -255,6 +255,10 @@ impl<'a> Geometry<'a> {
         }
         let (material, uv_source) = materials.material_for(prim, ctx, buffers, report);
         let n = pos_acc.count();
+        // POSITION's buffer and type first, as before the indices were read first: a primitive with a
+        // bad POSITION and bad indices reports the POSITION.
+        buffers.load_accessor(&pos_acc)?;
+        check_vertex_attribute(&pos_acc).map_err(|e| ctx.error(self.file, "POSITION", e))?;
 
         // Indices (or 0..n), checked against the vertex count.
         match prim.indices() {
@@ -305,13 +309,9 @@ impl<'a> Geometry<'a> {
         self.scratch.indices.iter_mut().for_each(|i| *i -= first);
 
         // Positions → world space.
-        buffers.load_accessor(&pos_acc)?;
         let s = &mut self.scratch;
-        check_vertex_attribute(&pos_acc)
-            .and_then(|()| {
-                let (used, out) = (span.used.clone(), &mut s.floats);
-                read_float_range(buffers.data(), &pos_acc, 3, used, out, &mut s.tmp)
-            })
+        let (used, out) = (span.used.clone(), &mut s.floats);
+        read_float_range(buffers.data(), &pos_acc, 3, used, out, &mut s.tmp)
             .map_err(|e| ctx.error(self.file, "POSITION", e))?;
         self.add_morph_positions(prim, weights, &span, ctx, buffers)?;
         let s = &mut self.scratch;

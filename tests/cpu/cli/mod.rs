@@ -649,8 +649,18 @@ fn a_non_utf8_shard_output_builds_and_simulate_refuses_its_out_early() {
         .arg(&out)
         .arg(scene()));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = run(bin().args(["merge", "-q"]).arg(&out));
+    // Its report, which the merge reads for its table, names the path lossily (serde refuses a
+    // non-UTF-8 path: the report was an empty file, and `merge --json` failed after writing the merged
+    // file; fault hunt, session 37).
+    let mut report = out.clone().into_os_string();
+    report.push(".shard-0-of-1.json");
+    let text = std::fs::read(&report).unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&text).unwrap();
+    assert!(v["path"].as_str().unwrap().contains("n\u{FFFD}m"), "{v}");
+    let o = run(bin().args(["merge", "--json"]).arg(&out));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["count"], 1, "{v}");
     assert!(atlastree::store::TreeFile::open(&out).is_ok());
     let taken = dir.path().join("taken");
     std::fs::write(&taken, b"x").unwrap();

@@ -124,9 +124,10 @@ fn an_accessor_without_a_buffer_view_is_zeros() {
 
 /// Primitives sharing one vertex accessor (a three.js exporter's geometry groups) each read only the
 /// vertices their indices use (10,000 such primitives took 6.6 s to import, each reading the whole
-/// accessor; fault hunt, session 36). What they read must be what the whole accessor holds at those
-/// places: a sparse substitution and a morph target's deltas inside the second primitive's range land
-/// on the right vertices, and its indices (not starting at 0, in no order) name them.
+/// accessor; fault hunt, session 36; how much is read is not checked here). What they read must be what
+/// the whole accessor holds at those places: a sparse substitution and a morph target's deltas inside
+/// the second primitive's range land on the right vertices, and its indices (not starting at 0, in no
+/// order, ending at the accessor's last element) name them.
 #[test]
 fn primitives_sharing_an_accessor_read_the_vertices_they_use() {
     use base64::Engine;
