@@ -289,12 +289,8 @@ pub(super) fn read_float_range(
                 .map(|b| decode_component(it, false, b) as usize),
         );
         let vv = sp.values();
-        let d = dense(buffers, &vv.view(), vv.offset(), n, cs * dims, false)
+        let values = dense(buffers, &vv.view(), vv.offset(), n, cs * dims, false)
             .map_err(|r| err(format!("sparse values: {r}")))?;
-        tmp.clear();
-        for e in d.elements() {
-            tmp.extend(e.chunks_exact(cs).map(|b| decode_component(t, norm, b)));
-        }
         // glTF 2.0 §3.6.2.3: sparse indices MUST strictly increase (a repeated index would make the
         // element depend on which write comes last).
         if let Some(k) = idx.windows(2).position(|w| w[1] <= w[0]) {
@@ -310,18 +306,22 @@ pub(super) fn read_float_range(
                 "sparse index {i} out of range ({count} elements)"
             )));
         }
-        for (k, &i) in idx.iter().enumerate() {
-            if !range.contains(&i) {
-                continue;
-            }
+        // Only the values inside `range` are decoded (the indices increase, so they are one run of
+        // them): primitives sharing one sparse accessor each decoded all its values.
+        let first = idx.partition_point(|&i| i < range.start);
+        let inside = idx[first..].partition_point(|&i| i < range.end);
+        for (k, e) in (first..first + inside).zip(values.elements_from(first)) {
+            let i = idx[k];
             let dst = (i - range.start)
                 .checked_mul(dims)
                 .and_then(|s| out.get_mut(s..s + dims))
                 .ok_or_else(|| err(format!("sparse index {i} out of range ({count} elements)")))?;
-            let src = tmp
-                .get(k * dims..(k + 1) * dims)
-                .ok_or_else(|| err("sparse values short".into()))?;
-            dst.copy_from_slice(src);
+            tmp.clear();
+            tmp.extend(e.chunks_exact(cs).map(|b| decode_component(t, norm, b)));
+            if tmp.len() != dims {
+                return Err(err("sparse values short".into()));
+            }
+            dst.copy_from_slice(tmp);
         }
     }
     Ok(())
