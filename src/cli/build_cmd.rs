@@ -295,6 +295,16 @@ fn shard_step(arg: Option<&str>) -> anyhow::Result<ShardStep> {
     }
 }
 
+/// The scene error somewhere in `e`'s chain (a planned shard's comes wrapped in a build error).
+fn scene_error(e: &anyhow::Error) -> Option<&atlastree::scene::SceneError> {
+    use atlastree::preprocess::BuildError;
+    e.chain()
+        .find_map(|c| match c.downcast_ref::<BuildError>() {
+            Some(BuildError::Scene(s)) => Some(&**s),
+            _ => c.downcast_ref(),
+        })
+}
+
 /// A scene refused in the node walk for the memory budget, with what its plan alone needs (every
 /// triangle held at once; a whole build or shard needs the pixel pass's share on top, the plan step
 /// nothing more). `given`: the budget is `--max-memory`'s, else the default.
@@ -312,7 +322,7 @@ fn over_budget(
         "the default budget (half of this machine's memory, or of its cgroup's or address-space limit)"
     };
     if let (Some(&SceneError::OverInputBudget { bytes, .. }), Some(budget)) =
-        (e.downcast_ref(), budget)
+        (scene_error(&e), budget)
     {
         return e.context(format!(
             "the budget is too small: reading {} of scene input needs about {} MiB ({} MiB of process \
@@ -324,7 +334,7 @@ fn over_budget(
         ));
     }
     if let (Some(&SceneError::OverJsonBudget { json_bytes, .. }), Some(budget)) =
-        (e.downcast_ref(), budget)
+        (scene_error(&e), budget)
     {
         let needed = BASE_BYTES.saturating_add(json_bytes.saturating_mul(JSON_BYTES_FACTOR));
         return e.context(format!(
@@ -344,7 +354,7 @@ fn over_budget(
             ..
         }),
         Some(budget),
-    ) = (e.downcast_ref(), budget)
+    ) = (scene_error(&e), budget)
     else {
         return e;
     };
@@ -496,7 +506,10 @@ fn run_planned_shard(
                     plan.display()
                 ))
             } else {
-                e
+                // Its images' input past the budget says what it needs, as a plain build's does (it
+                // named no number and no flag; fault hunt, session 37).
+                let budget = a.params.memory_budget();
+                over_budget(e, budget, a.params.max_memory.is_some(), false)
             }
         })
         .with_context(|| {

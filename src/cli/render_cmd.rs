@@ -315,8 +315,11 @@ fn open_tree(
                 HttpSource::open(url, http).with_context(|| format!("opening {}", tree.shown()))?;
             (tables, Some(Arc::new(source)))
         }
+        // The tables in memory, blocks read through the handle: the renderer's setup reads geometry
+        // for a while, and a file truncated then killed it by SIGBUS (fault hunt, session 37).
         TreeSource::Local(path) => (
-            TreeFile::open(path).with_context(|| format!("opening {}", path.display()))?,
+            TreeFile::open_with(path, atlastree::store::LoadMode::Tables)
+                .with_context(|| format!("opening {}", path.display()))?,
             None,
         ),
     })

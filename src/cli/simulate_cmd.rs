@@ -185,7 +185,9 @@ pub(super) fn execute(cfg: &SimulateConfig) -> anyhow::Result<ExitCode> {
     // or that another run holds. A run refused (a missing file, a bad path, a capacity below the roots)
     // leaves no folder it made (as render and sweep leave none; fault hunt, session 35).
     super::OutFolder::open(&cfg.out)?.run(|| {
-        let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Auto)?;
+        // The tables in memory: a grid selects from them for minutes, and a file truncated or rewritten
+        // meanwhile killed it by SIGBUS or changed its rows without a word (fault hunt, session 37).
+        let file = super::open_local(&cfg.file, "simulate", atlastree::store::LoadMode::Tables)?;
         run_and_write(cfg, &file)
     })
 }

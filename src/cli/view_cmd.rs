@@ -183,7 +183,8 @@ impl ViewArgs {
 
 pub(super) fn run(a: ViewArgs) -> anyhow::Result<ExitCode> {
     a.check_flags()?;
-    let file = super::open_local(&a.file, "view", atlastree::store::LoadMode::Auto)?;
+    // The tables in memory, as `render` (a file truncated under a long session: SIGBUS).
+    let file = super::open_local(&a.file, "view", atlastree::store::LoadMode::Tables)?;
     let opts = a.validate(&file)?;
     let report = atlastree::view::run(&file, opts)?;
     print_report(&report, a.json);

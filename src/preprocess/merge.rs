@@ -727,7 +727,11 @@ impl ShardSet {
     fn report_lines(&self) -> Vec<MergedShard> {
         (self.shards.iter().enumerate())
             .map(|(slot, f)| {
-                let side = read_sidecar(f.path());
+                // Only a report of this very shard file: one copied in from another build kept the
+                // old run's numbers (fault hunt, session 37).
+                let side = read_sidecar::<ShardReport>(f.path()).filter(|r| {
+                    (r.shard, r.count, r.file_bytes) == (slot as u32, self.count, f.header.file_len)
+                });
                 let total = |r: &ShardReport| {
                     (r.stages.timings.iter())
                         .find(|(n, _)| n == "total")

@@ -317,7 +317,15 @@ impl TreeFile {
     /// published over the path in between (a build's atomic rename) is refused with
     /// [`StoreError::Replaced`], never drawn with its blocks under these tables.
     pub fn reopen(&self) -> Result<TreeFile, StoreError> {
-        let again = Self::open(&self.path)?;
+        // The same way of reading as this one: a tables-only file reopened as a map read its blocks
+        // through the map, and a file truncated meanwhile killed `render --capacity` by SIGBUS (fault
+        // hunt, session 37).
+        let mode = match self.backing {
+            Backing::Mmap { .. } => LoadMode::Auto,
+            Backing::Owned { .. } => LoadMode::Read,
+            Backing::Tables { .. } => LoadMode::Tables,
+        };
+        let again = Self::open_with(&self.path, mode)?;
         if again.header() != self.header() || again.blocks() != self.blocks() {
             return Err(StoreError::Replaced {
                 path: self.path.clone(),

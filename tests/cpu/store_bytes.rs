@@ -259,3 +259,26 @@ fn blocks_of_a_file_truncated_while_open_are_errors() {
         }
     }
 }
+
+/// A file reopened (the pager's second handle) is read as the first was: with its tables in memory, a
+/// truncation after the reopen leaves the reopened tables readable. Reopened as a map, its geometry was
+/// read through the map, and `render --capacity` on a file truncated during its setup ended by SIGBUS
+/// (fault hunt, session 37).
+#[test]
+fn a_reopened_file_keeps_its_tables_in_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let path: PathBuf = dir.path().join("t.atlastree");
+    std::fs::write(&path, tiny()).unwrap();
+    let f = TreeFile::open_with(&path, LoadMode::Tables).unwrap();
+    let again = f.reopen().unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(0)
+        .unwrap();
+    let tree = again.tree(0).unwrap();
+    assert!(!tree.nodes.is_empty());
+    assert_eq!(tree.nodes.len(), f.tree(0).unwrap().nodes.len());
+    assert!(again.block(BlockId(0)).is_err());
+}
