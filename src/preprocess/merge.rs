@@ -441,7 +441,7 @@ impl ShardSet {
         // Before any hint is made (a missing shard's too).
         let mut read = opened.iter().flatten().peekable();
         if read.peek().is_none() || read.any(|f| f.header.prefix_len == 0) {
-            set.prefer_plan(out);
+            set.prefer_plan(out, opened.iter().flatten());
         }
         if let Some((shard, path, err)) = failures.into_iter().next() {
             let err = match err {
@@ -491,12 +491,18 @@ impl ShardSet {
     /// one out, and the hint sent the user to rebuild it with the old flags, which the new plan then
     /// refused (fault hunt, session 31). Hints then copy the plan's command line (its `--shard plan`
     /// becomes `--shard I/N`). A plan that does not open is reported later, where its tables are read.
-    fn prefer_plan(&mut self, out: &Path) {
+    fn prefer_plan<'a>(&mut self, out: &Path, shards: impl Iterator<Item = &'a ShardFile>) {
         let path = crate::store::shard_plan::plan_path(out);
         let Ok(plan) = crate::store::shard_plan::PlanFile::open(&path) else {
             return;
         };
-        self.argv = Some(with_out(&plan.manifest.argv, out));
+        // A shard built from this plan holds the flags the plan leaves out (`--filter`, `--alpha-mips`,
+        // its own `--max-memory`): the plan's command dropped them, and the shard it rebuilt was refused
+        // again (fault hunt, session 37). The plan's where no shard is from it.
+        let from_plan =
+            (shards.into_iter()).find(|f| f.header.prefix_hash == plan.header.prefix_hash);
+        let argv = from_plan.map_or(&plan.manifest.argv, |f| &f.argv);
+        self.argv = Some(with_out(argv, out));
         self.plan = Some(plan);
     }
 
