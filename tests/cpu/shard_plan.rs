@@ -465,3 +465,35 @@ fn import_warnings_reach_the_plan_the_shards_and_the_merge() {
     let r = build_shard(&imported, &opts, &other, &sharded, &NoProgress).unwrap();
     assert!(names_it(&r.import_warnings), "{:?}", r.import_warnings);
 }
+
+/// A planned merge's rebuild hint is the command of a shard built from the plan, which holds the flags
+/// the plan leaves out (here `--filter kaiser`): the plan's own command dropped them, and the shard it
+/// rebuilt was refused as another build's, again and again (fault hunt, session 37).
+#[test]
+fn a_planned_merge_hint_keeps_the_shards_own_flags() {
+    let scene = city_path();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("city.atlastree");
+    let opts = deep_opts();
+    plan(&scene, &opts, &out);
+    let plan_file = PlanFile::open(&plan_path(&out)).unwrap();
+    let key = shard_plan_key(&opts, &scene, "").unwrap();
+    for index in [0, 2] {
+        let spec = ShardSpec { index, count: 3 };
+        let size = format!("--atlas-size={}", opts.atlas_size);
+        let argv = ["atlastree", "build", &size, "--filter", "kaiser", "--shard"];
+        let mut argv: Vec<String> = argv.map(String::from).to_vec();
+        argv.push(spec.to_string());
+        let sharded = ShardedOptions {
+            spec,
+            argv,
+            import: None,
+        };
+        build_shard_planned(&plan_file, key, &scene, &opts, &out, &sharded, &NoProgress).unwrap();
+    }
+    let msg = merge(&out, None, &NoProgress).unwrap_err().to_string();
+    assert!(
+        msg.contains("shard 1 of 3 is missing") && msg.contains("--filter kaiser --shard 1/3"),
+        "{msg}"
+    );
+}
