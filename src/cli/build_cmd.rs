@@ -295,6 +295,12 @@ fn shard_step(arg: Option<&str>) -> anyhow::Result<ShardStep> {
     }
 }
 
+/// `out` as the shell word an `atlastree merge OUT` hint shows (quoted where it must be).
+fn merge_arg(out: &std::path::Path) -> String {
+    use atlastree::util::shell_words::{path_to_recorded, shell_word};
+    shell_word(&path_to_recorded(out))
+}
+
 /// The scene error somewhere in `e`'s chain (a planned shard's comes wrapped in a build error).
 fn scene_error(e: &anyhow::Error) -> Option<&atlastree::scene::SceneError> {
     use atlastree::preprocess::BuildError;
@@ -316,14 +322,13 @@ fn over_budget(
 ) -> anyhow::Error {
     use atlastree::preprocess::memory::{BASE_BYTES, JSON_BYTES_FACTOR, PLAN_BYTES_PER_TRIANGLE};
     use atlastree::scene::SceneError;
+    let scene = scene_error(&e);
     let source = if given {
         "--max-memory"
     } else {
         "the default budget (half of this machine's memory, or of its cgroup's or address-space limit)"
     };
-    if let (Some(&SceneError::OverInputBudget { bytes, .. }), Some(budget)) =
-        (scene_error(&e), budget)
-    {
+    if let (Some(&SceneError::OverInputBudget { bytes, .. }), Some(budget)) = (scene, budget) {
         return e.context(format!(
             "the budget is too small: reading {} of scene input needs about {} MiB ({} MiB of process \
              base besides it), over {source} of {} MiB: give a larger --max-memory",
@@ -333,9 +338,7 @@ fn over_budget(
             budget >> 20
         ));
     }
-    if let (Some(&SceneError::OverJsonBudget { json_bytes, .. }), Some(budget)) =
-        (scene_error(&e), budget)
-    {
+    if let (Some(&SceneError::OverJsonBudget { json_bytes, .. }), Some(budget)) = (scene, budget) {
         let needed = BASE_BYTES.saturating_add(json_bytes.saturating_mul(JSON_BYTES_FACTOR));
         return e.context(format!(
             "the budget is too small: parsing {} of glTF JSON needs about {} MiB ({} MiB of process \
@@ -354,7 +357,7 @@ fn over_budget(
             ..
         }),
         Some(budget),
-    ) = (scene_error(&e), budget)
+    ) = (scene, budget)
     else {
         return e;
     };
@@ -463,9 +466,7 @@ fn run_plan(
     println!(
         "  next: each shard with the same flags (`--shard I/N` or `auto`) reads this plan instead of planning; then \
          atlastree merge {}",
-        atlastree::util::shell_words::shell_word(&atlastree::util::shell_words::path_to_recorded(
-            &a.out
-        ))
+        merge_arg(&a.out)
     );
     Ok(ExitCode::SUCCESS)
 }
@@ -577,9 +578,7 @@ fn print_shard(a: &BuildArgs, spec: ShardSpec, report: &ShardReport) -> anyhow::
     println!(
         "  when all {} shards are written: atlastree merge {}",
         spec.count,
-        atlastree::util::shell_words::shell_word(&atlastree::util::shell_words::path_to_recorded(
-            &a.out
-        ))
+        merge_arg(&a.out)
     );
     Ok(ExitCode::SUCCESS)
 }

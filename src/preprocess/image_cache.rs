@@ -122,7 +122,6 @@ pub type OriginalKey = (
     usize,
     Option<u32>,
 );
-/// Per image of `scene`: used by at least one material and by OPAQUE materials only.
 /// Per scene image, the other scene images read from the same file: one glTF image (its OPAQUE and
 /// alpha twins), or glTF images naming one path (two `images` entries with the same `uri`: replaced
 /// during a build, they mixed two versions without a word; fault hunt, session 37). Mostly empty.
@@ -153,6 +152,7 @@ enum FileKey<'a> {
     Gltf(u32),
 }
 
+/// Per image of `scene`: used by at least one material and by OPAQUE materials only.
 fn opaque_only_images(scene: &Scene) -> Vec<bool> {
     let mut used = vec![false; scene.images.len()];
     let mut alpha = vec![false; scene.images.len()];

@@ -7,6 +7,13 @@ use serde_json::json;
 use super::bad_input::city_triangles;
 use super::city::{city_dir, city_json, import_city};
 
+/// `bytes` as a glTF buffer's data URI.
+fn data_uri(bytes: &[u8]) -> String {
+    use base64::Engine;
+    let b64 = base64::engine::general_purpose::STANDARD.encode(bytes);
+    format!("data:application/octet-stream;base64,{b64}")
+}
+
 /// The city with a sparse substitution on accessor 36 (16 positions): `indices` as u16 and as many
 /// VEC3 values (each the accessor's own element at that index, so a valid substitution changes nothing),
 /// in a second buffer given as a data URI.
@@ -27,10 +34,8 @@ fn city_with_sparse(indices: &[u16]) -> Result<usize, String> {
         let at = first + 12 * usize::from(i.min(15));
         data.extend_from_slice(&bin[at..at + 12]);
     }
-    use base64::Engine;
-    let b64 = base64::engine::general_purpose::STANDARD.encode(&data);
     doc["buffers"].as_array_mut().unwrap().push(json!({
-        "uri": format!("data:application/octet-stream;base64,{b64}"),
+        "uri": data_uri(&data),
         "byteLength": data.len()
     }));
     let views = doc["bufferViews"].as_array_mut().unwrap();
@@ -75,15 +80,11 @@ fn sparse_indices_must_strictly_increase() {
 /// target moves it.
 #[test]
 fn an_accessor_without_a_buffer_view_is_zeros() {
-    use base64::Engine;
     let dir = tempfile::tempdir().unwrap();
     let positions: [f32; 12] = [0., 0., 0., 10., 0., 0., 10., 0., -10., 0., 0., -10.];
     let mut bin: Vec<u8> = positions.iter().flat_map(|v| v.to_le_bytes()).collect();
     bin.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|v| v.to_le_bytes()));
-    let uri = format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&bin)
-    );
+    let uri = data_uri(&bin);
     let doc = json!({
         "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1, 2]}],
         "extensionsUsed": ["KHR_draco_mesh_compression"],
@@ -130,7 +131,6 @@ fn an_accessor_without_a_buffer_view_is_zeros() {
 /// order, ending at the accessor's last element) name them.
 #[test]
 fn primitives_sharing_an_accessor_read_the_vertices_they_use() {
-    use base64::Engine;
     let base = |i: usize| [10.0 * i as f32, 0.0, 5.0 * (i % 2) as f32];
     let delta = |i: usize| [0.0, 0.0, -(i as f32)];
     let substituted = [555.0f32, 0.0, 7.0];
@@ -145,10 +145,7 @@ fn primitives_sharing_an_accessor_read_the_vertices_they_use() {
             .flat_map(|v| v.to_le_bytes()),
     );
     bin.extend(5u16.to_le_bytes());
-    let uri = format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&bin)
-    );
+    let uri = data_uri(&bin);
     let prim = |indices: usize| json!({"attributes": {"POSITION": 0}, "indices": indices, "targets": [{"POSITION": 1}]});
     let doc = json!({
         "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
