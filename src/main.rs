@@ -30,8 +30,8 @@ fn quiet_on_closed_stdout() {
         let text = atlastree::util::panic_message(info.payload());
         let closed = |stream: &str| text.starts_with(&format!("failed printing to {stream}"));
         if (closed("stdout") || closed("stderr")) && text.contains("Broken pipe") {
-            atlastree::util::remove_live_temps();
-            std::process::exit(141);
+            // Removed and ended under the temps' lock, as an interrupt does: no temp made in between.
+            atlastree::util::remove_live_temps_and_exit(|| std::process::exit(141), |_, _| {});
         }
         // winit unwraps its connection's errors (an X server gone under `view`); while a session runs,
         // `view` catches such a panic and ends with an error naming it, so it is not printed twice.

@@ -225,17 +225,22 @@ fn on_interrupt(handler: fn(i32)) {
 /// word), nor a complete output as an unfinished one: `removed` unfinished outputs, and the committed
 /// outputs still there with the last of them.
 fn say_interrupted(removed: usize, committed: Option<&(usize, std::path::PathBuf)>) {
-    match committed {
-        Some((n, last)) => eprintln!(
+    // Not `eprintln!`: a stderr whose reader has gone would panic here, under the temps' lock that the
+    // panic hook's cleanup takes again (a hang; review, session 37).
+    use std::io::Write;
+    let _ = match committed {
+        Some((n, last)) => writeln!(
+            std::io::stderr(),
             "interrupted: {n} output(s) of this run were already complete (the last {}, left in place); \
              {removed} unfinished output(s) removed",
             last.display()
         ),
-        None => eprintln!(
+        None => writeln!(
+            std::io::stderr(),
             "interrupted: stopped before finishing; {removed} unfinished output(s) removed, earlier \
              outputs left as they were"
         ),
-    }
+    };
 }
 
 /// Ends the process as `signal` itself would (its default action, raised again), so the shell sees a
