@@ -160,6 +160,12 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     }
     warn_wide_border(&a);
     warn_budget_above_limit(&a);
+    // An atlas size that is none is refused by its own check, later.
+    let pixels = step != ShardStep::Plan && atlastree::preprocess::valid_atlas_size(a.atlas_size);
+    if let (Some(budget), true) = (a.params.memory_budget(), pixels) {
+        let threads = rayon::current_num_threads() as u64;
+        atlastree::preprocess::memory::check_pixel_floor(budget, a.atlas_size, threads)?;
+    }
     let bars = Bars::new(a.quiet || a.json);
     if let ShardStep::Shard(spec) = step {
         let plan = plan_path(&a.out);

@@ -445,8 +445,7 @@ fn split_budget(
         cache_wanted,
     } = pixels;
     let plan_bytes = BASE_BYTES.saturating_add(held);
-    let atlas = u64::from(atlas_size).pow(2) * 16;
-    let raster_bytes = threads.max(1) * ATLASES_PER_THREAD * atlas;
+    let raster_bytes = raster_bytes(atlas_size, threads);
     let CacheNeed {
         floor,
         bytes: cache_bytes,
@@ -481,6 +480,63 @@ fn split_budget(
     })
 }
 
+/// The rasteriser threads' working atlases: `threads` (at least one) × [`ATLASES_PER_THREAD`] f32 RGBA
+/// atlases of `atlas_size`² texels, in bytes.
+fn raster_bytes(atlas_size: u32, threads: u64) -> u64 {
+    let atlas = u64::from(atlas_size).pow(2) * 16;
+    threads
+        .max(1)
+        .saturating_mul(ATLASES_PER_THREAD)
+        .saturating_mul(atlas)
+}
+
+/// Why a budget is too small for any scene: below the process's base and the pixel pass's least share.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+#[error(
+    "any build at --atlas-size {atlas_size} needs at least {needed_mib} MiB, whatever its scene ({} MiB of \
+     process base, {raster_mib} MiB for {threads} rasteriser {} and {headroom_mib} MiB of image-cache \
+     headroom; the scene's triangles and images add to that), over the budget of {budget_mib} MiB \
+     (--max-memory; by default half the memory this process may use): raise --max-memory{}",
+    BASE_BYTES >> 20,
+    if *.threads == 1 { "thread's atlases" } else { "threads' atlases" },
+    if *.threads > 1 { ", or run fewer rasteriser threads (RAYON_NUM_THREADS=N)" } else { "" }
+)]
+pub struct PixelFloorError {
+    pub budget_mib: u64,
+    pub needed_mib: u64,
+    pub atlas_size: u32,
+    pub raster_mib: u64,
+    pub threads: u64,
+    pub headroom_mib: u64,
+}
+
+/// Checks, before the scene is read, that `budget` holds what every build (or shard) with `threads`
+/// rasteriser threads at `atlas_size` needs whatever its scene: [`BASE_BYTES`], the threads' atlases
+/// and the image cache's headroom (a quarter of [`MIN_IMAGE_CACHE`]: [`cache_need`] with no image at
+/// all). A budget below it was refused stage by stage, each refusal naming only its own stage's need
+/// (40, 65, 66, 67, then 265 MiB on `data/city`; fault hunt, session 37); the plan step, which draws no
+/// pixel, is not checked.
+pub fn check_pixel_floor(
+    budget: u64,
+    atlas_size: u32,
+    threads: u64,
+) -> Result<(), PixelFloorError> {
+    let raster = raster_bytes(atlas_size, threads);
+    let headroom = MIN_IMAGE_CACHE / 4;
+    let needed = BASE_BYTES.saturating_add(raster).saturating_add(headroom);
+    if needed <= budget {
+        return Ok(());
+    }
+    Err(PixelFloorError {
+        budget_mib: budget >> 20,
+        needed_mib: needed.div_ceil(1 << 20),
+        atlas_size,
+        raster_mib: raster.div_ceil(1 << 20),
+        threads: threads.max(1),
+        headroom_mib: headroom >> 20,
+    })
+}
+
 /// The most bytes of scene input (the file and its buffers, held whole while the import reads them) within
 /// `budget`: all of it but [`BASE_BYTES`] (`scene::ImportOptions::max_input_bytes`; a planned shard of a
 /// GLB reads the file whole for its images, and counts it).
@@ -511,6 +567,56 @@ pub fn default_budget() -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The floor checked before the scene is read is the need of a scene without triangles or images,
+    /// so no budget the whole build fits is refused by it; one byte less is, with the numbers.
+    #[test]
+    fn the_pixel_floor_is_the_need_of_an_empty_scene() {
+        for (atlas, threads) in [(1024, 2), (512, 1), (2048, 16)] {
+            let empty = plan_memory(
+                u64::MAX,
+                PlanLoad::default(),
+                atlas,
+                threads,
+                ImageLoad::of([], threads),
+                0,
+            )
+            .unwrap();
+            let floor = empty.needed_bytes;
+            assert_eq!(check_pixel_floor(floor, atlas, threads), Ok(()));
+            let e = check_pixel_floor(floor - 1, atlas, threads).unwrap_err();
+            assert_eq!(e.needed_mib, floor.div_ceil(1 << 20), "{e}");
+            assert!(
+                plan_memory(
+                    floor - 1,
+                    PlanLoad::default(),
+                    atlas,
+                    threads,
+                    ImageLoad::of([], threads),
+                    0
+                )
+                .is_err()
+            );
+        }
+        let e = check_pixel_floor(40 << 20, 1024, 2)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("needs at least 208 MiB")
+                && e.contains("128 MiB for 2 rasteriser threads' atlases")
+                && e.contains("16 MiB of image-cache headroom")
+                && e.contains("over the budget of 40 MiB")
+                && e.contains("RAYON_NUM_THREADS"),
+            "{e}"
+        );
+        let one = check_pixel_floor(40 << 20, 1024, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            one.contains("1 rasteriser thread's atlases") && !one.contains("RAYON"),
+            "{one}"
+        );
+    }
 
     /// The cache's floor is blamed on the largest images only where they set it, and the in-flight share
     /// is named either way; a planned shard's plan share names no triangles.

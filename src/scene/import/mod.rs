@@ -112,7 +112,11 @@ fn read_buffer_bytes(value: &serde_json::Value) -> u64 {
 /// The length of the scene file at `path`, refused ([`SceneError::OverInputBudget`]) where it passes
 /// `max` before a byte is read: the import and a planned shard's image import each read it whole.
 pub(super) fn check_file_len(path: &Path, file: &str, max: Option<u64>) -> Result<u64, SceneError> {
-    let len = std::fs::metadata(path).map_or(0, |m| m.len());
+    // A directory or device is not counted (its length is no input): the read that follows names it
+    // (a directory was refused as "reading 4.00 KiB of scene input" under a small budget).
+    let len = (std::fs::metadata(path).ok())
+        .filter(|m| m.is_file())
+        .map_or(0, |m| m.len());
     check_input_bytes(file, len, max, "the file")?;
     Ok(len)
 }

@@ -118,6 +118,39 @@ fn values_past_what_a_flag_holds_are_refused() {
     );
 }
 
+/// A budget below what any build needs is refused before the scene is read, with the number of the
+/// whole build's floor (it was refused stage by stage, each naming its own stage: 40 → 65 → 66 → 67 →
+/// 265 MiB on this scene; fault hunt, session 37); at that number the build goes on to the scene's own
+/// need, which is higher, never back to the floor.
+#[test]
+fn a_budget_below_any_build_is_refused_with_the_floor() {
+    let (tmp, scene) = (tempfile::tempdir().unwrap(), scene());
+    let out = tmp.path().join("x.atlastree");
+    let build = |budget: &str| {
+        let o = run(bin()
+            .env("RAYON_NUM_THREADS", "2")
+            .arg("build")
+            .arg(&scene)
+            .arg("-o")
+            .arg(&out)
+            .args(["--max-memory", budget]));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    for budget in ["40MiB", "207MiB"] {
+        let e = build(budget);
+        assert!(
+            e.contains("any build at --atlas-size 1024 needs at least 208 MiB"),
+            "{budget}: {e}"
+        );
+    }
+    let e = build("208MiB");
+    assert!(
+        !e.contains("needs at least 208") && e.contains("the build needs about"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
 /// A flag that means nothing for a command is refused there with a message, before any file is opened
 /// (the files named here do not exist): a time upload budget in `simulate` (it has no uploads to time),
 /// paging flags without `--capacity` in `render`, paging flags beyond `--capacity` in `view`.
