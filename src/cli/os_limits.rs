@@ -60,7 +60,7 @@ fn one_malloc_arena_under_address_limit() {
             && libc::getrlimit(libc::RLIMIT_AS, &mut lim) == 0
             && lim.rlim_cur != libc::RLIM_INFINITY
         {
-            let arenas = (lim.rlim_cur / (512 << 20)).clamp(1, 1024);
+            let arenas = atlastree::util::malloc_arenas_under(lim.rlim_cur);
             libc::mallopt(libc::M_ARENA_MAX, arenas as libc::c_int);
         }
     }

@@ -74,7 +74,21 @@ pub fn memory_limit_bytes() -> Option<u64> {
                         .map(|n| n.get() as u64)
                 })
                 .unwrap_or(1);
-            address_space_left(limit, mapped, workers, threads_of(&status).unwrap_or(1))
+            let arenas = std::env::var("MALLOC_ARENA_MAX")
+                .ok()
+                .and_then(|v| v.trim().parse::<u64>().ok())
+                .filter(|&n| n > 0)
+                .unwrap_or_else(|| malloc_arenas_under(limit));
+            let running = threads_of(&status).unwrap_or(1);
+            address_space_left(
+                limit,
+                mapped,
+                Threads {
+                    workers,
+                    running,
+                    arenas,
+                },
+            )
         });
     [machine_memory_bytes(), cgroup, address_space]
         .into_iter()
@@ -82,14 +96,39 @@ pub fn memory_limit_bytes() -> Option<u64> {
         .min()
 }
 
+/// The threads an address-space limit has to leave room for.
+struct Threads {
+    /// Rasteriser workers the pool will run.
+    workers: u64,
+    /// Threads running now, this one included.
+    running: u64,
+    /// glibc malloc arenas at most, the main one included (`MALLOC_ARENA_MAX`, else
+    /// [`malloc_arenas_under`] the limit, as the binary sets it before any thread starts).
+    arenas: u64,
+}
+
 /// What an address-space `limit` leaves for data (bytes): less what the process has mapped (`mapped`,
-/// `VmSize`: its running threads' reservations included) and what each of the `workers` not yet running
-/// (beyond the `running` threads but this one) will reserve ([`RESERVED_PER_THREAD`]).
-fn address_space_left(limit: u64, mapped: u64, workers: u64, running: u64) -> u64 {
-    let to_start = workers.saturating_sub(running.saturating_sub(1));
+/// `VmSize`: its running threads' reservations included) and what the workers not yet running (beyond
+/// the running threads but this one) will reserve: each its stack ([`RESERVED_STACK`]), and each its own
+/// malloc arena ([`RESERVED_ARENA`]) until the arenas' cap is reached; past it threads share arenas.
+/// Counting an arena for every worker left 16 threads under `ulimit -v 1200000` a budget of ~0, though
+/// the binary caps glibc at two arenas there and the build peaked at 114 MiB (fault hunt, session 38).
+fn address_space_left(limit: u64, mapped: u64, t: Threads) -> u64 {
+    let to_start = t.workers.saturating_sub(t.running.saturating_sub(1));
+    // Arenas beyond the main one: one a thread but the main thread, up to the cap.
+    let extra = |threads: u64| threads.min(t.arenas.saturating_sub(1));
+    let arenas_to_come = extra(t.workers).saturating_sub(extra(t.running.saturating_sub(1)));
     limit
         .saturating_sub(mapped)
-        .saturating_sub(to_start.saturating_mul(RESERVED_PER_THREAD))
+        .saturating_sub(to_start.saturating_mul(RESERVED_STACK))
+        .saturating_sub(arenas_to_come.saturating_mul(RESERVED_ARENA))
+}
+
+/// The malloc arenas the binary allows under an address-space `limit` (bytes): one per 512 MiB, at least
+/// one, at most 1024 (`cli::os_limits`: the arenas' reservations, 64 MiB each, starved the heap under
+/// `ulimit -v 250000`; fault hunt, session 31).
+pub fn malloc_arenas_under(limit: u64) -> u64 {
+    (limit / (512 << 20)).clamp(1, 1024)
 }
 
 /// The thread count of a `/proc/PID/status` text (Linux `Threads:`).
@@ -99,9 +138,10 @@ fn threads_of(text: &str) -> Option<u64> {
         .and_then(|v| v.trim().parse().ok())
 }
 
-/// Address space a worker thread reserves without using it: a glibc malloc arena (64 MiB on 64-bit
-/// systems) and its stack (rayon's 2 MiB, rounded up).
-const RESERVED_PER_THREAD: u64 = 72 << 20;
+/// Address space a glibc malloc arena reserves without using it (64 MiB on 64-bit systems).
+const RESERVED_ARENA: u64 = 64 << 20;
+/// Address space a worker thread's stack reserves (rayon's 2 MiB, rounded up).
+const RESERVED_STACK: u64 = 8 << 20;
 
 /// The soft address-space limit in a `/proc/PID/limits` text (`Max address space  SOFT  HARD  bytes`),
 /// bytes; `None` where it is "unlimited" or absent.
@@ -159,16 +199,27 @@ mod tests {
     #[test]
     fn the_address_space_left_counts_threads_once() {
         const MIB: u64 = 1 << 20;
-        // 3000 MiB allowed, 100 mapped, 16 workers, only the main thread running: 16 arenas to come.
-        let left = address_space_left(3000 * MIB, 100 * MIB, 16, 1);
-        assert_eq!(left, 2900 * MIB - 16 * RESERVED_PER_THREAD);
+        let t = |workers, running, arenas| Threads {
+            workers,
+            running,
+            arenas,
+        };
+        // 3000 MiB allowed, 100 mapped, 16 workers, only the main thread running: 16 stacks and, with
+        // 64 arenas allowed, 16 arenas to come.
+        let left = address_space_left(3000 * MIB, 100 * MIB, t(16, 1, 64));
+        assert_eq!(left, 2900 * MIB - 16 * (RESERVED_STACK + RESERVED_ARENA));
+        // Capped at 2 arenas (the main one and one more): the workers share the second.
+        let left = address_space_left(1200 * MIB, 100 * MIB, t(16, 1, 2));
+        assert_eq!(left, 1100 * MIB - 16 * RESERVED_STACK - RESERVED_ARENA);
         // The pool running (17 threads): its reservations are in the mapped size already.
         assert_eq!(
-            address_space_left(3000 * MIB, 100 * MIB, 16, 17),
+            address_space_left(3000 * MIB, 100 * MIB, t(16, 17, 64)),
             2900 * MIB
         );
         // Past the limit: nothing left, not an underflow.
-        assert_eq!(address_space_left(1000 * MIB, 100 * MIB, 16, 1), 0);
+        assert_eq!(address_space_left(1000 * MIB, 100 * MIB, t(16, 1, 64)), 0);
+        assert_eq!(malloc_arenas_under(1200 * MIB), 2);
+        assert_eq!(malloc_arenas_under(100 * MIB), 1);
         let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
         assert!(threads_of(&status).is_some_and(|n| n >= 1));
     }

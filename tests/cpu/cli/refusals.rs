@@ -412,3 +412,28 @@ fn an_out_folder_another_run_holds_is_refused() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.join("summary.csv").is_file());
 }
+
+/// A report whose stdout fails is an error naming stdout and why (a full disk: `/dev/full`), exit 1,
+/// not a panic's backtrace (exit 101; fault hunt, session 38); a reader gone ends the process quietly
+/// with the shell's status for SIGPIPE, 141, as other tools do.
+#[test]
+fn a_failing_stdout_is_an_error_and_a_closed_one_quiet() {
+    let scene = scene();
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full");
+    if let Ok(full) = full {
+        let o = run(bin().arg("scene-info").arg(&scene).stdout(full));
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert!(
+            e.contains("error: writing to stdout: No space left on device")
+                && !e.contains("panicked"),
+            "{e}"
+        );
+    }
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = run(bin().arg("scene-info").arg(&scene).stdout(writer));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(141), "{e}");
+    assert!(e.is_empty(), "{e}");
+}
