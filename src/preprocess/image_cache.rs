@@ -93,8 +93,12 @@ pub struct ImageCache<'a> {
     /// Per image: the other scene images read from the same file ([`file_twins`]).
     twins: Vec<Vec<usize>>,
     /// Images a later decode (after eviction) gave other pixels than the first: the file changed during
-    /// the build ([`Self::changed_image`]).
+    /// the build ([`Self::check_decodes`]).
     changed: Mutex<Vec<ImageId>>,
+    /// The first decode the open-files limit stopped (`SceneError::OutOfDescriptors`): a limit of the
+    /// machine, not of the image, so the build fails ([`Self::check_decodes`]) where it drew the
+    /// fallback and exited 0 (fault hunt, session 38).
+    out_of_descriptors: Mutex<Option<crate::scene::SceneError>>,
     /// Original textures stored smaller than their source (a side above
     /// [`crate::model::MAX_ORIGINAL_CLASS`]): by image, its decoded and its stored sides (reported).
     pub downsampled: Mutex<std::collections::BTreeMap<ImageId, Downsampled>>,
@@ -267,6 +271,7 @@ impl<'a> ImageCache<'a> {
             pixel_hashes: scene.images.iter().map(|_| Default::default()).collect(),
             twins: file_twins(scene),
             changed: Mutex::new(Vec::new()),
+            out_of_descriptors: Mutex::new(None),
             downsampled: Mutex::new(Default::default()),
             upsampled: Mutex::new(Default::default()),
         }
@@ -283,9 +288,13 @@ impl<'a> ImageCache<'a> {
         self.pixel_hashes.iter().map(|h| h.get().copied()).collect()
     }
 
-    /// The first image whose pixels changed between two decodes of this build (its file was rewritten
-    /// meanwhile), as an error naming it: the atlases drawn from it would mix two versions.
-    pub fn changed_image(&self) -> Result<(), BuildError> {
+    /// What makes this build's decodes unfit to write: a decode the open-files limit stopped, or the
+    /// first image whose pixels changed between two decodes of this build (its file was rewritten
+    /// meanwhile: the atlases drawn from it would mix two versions), as an error naming it.
+    pub fn check_decodes(&self) -> Result<(), BuildError> {
+        if let Some(e) = lock(&self.out_of_descriptors).take() {
+            return Err(BuildError::Scene(Box::new(e)));
+        }
         let Some(&id) = lock(&self.changed).iter().min() else {
             return Ok(());
         };
@@ -402,27 +411,30 @@ impl<'a> ImageCache<'a> {
         self.decodes.fetch_add(1, Ordering::Relaxed);
         let src = &self.scene.images[id.idx()];
         let opaque = self.opaque_only.get(id.idx()).copied().unwrap_or(false);
-        let decoded = src.decode().map_err(|e| e.to_string()).and_then(|mut d| {
-            let texels = u64::from(d.width) * u64::from(d.height);
-            if d.pixels.len() as u64 != texels {
-                return Err(format!(
-                    "{} pixels for {}×{}",
-                    d.pixels.len(),
-                    d.width,
-                    d.height
-                ));
-            }
-            // The file's own pixels: the scene images one glTF image becomes for OPAQUE and alpha
-            // materials hash alike, so the merge compares shards that decoded one each (fault hunt,
-            // session 37).
-            self.record_pixels(id, &d);
-            if opaque && !d.is_opaque() {
-                self.first_note(id, NOTED_ALPHA_IGNORED);
-                d.pixels.iter_mut().for_each(|p| p[3] = 255);
-            }
-            self.decoded_texels.fetch_add(texels, Ordering::Relaxed);
-            Ok(d)
-        });
+        let decoded = src
+            .decode()
+            .map_err(|e| self.decode_error(e))
+            .and_then(|mut d| {
+                let texels = u64::from(d.width) * u64::from(d.height);
+                if d.pixels.len() as u64 != texels {
+                    return Err(format!(
+                        "{} pixels for {}×{}",
+                        d.pixels.len(),
+                        d.width,
+                        d.height
+                    ));
+                }
+                // The file's own pixels: the scene images one glTF image becomes for OPAQUE and alpha
+                // materials hash alike, so the merge compares shards that decoded one each (fault hunt,
+                // session 37).
+                self.record_pixels(id, &d);
+                if opaque && !d.is_opaque() {
+                    self.first_note(id, NOTED_ALPHA_IGNORED);
+                    d.pixels.iter_mut().for_each(|p| p[3] = 255);
+                }
+                self.decoded_texels.fetch_add(texels, Ordering::Relaxed);
+                Ok(d)
+            });
         // Replaced at import (a missing or unreadable file, already warned about there): counted here
         // too, so "images decoded N (F fallbacks)" agrees with the import's count (it said 0; fault
         // hunt, session 28).
@@ -449,6 +461,16 @@ impl<'a> ImageCache<'a> {
 }
 
 impl ImageCache<'_> {
+    /// A decode's error as its warning's text, the first that the open-files limit caused kept for
+    /// [`Self::check_decodes`].
+    fn decode_error(&self, e: crate::scene::SceneError) -> String {
+        let text = e.to_string();
+        if matches!(e, crate::scene::SceneError::OutOfDescriptors { .. }) {
+            lock(&self.out_of_descriptors).get_or_insert(e);
+        }
+        text
+    }
+
     /// Images that failed to decode and were replaced by the visible fallback (reported).
     pub fn fallbacks(&self) -> u64 {
         self.noted_count(NOTED_FALLBACK)

@@ -729,7 +729,7 @@ pub(super) fn pixel_pass(
             Ok(mine.into_iter().zip(levels).collect())
         })
         .collect::<Result<_, BuildError>>()?;
-    cache.changed_image()?;
+    cache.check_decodes()?;
     let handoffs = per_tree.into_iter().flatten().collect();
     let atlas_psnr_db = forest
         .trees

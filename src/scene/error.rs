@@ -139,6 +139,18 @@ pub enum SceneError {
     },
     #[error("image {image}: {reason}")]
     ImageDecode { image: String, reason: String },
+    /// An image file that could not be opened for the open-files limit (`EMFILE`, `ENFILE`): a limit of
+    /// this machine, not a fault of the image, so the build stops instead of drawing the fallback
+    /// (`util::is_out_of_descriptors`; fault hunt, session 38).
+    #[error(
+        "{file}: {source}: the open-files limit is too low for this build (the image is fine); raise it \
+         (ulimit -n) and run again"
+    )]
+    OutOfDescriptors {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{0}")]
     Other(String),
 }

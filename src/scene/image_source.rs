@@ -167,11 +167,18 @@ impl ImageSource {
                 decode_encoded(std::io::Cursor::new(&bytes[..]), &self.name)?
             }
             ImageData::File(path) => {
-                let file =
-                    crate::util::open_regular(path).map_err(|e| SceneError::ImageDecode {
+                let file = crate::util::open_regular(path).map_err(|e| {
+                    if crate::util::is_out_of_descriptors(&e) {
+                        return SceneError::OutOfDescriptors {
+                            file: path.display().to_string(),
+                            source: e,
+                        };
+                    }
+                    SceneError::ImageDecode {
                         image: self.name.clone(),
                         reason: format!("{}: {e}", path.display()),
-                    })?;
+                    }
+                })?;
                 decode_encoded(std::io::BufReader::new(file), &self.name)?
             }
         };

@@ -431,3 +431,47 @@ fn a_corrupt_plan_says_to_make_it_again_or_remove_it() {
     std::fs::remove_file(&plan).unwrap();
     run_ok(build_cmd(&out).args(["--shard", "0/2"]));
 }
+
+/// Image files that cannot be opened for the open-files limit stop the build with an error that says
+/// so, at import or in the pixel pass, and leave no file: they were drawn as the magenta fallback and
+/// the build exited 0 (fault hunt, session 38). At the limit where the scene file itself cannot be
+/// opened the build fails naming it; with room, it builds.
+#[test]
+fn an_open_files_limit_stops_the_build_not_the_image() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o.atlastree");
+    let build = |limit: u32| {
+        let mut c = Command::new("sh");
+        c.arg("-c")
+            .arg(format!("ulimit -n {limit} && exec \"$@\""))
+            .arg("sh")
+            .arg(env!("CARGO_BIN_EXE_atlastree"))
+            .args(build_args(&out, 256))
+            .env("RAYON_NUM_THREADS", "2")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        c.output().expect("spawn sh")
+    };
+    let mut stopped = 0;
+    for limit in 6..=8 {
+        let o = build(limit);
+        let e = String::from_utf8_lossy(&o.stderr);
+        if o.status.success() {
+            assert!(!e.contains("Too many open files"), "ulimit -n {limit}: {e}");
+            std::fs::remove_file(&out).unwrap();
+            continue;
+        }
+        assert!(
+            e.contains("the open-files limit is too low for this build")
+                || e.contains("cannot read"),
+            "ulimit -n {limit}: {e}"
+        );
+        assert!(!e.contains("magenta"), "ulimit -n {limit}: {e}");
+        assert!(!out.exists(), "ulimit -n {limit}: an output was left");
+        stopped += 1;
+    }
+    assert!(stopped > 0, "no limit from 6 to 8 stopped the build");
+    let o = build(1024);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

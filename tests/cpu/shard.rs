@@ -657,7 +657,7 @@ fn the_image_cache_names_an_image_whose_pixels_changed_between_two_decodes() {
     cache.get(ImageId(b as u32));
     cache.get(ImageId(a as u32));
     assert_eq!(cache.decodes.load(std::sync::atomic::Ordering::Relaxed), 3);
-    cache.changed_image().unwrap();
+    cache.check_decodes().unwrap();
     cache.get(ImageId(b as u32));
     let img = &scene.images[a];
     let ImageData::File(path) = &img.data else {
@@ -665,7 +665,7 @@ fn the_image_cache_names_an_image_whose_pixels_changed_between_two_decodes() {
     };
     assert!(rewrite_keeping_length(path, img.width, img.height));
     cache.get(ImageId(a as u32));
-    let e = cache.changed_image().unwrap_err().to_string();
+    let e = cache.check_decodes().unwrap_err().to_string();
     assert!(
         e.contains(&format!("image {a} ({})", img.name)) && e.contains("changed during the build"),
         "{e}"

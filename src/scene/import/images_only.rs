@@ -70,7 +70,7 @@ fn images_unguarded(
                             doc.images().len()
                         ),
                     })?;
-                    let image = image_or_fallback(file, &img, &mut buffers, &mut report);
+                    let image = image_or_fallback(file, &img, &mut buffers, &mut report)?;
                     read.insert(i, image.clone());
                     image
                 }

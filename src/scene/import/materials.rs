@@ -178,14 +178,15 @@ impl<'a> Materials<'a> {
     }
 
     /// The material for primitive `prim` and its UV source. A textured material whose `texCoord` set is
-    /// missing on this primitive becomes a solid-colour variant (counted warning).
+    /// missing on this primitive becomes a solid-colour variant (counted warning). `Err` only where the
+    /// open-files limit stopped an image from being read ([`image_or_fallback`]).
     pub(super) fn material_for(
         &mut self,
         prim: &gltf::Primitive,
         ctx: &PrimCtx,
         buffers: &mut Buffers,
         report: &mut ImportReport,
-    ) -> (MaterialId, UvSource) {
+    ) -> Result<(MaterialId, UvSource), crate::scene::SceneError> {
         let gm = prim.material();
         let index = gm.index();
         let pbr = gm.pbr_metallic_roughness();
@@ -233,7 +234,7 @@ impl<'a> Materials<'a> {
         let solid = !has_uvs;
         if let Some(&id) = self.material_ids.get(&(index, solid)) {
             let uv = self.uv.get(id.idx()).copied().unwrap_or(UvSource::Solid);
-            return (id, uv);
+            return Ok((id, uv));
         }
         // Clamped into glTF's [0, 1] (warned about: `warn_undrawn_features`), so the atlas, which applies
         // it before filtering and stores 8 bits, and the originals, which apply it after, agree.
@@ -266,7 +267,9 @@ impl<'a> Materials<'a> {
                 let texture = info.texture();
                 let sampler = texture.sampler();
                 let image = match self.texture_image(&texture) {
-                    Some(img) => self.image_for(img, alpha == AlphaMode::Opaque, buffers, report),
+                    Some(img) => {
+                        self.image_for(img, alpha == AlphaMode::Opaque, buffers, report)?
+                    }
                     None => self.sourceless_texture_image(&texture, report),
                 };
                 let xf = raw_tt.map(UvTransform::from);
@@ -299,7 +302,7 @@ impl<'a> Materials<'a> {
         self.materials.push(material);
         self.uv.push(uv);
         self.material_ids.insert((index, solid), id);
-        (id, uv)
+        Ok((id, uv))
     }
 
     /// The fallback checker of glTF texture `texture`, which names no image: made, counted and warned
@@ -379,20 +382,20 @@ impl<'a> Materials<'a> {
         opaque: bool,
         buffers: &mut Buffers,
         report: &mut ImportReport,
-    ) -> ImageId {
+    ) -> Result<ImageId, crate::scene::SceneError> {
         if let Some(&id) = self.image_ids.get(&(img.index(), opaque)) {
-            return id;
+            return Ok(id);
         }
         let known = (self.image_ids.get(&(img.index(), !opaque)))
             .and_then(|other| self.images.get(other.idx()))
             .cloned();
         let source = match known {
             Some(source) => source,
-            None => image_or_fallback(self.file, &img, buffers, report),
+            None => image_or_fallback(self.file, &img, buffers, report)?,
         };
         let id = self.push_image(source);
         self.image_ids.insert((img.index(), opaque), id);
-        id
+        Ok(id)
     }
 }
 
@@ -403,8 +406,8 @@ pub(super) fn image_or_fallback(
     img: &gltf::Image,
     buffers: &mut Buffers,
     report: &mut ImportReport,
-) -> ImageSource {
-    let (name, loaded) = buffers.load_image(img);
+) -> Result<ImageSource, crate::scene::SceneError> {
+    let (name, loaded) = buffers.load_image(img)?;
     let mut source = match loaded {
         Ok(super::uri::LoadedImage { source, truncated }) => {
             if truncated {
@@ -434,7 +437,7 @@ pub(super) fn image_or_fallback(
     // Its name (its `name`, else its URI) reaches terminals: control characters escaped (the warnings
     // above are escaped by `ImportReport::warn`).
     source.name = crate::util::printable(&source.name).into_owned();
-    source
+    Ok(source)
 }
 
 fn wrap(w: gltf::texture::WrappingMode) -> Wrap {

@@ -253,7 +253,7 @@ impl<'a> Geometry<'a> {
             ));
             return Ok(());
         }
-        let (material, uv_source) = materials.material_for(prim, ctx, buffers, report);
+        let (material, uv_source) = materials.material_for(prim, ctx, buffers, report)?;
         let n = pos_acc.count();
         // POSITION's buffer and type first, as before the indices were read first: a primitive with a
         // bad POSITION and bad indices reports the POSITION.

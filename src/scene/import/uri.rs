@@ -293,10 +293,12 @@ impl<'a> Buffers<'a> {
     }
 
     /// Reads an image's header and keeps its path (external file) or encoded bytes.
+    /// Image `img` by its header: its name and the image, or why it cannot be read (the caller draws
+    /// the fallback); `Err` only where the open-files limit stopped it ([`SceneError::OutOfDescriptors`]).
     pub(super) fn load_image(
         &mut self,
         img: &gltf::Image,
-    ) -> (String, Result<LoadedImage, String>) {
+    ) -> Result<(String, Result<LoadedImage, String>), SceneError> {
         // `gltf::Image::source` unwraps `mimeType`/`uri`, which validation does not guarantee: read
         // the JSON fields directly.
         let json = self.doc.as_json().images.get(img.index());
@@ -311,7 +313,7 @@ impl<'a> Buffers<'a> {
                 let name = img
                     .name()
                     .map_or_else(|| format!("image {}", img.index()), str::to_string);
-                return (name, Err("neither uri nor bufferView".to_string()));
+                return Ok((name, Err("neither uri nor bufferView".to_string())));
             }
         };
         match source {
@@ -320,21 +322,27 @@ impl<'a> Buffers<'a> {
                     .name()
                     .map_or_else(|| "data URI".to_string(), str::to_string);
                 let res = decode_data_uri(uri).and_then(|b| from_bytes(&name, b.into()));
-                (name, res)
+                Ok((name, res))
             }
             ImgSrc::Uri(uri) => {
                 let rel = percent_decode(uri);
                 let name = img.name().map_or_else(|| rel.clone(), str::to_string);
-                let res = local_path_in(&self.base_dirs, uri).and_then(|path| {
-                    crate::util::open_regular(&path)
-                        .map_err(|e| format!("{}: {e}", path.display()))
-                        .and_then(|f| {
-                            image_source::read_header(std::io::BufReader::new(f))
-                                .map_err(|e| format!("{}: {e}", path.display()))
-                        })
-                        .map(|h| from_header(&name, h, ImageData::File(path.clone())))
-                });
-                (name, res)
+                let res = match local_path_in(&self.base_dirs, uri) {
+                    Err(e) => Err(e),
+                    Ok(path) => match crate::util::open_regular(&path) {
+                        Err(e) if crate::util::is_out_of_descriptors(&e) => {
+                            return Err(SceneError::OutOfDescriptors {
+                                file: path.display().to_string(),
+                                source: e,
+                            });
+                        }
+                        Err(e) => Err(format!("{}: {e}", path.display())),
+                        Ok(f) => image_source::read_header(std::io::BufReader::new(f))
+                            .map_err(|e| format!("{}: {e}", path.display()))
+                            .map(|h| from_header(&name, h, ImageData::File(path.clone()))),
+                    },
+                };
+                Ok((name, res))
             }
             ImgSrc::View(view) => {
                 let name = img
@@ -345,7 +353,7 @@ impl<'a> Buffers<'a> {
                     .map_err(|e| e.to_string())
                     .and_then(|()| view_slice(&self.data, &view))
                     .and_then(|bytes| from_bytes(&name, Arc::from(bytes)));
-                (name, res)
+                Ok((name, res))
             }
         }
     }
