@@ -10,6 +10,9 @@ fn main() -> std::process::ExitCode {
     match cli::run() {
         Ok(code) => code,
         Err(e) => {
+            // A temp a failing command could not remove while it held its files open (an export out of
+            // descriptors) is removed now that they are closed; every other guard is gone already.
+            atlastree::util::remove_live_temps();
             // Not `eprintln!`: a stderr whose reader has gone must not turn the error into a panic.
             use std::io::Write;
             let _ = writeln!(std::io::stderr(), "error: {}", error_chain(&e));

@@ -92,6 +92,27 @@ pub enum ExportError {
     Geometry { tree: usize, source: GeometryError },
 }
 
+impl ExportError {
+    /// The error with a path under `temp` named at its place under `out`.
+    fn under(self, temp: &Path, out: &Path) -> ExportError {
+        let moved = |path: PathBuf| match path.strip_prefix(temp) {
+            Ok(rest) => out.join(rest),
+            Err(_) => path,
+        };
+        match self {
+            ExportError::Io { path, source } => ExportError::Io {
+                path: moved(path),
+                source,
+            },
+            ExportError::Image { path, source } => ExportError::Image {
+                path: moved(path),
+                source,
+            },
+            other => other,
+        }
+    }
+}
+
 /// One tile of the export.
 #[derive(Clone, Debug, Serialize)]
 pub struct TileSummary {
@@ -284,12 +305,20 @@ pub fn export_3dtiles(
     let live = crate::util::LiveTempDir::register_with_parents(&temp, &created);
     // Named as OUT: the hidden sibling is this export's own business (a read-only parent was reported as
     // `.tiles.partial-PID: Permission denied`; fault hunt, session 34).
+    // A file written inside it is named at its place under OUT (`OUT/t0/geom/l0.bin: File too large`),
+    // not under the sibling gone when the command returns (fault hunt, session 38).
     let result = std::fs::create_dir_all(&temp)
         .map_err(io(out))
-        .and_then(|()| write_tileset(file, &temp, opts, progress))
+        .and_then(|()| write_tileset(file, &temp, opts, progress).map_err(|e| e.under(&temp, out)))
         .and_then(|summary| replace_dir(&temp, out, &name, opts.force).map(|()| summary));
     if result.is_err() {
-        let _ = std::fs::remove_dir_all(&temp);
+        if crate::util::remove_dir_tree(&temp).is_err() {
+            // Out of descriptors with the paging file still open (a failed export under `ulimit -n`
+            // left its partial folder; fault hunt, session 38): left registered, so the binary removes
+            // it once the command has returned and closed its files (`util::remove_live_temps`).
+            std::mem::forget(live);
+            return result;
+        }
         for dir in &created {
             let _ = std::fs::remove_dir(dir);
         }

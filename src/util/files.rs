@@ -138,7 +138,33 @@ fn remove_dir_under_writers(p: &Path) -> bool {
     } else {
         p.to_path_buf()
     };
-    (0..3).any(|_| std::fs::remove_dir_all(&target).is_ok() || !target.exists())
+    (0..3).any(|_| remove_dir_tree(&target).is_ok() || !target.exists())
+}
+
+/// `std::fs::remove_dir_all`, and where the open-files limit stops it (it holds a descriptor a level;
+/// a failed export under `ulimit -n` left its partial folder: fault hunt, session 38) the same walk
+/// holding one descriptor at a time: each folder's entries listed and closed before any is removed.
+pub fn remove_dir_tree(p: &Path) -> std::io::Result<()> {
+    match std::fs::remove_dir_all(p) {
+        Err(e) if is_out_of_descriptors(&e) => remove_dir_tree_listed(p),
+        other => other,
+    }
+}
+
+/// [`remove_dir_tree`]'s walk by listed entries.
+fn remove_dir_tree_listed(p: &Path) -> std::io::Result<()> {
+    // Paths, not `DirEntry`s: each holds its folder's descriptor open.
+    let entries = (std::fs::read_dir(p)?)
+        .map(|e| e.and_then(|e| Ok((e.path(), e.file_type()?.is_dir()))))
+        .collect::<std::io::Result<Vec<_>>>()?;
+    for (path, dir) in entries {
+        if dir {
+            remove_dir_tree_listed(&path)?;
+        } else {
+            std::fs::remove_file(path)?;
+        }
+    }
+    std::fs::remove_dir(p)
 }
 
 /// A finished file the work deletes when done with it (a sweep's build without `--keep-builds`), which

@@ -10,8 +10,8 @@ pub mod srgb;
 pub use files::{
     AtomicFile, LiveMadeFolders, LiveTempDir, LiveTempFile, follow_output_links,
     is_out_of_descriptors, is_resource_exhaustion, lock_is_free, parent_dir, process_may_run,
-    remove_earlier_outputs, remove_live_temps, remove_live_temps_and_exit, remove_stale_outputs,
-    remove_stale_temps, save_png, write_atomic, writer_of,
+    remove_dir_tree, remove_earlier_outputs, remove_live_temps, remove_live_temps_and_exit,
+    remove_stale_outputs, remove_stale_temps, save_png, write_atomic, writer_of,
 };
 pub use regular::{MAX_TEXT_FILE_BYTES, node_kind, open_regular, read_regular, read_text_file};
 

@@ -137,3 +137,57 @@ fn force_through_a_link_replaces_the_linked_export() {
     );
     assert!(real.join("tileset.json").is_file() && !real.join("old.txt").exists());
 }
+
+/// An export that fails while writing names the file at its place under OUT, not under the hidden
+/// sibling gone when the command returns, and leaves no partial folder, also where the open-files limit
+/// failed it (its cleanup, out of descriptors too, left the folder; fault hunt, session 38). The real
+/// binary under `ulimit`: `-f` (file size, 512-byte blocks) and `-n` (open files).
+#[cfg(unix)]
+#[test]
+fn a_failing_export_names_out_and_leaves_nothing_under_os_limits() {
+    let dir = tempfile::tempdir().unwrap();
+    let export = |limit: &str, name: &str| {
+        let o = std::process::Command::new("sh")
+            .arg("-c")
+            .arg(format!("ulimit {limit} && exec \"$@\""))
+            .arg("sh")
+            .arg(env!("CARGO_BIN_EXE_atlastree"))
+            .args(["export", "3dtiles", "-q", "-o"])
+            .arg(dir.path().join(name))
+            .arg(&city().1)
+            .stdin(std::process::Stdio::null())
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let left = || -> Vec<String> {
+        std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect()
+    };
+    let (ok, e) = export("-f 100", "big");
+    assert!(!ok && e.contains("File too large"), "{e}");
+    let named = dir.path().join("big").join("t0");
+    assert!(
+        e.contains(&*named.to_string_lossy()) && !e.contains(".partial"),
+        "{e}"
+    );
+    assert!(left().is_empty(), "{:?}", left());
+    let mut failed = 0;
+    for n in 5..=8 {
+        let name = format!("t{n}");
+        let (ok, e) = export(&format!("-n {n}"), &name);
+        failed += usize::from(!ok);
+        assert!(ok || !dir.path().join(&name).exists(), "ulimit -n {n}: {e}");
+        assert!(left().is_empty(), "ulimit -n {n}: {:?} left; {e}", left());
+    }
+    assert!(
+        failed > 0,
+        "no open-files limit from 5 to 8 failed the export"
+    );
+}
