@@ -20,6 +20,9 @@
 use std::fmt;
 use std::sync::mpsc;
 
+/// An open-files limit below which a missing adapter may be the limit's doing ([`GpuError::NoAdapter`]).
+const LOW_OPEN_FILES_LIMIT: u64 = 64;
+
 /// Bytes per texel of the RGBA8 formats [`readback_rgba8`] accepts.
 const RGBA8_BYTES_PER_TEXEL: u32 = 4;
 
@@ -28,9 +31,21 @@ const RGBA8_BYTES_PER_TEXEL: u32 = 4;
 pub enum GpuError {
     /// No adapter at all on the requested backends (no driver, or the driver is hidden by the environment).
     #[error(
-        "no GPU adapter found on backends {backends} (on Debian install mesa-vulkan-drivers for lavapipe)"
+        "no GPU adapter found on backends {backends} (on Debian install mesa-vulkan-drivers for lavapipe){}",
+        match .open_files_limit {
+            Some(n) => format!("; or the open-files limit{} (ulimit -n) is too low for the Vulkan loader \
+                                to open its drivers' files: raise it",
+                                n.map_or(String::new(), |n| format!(" of {n}"))),
+            None => String::new(),
+        }
     )]
-    NoAdapter { backends: String },
+    NoAdapter {
+        backends: String,
+        /// The open-files limit where it is low enough to be the cause (a few dozen: the loader opens its
+        /// drivers' manifests and libraries; under `ulimit -n 7` only the install hint was given; fault
+        /// hunt, session 38); `Some(None)` where it is reached and so cannot even be read.
+        open_files_limit: Option<Option<u64>>,
+    },
     /// Adapters exist but every one was rejected; `rejected` lists each with its reason.
     #[error("no suitable GPU adapter among {count}: {rejected}")]
     NoSuitableAdapter { count: usize, rejected: String },
@@ -382,6 +397,11 @@ fn choose_adapter(
     if adapters.is_empty() {
         return Err(GpuError::NoAdapter {
             backends: format!("{backends:?}"),
+            open_files_limit: match crate::util::open_files_limit() {
+                Ok(Some(n)) if n < LOW_OPEN_FILES_LIMIT => Some(Some(n)),
+                Ok(_) => None,
+                Err(_) => Some(None),
+            },
         });
     }
     let count = adapters.len();
@@ -685,6 +705,21 @@ pub fn begin_fullscreen_pass<'e>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A missing adapter under a low open-files limit names the limit beside the install hint.
+    #[test]
+    fn no_adapter_names_a_low_open_files_limit() {
+        let e = |open_files_limit| {
+            GpuError::NoAdapter {
+                backends: "VULKAN".into(),
+                open_files_limit,
+            }
+            .to_string()
+        };
+        assert!(!e(None).contains("ulimit"));
+        assert!(e(Some(Some(7))).contains("the open-files limit of 7 (ulimit -n) is too low"));
+        assert!(e(Some(None)).contains("the open-files limit (ulimit -n) is too low"));
+    }
 
     #[test]
     fn padded_rows_are_multiples_of_256() {

@@ -462,6 +462,11 @@ impl OutFolder {
     pub(crate) fn open(out: &std::path::Path) -> anyhow::Result<Self> {
         use anyhow::Context;
         check_out_folder(out)?;
+        // A link to a folder not made yet is followed, as `export -o` and `build -o` follow theirs: the
+        // folder it names is made (`create_dir_all` of the link failed with "File exists"; fault hunt,
+        // session 38). The run writes through the link.
+        let out = &atlastree::util::follow_output_links(out)
+            .with_context(|| format!("--out {}", out.display()))?;
         let mut folder = OutFolder {
             created: (out.ancestors())
                 .take_while(|p| !p.as_os_str().is_empty() && !p.exists())

@@ -146,14 +146,25 @@ const RESERVED_STACK: u64 = 8 << 20;
 /// The soft address-space limit in a `/proc/PID/limits` text (`Max address space  SOFT  HARD  bytes`),
 /// bytes; `None` where it is "unlimited" or absent.
 fn address_space_limit(limits: &str) -> Option<u64> {
-    let line = limits
-        .lines()
-        .find(|l| l.starts_with("Max address space"))?;
-    line["Max address space".len()..]
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
+    soft_limit(limits, "Max address space")
+}
+
+/// The soft limit of the `/proc/PID/limits` line starting with `name`; `None` where it is "unlimited"
+/// or absent.
+fn soft_limit(limits: &str, name: &str) -> Option<u64> {
+    let line = limits.lines().find(|l| l.starts_with(name))?;
+    line[name.len()..].split_whitespace().next()?.parse().ok()
+}
+
+/// This process's soft open-files limit (`ulimit -n`, Linux `/proc/self/limits`): `Ok(None)` where it
+/// is unlimited or the platform does not tell, `Err` where no file can be opened to read it (the limit
+/// reached).
+pub fn open_files_limit() -> Result<Option<u64>, std::io::Error> {
+    match std::fs::read_to_string("/proc/self/limits") {
+        Ok(limits) => Ok(soft_limit(&limits, "Max open files")),
+        Err(e) if super::is_out_of_descriptors(&e) => Err(e),
+        Err(_) => Ok(None),
+    }
 }
 
 /// The smallest memory limit on the way from this process's cgroups (`proc_cgroup`: lines
@@ -233,6 +244,10 @@ mod tests {
         let unlimited = text.replace("307200000", "unlimited");
         assert_eq!(address_space_limit(&unlimited), None);
         assert_eq!(address_space_limit(""), None);
+        let files =
+            "Max open files            7                    7                    files     \n";
+        assert_eq!(soft_limit(files, "Max open files"), Some(7));
+        assert!(open_files_limit().unwrap().is_some_and(|n| n > 0));
     }
 
     #[test]

@@ -16,8 +16,8 @@ pub use files::{
 pub use regular::{MAX_TEXT_FILE_BYTES, node_kind, open_regular, read_regular, read_text_file};
 
 pub use memory::{
-    machine_memory_bytes, malloc_arenas_under, memory_limit_bytes, peak_rss_bytes,
-    rss_and_peak_bytes, rss_bytes,
+    machine_memory_bytes, malloc_arenas_under, memory_limit_bytes, open_files_limit,
+    peak_rss_bytes, rss_and_peak_bytes, rss_bytes,
 };
 
 /// A number for a label or a file name: 12 significant digits, trailing zeros dropped (`80`, `80.5`), in exponent form

@@ -181,6 +181,19 @@ fn build_then_inspect_verify() {
         !runs.is_empty() && runs.iter().all(|r| r["run"].is_string()),
         "{sim}"
     );
+    // `--out` a link to a folder not made yet: made where the link points, as `export -o` does
+    // (`create_dir_all` of the link failed with "File exists"; fault hunt, session 38).
+    #[cfg(unix)]
+    {
+        let link = dir.path().join("sim_link");
+        std::os::unix::fs::symlink("sim_target", &link).unwrap();
+        let o = run(bin()
+            .args(["simulate", "--frames", "5", "--out"])
+            .arg(&link)
+            .arg(&out));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(dir.path().join("sim_target/summary.csv").is_file());
+    }
     assert_eq!(v["inspect"]["blocks"], b["blocks"]);
     let enabled = v["inspect"]["enabled"].to_string();
     assert!(enabled.contains("alpha tree: on"), "{enabled}");
