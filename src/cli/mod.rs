@@ -35,12 +35,28 @@ use std::process::ExitCode;
     version,
     about,
     long_about,
-    propagate_version = true
+    propagate_version = true,
+    after_long_help = ENVIRONMENT_HELP
 )]
 pub(crate) struct Cli {
     #[command(subcommand)]
     pub command: Command,
 }
+
+/// The environment variables the binary reads, under `atlastree --help` (they were documented nowhere
+/// but in the source, and `RUST_LOG` was ignored; session 38).
+const ENVIRONMENT_HELP: &str = "Environment:
+  RAYON_NUM_THREADS  Worker threads (default: one a core); each rasteriser
+                     thread adds its atlases to a build's --max-memory need
+  ATLASTREE_LOG      Log filter on stderr, in tracing's EnvFilter syntax
+                     (`info`, `atlastree=debug,wgpu=warn`); RUST_LOG where
+                     it is unset; default `warn`
+  ATLASTREE_NO_MMAP  `1`: read paging files whole, not memory-mapped
+  ATLASTREE_SCALAR   Set: scalar kernels instead of AVX2 (the same bytes)
+  SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT, JOB_COMPLETION_INDEX,
+  AWS_BATCH_JOB_ARRAY_INDEX, ATLASTREE_SHARD_COUNT
+                     `build --shard auto` reads its shard from the
+                     scheduler's array (`build --help`)";
 
 /// Commands with numeric flags take negative numbers as values (`--fov -10` reaches the flag's own check,
 /// which names it and its range; clap read `-1` as an unknown flag and quoted a token never typed: fault
@@ -175,8 +191,24 @@ impl UpArg {
 }
 
 pub(crate) fn init_tracing() {
-    let filter = tracing_subscriber::EnvFilter::try_from_env("ATLASTREE_LOG")
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    // `ATLASTREE_LOG`, else `RUST_LOG` (the Rust ecosystem's name, which was ignored); a filter that
+    // does not parse is said, not silently replaced by the default.
+    let var = ["ATLASTREE_LOG", "RUST_LOG"]
+        .into_iter()
+        .find(|v| std::env::var_os(v).is_some());
+    let filter = match var.map(|v| (v, tracing_subscriber::EnvFilter::try_from_env(v))) {
+        Some((_, Ok(filter))) => filter,
+        Some((v, Err(e))) => {
+            use std::io::Write;
+            let _ = writeln!(
+                std::io::stderr(),
+                "warning: {v}: {e}: logging at the default level, warn (`atlastree --help` lists the \
+                 environment variables)"
+            );
+            tracing_subscriber::EnvFilter::new("warn")
+        }
+        None => tracing_subscriber::EnvFilter::new("warn"),
+    };
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)

@@ -136,3 +136,50 @@ fn the_citation_rule_reads_wrapped_and_short_names() {
         "see docs/DESIGN.md \"Repeats: one period per rect\" and more "
     );
 }
+
+/// Every environment variable `src/` reads (`env::var("…")`, `var_os("…")`) is listed under
+/// `atlastree --help` (they were documented only in the source; session 38), but glibc's own
+/// `MALLOC_ARENA_MAX`, which the binary only honours.
+#[test]
+fn every_environment_variable_read_is_in_the_help() {
+    let mut sources = Vec::new();
+    files(&root().join("src"), &mut sources);
+    let mut names = std::collections::BTreeSet::new();
+    for p in sources
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+    {
+        let text = std::fs::read_to_string(p).unwrap();
+        for call in ["var(\"", "var_os(\"", "from_env(\""] {
+            for (at, _) in text.match_indices(call) {
+                let rest = &text[at + call.len()..];
+                let name = &rest[..rest.find('"').unwrap()];
+                if !name.is_empty() && name.bytes().all(|b| b.is_ascii_uppercase() || b == b'_') {
+                    names.insert(name.to_string());
+                }
+            }
+        }
+    }
+    assert!(names.contains("RAYON_NUM_THREADS"), "{names:?}");
+    // Read by name from a list or a closure: the log filter's and `build --shard auto`'s.
+    names.extend(
+        [
+            "ATLASTREE_LOG",
+            "RUST_LOG",
+            "SLURM_ARRAY_TASK_ID",
+            "JOB_COMPLETION_INDEX",
+        ]
+        .map(String::from),
+    );
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_atlastree"))
+        .arg("--help")
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&o.stdout);
+    for name in names.iter().filter(|n| *n != "MALLOC_ARENA_MAX") {
+        assert!(
+            help.contains(name.as_str()),
+            "{name} is read but not in `atlastree --help`"
+        );
+    }
+}
