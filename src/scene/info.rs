@@ -47,6 +47,9 @@ pub struct SceneInfo {
 #[derive(Clone, Debug, Serialize)]
 pub struct MaterialInfo {
     pub id: u32,
+    /// The glTF material it comes from ([`crate::scene::Material::gltf_material`]): the number import
+    /// warnings name; `None` for glTF's default material.
+    pub gltf_material: Option<u32>,
     pub name: String,
     pub image: u32,
     pub wrap: [Wrap; 2],
@@ -187,6 +190,7 @@ pub fn analyze(scene: &Scene) -> SceneInfo {
             };
             MaterialInfo {
                 id: i as u32,
+                gltf_material: m.gltf_material,
                 name: m.name.clone(),
                 image: m.image.0,
                 wrap: m.wrap,
@@ -372,9 +376,13 @@ impl fmt::Display for SceneInfo {
         for m in &self.materials {
             writeln!(
                 f,
-                "    #{:<4} {:?} image #{} wrap {:?}/{:?} {}tris {} uv {}..{} bbox span {} max tri span {}",
+                "    #{:<4} {:?} ({}) image #{} wrap {:?}/{:?} {}tris {} uv {}..{} bbox span {} max tri span {}",
                 m.id,
                 m.name,
+                m.gltf_material
+                    .map_or("glTF default material".to_string(), |i| format!(
+                        "glTF material {i}"
+                    )),
                 m.image,
                 m.wrap[0],
                 m.wrap[1],

@@ -85,6 +85,7 @@ impl SceneBuilder {
             alpha,
             base_color_factor: [1.0; 4],
             texture_transform: false,
+            gltf_material: None,
         });
         MaterialId(self.scene.materials.len() as u32 - 1)
     }

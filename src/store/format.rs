@@ -365,6 +365,7 @@ impl MaterialRecord {
             alpha: self.alpha()?,
             base_color_factor: self.base_color_factor,
             texture_transform: self.texture_transform != 0,
+            gltf_material: None,
         })
     }
 }

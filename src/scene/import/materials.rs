@@ -281,6 +281,7 @@ impl<'a> Materials<'a> {
                     alpha,
                     base_color_factor: factor,
                     texture_transform: xf.is_some(),
+                    gltf_material: index.and_then(|i| u32::try_from(i).ok()),
                 };
                 (m, UvSource::Set(s, xf))
             }
@@ -294,6 +295,7 @@ impl<'a> Materials<'a> {
                     alpha,
                     base_color_factor: [1.0; 4],
                     texture_transform: false,
+                    gltf_material: index.and_then(|i| u32::try_from(i).ok()),
                 };
                 (m, UvSource::Solid)
             }

@@ -153,6 +153,22 @@ fn emissive_materials_are_one_counted_warning() {
         w[0].contains("2 materials are emissive") && w[0].contains("first: material 3"),
         "{w:?}"
     );
+    // The material the warning names is found by that number: each scene material keeps its glTF
+    // index, which scene-info lists (it listed only the scene's own first-use numbers; fault hunt,
+    // session 38).
+    let named: Vec<_> = (s.materials.iter())
+        .filter(|m| m.gltf_material == Some(3))
+        .collect();
+    let expected = doc["materials"][3]["name"].as_str().map(str::to_string);
+    assert!(!named.is_empty(), "{:?}", s.materials);
+    assert!(
+        named
+            .iter()
+            .all(|m| expected.as_ref().is_none_or(|n| *n == m.name)),
+        "{named:?}"
+    );
+    let info = atlastree::scene::info::analyze(&s);
+    assert!(info.to_string().contains("(glTF material 3)"), "{info}");
 }
 
 /// Without a `scene` index the import draws `scenes[0]` (as three.js and Blender), warning when there
