@@ -531,13 +531,6 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if SOURCE == SOURCE_ATLAS {
         let rm = rects[in.draw.y];
         let a = atlas_sample(in, rm, ddx, ddy);
-        if DENSITY == DENSITY_ON {
-            // (texels/pixel min, max, source (SOURCE_ATLAS, SOURCE_ORIGINAL), level; LEVEL_ORIGINAL for
-            // originals), from the footprint itself (not the one capped for sampling).
-            let tpu = rm.texels_per_uv * (level_transform(in).x / globals.atlas_texels);
-            let sv = singular_values(ddx * tpu, ddy * tpu, globals.atlas_texels);
-            return vec4<f32>(sv.x, sv.y, f32(SOURCE_ATLAS), f32(draw_level(in)));
-        }
         let layer = draw_layer(in);
         var c: vec4<f32>;
         if a.flat {
@@ -550,22 +543,34 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         }
         // Per material, as original draws: MASK tested against its cutoff, BLEND blended (or, in a blend
         // node's depth pre-pass, written where opaque).
-        return finish(c, rm.cutoff, (rm.wrap >> ALPHA_SHIFT) & CODE_MASK);
+        let shaded = finish(c, rm.cutoff, (rm.wrap >> ALPHA_SHIFT) & CODE_MASK);
+        if DENSITY == DENSITY_ON {
+            // (texels/pixel min, max, source (SOURCE_ATLAS, SOURCE_ORIGINAL), level; LEVEL_ORIGINAL for
+            // originals), from the footprint itself (not the one capped for sampling); only where the
+            // colour pass draws (`finish` discarded the texels a MASK cutoff cuts out: they counted as
+            // covered, and a sweep's covered PSNR measured background as scene; fault hunt, session 38).
+            let tpu = rm.texels_per_uv * (level_transform(in).x / globals.atlas_texels);
+            let sv = singular_values(ddx * tpu, ddy * tpu, globals.atlas_texels);
+            return vec4<f32>(sv.x, sv.y, f32(SOURCE_ATLAS), f32(draw_level(in)));
+        }
+        return shaded;
     }
     let e = tam[in.draw.y];
     // The texture's UV into its tiled layer: one period is extent / class_size of the layer per axis.
     let scale = e.extent / e.class_size;
-    if DENSITY == DENSITY_ON {
-        let sv = singular_values(ddx * scale, ddy * scale, e.class_size);
-        return vec4<f32>(sv.x, sv.y, f32(SOURCE_ORIGINAL), f32(draw_level(in)));
-    }
     let inset = edge_inset(ddx, ddy, e.extent);
     let wrapped = vec2<f32>(
         wrap_axis(in.uv.x, e.wrap & CODE_MASK, inset.x),
         wrap_axis(in.uv.y, (e.wrap >> WRAP_T_SHIFT) & CODE_MASK, inset.y),
     ) * scale;
     let colour = sample_class(e.class_index, wrapped, e.layer, ddx * scale, ddy * scale) * e.factor;
-    return finish(colour, e.cutoff, e.alpha_mode);
+    let shaded = finish(colour, e.cutoff, e.alpha_mode);
+    if DENSITY == DENSITY_ON {
+        // Where the colour pass draws, as for atlases above.
+        let sv = singular_values(ddx * scale, ddy * scale, e.class_size);
+        return vec4<f32>(sv.x, sv.y, f32(SOURCE_ORIGINAL), f32(draw_level(in)));
+    }
+    return shaded;
 }
 
 // In the mask pass (a blend node's depth pre-pass), BLEND texels at or above OPAQUE_ALPHA are opaque and

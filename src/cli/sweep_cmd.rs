@@ -6,7 +6,7 @@ use atlastree::gpu::{GpuContext, GpuOptions};
 use atlastree::preprocess::BuildOptions;
 use atlastree::render::reference::Reference;
 use atlastree::sweep::output::write_outputs;
-use atlastree::sweep::summary::{MEASURED_NOTHING, recommendation};
+use atlastree::sweep::summary::{MEASURED_NOTHING, empty_frames_note, recommendation};
 use atlastree::sweep::{Grid, Plan, SweepOptions, SweepProgress, run_sweep, sample_path};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -305,6 +305,9 @@ fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     let measured = !data.measures_nothing();
     if !measured {
         eprintln!("warning: {MEASURED_NOTHING}");
+    }
+    if let Some(note) = empty_frames_note(&data) {
+        eprintln!("warning: {note}");
     }
     let rec = recommendation(&data, &rows);
     if cfg.json {

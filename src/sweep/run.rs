@@ -176,9 +176,22 @@ pub struct SweepData {
 
 impl SweepData {
     /// No frame covers a pixel of the scene (a path that never looks at it): every PSNR and SSIM is the
-    /// value of an empty comparison (99 dB, 1), so neither they nor a recommendation measure anything.
+    /// value of an empty comparison (99 dB, 1; covered PSNR NaN), so neither they nor a recommendation
+    /// measure anything.
     pub fn measures_nothing(&self) -> bool {
         !self.frames.is_empty() && self.frames.iter().all(|f| f.covered_pixels == 0)
+    }
+
+    /// The frames (by index) whose reference covers no pixel of the scene, left out of covered PSNR:
+    /// the same for every variant, as the reference is.
+    pub fn empty_frames(&self) -> Vec<usize> {
+        let mut empty: Vec<usize> = (self.frames.iter())
+            .filter(|f| f.covered_pixels == 0)
+            .map(|f| f.frame)
+            .collect();
+        empty.sort_unstable();
+        empty.dedup();
+        empty
     }
 }
 

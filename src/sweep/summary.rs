@@ -148,6 +148,27 @@ pub const MEASURED_NOTHING: &str = "no frame of the path covers any pixel of the
      it?): PSNR and SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and no \
      default is recommended";
 
+/// Where some frames, not all, show nothing of the scene in the reference: which, in words (they are
+/// left out of covered PSNR; `None` where every frame covers pixels or none does, [`MEASURED_NOTHING`]).
+pub fn empty_frames_note(data: &SweepData) -> Option<String> {
+    let empty = data.empty_frames();
+    if empty.is_empty() || data.measures_nothing() {
+        return None;
+    }
+    let mut frames: Vec<usize> = data.frames.iter().map(|f| f.frame).collect();
+    frames.sort_unstable();
+    frames.dedup();
+    let listed: Vec<String> = empty.iter().take(8).map(usize::to_string).collect();
+    let more = if empty.len() > 8 { ", …" } else { "" };
+    Some(format!(
+        "{} of {} frames cover no pixel of the scene in the reference (frame {}{more}): covered PSNR \
+         leaves them out, full-frame PSNR and SSIM count them as the background both draw",
+        empty.len(),
+        frames.len(),
+        listed.join(", ")
+    ))
+}
+
 /// The sweep's recommendation: [`recommend`] at [`PSNR_TOLERANCE_DB`], `None` where the path measured
 /// nothing ([`SweepData::measures_nothing`]).
 pub fn recommendation(data: &SweepData, rows: &[VariantRow]) -> Option<Recommendation> {
@@ -426,6 +447,9 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
     let nothing = data.measures_nothing();
     if nothing {
         let _ = writeln!(md, "**Warning:** {MEASURED_NOTHING}.\n");
+    }
+    if let Some(note) = empty_frames_note(data) {
+        let _ = writeln!(md, "**Note:** {note}.\n");
     }
     let _ = writeln!(md, "## Recommended defaults\n");
     match recommendation(data, rows) {

@@ -143,8 +143,14 @@ fn supersampled_reference_measures_tree_and_original(
             "original_psnr_covered_db",
             "original_ssim",
         ] {
-            let v = num(table, c)?;
-            if let Some(i) = v.iter().position(|x| !x.is_finite() || *x <= 0.0) {
+            let v = num_or_nan(table, c)?;
+            // NaN where a frame covers nothing: nothing measured.
+            let unmeasured = |i: usize| {
+                name == "frames.csv" && c.contains("covered") && frames.rows[i][8] == "0"
+            };
+            if let Some(i) =
+                (0..v.len()).find(|&i| !unmeasured(i) && (!v[i].is_finite() || v[i] <= 0.0))
+            {
                 return Err(format!("{name} row {i}: {c} = {}", v[i]));
             }
         }
@@ -157,10 +163,11 @@ fn supersampled_reference_measures_tree_and_original(
     }
     // Per build and frame, every variant carries the same original scores.
     let (builds, frame_ids) = (col(&frames, "build")?, col(&frames, "frame")?);
-    let orig = num(&frames, "original_psnr_covered_db")?;
+    let orig = num_or_nan(&frames, "original_psnr_covered_db")?;
     for i in 0..orig.len() {
         for j in 0..i {
-            if builds[i] == builds[j] && frame_ids[i] == frame_ids[j] && orig[i] != orig[j] {
+            let same = orig[i] == orig[j] || orig[i].is_nan() && orig[j].is_nan();
+            if builds[i] == builds[j] && frame_ids[i] == frame_ids[j] && !same {
                 return Err(format!(
                     "build {} frame {}: original scores differ between variants ({} vs {})",
                     builds[i], frame_ids[i], orig[i], orig[j]
@@ -259,6 +266,19 @@ fn num(t: &CsvTable, name: &str) -> Result<Vec<f64>, String> {
         .ok_or(format!("column {name} missing or not numeric"))
 }
 
+/// [`num`], an empty cell (not measured) read as NaN.
+fn num_or_nan(t: &CsvTable, name: &str) -> Result<Vec<f64>, String> {
+    let cells = t.column(name).ok_or(format!("no column {name}"))?;
+    (cells.iter())
+        .map(|c| match c.is_empty() {
+            true => Ok(f64::NAN),
+            false => c
+                .parse()
+                .map_err(|_| format!("column {name}: {c:?} is not a number")),
+        })
+        .collect()
+}
+
 /// `originals_measured` for [`check_complete`]: the original's scores were taken (a supersampled
 /// reference), so their cells are filled; else (the original is the reference) they are empty.
 const MEASURED: bool = true;
@@ -330,12 +350,23 @@ fn check_complete(
             .ok_or(format!("frames.csv has no {c}"))
     })
     .collect::<Result<_, _>>()?;
+    // Covered PSNR is empty (NaN: nothing measured) exactly on frames whose reference covers no pixel.
+    let covered = frames
+        .column_index("covered_pixels")
+        .ok_or("no covered_pixels column")?;
+    let nothing_covered = frames.rows.iter().filter(|r| r[covered] == "0").count();
+    let covered_db = [
+        frames.column_index("psnr_covered_db"),
+        frames.column_index("original_psnr_covered_db"),
+    ];
     for &j in &originals {
         let empty = frames.rows.iter().filter(|r| r[j].is_empty()).count();
-        let want = if originals_measured {
-            0
-        } else {
+        let want = if !originals_measured {
             frames.rows.len()
+        } else if covered_db.contains(&Some(j)) {
+            nothing_covered
+        } else {
+            0
         };
         if empty != want {
             return Err(format!(
@@ -345,14 +376,21 @@ fn check_complete(
             ));
         }
     }
-    if let Some((i, _)) = frames.rows.iter().enumerate().find(|(_, r)| {
+    for (i, r) in frames.rows.iter().enumerate() {
         let all = r[cap] == "all";
-        r.iter()
-            .enumerate()
+        let wrong: Vec<&str> = (r.iter().enumerate())
             .filter(|(j, _)| !originals.contains(j))
-            .any(|(j, c)| c.is_empty() != (all && j >= paging))
-    }) {
-        return Err(format!("frames.csv row {i} has an empty cell"));
+            .filter(|(j, c)| {
+                let unmeasured = r[covered] == "0" && covered_db.contains(&Some(*j));
+                c.is_empty() != (all && *j >= paging || unmeasured)
+            })
+            .map(|(j, _)| frames.header[j].as_str())
+            .collect();
+        if !wrong.is_empty() {
+            return Err(format!(
+                "frames.csv row {i}: cells empty or not as expected: {wrong:?}"
+            ));
+        }
     }
     Ok(())
 }

@@ -156,6 +156,9 @@ fn psnr_masked_counts_only_masked_pixels() {
     let b = [0u8, 0, 0, 255, 200, 200, 200, 255];
     let (p, n) = psnr_masked(&a, &b, 2, 1, &[true, false]).unwrap();
     assert_eq!((p, n), (PSNR_CAP_DB, 1));
+    // Nothing masked is nothing measured, not a perfect frame.
+    let (p, n) = psnr_masked(&a, &b, 2, 1, &[false, false]).unwrap();
+    assert!(p.is_nan() && n == 0);
     let (p, n) = psnr_masked(&a, &b, 2, 1, &[true, true]).unwrap();
     // SSE = 3 · 200² over 6 values: MSE 20,000.
     assert!((p - 10.0 * (65025.0f64 / 20_000.0).log10()).abs() < 1e-12);
