@@ -314,19 +314,24 @@ fn camera_section(ui: &mut egui::Ui, r: &Readout<'_>, req: &mut Requests) {
     ui.small(r.adapter);
 }
 
-/// Colour of level `level` in the bounds overlay (the palette of `tree.wgsl`'s level colouring).
+/// The level palette of `tree.wgsl`'s `level_colour`, linear RGB.
+const LEVEL_PALETTE: [[f64; 3]; 8] = [
+    [0.90, 0.10, 0.10],
+    [0.10, 0.75, 0.10],
+    [0.10, 0.20, 0.95],
+    [0.95, 0.85, 0.10],
+    [0.85, 0.10, 0.85],
+    [0.10, 0.85, 0.85],
+    [0.95, 0.50, 0.05],
+    [0.50, 0.30, 0.90],
+];
+
+/// Colour of level `level` in the bounds overlay: the colour `tree.wgsl`'s level colouring shows, its
+/// linear palette encoded to sRGB as the frame's target does (the palette's values taken as sRGB bytes
+/// drew level 0 as (230, 26, 26) beside frames of (243, 89, 89); fault hunt, session 38).
 pub fn level_colour(level: u8) -> Color32 {
-    const PALETTE: [[u8; 3]; 8] = [
-        [230, 26, 26],
-        [26, 191, 26],
-        [26, 51, 242],
-        [242, 217, 26],
-        [217, 26, 217],
-        [26, 217, 217],
-        [242, 128, 13],
-        [128, 77, 230],
-    ];
-    let [r, g, b] = PALETTE[usize::from(level) % PALETTE.len()];
+    let [r, g, b] = LEVEL_PALETTE[usize::from(level) % LEVEL_PALETTE.len()]
+        .map(crate::util::srgb::linear_to_srgb8);
     Color32::from_rgb(r, g, b)
 }
 
@@ -519,5 +524,12 @@ mod tests {
     fn level_colours_cycle() {
         assert_eq!(level_colour(0), level_colour(8));
         assert_ne!(level_colour(0), level_colour(1));
+        // The shader's palette, and level 0 as a level-coloured frame shows it.
+        let wgsl = include_str!("../../shaders/tree.wgsl");
+        for [r, g, b] in LEVEL_PALETTE {
+            let v = format!("vec3<f32>({r:.2}, {g:.2}, {b:.2})");
+            assert!(wgsl.contains(&v), "{v} is not in tree.wgsl's palette");
+        }
+        assert_eq!(level_colour(0), Color32::from_rgb(243, 89, 89));
     }
 }
