@@ -18,6 +18,13 @@ pub(super) fn split_glb(
     bytes: Vec<u8>,
     file: &str,
 ) -> Result<(Vec<u8>, Option<Vec<u8>>), SceneError> {
+    if bytes.is_empty() {
+        // Said as such: "starts with '', not the magic" and a JSON "EOF while parsing" read as damage.
+        return Err(SceneError::Parse {
+            file: file.to_string(),
+            reason: "the file is empty (0 bytes): an interrupted download or copy?".to_string(),
+        });
+    }
     let named_glb = std::path::Path::new(file)
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
