@@ -26,25 +26,36 @@ const LOW_OPEN_FILES_LIMIT: u64 = 64;
 /// Bytes per texel of the RGBA8 formats [`readback_rgba8`] accepts.
 const RGBA8_BYTES_PER_TEXEL: u32 = 4;
 
+/// The open-files limit as a missing adapter's possible cause ([`GpuError::NoAdapter`]).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum OpenFiles {
+    /// Unlimited, unknown, or at least [`LOW_OPEN_FILES_LIMIT`]: not the cause.
+    Enough,
+    /// Below [`LOW_OPEN_FILES_LIMIT`].
+    Low(u64),
+    /// Reached: not even the limit could be read.
+    Reached,
+}
+
 /// Errors of device setup and readback.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
     /// No adapter at all on the requested backends (no driver, or the driver is hidden by the environment).
     #[error(
         "no GPU adapter found on backends {backends} (on Debian install mesa-vulkan-drivers for lavapipe){}",
-        match .open_files_limit {
-            Some(n) => format!("; or the open-files limit{} (ulimit -n) is too low for the Vulkan loader \
-                                to open its drivers' files: raise it",
-                                n.map_or(String::new(), |n| format!(" of {n}"))),
-            None => String::new(),
+        match .open_files {
+            OpenFiles::Enough => String::new(),
+            OpenFiles::Low(n) => format!("; or the open-files limit of {n} (ulimit -n) is too low for the \
+                                          Vulkan loader to open its drivers' files: raise it"),
+            OpenFiles::Reached => "; or the open-files limit (ulimit -n) is too low for the Vulkan loader \
+                                   to open its drivers' files: raise it".to_string(),
         }
     )]
     NoAdapter {
         backends: String,
-        /// The open-files limit where it is low enough to be the cause (a few dozen: the loader opens its
-        /// drivers' manifests and libraries; under `ulimit -n 7` only the install hint was given; fault
-        /// hunt, session 38); `Some(None)` where it is reached and so cannot even be read.
-        open_files_limit: Option<Option<u64>>,
+        /// The open-files limit where it may be the cause (the loader opens its drivers' manifests and
+        /// libraries; under `ulimit -n 7` only the install hint was given; fault hunt, session 38).
+        open_files: OpenFiles,
     },
     /// Adapters exist but every one was rejected; `rejected` lists each with its reason.
     #[error("no suitable GPU adapter among {count}: {rejected}")]
@@ -397,10 +408,10 @@ fn choose_adapter(
     if adapters.is_empty() {
         return Err(GpuError::NoAdapter {
             backends: format!("{backends:?}"),
-            open_files_limit: match crate::util::open_files_limit() {
-                Ok(Some(n)) if n < LOW_OPEN_FILES_LIMIT => Some(Some(n)),
-                Ok(_) => None,
-                Err(_) => Some(None),
+            open_files: match crate::util::open_files_limit() {
+                Ok(Some(n)) if n < LOW_OPEN_FILES_LIMIT => OpenFiles::Low(n),
+                Ok(_) => OpenFiles::Enough,
+                Err(_) => OpenFiles::Reached,
             },
         });
     }
@@ -709,16 +720,16 @@ mod tests {
     /// A missing adapter under a low open-files limit names the limit beside the install hint.
     #[test]
     fn no_adapter_names_a_low_open_files_limit() {
-        let e = |open_files_limit| {
+        let e = |open_files| {
             GpuError::NoAdapter {
                 backends: "VULKAN".into(),
-                open_files_limit,
+                open_files,
             }
             .to_string()
         };
-        assert!(!e(None).contains("ulimit"));
-        assert!(e(Some(Some(7))).contains("the open-files limit of 7 (ulimit -n) is too low"));
-        assert!(e(Some(None)).contains("the open-files limit (ulimit -n) is too low"));
+        assert!(!e(OpenFiles::Enough).contains("ulimit"));
+        assert!(e(OpenFiles::Low(7)).contains("the open-files limit of 7 (ulimit -n) is too low"));
+        assert!(e(OpenFiles::Reached).contains("the open-files limit (ulimit -n) is too low"));
     }
 
     #[test]

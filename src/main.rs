@@ -37,8 +37,8 @@ fn quiet_on_closed_stdout() {
             atlastree::util::remove_live_temps_and_exit(|| std::process::exit(141), |_, _| {});
         }
         // Stdout on a full disk or a failing device (`inspect --json > f.json`, `>/dev/full`): an error
-        // naming stdout and why, exit 1, not a panic's backtrace (fault hunt, session 38). A failing
-        // stderr has nowhere to say so: exit 1 alone.
+        // naming stdout and why, exit 2 as other errors (1 is `inspect --verify`'s violation), not a
+        // panic's backtrace (fault hunt, session 38). A failing stderr has nowhere to say so: exit 2 alone.
         if closed("stdout") || closed("stderr") {
             use std::io::Write;
             let why = text.split_once(": ").map_or(text.as_str(), |(_, why)| why);
@@ -47,7 +47,7 @@ fn quiet_on_closed_stdout() {
                     let _ = writeln!(std::io::stderr(), "error: writing to stdout: {why}");
                 }
             };
-            atlastree::util::remove_live_temps_and_exit(|| std::process::exit(1), say);
+            atlastree::util::remove_live_temps_and_exit(|| std::process::exit(2), say);
         }
         // winit unwraps its connection's errors (an X server gone under `view`); while a session runs,
         // `view` catches such a panic and ends with an error naming it, so it is not printed twice.

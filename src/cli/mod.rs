@@ -53,6 +53,7 @@ const ENVIRONMENT_HELP: &str = "Environment:
                      it is unset; default `warn`
   ATLASTREE_NO_MMAP  `1`: read paging files whole, not memory-mapped
   ATLASTREE_SCALAR   Set: scalar kernels instead of AVX2 (the same bytes)
+  WGPU_BACKEND       The GPU backends to try (`vulkan`, `metal`, `dx12`, `gl`)
   SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT, JOB_COMPLETION_INDEX,
   AWS_BATCH_JOB_ARRAY_INDEX, ATLASTREE_SHARD_COUNT
                      `build --shard auto` reads its shard from the
@@ -493,12 +494,13 @@ impl OutFolder {
     /// process holds it or it cannot be written.
     pub(crate) fn open(out: &std::path::Path) -> anyhow::Result<Self> {
         use anyhow::Context;
-        check_out_folder(out)?;
         // A link to a folder not made yet is followed, as `export -o` and `build -o` follow theirs: the
         // folder it names is made (`create_dir_all` of the link failed with "File exists"; fault hunt,
-        // session 38). The run writes through the link.
+        // session 38), and its own parents are checked. The run writes through the link.
+        reject_output_url(out, "--out")?;
         let out = &atlastree::util::follow_output_links(out)
             .with_context(|| format!("--out {}", out.display()))?;
+        check_out_folder(out)?;
         let mut folder = OutFolder {
             created: (out.ancestors())
                 .take_while(|p| !p.as_os_str().is_empty() && !p.exists())

@@ -238,6 +238,13 @@ fn builds_dir(cfg: &SweepConfig) -> std::path::PathBuf {
 /// [`execute`] while `--out` is held.
 fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     let plan = &cfg.plan;
+    // A budget below what any of the grid's builds needs, refused before the scene is read, as `build`
+    // does (review, session 38).
+    let largest_atlas = plan.builds.iter().map(|b| b.knobs.atlas_size).max();
+    if let (Some(budget), Some(atlas)) = (cfg.build.max_memory_bytes, largest_atlas) {
+        let threads = rayon::current_num_threads() as u64;
+        atlastree::preprocess::memory::check_pixel_floor(budget, atlas, threads)?;
+    }
     let scene = load_scene(&cfg.scene, cfg.up)?;
     let path = cfg.path.resolve_with(|| Ground::from_scene(&scene))?;
     let aspect = f64::from(plan.width) / f64::from(plan.height);
@@ -300,8 +307,9 @@ fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
         &cfg.scene.display().to_string(),
         &cfg.path.to_string(),
     )?;
-    // A path that never looks at the scene covers no pixel: every PSNR is the 99 dB cap of nothing. The
-    // report says so too, and the JSON has `"measured": false` and no recommendation.
+    // A path that never looks at the scene covers no pixel: covered PSNR is NaN (`null` in the JSON, an
+    // empty cell in the CSVs, `-` here). The report says so too, and the JSON has `"measured": false` and
+    // no recommendation.
     let measured = !data.measures_nothing();
     if !measured {
         eprintln!("warning: {MEASURED_NOTHING}");
@@ -322,18 +330,24 @@ fn execute_in(cfg: &SweepConfig) -> anyhow::Result<ExitCode> {
     }
     println!("done in {:.1} s", t.elapsed().as_secs_f64());
     println!("reference: {}", cfg.reference.name());
+    // NaN (nothing measured) as `-`, not "NaN dB".
+    let db = |v: f64| match v.is_finite() {
+        true => format!("{v:>6.2}"),
+        false => format!("{:>6}", "-"),
+    };
     for r in &rows {
         let original = match cfg.reference {
             Reference::Original => String::new(),
             Reference::Supersampled(_) => format!(
-                "  original: covered PSNR {:>6.2} dB  SSIM {:.4}",
-                r.original_psnr_covered_db, r.original_ssim
+                "  original: covered PSNR {} dB  SSIM {:.4}",
+                db(r.original_psnr_covered_db),
+                r.original_ssim
             ),
         };
         println!(
-            "  {:<32} covered PSNR {:>6.2} dB  SSIM {:.4}  frame {:>7.2} ms  file {}{original}",
+            "  {:<32} covered PSNR {} dB  SSIM {:.4}  frame {:>7.2} ms  file {}{original}",
             r.id,
-            r.psnr_covered_db,
+            db(r.psnr_covered_db),
             r.ssim,
             r.frame_ms_median,
             atlastree::util::human_bytes(r.file_bytes)

@@ -1,5 +1,6 @@
 //! Unit tests of the export's finishing step.
 
+use super::replace::replace_dir;
 use super::*;
 
 /// Without `--force` the finished export never replaces what appeared at OUT while it ran: a

@@ -1,7 +1,8 @@
 //! Texel-density debug pass: how many texels of the texture actually sampled reach each screen pixel.
 //!
 //! The pass draws the cut of [`super::Mode::Tree`] with the `DENSITY = 1` variant of `shaders/tree.wgsl`
-//! into an `Rgba32Float` target. Per pixel it writes the singular values of the Jacobian
+//! into an `Rgba32Float` target, on the pixels the colour pass draws (MASK cutoffs and the blend pass's
+//! discards applied; session 38). Per pixel it writes the singular values of the Jacobian
 //! d(texel of mip 0)/d(screen pixel), from the quad derivatives of the UV times the texture size (atlas
 //! array size, or the stored sides of the original texture): the smaller one is the texel density along the
 //! least-sampled screen direction (< 1: the texture is magnified there), the larger one the density the

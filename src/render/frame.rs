@@ -385,6 +385,7 @@ impl<'f> Renderer<'f> {
     /// Texel-density debug frame of `plan`: the draws of [`Mode::Tree`], each pixel holding the texels (of
     /// mip 0 of the atlas or original texture it samples) per screen pixel instead of a colour; read back
     /// to the CPU. See [`super::density`]. Works on paged renderers too (the plan is not stepped again).
+    /// Alpha-tested as the colour pass is: a pixel is drawn here exactly where [`Mode::Tree`] draws it.
     pub fn execute_density(
         &mut self,
         plan: &FramePlan,

@@ -155,6 +155,23 @@ pub enum SceneError {
     Other(String),
 }
 
+impl SceneError {
+    /// `e`, from opening or reading `path`, back for the caller's own fallback or message, unless the
+    /// open-files limit caused it: then [`SceneError::OutOfDescriptors`], to stop the import or build.
+    pub fn unless_out_of_descriptors(
+        path: &std::path::Path,
+        e: std::io::Error,
+    ) -> Result<std::io::Error, SceneError> {
+        if crate::util::is_out_of_descriptors(&e) {
+            return Err(SceneError::OutOfDescriptors {
+                file: path.display().to_string(),
+                source: e,
+            });
+        }
+        Ok(e)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

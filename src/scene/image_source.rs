@@ -168,15 +168,12 @@ impl ImageSource {
             }
             ImageData::File(path) => {
                 let file = crate::util::open_regular(path).map_err(|e| {
-                    if crate::util::is_out_of_descriptors(&e) {
-                        return SceneError::OutOfDescriptors {
-                            file: path.display().to_string(),
-                            source: e,
-                        };
-                    }
-                    SceneError::ImageDecode {
-                        image: self.name.clone(),
-                        reason: format!("{}: {e}", path.display()),
+                    match SceneError::unless_out_of_descriptors(path, e) {
+                        Ok(e) => SceneError::ImageDecode {
+                            image: self.name.clone(),
+                            reason: format!("{}: {e}", path.display()),
+                        },
+                        Err(limit) => limit,
                     }
                 })?;
                 decode_encoded(std::io::BufReader::new(file), &self.name)?

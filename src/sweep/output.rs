@@ -263,36 +263,39 @@ fn write_plots(
         )
         .map(|_| ())
     };
-    scatter(
-        "pareto_frame_time",
-        "Accuracy vs frame time (Pareto front marked)",
-        "median frame time (ms, log)",
-        &|r| r.frame_ms_median,
-    )?;
-    plots.push((
-        "pareto_frame_time".into(),
-        "Accuracy vs median frame time; the black line is the Pareto front".into(),
-    ));
-    scatter(
-        "accuracy_vs_file_size",
-        "Accuracy vs paging-file size",
-        "file size (MiB, log)",
-        &|r| r.file_bytes as f64 / f64::from(1u32 << 20),
-    )?;
-    plots.push((
-        "accuracy_vs_file_size".into(),
-        "Accuracy vs file size".into(),
-    ));
-    scatter(
-        "accuracy_vs_build_time",
-        "Accuracy vs build time",
-        "build time (s, log)",
-        &|r| r.build_s,
-    )?;
-    plots.push((
-        "accuracy_vs_build_time".into(),
-        "Accuracy vs build time".into(),
-    ));
+    let measured = !data.measures_nothing();
+    if measured {
+        scatter(
+            "pareto_frame_time",
+            "Accuracy vs frame time (Pareto front marked)",
+            "median frame time (ms, log)",
+            &|r| r.frame_ms_median,
+        )?;
+        plots.push((
+            "pareto_frame_time".into(),
+            "Accuracy vs median frame time; the black line is the Pareto front".into(),
+        ));
+        scatter(
+            "accuracy_vs_file_size",
+            "Accuracy vs paging-file size",
+            "file size (MiB, log)",
+            &|r| r.file_bytes as f64 / f64::from(1u32 << 20),
+        )?;
+        plots.push((
+            "accuracy_vs_file_size".into(),
+            "Accuracy vs file size".into(),
+        ));
+        scatter(
+            "accuracy_vs_build_time",
+            "Accuracy vs build time",
+            "build time (s, log)",
+            &|r| r.build_s,
+        )?;
+        plots.push((
+            "accuracy_vs_build_time".into(),
+            "Accuracy vs build time".into(),
+        ));
+    }
     // PSNR against the texel ratio, one line per build (everything resident).
     let mut series: Vec<Series> = Vec::new();
     for b in &data.builds {
@@ -306,7 +309,7 @@ fn write_plots(
             series.push(Series::new(b.knobs.id(), pts));
         }
     }
-    if !series.is_empty() {
+    if measured && !series.is_empty() {
         let mut o = PlotOptions::new("Accuracy vs texel ratio", "texel ratio (log)", psnr);
         o.log_x = true;
         line_chart(&dir.join(OPTIONAL_PLOTS[0]), &o, &series)?;
@@ -352,8 +355,16 @@ fn base_histograms<'a>(
         .collect()
 }
 
-/// The plots [`write_outputs`] draws only when the grid has their data.
-const OPTIONAL_PLOTS: [&str; 2] = ["accuracy_vs_texel_ratio", "texel_density_histograms"];
+/// The plots [`write_outputs`] draws only when the grid has their data: every accuracy plot only where
+/// some frame covers the scene (with none, every covered PSNR is NaN and nothing is plotted; the sweep
+/// failed on "no finite point to plot" before its report; review, session 38).
+const OPTIONAL_PLOTS: [&str; 5] = [
+    "accuracy_vs_texel_ratio",
+    "texel_density_histograms",
+    "pareto_frame_time",
+    "accuracy_vs_file_size",
+    "accuracy_vs_build_time",
+];
 
 /// Writes every output file of a sweep into `dir` (created if missing); returns the variant rows and the
 /// paths written.

@@ -145,8 +145,8 @@ pub struct Recommendation {
 
 /// What a sweep whose path covers no pixel says (report, terminal).
 pub const MEASURED_NOTHING: &str = "no frame of the path covers any pixel of the scene (does it look at \
-     it?): PSNR and SSIM measure nothing (99 dB and 1 are the values of an empty comparison), and no \
-     default is recommended";
+     it?): nothing is measured (covered PSNR is empty; full-frame PSNR 99 dB and SSIM 1 compare two \
+     backgrounds), no accuracy is plotted and no default is recommended";
 
 /// Where some frames, not all, show nothing of the scene in the reference: which, in words (they are
 /// left out of covered PSNR; `None` where every frame covers pixels or none does, [`MEASURED_NOTHING`]).

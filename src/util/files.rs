@@ -151,8 +151,11 @@ pub fn remove_dir_tree(p: &Path) -> std::io::Result<()> {
     }
 }
 
-/// [`remove_dir_tree`]'s walk by listed entries.
+/// [`remove_dir_tree`]'s walk by listed entries; a link is removed, not followed.
 fn remove_dir_tree_listed(p: &Path) -> std::io::Result<()> {
+    if std::fs::symlink_metadata(p)?.file_type().is_symlink() {
+        return std::fs::remove_file(p);
+    }
     // Paths, not `DirEntry`s: each holds its folder's descriptor open.
     let entries = (std::fs::read_dir(p)?)
         .map(|e| e.and_then(|e| Ok((e.path(), e.file_type()?.is_dir()))))

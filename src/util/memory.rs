@@ -58,7 +58,8 @@ pub fn memory_limit_bytes() -> Option<u64> {
         .and_then(|text| address_space_limit(&text))
         .map(|limit| {
             // What the limit leaves for data: not what this process has already mapped (`VmSize`), nor
-            // what each worker thread reserves without touching it (glibc's malloc arena and the stack),
+            // what the worker threads reserve without touching it (their stacks, and glibc's malloc
+            // arenas up to the cap the binary sets: `address_space_left`),
             // which count against it though never resident: 16 threads under `ulimit -v 600000` aborted in
             // malloc with ~90 MiB resident (review, session 29).
             // One read of `status` for both the mapped size and the thread count.
@@ -74,11 +75,15 @@ pub fn memory_limit_bytes() -> Option<u64> {
                         .map(|n| n.get() as u64)
                 })
                 .unwrap_or(1);
-            let arenas = std::env::var("MALLOC_ARENA_MAX")
-                .ok()
-                .and_then(|v| v.trim().parse::<u64>().ok())
-                .filter(|&n| n > 0)
-                .unwrap_or_else(|| malloc_arenas_under(limit));
+            // `MALLOC_ARENA_MAX` set: the binary leaves glibc's arenas to it (set to what glibc does not
+            // take, glibc's own default of 8 a core: one a worker here).
+            let arenas = match std::env::var_os("MALLOC_ARENA_MAX") {
+                None => malloc_arenas_under(limit),
+                Some(v) => (v.to_str())
+                    .and_then(|v| v.trim().parse::<u64>().ok())
+                    .filter(|&n| n > 0)
+                    .unwrap_or(u64::MAX),
+            };
             let running = threads_of(&status).unwrap_or(1);
             address_space_left(
                 limit,

@@ -453,7 +453,7 @@ fn an_open_files_limit_stops_the_build_not_the_image() {
             .stderr(Stdio::piped());
         c.output().expect("spawn sh")
     };
-    let mut stopped = 0;
+    let (mut stopped, mut limit_said) = (0, 0);
     for limit in 6..=8 {
         let o = build(limit);
         let e = String::from_utf8_lossy(&o.stderr);
@@ -470,8 +470,13 @@ fn an_open_files_limit_stops_the_build_not_the_image() {
         assert!(!e.contains("magenta"), "ulimit -n {limit}: {e}");
         assert!(!out.exists(), "ulimit -n {limit}: an output was left");
         stopped += 1;
+        limit_said += usize::from(e.contains("the open-files limit is too low for this build"));
     }
     assert!(stopped > 0, "no limit from 6 to 8 stopped the build");
+    assert!(
+        limit_said > 0,
+        "no limit from 6 to 8 stopped an image, only the scene file"
+    );
     let o = build(1024);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }

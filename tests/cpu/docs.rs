@@ -161,13 +161,18 @@ fn every_environment_variable_read_is_in_the_help() {
         }
     }
     assert!(names.contains("RAYON_NUM_THREADS"), "{names:?}");
-    // Read by name from a list or a closure: the log filter's and `build --shard auto`'s.
+    // Read by name from a list, a closure or a library: the log filter's, wgpu's and `build --shard
+    // auto`'s.
     names.extend(
         [
             "ATLASTREE_LOG",
             "RUST_LOG",
+            "WGPU_BACKEND",
             "SLURM_ARRAY_TASK_ID",
+            "SLURM_ARRAY_TASK_COUNT",
             "JOB_COMPLETION_INDEX",
+            "AWS_BATCH_JOB_ARRAY_INDEX",
+            "ATLASTREE_SHARD_COUNT",
         ]
         .map(String::from),
     );

@@ -364,6 +364,69 @@ fn report_names_roles_once_effects_and_skipped_builds() {
     );
 }
 
+/// Frames whose reference covers nothing are measured as nothing: with one of two empty, the variants'
+/// covered PSNR is the other frame's and the report names the empty one; with every frame empty, the
+/// outputs are written without accuracy plots (they failed on "no finite point to plot"), and the report
+/// says the path measured nothing (review and fault hunt, session 38).
+#[test]
+fn frames_that_cover_nothing_are_left_out_not_scored() {
+    let (a, b) = (knobs(512), knobs(1024));
+    let empty = |mut f: FrameRow| {
+        f.covered_pixels = 0;
+        f.psnr_covered_db = f64::NAN;
+        f
+    };
+    let frames = vec![
+        frame(a, 1.0, 0, 30.0, 5.0),
+        empty(frame(a, 1.0, 1, 99.0, 5.0)),
+        frame(b, 1.0, 0, 32.0, 6.0),
+        empty(frame(b, 1.0, 1, 99.0, 6.0)),
+    ];
+    let builds = vec![build_row(a, 100, 2.0), build_row(b, 300, 5.0)];
+    let mut plan = Grid::preset("small").expect("preset").plan();
+    plan.builds.truncate(2);
+    plan.builds[0].knobs = a;
+    plan.builds[1].knobs = b;
+    let data = SweepData {
+        plan,
+        builds,
+        frames,
+        histograms: vec![],
+        resident_bytes: vec![],
+        adapter: "test".into(),
+        anisotropy: 1,
+        software: false,
+        reference: atlastree::render::reference::Reference::Original,
+        skipped: vec![],
+    };
+    let rows = summarise(&data.builds, &data.frames);
+    assert_eq!(rows[0].psnr_covered_db, 30.0, "{rows:?}");
+    assert_eq!(data.empty_frames(), vec![1]);
+    let cx = ReportContext {
+        scene: "s.gltf".into(),
+        path: "overview-dive".into(),
+        plots: vec![],
+    };
+    let md = markdown(&data, &rows, &cx);
+    assert!(
+        md.contains("1 of 2 frames cover no pixel of the scene in the reference (frame 1)"),
+        "{md}"
+    );
+    let nothing = SweepData {
+        frames: (data.frames.iter().cloned()).map(empty).collect(),
+        ..data.clone()
+    };
+    assert!(nothing.measures_nothing());
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (rows, _) =
+        atlastree::sweep::output::write_outputs(dir.path(), &nothing, "s.gltf", "overview-dive")
+            .expect("outputs written though nothing was measured");
+    assert!(rows.iter().all(|r| r.psnr_covered_db.is_nan()));
+    let md = std::fs::read_to_string(dir.path().join("report.md")).expect("report.md");
+    assert!(md.contains("no frame of the path covers any pixel"), "{md}");
+    assert!(!dir.path().join("pareto_frame_time.png").exists());
+}
+
 #[test]
 fn mean_median_skip_nan_and_histograms_merge() {
     assert_eq!(mean([1.0, f64::NAN, 3.0]), 2.0);

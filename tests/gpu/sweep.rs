@@ -145,8 +145,11 @@ fn supersampled_reference_measures_tree_and_original(
         ] {
             let v = num_or_nan(table, c)?;
             // NaN where a frame covers nothing: nothing measured.
+            let covered = frames
+                .column_index("covered_pixels")
+                .ok_or("no covered_pixels column")?;
             let unmeasured = |i: usize| {
-                name == "frames.csv" && c.contains("covered") && frames.rows[i][8] == "0"
+                name == "frames.csv" && c.contains("covered") && frames.rows[i][covered] == "0"
             };
             if let Some(i) =
                 (0..v.len()).find(|&i| !unmeasured(i) && (!v[i].is_finite() || v[i] <= 0.0))

@@ -242,7 +242,7 @@ impl<'a> Buffers<'a> {
             }
             gltf::buffer::Source::Uri(uri) => (
                 uri_for_messages(uri),
-                self.read_uri(uri, buffer.length() as u64),
+                self.read_uri(uri, buffer.length() as u64)?,
             ),
         };
         let err = |file: &str, reason: String| SceneError::Buffer {
@@ -274,13 +274,25 @@ impl<'a> Buffers<'a> {
     /// Reads a URI: `data:` (base64), or the local file [`local_path`] names (relative to the glTF file,
     /// or a `file:` URI; other schemes refused): a regular file, of which the first `length` bytes (the
     /// buffer's `byteLength`; a longer file's tail is not read).
-    fn read_uri(&self, uri: &str, length: u64) -> Result<Vec<u8>, String> {
+    ///
+    /// `Err` only where the open-files limit stopped it ([`SceneError::OutOfDescriptors`]): an image in a
+    /// buffer of its own was drawn as the fallback (review, session 38); else its bytes or why not.
+    fn read_uri(&self, uri: &str, length: u64) -> Result<Result<Vec<u8>, String>, SceneError> {
         if uri.starts_with("data:") {
-            return decode_data_uri(uri);
+            return Ok(decode_data_uri(uri));
         }
-        let path = local_path_in(&self.base_dirs, uri)?;
-        crate::util::read_regular(&path, Some(length))
-            .map_err(|e| format!("{}: {e}", path.display()))
+        let path = match local_path_in(&self.base_dirs, uri) {
+            Ok(path) => path,
+            Err(e) => return Ok(Err(e)),
+        };
+        match crate::util::read_regular(&path, Some(length)) {
+            Ok(bytes) => Ok(Ok(bytes)),
+            Err(e) => Ok(Err(format!(
+                "{}: {}",
+                path.display(),
+                SceneError::unless_out_of_descriptors(&path, e)?
+            ))),
+        }
     }
 
     /// Loads every buffer accessor `acc` reads from (its view and sparse views).
@@ -299,7 +311,6 @@ impl<'a> Buffers<'a> {
         Ok(())
     }
 
-    /// Reads an image's header and keeps its path (external file) or encoded bytes.
     /// Image `img` by its header: its name and the image, or why it cannot be read (the caller draws
     /// the fallback); `Err` only where the open-files limit stopped it ([`SceneError::OutOfDescriptors`]).
     pub(super) fn load_image(
@@ -337,13 +348,11 @@ impl<'a> Buffers<'a> {
                 let res = match local_path_in(&self.base_dirs, uri) {
                     Err(e) => Err(e),
                     Ok(path) => match crate::util::open_regular(&path) {
-                        Err(e) if crate::util::is_out_of_descriptors(&e) => {
-                            return Err(SceneError::OutOfDescriptors {
-                                file: path.display().to_string(),
-                                source: e,
-                            });
-                        }
-                        Err(e) => Err(format!("{}: {e}", path.display())),
+                        Err(e) => Err(format!(
+                            "{}: {}",
+                            path.display(),
+                            SceneError::unless_out_of_descriptors(&path, e)?
+                        )),
                         Ok(f) => image_source::read_header(std::io::BufReader::new(f))
                             .map_err(|e| format!("{}: {e}", path.display()))
                             .map(|h| from_header(&name, h, ImageData::File(path.clone()))),
@@ -355,8 +364,11 @@ impl<'a> Buffers<'a> {
                 let name = img
                     .name()
                     .map_or_else(|| format!("buffer view {}", view.index()), str::to_string);
-                let res = self
-                    .load_buffer(view.buffer().index())
+                let res = match self.load_buffer(view.buffer().index()) {
+                    Err(e @ SceneError::OutOfDescriptors { .. }) => return Err(e),
+                    loaded => loaded,
+                };
+                let res = res
                     .map_err(|e| e.to_string())
                     .and_then(|()| view_slice(&self.data, &view))
                     .and_then(|bytes| from_bytes(&name, Arc::from(bytes)));

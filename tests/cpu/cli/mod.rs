@@ -6,8 +6,11 @@ use std::process::{Command, Output};
 
 mod refusals;
 
+/// The binary, without the log filters a developer's shell may set (they add lines to stderr).
 fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_atlastree"))
+    let mut c = Command::new(env!("CARGO_BIN_EXE_atlastree"));
+    c.env_remove("RUST_LOG").env_remove("ATLASTREE_LOG");
+    c
 }
 
 fn scene() -> PathBuf {

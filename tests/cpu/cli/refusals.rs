@@ -413,7 +413,7 @@ fn an_out_folder_another_run_holds_is_refused() {
     assert!(out.join("summary.csv").is_file());
 }
 
-/// A report whose stdout fails is an error naming stdout and why (a full disk: `/dev/full`), exit 1,
+/// A report whose stdout fails is an error naming stdout and why (a full disk: `/dev/full`), exit 2,
 /// not a panic's backtrace (exit 101; fault hunt, session 38); a reader gone ends the process quietly
 /// with the shell's status for SIGPIPE, 141, as other tools do.
 #[test]
@@ -423,7 +423,7 @@ fn a_failing_stdout_is_an_error_and_a_closed_one_quiet() {
     if let Ok(full) = full {
         let o = run(bin().arg("scene-info").arg(&scene).stdout(full));
         let e = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert_eq!(o.status.code(), Some(2), "{e}");
         assert!(
             e.contains("error: writing to stdout: No space left on device")
                 && !e.contains("panicked"),

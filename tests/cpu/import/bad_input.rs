@@ -354,9 +354,6 @@ fn reported_build_command_fails_cleanly() {
     assert!(!dir.path().join("out.atlastree").exists());
 }
 
-/// A GLB header whose total length is below its own 12 bytes: gltf 1.4.1 subtracts 12 from it first (an
-/// overflow panic in debug builds); it is refused before gltf reads it. So are a length past the file's
-/// and a wrong magic, each saying what it found.
 /// An empty scene file, `.glb` or `.gltf`, is said to be empty (it was "starts with '', not the magic
 /// 'glTF'" and a JSON "EOF while parsing"; fault hunt, session 38).
 #[test]
@@ -375,6 +372,9 @@ fn an_empty_scene_file_is_said_to_be_empty() {
     }
 }
 
+/// A GLB header whose total length is below its own 12 bytes: gltf 1.4.1 subtracts 12 from it first (an
+/// overflow panic in debug builds); it is refused before gltf reads it. So are a length past the file's
+/// and a wrong magic, each saying what it found.
 #[test]
 fn glb_header_length_below_twelve_is_refused() {
     let dir = tempfile::tempdir().unwrap();
