@@ -26,6 +26,9 @@ use glam::{DVec2, DVec3};
 
 /// Eye height above the ground at the street keyframes, metres.
 const EYE_HEIGHT: f64 = 1.7;
+/// The least share of its diagonal the street path travels over content; below it the path follows the
+/// diagonal ([`CameraPath::street_on`]).
+const STREET_MIN_TRAVEL: f64 = 0.25;
 
 /// The directions tried from the dive's building to its street point, in order (the first, towards
 /// the footprint's low corner, is the only one a flat ground ever uses).
@@ -171,13 +174,26 @@ impl CameraPath {
             // Each keyframe over the content nearest its point of the diagonal: a track's diagonal crosses
             // empty corners, where a low eye looking ahead saw only sky (zengarden: 9 of 30 frames).
             let diagonal = |i: usize| a.lerp(b, fraction(i));
-            let eyes: Vec<DVec2> = (0..=n)
+            let snapped: Vec<DVec2> = (0..=n)
                 .map(|i| {
                     let p = diagonal(i);
                     let near = ground.content_near(p);
                     if near == p { p } else { f.clamp_plane(near) }
                 })
                 .collect();
+            // Where the content is a cell or two (a scene of a few large triangles: content is counted
+            // by their centroids), the keyframes all snapped there and the eye stood still for the whole
+            // path (a 1 km road of one quad: 0 m moved in 60 s; fault hunt, session 38): the diagonal
+            // itself then, where the scene's ground covers the whole footprint (a track whose bounds reach
+            // far beyond it, zengarden's, keeps its keyframes over the content).
+            let travelled: f64 = snapped.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+            let [nx, ny] = ground.cells();
+            let covered = ground.measured_cells() == nx * ny;
+            let eyes: Vec<DVec2> = if covered && travelled < STREET_MIN_TRAVEL * length {
+                (0..=n).map(diagonal).collect()
+            } else {
+                snapped
+            };
             let grounds = segment_grounds(&eyes, |p, q| ground.max_along(p, q));
             // Looking ahead along the flight: towards the next keyframe (the last along the one before;
             // the diagonal where two keyframes share a spot).

@@ -29,6 +29,13 @@ pub enum CameraError {
     },
     #[error("{path}: a camera path needs at least 1 keyframe, found 0")]
     NoKeyframes { path: PathBuf },
+    /// The file is a JSON array, not the object `{"keyframes": [...]}` (serde read an array as the
+    /// struct's fields in order, and said "expected a sequence" of a sequence; fault hunt, session 38).
+    #[error(
+        "{path}: a camera path is a JSON object, {{\"keyframes\": [...]}}, not an array (a bare list of \
+         keyframes goes under \"keyframes\")"
+    )]
+    NotAnObject { path: PathBuf },
     #[error("{path}: keyframe {keyframe}: {field} is not finite ({value})")]
     NonFinite {
         path: PathBuf,
@@ -208,6 +215,12 @@ impl CameraPath {
 
     /// Parses and validates JSON text; `origin` names the source in errors.
     pub fn from_json(text: &str, origin: &Path) -> Result<CameraPath, CameraError> {
+        let body = text.trim_start_matches('\u{feff}').trim_start();
+        if body.starts_with('[') {
+            return Err(CameraError::NotAnObject {
+                path: origin.to_owned(),
+            });
+        }
         let parsed: CameraPath =
             serde_json::from_str(text).map_err(|source| CameraError::Json {
                 path: origin.to_owned(),
@@ -540,6 +553,25 @@ impl PathKind {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A bare array of keyframes is refused saying the file must be an object, not serde's "expected a
+    /// sequence" of a sequence; an object still reads (a BOM before it too).
+    #[test]
+    fn an_array_is_not_a_camera_path() {
+        let origin = Path::new("p.json");
+        let key = r#"{"time": 0, "eye": [0, 5, 0], "target": [1, 0, 0], "up": [0, 1, 0], "fov_x_deg": 60}"#;
+        for text in [format!("[{key}]"), format!("\u{feff} [{key}]")] {
+            let e = CameraPath::from_json(&text, origin).unwrap_err();
+            assert!(matches!(e, CameraError::NotAnObject { .. }), "{e}");
+            assert!(e.to_string().contains("not an array"), "{e}");
+        }
+        let object = format!(r#"{{"keyframes": [{key}]}}"#);
+        let read = CameraPath::from_json(&object, origin);
+        assert!(
+            !matches!(read, Err(CameraError::NotAnObject { .. })),
+            "{read:?}"
+        );
+    }
 
     /// A file's `aspect` is not used (frames take their viewport's), so it is not refused; the sampled
     /// camera keeps a usable one.

@@ -26,7 +26,8 @@ pub(crate) const MIN_FPS: f64 = 1e-6;
 pub(crate) fn check_fps(flag: &str, fps: f64) -> anyhow::Result<()> {
     if !(fps.is_finite() && fps >= MIN_FPS) {
         bail!(
-            "{flag} must be a finite number of frames per second, at least {MIN_FPS:e} (got {fps})"
+            "{flag} must be a finite number of frames per second, at least {MIN_FPS:e} (got {})",
+            atlastree::util::short_number(fps)
         );
     }
     Ok(())

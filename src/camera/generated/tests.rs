@@ -305,3 +305,34 @@ fn over_rough_ground_the_eye_never_comes_closer_than_street_level() {
 fn up_plane(p: DVec3) -> DVec2 {
     UpAxis::Z.plane(p)
 }
+
+/// A scene of one large quad (a 1 km road, 20 m wide) has its content in the cells of its two
+/// triangles' centroids: the street path's keyframes all snapped there and the eye stood still for the
+/// whole path; it follows the diagonal, which the road covers, from 5 % to 95 % (fault hunt, session 38).
+#[test]
+fn the_street_path_moves_over_a_scene_of_one_large_quad() {
+    let (w, l) = (1000.0, 20.0);
+    let corners = [
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::new(w, 0.0, 0.0),
+        DVec3::new(w, 0.0, l),
+        DVec3::new(0.0, 0.0, l),
+    ];
+    let tris = vec![
+        [corners[0], corners[2], corners[1]],
+        [corners[0], corners[3], corners[2]],
+    ];
+    let (lo, hi) = test_scenes::bounds(&tris);
+    let g = Ground::from_triangles(lo, hi, UpAxis::Y, tris).unwrap_or_else(|e| panic!("{e}"));
+    let street = CameraPath::street_on(&g).unwrap_or_else(|e| panic!("{e}"));
+    let (first, last) = (
+        street.sample(street.start()),
+        street.sample(street.start() + street.duration()),
+    );
+    let moved = (last.eye - first.eye).length();
+    assert!(
+        moved > 0.8 * w,
+        "the eye moved {moved} m along a {w} m road"
+    );
+    check_above_ground(&street, &g, g.highest() + 10.0, "street");
+}
