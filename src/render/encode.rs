@@ -20,6 +20,11 @@ const SKY: wgpu::Color = wgpu::Color {
     a: 1.0,
 };
 
+/// The background as a read-back frame holds it: [`SKY`] encoded to sRGB8, as the frame's target does.
+pub fn sky_srgb8() -> [u8; 3] {
+    [SKY.r, SKY.g, SKY.b].map(crate::util::srgb::linear_to_srgb8)
+}
+
 impl Renderer<'_> {
     pub(super) fn read_timestamps(&self) -> Result<Option<f64>, RenderError> {
         let Some(ts) = &self.timestamps else {

@@ -37,6 +37,7 @@ pub mod textures;
 pub mod wgsl;
 
 pub use crate::plan::{PagingFrame, PagingSetup};
+pub use encode::sky_srgb8;
 pub use frame::{FrameStats, GpuResidency, Renderer, RendererOptions, frame_columns};
 pub use frame_loop::FrameLoop;
 

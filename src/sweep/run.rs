@@ -630,7 +630,13 @@ fn reference_frames(
         r.execute(frame, Mode::Original).map_err(err(i))?;
         let rgba = r.read_frame().map_err(err(i))?;
         let (_, density) = r.execute_density(frame).map_err(err(i))?;
-        let covered = density.pixels.iter().map(Option::is_some).collect();
+        // Covered: where the tree (the base build, alpha-tested) or the original textures draw. The
+        // tree's pixels alone left out foliage the reference draws and an atlas cuts away, hiding the
+        // alpha coverage lost (review, session 38); the background is exactly the clear colour.
+        let sky = crate::render::sky_srgb8();
+        let covered = (density.pixels.iter().zip(rgba.chunks_exact(4)))
+            .map(|(d, p)| d.is_some() || p[..3] != sky)
+            .collect();
         let rgba = match opts.reference {
             Reference::Original => rgba,
             Reference::Supersampled(k) => r.execute_supersampled(frame, k).map_err(err(i))?,

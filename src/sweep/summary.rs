@@ -419,7 +419,7 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
                 md,
                 "Reference: every frame drawn with the original textures (stored at full class resolution, \
                  mip-mapped) by the naive renderer (`--mode original`) on the base build. Covered PSNR is over \
-                 the pixels the reference draws on. Means are over frames; frame time is the median.\n"
+                 the pixels the reference or the base build's tree draws on (alpha-tested). Means are over frames; frame time is the median.\n"
             );
         }
         Reference::Supersampled(k) => {
@@ -429,8 +429,8 @@ pub fn markdown(data: &SweepData, rows: &[VariantRow], cx: &ReportContext) -> St
                  pixels on the base build and box-filtered in linear light to {}×{} (`--reference \
                  supersampled:{k}`). Both the tree and the original textures (drawn naively at the frame's \
                  resolution, each build's own) are measured against it: where the original columns fall \
-                 short too, the loss is not the tree's. Covered PSNR is over the pixels the base build \
-                 draws on. Means are over frames; frame time is the median.\n",
+                 short too, the loss is not the tree's. Covered PSNR is over the pixels the base build's \
+                 original textures or its tree draw on (alpha-tested). Means are over frames; frame time is the median.\n",
                 p.width, p.height
             );
         }

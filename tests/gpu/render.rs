@@ -180,17 +180,9 @@ pub(crate) fn dive_cameras(file: &TreeFile, n: usize) -> Result<Vec<Camera>, Str
         .collect())
 }
 
-/// sRGB bytes of the clear colour (linear 0.30, 0.45, 0.70).
+/// sRGB bytes of the clear colour.
 fn sky() -> [u8; 3] {
-    let enc = |l: f64| {
-        let s = if l <= 0.0031308 {
-            12.92 * l
-        } else {
-            1.055 * l.powf(1.0 / 2.4) - 0.055
-        };
-        (s * 255.0).round() as u8
-    };
-    [enc(0.30), enc(0.45), enc(0.70)]
+    atlastree::render::sky_srgb8()
 }
 
 pub(crate) fn is_sky(px: &[u8]) -> bool {
