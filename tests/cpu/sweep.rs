@@ -295,6 +295,28 @@ fn knob_effects_against_the_base() {
     assert_eq!(got, vec![("border", "16"), ("texel_ratio", "1")]);
 }
 
+/// Sweep data of `builds` and `frames` on the small preset's plan cut to those builds, reference the
+/// original textures, anisotropy `anisotropy`.
+fn sweep_data(builds: Vec<BuildRow>, frames: Vec<FrameRow>, anisotropy: u16) -> SweepData {
+    let mut plan = Grid::preset("small").expect("preset").plan();
+    plan.builds.truncate(builds.len());
+    for (p, b) in plan.builds.iter_mut().zip(&builds) {
+        p.knobs = b.knobs;
+    }
+    SweepData {
+        plan,
+        builds,
+        frames,
+        histograms: vec![],
+        resident_bytes: vec![],
+        adapter: "test".into(),
+        anisotropy,
+        software: false,
+        reference: atlastree::render::reference::Reference::Original,
+        skipped: vec![],
+    }
+}
+
 /// The report: one line per distinct recommended variant naming all its roles, the knob-effects table
 /// against the base, and the builds that could not be drawn (with their error).
 #[test]
@@ -307,21 +329,11 @@ fn report_names_roles_once_effects_and_skipped_builds() {
     ];
     let builds = vec![build_row(a, 100, 2.0), build_row(b, 300, 5.0)];
     let rows = summarise(&builds, &frames);
-    let mut plan = Grid::preset("small").expect("preset").plan();
-    plan.builds.truncate(1);
-    plan.builds[0].knobs = a;
     let data = SweepData {
-        plan,
-        builds,
-        frames,
-        histograms: vec![],
-        resident_bytes: vec![],
-        adapter: "test".into(),
-        anisotropy: 16,
-        software: false,
-        reference: atlastree::render::reference::Reference::Original,
         skipped: vec![("r10_a2048_b8_box".into(), "out of memory".into())],
+        ..sweep_data(builds[..1].to_vec(), frames, 16)
     };
+    let data = SweepData { builds, ..data };
     let cx = ReportContext {
         scene: "s.gltf".into(),
         path: "overview-dive".into(),
@@ -383,22 +395,7 @@ fn frames_that_cover_nothing_are_left_out_not_scored() {
         empty(frame(b, 1.0, 1, 99.0, 6.0)),
     ];
     let builds = vec![build_row(a, 100, 2.0), build_row(b, 300, 5.0)];
-    let mut plan = Grid::preset("small").expect("preset").plan();
-    plan.builds.truncate(2);
-    plan.builds[0].knobs = a;
-    plan.builds[1].knobs = b;
-    let data = SweepData {
-        plan,
-        builds,
-        frames,
-        histograms: vec![],
-        resident_bytes: vec![],
-        adapter: "test".into(),
-        anisotropy: 1,
-        software: false,
-        reference: atlastree::render::reference::Reference::Original,
-        skipped: vec![],
-    };
+    let data = sweep_data(builds, frames, 1);
     let rows = summarise(&data.builds, &data.frames);
     assert_eq!(rows[0].psnr_covered_db, 30.0, "{rows:?}");
     assert_eq!(data.empty_frames(), vec![1]);

@@ -99,14 +99,11 @@ fn plants() -> Scene {
     b.build()
 }
 
-/// Tree mode against the per-texture reference (each MASK material in the mask pipeline with depth
-/// writes): from a view where the rows overlap, with the alpha tree's node drawn from its originals and
-/// from its atlas, ≥ 35 dB over the covered pixels (measured: ∞, ∞, 80 dB). Without the depth pre-pass
-/// the far rows paint over the near ones (measured: 6.9 dB at 1.5 m); with the node's cutoff instead of
-/// each material's, atlas draws blend MASK fringes (21.6 dB at 12 m).
-fn mask_occlusion_holds_in_a_node_with_blend(ctx: &GpuContext) -> Result<(), String> {
-    let dir = tempfile::tempdir().map_err(e)?;
-    let out = dir.path().join("plants.atlastree");
+/// The plants built at atlas 256 (d_min ratio 8) into `dir`, opened.
+fn plants_file(
+    dir: &std::path::Path,
+) -> Result<(TreeFile, atlastree::preprocess::BuildReport), String> {
+    let out = dir.join("plants.atlastree");
     let opts = BuildOptions {
         d_min: DMin::Ratio(8.0),
         atlas_size: 256,
@@ -114,6 +111,30 @@ fn mask_occlusion_holds_in_a_node_with_blend(ctx: &GpuContext) -> Result<(), Str
         ..BuildOptions::default()
     };
     let report = build(&plants(), &opts, &out, &NoProgress).map_err(e)?;
+    Ok((TreeFile::open(&out).map_err(e)?, report))
+}
+
+/// A camera `distance` m in front of the first row (z = 10), at `height`, looking level along +z.
+fn level_camera(height: f64, distance: f64) -> Camera {
+    Camera {
+        eye: DVec3::new(2.0, height, 10.0 - distance),
+        target: DVec3::new(2.0, height, 16.0),
+        up: DVec3::Y,
+        fov_x_deg: 60.0,
+        aspect: f64::from(W) / f64::from(H),
+        near: 0.5,
+        far: 1000.0,
+    }
+}
+
+/// Tree mode against the per-texture reference (each MASK material in the mask pipeline with depth
+/// writes): from a view where the rows overlap, with the alpha tree's node drawn from its originals and
+/// from its atlas, ≥ 35 dB over the covered pixels (measured: ∞, ∞, 80 dB). Without the depth pre-pass
+/// the far rows paint over the near ones (measured: 6.9 dB at 1.5 m); with the node's cutoff instead of
+/// each material's, atlas draws blend MASK fringes (21.6 dB at 12 m).
+fn mask_occlusion_holds_in_a_node_with_blend(ctx: &GpuContext) -> Result<(), String> {
+    let dir = tempfile::tempdir().map_err(e)?;
+    let (file, report) = plants_file(dir.path())?;
     if std::env::var_os("ATLASTREE_DEBUG_DIR").is_some() {
         for t in &report.trees {
             println!(
@@ -122,20 +143,11 @@ fn mask_occlusion_holds_in_a_node_with_blend(ctx: &GpuContext) -> Result<(), Str
             );
         }
     }
-    let file = TreeFile::open(&out).map_err(e)?;
     let mut r = renderer(ctx, &file)?;
     let mut lines = Vec::new();
     let mut sources = std::collections::BTreeSet::new();
     for distance in [1.5, 12.0, 40.0] {
-        let cam = Camera {
-            eye: DVec3::new(2.0, 4.0, 10.0 - distance),
-            target: DVec3::new(2.0, 4.0, 16.0),
-            up: DVec3::Y,
-            fov_x_deg: 60.0,
-            aspect: f64::from(W) / f64::from(H),
-            near: 0.5,
-            far: 1000.0,
-        };
+        let cam = level_camera(4.0, distance);
         let (_, tree) = frame(&mut r, &file, &cam, Mode::Tree)?;
         let alpha_sources: Vec<Source> = r
             .cuts()
@@ -176,26 +188,10 @@ fn mask_occlusion_holds_in_a_node_with_blend(ctx: &GpuContext) -> Result<(), Str
 /// where 16,958 were drawn (fault hunt, session 38). Looking level through the rows, the holes show sky.
 fn the_density_pass_covers_what_the_colour_pass_draws(ctx: &GpuContext) -> Result<(), String> {
     let dir = tempfile::tempdir().map_err(e)?;
-    let out = dir.path().join("plants.atlastree");
-    let opts = BuildOptions {
-        d_min: DMin::Ratio(8.0),
-        atlas_size: 256,
-        max_file_bytes: 1 << 30,
-        ..BuildOptions::default()
-    };
-    build(&plants(), &opts, &out, &NoProgress).map_err(e)?;
-    let file = TreeFile::open(&out).map_err(e)?;
+    let (file, _) = plants_file(dir.path())?;
     let mut r = renderer(ctx, &file)?;
     for distance in [3.0, 12.0] {
-        let cam = Camera {
-            eye: DVec3::new(2.0, 6.0, 10.0 - distance),
-            target: DVec3::new(2.0, 6.0, 16.0),
-            up: DVec3::Y,
-            fov_x_deg: 60.0,
-            aspect: f64::from(W) / f64::from(H),
-            near: 0.5,
-            far: 1000.0,
-        };
+        let cam = level_camera(6.0, distance);
         let (_, colour) = frame(&mut r, &file, &cam, Mode::Tree)?;
         let plan = r.planner.last().ok_or("no plan")?;
         let (_, density) = r.renderer.execute_density(plan).map_err(e)?;

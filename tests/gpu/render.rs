@@ -505,35 +505,18 @@ fn translated_scene_renders_the_same(ctx: &GpuContext) -> Result<(), String> {
     Ok(())
 }
 
-/// Level colours of `shaders/tree.wgsl` in sRGB bytes (±2).
-const LEVEL_COLOURS: [[f64; 3]; 8] = [
-    [0.90, 0.10, 0.10],
-    [0.10, 0.75, 0.10],
-    [0.10, 0.20, 0.95],
-    [0.95, 0.85, 0.10],
-    [0.85, 0.10, 0.85],
-    [0.10, 0.85, 0.85],
-    [0.95, 0.50, 0.05],
-    [0.50, 0.30, 0.90],
-];
-
-fn srgb(l: f64) -> u8 {
-    let s = if l <= 0.0031308 {
-        12.92 * l
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round() as u8
-}
-
 /// Tree-levels on the dive: some view shows at least two different level colours, and every covered pixel
 /// is a level colour or white (original textures).
 fn tree_levels_shows_several_levels(ctx: &GpuContext) -> Result<(), String> {
     let file = TreeFile::open(&city_deep()?).map_err(e)?;
     let mut r = renderer(ctx, &file)?;
-    let palette: Vec<[u8; 3]> = LEVEL_COLOURS
-        .iter()
-        .map(|c| [srgb(c[0]), srgb(c[1]), srgb(c[2])])
+    // The shader's level colours as a frame holds them (the view's overlay draws the same, checked
+    // against the shader's palette).
+    let palette: Vec<[u8; 3]> = (0..8)
+        .map(|l| {
+            let [r, g, b, _] = atlastree::view::overlay::level_colour(l).to_array();
+            [r, g, b]
+        })
         .collect();
     let mut best = 0;
     let mut seen_per_view = Vec::new();
