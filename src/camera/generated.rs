@@ -161,39 +161,46 @@ impl CameraPath {
     /// and never more than 10 m above the highest ground.
     pub fn street_on(ground: &Ground) -> Result<CameraPath, CameraError> {
         CameraPath::generated("street", ground, |f| {
-            let a = f.at(0.05, 0.05);
-            let b = f.at(0.95, 0.95);
-            let length = (b - a).length();
-            let duration = (length / 15.0).max(10.0);
             let heights = [
                 EYE_HEIGHT, 10.0, 4.0, EYE_HEIGHT, 7.0, 2.5, 10.0, EYE_HEIGHT, 5.0,
             ];
             let n = heights.len() - 1;
-            let dir = (b - a).try_normalize().unwrap_or(DVec2::X);
             let fraction = |i: usize| i as f64 / n as f64;
+            let along = |a: DVec2, b: DVec2| -> Vec<DVec2> {
+                (0..=n).map(|i| a.lerp(b, fraction(i))).collect()
+            };
+            let (a, b) = (f.at(0.05, 0.05), f.at(0.95, 0.95));
+            let length = (b - a).length();
             // Each keyframe over the content nearest its point of the diagonal: a track's diagonal crosses
             // empty corners, where a low eye looking ahead saw only sky (zengarden: 9 of 30 frames).
-            let diagonal = |i: usize| a.lerp(b, fraction(i));
-            let snapped: Vec<DVec2> = (0..=n)
-                .map(|i| {
-                    let p = diagonal(i);
+            let snapped: Vec<DVec2> = (along(a, b).into_iter())
+                .map(|p| {
                     let near = ground.content_near(p);
                     if near == p { p } else { f.clamp_plane(near) }
                 })
                 .collect();
-            // Where the content is a cell or two (a scene of a few large triangles: content is counted
-            // by their centroids), the keyframes all snapped there and the eye stood still for the whole
-            // path (a 1 km road of one quad: 0 m moved in 60 s; fault hunt, session 38): the diagonal
-            // itself then, where the scene's ground covers the whole footprint (a track whose bounds reach
-            // far beyond it, zengarden's, keeps its keyframes over the content).
+            // Where the content is a cell or two, the keyframes all snapped there and the eye stood still
+            // for the whole path (fault hunt, session 38): a 1 km road of one quad (content is counted by
+            // triangle centroids) moved 0 m in 60 s, and a track whose bounds reach far beyond it
+            // (zengarden's skybox, scotland's, cornfield's) kept its eye on one spot. Then the flight goes
+            // along the footprint's diagonal where the scene's ground covers the whole footprint, else
+            // along the diagonal of the content's own extent.
             let travelled: f64 = snapped.windows(2).map(|w| (w[1] - w[0]).length()).sum();
             let [nx, ny] = ground.cells();
             let covered = ground.measured_cells() == nx * ny;
-            let eyes: Vec<DVec2> = if covered && travelled < STREET_MIN_TRAVEL * length {
-                (0..=n).map(diagonal).collect()
-            } else {
-                snapped
+            let content = ground.content_bounds();
+            let (a, b, eyes) = match content {
+                _ if travelled >= STREET_MIN_TRAVEL * length => (a, b, snapped),
+                _ if covered => (a, b, along(a, b)),
+                Some((lo, hi)) => {
+                    let (a, b) = (lo.lerp(hi, 0.05), lo.lerp(hi, 0.95));
+                    (a, b, along(a, b))
+                }
+                None => (a, b, snapped),
             };
+            let diagonal = |i: usize| a.lerp(b, fraction(i));
+            let duration = ((b - a).length() / 15.0).max(10.0);
+            let dir = (b - a).try_normalize().unwrap_or(DVec2::X);
             let grounds = segment_grounds(&eyes, |p, q| ground.max_along(p, q));
             // Looking ahead along the flight: towards the next keyframe (the last along the one before;
             // the diagonal where two keyframes share a spot).

@@ -394,6 +394,19 @@ impl Ground {
             .fold(f64::NEG_INFINITY, f64::max)
     }
 
+    /// The plane box of the cells with content of their own (`(low corner, high corner)`), `None` where
+    /// no cell has content.
+    pub fn content_bounds(&self) -> Option<(DVec2, DVec2)> {
+        let nx = self.grid.nx.max(1);
+        let cells = (self.content.iter().enumerate()).filter(|(_, c)| **c);
+        cells.fold(None, |acc, (i, _)| {
+            let half = self.grid.cell * 0.5;
+            let c = self.grid.centre(i % nx, i / nx);
+            let (lo, hi) = (c - half, c + half);
+            Some(acc.map_or((lo, hi), |(a, b): (DVec2, DVec2)| (a.min(lo), b.max(hi))))
+        })
+    }
+
     /// Where to go near plane point `p` to find the scene's content: the centre of the nearest cell
     /// with content of its own (Euclidean, ties by row-major order; `p`'s own cell's centre when it
     /// has content), or `p` itself when no cell has (e.g. [`Ground::flat`]).

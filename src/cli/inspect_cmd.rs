@@ -39,6 +39,10 @@ fn opening_message(file: &std::path::Path, e: &atlastree::store::StoreError) -> 
 
 pub(super) fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     super::reject_url(&a.file, "inspect")?;
+    // The reference too: a URL was "No such file or directory" (fault hunt, session 38).
+    if let Some(reference) = &a.reference {
+        super::reject_url(reference, "inspect --reference")?;
+    }
     // The tables in memory, blocks read through the handle: `--verify` reads for long, and a file
     // truncated meanwhile is then an error naming the block, not SIGBUS (fault hunt, session 28).
     let file = match TreeFile::open_with(&a.file, atlastree::store::LoadMode::Tables) {

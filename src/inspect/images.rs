@@ -1,5 +1,5 @@
 //! Pictures of a paging file for people: a node's atlas, the leaves' map, two images side by side
-//! (`inspect --dump`, the demo and the README's pictures).
+//! (the demo and the README's pictures).
 
 use crate::ids::NONE;
 use crate::store::{StoreError, TreeFile};

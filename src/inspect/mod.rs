@@ -205,11 +205,13 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
             block_bytes += b.length;
             if b.kind == crate::store::format::BLOCK_ATLAS {
                 atlas_blocks += 1;
-                atlas_sse += b.sse;
+                // Saturating: a block's recorded error is read from the file (a forged one wrapped the
+                // sum to a small one and printed "lossless"; fault hunt, session 38).
+                atlas_sse = atlas_sse.saturating_add(b.sse);
                 atlas_min = atlas_min.min(psnr(b.sse, per_atlas));
             } else {
                 original_blocks += 1;
-                originals_sse += b.sse;
+                originals_sse = originals_sse.saturating_add(b.sse);
             }
         }
         // Per stored original (block, slot): its stored sides and how many leaves reference it (a leaf

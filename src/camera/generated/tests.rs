@@ -336,3 +336,49 @@ fn the_street_path_moves_over_a_scene_of_one_large_quad() {
     );
     check_above_ground(&street, &g, g.highest() + 10.0, "street");
 }
+
+/// A track whose bounds reach far beyond it (zengarden's skybox: a 100 m track in a 10 km box): every
+/// keyframe snapped to the one content cell and the eye stood on one spot for the whole path; it flies
+/// along the content's own extent instead (fault hunt, session 38).
+#[test]
+fn the_street_path_moves_over_a_small_track_in_wide_bounds() {
+    let mut tris = Vec::new();
+    for ix in 0..20 {
+        for iz in 0..20 {
+            // Off the footprint's diagonal, so no keyframe of it falls on the track.
+            let (x, z) = (2000.0 + f64::from(ix) * 5.0, -3000.0 + f64::from(iz) * 5.0);
+            let p = |dx: f64, dz: f64| DVec3::new(x + dx, 0.0, z + dz);
+            tris.push([p(0.0, 0.0), p(5.0, 5.0), p(5.0, 0.0)]);
+            tris.push([p(0.0, 0.0), p(0.0, 5.0), p(5.0, 5.0)]);
+        }
+    }
+    // Two far specks (a sky dome's corners) stretch the bounds to 10 km.
+    for c in [-5000.0, 5000.0] {
+        tris.push([
+            DVec3::new(c, 100.0, c),
+            DVec3::new(c + 1.0, 100.0, c),
+            DVec3::new(c, 101.0, c),
+        ]);
+    }
+    let (lo, hi) = test_scenes::bounds(&tris);
+    let g = Ground::from_triangles(lo, hi, UpAxis::Y, tris).unwrap_or_else(|e| panic!("{e}"));
+    let street = CameraPath::street_on(&g).unwrap_or_else(|e| panic!("{e}"));
+    let eyes: Vec<DVec3> = samples(&street).iter().map(|c| c.eye).collect();
+    let travelled: f64 = eyes
+        .windows(2)
+        .map(|w| (w[1] - w[0]).with_y(0.0).length())
+        .sum();
+    // About 15 m/s, as documented: it crept between a few cell centres over the 10 km diagonal's time
+    // (~0.5 m/s), standing still for tens of seconds.
+    let speed = travelled / street.duration();
+    assert!(
+        travelled > 50.0 && speed > 5.0,
+        "the eye travelled {travelled} m at {speed} m/s"
+    );
+    for e in &eyes {
+        assert!(
+            (1700.0..=2400.0).contains(&e.x) && (-3300.0..=-2600.0).contains(&e.z),
+            "{e}"
+        );
+    }
+}

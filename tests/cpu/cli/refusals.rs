@@ -437,3 +437,19 @@ fn a_failing_stdout_is_an_error_and_a_closed_one_quiet() {
     assert_eq!(o.status.code(), Some(141), "{e}");
     assert!(e.is_empty(), "{e}");
 }
+
+/// `inspect --reference` given a URL is refused as the file is, before anything is opened (it was "No
+/// such file or directory"; fault hunt, session 38).
+#[test]
+fn an_inspect_reference_url_is_refused_as_a_url() {
+    refused(
+        &[
+            "inspect",
+            "nope.atlastree",
+            "--verify",
+            "--reference",
+            "http://127.0.0.1:9/ref.atlastree",
+        ],
+        &["reads a local paging file, not a URL", "127.0.0.1:9"],
+    );
+}
