@@ -574,6 +574,17 @@ fn verify_psnr(file: &TreeFile, reference: Option<&TreeFile>, r: &mut VerifyRepo
                 }
                 continue;
             }
+            // At most 255² a sample: a record past it (forged, checksums recomputed) printed a negative
+            // PSNR and verified (fault hunt, session 38).
+            let most = samples.saturating_mul(255 * 255);
+            if b.sse > most {
+                r.fail(format!(
+                    "tree {ti} node {ni}: atlas block {} records error {} over {samples} samples, more \
+                     than 255² each ({most}), which 8-bit values cannot differ by",
+                    n.atlas_block, b.sse
+                ));
+                continue;
+            }
             let measured = reference.zip(reference_tree).map(|(rf, rt)| {
                 let rn = rt
                     .nodes

@@ -733,3 +733,39 @@ fn a_reference_of_another_scene_is_named_by_its_geometry() {
     );
     assert_eq!(atlastree::inspect::reference_mismatch(&a, &a), None);
 }
+
+/// A compressed atlas block whose record claims more error than 8-bit values can have (255² a sample;
+/// forged, the checksums recomputed) is a verify violation naming the block: it verified and printed a
+/// negative PSNR (fault hunt, session 38). The unedited file verifies.
+#[test]
+fn an_impossible_recorded_error_is_a_violation() {
+    use atlastree::preprocess::{BuildOptions, DMin, NoProgress, build};
+    let scene_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/city/scene.gltf");
+    let scene = atlastree::scene::import(&scene_path, &Default::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bc1.atlastree");
+    let opts = BuildOptions {
+        d_min: DMin::Ratio(4.0),
+        atlas_size: 256,
+        compress: atlastree::texfmt::Compression::Bc1,
+        ..BuildOptions::default()
+    };
+    build(&scene, &opts, &out, &NoProgress).unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    let file = TreeFile::from_bytes(&bytes).unwrap();
+    assert!(atlastree::inspect::verify(&file).ok());
+    let block = file.tree(0).unwrap().nodes[0].atlas_block as usize;
+    drop(file);
+    let mut edited = bytes.clone();
+    // `sse` is the fourth u64 of a block record.
+    let at = record_at(&edited, Section::Blocks, block) + 24;
+    edited[at..at + 8].copy_from_slice(&(1u64 << 62).to_le_bytes());
+    reseal(&mut edited);
+    let file = TreeFile::from_bytes(&edited).unwrap();
+    let v = atlastree::inspect::verify(&file);
+    let said = v.violations.join("; ");
+    assert!(
+        !v.ok() && said.contains(&format!("atlas block {block} records error {}", 1u64 << 62)),
+        "{said}"
+    );
+}
