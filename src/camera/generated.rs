@@ -27,7 +27,7 @@ use glam::{DVec2, DVec3};
 /// Eye height above the ground at the street keyframes, metres.
 const EYE_HEIGHT: f64 = 1.7;
 /// The least share of its diagonal the street path travels over content; below it the path follows the
-/// diagonal ([`CameraPath::street_on`]).
+/// footprint's diagonal or the content's own ([`CameraPath::street_on`]).
 const STREET_MIN_TRAVEL: f64 = 0.25;
 
 /// The directions tried from the dive's building to its street point, in order (the first, towards
@@ -180,23 +180,22 @@ impl CameraPath {
                 })
                 .collect();
             // Where the content is a cell or two, the keyframes all snapped there and the eye stood still
-            // for the whole path (fault hunt, session 38): a 1 km road of one quad (content is counted by
-            // triangle centroids) moved 0 m in 60 s, and a track whose bounds reach far beyond it
-            // (zengarden's skybox, scotland's, cornfield's) kept its eye on one spot. Then the flight goes
-            // along the footprint's diagonal where the scene's ground covers the whole footprint, else
-            // along the diagonal of the content's own extent.
+            // or crept (fault hunt, session 38): a 1 km road of one quad (content is counted by triangle
+            // centroids) moved 0 m in 60 s, and zengarden's track, far inside its skybox's bounds, was
+            // crossed at ~0.2 m/s. Then the flight goes along the footprint's diagonal where the scene's
+            // ground covers the whole footprint, else along the diagonal of the content's own extent.
             let travelled: f64 = snapped.windows(2).map(|w| (w[1] - w[0]).length()).sum();
             let [nx, ny] = ground.cells();
             let covered = ground.measured_cells() == nx * ny;
-            let content = ground.content_bounds();
-            let (a, b, eyes) = match content {
-                _ if travelled >= STREET_MIN_TRAVEL * length => (a, b, snapped),
-                _ if covered => (a, b, along(a, b)),
-                Some((lo, hi)) => {
-                    let (a, b) = (lo.lerp(hi, 0.05), lo.lerp(hi, 0.95));
-                    (a, b, along(a, b))
-                }
-                None => (a, b, snapped),
+            let (a, b, eyes) = if travelled >= STREET_MIN_TRAVEL * length {
+                (a, b, snapped)
+            } else if covered {
+                (a, b, along(a, b))
+            } else if let Some((lo, hi)) = ground.content_bounds() {
+                let (a, b) = (lo.lerp(hi, 0.05), lo.lerp(hi, 0.95));
+                (a, b, along(a, b))
+            } else {
+                (a, b, snapped)
             };
             let diagonal = |i: usize| a.lerp(b, fraction(i));
             let duration = ((b - a).length() / 15.0).max(10.0);

@@ -399,8 +399,8 @@ impl Ground {
     pub fn content_bounds(&self) -> Option<(DVec2, DVec2)> {
         let nx = self.grid.nx.max(1);
         let cells = (self.content.iter().enumerate()).filter(|(_, c)| **c);
+        let half = self.grid.cell * 0.5;
         cells.fold(None, |acc, (i, _)| {
-            let half = self.grid.cell * 0.5;
             let c = self.grid.centre(i % nx, i / nx);
             let (lo, hi) = (c - half, c + half);
             Some(acc.map_or((lo, hi), |(a, b): (DVec2, DVec2)| (a.min(lo), b.max(hi))))
