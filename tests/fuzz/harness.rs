@@ -77,6 +77,24 @@ pub fn input(seed: u64, index: u64) -> Vec<u8> {
     out
 }
 
+/// Every target's name, as it calls [`run`] and names its corpus folder: a target renamed without its
+/// folder (or a folder renamed) would silently drop the folder's regression inputs, so both are checked
+/// against this list.
+pub const TARGETS: [&str; 7] = [
+    "camera_path",
+    "gltf",
+    "http",
+    "paging_file",
+    "plan_file",
+    "shard_file",
+    "sweep_grid",
+];
+
+/// The folder that holds every target's corpus folder.
+pub fn corpus_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz/corpus")
+}
+
 fn corpus_dir(target: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/fuzz/corpus")
@@ -148,6 +166,10 @@ pub fn run(
     default_cases: u64,
     mutator: impl Fn(&[u8]) -> Verdict + Send + Sync + 'static,
 ) -> Counts {
+    assert!(
+        TARGETS.contains(&target),
+        "fuzz target {target} is not in harness::TARGETS"
+    );
     let mutator: Mutator = Arc::new(mutator);
     let seed = seed();
     let n = cases(default_cases);

@@ -33,3 +33,23 @@ mod shard_file;
 mod sweep_grid;
 #[path = "../fixtures/tiny_store.rs"]
 mod tiny_store;
+
+/// Every folder under `tests/fuzz/corpus/` is named after a target ([`harness::TARGETS`]) and holds at
+/// least one input, so every committed regression input is replayed.
+#[test]
+fn every_corpus_folder_belongs_to_a_target() {
+    let mut folders = Vec::new();
+    for entry in std::fs::read_dir(harness::corpus_root()).unwrap() {
+        let entry = entry.unwrap();
+        let name = entry.file_name().to_string_lossy().into_owned();
+        assert!(
+            harness::TARGETS.contains(&name.as_str()),
+            "tests/fuzz/corpus/{name} is no target's corpus (targets: {:?})",
+            harness::TARGETS
+        );
+        let inputs = std::fs::read_dir(entry.path()).unwrap().count();
+        assert!(inputs > 0, "tests/fuzz/corpus/{name} is empty");
+        folders.push(name);
+    }
+    assert!(folders.len() >= 5, "corpus folders: {folders:?}");
+}

@@ -108,12 +108,22 @@ fn sizing_takes_the_guarded_path_and_stays_bounded() {
         let e = texels_per_uv(pos, uv, f);
         assert_eq!(e.method, method, "{name}: {e:?}");
         assert!(e.w.is_finite() && e.h.is_finite(), "{name}: {e:?}");
-        // Never more texels per repetition than the longest world edge over the shortest non-zero UV
-        // edge, times f (the edge estimate's bound).
+        // Never more texels per repetition than the longest world edge over the shortest non-zero
+        // step of U or V along an edge, times f (the edge estimate's bound), and none where every UV is
+        // equal (no repetition to size).
         let longest = (0..3)
             .map(|i| (pos[(i + 1) % 3] - pos[i]).length())
             .fold(0.0, f64::max);
-        assert!(e.w.max(e.h) <= 2.0 * longest * f / 1e-6, "{name}: {e:?}");
+        let steps = (0..3).flat_map(|i| {
+            let d = uv[(i + 1) % 3] - uv[i];
+            [d.x.abs(), d.y.abs()]
+        });
+        let shortest = steps.filter(|&d| d > 0.0).fold(f64::INFINITY, f64::min);
+        let bound = longest * f / shortest;
+        assert!(
+            e.w.max(e.h) <= bound * (1.0 + 1e-9),
+            "{name}: {e:?} above {bound}"
+        );
         rows.push((name, e, naive_size(pos, uv, f)));
     }
     let (_, ours, naive) = rows[1];
