@@ -326,7 +326,10 @@ fn over_budget(
     given: bool,
     plan_step: bool,
 ) -> anyhow::Error {
-    use atlastree::preprocess::memory::{BASE_BYTES, JSON_BYTES_FACTOR, PLAN_BYTES_PER_TRIANGLE};
+    use atlastree::preprocess::memory::{
+        BASE_BYTES, JSON_BYTES_FACTOR, PLAN_BYTES_PER_EXTRA_VERTEX, PLAN_BYTES_PER_TRIANGLE,
+        PlanLoad,
+    };
     use atlastree::scene::SceneError;
     let scene = scene_error(&e);
     let source = if given {
@@ -359,6 +362,7 @@ fn over_budget(
     let (
         Some(&SceneError::OverTriangleBudget {
             triangles,
+            vertices,
             json_bytes,
             ..
         }),
@@ -367,10 +371,24 @@ fn over_budget(
     else {
         return e;
     };
-    // The triangles, and the JSON parsed beside them while they are read.
+    // The triangles and the vertices beyond one a triangle, as the plan's own check counts them (it said
+    // 723 MiB where this said 303 for a soup of 10⁶ triangles; fault hunt, session 39), and the JSON
+    // parsed beside them while they are read.
+    let extra_vertices = vertices.saturating_sub(triangles);
+    let load = PlanLoad {
+        extra_vertices,
+        ..PlanLoad::triangles(triangles)
+    };
     let plan = BASE_BYTES
-        .saturating_add(triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE))
+        .saturating_add(load.bytes())
         .saturating_add(json_bytes.saturating_mul(JSON_BYTES_FACTOR));
+    let vertices = if extra_vertices > 0 {
+        format!(
+            ", ~{PLAN_BYTES_PER_EXTRA_VERTEX} bytes a vertex beyond one a triangle ({extra_vertices})"
+        )
+    } else {
+        String::new()
+    };
     let pixels = if plan_step {
         ""
     } else {
@@ -386,7 +404,7 @@ fn over_budget(
     };
     e.context(format!(
         "the budget is too small: {triangles} triangles need at least {} MiB for the plan alone \
-         ({} MiB of process base and ~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle, all held at once{json}){pixels}, \
+         ({} MiB of process base and ~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle{vertices}, all held at once{json}){pixels}, \
          over {source} of {} MiB: give a larger --max-memory",
         plan.div_ceil(1 << 20),
         BASE_BYTES >> 20,
@@ -632,15 +650,17 @@ mod tests {
             anyhow::Error::new(atlastree::scene::SceneError::OverTriangleBudget {
                 file: "s.gltf".into(),
                 triangles: 1_000_000,
+                vertices: 3_000_000,
                 instances: 3,
                 max: 0,
                 json_bytes: 0,
             })
         };
-        // 64 MiB + 10⁶ × 250 bytes = 302.4 MiB.
+        // 64 MiB + 10⁶ × 250 bytes + 2·10⁶ × 220 bytes = 722.0 MiB (a soup: three vertices a triangle).
         let msg = format!("{:#}", over_budget(refused(), Some(32 << 20), true, false));
         assert!(
-            msg.contains("at least 303 MiB for the plan alone")
+            msg.contains("at least 723 MiB for the plan alone")
+                && msg.contains("a vertex beyond one a triangle (2000000)")
                 && msg.contains("--max-memory of 32 MiB"),
             "{msg}"
         );

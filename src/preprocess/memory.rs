@@ -94,7 +94,7 @@ impl PlanLoad {
     }
 
     /// What the import and plan hold beyond [`BASE_BYTES`].
-    fn bytes(self) -> u64 {
+    pub fn bytes(self) -> u64 {
         (self.triangles.saturating_mul(PLAN_BYTES_PER_TRIANGLE))
             .saturating_add(self.extra_pieces.saturating_mul(BAKED_PIECE_BYTES))
             .saturating_add(
@@ -305,7 +305,7 @@ fn cache_why(largest_image: &str, images: ImageLoad, threads: u64) -> String {
         "threads resample and encode"
     };
     format!(
-        "{shares}; and {} MiB for the originals the {threads} {threads_do}",
+        "{shares}, including {} MiB for the originals the {threads} {threads_do}",
         originals_scratch_bytes.div_ceil(1 << 20)
     )
 }

@@ -303,7 +303,7 @@ pub(super) fn check_file_size(
     if predicted > limit {
         let (nodes, depth, blocks) = forest_shape(forest);
         let advice = match fix {
-            FileSizeFix::Flags => too_large_advice(opts, depth),
+            FileSizeFix::Flags => too_large_advice(opts, depth, BlockBytes::of(forest)),
             FileSizeFix::LimitOnly => format!(
                 "raise --max-file-gib to at least {:.2} where the disk holds it (the plan fixes the file's \
                  size), or plan again with flags that make a smaller file",
@@ -322,11 +322,40 @@ pub(super) fn check_file_size(
     Ok(())
 }
 
+/// The bytes of a forest's atlas blocks and of its original-texture blocks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct BlockBytes {
+    atlases: u64,
+    originals: u64,
+}
+
+impl BlockBytes {
+    fn of(forest: &AtlasForest) -> BlockBytes {
+        let mut out = BlockBytes::default();
+        for b in &forest.blocks {
+            match b.kind {
+                crate::model::BlockKind::Atlas { .. } => out.atlases += b.bytes,
+                _ => out.originals += b.bytes,
+            }
+        }
+        out
+    }
+}
+
 /// What would shrink a file over `--max-file-gib`, of what applies to these options (the same fixed text
-/// said "keep the source cap" to a build that kept it, and "raise --d-min" to a one-node tree).
-fn too_large_advice(opts: &BuildOptions, depth: u8) -> String {
+/// said "keep the source cap" to a build that kept it, and "raise --d-min" to a one-node tree), with the
+/// atlases' and the original textures' shares: the originals are stored at their own resolution, so
+/// `--d-min` and `--atlas-size` do not shrink them, and a smaller atlas shrinks only a one-node tree's
+/// atlas (deeper trees store the same texels in more, smaller atlases: a city of 8 GB stayed 8 GB at
+/// 512 and 256 and grew at 128; fault hunt, session 39).
+fn too_large_advice(opts: &BuildOptions, depth: u8, bytes: BlockBytes) -> String {
+    let total = bytes.atlases + bytes.originals;
     let mut ways = vec!["raise --max-file-gib where the disk holds it".to_string()];
-    if depth > 0 {
+    if opts.compress == crate::texfmt::Compression::None {
+        ways.push("--compress bc1 or bc7 (4 to 8 times smaller)".into());
+    }
+    // Only where the atlases are a fair share of the file: the rest is original textures.
+    if depth > 0 && bytes.atlases.saturating_mul(3) >= total {
         ways.push("raise --d-min (or lower --d-min-ratio)".into());
     }
     if opts.texel_ratio > 1.0 {
@@ -335,16 +364,20 @@ fn too_large_advice(opts: &BuildOptions, depth: u8) -> String {
     if !opts.cap_to_source {
         ways.push("keep the source cap (drop --no-source-cap)".into());
     }
-    if opts.compress == crate::texfmt::Compression::None {
-        ways.push("--compress bc1 or bc7 (4 to 8 times smaller)".into());
-    }
     if opts.repeat == super::RepeatMode::Bake {
         ways.push("--repeat wrap (one period per rect)".into());
     }
-    if opts.atlas_size > 256 {
-        ways.push("a smaller --atlas-size".into());
+    if depth == 0 && opts.atlas_size > 256 && bytes.atlases > bytes.originals {
+        ways.push("a smaller --atlas-size (the tree is one node)".into());
     }
-    ways.join(", ")
+    ways.push("fewer materials (--materials)".into());
+    format!(
+        "{}; the atlases take {}, the original textures {} (stored at their own resolution for close \
+         views: --d-min and --atlas-size do not shrink them)",
+        ways.join(", "),
+        crate::util::human_bytes(bytes.atlases),
+        crate::util::human_bytes(bytes.originals)
+    )
 }
 
 /// How much coarser than their sources capped rects are drawn ([`super::CappedShortfall`]; docs/DESIGN.md
@@ -395,4 +428,47 @@ fn capped_shortfall(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{BlockBytes, BuildOptions, too_large_advice};
+
+    const MIB: u64 = 1 << 20;
+
+    #[test]
+    fn the_advice_offers_only_what_shrinks_the_file() {
+        let opts = BuildOptions::default();
+        // Originals dominate: neither --d-min nor --atlas-size shrinks them (fault hunt, session 39).
+        let originals = BlockBytes {
+            atlases: 5 * MIB,
+            originals: 85 * MIB,
+        };
+        for depth in [0, 3] {
+            let a = too_large_advice(&opts, depth, originals);
+            assert!(
+                !a.contains("--atlas-size (") && !a.contains("raise --d-min"),
+                "{a}"
+            );
+            assert!(
+                a.contains("--compress bc1") && a.contains("85.00 MiB"),
+                "{a}"
+            );
+        }
+        // Atlases dominate: a deeper tree shrinks with --d-min, a one-node tree with a smaller atlas.
+        let atlases = BlockBytes {
+            atlases: 85 * MIB,
+            originals: 5 * MIB,
+        };
+        let deep = too_large_advice(&opts, 3, atlases);
+        assert!(
+            deep.contains("raise --d-min") && !deep.contains("a smaller --atlas-size"),
+            "{deep}"
+        );
+        let root = too_large_advice(&opts, 0, atlases);
+        assert!(
+            root.contains("a smaller --atlas-size") && !root.contains("raise --d-min"),
+            "{root}"
+        );
+    }
 }

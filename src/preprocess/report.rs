@@ -120,6 +120,7 @@ pub(super) fn build_report(
     for w in resized_warnings(cache) {
         warnings.push(w);
     }
+    warnings.extend(cache.redecode_warning());
     let atlas_texels = crate::texfmt::TexFormat::Rgba8.chain_bytes(forest.params.atlas_size) / 4;
     let texels_stored = trees
         .iter()

@@ -212,6 +212,7 @@ pub(super) fn rasterise_shard(
             let mut w = plan_warnings;
             w.extend(cache.warnings.lock().map(|w| w.clone()).unwrap_or_default());
             w.extend(super::resized_warnings(&cache));
+            w.extend(cache.redecode_warning());
             w
         },
         memory: memory_plan,

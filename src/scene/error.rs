@@ -109,6 +109,8 @@ pub enum SceneError {
     OverTriangleBudget {
         file: String,
         triangles: u64,
+        /// The vertices those triangles use (at most three a triangle; an instanced mesh's per instance).
+        vertices: u64,
         instances: u64,
         max: u64,
         /// The glTF JSON's length, bytes: parsing it takes its share of the budget too.

@@ -109,8 +109,9 @@ impl<'a> Walk<'a, '_> {
         let mut instances = Vec::new();
         let mut visits: u64 = 0;
         // Triangles of the instances met so far, against the caller's budget.
-        let mut per_mesh: std::collections::HashMap<usize, u64> = Default::default();
-        let mut triangles: u64 = 0;
+        // Per mesh: its triangles and the vertices they use (`mesh_counts`).
+        let mut per_mesh: std::collections::HashMap<usize, (u64, u64)> = Default::default();
+        let (mut triangles, mut vertices): (u64, u64) = (0, 0);
         // Every instance met, kept or (past the budget) only counted: the cap bounds the walk's work.
         let mut met: usize = 0;
         while let Some(step) = stack.pop() {
@@ -170,10 +171,11 @@ impl<'a> Walk<'a, '_> {
                     });
                 }
                 if self.max_triangles.is_some() {
-                    let per = *per_mesh
+                    let (per, per_vertices) = *per_mesh
                         .entry(mesh.index())
-                        .or_insert_with(|| super::mesh::mesh_counts(&mesh).0);
+                        .or_insert_with(|| super::mesh::mesh_counts(&mesh));
                     triangles = triangles.saturating_add(per.saturating_mul(adding as u64));
+                    vertices = vertices.saturating_add(per_vertices.saturating_mul(adding as u64));
                 }
                 // Past the budget the walk only counts (no instance kept), so the error can say
                 // how much the whole scene needs.
@@ -200,6 +202,7 @@ impl<'a> Walk<'a, '_> {
             return Err(SceneError::OverTriangleBudget {
                 file: self.file.to_string(),
                 triangles,
+                vertices,
                 instances: met as u64,
                 max,
                 json_bytes: self.json_bytes,

@@ -527,9 +527,16 @@ fn a_scene_past_the_triangle_budget_is_refused_in_the_node_walk() {
     for max in [n - 1, 0] {
         match within(max) {
             Err(SceneError::OverTriangleBudget {
-                triangles, max: m, ..
+                triangles,
+                vertices,
+                max: m,
+                ..
             }) => {
                 assert_eq!((triangles, m), (n, max), "{msg}");
+                // The vertices the import keeps: what the plan's own check counts beyond one a
+                // triangle, so the walk's refusal names the same need.
+                let scene = within(n).unwrap();
+                assert_eq!(vertices, scene.vertices.len() as u64, "{msg}");
             }
             Err(e) => panic!("{e}"),
             Ok(_) => panic!("over the budget imported"),
