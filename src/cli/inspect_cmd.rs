@@ -225,14 +225,15 @@ pub(super) fn print_inspect(r: &InspectReport) {
                 human_bytes(bytes(rp.original_texels_per_leaf as f64)),
             );
         }
-        println!("    level  nodes  leaves  triangles-in-leaves  min_distance (m)");
+        println!("    level  nodes  leaves  triangles-in-leaves  pieces-in-leaves  min_distance (m)");
         for l in &t.levels {
             println!(
-                "    {:>5}  {:>5}  {:>6}  {:>19}  {} .. {}",
+                "    {:>5}  {:>5}  {:>6}  {:>19}  {:>16}  {} .. {}",
                 l.level,
                 l.nodes,
                 l.leaves,
                 l.triangles_in_leaves,
+                l.pieces_in_leaves,
                 atlastree::util::fraction_text(l.min_distance_min),
                 atlastree::util::fraction_text(l.min_distance_max)
             );

@@ -260,6 +260,28 @@ fn every_triangle_is_covered_exactly_once_even_when_split() {
         (report.trees[0].triangles, report.trees[0].pieces)
     );
     let t = file.tree(0).unwrap();
+    // Per level: the pieces its leaves store, and the distinct scene triangles they come from, counted
+    // here from the leaves' own records.
+    let mut per_level: Vec<(u64, std::collections::BTreeSet<u32>)> =
+        vec![Default::default(); info.levels.len()];
+    for leaf in t.leaves {
+        let level = t.nodes[leaf.node as usize].level as usize;
+        let first = leaf.first_index as usize / 3;
+        let pieces = &t.source_triangles[first..first + leaf.index_count as usize / 3];
+        per_level[level].0 += pieces.len() as u64;
+        per_level[level].1.extend(pieces);
+    }
+    for (l, (pieces, sources)) in info.levels.iter().zip(&per_level) {
+        assert_eq!(
+            (l.pieces_in_leaves, l.triangles_in_leaves),
+            (*pieces, sources.len() as u64),
+            "level {}",
+            l.level
+        );
+    }
+    let stored: u64 = info.levels.iter().map(|l| l.pieces_in_leaves).sum();
+    assert_eq!(stored, info.pieces);
+    assert!(info.levels.iter().any(|l| l.pieces_in_leaves > l.triangles_in_leaves));
     let mut covered = vec![0.0f64; scene.triangles.len()];
     for leaf in t.leaves {
         let o = DVec3::from_array(leaf.origin);
