@@ -166,6 +166,18 @@ pub(super) fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         let threads = rayon::current_num_threads() as u64;
         atlastree::preprocess::memory::check_pixel_floor(budget, a.atlas_size, threads)?;
     }
+    // A claim on this shard's output from the start (a temp of it, locked, removed when the run ends):
+    // the shard's own temp comes only when its pixels are written, so a merge started meanwhile (a wrong
+    // `afterok`) called the shard missing and offered the command that runs it twice (fault hunt,
+    // session 39); it now says the shard is being written. Where it cannot be made, the shard's writer
+    // reports why.
+    let _claim = match step {
+        ShardStep::Shard(spec) => {
+            let shard = atlastree::preprocess::shard::shard_path(&a.out, spec);
+            atlastree::util::AtomicFile::create(&shard, 0o644).ok()
+        }
+        _ => None,
+    };
     let bars = Bars::new(a.quiet || a.json);
     if let ShardStep::Shard(spec) = step {
         let plan = plan_path(&a.out);

@@ -225,7 +225,9 @@ pub(super) fn print_inspect(r: &InspectReport) {
                 human_bytes(bytes(rp.original_texels_per_leaf as f64)),
             );
         }
-        println!("    level  nodes  leaves  triangles-in-leaves  pieces-in-leaves  min_distance (m)");
+        println!(
+            "    level  nodes  leaves  triangles-in-leaves  pieces-in-leaves  min_distance (m)"
+        );
         for l in &t.levels {
             println!(
                 "    {:>5}  {:>5}  {:>6}  {:>19}  {:>16}  {} .. {}",

@@ -293,6 +293,8 @@ pub fn export_3dtiles(
     }
     let parent = crate::util::parent_dir(out);
     replace::remove_stale_partials(parent, &name);
+    // Held until the export is in place or removed: its partial folder is then nobody's to take.
+    let lock = replace::ExportLock::take(parent, &name);
     // The folders above OUT that this export creates, deepest first: removed again if it fails.
     let created: Vec<PathBuf> = parent
         .ancestors()
@@ -325,6 +327,7 @@ pub fn export_3dtiles(
         }
     }
     drop(live);
+    drop(lock);
     result
 }
 

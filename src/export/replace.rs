@@ -66,9 +66,49 @@ pub(super) fn replace_dir(
     Ok(())
 }
 
+/// The lock an export holds for its life in `.NAME.lock-PID` beside its `.NAME.partial-PID` folder: an
+/// export on another machine of a shared filesystem sees no process `PID` in its own `/proc`, and took the
+/// folder of one still running for a stale one and deleted it (the running one then failed on a tile
+/// file that had vanished; fault hunt, session 39). A file, not the folder, is locked: NFS locks only
+/// files open for writing. Removed when the export ends (and, interrupted, by the signal handler); one a
+/// killed export left is removed by the next export once its lock is free.
+pub(super) struct ExportLock {
+    path: std::path::PathBuf,
+    _file: std::fs::File,
+    _live: crate::util::LiveTempFile,
+}
+
+impl ExportLock {
+    /// Takes this process's lock for exports named `name` in `parent`; `None` where it cannot be made
+    /// or taken (a read-only parent: the export fails on its folder with a clear error anyway).
+    pub(super) fn take(parent: &Path, name: &str) -> Option<ExportLock> {
+        let path = lock_path(parent, name, std::process::id());
+        let live = crate::util::LiveTempFile::register(&path);
+        let file = std::fs::File::create(&path).ok()?;
+        file.try_lock().ok()?;
+        Some(ExportLock {
+            path,
+            _file: file,
+            _live: live,
+        })
+    }
+}
+
+impl Drop for ExportLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Where the export of process `pid` holds its [`ExportLock`].
+fn lock_path(parent: &Path, name: &str, pid: u32) -> std::path::PathBuf {
+    parent.join(format!(".{name}.lock-{pid}"))
+}
+
 /// Removes `.NAME.partial-PID` and `.NAME.old-PID` folders in `parent` whose process is gone (an export
-/// killed by SIGKILL leaves one; Ctrl-C and SIGTERM remove their own). Linux only (`/proc`); elsewhere
-/// nothing is removed.
+/// killed by SIGKILL leaves one; Ctrl-C and SIGTERM remove their own) and whose [`ExportLock`] nobody
+/// holds (an export on another machine sharing the folder holds its own), and such locks left alone.
+/// Linux only (`/proc`); elsewhere nothing is removed.
 pub(super) fn remove_stale_partials(parent: &Path, name: &str) {
     if !Path::new("/proc/self").exists() {
         return;
@@ -79,16 +119,22 @@ pub(super) fn remove_stale_partials(parent: &Path, name: &str) {
     for entry in entries.flatten() {
         let file_name = entry.file_name();
         let file_name = file_name.to_string_lossy();
-        let pid = [".partial-", ".old-"].iter().find_map(|tag| {
+        let pid = [".partial-", ".old-", ".lock-"].iter().find_map(|tag| {
             file_name
                 .strip_prefix(&format!(".{name}{tag}"))
                 .and_then(|pid| pid.parse::<u32>().ok())
         });
-        if let Some(pid) = pid
-            && pid != std::process::id()
+        let Some(pid) = pid else { continue };
+        let lock = lock_path(parent, name, pid);
+        if pid != std::process::id()
             && !Path::new(&format!("/proc/{pid}")).exists()
+            && (!lock.exists() || crate::util::lock_is_free(&lock))
         {
-            let _ = std::fs::remove_dir_all(entry.path());
+            if entry.path() == lock {
+                let _ = std::fs::remove_file(&lock);
+            } else {
+                let _ = std::fs::remove_dir_all(entry.path());
+            }
         }
     }
 }

@@ -191,3 +191,39 @@ fn a_failing_export_names_out_and_leaves_nothing_under_os_limits() {
         "no open-files limit from 5 to 8 failed the export"
     );
 }
+
+/// A partial export of a process this machine does not run (another node on a shared filesystem) is
+/// kept while its lock beside it is held, and removed, with the lock file, once nobody holds it; an export
+/// leaves no lock file of its own (fault hunt, session 39: the second node's export deleted the first's
+/// live partial folder).
+#[test]
+fn a_partial_export_another_machine_holds_is_kept() {
+    let file = TreeFile::open(&city().1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    // A pid no Linux machine gives out (above the largest pid_max, 2²²).
+    let pid = 4_194_305u32;
+    let partial = dir.path().join(format!(".tiles.partial-{pid}"));
+    std::fs::create_dir(&partial).unwrap();
+    std::fs::write(partial.join("tileset.json"), b"{}").unwrap();
+    let lock_path = dir.path().join(format!(".tiles.lock-{pid}"));
+    let lock = std::fs::File::create(&lock_path).unwrap();
+    lock.try_lock().unwrap();
+    let out = dir.path().join("tiles");
+    export_3dtiles(&file, &out, &ExportOptions::default(), NO_PROGRESS).unwrap();
+    assert!(
+        partial.join("tileset.json").is_file(),
+        "a held partial was removed"
+    );
+    drop(lock);
+    export_3dtiles(&file, &out, &forced(), NO_PROGRESS).unwrap();
+    let mut left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(
+        left,
+        ["tiles"],
+        "the stale partial and lock, and no lock of this export"
+    );
+}

@@ -281,7 +281,11 @@ fn every_triangle_is_covered_exactly_once_even_when_split() {
     }
     let stored: u64 = info.levels.iter().map(|l| l.pieces_in_leaves).sum();
     assert_eq!(stored, info.pieces);
-    assert!(info.levels.iter().any(|l| l.pieces_in_leaves > l.triangles_in_leaves));
+    assert!(
+        info.levels
+            .iter()
+            .any(|l| l.pieces_in_leaves > l.triangles_in_leaves)
+    );
     let mut covered = vec![0.0f64; scene.triangles.len()];
     for leaf in t.leaves {
         let o = DVec3::from_array(leaf.origin);
