@@ -654,6 +654,18 @@ mod tests {
         );
     }
 
+    /// PSNR text: the cap is lossless, a negative one (only a forged recorded error gives one) says it is
+    /// impossible.
+    #[test]
+    fn psnr_text_names_lossless_and_impossible_values() {
+        use super::super::build_report::fmt_psnr;
+        assert_eq!(fmt_psnr(atlastree::texfmt::PSNR_CAP_DB), "lossless");
+        assert_eq!(fmt_psnr(30.0), "30.00 dB");
+        assert_eq!(fmt_psnr(0.0), "0.00 dB");
+        let forged = fmt_psnr(-12.5);
+        assert!(forged.starts_with("-12.50 dB (impossible") && forged.contains("--verify"));
+    }
+
     /// A scene the node walk refused for `--max-memory` says what its plan needs, from the whole
     /// scene's count, against the budget given (not one rebuilt from the triangle cap).
     #[test]

@@ -213,6 +213,13 @@ pub(super) fn print_stage_peaks(peaks: &[(String, u64)]) {
 pub(super) fn fmt_psnr(db: f64) -> String {
     if db >= atlastree::texfmt::PSNR_CAP_DB {
         "lossless".into()
+    } else if db < 0.0 {
+        // Only a recorded error read from a file can be past the largest 8-bit error (255 per channel:
+        // 0 dB); plain `inspect` printed a forged one as a PSNR without a word (fault hunt, session 38).
+        format!(
+            "{db:.2} dB (impossible: a recorded error above the largest 8-bit one; `inspect --verify` \
+             names the block)"
+        )
     } else {
         format!("{db:.2} dB")
     }
