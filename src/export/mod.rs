@@ -293,15 +293,18 @@ pub fn export_3dtiles(
     }
     let parent = crate::util::parent_dir(out);
     replace::remove_stale_partials(parent, &name);
-    // Held until the export is in place or removed: its partial folder is then nobody's to take.
-    let lock = replace::ExportLock::take(parent, &name);
+    let token = replace::export_token();
+    // Held until the export is in place or removed: its partial folder is then nobody's to take. Taken
+    // before the folders above OUT are made, so none where they are not there yet (the partial folder
+    // is then in a folder no other export has seen).
+    let lock = replace::ExportLock::take(parent, &name, &token);
     // The folders above OUT that this export creates, deepest first: removed again if it fails.
     let created: Vec<PathBuf> = parent
         .ancestors()
         .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
         .map(Path::to_path_buf)
         .collect();
-    let temp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+    let temp = parent.join(format!(".{name}.partial-{token}"));
     if temp.exists() {
         std::fs::remove_dir_all(&temp).map_err(io(&temp))?;
     }
@@ -313,7 +316,9 @@ pub fn export_3dtiles(
     let result = std::fs::create_dir_all(&temp)
         .map_err(io(out))
         .and_then(|()| write_tileset(file, &temp, opts, progress).map_err(|e| e.under(&temp, out)))
-        .and_then(|summary| replace::replace_dir(&temp, out, &name, opts.force).map(|()| summary));
+        .and_then(|summary| {
+            replace::replace_dir(&temp, out, &name, &token, opts.force).map(|()| summary)
+        });
     if result.is_err() {
         if crate::util::remove_dir_tree(&temp).is_err() && temp.exists() {
             // Out of descriptors with the paging file still open (a failed export under `ulimit -n`

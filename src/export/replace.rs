@@ -13,6 +13,7 @@ pub(super) fn replace_dir(
     temp: &Path,
     out: &Path,
     name: &str,
+    token: &str,
     force: bool,
 ) -> Result<(), ExportError> {
     if !force || !out.exists() {
@@ -45,7 +46,7 @@ pub(super) fn replace_dir(
         });
     }
     let parent = crate::util::parent_dir(out);
-    let old = parent.join(format!(".{name}.old-{}", std::process::id()));
+    let old = parent.join(format!(".{name}.old-{token}"));
     if old.exists() {
         std::fs::remove_dir_all(&old).map_err(io(&old))?;
     }
@@ -66,12 +67,25 @@ pub(super) fn replace_dir(
     Ok(())
 }
 
-/// The lock an export holds for its life in `.NAME.lock-PID` beside its `.NAME.partial-PID` folder: an
+/// What names one export's hidden siblings (`.NAME.partial-TOKEN`, `.NAME.old-TOKEN`,
+/// `.NAME.lock-TOKEN`): its pid and a random part, so exports of one pid on two machines (two pods' PID 1)
+/// never share a folder (review, session 39: the second deleted the first's live partial folder).
+pub(super) fn export_token() -> String {
+    use std::hash::BuildHasher;
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let salt = std::collections::hash_map::RandomState::new().hash_one(nanos) as u32;
+    format!("{}-{salt:08x}", std::process::id())
+}
+
+/// The lock an export holds for its life in `.NAME.lock-TOKEN` beside its `.NAME.partial-TOKEN` folder: an
 /// export on another machine of a shared filesystem sees no process `PID` in its own `/proc`, and took the
 /// folder of one still running for a stale one and deleted it (the running one then failed on a tile
 /// file that had vanished; fault hunt, session 39). A file, not the folder, is locked: NFS locks only
-/// files open for writing. Removed when the export ends (and, interrupted, by the signal handler); one a
-/// killed export left is removed by the next export once its lock is free.
+/// files open for writing. Made and locked under `.NAME.locking-TOKEN`, then renamed into place, so the
+/// lock's name never shows an unlocked file. Removed when the export ends (and, interrupted, by the
+/// signal handler); one a killed export left is removed by the next export once its lock is free.
 pub(super) struct ExportLock {
     path: std::path::PathBuf,
     _file: std::fs::File,
@@ -79,13 +93,21 @@ pub(super) struct ExportLock {
 }
 
 impl ExportLock {
-    /// Takes this process's lock for exports named `name` in `parent`; `None` where it cannot be made
-    /// or taken (a read-only parent: the export fails on its folder with a clear error anyway).
-    pub(super) fn take(parent: &Path, name: &str) -> Option<ExportLock> {
-        let path = lock_path(parent, name, std::process::id());
+    /// Takes the lock of export `token` named `name` in `parent`; `None` where it cannot be made or
+    /// taken (a read-only parent: the export fails on its folder with a clear error anyway; a
+    /// filesystem without locks), leaving no file.
+    pub(super) fn take(parent: &Path, name: &str, token: &str) -> Option<ExportLock> {
+        let path = lock_path(parent, name, token);
+        let making = parent.join(format!(".{name}.locking-{token}"));
         let live = crate::util::LiveTempFile::register(&path);
-        let file = std::fs::File::create(&path).ok()?;
-        file.try_lock().ok()?;
+        let live_making = crate::util::LiveTempFile::register(&making);
+        let file = std::fs::File::create(&making).ok()?;
+        let taken = file.try_lock().is_ok() && std::fs::rename(&making, &path).is_ok();
+        drop(live_making);
+        if !taken {
+            let _ = std::fs::remove_file(&making);
+            return None;
+        }
         Some(ExportLock {
             path,
             _file: file,
@@ -100,15 +122,16 @@ impl Drop for ExportLock {
     }
 }
 
-/// Where the export of process `pid` holds its [`ExportLock`].
-fn lock_path(parent: &Path, name: &str, pid: u32) -> std::path::PathBuf {
-    parent.join(format!(".{name}.lock-{pid}"))
+/// Where export `token` holds its [`ExportLock`].
+fn lock_path(parent: &Path, name: &str, token: &str) -> std::path::PathBuf {
+    parent.join(format!(".{name}.lock-{token}"))
 }
 
-/// Removes `.NAME.partial-PID` and `.NAME.old-PID` folders in `parent` whose process is gone (an export
-/// killed by SIGKILL leaves one; Ctrl-C and SIGTERM remove their own) and whose [`ExportLock`] nobody
-/// holds (an export on another machine sharing the folder holds its own), and such locks left alone.
-/// Linux only (`/proc`); elsewhere nothing is removed.
+/// Removes the hidden siblings of exports named `name` in `parent` that nobody is writing: a
+/// `.NAME.partial-TOKEN` or `.NAME.old-TOKEN` folder (an export killed by SIGKILL leaves one; Ctrl-C and
+/// SIGTERM remove their own), and a lock file, where the token's pid runs on no process here other than
+/// this one and its [`ExportLock`] is free or gone (an export on another machine sharing the folder holds
+/// its own; this process has made none yet). Linux only (`/proc`); elsewhere nothing is removed.
 pub(super) fn remove_stale_partials(parent: &Path, name: &str) {
     if !Path::new("/proc/self").exists() {
         return;
@@ -119,21 +142,26 @@ pub(super) fn remove_stale_partials(parent: &Path, name: &str) {
     for entry in entries.flatten() {
         let file_name = entry.file_name();
         let file_name = file_name.to_string_lossy();
-        let pid = [".partial-", ".old-", ".lock-"].iter().find_map(|tag| {
-            file_name
-                .strip_prefix(&format!(".{name}{tag}"))
-                .and_then(|pid| pid.parse::<u32>().ok())
-        });
-        let Some(pid) = pid else { continue };
-        let lock = lock_path(parent, name, pid);
-        if pid != std::process::id()
-            && !Path::new(&format!("/proc/{pid}")).exists()
-            && (!lock.exists() || crate::util::lock_is_free(&lock))
-        {
-            if entry.path() == lock {
-                let _ = std::fs::remove_file(&lock);
-            } else {
+        let tags = [".partial-", ".old-", ".lock-", ".locking-"];
+        let Some((tag, token)) = tags.iter().find_map(|tag| {
+            (file_name.strip_prefix(&format!(".{name}{tag}"))).map(|token| (*tag, token))
+        }) else {
+            continue;
+        };
+        // `PID-RANDOM`, or `PID` as before session 39.
+        let Some(pid) = token.split('-').next().and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        let lock = match tag {
+            ".locking-" => entry.path(),
+            _ => lock_path(parent, name, token),
+        };
+        let gone = pid == std::process::id() || !Path::new(&format!("/proc/{pid}")).exists();
+        if gone && (!lock.exists() || crate::util::lock_is_free(&lock)) {
+            if entry.path().is_dir() {
                 let _ = std::fs::remove_dir_all(entry.path());
+            } else {
+                let _ = std::fs::remove_file(entry.path());
             }
         }
     }

@@ -17,23 +17,23 @@ fn finishing_replaces_only_what_force_allows() {
     fresh();
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("notes.txt"), b"mine").unwrap();
-    let err = replace_dir(&temp, &out, "out", false).unwrap_err();
+    let err = replace_dir(&temp, &out, "out", "1-0", false).unwrap_err();
     assert!(matches!(err, ExportError::Exists { .. }), "{err}");
     assert_eq!(std::fs::read(out.join("notes.txt")).unwrap(), b"mine");
-    replace_dir(&temp, &out, "out", true).unwrap();
+    replace_dir(&temp, &out, "out", "1-0", true).unwrap();
     assert!(out.join("tileset.json").exists() && !out.join("notes.txt").exists());
     // An empty folder is replaced without --force.
     std::fs::remove_dir_all(&out).unwrap();
     std::fs::create_dir(&out).unwrap();
     fresh();
-    replace_dir(&temp, &out, "out", false).unwrap();
+    replace_dir(&temp, &out, "out", "1-0", false).unwrap();
     assert!(out.join("tileset.json").exists());
     // A file at OUT is refused either way and kept.
     std::fs::remove_dir_all(&out).unwrap();
     std::fs::write(&out, b"file").unwrap();
     fresh();
     for force in [false, true] {
-        let err = replace_dir(&temp, &out, "out", force).unwrap_err();
+        let err = replace_dir(&temp, &out, "out", "1-0", force).unwrap_err();
         assert!(
             matches!(err, ExportError::BadOutput { .. }),
             "{force}: {err}"

@@ -11,29 +11,14 @@ use std::collections::BTreeSet;
 
 mod atlases;
 mod images;
+mod levels;
 mod rects;
 mod repeats;
 
 pub use images::{atlas_image, leaf_map_image, side_by_side};
+pub use levels::LevelStats;
 pub use rects::wrap_border_tolerance;
 pub use repeats::RepeatCost;
-
-/// Per-level numbers of one tree.
-#[derive(Clone, Debug, Serialize)]
-pub struct LevelStats {
-    pub level: u8,
-    pub nodes: u64,
-    pub leaves: u64,
-    pub min_distance_min: f64,
-    pub min_distance_max: f64,
-    /// Distinct scene triangles with a piece stored in the level's leaves (the tree line's
-    /// `triangles`, where every triangle's pieces lie in one level).
-    pub triangles_in_leaves: u64,
-    /// Triangles stored in the level's leaves: the pieces of those triangles (more than them where
-    /// repeats are baked or large triangles cut; the column summed the pieces under the triangles'
-    /// name: fault hunt, session 38).
-    pub pieces_in_leaves: u64,
-}
 
 /// One tree of the file.
 #[derive(Clone, Debug, Serialize)]
@@ -182,40 +167,7 @@ pub fn inspect(file: &TreeFile) -> InspectReport {
     let mut trees = Vec::new();
     for ti in 0..file.trees() {
         let Some(t) = file.tree(ti) else { continue };
-        let mut levels: Vec<LevelStats> = Vec::new();
-        let mut sources: Vec<std::collections::HashSet<u32>> = Vec::new();
-        for n in t.nodes {
-            let l = n.level as usize;
-            while levels.len() <= l {
-                levels.push(LevelStats {
-                    level: levels.len() as u8,
-                    nodes: 0,
-                    leaves: 0,
-                    min_distance_min: f64::INFINITY,
-                    min_distance_max: 0.0,
-                    triangles_in_leaves: 0,
-                    pieces_in_leaves: 0,
-                });
-            }
-            let s = &mut levels[l];
-            s.nodes += 1;
-            s.min_distance_min = s.min_distance_min.min(n.min_distance);
-            s.min_distance_max = s.min_distance_max.max(n.min_distance);
-            if n.leaf != NONE {
-                s.leaves += 1;
-                s.pieces_in_leaves += u64::from(n.index_count / 3);
-                let first = n.first_index as usize / 3;
-                let pieces = first..first + n.index_count as usize / 3;
-                // Validated at open: every index range lies in the tree's indices.
-                if let Some(ids) = t.source_triangles.get(pieces) {
-                    sources.resize_with(levels.len(), Default::default);
-                    sources[l].extend(ids.iter().copied());
-                }
-            }
-        }
-        for (s, ids) in levels.iter_mut().zip(&sources) {
-            s.triangles_in_leaves = ids.len() as u64;
-        }
+        let levels = levels::level_stats(&t);
         let (mut atlas_blocks, mut original_blocks, mut block_bytes) = (0, 0, 0);
         let per_atlas = atlas_samples(t.kind, params.atlas_size);
         let (mut atlas_sse, mut originals_sse, mut atlas_min) = (0u64, 0u64, f64::INFINITY);

@@ -119,7 +119,7 @@ pub fn redecode_note(decodes: u64, images: u64, cap_bytes: u64) -> Option<String
         return None;
     }
     Some(format!(
-        "the image cache ({}) decoded {images} images {decodes} times ({:.1} each): it holds too few \
+        "the image cache ({}) decoded {images} images {decodes} times ({:.2} each): it holds too few \
          of them at once for how this scene's leaves share them; a larger --max-memory (the cache gets \
          what the plan and the pixel pass leave) or --image-cache-mib builds the same file with fewer \
          decodes",
@@ -622,10 +622,7 @@ mod tests {
         }
     }
 
-    /// Re-decodes after eviction count nothing twice: two images with transparent texels used only by
-    /// OPAQUE materials, fetched a, b, a through a cache that holds neither, decode three times and count
-    /// two images whose alpha was ignored (it counted every decode: hacienda's 3 images read 10 at a
-    /// 1 MiB cache).
+    /// [`super::redecode_note`]: quiet up to twice each or 64 decodes again, a warning past both.
     #[test]
     fn redecodes_warn_past_twice_each_and_sixty_four_more() {
         use super::{REDECODE_MIN, REDECODE_RATIO, redecode_note};
@@ -633,7 +630,10 @@ mod tests {
         // Twice each is quiet; once more over it, with enough decodes again, warns.
         assert_eq!(redecode_note(200 * REDECODE_RATIO, 200, 1 << 30), None);
         let w = redecode_note(200 * REDECODE_RATIO + 1, 200, 1 << 30).unwrap();
-        assert!(w.contains("decoded 200 images 401 times (2.0 each)"), "{w}");
+        assert!(
+            w.contains("decoded 200 images 401 times (2.00 each)"),
+            "{w}"
+        );
         assert!(w.contains("1.00 GiB") && w.contains("--max-memory"), "{w}");
         // Ten images decoded five times each: 40 decodes again, under the minimum of 64.
         assert_eq!(REDECODE_MIN, 64);
@@ -643,6 +643,10 @@ mod tests {
         assert!(redecode_note(9_000, 870, 300 << 20).is_some());
     }
 
+    /// Re-decodes after eviction count nothing twice: two images with transparent texels used only by
+    /// OPAQUE materials, fetched a, b, a through a cache that holds neither, decode three times and count
+    /// two images whose alpha was ignored (it counted every decode: hacienda's 3 images read 10 at a
+    /// 1 MiB cache).
     #[test]
     fn an_image_decoded_again_is_counted_once() {
         use crate::scene::synthetic::SceneBuilder;

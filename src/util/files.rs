@@ -306,9 +306,9 @@ pub fn process_may_run(pid: u32) -> bool {
 }
 
 /// The process id of a writer writing `target` now: a temp file of it ([`temp_prefix`], beside the
-/// target its output links name) whose lock another holder has (the writer holds it for its life) and
-/// whose process may still run. `None` where none is, and where locks are not supported (a dead
-/// writer's temp is then not taken for a live one).
+/// target its output links name) whose lock another holder has (the writer holds it for its life: a
+/// dead one's is let go). `None` where none is, and where locks are not supported (a dead writer's temp
+/// is then not taken for a live one).
 pub fn writer_of(target: &Path) -> Option<u32> {
     let target = follow_output_links(target).unwrap_or_else(|_| target.to_path_buf());
     let prefix = temp_prefix(&target);
@@ -321,9 +321,11 @@ pub fn writer_of(target: &Path) -> Option<u32> {
             .next()?
             .parse()
             .ok()?;
-        let held = File::open(entry.path())
+        // A held lock is a live holder, here or on another machine of a shared filesystem, whose
+        // processes this one cannot see (a merge on another node called a running shard missing).
+        let held = open_to_lock(&entry.path())
             .is_ok_and(|f| matches!(f.try_lock(), Err(std::fs::TryLockError::WouldBlock)));
-        (held && (pid == std::process::id() || process_may_run(pid))).then_some(pid)
+        held.then_some(pid)
     })
 }
 
@@ -496,7 +498,18 @@ pub fn remove_earlier_outputs(
 /// Whether the lock of the file at `path` is free (taken and let go here): its writer is gone. `false`
 /// where the file cannot be opened or the lock is held.
 pub fn lock_is_free(path: &Path) -> bool {
-    File::open(path).is_ok_and(|f| f.try_lock().is_ok())
+    open_to_lock(path).is_ok_and(|f| f.try_lock().is_ok())
+}
+
+/// `path` opened to ask for its lock: for writing where allowed (NFS emulates `flock` with POSIX locks,
+/// and an exclusive one needs a file open for writing: opened read-only, every lock there seemed held, so
+/// no stale temp or export lock was ever removed; review, session 39), else for reading. Never created.
+fn open_to_lock(path: &Path) -> std::io::Result<File> {
+    std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .or_else(|_| File::open(path))
 }
 
 /// Writes go to the temp file (so a `BufWriter<AtomicFile>` streams into it).

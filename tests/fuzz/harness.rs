@@ -96,9 +96,7 @@ pub fn corpus_root() -> PathBuf {
 }
 
 fn corpus_dir(target: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fuzz/corpus")
-        .join(target)
+    corpus_root().join(target)
 }
 
 fn failure_dir(target: &str) -> PathBuf {
