@@ -254,7 +254,12 @@ pub fn merge(
         // Only the report of this very plan: two plan runs for one OUT at once could leave one's file
         // and the other's report (fault hunt, session 39), as a shard's report is checked against it.
         let report = read_sidecar::<super::ShardPlanReport>(&path).filter(|r| {
-            (r.file_bytes, r.blocks) == (file.header.file_len, tables.blocks().len() as u64)
+            (r.key, r.file_bytes, r.blocks)
+                == (
+                    Some(file.header.key),
+                    file.header.file_len,
+                    tables.blocks().len() as u64,
+                )
         });
         let plan = MergedPlan {
             seconds: report.as_ref().and_then(super::ShardPlanReport::seconds),

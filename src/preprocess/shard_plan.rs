@@ -21,6 +21,10 @@ pub struct ShardPlanReport {
     #[serde(serialize_with = "crate::util::path_lossy")]
     pub path: PathBuf,
     pub file_bytes: u64,
+    /// The plan's key (its header's: scene input and the flags that shape the tables), so the merge
+    /// takes only this plan's report (`None` in a report of an older binary).
+    #[serde(default)]
+    pub key: Option<[u64; 2]>,
     /// Scene triangles planned, nodes and blocks of the forest.
     pub triangles: u64,
     pub nodes: u64,
@@ -160,6 +164,7 @@ pub fn plan_shards(
     let report = ShardPlanReport {
         path,
         file_bytes,
+        key: Some(key),
         triangles: manifest.triangles,
         nodes: super::plan_forest::forest_shape(&forest).0,
         blocks: forest.blocks.len() as u64,
