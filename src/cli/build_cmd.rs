@@ -394,7 +394,7 @@ fn over_budget(
     let plan = BASE_BYTES
         .saturating_add(load.bytes())
         .saturating_add(json_bytes.saturating_mul(JSON_BYTES_FACTOR));
-    let vertices = if extra_vertices > 0 {
+    let vertex_share = if extra_vertices > 0 {
         format!(
             ", ~{PLAN_BYTES_PER_EXTRA_VERTEX} bytes a vertex beyond one a triangle ({extra_vertices})"
         )
@@ -416,7 +416,7 @@ fn over_budget(
     };
     e.context(format!(
         "the budget is too small: {triangles} triangles need at least {} MiB for the plan alone \
-         ({} MiB of process base and ~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle{vertices}, all held at once{json}){pixels}, \
+         ({} MiB of process base and ~{PLAN_BYTES_PER_TRIANGLE} bytes a triangle{vertex_share}, all held at once{json}){pixels}, \
          over {source} of {} MiB: give a larger --max-memory",
         plan.div_ceil(1 << 20),
         BASE_BYTES >> 20,

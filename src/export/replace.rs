@@ -156,7 +156,7 @@ pub(super) fn remove_stale_partials(parent: &Path, name: &str) {
             ".locking-" => entry.path(),
             _ => lock_path(parent, name, token),
         };
-        let gone = pid == std::process::id() || !Path::new(&format!("/proc/{pid}")).exists();
+        let gone = pid == std::process::id() || !crate::util::process_may_run(pid);
         if gone && (!lock.exists() || crate::util::lock_is_free(&lock)) {
             if entry.path().is_dir() {
                 let _ = std::fs::remove_dir_all(entry.path());

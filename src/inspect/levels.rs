@@ -28,6 +28,7 @@ pub(super) fn level_stats(t: &crate::store::TreeView<'_>) -> Vec<LevelStats> {
     for n in t.nodes {
         let l = n.level as usize;
         while levels.len() <= l {
+            sources.push(Default::default());
             levels.push(LevelStats {
                 level: levels.len() as u8,
                 nodes: 0,
@@ -49,7 +50,6 @@ pub(super) fn level_stats(t: &crate::store::TreeView<'_>) -> Vec<LevelStats> {
             let pieces = first..first + n.index_count as usize / 3;
             // Validated at open: every index range lies in the tree's indices.
             if let Some(ids) = t.source_triangles.get(pieces) {
-                sources.resize_with(levels.len(), Default::default);
                 sources[l].extend(ids.iter().copied());
             }
         }

@@ -253,14 +253,8 @@ pub fn merge(
         let path = file.path().to_path_buf();
         // Only the report of this very plan: two plan runs for one OUT at once could leave one's file
         // and the other's report (fault hunt, session 39), as a shard's report is checked against it.
-        let report = read_sidecar::<super::ShardPlanReport>(&path).filter(|r| {
-            (r.key, r.file_bytes, r.blocks)
-                == (
-                    Some(file.header.key),
-                    file.header.file_len,
-                    tables.blocks().len() as u64,
-                )
-        });
+        let report = read_sidecar::<super::ShardPlanReport>(&path)
+            .filter(|r| r.key == Some(file.header.key));
         let plan = MergedPlan {
             seconds: report.as_ref().and_then(super::ShardPlanReport::seconds),
             peak_rss_bytes: report.as_ref().and_then(|r| r.stages.peak_rss_bytes),

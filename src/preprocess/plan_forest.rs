@@ -335,7 +335,7 @@ impl BlockBytes {
         for b in &forest.blocks {
             match b.kind {
                 crate::model::BlockKind::Atlas { .. } => out.atlases += b.bytes,
-                _ => out.originals += b.bytes,
+                crate::model::BlockKind::Originals { .. } => out.originals += b.bytes,
             }
         }
         out
